@@ -1,0 +1,126 @@
+"""Type stubs for the Springwrap kernel (the public Python API of the Rust kernel).
+
+Array contract (every function): positions are float32 ``(N, 3)``, triangles uint32
+``(M, 3)``, all C-contiguous. Anything else raises :class:`ArrayError` naming the
+argument, and what was expected and found; nothing is copied or reinterpreted silently.
+"""
+
+from typing import NamedTuple
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+
+# ---------------------------------------------------------------- exceptions
+class SpringwrapError(ValueError):
+    """Base class of every error the kernel raises."""
+
+class ArrayError(SpringwrapError):
+    """An input array has the wrong dtype, shape or memory layout."""
+
+class EmptyMeshError(SpringwrapError):
+    """The mesh has no vertices or no triangles."""
+
+class NonFiniteError(SpringwrapError):
+    """A coordinate (vertex, query point, ray) is NaN or infinite."""
+
+class IndexOutOfRangeError(SpringwrapError):
+    """A triangle refers to a vertex index >= the vertex count, or a face-point to a triangle that does not exist."""
+
+class DegenerateMeshError(SpringwrapError):
+    """Every triangle of the mesh has zero area: there is no surface to attach to."""
+
+class DegenerateTriangleError(SpringwrapError):
+    """A triangle has zero area (only raised when ``reject_degenerate=True``)."""
+
+class InvalidArgumentError(SpringwrapError):
+    """A scalar argument is out of its domain (negative distance, zero direction...)."""
+
+class InternalError(SpringwrapError):
+    """A bug in the kernel (a caught Rust panic). Please report it."""
+
+# ---------------------------------------------------------------- results
+class SurfaceHits(NamedTuple):
+    """Per-query results of a surface query (closest point, ray cast, nearest vertex).
+
+    ``triangles[i] == -1`` means query ``i`` found nothing (ray missed, or nothing within
+    ``max_distance``); its other fields are then ``0`` / ``nan`` and must be ignored.
+    """
+
+    triangles: npt.NDArray[np.int32]  # (K,)   triangle index, -1 for none
+    barycentrics: npt.NDArray[np.float32]  # (K, 3) weights of the triangle's 3 corners, sum 1
+    positions: npt.NDArray[np.float32]  # (K, 3) the surface point
+    distances: npt.NDArray[np.float32]  # (K,)   distance from the query to the surface point (ray: signed t)
+
+class VertexHits(NamedTuple):
+    """Per-query results of :meth:`TargetMesh.nearest_vertices`."""
+
+    vertices: npt.NDArray[np.int32]  # (K,) nearest target vertex, -1 for none
+    triangles: npt.NDArray[np.int32]  # (K,) a non-degenerate triangle using that vertex
+    barycentrics: npt.NDArray[np.float32]  # (K, 3) the corner of that triangle (one 1, two 0)
+    positions: npt.NDArray[np.float32]  # (K, 3) the vertex position
+    distances: npt.NDArray[np.float32]  # (K,)
+
+# ---------------------------------------------------------------- the mesh
+class TargetMesh:
+    """A triangle mesh prepared for queries: BVH over triangles, vertex tree, adjacency, normals.
+
+    Built once (the BVH build is parallel); every query is batched, runs on all cores and
+    releases the GIL. Degenerate (zero-area) triangles are kept so that triangle indices
+    stay those of the input, but they are never hit by rays and never chosen by
+    :meth:`nearest_vertices`; a mesh whose every triangle is degenerate is refused.
+    """
+
+    def __init__(
+        self,
+        vertices: npt.NDArray[np.float32],
+        triangles: npt.NDArray[np.uint32],
+        *,
+        reject_degenerate: bool = False,
+    ) -> None: ...
+    @property
+    def vertex_count(self) -> int: ...
+    @property
+    def triangle_count(self) -> int: ...
+    @property
+    def degenerate_triangle_count(self) -> int: ...
+    @property
+    def boundary_edge_count(self) -> int: ...
+    @property
+    def non_manifold_edge_count(self) -> int: ...
+    def bounding_box(self) -> tuple[tuple[float, float, float], tuple[float, float, float]]: ...
+    def vertices(self) -> npt.NDArray[np.float32]: ...
+    def triangles(self) -> npt.NDArray[np.uint32]: ...
+    def face_normals(self) -> npt.NDArray[np.float32]:
+        """(M, 3) unit normals; zero for degenerate triangles."""
+    def vertex_normals(self) -> npt.NDArray[np.float32]:
+        """(N, 3) angle-weighted unit normals; zero for vertices no triangle uses."""
+    def triangle_neighbors(self) -> npt.NDArray[np.int32]:
+        """(M, 3): entry ``[t, e]`` is the triangle across edge ``e`` of ``t`` (edge ``e`` runs from
+        corner ``e`` to corner ``(e + 1) % 3``), or -1 on a boundary or non-manifold edge."""
+    def boundary_edges(self) -> npt.NDArray[np.uint32]:
+        """(B, 2) rows of ``(triangle, edge)`` for every edge with one triangle (holes, open borders)."""
+    def closest_points(
+        self, points: npt.NDArray[np.float32], *, max_distance: float = ...
+    ) -> SurfaceHits:
+        """Exact closest point on the surface (the face tree) for every query point."""
+    def nearest_vertices(
+        self, points: npt.NDArray[np.float32], *, max_distance: float = ...
+    ) -> VertexHits:
+        """Nearest mesh vertex (the fast vertex tree), as a face-point at that vertex."""
+    def ray_cast(
+        self,
+        origins: npt.NDArray[np.float32],
+        directions: npt.NDArray[np.float32],
+        *,
+        max_distance: float = ...,
+        both_directions: bool = False,
+    ) -> SurfaceHits:
+        """First hit along each ray. ``directions`` need not be unit length but must not be zero.
+        With ``both_directions`` the ray is also cast backwards and the nearer hit wins
+        (``distances`` is then negative for hits behind the origin)."""
+    def face_point_positions(
+        self, triangles: npt.NDArray[np.uint32], barycentrics: npt.NDArray[np.float32]
+    ) -> npt.NDArray[np.float32]:
+        """Positions of face-points ``(triangle, barycentric)`` on this mesh."""
