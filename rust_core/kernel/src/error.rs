@@ -1,0 +1,138 @@
+//! The kernel's one error type.
+
+use std::fmt;
+
+/// Everything that can go wrong in the kernel. Each variant says when it occurs and what to do.
+///
+/// Inputs are checked once, at the boundary of each public function; once a [`crate::TargetMesh`]
+/// exists, queries on it cannot fail except through their own arguments.
+#[derive(Debug, Clone, PartialEq)]
+pub enum KernelError {
+    /// The mesh has no vertices or no triangles. Give a mesh with at least one triangle.
+    EmptyMesh {
+        /// Number of vertices given.
+        vertex_count: usize,
+        /// Number of triangles given.
+        triangle_count: usize,
+    },
+    /// A coordinate of an input is NaN or infinite. Fix or remove that element.
+    NonFinite {
+        /// Which input: `"vertex"`, `"point"`, `"ray origin"`, `"ray direction"`, `"barycentric"`.
+        what: &'static str,
+        /// Index of the offending element in its array.
+        index: usize,
+    },
+    /// A triangle refers to a vertex that does not exist.
+    VertexIndexOutOfRange {
+        /// The triangle.
+        triangle: usize,
+        /// Its corner (0, 1 or 2).
+        corner: usize,
+        /// The vertex index found there.
+        vertex: u32,
+        /// Number of vertices in the mesh.
+        vertex_count: usize,
+    },
+    /// A face-point refers to a triangle that does not exist (e.g. the target lost faces).
+    TriangleIndexOutOfRange {
+        /// Index of the face-point in its array.
+        index: usize,
+        /// The triangle it names.
+        triangle: u32,
+        /// Number of triangles in the mesh.
+        triangle_count: usize,
+    },
+    /// A triangle has zero area; only raised when degenerate triangles are rejected.
+    DegenerateTriangle {
+        /// The triangle.
+        triangle: usize,
+    },
+    /// Every triangle has zero area: there is no surface to attach points to.
+    DegenerateMesh {
+        /// Number of triangles, all degenerate.
+        triangle_count: usize,
+    },
+    /// A ray direction has zero length, so it points nowhere.
+    ZeroDirection {
+        /// Index of the ray.
+        index: usize,
+    },
+    /// Two arrays that must pair up element by element have different lengths.
+    LengthMismatch {
+        /// Which arrays.
+        what: &'static str,
+        /// Length of the first.
+        first: usize,
+        /// Length of the second.
+        second: usize,
+    },
+    /// A scalar argument is outside its domain.
+    InvalidArgument {
+        /// The argument's name.
+        name: &'static str,
+        /// Why it was refused.
+        reason: String,
+    },
+    /// The input is larger than the kernel's 32-bit indices can address.
+    TooLarge {
+        /// What is too large.
+        what: &'static str,
+        /// How many were given.
+        count: usize,
+        /// The largest supported count.
+        max: usize,
+    },
+}
+
+impl fmt::Display for KernelError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::EmptyMesh {
+                vertex_count,
+                triangle_count,
+            } => write!(
+                f,
+                "empty mesh: {vertex_count} vertices and {triangle_count} triangles (need at least one triangle)"
+            ),
+            Self::NonFinite { what, index } => {
+                write!(f, "{what} {index} has a NaN or infinite coordinate")
+            }
+            Self::VertexIndexOutOfRange {
+                triangle,
+                corner,
+                vertex,
+                vertex_count,
+            } => write!(
+                f,
+                "triangle {triangle} corner {corner} refers to vertex {vertex}, but the mesh has only {vertex_count} vertices"
+            ),
+            Self::TriangleIndexOutOfRange {
+                index,
+                triangle,
+                triangle_count,
+            } => write!(
+                f,
+                "face-point {index} refers to triangle {triangle}, but the mesh has only {triangle_count} triangles"
+            ),
+            Self::DegenerateTriangle { triangle } => {
+                write!(f, "triangle {triangle} is degenerate (zero area)")
+            }
+            Self::DegenerateMesh { triangle_count } => write!(
+                f,
+                "all {triangle_count} triangles are degenerate (zero area): there is no surface"
+            ),
+            Self::ZeroDirection { index } => write!(f, "ray {index} has a zero-length direction"),
+            Self::LengthMismatch {
+                what,
+                first,
+                second,
+            } => write!(f, "{what}: lengths differ ({first} and {second})"),
+            Self::InvalidArgument { name, reason } => write!(f, "invalid {name}: {reason}"),
+            Self::TooLarge { what, count, max } => {
+                write!(f, "too many {what}: {count} (at most {max} supported)")
+            }
+        }
+    }
+}
+
+impl std::error::Error for KernelError {}

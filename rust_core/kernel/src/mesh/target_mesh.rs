@@ -1,0 +1,360 @@
+//! The target mesh: validated geometry, topology, normals and the two search trees.
+
+use glam::{Vec3, Vec3A};
+use obvhs::{aabb::Aabb, bvh2::Bvh2};
+use rayon::prelude::*;
+
+use super::normals::{face_normals, vertex_normals};
+use super::topology::{NO_TRIANGLE, Topology, TriangleEdge, compute_topology};
+use crate::bvh::build_bvh;
+use crate::error::KernelError;
+use crate::face_point::{FacePoint, LayoutPoint};
+use crate::query::point_triangle::is_degenerate;
+
+/// Options for [`TargetMesh::new`].
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct TargetMeshOptions {
+    /// Refuse the mesh if any triangle is degenerate, instead of keeping it inert.
+    pub reject_degenerate: bool,
+}
+
+/// The largest vertex or triangle count: indices are `u32` and the Python side uses `-1` as "none".
+pub const MAX_ELEMENTS: usize = i32::MAX as usize;
+
+/// A triangle mesh prepared for retargeting queries.
+///
+/// Built once from vertices and triangles (validated: finite, in-range, not all degenerate); holds
+/// a BVH over the triangles (the exact "face tree"), a BVH over the vertices (the fast "vertex
+/// tree"), triangle adjacency across edges, boundary edges, and face and vertex normals.
+/// Degenerate triangles are kept so that indices stay those of the input, but rays never hit them
+/// and the vertex tree never lands on them.
+#[derive(Clone)]
+pub struct TargetMesh {
+    pub(crate) vertices: Vec<Vec3>,
+    pub(crate) triangles: Vec<[u32; 3]>,
+    pub(crate) degenerate: Vec<bool>,
+    pub(crate) degenerate_count: usize,
+    pub(crate) face_normals: Vec<Vec3>,
+    pub(crate) vertex_normals: Vec<Vec3>,
+    pub(crate) topology: Topology,
+    pub(crate) bounds: Aabb,
+    /// BVH over triangle boxes.
+    pub(crate) face_tree: Bvh2,
+    /// Triangle corners in `face_tree` slot order (slot = index into `primitive_indices`).
+    pub(crate) face_tree_corners: Vec<[Vec3A; 3]>,
+    /// Whether the triangle in each `face_tree` slot is degenerate.
+    pub(crate) face_tree_degenerate: Vec<bool>,
+    /// BVH over the vertices that some non-degenerate triangle uses.
+    pub(crate) vertex_tree: Bvh2,
+    /// Vertex positions in `vertex_tree` slot order.
+    pub(crate) vertex_tree_points: Vec<Vec3A>,
+    /// Vertex indices in `vertex_tree` slot order.
+    pub(crate) vertex_tree_vertices: Vec<u32>,
+    /// For each vertex, a non-degenerate triangle using it and the corner, or `NO_TRIANGLE`.
+    pub(crate) vertex_triangle: Vec<(u32, u8)>,
+}
+
+impl std::fmt::Debug for TargetMesh {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("TargetMesh")
+            .field("vertex_count", &self.vertices.len())
+            .field("triangle_count", &self.triangles.len())
+            .field("degenerate_triangle_count", &self.degenerate_count)
+            .field("boundary_edge_count", &self.topology.boundary_edges.len())
+            .finish_non_exhaustive()
+    }
+}
+
+impl TargetMesh {
+    /// Validates the input and builds everything (the two BVH builds run in parallel).
+    ///
+    /// # Errors
+    /// [`KernelError::EmptyMesh`], [`KernelError::TooLarge`], [`KernelError::NonFinite`] (a vertex),
+    /// [`KernelError::VertexIndexOutOfRange`], [`KernelError::DegenerateTriangle`] (only with
+    /// `reject_degenerate`), [`KernelError::DegenerateMesh`] (no triangle has an area).
+    pub fn new(
+        vertices: Vec<Vec3>,
+        triangles: Vec<[u32; 3]>,
+        options: TargetMeshOptions,
+    ) -> Result<Self, KernelError> {
+        if vertices.is_empty() || triangles.is_empty() {
+            return Err(KernelError::EmptyMesh {
+                vertex_count: vertices.len(),
+                triangle_count: triangles.len(),
+            });
+        }
+        for (what, count) in [("vertices", vertices.len()), ("triangles", triangles.len())] {
+            if count > MAX_ELEMENTS {
+                return Err(KernelError::TooLarge {
+                    what,
+                    count,
+                    max: MAX_ELEMENTS,
+                });
+            }
+        }
+        if let Some(index) = vertices.iter().position(|vertex| !vertex.is_finite()) {
+            return Err(KernelError::NonFinite {
+                what: "vertex",
+                index,
+            });
+        }
+        let vertex_count = vertices.len();
+        for (triangle, corners) in triangles.iter().enumerate() {
+            for (corner, &vertex) in corners.iter().enumerate() {
+                if vertex as usize >= vertex_count {
+                    return Err(KernelError::VertexIndexOutOfRange {
+                        triangle,
+                        corner,
+                        vertex,
+                        vertex_count,
+                    });
+                }
+            }
+        }
+        let degenerate: Vec<bool> = triangles
+            .par_iter()
+            .map(|corners| {
+                let [a, b, c] = corners.map(|index| Vec3A::from(vertices[index as usize]));
+                is_degenerate(a, b, c)
+            })
+            .collect();
+        let degenerate_count = degenerate.iter().filter(|&&flag| flag).count();
+        if degenerate_count == triangles.len() {
+            return Err(KernelError::DegenerateMesh {
+                triangle_count: triangles.len(),
+            });
+        }
+        if options.reject_degenerate {
+            if let Some(triangle) = degenerate.iter().position(|&flag| flag) {
+                return Err(KernelError::DegenerateTriangle { triangle });
+            }
+        }
+
+        let ((face_tree, face_tree_corners, face_tree_degenerate), (vertex_tree_parts, rest)) =
+            rayon::join(
+                || build_face_tree(&vertices, &triangles, &degenerate),
+                || {
+                    rayon::join(
+                        || build_vertex_tree(&vertices, &triangles, &degenerate),
+                        || {
+                            let topology = compute_topology(&triangles);
+                            let face_normals = face_normals(&vertices, &triangles, &degenerate);
+                            let vertex_normals =
+                                vertex_normals(&vertices, &triangles, &face_normals);
+                            (topology, face_normals, vertex_normals)
+                        },
+                    )
+                },
+            );
+        let (vertex_tree, vertex_tree_points, vertex_tree_vertices, vertex_triangle) =
+            vertex_tree_parts;
+        let (topology, face_normals, vertex_normals) = rest;
+        let bounds = face_tree.nodes[0].aabb;
+        Ok(Self {
+            vertices,
+            triangles,
+            degenerate,
+            degenerate_count,
+            face_normals,
+            vertex_normals,
+            topology,
+            bounds,
+            face_tree,
+            face_tree_corners,
+            face_tree_degenerate,
+            vertex_tree,
+            vertex_tree_points,
+            vertex_tree_vertices,
+            vertex_triangle,
+        })
+    }
+
+    /// The vertex positions.
+    #[must_use]
+    pub fn vertices(&self) -> &[Vec3] {
+        &self.vertices
+    }
+
+    /// The triangles, as vertex indices.
+    #[must_use]
+    pub fn triangles(&self) -> &[[u32; 3]] {
+        &self.triangles
+    }
+
+    /// Whether each triangle is degenerate (zero area; inert for rays and the vertex tree).
+    #[must_use]
+    pub fn degenerate_triangles(&self) -> &[bool] {
+        &self.degenerate
+    }
+
+    /// How many triangles are degenerate.
+    #[must_use]
+    pub fn degenerate_triangle_count(&self) -> usize {
+        self.degenerate_count
+    }
+
+    /// Unit normal per triangle (zero for degenerate ones).
+    #[must_use]
+    pub fn face_normals(&self) -> &[Vec3] {
+        &self.face_normals
+    }
+
+    /// Angle-weighted unit normal per vertex (zero where no triangle has an area).
+    #[must_use]
+    pub fn vertex_normals(&self) -> &[Vec3] {
+        &self.vertex_normals
+    }
+
+    /// `triangle_neighbors()[t][e]`: the triangle across edge `e` of `t` (from corner `e` to corner
+    /// `(e + 1) % 3`), or [`NO_TRIANGLE`] on boundary and non-manifold edges.
+    #[must_use]
+    pub fn triangle_neighbors(&self) -> &[[u32; 3]] {
+        &self.topology.neighbors
+    }
+
+    /// Edges with a single triangle: holes and open borders.
+    #[must_use]
+    pub fn boundary_edges(&self) -> &[TriangleEdge] {
+        &self.topology.boundary_edges
+    }
+
+    /// Number of edges shared by three or more triangles.
+    #[must_use]
+    pub fn non_manifold_edge_count(&self) -> usize {
+        self.topology.non_manifold_edge_count
+    }
+
+    /// Axis-aligned bounds of the mesh, `(min, max)`.
+    #[must_use]
+    pub fn bounding_box(&self) -> (Vec3, Vec3) {
+        (self.bounds.min.into(), self.bounds.max.into())
+    }
+
+    /// Position of a face-point.
+    ///
+    /// # Errors
+    /// [`KernelError::TriangleIndexOutOfRange`] (reported as face-point 0) if the triangle does not exist.
+    pub fn face_point_position(&self, face_point: FacePoint) -> Result<Vec3, KernelError> {
+        self.face_point_positions(&[face_point])
+            .map(|positions| positions[0])
+    }
+
+    /// Positions of many face-points, in parallel.
+    ///
+    /// # Errors
+    /// [`KernelError::TriangleIndexOutOfRange`] naming the first face-point whose triangle does
+    /// not exist; [`KernelError::NonFinite`] for a NaN or infinite barycentric coordinate.
+    pub fn face_point_positions(
+        &self,
+        face_points: &[FacePoint],
+    ) -> Result<Vec<Vec3>, KernelError> {
+        for (index, face_point) in face_points.iter().enumerate() {
+            if face_point.triangle as usize >= self.triangles.len() {
+                return Err(KernelError::TriangleIndexOutOfRange {
+                    index,
+                    triangle: face_point.triangle,
+                    triangle_count: self.triangles.len(),
+                });
+            }
+            if !face_point.barycentric.is_finite() {
+                return Err(KernelError::NonFinite {
+                    what: "barycentric",
+                    index,
+                });
+            }
+        }
+        Ok(face_points
+            .par_iter()
+            .with_min_len(1024)
+            .map(|face_point| self.interpolate(face_point.triangle, face_point.barycentric))
+            .collect())
+    }
+
+    /// Position of any layout point.
+    ///
+    /// # Errors
+    /// As [`TargetMesh::face_point_position`].
+    pub fn layout_point_position(&self, point: LayoutPoint) -> Result<Vec3, KernelError> {
+        match point {
+            LayoutPoint::Face(face_point) => self.face_point_position(face_point),
+            LayoutPoint::Space(position) => Ok(position),
+        }
+    }
+
+    /// Barycentric interpolation of a triangle's corners (index already checked).
+    #[inline]
+    pub(crate) fn interpolate(&self, triangle: u32, barycentric: Vec3) -> Vec3 {
+        let [a, b, c] =
+            self.triangles[triangle as usize].map(|index| self.vertices[index as usize]);
+        a * barycentric.x + b * barycentric.y + c * barycentric.z
+    }
+}
+
+/// The face tree and the triangle data laid out in its slot order.
+fn build_face_tree(
+    vertices: &[Vec3],
+    triangles: &[[u32; 3]],
+    degenerate: &[bool],
+) -> (Bvh2, Vec<[Vec3A; 3]>, Vec<bool>) {
+    let boxes: Vec<Aabb> = triangles
+        .par_iter()
+        .map(|corners| {
+            let [a, b, c] = corners.map(|index| Vec3A::from(vertices[index as usize]));
+            Aabb::new(a.min(b).min(c), a.max(b).max(c))
+        })
+        .collect();
+    let tree = build_bvh(&boxes);
+    let corners = tree
+        .primitive_indices
+        .par_iter()
+        .map(|&triangle| {
+            triangles[triangle as usize].map(|index| Vec3A::from(vertices[index as usize]))
+        })
+        .collect();
+    let slot_degenerate = tree
+        .primitive_indices
+        .iter()
+        .map(|&triangle| degenerate[triangle as usize])
+        .collect();
+    (tree, corners, slot_degenerate)
+}
+
+/// The vertex tree over vertices used by a non-degenerate triangle, and for every vertex one such
+/// triangle and corner (so that a vertex hit can become a face-point).
+#[allow(clippy::type_complexity)]
+fn build_vertex_tree(
+    vertices: &[Vec3],
+    triangles: &[[u32; 3]],
+    degenerate: &[bool],
+) -> (Bvh2, Vec<Vec3A>, Vec<u32>, Vec<(u32, u8)>) {
+    let mut vertex_triangle = vec![(NO_TRIANGLE, 0u8); vertices.len()];
+    for (triangle, corners) in triangles.iter().enumerate() {
+        if degenerate[triangle] {
+            continue;
+        }
+        for (corner, &vertex) in corners.iter().enumerate() {
+            let slot = &mut vertex_triangle[vertex as usize];
+            if slot.0 == NO_TRIANGLE {
+                *slot = (triangle as u32, corner as u8);
+            }
+        }
+    }
+    let used: Vec<u32> = (0..vertices.len() as u32)
+        .filter(|&vertex| vertex_triangle[vertex as usize].0 != NO_TRIANGLE)
+        .collect();
+    let boxes: Vec<Aabb> = used
+        .iter()
+        .map(|&vertex| Aabb::from_point(vertices[vertex as usize].into()))
+        .collect();
+    let tree = build_bvh(&boxes);
+    let slot_vertices: Vec<u32> = tree
+        .primitive_indices
+        .iter()
+        .map(|&primitive| used[primitive as usize])
+        .collect();
+    let slot_points = slot_vertices
+        .iter()
+        .map(|&vertex| Vec3A::from(vertices[vertex as usize]))
+        .collect();
+    (tree, slot_points, slot_vertices, vertex_triangle)
+}

@@ -1,0 +1,120 @@
+//! Generated test geometry, each generator saying what it builds.
+#![allow(dead_code)]
+
+use glam::Vec3;
+
+/// A small deterministic generator (SplitMix64): tests must not depend on a crate or on luck.
+pub struct Rng(u64);
+
+impl Rng {
+    pub fn new(seed: u64) -> Self {
+        Self(seed)
+    }
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+    /// Uniform in [0, 1).
+    pub fn unit(&mut self) -> f32 {
+        (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
+    }
+    /// Uniform in [low, high).
+    pub fn range(&mut self, low: f32, high: f32) -> f32 {
+        low + (high - low) * self.unit()
+    }
+    pub fn below(&mut self, count: usize) -> usize {
+        (self.next_u64() % count as u64) as usize
+    }
+    pub fn point_in_box(&mut self, half_size: f32) -> Vec3 {
+        Vec3::new(
+            self.range(-half_size, half_size),
+            self.range(-half_size, half_size),
+            self.range(-half_size, half_size),
+        )
+    }
+}
+
+/// A closed UV sphere of the given radius: `rings` latitude bands, `segments` longitudes.
+pub fn uv_sphere(radius: f32, rings: u32, segments: u32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+    let mut vertices = vec![Vec3::new(0.0, 0.0, radius)];
+    for ring in 1..rings {
+        let polar = std::f32::consts::PI * ring as f32 / rings as f32;
+        for segment in 0..segments {
+            let azimuth = std::f32::consts::TAU * segment as f32 / segments as f32;
+            vertices.push(
+                radius
+                    * Vec3::new(
+                        polar.sin() * azimuth.cos(),
+                        polar.sin() * azimuth.sin(),
+                        polar.cos(),
+                    ),
+            );
+        }
+    }
+    vertices.push(Vec3::new(0.0, 0.0, -radius));
+    let south = vertices.len() as u32 - 1;
+    let ring_start = |ring: u32| 1 + (ring - 1) * segments;
+    let mut triangles = Vec::new();
+    for segment in 0..segments {
+        let next = (segment + 1) % segments;
+        triangles.push([0, ring_start(1) + segment, ring_start(1) + next]);
+        triangles.push([
+            south,
+            ring_start(rings - 1) + next,
+            ring_start(rings - 1) + segment,
+        ]);
+    }
+    for ring in 1..rings - 1 {
+        for segment in 0..segments {
+            let next = (segment + 1) % segments;
+            let (a, b) = (ring_start(ring) + segment, ring_start(ring) + next);
+            let (c, d) = (ring_start(ring + 1) + segment, ring_start(ring + 1) + next);
+            triangles.push([a, c, d]);
+            triangles.push([a, d, b]);
+        }
+    }
+    (vertices, triangles)
+}
+
+/// A flat `size` x `size` grid of unit cells in the z = 0 plane, two triangles per cell.
+pub fn grid(size: u32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+    let row = size + 1;
+    let vertices = (0..row * row)
+        .map(|index| Vec3::new((index % row) as f32, (index / row) as f32, 0.0))
+        .collect();
+    let mut triangles = Vec::new();
+    for y in 0..size {
+        for x in 0..size {
+            let a = y * row + x;
+            triangles.push([a, a + 1, a + row + 1]);
+            triangles.push([a, a + row + 1, a + row]);
+        }
+    }
+    (vertices, triangles)
+}
+
+/// A random triangle soup in a box, where about one triangle in eight is degenerate on purpose:
+/// collinear corners, two equal corners, or a single point.
+pub fn random_soup(rng: &mut Rng, triangle_count: usize) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+    let mut vertices = Vec::new();
+    let mut triangles = Vec::new();
+    for _ in 0..triangle_count {
+        let a = rng.point_in_box(5.0);
+        let (b, c) = match rng.below(8) {
+            0 => {
+                let b = a + rng.point_in_box(1.0);
+                (b, a + (b - a) * rng.range(-0.5, 1.5))
+            }
+            1 => (a, a + rng.point_in_box(1.0)),
+            2 => (a, a),
+            _ => (a + rng.point_in_box(1.0), a + rng.point_in_box(1.0)),
+        };
+        let base = vertices.len() as u32;
+        vertices.extend([a, b, c]);
+        triangles.push([base, base + 1, base + 2]);
+    }
+    (vertices, triangles)
+}
