@@ -47,9 +47,7 @@ pub fn nearest_slot<F: FnMut(usize) -> f32>(
     stack: &mut NearestStack,
     mut distance_squared: F,
 ) -> Option<(usize, f32)> {
-    let Some(root) = bvh.nodes.first() else {
-        return None;
-    };
+    let root = bvh.nodes.first()?;
     let mut best_distance_squared = max_distance_squared;
     let mut best_slot = None;
     stack.clear();

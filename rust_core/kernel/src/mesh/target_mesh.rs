@@ -124,10 +124,10 @@ impl TargetMesh {
                 triangle_count: triangles.len(),
             });
         }
-        if options.reject_degenerate {
-            if let Some(triangle) = degenerate.iter().position(|&flag| flag) {
-                return Err(KernelError::DegenerateTriangle { triangle });
-            }
+        if options.reject_degenerate
+            && let Some(triangle) = degenerate.iter().position(|&flag| flag)
+        {
+            return Err(KernelError::DegenerateTriangle { triangle });
         }
 
         let ((face_tree, face_tree_corners, face_tree_degenerate), (vertex_tree_parts, rest)) =
