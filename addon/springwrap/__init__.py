@@ -1,0 +1,43 @@
+"""Springwrap: retarget a quad patch layout (and its curves) onto a target mesh.
+
+Each layout vertex is a face-point (on a target triangle) or a space-point (free in 3D). The
+operators (``operators``) detach, snap and project layout vertices; ``bridge`` is the one module
+that moves data between Blender and the Rust kernel (``springwrap_kernel``).
+"""
+
+bl_info = {
+    "name": "Springwrap",
+    "author": "Springwrap developers",
+    "version": (0, 1, 0),
+    "blender": (3, 4, 0),
+    "location": "View3D > Sidebar > Springwrap",
+    "description": "Retarget a patch layout onto a target mesh: detach, snap and project face-points",
+    "category": "Mesh",
+}
+
+import bpy
+
+from . import operators, properties, ui
+
+_modules = (properties, operators, ui)
+
+
+def register():
+    """Register the classes of every submodule and hang the settings on ``Object.springwrap``."""
+    for module in _modules:
+        for cls in module.classes:
+            bpy.utils.register_class(cls)
+    bpy.types.Object.springwrap = bpy.props.PointerProperty(type=properties.SpringwrapObjectSettings)
+
+
+def unregister():
+    """Undo :func:`register` in reverse order and drop the cached target meshes."""
+    del bpy.types.Object.springwrap
+    for module in reversed(_modules):
+        for cls in reversed(module.classes):
+            bpy.utils.unregister_class(cls)
+    import sys
+
+    bridge = sys.modules.get(f"{__name__}.bridge")
+    if bridge is not None:
+        bridge.clear_target_cache()

@@ -1,0 +1,231 @@
+"""Springwrap operators: detach, snap and project the active layout object onto its target.
+
+Each operator reads everything, computes the complete result (``operations``), and writes only
+when every step succeeded; any problem is reported as an error and the layout is left exactly as
+it was.
+"""
+
+import time
+
+import bpy
+
+from .properties import ORIENTATION_ITEMS, PROJECT_DIRECTION_ITEMS, SNAP_MODE_ITEMS
+
+
+def layout_problem(context, require_target=True):
+    """Why the operators cannot run on the active object, or None when they can."""
+    layout = context.active_object
+    if layout is None or layout.type != "MESH":
+        return "No active mesh object (the layout)"
+    target = layout.springwrap.target
+    if target is None:
+        return "No target set (Springwrap panel in the sidebar)" if require_target else None
+    if target == layout:
+        return "The target is the layout itself"
+    if target.type != "MESH":
+        return f"Target '{target.name}' is not a mesh"
+    return None
+
+
+class _LayoutOperator:
+    """Shared poll, run and report of the Springwrap operators."""
+
+    requires_target = True
+    moves_vertices = True
+
+    only_selected: bpy.props.BoolProperty(
+        name="Only Selected",
+        description="Act on the selected vertices only (face-points whose target face is gone are still resolved everywhere)",
+        default=False,
+    )
+
+    @classmethod
+    def poll(cls, context):
+        problem = layout_problem(context, cls.requires_target)
+        if problem is not None:
+            cls.poll_message_set(problem)
+            return False
+        return True
+
+    def execute(self, context):
+        problem = layout_problem(context, self.requires_target)
+        if problem is not None:
+            self.report({"ERROR"}, problem)
+            return {"CANCELLED"}
+        try:
+            from . import bridge, operations
+        except ImportError as error:
+            self.report({"ERROR"}, f"The Springwrap kernel is not available: {error}")
+            return {"CANCELLED"}
+        layout = context.active_object
+        if self.moves_vertices and bridge.has_shape_keys(layout):
+            self.report({"ERROR"}, f"Layout '{layout.name}' has shape keys; Springwrap cannot move its vertices")
+            return {"CANCELLED"}
+        start = time.perf_counter()
+        try:
+            with bridge.object_mode(layout):
+                settings = layout.springwrap
+                arrays = bridge.read_layout(layout)
+                target = None
+                if settings.target is not None:
+                    target = bridge.read_target(context.evaluated_depsgraph_get(), layout)
+                outcome = self.compute(context, bridge, operations, layout, arrays, target)
+                bridge.write_layout(layout, outcome.positions, outcome.state)
+                if target is not None:
+                    settings.target_signature = target.signature
+        except bridge.ERRORS as error:
+            self.report({"ERROR"}, str(error))
+            return {"CANCELLED"}
+        milliseconds = (time.perf_counter() - start) * 1000.0
+        self.report({"INFO"}, self.summary(outcome, milliseconds))
+        if outcome.topology_detached_count:
+            self.report(
+                {"WARNING"},
+                f"{outcome.topology_detached_count} face-points lost their target face and became space-points",
+            )
+        return {"FINISHED"}
+
+    def compute(self, context, bridge, operations, layout, arrays, target):
+        """The operation's :class:`operations.Outcome`; raises one of ``bridge.ERRORS`` on bad input."""
+        raise NotImplementedError
+
+    def summary(self, outcome, milliseconds):
+        """The report of a finished operation."""
+        raise NotImplementedError
+
+
+class SPRINGWRAP_OT_detach(_LayoutOperator, bpy.types.Operator):
+    """Detach vertices from the target: they become space-points and keep their positions"""
+
+    bl_idname = "springwrap.detach"
+    bl_label = "Detach"
+    bl_options = {"REGISTER", "UNDO"}
+
+    requires_target = False
+    moves_vertices = False
+
+    def compute(self, context, bridge, operations, layout, arrays, target):
+        return operations.detach(arrays, target, layout.springwrap.target_signature, self.only_selected)
+
+    def summary(self, outcome, milliseconds):
+        return f"Detached {outcome.changed_count} vertices in {milliseconds:.1f} ms"
+
+
+class SPRINGWRAP_OT_snap(_LayoutOperator, bpy.types.Operator):
+    """Snap vertices onto the target (closest surface point or nearest vertex); they become face-points"""
+
+    bl_idname = "springwrap.snap"
+    bl_label = "Snap"
+    bl_options = {"REGISTER", "UNDO"}
+
+    mode: bpy.props.EnumProperty(name="Mode", items=SNAP_MODE_ITEMS, default="SURFACE")
+    max_distance: bpy.props.FloatProperty(
+        name="Max Distance",
+        description="Vertices farther than this from the target are left untouched (0 = unlimited)",
+        default=0.0,
+        min=0.0,
+        subtype="DISTANCE",
+        unit="LENGTH",
+    )
+
+    def compute(self, context, bridge, operations, layout, arrays, target):
+        return operations.snap(
+            arrays, target, layout.springwrap.target_signature, self.only_selected, self.mode, self.max_distance
+        )
+
+    def summary(self, outcome, milliseconds):
+        text = (
+            f"Snapped {outcome.changed_count} vertices ({self.mode}), "
+            f"max distance {outcome.moved_distance:.4g} in {milliseconds:.1f} ms"
+        )
+        if outcome.missed_count:
+            text += f"; {outcome.missed_count} beyond max distance left untouched"
+        return text
+
+
+class SPRINGWRAP_OT_project(_LayoutOperator, bpy.types.Operator):
+    """Project vertices onto the target along a direction (ray cast); hits become face-points"""
+
+    bl_idname = "springwrap.project"
+    bl_label = "Project"
+    bl_options = {"REGISTER", "UNDO"}
+
+    direction: bpy.props.EnumProperty(name="Direction", items=PROJECT_DIRECTION_ITEMS, default="NORMAL")
+    orientation: bpy.props.EnumProperty(
+        name="Orientation",
+        description="Space of the axis directions (View and Normal ignore it)",
+        items=ORIENTATION_ITEMS,
+        default="GLOBAL",
+    )
+    both_directions: bpy.props.BoolProperty(
+        name="Both Directions",
+        description="Also cast each ray backwards and keep the nearer hit",
+        default=True,
+    )
+    max_distance: bpy.props.FloatProperty(
+        name="Max Distance",
+        description="Hits farther than this along the ray are ignored (0 = unlimited)",
+        default=0.0,
+        min=0.0,
+        subtype="DISTANCE",
+        unit="LENGTH",
+    )
+
+    def compute(self, context, bridge, operations, layout, arrays, target):
+        directions = self.world_directions(context, bridge, layout)
+        return operations.project(
+            arrays,
+            target,
+            layout.springwrap.target_signature,
+            self.only_selected,
+            directions,
+            self.both_directions,
+            self.max_distance,
+        )
+
+    def world_directions(self, context, bridge, layout):
+        """One world-space direction, or (N, 3) per-vertex directions for NORMAL."""
+        import numpy as np
+
+        from . import layout_state
+
+        if self.direction == "NORMAL":
+            return bridge.read_world_normals(layout)
+        if self.direction == "VIEW":
+            region_3d = _view_region(context)
+            if region_3d is None:
+                raise layout_state.LayoutError("Project along View needs a 3D view (none in this context)")
+            rotation = bridge.matrix_array(region_3d.view_rotation.to_matrix().to_4x4())
+            return layout_state.transform_directions(rotation, np.array([0.0, 0.0, -1.0]))[0]
+        axis = layout_state.axis_direction(self.direction)
+        if self.orientation == "LOCAL":
+            axis = layout_state.transform_directions(bridge.matrix_array(layout.matrix_world), axis)[0]
+            if not np.any(axis):
+                raise layout_state.LayoutError(f"Layout '{layout.name}' has zero scale along {self.direction}")
+        return axis
+
+    def summary(self, outcome, milliseconds):
+        label = self.direction if self.direction in ("VIEW", "NORMAL") else f"{self.direction} {self.orientation}"
+        text = (
+            f"Projected {outcome.changed_count} vertices ({label}), "
+            f"max distance {outcome.moved_distance:.4g} in {milliseconds:.1f} ms"
+        )
+        if outcome.missed_count:
+            text += f"; {outcome.missed_count} missed the target and were left untouched"
+        if outcome.skipped_count:
+            text += f"; {outcome.skipped_count} on no face (no normal) skipped"
+        return text
+
+
+def _view_region(context):
+    """The 3D view's region data: from the region itself, or the view of the sidebar's area."""
+    region_3d = getattr(context, "region_data", None)
+    if isinstance(region_3d, bpy.types.RegionView3D):
+        return region_3d
+    space = getattr(context, "space_data", None)
+    if space is not None and space.type == "VIEW_3D":
+        return space.region_3d
+    return None
+
+
+classes = (SPRINGWRAP_OT_detach, SPRINGWRAP_OT_snap, SPRINGWRAP_OT_project)
