@@ -1,0 +1,499 @@
+//! PyO3 binding of the Springwrap kernel: the only crate that knows Python.
+//!
+//! Thin by design: check and copy the numpy inputs into owned Rust data, run the kernel with the
+//! GIL released (`py.detach`) and any panic caught, and wrap the results as numpy arrays. The
+//! pure-Python package `springwrap_kernel` re-exports this module and adds named results.
+
+use std::panic::{AssertUnwindSafe, catch_unwind};
+
+use glam::Vec3;
+use numpy::{
+    Element, PyArray1, PyArray2, PyArrayDescrMethods, PyArrayMethods, PyUntypedArray,
+    PyUntypedArrayMethods,
+};
+use pyo3::create_exception;
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use springwrap_kernel::{
+    FacePoint, KernelError, NO_TRIANGLE, SurfaceHit, TargetMesh, TargetMeshOptions, VertexHit,
+};
+
+create_exception!(
+    springwrap_kernel,
+    SpringwrapError,
+    PyValueError,
+    "Base class of every error the Springwrap kernel raises."
+);
+create_exception!(
+    springwrap_kernel,
+    ArrayError,
+    SpringwrapError,
+    "An input array has the wrong dtype, shape or memory layout."
+);
+create_exception!(
+    springwrap_kernel,
+    EmptyMeshError,
+    SpringwrapError,
+    "The mesh has no vertices or no triangles."
+);
+create_exception!(
+    springwrap_kernel,
+    NonFiniteError,
+    SpringwrapError,
+    "A coordinate is NaN or infinite."
+);
+create_exception!(
+    springwrap_kernel,
+    IndexOutOfRangeError,
+    SpringwrapError,
+    "An index refers to a vertex or triangle that does not exist."
+);
+create_exception!(
+    springwrap_kernel,
+    DegenerateMeshError,
+    SpringwrapError,
+    "Every triangle has zero area: there is no surface."
+);
+create_exception!(
+    springwrap_kernel,
+    DegenerateTriangleError,
+    SpringwrapError,
+    "A triangle has zero area (raised only with reject_degenerate=True)."
+);
+create_exception!(
+    springwrap_kernel,
+    InvalidArgumentError,
+    SpringwrapError,
+    "A scalar argument is out of its domain."
+);
+create_exception!(
+    springwrap_kernel,
+    InternalError,
+    SpringwrapError,
+    "A bug in the kernel (a caught Rust panic). Please report it."
+);
+
+/// The one place where kernel errors become Python exceptions.
+fn to_python_error(error: &KernelError) -> PyErr {
+    let message = error.to_string();
+    match error {
+        KernelError::EmptyMesh { .. } => EmptyMeshError::new_err(message),
+        KernelError::NonFinite { .. } => NonFiniteError::new_err(message),
+        KernelError::VertexIndexOutOfRange { .. } | KernelError::TriangleIndexOutOfRange { .. } => {
+            IndexOutOfRangeError::new_err(message)
+        }
+        KernelError::DegenerateMesh { .. } => DegenerateMeshError::new_err(message),
+        KernelError::DegenerateTriangle { .. } => DegenerateTriangleError::new_err(message),
+        KernelError::ZeroDirection { .. }
+        | KernelError::LengthMismatch { .. }
+        | KernelError::InvalidArgument { .. }
+        | KernelError::TooLarge { .. } => InvalidArgumentError::new_err(message),
+    }
+}
+
+/// Runs kernel work without the GIL, turning kernel errors and panics into Python exceptions.
+fn run_kernel<T: Send>(
+    py: Python<'_>,
+    work: impl FnOnce() -> Result<T, KernelError> + Send,
+) -> PyResult<T> {
+    let outcome = py.detach(|| catch_unwind(AssertUnwindSafe(work)));
+    match outcome {
+        Ok(Ok(value)) => Ok(value),
+        Ok(Err(error)) => Err(to_python_error(&error)),
+        Err(panic) => {
+            let reason = panic
+                .downcast_ref::<&str>()
+                .map(ToString::to_string)
+                .or_else(|| panic.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "unknown panic".to_owned());
+            Err(InternalError::new_err(format!(
+                "internal error in the Springwrap kernel: {reason}"
+            )))
+        }
+    }
+}
+
+/// Checks that `array` is a C-contiguous numpy array of `T` with `columns` columns (or 1-D when
+/// `columns` is `None`) and copies it out. Says exactly what was wrong otherwise.
+fn read_array<T: Element + Copy>(
+    name: &str,
+    array: &Bound<'_, PyAny>,
+    columns: Option<usize>,
+) -> PyResult<Vec<T>> {
+    let py = array.py();
+    let expected_dtype = numpy::dtype::<T>(py);
+    let expected_shape = match columns {
+        Some(columns) => format!("(N, {columns})"),
+        None => "(N,)".to_owned(),
+    };
+    let expectation = format!(
+        "{name} must be a C-contiguous numpy array of dtype {expected_dtype} and shape {expected_shape}"
+    );
+    let Ok(untyped) = array.cast::<PyUntypedArray>() else {
+        let type_name = array.get_type().name()?;
+        return Err(ArrayError::new_err(format!(
+            "{expectation}, got a {type_name}"
+        )));
+    };
+    let dtype = untyped.dtype();
+    if !dtype.is_equiv_to(&expected_dtype) {
+        return Err(ArrayError::new_err(format!(
+            "{expectation}, got dtype {dtype} (convert with .astype(numpy.{expected_dtype}))"
+        )));
+    }
+    let shape = untyped.shape();
+    let shape_ok = match columns {
+        Some(columns) => shape.len() == 2 && shape[1] == columns,
+        None => shape.len() == 1,
+    };
+    if !shape_ok {
+        return Err(ArrayError::new_err(format!(
+            "{expectation}, got shape {shape:?}"
+        )));
+    }
+    if !untyped.is_c_contiguous() {
+        return Err(ArrayError::new_err(format!(
+            "{expectation}, got a non-contiguous array (use numpy.ascontiguousarray)"
+        )));
+    }
+    let values: Vec<T> = if columns.is_some() {
+        let typed = untyped.cast::<PyArray2<T>>()?.readonly();
+        typed.as_slice()?.to_vec()
+    } else {
+        let typed = untyped.cast::<PyArray1<T>>()?.readonly();
+        typed.as_slice()?.to_vec()
+    };
+    Ok(values)
+}
+
+fn read_positions(name: &str, array: &Bound<'_, PyAny>) -> PyResult<Vec<Vec3>> {
+    let flat = read_array::<f32>(name, array, Some(3))?;
+    Ok(flat
+        .chunks_exact(3)
+        .map(|row| Vec3::new(row[0], row[1], row[2]))
+        .collect())
+}
+
+fn rows_array<'py, T: Element>(
+    py: Python<'py>,
+    flat: Vec<T>,
+    columns: usize,
+) -> PyResult<Bound<'py, PyArray2<T>>> {
+    let rows = flat.len() / columns;
+    PyArray1::from_vec(py, flat).reshape([rows, columns])
+}
+
+type SurfaceArrays<'py> = (
+    Bound<'py, PyArray1<i32>>,
+    Bound<'py, PyArray2<f32>>,
+    Bound<'py, PyArray2<f32>>,
+    Bound<'py, PyArray1<f32>>,
+);
+
+fn surface_arrays<'py>(
+    py: Python<'py>,
+    hits: &[Option<SurfaceHit>],
+) -> PyResult<SurfaceArrays<'py>> {
+    let mut triangles = Vec::with_capacity(hits.len());
+    let mut barycentrics = Vec::with_capacity(hits.len() * 3);
+    let mut positions = Vec::with_capacity(hits.len() * 3);
+    let mut distances = Vec::with_capacity(hits.len());
+    for hit in hits {
+        match hit {
+            Some(hit) => {
+                triangles.push(hit.face_point.triangle as i32);
+                barycentrics.extend(hit.face_point.barycentric.to_array());
+                positions.extend(hit.position.to_array());
+                distances.push(hit.distance);
+            }
+            None => {
+                triangles.push(-1);
+                barycentrics.extend([0.0; 3]);
+                positions.extend([f32::NAN; 3]);
+                distances.push(f32::NAN);
+            }
+        }
+    }
+    Ok((
+        PyArray1::from_vec(py, triangles),
+        rows_array(py, barycentrics, 3)?,
+        rows_array(py, positions, 3)?,
+        PyArray1::from_vec(py, distances),
+    ))
+}
+
+type VertexArrays<'py> = (
+    Bound<'py, PyArray1<i32>>,
+    Bound<'py, PyArray1<i32>>,
+    Bound<'py, PyArray2<f32>>,
+    Bound<'py, PyArray2<f32>>,
+    Bound<'py, PyArray1<f32>>,
+);
+
+fn vertex_arrays<'py>(py: Python<'py>, hits: &[Option<VertexHit>]) -> PyResult<VertexArrays<'py>> {
+    let vertices = hits
+        .iter()
+        .map(|hit| hit.map_or(-1, |hit| hit.vertex as i32))
+        .collect();
+    let surface: Vec<Option<SurfaceHit>> = hits
+        .iter()
+        .map(|hit| {
+            hit.map(|hit| SurfaceHit {
+                face_point: hit.face_point,
+                position: hit.position,
+                distance: hit.distance,
+            })
+        })
+        .collect();
+    let (triangles, barycentrics, positions, distances) = surface_arrays(py, &surface)?;
+    Ok((
+        PyArray1::from_vec(py, vertices),
+        triangles,
+        barycentrics,
+        positions,
+        distances,
+    ))
+}
+
+/// A triangle mesh prepared for queries (BVH over triangles, vertex tree, adjacency, normals).
+#[pyclass(name = "TargetMesh", module = "springwrap_kernel", frozen, subclass)]
+struct PyTargetMesh {
+    mesh: TargetMesh,
+}
+
+#[pymethods]
+impl PyTargetMesh {
+    #[new]
+    #[pyo3(signature = (vertices, triangles, *, reject_degenerate = false))]
+    fn new(
+        py: Python<'_>,
+        vertices: &Bound<'_, PyAny>,
+        triangles: &Bound<'_, PyAny>,
+        reject_degenerate: bool,
+    ) -> PyResult<Self> {
+        let vertices = read_positions("vertices", vertices)?;
+        let flat_triangles = read_array::<u32>("triangles", triangles, Some(3))?;
+        let triangles = flat_triangles
+            .chunks_exact(3)
+            .map(|row| [row[0], row[1], row[2]])
+            .collect();
+        let options = TargetMeshOptions { reject_degenerate };
+        let mesh = run_kernel(py, || TargetMesh::new(vertices, triangles, options))?;
+        Ok(Self { mesh })
+    }
+
+    /// Number of vertices.
+    #[getter]
+    fn vertex_count(&self) -> usize {
+        self.mesh.vertices().len()
+    }
+
+    /// Number of triangles.
+    #[getter]
+    fn triangle_count(&self) -> usize {
+        self.mesh.triangles().len()
+    }
+
+    /// Number of zero-area triangles (kept, but inert).
+    #[getter]
+    fn degenerate_triangle_count(&self) -> usize {
+        self.mesh.degenerate_triangle_count()
+    }
+
+    /// Number of edges with a single triangle (holes and open borders).
+    #[getter]
+    fn boundary_edge_count(&self) -> usize {
+        self.mesh.boundary_edges().len()
+    }
+
+    /// Number of edges shared by three or more triangles.
+    #[getter]
+    fn non_manifold_edge_count(&self) -> usize {
+        self.mesh.non_manifold_edge_count()
+    }
+
+    /// `((min_x, min_y, min_z), (max_x, max_y, max_z))`.
+    fn bounding_box(&self) -> ((f32, f32, f32), (f32, f32, f32)) {
+        let (min, max) = self.mesh.bounding_box();
+        ((min.x, min.y, min.z), (max.x, max.y, max.z))
+    }
+
+    /// (N, 3) float32 vertex positions.
+    fn vertices<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        let flat = self
+            .mesh
+            .vertices()
+            .iter()
+            .flat_map(|v| v.to_array())
+            .collect();
+        rows_array(py, flat, 3)
+    }
+
+    /// (M, 3) uint32 triangles.
+    fn triangles<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<u32>>> {
+        let flat = self.mesh.triangles().iter().flatten().copied().collect();
+        rows_array(py, flat, 3)
+    }
+
+    /// (M, 3) float32 unit face normals, zero for degenerate triangles.
+    fn face_normals<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        let flat = self
+            .mesh
+            .face_normals()
+            .iter()
+            .flat_map(|v| v.to_array())
+            .collect();
+        rows_array(py, flat, 3)
+    }
+
+    /// (N, 3) float32 angle-weighted unit vertex normals.
+    fn vertex_normals<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        let flat = self
+            .mesh
+            .vertex_normals()
+            .iter()
+            .flat_map(|v| v.to_array())
+            .collect();
+        rows_array(py, flat, 3)
+    }
+
+    /// (M, 3) int32: the triangle across each edge, -1 on boundary and non-manifold edges.
+    fn triangle_neighbors<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<i32>>> {
+        let flat = self
+            .mesh
+            .triangle_neighbors()
+            .iter()
+            .flatten()
+            .map(|&neighbor| {
+                if neighbor == NO_TRIANGLE {
+                    -1
+                } else {
+                    neighbor as i32
+                }
+            })
+            .collect();
+        rows_array(py, flat, 3)
+    }
+
+    /// (B, 2) uint32 rows of (triangle, edge) for every boundary edge.
+    fn boundary_edges<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<u32>>> {
+        let flat = self
+            .mesh
+            .boundary_edges()
+            .iter()
+            .flat_map(|edge| [edge.triangle, u32::from(edge.edge)])
+            .collect();
+        rows_array(py, flat, 2)
+    }
+
+    /// Exact closest surface point of each query: (triangles, barycentrics, positions, distances).
+    #[pyo3(signature = (points, *, max_distance = f32::INFINITY))]
+    fn closest_points<'py>(
+        &self,
+        py: Python<'py>,
+        points: &Bound<'py, PyAny>,
+        max_distance: f32,
+    ) -> PyResult<SurfaceArrays<'py>> {
+        let points = read_positions("points", points)?;
+        let hits = run_kernel(py, || self.mesh.closest_points(&points, max_distance))?;
+        surface_arrays(py, &hits)
+    }
+
+    /// Nearest vertex of each query: (vertices, triangles, barycentrics, positions, distances).
+    #[pyo3(signature = (points, *, max_distance = f32::INFINITY))]
+    fn nearest_vertices<'py>(
+        &self,
+        py: Python<'py>,
+        points: &Bound<'py, PyAny>,
+        max_distance: f32,
+    ) -> PyResult<VertexArrays<'py>> {
+        let points = read_positions("points", points)?;
+        let hits = run_kernel(py, || self.mesh.nearest_vertices(&points, max_distance))?;
+        vertex_arrays(py, &hits)
+    }
+
+    /// First hit along each ray: (triangles, barycentrics, positions, signed distances).
+    #[pyo3(signature = (origins, directions, *, max_distance = f32::INFINITY, both_directions = false))]
+    fn ray_cast<'py>(
+        &self,
+        py: Python<'py>,
+        origins: &Bound<'py, PyAny>,
+        directions: &Bound<'py, PyAny>,
+        max_distance: f32,
+        both_directions: bool,
+    ) -> PyResult<SurfaceArrays<'py>> {
+        let origins = read_positions("origins", origins)?;
+        let directions = read_positions("directions", directions)?;
+        let hits = run_kernel(py, || {
+            self.mesh
+                .ray_casts(&origins, &directions, max_distance, both_directions)
+        })?;
+        surface_arrays(py, &hits)
+    }
+
+    /// (K, 3) float32 positions of face-points given as triangles (K,) uint32 and barycentrics (K, 3).
+    fn face_point_positions<'py>(
+        &self,
+        py: Python<'py>,
+        triangles: &Bound<'py, PyAny>,
+        barycentrics: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        let triangles = read_array::<u32>("triangles", triangles, None)?;
+        let barycentrics = read_positions("barycentrics", barycentrics)?;
+        if triangles.len() != barycentrics.len() {
+            return Err(to_python_error(&KernelError::LengthMismatch {
+                what: "triangles and barycentrics",
+                first: triangles.len(),
+                second: barycentrics.len(),
+            }));
+        }
+        let face_points: Vec<FacePoint> = triangles
+            .iter()
+            .zip(&barycentrics)
+            .map(|(&triangle, &barycentric)| FacePoint {
+                triangle,
+                barycentric,
+            })
+            .collect();
+        let positions = run_kernel(py, || self.mesh.face_point_positions(&face_points))?;
+        let flat = positions.iter().flat_map(|p| p.to_array()).collect();
+        rows_array(py, flat, 3)
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "TargetMesh({} vertices, {} triangles, {} degenerate, {} boundary edges)",
+            self.mesh.vertices().len(),
+            self.mesh.triangles().len(),
+            self.mesh.degenerate_triangle_count(),
+            self.mesh.boundary_edges().len()
+        )
+    }
+}
+
+/// The native part of `springwrap_kernel`.
+#[pymodule(gil_used = false)]
+fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    let py = m.py();
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add_class::<PyTargetMesh>()?;
+    m.add("SpringwrapError", py.get_type::<SpringwrapError>())?;
+    m.add("ArrayError", py.get_type::<ArrayError>())?;
+    m.add("EmptyMeshError", py.get_type::<EmptyMeshError>())?;
+    m.add("NonFiniteError", py.get_type::<NonFiniteError>())?;
+    m.add(
+        "IndexOutOfRangeError",
+        py.get_type::<IndexOutOfRangeError>(),
+    )?;
+    m.add("DegenerateMeshError", py.get_type::<DegenerateMeshError>())?;
+    m.add(
+        "DegenerateTriangleError",
+        py.get_type::<DegenerateTriangleError>(),
+    )?;
+    m.add(
+        "InvalidArgumentError",
+        py.get_type::<InvalidArgumentError>(),
+    )?;
+    m.add("InternalError", py.get_type::<InternalError>())?;
+    Ok(())
+}
