@@ -1,0 +1,118 @@
+"""The headless scripts run end to end.
+
+The demo writes a .blend holding a retargeted layout; the benchmark prints its table and JSON.
+
+Each script runs in its own process with this interpreter (the venv's, with the PyPI ``bpy``
+module), so nothing here touches the ``bpy`` state of other tests.
+"""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPOSITORY_ROOT = Path(__file__).resolve().parent.parent
+DEMO = REPOSITORY_ROOT / "blender_scripts" / "demo.py"
+BENCHMARK = REPOSITORY_ROOT / "benchmarks" / "snap_throughput.py"
+TIMEOUT_SECONDS = 120
+METHODS = ("kernel closest_points", "kernel nearest_vertices", "Shrinkwrap NEAREST_SURFACEPOINT",
+           "mathutils BVHTree.find_nearest")
+
+# Run in a fresh process on the saved file: prints what the layout holds, as JSON.
+INSPECT_BLEND = """
+import json, sys
+import bpy
+import addon_utils
+import numpy as np
+addon_utils.enable("springwrap", default_set=True, handle_error=None)  # registers Object.springwrap
+bpy.ops.wm.open_mainfile(filepath=sys.argv[1])
+layout = bpy.data.objects["Layout"]
+mesh = layout.data
+found = {"target": layout.springwrap.target.name if layout.springwrap.target else None,
+         "vertex_count": len(mesh.vertices), "attributes": {}}
+for name in ("springwrap_state", "springwrap_face", "springwrap_bary"):
+    attribute = mesh.attributes.get(name)
+    if attribute is None:
+        continue
+    vector = attribute.data_type == "FLOAT_VECTOR"
+    values = np.empty(len(mesh.vertices) * (3 if vector else 1), dtype=np.float32 if vector else np.int32)
+    attribute.data.foreach_get("vector" if vector else "value", values)
+    found["attributes"][name] = {"domain": attribute.domain, "data_type": attribute.data_type,
+                                 "values": values.reshape(len(mesh.vertices), -1).tolist()}
+print("INSPECT" + json.dumps(found))
+"""
+
+
+def run_script(*arguments: str) -> subprocess.CompletedProcess:
+    """Run ``sys.executable *arguments`` from the repository root, capturing its output."""
+    return subprocess.run(
+        [sys.executable, *arguments], cwd=REPOSITORY_ROOT, capture_output=True, text=True, timeout=TIMEOUT_SECONDS
+    )
+
+
+@pytest.fixture(scope="module")
+def demo_blend(tmp_path_factory) -> tuple[Path, subprocess.CompletedProcess]:
+    """The demo run once, writing into a temporary folder."""
+    output = tmp_path_factory.mktemp("demo") / "nested" / "demo.blend"
+    return output, run_script(str(DEMO), "--output", str(output))
+
+
+def test_demo_exits_zero_and_prints_each_step(demo_blend):
+    output, process = demo_blend
+    assert process.returncode == 0, process.stdout[-2000:] + process.stderr[-3000:]
+    for step in ("detach", "project (NORMAL, both)", "snap (SURFACE)"):
+        assert step in process.stdout
+    assert str(output) in process.stdout
+
+
+def test_demo_saves_layout_with_face_point_attributes(demo_blend):
+    output, process = demo_blend
+    assert process.returncode == 0, process.stderr[-3000:]
+    assert output.is_file()
+    inspected = run_script("-c", INSPECT_BLEND, str(output))
+    assert inspected.returncode == 0, inspected.stderr[-3000:]
+    found = json.loads(inspected.stdout.split("INSPECT", 1)[1])
+    assert found["target"] == "Target"
+    vertex_count = found["vertex_count"]
+    assert vertex_count == 507  # Suzanne's own vertices: the layout is her quad template
+    attributes = found["attributes"]
+    assert {name: (attribute["domain"], attribute["data_type"]) for name, attribute in attributes.items()} == {
+        "springwrap_state": ("POINT", "INT"),
+        "springwrap_face": ("POINT", "INT"),
+        "springwrap_bary": ("POINT", "FLOAT_VECTOR"),
+    }
+    states = [row[0] for row in attributes["springwrap_state"]["values"]]
+    assert states == [1] * vertex_count  # the demo ends with snap (SURFACE): every vertex is a face-point
+    assert all(row[0] >= 0 for row in attributes["springwrap_face"]["values"])
+    for weights in attributes["springwrap_bary"]["values"]:
+        assert sum(weights) == pytest.approx(1.0, abs=1e-4)
+        assert min(weights) >= -1e-4
+
+
+def test_demo_rejects_unknown_arguments():
+    process = run_script(str(DEMO), "--no-such-option")
+    assert process.returncode != 0
+
+
+def test_benchmark_tiny_run_prints_table_and_json(tmp_path):
+    report_path = tmp_path / "bench.json"
+    process = run_script(str(BENCHMARK), "--triangles", "20000", "--points", "20000", "--mathutils-points", "5000",
+                         "--repeat", "1", "--json", str(report_path))
+    assert process.returncode == 0, process.stdout[-3000:] + process.stderr[-3000:]
+    table_rows = {tuple(line.split()[:3]) for line in process.stdout.splitlines()}
+    for method in METHODS:
+        for order in ("coherent", "random"):
+            assert (*method.split(), order) in table_rows, (method, order)
+    assert "extrapolated from 5,000" in process.stdout
+    assert "MISMATCH" not in process.stdout
+    report = json.loads(report_path.read_text())
+    assert {(row["method"], row["order"]) for row in report["results"]} == {
+        (method, order)
+        for method in METHODS
+        for order in ("coherent", "random")
+    }
+    assert all(row["queries"] == 20000 and row["seconds"] > 0 for row in report["results"])
+    assert all(check["passed"] for check in report["checks"])
+    assert report["sizes"]["target_triangles"] == pytest.approx(20000, rel=0.02)
