@@ -57,7 +57,9 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     else:
         argv = []
     parser = argparse.ArgumentParser(prog="demo.py", description=__doc__.splitlines()[0])
-    parser.add_argument("--output", type=Path, default=DEFAULT_OUTPUT, help=f"the .blend to write (default {DEFAULT_OUTPUT})")
+    parser.add_argument(
+        "--output", type=Path, default=DEFAULT_OUTPUT, help=f"the .blend to write (default {DEFAULT_OUTPUT})"
+    )
     return parser.parse_args(argv)
 
 
@@ -254,7 +256,9 @@ def measure(step: str, seconds: float, layout: bpy.types.Object, probe: TargetPr
     distances = np.linalg.norm(points - nearest, axis=1)
     on_rim = distance_to_segments(nearest, probe.rim_starts, probe.rim_ends) < probe.tolerance
     over_hole = int((on_rim & (distances > probe.tolerance)).sum())
-    return StepReport(step, seconds, face_point_count(layout), float(distances.mean()), float(distances.max()), over_hole)
+    return StepReport(
+        step, seconds, face_point_count(layout), float(distances.mean()), float(distances.max()), over_hole
+    )
 
 
 def run_step(step: str, operator, layout: bpy.types.Object, probe: TargetProbe, **properties) -> StepReport:
@@ -329,7 +333,9 @@ def run(output: Path) -> None:
     if final.face_points != vertex_count:
         raise RuntimeError(f"after snap only {final.face_points} of {vertex_count} vertices are face-points")
     if final.max_distance > probe.tolerance:
-        raise RuntimeError(f"after snap a vertex is {final.max_distance:.3g} off the target (tolerance {probe.tolerance:.3g})")
+        raise RuntimeError(
+            f"after snap a vertex is {final.max_distance:.3g} off the target (tolerance {probe.tolerance:.3g})"
+        )
 
     output = output.resolve()
     output.parent.mkdir(parents=True, exist_ok=True)
