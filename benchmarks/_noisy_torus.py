@@ -41,13 +41,17 @@ def _waves(seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
 def _surface(major_angle: np.ndarray, minor_angle: np.ndarray, seed: int) -> tuple[np.ndarray, np.ndarray]:
     """Positions on the displaced torus and the undisplaced torus normals, float64 (..., 3)."""
     major_frequency, minor_frequency, amplitude, phase = _waves(seed)
-    arguments = np.multiply.outer(major_angle, major_frequency) + np.multiply.outer(minor_angle, minor_frequency) + phase
+    arguments = (
+        np.multiply.outer(major_angle, major_frequency) + np.multiply.outer(minor_angle, minor_frequency) + phase
+    )
     height = (np.sin(arguments) * amplitude).sum(axis=-1)
     normal = np.stack(
         [np.cos(minor_angle) * np.cos(major_angle), np.cos(minor_angle) * np.sin(major_angle), np.sin(minor_angle)],
         axis=-1,
     )
-    ring_center = np.stack([MAJOR_RADIUS * np.cos(major_angle), MAJOR_RADIUS * np.sin(major_angle), np.zeros_like(major_angle)], axis=-1)
+    ring_center = np.stack(
+        [MAJOR_RADIUS * np.cos(major_angle), MAJOR_RADIUS * np.sin(major_angle), np.zeros_like(major_angle)], axis=-1
+    )
     return ring_center + (MINOR_RADIUS + height)[..., None] * normal, normal
 
 
