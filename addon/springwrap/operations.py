@@ -52,6 +52,16 @@ def world_positions(layout: LayoutArrays) -> np.ndarray:
     return layout_state.transform_points(layout.matrix_world, layout.positions)
 
 
+def check_finite(layout: LayoutArrays, mask: np.ndarray) -> None:
+    """Raise :class:`~.layout_state.LayoutError` naming the first masked vertex that is not finite in world space."""
+    world = world_positions(layout)
+    bad = np.flatnonzero(mask & ~np.all(np.isfinite(world), axis=1))
+    if bad.size:
+        raise layout_state.LayoutError(
+            f"Layout vertex {int(bad[0])} has a NaN or infinite coordinate ({bad.size} such vertices)"
+        )
+
+
 def resolve_topology(
     layout: LayoutArrays, target: Target, stored_signature: str
 ) -> layout_state.Resolution:
@@ -66,6 +76,7 @@ def resolve_topology(
     )
     if not mask.any():
         return layout_state.Resolution(layout.state, 0, 0)
+    check_finite(layout, mask)
     points = layout_state.as_float32_points(world_positions(layout)[mask])
     hits = target.mesh.closest_points(points)
     return layout_state.resolve_face_points(
@@ -109,6 +120,7 @@ def snap(
         raise ValueError(f"unknown snap mode {mode!r}")
     resolution = resolve_topology(layout, target, stored_signature)
     mask = operation_mask(layout, only_selected)
+    check_finite(layout, mask)
     origins = world_positions(layout)[mask]
     if not origins.shape[0]:
         return _outcome(layout, resolution, mask, _no_hits(0), origins, 0)
@@ -151,6 +163,7 @@ def project(
     has_direction = np.any(directions != 0.0, axis=1)
     skipped_count = int(np.count_nonzero(mask & ~has_direction))
     mask &= has_direction
+    check_finite(layout, mask)
     origins = world_positions(layout)[mask]
     if not origins.shape[0]:
         return _outcome(layout, resolution, mask, _no_hits(0), origins, skipped_count)

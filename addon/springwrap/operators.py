@@ -78,10 +78,12 @@ class _LayoutOperator:
             return {"CANCELLED"}
         milliseconds = (time.perf_counter() - start) * 1000.0
         self.report({"INFO"}, self.summary(outcome, milliseconds))
-        if outcome.topology_detached_count:
+        detached, reattached = outcome.topology_detached_count, outcome.topology_reattached_count
+        if detached or reattached:
             self.report(
-                {"WARNING"},
-                f"{outcome.topology_detached_count} face-points lost their target face and became space-points",
+                {"WARNING"} if detached else {"INFO"},
+                f"Target topology changed: {detached} face-points lost their target face and became "
+                f"space-points, {reattached} re-attached",
             )
         return {"FINISHED"}
 

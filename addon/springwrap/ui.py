@@ -26,7 +26,7 @@ class SPRINGWRAP_PT_layout(bpy.types.Panel):
         in_edit_mode = obj.mode == "EDIT"
 
         layout.prop(settings, "target")
-        self.draw_counts(layout, obj)
+        _draw_point_counts(layout, obj)
 
         column = layout.column(align=True)
         column.label(text="Selected Vertices" if in_edit_mode else "All Vertices", icon="VERTEXSEL")
@@ -55,29 +55,29 @@ class SPRINGWRAP_PT_layout(bpy.types.Panel):
         detach = layout.operator("springwrap.detach", icon="UNLINKED")
         detach.only_selected = in_edit_mode
 
-    @staticmethod
-    def draw_counts(layout, obj):
-        """Face-point / space-point counts, read from the state attribute (not available in edit mode)."""
-        from . import layout_state
 
-        mesh = obj.data
-        attribute = mesh.attributes.get(layout_state.STATE_ATTRIBUTE)
-        vertex_count = len(mesh.vertices)
-        if attribute is None:
-            counts = None if obj.mode == "EDIT" else (0, vertex_count)
-        elif attribute.domain != "POINT" or attribute.data_type != "INT" or len(attribute.data) != vertex_count:
-            counts = None
-        else:
-            import numpy as np
+def _draw_point_counts(layout, obj):
+    """Face-point / space-point counts, read from the state attribute (not available in edit mode)."""
+    import numpy as np
 
-            states = np.empty(vertex_count, dtype=np.int32)
-            attribute.data.foreach_get("value", states)
-            counts = layout_state.point_counts(states)
-        if counts is None:
-            layout.label(text="Point counts shown in Object Mode", icon="INFO")
-        else:
-            face_count, space_count = counts
-            layout.label(text=f"{face_count} face-points, {space_count} space-points", icon="INFO")
+    from . import layout_state
+
+    mesh = obj.data
+    attribute = mesh.attributes.get(layout_state.STATE_ATTRIBUTE)
+    vertex_count = len(mesh.vertices)
+    if attribute is None:
+        counts = None if obj.mode == "EDIT" else (0, vertex_count)
+    elif attribute.domain != "POINT" or attribute.data_type != "INT" or len(attribute.data) != vertex_count:
+        counts = None
+    else:
+        states = np.empty(vertex_count, dtype=np.int32)
+        attribute.data.foreach_get("value", states)
+        counts = layout_state.point_counts(states)
+    if counts is None:
+        layout.label(text="Point counts shown in Object Mode", icon="INFO")
+    else:
+        face_count, space_count = counts
+        layout.label(text=f"{face_count} face-points, {space_count} space-points", icon="INFO")
 
 
 classes = (SPRINGWRAP_PT_layout,)

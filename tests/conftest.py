@@ -1,0 +1,50 @@
+"""Shared pytest setup.
+
+Test modules named ``test_addon*`` run under Blender (the PyPI ``bpy`` module): before each of
+their tests the scene is reset to an empty file and the Springwrap add-on is enabled. Other test
+modules do not import ``bpy`` at all.
+"""
+
+import runpy
+from pathlib import Path
+
+import pytest
+
+REPOSITORY = Path(__file__).resolve().parent.parent
+
+
+def _is_addon_test(request) -> bool:
+    return request.module.__name__.rpartition(".")[2].startswith("test_addon")
+
+
+@pytest.fixture(scope="session")
+def springwrap_installed():
+    """Link the add-on into bpy's add-on folder (idempotent) and check that it enables."""
+    import bpy  # noqa: F401  (addon_utils needs bpy imported first)
+    import addon_utils
+
+    install = runpy.run_path(str(REPOSITORY / "blender_scripts" / "install_addon.py"))
+    assert install["main"]() == 0, "blender_scripts/install_addon.py could not enable the add-on"
+    return addon_utils
+
+
+@pytest.fixture(autouse=True)
+def blender_scene(request):
+    """For add-on tests: an empty scene, the add-on enabled, its target cache empty, undo initialized."""
+    if not _is_addon_test(request):
+        yield None
+        return
+    addon_utils = request.getfixturevalue("springwrap_installed")
+    import bpy
+
+    bpy.ops.wm.read_homefile(use_empty=True)
+    if not addon_utils.check("springwrap")[1]:
+        assert addon_utils.enable("springwrap", default_set=True, handle_error=None) is not None
+    from springwrap import bridge
+
+    bridge.clear_target_cache()
+    # In background mode undo starts disabled: the first push initializes it.
+    bpy.ops.ed.undo_push(message="Springwrap test start")
+    yield bpy
+    if bpy.context.object is not None and bpy.context.object.mode != "OBJECT":
+        bpy.ops.object.mode_set(mode="OBJECT")
