@@ -38,18 +38,28 @@ pub type NearestStack = Vec<(u32, f32)>;
 ///
 /// `distance_squared(slot)` receives a *BVH slot* (an index into `bvh.primitive_indices`, so that
 /// callers can keep primitive data in BVH order) and returns the squared distance to that
-/// primitive. Returns the best `(slot, squared distance)` strictly below the limit, or `None`.
+/// primitive. `warm_start` is an optional known candidate `(slot, squared distance)`, typically
+/// the answer of the previous, nearby query: its distance bounds the search from the start, so
+/// most of the tree is pruned at once. Returns the best `(slot, squared distance)` strictly below
+/// `max_distance_squared`, or `None`.
 #[inline]
 pub fn nearest_slot<F: FnMut(usize) -> f32>(
     bvh: &Bvh2,
     point: Vec3A,
     max_distance_squared: f32,
+    warm_start: Option<(usize, f32)>,
     stack: &mut NearestStack,
     mut distance_squared: F,
 ) -> Option<(usize, f32)> {
     let root = bvh.nodes.first()?;
     let mut best_distance_squared = max_distance_squared;
     let mut best_slot = None;
+    if let Some((slot, slot_distance_squared)) = warm_start
+        && slot_distance_squared < max_distance_squared
+    {
+        best_distance_squared = slot_distance_squared;
+        best_slot = Some(slot);
+    }
     stack.clear();
     stack.push((0, box_distance_squared(&root.aabb, point)));
     while let Some((node_index, node_distance_squared)) = stack.pop() {
@@ -111,7 +121,7 @@ mod tests {
             let q = query_index as f32;
             let query = Vec3A::new((q * 0.9).cos() * 4.0, (q * 0.3).sin() * 3.0, q * 0.01 - 1.0);
             let (slot, distance_squared) =
-                nearest_slot(&bvh, query, f32::INFINITY, &mut stack, |slot| {
+                nearest_slot(&bvh, query, f32::INFINITY, None, &mut stack, |slot| {
                     points[bvh.primitive_indices[slot] as usize].distance_squared(query)
                 })
                 .unwrap();
@@ -132,7 +142,7 @@ mod tests {
         let boxes = [Aabb::from_point(Vec3A::ZERO)];
         let bvh = build_bvh(&boxes);
         let mut stack = NearestStack::new();
-        let found = nearest_slot(&bvh, Vec3A::splat(10.0), 1.0, &mut stack, |_| 300.0);
+        let found = nearest_slot(&bvh, Vec3A::splat(10.0), 1.0, None, &mut stack, |_| 300.0);
         assert!(found.is_none());
     }
 }

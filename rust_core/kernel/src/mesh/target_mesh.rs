@@ -1,5 +1,7 @@
 //! The target mesh: validated geometry, topology, normals and the two search trees.
 
+use std::sync::OnceLock;
+
 use glam::{Vec3, Vec3A};
 use obvhs::{aabb::Aabb, bvh2::Bvh2};
 use rayon::prelude::*;
@@ -10,6 +12,25 @@ use crate::bvh::build_bvh;
 use crate::error::KernelError;
 use crate::face_point::{FacePoint, LayoutPoint};
 use crate::query::point_triangle::is_degenerate;
+
+/// Face normals and vertex normals.
+#[derive(Debug, Clone)]
+pub(crate) struct Normals {
+    pub(crate) faces: Vec<Vec3>,
+    pub(crate) vertices: Vec<Vec3>,
+}
+
+/// The fast vertex tree: a BVH over the vertices that some non-degenerate triangle uses.
+#[derive(Clone)]
+pub(crate) struct VertexTree {
+    pub(crate) tree: Bvh2,
+    /// Vertex positions in slot order.
+    pub(crate) points: Vec<Vec3A>,
+    /// Vertex indices in slot order.
+    pub(crate) vertices: Vec<u32>,
+    /// For each vertex, a non-degenerate triangle using it and the corner, or `NO_TRIANGLE`.
+    pub(crate) vertex_triangle: Vec<(u32, u8)>,
+}
 
 /// Options for [`TargetMesh::new`].
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -34,9 +55,10 @@ pub struct TargetMesh {
     pub(crate) triangles: Vec<[u32; 3]>,
     pub(crate) degenerate: Vec<bool>,
     pub(crate) degenerate_count: usize,
-    pub(crate) face_normals: Vec<Vec3>,
-    pub(crate) vertex_normals: Vec<Vec3>,
-    pub(crate) topology: Topology,
+    /// Face and vertex normals, computed on first use.
+    pub(crate) normals: OnceLock<Normals>,
+    /// Adjacency and boundaries, computed on first use.
+    pub(crate) topology: OnceLock<Topology>,
     pub(crate) bounds: Aabb,
     /// BVH over triangle boxes.
     pub(crate) face_tree: Bvh2,
@@ -44,14 +66,8 @@ pub struct TargetMesh {
     pub(crate) face_tree_corners: Vec<[Vec3A; 3]>,
     /// Whether the triangle in each `face_tree` slot is degenerate.
     pub(crate) face_tree_degenerate: Vec<bool>,
-    /// BVH over the vertices that some non-degenerate triangle uses.
-    pub(crate) vertex_tree: Bvh2,
-    /// Vertex positions in `vertex_tree` slot order.
-    pub(crate) vertex_tree_points: Vec<Vec3A>,
-    /// Vertex indices in `vertex_tree` slot order.
-    pub(crate) vertex_tree_vertices: Vec<u32>,
-    /// For each vertex, a non-degenerate triangle using it and the corner, or `NO_TRIANGLE`.
-    pub(crate) vertex_triangle: Vec<(u32, u8)>,
+    /// The vertex tree, built on first use (a snap to the surface never needs it).
+    pub(crate) vertex_tree: OnceLock<VertexTree>,
 }
 
 impl std::fmt::Debug for TargetMesh {
@@ -60,13 +76,13 @@ impl std::fmt::Debug for TargetMesh {
             .field("vertex_count", &self.vertices.len())
             .field("triangle_count", &self.triangles.len())
             .field("degenerate_triangle_count", &self.degenerate_count)
-            .field("boundary_edge_count", &self.topology.boundary_edges.len())
             .finish_non_exhaustive()
     }
 }
 
 impl TargetMesh {
-    /// Validates the input and builds everything (the two BVH builds run in parallel).
+    /// Validates the input and builds the face tree; the vertex tree, adjacency and normals are
+    /// built on first use (or all at once with [`TargetMesh::prepare_all`]).
     ///
     /// # Errors
     /// [`KernelError::EmptyMesh`], [`KernelError::TooLarge`], [`KernelError::NonFinite`] (a vertex),
@@ -130,43 +146,49 @@ impl TargetMesh {
             return Err(KernelError::DegenerateTriangle { triangle });
         }
 
-        let ((face_tree, face_tree_corners, face_tree_degenerate), (vertex_tree_parts, rest)) =
-            rayon::join(
-                || build_face_tree(&vertices, &triangles, &degenerate),
-                || {
-                    rayon::join(
-                        || build_vertex_tree(&vertices, &triangles, &degenerate),
-                        || {
-                            let topology = compute_topology(&triangles);
-                            let face_normals = face_normals(&vertices, &triangles, &degenerate);
-                            let vertex_normals =
-                                vertex_normals(&vertices, &triangles, &face_normals);
-                            (topology, face_normals, vertex_normals)
-                        },
-                    )
-                },
-            );
-        let (vertex_tree, vertex_tree_points, vertex_tree_vertices, vertex_triangle) =
-            vertex_tree_parts;
-        let (topology, face_normals, vertex_normals) = rest;
+        let (face_tree, face_tree_corners, face_tree_degenerate) =
+            build_face_tree(&vertices, &triangles, &degenerate);
         let bounds = face_tree.nodes[0].aabb;
         Ok(Self {
             vertices,
             triangles,
             degenerate,
             degenerate_count,
-            face_normals,
-            vertex_normals,
-            topology,
+            normals: OnceLock::new(),
+            topology: OnceLock::new(),
             bounds,
             face_tree,
             face_tree_corners,
             face_tree_degenerate,
-            vertex_tree,
-            vertex_tree_points,
-            vertex_tree_vertices,
-            vertex_triangle,
+            vertex_tree: OnceLock::new(),
         })
+    }
+
+    /// Builds the parts that are otherwise built on first use (vertex tree, topology, normals),
+    /// in parallel, so that later queries pay nothing.
+    pub fn prepare_all(&self) {
+        rayon::join(
+            || self.vertex_tree(),
+            || rayon::join(|| self.topology(), || self.normals()),
+        );
+    }
+
+    pub(crate) fn normals(&self) -> &Normals {
+        self.normals.get_or_init(|| {
+            let faces = face_normals(&self.vertices, &self.triangles, &self.degenerate);
+            let vertices = vertex_normals(&self.vertices, &self.triangles, &faces);
+            Normals { faces, vertices }
+        })
+    }
+
+    pub(crate) fn topology(&self) -> &Topology {
+        self.topology
+            .get_or_init(|| compute_topology(&self.triangles))
+    }
+
+    pub(crate) fn vertex_tree(&self) -> &VertexTree {
+        self.vertex_tree
+            .get_or_init(|| build_vertex_tree(&self.vertices, &self.triangles, &self.degenerate))
     }
 
     /// The vertex positions.
@@ -196,32 +218,32 @@ impl TargetMesh {
     /// Unit normal per triangle (zero for degenerate ones).
     #[must_use]
     pub fn face_normals(&self) -> &[Vec3] {
-        &self.face_normals
+        &self.normals().faces
     }
 
     /// Angle-weighted unit normal per vertex (zero where no triangle has an area).
     #[must_use]
     pub fn vertex_normals(&self) -> &[Vec3] {
-        &self.vertex_normals
+        &self.normals().vertices
     }
 
     /// `triangle_neighbors()[t][e]`: the triangle across edge `e` of `t` (from corner `e` to corner
     /// `(e + 1) % 3`), or [`NO_TRIANGLE`] on boundary and non-manifold edges.
     #[must_use]
     pub fn triangle_neighbors(&self) -> &[[u32; 3]] {
-        &self.topology.neighbors
+        &self.topology().neighbors
     }
 
     /// Edges with a single triangle: holes and open borders.
     #[must_use]
     pub fn boundary_edges(&self) -> &[TriangleEdge] {
-        &self.topology.boundary_edges
+        &self.topology().boundary_edges
     }
 
     /// Number of edges shared by three or more triangles.
     #[must_use]
     pub fn non_manifold_edge_count(&self) -> usize {
-        self.topology.non_manifold_edge_count
+        self.topology().non_manifold_edge_count
     }
 
     /// Axis-aligned bounds of the mesh, `(min, max)`.
@@ -321,12 +343,7 @@ fn build_face_tree(
 
 /// The vertex tree over vertices used by a non-degenerate triangle, and for every vertex one such
 /// triangle and corner (so that a vertex hit can become a face-point).
-#[allow(clippy::type_complexity)]
-fn build_vertex_tree(
-    vertices: &[Vec3],
-    triangles: &[[u32; 3]],
-    degenerate: &[bool],
-) -> (Bvh2, Vec<Vec3A>, Vec<u32>, Vec<(u32, u8)>) {
+fn build_vertex_tree(vertices: &[Vec3], triangles: &[[u32; 3]], degenerate: &[bool]) -> VertexTree {
     let mut vertex_triangle = vec![(NO_TRIANGLE, 0u8); vertices.len()];
     for (triangle, corners) in triangles.iter().enumerate() {
         if degenerate[triangle] {
@@ -356,5 +373,10 @@ fn build_vertex_tree(
         .iter()
         .map(|&vertex| Vec3A::from(vertices[vertex as usize]))
         .collect();
-    (tree, slot_points, slot_vertices, vertex_triangle)
+    VertexTree {
+        tree,
+        points: slot_points,
+        vertices: slot_vertices,
+        vertex_triangle,
+    }
 }

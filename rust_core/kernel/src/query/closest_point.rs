@@ -1,11 +1,10 @@
 //! Exact closest point on the surface (the face tree).
 
 use glam::{Vec3, Vec3A};
-use rayon::prelude::*;
 
 use super::point_triangle::{closest_point_on_degenerate_triangle, closest_point_on_triangle};
-use super::{QUERIES_PER_TASK, check_finite, check_max_distance};
-use crate::bvh::{NearestStack, nearest_slot};
+use super::{QueryState, check_finite, check_max_distance, map_in_spatial_order};
+use crate::bvh::nearest_slot;
 use crate::error::KernelError;
 use crate::face_point::{FacePoint, SurfaceHit};
 use crate::mesh::TargetMesh;
@@ -17,7 +16,7 @@ impl TargetMesh {
     /// pick either). `point` must be finite.
     #[must_use]
     pub fn closest_point(&self, point: Vec3, max_distance: f32) -> Option<SurfaceHit> {
-        self.closest_point_with_stack(point.into(), max_distance, &mut NearestStack::new())
+        self.closest_point_with_state(point.into(), max_distance, &mut QueryState::default())
     }
 
     /// [`TargetMesh::closest_point`] for many points, in parallel.
@@ -32,44 +31,52 @@ impl TargetMesh {
     ) -> Result<Vec<Option<SurfaceHit>>, KernelError> {
         check_finite("point", points)?;
         check_max_distance(max_distance)?;
-        Ok(points
-            .par_iter()
-            .with_min_len(QUERIES_PER_TASK)
-            .map_init(NearestStack::new, |stack, &point| {
-                self.closest_point_with_stack(point.into(), max_distance, stack)
-            })
-            .collect())
+        Ok(map_in_spatial_order(
+            points,
+            QueryState::default,
+            |state, index| self.closest_point_with_state(points[index].into(), max_distance, state),
+        ))
     }
 
-    fn closest_point_with_stack(
+    /// Closest point on the triangle in BVH slot `slot`, and its barycentric coordinates.
+    #[inline]
+    fn closest_point_in_slot(&self, point: Vec3A, slot: usize) -> (Vec3A, Vec3A) {
+        let [a, b, c] = self.face_tree_corners[slot];
+        if self.face_tree_degenerate[slot] {
+            closest_point_on_degenerate_triangle(point, a, b, c)
+        } else {
+            closest_point_on_triangle(point, a, b, c)
+        }
+    }
+
+    fn closest_point_with_state(
         &self,
         point: Vec3A,
         max_distance: f32,
-        stack: &mut NearestStack,
+        state: &mut QueryState,
     ) -> Option<SurfaceHit> {
-        let corners = &self.face_tree_corners;
-        let degenerate = &self.face_tree_degenerate;
+        let warm_start = state.previous_slot.map(|slot| {
+            (
+                slot,
+                self.closest_point_in_slot(point, slot)
+                    .0
+                    .distance_squared(point),
+            )
+        });
         let (slot, distance_squared) = nearest_slot(
             &self.face_tree,
             point,
             max_distance * max_distance,
-            stack,
+            warm_start,
+            &mut state.stack,
             |slot| {
-                let [a, b, c] = corners[slot];
-                let (closest, _) = if degenerate[slot] {
-                    closest_point_on_degenerate_triangle(point, a, b, c)
-                } else {
-                    closest_point_on_triangle(point, a, b, c)
-                };
-                closest.distance_squared(point)
+                self.closest_point_in_slot(point, slot)
+                    .0
+                    .distance_squared(point)
             },
         )?;
-        let [a, b, c] = corners[slot];
-        let (closest, barycentric) = if degenerate[slot] {
-            closest_point_on_degenerate_triangle(point, a, b, c)
-        } else {
-            closest_point_on_triangle(point, a, b, c)
-        };
+        state.previous_slot = Some(slot);
+        let (closest, barycentric) = self.closest_point_in_slot(point, slot);
         Some(SurfaceHit {
             face_point: FacePoint {
                 triangle: self.face_tree.primitive_indices[slot],

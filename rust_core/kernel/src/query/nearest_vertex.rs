@@ -1,10 +1,9 @@
 //! Nearest mesh vertex (the paper's fast vertex tree).
 
 use glam::{Vec3, Vec3A};
-use rayon::prelude::*;
 
-use super::{QUERIES_PER_TASK, check_finite, check_max_distance};
-use crate::bvh::{NearestStack, nearest_slot};
+use super::{QueryState, check_finite, check_max_distance, map_in_spatial_order};
+use crate::bvh::nearest_slot;
 use crate::error::KernelError;
 use crate::face_point::{FacePoint, VertexHit};
 use crate::mesh::TargetMesh;
@@ -14,7 +13,7 @@ impl TargetMesh {
     /// non-degenerate triangle, as a face-point at that vertex; or `None`.
     #[must_use]
     pub fn nearest_vertex(&self, point: Vec3, max_distance: f32) -> Option<VertexHit> {
-        self.nearest_vertex_with_stack(point.into(), max_distance, &mut NearestStack::new())
+        self.nearest_vertex_with_state(point.into(), max_distance, &mut QueryState::default())
     }
 
     /// [`TargetMesh::nearest_vertex`] for many points, in parallel.
@@ -29,31 +28,38 @@ impl TargetMesh {
     ) -> Result<Vec<Option<VertexHit>>, KernelError> {
         check_finite("point", points)?;
         check_max_distance(max_distance)?;
-        Ok(points
-            .par_iter()
-            .with_min_len(QUERIES_PER_TASK)
-            .map_init(NearestStack::new, |stack, &point| {
-                self.nearest_vertex_with_stack(point.into(), max_distance, stack)
-            })
-            .collect())
+        self.vertex_tree();
+        Ok(map_in_spatial_order(
+            points,
+            QueryState::default,
+            |state, index| {
+                self.nearest_vertex_with_state(points[index].into(), max_distance, state)
+            },
+        ))
     }
 
-    fn nearest_vertex_with_stack(
+    fn nearest_vertex_with_state(
         &self,
         point: Vec3A,
         max_distance: f32,
-        stack: &mut NearestStack,
+        state: &mut QueryState,
     ) -> Option<VertexHit> {
-        let points = &self.vertex_tree_points;
+        let vertex_tree = self.vertex_tree();
+        let points = &vertex_tree.points;
+        let warm_start = state
+            .previous_slot
+            .map(|slot| (slot, points[slot].distance_squared(point)));
         let (slot, distance_squared) = nearest_slot(
-            &self.vertex_tree,
+            &vertex_tree.tree,
             point,
             max_distance * max_distance,
-            stack,
+            warm_start,
+            &mut state.stack,
             |slot| points[slot].distance_squared(point),
         )?;
-        let vertex = self.vertex_tree_vertices[slot];
-        let (triangle, corner) = self.vertex_triangle[vertex as usize];
+        state.previous_slot = Some(slot);
+        let vertex = vertex_tree.vertices[slot];
+        let (triangle, corner) = vertex_tree.vertex_triangle[vertex as usize];
         let mut barycentric = Vec3::ZERO;
         barycentric[usize::from(corner)] = 1.0;
         Some(VertexHit {

@@ -2,10 +2,9 @@
 
 use glam::{Vec3, Vec3A};
 use obvhs::ray::{Ray, RayHit};
-use rayon::prelude::*;
 
 use super::ray_triangle::intersect_ray_triangle;
-use super::{QUERIES_PER_TASK, check_finite, check_max_distance};
+use super::{check_finite, check_max_distance, map_in_spatial_order};
 use crate::error::KernelError;
 use crate::face_point::{FacePoint, SurfaceHit};
 use crate::mesh::TargetMesh;
@@ -85,14 +84,18 @@ impl TargetMesh {
             return Err(KernelError::ZeroDirection { index });
         }
         check_max_distance(max_distance)?;
-        Ok(origins
-            .par_iter()
-            .zip(directions.par_iter())
-            .with_min_len(QUERIES_PER_TASK)
-            .map(|(&origin, &direction)| {
-                self.ray_cast(origin, direction, max_distance, both_directions)
-            })
-            .collect())
+        Ok(map_in_spatial_order(
+            origins,
+            || (),
+            |(), index| {
+                self.ray_cast(
+                    origins[index],
+                    directions[index],
+                    max_distance,
+                    both_directions,
+                )
+            },
+        ))
     }
 
     /// Nearest hit `(t, slot)` along a unit direction with `t` in `[0, max_distance]`.
