@@ -101,6 +101,8 @@ def machine_description() -> dict:
         "usable_cpus": usable,
         "platform": platform.platform(),
         "python": platform.python_version(),
+        # Other work on the machine skews the numbers; the 1-minute load average at the start says how much.
+        "load_average": os.getloadavg()[0] if hasattr(os, "getloadavg") else None,
     }
 
 
@@ -307,7 +309,7 @@ def run_checks(orders, permutation, mesh, surface_hits, vertex_hits, shrinkwrap_
 def print_report(machine, version_info, sizes, rows: list[Row], checks: list[Check]) -> None:
     """Print the environment, the throughput table and the checks."""
     print(f"machine:  {machine['cpu']}, {machine['cpu_count']} CPUs ({machine['usable_cpus']} usable), "
-          f"{machine['platform']}, Python {machine['python']}")
+          f"{machine['platform']}, Python {machine['python']}, load average {machine['load_average']}")
     print("versions: " + ", ".join(f"{name} {version}" for name, version in version_info.items()))
     print(f"target:   noisy torus, {sizes['target_vertices']:,} vertices, {sizes['target_triangles']:,} triangles; "
           f"queries: {sizes['points']:,} points within {sizes['query_offset']} of the surface\n")
@@ -332,6 +334,7 @@ def print_report(machine, version_info, sizes, rows: list[Row], checks: list[Che
 
 def main() -> int:
     arguments = parse_arguments(sys.argv)
+    machine = machine_description()  # before the work, for the load average
     try:
         import springwrap_kernel as kernel
     except ImportError as error:
@@ -356,7 +359,7 @@ def main() -> int:
     checks = run_checks(orders, permutation, mesh, surface_hits, vertex_hits, shrinkwrap_positions,
                         mathutils_distances, vertex_list, DISTANCE_TOLERANCE * diagonal)
 
-    machine, version_info = machine_description(), versions(kernel)
+    version_info = versions(kernel)
     print_report(machine, version_info, sizes, rows, checks)
     if arguments.json:
         report = {
