@@ -12,15 +12,16 @@ use obvhs::{BvhBuildParams, aabb::Aabb, bvh2::Bvh2, bvh2::builder::build_bvh2};
 
 /// Builds a binary BVH over boxes with the preset the kernel uses everywhere.
 ///
-/// `fast_build` (PLOC with a small search radius, a little reinsertion, up to 8 primitives per
-/// leaf) builds about as fast as Embree and traverses well for point queries.
+/// `fast_build` (PLOC with a small search radius, a little reinsertion) with at most 4 primitives
+/// per leaf: measured on 1M triangles (`cargo bench`), leaves of 4 answer random-order closest
+/// point queries a little faster than 8 or 1 and build as fast.
 #[must_use]
 pub fn build_bvh(boxes: &[Aabb]) -> Bvh2 {
-    build_bvh2(
-        boxes,
-        BvhBuildParams::fast_build(),
-        &mut Duration::default(),
-    )
+    let params = BvhBuildParams {
+        max_prims_per_leaf: 4,
+        ..BvhBuildParams::fast_build()
+    };
+    build_bvh2(boxes, params, &mut Duration::default())
 }
 
 /// Squared distance from `point` to the box (zero inside).
