@@ -102,7 +102,7 @@ def machine_description() -> dict:
         "platform": platform.platform(),
         "python": platform.python_version(),
         # Other work on the machine skews the numbers; the 1-minute load average at the start says how much.
-        "load_average": os.getloadavg()[0] if hasattr(os, "getloadavg") else None,
+        "load_average": round(os.getloadavg()[0], 2) if hasattr(os, "getloadavg") else None,
     }
 
 
