@@ -234,18 +234,20 @@ class StepReport:
     """One row of the demo's table."""
 
     step: str
-    seconds: float
+    seconds: float | None  # None for the template, before any step
     face_points: int
     mean_distance: float
     max_distance: float
     over_hole: int
+    on_rim: int
 
 
-def measure(step: str, seconds: float, layout: bpy.types.Object, probe: TargetProbe) -> StepReport:
+def measure(step: str, seconds: float | None, layout: bpy.types.Object, probe: TargetProbe) -> StepReport:
     """Distances of the layout vertices to the evaluated target (world space), and how many lie over the hole.
 
     A vertex lies over the hole when its nearest target point is on the hole's rim while the
-    vertex itself is off the surface: there is no surface under it."""
+    vertex itself is off the surface: there is no surface under it. A vertex on the surface at
+    the rim counts as on the rim."""
     points = layout_world_positions(layout)
     nearest = np.empty_like(points)
     for index, point in enumerate(points):
@@ -255,9 +257,10 @@ def measure(step: str, seconds: float, layout: bpy.types.Object, probe: TargetPr
         nearest[index] = probe.matrix_world @ location
     distances = np.linalg.norm(points - nearest, axis=1)
     on_rim = distance_to_segments(nearest, probe.rim_starts, probe.rim_ends) < probe.tolerance
-    over_hole = int((on_rim & (distances > probe.tolerance)).sum())
+    off_surface = distances > probe.tolerance
     return StepReport(
-        step, seconds, face_point_count(layout), float(distances.mean()), float(distances.max()), over_hole
+        step, seconds, face_point_count(layout), float(distances.mean()), float(distances.max()),
+        over_hole=int((on_rim & off_surface).sum()), on_rim=int((on_rim & ~off_surface).sum()),
     )
 
 
@@ -273,14 +276,14 @@ def run_step(step: str, operator, layout: bpy.types.Object, probe: TargetProbe, 
 
 def print_table(reports: list[StepReport], vertex_count: int) -> None:
     """Print the per-step table."""
-    header = f"{'step':<26} {'time (s)':>9} {'face-points':>13} {'mean dist':>10} {'max dist':>10} {'over hole':>10}"
+    header = f"{'step':<26} {'time (s)':>9} {'face-points':>13} {'mean dist':>10} {'max dist':>10} {'over hole':>10} {'on rim':>7}"
     print(header)
     print("-" * len(header))
     for report in reports:
-        seconds = "" if report.seconds != report.seconds else f"{report.seconds:.4f}"
+        seconds = "" if report.seconds is None else f"{report.seconds:.4f}"
         print(
             f"{report.step:<26} {seconds:>9} {report.face_points:>6}/{vertex_count:<6} "
-            f"{report.mean_distance:>10.5f} {report.max_distance:>10.5f} {report.over_hole:>10}"
+            f"{report.mean_distance:>10.5f} {report.max_distance:>10.5f} {report.over_hole:>10} {report.on_rim:>7}"
         )
 
 
@@ -318,7 +321,7 @@ def run(output: Path) -> None:
     print(f"distances: world space, to the evaluated target (mathutils BVHTree); tolerance {probe.tolerance:.2e}\n")
 
     operators = bpy.ops.springwrap
-    reports = [measure("template (as placed)", float("nan"), layout, probe)]
+    reports = [measure("template (as placed)", None, layout, probe)]
     reports.append(run_step("detach", operators.detach, layout, probe, only_selected=False))
     reports.append(
         run_step("project (NORMAL, both)", operators.project, layout, probe,
@@ -328,6 +331,9 @@ def run(output: Path) -> None:
         run_step("snap (SURFACE)", operators.snap, layout, probe, mode="SURFACE", only_selected=False, max_distance=0.0)
     )
     print_table(reports, vertex_count)
+    print("over hole: vertices off the surface whose nearest target point is on the hole's rim "
+          "(no surface under them)")
+    print("on rim: vertices on the surface, on the hole's rim")
 
     final = reports[-1]
     if final.face_points != vertex_count:
