@@ -276,7 +276,10 @@ def run_step(step: str, operator, layout: bpy.types.Object, probe: TargetProbe, 
 
 def print_table(reports: list[StepReport], vertex_count: int) -> None:
     """Print the per-step table."""
-    header = f"{'step':<26} {'time (s)':>9} {'face-points':>13} {'mean dist':>10} {'max dist':>10} {'over hole':>10} {'on rim':>7}"
+    header = (
+        f"{'step':<26} {'time (s)':>9} {'face-points':>13} {'mean dist':>10} {'max dist':>10} "
+        f"{'over hole':>10} {'on rim':>7}"
+    )
     print(header)
     print("-" * len(header))
     for report in reports:
