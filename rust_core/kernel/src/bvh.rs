@@ -21,7 +21,10 @@ pub fn build_bvh(boxes: &[Aabb]) -> Bvh2 {
         max_prims_per_leaf: 4,
         ..BvhBuildParams::fast_build()
     };
-    build_bvh2(boxes, params, &mut Duration::default())
+    let mut bvh = build_bvh2(boxes, params, &mut Duration::default());
+    // Children next to their parent in depth-first order: fewer cache misses per descent.
+    bvh.reorder_in_stack_traversal_order();
+    bvh
 }
 
 /// Squared distance from `point` to the box (zero inside).
@@ -37,14 +40,15 @@ pub type NearestStack = Vec<(u32, f32)>;
 
 /// Best-first search for the primitive nearest to `point` within `max_distance_squared`.
 ///
-/// `distance_squared(slot)` receives a *BVH slot* (an index into `bvh.primitive_indices`, so that
+/// `distance_squared(slot, best)` receives a *BVH slot* (an index into `bvh.primitive_indices`, so that
 /// callers can keep primitive data in BVH order) and returns the squared distance to that
-/// primitive. `warm_start` is an optional known candidate `(slot, squared distance)`, typically
+/// primitive (it may return anything `>= best`, the best squared distance so far, when it can
+/// tell cheaply that the primitive cannot win). `warm_start` is an optional known candidate `(slot, squared distance)`, typically
 /// the answer of the previous, nearby query: its distance bounds the search from the start, so
 /// most of the tree is pruned at once. Returns the best `(slot, squared distance)` strictly below
 /// `max_distance_squared`, or `None`.
 #[inline]
-pub fn nearest_slot<F: FnMut(usize) -> f32>(
+pub fn nearest_slot<F: FnMut(usize, f32) -> f32>(
     bvh: &Bvh2,
     point: Vec3A,
     max_distance_squared: f32,
@@ -71,7 +75,7 @@ pub fn nearest_slot<F: FnMut(usize) -> f32>(
         if node.prim_count > 0 {
             let first = node.first_index as usize;
             for slot in first..first + node.prim_count as usize {
-                let candidate = distance_squared(slot);
+                let candidate = distance_squared(slot, best_distance_squared);
                 if candidate < best_distance_squared {
                     best_distance_squared = candidate;
                     best_slot = Some(slot);
@@ -122,7 +126,7 @@ mod tests {
             let q = query_index as f32;
             let query = Vec3A::new((q * 0.9).cos() * 4.0, (q * 0.3).sin() * 3.0, q * 0.01 - 1.0);
             let (slot, distance_squared) =
-                nearest_slot(&bvh, query, f32::INFINITY, None, &mut stack, |slot| {
+                nearest_slot(&bvh, query, f32::INFINITY, None, &mut stack, |slot, _| {
                     points[bvh.primitive_indices[slot] as usize].distance_squared(query)
                 })
                 .unwrap();
@@ -143,7 +147,9 @@ mod tests {
         let boxes = [Aabb::from_point(Vec3A::ZERO)];
         let bvh = build_bvh(&boxes);
         let mut stack = NearestStack::new();
-        let found = nearest_slot(&bvh, Vec3A::splat(10.0), 1.0, None, &mut stack, |_| 300.0);
+        let found = nearest_slot(&bvh, Vec3A::splat(10.0), 1.0, None, &mut stack, |_, _| {
+            300.0
+        });
         assert!(found.is_none());
     }
 }

@@ -4,13 +4,14 @@ use glam::{Vec3, Vec3A};
 
 use super::point_triangle::{closest_point_on_degenerate_triangle, closest_point_on_triangle};
 use super::{QueryState, check_finite, check_max_distance, map_in_spatial_order};
-use crate::bvh::nearest_slot;
+use crate::bvh::{box_distance_squared, nearest_slot};
 use crate::error::KernelError;
 use crate::face_point::{FacePoint, SurfaceHit};
 use crate::mesh::TargetMesh;
+use obvhs::aabb::Aabb;
 
 impl TargetMesh {
-    /// The surface point nearest to `point` closer than `max_distance`, or `None`.
+    /// The surface point nearest to `point` at most `max_distance` away, or `None`.
     ///
     /// Exact: the same answer as testing every triangle (ties between equidistant triangles may
     /// pick either). `point` must be finite.
@@ -66,10 +67,18 @@ impl TargetMesh {
         let (slot, distance_squared) = nearest_slot(
             &self.face_tree,
             point,
-            max_distance * max_distance,
+            (max_distance * max_distance).next_up(),
             warm_start,
             &mut state.stack,
-            |slot| {
+            |slot, best_distance_squared| {
+                // The triangle's own box is a cheap, branch-free lower bound: skip the exact
+                // test when it cannot win (a third of the tests on a 1M-triangle mesh).
+                let [a, b, c] = self.face_tree_corners[slot];
+                let lower_bound =
+                    box_distance_squared(&Aabb::new(a.min(b).min(c), a.max(b).max(c)), point);
+                if lower_bound >= best_distance_squared {
+                    return f32::INFINITY;
+                }
                 self.closest_point_in_slot(point, slot)
                     .0
                     .distance_squared(point)

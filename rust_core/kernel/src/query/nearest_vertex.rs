@@ -9,7 +9,7 @@ use crate::face_point::{FacePoint, VertexHit};
 use crate::mesh::TargetMesh;
 
 impl TargetMesh {
-    /// The vertex nearest to `point` closer than `max_distance`, among vertices used by a
+    /// The vertex nearest to `point` at most `max_distance` away, among vertices used by a
     /// non-degenerate triangle, as a face-point at that vertex; or `None`.
     #[must_use]
     pub fn nearest_vertex(&self, point: Vec3, max_distance: f32) -> Option<VertexHit> {
@@ -52,10 +52,10 @@ impl TargetMesh {
         let (slot, distance_squared) = nearest_slot(
             &vertex_tree.tree,
             point,
-            max_distance * max_distance,
+            (max_distance * max_distance).next_up(),
             warm_start,
             &mut state.stack,
-            |slot| points[slot].distance_squared(point),
+            |slot, _| points[slot].distance_squared(point),
         )?;
         state.previous_slot = Some(slot);
         let vertex = vertex_tree.vertices[slot];

@@ -29,10 +29,10 @@ impl TargetMesh {
             return None;
         }
         let forward = self.first_hit(origin, direction, max_distance);
-        let limit = forward.map_or(max_distance, |(t, _)| t);
         let backward = if both_directions {
+            let limit = forward.map_or(max_distance, |(t, _)| t);
             self.first_hit(origin, -direction, limit)
-                .filter(|&(t, _)| t < limit)
+                .filter(|&(t, _)| forward.is_none_or(|(forward_t, _)| t < forward_t))
                 .map(|(t, slot)| (-t, slot))
         } else {
             None
@@ -107,7 +107,7 @@ impl TargetMesh {
     ) -> Option<(f32, usize)> {
         let corners = &self.face_tree_corners;
         let degenerate = &self.face_tree_degenerate;
-        let ray = Ray::new(origin, direction, 0.0, max_distance);
+        let ray = Ray::new(origin, direction, 0.0, max_distance.next_up());
         let mut hit = RayHit::none();
         let found = self.face_tree.ray_traverse(ray, &mut hit, |ray, slot| {
             if degenerate[slot] {
