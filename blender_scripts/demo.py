@@ -43,6 +43,10 @@ LAYOUT_OFFSET = Vector((0.15, 0.0, 0.0))
 LAYOUT_SCALE = 1.08
 # Relative to the target's bounding-box diagonal: "on the surface" and "on the hole rim".
 SURFACE_TOLERANCE = 1e-4
+# Projection range (world units, ~10% of the target's size): vertices over the forehead hole find no
+# surface that close and stay space-points, instead of shooting through the hole to the back of the
+# head; the final snap then lays them on the hole's rim.
+PROJECT_MAX_DISTANCE = 0.3
 
 
 def parse_arguments(argv: list[str]) -> argparse.Namespace:
@@ -327,8 +331,9 @@ def run(output: Path) -> None:
     reports = [measure("template (as placed)", None, layout, probe)]
     reports.append(run_step("detach", operators.detach, layout, probe, only_selected=False))
     reports.append(
-        run_step("project (NORMAL, both)", operators.project, layout, probe,
-                 direction="NORMAL", only_selected=False, both_directions=True, max_distance=0.0)
+        run_step(f"project (NORMAL, <={PROJECT_MAX_DISTANCE:g})", operators.project, layout, probe,
+                 direction="NORMAL", only_selected=False, both_directions=True,
+                 max_distance=PROJECT_MAX_DISTANCE)
     )
     reports.append(
         run_step("snap (SURFACE)", operators.snap, layout, probe, mode="SURFACE", only_selected=False, max_distance=0.0)
