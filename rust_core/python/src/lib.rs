@@ -282,6 +282,14 @@ impl PyTargetMesh {
         Ok(Self { mesh })
     }
 
+    /// Builds now what is otherwise built on first use: the vertex tree, adjacency, normals.
+    fn prepare_all(&self, py: Python<'_>) -> PyResult<()> {
+        run_kernel(py, || {
+            self.mesh.prepare_all();
+            Ok(())
+        })
+    }
+
     /// Number of vertices.
     #[getter]
     fn vertex_count(&self) -> usize {

@@ -66,8 +66,10 @@ class VertexHits(NamedTuple):
 class TargetMesh:
     """A triangle mesh prepared for queries: BVH over triangles, vertex tree, adjacency, normals.
 
-    Built once (the BVH build is parallel); every query is batched, runs on all cores and
-    releases the GIL. Degenerate (zero-area) triangles are kept so that triangle indices
+    Built once: the constructor builds the face tree (parallel); the vertex tree, adjacency and
+    normals are built on first use or by :meth:`prepare_all`. Every query is batched, runs on all
+    cores and releases the GIL; batches are answered in spatial (Morton) order internally, so the
+    caller's order does not matter for speed. Degenerate (zero-area) triangles are kept so that triangle indices
     stay those of the input, but they are never hit by rays and never chosen by
     :meth:`nearest_vertices`; a mesh whose every triangle is degenerate is refused.
     """
@@ -79,6 +81,8 @@ class TargetMesh:
         *,
         reject_degenerate: bool = False,
     ) -> None: ...
+    def prepare_all(self) -> None:
+        """Build now what is otherwise built on first use (vertex tree, adjacency, normals)."""
     @property
     def vertex_count(self) -> int: ...
     @property
