@@ -11,7 +11,8 @@ ADDON_SOURCES := $(shell find addon -name "*.py" -o -name "*.toml")
 
 setup: $(STAMPS)/kernel $(STAMPS)/addon
 
-$(STAMPS)/venv: requirements-dev.txt
+$(STAMPS)/venv: requirements-dev.txt .ci/system-packages.sh
+	bash .ci/system-packages.sh
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -r requirements-dev.txt
