@@ -39,6 +39,9 @@ from mathutils.kdtree import KDTree
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _noisy_torus import QUERY_OFFSET, noisy_torus, query_points  # noqa: E402
 
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "blender_scripts"))
+from script_arguments import script_arguments  # noqa: E402
+
 SEED = 1
 # Distances may differ by float32 rounding; relative to the target's bounding-box diagonal.
 DISTANCE_TOLERANCE = 1e-5
@@ -51,12 +54,7 @@ VERTEX_CHECK_POINTS = 10_000
 
 def parse_arguments(argv: list[str]) -> argparse.Namespace:
     """Parse the script's arguments (those after ``--`` when run under ``blender``)."""
-    if "--" in argv:
-        argv = argv[argv.index("--") + 1 :]
-    elif argv and Path(argv[0]).name == Path(__file__).name:
-        argv = argv[1:]
-    else:
-        argv = []
+    argv = script_arguments(argv, __file__)
     parser = argparse.ArgumentParser(prog="snap_throughput.py", description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="100k triangles and 100k points")
     parser.add_argument("--triangles", type=int, help="target triangle count (default 1,000,000; --quick 100,000)")

@@ -29,6 +29,9 @@ import numpy as np
 from mathutils import Euler, Matrix, Vector
 from mathutils.bvhtree import BVHTree
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # `blender --python` does not add it
+from script_arguments import script_arguments  # noqa: E402
+
 REPOSITORY_ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_OUTPUT = REPOSITORY_ROOT / "out" / "demo.blend"
 
@@ -54,12 +57,7 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
 
     Under ``blender -b --python demo.py`` without ``--``, ``sys.argv`` holds Blender's own
     arguments; the script then has none."""
-    if "--" in argv:
-        argv = argv[argv.index("--") + 1 :]
-    elif argv and Path(argv[0]).name == Path(__file__).name:
-        argv = argv[1:]
-    else:
-        argv = []
+    argv = script_arguments(argv, __file__)
     parser = argparse.ArgumentParser(prog="demo.py", description=__doc__.splitlines()[0])
     parser.add_argument(
         "--output", type=Path, default=DEFAULT_OUTPUT, help=f"the .blend to write (default {DEFAULT_OUTPUT})"
