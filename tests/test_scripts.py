@@ -62,7 +62,7 @@ def demo_blend(tmp_path_factory) -> tuple[Path, subprocess.CompletedProcess]:
 def test_demo_exits_zero_and_prints_each_step(demo_blend):
     output, process = demo_blend
     assert process.returncode == 0, process.stdout[-2000:] + process.stderr[-3000:]
-    for step in ("detach", "project (NORMAL, both)", "snap (SURFACE)"):
+    for step in ("detach", "project (NORMAL, <=0.3)", "snap (SURFACE)"):
         assert step in process.stdout
     assert str(output) in process.stdout
 
