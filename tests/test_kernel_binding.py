@@ -224,3 +224,20 @@ def test_queries_release_the_gil(sphere_mesh):
 def test_empty_query_batches_give_empty_results(sphere_mesh):
     hits = sphere_mesh.closest_points(np.zeros((0, 3), np.float32))
     assert hits.triangles.shape == (0,) and hits.positions.shape == (0, 3)
+
+
+def test_type_stubs_match_the_module():
+    """The hand-kept __init__.pyi names exactly what the module exports, methods included."""
+    import ast
+    from pathlib import Path
+
+    stub = Path(sk.__file__).with_name("__init__.pyi")
+    tree = ast.parse(stub.read_text())
+    top_level = {node.name for node in tree.body if isinstance(node, (ast.ClassDef, ast.FunctionDef))}
+    top_level |= {node.target.id for node in tree.body if isinstance(node, ast.AnnAssign)}
+    assert top_level == set(sk.__all__)
+    stub_class = next(node for node in tree.body if isinstance(node, ast.ClassDef) and node.name == "TargetMesh")
+    stub_methods = {node.name for node in stub_class.body if isinstance(node, ast.FunctionDef)} - {"__init__"}
+    runtime_methods = {name for name in dir(sk.TargetMesh) if not name.startswith("_")}
+    assert stub_methods == runtime_methods
+    assert (stub.parent / "py.typed").exists()
