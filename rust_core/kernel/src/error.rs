@@ -33,6 +33,17 @@ pub enum KernelError {
         /// Number of vertices in the mesh.
         vertex_count: usize,
     },
+    /// A layout face or edge refers to a vertex that does not exist.
+    LayoutIndexOutOfRange {
+        /// `"face"`, `"edge"` or `"seam"`.
+        element: &'static str,
+        /// Index of the face or edge.
+        index: usize,
+        /// The vertex index found there.
+        vertex: u32,
+        /// Number of layout vertices.
+        vertex_count: usize,
+    },
     /// A face-point refers to a triangle that does not exist (e.g. the target lost faces).
     TriangleIndexOutOfRange {
         /// Index of the face-point in its array.
@@ -105,6 +116,15 @@ impl fmt::Display for KernelError {
             } => write!(
                 f,
                 "triangle {triangle} corner {corner} refers to vertex {vertex}, but the mesh has only {vertex_count} vertices"
+            ),
+            Self::LayoutIndexOutOfRange {
+                element,
+                index,
+                vertex,
+                vertex_count,
+            } => write!(
+                f,
+                "layout {element} {index} refers to vertex {vertex}, but the layout has only {vertex_count} vertices"
             ),
             Self::TriangleIndexOutOfRange {
                 index,

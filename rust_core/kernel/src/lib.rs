@@ -42,9 +42,11 @@
 pub mod bvh;
 pub mod error;
 pub mod face_point;
+pub mod layout;
 pub mod mesh;
 pub mod query;
 
 pub use error::KernelError;
 pub use face_point::{FacePoint, LayoutPoint, SurfaceHit, VertexHit};
+pub use layout::{Curve, CurveKind, LayoutStructure, LineTriple};
 pub use mesh::{NO_TRIANGLE, TargetMesh, TargetMeshOptions, TriangleEdge};

@@ -79,9 +79,9 @@ fn to_python_error(error: &KernelError) -> PyErr {
     match error {
         KernelError::EmptyMesh { .. } => EmptyMeshError::new_err(message),
         KernelError::NonFinite { .. } => NonFiniteError::new_err(message),
-        KernelError::VertexIndexOutOfRange { .. } | KernelError::TriangleIndexOutOfRange { .. } => {
-            IndexOutOfRangeError::new_err(message)
-        }
+        KernelError::VertexIndexOutOfRange { .. }
+        | KernelError::LayoutIndexOutOfRange { .. }
+        | KernelError::TriangleIndexOutOfRange { .. } => IndexOutOfRangeError::new_err(message),
         KernelError::DegenerateMesh { .. } => DegenerateMeshError::new_err(message),
         KernelError::DegenerateTriangle { .. } => DegenerateTriangleError::new_err(message),
         KernelError::ZeroDirection { .. }

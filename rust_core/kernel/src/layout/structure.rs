@@ -1,0 +1,379 @@
+//! The structure of a layout mesh that the wrap's forces act on: grid lines, curves and the
+//! fallback neighbourhoods of extraordinary vertices.
+//!
+//! Krishnamurthy & Levoy's spring meshes are regular grids: every point has a predecessor and a
+//! successor along two grid lines, and the fairness and arc-length forces act on those triples.
+//! A real layout is a quad mesh with extraordinary vertices, triangles, open borders, seams and
+//! loose edge chains (curves). This module reads all of that from plain faces and edges:
+//!
+//! - a **line triple** `(previous, vertex, next)` says `vertex` lies on a grid line between two
+//!   neighbours: the two pairs of opposite neighbours of a regular interior vertex (valence 4, all
+//!   faces quads), the two border neighbours of a regular border vertex (valence 3), the two
+//!   neighbours of a vertex inside a curve chain, and the two seam neighbours of a seam vertex;
+//! - a vertex with no line triple through it (valence other than 4, a triangle around it, a
+//!   junction of curves) is **extraordinary**: it gets the umbrella fallback, the mean of its edge
+//!   neighbours (no cotangent weights: the layout's own geometry is not to be trusted);
+//! - **curves** are maximal chains of border, seam or loose edges between junctions.
+
+use std::collections::HashMap;
+
+use crate::error::KernelError;
+
+/// A layout point lies on a grid line between `previous` and `next` (its two opposite neighbours).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct LineTriple {
+    /// The neighbour on one side.
+    pub previous: u32,
+    /// The point the triple's forces act on.
+    pub vertex: u32,
+    /// The neighbour on the other side.
+    pub next: u32,
+}
+
+/// What a curve of the layout is made of.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum CurveKind {
+    /// Edges used by one face: an open border of the layout.
+    Border,
+    /// Edges marked as seams: patch boundaries inside the layout.
+    Seam,
+    /// Edges used by no face: a free-standing face-point curve.
+    Loose,
+}
+
+/// A chain of edges of one kind, from junction to junction (or a closed loop).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Curve {
+    /// The kind of all its edges.
+    pub kind: CurveKind,
+    /// The vertices in order; a closed curve does not repeat its first vertex.
+    pub vertices: Vec<u32>,
+    /// Whether the last vertex connects back to the first.
+    pub closed: bool,
+}
+
+/// The forces' view of a layout mesh.
+#[derive(Debug, Clone, Default)]
+pub struct LayoutStructure {
+    /// Number of layout vertices.
+    pub vertex_count: usize,
+    /// Edge neighbours of each vertex, CSR: the neighbours of `v` are
+    /// `neighbors[neighbor_offsets[v]..neighbor_offsets[v + 1]]`, sorted.
+    pub neighbor_offsets: Vec<u32>,
+    /// See `neighbor_offsets`.
+    pub neighbors: Vec<u32>,
+    /// Every grid-line triple.
+    pub line_triples: Vec<LineTriple>,
+    /// Vertices with no line triple and at least one neighbour: they use the umbrella fallback.
+    pub extraordinary: Vec<u32>,
+    /// Border, seam and loose-edge chains.
+    pub curves: Vec<Curve>,
+}
+
+impl LayoutStructure {
+    /// Reads the structure of a layout given as polygons and edges.
+    ///
+    /// `face_sizes[f]` corner indices of face `f` follow one another in `face_corners`. `edges` are
+    /// all edges of the mesh (those of the faces may be listed or not; edges used by no face are
+    /// loose curve edges); `seams` are the edges marked as patch boundaries.
+    ///
+    /// # Errors
+    /// [`KernelError::LayoutIndexOutOfRange`] for an index `>= vertex_count`,
+    /// [`KernelError::InvalidArgument`] for a face with fewer
+    /// than 3 corners, corner counts that do not add up, or an edge from a vertex to itself.
+    pub fn new(
+        vertex_count: usize,
+        face_corners: &[u32],
+        face_sizes: &[u32],
+        edges: &[[u32; 2]],
+        seams: &[[u32; 2]],
+    ) -> Result<Self, KernelError> {
+        validate(vertex_count, face_corners, face_sizes, edges, seams)?;
+
+        // Undirected edges with how many faces use them, and for each vertex the pairs of its
+        // neighbours that are consecutive around it within one face.
+        let mut face_count_of_edge: HashMap<(u32, u32), u32> = HashMap::new();
+        let mut consecutive: Vec<Vec<(u32, u32)>> = vec![Vec::new(); vertex_count];
+        let mut only_quads = vec![true; vertex_count];
+        let mut offset = 0usize;
+        for &size in face_sizes {
+            let face = &face_corners[offset..offset + size as usize];
+            offset += size as usize;
+            for corner in 0..face.len() {
+                let vertex = face[corner];
+                let next = face[(corner + 1) % face.len()];
+                let previous = face[(corner + face.len() - 1) % face.len()];
+                *face_count_of_edge
+                    .entry(edge_key(vertex, next))
+                    .or_insert(0) += 1;
+                consecutive[vertex as usize].push((previous, next));
+                if face.len() != 4 {
+                    only_quads[vertex as usize] = false;
+                }
+            }
+        }
+        for edge in edges.iter().chain(seams) {
+            face_count_of_edge
+                .entry(edge_key(edge[0], edge[1]))
+                .or_insert(0);
+        }
+        let seam_keys: std::collections::HashSet<(u32, u32)> = seams
+            .iter()
+            .map(|edge| edge_key(edge[0], edge[1]))
+            .collect();
+
+        let mut adjacency: Vec<Vec<u32>> = vec![Vec::new(); vertex_count];
+        for &(a, b) in face_count_of_edge.keys() {
+            adjacency[a as usize].push(b);
+            adjacency[b as usize].push(a);
+        }
+        let mut neighbor_offsets = Vec::with_capacity(vertex_count + 1);
+        let mut neighbors = Vec::new();
+        neighbor_offsets.push(0);
+        for list in &mut adjacency {
+            list.sort_unstable();
+            neighbors.extend_from_slice(list);
+            neighbor_offsets.push(neighbors.len() as u32);
+        }
+
+        let kind_of = |a: u32, b: u32| -> Option<CurveKind> {
+            let key = edge_key(a, b);
+            match face_count_of_edge.get(&key).copied() {
+                Some(0) => Some(CurveKind::Loose),
+                Some(1) => Some(CurveKind::Border),
+                _ if seam_keys.contains(&key) => Some(CurveKind::Seam),
+                _ => None,
+            }
+        };
+
+        let mut line_triples = Vec::new();
+        let mut extraordinary = Vec::new();
+        for vertex in 0..vertex_count as u32 {
+            let around = &adjacency[vertex as usize];
+            if around.is_empty() {
+                continue;
+            }
+            let before = line_triples.len();
+            let curve_neighbors: Vec<(u32, CurveKind)> = around
+                .iter()
+                .filter_map(|&other| kind_of(vertex, other).map(|kind| (other, kind)))
+                .collect();
+            let face_edges = around.len()
+                - curve_neighbors
+                    .iter()
+                    .filter(|c| c.1 == CurveKind::Loose)
+                    .count();
+            if only_quads[vertex as usize] && !consecutive[vertex as usize].is_empty() {
+                let border_count = curve_neighbors
+                    .iter()
+                    .filter(|(_, kind)| *kind == CurveKind::Border)
+                    .count();
+                if border_count == 0 && face_edges == 4 && around.len() == 4 {
+                    // A regular interior vertex: two grid lines through opposite neighbours.
+                    for &neighbor in around {
+                        if let Some(opposite) =
+                            opposite_neighbor(neighbor, around, &consecutive[vertex as usize])
+                            && neighbor < opposite
+                        {
+                            line_triples.push(LineTriple {
+                                previous: neighbor,
+                                vertex,
+                                next: opposite,
+                            });
+                        }
+                    }
+                } else if border_count == 2 && face_edges == 3 && around.len() == 3 {
+                    // A regular border vertex: the grid line runs along the border.
+                    let border: Vec<u32> = curve_neighbors
+                        .iter()
+                        .filter(|(_, kind)| *kind == CurveKind::Border)
+                        .map(|(other, _)| *other)
+                        .collect();
+                    line_triples.push(LineTriple {
+                        previous: border[0],
+                        vertex,
+                        next: border[1],
+                    });
+                }
+            }
+            if line_triples.len() == before {
+                // A vertex inside a loose curve chain (and nothing else) still lies on a line.
+                let loose: Vec<u32> = curve_neighbors
+                    .iter()
+                    .filter(|(_, kind)| *kind == CurveKind::Loose)
+                    .map(|(other, _)| *other)
+                    .collect();
+                if loose.len() == 2 && around.len() == 2 {
+                    line_triples.push(LineTriple {
+                        previous: loose[0],
+                        vertex,
+                        next: loose[1],
+                    });
+                }
+            }
+            if line_triples.len() == before {
+                extraordinary.push(vertex);
+            }
+        }
+
+        let curves = trace_curves(vertex_count, &adjacency, &kind_of);
+        Ok(Self {
+            vertex_count,
+            neighbor_offsets,
+            neighbors,
+            line_triples,
+            extraordinary,
+            curves,
+        })
+    }
+
+    /// The edge neighbours of `vertex`, sorted.
+    #[must_use]
+    pub fn neighbors_of(&self, vertex: u32) -> &[u32] {
+        let start = self.neighbor_offsets[vertex as usize] as usize;
+        let end = self.neighbor_offsets[vertex as usize + 1] as usize;
+        &self.neighbors[start..end]
+    }
+}
+
+/// An undirected edge as a sorted pair.
+fn edge_key(a: u32, b: u32) -> (u32, u32) {
+    (a.min(b), a.max(b))
+}
+
+/// The neighbour across `vertex` from `neighbor`: the one that shares no face corner with it.
+fn opposite_neighbor(neighbor: u32, around: &[u32], consecutive: &[(u32, u32)]) -> Option<u32> {
+    let mut candidates = around.iter().copied().filter(|&other| {
+        other != neighbor
+            && !consecutive.iter().any(|&(previous, next)| {
+                (previous == neighbor && next == other) || (previous == other && next == neighbor)
+            })
+    });
+    let opposite = candidates.next()?;
+    candidates.next().is_none().then_some(opposite)
+}
+
+/// Chains of curve edges (border, seam, loose), split where the chain branches or changes kind.
+fn trace_curves(
+    vertex_count: usize,
+    adjacency: &[Vec<u32>],
+    kind_of: &dyn Fn(u32, u32) -> Option<CurveKind>,
+) -> Vec<Curve> {
+    let curve_degree = |vertex: u32, kind: CurveKind| {
+        adjacency[vertex as usize]
+            .iter()
+            .filter(|&&other| kind_of(vertex, other) == Some(kind))
+            .count()
+    };
+    let mut visited: std::collections::HashSet<(u32, u32)> = std::collections::HashSet::new();
+    let mut curves = Vec::new();
+    for kind in [CurveKind::Border, CurveKind::Seam, CurveKind::Loose] {
+        // Open chains first (from every end or junction), then what is left are closed loops.
+        for pass_open in [true, false] {
+            for start in 0..vertex_count as u32 {
+                let degree = curve_degree(start, kind);
+                if degree == 0 || (pass_open && degree == 2) {
+                    continue;
+                }
+                for &first in &adjacency[start as usize] {
+                    if kind_of(start, first) != Some(kind)
+                        || visited.contains(&edge_key(start, first))
+                    {
+                        continue;
+                    }
+                    let mut vertices = vec![start];
+                    let mut previous = start;
+                    let mut current = first;
+                    visited.insert(edge_key(start, first));
+                    let mut closed = false;
+                    loop {
+                        if current == start {
+                            closed = true;
+                            break;
+                        }
+                        vertices.push(current);
+                        if curve_degree(current, kind) != 2 {
+                            break;
+                        }
+                        let next = adjacency[current as usize].iter().copied().find(|&other| {
+                            other != previous
+                                && kind_of(current, other) == Some(kind)
+                                && !visited.contains(&edge_key(current, other))
+                        });
+                        let Some(next) = next else { break };
+                        visited.insert(edge_key(current, next));
+                        previous = current;
+                        current = next;
+                    }
+                    curves.push(Curve {
+                        kind,
+                        vertices,
+                        closed,
+                    });
+                }
+            }
+        }
+    }
+    curves
+}
+
+fn validate(
+    vertex_count: usize,
+    face_corners: &[u32],
+    face_sizes: &[u32],
+    edges: &[[u32; 2]],
+    seams: &[[u32; 2]],
+) -> Result<(), KernelError> {
+    let corner_total: usize = face_sizes.iter().map(|&size| size as usize).sum();
+    if corner_total != face_corners.len() {
+        return Err(KernelError::InvalidArgument {
+            name: "face_sizes",
+            reason: format!(
+                "the face sizes add up to {corner_total} corners, but {} corners were given",
+                face_corners.len()
+            ),
+        });
+    }
+    if let Some(face) = face_sizes.iter().position(|&size| size < 3) {
+        return Err(KernelError::InvalidArgument {
+            name: "face_sizes",
+            reason: format!(
+                "face {face} has {} corners (at least 3 needed)",
+                face_sizes[face]
+            ),
+        });
+    }
+    let mut offset = 0usize;
+    for (face, &size) in face_sizes.iter().enumerate() {
+        for &vertex in &face_corners[offset..offset + size as usize] {
+            if vertex as usize >= vertex_count {
+                return Err(KernelError::LayoutIndexOutOfRange {
+                    element: "face",
+                    index: face,
+                    vertex,
+                    vertex_count,
+                });
+            }
+        }
+        offset += size as usize;
+    }
+    for (element, list) in [("edge", edges), ("seam", seams)] {
+        for (index, edge) in list.iter().enumerate() {
+            if let Some(&vertex) = edge.iter().find(|&&vertex| vertex as usize >= vertex_count) {
+                return Err(KernelError::LayoutIndexOutOfRange {
+                    element,
+                    index,
+                    vertex,
+                    vertex_count,
+                });
+            }
+            if edge[0] == edge[1] {
+                return Err(KernelError::InvalidArgument {
+                    name: "edges",
+                    reason: format!("{element} {index} joins vertex {} to itself", edge[0]),
+                });
+            }
+        }
+    }
+    Ok(())
+}
