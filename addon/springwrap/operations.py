@@ -77,10 +77,24 @@ def resolve_topology(
     if not mask.any():
         return layout_state.Resolution(layout.state, 0, 0)
     check_finite(layout, mask)
-    points = layout_state.as_float32_points(world_positions(layout)[mask])
-    hits = target.mesh.closest_points(points)
+    return resolve_points(layout.state, mask, world_positions(layout)[mask], target)
+
+
+def resolve_points(
+    state: LayoutState, mask: np.ndarray, world_points: np.ndarray, target: Target
+) -> layout_state.Resolution:
+    """The deleted-face rule for the face-points in ``mask``, looked up at ``world_points`` (mask order).
+
+    Each is found again on the current target surface (the exact closest point): within the
+    target's re-attach tolerance it re-attaches there, otherwise it becomes a space-point. Used
+    for layout vertices (at their positions) and for anchors (at their cached target points).
+    """
+    mask = np.asarray(mask, dtype=bool)
+    if not mask.any():
+        return layout_state.Resolution(state, 0, 0)
+    hits = target.mesh.closest_points(layout_state.as_float32_points(world_points))
     return layout_state.resolve_face_points(
-        layout.state, mask, hits.triangles, hits.barycentrics, hits.distances, target.reattach_tolerance
+        state, mask, hits.triangles, hits.barycentrics, hits.distances, target.reattach_tolerance
     )
 
 
