@@ -39,8 +39,9 @@ fn a_quad_grid_has_two_lines_inside_one_along_the_border_and_corners_apart() {
     assert_eq!(triples_through(&structure, 6), vec![(1, 11), (5, 7)]);
     // Border vertex 2 = (2, 0): one line along the border, 1-3.
     assert_eq!(triples_through(&structure, 2), vec![(1, 3)]);
-    // The 4 corners (valence 2) are the only extraordinary vertices.
-    assert_eq!(structure.extraordinary, vec![0, 4, 20, 24]);
+    // The 4 corners (border vertices of one face) are corners, nothing is extraordinary.
+    assert_eq!(structure.corners, vec![0, 4, 20, 24]);
+    assert!(structure.extraordinary.is_empty());
     assert_eq!(structure.line_triples.len(), 9 * 2 + 12);
     // One closed border loop through the 16 border vertices.
     assert_eq!(structure.curves.len(), 1);

@@ -9,7 +9,10 @@
 //! - a **line triple** `(previous, vertex, next)` says `vertex` lies on a grid line between two
 //!   neighbours: the two pairs of opposite neighbours of a regular interior vertex (valence 4, all
 //!   faces quads), the two border neighbours of a regular border vertex (valence 3), the two
-//!   neighbours of a vertex inside a curve chain, and the two seam neighbours of a seam vertex;
+//!   neighbours of a vertex inside a curve chain, and the two border neighbours of any border
+//!   vertex of two or more faces;
+//! - a **corner** (a border vertex of a single face) has no line and no fairness: smoothing it
+//!   would cut the corner and shrink the patch;
 //! - a vertex with no line triple through it (valence other than 4, a triangle around it, a
 //!   junction of curves) is **extraordinary**: it gets the umbrella fallback, the mean of its edge
 //!   neighbours (no cotangent weights: the layout's own geometry is not to be trusted);
@@ -64,8 +67,12 @@ pub struct LayoutStructure {
     pub neighbors: Vec<u32>,
     /// Every grid-line triple.
     pub line_triples: Vec<LineTriple>,
-    /// Vertices with no line triple and at least one neighbour: they use the umbrella fallback.
+    /// Vertices with no line triple and at least one neighbour, other than corners: they use the
+    /// umbrella fallback.
     pub extraordinary: Vec<u32>,
+    /// Patch corners: border vertices of a single face. No fairness acts on them (the umbrella
+    /// would cut the corner and shrink the patch); anchors and the other forces still do.
+    pub corners: Vec<u32>,
     /// Border, seam and loose-edge chains.
     pub curves: Vec<Curve>,
 }
@@ -95,6 +102,7 @@ impl LayoutStructure {
         let mut face_count_of_edge: HashMap<(u32, u32), u32> = HashMap::new();
         let mut consecutive: Vec<Vec<(u32, u32)>> = vec![Vec::new(); vertex_count];
         let mut only_quads = vec![true; vertex_count];
+        let mut face_count = vec![0u32; vertex_count];
         let mut offset = 0usize;
         for &size in face_sizes {
             let face = &face_corners[offset..offset + size as usize];
@@ -107,6 +115,7 @@ impl LayoutStructure {
                     .entry(edge_key(vertex, next))
                     .or_insert(0) += 1;
                 consecutive[vertex as usize].push((previous, next));
+                face_count[vertex as usize] += 1;
                 if face.len() != 4 {
                     only_quads[vertex as usize] = false;
                 }
@@ -148,6 +157,7 @@ impl LayoutStructure {
 
         let mut line_triples = Vec::new();
         let mut extraordinary = Vec::new();
+        let mut corners = Vec::new();
         for vertex in 0..vertex_count as u32 {
             let around = &adjacency[vertex as usize];
             if around.is_empty() {
@@ -182,19 +192,21 @@ impl LayoutStructure {
                             });
                         }
                     }
-                } else if border_count == 2 && face_edges == 3 && around.len() == 3 {
-                    // A regular border vertex: the grid line runs along the border.
-                    let border: Vec<u32> = curve_neighbors
-                        .iter()
-                        .filter(|(_, kind)| *kind == CurveKind::Border)
-                        .map(|(other, _)| *other)
-                        .collect();
-                    line_triples.push(LineTriple {
-                        previous: border[0],
-                        vertex,
-                        next: border[1],
-                    });
                 }
+            }
+            let border: Vec<u32> = curve_neighbors
+                .iter()
+                .filter(|(_, kind)| *kind == CurveKind::Border)
+                .map(|(other, _)| *other)
+                .collect();
+            if line_triples.len() == before && border.len() == 2 && face_count[vertex as usize] >= 2
+            {
+                // On an open border, away from a patch corner: the line runs along the border.
+                line_triples.push(LineTriple {
+                    previous: border[0],
+                    vertex,
+                    next: border[1],
+                });
             }
             if line_triples.len() == before {
                 // A vertex inside a loose curve chain (and nothing else) still lies on a line.
@@ -212,7 +224,11 @@ impl LayoutStructure {
                 }
             }
             if line_triples.len() == before {
-                extraordinary.push(vertex);
+                if border.len() == 2 && face_count[vertex as usize] == 1 {
+                    corners.push(vertex);
+                } else {
+                    extraordinary.push(vertex);
+                }
             }
         }
 
@@ -223,6 +239,7 @@ impl LayoutStructure {
             neighbors,
             line_triples,
             extraordinary,
+            corners,
             curves,
         })
     }
