@@ -1,8 +1,10 @@
 """Springwrap: retarget a quad patch layout (and its curves) onto a target mesh.
 
 Each layout vertex is a face-point (on a target triangle) or a space-point (free in 3D). The
-operators (``operators``) detach, snap and project layout vertices; ``bridge`` is the one module
-that moves data between Blender and the Rust kernel (``springwrap_kernel``).
+operators (``operators``) detach, snap and project layout vertices; the anchor operators
+(``anchor_operators``) pair layout vertices with target points, drawn in the 3D view by
+``anchor_drawing``; ``bridge`` is the one module that moves data between Blender and the Rust
+kernel (``springwrap_kernel``).
 """
 
 bl_info = {
@@ -17,9 +19,9 @@ bl_info = {
 
 import bpy
 
-from . import operators, properties, ui
+from . import anchor_drawing, anchor_operators, operators, properties, ui
 
-_modules = (properties, operators, ui)
+_modules = (properties, operators, anchor_operators, ui)
 
 
 def register():
@@ -28,10 +30,12 @@ def register():
         for cls in module.classes:
             bpy.utils.register_class(cls)
     bpy.types.Object.springwrap = bpy.props.PointerProperty(type=properties.SpringwrapObjectSettings)
+    anchor_drawing.install()
 
 
 def unregister():
     """Undo :func:`register` in reverse order and drop the cached target meshes."""
+    anchor_drawing.uninstall()
     del bpy.types.Object.springwrap
     for module in reversed(_modules):
         for cls in reversed(module.classes):

@@ -1,18 +1,21 @@
 """The only module that moves data between ``bpy`` and the Springwrap kernel.
 
-Reads the layout (positions, selection, state attributes) and the evaluated target into numpy
-arrays, builds and caches the kernel's ``TargetMesh``, and writes positions and state back.
-Bulk data moves through ``foreach_get`` / ``foreach_set``; there is no per-vertex Python loop.
+Reads the layout (positions, selection, state attributes, anchors) and the evaluated target into
+numpy arrays, builds and caches the kernel's ``TargetMesh``, and writes positions, state and
+anchors back. Bulk data moves through ``foreach_get`` / ``foreach_set``; there is no per-vertex
+Python loop (except over anchors in edit mode, which are few).
 """
 
 import collections
 import contextlib
+from typing import Optional
 
+import bmesh
 import bpy
 import numpy as np
 import springwrap_kernel
 
-from . import compat, layout_state
+from . import anchors, compat, layout_state
 from .layout_state import LayoutArrays, LayoutError, LayoutState
 from .operations import Target
 
@@ -29,6 +32,15 @@ _STATE_ATTRIBUTES = (
     (layout_state.STATE_ATTRIBUTE, "INT", "value", np.int32, 1),
     (layout_state.FACE_ATTRIBUTE, "INT", "value", np.int32, 1),
     (layout_state.BARYCENTRIC_ATTRIBUTE, "FLOAT_VECTOR", "vector", np.float32, 3),
+)
+
+_ANCHOR_FIELDS = (
+    # AnchorItem property, numpy dtype, components (the order of anchors.make_anchors' arguments)
+    ("vertex_index", np.int32, 1),
+    ("target_kind", np.int32, 1),  # enum: its item numbers are the anchor kinds
+    ("triangle", np.int32, 1),
+    ("barycentric", np.float32, 3),
+    ("location", np.float64, 3),
 )
 
 
@@ -213,3 +225,90 @@ def _state_attribute(mesh: bpy.types.Mesh, name: str, data_type: str):
     if attribute is None or attribute.domain != "POINT" or attribute.data_type != data_type:
         return None
     return attribute
+
+
+# ---------------------------------------------------------------- anchors
+
+
+def read_anchors(layout: bpy.types.Object) -> anchors.Anchors:
+    """The layout's anchors (``Object.springwrap.anchors``) as arrays, in list order."""
+    items = layout.springwrap.anchors
+    count = len(items)
+    arrays = []
+    for name, dtype, components in _ANCHOR_FIELDS:
+        values = np.empty(count * components, dtype=dtype)
+        if count:
+            items.foreach_get(name, values)
+        arrays.append(values)
+    return anchors.make_anchors(*arrays)
+
+
+def write_anchors(
+    layout: bpy.types.Object, anchor_list: anchors.Anchors, active_index: int = -1, signature: Optional[str] = None
+) -> None:
+    """Replace the layout's anchor list; make ``active_index`` active (-1 keeps the current one, clamped).
+
+    ``signature`` (the target's topology signature the face anchors refer to) is stored when given.
+    """
+    settings = layout.springwrap
+    items = settings.anchors
+    count = anchors.anchor_count(anchor_list)
+    if len(items) != count:
+        items.clear()
+        for _ in range(count):
+            items.add()
+    if count:
+        for (name, dtype, _components), array in zip(_ANCHOR_FIELDS, anchor_list):
+            items.foreach_set(name, np.ascontiguousarray(array, dtype=dtype).reshape(-1))
+    chosen = active_index if active_index >= 0 else settings.active_anchor_index
+    settings.active_anchor_index = max(anchors.clamp_active_index(chosen, count), 0)
+    if signature is not None:
+        settings.anchors_signature = signature
+
+
+def read_vertex_selection(layout: bpy.types.Object) -> tuple[np.ndarray, int]:
+    """(N,) bool vertex selection and the active vertex (last of the selection history, -1 for none).
+
+    Reads the mesh data (object mode): leaving edit mode writes the selection history into it.
+    """
+    mesh = layout.data
+    vertex_count = len(mesh.vertices)
+    selection = np.empty(vertex_count, dtype=bool)
+    mesh.vertices.foreach_get("select", selection)
+    active_vertex = -1
+    if selection.any():
+        editable = bmesh.new()
+        try:
+            editable.from_mesh(mesh)
+            active = editable.select_history.active
+            if isinstance(active, bmesh.types.BMVert):
+                active_vertex = active.index
+        finally:
+            editable.free()
+    return selection, active_vertex
+
+
+def read_world_vertex_positions(layout: bpy.types.Object, vertex_indices: np.ndarray) -> np.ndarray:
+    """(K, 3) float64 world positions of the given layout vertices; NaN rows for indices out of range.
+
+    In edit mode the positions come from the edit-mesh (so they follow edits as they happen),
+    one anchor at a time; otherwise all vertex positions are read at once.
+    """
+    mesh = layout.data
+    vertex_indices = np.asarray(vertex_indices, dtype=np.int64).reshape(-1)
+    local = np.full((vertex_indices.shape[0], 3), np.nan, dtype=np.float64)
+    if mesh.is_editmode:
+        editable = bmesh.from_edit_mesh(mesh)
+        editable.verts.ensure_lookup_table()
+        vertex_count = len(editable.verts)
+        for row, index in enumerate(vertex_indices.tolist()):
+            if 0 <= index < vertex_count:
+                local[row] = editable.verts[index].co
+    else:
+        vertex_count = len(mesh.vertices)
+        valid = (vertex_indices >= 0) & (vertex_indices < vertex_count)
+        if valid.any():
+            positions = np.empty(vertex_count * 3, dtype=np.float32)
+            mesh.vertices.foreach_get("co", positions)
+            local[valid] = positions.reshape(-1, 3)[vertex_indices[valid]]
+    return layout_state.transform_points(matrix_array(layout.matrix_world), local)

@@ -1,8 +1,8 @@
 """Springwrap's per-object settings, hung on ``bpy.types.Object.springwrap``.
 
-All add-on state lives here (no loose Scene properties). The per-vertex state is not here but in
-mesh attributes on the layout (see ``layout_state``), so that it follows the mesh through edits,
-undo and save/reload.
+All add-on state lives here (no loose Scene properties), anchors included. The per-vertex state is
+not here but in mesh attributes on the layout (see ``layout_state``), so that it follows the mesh
+through edits, undo and save/reload.
 """
 
 import bpy
@@ -31,10 +31,59 @@ ORIENTATION_ITEMS = (
 )
 """Orientations of the axis directions of ``springwrap.project``."""
 
+ANCHOR_KIND_ITEMS = (
+    ("SPACE", "Space", "The anchor's target is a free point in 3D", "EMPTY_AXIS", 0),
+    ("FACE", "Face", "The anchor's target is a point of the target surface (triangle + barycentric)", "SNAP_FACE", 1),
+)
+"""Kinds of anchor targets; the item numbers are ``anchors.SPACE_ANCHOR`` and ``anchors.FACE_ANCHOR``."""
+
+ANCHOR_METHOD_ITEMS = (
+    ("CLOSEST", "Closest", "Each anchor's target is the closest point of the target surface"),
+    ("PROJECT", "Project", "Each anchor's target is the nearer hit along the vertex normal, both ways"),
+)
+"""How ``springwrap.anchors_auto`` finds the anchors' targets."""
+
 
 def _is_target_candidate(settings, candidate):
     """Poll of ``target``: a mesh object other than the layout that owns the settings."""
     return candidate is not None and candidate.type == "MESH" and candidate != settings.id_data
+
+
+class SpringwrapAnchorItem(bpy.types.PropertyGroup):
+    """An anchor: a layout vertex and the target point it is pulled to (paper section 2.4)"""
+
+    vertex_index: bpy.props.IntProperty(
+        name="Vertex",
+        description="Index of the anchored layout vertex",
+        default=0,
+        min=0,
+    )
+    target_kind: bpy.props.EnumProperty(
+        name="Target Kind",
+        description="Whether the anchor's target is on the target surface or free in space",
+        items=ANCHOR_KIND_ITEMS,
+        default="SPACE",
+    )
+    triangle: bpy.props.IntProperty(
+        name="Triangle",
+        description="Triangle of the evaluated target (loop-triangle order) of a face anchor, -1 for a space anchor",
+        default=-1,
+        min=-1,
+    )
+    barycentric: bpy.props.FloatVectorProperty(
+        name="Barycentric",
+        description="Weights of the triangle's corners of a face anchor",
+        size=3,
+        default=(0.0, 0.0, 0.0),
+    )
+    location: bpy.props.FloatVectorProperty(
+        name="Location",
+        description="World-space target point (for a face anchor, refreshed from the target by the anchor operators)",
+        size=3,
+        default=(0.0, 0.0, 0.0),
+        subtype="XYZ",
+        unit="LENGTH",
+    )
 
 
 class SpringwrapObjectSettings(bpy.types.PropertyGroup):
@@ -84,5 +133,42 @@ class SpringwrapObjectSettings(bpy.types.PropertyGroup):
         unit="LENGTH",
     )
 
+    anchors: bpy.props.CollectionProperty(
+        name="Anchors",
+        description="Point-to-point correspondences: a layout vertex and its target point",
+        type=SpringwrapAnchorItem,
+    )
+    active_anchor_index: bpy.props.IntProperty(
+        name="Active Anchor",
+        description="Index of the active anchor in the list",
+        default=0,
+        min=0,
+    )
+    anchors_signature: bpy.props.StringProperty(
+        name="Anchors Signature",
+        description="Topology signature of the target when the face anchors were last written",
+        default="",
+        options={"HIDDEN"},
+    )
+    show_anchors: bpy.props.BoolProperty(
+        name="Show Anchors",
+        description="Draw a line from each anchored layout vertex to its target point in the 3D view",
+        default=True,
+    )
+    anchor_spacing: bpy.props.FloatProperty(
+        name="Spacing",
+        description="Default spacing of the panel's Auto Anchors button (0 = a tenth of the layout's size)",
+        default=0.0,
+        min=0.0,
+        subtype="DISTANCE",
+        unit="LENGTH",
+    )
+    anchor_method: bpy.props.EnumProperty(
+        name="Method",
+        description="Default method of the panel's Auto Anchors button",
+        items=ANCHOR_METHOD_ITEMS,
+        default="CLOSEST",
+    )
 
-classes = (SpringwrapObjectSettings,)
+
+classes = (SpringwrapAnchorItem, SpringwrapObjectSettings)

@@ -1,4 +1,4 @@
-"""The Springwrap sidebar panel of the 3D view."""
+"""The Springwrap sidebar panel of the 3D view, and its Anchors sub-panel."""
 
 import bpy
 
@@ -80,4 +80,81 @@ def _draw_point_counts(layout, obj):
         layout.label(text=f"{face_count} face-points, {space_count} space-points", icon="INFO")
 
 
-classes = (SPRINGWRAP_PT_layout,)
+class SPRINGWRAP_UL_anchors(bpy.types.UIList):
+    """The layout's anchors: vertex index, target kind and target location"""
+
+    bl_idname = "SPRINGWRAP_UL_anchors"
+
+    def draw_item(self, context, layout, data, item, icon, active_data, active_property, index=0, flt_flag=0):
+        vertex_count = len(data.id_data.data.vertices) if data.id_data.type == "MESH" else 0
+        missing = not 0 <= item.vertex_index < vertex_count
+        row = layout.row(align=True)
+        row.alert = missing
+        vertex_text = f"Vertex {item.vertex_index}" + (" (missing)" if missing else "")
+        row.label(text=vertex_text, icon="ERROR" if missing else "VERTEXSEL")
+        x, y, z = item.location
+        kind_icon = "SNAP_FACE" if item.target_kind == "FACE" else "EMPTY_AXIS"
+        row.label(text=f"{item.target_kind.title()} ({x:.3g}, {y:.3g}, {z:.3g})", icon=kind_icon)
+
+
+class SPRINGWRAP_PT_anchors(bpy.types.Panel):
+    """The active layout's anchors: list, add / remove / clear / auto, and the viewport display toggle"""
+
+    bl_label = "Anchors"
+    bl_idname = "SPRINGWRAP_PT_anchors"
+    bl_parent_id = "SPRINGWRAP_PT_layout"
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "Springwrap"
+
+    @classmethod
+    def poll(cls, context):
+        obj = context.active_object
+        return obj is not None and obj.type == "MESH"
+
+    def draw_header(self, context):
+        self.layout.prop(context.active_object.springwrap, "show_anchors", text="")
+
+    def draw(self, context):
+        layout = self.layout
+        settings = context.active_object.springwrap
+        layout.label(text=_anchor_counts_text(settings.anchors), icon="PINNED")
+
+        row = layout.row()
+        row.template_list(
+            "SPRINGWRAP_UL_anchors", "", settings, "anchors", settings, "active_anchor_index", rows=4
+        )
+        column = row.column(align=True)
+        add = column.operator("springwrap.anchor_add", icon="ADD", text="")
+        add.vertex_index = -1
+        add.use_location = False
+        column.operator("springwrap.anchor_remove", icon="REMOVE", text="").index = -1
+        column.separator()
+        column.operator("springwrap.anchors_update", icon="FILE_REFRESH", text="")
+        column.operator("springwrap.anchors_clear", icon="X", text="")
+
+        box = layout.box()
+        box.use_property_split = True
+        box.use_property_decorate = False
+        box.prop(settings, "anchor_spacing")
+        box.prop(settings, "anchor_method")
+        auto = box.operator("springwrap.anchors_auto", icon="AUTO")
+        auto.spacing = settings.anchor_spacing
+        auto.method = settings.anchor_method
+        auto.max_distance = settings.max_distance
+
+
+def _anchor_counts_text(anchors):
+    """"K anchors (F on the surface)", the kinds read at once (the list may be long)."""
+    import numpy as np
+
+    from .anchors import FACE_ANCHOR
+
+    kinds = np.empty(len(anchors), dtype=np.int32)
+    if len(anchors):
+        anchors.foreach_get("target_kind", kinds)
+    face_count = int(np.count_nonzero(kinds == FACE_ANCHOR))
+    return f"{len(anchors)} anchors ({face_count} on the surface)"
+
+
+classes = (SPRINGWRAP_PT_layout, SPRINGWRAP_UL_anchors, SPRINGWRAP_PT_anchors)

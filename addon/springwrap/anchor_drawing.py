@@ -1,0 +1,168 @@
+"""Draws the active layout's anchors in the 3D view: a line from each anchored vertex to its target.
+
+One ``SpaceView3D`` draw handler (``POST_VIEW``), installed by :func:`install` on register and
+removed by :func:`uninstall` on unregister. It draws nothing in background mode, for an object
+that is not the active mesh, or when ``object.springwrap.show_anchors`` is off.
+
+The anchored vertices' world positions are cached and read again only after a depsgraph update
+(a ``depsgraph_update_post`` handler bumps a generation counter), so orbiting the view does not
+re-read the mesh; the anchor list itself is a few small arrays, read on every draw.
+"""
+
+import bpy
+import numpy as np
+
+LINE_COLOR = (1.0, 0.55, 0.1, 0.9)
+"""Colour of the lines (orange)."""
+LAYOUT_POINT_COLOR = (1.0, 0.85, 0.2, 1.0)
+"""Colour of the anchored layout vertices."""
+TARGET_POINT_COLOR = (1.0, 0.3, 0.1, 1.0)
+"""Colour of the target points."""
+LINE_WIDTH = 2.0
+"""Width of the lines in pixels (polyline shader)."""
+POINT_SIZE = 7.0
+"""Size of the end points in pixels."""
+
+LINE_SHADERS = ("POLYLINE_UNIFORM_COLOR", "3D_POLYLINE_UNIFORM_COLOR", "UNIFORM_COLOR", "3D_UNIFORM_COLOR")
+"""Builtin shaders for the lines, best first (names differ across Blender versions)."""
+POINT_SHADERS = ("POINT_UNIFORM_COLOR", "UNIFORM_COLOR", "3D_UNIFORM_COLOR")
+"""Builtin shaders for the end points, best first."""
+
+_draw_handle = None
+_generation = 0
+_position_cache = {"key": None, "positions": None}
+_shaders = {}
+_failed = False
+
+
+def install() -> None:
+    """Add the draw handler and the depsgraph handler (once)."""
+    global _draw_handle, _failed
+    _failed = False
+    if _draw_handle is None:
+        _draw_handle = bpy.types.SpaceView3D.draw_handler_add(draw_anchors, (), "WINDOW", "POST_VIEW")
+    if _on_depsgraph_update not in bpy.app.handlers.depsgraph_update_post:
+        bpy.app.handlers.depsgraph_update_post.append(_on_depsgraph_update)
+
+
+def uninstall() -> None:
+    """Remove what :func:`install` added and drop the caches."""
+    global _draw_handle
+    if _draw_handle is not None:
+        bpy.types.SpaceView3D.draw_handler_remove(_draw_handle, "WINDOW")
+        _draw_handle = None
+    while _on_depsgraph_update in bpy.app.handlers.depsgraph_update_post:
+        bpy.app.handlers.depsgraph_update_post.remove(_on_depsgraph_update)
+    _position_cache.update(key=None, positions=None)
+    _shaders.clear()
+
+
+def is_installed() -> bool:
+    """Whether the draw handler is installed."""
+    return _draw_handle is not None
+
+
+@bpy.app.handlers.persistent
+def _on_depsgraph_update(_scene, _depsgraph):
+    """Something changed (geometry, transform, mode...): the cached positions are stale."""
+    global _generation
+    _generation += 1
+
+
+def anchor_segments(layout) -> tuple[np.ndarray, np.ndarray]:
+    """The lines to draw for ``layout``: (K, 3) float32 world starts (layout vertices) and ends (targets).
+
+    Empty when the layout has no anchors or hides them. Anchors whose vertex no longer exists are
+    left out.
+    """
+    from . import anchors, bridge
+
+    empty = np.zeros((0, 3), dtype=np.float32)
+    settings = layout.springwrap
+    if not settings.show_anchors or not len(settings.anchors):
+        return empty, empty
+    anchor_list = bridge.read_anchors(layout)
+    key = (
+        _generation,
+        layout.as_pointer(),
+        layout.data.as_pointer(),
+        layout.data.is_editmode,
+        anchor_list.vertex_indices.tobytes(),
+    )
+    if _position_cache["key"] != key:
+        _position_cache.update(key=key, positions=bridge.read_world_vertex_positions(layout, anchor_list.vertex_indices))
+    return anchors.segments(anchor_list, _position_cache["positions"])
+
+
+def draw_anchors() -> None:
+    """The draw handler: lines and end points of the active layout's anchors (never in background mode)."""
+    global _failed
+    if bpy.app.background or _failed:
+        return
+    layout = bpy.context.active_object
+    if layout is None or layout.type != "MESH" or not layout.springwrap.show_anchors:
+        return
+    if not len(layout.springwrap.anchors):
+        return
+    try:
+        starts, ends = anchor_segments(layout)
+        if starts.shape[0]:
+            _draw_segments(starts, ends)
+    except Exception as error:  # noqa: BLE001  (a draw callback must not raise on every redraw)
+        _failed = True
+        print(f"Springwrap: drawing anchors failed, anchors are no longer drawn: {error!r}")
+
+
+def _draw_segments(starts: np.ndarray, ends: np.ndarray) -> None:
+    import gpu
+    from gpu_extras.batch import batch_for_shader
+
+    lines = np.empty((starts.shape[0] * 2, 3), dtype=np.float32)
+    lines[0::2] = starts
+    lines[1::2] = ends
+    gpu.state.blend_set("ALPHA")
+    gpu.state.depth_test_set("NONE")
+    try:
+        name, shader = _shader(LINE_SHADERS)
+        batch = batch_for_shader(shader, "LINES", {"pos": lines})
+        shader.bind()
+        if "POLYLINE" in name:
+            shader.uniform_float("viewportSize", gpu.state.viewport_get()[2:])
+            shader.uniform_float("lineWidth", LINE_WIDTH)
+        else:
+            gpu.state.line_width_set(LINE_WIDTH)
+        shader.uniform_float("color", LINE_COLOR)
+        batch.draw(shader)
+
+        name, shader = _shader(POINT_SHADERS)
+        shader.bind()
+        if name.startswith("POINT"):
+            gpu.state.program_point_size_set(True)  # the shader writes the point size itself
+            shader.uniform_float("size", POINT_SIZE)
+        else:
+            gpu.state.point_size_set(POINT_SIZE)
+        for points, color in ((starts, LAYOUT_POINT_COLOR), (ends, TARGET_POINT_COLOR)):
+            shader.uniform_float("color", color)
+            batch_for_shader(shader, "POINTS", {"pos": points}).draw(shader)
+    finally:
+        gpu.state.line_width_set(1.0)
+        gpu.state.program_point_size_set(False)
+        gpu.state.point_size_set(1.0)
+        gpu.state.depth_test_set("NONE")
+        gpu.state.blend_set("NONE")
+
+
+def _shader(names):
+    """The first builtin shader of ``names`` this Blender has, as ``(name, shader)``; cached."""
+    import gpu
+
+    if names not in _shaders:
+        for name in names:
+            try:
+                _shaders[names] = (name, gpu.shader.from_builtin(name))
+                break
+            except (ValueError, TypeError):
+                continue
+        else:
+            raise RuntimeError(f"none of the builtin shaders {names} exists")
+    return _shaders[names]

@@ -1,0 +1,294 @@
+"""Springwrap anchor operators: add, spread, update, remove and clear the active layout's anchors.
+
+An anchor pairs a layout vertex with a target point (paper section 2.4). Each operator reads
+everything, computes the complete new anchor list (``anchors``), and writes it only when every
+step succeeded; any problem is reported as an error and the anchors are left exactly as they were.
+"""
+
+import contextlib
+import time
+
+import bpy
+
+from .operators import layout_problem
+from .properties import ANCHOR_METHOD_ITEMS
+
+
+def anchor_problem(context, require_target=True, require_anchors=False):
+    """Why an anchor operator cannot run on the active object, or None when it can."""
+    problem = layout_problem(context, require_target)
+    if problem is not None:
+        return problem
+    if require_anchors and not len(context.active_object.springwrap.anchors):
+        return "The layout has no anchors"
+    return None
+
+
+class _AnchorOperator:
+    """Shared poll, run and report of the anchor operators."""
+
+    requires_target = True
+    requires_anchors = False
+    reads_layout_mesh = True  # leaves edit mode for the duration, so the mesh data is current
+
+    @classmethod
+    def poll(cls, context):
+        problem = anchor_problem(context, cls.requires_target, cls.requires_anchors)
+        if problem is not None:
+            cls.poll_message_set(problem)
+            return False
+        return True
+
+    def execute(self, context):
+        problem = anchor_problem(context, self.requires_target, self.requires_anchors)
+        if problem is not None:
+            self.report({"ERROR"}, problem)
+            return {"CANCELLED"}
+        try:
+            from . import anchors, bridge
+        except ImportError as error:
+            self.report({"ERROR"}, f"The Springwrap kernel is not available: {error}")
+            return {"CANCELLED"}
+        layout = context.active_object
+        start = time.perf_counter()
+        try:
+            mode = bridge.object_mode(layout) if self.reads_layout_mesh else contextlib.nullcontext()
+            with mode:
+                outcome, signature = self.compute(context, anchors, bridge, layout)
+                bridge.write_anchors(layout, outcome.anchors, outcome.active_index, signature)
+        except bridge.ERRORS as error:
+            self.report({"ERROR"}, str(error))
+            return {"CANCELLED"}
+        milliseconds = (time.perf_counter() - start) * 1000.0
+        self.report({"INFO"}, self.summary(anchors, outcome, milliseconds))
+        detached, reattached = outcome.topology_detached_count, outcome.topology_reattached_count
+        if detached or reattached:
+            self.report(
+                {"WARNING"} if detached else {"INFO"},
+                f"Target topology changed: {detached} face anchors lost their target face and became "
+                f"space anchors, {reattached} re-attached",
+            )
+        return {"FINISHED"}
+
+    def compute(self, context, anchors, bridge, layout):
+        """``(anchors.AnchorOutcome, signature or None)``; raises one of ``bridge.ERRORS`` on bad input."""
+        raise NotImplementedError
+
+    def summary(self, anchors, outcome, milliseconds):
+        """The report of a finished operation."""
+        raise NotImplementedError
+
+
+class SPRINGWRAP_OT_anchor_add(_AnchorOperator, bpy.types.Operator):
+    """Anchor a layout vertex to the target point closest to the 3D cursor (or to a given location)"""
+
+    bl_idname = "springwrap.anchor_add"
+    bl_label = "Add Anchor"
+    bl_options = {"REGISTER", "UNDO"}
+
+    vertex_index: bpy.props.IntProperty(
+        name="Vertex Index",
+        description="Layout vertex to anchor; -1 for the active selected vertex (or the only selected one)",
+        default=-1,
+        soft_min=-1,
+    )
+    location: bpy.props.FloatVectorProperty(
+        name="Location",
+        description="World-space point whose closest target point becomes the anchor's target",
+        size=3,
+        default=(0.0, 0.0, 0.0),
+        subtype="XYZ",
+        unit="LENGTH",
+    )
+    use_location: bpy.props.BoolProperty(
+        name="Use Location",
+        description="Use Location instead of the 3D cursor",
+        default=False,
+    )
+    on_surface: bpy.props.BoolProperty(
+        name="On Surface",
+        description="The target is the closest point of the target surface; off: the location itself (a space anchor)",
+        default=True,
+    )
+
+    def compute(self, context, anchors, bridge, layout):
+        selection, active_vertex = bridge.read_vertex_selection(layout)
+        if not selection.size:
+            raise anchors.LayoutError(f"Layout '{layout.name}' has no vertices")
+        if self.vertex_index == -1:
+            self._vertex = anchors.pick_vertex(selection, active_vertex)
+        else:
+            self._vertex = anchors.check_vertex_index(self.vertex_index, selection.size)
+        source = self.location if self.use_location else context.scene.cursor.location
+        self._source = anchors.check_location(
+            tuple(source), "The anchor location" if self.use_location else "The 3D cursor"
+        )
+        target = bridge.read_target(context.evaluated_depsgraph_get(), layout)
+        outcome = anchors.add(
+            selection.size,
+            bridge.read_anchors(layout),
+            target,
+            layout.springwrap.anchors_signature,
+            self._vertex,
+            self._source,
+            self.on_surface,
+        )
+        return outcome, target.signature
+
+    def summary(self, anchors, outcome, milliseconds):
+        import numpy as np
+
+        location = outcome.anchors.locations[-1]
+        where = "the target surface" if outcome.anchors.kinds[-1] == anchors.FACE_ANCHOR else "a point in space"
+        distance = float(np.linalg.norm(location - self._source))
+        source = "location" if self.use_location else "3D cursor"
+        text = (
+            f"Anchored vertex {self._vertex} to {where} at ({location[0]:.4g}, {location[1]:.4g}, "
+            f"{location[2]:.4g}), {distance:.4g} from the {source}"
+        )
+        if outcome.replaced_count:
+            text += "; replaced its previous anchor"
+        return text
+
+
+class SPRINGWRAP_OT_anchors_auto(_AnchorOperator, bpy.types.Operator):
+    """Spread anchors evenly over the layout (no two closer than the spacing), targets by closest point or projection"""
+
+    bl_idname = "springwrap.anchors_auto"
+    bl_label = "Auto Anchors"
+    bl_options = {"REGISTER", "UNDO"}
+
+    spacing: bpy.props.FloatProperty(
+        name="Spacing",
+        description="Smallest distance between two anchored layout vertices (0 = a tenth of the layout's size)",
+        default=0.0,
+        min=0.0,
+        subtype="DISTANCE",
+        unit="LENGTH",
+    )
+    method: bpy.props.EnumProperty(name="Method", items=ANCHOR_METHOD_ITEMS, default="CLOSEST")
+    replace: bpy.props.BoolProperty(
+        name="Replace",
+        description="Remove the existing anchors first; off: keep them and anchor other vertices only",
+        default=True,
+    )
+    max_distance: bpy.props.FloatProperty(
+        name="Max Distance",
+        description="Vertices whose target point is farther than this get no anchor (0 = unlimited)",
+        default=0.0,
+        min=0.0,
+        subtype="DISTANCE",
+        unit="LENGTH",
+    )
+
+    def compute(self, context, anchors, bridge, layout):
+        arrays = bridge.read_layout(layout)
+        target = bridge.read_target(context.evaluated_depsgraph_get(), layout)
+        normals = bridge.read_world_normals(layout) if self.method == "PROJECT" else None
+        outcome = anchors.auto(
+            arrays,
+            normals,
+            bridge.read_anchors(layout),
+            target,
+            layout.springwrap.anchors_signature,
+            self.spacing,
+            self.method,
+            self.replace,
+            self.max_distance,
+        )
+        return outcome, target.signature
+
+    def summary(self, anchors, outcome, milliseconds):
+        text = f"Added {outcome.added_count} anchors (spacing {outcome.spacing:.4g}, {self.method}) in {milliseconds:.1f} ms"
+        if self.replace and outcome.replaced_count:
+            text += f"; replaced {outcome.replaced_count} existing anchors"
+        elif not self.replace:
+            text += f"; kept {anchors.anchor_count(outcome.anchors) - outcome.added_count} existing anchors"
+        if outcome.missed_count:
+            text += f"; {outcome.missed_count} vertices missed the target (no anchor)"
+        if outcome.skipped_count:
+            text += f"; {outcome.skipped_count} on no face (no normal) skipped"
+        return text
+
+
+class SPRINGWRAP_OT_anchors_update(_AnchorOperator, bpy.types.Operator):
+    """Follow the target: refresh the anchors' target points and re-find those whose target face changed"""
+
+    bl_idname = "springwrap.anchors_update"
+    bl_label = "Update Anchors"
+    bl_options = {"REGISTER", "UNDO"}
+
+    requires_anchors = True
+    reads_layout_mesh = False
+
+    def compute(self, context, anchors, bridge, layout):
+        target = bridge.read_target(context.evaluated_depsgraph_get(), layout)
+        outcome = anchors.update(bridge.read_anchors(layout), target, layout.springwrap.anchors_signature)
+        return outcome, target.signature
+
+    def summary(self, anchors, outcome, milliseconds):
+        face_count, space_count = anchors.kind_counts(outcome.anchors)
+        return f"Updated {face_count + space_count} anchors ({face_count} on the surface, {space_count} in space)"
+
+
+class SPRINGWRAP_OT_anchor_remove(_AnchorOperator, bpy.types.Operator):
+    """Remove an anchor (the active one by default)"""
+
+    bl_idname = "springwrap.anchor_remove"
+    bl_label = "Remove Anchor"
+    bl_options = {"REGISTER", "UNDO"}
+
+    requires_target = False
+    requires_anchors = True
+    reads_layout_mesh = False
+
+    index: bpy.props.IntProperty(
+        name="Index",
+        description="Position of the anchor in the list; -1 for the active anchor",
+        default=-1,
+        soft_min=-1,
+    )
+
+    def compute(self, context, anchors, bridge, layout):
+        existing = bridge.read_anchors(layout)
+        index = layout.springwrap.active_anchor_index if self.index == -1 else self.index
+        self._vertex = int(existing.vertex_indices[index]) if 0 <= index < anchors.anchor_count(existing) else -1
+        remaining = anchors.remove(existing, index)
+        active = anchors.clamp_active_index(min(index, anchors.anchor_count(remaining) - 1), anchors.anchor_count(remaining))
+        return _list_outcome(anchors, remaining, active), None
+
+    def summary(self, anchors, outcome, milliseconds):
+        return f"Removed the anchor of vertex {self._vertex}; {anchors.anchor_count(outcome.anchors)} anchors left"
+
+
+class SPRINGWRAP_OT_anchors_clear(_AnchorOperator, bpy.types.Operator):
+    """Remove every anchor of the layout"""
+
+    bl_idname = "springwrap.anchors_clear"
+    bl_label = "Clear Anchors"
+    bl_options = {"REGISTER", "UNDO"}
+
+    requires_target = False
+    requires_anchors = True
+    reads_layout_mesh = False
+
+    def compute(self, context, anchors, bridge, layout):
+        self._count = len(layout.springwrap.anchors)
+        return _list_outcome(anchors, anchors.no_anchors(), 0), None
+
+    def summary(self, anchors, outcome, milliseconds):
+        return f"Removed {self._count} anchors"
+
+
+def _list_outcome(anchors, anchor_list, active_index):
+    """An :class:`anchors.AnchorOutcome` that only replaces the list (no query, no target)."""
+    return anchors.AnchorOutcome(anchor_list, active_index, 0, 0, 0, 0, 0.0, 0, 0)
+
+
+classes = (
+    SPRINGWRAP_OT_anchor_add,
+    SPRINGWRAP_OT_anchors_auto,
+    SPRINGWRAP_OT_anchors_update,
+    SPRINGWRAP_OT_anchor_remove,
+    SPRINGWRAP_OT_anchors_clear,
+)
