@@ -283,14 +283,13 @@ def test_auto_project_hits_what_ray_cast_along_the_normal_hits(capfd):
     assert "PROJECT" in capfd.readouterr().out
 
 
-def test_auto_project_counts_misses():
+def test_auto_project_counts_misses(capfd):
     target, layout = scene()  # the grid is wider than the target: normals at its corners miss
     assert bpy.ops.springwrap.anchors_auto(spacing=0.3, method="PROJECT") == {"FINISHED"}
-    chosen_by_closest_count = None
-    vertices, _locations, _kinds = anchor_arrays(layout)
-    bpy.ops.springwrap.anchors_auto(spacing=0.3, method="CLOSEST")
-    chosen_by_closest_count = len(layout.springwrap.anchors)
-    assert 0 < len(vertices) < chosen_by_closest_count
+    projected_count = len(layout.springwrap.anchors)
+    bpy.ops.springwrap.anchors_auto(spacing=0.3, method="CLOSEST")  # the same vertices, none missing
+    assert 0 < projected_count < len(layout.springwrap.anchors)
+    assert "missed the target (no anchor)" in capfd.readouterr().out
 
 
 def test_auto_without_replace_keeps_anchors_and_their_spacing():
