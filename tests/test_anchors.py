@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from mathutils import Vector
 
-from test_addon import TOLERANCE, Reference, make_target, scene, set_selection, world_positions
+from test_addon import TOLERANCE, Reference, scene, set_selection, world_positions
 
 FACE, SPACE = "FACE", "SPACE"
 
@@ -401,7 +401,10 @@ def test_deleted_target_faces_turn_their_anchors_into_space_anchors(operator, ca
             assert after[row[0]][2] == -1
     assert_face_anchors_consistent(layout, current)  # survivors carry new, correct triangle indices
     assert layout.springwrap.anchors_signature == current.signature() != reference.signature()
-    report = f"{detached.sum()} face anchors lost their target face and became space anchors, {(~detached).sum()} re-attached"
+    report = (
+        f"{detached.sum()} face anchors lost their target face and became space anchors, "
+        f"{(~detached).sum()} re-attached"
+    )
     assert report in capfd.readouterr().out
 
 
@@ -514,7 +517,12 @@ BAD_INPUTS = {
     "NaN target vertex (add)": (_nan_target_vertex, "anchor_add", {"vertex_index": 1}, "Target 'Target'"),
     "NaN target vertex (update)": (_nan_target_vertex, "anchors_update", {}, "Target 'Target'"),
     "NaN layout vertex": (_nan_layout_vertex, "anchors_auto", {}, "Layout vertex 7 has a NaN"),
-    "NaN stored anchor": (_nan_stored_anchor_after_a_topology_change, "anchors_update", {}, r"Anchor 0 \(vertex \d+\) has a NaN"),
+    "NaN stored anchor": (
+        _nan_stored_anchor_after_a_topology_change,
+        "anchors_update",
+        {},
+        r"Anchor 0 \(vertex \d+\) has a NaN",
+    ),
     "NaN stored anchor (auto, keep)": (
         _nan_stored_anchor_after_a_topology_change,
         "anchors_auto",

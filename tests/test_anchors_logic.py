@@ -43,7 +43,8 @@ def grid_target(size=4.0, cells=8, height=0.0):
     triangles = []
     for i in range(cells):
         for j in range(cells):
-            a, b, c, d = i * (cells + 1) + j, (i + 1) * (cells + 1) + j, (i + 1) * (cells + 1) + j + 1, i * (cells + 1) + j + 1
+            a, d = i * (cells + 1) + j, i * (cells + 1) + j + 1
+            b, c = a + cells + 1, d + cells + 1
             triangles += [(a, b, c), (a, c, d)]
     return make_target(vertices, np.array(triangles, dtype=np.uint32))
 
@@ -266,7 +267,9 @@ def test_refresh_locations_follows_the_target():
     target = grid_target()
     anchors = an.make_anchors([0, 1], [1, 0], [5, -1], [[0.2, 0.3, 0.5], [0, 0, 0]], [[9, 9, 9], [1, 2, 3]])
     refreshed = an.refresh_locations(anchors, target)
-    expected = target.mesh.face_point_positions(np.array([5], dtype=np.uint32), np.array([[0.2, 0.3, 0.5]], dtype=np.float32))
+    expected = target.mesh.face_point_positions(
+        np.array([5], dtype=np.uint32), np.array([[0.2, 0.3, 0.5]], dtype=np.float32)
+    )
     np.testing.assert_allclose(refreshed.locations[0], expected[0], atol=1e-6)
     assert refreshed.locations[1].tolist() == [1, 2, 3]  # a space anchor is its own point
     assert anchors.locations[0].tolist() == [9, 9, 9]  # input untouched

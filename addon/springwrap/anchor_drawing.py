@@ -90,7 +90,8 @@ def anchor_segments(layout) -> tuple[np.ndarray, np.ndarray]:
         anchor_list.vertex_indices.tobytes(),
     )
     if _position_cache["key"] != key:
-        _position_cache.update(key=key, positions=bridge.read_world_vertex_positions(layout, anchor_list.vertex_indices))
+        positions = bridge.read_world_vertex_positions(layout, anchor_list.vertex_indices)
+        _position_cache.update(key=key, positions=positions)
     return anchors.segments(anchor_list, _position_cache["positions"])
 
 

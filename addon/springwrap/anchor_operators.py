@@ -199,7 +199,10 @@ class SPRINGWRAP_OT_anchors_auto(_AnchorOperator, bpy.types.Operator):
         return outcome, target.signature
 
     def summary(self, anchors, outcome, milliseconds):
-        text = f"Added {outcome.added_count} anchors (spacing {outcome.spacing:.4g}, {self.method}) in {milliseconds:.1f} ms"
+        text = (
+            f"Added {outcome.added_count} anchors (spacing {outcome.spacing:.4g}, {self.method}) "
+            f"in {milliseconds:.1f} ms"
+        )
         if self.replace and outcome.replaced_count:
             text += f"; replaced {outcome.replaced_count} existing anchors"
         elif not self.replace:
@@ -254,7 +257,8 @@ class SPRINGWRAP_OT_anchor_remove(_AnchorOperator, bpy.types.Operator):
         index = layout.springwrap.active_anchor_index if self.index == -1 else self.index
         self._vertex = int(existing.vertex_indices[index]) if 0 <= index < anchors.anchor_count(existing) else -1
         remaining = anchors.remove(existing, index)
-        active = anchors.clamp_active_index(min(index, anchors.anchor_count(remaining) - 1), anchors.anchor_count(remaining))
+        count = anchors.anchor_count(remaining)
+        active = anchors.clamp_active_index(min(index, count - 1), count)
         return _list_outcome(anchors, remaining, active), None
 
     def summary(self, anchors, outcome, milliseconds):

@@ -67,7 +67,9 @@ def make_anchors(vertex_indices, kinds, triangles, barycentrics, locations) -> A
     vertex_indices = np.asarray(vertex_indices).reshape(-1).astype(np.int32)
     count = vertex_indices.shape[0]
     state = layout_state.normalized_state(
-        np.asarray(kinds).reshape(count), np.asarray(triangles).reshape(count), np.asarray(barycentrics).reshape(count, 3)
+        np.asarray(kinds).reshape(count),
+        np.asarray(triangles).reshape(count),
+        np.asarray(barycentrics).reshape(count, 3),
     )
     return Anchors(
         vertex_indices=vertex_indices,
@@ -179,7 +181,9 @@ def pick_vertex(selection: np.ndarray, active_vertex: int) -> int:
 # ---------------------------------------------------------------- target changes
 
 
-def resolve(anchors: Anchors, target: operations.Target, stored_signature: str) -> tuple[Anchors, layout_state.Resolution]:
+def resolve(
+    anchors: Anchors, target: operations.Target, stored_signature: str
+) -> tuple[Anchors, layout_state.Resolution]:
     """Apply the deleted-face rule to the face anchors, then refresh every face anchor's location.
 
     When the target's topology changed since the anchors were written (``stored_signature``), or
@@ -261,7 +265,8 @@ def spaced_indices(
     cells = np.floor(scaled).astype(np.int64) + 1  # >= 1, so every neighbour cell is >= 0
     extent = int(cells.max()) + 2
     keys = ((cells[:, 0] * extent + cells[:, 1]) * extent + cells[:, 2]).tolist()
-    neighbour_offsets = [(dx * extent + dy) * extent + dz for dx in (-1, 0, 1) for dy in (-1, 0, 1) for dz in (-1, 0, 1)]
+    steps = (-1, 0, 1)
+    neighbour_offsets = [(dx * extent + dy) * extent + dz for dx in steps for dy in steps for dz in steps]
     grid: dict[int, list[tuple[float, float, float]]] = {}
     for key, seed in zip(keys, seeds.tolist()):
         grid.setdefault(key, []).append(seed)
