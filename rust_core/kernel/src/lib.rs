@@ -45,8 +45,10 @@ pub mod face_point;
 pub mod layout;
 pub mod mesh;
 pub mod query;
+pub mod surface;
 
 pub use error::KernelError;
 pub use face_point::{FacePoint, LayoutPoint, SurfaceHit, VertexHit};
 pub use layout::{Curve, CurveKind, LayoutStructure, LineTriple};
 pub use mesh::{NO_TRIANGLE, TargetMesh, TargetMeshOptions, TriangleEdge};
+pub use surface::{WalkEnd, WalkOutcome};
