@@ -763,3 +763,87 @@ fn on_a_crumpled_grid_every_walk_ends_sound_and_walks_back() {
     );
     assert!(worst_return < 1e-4, "came back {worst_return} away");
 }
+
+#[test]
+fn flipped_windings_do_not_change_the_walk() {
+    // The same 10 x 10 grid with every other triangle wound the other way round (its normal
+    // points down): the walker reads only edges and corners, so the walks are the same.
+    let (vertices, triangles) = grid(10);
+    let flipped: Vec<[u32; 3]> = triangles
+        .iter()
+        .enumerate()
+        .map(|(index, &[a, b, c])| if index % 2 == 0 { [a, c, b] } else { [a, b, c] })
+        .collect();
+    let flipped = mesh(vertices, flipped);
+    let mut rng = Rng::new(13);
+    for _ in 0..500 {
+        let start = Vec3::new(rng.range(0.0, 10.0), rng.range(0.0, 10.0), 0.0);
+        let displacement = Vec3::new(rng.range(-6.0, 6.0), rng.range(-6.0, 6.0), 0.0);
+        let end = start + displacement;
+        if end.min_element() < 1e-3 || end.max_element() > 10.0 - 1e-3 {
+            continue;
+        }
+        let walked = flipped.walk(face_point_at(&flipped, start), displacement);
+        assert_close(on_surface(&flipped, walked), end, 1e-5);
+    }
+    // Through vertices, where the walk turns around each vertex's triangles.
+    for (start, displacement) in [
+        (Vec3::new(1.0, 1.0, 0.0), Vec3::new(3.0, 6.0, 0.0)),
+        (Vec3::new(0.5, 0.5, 0.0), Vec3::new(8.0, 8.0, 0.0)),
+        (Vec3::new(2.0, 8.0, 0.0), Vec3::new(6.0, -6.0, 0.0)),
+        (Vec3::new(9.5, 3.0, 0.0), Vec3::new(-9.0, 0.0, 0.0)),
+    ] {
+        let walked = flipped.walk(face_point_at(&flipped, start), displacement);
+        assert_close(on_surface(&flipped, walked), start + displacement, 1e-5);
+    }
+}
+
+#[test]
+fn a_non_manifold_edge_lifts_like_a_boundary() {
+    // Three triangles on the edge from (0, 0, 0) to (0, 1, 0): one to the left, one to the right,
+    // one standing up (a fin). No walk can tell which to go on to, so crossing it lifts.
+    let vertices = vec![
+        Vec3::new(0.0, 0.0, 0.0),
+        Vec3::new(0.0, 1.0, 0.0),
+        Vec3::new(-1.0, 0.5, 0.0),
+        Vec3::new(1.0, 0.5, 0.0),
+        Vec3::new(0.0, 0.5, 1.0),
+    ];
+    let mesh = mesh(vertices, vec![[0, 1, 2], [1, 0, 3], [0, 1, 4]]);
+    assert_eq!(mesh.non_manifold_edge_count(), 1);
+    let end = mesh.walk(
+        face_point_at(&mesh, Vec3::new(-0.5, 0.5, 0.0)),
+        Vec3::new(1.0, 0.0, 0.0),
+    );
+    let (position, exit) = lifted(&mesh, end);
+    assert_close(exit, Vec3::new(0.0, 0.5, 0.0), 1e-6);
+    assert_close(position, Vec3::new(0.5, 0.5, 0.0), 1e-6);
+}
+
+#[test]
+fn a_single_walk_with_a_non_finite_input_stays_put() {
+    // `walk` does not check its inputs (`walk_many` does); it must still not loop or panic.
+    let (vertices, triangles) = grid(2);
+    let mesh = mesh(vertices, triangles);
+    let start = FacePoint {
+        triangle: 1,
+        barycentric: Vec3::splat(1.0 / 3.0),
+    };
+    for displacement in [Vec3::NAN, Vec3::new(f32::INFINITY, 0.0, 0.0)] {
+        assert_eq!(mesh.walk(start, displacement), WalkEnd::OnSurface(start));
+    }
+    // Barycentrics that are negative or do not sum to one are made valid first.
+    let sloppy = FacePoint {
+        triangle: 1,
+        barycentric: Vec3::new(2.0, -0.5, 2.0),
+    };
+    let end = mesh.walk(sloppy, Vec3::new(0.1, 0.0, 0.0));
+    let expected = mesh
+        .face_point_position(FacePoint {
+            triangle: 1,
+            barycentric: Vec3::new(0.5, 0.0, 0.5),
+        })
+        .unwrap()
+        + Vec3::new(0.1, 0.0, 0.0);
+    assert_close(on_surface(&mesh, end), expected, 1e-6);
+}
