@@ -46,9 +46,11 @@ pub mod layout;
 pub mod mesh;
 pub mod query;
 pub mod surface;
+pub mod wrap;
 
 pub use error::KernelError;
 pub use face_point::{FacePoint, LayoutPoint, SurfaceHit, VertexHit};
 pub use layout::{Curve, CurveKind, LayoutStructure, LineTriple};
 pub use mesh::{NO_TRIANGLE, TargetMesh, TargetMeshOptions, TriangleEdge};
 pub use surface::{WalkEnd, WalkOutcome};
+pub use wrap::{Anchor, AnchorTarget, StepReport, WrapSettings, WrapSolver, WrapWeights};

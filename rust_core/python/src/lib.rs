@@ -5,6 +5,7 @@
 //! pure-Python package `springwrap_kernel` re-exports this module and adds named results.
 
 use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::sync::Arc;
 
 use glam::Vec3;
 use numpy::{
@@ -15,7 +16,9 @@ use pyo3::create_exception;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use springwrap_kernel::{
-    FacePoint, KernelError, NO_TRIANGLE, SurfaceHit, TargetMesh, TargetMeshOptions, VertexHit,
+    Anchor, AnchorTarget, CurveKind, FacePoint, KernelError, LayoutPoint, LayoutStructure,
+    NO_TRIANGLE, SurfaceHit, TargetMesh, TargetMeshOptions, VertexHit, WrapSettings, WrapSolver,
+    WrapWeights,
 };
 
 create_exception!(
@@ -258,7 +261,7 @@ fn vertex_arrays<'py>(py: Python<'py>, hits: &[Option<VertexHit>]) -> PyResult<V
 /// A triangle mesh prepared for queries (BVH over triangles, vertex tree, adjacency, normals).
 #[pyclass(name = "TargetMesh", module = "springwrap_kernel", frozen, subclass)]
 struct PyTargetMesh {
-    mesh: TargetMesh,
+    mesh: Arc<TargetMesh>,
 }
 
 #[pymethods]
@@ -279,7 +282,9 @@ impl PyTargetMesh {
             .collect();
         let options = TargetMeshOptions { reject_degenerate };
         let mesh = run_kernel(py, || TargetMesh::new(vertices, triangles, options))?;
-        Ok(Self { mesh })
+        Ok(Self {
+            mesh: Arc::new(mesh),
+        })
     }
 
     /// Builds now what is otherwise built on first use: the vertex tree, adjacency, normals.
@@ -479,12 +484,350 @@ impl PyTargetMesh {
     }
 }
 
+fn read_pairs(name: &str, array: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<[u32; 2]>> {
+    let Some(array) = array else {
+        return Ok(Vec::new());
+    };
+    let flat = read_array::<u32>(name, array, Some(2))?;
+    Ok(flat
+        .chunks_exact(2)
+        .map(|pair| [pair[0], pair[1]])
+        .collect())
+}
+
+/// The structure of a layout mesh for the wrap: grid lines, corners, extraordinary vertices, curves.
+#[pyclass(name = "LayoutStructure", module = "springwrap_kernel", frozen)]
+struct PyLayoutStructure {
+    structure: LayoutStructure,
+}
+
+#[pymethods]
+impl PyLayoutStructure {
+    #[new]
+    #[pyo3(signature = (vertex_count, face_corners, face_sizes, *, edges = None, seams = None))]
+    fn new(
+        py: Python<'_>,
+        vertex_count: usize,
+        face_corners: &Bound<'_, PyAny>,
+        face_sizes: &Bound<'_, PyAny>,
+        edges: Option<&Bound<'_, PyAny>>,
+        seams: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Self> {
+        let face_corners = read_array::<u32>("face_corners", face_corners, None)?;
+        let face_sizes = read_array::<u32>("face_sizes", face_sizes, None)?;
+        let edges = read_pairs("edges", edges)?;
+        let seams = read_pairs("seams", seams)?;
+        let structure = run_kernel(py, || {
+            LayoutStructure::new(vertex_count, &face_corners, &face_sizes, &edges, &seams)
+        })?;
+        Ok(Self { structure })
+    }
+
+    /// Number of layout vertices.
+    #[getter]
+    fn vertex_count(&self) -> usize {
+        self.structure.vertex_count
+    }
+
+    /// (T, 3) uint32 grid-line triples (previous, vertex, next).
+    fn line_triples<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<u32>>> {
+        let flat = self
+            .structure
+            .line_triples
+            .iter()
+            .flat_map(|triple| [triple.previous, triple.vertex, triple.next])
+            .collect();
+        rows_array(py, flat, 3)
+    }
+
+    /// Vertices on no grid line (umbrella fallback), uint32.
+    fn extraordinary<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<u32>> {
+        PyArray1::from_vec(py, self.structure.extraordinary.clone())
+    }
+
+    /// Patch corners (border vertices of one face), uint32.
+    fn corners<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<u32>> {
+        PyArray1::from_vec(py, self.structure.corners.clone())
+    }
+
+    /// The curves as a list of (kind, vertices uint32, closed); kind is "BORDER", "SEAM" or "LOOSE".
+    fn curves<'py>(&self, py: Python<'py>) -> Vec<(&'static str, Bound<'py, PyArray1<u32>>, bool)> {
+        self.structure
+            .curves
+            .iter()
+            .map(|curve| {
+                let kind = match curve.kind {
+                    CurveKind::Border => "BORDER",
+                    CurveKind::Seam => "SEAM",
+                    CurveKind::Loose => "LOOSE",
+                };
+                (
+                    kind,
+                    PyArray1::from_vec(py, curve.vertices.clone()),
+                    curve.closed,
+                )
+            })
+            .collect()
+    }
+}
+
+/// Per-vertex state arrays: (states, triangles, barycentrics).
+type StateArrays<'py> = (
+    Bound<'py, PyArray1<i32>>,
+    Bound<'py, PyArray1<i32>>,
+    Bound<'py, PyArray2<f32>>,
+);
+
+/// A wrap in progress: call `step(n)` repeatedly, read `positions()` and `states()`.
+#[pyclass(name = "WrapSolver", module = "springwrap_kernel", subclass)]
+struct PyWrapSolver {
+    solver: WrapSolver,
+}
+
+#[pymethods]
+impl PyWrapSolver {
+    #[new]
+    #[pyo3(signature = (
+        target, structure, states, triangles, barycentrics, positions, *,
+        anchor_vertices = None, anchor_triangles = None, anchor_barycentrics = None,
+        anchor_positions = None, unreliable_triangles = None, fairness = 0.5, arc_length = 0.5, thin_plate = 0.2,
+        constraint = 0.5, folding = 0.3, tolerance = 1e-5, landing_distance = 0.25,
+        fold_tolerance = 0.17453292
+    ))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        py: Python<'_>,
+        target: &Bound<'_, PyTargetMesh>,
+        structure: &Bound<'_, PyLayoutStructure>,
+        states: &Bound<'_, PyAny>,
+        triangles: &Bound<'_, PyAny>,
+        barycentrics: &Bound<'_, PyAny>,
+        positions: &Bound<'_, PyAny>,
+        anchor_vertices: Option<&Bound<'_, PyAny>>,
+        anchor_triangles: Option<&Bound<'_, PyAny>>,
+        anchor_barycentrics: Option<&Bound<'_, PyAny>>,
+        anchor_positions: Option<&Bound<'_, PyAny>>,
+        unreliable_triangles: Option<&Bound<'_, PyAny>>,
+        fairness: f32,
+        arc_length: f32,
+        thin_plate: f32,
+        constraint: f32,
+        folding: f32,
+        tolerance: f32,
+        landing_distance: f32,
+        fold_tolerance: f32,
+    ) -> PyResult<Self> {
+        let states = read_array::<i32>("states", states, None)?;
+        let triangles = read_array::<i32>("triangles", triangles, None)?;
+        let barycentrics = read_positions("barycentrics", barycentrics)?;
+        let positions = read_positions("positions", positions)?;
+        let count = states.len();
+        for (name, length) in [
+            ("triangles", triangles.len()),
+            ("barycentrics", barycentrics.len()),
+            ("positions", positions.len()),
+        ] {
+            if length != count {
+                return Err(ArrayError::new_err(format!(
+                    "{name} has {length} rows but states has {count}: one per layout vertex"
+                )));
+            }
+        }
+        let points = layout_points(&states, &triangles, &barycentrics, &positions)?;
+        let anchors = read_anchors(
+            anchor_vertices,
+            anchor_triangles,
+            anchor_barycentrics,
+            anchor_positions,
+        )?;
+        let settings = WrapSettings {
+            weights: WrapWeights {
+                fairness,
+                arc_length,
+                thin_plate,
+                constraint,
+                folding,
+            },
+            tolerance,
+            landing_distance,
+            fold_tolerance,
+        };
+        let unreliable = unreliable_triangles
+            .map(|flags| read_array::<bool>("unreliable_triangles", flags, None))
+            .transpose()?;
+        let target = Arc::clone(&target.get().mesh);
+        let structure = structure.get().structure.clone();
+        let solver = run_kernel(py, || {
+            let solver = WrapSolver::new(target, structure, points, &anchors, settings)?;
+            match unreliable {
+                Some(flags) => solver.with_unreliable_triangles(flags),
+                None => Ok(solver),
+            }
+        })?;
+        Ok(Self { solver })
+    }
+
+    /// Runs up to `iterations` iterations (fewer once converged); returns the progress as a tuple
+    /// (iterations, total_iterations, max_displacement, converged, face_points, space_points,
+    /// landed, folded, lifted, fold_tolerance).
+    #[allow(clippy::type_complexity)]
+    fn step(
+        &mut self,
+        py: Python<'_>,
+        iterations: usize,
+    ) -> PyResult<(
+        usize,
+        usize,
+        f32,
+        bool,
+        usize,
+        usize,
+        usize,
+        usize,
+        usize,
+        f32,
+    )> {
+        let solver = &mut self.solver;
+        let report = run_kernel(py, || Ok(solver.step(iterations)))?;
+        Ok((
+            report.iterations,
+            report.total_iterations,
+            report.max_displacement,
+            report.converged,
+            report.face_points,
+            report.space_points,
+            report.landed,
+            report.folded,
+            report.lifted,
+            report.fold_tolerance,
+        ))
+    }
+
+    /// (N, 3) float32 positions of the layout points.
+    fn positions<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        let flat = self
+            .solver
+            .positions()
+            .iter()
+            .flat_map(|p| p.to_array())
+            .collect();
+        rows_array(py, flat, 3)
+    }
+
+    /// (states int32 (N,), triangles int32 (N,), barycentrics float32 (N, 3)): 1 for face-points
+    /// with their triangle and weights, 0 for space-points (triangle -1).
+    fn states<'py>(&self, py: Python<'py>) -> PyResult<StateArrays<'py>> {
+        let points = self.solver.points();
+        let mut states = Vec::with_capacity(points.len());
+        let mut triangles = Vec::with_capacity(points.len());
+        let mut barycentrics = Vec::with_capacity(points.len() * 3);
+        for point in points {
+            match point {
+                LayoutPoint::Face(face_point) => {
+                    states.push(1);
+                    triangles.push(face_point.triangle as i32);
+                    barycentrics.extend(face_point.barycentric.to_array());
+                }
+                LayoutPoint::Space(_) => {
+                    states.push(0);
+                    triangles.push(-1);
+                    barycentrics.extend([0.0; 3]);
+                }
+            }
+        }
+        Ok((
+            PyArray1::from_vec(py, states),
+            PyArray1::from_vec(py, triangles),
+            rows_array(py, barycentrics, 3)?,
+        ))
+    }
+}
+
+/// Layout points from the state arrays (1 = face-point on `triangles[i]`, else a space-point).
+fn layout_points(
+    states: &[i32],
+    triangles: &[i32],
+    barycentrics: &[Vec3],
+    positions: &[Vec3],
+) -> PyResult<Vec<LayoutPoint>> {
+    states
+        .iter()
+        .enumerate()
+        .map(|(index, &state)| {
+            if state == 1 {
+                let triangle = u32::try_from(triangles[index]).map_err(|_| {
+                    IndexOutOfRangeError::new_err(format!(
+                        "layout vertex {index} is a face-point on triangle {}",
+                        triangles[index]
+                    ))
+                })?;
+                Ok(LayoutPoint::Face(FacePoint {
+                    triangle,
+                    barycentric: barycentrics[index],
+                }))
+            } else {
+                Ok(LayoutPoint::Space(positions[index]))
+            }
+        })
+        .collect()
+}
+
+/// Anchors from parallel arrays; a negative triangle means a space anchor at its position.
+fn read_anchors(
+    vertices: Option<&Bound<'_, PyAny>>,
+    triangles: Option<&Bound<'_, PyAny>>,
+    barycentrics: Option<&Bound<'_, PyAny>>,
+    positions: Option<&Bound<'_, PyAny>>,
+) -> PyResult<Vec<Anchor>> {
+    let (Some(vertices), Some(triangles), Some(barycentrics), Some(positions)) =
+        (vertices, triangles, barycentrics, positions)
+    else {
+        if vertices.is_some()
+            || triangles.is_some()
+            || barycentrics.is_some()
+            || positions.is_some()
+        {
+            return Err(ArrayError::new_err(
+                "anchors need all four of anchor_vertices, anchor_triangles, anchor_barycentrics and anchor_positions",
+            ));
+        }
+        return Ok(Vec::new());
+    };
+    let vertices = read_array::<u32>("anchor_vertices", vertices, None)?;
+    let triangles = read_array::<i32>("anchor_triangles", triangles, None)?;
+    let barycentrics = read_positions("anchor_barycentrics", barycentrics)?;
+    let positions = read_positions("anchor_positions", positions)?;
+    let count = vertices.len();
+    if triangles.len() != count || barycentrics.len() != count || positions.len() != count {
+        return Err(ArrayError::new_err(format!(
+            "the anchor arrays differ in length: {count} vertices, {} triangles, {} barycentrics, {} positions",
+            triangles.len(),
+            barycentrics.len(),
+            positions.len()
+        )));
+    }
+    Ok((0..count)
+        .map(|index| Anchor {
+            vertex: vertices[index],
+            target: match u32::try_from(triangles[index]) {
+                Ok(triangle) => AnchorTarget::Face(FacePoint {
+                    triangle,
+                    barycentric: barycentrics[index],
+                }),
+                Err(_) => AnchorTarget::Space(positions[index]),
+            },
+        })
+        .collect())
+}
+
 /// The native part of `springwrap_kernel`.
 #[pymodule(gil_used = false)]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_class::<PyTargetMesh>()?;
+    m.add_class::<PyLayoutStructure>()?;
+    m.add_class::<PyWrapSolver>()?;
     m.add("SpringwrapError", py.get_type::<SpringwrapError>())?;
     m.add("ArrayError", py.get_type::<ArrayError>())?;
     m.add("EmptyMeshError", py.get_type::<EmptyMeshError>())?;

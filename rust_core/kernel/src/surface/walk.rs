@@ -164,6 +164,28 @@ impl TargetMesh {
     /// If `start.triangle` is not a triangle of the mesh.
     #[must_use]
     pub fn walk_traced(&self, start: FacePoint, displacement: Vec3) -> WalkOutcome {
+        self.walk_traced_on(self.triangle_neighbors(), start, displacement)
+    }
+
+    /// [`TargetMesh::walk`] over a given adjacency table instead of the mesh's own: an edge whose
+    /// entry is [`NO_TRIANGLE`] is a boundary. The wrap cuts the edges into unreliable triangles
+    /// this way, so that noisy regions act as holes.
+    #[must_use]
+    pub(crate) fn walk_on(
+        &self,
+        neighbors: &[[u32; 3]],
+        start: FacePoint,
+        displacement: Vec3,
+    ) -> WalkEnd {
+        self.walk_traced_on(neighbors, start, displacement).end
+    }
+
+    fn walk_traced_on(
+        &self,
+        neighbors: &[[u32; 3]],
+        start: FacePoint,
+        displacement: Vec3,
+    ) -> WalkOutcome {
         assert!(
             (start.triangle as usize) < self.triangles.len(),
             "walk: triangle {} out of range ({} triangles)",
@@ -182,7 +204,7 @@ impl TargetMesh {
         }
         let walker = Walker {
             mesh: self,
-            neighbors: self.triangle_neighbors(),
+            neighbors,
         };
         walker
             .walk(start, displacement.as_dvec3())

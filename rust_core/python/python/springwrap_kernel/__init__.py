@@ -18,6 +18,7 @@ from ._native import (
     IndexOutOfRangeError,
     InternalError,
     InvalidArgumentError,
+    LayoutStructure,
     NonFiniteError,
     SpringwrapError,
     __version__,
@@ -31,11 +32,14 @@ __all__ = [
     "IndexOutOfRangeError",
     "InternalError",
     "InvalidArgumentError",
+    "LayoutStructure",
     "NonFiniteError",
     "SpringwrapError",
+    "StepReport",
     "SurfaceHits",
     "TargetMesh",
     "VertexHits",
+    "WrapSolver",
     "__version__",
 ]
 
@@ -83,3 +87,43 @@ class TargetMesh(_native.TargetMesh):
                 origins, directions, max_distance=max_distance, both_directions=both_directions
             )
         )
+
+
+class StepReport(NamedTuple):
+    """Progress of :meth:`WrapSolver.step`."""
+
+    iterations: int
+    """Iterations run by this call."""
+    total_iterations: int
+    """Iterations since the solver was made."""
+    max_displacement: float
+    """Largest move of the last iteration, as a fraction of the layout's size."""
+    converged: bool
+    """The last iteration moved nothing more than the tolerance and changed no state."""
+    face_points: int
+    space_points: int
+    landed: int
+    """Space-points that landed on their anchors during this call."""
+    folded: int
+    """Space-points that folded onto the surface during this call."""
+    lifted: int
+    """Face-points lifted off boundaries (holes) during this call."""
+    fold_tolerance: float
+    """The annealed folding tolerance, radians."""
+
+
+class WrapSolver(_native.WrapSolver):
+    """A wrap in progress (hybrid spring optimisation): ``step(n)``, then ``positions()`` / ``states()``.
+
+    ``WrapSolver(target, structure, states, triangles, barycentrics, positions, *, anchor_vertices=None,
+    anchor_triangles=None, anchor_barycentrics=None, anchor_positions=None,
+    unreliable_triangles=None, fairness=0.5,
+    arc_length=0.5, thin_plate=0.2, constraint=0.5, folding=0.3, tolerance=1e-5,
+    landing_distance=0.25, fold_tolerance=radians(10))``
+    """
+
+    __slots__ = ()
+
+    def step(self, iterations):
+        """Run up to ``iterations`` iterations (fewer once converged); the GIL is released meanwhile."""
+        return StepReport(*super().step(iterations))

@@ -128,3 +128,86 @@ class TargetMesh:
         self, triangles: npt.NDArray[np.uint32], barycentrics: npt.NDArray[np.float32]
     ) -> npt.NDArray[np.float32]:
         """Positions of face-points ``(triangle, barycentric)`` on this mesh."""
+
+# ---------------------------------------------------------------- the wrap
+class LayoutStructure:
+    """The structure of a layout mesh for the wrap: grid lines, corners, extraordinary vertices, curves.
+
+    Faces are given flat: ``face_sizes[f]`` corner indices of face ``f`` follow one another in
+    ``face_corners``. ``edges`` (uint32 (E, 2)) are the mesh's edges (those used by no face are
+    loose curves), ``seams`` (uint32 (S, 2)) the edges marked as patch boundaries.
+    """
+
+    def __init__(
+        self,
+        vertex_count: int,
+        face_corners: npt.NDArray[np.uint32],
+        face_sizes: npt.NDArray[np.uint32],
+        *,
+        edges: npt.NDArray[np.uint32] | None = None,
+        seams: npt.NDArray[np.uint32] | None = None,
+    ) -> None: ...
+    @property
+    def vertex_count(self) -> int: ...
+    def line_triples(self) -> npt.NDArray[np.uint32]:
+        """(T, 3) rows (previous, vertex, next): ``vertex`` lies on a grid line between the two."""
+    def extraordinary(self) -> npt.NDArray[np.uint32]:
+        """Vertices on no grid line (the umbrella fallback acts on them)."""
+    def corners(self) -> npt.NDArray[np.uint32]:
+        """Patch corners: border vertices of one face (no fairness acts on them)."""
+    def curves(self) -> list[tuple[str, npt.NDArray[np.uint32], bool]]:
+        """(kind "BORDER" | "SEAM" | "LOOSE", vertices in order, closed) per curve."""
+
+class StepReport(NamedTuple):
+    """Progress of :meth:`WrapSolver.step`."""
+
+    iterations: int
+    total_iterations: int
+    max_displacement: float
+    converged: bool
+    face_points: int
+    space_points: int
+    landed: int
+    folded: int
+    lifted: int
+    fold_tolerance: float
+
+class WrapSolver:
+    """A wrap in progress (hybrid spring optimisation onto ``target``).
+
+    One row per layout vertex: ``states`` int32 (1 face-point, 0 space-point), ``triangles`` int32
+    (the face-point's target triangle, ignored for space-points), ``barycentrics`` float32 (N, 3),
+    ``positions`` float32 (N, 3) (used for space-points). Anchors are parallel arrays; a negative
+    anchor triangle makes a space anchor at its position. ``unreliable_triangles`` (bool, one per
+    target triangle) marks noisy data: points there behave as space-points.
+    """
+
+    def __init__(
+        self,
+        target: TargetMesh,
+        structure: LayoutStructure,
+        states: npt.NDArray[np.int32],
+        triangles: npt.NDArray[np.int32],
+        barycentrics: npt.NDArray[np.float32],
+        positions: npt.NDArray[np.float32],
+        *,
+        anchor_vertices: npt.NDArray[np.uint32] | None = None,
+        anchor_triangles: npt.NDArray[np.int32] | None = None,
+        anchor_barycentrics: npt.NDArray[np.float32] | None = None,
+        anchor_positions: npt.NDArray[np.float32] | None = None,
+        unreliable_triangles: npt.NDArray[np.bool_] | None = None,
+        fairness: float = 0.5,
+        arc_length: float = 0.5,
+        thin_plate: float = 0.2,
+        constraint: float = 0.5,
+        folding: float = 0.3,
+        tolerance: float = 1e-5,
+        landing_distance: float = 0.25,
+        fold_tolerance: float = 0.17453292,
+    ) -> None: ...
+    def step(self, iterations: int) -> StepReport:
+        """Run up to ``iterations`` iterations (fewer once converged), GIL released."""
+    def positions(self) -> npt.NDArray[np.float32]:
+        """(N, 3) positions of the layout points."""
+    def states(self) -> tuple[npt.NDArray[np.int32], npt.NDArray[np.int32], npt.NDArray[np.float32]]:
+        """(states, triangles, barycentrics) as given to the constructor."""

@@ -1,0 +1,10 @@
+//! The wrap: hybrid spring optimisation of a layout onto a target (the paper's section 2.5).
+
+pub mod anchor;
+pub mod forces;
+pub mod settings;
+pub mod solver;
+
+pub use anchor::{Anchor, AnchorTarget};
+pub use settings::{WrapSettings, WrapWeights};
+pub use solver::{StepReport, WrapSolver};

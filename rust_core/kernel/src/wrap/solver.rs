@@ -1,0 +1,593 @@
+//! The stepping wrap solver: every iteration moves every layout point by its resultant force.
+//!
+//! `F = α F_fair + β F_arc + γ_tp F_tp + γ_con F_con + γ_fold F_fold` (paper, section 2.5), computed
+//! Jacobi-style from a snapshot of the positions, in parallel. Then:
+//!
+//! - a **face-point** walks along the surface by the tangential part of its force (triangle to
+//!   triangle, no BVH query); walking off a boundary edge lifts it to a space-point;
+//! - a **space-point** moves freely in 3D, also feeling the thin-plate force; an anchored one whose
+//!   anchor is on the surface *lands* there once closer than the landing distance; one next to a
+//!   face-point *folds*: its offset from that seed is marched along the surface and, when the angle
+//!   between where it is and where the march ends is within the folding tolerance, it lands there,
+//!   otherwise it is rotated by the fraction γ_fold toward it;
+//! - the folding tolerance **anneals**: it grows while nothing folds and shrinks when many points
+//!   fold at once (the paper's simulated annealing), so the user never sets it.
+
+use std::sync::Arc;
+
+use glam::{Quat, Vec3};
+use rayon::prelude::*;
+
+use super::anchor::{Anchor, AnchorTarget};
+use super::forces::{LinesByVertex, line_forces, thin_plate, umbrella};
+use super::settings::WrapSettings;
+use crate::error::KernelError;
+use crate::face_point::{FacePoint, LayoutPoint};
+use crate::layout::LayoutStructure;
+use crate::mesh::{NO_TRIANGLE, TargetMesh};
+use crate::surface::WalkEnd;
+
+/// Bounds of the annealed folding tolerance, in radians.
+const FOLD_TOLERANCE_RANGE: (f32, f32) = (
+    0.5 * std::f32::consts::PI / 180.0,
+    std::f32::consts::FRAC_PI_4,
+);
+/// Aim of the annealing: the fraction of foldable points that fold in one iteration.
+const FOLD_FRACTION_HIGH: f32 = 0.25;
+
+/// What one point's update did, besides moving.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Event {
+    None,
+    /// A space-point landed on its anchor's surface point.
+    Landed,
+    /// A space-point folded onto the surface.
+    Folded,
+    /// A space-point could fold (it has a face-point neighbour) but did not this time.
+    FoldCandidate,
+    /// A face-point walked off a boundary and became a space-point.
+    Lifted,
+}
+
+/// Progress of [`WrapSolver::step`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepReport {
+    /// Iterations run by this call.
+    pub iterations: usize,
+    /// Iterations run since the solver was made.
+    pub total_iterations: usize,
+    /// Largest displacement of the last iteration, as a fraction of the layout's size.
+    pub max_displacement: f32,
+    /// The last iteration moved no point more than the tolerance and changed no state.
+    pub converged: bool,
+    /// Face-points now.
+    pub face_points: usize,
+    /// Space-points now.
+    pub space_points: usize,
+    /// Space-points that landed on their anchors during this call.
+    pub landed: usize,
+    /// Space-points that folded onto the surface during this call.
+    pub folded: usize,
+    /// Face-points lifted off boundaries during this call.
+    pub lifted: usize,
+    /// The annealed folding tolerance now, in radians.
+    pub fold_tolerance: f32,
+}
+
+/// A wrap in progress: the layout's points on (or near) a target, moved a few iterations at a time.
+#[derive(Debug, Clone)]
+pub struct WrapSolver {
+    target: Arc<TargetMesh>,
+    structure: LayoutStructure,
+    lines: LinesByVertex,
+    settings: WrapSettings,
+    points: Vec<LayoutPoint>,
+    positions: Vec<Vec3>,
+    anchor_of_vertex: Vec<Option<(AnchorTarget, Vec3)>>,
+    is_corner: Vec<bool>,
+    /// Target triangles whose data is not to be trusted (noise); empty when all are.
+    unreliable: Vec<bool>,
+    /// The target's adjacency with the edges into unreliable triangles cut (walks stop there as at
+    /// a hole); `None` when every triangle is reliable.
+    walk_neighbors: Option<Vec<[u32; 3]>>,
+    fold_tolerance: f32,
+    layout_size: f32,
+    landing_distance: f32,
+    total_iterations: usize,
+}
+
+impl WrapSolver {
+    /// Prepares a wrap of the layout (`structure`, one point per vertex) onto `target`.
+    ///
+    /// # Errors
+    /// [`KernelError::LengthMismatch`] (points vs. layout vertices),
+    /// [`KernelError::TriangleIndexOutOfRange`] or [`KernelError::NonFinite`] for a bad point or
+    /// anchor target, [`KernelError::InvalidArgument`] for a layout without edges, a zero-length
+    /// edge, an anchor on a vertex that does not exist or on the same vertex twice, or a setting
+    /// out of range.
+    pub fn new(
+        target: Arc<TargetMesh>,
+        structure: LayoutStructure,
+        points: Vec<LayoutPoint>,
+        anchors: &[Anchor],
+        settings: WrapSettings,
+    ) -> Result<Self, KernelError> {
+        settings.validate()?;
+        if points.len() != structure.vertex_count {
+            return Err(KernelError::LengthMismatch {
+                what: "layout points and layout vertices",
+                first: points.len(),
+                second: structure.vertex_count,
+            });
+        }
+        if structure.neighbors.is_empty() {
+            return Err(KernelError::InvalidArgument {
+                name: "layout",
+                reason: "it has no edges: there is nothing to wrap".to_owned(),
+            });
+        }
+        let positions = resolve_positions(&target, &points)?;
+        let mut edge_length_sum = 0.0f64;
+        let mut edge_count = 0usize;
+        for vertex in 0..structure.vertex_count as u32 {
+            for &other in structure.neighbors_of(vertex) {
+                if other <= vertex {
+                    continue;
+                }
+                let length = positions[vertex as usize].distance(positions[other as usize]);
+                if length == 0.0 {
+                    return Err(KernelError::InvalidArgument {
+                        name: "layout",
+                        reason: format!(
+                            "the edge between vertices {vertex} and {other} has zero length"
+                        ),
+                    });
+                }
+                edge_length_sum += f64::from(length);
+                edge_count += 1;
+            }
+        }
+        let mean_edge_length = (edge_length_sum / edge_count as f64) as f32;
+        let mut anchor_of_vertex = vec![None; structure.vertex_count];
+        for (index, anchor) in anchors.iter().enumerate() {
+            let slot = anchor_of_vertex
+                .get_mut(anchor.vertex as usize)
+                .ok_or_else(|| KernelError::InvalidArgument {
+                    name: "anchors",
+                    reason: format!(
+                        "anchor {index} is on vertex {}, but the layout has {} vertices",
+                        anchor.vertex, structure.vertex_count
+                    ),
+                })?;
+            if slot.is_some() {
+                return Err(KernelError::InvalidArgument {
+                    name: "anchors",
+                    reason: format!("vertex {} has more than one anchor", anchor.vertex),
+                });
+            }
+            let position = match anchor.target {
+                AnchorTarget::Face(face_point) => target
+                    .face_point_position(face_point)
+                    .map_err(|error| relabel_anchor_error(error, index))?,
+                AnchorTarget::Space(position) => {
+                    if !position.is_finite() {
+                        return Err(KernelError::NonFinite {
+                            what: "anchor target",
+                            index,
+                        });
+                    }
+                    position
+                }
+            };
+            *slot = Some((anchor.target, position));
+        }
+        let (min, max) = positions
+            .iter()
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(min, max), &p| {
+                (min.min(p), max.max(p))
+            });
+        let layout_size = (max - min).length().max(f32::MIN_POSITIVE);
+        let lines = LinesByVertex::new(&structure);
+        let mut is_corner = vec![false; structure.vertex_count];
+        for &corner in &structure.corners {
+            is_corner[corner as usize] = true;
+        }
+        let _ = target.face_normals(); // built now rather than inside the first iteration
+        Ok(Self {
+            target,
+            lines,
+            settings,
+            fold_tolerance: settings.fold_tolerance,
+            landing_distance: settings.landing_distance * mean_edge_length,
+            layout_size,
+            structure,
+            points,
+            positions,
+            anchor_of_vertex,
+            is_corner,
+            unreliable: Vec::new(),
+            walk_neighbors: None,
+            total_iterations: 0,
+        })
+    }
+
+    /// Marks target triangles as unreliable (noisy or untrusted data, paper 2.5): points there
+    /// behave as space-points. Face-points on them are detached now; walks that end on them lift
+    /// off; folding never lands on them. Holes need no marking.
+    ///
+    /// # Errors
+    /// [`KernelError::LengthMismatch`] unless there is one flag per target triangle.
+    pub fn with_unreliable_triangles(mut self, unreliable: Vec<bool>) -> Result<Self, KernelError> {
+        let triangle_count = self.target.triangles().len();
+        if unreliable.len() != triangle_count {
+            return Err(KernelError::LengthMismatch {
+                what: "unreliable triangle flags and target triangles",
+                first: unreliable.len(),
+                second: triangle_count,
+            });
+        }
+        for (point, &position) in self.points.iter_mut().zip(&self.positions) {
+            if let LayoutPoint::Face(face_point) = point
+                && unreliable[face_point.triangle as usize]
+            {
+                *point = LayoutPoint::Space(position);
+            }
+        }
+        let walk_neighbors = self
+            .target
+            .triangle_neighbors()
+            .iter()
+            .map(|neighbors| {
+                neighbors.map(|neighbor| {
+                    if neighbor != NO_TRIANGLE && unreliable[neighbor as usize] {
+                        NO_TRIANGLE
+                    } else {
+                        neighbor
+                    }
+                })
+            })
+            .collect();
+        self.walk_neighbors = Some(walk_neighbors);
+        self.unreliable = unreliable;
+        Ok(self)
+    }
+
+    /// Walks on the target, stopping at unreliable regions as at holes.
+    fn walk(&self, start: FacePoint, displacement: Vec3) -> WalkEnd {
+        match &self.walk_neighbors {
+            Some(neighbors) => self.target.walk_on(neighbors, start, displacement),
+            None => self.target.walk(start, displacement),
+        }
+    }
+
+    /// Whether points on `triangle` must behave as space-points.
+    fn is_unreliable(&self, triangle: u32) -> bool {
+        self.unreliable
+            .get(triangle as usize)
+            .copied()
+            .unwrap_or(false)
+    }
+
+    /// The layout points (face- or space-points), one per layout vertex.
+    #[must_use]
+    pub fn points(&self) -> &[LayoutPoint] {
+        &self.points
+    }
+
+    /// The positions of the layout points.
+    #[must_use]
+    pub fn positions(&self) -> &[Vec3] {
+        &self.positions
+    }
+
+    /// The settings in use.
+    #[must_use]
+    pub fn settings(&self) -> &WrapSettings {
+        &self.settings
+    }
+
+    /// Runs up to `iterations` iterations, stopping early once converged.
+    pub fn step(&mut self, iterations: usize) -> StepReport {
+        let mut report = StepReport {
+            iterations: 0,
+            total_iterations: self.total_iterations,
+            max_displacement: 0.0,
+            converged: false,
+            face_points: 0,
+            space_points: 0,
+            landed: 0,
+            folded: 0,
+            lifted: 0,
+            fold_tolerance: self.fold_tolerance,
+        };
+        for _ in 0..iterations {
+            let (max_displacement, counts) = self.iterate();
+            report.iterations += 1;
+            report.max_displacement = max_displacement / self.layout_size;
+            report.landed += counts.landed;
+            report.folded += counts.folded;
+            report.lifted += counts.lifted;
+            let changed = counts.landed + counts.folded + counts.lifted;
+            if report.max_displacement <= self.settings.tolerance && changed == 0 {
+                report.converged = true;
+                break;
+            }
+        }
+        self.total_iterations += report.iterations;
+        report.total_iterations = self.total_iterations;
+        report.face_points = self
+            .points
+            .iter()
+            .filter(|point| matches!(point, LayoutPoint::Face(_)))
+            .count();
+        report.space_points = self.points.len() - report.face_points;
+        report.fold_tolerance = self.fold_tolerance;
+        report
+    }
+
+    /// One Jacobi iteration over all points; returns the largest displacement and the events.
+    fn iterate(&mut self) -> (f32, EventCounts) {
+        let vertex_count = self.points.len();
+        let umbrellas: Vec<Vec3> = (0..vertex_count as u32)
+            .into_par_iter()
+            .with_min_len(1024)
+            .map(|vertex| umbrella(&self.positions, &self.structure, vertex))
+            .collect();
+        let updates: Vec<(LayoutPoint, Vec3, Event)> = (0..vertex_count as u32)
+            .into_par_iter()
+            .with_min_len(512)
+            .map(|vertex| self.update_point(vertex, &umbrellas))
+            .collect();
+        let mut counts = EventCounts::default();
+        let mut max_displacement = 0.0f32;
+        for (vertex, (point, position, event)) in updates.into_iter().enumerate() {
+            max_displacement = max_displacement.max(position.distance(self.positions[vertex]));
+            self.points[vertex] = point;
+            self.positions[vertex] = position;
+            match event {
+                Event::Landed => counts.landed += 1,
+                Event::Folded => {
+                    counts.folded += 1;
+                    counts.fold_candidates += 1;
+                }
+                Event::FoldCandidate => counts.fold_candidates += 1,
+                Event::Lifted => counts.lifted += 1,
+                Event::None => {}
+            }
+        }
+        self.anneal(&counts);
+        (max_displacement, counts)
+    }
+
+    /// Simulated annealing of the folding tolerance: loosen while nothing folds, tighten when a
+    /// large share of the candidates folds at once.
+    fn anneal(&mut self, counts: &EventCounts) {
+        if counts.fold_candidates == 0 {
+            return;
+        }
+        let fraction = counts.folded as f32 / counts.fold_candidates as f32;
+        if counts.folded == 0 {
+            self.fold_tolerance *= 1.15;
+        } else if fraction > FOLD_FRACTION_HIGH {
+            self.fold_tolerance *= 0.85;
+        }
+        self.fold_tolerance = self
+            .fold_tolerance
+            .clamp(FOLD_TOLERANCE_RANGE.0, FOLD_TOLERANCE_RANGE.1);
+    }
+
+    /// The new state and position of one point (reads only the snapshot).
+    fn update_point(&self, vertex: u32, umbrellas: &[Vec3]) -> (LayoutPoint, Vec3, Event) {
+        let weights = self.settings.weights;
+        let index = vertex as usize;
+        let here = self.positions[index];
+        let anchor = self.anchor_of_vertex[index];
+        if let Some((anchor_target, anchor_position)) = anchor {
+            let pinned = match (self.points[index], anchor_target) {
+                (LayoutPoint::Face(point), AnchorTarget::Face(target)) => point == target,
+                (LayoutPoint::Space(_), AnchorTarget::Space(_)) => here == anchor_position,
+                _ => false,
+            };
+            if pinned {
+                // Anchors are constraints: once met, the point stays exactly there.
+                return (self.points[index], here, Event::None);
+            }
+        }
+        let force = if let Some((_, anchor_position)) = anchor {
+            // Anchors are constraints: an anchored point heads straight for its target (other
+            // forces would hold it at an equilibrium short of it) and is pinned once there.
+            (anchor_position - here) * weights.constraint
+        } else {
+            let (fairness, arc_length) =
+                line_forces(&self.positions, self.lines.lines_of(vertex), vertex).unwrap_or_else(
+                    || {
+                        if self.is_corner[index] {
+                            (Vec3::ZERO, Vec3::ZERO)
+                        } else {
+                            (umbrellas[index], Vec3::ZERO)
+                        }
+                    },
+                );
+            fairness * weights.fairness + arc_length * weights.arc_length
+        };
+        match self.points[index] {
+            LayoutPoint::Face(face_point) => {
+                let normal = self.target.face_normals()[face_point.triangle as usize];
+                let tangential = force - normal * force.dot(normal);
+                match self.walk(face_point, tangential) {
+                    WalkEnd::OnSurface(moved) => {
+                        let position = self.target.interpolate(moved.triangle, moved.barycentric);
+                        if let Some((AnchorTarget::Face(target), anchor_position)) = anchor
+                            && anchor_position.distance(position) <= self.landing_distance
+                        {
+                            return (LayoutPoint::Face(target), anchor_position, Event::Landed);
+                        }
+                        if self.is_unreliable(moved.triangle) {
+                            return (LayoutPoint::Space(position), position, Event::Lifted);
+                        }
+                        (LayoutPoint::Face(moved), position, Event::None)
+                    }
+                    WalkEnd::Lifted { position, .. } => {
+                        (LayoutPoint::Space(position), position, Event::Lifted)
+                    }
+                }
+            }
+            LayoutPoint::Space(_) => {
+                let moved = if anchor.is_some() {
+                    here + force
+                } else {
+                    here + force
+                        + thin_plate(umbrellas, &self.structure, vertex) * weights.thin_plate
+                };
+                if let Some((anchor_target, anchor_position)) = anchor
+                    && anchor_position.distance(moved) <= self.landing_distance
+                {
+                    let landed = match anchor_target {
+                        AnchorTarget::Face(face_point) => LayoutPoint::Face(face_point),
+                        AnchorTarget::Space(_) => LayoutPoint::Space(anchor_position),
+                    };
+                    return (landed, anchor_position, Event::Landed);
+                }
+                if weights.folding > 0.0
+                    && let Some(outcome) = self.fold(vertex, moved)
+                {
+                    return outcome;
+                }
+                (LayoutPoint::Space(moved), moved, Event::None)
+            }
+        }
+    }
+
+    /// Folding of a space-point at `position` around its nearest face-point neighbour (the seed):
+    /// `None` when it has no face-point neighbour.
+    fn fold(&self, vertex: u32, position: Vec3) -> Option<(LayoutPoint, Vec3, Event)> {
+        let (seed, seed_position) = self
+            .structure
+            .neighbors_of(vertex)
+            .iter()
+            .filter_map(|&other| match self.points[other as usize] {
+                LayoutPoint::Face(face_point) => Some((face_point, self.positions[other as usize])),
+                LayoutPoint::Space(_) => None,
+            })
+            .min_by(|a, b| {
+                a.1.distance_squared(position)
+                    .total_cmp(&b.1.distance_squared(position))
+            })?;
+        let offset = position - seed_position;
+        let length = offset.length();
+        let normal = self.target.face_normals()[seed.triangle as usize];
+        let along = (offset - normal * offset.dot(normal)).normalize_or_zero();
+        if length == 0.0 || along == Vec3::ZERO {
+            return Some((LayoutPoint::Space(position), position, Event::FoldCandidate));
+        }
+        let (folded_point, folded_position) = match self.walk(seed, along * length) {
+            WalkEnd::OnSurface(face_point) => (
+                Some(face_point),
+                self.target
+                    .interpolate(face_point.triangle, face_point.barycentric),
+            ),
+            // A hole on the way: the fold target floats in space (paper, section 2.5).
+            WalkEnd::Lifted { position, .. } => (None, position),
+        };
+        let folded_offset = folded_position - seed_position;
+        let angle = offset.angle_between(folded_offset);
+        if !angle.is_finite() {
+            return Some((LayoutPoint::Space(position), position, Event::FoldCandidate));
+        }
+        if angle <= self.fold_tolerance
+            && let Some(face_point) = folded_point
+        {
+            return Some((
+                LayoutPoint::Face(face_point),
+                folded_position,
+                Event::Folded,
+            ));
+        }
+        let axis = offset.cross(folded_offset).normalize_or_zero();
+        if axis == Vec3::ZERO {
+            return Some((LayoutPoint::Space(position), position, Event::FoldCandidate));
+        }
+        let rotation = Quat::from_axis_angle(axis, angle * self.settings.weights.folding);
+        let rotated = seed_position + rotation * offset;
+        Some((LayoutPoint::Space(rotated), rotated, Event::FoldCandidate))
+    }
+}
+
+#[derive(Debug, Default, Clone, Copy)]
+struct EventCounts {
+    landed: usize,
+    folded: usize,
+    fold_candidates: usize,
+    lifted: usize,
+}
+
+/// Positions of layout points; face-points are checked against the target.
+fn resolve_positions(
+    target: &TargetMesh,
+    points: &[LayoutPoint],
+) -> Result<Vec<Vec3>, KernelError> {
+    let (layout_indices, face_points): (Vec<usize>, Vec<FacePoint>) = points
+        .iter()
+        .enumerate()
+        .filter_map(|(index, point)| match point {
+            LayoutPoint::Face(face_point) => Some((index, *face_point)),
+            LayoutPoint::Space(_) => None,
+        })
+        .unzip();
+    // Errors name the layout vertex, not the position among the face-points.
+    let face_positions =
+        target
+            .face_point_positions(&face_points)
+            .map_err(|error| match error {
+                KernelError::TriangleIndexOutOfRange {
+                    index,
+                    triangle,
+                    triangle_count,
+                } => KernelError::TriangleIndexOutOfRange {
+                    index: layout_indices[index],
+                    triangle,
+                    triangle_count,
+                },
+                KernelError::NonFinite { index, .. } => KernelError::NonFinite {
+                    what: "barycentric",
+                    index: layout_indices[index],
+                },
+                other => other,
+            })?;
+    let mut positions = Vec::with_capacity(points.len());
+    let mut face_positions = face_positions.into_iter();
+    for (index, point) in points.iter().enumerate() {
+        positions.push(match point {
+            LayoutPoint::Face(_) => face_positions.next().unwrap_or(Vec3::ZERO),
+            LayoutPoint::Space(position) if position.is_finite() => *position,
+            LayoutPoint::Space(_) => {
+                return Err(KernelError::NonFinite {
+                    what: "layout point",
+                    index,
+                });
+            }
+        });
+    }
+    Ok(positions)
+}
+
+/// A face-point error about anchor targets names the anchor, not a face-point.
+fn relabel_anchor_error(error: KernelError, anchor: usize) -> KernelError {
+    match error {
+        KernelError::TriangleIndexOutOfRange {
+            triangle,
+            triangle_count,
+            ..
+        } => KernelError::InvalidArgument {
+            name: "anchors",
+            reason: format!(
+                "anchor {anchor} targets triangle {triangle}, but the target has only {triangle_count} triangles"
+            ),
+        },
+        KernelError::NonFinite { .. } => KernelError::NonFinite {
+            what: "anchor target",
+            index: anchor,
+        },
+        other => other,
+    }
+}

@@ -1,0 +1,277 @@
+//! The wrap on targets whose answer is known: planes, with and without holes.
+
+mod common;
+
+use std::sync::Arc;
+
+use glam::Vec3;
+use springwrap_kernel::{
+    Anchor, AnchorTarget, KernelError, LayoutPoint, LayoutStructure, TargetMesh, TargetMeshOptions,
+    WrapSettings, WrapSolver,
+};
+
+/// An `n` x `n` quad grid of cell `size`, lower corner at `origin`, in the plane z = origin.z.
+fn quad_layout(n: u32, size: f32, origin: Vec3) -> (LayoutStructure, Vec<Vec3>) {
+    let row = n + 1;
+    let positions = (0..row * row)
+        .map(|index| {
+            origin
+                + Vec3::new(
+                    (index % row) as f32 * size,
+                    (index / row) as f32 * size,
+                    0.0,
+                )
+        })
+        .collect();
+    let mut corners = Vec::new();
+    for y in 0..n {
+        for x in 0..n {
+            let a = y * row + x;
+            corners.extend([a, a + 1, a + row + 1, a + row]);
+        }
+    }
+    let structure = LayoutStructure::new(
+        (row * row) as usize,
+        &corners,
+        &vec![4; (n * n) as usize],
+        &[],
+        &[],
+    )
+    .unwrap();
+    (structure, positions)
+}
+
+/// A flat target: a `cells` x `cells` grid of unit cells scaled by `scale`, centred on the origin,
+/// minus the cells whose centre is within `hole_radius` of the origin.
+fn plane_target(cells: u32, scale: f32, hole_radius: f32) -> Arc<TargetMesh> {
+    let (vertices, triangles) = common::grid(cells);
+    let half = cells as f32 * 0.5;
+    let vertices: Vec<Vec3> = vertices
+        .iter()
+        .map(|v| (*v - Vec3::new(half, half, 0.0)) * scale)
+        .collect();
+    let triangles: Vec<[u32; 3]> = triangles
+        .into_iter()
+        .filter(|corners| {
+            let centre = corners.iter().map(|&i| vertices[i as usize]).sum::<Vec3>() / 3.0;
+            centre.truncate().length() > hole_radius
+        })
+        .collect();
+    Arc::new(TargetMesh::new(vertices, triangles, TargetMeshOptions::default()).unwrap())
+}
+
+fn anchors_below(target: &TargetMesh, positions: &[Vec3], vertices: &[u32]) -> Vec<Anchor> {
+    vertices
+        .iter()
+        .map(|&vertex| {
+            let below = positions[vertex as usize] * Vec3::new(1.0, 1.0, 0.0);
+            let hit = target.closest_point(below, f32::INFINITY).unwrap();
+            Anchor {
+                vertex,
+                target: AnchorTarget::Face(hit.face_point),
+            }
+        })
+        .collect()
+}
+
+fn edge_length_ratio(structure: &LayoutStructure, positions: &[Vec3]) -> f32 {
+    let mut shortest = f32::INFINITY;
+    let mut longest = 0.0f32;
+    for vertex in 0..structure.vertex_count as u32 {
+        for &other in structure.neighbors_of(vertex) {
+            let length = positions[vertex as usize].distance(positions[other as usize]);
+            shortest = shortest.min(length);
+            longest = longest.max(length);
+        }
+    }
+    longest / shortest
+}
+
+#[test]
+fn a_template_above_a_plane_wraps_onto_it_through_its_anchors() {
+    let target = plane_target(40, 0.05, 0.0);
+    let (structure, positions) = quad_layout(10, 0.1, Vec3::new(-0.5, -0.5, 0.3));
+    let anchors = anchors_below(&target, &positions, &[0, 10, 110, 120, 60]);
+    let points = positions.iter().map(|&p| LayoutPoint::Space(p)).collect();
+    let mut solver = WrapSolver::new(
+        target.clone(),
+        structure.clone(),
+        points,
+        &anchors,
+        WrapSettings::default(),
+    )
+    .unwrap();
+    let report = solver.step(2000);
+    assert!(report.converged, "{report:?}");
+    assert_eq!(report.space_points, 0, "{report:?}");
+    for (vertex, position) in solver.positions().iter().enumerate() {
+        assert!(position.z.abs() < 1e-5, "vertex {vertex} at {position}");
+    }
+    for anchor in &anchors {
+        let AnchorTarget::Face(face_point) = anchor.target else {
+            unreachable!()
+        };
+        let expected = target.face_point_position(face_point).unwrap();
+        assert!(solver.positions()[anchor.vertex as usize].distance(expected) < 1e-3);
+    }
+    assert!(edge_length_ratio(&structure, solver.positions()) < 1.3);
+    // No flipped quads: every quad still faces +z.
+    let p = solver.positions();
+    for y in 0..10u32 {
+        for x in 0..10u32 {
+            let a = (y * 11 + x) as usize;
+            let normal = (p[a + 1] - p[a]).cross(p[a + 11] - p[a]);
+            assert!(normal.z > 0.0, "quad ({x}, {y}) flipped");
+        }
+    }
+}
+
+#[test]
+fn points_over_a_hole_stay_space_points_on_the_continued_surface() {
+    let target = plane_target(40, 0.05, 0.2);
+    let (structure, positions) = quad_layout(10, 0.1, Vec3::new(-0.5, -0.5, 0.3));
+    let anchors = anchors_below(&target, &positions, &[0, 10, 110, 120]);
+    let points = positions.iter().map(|&p| LayoutPoint::Space(p)).collect();
+    let mut solver =
+        WrapSolver::new(target, structure, points, &anchors, WrapSettings::default()).unwrap();
+    let report = solver.step(3000);
+    assert!(report.converged, "{report:?}");
+    let mut over_hole = 0;
+    for (vertex, (point, position)) in solver.points().iter().zip(solver.positions()).enumerate() {
+        assert!(position.z.abs() < 2e-3, "vertex {vertex} at {position}");
+        if position.truncate().length() < 0.15 {
+            over_hole += 1;
+            assert!(
+                matches!(point, LayoutPoint::Space(_)),
+                "vertex {vertex} over the hole is {point:?}"
+            );
+        } else if position.truncate().length() > 0.3 {
+            assert!(
+                matches!(point, LayoutPoint::Face(_)),
+                "vertex {vertex} on the plane is {point:?}"
+            );
+        }
+    }
+    assert!(over_hole >= 5);
+}
+
+#[test]
+fn stepping_reports_progress_and_resumes() {
+    let target = plane_target(20, 0.1, 0.0);
+    let (structure, positions) = quad_layout(6, 0.2, Vec3::new(-0.6, -0.6, 0.2));
+    let anchors = anchors_below(&target, &positions, &[0, 6, 42, 48]);
+    let points: Vec<LayoutPoint> = positions.iter().map(|&p| LayoutPoint::Space(p)).collect();
+    let mut solver =
+        WrapSolver::new(target, structure, points, &anchors, WrapSettings::default()).unwrap();
+    let first = solver.step(5);
+    assert_eq!((first.iterations, first.total_iterations), (5, 5));
+    assert!(!first.converged && first.max_displacement > 0.0);
+    let second = solver.step(5);
+    assert_eq!(second.total_iterations, 10);
+    assert!(first.landed + second.landed >= 1 || second.space_points < 49);
+}
+
+#[test]
+fn bad_wraps_are_refused_with_the_reason() {
+    let target = plane_target(4, 1.0, 0.0);
+    let (structure, positions) = quad_layout(2, 1.0, Vec3::ZERO);
+    let points: Vec<LayoutPoint> = positions.iter().map(|&p| LayoutPoint::Space(p)).collect();
+    let settings = WrapSettings::default();
+    let error = WrapSolver::new(
+        target.clone(),
+        structure.clone(),
+        points[..4].to_vec(),
+        &[],
+        settings,
+    )
+    .unwrap_err();
+    assert!(matches!(error, KernelError::LengthMismatch { .. }));
+    let mut collapsed = points.clone();
+    collapsed[1] = collapsed[0];
+    let error =
+        WrapSolver::new(target.clone(), structure.clone(), collapsed, &[], settings).unwrap_err();
+    assert!(error.to_string().contains("zero length"), "{error}");
+    let mut not_finite = points.clone();
+    not_finite[3] = LayoutPoint::Space(Vec3::NAN);
+    let error =
+        WrapSolver::new(target.clone(), structure.clone(), not_finite, &[], settings).unwrap_err();
+    assert_eq!(
+        error,
+        KernelError::NonFinite {
+            what: "layout point",
+            index: 3
+        }
+    );
+    let anchor = |vertex| Anchor {
+        vertex,
+        target: AnchorTarget::Space(Vec3::ZERO),
+    };
+    let error = WrapSolver::new(
+        target.clone(),
+        structure.clone(),
+        points.clone(),
+        &[anchor(99)],
+        settings,
+    )
+    .unwrap_err();
+    assert!(error.to_string().contains("vertex 99"), "{error}");
+    let error = WrapSolver::new(
+        target.clone(),
+        structure.clone(),
+        points.clone(),
+        &[anchor(1), anchor(1)],
+        settings,
+    )
+    .unwrap_err();
+    assert!(
+        error.to_string().contains("more than one anchor"),
+        "{error}"
+    );
+    let mut bad = settings;
+    bad.weights.fairness = f32::NAN;
+    let error =
+        WrapSolver::new(target.clone(), structure.clone(), points.clone(), &[], bad).unwrap_err();
+    assert!(error.to_string().contains("fairness"), "{error}");
+    let lonely = LayoutStructure::new(2, &[], &[], &[], &[]).unwrap();
+    let error = WrapSolver::new(target, lonely, points[..2].to_vec(), &[], settings).unwrap_err();
+    assert!(error.to_string().contains("no edges"), "{error}");
+}
+
+#[test]
+fn points_over_unreliable_data_behave_as_over_a_hole() {
+    let target = plane_target(40, 0.05, 0.0);
+    // The middle of the plane is "noisy": its triangles are flagged and must not hold points.
+    let unreliable: Vec<bool> = target
+        .triangles()
+        .iter()
+        .map(|corners| {
+            let centre = corners
+                .iter()
+                .map(|&i| target.vertices()[i as usize])
+                .sum::<Vec3>()
+                / 3.0;
+            centre.truncate().length() < 0.2
+        })
+        .collect();
+    let (structure, positions) = quad_layout(10, 0.1, Vec3::new(-0.5, -0.5, 0.3));
+    let anchors = anchors_below(&target, &positions, &[0, 10, 110, 120]);
+    let points = positions.iter().map(|&p| LayoutPoint::Space(p)).collect();
+    let mut solver = WrapSolver::new(target, structure, points, &anchors, WrapSettings::default())
+        .unwrap()
+        .with_unreliable_triangles(unreliable)
+        .unwrap();
+    let report = solver.step(3000);
+    assert!(report.converged, "{report:?}");
+    let mut over_noise = 0;
+    for (vertex, (point, position)) in solver.points().iter().zip(solver.positions()).enumerate() {
+        assert!(position.z.abs() < 2e-3, "vertex {vertex} at {position}");
+        if position.truncate().length() < 0.15 {
+            over_noise += 1;
+            assert!(
+                matches!(point, LayoutPoint::Space(_)),
+                "vertex {vertex} on noise is {point:?}"
+            );
+        }
+    }
+    assert!(over_noise >= 5);
+}

@@ -1,0 +1,98 @@
+"""The wrap through the kernel's Python binding: structure, solver, stepping, errors (no bpy)."""
+
+import numpy as np
+import pytest
+
+import springwrap_kernel as sk
+
+
+def plane_target(cells=60, size=0.025):
+    """A flat square target in z = 0 centred on the origin."""
+    row = cells + 1
+    xs, ys = np.meshgrid(np.arange(row), np.arange(row))
+    vertices = np.stack([xs.ravel(), ys.ravel(), np.zeros(row * row)], 1) * size - np.array([cells * size / 2, cells * size / 2, 0])
+    corner = (np.arange(cells)[None] + row * np.arange(cells)[:, None]).ravel()
+    triangles = np.concatenate(
+        [np.stack([corner, corner + 1, corner + row + 1], 1), np.stack([corner, corner + row + 1, corner + row], 1)]
+    )
+    return sk.TargetMesh(vertices.astype(np.float32), triangles.astype(np.uint32))
+
+
+def quad_layout(n=12, size=0.05, height=0.25):
+    """An n x n quad grid centred over the origin at z = height, as flat face arrays."""
+    row = n + 1
+    xs, ys = np.meshgrid(np.arange(row), np.arange(row))
+    positions = np.stack([xs.ravel(), ys.ravel(), np.zeros(row * row)], 1) * size + np.array([-n * size / 2, -n * size / 2, height])
+    corner = (np.arange(n)[None] + row * np.arange(n)[:, None]).ravel()
+    face_corners = np.stack([corner, corner + 1, corner + row + 1, corner + row], 1).astype(np.uint32).ravel()
+    return positions.astype(np.float32), face_corners, np.full(n * n, 4, np.uint32)
+
+
+def make_solver(target, positions, structure, anchor_vertices, **weights):
+    below = np.ascontiguousarray(positions[anchor_vertices] * [1, 1, 0], dtype=np.float32)
+    hits = target.closest_points(below)
+    count = len(positions)
+    return sk.WrapSolver(
+        target, structure, np.zeros(count, np.int32), np.full(count, -1, np.int32), np.zeros((count, 3), np.float32),
+        positions, anchor_vertices=np.asarray(anchor_vertices, np.uint32), anchor_triangles=hits.triangles,
+        anchor_barycentrics=hits.barycentrics, anchor_positions=hits.positions, **weights,
+    ), hits
+
+
+def test_structure_of_a_quad_grid():
+    positions, face_corners, face_sizes = quad_layout(4)
+    structure = sk.LayoutStructure(len(positions), face_corners, face_sizes)
+    assert structure.vertex_count == 25
+    assert len(structure.line_triples()) == 9 * 2 + 12
+    assert sorted(structure.corners().tolist()) == [0, 4, 20, 24]
+    assert len(structure.extraordinary()) == 0
+    (kind, vertices, closed), = structure.curves()
+    assert (kind, len(vertices), closed) == ("BORDER", 16, True)
+
+
+def test_a_template_wraps_onto_a_plane_and_meets_its_anchors():
+    target = plane_target()
+    positions, face_corners, face_sizes = quad_layout()
+    structure = sk.LayoutStructure(len(positions), face_corners, face_sizes)
+    anchors = [0, 12, 156, 168, 84]
+    solver, hits = make_solver(target, positions, structure, anchors)
+    report = solver.step(5)
+    assert report.iterations == 5 and not report.converged
+    while not report.converged and report.total_iterations < 5000:
+        report = solver.step(100)
+    assert report.converged and report.space_points == 0, report
+    states, triangles, barycentrics = solver.states()
+    assert (states == 1).all() and (triangles >= 0).all()
+    wrapped = solver.positions()
+    np.testing.assert_allclose(wrapped[:, 2], 0.0, atol=1e-5)
+    np.testing.assert_allclose(wrapped[anchors], hits.positions, atol=1e-5)
+    np.testing.assert_allclose(target.face_point_positions(triangles.astype(np.uint32), barycentrics), wrapped, atol=1e-5)
+
+
+def test_bad_wrap_inputs_raise_named_errors():
+    target = plane_target(8, 0.2)
+    positions, face_corners, face_sizes = quad_layout(3)
+    structure = sk.LayoutStructure(len(positions), face_corners, face_sizes)
+    count = len(positions)
+    states, triangles = np.zeros(count, np.int32), np.full(count, -1, np.int32)
+    barycentrics = np.zeros((count, 3), np.float32)
+    with pytest.raises(sk.ArrayError, match="one per layout vertex"):
+        sk.WrapSolver(target, structure, states[:3], triangles, barycentrics, positions)
+    with pytest.raises(sk.InvalidArgumentError, match="fairness"):
+        sk.WrapSolver(target, structure, states, triangles, barycentrics, positions, fairness=float("nan"))
+    collapsed = positions.copy()
+    collapsed[1] = collapsed[0]
+    with pytest.raises(sk.InvalidArgumentError, match="zero length"):
+        sk.WrapSolver(target, structure, states, triangles, barycentrics, collapsed)
+    with pytest.raises(sk.InvalidArgumentError, match="vertex 99"):
+        sk.WrapSolver(target, structure, states, triangles, barycentrics, positions,
+                      anchor_vertices=np.array([99], np.uint32), anchor_triangles=np.array([-1], np.int32),
+                      anchor_barycentrics=np.zeros((1, 3), np.float32), anchor_positions=np.zeros((1, 3), np.float32))
+    with pytest.raises(sk.ArrayError, match="all four"):
+        sk.WrapSolver(target, structure, states, triangles, barycentrics, positions,
+                      anchor_vertices=np.array([0], np.uint32))
+    with pytest.raises(sk.InvalidArgumentError, match="unreliable"):
+        sk.WrapSolver(target, structure, states, triangles, barycentrics, positions,
+                      unreliable_triangles=np.zeros(3, bool))
+    with pytest.raises(sk.IndexOutOfRangeError, match="layout face 0"):
+        sk.LayoutStructure(3, np.array([0, 1, 7], np.uint32), np.array([3], np.uint32))
