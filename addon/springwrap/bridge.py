@@ -8,7 +8,7 @@ Python loop (except over anchors in edit mode, which are few).
 
 import collections
 import contextlib
-from typing import Optional
+from typing import NamedTuple, Optional
 
 import bmesh
 import bpy
@@ -312,3 +312,242 @@ def read_world_vertex_positions(layout: bpy.types.Object, vertex_indices: np.nda
             mesh.vertices.foreach_get("co", positions)
             local[valid] = positions.reshape(-1, 3)[vertex_indices[valid]]
     return layout_state.transform_points(matrix_array(layout.matrix_world), local)
+
+
+# ---------------------------------------------------------------- wrap
+
+
+_ABSENT = "absent"
+_FOREIGN = "foreign"
+
+
+class LayoutSnapshot(NamedTuple):
+    """The layout's positions and state attributes as they were, to put back bit for bit (a cancelled wrap)."""
+
+    positions: np.ndarray  # (N * 3,) float32, as read
+    # attribute name -> its raw values; _ABSENT when it did not exist; _FOREIGN when an attribute of
+    # that name has another type or domain (wrap frames leave it alone, see write_wrap_frame)
+    attributes: dict
+
+
+def take_snapshot(layout: bpy.types.Object) -> LayoutSnapshot:
+    """Copy what a wrap in progress writes: positions and the state attributes (object mode)."""
+    mesh = layout.data
+    positions = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+    mesh.vertices.foreach_get("co", positions)
+    attributes = {}
+    for name, data_type, prop, dtype, components in _STATE_ATTRIBUTES:
+        attribute = _state_attribute(mesh, name, data_type)
+        if attribute is None:
+            attributes[name] = _ABSENT if mesh.attributes.get(name) is None else _FOREIGN
+            continue
+        values = np.empty(len(attribute.data) * components, dtype=dtype)
+        attribute.data.foreach_get(prop, values)
+        attributes[name] = values
+    return LayoutSnapshot(positions, attributes)
+
+
+def restore_snapshot(layout: bpy.types.Object, snapshot: LayoutSnapshot) -> None:
+    """Put back what :func:`take_snapshot` copied: positions and state attributes, bit for bit.
+
+    An attribute that did not exist is removed again; one that existed gets its values back.
+    """
+    mesh = layout.data
+    mesh.vertices.foreach_set("co", snapshot.positions)
+    for name, data_type, prop, _dtype, _components in _STATE_ATTRIBUTES:
+        saved = snapshot.attributes[name]
+        if isinstance(saved, str):
+            if saved == _ABSENT and mesh.attributes.get(name) is not None:
+                mesh.attributes.remove(mesh.attributes[name])
+            continue
+        if _state_attribute(mesh, name, data_type) is None:  # only if something else replaced it meanwhile
+            if mesh.attributes.get(name) is not None:
+                mesh.attributes.remove(mesh.attributes[name])
+            mesh.attributes.new(name, data_type, "POINT")
+        mesh.attributes[name].data.foreach_set(prop, saved)
+    mesh.update()
+
+
+def write_wrap_frame(layout: bpy.types.Object, positions: np.ndarray, state: LayoutState) -> None:
+    """An intermediate frame of a wrap: local positions and the state, without replacing attributes.
+
+    The state attributes are created when missing, but an attribute of the same name with
+    another type is left alone (only the final write replaces it, so that a cancel can restore
+    everything). Creates no undo step.
+    """
+    mesh = layout.data
+    mesh.vertices.foreach_set("co", np.ascontiguousarray(positions, dtype=np.float32).reshape(-1))
+    values = (state.states, state.faces, state.barycentrics)
+    for (name, data_type, prop, dtype, _components), array in zip(_STATE_ATTRIBUTES, values):
+        if mesh.attributes.get(name) is None:
+            mesh.attributes.new(name, data_type, "POINT")
+        elif _state_attribute(mesh, name, data_type) is None:
+            continue
+        mesh.attributes[name].data.foreach_set(prop, np.ascontiguousarray(array, dtype=dtype).reshape(-1))
+    mesh.update()
+
+
+def read_layout_structure(layout: bpy.types.Object):
+    """The layout mesh's faces, edges and seams as a kernel ``LayoutStructure`` (object mode data).
+
+    Every edge is passed (those on no face are loose curves), and the seam-marked ones as patch
+    boundaries. Raises :class:`LayoutError` for a layout with neither faces nor edges.
+    """
+    from . import operations
+
+    mesh = layout.data
+    face_count, edge_count = len(mesh.polygons), len(mesh.edges)
+    operations.check_wrappable(layout.name, face_count, edge_count)
+    loop_vertices = np.empty(len(mesh.loops), dtype=np.uint32)
+    mesh.loops.foreach_get("vertex_index", loop_vertices)
+    loop_starts = np.empty(face_count, dtype=np.int64)
+    mesh.polygons.foreach_get("loop_start", loop_starts)
+    face_sizes = np.empty(face_count, dtype=np.uint32)
+    mesh.polygons.foreach_get("loop_total", face_sizes)
+    # Corners face by face: loop_start + 0 .. loop_total - 1 (loops need not be in face order).
+    offsets = np.repeat(loop_starts - np.concatenate([[0], np.cumsum(face_sizes, dtype=np.int64)[:-1]]), face_sizes)
+    face_corners = loop_vertices[np.arange(int(face_sizes.sum()), dtype=np.int64) + offsets]
+    edges = np.empty(edge_count * 2, dtype=np.uint32)
+    mesh.edges.foreach_get("vertices", edges)
+    edges = edges.reshape(-1, 2)
+    seam_flags = np.empty(edge_count, dtype=bool)
+    mesh.edges.foreach_get("use_seam", seam_flags)
+    return springwrap_kernel.LayoutStructure(
+        len(mesh.vertices),
+        np.ascontiguousarray(face_corners, dtype=np.uint32),
+        np.ascontiguousarray(face_sizes, dtype=np.uint32),
+        edges=np.ascontiguousarray(edges),
+        seams=np.ascontiguousarray(edges[seam_flags]),
+    )
+
+
+_WEIGHT_ATTRIBUTE = "springwrap_group_weight"
+_EXISTS_ATTRIBUTE = "springwrap_group_exists"
+
+
+def read_vertex_group_weights(context, target_object: bpy.types.Object, group_name: str) -> np.ndarray:
+    """(V,) float32 weights of ``group_name`` on the *evaluated* target's vertices (0 outside the group).
+
+    Blender has no bulk reader of vertex-group weights, so they are read through geometry nodes:
+    a temporary copy of the evaluated mesh gets a node group storing the weights (the
+    "Named Attribute" node reads vertex groups) as a float attribute, read with ``foreach_get``;
+    the copy, its object and the node group are removed again.
+
+    Modifiers: deforming and most generating modifiers carry vertex groups along (Subdivision
+    Surface interpolates the weights, Mirror and Array copy them), so the weights are those of the
+    evaluated vertices. A modifier that rebuilds the mesh (Remesh, some geometry nodes) drops the
+    groups; then, when the evaluated mesh still has as many vertices as the base mesh (the stack
+    only moved them), the base mesh's weights are used vertex for vertex, otherwise it is an error.
+    Raises :class:`LayoutError` when the target has no such group or it cannot be followed.
+    """
+    if target_object.vertex_groups.get(group_name) is None:
+        raise LayoutError(f"Target '{target_object.name}' has no vertex group '{group_name}'")
+    depsgraph = context.evaluated_depsgraph_get()
+    evaluated = target_object.evaluated_get(depsgraph)
+    weights, exists = _group_weights_of(context, evaluated, depsgraph, group_name)
+    if exists:
+        return weights
+    base_count = len(target_object.data.vertices)
+    if base_count != weights.shape[0]:
+        raise LayoutError(
+            f"The modifiers of target '{target_object.name}' drop the vertex group '{group_name}' and change its "
+            f"vertex count ({base_count} -> {weights.shape[0]}): the unreliable vertices cannot be followed"
+        )
+    base_weights, _exists = _group_weights_of(context, target_object.original, None, group_name)
+    return base_weights
+
+
+def _group_weights_of(context, source: bpy.types.Object, depsgraph, group_name: str) -> tuple[np.ndarray, bool]:
+    """Weights of ``group_name`` on the mesh of ``source`` (evaluated or original), and whether it has the group."""
+    mesh = bpy.data.meshes.new_from_object(source, preserve_all_data_layers=True, depsgraph=depsgraph)
+    probe = tree = None
+    try:
+        probe = bpy.data.objects.new("springwrap weight probe", mesh)
+        tree = _weight_node_group(group_name)
+        modifier = probe.modifiers.new("springwrap weights", "NODES")
+        modifier.node_group = tree
+        context.scene.collection.objects.link(probe)
+        evaluated = probe.evaluated_get(context.evaluated_depsgraph_get())
+        result = evaluated.to_mesh()
+        try:
+            count = len(result.vertices)
+            weights = np.zeros(count, dtype=np.float32)
+            attribute = result.attributes.get(_WEIGHT_ATTRIBUTE)
+            if attribute is not None and count:
+                attribute.data.foreach_get("value", weights)
+            exists = True
+            flag = result.attributes.get(_EXISTS_ATTRIBUTE)
+            if flag is not None and count:
+                flags = np.empty(count, dtype=bool)
+                flag.data.foreach_get("value", flags)
+                exists = bool(flags.any())
+        finally:
+            evaluated.to_mesh_clear()
+    finally:
+        if probe is not None:
+            bpy.data.objects.remove(probe)
+        bpy.data.meshes.remove(mesh)
+        if tree is not None:
+            bpy.data.node_groups.remove(tree)
+    return weights, exists
+
+
+def _weight_node_group(group_name: str):
+    """Geometry nodes storing the named vertex group (and whether it exists) as point attributes."""
+    tree = bpy.data.node_groups.new("springwrap weights", "GeometryNodeTree")
+    if hasattr(tree, "interface"):  # Blender 4.0+
+        tree.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+        tree.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    else:
+        tree.inputs.new("NodeSocketGeometry", "Geometry")
+        tree.outputs.new("NodeSocketGeometry", "Geometry")
+    group_input = tree.nodes.new("NodeGroupInput")
+    group_output = tree.nodes.new("NodeGroupOutput")
+    named = tree.nodes.new("GeometryNodeInputNamedAttribute")
+    named.data_type = "FLOAT"
+    named.inputs["Name"].default_value = group_name
+    geometry = group_input.outputs[0]
+    stores = [(_WEIGHT_ATTRIBUTE, "FLOAT", named.outputs["Attribute"])]
+    if "Exists" in named.outputs:
+        stores.append((_EXISTS_ATTRIBUTE, "BOOLEAN", named.outputs["Exists"]))
+    for attribute_name, data_type, value in stores:
+        store = tree.nodes.new("GeometryNodeStoreNamedAttribute")
+        store.data_type = data_type
+        store.domain = "POINT"
+        store.inputs["Name"].default_value = attribute_name
+        tree.links.new(geometry, store.inputs["Geometry"])
+        tree.links.new(value, store.inputs["Value"])
+        geometry = store.outputs["Geometry"]
+    tree.links.new(geometry, group_output.inputs[0])
+    return tree
+
+
+def make_wrap_solver(target: Target, structure, inputs, parameters):
+    """A kernel ``WrapSolver`` for the prepared inputs (``operations.WrapInputs``, world space)."""
+    return springwrap_kernel.WrapSolver(
+        target.mesh,
+        structure,
+        inputs.states,
+        inputs.triangles,
+        inputs.barycentrics,
+        inputs.positions,
+        anchor_vertices=inputs.anchor_vertices,
+        anchor_triangles=inputs.anchor_triangles,
+        anchor_barycentrics=inputs.anchor_barycentrics,
+        anchor_positions=inputs.anchor_positions,
+        unreliable_triangles=inputs.unreliable_triangles,
+        **parameters.solver_settings(),
+    )
+
+
+def leave_edit_mode(layout: bpy.types.Object) -> bool:
+    """Switch the layout to object mode when it is in edit mode (flushing the edit-mesh); whether it was."""
+    if layout.mode != "EDIT":
+        return False
+    bpy.ops.object.mode_set(mode="OBJECT")
+    return True
+
+
+def enter_edit_mode() -> None:
+    """Switch the active object back into edit mode (after :func:`leave_edit_mode`)."""
+    bpy.ops.object.mode_set(mode="EDIT")

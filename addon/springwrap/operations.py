@@ -258,3 +258,200 @@ def _outcome(
         topology_detached_count=resolution.detached_count,
         topology_reattached_count=resolution.reattached_count,
     )
+
+
+# ---------------------------------------------------------------- wrap (paper, section 2.5)
+
+WEIGHT_RANGES = {
+    # parameter name: (label, low, high); the kernel's stable ranges (its WrapSettings::validate)
+    "fairness": ("fairness weight", 0.0, 1.0),
+    "arc_length": ("arc length weight", 0.0, 1.0),
+    "thin_plate": ("thin plate weight", 0.0, 0.5),
+    "constraint": ("constraint weight", 0.0, 1.0),
+    "folding": ("folding weight", 0.0, 1.0),
+}
+"""The wrap's force weights and the range each must lie in."""
+
+UNRELIABLE_WEIGHT = 0.5
+"""A target triangle is unreliable when all three corners weigh more than this in the unreliable group."""
+
+
+class WrapParameters(NamedTuple):
+    """What the user sets for a wrap: iteration controls and the five force weights (paper's α β γ)."""
+
+    max_iterations: int = 2000
+    tolerance: float = 1e-5  # converged when no point moves more than this fraction of the layout's size
+    fairness: float = 0.5
+    arc_length: float = 0.5
+    thin_plate: float = 0.2
+    constraint: float = 0.5
+    folding: float = 0.3
+
+    def solver_settings(self) -> dict:
+        """The keyword arguments of ``springwrap_kernel.WrapSolver`` these parameters set."""
+        names = ("tolerance", *WEIGHT_RANGES)
+        return {name: float(getattr(self, name)) for name in names}
+
+
+class WrapInputs(NamedTuple):
+    """Everything the kernel's ``WrapSolver`` takes besides the target and the layout structure (world space)."""
+
+    states: np.ndarray  # (N,) int32 1 face-point, 0 space-point
+    triangles: np.ndarray  # (N,) int32 face-point triangle, -1 for space-points
+    barycentrics: np.ndarray  # (N, 3) float32
+    positions: np.ndarray  # (N, 3) float32 world positions (used for space-points)
+    anchor_vertices: np.ndarray  # (A,) uint32
+    anchor_triangles: np.ndarray  # (A,) int32, -1 for a space anchor
+    anchor_barycentrics: np.ndarray  # (A, 3) float32
+    anchor_positions: np.ndarray  # (A, 3) float32 world target points
+    unreliable_triangles: Optional[np.ndarray]  # (M,) bool, or None when no group is set
+
+
+def check_wrap_parameters(parameters: WrapParameters) -> None:
+    """Raise :class:`~.layout_state.LayoutError` naming the first parameter out of its range."""
+    if int(parameters.max_iterations) < 1:
+        raise layout_state.LayoutError(f"Max Iterations must be at least 1, not {parameters.max_iterations}")
+    tolerance = float(parameters.tolerance)
+    if not (np.isfinite(tolerance) and 0.0 < tolerance <= 1.0):
+        raise layout_state.LayoutError(f"The tolerance must be within (0, 1], not {tolerance:g}")
+    for name, (label, low, high) in WEIGHT_RANGES.items():
+        value = float(getattr(parameters, name))
+        if not (np.isfinite(value) and low <= value <= high):
+            raise layout_state.LayoutError(f"The {label} must be within [{low:g}, {high:g}], not {value:g}")
+
+
+def check_wrappable(layout_name: str, face_count: int, edge_count: int) -> None:
+    """Raise :class:`~.layout_state.LayoutError` when the layout has nothing for the springs to act on."""
+    if face_count == 0 and edge_count == 0:
+        raise layout_state.LayoutError(
+            f"Layout '{layout_name}' has no faces and no edges: there is nothing to wrap"
+        )
+
+
+def unreliable_triangles(triangles: np.ndarray, vertex_weights: np.ndarray) -> np.ndarray:
+    """(M,) bool: the triangles whose three corners all weigh more than :data:`UNRELIABLE_WEIGHT`.
+
+    ``triangles`` (M, 3) vertex indices of the target, ``vertex_weights`` (V,) one weight per
+    target vertex (0 for vertices outside the group).
+    """
+    triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    heavy = np.asarray(vertex_weights, dtype=np.float64).reshape(-1) > UNRELIABLE_WEIGHT
+    return np.ascontiguousarray(heavy[triangles].all(axis=1), dtype=bool)
+
+
+def wrap_anchor_arrays(anchor_list, vertex_count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The kernel's anchor arrays (vertices, triangles, barycentrics, positions) from an anchor list.
+
+    ``anchor_list`` is an ``anchors.Anchors`` (resolved on the current target: face anchors have
+    valid triangles, locations are current). Raises :class:`~.layout_state.LayoutError` naming the
+    anchors whose vertex the layout no longer has.
+    """
+    vertex_indices = np.asarray(anchor_list.vertex_indices, dtype=np.int64).reshape(-1)
+    missing = np.flatnonzero((vertex_indices < 0) | (vertex_indices >= vertex_count))
+    if missing.size:
+        shown = ", ".join(f"anchor {int(index)} (vertex {int(vertex_indices[index])})" for index in missing[:5])
+        more = f" and {missing.size - 5} more" if missing.size > 5 else ""
+        raise layout_state.LayoutError(
+            f"{missing.size} anchors are on vertices the layout no longer has (it has {vertex_count}): "
+            f"{shown}{more}; remove them or update the anchors"
+        )
+    is_face = np.asarray(anchor_list.kinds) == layout_state.FACE_POINT
+    triangles = np.where(is_face, anchor_list.triangles, layout_state.NO_FACE).astype(np.int32)
+    return (
+        np.ascontiguousarray(vertex_indices, dtype=np.uint32),
+        np.ascontiguousarray(triangles),
+        layout_state.as_float32_points(anchor_list.barycentrics),
+        layout_state.as_float32_points(anchor_list.locations),
+    )
+
+
+def prepare_wrap(
+    layout: LayoutArrays,
+    target: Target,
+    stored_signature: str,
+    anchor_list,
+    unreliable: Optional[np.ndarray],
+) -> tuple[WrapInputs, layout_state.Resolution]:
+    """The solver's inputs: the layout's current state (after the deleted-face rule) and positions.
+
+    ``anchor_list``: resolved anchors (see :func:`wrap_anchor_arrays`); ``unreliable``: (M,) bool
+    flags of the target's triangles, or None. Every vertex must be finite in world space.
+    Returns the inputs and the topology resolution of the layout's face-points (to report).
+    """
+    vertex_count = layout.positions.shape[0]
+    check_finite(layout, np.ones(vertex_count, dtype=bool))
+    resolution = resolve_topology(layout, target, stored_signature)
+    state = resolution.state
+    anchor_vertices, anchor_triangles, anchor_barycentrics, anchor_positions = wrap_anchor_arrays(
+        anchor_list, vertex_count
+    )
+    if unreliable is not None:
+        unreliable = np.ascontiguousarray(unreliable, dtype=bool).reshape(-1)
+        if unreliable.shape[0] != target.mesh.triangle_count:
+            raise layout_state.LayoutError(
+                f"{unreliable.shape[0]} unreliable-triangle flags for a target of {target.mesh.triangle_count} triangles"
+            )
+    inputs = WrapInputs(
+        states=np.ascontiguousarray(state.states, dtype=np.int32),
+        triangles=np.ascontiguousarray(state.faces, dtype=np.int32),
+        barycentrics=layout_state.as_float32_points(state.barycentrics),
+        positions=layout_state.as_float32_points(world_positions(layout)),
+        anchor_vertices=anchor_vertices,
+        anchor_triangles=anchor_triangles,
+        anchor_barycentrics=anchor_barycentrics,
+        anchor_positions=anchor_positions,
+        unreliable_triangles=unreliable,
+    )
+    return inputs, resolution
+
+
+def to_local(matrix_world: np.ndarray, world_points: np.ndarray, dtype=np.float32) -> np.ndarray:
+    """(N, 3) world points in the layout's local space; raises :class:`~.layout_state.LayoutError` for zero scale."""
+    if not layout_state.is_invertible(matrix_world):
+        raise layout_state.LayoutError(
+            "The layout object's transform cannot be inverted (zero scale): cannot write world positions back"
+        )
+    inverse = layout_state.inverse_matrix(matrix_world)
+    return layout_state.transform_points(inverse, world_points).astype(dtype)
+
+
+class IterationPacer:
+    """How many wrap iterations to run per redraw so that the viewport keeps about ``frame_rate`` redraws/s.
+
+    The cost of one iteration and of writing a frame are measured as the wrap runs (smoothed);
+    each frame gets what is left of the frame time after the write, at least one iteration, and
+    at most four times the previous count (so a fast first guess cannot overshoot by much).
+    """
+
+    def __init__(self, frame_rate: float = 30.0, max_count: int = 10_000):
+        if frame_rate <= 0.0:
+            raise ValueError("frame_rate must be positive")
+        self.frame_seconds = 1.0 / frame_rate
+        self.max_count = max_count
+        self.iteration_seconds: Optional[float] = None
+        self.write_seconds = 0.0
+        self.last_count = 1
+
+    def next_count(self, remaining: int) -> int:
+        """Iterations for the next frame (at most ``remaining``, at least 1 when any remain)."""
+        if remaining <= 0:
+            return 0
+        if self.iteration_seconds is None:
+            count = 1
+        else:
+            budget = max(self.frame_seconds - self.write_seconds, 0.25 * self.frame_seconds)
+            count = int(budget / max(self.iteration_seconds, 1e-7))
+            count = min(count, 4 * self.last_count)
+        count = max(1, min(count, self.max_count, remaining))
+        self.last_count = count
+        return count
+
+    def record(self, iterations: int, step_seconds: float, write_seconds: float) -> None:
+        """Account for a frame: ``iterations`` took ``step_seconds``, the write ``write_seconds``."""
+        if iterations > 0:
+            per_iteration = step_seconds / iterations
+            if self.iteration_seconds is None:
+                self.iteration_seconds = per_iteration
+            else:
+                self.iteration_seconds = 0.5 * self.iteration_seconds + 0.5 * per_iteration
+        self.write_seconds = 0.5 * self.write_seconds + 0.5 * write_seconds
