@@ -3,7 +3,8 @@
 Each layout vertex is a face-point (on a target triangle) or a space-point (free in 3D). The
 operators (``operators``) detach, snap and project layout vertices; the anchor operators
 (``anchor_operators``) pair layout vertices with target points, drawn in the 3D view by
-``anchor_drawing``; ``bridge`` is the one module that moves data between Blender and the Rust
+``anchor_drawing``; the wrap (``wrap_operator``) pulls the whole layout onto the target with
+springs; ``bridge`` is the one module that moves data between Blender and the Rust
 kernel (``springwrap_kernel``).
 """
 
@@ -13,15 +14,15 @@ bl_info = {
     "version": (0, 1, 0),
     "blender": (3, 4, 0),
     "location": "View3D > Sidebar > Springwrap",
-    "description": "Retarget a patch layout onto a target mesh: detach, snap and project face-points",
+    "description": "Retarget a patch layout onto a target mesh: detach, snap, project, anchor and wrap",
     "category": "Mesh",
 }
 
 import bpy
 
-from . import anchor_drawing, anchor_operators, operators, properties, ui
+from . import anchor_drawing, anchor_operators, operators, properties, ui, wrap_operator
 
-_modules = (properties, operators, anchor_operators, ui)
+_modules = (properties, operators, anchor_operators, wrap_operator, ui)
 
 
 def register():

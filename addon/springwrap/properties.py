@@ -170,5 +170,14 @@ class SpringwrapObjectSettings(bpy.types.PropertyGroup):
         default="CLOSEST",
     )
 
+    unreliable_group: bpy.props.StringProperty(
+        name="Unreliable",
+        description=(
+            "Vertex group of the target marking noisy or untrusted data: the wrap treats points on triangles "
+            "whose three corners weigh more than 0.5 as space-points (read from the evaluated target)"
+        ),
+        default="",
+    )
+
 
 classes = (SpringwrapAnchorItem, SpringwrapObjectSettings)

@@ -1,4 +1,4 @@
-"""The Springwrap sidebar panel of the 3D view, and its Anchors sub-panel."""
+"""The Springwrap sidebar panel of the 3D view, and its Anchors and Wrap sub-panels."""
 
 import bpy
 
@@ -144,6 +144,36 @@ class SPRINGWRAP_PT_anchors(bpy.types.Panel):
         auto.max_distance = settings.max_distance
 
 
+class SPRINGWRAP_PT_wrap(bpy.types.Panel):
+    """The wrap: the target's unreliable vertex group and the Wrap button"""
+
+    bl_label = "Wrap"
+    bl_idname = "SPRINGWRAP_PT_wrap"
+    bl_parent_id = "SPRINGWRAP_PT_layout"
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "Springwrap"
+
+    @classmethod
+    def poll(cls, context):
+        obj = context.active_object
+        return obj is not None and obj.type == "MESH"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        settings = context.active_object.springwrap
+        row = layout.row()
+        if settings.target is not None:
+            row.prop_search(settings, "unreliable_group", settings.target, "vertex_groups", icon="GROUP_VERTEX")
+        else:
+            row.enabled = False
+            row.prop(settings, "unreliable_group")
+        layout.label(text="Whole layout; Esc or right-click cancels", icon="INFO")
+        layout.operator("springwrap.wrap", icon="MOD_SHRINKWRAP")
+
+
 def _anchor_counts_text(anchors):
     """"K anchors (F on the surface)", the kinds read at once (the list may be long)."""
     import numpy as np
@@ -157,4 +187,4 @@ def _anchor_counts_text(anchors):
     return f"{len(anchors)} anchors ({face_count} on the surface)"
 
 
-classes = (SPRINGWRAP_PT_layout, SPRINGWRAP_UL_anchors, SPRINGWRAP_PT_anchors)
+classes = (SPRINGWRAP_PT_layout, SPRINGWRAP_UL_anchors, SPRINGWRAP_PT_anchors, SPRINGWRAP_PT_wrap)

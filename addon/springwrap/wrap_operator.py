@@ -1,0 +1,530 @@
+"""The wrap (paper, section 2.5): springs pull the whole layout onto the target like a rubber sheet.
+
+``springwrap.wrap`` hands the layout (its faces, edges and seams, its face-point state and world
+positions), its anchors and the evaluated target to the kernel's ``WrapSolver`` and steps it until
+it converges or reaches the iteration limit.
+
+- Interactively (``invoke`` in a window) it is a modal operator: a timer steps the solver a few
+  iterations at a time (as many as keep about 30 redraws per second), writes every frame into the
+  layout mesh so the viewport shows it settling (paper, Figure 12), and shows its progress in the
+  status bar. Esc or right-click cancels and puts positions and state back bit for bit; finishing
+  keeps the result as one undo step.
+- In background mode, or with ``EXEC_DEFAULT`` (scripts), it runs to the end at once and writes once.
+
+The logic is in two plain classes that need no window or events: :class:`WrapSession` (read,
+step, write frames, finish, cancel) and :class:`WrapLoop` (the modal's state machine: events in,
+operator results out), so tests drive them directly.
+"""
+
+import time
+from typing import Callable, NamedTuple, Optional
+
+import bpy
+
+from .operators import layout_problem
+
+FRAME_RATE = 30.0
+"""Redraws per second the modal wrap aims for."""
+TIMER_SECONDS = 0.01
+"""Interval of the modal's timer: a frame starts as soon as the previous one is drawn."""
+SYNCHRONOUS_CHUNK = 100
+"""Iterations per kernel call when the wrap runs to the end at once."""
+
+CANCEL_EVENTS = frozenset({"ESC", "RIGHTMOUSE"})
+"""Events (pressed) that cancel a modal wrap."""
+NAVIGATION_EVENTS = frozenset(
+    {
+        "MIDDLEMOUSE",
+        "WHEELUPMOUSE",
+        "WHEELDOWNMOUSE",
+        "WHEELINMOUSE",
+        "WHEELOUTMOUSE",
+        "MOUSEMOVE",
+        "INBETWEEN_MOUSEMOVE",
+        "TRACKPADPAN",
+        "TRACKPADZOOM",
+        "MOUSEROTATE",
+        "MOUSESMARTZOOM",
+        "NDOF_MOTION",
+        "NUMPAD_0",
+        "NUMPAD_1",
+        "NUMPAD_2",
+        "NUMPAD_3",
+        "NUMPAD_4",
+        "NUMPAD_5",
+        "NUMPAD_6",
+        "NUMPAD_7",
+        "NUMPAD_8",
+        "NUMPAD_9",
+        "NUMPAD_PERIOD",
+        "NUMPAD_PLUS",
+        "NUMPAD_MINUS",
+    }
+)
+"""Events a modal wrap lets through, so the view can be turned while it settles."""
+
+
+def modal_action(event_type: str, event_value: str) -> str:
+    """What the modal wrap does with an event: ``'CANCEL'``, ``'STEP'``, ``'PASS'`` (navigation) or ``'BLOCK'``."""
+    if event_type in CANCEL_EVENTS and event_value == "PRESS":
+        return "CANCEL"
+    if event_type == "TIMER":
+        return "STEP"
+    if event_type in NAVIGATION_EVENTS:
+        return "PASS"
+    return "BLOCK"
+
+
+class WrapResult(NamedTuple):
+    """What a finished wrap did, for the report."""
+
+    layout_name: str
+    vertex_count: int
+    iterations: int
+    converged: bool
+    max_displacement: float  # of the last iteration, fraction of the layout's size
+    seconds: float  # wall time from the start of the wrap to its final write
+    kernel_seconds: float  # time spent in the kernel's step
+    frames: int  # frames written while it ran (0 when it ran at once)
+    face_points: int
+    space_points: int
+    landed: int
+    folded: int
+    lifted: int
+    anchor_count: int
+    unreliable_triangles: int
+    topology_detached_count: int  # face-points whose target face was gone, made space-points
+    topology_reattached_count: int
+    anchors_detached_count: int  # face anchors whose target face was gone, made space anchors
+
+    def summary(self) -> str:
+        """One line: iterations, time, face / space points and what changed state."""
+        ending = "converged" if self.converged else "stopped at the iteration limit"
+        return (
+            f"Wrapped '{self.layout_name}' in {self.iterations} iterations ({ending}), {self.seconds:.2f} s: "
+            f"{self.face_points} face-points, {self.space_points} space-points "
+            f"({self.landed} landed on anchors, {self.folded} folded, {self.lifted} lifted off borders)"
+        )
+
+
+class WrapSession:
+    """A wrap in progress on one layout, without any UI: read, step, write frames, then finish or cancel.
+
+    The constructor reads and checks everything and builds the solver; it writes nothing (an error
+    is raised as one of ``bridge.ERRORS`` and the scene is untouched). The layout must be in
+    object mode for the whole session (the operator sees to it). ``parameters`` is an
+    ``operations.WrapParameters``.
+    """
+
+    def __init__(self, context, layout: bpy.types.Object, parameters):
+        from . import anchors, bridge, layout_state, operations
+
+        self._bridge, self._operations, self._layout_state = bridge, operations, layout_state
+        self.start_time = time.perf_counter()
+        self.layout = layout
+        self.parameters = parameters
+        operations.check_wrap_parameters(parameters)
+        if bridge.has_shape_keys(layout):
+            raise layout_state.LayoutError(f"Layout '{layout.name}' has shape keys; Springwrap cannot move its vertices")
+        settings = layout.springwrap
+        arrays = bridge.read_layout(layout)
+        if not layout_state.is_invertible(arrays.matrix_world):
+            raise layout_state.LayoutError(
+                f"Layout '{layout.name}' has zero scale: the wrap's world positions cannot be written back"
+            )
+        self.matrix_world = arrays.matrix_world
+        self.target = bridge.read_target(context.evaluated_depsgraph_get(), layout)
+        structure = bridge.read_layout_structure(layout)
+        self.anchors, anchor_resolution = anchors.resolve(
+            bridge.read_anchors(layout), self.target, settings.anchors_signature
+        )
+        unreliable = None
+        if settings.unreliable_group:
+            weights = bridge.read_vertex_group_weights(context, settings.target, settings.unreliable_group)
+            if weights.shape[0] != self.target.mesh.vertex_count:
+                raise layout_state.LayoutError(
+                    f"Vertex group '{settings.unreliable_group}' has {weights.shape[0]} weights for a target of "
+                    f"{self.target.mesh.vertex_count} vertices"
+                )
+            unreliable = operations.unreliable_triangles(self.target.mesh.triangles(), weights)
+        inputs, resolution = operations.prepare_wrap(
+            arrays, self.target, settings.target_signature, self.anchors, unreliable
+        )
+        self.solver = bridge.make_wrap_solver(self.target, structure, inputs, parameters)
+        self.snapshot = bridge.take_snapshot(layout)
+        self.vertex_count = arrays.positions.shape[0]
+        self.unreliable_count = 0 if unreliable is None else int(unreliable.sum())
+        self.topology = (resolution.detached_count, resolution.reattached_count, anchor_resolution.detached_count)
+        self.pacer = operations.IterationPacer(FRAME_RATE)
+        self.last_report = None
+        self.kernel_seconds = 0.0
+        self.frames = 0
+        self.events = {"landed": 0, "folded": 0, "lifted": 0}
+        self._frame_end: Optional[float] = None
+
+    @property
+    def total_iterations(self) -> int:
+        """Iterations run so far."""
+        return 0 if self.last_report is None else self.last_report.total_iterations
+
+    @property
+    def done(self) -> bool:
+        """Converged, or the iteration limit reached."""
+        if self.last_report is None:
+            return False
+        return self.last_report.converged or self.total_iterations >= self.parameters.max_iterations
+
+    def step(self, iterations: int):
+        """Run up to ``iterations`` kernel iterations (within the limit); the kernel's ``StepReport``."""
+        iterations = min(int(iterations), self.parameters.max_iterations - self.total_iterations)
+        start = time.perf_counter()
+        report = self.solver.step(max(iterations, 0))
+        self.kernel_seconds += time.perf_counter() - start
+        for name in self.events:
+            self.events[name] += getattr(report, name)
+        self.last_report = report
+        return report
+
+    def advance(self):
+        """One frame of the interactive wrap: as many iterations as the frame allows, then write them.
+
+        Writes positions and state into the layout mesh (no undo step). Returns the ``StepReport``.
+        """
+        begin = time.perf_counter()
+        overhead = 0.0 if self._frame_end is None else min(begin - self._frame_end, 1.0)
+        count = self.pacer.next_count(self.parameters.max_iterations - self.total_iterations)
+        report = self.step(count)
+        stepped = time.perf_counter()
+        self.write_frame()
+        self._frame_end = time.perf_counter()
+        self.pacer.record(report.iterations, stepped - begin, self._frame_end - stepped + overhead)
+        self.frames += 1
+        return report
+
+    def run(self, progress: Optional[Callable] = None, chunk: int = SYNCHRONOUS_CHUNK):
+        """Step to the end at once (converged or the limit), writing nothing; ``progress(report)`` after each chunk."""
+        while not self.done:
+            report = self.step(chunk)
+            if progress is not None:
+                progress(report)
+        return self.last_report
+
+    def current_layout(self):
+        """(local positions float32 (N, 3), ``LayoutState``) of the solver now."""
+        positions = self._operations.to_local(self.matrix_world, self.solver.positions())
+        return positions, self._layout_state.normalized_state(*self.solver.states())
+
+    def write_frame(self) -> None:
+        """Write the solver's current positions and state into the layout (an intermediate frame)."""
+        positions, state = self.current_layout()
+        self._bridge.write_wrap_frame(self.layout, positions, state)
+
+    def finish(self) -> WrapResult:
+        """Write the result for good: positions, state, the target signature and the resolved anchors."""
+        if self.last_report is None:
+            self.step(0)
+        positions, state = self.current_layout()
+        self._bridge.write_layout(self.layout, positions, state)
+        settings = self.layout.springwrap
+        settings.target_signature = self.target.signature
+        if len(settings.anchors):
+            self._bridge.write_anchors(self.layout, self.anchors, -1, self.target.signature)
+        report = self.last_report
+        face_points, space_points = self._layout_state.point_counts(state.states)
+        detached, reattached, anchors_detached = self.topology
+        return WrapResult(
+            layout_name=self.layout.name,
+            vertex_count=self.vertex_count,
+            iterations=report.total_iterations,
+            converged=bool(report.converged),
+            max_displacement=float(report.max_displacement),
+            seconds=time.perf_counter() - self.start_time,
+            kernel_seconds=self.kernel_seconds,
+            frames=self.frames,
+            face_points=face_points,
+            space_points=space_points,
+            landed=self.events["landed"],
+            folded=self.events["folded"],
+            lifted=self.events["lifted"],
+            anchor_count=int(self.anchors.vertex_indices.shape[0]),
+            unreliable_triangles=self.unreliable_count,
+            topology_detached_count=detached,
+            topology_reattached_count=reattached,
+            anchors_detached_count=anchors_detached,
+        )
+
+    def cancel(self) -> None:
+        """Put the layout's positions and state attributes back exactly as they were at the start."""
+        self._bridge.restore_snapshot(self.layout, self.snapshot)
+
+    def status_text(self) -> str:
+        """The progress line shown in the status bar."""
+        report = self.last_report
+        if report is None:
+            return f"Springwrap: wrapping '{self.layout.name}'...  Esc / right-click: cancel"
+        return (
+            f"Springwrap: iteration {report.total_iterations} / {self.parameters.max_iterations}, "
+            f"{report.face_points} face-points, {report.space_points} space-points, "
+            f"last move {report.max_displacement:.2e}  —  Esc / right-click: cancel"
+        )
+
+
+class WrapLoop:
+    """The modal wrap's state machine: each event in, the operator's return value out.
+
+    ``handle`` returns ``'RUNNING_MODAL'``, ``'PASS_THROUGH'``, ``'FINISHED'`` (the result is in
+    :attr:`result`) or ``'CANCELLED'`` (by the user, or by an error kept in :attr:`error`); the
+    layout is restored bit for bit on cancel and on any error. It needs no window.
+    """
+
+    def __init__(self, session: WrapSession):
+        self.session = session
+        self.result: Optional[WrapResult] = None
+        self.error: Optional[BaseException] = None
+        self.state = "RUNNING_MODAL"
+
+    def handle(self, event_type: str, event_value: str = "NOTHING") -> str:
+        """React to one event."""
+        if self.state in ("FINISHED", "CANCELLED"):
+            return self.state
+        action = modal_action(event_type, event_value)
+        if action == "PASS":
+            return "PASS_THROUGH"
+        if action == "CANCEL":
+            return self.cancel()
+        if action == "STEP":
+            try:
+                self.session.advance()
+                if self.session.done:
+                    self.result = self.session.finish()
+                    self.state = "FINISHED"
+                    return self.state
+            except Exception as error:  # noqa: BLE001 - any failure mid-way must restore the layout
+                self.error = error
+                return self.cancel()
+        return "RUNNING_MODAL"
+
+    def cancel(self) -> str:
+        """Stop and restore the layout (also when the restore itself is all that is left to do)."""
+        if self.state != "CANCELLED":
+            self.state = "CANCELLED"
+            self.session.cancel()
+        return self.state
+
+
+def _error_types():
+    from . import bridge
+
+    return bridge.ERRORS
+
+
+class SPRINGWRAP_OT_wrap(bpy.types.Operator):
+    """Wrap the layout onto the target: springs with anchors pull it on like a rubber sheet (Esc cancels)"""
+
+    bl_idname = "springwrap.wrap"
+    bl_label = "Wrap"
+    bl_options = {"REGISTER", "UNDO"}
+
+    max_iterations: bpy.props.IntProperty(
+        name="Max Iterations",
+        description="Stop after this many iterations if it has not converged by then",
+        default=2000,
+        min=1,
+        soft_max=20000,
+    )
+    tolerance: bpy.props.FloatProperty(
+        name="Tolerance",
+        description="Converged when no point moves more than this fraction of the layout's size in an iteration",
+        default=1e-5,
+        soft_min=1e-7,
+        soft_max=1e-2,
+        precision=7,
+    )
+    fairness: bpy.props.FloatProperty(
+        name="Fairness",
+        description="Straightens the layout's grid lines (paper's alpha), 0 to 1",
+        default=0.5,
+        soft_min=0.0,
+        soft_max=1.0,
+    )
+    arc_length: bpy.props.FloatProperty(
+        name="Arc Length",
+        description="Evens the spacing along the grid lines (paper's beta), 0 to 1",
+        default=0.5,
+        soft_min=0.0,
+        soft_max=1.0,
+    )
+    thin_plate: bpy.props.FloatProperty(
+        name="Thin Plate",
+        description="Space-points continue the curvature of the surface around them (over holes), 0 to 0.5",
+        default=0.2,
+        soft_min=0.0,
+        soft_max=0.5,
+    )
+    constraint: bpy.props.FloatProperty(
+        name="Constraint",
+        description="Pull of anchored points toward their targets, 0 to 1",
+        default=0.5,
+        soft_min=0.0,
+        soft_max=1.0,
+    )
+    folding: bpy.props.FloatProperty(
+        name="Folding",
+        description="Pull of space-points next to face-points onto the surface, 0 to 1",
+        default=0.3,
+        soft_min=0.0,
+        soft_max=1.0,
+    )
+
+    @classmethod
+    def poll(cls, context):
+        problem = layout_problem(context)
+        if problem is not None:
+            cls.poll_message_set(problem)
+            return False
+        return True
+
+    def parameters(self):
+        """The operator's properties as ``operations.WrapParameters``."""
+        from .operations import WrapParameters
+
+        return WrapParameters(
+            max_iterations=self.max_iterations,
+            tolerance=self.tolerance,
+            fairness=self.fairness,
+            arc_length=self.arc_length,
+            thin_plate=self.thin_plate,
+            constraint=self.constraint,
+            folding=self.folding,
+        )
+
+    def _start(self, context) -> Optional[WrapSession]:
+        """Check, then build the session (in object mode); None after reporting why not."""
+        problem = layout_problem(context)
+        if problem is not None:
+            self.report({"ERROR"}, problem)
+            return None
+        try:
+            errors = _error_types()
+        except ImportError as error:
+            self.report({"ERROR"}, f"The Springwrap kernel is not available: {error}")
+            return None
+        try:
+            return WrapSession(context, context.active_object, self.parameters())
+        except errors as error:
+            self.report({"ERROR"}, str(error))
+            return None
+
+    def execute(self, context):
+        from . import bridge
+
+        layout = context.active_object
+        if layout is None or layout.type != "MESH":
+            self.report({"ERROR"}, layout_problem(context) or "No active mesh object (the layout)")
+            return {"CANCELLED"}
+        with bridge.object_mode(layout):
+            session = self._start(context)
+            if session is None:
+                return {"CANCELLED"}
+            try:
+                session.run()
+                result = session.finish()
+            except Exception as error:  # noqa: BLE001 - restore whatever was written, then report
+                session.cancel()
+                self.report({"ERROR"}, f"The wrap failed: {error}")
+                return {"CANCELLED"}
+        self._report_result(result)
+        return {"FINISHED"}
+
+    def invoke(self, context, event):
+        if bpy.app.background or context.window is None:
+            return self.execute(context)
+        from . import bridge
+
+        layout = context.active_object
+        if layout is None or layout.type != "MESH":
+            return self.execute(context)  # reports why
+        self._was_editing = bridge.leave_edit_mode(layout)
+        session = self._start(context)
+        if session is None:
+            self._restore_mode()
+            return {"CANCELLED"}
+        self._loop = WrapLoop(session)
+        window_manager = context.window_manager
+        self._timer = window_manager.event_timer_add(TIMER_SECONDS, window=context.window)
+        window_manager.progress_begin(0, session.parameters.max_iterations)
+        window_manager.modal_handler_add(self)
+        self._show_status(context)
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context, event):
+        outcome = self._loop.handle(event.type, event.value)
+        if outcome == "RUNNING_MODAL":
+            if event.type == "TIMER":
+                self._show_status(context)
+            return {"RUNNING_MODAL"}
+        if outcome == "PASS_THROUGH":
+            return {"PASS_THROUGH"}
+        self._end(context)
+        if outcome == "FINISHED":
+            self._report_result(self._loop.result)
+            return {"FINISHED"}
+        if self._loop.error is not None:
+            self.report({"ERROR"}, f"The wrap failed and was undone: {self._loop.error}")
+        else:
+            self.report({"INFO"}, "Wrap cancelled: the layout is back as it was")
+        return {"CANCELLED"}
+
+    def cancel(self, context):
+        """Blender ends the modal wrap from outside (window closed, file loaded): restore the layout."""
+        loop = getattr(self, "_loop", None)
+        if loop is not None and loop.state == "RUNNING_MODAL":
+            loop.cancel()
+            self._end(context)
+
+    def _show_status(self, context) -> None:
+        session = self._loop.session
+        text = session.status_text()
+        if context.workspace is not None:
+            context.workspace.status_text_set(text)
+        if context.area is not None:
+            context.area.header_text_set(text)
+        context.window_manager.progress_update(session.total_iterations)
+        screen = context.screen
+        if screen is not None:
+            for area in screen.areas:
+                if area.type == "VIEW_3D":
+                    area.tag_redraw()
+
+    def _end(self, context) -> None:
+        """Remove the timer, the status text and the progress, and go back to edit mode if the layout was in it."""
+        window_manager = context.window_manager
+        if getattr(self, "_timer", None) is not None:
+            window_manager.event_timer_remove(self._timer)
+            self._timer = None
+        window_manager.progress_end()
+        if context.workspace is not None:
+            context.workspace.status_text_set(None)
+        if context.area is not None:
+            context.area.header_text_set(None)
+        self._restore_mode()
+
+    def _restore_mode(self) -> None:
+        if getattr(self, "_was_editing", False):
+            from . import bridge
+
+            self._was_editing = False
+            bridge.enter_edit_mode()
+
+    def _report_result(self, result: WrapResult) -> None:
+        self.report({"INFO"} if result.converged else {"WARNING"}, result.summary())
+        detached, reattached = result.topology_detached_count, result.topology_reattached_count
+        if detached or reattached or result.anchors_detached_count:
+            self.report(
+                {"WARNING"},
+                f"Target topology changed: {detached} face-points and {result.anchors_detached_count} face anchors "
+                f"lost their target face and became space-points, {reattached} face-points re-attached",
+            )
+
+
+classes = (SPRINGWRAP_OT_wrap,)
