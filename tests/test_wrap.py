@@ -1,0 +1,741 @@
+"""The wrap (paper, section 2.5) under Blender (PyPI ``bpy``): ``springwrap.wrap`` and its modal logic.
+
+Scenes are generated: a grid layout above a (tilted, moved) plane target, the same plane with a
+round hole cut under the layout, and a UV-sphere target with a sphere-cap layout around it. The
+results are checked independently of the kernel: distances with ``mathutils`` BVHTree on the
+evaluated target, flips against the analytic surface normal, edge lengths against the template.
+The modal operator's logic is driven without a window through ``WrapSession`` / ``WrapLoop``.
+"""
+
+import math
+import time
+
+import bpy  # isort: skip  (bmesh and mathutils need bpy imported first)
+import bmesh
+import numpy as np
+import pytest
+from mathutils import Matrix, Vector
+
+from test_addon import (
+    TOLERANCE,
+    Reference,
+    assert_face_points_consistent,
+    local_positions,
+    read_state,
+    snapshot,
+    world_positions,
+)
+from test_anchors import anchor_snapshot
+
+HOLE_CENTER = Vector((0.1, 0.05, 0.0))  # in the plane target's object space
+HOLE_RADIUS = 0.5
+PLANE_LOCATION = Vector((0.2, -0.1, 0.05))
+PLANE_ROTATION = (0.2, 0.1, 0.3)
+SPHERE_CENTER = Vector((0.3, -0.2, 0.1))
+SPHERE_RADIUS = 1.5
+
+
+@pytest.fixture(autouse=True)
+def wrap_scene(springwrap_installed):
+    """An empty scene, the add-on enabled, its target cache empty, undo initialized (as for test_addon)."""
+    bpy.ops.wm.read_homefile(use_empty=True)
+    if not springwrap_installed.check("springwrap")[1]:
+        assert springwrap_installed.enable("springwrap", default_set=True, handle_error=None) is not None
+    from springwrap import bridge
+
+    bridge.clear_target_cache()
+    bpy.ops.ed.undo_push(message="Springwrap wrap test start")
+    yield
+    if bpy.context.object is not None and bpy.context.object.mode != "OBJECT":
+        bpy.ops.object.mode_set(mode="OBJECT")
+
+
+# ---------------------------------------------------------------- scenes
+
+
+def _activate(layout, target):
+    layout.name = "Layout"
+    layout.springwrap.target = target
+    for obj in bpy.context.view_layer.objects:
+        obj.select_set(obj == layout)
+    bpy.context.view_layer.objects.active = layout
+    return layout
+
+
+def plane_target(hole=False):
+    """A 4x4 plane target (40x40 quads, tilted and moved), optionally with a round hole; (target, world normal)."""
+    bpy.ops.mesh.primitive_grid_add(
+        x_subdivisions=40, y_subdivisions=40, size=4, location=PLANE_LOCATION, rotation=PLANE_ROTATION
+    )
+    target = bpy.context.active_object
+    target.name = "Target"
+    if hole:
+        editable = bmesh.new()
+        editable.from_mesh(target.data)
+        doomed = [face for face in editable.faces if (face.calc_center_median() - HOLE_CENTER).length < HOLE_RADIUS]
+        bmesh.ops.delete(editable, geom=doomed, context="FACES")
+        editable.to_mesh(target.data)
+        editable.free()
+        target.data.update()
+    return target, np.array(target.matrix_world.to_3x3() @ Vector((0.0, 0.0, 1.0)))
+
+
+def plane_scene(hole=False, subdivisions=12):
+    """The plane target and a grid layout 0.3 above it; (target, layout, world normal of the plane).
+
+    The layout is turned 0.4 rad about the plane's normal and scaled 1.1 x 0.9 (a template that is
+    not the target's own grid).
+    """
+    target, normal = plane_target(hole)
+    rotation = target.matrix_world.to_3x3()
+    bpy.ops.mesh.primitive_grid_add(
+        x_subdivisions=subdivisions,
+        y_subdivisions=subdivisions,
+        size=2,
+        location=PLANE_LOCATION + Vector(normal) * 0.3,
+        rotation=(rotation @ Matrix.Rotation(0.4, 3, "Z")).to_euler(),
+        scale=(1.1, 0.9, 1.0),
+    )
+    layout = _activate(bpy.context.active_object, target)
+    return target, layout, normal
+
+
+def sphere_scene():
+    """A UV-sphere target (radius 1.5) and a 10x10 grid bent onto a concentric cap of radius 1.8 (80 degrees wide)."""
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=48, ring_count=24, radius=SPHERE_RADIUS, location=SPHERE_CENTER)
+    target = bpy.context.active_object
+    target.name = "Target"
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=10, y_subdivisions=10, size=2)
+    layout = _activate(bpy.context.active_object, target)
+    flat = local_positions(layout).astype(np.float64)
+    spread = math.tan(math.radians(40.0))
+    directions = np.stack([flat[:, 0] * spread, flat[:, 1] * spread, np.ones(len(flat))], axis=1)
+    directions /= np.linalg.norm(directions, axis=1)[:, None]
+    turn = np.array(Matrix.Rotation(0.5, 3, "X") @ Matrix.Rotation(0.3, 3, "Y"))
+    cap = directions @ turn.T * 1.8 + np.array(SPHERE_CENTER)
+    layout.data.vertices.foreach_set("co", cap.astype(np.float32).reshape(-1))
+    layout.data.update()
+    return target, layout
+
+
+def edges_of(obj):
+    edges = np.empty(len(obj.data.edges) * 2, dtype=np.int64)
+    obj.data.edges.foreach_get("vertices", edges)
+    return edges.reshape(-1, 2)
+
+
+def quads_of(obj):
+    corners = np.empty(len(obj.data.loops), dtype=np.int64)
+    obj.data.loops.foreach_get("vertex_index", corners)
+    return corners.reshape(-1, 4)  # the generated layouts are all quads
+
+
+def edge_lengths(points, edges):
+    return np.linalg.norm(points[edges[:, 0]] - points[edges[:, 1]], axis=1)
+
+
+def quad_normals(points, quads):
+    corners = points[quads]
+    normals = np.cross(corners[:, 2] - corners[:, 0], corners[:, 3] - corners[:, 1])
+    return normals / np.linalg.norm(normals, axis=1)[:, None]
+
+
+def anchor_targets(layout):
+    """(vertex indices, world target locations) of the layout's anchors."""
+    anchors = layout.springwrap.anchors
+    vertices = np.array([anchor.vertex_index for anchor in anchors], dtype=np.int64)
+    locations = np.array([tuple(anchor.location) for anchor in anchors], dtype=np.float64).reshape(-1, 3)
+    return vertices, locations
+
+
+def surface_distances(reference, points):
+    return np.array([reference.nearest(point)[2] for point in points])
+
+
+def wrap_with_anchors(layout, spacing, **properties):
+    assert bpy.ops.springwrap.anchors_auto(spacing=spacing) == {"FINISHED"}
+    return bpy.ops.springwrap.wrap(**properties)
+
+
+def assert_wrapped_onto(layout, reference, template, surface_normals, edge_ratio_bounds):
+    """The checks every wrap must pass.
+
+    Face-points lie on the target (BVHTree) and where their triangle + barycentric say; anchors
+    are met; no quad is flipped against the surface normal; every edge keeps its template length
+    within ``edge_ratio_bounds`` relative to the median edge ratio (the whole sheet may shrink
+    or grow, as a sphere cap does going from radius 1.8 to 1.5, but must not tear or collapse).
+    """
+    states, _faces, _barycentrics = read_state(layout)
+    world = world_positions(layout)
+    on_face = states == 1
+    assert on_face.sum() > 0.5 * len(states)
+    assert surface_distances(reference, world[on_face]).max() <= TOLERANCE
+    assert_face_points_consistent(layout, reference)
+    anchored, locations = anchor_targets(layout)
+    assert len(anchored) >= 4
+    np.testing.assert_allclose(world[anchored], locations, rtol=0, atol=TOLERANCE)
+    normals = quad_normals(world, quads_of(layout))
+    alignment = np.einsum("kx,kx->k", normals, surface_normals(world[quads_of(layout)].mean(axis=1)))
+    assert alignment.min() > 0.9, f"a quad is flipped or turned on edge: {alignment.min():.3f}"
+    edges = edges_of(layout)
+    ratios = edge_lengths(world, edges) / edge_lengths(template, edges)
+    relative = ratios / np.median(ratios)
+    low, high = edge_ratio_bounds
+    assert low <= relative.min() and relative.max() <= high, (relative.min(), relative.max())
+
+
+# ---------------------------------------------------------------- registration
+
+
+def test_wrap_operator_panel_and_setting_are_registered():
+    rna = bpy.ops.springwrap.wrap.get_rna_type()
+    assert rna.identifier == "SPRINGWRAP_OT_wrap" and rna.description
+    assert bpy.types.SPRINGWRAP_OT_wrap.bl_options == {"REGISTER", "UNDO"}
+    properties = rna.properties
+    assert properties["max_iterations"].default == 2000
+    assert properties["tolerance"].default == pytest.approx(1e-5)
+    defaults = {"fairness": 0.5, "arc_length": 0.5, "thin_plate": 0.2, "constraint": 0.5, "folding": 0.3}
+    for name, default in defaults.items():
+        assert properties[name].default == pytest.approx(default)
+    assert "only_selected" not in properties
+    settings = bpy.types.Object.bl_rna.properties["springwrap"].fixed_type
+    assert settings.properties["unreliable_group"].type == "STRING"
+
+
+class _RecordingLayout:
+    """Stands in for ``UILayout``: records buttons, searched properties and disabled rows."""
+
+    def __init__(self):
+        self.operators, self.searches, self.props, self.labels = [], [], [], []
+        self.use_property_split = self.use_property_decorate = False
+        self.enabled = True
+
+    def row(self, *args, **kwargs):
+        return self
+
+    def label(self, text="", **kwargs):
+        self.labels.append(text)
+
+    def prop(self, data, name, **kwargs):
+        self.props.append((name, self.enabled))
+
+    def prop_search(self, data, name, search_data, search_name, **kwargs):
+        self.searches.append((name, search_data.name, search_name))
+
+    def operator(self, idname, **kwargs):
+        self.operators.append(idname)
+        return type("Button", (), {})()
+
+
+def test_wrap_panel_searches_the_targets_vertex_groups():
+    from springwrap.ui import SPRINGWRAP_PT_wrap
+
+    target, layout, _normal = plane_scene()
+    assert SPRINGWRAP_PT_wrap.bl_parent_id == "SPRINGWRAP_PT_layout" and SPRINGWRAP_PT_wrap.poll(bpy.context)
+    recorder = _RecordingLayout()
+    SPRINGWRAP_PT_wrap.draw(type("Panel", (), {"layout": recorder})(), bpy.context)
+    assert recorder.operators == ["springwrap.wrap"]
+    assert recorder.searches == [("unreliable_group", "Target", "vertex_groups")]
+    layout.springwrap.target = None
+    recorder = _RecordingLayout()
+    SPRINGWRAP_PT_wrap.draw(type("Panel", (), {"layout": recorder})(), bpy.context)
+    assert recorder.searches == [] and recorder.props == [("unreliable_group", False)]
+
+
+def test_poll_needs_a_target():
+    plane_scene()
+    bpy.context.active_object.springwrap.target = None
+    assert not bpy.ops.springwrap.wrap.poll()
+    with pytest.raises(RuntimeError, match="No target set"):
+        bpy.ops.springwrap.wrap()
+
+
+# ---------------------------------------------------------------- wraps
+
+
+def test_grid_above_a_plane_wraps_onto_it(capfd):
+    target, layout, normal = plane_scene()
+    template = world_positions(layout)
+    reference = Reference(target)
+    assert wrap_with_anchors(layout, spacing=0.5) == {"FINISHED"}
+    states, _faces, _barycentrics = read_state(layout)
+    assert np.all(states == 1)  # no hole: the whole sheet lands
+    assert_wrapped_onto(layout, reference, template, lambda points: np.tile(normal, (len(points), 1)), (0.6, 1.6))
+    assert layout.springwrap.target_signature == reference.signature()
+    output = capfd.readouterr().out
+    assert "(converged)" in output and f"{len(states)} face-points, 0 space-points" in output
+
+
+def test_grid_over_a_hole_caps_it_with_space_points():
+    target, layout, normal = plane_scene(hole=True)
+    template = world_positions(layout)
+    reference = Reference(target)
+    assert wrap_with_anchors(layout, spacing=0.5) == {"FINISHED"}
+    states, _faces, _barycentrics = read_state(layout)
+    world = world_positions(layout)
+    assert_wrapped_onto(layout, reference, template, lambda points: np.tile(normal, (len(points), 1)), (0.4, 2.5))
+    space = states == 0
+    assert space.sum() >= 4
+    # Space-points are over the hole (within one layout edge of its rim) and on the plane it was cut from.
+    hole_center = np.array(target.matrix_world @ HOLE_CENTER)
+    in_plane = world - hole_center - np.outer((world - hole_center) @ normal, normal)
+    edge = np.median(edge_lengths(world, edges_of(layout)))
+    assert np.linalg.norm(in_plane[space], axis=1).max() < HOLE_RADIUS + edge
+    assert np.abs((world[space] - hole_center) @ normal).max() < 1e-3
+    # ... and no point over the hole is a face-point.
+    assert np.all(space[np.linalg.norm(in_plane, axis=1) < HOLE_RADIUS - edge])
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="kernel: a space-point at the hole's rim folds and lifts off again every iteration (a 2-cycle), "
+    "so the wrap never converges; see the reproduction in the wrap operator's report",
+)
+def test_grid_over_a_hole_converges(capfd):
+    plane_scene(hole=True)
+    wrap_with_anchors(bpy.context.active_object, spacing=0.5, max_iterations=3000)
+    assert "(converged)" in capfd.readouterr().out
+
+
+def test_sphere_cap_wraps_onto_a_sphere():
+    target, layout = sphere_scene()
+    template = world_positions(layout)
+    reference = Reference(target)
+    assert wrap_with_anchors(layout, spacing=0.6) == {"FINISHED"}
+    states, _faces, _barycentrics = read_state(layout)
+    assert np.all(states == 1)
+
+    def radial(points):
+        directions = points - np.array(SPHERE_CENTER)
+        return directions / np.linalg.norm(directions, axis=1)[:, None]
+
+    assert_wrapped_onto(layout, reference, template, radial, (0.6, 1.6))
+    radii = np.linalg.norm(world_positions(layout) - np.array(SPHERE_CENTER), axis=1)
+    assert radii.max() <= SPHERE_RADIUS + 1e-5 and radii.min() > 0.99 * SPHERE_RADIUS  # on the facets
+
+
+def test_exec_default_runs_to_convergence_and_writes_once(capfd):
+    target, layout, _normal = plane_scene()
+    bpy.ops.springwrap.anchors_auto(spacing=0.5)
+    capfd.readouterr()
+    assert bpy.ops.springwrap.wrap("EXEC_DEFAULT") == {"FINISHED"}
+    output = capfd.readouterr().out
+    assert "iterations (converged)" in output
+    assert bpy.ops.springwrap.wrap("INVOKE_DEFAULT") == {"FINISHED"}  # background: invoke runs at once too
+
+
+def test_iteration_limit_keeps_the_result_and_warns(capfd):
+    target, layout, _normal = plane_scene()
+    template = local_positions(layout).copy()
+    bpy.ops.springwrap.anchors_auto(spacing=0.5)
+    assert bpy.ops.springwrap.wrap(max_iterations=3) == {"FINISHED"}
+    output = capfd.readouterr().out
+    assert "Warning: Wrapped 'Layout' in 3 iterations (stopped at the iteration limit)" in output
+    assert local_positions(layout).tobytes() != template.tobytes()
+
+
+def test_wrap_in_edit_mode_returns_to_edit_mode():
+    target, layout, _normal = plane_scene()
+    bpy.ops.springwrap.anchors_auto(spacing=0.5)
+    bpy.ops.object.mode_set(mode="EDIT")
+    assert bpy.ops.springwrap.wrap() == {"FINISHED"}
+    assert layout.mode == "EDIT"
+    bpy.ops.object.mode_set(mode="OBJECT")
+    states, _faces, _barycentrics = read_state(layout)
+    assert np.all(states == 1)
+    assert surface_distances(Reference(target), world_positions(layout)).max() <= TOLERANCE
+
+
+def test_undo_after_a_wrap_restores_the_template():
+    target, layout, _normal = plane_scene()
+    bpy.ops.springwrap.anchors_auto("EXEC_DEFAULT", True, spacing=0.5)
+    before = snapshot(layout)
+    anchors_before = anchor_snapshot(layout)
+    bpy.ops.springwrap.wrap("EXEC_DEFAULT", True)
+    assert snapshot(bpy.data.objects["Layout"]) != before
+    bpy.ops.ed.undo()
+    layout = bpy.data.objects["Layout"]  # undo replaced the data blocks: fetch again
+    assert snapshot(layout) == before
+    assert anchor_snapshot(layout) == anchors_before
+
+
+def _curves_layout(target, shift):
+    """A quad strip (2 x 8 quads) with a seam along its middle row and a loose 9-vertex chain (a curve).
+
+    Placed in the plane target's frame, 0.25-0.3 above it, moved by ``shift`` (in the plane).
+    """
+    mesh = bpy.data.meshes.new("Curves")
+    strip = [(x + shift, y + shift, 0.3) for y in (-0.2, 0.0, 0.2) for x in np.linspace(-0.8, 0.8, 9)]
+    chain = [(x + shift, 0.6 + shift, 0.25) for x in np.linspace(-0.8, 0.8, 9)]
+    faces = [(row * 9 + i, row * 9 + i + 1, row * 9 + i + 10, row * 9 + i + 9) for row in range(2) for i in range(8)]
+    chain_edges = [(27 + i, 28 + i) for i in range(8)]
+    mesh.from_pydata(strip + chain, chain_edges, faces)
+    mesh.update()
+    edges = np.empty(len(mesh.edges) * 2, dtype=np.int64)
+    mesh.edges.foreach_get("vertices", edges)
+    mesh.edges.foreach_set("use_seam", (edges.reshape(-1, 2) // 9 == 1).all(axis=1))  # the strip's middle row
+    layout = bpy.data.objects.new("Curves", mesh)
+    bpy.context.scene.collection.objects.link(layout)
+    layout.matrix_world = target.matrix_world.copy()
+    return _activate(layout, target)
+
+
+def test_curves_and_seams_are_wrapped_too():
+    """A layout of a quad strip with a seam and a loose edge chain (a curve): all of it lands."""
+    target, _normal = plane_target()
+    layout = _curves_layout(target, shift=0.037)
+    assert wrap_with_anchors(layout, spacing=0.35) == {"FINISHED"}
+    states, _faces, _barycentrics = read_state(layout)
+    assert np.all(states == 1)
+    assert surface_distances(Reference(target), world_positions(layout)).max() <= TOLERANCE
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="kernel: a space-point lying on the surface whose nearest face-point neighbour is an anchor on a "
+    "target vertex never folds, and the solver reports convergence; see the wrap operator's report",
+)
+def test_space_points_next_to_anchors_on_target_vertices_fold():
+    target, _normal = plane_target()
+    layout = _curves_layout(target, shift=0.0)  # every other vertex, the anchored ones, is over a target vertex
+    assert wrap_with_anchors(layout, spacing=0.35) == {"FINISHED"}
+    states, _faces, _barycentrics = read_state(layout)
+    assert np.all(states == 1)
+
+
+# ---------------------------------------------------------------- the modal logic, without a window
+
+
+def _session(layout, **parameters):
+    from springwrap import operations, wrap_operator
+
+    return wrap_operator.WrapSession(bpy.context, layout, operations.WrapParameters(**parameters))
+
+
+@pytest.mark.parametrize("start", ["fresh", "with_state"])
+def test_cancel_restores_positions_and_attributes_bit_for_bit(start):
+    from springwrap import wrap_operator
+
+    target, layout, _normal = plane_scene()
+    bpy.ops.springwrap.anchors_auto(spacing=0.5)
+    if start == "with_state":
+        layout.data.vertices.foreach_set("select", np.arange(len(layout.data.vertices)) % 3 == 0)
+        bpy.ops.springwrap.project(direction="NORMAL", only_selected=True)  # a hybrid: some face-points
+    before = snapshot(layout)
+    anchors_before = anchor_snapshot(layout)
+    loop = wrap_operator.WrapLoop(_session(layout))
+    for _ in range(3):  # the pacer starts at 1 iteration and at most quadruples: 1 + 4 + 16 iterations
+        assert loop.handle("TIMER") == "RUNNING_MODAL"
+    assert loop.session.frames == 3
+    assert snapshot(layout)["positions"] != before["positions"]  # the frames were written
+    assert read_state(layout) is not None
+    assert loop.handle("MOUSEMOVE") == "PASS_THROUGH"
+    assert loop.handle("A", "PRESS") == "RUNNING_MODAL"  # blocked, not acted on
+    assert loop.handle("ESC", "PRESS") == "CANCELLED"
+    assert loop.error is None and loop.result is None
+    assert snapshot(layout) == before
+    assert anchor_snapshot(layout) == anchors_before
+    assert loop.handle("TIMER") == "CANCELLED"  # nothing runs after a cancel
+
+
+def test_right_click_cancels_too():
+    from springwrap import wrap_operator
+
+    target, layout, _normal = plane_scene()
+    bpy.ops.springwrap.anchors_auto(spacing=0.5)
+    before = snapshot(layout)
+    loop = wrap_operator.WrapLoop(_session(layout))
+    loop.handle("TIMER")
+    assert loop.handle("RIGHTMOUSE", "RELEASE") == "RUNNING_MODAL"
+    assert loop.handle("RIGHTMOUSE", "PRESS") == "CANCELLED"
+    assert snapshot(layout) == before
+
+
+def test_modal_loop_finishes_with_the_same_result_as_exec():
+    """Frames of a few iterations each end exactly where one synchronous run ends (the solver is deterministic)."""
+    from springwrap import wrap_operator
+
+    plane_scene()
+    bpy.ops.springwrap.anchors_auto(spacing=0.5)
+    loop = wrap_operator.WrapLoop(_session(bpy.context.active_object))
+    outcome = "RUNNING_MODAL"
+    while outcome == "RUNNING_MODAL":
+        outcome = loop.handle("TIMER")
+    assert outcome == "FINISHED" and loop.result.converged and loop.result.frames > 3
+    modal = snapshot(bpy.data.objects["Layout"])
+
+    bpy.ops.wm.read_homefile(use_empty=True)
+    plane_scene()
+    bpy.ops.springwrap.anchors_auto(spacing=0.5)
+    assert bpy.ops.springwrap.wrap() == {"FINISHED"}
+    assert snapshot(bpy.data.objects["Layout"]) == modal
+
+
+def test_an_error_mid_way_restores_the_layout():
+    from springwrap import wrap_operator
+
+    target, layout, _normal = plane_scene()
+    bpy.ops.springwrap.anchors_auto(spacing=0.5)
+    before = snapshot(layout)
+    session = _session(layout)
+
+    class FailingSolver:
+        """The real solver for two frames, then a kernel error."""
+
+        def __init__(self, solver):
+            self.solver, self.calls = solver, 0
+
+        def step(self, iterations):
+            self.calls += 1
+            if self.calls > 2:
+                import springwrap_kernel
+
+                raise springwrap_kernel.InternalError("simulated failure")
+            return self.solver.step(iterations)
+
+        def __getattr__(self, name):
+            return getattr(self.solver, name)
+
+    session.solver = FailingSolver(session.solver)
+    loop = wrap_operator.WrapLoop(session)
+    assert loop.handle("TIMER") == "RUNNING_MODAL"
+    assert loop.handle("TIMER") == "RUNNING_MODAL"
+    assert snapshot(layout) != before
+    assert loop.handle("TIMER") == "CANCELLED"
+    assert "simulated failure" in str(loop.error)
+    assert snapshot(layout) == before
+
+
+def test_modal_frames_keep_about_thirty_redraws_per_second():
+    """A layout big enough that one iteration is a sizeable part of a frame: frames stay near 1/30 s."""
+    from springwrap import wrap_operator
+
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=200, y_subdivisions=200, size=4)
+    target = bpy.context.active_object
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=100, y_subdivisions=100, size=3, location=(0.0, 0.0, 0.2))
+    layout = _activate(bpy.context.active_object, target)
+    bpy.ops.springwrap.anchors_auto(spacing=0.3)
+    loop = wrap_operator.WrapLoop(_session(layout, max_iterations=100_000))
+    frame_seconds = []
+    for _ in range(40):
+        start = time.perf_counter()
+        if loop.handle("TIMER") != "RUNNING_MODAL":
+            break
+        frame_seconds.append(time.perf_counter() - start)
+    loop.cancel()
+    settled = np.array(frame_seconds[10:])  # after the pacer's ramp-up
+    assert len(settled) >= 10
+    assert np.median(settled) < 2.0 / wrap_operator.FRAME_RATE
+    assert loop.session.pacer.last_count > 1  # it ran several iterations per frame, not one
+
+
+def test_modal_actions():
+    from springwrap.wrap_operator import modal_action
+
+    assert modal_action("ESC", "PRESS") == "CANCEL"
+    assert modal_action("RIGHTMOUSE", "PRESS") == "CANCEL"
+    assert modal_action("ESC", "RELEASE") == "BLOCK"
+    assert modal_action("TIMER", "NOTHING") == "STEP"
+    for navigation in ("MIDDLEMOUSE", "WHEELUPMOUSE", "MOUSEMOVE", "TRACKPADPAN", "NUMPAD_5"):
+        assert modal_action(navigation, "PRESS") == "PASS"
+    assert modal_action("LEFTMOUSE", "PRESS") == "BLOCK"
+    assert modal_action("Z", "PRESS") == "BLOCK"
+
+
+def test_iteration_pacer_fills_the_frame():
+    from springwrap.operations import IterationPacer
+
+    pacer = IterationPacer(frame_rate=30.0)
+    counts = []
+    for _ in range(8):
+        count = pacer.next_count(100_000)
+        counts.append(count)
+        pacer.record(count, count * 0.001, 0.003)  # 1 ms per iteration, 3 ms to write
+    # 1 while nothing is measured, at most x4 per frame, then (33.3 - 3) ms / 1 ms
+    assert counts == [1, 4, 16, 30, 30, 30, 30, 30]
+    assert pacer.next_count(7) == 7  # never beyond what remains
+    assert pacer.next_count(0) == 0
+    slow = IterationPacer(frame_rate=30.0)
+    slow.next_count(10)
+    slow.record(1, 0.2, 0.0)  # an iteration longer than a frame: still one per frame
+    assert slow.next_count(10) == 1
+
+
+# ---------------------------------------------------------------- unreliable data
+
+
+UNRELIABLE_RADIUS = 0.7
+
+
+def _unreliable_group(target, radius=UNRELIABLE_RADIUS, weight=1.0):
+    """A vertex group on the plane target: the vertices within ``radius`` of the hole centre."""
+    coordinates = np.empty(len(target.data.vertices) * 3, dtype=np.float32)
+    target.data.vertices.foreach_get("co", coordinates)
+    inside = np.linalg.norm(coordinates.reshape(-1, 3)[:, :2] - np.array(HOLE_CENTER[:2]), axis=1) < radius
+    group = target.vertex_groups.new(name="Noise")
+    group.add(np.flatnonzero(inside).tolist(), weight, "REPLACE")
+    return group, inside
+
+
+def _node_group_dropping(group_name, subdivide=False):
+    """Geometry nodes removing a vertex group (after subdividing the mesh once when ``subdivide``)."""
+    tree = bpy.data.node_groups.new("Drop group", "GeometryNodeTree")
+    tree.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+    tree.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    geometry = tree.nodes.new("NodeGroupInput").outputs[0]
+    if subdivide:
+        subdivision = tree.nodes.new("GeometryNodeSubdivideMesh")
+        tree.links.new(geometry, subdivision.inputs["Mesh"])
+        geometry = subdivision.outputs["Mesh"]
+    remove = tree.nodes.new("GeometryNodeRemoveAttribute")
+    remove.inputs["Name"].default_value = group_name
+    tree.links.new(geometry, remove.inputs["Geometry"])
+    tree.links.new(remove.outputs["Geometry"], tree.nodes.new("NodeGroupOutput").inputs[0])
+    return tree
+
+
+def _unreliable_region_mask(layout, target, radius):
+    local = np.array(target.matrix_world.inverted())
+    world = world_positions(layout)
+    in_target = world @ local[:3, :3].T + local[:3, 3]
+    return np.linalg.norm(in_target[:, :2] - np.array(HOLE_CENTER[:2]), axis=1) < radius
+
+
+@pytest.mark.parametrize("modifier", [None, "SUBSURF", "REMOVE_GROUP"])
+def test_points_on_unreliable_triangles_stay_space_points(modifier):
+    target, layout, normal = plane_scene()
+    _unreliable_group(target)
+    if modifier == "SUBSURF":  # the evaluated target's weights are interpolated ones
+        target.modifiers.new("Subdivision", "SUBSURF").levels = 1
+    elif modifier == "REMOVE_GROUP":  # the evaluated mesh loses the group: the base mesh's weights are used
+        target.modifiers.new("Drop", "NODES").node_group = _node_group_dropping("Noise")
+    layout.springwrap.unreliable_group = "Noise"
+    assert bpy.ops.springwrap.anchors_auto(spacing=0.5) == {"FINISHED"}
+    anchored, _locations = anchor_targets(layout)
+    assert bpy.ops.springwrap.wrap(max_iterations=600) == {"FINISHED"}
+    states, _faces, _barycentrics = read_state(layout)
+    edge = np.median(edge_lengths(world_positions(layout), edges_of(layout)))
+    # Unreliable triangles have all three corners in the group: the disk less a target edge (0.1).
+    deep_inside = _unreliable_region_mask(layout, target, UNRELIABLE_RADIUS - 0.1 - edge)
+    deep_inside[anchored] = False  # an anchor is a constraint: it lands on its target whatever the data
+    assert deep_inside.sum() >= 4
+    assert np.all(states[deep_inside] == 0)
+    outside = ~_unreliable_region_mask(layout, target, UNRELIABLE_RADIUS + edge)
+    assert np.all(states[outside] == 1)
+
+
+def test_without_the_unreliable_group_the_same_points_land():
+    target, layout, _normal = plane_scene()
+    _unreliable_group(target)
+    assert wrap_with_anchors(layout, spacing=0.5) == {"FINISHED"}
+    states, _faces, _barycentrics = read_state(layout)
+    assert np.all(states == 1)
+
+
+def test_low_weights_are_reliable():
+    target, layout, _normal = plane_scene()
+    _unreliable_group(target, weight=0.5)  # not more than 0.5: reliable
+    layout.springwrap.unreliable_group = "Noise"
+    assert wrap_with_anchors(layout, spacing=0.5) == {"FINISHED"}
+    states, _faces, _barycentrics = read_state(layout)
+    assert np.all(states == 1)
+
+
+def test_unreliable_triangles_need_all_three_corners_heavy():
+    from springwrap.operations import unreliable_triangles
+
+    triangles = np.array([[0, 1, 2], [1, 2, 3], [2, 3, 4]])
+    weights = np.array([0.9, 0.6, 0.51, 0.5, 1.0])
+    assert unreliable_triangles(triangles, weights).tolist() == [True, False, False]
+
+
+# ---------------------------------------------------------------- bad input
+
+
+def _no_faces_no_edges(target, layout):
+    mesh = bpy.data.meshes.new("Points")
+    mesh.from_pydata([(0.0, 0.0, 0.3), (0.5, 0.0, 0.3)], [], [])
+    layout.data = mesh
+    return "has no faces and no edges"
+
+
+def _zero_length_edge(target, layout):
+    coordinates = local_positions(layout).copy()
+    coordinates[1] = coordinates[0]
+    layout.data.vertices.foreach_set("co", coordinates.reshape(-1))
+    layout.data.update()
+    return "zero length"
+
+
+def _anchor_on_a_missing_vertex(target, layout):
+    layout.springwrap.anchors.add().vertex_index = 9999
+    layout.springwrap.anchors[-1].location = (0.0, 0.0, 0.0)
+    return r"1 anchors are on vertices the layout no longer has \(it has 169\): anchor 18 \(vertex 9999\)"
+
+
+def _nan_layout_vertex(target, layout):
+    coordinates = local_positions(layout).copy()
+    coordinates[7, 1] = np.nan
+    layout.data.vertices.foreach_set("co", coordinates.reshape(-1))
+    layout.data.update()
+    return "Layout vertex 7 has a NaN"
+
+
+def _target_without_triangles(target, layout):
+    mesh = bpy.data.meshes.new("Edges only")
+    mesh.from_pydata([(0, 0, 0), (1, 0, 0), (1, 1, 0)], [(0, 1), (1, 2)], [])
+    target.data = mesh
+    return "has no faces"
+
+
+def _missing_group(target, layout):
+    layout.springwrap.unreliable_group = "Nowhere"
+    return "no vertex group 'Nowhere'"
+
+
+BAD_INPUTS = {
+    "no faces and no edges": (_no_faces_no_edges, {}),
+    "zero-length edge": (_zero_length_edge, {}),
+    "anchor on a missing vertex": (_anchor_on_a_missing_vertex, {}),
+    "NaN layout vertex": (_nan_layout_vertex, {}),
+    "target without triangles": (_target_without_triangles, {}),
+    "missing unreliable group": (_missing_group, {}),
+    "thin plate too strong": (None, {"thin_plate": 0.7}),
+    "negative fairness": (None, {"fairness": -0.1}),
+    "folding above one": (None, {"folding": 1.5}),
+    "zero tolerance": (None, {"tolerance": 0.0}),
+}
+_WEIGHT_MESSAGES = {
+    "thin plate too strong": r"thin plate weight must be within \[0, 0.5\], not 0.7",
+    "negative fairness": r"fairness weight must be within \[0, 1\], not -0.1",
+    "folding above one": r"folding weight must be within \[0, 1\], not 1.5",
+    "zero tolerance": r"tolerance must be within \(0, 1\], not 0",
+}
+
+
+@pytest.mark.parametrize("case", list(BAD_INPUTS))
+def test_bad_input_is_reported_and_leaves_the_layout_untouched(case):
+    target, layout, _normal = plane_scene()
+    bpy.ops.springwrap.anchors_auto(spacing=0.5)
+    spoil, properties = BAD_INPUTS[case]
+    message = spoil(target, layout) if spoil is not None else _WEIGHT_MESSAGES[case]
+    before = snapshot(layout)
+    anchors_before = anchor_snapshot(layout)
+    with pytest.raises(RuntimeError, match=message):
+        bpy.ops.springwrap.wrap(**properties)
+    assert snapshot(layout) == before
+    assert anchor_snapshot(layout) == anchors_before
+    assert set(bpy.data.objects.keys()) == {"Target", "Layout"}  # no leftover probe object
+
+
+def test_unreliable_group_dropped_with_a_changed_vertex_count_is_an_error():
+    target, layout, _normal = plane_scene()
+    _unreliable_group(target)
+    target.modifiers.new("Drop", "NODES").node_group = _node_group_dropping("Noise", subdivide=True)
+    layout.springwrap.unreliable_group = "Noise"
+    bpy.ops.springwrap.anchors_auto(spacing=0.5)
+    before = snapshot(layout)
+    with pytest.raises(RuntimeError, match="drop the vertex group 'Noise'"):
+        bpy.ops.springwrap.wrap()
+    assert snapshot(layout) == before
+    assert set(bpy.data.node_groups.keys()) == {"Drop group"} and set(bpy.data.objects.keys()) == {"Target", "Layout"}
