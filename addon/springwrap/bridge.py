@@ -507,8 +507,8 @@ def _weight_node_group(group_name: str):
     named.data_type = "FLOAT"
     named.inputs["Name"].default_value = group_name
     geometry = group_input.outputs[0]
-    stores = [(_WEIGHT_ATTRIBUTE, "FLOAT", named.outputs["Attribute"])]
-    if "Exists" in named.outputs:
+    stores = [(_WEIGHT_ATTRIBUTE, "FLOAT", _socket(named.outputs, "Attribute"))]
+    if "Exists" in named.outputs:  # Blender 4.0+
         stores.append((_EXISTS_ATTRIBUTE, "BOOLEAN", named.outputs["Exists"]))
     for attribute_name, data_type, value in stores:
         store = tree.nodes.new("GeometryNodeStoreNamedAttribute")
@@ -516,10 +516,18 @@ def _weight_node_group(group_name: str):
         store.domain = "POINT"
         store.inputs["Name"].default_value = attribute_name
         tree.links.new(geometry, store.inputs["Geometry"])
-        tree.links.new(value, store.inputs["Value"])
+        tree.links.new(value, _socket(store.inputs, "Value"))
         geometry = store.outputs["Geometry"]
     tree.links.new(geometry, group_output.inputs[0])
     return tree
+
+
+def _socket(sockets, name: str):
+    """The enabled socket called ``name`` (before Blender 4.0 a node has one per data type, all so called)."""
+    for socket in sockets:
+        if socket.name == name and socket.enabled:
+            return socket
+    return sockets[name]
 
 
 def make_wrap_solver(target: Target, structure, inputs, parameters):
