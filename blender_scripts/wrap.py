@@ -1,0 +1,152 @@
+"""Wrap a layout onto its target, headless: open a .blend, (optionally) spread anchors, wrap, save.
+
+Runs both ways (arguments after ``--`` when present, else all of ``sys.argv[1:]``):
+    .venv/bin/python blender_scripts/wrap.py --blend FILE.blend --layout NAME [options]
+    blender -b FILE.blend --python blender_scripts/wrap.py -- --layout NAME [options]
+
+Options: ``--target NAME`` (default: the layout's own target), ``--anchors-spacing S`` (run
+``springwrap.anchors_auto`` first, replacing the anchors; 0 = a tenth of the layout's size),
+``--max-iterations N`` (default 2000), ``--output FILE.blend`` (default: nothing is saved).
+Prints the wrap's progress and a summary; exits non-zero on any failure (a wrap that stops at
+the iteration limit is not a failure: it is kept and reported).
+"""
+
+import argparse
+import sys
+import time
+import traceback
+from pathlib import Path
+
+import bpy
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # `blender --python` does not add it
+from script_arguments import script_arguments  # noqa: E402
+
+PROGRESS_CHUNK = 100
+"""Iterations between two progress lines."""
+
+
+def parse_arguments(argv: list[str]) -> argparse.Namespace:
+    """Parse the script's own arguments (see the module docstring)."""
+    parser = argparse.ArgumentParser(prog="wrap.py", description=__doc__.splitlines()[0])
+    parser.add_argument("--blend", type=Path, help="the .blend to open (not needed under `blender -b FILE.blend`)")
+    parser.add_argument("--layout", help="the layout object (default: the active object)")
+    parser.add_argument("--target", help="the target object (default: the layout's own target)")
+    parser.add_argument("--anchors-spacing", type=float, help="spread anchors with this spacing first (0: automatic)")
+    parser.add_argument("--max-iterations", type=int, default=2000, help="iteration limit (default 2000)")
+    parser.add_argument("--output", type=Path, help="the .blend to save the result to")
+    arguments = parser.parse_args(script_arguments(argv, __file__))
+    if arguments.max_iterations < 1:
+        parser.error("--max-iterations must be at least 1")
+    if arguments.anchors_spacing is not None and arguments.anchors_spacing < 0:
+        parser.error("--anchors-spacing must not be negative")
+    return arguments
+
+
+def enable_addon() -> None:
+    """Enable the Springwrap add-on, raising when it cannot be."""
+    import addon_utils
+
+    module = addon_utils.enable("springwrap", default_set=True, handle_error=None)
+    if module is None or not hasattr(bpy.ops, "springwrap"):
+        raise RuntimeError("addon_utils.enable('springwrap') failed: run `make setup` first")
+
+
+def find_object(name: str, what: str) -> bpy.types.Object:
+    """The mesh object called ``name``; raises naming the mesh objects there are."""
+    obj = bpy.data.objects.get(name)
+    if obj is None or obj.type != "MESH":
+        meshes = ", ".join(sorted(o.name for o in bpy.data.objects if o.type == "MESH")) or "none"
+        raise RuntimeError(f"no mesh object '{name}' for the {what} (mesh objects: {meshes})")
+    return obj
+
+
+def prepare(arguments: argparse.Namespace) -> bpy.types.Object:
+    """Open the file, pick the layout and its target, make the layout active (object mode)."""
+    enable_addon()
+    if arguments.blend is not None:
+        if not arguments.blend.is_file():
+            raise RuntimeError(f"no such file: {arguments.blend}")
+        bpy.ops.wm.open_mainfile(filepath=str(arguments.blend.resolve()))
+    if arguments.layout is not None:
+        layout = find_object(arguments.layout, "layout")
+    else:
+        layout = bpy.context.view_layer.objects.active
+        if layout is None or layout.type != "MESH":
+            raise RuntimeError("no --layout given and the active object is not a mesh")
+    if layout.mode != "OBJECT":
+        bpy.context.view_layer.objects.active = layout
+        bpy.ops.object.mode_set(mode="OBJECT")
+    if arguments.target is not None:
+        layout.springwrap.target = find_object(arguments.target, "target")
+    if layout.springwrap.target is None:
+        raise RuntimeError(f"layout '{layout.name}' has no target: give --target")
+    for obj in bpy.context.view_layer.objects:
+        obj.select_set(obj == layout)
+    bpy.context.view_layer.objects.active = layout
+    return layout
+
+
+def wrap(layout: bpy.types.Object, max_iterations: int):
+    """Run the wrap to the end with progress lines, then write it; returns the ``WrapResult``."""
+    from springwrap import bridge, operations, wrap_operator
+
+    def progress(report) -> None:
+        print(
+            f"  iteration {report.total_iterations:>6}/{max_iterations}: {report.face_points} face-points, "
+            f"{report.space_points} space-points, last move {report.max_displacement:.2e}",
+            flush=True,
+        )
+
+    try:
+        session = wrap_operator.WrapSession(bpy.context, layout, operations.WrapParameters(max_iterations=max_iterations))
+    except bridge.ERRORS as error:
+        raise RuntimeError(f"cannot wrap '{layout.name}': {error}") from error
+    session.run(progress=progress, chunk=PROGRESS_CHUNK)
+    return session.finish()
+
+
+def run(arguments: argparse.Namespace) -> None:
+    """Everything: prepare, anchors, wrap, report, save."""
+    start = time.perf_counter()
+    layout = prepare(arguments)
+    target = layout.springwrap.target
+    print(f"layout '{layout.name}': {len(layout.data.vertices)} vertices, {len(layout.data.polygons)} faces; "
+          f"target '{target.name}'")
+    if arguments.anchors_spacing is not None:
+        result = bpy.ops.springwrap.anchors_auto(spacing=arguments.anchors_spacing, replace=True)
+        if result != {"FINISHED"}:
+            raise RuntimeError(f"anchors_auto returned {result}")
+    print(f"anchors: {len(layout.springwrap.anchors)}")
+    result = wrap(layout, arguments.max_iterations)
+    print(result.summary())
+    print(f"  kernel {result.kernel_seconds:.2f} s; {result.anchor_count} anchors, "
+          f"{result.unreliable_triangles} unreliable target triangles")
+    if not result.converged:
+        print(f"WARNING: did not converge within {arguments.max_iterations} iterations "
+              f"(last move {result.max_displacement:.2e} of the layout's size); the result is kept")
+    if arguments.output is not None:
+        output = arguments.output.resolve()
+        output.parent.mkdir(parents=True, exist_ok=True)
+        if bpy.ops.wm.save_as_mainfile(filepath=str(output), check_existing=False) != {"FINISHED"}:
+            raise RuntimeError(f"could not save {output}")
+        print(f"saved {output}")
+    else:
+        print("not saved (no --output)")
+    print(f"done in {time.perf_counter() - start:.1f} s")
+
+
+def main() -> int:
+    arguments = parse_arguments(sys.argv)
+    try:
+        run(arguments)
+    except Exception as error:  # noqa: BLE001 - any failure must become a non-zero exit code, also under `blender -b`
+        if not isinstance(error, RuntimeError):
+            traceback.print_exc()
+        print(f"wrap: FAILED: {error}", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
