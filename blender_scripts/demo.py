@@ -7,11 +7,12 @@ Runs both ways (arguments after ``--`` when present, else all of ``sys.argv[1:]`
 The target is Suzanne with a few forehead faces cut out, subdivided and displaced by a live
 modifier stack (so the add-on must use the evaluated target) and moved off the origin. The
 layout is a second Suzanne (the same quads, a template) placed a little off and larger. The
-script runs detach -> project (NORMAL, both directions) -> snap (SURFACE) and prints, per
-step, the time, how many layout vertices are face-points and how far the layout vertices are
-from the evaluated target surface. Distances are measured independently of Springwrap with
-``mathutils.bvhtree.BVHTree.FromObject``, in world space. It saves the scene as a .blend and
-exits non-zero on any failure.
+script runs detach -> project (NORMAL, both directions) -> snap (SURFACE) on it, then, on a
+second copy of the template ("Wrapped"), detach -> anchors_auto -> wrap (the spring
+optimisation, paper section 2.5), and prints, per step, the time, how many layout vertices are
+face-points and how far the layout vertices are from the evaluated target surface. Distances
+are measured independently of Springwrap with ``mathutils.bvhtree.BVHTree.FromObject``, in
+world space. It saves the scene as a .blend and exits non-zero on any failure.
 """
 
 import argparse
@@ -50,6 +51,12 @@ SURFACE_TOLERANCE = 1e-4
 # surface that close and stay space-points, instead of shooting through the hole to the back of the
 # head; the final snap then lays them on the hole's rim.
 PROJECT_MAX_DISTANCE = 0.3
+# The wrap: anchors every WRAP_ANCHOR_SPACING (world units) by closest point, then at most
+# WRAP_MAX_ITERATIONS spring iterations; at least WRAP_MIN_FACE_FRACTION of the vertices must land
+# (the rest are space-points over the hole and Suzanne's own open borders, the eye sockets).
+WRAP_ANCHOR_SPACING = 0.3
+WRAP_MAX_ITERATIONS = 2000
+WRAP_MIN_FACE_FRACTION = 0.8
 
 
 def parse_arguments(argv: list[str]) -> argparse.Namespace:
@@ -115,9 +122,9 @@ def build_target() -> tuple[bpy.types.Object, Vector, int]:
     return target, hole_centroid, len(deleted_faces)
 
 
-def build_layout(target: bpy.types.Object) -> bpy.types.Object:
+def build_layout(target: bpy.types.Object, name: str = "Layout") -> bpy.types.Object:
     """Suzanne's own quads as a template, placed off the target (moved and scaled)."""
-    layout = add_monkey("Layout")
+    layout = add_monkey(name)
     layout.matrix_world = target.matrix_world @ Matrix.Translation(LAYOUT_OFFSET) @ Matrix.Scale(LAYOUT_SCALE, 4)
     return layout
 
@@ -223,12 +230,7 @@ def layout_world_positions(layout: bpy.types.Object) -> np.ndarray:
 
 def face_point_count(layout: bpy.types.Object) -> int:
     """How many layout vertices are face-points (``springwrap_state == 1``); 0 before any step."""
-    attribute = layout.data.attributes.get("springwrap_state")
-    if attribute is None:
-        return 0
-    states = np.empty(len(layout.data.vertices), dtype=np.int32)
-    attribute.data.foreach_get("value", states)
-    return int((states == 1).sum())
+    return int(face_point_states(layout).sum())
 
 
 @dataclass
@@ -244,6 +246,26 @@ class StepReport:
     on_rim: int
 
 
+def nearest_target_points(points: np.ndarray, probe: TargetProbe) -> np.ndarray:
+    """(N, 3) world-space nearest points of the evaluated target to the (N, 3) world-space ``points``."""
+    nearest = np.empty_like(points)
+    for index, point in enumerate(points):
+        location, _normal, _face, _distance = probe.tree.find_nearest(probe.matrix_inverse @ Vector(point))
+        if location is None:
+            raise RuntimeError(f"find_nearest found nothing for layout vertex {index}")
+        nearest[index] = probe.matrix_world @ location
+    return nearest
+
+
+def face_point_states(layout: bpy.types.Object) -> np.ndarray:
+    """(N,) bool: which layout vertices are face-points (all False before any step)."""
+    attribute = layout.data.attributes.get("springwrap_state")
+    states = np.zeros(len(layout.data.vertices), dtype=np.int32)
+    if attribute is not None:
+        attribute.data.foreach_get("value", states)
+    return states == 1
+
+
 def measure(step: str, seconds: float | None, layout: bpy.types.Object, probe: TargetProbe) -> StepReport:
     """Distances of the layout vertices to the evaluated target (world space), and how many lie over the hole.
 
@@ -251,12 +273,7 @@ def measure(step: str, seconds: float | None, layout: bpy.types.Object, probe: T
     vertex itself is off the surface: there is no surface under it. A vertex on the surface at
     the rim counts as on the rim."""
     points = layout_world_positions(layout)
-    nearest = np.empty_like(points)
-    for index, point in enumerate(points):
-        location, _normal, _face, _distance = probe.tree.find_nearest(probe.matrix_inverse @ Vector(point))
-        if location is None:
-            raise RuntimeError(f"find_nearest found nothing for layout vertex {index}")
-        nearest[index] = probe.matrix_world @ location
+    nearest = nearest_target_points(points, probe)
     distances = np.linalg.norm(points - nearest, axis=1)
     on_rim = distance_to_segments(nearest, probe.rim_starts, probe.rim_ends) < probe.tolerance
     off_surface = distances > probe.tolerance
@@ -290,6 +307,25 @@ def print_table(reports: list[StepReport], vertex_count: int) -> None:
             f"{report.step:<26} {seconds:>9} {report.face_points:>6}/{vertex_count:<6} "
             f"{report.mean_distance:>10.5f} {report.max_distance:>10.5f} {report.over_hole:>10} {report.on_rim:>7}"
         )
+
+
+def check_wrap(wrapped: bpy.types.Object, probe: TargetProbe, vertex_count: int) -> None:
+    """The wrapped layout: enough face-points, every face-point on the target, every anchor met."""
+    on_face = face_point_states(wrapped)
+    if on_face.sum() < WRAP_MIN_FACE_FRACTION * vertex_count:
+        raise RuntimeError(f"after the wrap only {on_face.sum()} of {vertex_count} vertices are face-points")
+    points = layout_world_positions(wrapped)
+    off_surface = np.linalg.norm(points - nearest_target_points(points, probe), axis=1)[on_face].max()
+    if off_surface > probe.tolerance:
+        raise RuntimeError(f"after the wrap a face-point is {off_surface:.3g} off the target")
+    anchors = wrapped.springwrap.anchors
+    vertices = np.array([anchor.vertex_index for anchor in anchors], dtype=np.int64)
+    locations = np.array([tuple(anchor.location) for anchor in anchors], dtype=np.float64).reshape(-1, 3)
+    missed = np.linalg.norm(points[vertices] - locations, axis=1).max() if len(anchors) else 0.0
+    if missed > probe.tolerance:
+        raise RuntimeError(f"after the wrap an anchored vertex is {missed:.3g} from its anchor")
+    print(f"wrap: {on_face.sum()} of {vertex_count} vertices on the target (face-points within "
+          f"{off_surface:.2e}), {len(anchors)} anchors met within {missed:.2e}")
 
 
 # ---------------------------------------------------------------- main
@@ -336,18 +372,36 @@ def run(output: Path) -> None:
     reports.append(
         run_step("snap (SURFACE)", operators.snap, layout, probe, mode="SURFACE", only_selected=False, max_distance=0.0)
     )
+    snapped = reports[-1]
+
+    # The wrap, on a second copy of the template.
+    wrapped = build_layout(target, "Wrapped")
+    wrapped.springwrap.target = target
+    for selected in bpy.context.view_layer.objects:
+        selected.select_set(selected == wrapped)
+    bpy.context.view_layer.objects.active = wrapped
+    reports.append(measure("copy of the template", None, wrapped, probe))
+    reports.append(run_step("detach (copy)", operators.detach, wrapped, probe, only_selected=False))
+    reports.append(
+        run_step(f"anchors_auto (spacing {WRAP_ANCHOR_SPACING:g})", operators.anchors_auto, wrapped, probe,
+                 spacing=WRAP_ANCHOR_SPACING, method="CLOSEST", replace=True)
+    )
+    reports.append(run_step(f"wrap (<={WRAP_MAX_ITERATIONS} iterations)", operators.wrap, wrapped, probe,
+                            max_iterations=WRAP_MAX_ITERATIONS))
+    print()
     print_table(reports, vertex_count)
     print("over hole: vertices off the surface whose nearest target point is on the hole's rim "
           "(no surface under them)")
     print("on rim: vertices on the surface, on the hole's rim")
+    print("from 'copy of the template' on: a second copy of the template, 'Wrapped', for the wrap")
 
-    final = reports[-1]
-    if final.face_points != vertex_count:
-        raise RuntimeError(f"after snap only {final.face_points} of {vertex_count} vertices are face-points")
-    if final.max_distance > probe.tolerance:
+    if snapped.face_points != vertex_count:
+        raise RuntimeError(f"after snap only {snapped.face_points} of {vertex_count} vertices are face-points")
+    if snapped.max_distance > probe.tolerance:
         raise RuntimeError(
-            f"after snap a vertex is {final.max_distance:.3g} off the target (tolerance {probe.tolerance:.3g})"
+            f"after snap a vertex is {snapped.max_distance:.3g} off the target (tolerance {probe.tolerance:.3g})"
         )
+    check_wrap(wrapped, probe, vertex_count)
 
     output = output.resolve()
     output.parent.mkdir(parents=True, exist_ok=True)

@@ -1,6 +1,7 @@
 """The headless scripts run end to end.
 
-The demo writes a .blend holding a retargeted layout; the benchmark prints its table and JSON.
+The demo writes a .blend holding a retargeted layout and a wrapped one; the wrap helper wraps a
+layout of that file again; the benchmark prints its table and JSON.
 
 Each script runs in its own process with this interpreter (the venv's, with the PyPI ``bpy``
 module), so nothing here touches the ``bpy`` state of other tests.
@@ -15,6 +16,7 @@ import pytest
 
 REPOSITORY_ROOT = Path(__file__).resolve().parent.parent
 DEMO = REPOSITORY_ROOT / "blender_scripts" / "demo.py"
+WRAP = REPOSITORY_ROOT / "blender_scripts" / "wrap.py"
 BENCHMARK = REPOSITORY_ROOT / "benchmarks" / "snap_throughput.py"
 TIMEOUT_SECONDS = 120
 METHODS = ("kernel closest_points", "kernel nearest_vertices", "Shrinkwrap NEAREST_SURFACEPOINT",
@@ -28,10 +30,10 @@ import addon_utils
 import numpy as np
 addon_utils.enable("springwrap", default_set=True, handle_error=None)  # registers Object.springwrap
 bpy.ops.wm.open_mainfile(filepath=sys.argv[1])
-layout = bpy.data.objects["Layout"]
+layout = bpy.data.objects[sys.argv[2] if len(sys.argv) > 2 else "Layout"]
 mesh = layout.data
 found = {"target": layout.springwrap.target.name if layout.springwrap.target else None,
-         "vertex_count": len(mesh.vertices), "attributes": {}}
+         "vertex_count": len(mesh.vertices), "attributes": {}, "anchor_count": len(layout.springwrap.anchors)}
 for name in ("springwrap_state", "springwrap_face", "springwrap_bary"):
     attribute = mesh.attributes.get(name)
     if attribute is None:
@@ -59,11 +61,26 @@ def demo_blend(tmp_path_factory) -> tuple[Path, subprocess.CompletedProcess]:
     return output, run_script(str(DEMO), "--output", str(output))
 
 
+def inspect(path: Path, layout_name: str = "Layout") -> dict:
+    """What the layout ``layout_name`` of the saved .blend holds (see INSPECT_BLEND)."""
+    inspected = run_script("-c", INSPECT_BLEND, str(path), layout_name)
+    assert inspected.returncode == 0, inspected.stderr[-3000:]
+    return json.loads(inspected.stdout.split("INSPECT", 1)[1])
+
+
 def test_demo_exits_zero_and_prints_each_step(demo_blend):
     output, process = demo_blend
     assert process.returncode == 0, process.stdout[-2000:] + process.stderr[-3000:]
-    for step in ("detach", "project (NORMAL, <=0.3)", "snap (SURFACE)"):
-        assert step in process.stdout
+    steps = ("detach", "project (NORMAL, <=0.3)", "snap (SURFACE)", "copy of the template", "detach (copy)",
+             "anchors_auto (spacing 0.3)", "wrap (<=2000 iterations)")
+    rows = {line[:26].strip(): line[26:].split() for line in process.stdout.splitlines()}
+    for step in steps:
+        assert step in rows, step
+    wrap_row = rows["wrap (<=2000 iterations)"]
+    seconds, face_points = float(wrap_row[0]), int(wrap_row[1].split("/")[0])
+    assert 0 < seconds < 15 and face_points >= 0.8 * 507
+    assert "Wrapped 'Wrapped' in " in process.stdout
+    assert "87 anchors met within" in process.stdout
     assert str(output) in process.stdout
 
 
@@ -71,9 +88,7 @@ def test_demo_saves_layout_with_face_point_attributes(demo_blend):
     output, process = demo_blend
     assert process.returncode == 0, process.stderr[-3000:]
     assert output.is_file()
-    inspected = run_script("-c", INSPECT_BLEND, str(output))
-    assert inspected.returncode == 0, inspected.stderr[-3000:]
-    found = json.loads(inspected.stdout.split("INSPECT", 1)[1])
+    found = inspect(output)
     assert found["target"] == "Target"
     vertex_count = found["vertex_count"]
     assert vertex_count == 507  # Suzanne's own vertices: the layout is her quad template
@@ -89,6 +104,53 @@ def test_demo_saves_layout_with_face_point_attributes(demo_blend):
     for weights in attributes["springwrap_bary"]["values"]:
         assert sum(weights) == pytest.approx(1.0, abs=1e-4)
         assert min(weights) >= -1e-4
+
+
+def test_demo_saves_the_wrapped_layout(demo_blend):
+    output, process = demo_blend
+    assert process.returncode == 0, process.stderr[-3000:]
+    found = inspect(output, "Wrapped")
+    assert found["target"] == "Target" and found["vertex_count"] == 507 and found["anchor_count"] == 87
+    states = [row[0] for row in found["attributes"]["springwrap_state"]["values"]]
+    faces = [row[0] for row in found["attributes"]["springwrap_face"]["values"]]
+    assert 0.8 * 507 <= states.count(1) < 507  # over the hole and Suzanne's open borders: space-points
+    assert all((face >= 0) == (state == 1) for state, face in zip(states, faces))
+
+
+def test_wrap_script_wraps_a_layout_of_a_saved_file(demo_blend, tmp_path):
+    demo_output, demo = demo_blend
+    assert demo.returncode == 0, demo.stderr[-3000:]
+    output = tmp_path / "wrapped.blend"
+    process = run_script(str(WRAP), "--blend", str(demo_output), "--layout", "Wrapped", "--anchors-spacing", "0.25",
+                         "--max-iterations", "300", "--output", str(output))
+    assert process.returncode == 0, process.stdout[-2000:] + process.stderr[-3000:]
+    assert "iteration    100/300" in process.stdout and "iteration    300/300" in process.stdout
+    assert "Wrapped 'Wrapped' in 300 iterations" in process.stdout
+    assert f"saved {output}" in process.stdout
+    found = inspect(output, "Wrapped")
+    assert found["anchor_count"] == 101  # anchors_auto with spacing 0.25 replaced the demo's 87
+    assert [row[0] for row in found["attributes"]["springwrap_state"]["values"]].count(1) >= 0.8 * 507
+
+
+@pytest.mark.parametrize(
+    "arguments, message",
+    [
+        (["--layout", "Nowhere"], "no mesh object 'Nowhere' for the layout"),
+        (["--layout", "Wrapped", "--target", "Wrapped"], "The target of 'Wrapped' is the layout itself"),
+        (["--layout", "Wrapped", "--anchors-spacing", "-1"], "--anchors-spacing must not be negative"),
+    ],
+)
+def test_wrap_script_fails_with_a_message(demo_blend, arguments, message):
+    demo_output, demo = demo_blend
+    assert demo.returncode == 0, demo.stderr[-3000:]
+    process = run_script(str(WRAP), "--blend", str(demo_output), *arguments)
+    assert process.returncode != 0
+    assert message in process.stderr
+
+
+def test_wrap_script_needs_an_existing_file(tmp_path):
+    process = run_script(str(WRAP), "--blend", str(tmp_path / "missing.blend"), "--layout", "Layout")
+    assert process.returncode != 0 and "no such file" in process.stderr
 
 
 def test_demo_rejects_unknown_arguments():
