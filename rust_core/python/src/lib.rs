@@ -592,7 +592,7 @@ impl PyWrapSolver {
         anchor_vertices = None, anchor_triangles = None, anchor_barycentrics = None,
         anchor_positions = None, unreliable_triangles = None, fairness = 0.5, arc_length = 0.5, thin_plate = 0.2,
         constraint = 0.5, folding = 0.3, tolerance = 1e-5, landing_distance = 0.25,
-        fold_tolerance = 0.17453292
+        fold_tolerance = 0.17453292, momentum = 0.9
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -616,6 +616,7 @@ impl PyWrapSolver {
         tolerance: f32,
         landing_distance: f32,
         fold_tolerance: f32,
+        momentum: f32,
     ) -> PyResult<Self> {
         let states = read_array::<i32>("states", states, None)?;
         let triangles = read_array::<i32>("triangles", triangles, None)?;
@@ -651,6 +652,7 @@ impl PyWrapSolver {
             tolerance,
             landing_distance,
             fold_tolerance,
+            momentum,
         };
         let unreliable = unreliable_triangles
             .map(|flags| read_array::<bool>("unreliable_triangles", flags, None))

@@ -45,6 +45,10 @@ pub struct WrapSettings {
     pub landing_distance: f32,
     /// Starting folding tolerance in radians; it anneals by itself from how many points fold.
     pub fold_tolerance: f32,
+    /// Heavy-ball momentum: the fraction of its previous move a free point carries into the next.
+    /// Relaxing a spring grid by plain iterations takes a number of iterations that grows with the
+    /// square of its width; momentum makes it grow with the width. 0 turns it off.
+    pub momentum: f32,
 }
 
 impl Default for WrapSettings {
@@ -54,6 +58,7 @@ impl Default for WrapSettings {
             tolerance: 1e-5,
             landing_distance: 0.25,
             fold_tolerance: 10f32.to_radians(),
+            momentum: 0.9,
         }
     }
 }
@@ -65,7 +70,7 @@ impl WrapSettings {
     /// [`KernelError::InvalidArgument`] naming the first bad setting.
     pub fn validate(&self) -> Result<(), KernelError> {
         let weights = self.weights;
-        let checks: [(&'static str, f32, f32, f32); 8] = [
+        let checks: [(&'static str, f32, f32, f32); 9] = [
             ("fairness weight", weights.fairness, 0.0, 1.0),
             ("arc length weight", weights.arc_length, 0.0, 1.0),
             ("thin plate weight", weights.thin_plate, 0.0, 0.5),
@@ -79,6 +84,7 @@ impl WrapSettings {
                 0.0,
                 std::f32::consts::FRAC_PI_2,
             ),
+            ("momentum", self.momentum, 0.0, 0.99),
         ];
         for (name, value, low, high) in checks {
             if !(low..=high).contains(&value) {

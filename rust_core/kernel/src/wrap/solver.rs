@@ -83,6 +83,8 @@ pub struct WrapSolver {
     settings: WrapSettings,
     points: Vec<LayoutPoint>,
     positions: Vec<Vec3>,
+    /// Each point's move in the last iteration (zero after a change of state), for the momentum.
+    velocities: Vec<Vec3>,
     anchor_of_vertex: Vec<Option<(AnchorTarget, Vec3)>>,
     is_corner: Vec<bool>,
     /// Target triangles whose data is not to be trusted (noise); empty when all are.
@@ -200,6 +202,7 @@ impl WrapSolver {
             fold_tolerance: settings.fold_tolerance,
             landing_distance: settings.landing_distance * mean_edge_length,
             layout_size,
+            velocities: vec![Vec3::ZERO; structure.vertex_count],
             structure,
             points,
             positions,
@@ -341,7 +344,16 @@ impl WrapSolver {
         let mut counts = EventCounts::default();
         let mut max_displacement = 0.0f32;
         for (vertex, (point, position, event)) in updates.into_iter().enumerate() {
-            max_displacement = max_displacement.max(position.distance(self.positions[vertex]));
+            let moved = position - self.positions[vertex];
+            max_displacement = max_displacement.max(moved.length());
+            let same_state = matches!(
+                (point, self.points[vertex]),
+                (LayoutPoint::Face(_), LayoutPoint::Face(_))
+                    | (LayoutPoint::Space(_), LayoutPoint::Space(_))
+            );
+            // Momentum carries a move on only while the point keeps its state.
+            let keeps_moving = same_state && matches!(event, Event::None | Event::FoldCandidate);
+            self.velocities[vertex] = if keeps_moving { moved } else { Vec3::ZERO };
             self.points[vertex] = point;
             self.positions[vertex] = position;
             match event {
@@ -408,7 +420,9 @@ impl WrapSolver {
                         }
                     },
                 );
-            fairness * weights.fairness + arc_length * weights.arc_length
+            fairness * weights.fairness
+                + arc_length * weights.arc_length
+                + self.velocities[index] * self.settings.momentum
         };
         match self.points[index] {
             LayoutPoint::Face(face_point) => {

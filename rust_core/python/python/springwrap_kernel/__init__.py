@@ -119,7 +119,7 @@ class WrapSolver(_native.WrapSolver):
     anchor_triangles=None, anchor_barycentrics=None, anchor_positions=None,
     unreliable_triangles=None, fairness=0.5,
     arc_length=0.5, thin_plate=0.2, constraint=0.5, folding=0.3, tolerance=1e-5,
-    landing_distance=0.25, fold_tolerance=radians(10))``
+    landing_distance=0.25, fold_tolerance=radians(10), momentum=0.9)``
     """
 
     __slots__ = ()

@@ -204,6 +204,7 @@ class WrapSolver:
         tolerance: float = 1e-5,
         landing_distance: float = 0.25,
         fold_tolerance: float = 0.17453292,
+        momentum: float = 0.9,
     ) -> None: ...
     def step(self, iterations: int) -> StepReport:
         """Run up to ``iterations`` iterations (fewer once converged), GIL released."""
