@@ -550,6 +550,64 @@ def test_modal_frames_keep_about_thirty_redraws_per_second():
     assert loop.session.pacer.last_count > 1  # it ran several iterations per frame, not one
 
 
+class _FakeUI:
+    """Stands in for the window manager, workspace, area and screen a modal operator talks to; records the calls."""
+
+    def __init__(self):
+        self.calls = []
+
+    def __getattr__(self, name):
+        if name.startswith("__"):
+            raise AttributeError(name)
+        return lambda *args, **kwargs: self.calls.append((name, args))
+
+
+def _operator_standing_in(loop, ui):
+    """An object with the wrap operator's methods bound to it, as ``invoke`` leaves them (no window needed)."""
+    import types
+
+    from springwrap.wrap_operator import SPRINGWRAP_OT_wrap
+
+    operator = types.SimpleNamespace(_loop=loop, _area=ui, _timer="timer", _was_editing=False, reports=[])
+    operator.report = lambda kinds, text: operator.reports.append((set(kinds), text))
+    for name in ("modal", "cancel", "_show_status", "_end", "_restore_mode", "_report_result"):
+        setattr(operator, name, types.MethodType(getattr(SPRINGWRAP_OT_wrap, name), operator))
+    context = types.SimpleNamespace(window_manager=ui, workspace=ui, area=None, screen=types.SimpleNamespace(areas=[]))
+    return operator, context
+
+
+@pytest.mark.parametrize("ending", ["finish", "escape"])
+def test_operator_modal_shows_progress_and_cleans_up(ending):
+    from springwrap import wrap_operator
+
+    target, layout, _normal = plane_scene()
+    bpy.ops.springwrap.anchors_auto(spacing=0.5)
+    before = snapshot(layout)
+    ui = _FakeUI()
+    operator, context = _operator_standing_in(wrap_operator.WrapLoop(_session(layout)), ui)
+    event = lambda kind, value="NOTHING": type("Event", (), {"type": kind, "value": value})()  # noqa: E731
+    assert operator.modal(context, event("TIMER")) == {"RUNNING_MODAL"}
+    assert operator.modal(context, event("MIDDLEMOUSE", "PRESS")) == {"PASS_THROUGH"}
+    status = [args[0] for name, args in ui.calls if name == "status_text_set"]
+    assert status and status[-1].startswith("Springwrap: iteration 1 / 2000")
+    assert ("progress_update", (1,)) in ui.calls
+    if ending == "escape":
+        assert operator.modal(context, event("ESC", "PRESS")) == {"CANCELLED"}
+        assert snapshot(layout) == before
+        assert operator.reports == [({"INFO"}, "Wrap cancelled: the layout is back as it was")]
+    else:
+        result = {"RUNNING_MODAL"}
+        while result == {"RUNNING_MODAL"}:
+            result = operator.modal(context, event("TIMER"))
+        assert result == {"FINISHED"}
+        kinds, text = operator.reports[0]
+        assert kinds == {"INFO"} and text.startswith("Wrapped 'Layout' in ") and "(converged)" in text
+    ends = [name for name, _args in ui.calls[-4:]]
+    assert ends == ["event_timer_remove", "progress_end", "status_text_set", "header_text_set"]
+    assert ui.calls[-1] == ("header_text_set", (None,)) and ui.calls[-2] == ("status_text_set", (None,))
+    assert operator._timer is None
+
+
 def test_modal_actions():
     from springwrap.wrap_operator import modal_action
 

@@ -305,8 +305,8 @@ class WrapLoop:
         return "RUNNING_MODAL"
 
     def cancel(self) -> str:
-        """Stop and restore the layout (also when the restore itself is all that is left to do)."""
-        if self.state != "CANCELLED":
+        """Stop a running wrap and restore the layout; a finished or cancelled one stays as it is."""
+        if self.state == "RUNNING_MODAL":
             self.state = "CANCELLED"
             self.session.cancel()
         return self.state
@@ -450,6 +450,7 @@ class SPRINGWRAP_OT_wrap(bpy.types.Operator):
             self._restore_mode()
             return {"CANCELLED"}
         self._loop = WrapLoop(session)
+        self._area = context.area  # the header to write in; events may come with another area as context
         window_manager = context.window_manager
         self._timer = window_manager.event_timer_add(TIMER_SECONDS, window=context.window)
         window_manager.progress_begin(0, session.parameters.max_iterations)
@@ -480,15 +481,18 @@ class SPRINGWRAP_OT_wrap(bpy.types.Operator):
         loop = getattr(self, "_loop", None)
         if loop is not None and loop.state == "RUNNING_MODAL":
             loop.cancel()
-            self._end(context)
+            try:
+                self._end(context)
+            except RuntimeError:  # the context may no longer allow a mode switch; the data is restored
+                pass
 
     def _show_status(self, context) -> None:
         session = self._loop.session
         text = session.status_text()
         if context.workspace is not None:
             context.workspace.status_text_set(text)
-        if context.area is not None:
-            context.area.header_text_set(text)
+        if self._area is not None:
+            self._area.header_text_set(text)
         context.window_manager.progress_update(session.total_iterations)
         screen = context.screen
         if screen is not None:
@@ -505,8 +509,9 @@ class SPRINGWRAP_OT_wrap(bpy.types.Operator):
         window_manager.progress_end()
         if context.workspace is not None:
             context.workspace.status_text_set(None)
-        if context.area is not None:
-            context.area.header_text_set(None)
+        if getattr(self, "_area", None) is not None:
+            self._area.header_text_set(None)
+            self._area = None
         self._restore_mode()
 
     def _restore_mode(self) -> None:
