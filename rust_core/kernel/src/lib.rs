@@ -53,4 +53,6 @@ pub use face_point::{FacePoint, LayoutPoint, SurfaceHit, VertexHit};
 pub use layout::{Curve, CurveKind, LayoutStructure, LineTriple};
 pub use mesh::{NO_TRIANGLE, TargetMesh, TargetMeshOptions, TriangleEdge};
 pub use surface::{WalkEnd, WalkOutcome};
-pub use wrap::{Anchor, AnchorTarget, StepReport, WrapSettings, WrapSolver, WrapWeights};
+pub use wrap::{
+    Anchor, AnchorTarget, CurveConstraint, StepReport, WrapSettings, WrapSolver, WrapWeights,
+};

@@ -275,3 +275,161 @@ fn points_over_unreliable_data_behave_as_over_a_hole() {
     }
     assert!(over_noise >= 5);
 }
+
+/// Distance from `point` to the polyline.
+fn distance_to_polyline(point: Vec3, polyline: &[Vec3]) -> f32 {
+    polyline
+        .windows(2)
+        .map(|pair| {
+            let direction = pair[1] - pair[0];
+            let t = ((point - pair[0]).dot(direction) / direction.length_squared()).clamp(0.0, 1.0);
+            point.distance(pair[0] + direction * t)
+        })
+        .fold(f32::INFINITY, f32::min)
+}
+
+#[test]
+fn a_border_held_to_a_curve_on_the_surface_lies_on_it_evenly() {
+    use springwrap_kernel::CurveConstraint;
+    let target = plane_target(40, 0.05, 0.0);
+    let (structure, positions) = quad_layout(10, 0.1, Vec3::new(-0.5, -0.5, 0.3));
+    let anchors = anchors_below(&target, &positions, &[0, 10, 110, 120]);
+    // The bottom border (vertices 0..=10) is held to a wave drawn on the plane, end to end.
+    let wave: Vec<Vec3> = (0..=200)
+        .map(|step| {
+            let x = -0.5 + step as f32 / 200.0;
+            Vec3::new(
+                x,
+                -0.5 + 0.05 * (x * std::f32::consts::TAU * 2.0).sin(),
+                0.0,
+            )
+        })
+        .collect();
+    let constraint = CurveConstraint {
+        layout_vertices: (0..=10).collect(),
+        target: wave.clone(),
+    };
+    let points = positions.iter().map(|&p| LayoutPoint::Space(p)).collect();
+    let mut solver = WrapSolver::new(target, structure, points, &anchors, WrapSettings::default())
+        .unwrap()
+        .with_curve_constraints(&[constraint])
+        .unwrap();
+    let report = solver.step(3000);
+    assert!(report.converged, "{report:?}");
+    let border: Vec<Vec3> = (0..=10).map(|vertex| solver.positions()[vertex]).collect();
+    for (vertex, &position) in border.iter().enumerate() {
+        assert!(
+            distance_to_polyline(position, &wave) < 1e-3,
+            "vertex {vertex} at {position}"
+        );
+        assert!(
+            matches!(solver.points()[vertex], LayoutPoint::Face(_)),
+            "vertex {vertex}"
+        );
+    }
+    // Even spacing along the curve (arc-length matching): chord lengths within 20% of each other.
+    let chords: Vec<f32> = border
+        .windows(2)
+        .map(|pair| pair[0].distance(pair[1]))
+        .collect();
+    let (shortest, longest) = chords
+        .iter()
+        .fold((f32::INFINITY, 0.0f32), |(a, b), &c| (a.min(c), b.max(c)));
+    assert!(longest / shortest < 1.2, "chords {chords:?}");
+}
+
+#[test]
+fn a_curve_floating_above_the_surface_holds_its_points_in_space() {
+    use springwrap_kernel::CurveConstraint;
+    let target = plane_target(40, 0.05, 0.0);
+    let (structure, positions) = quad_layout(10, 0.1, Vec3::new(-0.5, -0.5, 0.3));
+    let anchors = anchors_below(&target, &positions, &[0, 10, 110, 120]);
+    // The middle row (vertices 55..=65) is held to a straight line 0.1 above the plane.
+    let line = vec![Vec3::new(-0.5, 0.0, 0.1), Vec3::new(0.5, 0.0, 0.1)];
+    let middle: Vec<u32> = (55..=65).collect();
+    let constraint = CurveConstraint {
+        layout_vertices: middle.clone(),
+        target: line.clone(),
+    };
+    let points = positions.iter().map(|&p| LayoutPoint::Space(p)).collect();
+    let mut solver = WrapSolver::new(target, structure, points, &anchors, WrapSettings::default())
+        .unwrap()
+        .with_curve_constraints(&[constraint])
+        .unwrap();
+    let report = solver.step(3000);
+    assert!(report.converged, "{report:?}");
+    for &vertex in &middle[1..middle.len() - 1] {
+        let position = solver.positions()[vertex as usize];
+        assert!(
+            distance_to_polyline(position, &line) < 2e-3,
+            "vertex {vertex} at {position}"
+        );
+        assert!(matches!(
+            solver.points()[vertex as usize],
+            LayoutPoint::Space(_)
+        ));
+    }
+}
+
+#[test]
+fn bad_curve_constraints_are_refused() {
+    use springwrap_kernel::CurveConstraint;
+    let target = plane_target(4, 1.0, 0.0);
+    let (structure, positions) = quad_layout(2, 1.0, Vec3::ZERO);
+    let points: Vec<LayoutPoint> = positions.iter().map(|&p| LayoutPoint::Space(p)).collect();
+    let solver = WrapSolver::new(target, structure, points, &[], WrapSettings::default()).unwrap();
+    let line = vec![Vec3::ZERO, Vec3::X];
+    let cases = [
+        (
+            vec![CurveConstraint {
+                layout_vertices: vec![0],
+                target: line.clone(),
+            }],
+            "at least 2 vertices",
+        ),
+        (
+            vec![CurveConstraint {
+                layout_vertices: vec![0, 42],
+                target: line.clone(),
+            }],
+            "vertex 42",
+        ),
+        (
+            vec![CurveConstraint {
+                layout_vertices: vec![0, 1],
+                target: vec![Vec3::ZERO],
+            }],
+            "at least 2 points",
+        ),
+        (
+            vec![CurveConstraint {
+                layout_vertices: vec![0, 1],
+                target: vec![Vec3::X, Vec3::X],
+            }],
+            "zero length",
+        ),
+        (
+            vec![
+                CurveConstraint {
+                    layout_vertices: vec![0, 1],
+                    target: line.clone(),
+                },
+                CurveConstraint {
+                    layout_vertices: vec![1, 2],
+                    target: line.clone(),
+                },
+            ],
+            "also in curve constraint 0",
+        ),
+    ];
+    for (constraints, words) in cases {
+        let error = solver
+            .clone()
+            .with_curve_constraints(&constraints)
+            .unwrap_err();
+        assert!(
+            error.to_string().contains(words),
+            "{error} should say {words}"
+        );
+    }
+}

@@ -16,9 +16,9 @@ use pyo3::create_exception;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use springwrap_kernel::{
-    Anchor, AnchorTarget, CurveKind, FacePoint, KernelError, LayoutPoint, LayoutStructure,
-    NO_TRIANGLE, SurfaceHit, TargetMesh, TargetMeshOptions, VertexHit, WrapSettings, WrapSolver,
-    WrapWeights,
+    Anchor, AnchorTarget, CurveConstraint, CurveKind, FacePoint, KernelError, LayoutPoint,
+    LayoutStructure, NO_TRIANGLE, SurfaceHit, TargetMesh, TargetMeshOptions, VertexHit,
+    WrapSettings, WrapSolver, WrapWeights,
 };
 
 create_exception!(
@@ -590,7 +590,8 @@ impl PyWrapSolver {
     #[pyo3(signature = (
         target, structure, states, triangles, barycentrics, positions, *,
         anchor_vertices = None, anchor_triangles = None, anchor_barycentrics = None,
-        anchor_positions = None, unreliable_triangles = None, fairness = 0.5, arc_length = 0.5, thin_plate = 0.2,
+        anchor_positions = None, unreliable_triangles = None, curve_vertices = None,
+        curve_vertex_counts = None, curve_points = None, curve_point_counts = None, fairness = 0.5, arc_length = 0.5, thin_plate = 0.2,
         constraint = 0.5, folding = 0.3, tolerance = 1e-5, landing_distance = 0.25,
         fold_tolerance = 0.17453292, momentum = 0.9
     ))]
@@ -608,6 +609,10 @@ impl PyWrapSolver {
         anchor_barycentrics: Option<&Bound<'_, PyAny>>,
         anchor_positions: Option<&Bound<'_, PyAny>>,
         unreliable_triangles: Option<&Bound<'_, PyAny>>,
+        curve_vertices: Option<&Bound<'_, PyAny>>,
+        curve_vertex_counts: Option<&Bound<'_, PyAny>>,
+        curve_points: Option<&Bound<'_, PyAny>>,
+        curve_point_counts: Option<&Bound<'_, PyAny>>,
         fairness: f32,
         arc_length: f32,
         thin_plate: f32,
@@ -654,13 +659,20 @@ impl PyWrapSolver {
             fold_tolerance,
             momentum,
         };
+        let curves = read_curve_constraints(
+            curve_vertices,
+            curve_vertex_counts,
+            curve_points,
+            curve_point_counts,
+        )?;
         let unreliable = unreliable_triangles
             .map(|flags| read_array::<bool>("unreliable_triangles", flags, None))
             .transpose()?;
         let target = Arc::clone(&target.get().mesh);
         let structure = structure.get().structure.clone();
         let solver = run_kernel(py, || {
-            let solver = WrapSolver::new(target, structure, points, &anchors, settings)?;
+            let solver = WrapSolver::new(target, structure, points, &anchors, settings)?
+                .with_curve_constraints(&curves)?;
             match unreliable {
                 Some(flags) => solver.with_unreliable_triangles(flags),
                 None => Ok(solver),
@@ -772,6 +784,64 @@ fn layout_points(
             }
         })
         .collect()
+}
+
+/// Curve constraints from flat arrays: chain `c` is the next `curve_vertex_counts[c]` entries of
+/// `curve_vertices`, its target polyline the next `curve_point_counts[c]` rows of `curve_points`.
+fn read_curve_constraints(
+    vertices: Option<&Bound<'_, PyAny>>,
+    vertex_counts: Option<&Bound<'_, PyAny>>,
+    points: Option<&Bound<'_, PyAny>>,
+    point_counts: Option<&Bound<'_, PyAny>>,
+) -> PyResult<Vec<CurveConstraint>> {
+    let (Some(vertices), Some(vertex_counts), Some(points), Some(point_counts)) =
+        (vertices, vertex_counts, points, point_counts)
+    else {
+        if vertices.is_some()
+            || vertex_counts.is_some()
+            || points.is_some()
+            || point_counts.is_some()
+        {
+            return Err(ArrayError::new_err(
+                "curve constraints need all four of curve_vertices, curve_vertex_counts, curve_points and curve_point_counts",
+            ));
+        }
+        return Ok(Vec::new());
+    };
+    let vertices = read_array::<u32>("curve_vertices", vertices, None)?;
+    let vertex_counts = read_array::<u32>("curve_vertex_counts", vertex_counts, None)?;
+    let points = read_positions("curve_points", points)?;
+    let point_counts = read_array::<u32>("curve_point_counts", point_counts, None)?;
+    let vertex_total: usize = vertex_counts.iter().map(|&count| count as usize).sum();
+    let point_total: usize = point_counts.iter().map(|&count| count as usize).sum();
+    if vertex_counts.len() != point_counts.len()
+        || vertex_total != vertices.len()
+        || point_total != points.len()
+    {
+        return Err(ArrayError::new_err(format!(
+            "curve constraint arrays do not add up: {} chains with {vertex_total} vertices for {} given, {} curves with {point_total} points for {} given",
+            vertex_counts.len(),
+            vertices.len(),
+            point_counts.len(),
+            points.len()
+        )));
+    }
+    let mut vertex_offset = 0;
+    let mut point_offset = 0;
+    Ok(vertex_counts
+        .iter()
+        .zip(&point_counts)
+        .map(|(&vertex_count, &point_count)| {
+            let (vertex_count, point_count) = (vertex_count as usize, point_count as usize);
+            let constraint = CurveConstraint {
+                layout_vertices: vertices[vertex_offset..vertex_offset + vertex_count].to_vec(),
+                target: points[point_offset..point_offset + point_count].to_vec(),
+            };
+            vertex_offset += vertex_count;
+            point_offset += point_count;
+            constraint
+        })
+        .collect())
 }
 
 /// Anchors from parallel arrays; a negative triangle means a space anchor at its position.

@@ -1,10 +1,12 @@
 //! The wrap: hybrid spring optimisation of a layout onto a target (the paper's section 2.5).
 
 pub mod anchor;
+pub mod curve_constraint;
 pub mod forces;
 pub mod settings;
 pub mod solver;
 
 pub use anchor::{Anchor, AnchorTarget};
+pub use curve_constraint::CurveConstraint;
 pub use settings::{WrapSettings, WrapWeights};
 pub use solver::{StepReport, WrapSolver};

@@ -19,6 +19,7 @@ use glam::{Quat, Vec3};
 use rayon::prelude::*;
 
 use super::anchor::{Anchor, AnchorTarget};
+use super::curve_constraint::{ArcLengthCurve, CurveConstraint, chain_fractions};
 use super::forces::{LinesByVertex, line_forces, thin_plate, umbrella};
 use super::settings::WrapSettings;
 use crate::error::KernelError;
@@ -32,6 +33,9 @@ const FOLD_TOLERANCE_RANGE: (f32, f32) = (
     0.5 * std::f32::consts::PI / 180.0,
     std::f32::consts::FRAC_PI_4,
 );
+/// A target curve point lies on the surface when this close to it, as a fraction of the landing
+/// distance.
+const ON_CURVE: f32 = 1e-2;
 /// Aim of the annealing: the fraction of foldable points that fold in one iteration.
 const FOLD_FRACTION_HIGH: f32 = 0.25;
 
@@ -92,6 +96,8 @@ pub struct WrapSolver {
     /// The target's adjacency with the edges into unreliable triangles cut (walks stop there as at
     /// a hole); `None` when every triangle is reliable.
     walk_neighbors: Option<Vec<[u32; 3]>>,
+    /// For each curve-constrained (and not anchored) vertex, its fixed point on the target curve.
+    curve_target_of_vertex: Vec<Option<Vec3>>,
     fold_tolerance: f32,
     layout_size: f32,
     landing_distance: f32,
@@ -210,6 +216,7 @@ impl WrapSolver {
             is_corner,
             unreliable: Vec::new(),
             walk_neighbors: None,
+            curve_target_of_vertex: Vec::new(),
             total_iterations: 0,
         })
     }
@@ -252,6 +259,64 @@ impl WrapSolver {
             .collect();
         self.walk_neighbors = Some(walk_neighbors);
         self.unreliable = unreliable;
+        Ok(self)
+    }
+
+    /// Holds layout chains to target curves, matched by arc length (paper, section 2.4): each
+    /// chain vertex is pulled to the target point at the same fraction of the curve's length as it
+    /// has along the chain *now* (the template's spacing is kept; matching on the moving positions
+    /// would feed back on itself), and lands on the surface when that point lies on it. Anchored
+    /// vertices keep their anchors; constrained points do not fold.
+    ///
+    /// # Errors
+    /// [`KernelError::InvalidArgument`] for a chain shorter than 2 vertices, a vertex that does not
+    /// exist, a vertex in two constraints, or a target curve with fewer than 2 points, a NaN, or
+    /// zero length.
+    pub fn with_curve_constraints(
+        mut self,
+        constraints: &[CurveConstraint],
+    ) -> Result<Self, KernelError> {
+        let mut owner: Vec<Option<usize>> = vec![None; self.points.len()];
+        let mut targets = vec![None; self.points.len()];
+        for (index, constraint) in constraints.iter().enumerate() {
+            let invalid = |reason: String| KernelError::InvalidArgument {
+                name: "curve constraints",
+                reason: format!("curve constraint {index}: {reason}"),
+            };
+            if constraint.layout_vertices.len() < 2 {
+                return Err(invalid(format!(
+                    "the layout chain needs at least 2 vertices, it has {}",
+                    constraint.layout_vertices.len()
+                )));
+            }
+            for &vertex in &constraint.layout_vertices {
+                let slot = owner.get_mut(vertex as usize).ok_or_else(|| {
+                    invalid(format!(
+                        "vertex {vertex} does not exist (the layout has {} vertices)",
+                        self.points.len()
+                    ))
+                })?;
+                if self.anchor_of_vertex[vertex as usize].is_some() {
+                    continue;
+                }
+                if let Some(other) = *slot
+                    && other != index
+                {
+                    return Err(invalid(format!(
+                        "vertex {vertex} is also in curve constraint {other}"
+                    )));
+                }
+                *slot = Some(index);
+            }
+            let curve = ArcLengthCurve::new(index, &constraint.target)?;
+            let chain = &constraint.layout_vertices;
+            for (&vertex, fraction) in chain.iter().zip(chain_fractions(&self.positions, chain)) {
+                if self.anchor_of_vertex[vertex as usize].is_none() {
+                    targets[vertex as usize] = Some(curve.point_at(fraction));
+                }
+            }
+        }
+        self.curve_target_of_vertex = targets;
         Ok(self)
     }
 
@@ -339,7 +404,14 @@ impl WrapSolver {
         let updates: Vec<(LayoutPoint, Vec3, Event)> = (0..vertex_count as u32)
             .into_par_iter()
             .with_min_len(512)
-            .map(|vertex| self.update_point(vertex, &umbrellas))
+            .map(|vertex| {
+                let curve_target = self
+                    .curve_target_of_vertex
+                    .get(vertex as usize)
+                    .copied()
+                    .flatten();
+                self.update_point(vertex, &umbrellas, curve_target)
+            })
             .collect();
         let mut counts = EventCounts::default();
         let mut max_displacement = 0.0f32;
@@ -389,7 +461,12 @@ impl WrapSolver {
     }
 
     /// The new state and position of one point (reads only the snapshot).
-    fn update_point(&self, vertex: u32, umbrellas: &[Vec3]) -> (LayoutPoint, Vec3, Event) {
+    fn update_point(
+        &self,
+        vertex: u32,
+        umbrellas: &[Vec3],
+        curve_target: Option<Vec3>,
+    ) -> (LayoutPoint, Vec3, Event) {
         let weights = self.settings.weights;
         let index = vertex as usize;
         let here = self.positions[index];
@@ -405,10 +482,12 @@ impl WrapSolver {
                 return (self.points[index], here, Event::None);
             }
         }
-        let force = if let Some((_, anchor_position)) = anchor {
-            // Anchors are constraints: an anchored point heads straight for its target (other
-            // forces would hold it at an equilibrium short of it) and is pinned once there.
-            (anchor_position - here) * weights.constraint
+        let constraint_target = anchor.map(|(_, position)| position).or(curve_target);
+        let force = if let Some(target_position) = constraint_target {
+            // Anchors and curve constraints are constraints: a constrained point heads straight
+            // for its target (other forces would hold it at an equilibrium short of it); anchored
+            // points are pinned once there.
+            (target_position - here) * weights.constraint
         } else {
             let (fairness, arc_length) =
                 line_forces(&self.positions, self.lines.lines_of(vertex), vertex).unwrap_or_else(
@@ -447,7 +526,7 @@ impl WrapSolver {
                 }
             }
             LayoutPoint::Space(_) => {
-                let moved = if anchor.is_some() {
+                let moved = if constraint_target.is_some() {
                     here + force
                 } else {
                     here + force
@@ -462,7 +541,22 @@ impl WrapSolver {
                     };
                     return (landed, anchor_position, Event::Landed);
                 }
+                if let Some(curve_position) = curve_target
+                    && curve_position.distance(moved) <= self.landing_distance
+                    && let Some(hit) = self
+                        .target
+                        .closest_point(curve_position, self.landing_distance * ON_CURVE)
+                    && !self.is_unreliable(hit.face_point.triangle)
+                {
+                    // The target curve lies on the surface here: the point lands on it.
+                    return (
+                        LayoutPoint::Face(hit.face_point),
+                        hit.position,
+                        Event::Landed,
+                    );
+                }
                 if weights.folding > 0.0
+                    && constraint_target.is_none()
                     && let Some(outcome) = self.fold(vertex, moved)
                 {
                     return outcome;

@@ -117,7 +117,8 @@ class WrapSolver(_native.WrapSolver):
 
     ``WrapSolver(target, structure, states, triangles, barycentrics, positions, *, anchor_vertices=None,
     anchor_triangles=None, anchor_barycentrics=None, anchor_positions=None,
-    unreliable_triangles=None, fairness=0.5,
+    unreliable_triangles=None, curve_vertices=None, curve_vertex_counts=None, curve_points=None,
+    curve_point_counts=None, fairness=0.5,
     arc_length=0.5, thin_plate=0.2, constraint=0.5, folding=0.3, tolerance=1e-5,
     landing_distance=0.25, fold_tolerance=radians(10), momentum=0.9)``
     """

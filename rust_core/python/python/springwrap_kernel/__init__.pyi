@@ -179,7 +179,10 @@ class WrapSolver:
     (the face-point's target triangle, ignored for space-points), ``barycentrics`` float32 (N, 3),
     ``positions`` float32 (N, 3) (used for space-points). Anchors are parallel arrays; a negative
     anchor triangle makes a space anchor at its position. ``unreliable_triangles`` (bool, one per
-    target triangle) marks noisy data: points there behave as space-points.
+    target triangle) marks noisy data: points there behave as space-points. Curve constraints are
+    flat arrays: chain ``c`` is the next ``curve_vertex_counts[c]`` entries of ``curve_vertices``
+    (layout vertices in order), its target polyline the next ``curve_point_counts[c]`` rows of
+    ``curve_points`` (world space, same direction); matched by the chain's arc length now.
     """
 
     def __init__(
@@ -196,6 +199,10 @@ class WrapSolver:
         anchor_barycentrics: npt.NDArray[np.float32] | None = None,
         anchor_positions: npt.NDArray[np.float32] | None = None,
         unreliable_triangles: npt.NDArray[np.bool_] | None = None,
+        curve_vertices: npt.NDArray[np.uint32] | None = None,
+        curve_vertex_counts: npt.NDArray[np.uint32] | None = None,
+        curve_points: npt.NDArray[np.float32] | None = None,
+        curve_point_counts: npt.NDArray[np.uint32] | None = None,
         fairness: float = 0.5,
         arc_length: float = 0.5,
         thin_plate: float = 0.2,

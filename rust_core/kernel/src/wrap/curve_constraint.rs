@@ -1,0 +1,146 @@
+//! Curve constraints: a chain of layout vertices paired with a target curve (paper, section 2.4).
+
+use glam::Vec3;
+
+use crate::error::KernelError;
+
+/// A layout curve held to a target curve, matched by arc length.
+///
+/// The target curve is a polyline in space: a chain of target mesh edges, a Blender curve, a
+/// feature curve, or a curve floating off the surface (a blend's limit curve). Each layout vertex
+/// of the chain is pulled to the target point at the same fraction of the curve's length as the
+/// vertex sits along the layout chain (recomputed every iteration from the current positions).
+#[derive(Debug, Clone, PartialEq)]
+pub struct CurveConstraint {
+    /// The layout chain, in order (at least 2 vertices).
+    pub layout_vertices: Vec<u32>,
+    /// The target polyline, in the same direction (at least 2 points, not all equal).
+    pub target: Vec<Vec3>,
+}
+
+/// A target polyline prepared for arc-length lookups.
+#[derive(Debug, Clone)]
+pub(crate) struct ArcLengthCurve {
+    points: Vec<Vec3>,
+    /// Cumulative length at each point, from 0 to `length`.
+    cumulative: Vec<f32>,
+    length: f32,
+}
+
+impl ArcLengthCurve {
+    /// Checks and prepares constraint `index`'s target curve.
+    pub(crate) fn new(index: usize, points: &[Vec3]) -> Result<Self, KernelError> {
+        let invalid = |reason: String| KernelError::InvalidArgument {
+            name: "curve constraints",
+            reason: format!("curve constraint {index}: {reason}"),
+        };
+        if points.len() < 2 {
+            return Err(invalid(format!(
+                "the target curve needs at least 2 points, it has {}",
+                points.len()
+            )));
+        }
+        if let Some(point) = points.iter().position(|point| !point.is_finite()) {
+            return Err(invalid(format!(
+                "target curve point {point} is NaN or infinite"
+            )));
+        }
+        let mut cumulative = Vec::with_capacity(points.len());
+        let mut length = 0.0f32;
+        cumulative.push(0.0);
+        for pair in points.windows(2) {
+            length += pair[0].distance(pair[1]);
+            cumulative.push(length);
+        }
+        if length <= 0.0 {
+            return Err(invalid("the target curve has zero length".to_owned()));
+        }
+        Ok(Self {
+            points: points.to_vec(),
+            cumulative,
+            length,
+        })
+    }
+
+    /// The point at `fraction` (0 to 1) of the curve's length.
+    pub(crate) fn point_at(&self, fraction: f32) -> Vec3 {
+        let along = fraction.clamp(0.0, 1.0) * self.length;
+        let segment = self
+            .cumulative
+            .partition_point(|&cumulative| cumulative <= along)
+            .clamp(1, self.points.len() - 1);
+        let start = self.cumulative[segment - 1];
+        let span = self.cumulative[segment] - start;
+        let t = if span > 0.0 {
+            (along - start) / span
+        } else {
+            0.0
+        };
+        self.points[segment - 1].lerp(self.points[segment], t)
+    }
+}
+
+/// Fraction of the chain's length at each of its vertices, from `positions` (uniform when the
+/// chain has collapsed to a point).
+pub(crate) fn chain_fractions(positions: &[Vec3], chain: &[u32]) -> Vec<f32> {
+    let mut cumulative = Vec::with_capacity(chain.len());
+    let mut length = 0.0f32;
+    cumulative.push(0.0);
+    for pair in chain.windows(2) {
+        length += positions[pair[0] as usize].distance(positions[pair[1] as usize]);
+        cumulative.push(length);
+    }
+    if length > 0.0 {
+        cumulative.iter().map(|&value| value / length).collect()
+    } else {
+        let last = (chain.len() - 1).max(1) as f32;
+        (0..chain.len()).map(|index| index as f32 / last).collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn arc_length_lookup_and_chain_fractions() {
+        let curve =
+            ArcLengthCurve::new(0, &[Vec3::ZERO, Vec3::X, Vec3::new(1.0, 3.0, 0.0)]).unwrap();
+        assert_eq!(curve.point_at(0.0), Vec3::ZERO);
+        assert_eq!(curve.point_at(0.25), Vec3::X);
+        assert!(curve.point_at(0.5).distance(Vec3::new(1.0, 1.0, 0.0)) < 1e-6);
+        assert_eq!(curve.point_at(1.0), Vec3::new(1.0, 3.0, 0.0));
+        assert_eq!(curve.point_at(7.0), Vec3::new(1.0, 3.0, 0.0));
+        let positions = [Vec3::ZERO, Vec3::X, Vec3::new(4.0, 0.0, 0.0)];
+        assert_eq!(
+            chain_fractions(&positions, &[0, 1, 2]),
+            vec![0.0, 0.25, 1.0]
+        );
+        assert_eq!(
+            chain_fractions(&[Vec3::ZERO; 3], &[0, 1, 2]),
+            vec![0.0, 0.5, 1.0]
+        );
+    }
+
+    #[test]
+    fn bad_target_curves_are_refused() {
+        assert!(
+            ArcLengthCurve::new(3, &[Vec3::ZERO])
+                .unwrap_err()
+                .to_string()
+                .contains("curve constraint 3")
+        );
+        assert!(
+            ArcLengthCurve::new(0, &[Vec3::ZERO, Vec3::ZERO])
+                .unwrap_err()
+                .to_string()
+                .contains("zero length")
+        );
+        assert!(
+            ArcLengthCurve::new(0, &[Vec3::ZERO, Vec3::NAN])
+                .unwrap_err()
+                .to_string()
+                .contains("NaN")
+        );
+    }
+}
