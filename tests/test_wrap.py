@@ -305,11 +305,6 @@ def test_grid_over_a_hole_caps_it_with_space_points():
     assert np.all(space[np.linalg.norm(in_plane, axis=1) < HOLE_RADIUS - edge])
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="kernel: with momentum (0.9, its default) the wrap flips a quad next to an anchor; "
-    "see the wrap operator's report for the reproduction",
-)
 @pytest.mark.parametrize("scene", ["plane", "hole", "sphere"])
 def test_wraps_flip_no_quad(scene):
     if scene == "sphere":
@@ -330,11 +325,6 @@ def test_wraps_flip_no_quad(scene):
     assert_no_flipped_quads(layout, surface_normals)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="kernel: a space-point at the hole's rim folds and lifts off again every few iterations (a cycle), "
-    "so the wrap never converges; see the reproduction in the wrap operator's report",
-)
 def test_grid_over_a_hole_converges(capfd):
     plane_scene(hole=True)
     wrap_with_anchors(bpy.context.active_object, spacing=0.5, max_iterations=3000)

@@ -433,3 +433,33 @@ fn bad_curve_constraints_are_refused() {
         );
     }
 }
+
+#[test]
+fn a_point_balanced_at_a_hole_rim_does_not_fold_and_lift_forever() {
+    // A coarse layout whose anchors pull a vertex to the rim of a round hole: folding it on and
+    // walking it off again by turns must die out (fold back-off after lifts) and the wrap converge.
+    let target = plane_target(20, 0.15, 0.3);
+    let (structure, positions) = quad_layout(4, 0.5, Vec3::new(-1.0, -1.0, 0.3));
+    let anchored: Vec<u32> = [0u32, 2, 4]
+        .iter()
+        .flat_map(|&i| [0u32, 2, 4].map(|j| i * 5 + j))
+        .collect();
+    let anchors: Vec<Anchor> = anchored
+        .iter()
+        .map(|&vertex| {
+            let hit = target
+                .closest_point(positions[vertex as usize], f32::INFINITY)
+                .unwrap();
+            Anchor {
+                vertex,
+                target: AnchorTarget::Face(hit.face_point),
+            }
+        })
+        .collect();
+    let points = positions.iter().map(|&p| LayoutPoint::Space(p)).collect();
+    let mut solver =
+        WrapSolver::new(target, structure, points, &anchors, WrapSettings::default()).unwrap();
+    let report = solver.step(2000);
+    assert!(report.converged, "{report:?}");
+    assert!(report.lifted < 20, "{report:?}");
+}

@@ -33,6 +33,10 @@ const FOLD_TOLERANCE_RANGE: (f32, f32) = (
     0.5 * std::f32::consts::PI / 180.0,
     std::f32::consts::FRAC_PI_4,
 );
+/// How far toward its triangle's centroid a fold march that starts on a vertex is moved first.
+const OFF_VERTEX: f32 = 1e-3;
+/// Iterations a point may not fold after its first lift off a boundary; doubled at every lift.
+const FOLD_BACK_OFF: usize = 2;
 /// A target curve point lies on the surface when this close to it, as a fraction of the landing
 /// distance.
 const ON_CURVE: f32 = 1e-2;
@@ -101,7 +105,13 @@ pub struct WrapSolver {
     fold_tolerance: f32,
     layout_size: f32,
     landing_distance: f32,
+    /// Per point: how many times it lifted off a boundary, and the iteration before which it may
+    /// not fold again (exponential back-off, so that flip-flops at a rim die out).
+    lift_counts: Vec<u32>,
+    no_fold_until: Vec<usize>,
     total_iterations: usize,
+    /// Iterations run so far, counted inside `iterate` (for the fold back-off).
+    iteration: usize,
 }
 
 impl WrapSolver {
@@ -207,6 +217,8 @@ impl WrapSolver {
             settings,
             fold_tolerance: settings.fold_tolerance,
             landing_distance: settings.landing_distance * mean_edge_length,
+            lift_counts: vec![0; structure.vertex_count],
+            no_fold_until: vec![0; structure.vertex_count],
             layout_size,
             velocities: vec![Vec3::ZERO; structure.vertex_count],
             structure,
@@ -218,6 +230,7 @@ impl WrapSolver {
             walk_neighbors: None,
             curve_target_of_vertex: Vec::new(),
             total_iterations: 0,
+            iteration: 0,
         })
     }
 
@@ -435,11 +448,18 @@ impl WrapSolver {
                     counts.fold_candidates += 1;
                 }
                 Event::FoldCandidate => counts.fold_candidates += 1,
-                Event::Lifted => counts.lifted += 1,
+                Event::Lifted => {
+                    counts.lifted += 1;
+                    let lifts = self.lift_counts[vertex].saturating_add(1);
+                    self.lift_counts[vertex] = lifts;
+                    let back_off = FOLD_BACK_OFF << lifts.min(16);
+                    self.no_fold_until[vertex] = self.iteration + back_off;
+                }
                 Event::None => {}
             }
         }
         self.anneal(&counts);
+        self.iteration += 1;
         (max_displacement, counts)
     }
 
@@ -499,9 +519,15 @@ impl WrapSolver {
                         }
                     },
                 );
-            fairness * weights.fairness
-                + arc_length * weights.arc_length
-                + self.velocities[index] * self.settings.momentum
+            let spring = fairness * weights.fairness + arc_length * weights.arc_length;
+            // Adaptive restart: momentum only while the springs still pull the way the point was
+            // going; carrying it against them overshoots, and overshoot is what flips quads.
+            let velocity = self.velocities[index];
+            if spring.dot(velocity) > 0.0 {
+                spring + velocity * self.settings.momentum
+            } else {
+                spring
+            }
         };
         match self.points[index] {
             LayoutPoint::Face(face_point) => {
@@ -557,6 +583,7 @@ impl WrapSolver {
                 }
                 if weights.folding > 0.0
                     && constraint_target.is_none()
+                    && self.iteration >= self.no_fold_until[index]
                     && let Some(outcome) = self.fold(vertex, moved)
                 {
                     return outcome;
@@ -588,14 +615,29 @@ impl WrapSolver {
         if length == 0.0 || along == Vec3::ZERO {
             return Some((LayoutPoint::Space(position), position, Event::FoldCandidate));
         }
-        let (folded_point, folded_position) = match self.walk(seed, along * length) {
+        let (folded_point, folded_position) = match self.walk(off_vertex(seed), along * length) {
             WalkEnd::OnSurface(face_point) => (
-                Some(face_point),
+                // Never land on unreliable data: the fold target then only guides the rotation.
+                (!self.is_unreliable(face_point.triangle)).then_some(face_point),
                 self.target
                     .interpolate(face_point.triangle, face_point.barycentric),
             ),
             // A hole on the way: the fold target floats in space (paper, section 2.5).
             WalkEnd::Lifted { position, .. } => (None, position),
+        };
+        // A march that did not move at all (it can happen exactly along an edge through vertices)
+        // says nothing: the exact closest surface point is the fold target instead.
+        let (folded_point, folded_position) = if folded_position.distance_squared(seed_position)
+            <= (length * 1e-6).powi(2)
+        {
+            match self.target.closest_point(position, length) {
+                Some(hit) if !self.is_unreliable(hit.face_point.triangle) => {
+                    (Some(hit.face_point), hit.position)
+                }
+                _ => return Some((LayoutPoint::Space(position), position, Event::FoldCandidate)),
+            }
+        } else {
+            (folded_point, folded_position)
         };
         let folded_offset = folded_position - seed_position;
         let angle = offset.angle_between(folded_offset);
@@ -697,5 +739,20 @@ fn relabel_anchor_error(error: KernelError, anchor: usize) -> KernelError {
             index: anchor,
         },
         other => other,
+    }
+}
+
+/// A march that starts exactly on a target vertex (anchors and vertex snaps put seeds there)
+/// starts a hair inside its triangle instead: the walker's turn around a start vertex can leave
+/// in the wrong direction on tilted surfaces, while crossing the fan edge by edge from just
+/// inside a triangle unfolds exactly.
+fn off_vertex(start: FacePoint) -> FacePoint {
+    if start.barycentric.max_element() > 1.0 - OFF_VERTEX {
+        FacePoint {
+            triangle: start.triangle,
+            barycentric: start.barycentric * (1.0 - OFF_VERTEX) + Vec3::splat(OFF_VERTEX / 3.0),
+        }
+    } else {
+        start
     }
 }
