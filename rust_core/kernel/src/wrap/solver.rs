@@ -33,6 +33,8 @@ const FOLD_TOLERANCE_RANGE: (f32, f32) = (
     0.5 * std::f32::consts::PI / 180.0,
     std::f32::consts::FRAC_PI_4,
 );
+/// The smallest step scale a rocking face-point is slowed to.
+const MIN_STEP_SCALE: f32 = 1.0 / 1024.0;
 /// How far toward its triangle's centroid a fold march that starts on a vertex is moved first.
 const OFF_VERTEX: f32 = 1e-3;
 /// Iterations a point may not fold after its first lift off a boundary; doubled at every lift.
@@ -93,6 +95,10 @@ pub struct WrapSolver {
     positions: Vec<Vec3>,
     /// Each point's move in the last iteration (zero after a change of state), for the momentum.
     velocities: Vec<Vec3>,
+    /// Each face-point's step scale: halved when its move reverses the previous one (a point
+    /// rocking across a crease of the target, where the tangential forces on the two sides point
+    /// at each other), regrown slowly while its moves agree.
+    step_scales: Vec<f32>,
     anchor_of_vertex: Vec<Option<(AnchorTarget, Vec3)>>,
     is_corner: Vec<bool>,
     /// Target triangles whose data is not to be trusted (noise); empty when all are.
@@ -221,6 +227,7 @@ impl WrapSolver {
             no_fold_until: vec![0; structure.vertex_count],
             layout_size,
             velocities: vec![Vec3::ZERO; structure.vertex_count],
+            step_scales: vec![1.0; structure.vertex_count],
             structure,
             points,
             positions,
@@ -438,6 +445,14 @@ impl WrapSolver {
             );
             // Momentum carries a move on only while the point keeps its state.
             let keeps_moving = same_state && matches!(event, Event::None | Event::FoldCandidate);
+            let scale = &mut self.step_scales[vertex];
+            *scale = if !matches!(point, LayoutPoint::Face(_)) || !keeps_moving {
+                1.0
+            } else if moved.dot(self.velocities[vertex]) < 0.0 {
+                (*scale * 0.5).max(MIN_STEP_SCALE)
+            } else {
+                (*scale * 1.25).min(1.0)
+            };
             self.velocities[vertex] = if keeps_moving { moved } else { Vec3::ZERO };
             self.points[vertex] = point;
             self.positions[vertex] = position;
@@ -532,7 +547,7 @@ impl WrapSolver {
         match self.points[index] {
             LayoutPoint::Face(face_point) => {
                 let normal = self.target.face_normals()[face_point.triangle as usize];
-                let tangential = force - normal * force.dot(normal);
+                let tangential = (force - normal * force.dot(normal)) * self.step_scales[index];
                 match self.walk(face_point, tangential) {
                     WalkEnd::OnSurface(moved) => {
                         let position = self.target.interpolate(moved.triangle, moved.barycentric);
@@ -593,27 +608,56 @@ impl WrapSolver {
         }
     }
 
-    /// Folding of a space-point at `position` around its nearest face-point neighbour (the seed):
-    /// `None` when it has no face-point neighbour.
+    /// Folding of a space-point at `position` around its face-point neighbours (the seeds):
+    /// `None` when it has none.
+    ///
+    /// Each seed gives a fold: land (the marched point is within the tolerance) or a rotation.
+    /// The point lands by the seed with the smallest angle; otherwise it moves to the mean of the
+    /// rotated positions. Using every seed keeps the fold continuous: with only the nearest one it
+    /// jumps when two neighbours swap places, and the point rocks between two positions.
     fn fold(&self, vertex: u32, position: Vec3) -> Option<(LayoutPoint, Vec3, Event)> {
-        let (seed, seed_position) = self
-            .structure
-            .neighbors_of(vertex)
-            .iter()
-            .filter_map(|&other| match self.points[other as usize] {
-                LayoutPoint::Face(face_point) => Some((face_point, self.positions[other as usize])),
-                LayoutPoint::Space(_) => None,
-            })
-            .min_by(|a, b| {
-                a.1.distance_squared(position)
-                    .total_cmp(&b.1.distance_squared(position))
-            })?;
+        let mut seeds = 0usize;
+        let mut best_landing: Option<(f32, FacePoint, Vec3)> = None;
+        let mut rotated_sum = Vec3::ZERO;
+        for &other in self.structure.neighbors_of(vertex) {
+            let LayoutPoint::Face(seed) = self.points[other as usize] else {
+                continue;
+            };
+            seeds += 1;
+            match self.fold_from(seed, self.positions[other as usize], position) {
+                Fold::Land {
+                    angle,
+                    face_point,
+                    position: landed,
+                } => {
+                    if best_landing.is_none_or(|(best, _, _)| angle < best) {
+                        best_landing = Some((angle, face_point, landed));
+                    }
+                    rotated_sum += landed;
+                }
+                Fold::Rotate(rotated) => rotated_sum += rotated,
+                Fold::Stay => rotated_sum += position,
+            }
+        }
+        if seeds == 0 {
+            return None;
+        }
+        if let Some((_, face_point, landed)) = best_landing {
+            return Some((LayoutPoint::Face(face_point), landed, Event::Folded));
+        }
+        let rotated = rotated_sum / seeds as f32;
+        Some((LayoutPoint::Space(rotated), rotated, Event::FoldCandidate))
+    }
+
+    /// The fold of a space-point at `position` around one seed (paper, section 2.5): its offset
+    /// from the seed, projected on the seed's tangent plane, is marched along the surface.
+    fn fold_from(&self, seed: FacePoint, seed_position: Vec3, position: Vec3) -> Fold {
         let offset = position - seed_position;
         let length = offset.length();
         let normal = self.target.face_normals()[seed.triangle as usize];
         let along = (offset - normal * offset.dot(normal)).normalize_or_zero();
         if length == 0.0 || along == Vec3::ZERO {
-            return Some((LayoutPoint::Space(position), position, Event::FoldCandidate));
+            return Fold::Stay;
         }
         let (folded_point, folded_position) = match self.walk(off_vertex(seed), along * length) {
             WalkEnd::OnSurface(face_point) => (
@@ -627,40 +671,52 @@ impl WrapSolver {
         };
         // A march that did not move at all (it can happen exactly along an edge through vertices)
         // says nothing: the exact closest surface point is the fold target instead.
-        let (folded_point, folded_position) = if folded_position.distance_squared(seed_position)
-            <= (length * 1e-6).powi(2)
-        {
-            match self.target.closest_point(position, length) {
-                Some(hit) if !self.is_unreliable(hit.face_point.triangle) => {
-                    (Some(hit.face_point), hit.position)
+        let (folded_point, folded_position) =
+            if folded_position.distance_squared(seed_position) <= (length * 1e-6).powi(2) {
+                match self.target.closest_point(position, length) {
+                    Some(hit) if !self.is_unreliable(hit.face_point.triangle) => {
+                        (Some(hit.face_point), hit.position)
+                    }
+                    _ => return Fold::Stay,
                 }
-                _ => return Some((LayoutPoint::Space(position), position, Event::FoldCandidate)),
-            }
-        } else {
-            (folded_point, folded_position)
-        };
+            } else {
+                (folded_point, folded_position)
+            };
         let folded_offset = folded_position - seed_position;
         let angle = offset.angle_between(folded_offset);
         if !angle.is_finite() {
-            return Some((LayoutPoint::Space(position), position, Event::FoldCandidate));
+            return Fold::Stay;
         }
         if angle <= self.fold_tolerance
             && let Some(face_point) = folded_point
         {
-            return Some((
-                LayoutPoint::Face(face_point),
-                folded_position,
-                Event::Folded,
-            ));
+            return Fold::Land {
+                angle,
+                face_point,
+                position: folded_position,
+            };
         }
         let axis = offset.cross(folded_offset).normalize_or_zero();
         if axis == Vec3::ZERO {
-            return Some((LayoutPoint::Space(position), position, Event::FoldCandidate));
+            return Fold::Stay;
         }
         let rotation = Quat::from_axis_angle(axis, angle * self.settings.weights.folding);
-        let rotated = seed_position + rotation * offset;
-        Some((LayoutPoint::Space(rotated), rotated, Event::FoldCandidate))
+        Fold::Rotate(seed_position + rotation * offset)
     }
+}
+
+/// What folding around one seed proposes.
+enum Fold {
+    /// Land there, on the surface (the angle was within the tolerance).
+    Land {
+        angle: f32,
+        face_point: FacePoint,
+        position: Vec3,
+    },
+    /// Rotate toward the fold target, to this position.
+    Rotate(Vec3),
+    /// No fold: the offset or the march says nothing.
+    Stay,
 }
 
 #[derive(Debug, Default, Clone, Copy)]
