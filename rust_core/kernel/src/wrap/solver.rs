@@ -33,7 +33,11 @@ const FOLD_TOLERANCE_RANGE: (f32, f32) = (
     0.5 * std::f32::consts::PI / 180.0,
     std::f32::consts::FRAC_PI_4,
 );
-/// The smallest step scale a rocking face-point is slowed to.
+/// Weight of the newest move in a point's moving averages.
+const MOVE_AVERAGING: f32 = 0.25;
+/// A point rocks when its mean move is shorter than this fraction of its mean move length.
+const ROCKING: f32 = 0.3;
+/// The smallest step scale a rocking point is slowed to.
 const MIN_STEP_SCALE: f32 = 1.0 / 1024.0;
 /// How far toward its triangle's centroid a fold march that starts on a vertex is moved first.
 const OFF_VERTEX: f32 = 1e-3;
@@ -95,10 +99,14 @@ pub struct WrapSolver {
     positions: Vec<Vec3>,
     /// Each point's move in the last iteration (zero after a change of state), for the momentum.
     velocities: Vec<Vec3>,
-    /// Each face-point's step scale: halved when its move reverses the previous one (a point
-    /// rocking across a crease of the target, where the tangential forces on the two sides point
-    /// at each other), regrown slowly while its moves agree.
+    /// Each free point's step scale: halved while it goes round in circles (a face-point rocking
+    /// across a crease of the target, where the tangential forces on the two sides point at each
+    /// other; a space-point between folding and the springs), regrown slowly while it makes
+    /// progress.
     step_scales: Vec<f32>,
+    /// Per point, moving averages of its moves and of their lengths: their ratio says whether
+    /// it makes progress (near 1) or rocks (near 0), whatever the period of the rocking.
+    mean_moves: Vec<(Vec3, f32)>,
     anchor_of_vertex: Vec<Option<(AnchorTarget, Vec3)>>,
     is_corner: Vec<bool>,
     /// Target triangles whose data is not to be trusted (noise); empty when all are.
@@ -228,6 +236,7 @@ impl WrapSolver {
             layout_size,
             velocities: vec![Vec3::ZERO; structure.vertex_count],
             step_scales: vec![1.0; structure.vertex_count],
+            mean_moves: vec![(Vec3::ZERO, 0.0); structure.vertex_count],
             structure,
             points,
             positions,
@@ -445,10 +454,14 @@ impl WrapSolver {
             );
             // Momentum carries a move on only while the point keeps its state.
             let keeps_moving = same_state && matches!(event, Event::None | Event::FoldCandidate);
+            let (mean_move, mean_length) = &mut self.mean_moves[vertex];
+            *mean_move = *mean_move * (1.0 - MOVE_AVERAGING) + moved * MOVE_AVERAGING;
+            *mean_length = *mean_length * (1.0 - MOVE_AVERAGING) + moved.length() * MOVE_AVERAGING;
+            let rocking = mean_move.length() < ROCKING * *mean_length;
             let scale = &mut self.step_scales[vertex];
-            *scale = if !matches!(point, LayoutPoint::Face(_)) || !keeps_moving {
+            *scale = if !keeps_moving {
                 1.0
-            } else if moved.dot(self.velocities[vertex]) < 0.0 {
+            } else if rocking {
                 (*scale * 0.5).max(MIN_STEP_SCALE)
             } else {
                 (*scale * 1.25).min(1.0)
@@ -596,14 +609,22 @@ impl WrapSolver {
                         Event::Landed,
                     );
                 }
+                let scale = self.step_scales[index];
                 if weights.folding > 0.0
                     && constraint_target.is_none()
                     && self.iteration >= self.no_fold_until[index]
                     && let Some(outcome) = self.fold(vertex, moved)
                 {
-                    return outcome;
+                    return match outcome {
+                        (LayoutPoint::Space(rotated), _, event) => {
+                            let scaled = here + (rotated - here) * scale;
+                            (LayoutPoint::Space(scaled), scaled, event)
+                        }
+                        landed => landed,
+                    };
                 }
-                (LayoutPoint::Space(moved), moved, Event::None)
+                let scaled = here + (moved - here) * scale;
+                (LayoutPoint::Space(scaled), scaled, Event::None)
             }
         }
     }
