@@ -11,7 +11,7 @@ import time
 import bpy
 
 from .operators import layout_problem
-from .properties import ANCHOR_METHOD_ITEMS
+from .properties import ANCHOR_METHOD_ITEMS, max_distance_property
 
 
 def anchor_problem(context, require_target=True, require_anchors=False):
@@ -172,14 +172,7 @@ class SPRINGWRAP_OT_anchors_auto(_AnchorOperator, bpy.types.Operator):
         description="Remove the existing anchors first; off: keep them and anchor other vertices only",
         default=True,
     )
-    max_distance: bpy.props.FloatProperty(
-        name="Max Distance",
-        description="Vertices whose target point is farther than this get no anchor (0 = unlimited)",
-        default=0.0,
-        min=0.0,
-        subtype="DISTANCE",
-        unit="LENGTH",
-    )
+    max_distance: max_distance_property("Vertices whose target point is farther than this get no anchor (0 = unlimited)")
 
     def compute(self, context, anchors, bridge, layout):
         arrays = bridge.read_layout(layout)

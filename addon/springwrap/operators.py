@@ -9,7 +9,7 @@ import time
 
 import bpy
 
-from .properties import ORIENTATION_ITEMS, PROJECT_DIRECTION_ITEMS, SNAP_MODE_ITEMS
+from .properties import ORIENTATION_ITEMS, PROJECT_DIRECTION_ITEMS, SNAP_MODE_ITEMS, max_distance_property
 
 
 def layout_problem(context, require_target=True):
@@ -121,14 +121,7 @@ class SPRINGWRAP_OT_snap(_LayoutOperator, bpy.types.Operator):
     bl_options = {"REGISTER", "UNDO"}
 
     mode: bpy.props.EnumProperty(name="Mode", items=SNAP_MODE_ITEMS, default="SURFACE")
-    max_distance: bpy.props.FloatProperty(
-        name="Max Distance",
-        description="Vertices farther than this from the target are left untouched (0 = unlimited)",
-        default=0.0,
-        min=0.0,
-        subtype="DISTANCE",
-        unit="LENGTH",
-    )
+    max_distance: max_distance_property("Vertices farther than this from the target are left untouched (0 = unlimited)")
 
     def compute(self, context, bridge, operations, layout, arrays, target):
         return operations.snap(
@@ -164,14 +157,7 @@ class SPRINGWRAP_OT_project(_LayoutOperator, bpy.types.Operator):
         description="Also cast each ray backwards and keep the nearer hit",
         default=True,
     )
-    max_distance: bpy.props.FloatProperty(
-        name="Max Distance",
-        description="Hits farther than this along the ray are ignored (0 = unlimited)",
-        default=0.0,
-        min=0.0,
-        subtype="DISTANCE",
-        unit="LENGTH",
-    )
+    max_distance: max_distance_property("Hits farther than this along the ray are ignored (0 = unlimited)")
 
     def compute(self, context, bridge, operations, layout, arrays, target):
         directions = self.world_directions(context, bridge, layout)

@@ -7,6 +7,19 @@ through edits, undo and save/reload.
 
 import bpy
 
+
+def max_distance_property(description: str):
+    """A world-space distance limit, 0 meaning unlimited: shared by the operators and the panel defaults."""
+    return bpy.props.FloatProperty(
+        name="Max Distance",
+        description=description,
+        default=0.0,
+        min=0.0,
+        subtype="DISTANCE",
+        unit="LENGTH",
+    )
+
+
 SNAP_MODE_ITEMS = (
     ("SURFACE", "Surface", "Closest point on the target surface (exact, uses the face tree)"),
     ("VERTEX", "Vertex", "Nearest target vertex (fast, uses the vertex tree)"),
@@ -124,14 +137,7 @@ class SpringwrapObjectSettings(bpy.types.PropertyGroup):
         description="Also cast each ray backwards and keep the nearer hit",
         default=True,
     )
-    max_distance: bpy.props.FloatProperty(
-        name="Max Distance",
-        description="Vertices farther than this from the target are left untouched (0 = unlimited)",
-        default=0.0,
-        min=0.0,
-        subtype="DISTANCE",
-        unit="LENGTH",
-    )
+    max_distance: max_distance_property("Vertices farther than this from the target are left untouched (0 = unlimited)")
 
     anchors: bpy.props.CollectionProperty(
         name="Anchors",
