@@ -1,0 +1,378 @@
+"""Curve constraints on arrays (paper section 2.4): numpy and heapq, no ``bpy``.
+
+A curve constraint pairs a chain of layout edges (its vertices in order) with a target curve, a
+world-space polyline in the same direction: a Blender curve object, or a chain of target mesh
+edges. The wrap hands them to the kernel, which matches each chain vertex to the polyline point
+at the same fraction of arc length.
+
+The functions here order selected edges into a chain, find target edge chains (Dijkstra over
+edge lengths), orient polylines, pair layout curves automatically, and check and flatten
+constraints for the kernel; ``bridge`` reads and writes them, ``curve_operators`` only call and
+report. Every function returns new arrays and leaves its inputs untouched.
+"""
+
+import heapq
+from typing import Any, NamedTuple, Optional
+
+import numpy as np
+
+from .layout_state import LayoutError
+
+CURVE_OBJECT = "CURVE_OBJECT"
+"""Source of a constraint whose target is a Blender curve object."""
+TARGET_EDGES = "TARGET_EDGES"
+"""Source of a constraint whose target is a chain of target mesh edges."""
+
+SKIP_REASONS = {
+    "closed": "the layout curve is closed",
+    "unanchored": "an end of the layout curve has no anchor",
+    "ambiguous": "both ends anchor to the same target vertex",
+    "constrained": "its vertices are already constrained by another pairing",
+    "unreachable": "no target edge chain joins the two anchor targets",
+}
+"""Why ``auto_pairs`` skips a layout curve (key -> sentence for the report)."""
+
+
+class CurveConstraint(NamedTuple):
+    """One curve constraint: a layout chain and its target polyline (world space, same direction)."""
+
+    layout_vertices: np.ndarray  # (C,) int64 layout vertices in order along the chain
+    points: np.ndarray  # (P, 3) float64 world-space target polyline, its start at the chain's start
+    source_kind: str  # CURVE_OBJECT or TARGET_EDGES
+    target_vertices: np.ndarray  # (P,) int64 target vertices of a TARGET_EDGES polyline, empty otherwise
+    curve_object: Any = None  # the curve object of a CURVE_OBJECT constraint (opaque here)
+
+
+class AutoOutcome(NamedTuple):
+    """What ``auto_pairs`` found: the new constraints and how many curves were skipped, by reason."""
+
+    constraints: list  # of CurveConstraint
+    skipped: dict  # SKIP_REASONS key -> count
+
+
+def make_constraint(layout_vertices, points, source_kind, target_vertices=(), curve_object=None) -> CurveConstraint:
+    """A :class:`CurveConstraint` with the right dtypes and shapes."""
+    if source_kind not in (CURVE_OBJECT, TARGET_EDGES):
+        raise ValueError(f"unknown curve constraint source {source_kind!r}")
+    return CurveConstraint(
+        layout_vertices=np.asarray(layout_vertices, dtype=np.int64).reshape(-1).copy(),
+        points=np.asarray(points, dtype=np.float64).reshape(-1, 3).copy(),
+        source_kind=source_kind,
+        target_vertices=np.asarray(target_vertices, dtype=np.int64).reshape(-1).copy(),
+        curve_object=curve_object,
+    )
+
+
+# ---------------------------------------------------------------- chains
+
+
+def chain_from_edges(edges) -> np.ndarray:
+    """The vertices of ``edges`` ((E, 2) vertex pairs) in order along the one open chain they form.
+
+    Raises :class:`LayoutError` with the reason when there are no edges, when a vertex has more
+    than two of them (branching), when they close a loop, or when they form several pieces.
+    The chain starts at its end vertex with the lower index.
+    """
+    edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    if not edges.shape[0]:
+        raise LayoutError("No edge is selected: select the layout edges of one chain")
+    if np.any(edges[:, 0] == edges[:, 1]):
+        raise LayoutError("An edge joins a vertex to itself")
+    keys = np.unique(np.sort(edges, axis=1), axis=0)
+    vertices, degrees = np.unique(keys, return_counts=True)
+    branching = vertices[degrees > 2]
+    if branching.size:
+        raise LayoutError(
+            f"The selected edges branch at vertex {int(branching[0])} ({int(degrees[degrees > 2][0])} edges meet "
+            "there): select one simple chain"
+        )
+    ends = vertices[degrees == 1]
+    if ends.size == 0:
+        raise LayoutError("The selected edges form a closed loop: select an open chain (it needs two ends)")
+    neighbours: dict[int, list[int]] = {}
+    for first, second in keys.tolist():
+        neighbours.setdefault(first, []).append(second)
+        neighbours.setdefault(second, []).append(first)
+    chain = [int(ends.min())]
+    previous = -1
+    while True:
+        following = [vertex for vertex in neighbours[chain[-1]] if vertex != previous]
+        if not following:
+            break
+        previous = chain[-1]
+        chain.append(following[0])
+    if len(chain) != vertices.size:
+        raise LayoutError(
+            "The selected edges form more than one piece: select one connected chain"
+        )
+    return np.asarray(chain, dtype=np.int64)
+
+
+def shortest_path(positions, edges, start: int, end: int) -> np.ndarray:
+    """Vertices of the shortest edge path from ``start`` to ``end`` (Dijkstra over edge lengths).
+
+    ``positions`` (V, 3), ``edges`` (E, 2). Raises :class:`LayoutError` when ``end`` cannot be
+    reached. Ties are broken by vertex index, so the result is deterministic.
+    """
+    positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+    edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    vertex_count = positions.shape[0]
+    start, end = int(start), int(end)
+    for vertex in (start, end):
+        if not 0 <= vertex < vertex_count:
+            raise LayoutError(f"Target vertex {vertex} is out of range: the target has {vertex_count} vertices")
+    if start == end:
+        return np.asarray([start], dtype=np.int64)
+    # Adjacency in CSR form, both directions.
+    sources = np.concatenate([edges[:, 0], edges[:, 1]])
+    destinations = np.concatenate([edges[:, 1], edges[:, 0]])
+    lengths = np.linalg.norm(positions[sources] - positions[destinations], axis=1)
+    order = np.argsort(sources, kind="stable")
+    sources, destinations, lengths = sources[order], destinations[order], lengths[order]
+    offsets = np.searchsorted(sources, np.arange(vertex_count + 1)).tolist()
+    destinations, lengths = destinations.tolist(), lengths.tolist()
+    distances = {start: 0.0}
+    previous = {start: -1}
+    done = set()
+    heap = [(0.0, start)]
+    while heap:
+        distance, vertex = heapq.heappop(heap)
+        if vertex in done:
+            continue
+        if vertex == end:
+            break
+        done.add(vertex)
+        for slot in range(offsets[vertex], offsets[vertex + 1]):
+            neighbour = destinations[slot]
+            candidate = distance + lengths[slot]
+            if candidate < distances.get(neighbour, np.inf):
+                distances[neighbour] = candidate
+                previous[neighbour] = vertex
+                heapq.heappush(heap, (candidate, neighbour))
+    if end not in previous:
+        raise LayoutError(f"No chain of target edges joins target vertices {start} and {end}")
+    path = [end]
+    while previous[path[-1]] != -1:
+        path.append(previous[path[-1]])
+    return np.asarray(path[::-1], dtype=np.int64)
+
+
+def nearest_vertex(positions, point) -> int:
+    """Index of the row of ``positions`` (V, 3) nearest to ``point`` (ties: the lowest index)."""
+    positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+    if not positions.shape[0]:
+        raise LayoutError("The target has no vertices")
+    return int(np.argmin(((positions - np.asarray(point, dtype=np.float64).reshape(1, 3)) ** 2).sum(axis=1)))
+
+
+def orient(points, first_point) -> bool:
+    """Whether the polyline ``points`` must be reversed so that its start is nearest to ``first_point``."""
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    first_point = np.asarray(first_point, dtype=np.float64).reshape(3)
+    return bool(np.linalg.norm(points[-1] - first_point) < np.linalg.norm(points[0] - first_point))
+
+
+def oriented(points, first_point) -> np.ndarray:
+    """The polyline ``points`` (P, 3), reversed when its end is nearer to ``first_point`` than its start."""
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    return points[::-1].copy() if orient(points, first_point) else points.copy()
+
+
+# ---------------------------------------------------------------- pairing
+
+
+def constrained_vertices(constraints, anchored: Optional[np.ndarray] = None) -> set:
+    """The layout vertices some constraint holds, anchored vertices excepted (they may be shared)."""
+    held = set()
+    for constraint in constraints:
+        for vertex in constraint.layout_vertices.tolist():
+            if anchored is None or not (0 <= vertex < anchored.shape[0] and anchored[vertex]):
+                held.add(vertex)
+    return held
+
+
+def check_free(chain, constraints, anchored: Optional[np.ndarray] = None) -> None:
+    """Raise :class:`LayoutError` when a vertex of ``chain`` (not anchored) is held by one of ``constraints``."""
+    held = constrained_vertices(constraints, anchored)
+    for vertex in np.asarray(chain).tolist():
+        if vertex in held and not (anchored is not None and 0 <= vertex < anchored.shape[0] and anchored[vertex]):
+            raise LayoutError(
+                f"Layout vertex {vertex} already belongs to another curve constraint: a vertex may follow one "
+                "target curve only (remove that constraint first)"
+            )
+
+
+def target_edge_constraint(chain, start_point, end_point, target_positions, target_edges) -> CurveConstraint:
+    """A TARGET_EDGES constraint: ``chain`` paired with the shortest target edge path between the
+    target vertices nearest to ``start_point`` (the chain's first vertex's end) and ``end_point``.
+
+    Raises :class:`LayoutError` when both ends find the same target vertex (ambiguous) or no path.
+    """
+    start = nearest_vertex(target_positions, start_point)
+    end = nearest_vertex(target_positions, end_point)
+    if start == end:
+        raise LayoutError(
+            f"Both ends of the chain are nearest to target vertex {start}: the target curve is ambiguous"
+        )
+    path = shortest_path(target_positions, target_edges, start, end)
+    points = np.asarray(target_positions, dtype=np.float64).reshape(-1, 3)[path]
+    return make_constraint(chain, points, TARGET_EDGES, path)
+
+
+def auto_pairs(
+    layout_curves,
+    anchor_vertices,
+    anchor_locations,
+    existing,
+    target_positions,
+    target_edges,
+    vertex_count: int,
+) -> AutoOutcome:
+    """Pair every layout curve whose two ends carry anchors with the target edge chain between them.
+
+    ``layout_curves``: (kind, vertices in order, closed) per curve (the kernel's
+    ``LayoutStructure.curves()``); ``anchor_vertices`` (K,) and ``anchor_locations`` (K, 3) the
+    anchors' vertices and world-space targets; ``existing`` the constraints already there. A curve
+    is skipped (and counted under a :data:`SKIP_REASONS` key) when it is closed, an end has no
+    anchor, both anchors find the same target vertex, a vertex (not anchored) is already
+    constrained, or no target path joins them.
+    """
+    anchor_vertices = np.asarray(anchor_vertices, dtype=np.int64).reshape(-1)
+    anchor_locations = np.asarray(anchor_locations, dtype=np.float64).reshape(-1, 3)
+    location_of = {int(vertex): anchor_locations[row] for row, vertex in enumerate(anchor_vertices.tolist())}
+    anchored = np.zeros(vertex_count, dtype=bool)
+    valid = anchor_vertices[(anchor_vertices >= 0) & (anchor_vertices < vertex_count)]
+    anchored[valid] = True
+    skipped = {key: 0 for key in SKIP_REASONS}
+    found = []
+    for _kind, vertices, closed in layout_curves:
+        chain = np.asarray(vertices, dtype=np.int64).reshape(-1)
+        if closed or chain.size < 2 or chain[0] == chain[-1]:
+            skipped["closed"] += 1
+            continue
+        first, last = int(chain[0]), int(chain[-1])
+        if first not in location_of or last not in location_of:
+            skipped["unanchored"] += 1
+            continue
+        try:
+            check_free(chain, list(existing) + found, anchored)
+        except LayoutError:
+            skipped["constrained"] += 1
+            continue
+        start = nearest_vertex(target_positions, location_of[first])
+        end = nearest_vertex(target_positions, location_of[last])
+        if start == end:
+            skipped["ambiguous"] += 1
+            continue
+        try:
+            path = shortest_path(target_positions, target_edges, start, end)
+        except LayoutError:
+            skipped["unreachable"] += 1
+            continue
+        points = np.asarray(target_positions, dtype=np.float64).reshape(-1, 3)[path]
+        found.append(make_constraint(chain, points, TARGET_EDGES, path))
+    return AutoOutcome(found, skipped)
+
+
+def skip_report(skipped: dict) -> str:
+    """``"2 skipped: 1 the layout curve is closed, 1 ..."``, or ``""`` when nothing was skipped."""
+    parts = [f"{count} {SKIP_REASONS[key]}" for key, count in skipped.items() if count]
+    if not parts:
+        return ""
+    return f"{sum(skipped.values())} skipped: " + ", ".join(parts)
+
+
+# ---------------------------------------------------------------- the wrap
+
+
+def kernel_arrays(constraints, vertex_count: int, anchored: Optional[np.ndarray] = None):
+    """The kernel's flat arrays ``(curve_vertices, curve_vertex_counts, curve_points, curve_point_counts)``.
+
+    Raises :class:`LayoutError` naming the constraint when a chain has fewer than two vertices or
+    a vertex the layout does not have, a polyline fewer than two points or a non-finite one, or a
+    (non-anchored) vertex belongs to two constraints. Returns None when there are no constraints.
+    """
+    constraints = list(constraints)
+    if not constraints:
+        return None
+    held: dict[int, int] = {}
+    for number, constraint in enumerate(constraints):
+        chain, points = constraint.layout_vertices, constraint.points
+        label = f"Curve constraint {number}"
+        if chain.size < 2:
+            raise LayoutError(f"{label} has {chain.size} layout vertices: a chain needs at least two")
+        bad = chain[(chain < 0) | (chain >= vertex_count)]
+        if bad.size:
+            raise LayoutError(
+                f"{label} uses vertex {int(bad[0])}, which the layout no longer has (it has {vertex_count}): remove it"
+            )
+        if points.shape[0] < 2:
+            raise LayoutError(f"{label} has a target curve of {points.shape[0]} points: it needs at least two")
+        if not np.all(np.isfinite(points)):
+            raise LayoutError(f"{label} has a NaN or infinite target point")
+        for vertex in chain.tolist():
+            if anchored is not None and anchored[vertex]:
+                continue
+            if vertex in held:
+                raise LayoutError(
+                    f"Layout vertex {vertex} belongs to curve constraints {held[vertex]} and {number}: remove one"
+                )
+            held[vertex] = number
+    return (
+        np.ascontiguousarray(np.concatenate([c.layout_vertices for c in constraints]), dtype=np.uint32),
+        np.asarray([c.layout_vertices.size for c in constraints], dtype=np.uint32),
+        np.ascontiguousarray(np.concatenate([c.points for c in constraints]), dtype=np.float32),
+        np.asarray([c.points.shape[0] for c in constraints], dtype=np.uint32),
+    )
+
+
+# ---------------------------------------------------------------- drawing
+
+
+def arc_length_points(chain_positions, points) -> np.ndarray:
+    """(C, 3): for each chain vertex, the polyline point at the same fraction of arc length."""
+    chain_positions = np.asarray(chain_positions, dtype=np.float64).reshape(-1, 3)
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    if points.shape[0] == 0:
+        return np.full_like(chain_positions, np.nan)
+    if points.shape[0] == 1:
+        return np.repeat(points, chain_positions.shape[0], axis=0)
+    chain_lengths = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(chain_positions, axis=0), axis=1))])
+    point_lengths = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
+    if chain_lengths[-1] > 0.0:
+        fractions = chain_lengths / chain_lengths[-1]
+    else:
+        fractions = np.linspace(0.0, 1.0, chain_positions.shape[0])
+    wanted = fractions * point_lengths[-1]
+    return np.stack([np.interp(wanted, point_lengths, points[:, axis]) for axis in range(3)], axis=1)
+
+
+def dashed_segments(starts, ends, dash_count: int = 6) -> tuple[np.ndarray, np.ndarray]:
+    """Each line ``starts[i] -> ends[i]`` cut into ``dash_count`` dashes (every other piece of 2·n-1).
+
+    Returns float32 (L·n, 3) dash starts and ends; lines with a non-finite end are left out.
+    """
+    starts = np.asarray(starts, dtype=np.float64).reshape(-1, 3)
+    ends = np.asarray(ends, dtype=np.float64).reshape(-1, 3)
+    finite = np.all(np.isfinite(starts), axis=1) & np.all(np.isfinite(ends), axis=1)
+    starts, ends = starts[finite], ends[finite]
+    pieces = 2 * dash_count - 1
+    first = np.arange(0, pieces, 2, dtype=np.float64) / pieces
+    second = first + 1.0 / pieces
+    direction = ends - starts
+    dash_starts = starts[:, None, :] + first[None, :, None] * direction[:, None, :]
+    dash_ends = starts[:, None, :] + second[None, :, None] * direction[:, None, :]
+    return dash_starts.reshape(-1, 3).astype(np.float32), dash_ends.reshape(-1, 3).astype(np.float32)
+
+
+def parse_indices(text: str) -> np.ndarray:
+    """The vertex indices stored as text (``"0 1 2"``), as int64; raises :class:`LayoutError` when malformed."""
+    try:
+        return np.asarray([int(part) for part in text.split()], dtype=np.int64)
+    except ValueError as error:
+        raise LayoutError(f"Malformed vertex index list {text[:40]!r}") from error
+
+
+def format_indices(indices) -> str:
+    """Vertex indices as the text :func:`parse_indices` reads."""
+    return " ".join(str(int(index)) for index in np.asarray(indices).reshape(-1).tolist())

@@ -1,0 +1,168 @@
+"""Plain tests of the add-on's bpy-free curve-constraint logic (``addon/springwrap/curves.py``), no Blender.
+
+Chains, shortest paths and automatic pairing run on generated grids (a W x H lattice of unit
+spacing in the plane z = 0) whose answers are known: a row of the grid is the shortest path
+between its ends, a border of a quad grid is one curve.
+"""
+
+import importlib
+import sys
+import types
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ADDON_DIR = Path(__file__).resolve().parent.parent / "addon" / "springwrap"
+
+
+def _load_curves():
+    """Import curves.py (and the bpy-free modules it needs) without the package's bpy-bound __init__."""
+    package_name = "springwrap_curve_logic_under_test"
+    if package_name not in sys.modules:
+        package = types.ModuleType(package_name)
+        package.__path__ = [str(ADDON_DIR)]
+        sys.modules[package_name] = package
+    return importlib.import_module(f"{package_name}.curves")
+
+
+cu = _load_curves()
+LayoutError = cu.LayoutError
+
+
+def grid(width, height, diagonals=False):
+    """Vertices (width*height, 3) of a unit lattice (vertex x + width*y) and its edges (rows, columns, optional diagonals)."""
+    ys, xs = np.mgrid[0:height, 0:width]
+    positions = np.stack([xs.ravel(), ys.ravel(), np.zeros(xs.size)], axis=1).astype(np.float64)
+    index = np.arange(width * height).reshape(height, width)
+    edges = [np.stack([index[:, :-1].ravel(), index[:, 1:].ravel()], axis=1)]
+    edges.append(np.stack([index[:-1, :].ravel(), index[1:, :].ravel()], axis=1))
+    if diagonals:
+        edges.append(np.stack([index[:-1, :-1].ravel(), index[1:, 1:].ravel()], axis=1))
+    return positions, np.concatenate(edges), index
+
+
+# ---------------------------------------------------------------- chains
+
+
+def test_chain_from_shuffled_edges_is_in_order_from_the_lower_end():
+    edges = np.array([[7, 3], [3, 9], [1, 7], [9, 4]])
+    np.testing.assert_array_equal(cu.chain_from_edges(edges), [1, 7, 3, 9, 4])
+    np.testing.assert_array_equal(cu.chain_from_edges(edges[::-1, ::-1]), [1, 7, 3, 9, 4])
+
+
+@pytest.mark.parametrize(
+    "edges, reason",
+    [
+        (np.zeros((0, 2)), "No edge"),
+        ([[0, 1], [1, 2], [1, 3]], "branch at vertex 1"),
+        ([[0, 1], [1, 2], [2, 0]], "closed loop"),
+        ([[0, 1], [2, 3]], "more than one piece"),
+        ([[0, 1], [1, 2], [5, 6], [6, 7], [7, 5]], "more than one piece"),
+    ],
+)
+def test_chain_refusals_say_why(edges, reason):
+    with pytest.raises(LayoutError, match=reason):
+        cu.chain_from_edges(edges)
+
+
+# ---------------------------------------------------------------- shortest paths
+
+
+def test_shortest_path_on_a_grid_is_the_straight_row():
+    positions, edges, index = grid(9, 6, diagonals=True)
+    path = cu.shortest_path(positions, edges, index[3, 0], index[3, 8])
+    np.testing.assert_array_equal(path, index[3, :])
+    np.testing.assert_array_equal(cu.shortest_path(positions, edges, index[3, 8], index[3, 0]), index[3, ::-1])
+
+
+def test_shortest_path_takes_the_diagonal_when_shorter_and_refuses_unreachable():
+    positions, edges, index = grid(5, 5, diagonals=True)
+    np.testing.assert_array_equal(cu.shortest_path(positions, edges, index[0, 0], index[4, 4]), np.diag(index))
+    cut = edges[~np.isin(edges, index[:, 2]).any(axis=1)]  # column 2 removed: left and right halves apart
+    with pytest.raises(LayoutError, match="No chain of target edges"):
+        cu.shortest_path(positions, cut, index[0, 0], index[0, 4])
+
+
+def test_shortest_path_scales_to_a_large_grid():
+    positions, edges, index = grid(400, 400)  # 160,000 vertices, 319,200 edges
+    path = cu.shortest_path(positions, edges, index[200, 0], index[200, 399])
+    np.testing.assert_array_equal(path, index[200, :])
+
+
+def test_orientation_puts_the_start_nearest_to_the_chain_start():
+    points = np.array([[0.0, 0, 0], [1, 0, 0], [2, 0, 0]])
+    np.testing.assert_array_equal(cu.oriented(points, [2.1, 0.3, 0]), points[::-1])
+    np.testing.assert_array_equal(cu.oriented(points, [-0.1, 0.3, 0]), points)
+
+
+# ---------------------------------------------------------------- automatic pairing
+
+
+def test_auto_pairs_a_border_with_anchored_ends_and_counts_the_refusals():
+    target_positions, target_edges, target_index = grid(11, 11)
+    layout_curves = [
+        ("BORDER", np.array([0, 1, 2, 3, 4]), False),  # both ends anchored: paired
+        ("BORDER", np.array([4, 5, 6]), False),  # end 6 not anchored
+        ("SEAM", np.array([10, 11, 12]), True),  # closed
+        ("LOOSE", np.array([20, 21, 22]), False),  # both anchors near the same target vertex
+        ("LOOSE", np.array([0, 2, 30, 31]), False),  # vertex 2 (not anchored) taken by the first pairing
+    ]
+    anchor_vertices = np.array([0, 4, 20, 22, 31])
+    anchor_locations = np.array(
+        [[0.1, 2.0, 0.2], [7.9, 2.1, 0.1], [5.0, 5.0, 0.0], [5.2, 4.9, 0.0], [9.0, 9.0, 0.0]]
+    )
+    outcome = cu.auto_pairs(layout_curves, anchor_vertices, anchor_locations, [], target_positions, target_edges, 40)
+    assert len(outcome.constraints) == 1
+    constraint = outcome.constraints[0]
+    np.testing.assert_array_equal(constraint.layout_vertices, [0, 1, 2, 3, 4])
+    np.testing.assert_array_equal(constraint.target_vertices, target_index[2, 0:9])  # row y=2, x 0..8
+    np.testing.assert_allclose(constraint.points, target_positions[target_index[2, 0:9]])
+    assert outcome.skipped == {"closed": 1, "unanchored": 1, "ambiguous": 1, "constrained": 1, "unreachable": 0}
+    report = cu.skip_report(outcome.skipped)
+    assert report.startswith("4 skipped") and "same target vertex" in report
+
+    again = cu.auto_pairs(
+        layout_curves[:1], anchor_vertices, anchor_locations, outcome.constraints, target_positions, target_edges, 40
+    )
+    assert not again.constraints and again.skipped["constrained"] == 1
+
+
+# ---------------------------------------------------------------- kernel arrays
+
+
+def test_kernel_arrays_are_flat_and_checked():
+    first = cu.make_constraint([0, 1, 2], [[0, 0, 0], [1, 0, 0]], cu.CURVE_OBJECT)
+    second = cu.make_constraint([2, 3], [[0, 1, 0], [1, 1, 0], [2, 1, 0]], cu.TARGET_EDGES, [5, 6, 7])
+    assert cu.kernel_arrays([], 4) is None
+    anchored = np.array([False, False, True, False])
+    vertices, vertex_counts, points, point_counts = cu.kernel_arrays([first, second], 4, anchored)
+    np.testing.assert_array_equal(vertices, [0, 1, 2, 2, 3])
+    np.testing.assert_array_equal(vertex_counts, [3, 2])
+    assert points.dtype == np.float32 and points.shape == (5, 3) and points.flags.c_contiguous
+    np.testing.assert_array_equal(point_counts, [2, 3])
+    with pytest.raises(LayoutError, match="belongs to curve constraints 0 and 1"):
+        cu.kernel_arrays([first, second], 4)  # vertex 2 shared and not anchored
+    with pytest.raises(LayoutError, match="no longer has"):
+        cu.kernel_arrays([second], 3)
+    with pytest.raises(LayoutError, match="at least two"):
+        cu.kernel_arrays([cu.make_constraint([0, 1], [[0, 0, 0]], cu.CURVE_OBJECT)], 4)
+    with pytest.raises(LayoutError, match="NaN"):
+        cu.kernel_arrays([cu.make_constraint([0, 1], [[0, 0, 0], [np.nan, 0, 0]], cu.CURVE_OBJECT)], 4)
+
+
+def test_arc_length_points_and_dashes():
+    chain = np.array([[0.0, 1, 0], [1, 1, 0], [3, 1, 0]])  # fractions 0, 1/3, 1
+    polyline = np.array([[0.0, 0, 0], [6, 0, 0]])
+    np.testing.assert_allclose(cu.arc_length_points(chain, polyline), [[0, 0, 0], [2, 0, 0], [6, 0, 0]])
+    starts, ends = cu.dashed_segments(chain, cu.arc_length_points(chain, polyline), dash_count=3)
+    assert starts.shape == ends.shape == (9, 3)
+    np.testing.assert_allclose(starts[:3, 1], [1.0, 0.6, 0.2], atol=1e-6)  # pieces of 1/5, every other one
+    np.testing.assert_allclose(ends[:3, 1], [0.8, 0.4, 0.0], atol=1e-6)
+
+
+def test_index_text_round_trip():
+    np.testing.assert_array_equal(cu.parse_indices(cu.format_indices([4, 0, 17])), [4, 0, 17])
+    assert cu.parse_indices("").size == 0
+    with pytest.raises(LayoutError, match="Malformed"):
+        cu.parse_indices("1 x 2")
