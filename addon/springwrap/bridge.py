@@ -15,7 +15,7 @@ import bpy
 import numpy as np
 import springwrap_kernel
 
-from . import anchors, compat, layout_state
+from . import anchors, compat, curves, layout_state
 from .layout_state import LayoutArrays, LayoutError, LayoutState
 from .operations import Target
 
@@ -532,6 +532,14 @@ def _socket(sockets, name: str):
 
 def make_wrap_solver(target: Target, structure, inputs, parameters):
     """A kernel ``WrapSolver`` for the prepared inputs (``operations.WrapInputs``, world space)."""
+    curve_arguments = {}
+    if inputs.curve_vertices is not None:
+        curve_arguments = {
+            "curve_vertices": inputs.curve_vertices,
+            "curve_vertex_counts": inputs.curve_vertex_counts,
+            "curve_points": inputs.curve_points,
+            "curve_point_counts": inputs.curve_point_counts,
+        }
     return springwrap_kernel.WrapSolver(
         target.mesh,
         structure,
@@ -544,8 +552,153 @@ def make_wrap_solver(target: Target, structure, inputs, parameters):
         anchor_barycentrics=inputs.anchor_barycentrics,
         anchor_positions=inputs.anchor_positions,
         unreliable_triangles=inputs.unreliable_triangles,
+        **curve_arguments,
         **parameters.solver_settings(),
     )
+
+
+# ---------------------------------------------------------------- curve constraints
+
+
+def read_layout_curves(layout: bpy.types.Object) -> list:
+    """The layout's curves as the kernel finds them: (kind, vertices in order, closed) per curve (object mode)."""
+    return [
+        (kind, np.asarray(vertices, dtype=np.int64), bool(closed))
+        for kind, vertices, closed in read_layout_structure(layout).curves()
+    ]
+
+
+def read_selected_edges(layout: bpy.types.Object) -> np.ndarray:
+    """(E, 2) int64 vertex pairs of the layout's selected edges (object mode data)."""
+    mesh = layout.data
+    edge_count = len(mesh.edges)
+    selected = np.empty(edge_count, dtype=bool)
+    mesh.edges.foreach_get("select", selected)
+    edges = np.empty(edge_count * 2, dtype=np.int64)
+    mesh.edges.foreach_get("vertices", edges)
+    return edges.reshape(-1, 2)[selected]
+
+
+def read_target_edges(depsgraph: bpy.types.Depsgraph, layout: bpy.types.Object) -> tuple[np.ndarray, np.ndarray]:
+    """The evaluated target's vertices in world space ((V, 3) float64) and its edges ((E, 2) int64)."""
+    target = check_target(layout)
+    evaluated = target.evaluated_get(depsgraph)
+    mesh = evaluated.to_mesh()
+    try:
+        positions = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+        mesh.vertices.foreach_get("co", positions)
+        edges = np.empty(len(mesh.edges) * 2, dtype=np.int64)
+        mesh.edges.foreach_get("vertices", edges)
+    finally:
+        evaluated.to_mesh_clear()
+    world = layout_state.transform_points(matrix_array(evaluated.matrix_world), positions.reshape(-1, 3))
+    return world, edges.reshape(-1, 2)
+
+
+def read_curve_polyline(depsgraph: bpy.types.Depsgraph, curve_object: bpy.types.Object) -> np.ndarray:
+    """(P, 3) float64 world points of an evaluated curve object, in order along its one open spline.
+
+    Raises :class:`LayoutError` when it is not a curve object, or not one open spline of at least two points.
+    """
+    if curve_object is None or curve_object.type != "CURVE":
+        raise LayoutError("The curve constraint's curve object is missing or not a curve")
+    evaluated = curve_object.evaluated_get(depsgraph)
+    mesh = evaluated.to_mesh()
+    try:
+        if mesh is None:
+            raise LayoutError(f"Curve '{curve_object.name}' has no points")
+        positions = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+        mesh.vertices.foreach_get("co", positions)
+        edges = np.empty(len(mesh.edges) * 2, dtype=np.int64)
+        mesh.edges.foreach_get("vertices", edges)
+    finally:
+        evaluated.to_mesh_clear()
+    positions = positions.reshape(-1, 3)
+    if positions.shape[0] < 2:
+        raise LayoutError(f"Curve '{curve_object.name}' has fewer than two points")
+    try:
+        order = curves.chain_from_edges(edges)
+    except LayoutError as error:
+        raise LayoutError(f"Curve '{curve_object.name}' is not one open spline: {error}") from error
+    if order.size != positions.shape[0]:
+        raise LayoutError(f"Curve '{curve_object.name}' has several splines: a constraint follows one open spline")
+    return layout_state.transform_points(matrix_array(evaluated.matrix_world), positions[order])
+
+
+def read_curve_constraints(layout: bpy.types.Object) -> list:
+    """The layout's curve constraints as stored (cached polylines), as ``curves.CurveConstraint``, in list order."""
+    constraints = []
+    for item in layout.springwrap.curve_constraints:
+        points = np.empty(len(item.points) * 3, dtype=np.float64)
+        if len(item.points):
+            item.points.foreach_get("co", points)
+        constraints.append(
+            curves.make_constraint(
+                curves.parse_indices(item.layout_vertices),
+                points,
+                item.source_kind,
+                curves.parse_indices(item.target_vertices),
+                item.curve_object,
+            )
+        )
+    return constraints
+
+
+def write_curve_constraints(layout: bpy.types.Object, constraints, active_index: int = -1) -> None:
+    """Replace the layout's curve constraints; make ``active_index`` active (-1 keeps the current one, clamped)."""
+    settings = layout.springwrap
+    items = settings.curve_constraints
+    items.clear()
+    for constraint in constraints:
+        item = items.add()
+        item.layout_vertices = curves.format_indices(constraint.layout_vertices)
+        item.source_kind = constraint.source_kind
+        item.curve_object = constraint.curve_object if constraint.source_kind == curves.CURVE_OBJECT else None
+        item.target_vertices = curves.format_indices(constraint.target_vertices)
+        for _ in range(constraint.points.shape[0]):
+            item.points.add()
+        if constraint.points.shape[0]:
+            item.points.foreach_set("co", np.ascontiguousarray(constraint.points, dtype=np.float32).reshape(-1))
+    chosen = active_index if active_index >= 0 else settings.active_curve_constraint_index
+    settings.active_curve_constraint_index = max(anchors.clamp_active_index(chosen, len(items)), 0)
+
+
+def resolve_curve_constraints(depsgraph: bpy.types.Depsgraph, layout: bpy.types.Object, constraints) -> list:
+    """The constraints with their target polylines read again from their sources (evaluated, world space).
+
+    A curve object's polyline keeps the direction of the cached one (or, with no cache, starts
+    nearest to the chain's first vertex); a target edge chain is read at its target vertices.
+    Raises :class:`LayoutError` naming the constraint whose source is gone or unusable.
+    """
+    constraints = list(constraints)
+    if not constraints:
+        return []
+    target_positions = None
+    resolved = []
+    for number, constraint in enumerate(constraints):
+        if constraint.source_kind == curves.CURVE_OBJECT:
+            try:
+                points = read_curve_polyline(depsgraph, constraint.curve_object)
+            except LayoutError as error:
+                raise LayoutError(f"Curve constraint {number}: {error}") from error
+            if constraint.points.shape[0]:
+                reference = constraint.points[0]
+            else:
+                reference = read_world_vertex_positions(layout, constraint.layout_vertices[:1])[0]
+            points = curves.oriented(points, reference)
+        else:
+            if target_positions is None:
+                target_positions, _edges = read_target_edges(depsgraph, layout)
+            indices = constraint.target_vertices
+            bad = indices[(indices < 0) | (indices >= target_positions.shape[0])]
+            if bad.size or indices.size < 2:
+                raise LayoutError(
+                    f"Curve constraint {number} follows target vertices the target no longer has "
+                    f"(it has {target_positions.shape[0]}): remove it and pair the chain again"
+                )
+            points = target_positions[indices]
+        resolved.append(constraint._replace(points=points))
+    return resolved
 
 
 def leave_edit_mode(layout: bpy.types.Object) -> bool:

@@ -305,6 +305,10 @@ class WrapInputs(NamedTuple):
     anchor_barycentrics: np.ndarray  # (A, 3) float32
     anchor_positions: np.ndarray  # (A, 3) float32 world target points
     unreliable_triangles: Optional[np.ndarray]  # (M,) bool, or None when no group is set
+    curve_vertices: Optional[np.ndarray] = None  # (sum C,) uint32 chains one after another; None: no curves
+    curve_vertex_counts: Optional[np.ndarray] = None  # (K,) uint32 vertices per chain
+    curve_points: Optional[np.ndarray] = None  # (sum P, 3) float32 world target polylines one after another
+    curve_point_counts: Optional[np.ndarray] = None  # (K,) uint32 points per polyline
 
 
 def check_wrap_parameters(parameters: WrapParameters) -> None:
@@ -371,11 +375,13 @@ def prepare_wrap(
     stored_signature: str,
     anchor_list,
     unreliable: Optional[np.ndarray],
+    curve_constraints=(),
 ) -> tuple[WrapInputs, layout_state.Resolution]:
     """The solver's inputs: the layout's current state (after the deleted-face rule) and positions.
 
     ``anchor_list``: resolved anchors (see :func:`wrap_anchor_arrays`); ``unreliable``: (M,) bool
-    flags of the target's triangles, or None. Every vertex must be finite in world space.
+    flags of the target's triangles, or None; ``curve_constraints``: ``curves.CurveConstraint``
+    with current polylines (checked by ``curves.kernel_arrays``). Every vertex must be finite in world space.
     Returns the inputs and the topology resolution of the layout's face-points (to report).
     """
     vertex_count = layout.positions.shape[0]
@@ -391,6 +397,11 @@ def prepare_wrap(
             raise layout_state.LayoutError(
                 f"{unreliable.shape[0]} unreliable-triangle flags for a target of {target.mesh.triangle_count} triangles"
             )
+    from . import curves
+
+    anchored = np.zeros(vertex_count, dtype=bool)
+    anchored[anchor_vertices] = True
+    curve_arrays = curves.kernel_arrays(curve_constraints, vertex_count, anchored) or (None, None, None, None)
     inputs = WrapInputs(
         states=np.ascontiguousarray(state.states, dtype=np.int32),
         triangles=np.ascontiguousarray(state.faces, dtype=np.int32),
@@ -401,6 +412,10 @@ def prepare_wrap(
         anchor_barycentrics=anchor_barycentrics,
         anchor_positions=anchor_positions,
         unreliable_triangles=unreliable,
+        curve_vertices=curve_arrays[0],
+        curve_vertex_counts=curve_arrays[1],
+        curve_points=curve_arrays[2],
+        curve_point_counts=curve_arrays[3],
     )
     return inputs, resolution
 

@@ -99,6 +99,56 @@ class SpringwrapAnchorItem(bpy.types.PropertyGroup):
     )
 
 
+CURVE_SOURCE_ITEMS = (
+    ("CURVE_OBJECT", "Curve Object", "The target curve is a Blender curve object (evaluated, world space)", "CURVE_DATA", 0),
+    ("TARGET_EDGES", "Target Edges", "The target curve is a chain of target mesh edges", "EDGESEL", 1),
+)
+"""Sources of a curve constraint's target curve (``curves.CURVE_OBJECT`` / ``curves.TARGET_EDGES``)."""
+
+
+def _is_curve_object(_item, candidate):
+    """Poll of ``curve_object``: a curve object."""
+    return candidate is not None and candidate.type == "CURVE"
+
+
+class SpringwrapCurvePointItem(bpy.types.PropertyGroup):
+    """A world-space point of a curve constraint's cached target polyline"""
+
+    co: bpy.props.FloatVectorProperty(name="Point", size=3, default=(0.0, 0.0, 0.0), subtype="XYZ", unit="LENGTH")
+
+
+class SpringwrapCurveConstraintItem(bpy.types.PropertyGroup):
+    """A curve constraint: a layout edge chain that follows a target curve (paper section 2.4)"""
+
+    layout_vertices: bpy.props.StringProperty(
+        name="Layout Chain",
+        description="Layout vertex indices of the chain, in order, separated by spaces",
+        default="",
+    )
+    source_kind: bpy.props.EnumProperty(
+        name="Source",
+        description="Where the target curve comes from",
+        items=CURVE_SOURCE_ITEMS,
+        default="TARGET_EDGES",
+    )
+    curve_object: bpy.props.PointerProperty(
+        name="Curve Object",
+        description="Curve object of a Curve Object constraint (read evaluated, in world space, when the wrap runs)",
+        type=bpy.types.Object,
+        poll=_is_curve_object,
+    )
+    target_vertices: bpy.props.StringProperty(
+        name="Target Chain",
+        description="Target vertex indices of a Target Edges constraint, in order, separated by spaces",
+        default="",
+    )
+    points: bpy.props.CollectionProperty(
+        name="Points",
+        description="The target polyline in world space, as last resolved (its start at the chain's start)",
+        type=SpringwrapCurvePointItem,
+    )
+
+
 class SpringwrapObjectSettings(bpy.types.PropertyGroup):
     """Springwrap settings of a layout object."""
 
@@ -176,6 +226,29 @@ class SpringwrapObjectSettings(bpy.types.PropertyGroup):
         default="CLOSEST",
     )
 
+    curve_constraints: bpy.props.CollectionProperty(
+        name="Curve Constraints",
+        description="Layout edge chains paired with target curves",
+        type=SpringwrapCurveConstraintItem,
+    )
+    active_curve_constraint_index: bpy.props.IntProperty(
+        name="Active Curve Constraint",
+        description="Index of the active curve constraint in the list",
+        default=0,
+        min=0,
+    )
+    curve_source: bpy.props.PointerProperty(
+        name="Curve",
+        description="Curve object the panel's Add button pairs the selected chain with (empty: target edges)",
+        type=bpy.types.Object,
+        poll=_is_curve_object,
+    )
+    show_curve_constraints: bpy.props.BoolProperty(
+        name="Show Curve Constraints",
+        description="Draw dashed lines between each constrained layout chain and its target curve in the 3D view",
+        default=True,
+    )
+
     unreliable_group: bpy.props.StringProperty(
         name="Unreliable",
         description=(
@@ -186,4 +259,9 @@ class SpringwrapObjectSettings(bpy.types.PropertyGroup):
     )
 
 
-classes = (SpringwrapAnchorItem, SpringwrapObjectSettings)
+classes = (
+    SpringwrapAnchorItem,
+    SpringwrapCurvePointItem,
+    SpringwrapCurveConstraintItem,
+    SpringwrapObjectSettings,
+)

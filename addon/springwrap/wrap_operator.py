@@ -147,8 +147,11 @@ class WrapSession:
                     f"{self.target.mesh.vertex_count} vertices"
                 )
             unreliable = operations.unreliable_triangles(self.target.mesh.triangles(), weights)
+        curve_constraints = bridge.resolve_curve_constraints(
+            context.evaluated_depsgraph_get(), layout, bridge.read_curve_constraints(layout)
+        )
         inputs, resolution = operations.prepare_wrap(
-            arrays, self.target, settings.target_signature, self.anchors, unreliable
+            arrays, self.target, settings.target_signature, self.anchors, unreliable, curve_constraints
         )
         self.solver = bridge.make_wrap_solver(self.target, structure, inputs, parameters)
         self.snapshot = bridge.take_snapshot(layout)
