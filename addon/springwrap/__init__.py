@@ -2,7 +2,8 @@
 
 Each layout vertex is a face-point (on a target triangle) or a space-point (free in 3D). The
 operators (``operators``) detach, snap and project layout vertices; the anchor operators
-(``anchor_operators``) pair layout vertices with target points, drawn in the 3D view by
+(``anchor_operators``) pair layout vertices with target points, the curve operators
+(``curve_operators``) pair layout edge chains with target curves, both drawn in the 3D view by
 ``anchor_drawing``; the wrap (``wrap_operator``) pulls the whole layout onto the target with
 springs; ``bridge`` is the one module that moves data between Blender and the Rust
 kernel (``springwrap_kernel``).
@@ -20,9 +21,9 @@ bl_info = {
 
 import bpy
 
-from . import anchor_drawing, anchor_operators, operators, properties, ui, wrap_operator
+from . import anchor_drawing, anchor_operators, curve_operators, operators, properties, ui, wrap_operator
 
-_modules = (properties, operators, anchor_operators, wrap_operator, ui)
+_modules = (properties, operators, anchor_operators, curve_operators, wrap_operator, ui)
 
 
 def register():

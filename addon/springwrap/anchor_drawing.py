@@ -1,8 +1,10 @@
-"""Draws the active layout's anchors in the 3D view: a line from each anchored vertex to its target.
+"""Draws the active layout's anchors in the 3D view: a line from each anchored vertex to its target;
+and its curve constraints: dashed lines from each chain vertex to the matching point of its target curve.
 
 One ``SpaceView3D`` draw handler (``POST_VIEW``), installed by :func:`install` on register and
 removed by :func:`uninstall` on unregister. It draws nothing in background mode, for an object
-that is not the active mesh, or when ``object.springwrap.show_anchors`` is off.
+that is not the active mesh, or when ``object.springwrap.show_anchors`` (for the anchors) and
+``show_curve_constraints`` (for the curves) are off.
 
 The anchored vertices' world positions are cached and read again only after a depsgraph update
 (a ``depsgraph_update_post`` handler bumps a generation counter), so orbiting the view does not
@@ -18,6 +20,10 @@ LAYOUT_POINT_COLOR = (1.0, 0.85, 0.2, 1.0)
 """Colour of the anchored layout vertices."""
 TARGET_POINT_COLOR = (1.0, 0.3, 0.1, 1.0)
 """Colour of the target points."""
+CURVE_LINE_COLOR = (0.2, 0.8, 1.0, 0.9)
+"""Colour of the dashed curve-constraint lines (light blue)."""
+CURVE_DASH_COUNT = 5
+"""Dashes per line between a chain vertex and its target-curve point."""
 LINE_WIDTH = 2.0
 """Width of the lines in pixels (polyline shader)."""
 POINT_SIZE = 7.0
@@ -31,6 +37,7 @@ POINT_SHADERS = ("POINT_UNIFORM_COLOR", "UNIFORM_COLOR", "3D_UNIFORM_COLOR")
 _draw_handle = None
 _generation = 0
 _position_cache = {"key": None, "positions": None}
+_curve_cache = {"key": None, "segments": None}
 _shaders = {}
 _failed = False
 
@@ -54,6 +61,7 @@ def uninstall() -> None:
     while _on_depsgraph_update in bpy.app.handlers.depsgraph_update_post:
         bpy.app.handlers.depsgraph_update_post.remove(_on_depsgraph_update)
     _position_cache.update(key=None, positions=None)
+    _curve_cache.update(key=None, segments=None)
     _shaders.clear()
 
 
@@ -95,26 +103,65 @@ def anchor_segments(layout) -> tuple[np.ndarray, np.ndarray]:
     return anchors.segments(anchor_list, _position_cache["positions"])
 
 
+def curve_segments(layout) -> tuple[np.ndarray, np.ndarray]:
+    """The dashes to draw for ``layout``'s curve constraints: (D, 3) float32 world starts and ends.
+
+    Each chain vertex is joined to the point of its target polyline (as last resolved) at the same
+    fraction of arc length, by a dashed line. Empty when there are none or they are hidden.
+    """
+    from . import bridge, curves
+
+    empty = np.zeros((0, 3), dtype=np.float32)
+    settings = layout.springwrap
+    if not settings.show_curve_constraints or not len(settings.curve_constraints):
+        return empty, empty
+    constraints = bridge.read_curve_constraints(layout)
+    key = (
+        _generation,
+        layout.as_pointer(),
+        layout.data.as_pointer(),
+        layout.data.is_editmode,
+        tuple((c.layout_vertices.tobytes(), c.points.tobytes()) for c in constraints),
+    )
+    if _curve_cache["key"] != key:
+        starts, ends = [], []
+        for constraint in constraints:
+            chain = bridge.read_world_vertex_positions(layout, constraint.layout_vertices)
+            starts.append(chain)
+            ends.append(curves.arc_length_points(chain, constraint.points))
+        segments = curves.dashed_segments(np.concatenate(starts), np.concatenate(ends), CURVE_DASH_COUNT)
+        _curve_cache.update(key=key, segments=segments)
+    return _curve_cache["segments"]
+
+
 def draw_anchors() -> None:
-    """The draw handler: lines and end points of the active layout's anchors (never in background mode)."""
+    """The draw handler: the active layout's anchors and curve constraints (never in background mode)."""
     global _failed
     if bpy.app.background or _failed:
         return
     layout = bpy.context.active_object
-    if layout is None or layout.type != "MESH" or not layout.springwrap.show_anchors:
+    if layout is None or layout.type != "MESH":
         return
-    if not len(layout.springwrap.anchors):
+    settings = layout.springwrap
+    show_anchors = settings.show_anchors and len(settings.anchors)
+    show_curves = settings.show_curve_constraints and len(settings.curve_constraints)
+    if not (show_anchors or show_curves):
         return
     try:
-        starts, ends = anchor_segments(layout)
-        if starts.shape[0]:
-            _draw_segments(starts, ends)
+        if show_anchors:
+            starts, ends = anchor_segments(layout)
+            if starts.shape[0]:
+                _draw_segments(starts, ends)
+        if show_curves:
+            starts, ends = curve_segments(layout)
+            if starts.shape[0]:
+                _draw_segments(starts, ends, CURVE_LINE_COLOR, with_points=False)
     except Exception as error:  # noqa: BLE001  (a draw callback must not raise on every redraw)
         _failed = True
         print(f"Springwrap: drawing anchors failed, anchors are no longer drawn: {error!r}")
 
 
-def _draw_segments(starts: np.ndarray, ends: np.ndarray) -> None:
+def _draw_segments(starts: np.ndarray, ends: np.ndarray, color=LINE_COLOR, with_points=True) -> None:
     import gpu
     from gpu_extras.batch import batch_for_shader
 
@@ -132,8 +179,10 @@ def _draw_segments(starts: np.ndarray, ends: np.ndarray) -> None:
             shader.uniform_float("lineWidth", LINE_WIDTH)
         else:
             gpu.state.line_width_set(LINE_WIDTH)
-        shader.uniform_float("color", LINE_COLOR)
+        shader.uniform_float("color", color)
         batch.draw(shader)
+        if not with_points:
+            return
 
         name, shader = _shader(POINT_SHADERS)
         shader.bind()

@@ -1,4 +1,4 @@
-"""The Springwrap sidebar panel of the 3D view, and its Anchors and Wrap sub-panels."""
+"""The Springwrap sidebar panel of the 3D view, and its Anchors, Curve Constraints and Wrap sub-panels."""
 
 import bpy
 
@@ -144,6 +144,66 @@ class SPRINGWRAP_PT_anchors(bpy.types.Panel):
         auto.max_distance = settings.max_distance
 
 
+class SPRINGWRAP_UL_curve_constraints(bpy.types.UIList):
+    """The layout's curve constraints: the chain's end vertices and the target curve's source"""
+
+    bl_idname = "SPRINGWRAP_UL_curve_constraints"
+
+    def draw_item(self, context, layout, data, item, icon, active_data, active_property, index=0, flt_flag=0):
+        vertices = item.layout_vertices.split()
+        chain = f"{vertices[0]}..{vertices[-1]} ({len(vertices)})" if vertices else "(empty)"
+        row = layout.row(align=True)
+        row.label(text=chain, icon="EDGESEL")
+        if item.source_kind == "CURVE_OBJECT":
+            name = item.curve_object.name if item.curve_object is not None else "(missing curve)"
+            row.alert = item.curve_object is None
+            row.label(text=name, icon="CURVE_DATA")
+        else:
+            row.label(text=f"{len(item.points)} target vertices", icon="MESH_DATA")
+
+
+class SPRINGWRAP_PT_curve_constraints(bpy.types.Panel):
+    """The active layout's curve constraints: list, add / remove / clear / auto, and the viewport display toggle"""
+
+    bl_label = "Curve Constraints"
+    bl_idname = "SPRINGWRAP_PT_curve_constraints"
+    bl_parent_id = "SPRINGWRAP_PT_layout"
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "Springwrap"
+
+    @classmethod
+    def poll(cls, context):
+        obj = context.active_object
+        return obj is not None and obj.type == "MESH"
+
+    def draw_header(self, context):
+        self.layout.prop(context.active_object.springwrap, "show_curve_constraints", text="")
+
+    def draw(self, context):
+        layout = self.layout
+        settings = context.active_object.springwrap
+        row = layout.row()
+        row.template_list(
+            "SPRINGWRAP_UL_curve_constraints",
+            "",
+            settings,
+            "curve_constraints",
+            settings,
+            "active_curve_constraint_index",
+            rows=3,
+        )
+        column = row.column(align=True)
+        add = column.operator("springwrap.curve_constraint_add", icon="ADD", text="")
+        add.curve_object = settings.curve_source.name if settings.curve_source is not None else ""
+        column.operator("springwrap.curve_constraint_remove", icon="REMOVE", text="").index = -1
+        column.separator()
+        column.operator("springwrap.curve_constraints_clear", icon="X", text="")
+        layout.prop(settings, "curve_source")
+        layout.label(text="Add: selected edge chain (Edit Mode)", icon="INFO")
+        layout.operator("springwrap.curve_constraints_auto", icon="AUTO")
+
+
 class SPRINGWRAP_PT_wrap(bpy.types.Panel):
     """The wrap: the target's unreliable vertex group and the Wrap button"""
 
@@ -187,4 +247,11 @@ def _anchor_counts_text(anchors):
     return f"{len(anchors)} anchors ({face_count} on the surface)"
 
 
-classes = (SPRINGWRAP_PT_layout, SPRINGWRAP_UL_anchors, SPRINGWRAP_PT_anchors, SPRINGWRAP_PT_wrap)
+classes = (
+    SPRINGWRAP_PT_layout,
+    SPRINGWRAP_UL_anchors,
+    SPRINGWRAP_PT_anchors,
+    SPRINGWRAP_UL_curve_constraints,
+    SPRINGWRAP_PT_curve_constraints,
+    SPRINGWRAP_PT_wrap,
+)

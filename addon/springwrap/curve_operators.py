@@ -1,0 +1,214 @@
+"""Springwrap curve-constraint operators: add, pair automatically, remove and clear.
+
+A curve constraint pairs a layout edge chain with a target curve (paper section 2.4): a Blender
+curve object or a chain of target mesh edges. Each operator reads everything, computes the
+complete new constraint list (``curves``), and writes it only when every step succeeded; any
+problem is reported as an error and the constraints are left exactly as they were.
+"""
+
+import contextlib
+
+import bpy
+
+from .operators import layout_problem
+
+
+def curve_problem(context, require_target=True, require_constraints=False):
+    """Why a curve-constraint operator cannot run on the active object, or None when it can."""
+    problem = layout_problem(context, require_target)
+    if problem is not None:
+        return problem
+    if require_constraints and not len(context.active_object.springwrap.curve_constraints):
+        return "The layout has no curve constraints"
+    return None
+
+
+class _CurveOperator:
+    """Shared poll, run and report of the curve-constraint operators."""
+
+    requires_target = True
+    requires_constraints = False
+    reads_layout_mesh = True  # leaves edit mode for the duration, so the mesh data is current
+
+    @classmethod
+    def poll(cls, context):
+        problem = curve_problem(context, cls.requires_target, cls.requires_constraints)
+        if problem is not None:
+            cls.poll_message_set(problem)
+            return False
+        return True
+
+    def execute(self, context):
+        problem = curve_problem(context, self.requires_target, self.requires_constraints)
+        if problem is not None:
+            self.report({"ERROR"}, problem)
+            return {"CANCELLED"}
+        try:
+            from . import bridge, curves
+        except ImportError as error:
+            self.report({"ERROR"}, f"The Springwrap kernel is not available: {error}")
+            return {"CANCELLED"}
+        layout = context.active_object
+        try:
+            mode = bridge.object_mode(layout) if self.reads_layout_mesh else contextlib.nullcontext()
+            with mode:
+                constraints, active_index = self.compute(context, curves, bridge, layout)
+                bridge.write_curve_constraints(layout, constraints, active_index)
+        except bridge.ERRORS as error:
+            self.report({"ERROR"}, str(error))
+            return {"CANCELLED"}
+        self.report({"INFO"}, self.summary(constraints))
+        return {"FINISHED"}
+
+    def compute(self, context, curves, bridge, layout):
+        """``(complete new list of curves.CurveConstraint, active index)``; raises one of ``bridge.ERRORS``."""
+        raise NotImplementedError
+
+    def summary(self, constraints):
+        """The report of a finished operation."""
+        raise NotImplementedError
+
+
+class SPRINGWRAP_OT_curve_constraint_add(_CurveOperator, bpy.types.Operator):
+    """Pair the selected layout edge chain with a target curve: a curve object, or the target edges between its ends' anchors"""
+
+    bl_idname = "springwrap.curve_constraint_add"
+    bl_label = "Add Curve Constraint"
+    bl_options = {"REGISTER", "UNDO"}
+
+    curve_object: bpy.props.StringProperty(
+        name="Curve Object",
+        description=(
+            "Name of the curve object the chain follows; empty: the shortest chain of target edges between the "
+            "target vertices nearest to the chain's end anchors (or to its end vertices where they have none)"
+        ),
+        default="",
+    )
+
+    def compute(self, context, curves, bridge, layout):
+        depsgraph = context.evaluated_depsgraph_get()
+        chain = curves.chain_from_edges(bridge.read_selected_edges(layout))
+        existing = bridge.read_curve_constraints(layout)
+        anchor_list = bridge.read_anchors(layout)
+        vertex_count = len(layout.data.vertices)
+        from . import anchors
+
+        anchored = anchors.anchored_mask(anchor_list, vertex_count)
+        curves.check_free(chain, existing, anchored)
+        ends = bridge.read_world_vertex_positions(layout, chain[[0, -1]])
+        if self.curve_object:
+            curve_object = bpy.data.objects.get(self.curve_object)
+            if curve_object is None or curve_object.type != "CURVE":
+                raise curves.LayoutError(f"There is no curve object called '{self.curve_object}'")
+            points = curves.oriented(bridge.read_curve_polyline(depsgraph, curve_object), ends[0])
+            new = curves.make_constraint(chain, points, curves.CURVE_OBJECT, (), curve_object)
+        else:
+            location_of = {
+                int(vertex): location
+                for vertex, location in zip(anchor_list.vertex_indices.tolist(), anchor_list.locations)
+            }
+            start = location_of.get(int(chain[0]), ends[0])
+            end = location_of.get(int(chain[-1]), ends[1])
+            target_positions, target_edges = bridge.read_target_edges(depsgraph, layout)
+            new = curves.target_edge_constraint(chain, start, end, target_positions, target_edges)
+        self._new = new
+        return existing + [new], len(existing)
+
+    def summary(self, constraints):
+        new = self._new
+        source = (
+            f"curve '{new.curve_object.name}'" if new.source_kind == "CURVE_OBJECT"
+            else f"a chain of {new.target_vertices.size - 1} target edges"
+        )
+        return (
+            f"Paired a chain of {new.layout_vertices.size} layout vertices ({int(new.layout_vertices[0])} to "
+            f"{int(new.layout_vertices[-1])}) with {source}; {len(constraints)} curve constraints"
+        )
+
+
+class SPRINGWRAP_OT_curve_constraints_auto(_CurveOperator, bpy.types.Operator):
+    """Pair every layout curve (border, seam, loose chain) whose two ends are anchored with the target edges between the anchors"""
+
+    bl_idname = "springwrap.curve_constraints_auto"
+    bl_label = "Auto Curve Constraints"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def compute(self, context, curves, bridge, layout):
+        existing = bridge.read_curve_constraints(layout)
+        anchor_list = bridge.read_anchors(layout)
+        target_positions, target_edges = bridge.read_target_edges(context.evaluated_depsgraph_get(), layout)
+        outcome = curves.auto_pairs(
+            bridge.read_layout_curves(layout),
+            anchor_list.vertex_indices,
+            anchor_list.locations,
+            existing,
+            target_positions,
+            target_edges,
+            len(layout.data.vertices),
+        )
+        self._outcome = outcome
+        return existing + outcome.constraints, -1
+
+    def summary(self, constraints):
+        from . import curves
+
+        text = f"Paired {len(self._outcome.constraints)} layout curves with target edge chains"
+        skipped = curves.skip_report(self._outcome.skipped)
+        return f"{text}; {skipped}" if skipped else text
+
+
+class SPRINGWRAP_OT_curve_constraint_remove(_CurveOperator, bpy.types.Operator):
+    """Remove a curve constraint (the active one by default)"""
+
+    bl_idname = "springwrap.curve_constraint_remove"
+    bl_label = "Remove Curve Constraint"
+    bl_options = {"REGISTER", "UNDO"}
+
+    requires_target = False
+    requires_constraints = True
+    reads_layout_mesh = False
+
+    index: bpy.props.IntProperty(
+        name="Index",
+        description="Position of the constraint in the list; -1 for the active one",
+        default=-1,
+        soft_min=-1,
+    )
+
+    def compute(self, context, curves, bridge, layout):
+        existing = bridge.read_curve_constraints(layout)
+        index = layout.springwrap.active_curve_constraint_index if self.index == -1 else self.index
+        if not 0 <= index < len(existing):
+            raise curves.LayoutError(f"There is no curve constraint {index}: the layout has {len(existing)}")
+        remaining = existing[:index] + existing[index + 1 :]
+        return remaining, max(min(index, len(remaining) - 1), 0)
+
+    def summary(self, constraints):
+        return f"Removed a curve constraint; {len(constraints)} left"
+
+
+class SPRINGWRAP_OT_curve_constraints_clear(_CurveOperator, bpy.types.Operator):
+    """Remove every curve constraint of the layout"""
+
+    bl_idname = "springwrap.curve_constraints_clear"
+    bl_label = "Clear Curve Constraints"
+    bl_options = {"REGISTER", "UNDO"}
+
+    requires_target = False
+    requires_constraints = True
+    reads_layout_mesh = False
+
+    def compute(self, context, curves, bridge, layout):
+        self._count = len(layout.springwrap.curve_constraints)
+        return [], 0
+
+    def summary(self, constraints):
+        return f"Removed {self._count} curve constraints"
+
+
+classes = (
+    SPRINGWRAP_OT_curve_constraint_add,
+    SPRINGWRAP_OT_curve_constraints_auto,
+    SPRINGWRAP_OT_curve_constraint_remove,
+    SPRINGWRAP_OT_curve_constraints_clear,
+)
