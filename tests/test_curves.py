@@ -1,0 +1,348 @@
+"""Curve constraints under Blender (PyPI ``bpy``): the operators, storage, drawing data and the wrap.
+
+Scenes come from ``test_wrap``: the tilted plane target (a 40 x 40 quad grid) with a grid layout
+0.3 above it, or a quad strip with a seam and a loose chain. Target curves are a poly curve object
+drawn on the plane, or rows of the target grid, so their answers are known: a row of target
+vertices is the shortest edge chain between its ends, and after a wrap every constrained chain
+vertex lies on its curve (checked against the curve's own evaluated polyline).
+"""
+
+import bpy  # isort: skip  (bmesh and mathutils need bpy imported first)
+import bmesh
+import numpy as np
+import pytest
+from mathutils import Vector
+
+from test_addon import snapshot, world_positions
+from test_anchors import anchor_snapshot
+from test_wrap import _curves_layout, plane_scene, plane_target
+
+ROW = 13  # vertices per row of the test_wrap grid layout (12 subdivisions)
+
+
+@pytest.fixture(autouse=True)
+def curve_scene(springwrap_installed):
+    """An empty scene, the add-on enabled, its target cache empty, undo initialized (as for test_addon)."""
+    bpy.ops.wm.read_homefile(use_empty=True)
+    if not springwrap_installed.check("springwrap")[1]:
+        assert springwrap_installed.enable("springwrap", default_set=True, handle_error=None) is not None
+    from springwrap import bridge
+
+    bridge.clear_target_cache()
+    bpy.ops.ed.undo_push(message="Springwrap curve test start")
+    yield
+    if bpy.context.object is not None and bpy.context.object.mode != "OBJECT":
+        bpy.ops.object.mode_set(mode="OBJECT")
+
+
+# ---------------------------------------------------------------- helpers
+
+
+def select_edges(layout, vertex_pairs):
+    """Select exactly the edges joining the given vertex pairs (object mode data), then enter edit mode."""
+    wanted = {tuple(sorted(pair)) for pair in vertex_pairs}
+    mesh = layout.data
+    edges = np.empty(len(mesh.edges) * 2, dtype=np.int64)
+    mesh.edges.foreach_get("vertices", edges)
+    keys = [tuple(sorted(pair)) for pair in edges.reshape(-1, 2).tolist()]
+    selected = np.array([key in wanted for key in keys])
+    assert selected.sum() == len(wanted)
+    vertices = np.zeros(len(mesh.vertices), dtype=bool)
+    vertices[np.array(sorted(wanted)).reshape(-1)] = True
+    mesh.vertices.foreach_set("select", vertices)
+    mesh.edges.foreach_set("select", selected)
+    mesh.polygons.foreach_set("select", np.zeros(len(mesh.polygons), dtype=bool))
+    mesh.update()
+    bpy.context.tool_settings.mesh_select_mode = (False, True, False)
+    bpy.ops.object.mode_set(mode="EDIT")
+
+
+def chain_pairs(chain):
+    return list(zip(chain[:-1], chain[1:]))
+
+
+def curve_rows(layout):
+    """The stored constraints as plain tuples (for identity checks)."""
+    return [
+        (
+            item.layout_vertices,
+            item.source_kind,
+            None if item.curve_object is None else item.curve_object.name,
+            item.target_vertices,
+            tuple(tuple(point.co) for point in item.points),
+        )
+        for item in layout.springwrap.curve_constraints
+    ]
+
+
+def poly_curve(name, world_points):
+    """A poly curve object (identity transform) through the given world points."""
+    data = bpy.data.curves.new(name, "CURVE")
+    data.dimensions = "3D"
+    spline = data.splines.new("POLY")
+    spline.points.add(len(world_points) - 1)
+    for point, location in zip(spline.points, world_points):
+        point.co = (*location, 1.0)
+    curve = bpy.data.objects.new(name, data)
+    bpy.context.scene.collection.objects.link(curve)
+    return curve
+
+
+def distance_to_polyline(points, polyline):
+    """(K,) distance of each point to the polyline (its segments)."""
+    starts, ends = polyline[:-1], polyline[1:]
+    direction = ends - starts
+    lengths = np.maximum((direction**2).sum(axis=1), 1e-30)
+    offsets = points[:, None, :] - starts[None, :, :]
+    t = np.clip(np.einsum("ksx,sx->ks", offsets, direction) / lengths, 0.0, 1.0)
+    closest = starts[None, :, :] + t[:, :, None] * direction[None, :, :]
+    return np.sqrt(((points[:, None, :] - closest) ** 2).sum(axis=2)).min(axis=1)
+
+
+def bent_curve_under_row(layout, normal):
+    """A poly curve on the plane target under the layout's first row, bent 0.1 sideways in the plane."""
+    row = world_positions(layout)[:ROW]
+    on_plane = row - 0.3 * normal
+    along = on_plane[-1] - on_plane[0]
+    side = np.cross(normal, along / np.linalg.norm(along))
+    t = np.linspace(0.0, 1.0, 9)
+    points = on_plane[0] + t[:, None] * along + 0.1 * np.sin(np.pi * t)[:, None] * side
+    return poly_curve("Curve", points), points
+
+
+def activate(layout):
+    for obj in bpy.context.view_layer.objects:
+        obj.select_set(obj == layout)
+    bpy.context.view_layer.objects.active = layout
+
+
+# ---------------------------------------------------------------- registration
+
+
+def test_operators_panel_and_settings_are_registered():
+    for name in ("curve_constraint_add", "curve_constraints_auto", "curve_constraint_remove", "curve_constraints_clear"):
+        operator = getattr(bpy.ops.springwrap, name)
+        assert operator.get_rna_type().identifier == f"SPRINGWRAP_OT_{name}"
+        assert operator.get_rna_type().description
+        assert getattr(bpy.types, f"SPRINGWRAP_OT_{name}").bl_options == {"REGISTER", "UNDO"}
+    assert hasattr(bpy.types, "SPRINGWRAP_PT_curve_constraints")
+    assert hasattr(bpy.types, "SPRINGWRAP_UL_curve_constraints")
+    settings = bpy.types.Object.bl_rna.properties["springwrap"].fixed_type
+    for name in ("curve_constraints", "active_curve_constraint_index", "show_curve_constraints", "curve_source"):
+        assert name in settings.properties
+
+
+# ---------------------------------------------------------------- add
+
+
+def test_add_orders_the_selected_chain_and_orients_the_curve_object():
+    _target, layout, normal = plane_scene()
+    curve, points = bent_curve_under_row(layout, normal)
+    chain = list(range(ROW))
+    activate(layout)
+    select_edges(layout, chain_pairs(chain)[::-1])  # selection order does not matter
+    # The curve drawn backwards must be turned round so it starts at the chain's first vertex.
+    curve.data.splines[0].points.foreach_set("co", np.c_[points[::-1], np.ones(len(points))].ravel())
+    assert bpy.ops.springwrap.curve_constraint_add(curve_object="Curve") == {"FINISHED"}
+    assert layout.mode == "EDIT"
+    bpy.ops.object.mode_set(mode="OBJECT")
+    (item,) = layout.springwrap.curve_constraints
+    assert item.layout_vertices == " ".join(str(vertex) for vertex in chain)
+    assert item.source_kind == "CURVE_OBJECT" and item.curve_object == curve
+    stored = np.array([tuple(point.co) for point in item.points])
+    np.testing.assert_allclose(stored, points, atol=1e-5)
+
+
+@pytest.mark.parametrize(
+    "pairs, reason",
+    [
+        ([(0, 1), (1, 2), (1, ROW + 1)], "branch at vertex 1"),
+        ([(0, 1), (1, ROW + 1), (ROW + 1, ROW), (ROW, 0)], "closed loop"),
+        ([(0, 1), (3, 4)], "more than one piece"),
+    ],
+)
+def test_add_refuses_branches_loops_and_pieces_and_leaves_the_scene_untouched(pairs, reason):
+    _target, layout, normal = plane_scene()
+    bent_curve_under_row(layout, normal)
+    activate(layout)
+    select_edges(layout, pairs)
+    bpy.ops.object.mode_set(mode="OBJECT")  # the edit-mesh round trip itself may rewrite positions
+    before = snapshot(layout), curve_rows(layout), anchor_snapshot(layout)
+    bpy.ops.object.mode_set(mode="EDIT")
+    with pytest.raises(RuntimeError, match=reason):
+        bpy.ops.springwrap.curve_constraint_add(curve_object="Curve")
+    bpy.ops.object.mode_set(mode="OBJECT")
+    assert (snapshot(layout), curve_rows(layout), anchor_snapshot(layout)) == before
+
+
+def test_add_from_target_edges_follows_the_target_row_between_the_end_anchors():
+    target, layout, _normal = plane_scene()
+    target_points = world_positions(target)
+    target_row = np.flatnonzero(np.isclose(target.data.vertices[0].co.y, [v.co.y for v in target.data.vertices]))
+    target_row = target_row[np.argsort([target.data.vertices[int(i)].co.x for i in target_row])]
+    start, end = target_row[5], target_row[30]
+    chain = list(range(ROW))
+    for vertex, target_vertex in ((chain[0], start), (chain[-1], end)):
+        location = Vector(target_points[target_vertex] + np.array([0.003, -0.002, 0.001]))
+        assert bpy.ops.springwrap.anchor_add(vertex_index=vertex, location=location, use_location=True) == {"FINISHED"}
+    select_edges(layout, chain_pairs(chain))
+    assert bpy.ops.springwrap.curve_constraint_add() == {"FINISHED"}
+    bpy.ops.object.mode_set(mode="OBJECT")
+    (item,) = layout.springwrap.curve_constraints
+    assert item.source_kind == "TARGET_EDGES"
+    np.testing.assert_array_equal([int(index) for index in item.target_vertices.split()], target_row[5:31])
+    stored = np.array([tuple(point.co) for point in item.points])
+    np.testing.assert_allclose(stored, target_points[target_row[5:31]], atol=1e-5)
+
+    # The same chain again: its vertices are taken (non-manifold), refused with the reason.
+    before = curve_rows(layout)
+    select_edges(layout, chain_pairs(chain[2:6]))
+    with pytest.raises(RuntimeError, match="already belongs to another curve constraint"):
+        bpy.ops.springwrap.curve_constraint_add()
+    bpy.ops.object.mode_set(mode="OBJECT")
+    assert curve_rows(layout) == before
+
+
+def test_add_needs_a_target_and_a_real_curve_object():
+    _target, layout, normal = plane_scene()
+    bent_curve_under_row(layout, normal)
+    select_edges(layout, chain_pairs(list(range(4))))
+    with pytest.raises(RuntimeError, match="no curve object called 'Nothing'"):
+        bpy.ops.springwrap.curve_constraint_add(curve_object="Nothing")
+    bpy.ops.object.mode_set(mode="OBJECT")
+    layout.springwrap.target = None
+    assert not bpy.ops.springwrap.curve_constraint_add.poll()
+    assert not layout.springwrap.curve_constraints
+
+
+# ---------------------------------------------------------------- automatic pairing
+
+
+def test_auto_pairs_the_anchored_loose_chain_and_seam_and_reports_the_rest(capfd):
+    target, _normal = plane_target()
+    layout = _curves_layout(target, shift=0.037)
+    # Anchor both ends of the loose chain (27..35) and of the seam (9..17); one end of nothing else.
+    for vertex in (27, 35, 9, 17):
+        assert bpy.ops.springwrap.anchor_add(vertex_index=vertex, location=world_positions(layout)[vertex],
+                                             use_location=True) == {"FINISHED"}
+    assert bpy.ops.springwrap.curve_constraints_auto() == {"FINISHED"}
+    rows = curve_rows(layout)
+    chains = sorted(row[0] for row in rows)
+    assert chains == sorted([" ".join(map(str, range(9, 18))), " ".join(map(str, range(27, 36)))])
+    assert all(row[1] == "TARGET_EDGES" for row in rows)
+    output = capfd.readouterr().out
+    assert "Paired 2 layout curves" in output and "1 the layout curve is closed" in output  # the strip's border
+
+    # Again: both are constrained already (non-manifold), nothing is added.
+    assert bpy.ops.springwrap.curve_constraints_auto() == {"FINISHED"}
+    assert curve_rows(layout) == rows
+    assert "already constrained" in capfd.readouterr().out
+
+
+def test_auto_refuses_ends_anchored_to_the_same_target_vertex(capfd):
+    target, _normal = plane_target()
+    layout = _curves_layout(target, shift=0.037)
+    spot = Vector(world_positions(target)[100])
+    for vertex in (27, 35):
+        bpy.ops.springwrap.anchor_add(vertex_index=vertex, location=spot, use_location=True)
+    assert bpy.ops.springwrap.curve_constraints_auto() == {"FINISHED"}
+    assert not layout.springwrap.curve_constraints
+    assert "1 both ends anchor to the same target vertex" in capfd.readouterr().out
+
+
+def test_remove_and_clear():
+    target, _normal = plane_target()
+    layout = _curves_layout(target, shift=0.037)
+    for vertex in (27, 35, 9, 17):
+        bpy.ops.springwrap.anchor_add(vertex_index=vertex, location=world_positions(layout)[vertex], use_location=True)
+    bpy.ops.springwrap.curve_constraints_auto()
+    first, second = curve_rows(layout)
+    layout.springwrap.active_curve_constraint_index = 0
+    assert bpy.ops.springwrap.curve_constraint_remove() == {"FINISHED"}
+    assert curve_rows(layout) == [second]
+    assert bpy.ops.springwrap.curve_constraints_clear() == {"FINISHED"}
+    assert not layout.springwrap.curve_constraints
+    assert not bpy.ops.springwrap.curve_constraints_clear.poll()
+
+
+# ---------------------------------------------------------------- the wrap
+
+
+def test_wrap_puts_the_chain_on_the_target_curve():
+    _target, layout, normal = plane_scene()
+    curve, _points = bent_curve_under_row(layout, normal)
+    chain = list(range(ROW))
+    select_edges(layout, chain_pairs(chain))
+    assert bpy.ops.springwrap.curve_constraint_add(curve_object="Curve") == {"FINISHED"}
+    bpy.ops.object.mode_set(mode="OBJECT")
+    evaluated = curve.evaluated_get(bpy.context.evaluated_depsgraph_get()).to_mesh()
+    polyline = np.array([tuple(curve.matrix_world @ vertex.co) for vertex in evaluated.vertices])
+    curve.evaluated_get(bpy.context.evaluated_depsgraph_get()).to_mesh_clear()
+    before = distance_to_polyline(world_positions(layout)[chain], polyline)
+    assert before.min() > 0.2
+    assert bpy.ops.springwrap.wrap() == {"FINISHED"}
+    after = distance_to_polyline(world_positions(layout)[chain], polyline)
+    assert after.max() < 1e-3, after
+
+
+def test_wrap_refuses_a_constraint_on_missing_vertices_and_leaves_the_layout_untouched():
+    _target, layout, normal = plane_scene()
+    bent_curve_under_row(layout, normal)
+    select_edges(layout, chain_pairs(list(range(5))))
+    assert bpy.ops.springwrap.curve_constraint_add(curve_object="Curve") == {"FINISHED"}
+    bpy.ops.object.mode_set(mode="OBJECT")
+    layout.springwrap.curve_constraints[0].layout_vertices = "0 1 99999"
+    before = snapshot(layout), curve_rows(layout)
+    with pytest.raises(RuntimeError, match="99999"):
+        bpy.ops.springwrap.wrap()
+    assert (snapshot(layout), curve_rows(layout)) == before
+
+
+def test_wrap_refuses_a_deleted_curve_object():
+    _target, layout, normal = plane_scene()
+    curve, _points = bent_curve_under_row(layout, normal)
+    select_edges(layout, chain_pairs(list(range(5))))
+    bpy.ops.springwrap.curve_constraint_add(curve_object="Curve")
+    bpy.ops.object.mode_set(mode="OBJECT")
+    bpy.data.objects.remove(curve)
+    before = snapshot(layout)
+    with pytest.raises(RuntimeError, match="Curve constraint 0"):
+        bpy.ops.springwrap.wrap()
+    assert snapshot(layout) == before
+
+
+# ---------------------------------------------------------------- storage and drawing
+
+
+def test_save_and_reload_keep_the_constraints(tmp_path):
+    _target, layout, normal = plane_scene()
+    bent_curve_under_row(layout, normal)
+    select_edges(layout, chain_pairs(list(range(ROW))))
+    bpy.ops.springwrap.curve_constraint_add(curve_object="Curve")
+    bpy.ops.object.mode_set(mode="OBJECT")
+    rows = curve_rows(layout)
+    path = str(tmp_path / "curves.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.read_homefile(use_empty=True)
+    assert "Layout" not in bpy.data.objects
+    bpy.ops.wm.open_mainfile(filepath=path)
+    reloaded = bpy.data.objects["Layout"]
+    assert curve_rows(reloaded) == rows
+    assert reloaded.springwrap.curve_constraints[0].curve_object == bpy.data.objects["Curve"]
+
+
+def test_drawing_data_joins_each_chain_vertex_to_its_curve_point():
+    from springwrap import anchor_drawing
+
+    _target, layout, normal = plane_scene()
+    bent_curve_under_row(layout, normal)
+    select_edges(layout, chain_pairs(list(range(ROW))))
+    bpy.ops.springwrap.curve_constraint_add(curve_object="Curve")
+    bpy.ops.object.mode_set(mode="OBJECT")
+    starts, ends = anchor_drawing.curve_segments(layout)
+    assert starts.shape == ends.shape == (ROW * anchor_drawing.CURVE_DASH_COUNT, 3)
+    assert starts.dtype == np.float32
+    np.testing.assert_allclose(starts[0], world_positions(layout)[0], atol=1e-5)  # first dash starts at vertex 0
+    layout.springwrap.show_curve_constraints = False
+    assert anchor_drawing.curve_segments(layout)[0].shape == (0, 3)
+    anchor_drawing.draw_anchors()  # background mode: draws nothing, raises nothing
