@@ -346,3 +346,63 @@ def test_drawing_data_joins_each_chain_vertex_to_its_curve_point():
     layout.springwrap.show_curve_constraints = False
     assert anchor_drawing.curve_segments(layout)[0].shape == (0, 3)
     anchor_drawing.draw_anchors()  # background mode: draws nothing, raises nothing
+
+
+class _Recorder:
+    """Stands in for ``UILayout``: records operator buttons (with their settings), props, lists and labels."""
+
+    def __init__(self):
+        self.operators, self.props, self.lists, self.labels = [], [], [], []
+        self.alert = False
+
+    def row(self, *args, **kwargs):
+        return self
+
+    column = row
+
+    def separator(self, *args, **kwargs):
+        pass
+
+    def label(self, text="", **kwargs):
+        self.labels.append(text)
+
+    def prop(self, data, name, **kwargs):
+        self.props.append(name)
+
+    def template_list(self, list_type, _list_id, _data, collection, _active_data, active, **kwargs):
+        self.lists.append((list_type, collection, active))
+
+    def operator(self, idname, **kwargs):
+        button = type("Button", (), {})()
+        self.operators.append((idname, button))
+        return button
+
+
+def test_panel_lists_the_constraints_with_their_buttons():
+    from springwrap.ui import SPRINGWRAP_PT_curve_constraints, SPRINGWRAP_UL_curve_constraints
+
+    _target, layout, normal = plane_scene()
+    curve, _points = bent_curve_under_row(layout, normal)
+    layout.springwrap.curve_source = curve
+    assert SPRINGWRAP_PT_curve_constraints.bl_parent_id == "SPRINGWRAP_PT_layout"
+    assert SPRINGWRAP_PT_curve_constraints.poll(bpy.context)
+    recorder = _Recorder()
+    SPRINGWRAP_PT_curve_constraints.draw(type("Panel", (), {"layout": recorder})(), bpy.context)
+    names = [name for name, _button in recorder.operators]
+    assert names == [
+        "springwrap.curve_constraint_add",
+        "springwrap.curve_constraint_remove",
+        "springwrap.curve_constraints_clear",
+        "springwrap.curve_constraints_auto",
+    ]
+    assert recorder.operators[0][1].curve_object == "Curve"
+    assert recorder.lists == [("SPRINGWRAP_UL_curve_constraints", "curve_constraints", "active_curve_constraint_index")]
+    assert "curve_source" in recorder.props
+
+    select_edges(layout, chain_pairs(list(range(4))))
+    bpy.ops.springwrap.curve_constraint_add(curve_object="Curve")
+    bpy.ops.object.mode_set(mode="OBJECT")
+    row = _Recorder()
+    item = layout.springwrap.curve_constraints[0]
+    SPRINGWRAP_UL_curve_constraints.draw_item(None, bpy.context, row, layout.springwrap, item, 0, None, "")
+    assert row.labels == ["0..3 (4)", "Curve"]
