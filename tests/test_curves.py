@@ -275,6 +275,11 @@ def test_wrap_puts_the_chain_on_the_target_curve():
     select_edges(layout, chain_pairs(chain))
     assert bpy.ops.springwrap.curve_constraint_add(curve_object="Curve") == {"FINISHED"}
     bpy.ops.object.mode_set(mode="OBJECT")
+    # Slide the curve along the plane after pairing: the wrap reads it again (evaluated, world space).
+    row = world_positions(layout)[:ROW]
+    along = (row[-1] - row[0]) / np.linalg.norm(row[-1] - row[0])
+    curve.location = Vector(0.08 * np.cross(normal, along) + 0.05 * along)
+    bpy.context.view_layer.update()
     evaluated = curve.evaluated_get(bpy.context.evaluated_depsgraph_get()).to_mesh()
     polyline = np.array([tuple(curve.matrix_world @ vertex.co) for vertex in evaluated.vertices])
     curve.evaluated_get(bpy.context.evaluated_depsgraph_get()).to_mesh_clear()
