@@ -847,3 +847,55 @@ fn a_single_walk_with_a_non_finite_input_stays_put() {
         + Vec3::new(0.1, 0.0, 0.0);
     assert_close(on_surface(&mesh, end), expected, 1e-6);
 }
+
+#[test]
+fn walks_from_a_vertex_of_a_tilted_grid_go_straight() {
+    // A flat grid tilted and moved off the axes: a walk that starts exactly on an interior vertex
+    // must follow the displacement projected on the plane, in every direction.
+    let (vertices, triangles) = common::grid(8);
+    let rotation = glam::Quat::from_euler(glam::EulerRot::XYZ, 0.4, -0.3, 0.7);
+    let offset = Vec3::new(0.3, -1.2, 2.0);
+    let vertices: Vec<Vec3> = vertices.iter().map(|&v| rotation * v + offset).collect();
+    let normal = rotation * Vec3::Z;
+    let mesh = TargetMesh::new(
+        vertices.clone(),
+        triangles.clone(),
+        TargetMeshOptions::default(),
+    )
+    .unwrap();
+    let centre_vertex = 4 * 9 + 4;
+    let (triangle, corner) = triangles
+        .iter()
+        .enumerate()
+        .find_map(|(t, c)| {
+            c.iter()
+                .position(|&v| v == centre_vertex)
+                .map(|k| (t as u32, k))
+        })
+        .unwrap();
+    let mut barycentric = Vec3::ZERO;
+    barycentric[corner] = 1.0;
+    let start = FacePoint {
+        triangle,
+        barycentric,
+    };
+    let start_position = vertices[centre_vertex as usize];
+    // Along the grid's edges and diagonals exactly (multiples of 45°), and in generic directions.
+    for step in 0..72 {
+        let angle = (step / 2) as f32 * std::f32::consts::TAU / 36.0
+            + if step % 2 == 0 { 0.0 } else { 0.01 };
+        let in_plane = rotation * Vec3::new(angle.cos(), angle.sin(), 0.0) * 1.7;
+        let displacement = in_plane + normal * 0.2; // a little off the plane, as forces are
+        match mesh.walk(start, displacement) {
+            WalkEnd::OnSurface(end) => {
+                let position = mesh.face_point_position(end).unwrap();
+                let expected = start_position + in_plane;
+                assert!(
+                    position.distance(expected) < 1e-4,
+                    "direction {step}: {position} vs {expected}"
+                );
+            }
+            other => panic!("direction {step}: {other:?}"),
+        }
+    }
+}

@@ -39,8 +39,6 @@ const MOVE_AVERAGING: f32 = 0.25;
 const ROCKING: f32 = 0.3;
 /// The smallest step scale a rocking point is slowed to.
 const MIN_STEP_SCALE: f32 = 1.0 / 1024.0;
-/// How far toward its triangle's centroid a fold march that starts on a vertex is moved first.
-const OFF_VERTEX: f32 = 1e-3;
 /// Iterations a point may not fold after its first lift off a boundary; doubled at every lift.
 const FOLD_BACK_OFF: usize = 2;
 /// A target curve point lies on the surface when this close to it, as a fraction of the landing
@@ -680,7 +678,7 @@ impl WrapSolver {
         if length == 0.0 || along == Vec3::ZERO {
             return Fold::Stay;
         }
-        let (folded_point, folded_position) = match self.walk(off_vertex(seed), along * length) {
+        let (folded_point, folded_position) = match self.walk(seed, along * length) {
             WalkEnd::OnSurface(face_point) => (
                 // Never land on unreliable data: the fold target then only guides the rotation.
                 (!self.is_unreliable(face_point.triangle)).then_some(face_point),
@@ -816,20 +814,5 @@ fn relabel_anchor_error(error: KernelError, anchor: usize) -> KernelError {
             index: anchor,
         },
         other => other,
-    }
-}
-
-/// A march that starts exactly on a target vertex (anchors and vertex snaps put seeds there)
-/// starts a hair inside its triangle instead: the walker's turn around a start vertex can leave
-/// in the wrong direction on tilted surfaces, while crossing the fan edge by edge from just
-/// inside a triangle unfolds exactly.
-fn off_vertex(start: FacePoint) -> FacePoint {
-    if start.barycentric.max_element() > 1.0 - OFF_VERTEX {
-        FacePoint {
-            triangle: start.triangle,
-            barycentric: start.barycentric * (1.0 - OFF_VERTEX) + Vec3::splat(OFF_VERTEX / 3.0),
-        }
-    } else {
-        start
     }
 }
