@@ -43,13 +43,19 @@ fn a_quad_grid_has_two_lines_inside_one_along_the_border_and_corners_apart() {
     assert_eq!(structure.corners, vec![0, 4, 20, 24]);
     assert!(structure.extraordinary.is_empty());
     assert_eq!(structure.line_triples.len(), 9 * 2 + 12);
-    // One closed border loop through the 16 border vertices.
-    assert_eq!(structure.curves.len(), 1);
-    let border = &structure.curves[0];
-    assert_eq!(
-        (border.kind, border.closed, border.vertices.len()),
-        (CurveKind::Border, true, 16)
-    );
+    // The border comes out as the patch's four sides, each open, from corner to corner.
+    assert_eq!(structure.curves.len(), 4);
+    for side in &structure.curves {
+        assert_eq!(
+            (side.kind, side.closed, side.vertices.len()),
+            (CurveKind::Border, false, 5)
+        );
+        let ends = [side.vertices[0], side.vertices[4]];
+        assert!(
+            ends.iter().all(|end| structure.corners.contains(end)),
+            "{side:?}"
+        );
+    }
     assert_eq!(structure.neighbors_of(6), &[1, 5, 7, 11]);
 }
 
@@ -118,6 +124,13 @@ fn seams_are_curves_that_keep_the_grid_lines() {
     let seams = [[2, 7], [7, 12], [12, 17], [17, 22]];
     let structure = LayoutStructure::new(vertex_count, &corners, &sizes, &[], &seams).unwrap();
     assert_eq!(triples_through(&structure, 12), vec![(7, 17), (11, 13)]);
+    // The border also breaks where the seam meets it: 4 sides, two of them cut in two.
+    let border_count = structure
+        .curves
+        .iter()
+        .filter(|c| c.kind == CurveKind::Border)
+        .count();
+    assert_eq!(border_count, 6);
     let seam: Vec<_> = structure
         .curves
         .iter()

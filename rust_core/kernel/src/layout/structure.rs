@@ -232,7 +232,11 @@ impl LayoutStructure {
             }
         }
 
-        let curves = trace_curves(vertex_count, &adjacency, &kind_of);
+        let mut is_corner = vec![false; vertex_count];
+        for &corner in &corners {
+            is_corner[corner as usize] = true;
+        }
+        let curves = trace_curves(vertex_count, &adjacency, &kind_of, &is_corner);
         Ok(Self {
             vertex_count,
             neighbor_offsets,
@@ -270,17 +274,36 @@ fn opposite_neighbor(neighbor: u32, around: &[u32], consecutive: &[(u32, u32)]) 
     candidates.next().is_none().then_some(opposite)
 }
 
-/// Chains of curve edges (border, seam, loose), split where the chain branches or changes kind.
+/// Chains of curve edges (border, seam, loose), from end to end of the layout's curve network:
+/// a chain ends where it branches, where another curve meets it (a seam reaching the border), and
+/// at patch corners, so that a patch's sides come out as separate curves (anchors at both ends of
+/// a side then pair it with a target curve).
 fn trace_curves(
     vertex_count: usize,
     adjacency: &[Vec<u32>],
     kind_of: &dyn Fn(u32, u32) -> Option<CurveKind>,
+    is_corner: &[bool],
 ) -> Vec<Curve> {
-    let curve_degree = |vertex: u32, kind: CurveKind| {
+    let kind_degree = |vertex: u32, kind: CurveKind| {
         adjacency[vertex as usize]
             .iter()
             .filter(|&&other| kind_of(vertex, other) == Some(kind))
             .count()
+    };
+    let any_degree = |vertex: u32| {
+        adjacency[vertex as usize]
+            .iter()
+            .filter(|&&other| kind_of(vertex, other).is_some())
+            .count()
+    };
+    // A vertex a chain of `kind` passes through: two edges of that kind and no other curve there.
+    let curve_degree = |vertex: u32, kind: CurveKind| {
+        let degree = kind_degree(vertex, kind);
+        if degree == 2 && (any_degree(vertex) > 2 || is_corner[vertex as usize]) {
+            usize::MAX // an end, like a junction
+        } else {
+            degree
+        }
     };
     let mut visited: std::collections::HashSet<(u32, u32)> = std::collections::HashSet::new();
     let mut curves = Vec::new();
