@@ -244,7 +244,8 @@ def cube_sphere(resolution: int) -> tuple[np.ndarray, np.ndarray]:
             base = sum(len(block) for block in points)
             points.append(face.reshape(-1, 3))
             index = base + np.arange((resolution + 1) ** 2).reshape(resolution + 1, resolution + 1)
-            quads.append(np.stack([index[:-1, :-1], index[1:, :-1], index[1:, 1:], index[:-1, 1:]], axis=-1).reshape(-1, 4))
+            corners = (index[:-1, :-1], index[1:, :-1], index[1:, 1:], index[:-1, 1:])
+            quads.append(np.stack(corners, axis=-1).reshape(-1, 4))
     vertices = np.concatenate(points)
     faces = np.concatenate(quads)
     # Weld the cube's shared edges.
@@ -448,7 +449,9 @@ def voxel_remesh(vertices: np.ndarray, quads: np.ndarray, voxel_size: float) -> 
     return positions.reshape(-1, 3), triangles.reshape(-1, 3).astype(np.uint32)
 
 
-def _remeshed_target(quads: np.ndarray, truth: np.ndarray, spec: CaseSpec, cache: Path) -> tuple[np.ndarray, np.ndarray, float]:
+def _remeshed_target(
+    quads: np.ndarray, truth: np.ndarray, spec: CaseSpec, cache: Path
+) -> tuple[np.ndarray, np.ndarray, float]:
     """The clean (unholed, noiseless) remeshed target of a morph, cached apart so variants share it."""
     clean_spec = replace(spec, name="remeshed", holes=False, noise_sigma=0.0, layout_half="", description="")
     path = cache / "cases" / f"remeshed-{spec.morph}{'-' + spec.pose if spec.pose else ''}-{clean_spec.key()}.npz"
