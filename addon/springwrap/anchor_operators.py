@@ -5,70 +5,38 @@ everything, computes the complete new anchor list (``anchors``), and writes it o
 step succeeded; any problem is reported as an error and the anchors are left exactly as they were.
 """
 
-import contextlib
 import time
 
 import bpy
 
-from .operators import layout_problem
+from .operators import LayoutCollectionOperator
 from .properties import ANCHOR_METHOD_ITEMS, max_distance_property
 
 
-def anchor_problem(context, require_target=True, require_anchors=False):
-    """Why an anchor operator cannot run on the active object, or None when it can."""
-    problem = layout_problem(context, require_target)
-    if problem is not None:
-        return problem
-    if require_anchors and not len(context.active_object.springwrap.anchors):
-        return "The layout has no anchors"
-    return None
+class _AnchorOperator(LayoutCollectionOperator):
+    """Shared run and report of the anchor operators."""
 
+    collection = "anchors"
+    empty_message = "The layout has no anchors"
 
-class _AnchorOperator:
-    """Shared poll, run and report of the anchor operators."""
+    def run(self, context, bridge, layout):
+        from . import anchors
 
-    requires_target = True
-    requires_anchors = False
-    reads_layout_mesh = True  # leaves edit mode for the duration, so the mesh data is current
-
-    @classmethod
-    def poll(cls, context):
-        problem = anchor_problem(context, cls.requires_target, cls.requires_anchors)
-        if problem is not None:
-            cls.poll_message_set(problem)
-            return False
-        return True
-
-    def execute(self, context):
-        problem = anchor_problem(context, self.requires_target, self.requires_anchors)
-        if problem is not None:
-            self.report({"ERROR"}, problem)
-            return {"CANCELLED"}
-        try:
-            from . import anchors, bridge
-        except ImportError as error:
-            self.report({"ERROR"}, f"The Springwrap kernel is not available: {error}")
-            return {"CANCELLED"}
-        layout = context.active_object
         start = time.perf_counter()
-        try:
-            mode = bridge.object_mode(layout) if self.reads_layout_mesh else contextlib.nullcontext()
-            with mode:
-                outcome, signature = self.compute(context, anchors, bridge, layout)
-                bridge.write_anchors(layout, outcome.anchors, outcome.active_index, signature)
-        except bridge.ERRORS as error:
-            self.report({"ERROR"}, str(error))
-            return {"CANCELLED"}
+        outcome, signature = self.compute(context, anchors, bridge, layout)
+        bridge.write_anchors(layout, outcome.anchors, outcome.active_index, signature)
         milliseconds = (time.perf_counter() - start) * 1000.0
-        self.report({"INFO"}, self.summary(anchors, outcome, milliseconds))
+        reports = [({"INFO"}, self.summary(anchors, outcome, milliseconds))]
         detached, reattached = outcome.topology_detached_count, outcome.topology_reattached_count
         if detached or reattached:
-            self.report(
-                {"WARNING"} if detached else {"INFO"},
-                f"Target topology changed: {detached} face anchors lost their target face and became "
-                f"space anchors, {reattached} re-attached",
+            reports.append(
+                (
+                    {"WARNING"} if detached else {"INFO"},
+                    f"Target topology changed: {detached} face anchors lost their target face and became "
+                    f"space anchors, {reattached} re-attached",
+                )
             )
-        return {"FINISHED"}
+        return reports
 
     def compute(self, context, anchors, bridge, layout):
         """``(anchors.AnchorOutcome, signature or None)``; raises one of ``bridge.ERRORS`` on bad input."""
@@ -214,7 +182,7 @@ class SPRINGWRAP_OT_anchors_update(_AnchorOperator, bpy.types.Operator):
     bl_label = "Update Anchors"
     bl_options = {"REGISTER", "UNDO"}
 
-    requires_anchors = True
+    requires_items = True
     reads_layout_mesh = False
 
     def compute(self, context, anchors, bridge, layout):
@@ -235,7 +203,7 @@ class SPRINGWRAP_OT_anchor_remove(_AnchorOperator, bpy.types.Operator):
     bl_options = {"REGISTER", "UNDO"}
 
     requires_target = False
-    requires_anchors = True
+    requires_items = True
     reads_layout_mesh = False
 
     index: bpy.props.IntProperty(
@@ -266,7 +234,7 @@ class SPRINGWRAP_OT_anchors_clear(_AnchorOperator, bpy.types.Operator):
     bl_options = {"REGISTER", "UNDO"}
 
     requires_target = False
-    requires_anchors = True
+    requires_items = True
     reads_layout_mesh = False
 
     def compute(self, context, anchors, bridge, layout):

@@ -6,59 +6,23 @@ complete new constraint list (``curves``), and writes it only when every step su
 problem is reported as an error and the constraints are left exactly as they were.
 """
 
-import contextlib
-
 import bpy
 
-from .operators import layout_problem
+from .operators import LayoutCollectionOperator
 
 
-def curve_problem(context, require_target=True, require_constraints=False):
-    """Why a curve-constraint operator cannot run on the active object, or None when it can."""
-    problem = layout_problem(context, require_target)
-    if problem is not None:
-        return problem
-    if require_constraints and not len(context.active_object.springwrap.curve_constraints):
-        return "The layout has no curve constraints"
-    return None
+class _CurveOperator(LayoutCollectionOperator):
+    """Shared run and report of the curve-constraint operators."""
 
+    collection = "curve_constraints"
+    empty_message = "The layout has no curve constraints"
 
-class _CurveOperator:
-    """Shared poll, run and report of the curve-constraint operators."""
+    def run(self, context, bridge, layout):
+        from . import curves
 
-    requires_target = True
-    requires_constraints = False
-    reads_layout_mesh = True  # leaves edit mode for the duration, so the mesh data is current
-
-    @classmethod
-    def poll(cls, context):
-        problem = curve_problem(context, cls.requires_target, cls.requires_constraints)
-        if problem is not None:
-            cls.poll_message_set(problem)
-            return False
-        return True
-
-    def execute(self, context):
-        problem = curve_problem(context, self.requires_target, self.requires_constraints)
-        if problem is not None:
-            self.report({"ERROR"}, problem)
-            return {"CANCELLED"}
-        try:
-            from . import bridge, curves
-        except ImportError as error:
-            self.report({"ERROR"}, f"The Springwrap kernel is not available: {error}")
-            return {"CANCELLED"}
-        layout = context.active_object
-        try:
-            mode = bridge.object_mode(layout) if self.reads_layout_mesh else contextlib.nullcontext()
-            with mode:
-                constraints, active_index = self.compute(context, curves, bridge, layout)
-                bridge.write_curve_constraints(layout, constraints, active_index)
-        except bridge.ERRORS as error:
-            self.report({"ERROR"}, str(error))
-            return {"CANCELLED"}
-        self.report({"INFO"}, self.summary(constraints))
-        return {"FINISHED"}
+        constraints, active_index = self.compute(context, curves, bridge, layout)
+        bridge.write_curve_constraints(layout, constraints, active_index)
+        return [({"INFO"}, self.summary(constraints))]
 
     def compute(self, context, curves, bridge, layout):
         """``(complete new list of curves.CurveConstraint, active index)``; raises one of ``bridge.ERRORS``."""
@@ -165,7 +129,7 @@ class SPRINGWRAP_OT_curve_constraint_remove(_CurveOperator, bpy.types.Operator):
     bl_options = {"REGISTER", "UNDO"}
 
     requires_target = False
-    requires_constraints = True
+    requires_items = True
     reads_layout_mesh = False
 
     index: bpy.props.IntProperty(
@@ -195,7 +159,7 @@ class SPRINGWRAP_OT_curve_constraints_clear(_CurveOperator, bpy.types.Operator):
     bl_options = {"REGISTER", "UNDO"}
 
     requires_target = False
-    requires_constraints = True
+    requires_items = True
     reads_layout_mesh = False
 
     def compute(self, context, curves, bridge, layout):

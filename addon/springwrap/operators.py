@@ -5,6 +5,7 @@ when every step succeeded; any problem is reported as an error and the layout is
 it was.
 """
 
+import contextlib
 import time
 
 import bpy
@@ -93,6 +94,71 @@ class _LayoutOperator:
 
     def summary(self, outcome, milliseconds):
         """The report of a finished operation."""
+        raise NotImplementedError
+
+
+class LayoutCollectionOperator:
+    """Shared poll, guard and report of the operators that edit one of the layout's lists
+    (anchors, curve constraints).
+
+    A subclass names the list (``collection``) and what to say when it is empty, and implements
+    :meth:`run`: compute the complete new list, write it through the bridge, and return the
+    reports. Everything is checked before anything is written; any problem is reported as an
+    error and the list is left exactly as it was.
+    """
+
+    collection = ""
+    """Name of the collection property on ``object.springwrap``."""
+    empty_message = ""
+    """The poll message when the collection is needed but empty."""
+    requires_target = True
+    requires_items = False
+    reads_layout_mesh = True  # leaves edit mode for the duration, so the mesh data is current
+
+    @classmethod
+    def problem(cls, context):
+        """Why the operator cannot run on the active object, or None when it can."""
+        problem = layout_problem(context, cls.requires_target)
+        if problem is not None:
+            return problem
+        if cls.requires_items and not len(getattr(context.active_object.springwrap, cls.collection)):
+            return cls.empty_message
+        return None
+
+    @classmethod
+    def poll(cls, context):
+        problem = cls.problem(context)
+        if problem is not None:
+            cls.poll_message_set(problem)
+            return False
+        return True
+
+    def execute(self, context):
+        problem = self.problem(context)
+        if problem is not None:
+            self.report({"ERROR"}, problem)
+            return {"CANCELLED"}
+        try:
+            from . import bridge
+        except ImportError as error:
+            self.report({"ERROR"}, f"The Springwrap kernel is not available: {error}")
+            return {"CANCELLED"}
+        layout = context.active_object
+        try:
+            mode = bridge.object_mode(layout) if self.reads_layout_mesh else contextlib.nullcontext()
+            with mode:
+                reports = self.run(context, bridge, layout)
+        except bridge.ERRORS as error:
+            self.report({"ERROR"}, str(error))
+            return {"CANCELLED"}
+        for level, message in reports:
+            self.report(level, message)
+        return {"FINISHED"}
+
+    def run(self, context, bridge, layout):
+        """Compute and write the new list; return ``[(report level set, message), ...]``.
+
+        Raises one of ``bridge.ERRORS`` on bad input, before writing anything."""
         raise NotImplementedError
 
 
