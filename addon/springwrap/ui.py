@@ -3,11 +3,9 @@
 import bpy
 
 
-class SPRINGWRAP_PT_layout(bpy.types.Panel):
-    """Target picker and the detach / snap / project buttons for the active layout"""
+class _SidebarPanel:
+    """Where every Springwrap panel lives (the 3D view's sidebar tab) and when it shows (a mesh is active)."""
 
-    bl_label = "Springwrap"
-    bl_idname = "SPRINGWRAP_PT_layout"
     bl_space_type = "VIEW_3D"
     bl_region_type = "UI"
     bl_category = "Springwrap"
@@ -16,6 +14,19 @@ class SPRINGWRAP_PT_layout(bpy.types.Panel):
     def poll(cls, context):
         obj = context.active_object
         return obj is not None and obj.type == "MESH"
+
+
+class _LayoutSubPanel(_SidebarPanel):
+    """A sub-panel of the layout panel."""
+
+    bl_parent_id = "SPRINGWRAP_PT_layout"
+
+
+class SPRINGWRAP_PT_layout(_SidebarPanel, bpy.types.Panel):
+    """Target picker and the detach / snap / project buttons for the active layout"""
+
+    bl_label = "Springwrap"
+    bl_idname = "SPRINGWRAP_PT_layout"
 
     def draw(self, context):
         layout = self.layout
@@ -97,20 +108,11 @@ class SPRINGWRAP_UL_anchors(bpy.types.UIList):
         row.label(text=f"{item.target_kind.title()} ({x:.3g}, {y:.3g}, {z:.3g})", icon=kind_icon)
 
 
-class SPRINGWRAP_PT_anchors(bpy.types.Panel):
+class SPRINGWRAP_PT_anchors(_LayoutSubPanel, bpy.types.Panel):
     """The active layout's anchors: list, add / remove / clear / auto, and the viewport display toggle"""
 
     bl_label = "Anchors"
     bl_idname = "SPRINGWRAP_PT_anchors"
-    bl_parent_id = "SPRINGWRAP_PT_layout"
-    bl_space_type = "VIEW_3D"
-    bl_region_type = "UI"
-    bl_category = "Springwrap"
-
-    @classmethod
-    def poll(cls, context):
-        obj = context.active_object
-        return obj is not None and obj.type == "MESH"
 
     def draw_header(self, context):
         self.layout.prop(context.active_object.springwrap, "show_anchors", text="")
@@ -162,20 +164,11 @@ class SPRINGWRAP_UL_curve_constraints(bpy.types.UIList):
             row.label(text=f"{len(item.points)} target vertices", icon="MESH_DATA")
 
 
-class SPRINGWRAP_PT_curve_constraints(bpy.types.Panel):
+class SPRINGWRAP_PT_curve_constraints(_LayoutSubPanel, bpy.types.Panel):
     """The active layout's curve constraints: list, add / remove / clear / auto, and the viewport display toggle"""
 
     bl_label = "Curve Constraints"
     bl_idname = "SPRINGWRAP_PT_curve_constraints"
-    bl_parent_id = "SPRINGWRAP_PT_layout"
-    bl_space_type = "VIEW_3D"
-    bl_region_type = "UI"
-    bl_category = "Springwrap"
-
-    @classmethod
-    def poll(cls, context):
-        obj = context.active_object
-        return obj is not None and obj.type == "MESH"
 
     def draw_header(self, context):
         self.layout.prop(context.active_object.springwrap, "show_curve_constraints", text="")
@@ -204,20 +197,11 @@ class SPRINGWRAP_PT_curve_constraints(bpy.types.Panel):
         layout.operator("springwrap.curve_constraints_auto", icon="AUTO")
 
 
-class SPRINGWRAP_PT_wrap(bpy.types.Panel):
+class SPRINGWRAP_PT_wrap(_LayoutSubPanel, bpy.types.Panel):
     """The wrap: the target's unreliable vertex group and the Wrap button"""
 
     bl_label = "Wrap"
     bl_idname = "SPRINGWRAP_PT_wrap"
-    bl_parent_id = "SPRINGWRAP_PT_layout"
-    bl_space_type = "VIEW_3D"
-    bl_region_type = "UI"
-    bl_category = "Springwrap"
-
-    @classmethod
-    def poll(cls, context):
-        obj = context.active_object
-        return obj is not None and obj.type == "MESH"
 
     def draw(self, context):
         layout = self.layout
