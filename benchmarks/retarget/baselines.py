@@ -40,6 +40,13 @@ class BaselineUnavailable(RuntimeError):
     """A method cannot run this case (missing package, unsupported input); the message says why."""
 
 
+class MethodRefused(RuntimeError):
+    """The product refused the case: an operator reported an error and returned ``{'CANCELLED'}``.
+
+    A measured outcome (what a user would see), not a failure of the harness; the message is the
+    operator's report."""
+
+
 # ---------------------------------------------------------------- alignment
 
 
@@ -93,6 +100,7 @@ class MethodResult:
     seconds: float = float("nan")
     peak_megabytes: float = float("nan")
     notes: list[str] = field(default_factory=list)
+    details: dict = field(default_factory=dict)  # method-specific numbers (the wrap's iterations...)
 
 
 # ---------------------------------------------------------------- Blender
@@ -239,11 +247,19 @@ METHODS = (
     "Shrinkwrap project",
     "trimesh nricp_amberg",
     "Springwrap snap",
+    "Springwrap wrap",
+    "Springwrap snap+wrap",
 )
 
 
-def run_baselines(case, anchor_count: int, methods: tuple[str, ...] = METHODS) -> list[MethodResult]:
-    """Run ``methods`` on a case (the Blender scene is cleared first), with its first ``anchor_count`` landmarks."""
+def run_baselines(
+    case, anchor_count: int, methods: tuple[str, ...] = METHODS, wrap_max_iterations: int | None = None
+) -> list[MethodResult]:
+    """Run ``methods`` on a case (the Blender scene is cleared first), with its first ``anchor_count`` landmarks.
+
+    ``wrap_max_iterations`` caps the wrap methods' iterations (None: the operator's default)."""
+    from benchmarks.retarget import springwrap_methods
+
     marks = case.landmarks(anchor_count)
     anchors = case.true_positions[marks.vertices]
     with Measurement() as alignment_time:
@@ -268,10 +284,18 @@ def run_baselines(case, anchor_count: int, methods: tuple[str, ...] = METHODS) -
                     )
                 elif method == "Springwrap snap":
                     result.positions, result.notes = springwrap_snap(aligned, case.layout_quads, target_object)
+                elif method in springwrap_methods.WRAP_METHODS:
+                    result.positions, result.notes, report = springwrap_methods.springwrap_wrap(
+                        aligned, case.layout_quads, target_object, marks.vertices, anchors,
+                        snap_first=method == "Springwrap snap+wrap", max_iterations=wrap_max_iterations,
+                    )
+                    result.details = report.as_dict()
                 else:
                     raise BaselineUnavailable(f"unknown method {method!r}")
         except BaselineUnavailable as error:
             result.status = f"skipped: {error}"
+        except MethodRefused as error:
+            result.status = f"refused: {error}"
         except Exception as error:  # noqa: BLE001 - one failing method must not stop the others
             result.status = f"failed: {type(error).__name__}: {error}"
         result.seconds = alignment_time.seconds if method == "aligned template" else measured.seconds

@@ -14,7 +14,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import platform
+import subprocess
 import sys
 import time
 import traceback
@@ -22,6 +24,8 @@ from pathlib import Path
 
 if not __package__:  # run as a script: make `benchmarks.retarget` importable
     sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+
+import numpy as np  # noqa: E402
 
 from benchmarks.retarget import baselines, cases, data, landmarks, metrics  # noqa: E402
 
@@ -32,6 +36,8 @@ SHORT_NAMES = {
     "Shrinkwrap project": "sw-proj",
     "trimesh nricp_amberg": "nricp",
     "Springwrap snap": "snap",
+    "Springwrap wrap": "wrap",
+    "Springwrap snap+wrap": "snap+wrap",
 }
 
 
@@ -48,7 +54,16 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
                         help="run only these methods (quote names with spaces)")
     parser.add_argument("--json", type=Path, default=DEFAULT_JSON, help=f"where to write the results ({DEFAULT_JSON})")
     parser.add_argument("--rebuild", action="store_true", help="rebuild the cases even when cached")
+    parser.add_argument("--wrap-max-iterations", type=int, metavar="N",
+                        help="cap the wrap methods' iterations (default: the operator's own default)")
+    parser.add_argument("--positions", type=Path, metavar="FOLDER",
+                        help="also save every method's layout positions per case as FOLDER/<case>.npz "
+                        "(default: beside the JSON, in retarget-positions/; the figures read them)")
     arguments = parser.parse_args(argv)
+    if arguments.wrap_max_iterations is not None and arguments.wrap_max_iterations < 1:
+        parser.error("--wrap-max-iterations must be >= 1")
+    if arguments.positions is None:
+        arguments.positions = arguments.json.parent / "retarget-positions"
     if not 3 <= arguments.anchors <= len(landmarks.BODY_LANDMARKS):
         parser.error(f"--anchors must be within 3..{len(landmarks.BODY_LANDMARKS)} (the similarity needs 3)")
     return arguments
@@ -94,6 +109,59 @@ def print_table(records: list[dict]) -> None:
           "MB: peak resident memory growth")
 
 
+def save_positions(path: Path, case, results) -> None:
+    """Every method's layout positions on a case, with the truth and the quads (for the figures)."""
+    arrays = {"true_positions": case.true_positions.astype(np.float32), "layout_quads": case.layout_quads,
+              "over_hole": case.over_hole, "in_cavity": case.in_cavity}
+    names = []
+    for result in results:
+        if result.positions is not None:
+            arrays[f"positions_{len(names)}"] = np.asarray(result.positions, dtype=np.float32)
+            names.append(result.method)
+    arrays["methods"] = np.array(names)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(path, **arrays)
+
+
+def git_commit() -> str:
+    """The repository's commit (with ``+dirty`` when tracked files changed), or ``unknown``."""
+    try:
+        commit = subprocess.run(["git", "rev-parse", "--short=12", "HEAD"], cwd=data.REPOSITORY_ROOT,
+                                capture_output=True, text=True, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=data.REPOSITORY_ROOT,
+                               capture_output=True, text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+    return commit + ("+dirty" if dirty else "")
+
+
+def machine_description() -> dict:
+    """CPU, cores, load, versions: what the numbers were measured on."""
+    import bpy
+    import springwrap_kernel
+
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return {
+        "cpu": cpu,
+        "cpu_count": os.cpu_count(),
+        "usable_cpus": len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count(),
+        "load_average": list(os.getloadavg()) if hasattr(os, "getloadavg") else None,
+        "python": platform.python_version(),
+        "platform": platform.platform(),
+        "bpy": bpy.app.version_string,
+        "numpy": np.__version__,
+        "springwrap_kernel": getattr(springwrap_kernel, "__version__", "unknown"),
+        "git_commit": git_commit(),
+    }
+
+
 def run(arguments: argparse.Namespace) -> int:
     """Build the cases, run the methods, print, write JSON; the exit code."""
     import bpy  # noqa: F401  (first, before the add-on)
@@ -102,6 +170,7 @@ def run(arguments: argparse.Namespace) -> int:
     specs = cases.case_specs(arguments.cases, arguments.quick)
     methods = tuple(arguments.methods) if arguments.methods else baselines.METHODS
     cache = data.cache_folder()
+    machine = machine_description()
     print(f"retarget benchmark: {len(specs)} cases, {arguments.anchors} anchors, methods: {', '.join(methods)}")
     print(f"cache: {cache}")
     records: list[dict] = []
@@ -126,7 +195,7 @@ def run(arguments: argparse.Namespace) -> int:
         import springwrap_kernel
 
         target = springwrap_kernel.TargetMesh(case.target_vertices, case.target_triangles)
-        results = baselines.run_baselines(case, anchor_count, methods)
+        results = baselines.run_baselines(case, anchor_count, methods, arguments.wrap_max_iterations)
         record = {
             "case": spec.name,
             "spec": spec.__dict__,
@@ -144,7 +213,7 @@ def run(arguments: argparse.Namespace) -> int:
         summary = []
         for result in results:
             entry = {"status": result.status, "seconds": result.seconds, "peak_megabytes": result.peak_megabytes,
-                     "notes": result.notes}
+                     "notes": result.notes, "details": result.details}
             if result.positions is not None:
                 measured = metrics.evaluate(result.positions, case.true_positions, case.layout_quads, target,
                                             case.over_hole, case.in_cavity, case.landmark_vertices[:anchor_count])
@@ -154,9 +223,11 @@ def run(arguments: argparse.Namespace) -> int:
                 summary.append(f"{SHORT_NAMES.get(result.method, result.method)} {result.status.split(':')[0]}")
                 if result.status.startswith("failed"):
                     failures += 1
+                if not result.status.startswith("skipped"):
                     print(f"  {result.method}: {result.status}", flush=True)
             record["methods"][result.method] = entry
         records.append(record)
+        save_positions(arguments.positions / f"{spec.name}.npz", case, results)
         origin = "cached" if cached else f"built in {build_seconds:.1f} s"
         print(f"[{number}/{len(specs)}] {spec.name:<24} ({origin}; {len(case.target_triangles)} target triangles, "
               f"{anchor_count} anchors) mean error: {', '.join(summary)}  [{time.perf_counter() - case_start:.1f} s]",
@@ -166,9 +237,9 @@ def run(arguments: argparse.Namespace) -> int:
     output = {
         "benchmark": "retarget",
         "arguments": {"quick": arguments.quick, "cases": arguments.cases, "anchors": arguments.anchors,
-                      "methods": list(methods)},
-        "machine": {"python": platform.python_version(), "platform": platform.platform(),
-                    "bpy": ".".join(map(str, bpy.app.version))},
+                      "methods": list(methods), "wrap_max_iterations": arguments.wrap_max_iterations},
+        "machine": machine,
+        "load_average_end": list(os.getloadavg()) if hasattr(os, "getloadavg") else None,
         "seconds": time.perf_counter() - start,
         "cases": records,
     }
