@@ -55,12 +55,9 @@ def _surface(major_angle: np.ndarray, minor_angle: np.ndarray, seed: int) -> tup
     return ring_center + (MINOR_RADIUS + height)[..., None] * normal, normal
 
 
-def noisy_torus(triangle_count: int, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
-    """A displaced torus with about ``triangle_count`` triangles.
-
-    Returns float32 (N, 3) vertices and uint32 (M, 3) triangles, C-contiguous, counter-clockwise
-    seen from outside; M = 2 * N exactly."""
-    major, minor = _grid_shape(max(1, triangle_count // 2))
+def _torus_grid(cell_count: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """float32 (N, 3) vertices and (N, 4) quads of a (major x minor) grid of about ``cell_count`` cells."""
+    major, minor = _grid_shape(max(1, cell_count))
     major_angle = np.arange(major) * (2.0 * np.pi / major)
     minor_angle = np.arange(minor) * (2.0 * np.pi / minor)
     positions, _normal = _surface(*np.meshgrid(major_angle, minor_angle, indexing="ij"), seed=seed)
@@ -73,8 +70,26 @@ def noisy_torus(triangle_count: int, seed: int = 1) -> tuple[np.ndarray, np.ndar
     corner_11 = (ring + 1) % major * minor + (around + 1) % minor
     corner_01 = ring * minor + (around + 1) % minor
     quads = np.stack([corner_00, corner_10, corner_11, corner_01], axis=-1).reshape(-1, 4)
+    return vertices, quads
+
+
+def noisy_torus(triangle_count: int, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """A displaced torus with about ``triangle_count`` triangles.
+
+    Returns float32 (N, 3) vertices and uint32 (M, 3) triangles, C-contiguous, counter-clockwise
+    seen from outside; M = 2 * N exactly."""
+    vertices, quads = _torus_grid(triangle_count // 2, seed)
     triangles = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]], axis=1).reshape(-1, 3)
     return vertices, np.ascontiguousarray(triangles, dtype=np.uint32)
+
+
+def torus_layout(quad_count: int, seed: int = 2) -> tuple[np.ndarray, np.ndarray]:
+    """A quad layout over a displaced torus (another ``seed``: another displacement than the target's).
+
+    Returns float32 (N, 3) vertices and int32 (N, 4) quads (N = quad count, about ``quad_count``),
+    counter-clockwise seen from outside."""
+    vertices, quads = _torus_grid(quad_count, seed)
+    return vertices, np.ascontiguousarray(quads, dtype=np.int32)
 
 
 def query_points(point_count: int, seed: int = 1) -> np.ndarray:

@@ -249,6 +249,7 @@ METHODS = (
     "Springwrap snap",
     "Springwrap wrap",
     "Springwrap snap+wrap",
+    "Springwrap project+wrap",
 )
 
 
@@ -287,7 +288,7 @@ def run_baselines(
                 elif method in springwrap_methods.WRAP_METHODS:
                     result.positions, result.notes, report = springwrap_methods.springwrap_wrap(
                         aligned, case.layout_quads, target_object, marks.vertices, anchors,
-                        snap_first=method == "Springwrap snap+wrap", max_iterations=wrap_max_iterations,
+                        start=springwrap_methods.WRAP_METHODS[method], max_iterations=wrap_max_iterations,
                     )
                     result.details = report.as_dict()
                 else:

@@ -38,6 +38,7 @@ SHORT_NAMES = {
     "Springwrap snap": "snap",
     "Springwrap wrap": "wrap",
     "Springwrap snap+wrap": "snap+wrap",
+    "Springwrap project+wrap": "proj+wrap",
 }
 
 
@@ -239,6 +240,7 @@ def run(arguments: argparse.Namespace) -> int:
         "arguments": {"quick": arguments.quick, "cases": arguments.cases, "anchors": arguments.anchors,
                       "methods": list(methods), "wrap_max_iterations": arguments.wrap_max_iterations},
         "machine": machine,
+        "finished_utc": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
         "load_average_end": list(os.getloadavg()) if hasattr(os, "getloadavg") else None,
         "seconds": time.perf_counter() - start,
         "cases": records,

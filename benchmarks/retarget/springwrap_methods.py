@@ -6,7 +6,11 @@
   anchors it to the closest target point, as a click on the target does), then
   ``springwrap.wrap()`` with the operator's default parameters (synchronous in background mode);
 - ``Springwrap snap+wrap``: the same, with ``springwrap.snap(mode='SURFACE')`` after the detach,
-  so the wrap starts from face-points on the surface instead of a floating template.
+  so the wrap starts from face-points on the surface instead of a floating template;
+- ``Springwrap project+wrap``: the same, with ``springwrap.project(direction='NORMAL',
+  both_directions=True, max_distance=d)`` after the detach, ``d`` = :data:`PROJECT_DISTANCE` of
+  the layout's bounding-box diagonal (~5 cm on the body; unlimited rays reach the other leg or
+  arm): the README's workflow without its snap (vertices whose rays miss stay space-points).
 
 The wrap's own report (``Wrapped 'X' in N iterations (converged), T s: F face-points, S
 space-points ...``, printed to stdout in background mode) is captured and parsed
@@ -27,7 +31,10 @@ import numpy as np
 
 from benchmarks.retarget.baselines import MethodRefused, mesh_object, read_positions
 
-WRAP_METHODS = ("Springwrap wrap", "Springwrap snap+wrap")
+WRAP_METHODS = {"Springwrap wrap": "detach", "Springwrap snap+wrap": "snap", "Springwrap project+wrap": "project"}
+"""The wrap methods and how each starts (:func:`springwrap_wrap`'s ``start``)."""
+PROJECT_DISTANCE = 0.025
+"""``project+wrap``'s ray length limit, a fraction of the layout's bounding-box diagonal."""
 
 _WRAP_REPORT = re.compile(
     r"Wrapped '(?P<name>[^']*)' in (?P<iterations>\d+) iterations \((?P<ending>[^)]*)\), "
@@ -112,15 +119,17 @@ def springwrap_wrap(
     target_object,
     landmark_vertices: np.ndarray,
     anchor_positions: np.ndarray,
-    snap_first: bool = False,
+    start: str = "detach",
     max_iterations: int | None = None,
 ) -> tuple[np.ndarray, list[str], WrapReport]:
-    """detach [→ snap] → anchor_add per landmark → wrap, on a new layout object; (positions, notes, report).
+    """detach [→ snap or project] → anchor_add per landmark → wrap, on a new layout object; (positions, notes, report).
 
-    ``max_iterations=None`` keeps the operator's default."""
+    ``start`` is ``"detach"``, ``"snap"`` or ``"project"``; ``max_iterations=None`` keeps the operator's default."""
     import bpy
 
-    layout = mesh_object("Springwrap snap+wrap" if snap_first else "Springwrap wrap", layout_positions, quads)
+    if start not in ("detach", "snap", "project"):
+        raise ValueError(f"unknown start {start!r}")
+    layout = mesh_object(f"Springwrap {start}", layout_positions, quads)
     layout.springwrap.target = target_object
     bpy.context.view_layer.update()  # objects removed since the last update would be listed as None
     for obj in bpy.context.view_layer.objects:
@@ -128,8 +137,12 @@ def springwrap_wrap(
             obj.select_set(obj == layout)
     bpy.context.view_layer.objects.active = layout
     _call("detach", bpy.ops.springwrap.detach, only_selected=False)
-    if snap_first:
+    if start == "snap":
         _call("snap", bpy.ops.springwrap.snap, mode="SURFACE", only_selected=False, max_distance=0.0)
+    elif start == "project":
+        diagonal = float(np.linalg.norm(np.ptp(np.asarray(layout_positions, dtype=np.float64), axis=0)))
+        _call("project", bpy.ops.springwrap.project, direction="NORMAL", both_directions=True,
+              max_distance=PROJECT_DISTANCE * diagonal, only_selected=False)
     for vertex, position in zip(np.asarray(landmark_vertices).tolist(), np.asarray(anchor_positions).tolist()):
         _call("anchor_add", bpy.ops.springwrap.anchor_add, vertex_index=int(vertex), location=position,
               use_location=True)
