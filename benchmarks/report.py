@@ -1,0 +1,372 @@
+"""Write ``docs/benchmarks.md`` from the benchmarks' JSON output: every number in it comes from a run.
+
+    .venv/bin/python benchmarks/report.py [--retarget out/bench/retarget.json]
+        [--performance out/bench/performance.json] [--snap out/bench/snap_throughput.json]
+        [--output docs/benchmarks.md]
+
+Reads the retargeting benchmark (``benchmarks.retarget.run``), the performance sweep
+(``benchmarks/performance.py``) and the snap throughput comparison (``benchmarks/snap_throughput.py
+--json``); a missing file leaves its section out and says so. Figures are expected under
+``docs/img/`` (``benchmarks/figures.py``) and linked when present. No ``bpy``, no kernel: the
+functions here take the parsed JSON and return Markdown, and are unit-tested on made-up inputs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+REPOSITORY_ROOT = Path(__file__).resolve().parent.parent
+OUT = REPOSITORY_ROOT / "out" / "bench"
+DOCS = REPOSITORY_ROOT / "docs"
+
+SPRINGWRAP_METHODS = ("Springwrap snap", "Springwrap wrap", "Springwrap snap+wrap", "Springwrap project+wrap")
+BASELINE_METHODS = ("aligned template", "Shrinkwrap nearest", "Shrinkwrap project", "trimesh nricp_amberg")
+
+
+# ---------------------------------------------------------------- formatting
+
+
+def number(value, digits: int = 3) -> str:
+    """A float with ``digits`` decimals, ``-`` for None / NaN, ``inf`` for infinities."""
+    if value is None:
+        return "-"
+    value = float(value)
+    if math.isnan(value):
+        return "-"
+    if math.isinf(value):
+        return "inf"
+    return f"{value:.{digits}f}"
+
+
+def table(header: list[str], rows: list[list[str]], align: str | None = None) -> list[str]:
+    """Markdown table lines; ``align`` is one character per column (``l`` or ``r``)."""
+    align = align or "l" + "r" * (len(header) - 1)
+    rule = ["---:" if character == "r" else ":---" for character in align]
+    lines = ["| " + " | ".join(header) + " |", "| " + " | ".join(rule) + " |"]
+    lines += ["| " + " | ".join(row) + " |" for row in rows]
+    return lines
+
+
+def is_body(record: dict) -> bool:
+    """A body case (model units are metres) rather than a synthetic one."""
+    return record.get("spec", {}).get("source") == "anny"
+
+
+# ---------------------------------------------------------------- retarget
+
+
+def case_rows(record: dict) -> list[list[str]]:
+    """One row per method of a case: errors (% and mm), surface, holes, quality, time, memory, status."""
+    body = is_body(record)
+    rows = []
+    for method, entry in record["methods"].items():
+        metrics = entry.get("metrics")
+        notes = "; ".join(entry.get("notes") or [])
+        status = entry["status"] if entry["status"] != "ok" else ""
+        comment = " — ".join(part for part in (status, notes) if part)
+        if metrics is None:
+            rows.append([method] + ["-"] * 12 + [number(entry.get("seconds"), 2), "-", comment])
+            continue
+        millimetres = [number(metrics[f"error_{field}"] * 1000.0, 1) if body else "-" for field in ("mean", "p95", "max")]
+        rows.append([
+            method,
+            number(metrics["error_percent_mean"]),
+            number(metrics["error_percent_p95"]),
+            number(metrics["error_percent_max"], 2),
+            *millimetres,
+            number(metrics["surface_distance_percent_mean"], 4),
+            number(metrics["error_over_holes_percent_mean"]),
+            str(metrics["flipped_quads"]),
+            str(metrics["degenerate_quads"]),
+            number(metrics["angle_distortion_degrees"], 2),
+            number(metrics["anchor_error_percent"]),
+            number(entry.get("seconds"), 2),
+            number(entry.get("peak_megabytes"), 0),
+            comment,
+        ])
+    return rows
+
+
+CASE_HEADER = ["method", "mean %", "p95 %", "max %", "mean mm", "p95 mm", "max mm", "surface %", "holes %",
+               "flipped", "degenerate", "angle °", "anchors %", "time s", "MB", "status / notes"]
+
+
+def mean_over_cases(records: list[dict], method: str, field: str) -> tuple[float, int]:
+    """The mean of ``field`` over the cases where ``method`` produced metrics, and how many there were."""
+    values = [record["methods"][method]["metrics"][field] for record in records
+              if record["methods"].get(method, {}).get("metrics") is not None]
+    return (sum(values) / len(values), len(values)) if values else (float("nan"), 0)
+
+
+def best_method(record: dict, field: str = "error_percent_mean", exclude: tuple[str, ...] = ()) -> str | None:
+    """The method with the smallest ``field`` on a case (among those with metrics), or None."""
+    scored = [(entry["metrics"][field], method) for method, entry in record["methods"].items()
+              if entry.get("metrics") is not None and method not in exclude]
+    return min(scored)[1] if scored else None
+
+
+def headline(retarget: dict) -> list[str]:
+    """The summary: per method, mean and p95 error averaged over the body cases, how often it is best, times."""
+    records = retarget["cases"]
+    body = [record for record in records if is_body(record)] or records
+    methods = list(dict.fromkeys(method for record in body for method in record["methods"]))
+    wins = {method: 0 for method in methods}
+    for record in body:
+        best = best_method(record, exclude=("aligned template",))
+        if best is not None:
+            wins[best] += 1
+    rows = []
+    for method in methods:
+        mean, count = mean_over_cases(body, method, "error_percent_mean")
+        p95, _ = mean_over_cases(body, method, "error_percent_p95")
+        flipped, _ = mean_over_cases(body, method, "flipped_quads")
+        seconds = [record["methods"][method]["seconds"] for record in body
+                   if record["methods"].get(method, {}).get("metrics") is not None]
+        statuses = sorted({record["methods"][method]["status"].split(":")[0] for record in body
+                           if method in record["methods"] and record["methods"][method].get("metrics") is None})
+        rows.append([method, f"{count} / {len(body)}", number(mean), number(p95), number(flipped, 0),
+                     number(sum(seconds) / len(seconds), 2) if seconds else "-",
+                     str(wins[method]) if method != "aligned template" else "(reference)",
+                     ", ".join(statuses)])
+    kind = "body" if any(is_body(record) for record in records) else "all"
+    diagonals = [entry["metrics"]["diagonal"] for record in body for entry in record["methods"].values()
+                 if entry.get("metrics") is not None]
+    scale = (f" (1 % is {number(sum(diagonals) / len(diagonals) * 10.0, 1)} mm on the body)"
+             if diagonals and kind == "body" else "")
+    lines = [f"Averaged over the {len(body)} {kind} cases of this run ({retarget['arguments'].get('anchors')} anchors); "
+             f"errors in % of the truth's bounding-box diagonal{scale}:", ""]
+    lines += table(["method", "cases with a result", "mean error %", "p95 error %", "flipped quads", "time s",
+                    "best on (cases)", "other outcomes"], rows, "lrrrrrrl")
+    springwrap = [method for method in methods if method in SPRINGWRAP_METHODS]
+    baselines = [method for method in methods if method in BASELINE_METHODS and method != "aligned template"]
+    scored = {method: mean_over_cases(body, method, "error_percent_mean")[0] for method in methods}
+    finite = {method: value for method, value in scored.items() if not math.isnan(value)}
+    if finite:
+        best = min(finite, key=finite.get)
+        lines += ["", f"Lowest mean error over these cases: **{best}** ({number(finite[best])} %)."]
+    for method in springwrap:
+        if method not in finite:
+            continue
+        comparisons = [f"{other} {number(finite[other])} %" for other in baselines if other in finite]
+        verdict = "better than" if all(finite[method] < finite[other] for other in baselines if other in finite) \
+            else "not better than every baseline:"
+        lines.append(f"- {method}: {number(finite[method])} % mean error, {verdict} " + ", ".join(comparisons) + ".")
+    return lines
+
+
+def retarget_section(retarget: dict, image_folder: Path, image_prefix: str) -> list[str]:
+    """The per-case tables and the figures of the retargeting benchmark."""
+    arguments = retarget["arguments"]
+    lines = ["## Accuracy: retargeting with a known answer", ""]
+    lines.append(f"Run: {'`--quick` (' if arguments.get('quick') else 'all cases ('}{len(retarget['cases'])} cases), "
+                 f"{arguments.get('anchors')} anchors, {number(retarget.get('seconds'), 0)} s in all"
+                 + (f", wrap capped at {arguments['wrap_max_iterations']} iterations"
+                    if arguments.get("wrap_max_iterations") else ", the wrap at its default limit (2000 iterations)")
+                 + ".")
+    lines += ["", "Columns: error to the true position (mean, 95th percentile, max) in % of the truth's bounding-box "
+              "diagonal and in mm (body cases); *surface*: mean distance to the target surface where it exists (%); "
+              "*holes*: mean error of the vertices over holes (%); *flipped* / *degenerate*: quads whose normal "
+              "turned against the true one / whose area fell under 1 % of the true area; *angle*: mean |corner angle "
+              "− true corner angle|; *anchors*: mean error at the anchored landmarks (%); *time*: wall time of the "
+              "method (for Springwrap, every operator call); *MB*: growth of the process's peak resident memory "
+              "(methods share one process, so later ones often read 0).", ""]
+    bars = image_folder / "errors-per-method.png"
+    if bars.exists():
+        lines += [f"![mean and p95 error per method and case]({image_prefix}/{bars.name})", ""]
+    for record in retarget["cases"]:
+        spec = record.get("spec", {})
+        lines += [f"### {record['case']}", ""]
+        description = spec.get("description") or ""
+        lines.append(f"{description} Layout {record['layout_vertices']:,} vertices / {record['layout_quads']:,} quads; "
+                     f"target {record['target_triangles']:,} triangles; {record['over_hole']} vertices over holes, "
+                     f"{record['in_cavity']} in cavities.".strip())
+        lines.append("")
+        lines += table(CASE_HEADER, case_rows(record), "l" + "r" * 14 + "l")
+        heatmap = image_folder / f"heatmap-{record['case']}.png"
+        if heatmap.exists():
+            lines += ["", f"![error heat-map, {record['case']}]({image_prefix}/{heatmap.name})"]
+        lines.append("")
+    return lines
+
+
+# ---------------------------------------------------------------- performance
+
+
+def snap_section(snap: dict) -> list[str]:
+    """The snap throughput comparison (``benchmarks/snap_throughput.py --json``)."""
+    sizes = snap["sizes"]
+    lines = ["### Snap throughput: kernel vs Shrinkwrap vs mathutils BVHTree", "",
+             f"Target: noisy torus, {sizes['target_triangles']:,} triangles; {sizes['points']:,} query points within "
+             f"{sizes['query_offset']} of the surface, asked in mesh order (*coherent*) and shuffled (*random*). "
+             f"Load average at the start: {snap['machine'].get('load_average')}.", ""]
+    rows = []
+    for row in snap["results"]:
+        note = f"extrapolated from {row['measured_queries']:,}" if row.get("extrapolated") else ""
+        rows.append([row["method"], row["order"], f"{row['queries']:,}", number(row["seconds"]),
+                     f"{row['queries_per_second']:,.0f}", number(row["build_seconds"]), note])
+    lines += table(["method", "order", "queries", "seconds", "queries/s", "build s", "note"], rows, "llrrrrl")
+    failed = [check["name"] for check in snap.get("checks", []) if not check.get("passed")]
+    lines += ["", "Checks (kernel against Shrinkwrap, mathutils BVHTree and KDTree, random against coherent order): "
+              + ("all passed." if not failed else "FAILED: " + "; ".join(failed)), ""]
+    return lines
+
+
+def performance_section(performance: dict, image_folder: Path, image_prefix: str) -> list[str]:
+    """Scaling with target and layout size, wrap speed, memory per triangle, threads."""
+    results = performance["results"]
+    parameters = performance["parameters"]
+    lines = [f"### Scaling ({'quick subset' if performance.get('quick') else 'full sweep'}, "
+             f"{number(performance.get('seconds'), 0)} s, each size in a fresh process)", ""]
+    scaling = image_folder / "scaling.png"
+    if scaling.exists():
+        lines += [f"![time against target and layout size, log-log]({image_prefix}/{scaling.name})", ""]
+    if results.get("target"):
+        lines += [f"**Target size** (kernel `TargetMesh` build, `prepare_all()`, snap of {parameters['query_points']:,} "
+                  "random points; Blender's Shrinkwrap on the same points, first evaluation = its BVH build + the "
+                  "queries; memory = growth of the resident set over the triangle count):", ""]
+        rows = [[f"{row['triangles']:,}", number(row["build_seconds"]), number(row["prepare_all_seconds"]),
+                 number(row["query_seconds"]), f"{row['queries_per_second']:,.0f}",
+                 number(row["shrinkwrap_first_evaluation_seconds"]), number(row["bytes_per_triangle_face_tree"], 0),
+                 number(row["bytes_per_triangle_peak_build"], 0), number(row["bytes_per_triangle_all"], 0),
+                 number(row["process_peak_megabytes"], 0), number(row["load_average_before"], 2)]
+                for row in results["target"]]
+        lines += table(["triangles", "build s", "prepare_all s", "snap s", "snaps/s", "Shrinkwrap s",
+                        "B/tri face tree", "B/tri build peak", "B/tri all trees", "process peak MB", "load"], rows)
+        lines.append("")
+    if results.get("layout"):
+        lines += [f"**Layout size** (kernel `closest_points`, random order, on {parameters['layout_target_triangles']:,} "
+                  "triangles):", ""]
+        rows = [[f"{row['points']:,}", number(row["query_seconds"]), f"{row['queries_per_second']:,.0f}",
+                 number(row["process_peak_megabytes"], 0), number(row["load_average_before"], 2)]
+                for row in results["layout"]]
+        lines += table(["points", "seconds", "snaps/s", "process peak MB", "load"], rows)
+        lines.append("")
+    if results.get("wrap"):
+        lines += [f"**Wrap** (the add-on's operators on a torus quad grid over {parameters['wrap_target_triangles']:,} "
+                  f"triangles: detach, snap, then `springwrap.wrap(max_iterations={parameters['wrap_iterations']}, "
+                  "tolerance=1e-12)`; the wrap's time includes building its solver and writing the mesh):", ""]
+        rows = [[f"{row['layout_vertices']:,}", number(row["detach_seconds"], 2), number(row["snap_seconds"], 2),
+                 str(row["wrap_iterations"]), number(row["wrap_seconds"], 2), number(row["iterations_per_second"], 1),
+                 f"{row['vertex_iterations_per_second']:,.0f}", number(row["process_peak_megabytes"], 0),
+                 number(row["load_average_before"], 2)] for row in results["wrap"]]
+        lines += table(["layout vertices", "detach s", "snap s", "iterations", "wrap s", "iterations/s",
+                        "vertex-iterations/s", "process peak MB", "load"], rows)
+        lines.append("")
+    if results.get("threads"):
+        lines += ["**Threads** (`RAYON_NUM_THREADS`, closest_points of random points):", ""]
+        rows = [[row["threads"], f"{row['points']:,}", f"{row['target_triangles']:,}", number(row["query_seconds"]),
+                 f"{row['queries_per_second']:,.0f}", number(row["load_average_before"], 2)]
+                for row in results["threads"]]
+        lines += table(["threads", "points", "triangles", "seconds", "snaps/s", "load"], rows)
+        lines.append("")
+    return lines
+
+
+def wrap_speed_lines(retarget: dict) -> list[str]:
+    """The wrap's iterations and speed on the retarget cases (from the wrap's own report)."""
+    rows = []
+    for record in retarget["cases"]:
+        for method, entry in record["methods"].items():
+            details = entry.get("details") or {}
+            if "iterations" in details:
+                rows.append([record["case"], method, str(details["iterations"]),
+                             "yes" if details["converged"] else "no (limit)", number(details["wrap_seconds"], 2),
+                             number(details["iterations_per_second"], 0), number(entry["seconds"], 2)])
+    if not rows:
+        return []
+    return ["### Wrap on the retarget cases", "",
+            "Iterations and time as the wrap operator reported them; *total* adds detach, snap or project and the "
+            "anchor_add calls.", ""] + table(
+        ["case", "method", "iterations", "converged", "wrap s", "iterations/s", "total s"], rows, "llrlrrr") + [""]
+
+
+# ---------------------------------------------------------------- the document
+
+
+def machine_lines(name: str, run: dict) -> list[str]:
+    machine = run.get("machine", {})
+    load = machine.get("load_average")
+    load_text = ", ".join(number(value, 2) for value in load) if isinstance(load, list) else number(load, 2)
+    end = run.get("load_average_end")
+    end_text = f"; at the end {', '.join(number(value, 2) for value in end)}" if end else ""
+    return [f"- **{name}**: {machine.get('cpu', '?')}, {machine.get('cpu_count', '?')} CPUs, "
+            f"{machine.get('platform', '?')}; Python {machine.get('python', '?')}, bpy {machine.get('bpy', '?')}, "
+            f"numpy {machine.get('numpy', '?')}, springwrap_kernel {machine.get('springwrap_kernel', '?')}, "
+            f"commit `{machine.get('git_commit', '?')}`; finished {run.get('finished_utc', '?')}; load average "
+            f"(1, 5, 15 min) at the start {load_text}{end_text}"]
+
+
+def build_document(retarget: dict | None, performance: dict | None, snap: dict | None,
+                   image_folder: Path = DOCS / "img", image_prefix: str = "img") -> str:
+    """The whole of ``docs/benchmarks.md``."""
+    lines = ["# Benchmarks", "",
+             "<!-- Generated by benchmarks/report.py from out/bench/*.json: do not edit by hand, rerun `make bench`. -->",
+             "",
+             "How well and how fast Springwrap retargets a patch layout, against what a Blender user would use "
+             "otherwise (issue 4). Every number and picture below comes from the runs named in *Machine and "
+             "versions*; the machine was shared with other work while they ran (the load averages say how much), "
+             "so times are upper bounds.", ""]
+    lines += ["## How to rerun", "", "```sh",
+              "make bench           # every case and the full performance sweep, then this page and docs/img/*.png",
+              "make bench QUICK=1   # the quick subset (~5 minutes on 2 cores)",
+              ".venv/bin/python -m benchmarks.retarget.run [--quick] [--cases NAME ...] [--anchors N]",
+              ".venv/bin/python benchmarks/performance.py [--quick]",
+              ".venv/bin/python benchmarks/snap_throughput.py [--quick] --json out/bench/snap_throughput.json",
+              ".venv/bin/python benchmarks/figures.py && .venv/bin/python benchmarks/report.py",
+              "```", "",
+              "Cases, landmarks, metrics and methods are described in "
+              "[benchmarks/retarget/README.md](../benchmarks/retarget/README.md).", ""]
+    lines += ["## Machine and versions", ""]
+    for name, run in (("retarget", retarget), ("performance", performance), ("snap throughput", snap)):
+        if run is not None:
+            lines += machine_lines(name, run)
+        else:
+            lines.append(f"- **{name}**: not run (no JSON).")
+    lines.append("")
+    if retarget is not None:
+        lines += ["## Headline", ""] + headline(retarget) + [""]
+        lines += retarget_section(retarget, image_folder, image_prefix)
+    else:
+        lines += ["## Accuracy", "", "Not run: no `out/bench/retarget.json`.", ""]
+    lines += ["## Performance", ""]
+    if snap is not None:
+        lines += snap_section(snap)
+    if retarget is not None:
+        lines += wrap_speed_lines(retarget)
+    if performance is not None:
+        lines += performance_section(performance, image_folder, image_prefix)
+    if snap is None and performance is None:
+        lines += ["Not run: no performance JSON.", ""]
+    return "\n".join(lines).rstrip() + "\n"
+
+
+def load(path: Path) -> dict | None:
+    return json.loads(path.read_text()) if path.exists() else None
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="report.py", description=__doc__.splitlines()[0])
+    parser.add_argument("--retarget", type=Path, default=OUT / "retarget.json")
+    parser.add_argument("--performance", type=Path, default=OUT / "performance.json")
+    parser.add_argument("--snap", type=Path, default=OUT / "snap_throughput.json")
+    parser.add_argument("--output", type=Path, default=DOCS / "benchmarks.md")
+    arguments = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    inputs = {name: load(getattr(arguments, name)) for name in ("retarget", "performance", "snap")}
+    for name, value in inputs.items():
+        if value is None:
+            print(f"report.py: no {getattr(arguments, name)}; its section is left out", file=sys.stderr)
+    if inputs["retarget"] is None and inputs["performance"] is None and inputs["snap"] is None:
+        return 1
+    image_folder = arguments.output.parent / "img"
+    arguments.output.write_text(build_document(inputs["retarget"], inputs["performance"], inputs["snap"],
+                                               image_folder, "img"))
+    print(f"wrote {arguments.output}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
