@@ -43,8 +43,20 @@ test-rust:
 test-python: setup
 	$(PY) -m pytest -q tests
 
-bench: setup
-	$(PY) benchmarks/snap_throughput.py
+# The benchmark (issue 4): retargeting accuracy against Shrinkwrap and nricp, the performance sweep,
+# snap throughput, then docs/benchmarks.md and docs/img/*.png. `make bench QUICK=1`: the ~5-minute subset.
+BENCH_QUICK := $(if $(QUICK),--quick,)
+
+$(STAMPS)/bench-requirements: $(STAMPS)/venv benchmarks/requirements.txt
+	$(PY) -m pip install --quiet -r benchmarks/requirements.txt
+	touch $@
+
+bench: setup $(STAMPS)/bench-requirements
+	$(PY) -m benchmarks.retarget.run $(BENCH_QUICK) --json out/bench/retarget.json
+	$(PY) benchmarks/performance.py $(BENCH_QUICK) --json out/bench/performance.json
+	$(PY) benchmarks/snap_throughput.py $(BENCH_QUICK) --json out/bench/snap_throughput.json
+	$(PY) benchmarks/figures.py $(if $(QUICK),--cases heavy,)
+	$(PY) benchmarks/report.py
 
 clean:
 	rm -rf $(VENV) target out dist
