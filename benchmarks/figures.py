@@ -43,6 +43,7 @@ HEATMAP_METHODS = (
     "Springwrap snap",
     "Springwrap wrap",
     "Springwrap snap+wrap",
+    "Springwrap project+wrap",
 )
 HEATMAP_CASES = ("heavy", "heavy-holes", "heavy-posed")
 RENDER_SIZE = (360, 720)

@@ -268,6 +268,8 @@ def machine_description() -> dict:
          "print(bpy.app.version_string); print(numpy.__version__); print(k.__version__)"],
         capture_output=True, text=True, check=True,
     ).stdout.split("\n")
+    sys.path.insert(0, str(REPOSITORY_ROOT))
+    from benchmarks.retarget.run import kernel_build  # the workers load the same installed module
     commit = subprocess.run(["git", "rev-parse", "--short=12", "HEAD"], cwd=REPOSITORY_ROOT,
                             capture_output=True, text=True).stdout.strip() or "unknown"
     if subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=REPOSITORY_ROOT,
@@ -275,7 +277,7 @@ def machine_description() -> dict:
         commit += "+dirty"  # tracked files changed since the commit (the installed kernel wheel may differ too)
     return {"cpu": cpu, "cpu_count": os.cpu_count(), "python": platform.python_version(),
             "platform": platform.platform(), "bpy": versions[0], "numpy": versions[1],
-            "springwrap_kernel": versions[2], "git_commit": commit, "load_average": list(os.getloadavg())}
+            "springwrap_kernel": versions[2], "kernel_build": kernel_build(), "git_commit": commit, "load_average": list(os.getloadavg())}
 
 
 def measure(kind: str, size: int, threads: int | None = None) -> dict:

@@ -295,7 +295,8 @@ def machine_lines(name: str, run: dict) -> list[str]:
     end_text = f"; at the end {', '.join(number(value, 2) for value in end)}" if end else ""
     return [f"- **{name}**: {machine.get('cpu', '?')}, {machine.get('cpu_count', '?')} CPUs, "
             f"{machine.get('platform', '?')}; Python {machine.get('python', '?')}, bpy {machine.get('bpy', '?')}, "
-            f"numpy {machine.get('numpy', '?')}, springwrap_kernel {machine.get('springwrap_kernel', '?')}, "
+            f"numpy {machine.get('numpy', '?')}, springwrap_kernel {machine.get('springwrap_kernel', '?')} "
+            f"(native module {machine.get('kernel_build', '?')}), "
             f"commit `{machine.get('git_commit', '?')}`; finished {run.get('finished_utc', '?')}; load average "
             f"(1, 5, 15 min) at the start {load_text}{end_text}"]
 

@@ -136,6 +136,19 @@ def git_commit() -> str:
     return commit + ("+dirty" if dirty else "")
 
 
+def kernel_build() -> str:
+    """Which build of the kernel's native module is loaded: its SHA-256 (12 digits) and file time (UTC).
+
+    The version number stays 0.1.0 while the kernel changes; this tells two runs' kernels apart."""
+    import hashlib
+
+    from springwrap_kernel import _native
+
+    path = Path(_native.__file__)
+    digest = hashlib.sha256(path.read_bytes()).hexdigest()[:12]
+    return f"{digest} ({time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime(path.stat().st_mtime))})"
+
+
 def machine_description() -> dict:
     """CPU, cores, load, versions: what the numbers were measured on."""
     import bpy
@@ -159,6 +172,7 @@ def machine_description() -> dict:
         "bpy": bpy.app.version_string,
         "numpy": np.__version__,
         "springwrap_kernel": getattr(springwrap_kernel, "__version__", "unknown"),
+        "kernel_build": kernel_build(),
         "git_commit": git_commit(),
     }
 
