@@ -149,8 +149,9 @@ def render_layout(positions: np.ndarray, quads: np.ndarray, colors: np.ndarray, 
     shading.light = "STUDIO"
     shading.color_type = "VERTEX"
     shading.show_specular_highlight = False
-    shading.background_type = "VIEWPORT"
-    shading.background_color = (1.0, 1.0, 1.0)
+    world = bpy.data.worlds.new("White")  # a Workbench render's background is the world colour
+    world.color = (1.0, 1.0, 1.0)
+    scene.world = world
     scene.view_settings.view_transform = "Standard"
     scene.render.filepath = str(path)
     bpy.ops.render.render(write_still=True)
@@ -238,8 +239,8 @@ def error_bars(retarget: dict, path: Path) -> Path:
         axis.scatter(positions, p95s, marker="_", s=120, color="black", zorder=3, label="p95")
         for position, (mean, entry) in enumerate(zip(means, record["methods"].values())):
             if not np.isfinite(mean):
-                axis.text(position, 0.0, entry["status"].split(":")[0], rotation=90, ha="center", va="bottom",
-                          fontsize=7)
+                axis.text(position, 0.02 * max(p95 for p95 in p95s if np.isfinite(p95)), entry["status"].split(":")[0],
+                          rotation=90, ha="center", va="bottom", fontsize=7)
         axis.set_xticks(positions, names, rotation=40, ha="right", fontsize=7)
         axis.set_title(record["case"], fontsize=9)
         axis.set_ylabel("error, % of diagonal", fontsize=7)
