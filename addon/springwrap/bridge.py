@@ -238,7 +238,7 @@ def read_anchors(layout: bpy.types.Object) -> anchors.Anchors:
     for name, dtype, components in _ANCHOR_FIELDS:
         values = np.empty(count * components, dtype=dtype)
         if count:
-            items.foreach_get(name, values)
+            compat.foreach_get(items, name, values)
         arrays.append(values)
     return anchors.make_anchors(*arrays)
 
@@ -259,7 +259,7 @@ def write_anchors(
             items.add()
     if count:
         for (name, dtype, _components), array in zip(_ANCHOR_FIELDS, anchor_list):
-            items.foreach_set(name, np.ascontiguousarray(array, dtype=dtype).reshape(-1))
+            compat.foreach_set(items, name, np.ascontiguousarray(array, dtype=dtype).reshape(-1))
     chosen = active_index if active_index >= 0 else settings.active_anchor_index
     settings.active_anchor_index = max(anchors.clamp_active_index(chosen, count), 0)
     if signature is not None:

@@ -1,5 +1,7 @@
 """Differences between the Blender versions the add-on supports (3.4 and later)."""
 
+from typing import Callable, Optional
+
 import bpy
 import numpy as np
 
@@ -15,3 +17,44 @@ def read_vertex_normals(mesh: "bpy.types.Mesh") -> np.ndarray:
     else:
         mesh.vertices.foreach_get("normal", normals)
     return normals.reshape(-1, 3)
+
+
+def pointer_poll(poll: Callable) -> Optional[Callable]:
+    """The ``poll`` to give a ``PointerProperty``: ``poll`` itself, or None in the PyPI bpy 4.2 module.
+
+    The bpy 4.2 module (seen with 4.2.23) crashes when the process exits once a class with a
+    PointerProperty poll callback was registered (``bpy_class_free`` runs after Python is
+    finalized), even after unregistering it. The module has no user interface, and a poll only
+    filters the UI's object picker (Python assignment never calls it), so nothing is lost there.
+    """
+    if not bpy.app.binary_path and bpy.app.version[:2] == (4, 2):
+        return None
+    return poll
+
+
+# Before Blender 4.2 (seen in 3.4), foreach_get / foreach_set silently skip enum properties: set
+# leaves the items unchanged and get reads zeros. Those versions go item by item.
+_ENUM_FOREACH_WORKS = bpy.app.version >= (4, 2, 0)
+
+
+def _is_enum(collection, name: str) -> bool:
+    return len(collection) > 0 and collection[0].bl_rna.properties[name].type == "ENUM"
+
+
+def foreach_get(collection, name: str, values: np.ndarray) -> None:
+    """``collection.foreach_get(name, values)``, enum properties read as their item numbers."""
+    if _ENUM_FOREACH_WORKS or not _is_enum(collection, name):
+        collection.foreach_get(name, values)
+        return
+    numbers = {item.identifier: item.value for item in collection[0].bl_rna.properties[name].enum_items}
+    values[:] = [numbers[getattr(item, name)] for item in collection]
+
+
+def foreach_set(collection, name: str, values: np.ndarray) -> None:
+    """``collection.foreach_set(name, values)``, enum properties set from their item numbers."""
+    if _ENUM_FOREACH_WORKS or not _is_enum(collection, name):
+        collection.foreach_set(name, values)
+        return
+    identifiers = {item.value: item.identifier for item in collection[0].bl_rna.properties[name].enum_items}
+    for item, value in zip(collection, values.tolist()):
+        setattr(item, name, identifiers[int(value)])

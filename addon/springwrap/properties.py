@@ -7,6 +7,8 @@ through edits, undo and save/reload.
 
 import bpy
 
+from . import compat
+
 
 def max_distance_property(description: str):
     """A world-space distance limit, 0 meaning unlimited: shared by the operators and the panel defaults."""
@@ -135,7 +137,7 @@ class SpringwrapCurveConstraintItem(bpy.types.PropertyGroup):
         name="Curve Object",
         description="Curve object of a Curve Object constraint (read evaluated, in world space, when the wrap runs)",
         type=bpy.types.Object,
-        poll=_is_curve_object,
+        poll=compat.pointer_poll(_is_curve_object),
     )
     target_vertices: bpy.props.StringProperty(
         name="Target Chain",
@@ -156,7 +158,7 @@ class SpringwrapObjectSettings(bpy.types.PropertyGroup):
         name="Target",
         description="Mesh the layout is retargeted onto (its evaluated shape, modifiers included)",
         type=bpy.types.Object,
-        poll=_is_target_candidate,
+        poll=compat.pointer_poll(_is_target_candidate),
     )
     target_signature: bpy.props.StringProperty(
         name="Target Signature",
@@ -241,7 +243,7 @@ class SpringwrapObjectSettings(bpy.types.PropertyGroup):
         name="Curve",
         description="Curve object the panel's Add button pairs the selected chain with (empty: target edges)",
         type=bpy.types.Object,
-        poll=_is_curve_object,
+        poll=compat.pointer_poll(_is_curve_object),
     )
     show_curve_constraints: bpy.props.BoolProperty(
         name="Show Curve Constraints",

@@ -222,11 +222,12 @@ def _anchor_counts_text(anchors):
     """"K anchors (F on the surface)", the kinds read at once (the list may be long)."""
     import numpy as np
 
+    from . import compat
     from .anchors import FACE_ANCHOR
 
     kinds = np.empty(len(anchors), dtype=np.int32)
     if len(anchors):
-        anchors.foreach_get("target_kind", kinds)
+        compat.foreach_get(anchors, "target_kind", kinds)
     face_count = int(np.count_nonzero(kinds == FACE_ANCHOR))
     return f"{len(anchors)} anchors ({face_count} on the surface)"
 

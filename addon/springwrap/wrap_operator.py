@@ -401,7 +401,9 @@ class SPRINGWRAP_OT_wrap(bpy.types.Operator):
             folding=self.folding,
         )
 
-    def _start(self, context) -> Optional[WrapSession]:
+    # A string: typing's cache would keep Optional[WrapSession] (and through it this module) alive until
+    # after Python finalizes, and the PyPI bpy 4.2 module then crashes on exit freeing the operator class.
+    def _start(self, context) -> "Optional[WrapSession]":
         """Check, then build the session (in object mode); None after reporting why not."""
         problem = layout_problem(context)
         if problem is not None:
