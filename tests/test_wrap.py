@@ -663,8 +663,12 @@ def _unreliable_group(target, radius=UNRELIABLE_RADIUS, weight=1.0):
 def _node_group_dropping(group_name, subdivide=False):
     """Geometry nodes removing a vertex group (after subdividing the mesh once when ``subdivide``)."""
     tree = bpy.data.node_groups.new("Drop group", "GeometryNodeTree")
-    tree.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
-    tree.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    if hasattr(tree, "interface"):  # Blender 4.0 and later
+        tree.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+        tree.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    else:
+        tree.inputs.new("NodeSocketGeometry", "Geometry")
+        tree.outputs.new("NodeSocketGeometry", "Geometry")
     geometry = tree.nodes.new("NodeGroupInput").outputs[0]
     if subdivide:
         subdivision = tree.nodes.new("GeometryNodeSubdivideMesh")
@@ -684,7 +688,14 @@ def _unreliable_region_mask(layout, target, radius):
     return np.linalg.norm(in_target[:, :2] - np.array(HOLE_CENTER[:2]), axis=1) < radius
 
 
-@pytest.mark.parametrize("modifier", [None, "SUBSURF", "REMOVE_GROUP"])
+# Before Blender 4.0 the Named Attribute node has no "Exists" output: a vertex group the target's
+# modifiers drop cannot be told from one with zero weights, so it reads as weight 0 everywhere.
+NEEDS_GROUP_EXISTS = pytest.mark.skipif(
+    bpy.app.version < (4, 0, 0), reason="Blender < 4.0 cannot tell a dropped vertex group (no Named Attribute 'Exists')"
+)
+
+
+@pytest.mark.parametrize("modifier", [None, "SUBSURF", pytest.param("REMOVE_GROUP", marks=NEEDS_GROUP_EXISTS)])
 def test_points_on_unreliable_triangles_stay_space_points(modifier):
     target, layout, normal = plane_scene()
     _unreliable_group(target)
@@ -753,7 +764,9 @@ def _zero_length_edge(target, layout):
 def _anchor_on_a_missing_vertex(target, layout):
     layout.springwrap.anchors.add().vertex_index = 9999
     layout.springwrap.anchors[-1].location = (0.0, 0.0, 0.0)
-    return r"1 anchors are on vertices the layout no longer has \(it has 169\): anchor 18 \(vertex 9999\)"
+    # The last anchor: how many anchors_auto spread before it depends on the Blender version's grid.
+    last = len(layout.springwrap.anchors) - 1
+    return rf"1 anchors are on vertices the layout no longer has \(it has 169\): anchor {last} \(vertex 9999\)"
 
 
 def _nan_layout_vertex(target, layout):
@@ -811,6 +824,7 @@ def test_bad_input_is_reported_and_leaves_the_layout_untouched(case):
     assert set(bpy.data.objects.keys()) == {"Target", "Layout"}  # no leftover probe object
 
 
+@NEEDS_GROUP_EXISTS
 def test_unreliable_group_dropped_with_a_changed_vertex_count_is_an_error():
     target, layout, _normal = plane_scene()
     _unreliable_group(target)
