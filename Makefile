@@ -7,7 +7,7 @@ STAMPS := $(VENV)/.stamps
 KERNEL_SOURCES := $(shell find rust_core -name "*.rs" -o -name "*.toml" -o -name "*.py" -o -name "*.pyi" | grep -v /target/) Cargo.toml
 ADDON_SOURCES := $(shell find addon -name "*.py" -o -name "*.toml")
 
-.PHONY: setup demo test test-rust test-python bench lint clean
+.PHONY: setup demo test test-rust test-python bench lint clean test-bpy42 test-blender34 test-all-lanes package
 
 setup: $(STAMPS)/kernel $(STAMPS)/addon
 
@@ -43,6 +43,43 @@ test-rust:
 test-python: setup
 	$(PY) -m pytest -q tests
 
+# ---------------------------------------------------------------- compatibility lanes
+# The same add-on tests on bpy 4.2 LTS (a second venv) and on Debian's blender 3.4 (its own Python,
+# with python3-pytest and python3-numpy from .ci/blender-packages.sh). Both use the one abi3 kernel
+# wheel built by $(STAMPS)/kernel. The benchmark harness is left out: it does not touch Blender.
+LANE_TESTS := tests --ignore=tests/test_bench_harness.py --ignore=tests/test_package.py
+VENV_BPY42 := .venv-bpy42
+BLENDER ?= blender
+BLENDER34_KERNEL := .cache/blender34/kernel
+BLENDER34_SCRIPTS := .cache/blender34/scripts
+
+$(VENV_BPY42)/.stamps/venv: requirements-bpy42.txt
+	test -x $(VENV_BPY42)/bin/python || $(PYTHON) -m venv $(VENV_BPY42)
+	$(VENV_BPY42)/bin/python -m pip install --quiet --upgrade pip
+	$(VENV_BPY42)/bin/python -m pip install --quiet -r requirements-bpy42.txt
+	mkdir -p $(dir $@) && touch $@
+
+$(VENV_BPY42)/.stamps/kernel: $(VENV_BPY42)/.stamps/venv $(STAMPS)/kernel
+	$(VENV_BPY42)/bin/python -m pip install --quiet --force-reinstall --no-deps target/wheels/springwrap_kernel-*.whl
+	touch $@
+
+test-bpy42: $(VENV_BPY42)/.stamps/kernel
+	$(VENV_BPY42)/bin/python -m pytest -q $(LANE_TESTS)
+
+$(BLENDER34_KERNEL)/.stamp: $(STAMPS)/kernel
+	rm -rf $(BLENDER34_KERNEL)
+	$(PY) -m pip install --quiet --no-deps --target $(BLENDER34_KERNEL) target/wheels/springwrap_kernel-*.whl
+	touch $@
+
+test-blender34: $(BLENDER34_KERNEL)/.stamp
+	bash .ci/blender-packages.sh
+	$(BLENDER) --version | head -1 | grep -q "^Blender 3\.4" || { echo "test-blender34: $(BLENDER) is not Blender 3.4"; exit 1; }
+	mkdir -p $(BLENDER34_SCRIPTS)/addons
+	BLENDER_USER_SCRIPTS=$(CURDIR)/$(BLENDER34_SCRIPTS) SPRINGWRAP_KERNEL_PATH=$(CURDIR)/$(BLENDER34_KERNEL) \
+	  $(BLENDER) -b --factory-startup --python-exit-code 1 --python tests/run_in_blender.py -- -q $(LANE_TESTS)
+
+test-all-lanes: test test-bpy42 test-blender34
+
 # The benchmark (issue 4): retargeting accuracy against Shrinkwrap and nricp, the performance sweep,
 # snap throughput, then docs/benchmarks.md and docs/img/*.png. `make bench QUICK=1`: the ~5-minute subset.
 BENCH_QUICK := $(if $(QUICK),--quick,)
@@ -59,4 +96,4 @@ bench: setup $(STAMPS)/bench-requirements
 	$(PY) benchmarks/report.py
 
 clean:
-	rm -rf $(VENV) target out dist
+	rm -rf $(VENV) $(VENV_BPY42) target out dist .cache

@@ -17,7 +17,9 @@ ADDON_SOURCE = Path(__file__).resolve().parent.parent / "addon" / "springwrap"
 
 
 def main() -> int:
-    addon_dir = Path(addon_utils.paths()[0])
+    # A real Blender lists its system add-on folder first: with BLENDER_USER_SCRIPTS set, link there instead.
+    user_scripts = os.environ.get("BLENDER_USER_SCRIPTS")
+    addon_dir = Path(user_scripts) / "addons" if user_scripts else Path(addon_utils.paths()[0])
     addon_dir.mkdir(parents=True, exist_ok=True)
     link = addon_dir / "springwrap"
     if link.is_symlink() or link.exists():

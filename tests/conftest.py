@@ -5,12 +5,28 @@ their tests the scene is reset to an empty file and the Springwrap add-on is ena
 modules do not import ``bpy`` at all.
 """
 
+import os
 import runpy
 from pathlib import Path
 
 import pytest
 
 REPOSITORY = Path(__file__).resolve().parent.parent
+
+
+# Set by tests/run_in_blender.py: the suite runs inside a real Blender binary, not the bpy module.
+IN_BLENDER_BINARY = os.environ.get("SPRINGWRAP_TEST_LANE") == "blender"
+
+
+def pytest_collection_modifyitems(config, items):
+    """In a real Blender, skip the tests that start scripts as ``python X`` (they need the bpy module)."""
+    if not IN_BLENDER_BINARY:
+        return
+    reason = ("runs scripts as `sys.executable script.py` with the PyPI bpy module; inside the blender binary "
+              "sys.executable is a plain Python without bpy")
+    for item in items:
+        if item.module.__name__.rpartition(".")[2] == "test_scripts":
+            item.add_marker(pytest.mark.skip(reason=reason))
 
 
 def _is_addon_test(request) -> bool:
