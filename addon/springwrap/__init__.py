@@ -21,7 +21,11 @@ bl_info = {
 
 import bpy
 
-from . import anchor_drawing, anchor_operators, curve_operators, operators, properties, ui, wrap_operator
+from . import compat
+
+compat.add_vendored_packages()  # the legacy zip's kernel, before bridge imports it
+
+from . import anchor_drawing, anchor_operators, curve_operators, operators, properties, ui, wrap_operator  # noqa: E402
 
 _modules = (properties, operators, anchor_operators, curve_operators, wrap_operator, ui)
 

@@ -58,3 +58,19 @@ def foreach_set(collection, name: str, values: np.ndarray) -> None:
     identifiers = {item.value: item.identifier for item in collection[0].bl_rna.properties[name].enum_items}
     for item, value in zip(collection, values.tolist()):
         setattr(item, name, identifiers[int(value)])
+
+
+def add_vendored_packages() -> None:
+    """Put the add-on's ``_vendor`` folder first on ``sys.path`` when it has one.
+
+    The legacy add-on zip (Blender 3.4 to 4.1, which know no extension wheels) carries the kernel
+    wheel unpacked in ``springwrap/_vendor``: nothing is installed or downloaded when the add-on is
+    enabled, and the kernel matching this add-on wins over any other copy. The extension (4.2+,
+    the wheel installed by Blender) and a development checkout have no such folder.
+    """
+    import sys
+    from pathlib import Path
+
+    vendor = Path(__file__).resolve().parent / "_vendor"
+    if vendor.is_dir() and str(vendor) not in sys.path:
+        sys.path.insert(0, str(vendor))
