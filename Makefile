@@ -18,10 +18,14 @@ $(STAMPS)/venv: requirements-dev.txt .ci/system-packages.sh
 	$(PY) -m pip install --quiet -r requirements-dev.txt
 	mkdir -p $(STAMPS) && touch $@
 
-# The kernel is built as the same abi3 wheel users get, then installed into the venv.
+# The kernel is built as the same abi3 wheel users get, then installed into the venv: linked by zig
+# against glibc 2.28 (tag manylinux_2_28, so it loads on older distributions), the tag checked
+# against the symbol versions the library really needs (packaging/wheel_glibc.py).
 $(STAMPS)/kernel: $(STAMPS)/venv $(KERNEL_SOURCES)
 	rm -rf target/wheels
-	$(VENV)/bin/maturin build --release --quiet -m rust_core/python/Cargo.toml -o target/wheels --interpreter $(PY)
+	PATH="$(CURDIR)/$(VENV)/bin:$$PATH" $(VENV)/bin/maturin build --release --quiet -m rust_core/python/Cargo.toml \
+	  -o target/wheels --interpreter $(PY) --zig --compatibility manylinux_2_28
+	$(PY) packaging/wheel_glibc.py target/wheels/springwrap_kernel-*.whl
 	$(PY) -m pip install --quiet --force-reinstall --no-deps target/wheels/springwrap_kernel-*.whl
 	touch $@
 
