@@ -47,6 +47,12 @@ test-rust:
 test-python: setup
 	$(PY) -m pytest -q tests
 
+# ---------------------------------------------------------------- packages
+# dist/springwrap-<version>-extension.zip (Blender 4.2+: manifest, add-on, kernel wheel) and
+# dist/springwrap-<version>-legacy.zip (Blender 3.4-4.1: springwrap/ with the kernel in _vendor).
+package: $(STAMPS)/kernel
+	$(PY) packaging/build_packages.py --wheel-dir target/wheels --output dist
+
 # ---------------------------------------------------------------- compatibility lanes
 # The same add-on tests on bpy 4.2 LTS (a second venv) and on Debian's blender 3.4 (its own Python,
 # with python3-pytest and python3-numpy from .ci/blender-packages.sh). Both use the one abi3 kernel
