@@ -186,8 +186,11 @@ def heatmap_figure(case_record: dict, positions_file: Path, output: Path, work_f
     for method in chosen:
         positions = stored[f"positions_{methods.index(method)}"].astype(np.float64)
         errors = np.linalg.norm(positions - truth, axis=1) * 100.0 / diagonal
+        errors[~np.isfinite(errors)] = np.inf
         render_path = work_folder / f"{case_record['case']}-{methods.index(method)}.png"
-        render_layout(unplace(positions), quads, error_colors(errors), render_path, frame=frame)
+        # Quads with a non-finite corner are left out (the title counts those vertices).
+        finite_quads = quads[np.isfinite(positions).all(axis=1)[quads].all(axis=1)]
+        render_layout(unplace(np.nan_to_num(positions)), finite_quads, error_colors(errors), render_path, frame=frame)
         renders.append((method, errors, Image.open(render_path).convert("RGB")))
 
     figure, axes = plt.subplots(1, len(renders), figsize=(1.75 * len(renders) + 0.9, 4.3))
@@ -196,7 +199,10 @@ def heatmap_figure(case_record: dict, positions_file: Path, output: Path, work_f
         axis.imshow(image)
         axis.set_axis_off()
         finite = errors[np.isfinite(errors)]
-        axis.set_title(f"{method}\nmean {finite.mean():.2f} %, p95 {np.percentile(finite, 95):.2f} %", fontsize=7)
+        title = f"{method}\nmean {finite.mean():.2f} %, p95 {np.percentile(finite, 95):.2f} %"
+        if len(finite) < len(errors):
+            title += f"\n(of the finite; {len(errors) - len(finite)} NaN, not drawn)"
+        axis.set_title(title, fontsize=7)
     colormap = LinearSegmentedColormap.from_list("error", RAMP)
     mappable = plt.cm.ScalarMappable(cmap=colormap, norm=plt.Normalize(0.0, HEATMAP_CLIP_PERCENT))
     bar = figure.colorbar(mappable, ax=list(axes), fraction=0.025, pad=0.01)

@@ -66,6 +66,8 @@ def case_rows(record: dict) -> list[list[str]]:
     for method, entry in record["methods"].items():
         metrics = entry.get("metrics")
         notes = "; ".join(entry.get("notes") or [])
+        if metrics is not None and metrics.get("nonfinite_vertices"):
+            notes = f"**{metrics['nonfinite_vertices']} vertices non-finite (NaN)**" + (f"; {notes}" if notes else "")
         status = entry["status"] if entry["status"] != "ok" else ""
         comment = " — ".join(part for part in (status, notes) if part)
         if metrics is None:
@@ -128,6 +130,10 @@ def headline(retarget: dict) -> list[str]:
                    if record["methods"].get(method, {}).get("metrics") is not None]
         statuses = sorted({record["methods"][method]["status"].split(":")[0] for record in body
                            if method in record["methods"] and record["methods"][method].get("metrics") is None})
+        nonfinite = sum(1 for record in body
+                        if (record["methods"].get(method, {}).get("metrics") or {}).get("nonfinite_vertices"))
+        if nonfinite:
+            statuses.append(f"non-finite vertices on {nonfinite}")
         rows.append([method, f"{count} / {len(body)}", number(mean), number(p95), number(flipped, 0),
                      number(sum(seconds) / len(seconds), 2) if seconds else "-",
                      str(wins[method]) if method != "aligned template" else "(reference)",

@@ -489,3 +489,21 @@ def test_report_document_has_every_section_and_says_what_was_not_run(tmp_path):
     assert "**performance**: not run (no JSON)." in document and "Not run: no performance JSON." in document
     assert "Test CPU, 2 CPUs" in document and "commit `abc123`" in document
     assert "| heavy | Springwrap wrap | 2000 | no (limit) | 18.50 | 108 | 20.00 |" in document
+
+
+def test_non_finite_vertices_are_counted_and_reported():
+    vertices, quads = grid()
+    result = vertices.copy()
+    result[[2, 7]] = np.nan
+    measured = metrics.evaluate(result, vertices, quads, plane_target(), np.zeros(len(vertices), bool),
+                                np.zeros(len(vertices), bool), np.array([0]))
+    assert measured.nonfinite_vertices == 2 and measured.error_percent.mean == np.inf
+    assert measured.row()["nonfinite_vertices"] == 2
+    record = made_up_run()["cases"][1]
+    record["methods"]["Springwrap wrap"]["metrics"]["nonfinite_vertices"] = 886
+    row = next(row for row in report.case_rows(record) if row[0] == "Springwrap wrap")
+    assert row[-1].startswith("**886 vertices non-finite (NaN)**")
+    run_with_nan = made_up_run()
+    run_with_nan["cases"][1] = record
+    wrap_line = next(line for line in report.headline(run_with_nan) if line.startswith("| Springwrap wrap "))
+    assert "non-finite vertices on 1" in wrap_line

@@ -11,6 +11,8 @@ For a result (the layout's vertex positions after a method ran) and a case:
 - **degenerate quads**: a result quad whose area is below :data:`DEGENERATE_AREA_FRACTION` of its
   true area (collapsed), or that is not finite;
 - **angle distortion**: mean absolute difference of the quads' corner angles, in degrees;
+- **non-finite vertices**: result vertices with a NaN or infinite coordinate (their error counts
+  as infinite, so the mean and the max are then ``inf``);
 - **time** and **peak memory** (:class:`Measurement`).
 
 Quad normals and areas use the diagonals: ``n = (p2 - p0) x (p3 - p1)``, area ``|n| / 2`` (exact
@@ -46,7 +48,9 @@ class ErrorStats:
             selected = selected[mask]
         if len(selected) == 0:
             return cls(0, float("nan"), float("nan"), float("nan"))
-        return cls(len(selected), float(selected.mean()), float(np.percentile(selected, 95)), float(selected.max()))
+        with np.errstate(invalid="ignore"):  # inf errors (non-finite results) interpolate to nan or inf
+            p95 = float(np.percentile(selected, 95))
+        return cls(len(selected), float(selected.mean()), p95, float(selected.max()))
 
     def scaled(self, factor: float) -> ErrorStats:
         """The same stats multiplied by ``factor`` (e.g. 100 / diagonal for percent)."""
@@ -121,6 +125,7 @@ class CaseMetrics:
     quad_count: int
     angle_distortion_degrees: float
     anchor_error_percent: float  # mean error at the landmark (anchor) vertices
+    nonfinite_vertices: int = 0  # result vertices with a NaN or infinite coordinate (their error is inf)
 
     def row(self) -> dict:
         """A flat dict (for JSON and tables)."""
@@ -132,7 +137,7 @@ class CaseMetrics:
                          f"{name}_count": stats.count})
         flat.update(flipped_quads=self.flipped_quads, degenerate_quads=self.degenerate_quads,
                     quad_count=self.quad_count, angle_distortion_degrees=self.angle_distortion_degrees,
-                    anchor_error_percent=self.anchor_error_percent)
+                    anchor_error_percent=self.anchor_error_percent, nonfinite_vertices=self.nonfinite_vertices)
         return flat
 
 
@@ -165,6 +170,7 @@ def evaluate(
         quad_count=len(quads),
         angle_distortion_degrees=angle_distortion_degrees(result, truth, quads),
         anchor_error_percent=float(errors[anchor_vertices].mean() * percent) if len(anchor_vertices) else float("nan"),
+        nonfinite_vertices=int((~np.isfinite(result).all(axis=1)).sum()),
     )
 
 

@@ -233,7 +233,8 @@ def run(arguments: argparse.Namespace) -> int:
                 measured = metrics.evaluate(result.positions, case.true_positions, case.layout_quads, target,
                                             case.over_hole, case.in_cavity, case.landmark_vertices[:anchor_count])
                 entry["metrics"] = measured.row()
-                summary.append(f"{SHORT_NAMES.get(result.method, result.method)} {measured.error_percent.mean:.3f}%")
+                summary.append(f"{SHORT_NAMES.get(result.method, result.method)} {measured.error_percent.mean:.3f}%"
+                               + (f" ({measured.nonfinite_vertices} NaN)" if measured.nonfinite_vertices else ""))
             else:
                 summary.append(f"{SHORT_NAMES.get(result.method, result.method)} {result.status.split(':')[0]}")
                 if result.status.startswith("failed"):
