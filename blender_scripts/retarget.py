@@ -1,0 +1,488 @@
+"""Retarget a template layout onto a target mesh (or every mesh of a folder), headless.
+
+Runs both ways (arguments after ``--`` when present, else all of ``sys.argv[1:]``):
+    .venv/bin/python blender_scripts/retarget.py --template T --target M [options]
+    blender -b --python blender_scripts/retarget.py -- --template T --target M [options]
+
+Template and target: a mesh file (.obj, .ply, .glb / .gltf) or a .blend with ``--template-object`` /
+``--target-object`` naming the object (without a name, the file's only mesh object). Steps: the
+template is copied as the layout, aligned to the target (``--align bounds``: its bounding box's
+centre and diagonal onto the target's; ``none``, the default: as placed), detached, anchored (``--anchors FILE.json``:
+``{"anchors": [{"vertex": 12, "target": [x, y, z]}, ...]}``, each layout vertex pulled to the target
+surface point closest to that world-space point; or ``--anchors-spacing S``, spread automatically;
+0 = a tenth of the layout's size), then wrapped (``--max-iterations``, ``--fairness``,
+``--arc-length``, ``--thin-plate``, ``--tolerance``).
+
+Outputs: ``--output-blend F.blend`` (template, target and the retargeted layout), ``--output-obj
+F.obj`` (the retargeted layout alone) and ``--report F.json`` (metrics, timings, warnings). Each is
+written to a temporary file and renamed: a failing run leaves none of them behind.
+
+Batch: ``--batch DIR --output-dir OUT [--jobs N]`` retargets the template onto every mesh file in
+DIR (sorted), each in its own worker process (N at a time), writing ``OUT/<name>.blend``,
+``OUT/<name>.obj``, ``OUT/<name>.json`` and ``OUT/summary.json``; progress goes to stderr. A mesh
+that fails is reported and skipped, never the whole batch.
+
+Exit codes: 0 done; 1 the retarget failed (a one-line ``retarget: FAILED: ...`` on stderr names
+the file and the problem: a missing or unreadable file, bad anchors, a wrap that cannot start); 2
+bad command-line arguments; 3 a batch in which at least one mesh failed (the others are written).
+A wrap that stops at the iteration limit is not a failure: it is kept and warned about in the report.
+"""
+
+import argparse
+import json
+import math
+import os
+import subprocess
+import sys
+import time
+import traceback
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import bpy
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # `blender --python` does not add it
+from script_arguments import script_arguments  # noqa: E402
+
+MESH_SUFFIXES = (".obj", ".ply", ".glb", ".gltf", ".blend")
+EXIT_FAILED, EXIT_USAGE, EXIT_BATCH_FAILURES = 1, 2, 3
+LAYOUT_NAME = "Retargeted"
+
+
+class RetargetError(Exception):
+    """A problem with the input or the run: the message is the one line printed, naming the file."""
+
+
+def parse_arguments(argv: list[str]) -> argparse.Namespace:
+    """Parse the script's own arguments (see the module docstring); exits with code 2 when they are wrong."""
+    parser = argparse.ArgumentParser(prog="retarget.py", description=__doc__.splitlines()[0])
+    parser.add_argument("--template", type=Path, required=True, help="the template layout: mesh file or .blend")
+    parser.add_argument("--template-object", help="the template's object in a .blend")
+    source = parser.add_mutually_exclusive_group(required=True)
+    source.add_argument("--target", type=Path, help="the target: mesh file or .blend")
+    source.add_argument("--batch", type=Path, help="retarget onto every mesh file of this folder")
+    parser.add_argument("--target-object", help="the target's object in a .blend")
+    anchors = parser.add_mutually_exclusive_group()
+    anchors.add_argument("--anchors", type=Path, help="JSON file of layout-vertex -> target-point pairs")
+    anchors.add_argument("--anchors-spacing", type=float, help="spread anchors automatically (0: automatic spacing)")
+    parser.add_argument("--align", choices=("none", "bounds"), default="none", help="alignment (default none)")
+    parser.add_argument("--max-iterations", type=int, default=2000, help="wrap iteration limit (default 2000)")
+    parser.add_argument("--tolerance", type=float, default=1e-5, help="convergence, fraction of the layout's size")
+    parser.add_argument("--fairness", type=float, default=0.5, help="straight grid lines, 0 to 1")
+    parser.add_argument("--arc-length", type=float, default=0.5, help="even spacing along grid lines, 0 to 1")
+    parser.add_argument("--thin-plate", type=float, default=0.2, help="curvature over holes, 0 to 0.5")
+    parser.add_argument("--output-blend", type=Path, help="save template, target and result here")
+    parser.add_argument("--output-obj", type=Path, help="export the retargeted layout here")
+    parser.add_argument("--report", type=Path, help="write the JSON report here")
+    parser.add_argument("--output-dir", type=Path, help="batch: where each mesh's outputs and summary.json go")
+    parser.add_argument("--jobs", type=int, default=1, help="batch: worker processes at a time (default 1)")
+    arguments = parser.parse_args(script_arguments(argv, __file__))
+    if arguments.max_iterations < 1:
+        parser.error("--max-iterations must be at least 1")
+    if arguments.anchors_spacing is not None and arguments.anchors_spacing < 0:
+        parser.error("--anchors-spacing must not be negative")
+    if arguments.jobs < 1:
+        parser.error("--jobs must be at least 1")
+    if arguments.batch is not None:
+        if arguments.output_dir is None:
+            parser.error("--batch needs --output-dir")
+        if arguments.output_blend or arguments.output_obj or arguments.report:
+            parser.error("--batch writes into --output-dir: no --output-blend, --output-obj or --report")
+    return arguments
+
+
+# ---------------------------------------------------------------- loading
+
+
+def enable_addon() -> None:
+    """Enable Springwrap: the classic add-on, or an installed extension (``bl_ext.<repository>.springwrap``)."""
+    import addon_utils
+
+    names = ["springwrap"] + [module.__name__ for module in addon_utils.modules()
+                              if module.__name__.endswith(".springwrap")]
+    for name in names:
+        if addon_utils.enable(name, default_set=True, handle_error=None) is not None:
+            return
+    raise RetargetError("the Springwrap add-on cannot be enabled (run `make setup`, or install it in Blender)")
+
+
+def _import_file(path: Path) -> None:
+    """Run the importer for ``path``'s format."""
+    import addon_utils
+
+    suffix = path.suffix.lower()
+    if suffix == ".obj":
+        bpy.ops.wm.obj_import(filepath=str(path))
+    elif suffix == ".ply":
+        if bpy.app.version >= (4, 0, 0):
+            bpy.ops.wm.ply_import(filepath=str(path))
+        else:
+            addon_utils.enable("io_mesh_ply", default_set=True, handle_error=None)
+            bpy.ops.import_mesh.ply(filepath=str(path))
+    elif suffix in (".glb", ".gltf"):
+        addon_utils.enable("io_scene_gltf2", default_set=True, handle_error=None)
+        bpy.ops.import_scene.gltf(filepath=str(path))
+    else:
+        raise RetargetError(f"{path}: not a mesh file ({', '.join(MESH_SUFFIXES)})")
+
+
+def _only_mesh(objects: list, path: Path, object_name) -> "bpy.types.Object":
+    meshes = [obj for obj in objects if obj.type == "MESH" and (object_name is None or obj.name == object_name)]
+    if object_name is not None and not meshes:
+        found = ", ".join(sorted(obj.name for obj in objects if obj.type == "MESH")) or "none"
+        raise RetargetError(f"{path}: no mesh object '{object_name}' (mesh objects: {found})")
+    if not meshes:
+        raise RetargetError(f"{path}: holds no mesh")
+    if len(meshes) > 1:
+        found = ", ".join(sorted(obj.name for obj in meshes))
+        raise RetargetError(f"{path}: several mesh objects ({found}): name one with --template-object / --target-object")
+    return meshes[0]
+
+
+def load_mesh(path: Path, object_name, role: str) -> "bpy.types.Object":
+    """The mesh object of ``path`` (a mesh file, or a .blend's object), linked into the scene, named ``role``."""
+    if not path.is_file():
+        raise RetargetError(f"{path}: no such file")
+    if path.suffix.lower() == ".blend":
+        try:
+            with bpy.data.libraries.load(str(path), link=False) as (source, loaded):
+                loaded.objects = [name for name in source.objects if object_name is None or name == object_name]
+        except (OSError, RuntimeError) as error:
+            raise RetargetError(f"{path}: cannot read: {str(error).strip().splitlines()[0]}") from None
+        objects = [obj for obj in loaded.objects if obj is not None]
+    else:
+        before = set(bpy.data.objects)
+        try:
+            _import_file(path)
+        except RuntimeError as error:
+            message = str(error).strip().splitlines()[-1].removeprefix("Error: ")
+            raise RetargetError(f"{path}: cannot read: {message}") from None
+        objects = [obj for obj in bpy.data.objects if obj not in before]
+    chosen = _only_mesh(objects, path, object_name)
+    for obj in objects:  # keep only the chosen mesh in the scene
+        if obj is not chosen:
+            bpy.data.objects.remove(obj)
+    if chosen.name not in bpy.context.scene.collection.objects and not chosen.users_collection:
+        bpy.context.scene.collection.objects.link(chosen)
+    if len(chosen.data.vertices) == 0:
+        raise RetargetError(f"{path}: the mesh has no vertices")
+    if role == "Target" and len(chosen.data.polygons) == 0:
+        raise RetargetError(f"{path}: the mesh has no faces to retarget onto")
+    chosen.name = role
+    return chosen
+
+
+def read_anchors(path: Path, vertex_count: int) -> list[tuple[int, tuple[float, float, float]]]:
+    """The (layout vertex, world target point) pairs of an anchors JSON file, all checked first."""
+    if not path.is_file():
+        raise RetargetError(f"{path}: no such file")
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise RetargetError(f"{path}: not valid JSON: {error}") from None
+    entries = data.get("anchors") if isinstance(data, dict) else data
+    if not isinstance(entries, list):
+        raise RetargetError(f'{path}: expected {{"anchors": [{{"vertex": i, "target": [x, y, z]}}, ...]}}')
+    pairs = []
+    for index, entry in enumerate(entries):
+        where = f"{path}: anchor {index}"
+        if not isinstance(entry, dict) or "vertex" not in entry or "target" not in entry:
+            raise RetargetError(f'{where}: expected {{"vertex": i, "target": [x, y, z]}}, found {entry!r}')
+        vertex, target = entry["vertex"], entry["target"]
+        if not isinstance(vertex, int) or isinstance(vertex, bool):
+            raise RetargetError(f"{where}: vertex {vertex!r} is not an integer")
+        if not 0 <= vertex < vertex_count:
+            raise RetargetError(f"{where}: vertex {vertex} does not exist (the template has {vertex_count} vertices)")
+        if (not isinstance(target, list) or len(target) != 3
+                or not all(isinstance(value, (int, float)) and not isinstance(value, bool) for value in target)
+                or not all(math.isfinite(value) for value in target)):
+            raise RetargetError(f"{where}: target {target!r} is not three finite numbers")
+        pairs.append((vertex, tuple(float(value) for value in target)))
+    if len({vertex for vertex, _ in pairs}) != len(pairs):
+        raise RetargetError(f"{path}: a vertex is anchored twice")
+    return pairs
+
+
+# ---------------------------------------------------------------- the retarget
+
+
+def world_vertices(obj) -> "np.ndarray":
+    """(N, 3) float64 world positions of an object's evaluated mesh, and its (M, 3) triangles."""
+    import numpy as np
+
+    evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
+    mesh = evaluated.to_mesh()
+    try:
+        positions = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+        mesh.vertices.foreach_get("co", positions)
+        mesh.calc_loop_triangles()
+        triangles = np.empty(len(mesh.loop_triangles) * 3, dtype=np.uint32)
+        mesh.loop_triangles.foreach_get("vertices", triangles)
+    finally:
+        evaluated.to_mesh_clear()
+    matrix = np.array(obj.matrix_world, dtype=np.float64)
+    world = positions.reshape(-1, 3).astype(np.float64) @ matrix[:3, :3].T + matrix[:3, 3]
+    return world, triangles.reshape(-1, 3)
+
+
+def align_bounds(layout, target) -> dict:
+    """Move and scale the layout uniformly so that its bounding box's centre and diagonal are the target's."""
+    import numpy as np
+    from mathutils import Matrix, Vector
+
+    layout_points, _ = world_vertices(layout)
+    target_points, _ = world_vertices(target)
+    layout_low, layout_high = layout_points.min(axis=0), layout_points.max(axis=0)
+    target_low, target_high = target_points.min(axis=0), target_points.max(axis=0)
+    layout_size = float(np.linalg.norm(layout_high - layout_low))
+    if layout_size == 0.0:
+        raise RetargetError("the template is a single point: it cannot be aligned")
+    scale = float(np.linalg.norm(target_high - target_low)) / layout_size
+    layout_centre, target_centre = (layout_low + layout_high) / 2, (target_low + target_high) / 2
+    transform = (Matrix.Translation(Vector(target_centre)) @ Matrix.Scale(scale, 4)
+                 @ Matrix.Translation(-Vector(layout_centre)))
+    layout.matrix_world = transform @ layout.matrix_world
+    return {"scale": scale, "translation": (target_centre - layout_centre * scale).tolist()}
+
+
+def distances_to_target(layout, target) -> dict:
+    """Distances of the layout's vertices to the target surface (world space): mean, max, RMS."""
+    import numpy as np
+    import springwrap_kernel
+
+    layout_points, _ = world_vertices(layout)
+    target_points, triangles = world_vertices(target)
+    mesh = springwrap_kernel.TargetMesh(np.ascontiguousarray(target_points, dtype=np.float32), triangles)
+    hits = mesh.closest_points(np.ascontiguousarray(layout_points, dtype=np.float32))
+    distances = np.asarray(hits.distances, dtype=np.float64)
+    size = float(np.linalg.norm(target_points.max(axis=0) - target_points.min(axis=0)))
+    return {"mean_distance": float(distances.mean()), "max_distance": float(distances.max()),
+            "rms_distance": float(np.sqrt((distances ** 2).mean())), "target_diagonal": size}
+
+
+def _operator(blame: str, name: str, **properties) -> None:
+    """Run ``springwrap.<name>``; its error (it names the object: Template, Target, Retargeted) prefixed by ``blame``."""
+    try:
+        result = getattr(bpy.ops.springwrap, name)(**properties)
+    except RuntimeError as error:
+        message = str(error).strip().removeprefix("Error: ").splitlines()[0]
+        raise RetargetError(f"{blame}: springwrap.{name}: {message}") from None
+    if result != {"FINISHED"}:
+        raise RetargetError(f"{blame}: springwrap.{name} returned {sorted(result)}")
+
+
+def retarget(arguments: argparse.Namespace) -> dict:
+    """Load, align, detach, anchor, wrap, measure, write; the report (also written to --report)."""
+    from springwrap import bridge, operations, wrap_operator
+
+    timings, warnings = {}, []
+    clock = time.perf_counter()
+
+    def lap(step: str) -> None:
+        nonlocal clock
+        now = time.perf_counter()
+        timings[step] = round(now - clock, 4)
+        clock = now
+
+    enable_addon()
+    bpy.ops.wm.read_homefile(use_empty=True)
+    template = load_mesh(arguments.template, arguments.template_object, "Template")
+    target = load_mesh(arguments.target, arguments.target_object, "Target")
+    anchor_pairs = (read_anchors(arguments.anchors, len(template.data.vertices))
+                    if arguments.anchors is not None else None)
+    layout = template.copy()
+    layout.data = template.data.copy()
+    layout.name = LAYOUT_NAME
+    bpy.context.scene.collection.objects.link(layout)
+    template.hide_set(True)
+    for obj in bpy.context.view_layer.objects:
+        obj.select_set(obj == layout)
+    bpy.context.view_layer.objects.active = layout
+    layout.springwrap.target = target
+    lap("load")
+
+    alignment = align_bounds(layout, target) if arguments.align == "bounds" else None
+    blame = f"template {arguments.template}, target {arguments.target}"
+    _operator(blame, "detach", only_selected=False)
+    lap("align and detach")
+
+    if anchor_pairs is not None:
+        for vertex, point in anchor_pairs:
+            _operator(f"{arguments.anchors}", "anchor_add", vertex_index=vertex, location=point, use_location=True)
+    else:
+        _operator(blame, "anchors_auto", spacing=arguments.anchors_spacing or 0.0, replace=True)
+    if len(layout.springwrap.anchors) == 0:
+        warnings.append("no anchors: the wrap is pulled by folding alone")
+    lap("anchors")
+
+    parameters = operations.WrapParameters(max_iterations=arguments.max_iterations, tolerance=arguments.tolerance,
+                                           fairness=arguments.fairness, arc_length=arguments.arc_length,
+                                           thin_plate=arguments.thin_plate)
+    try:
+        session = wrap_operator.WrapSession(bpy.context, layout, parameters)
+    except bridge.ERRORS as error:
+        raise RetargetError(f"{blame}: cannot wrap: {error}") from None
+    session.run()
+    result = session.finish()
+    if not result.converged:
+        warnings.append(f"did not converge within {arguments.max_iterations} iterations "
+                        f"(last move {result.max_displacement:.2e} of the layout's size); the result is kept")
+    if result.space_points:
+        warnings.append(f"{result.space_points} of {result.vertex_count} vertices are off the surface (space-points)")
+    lap("wrap")
+
+    report = {
+        "template": str(arguments.template), "target": str(arguments.target),
+        "vertices": result.vertex_count, "faces": len(layout.data.polygons),
+        "anchors": len(layout.springwrap.anchors), "alignment": alignment,
+        "wrap": {"iterations": result.iterations, "converged": result.converged, "face_points": result.face_points,
+                 "space_points": result.space_points, "kernel_seconds": round(result.kernel_seconds, 4)},
+        "metrics": distances_to_target(layout, target),
+        "timings": timings, "warnings": warnings, "blender": bpy.app.version_string,
+    }
+    lap("metrics")
+    write_outputs(arguments, layout, report)
+    return report
+
+
+def _replace_into(final: Path, write) -> Path:
+    """Call ``write(temporary path)`` then rename it to ``final``; the temporary file is removed on failure."""
+    final = final.resolve()
+    final.parent.mkdir(parents=True, exist_ok=True)
+    temporary = final.with_name(f".{final.stem}.partial{final.suffix}")
+    try:
+        write(temporary)
+        if not temporary.is_file():
+            raise RetargetError(f"{final}: nothing was written")
+        os.replace(temporary, final)
+    finally:
+        temporary.unlink(missing_ok=True)
+    return final
+
+
+def write_outputs(arguments: argparse.Namespace, layout, report: dict) -> None:
+    """Write every requested output to temporary files, then rename them all (nothing half-written)."""
+    temporaries = []
+
+    def save_blend(path: Path) -> None:
+        if bpy.ops.wm.save_as_mainfile(filepath=str(path), check_existing=False, copy=True) != {"FINISHED"}:
+            raise RetargetError(f"{path}: could not save")
+
+    def export_obj(path: Path) -> None:
+        for obj in bpy.context.view_layer.objects:
+            obj.select_set(obj == layout)
+        bpy.ops.wm.obj_export(filepath=str(path), export_selected_objects=True, export_materials=False)
+
+    def write_report(path: Path) -> None:
+        path.write_text(json.dumps(report, indent=2) + "\n")
+
+    plan = [(arguments.output_blend, save_blend), (arguments.output_obj, export_obj), (arguments.report, write_report)]
+    try:
+        for final, write in plan:
+            if final is None:
+                continue
+            final = final.resolve()
+            final.parent.mkdir(parents=True, exist_ok=True)
+            temporary = final.with_name(f".{final.stem}.partial{final.suffix}")
+            temporaries.append((temporary, final))
+            write(temporary)
+            if not temporary.is_file():
+                raise RetargetError(f"{final}: nothing was written")
+        for temporary, final in temporaries:
+            os.replace(temporary, final)
+    finally:
+        for temporary, _final in temporaries:
+            temporary.unlink(missing_ok=True)
+
+
+# ---------------------------------------------------------------- batch
+
+
+def worker_command(arguments: argparse.Namespace, target: Path, output_dir: Path) -> list[str]:
+    """The command retargeting onto one mesh of the batch, in a fresh process of this same Blender."""
+    own = [
+        "--template", str(arguments.template.resolve()), "--target", str(target.resolve()),
+        "--align", arguments.align, "--max-iterations", str(arguments.max_iterations),
+        "--tolerance", repr(arguments.tolerance), "--fairness", repr(arguments.fairness),
+        "--arc-length", repr(arguments.arc_length), "--thin-plate", repr(arguments.thin_plate),
+        "--output-blend", str(output_dir / f"{target.stem}.blend"),
+        "--output-obj", str(output_dir / f"{target.stem}.obj"), "--report", str(output_dir / f"{target.stem}.json"),
+    ]
+    for option, value in (("--template-object", arguments.template_object),
+                          ("--target-object", arguments.target_object),
+                          ("--anchors", arguments.anchors and arguments.anchors.resolve()),
+                          ("--anchors-spacing", arguments.anchors_spacing)):
+        if value is not None:
+            own += [option, str(value)]
+    script = str(Path(__file__).resolve())
+    if bpy.app.binary_path:  # inside a Blender binary: the same, and the same use of PYTHONPATH
+        system_environment = [] if sys.flags.ignore_environment else ["--python-use-system-env"]
+        return [bpy.app.binary_path, "-b", "--factory-startup", *system_environment, "--python-exit-code", "1",
+                "--python", script, "--", *own]
+    return [sys.executable, script, *own]
+
+
+def run_batch(arguments: argparse.Namespace) -> int:
+    """Retarget onto every mesh file of --batch, --jobs at a time; summary.json; exit code 0 or 3."""
+    if not arguments.template.is_file():
+        raise RetargetError(f"{arguments.template}: no such file")
+    if not arguments.batch.is_dir():
+        raise RetargetError(f"{arguments.batch}: no such folder")
+    targets = sorted(path for path in arguments.batch.iterdir()
+                     if path.is_file() and path.suffix.lower() in MESH_SUFFIXES)
+    if not targets:
+        raise RetargetError(f"{arguments.batch}: no mesh files ({', '.join(MESH_SUFFIXES)})")
+    output_dir = arguments.output_dir.resolve()
+    output_dir.mkdir(parents=True, exist_ok=True)
+    done = []
+
+    def one(target: Path) -> dict:
+        start = time.perf_counter()
+        process = subprocess.run(worker_command(arguments, target, output_dir), capture_output=True, text=True)
+        failure = [line for line in process.stderr.splitlines() if line.startswith("retarget: FAILED: ")]
+        entry = {"target": str(target), "seconds": round(time.perf_counter() - start, 2)}
+        if process.returncode == 0:
+            entry |= {"status": "ok", "report": str(output_dir / f"{target.stem}.json")}
+        else:
+            error = (failure[-1][len("retarget: FAILED: "):] if failure
+                     else f"exit code {process.returncode}: {(process.stderr.strip().splitlines() or ['?'])[-1]}")
+            entry |= {"status": "failed", "error": error}
+        done.append(entry)
+        message = "ok" if entry["status"] == "ok" else f"FAILED: {entry['error']}"
+        print(f"[{len(done)}/{len(targets)}] {target.name}: {message} ({entry['seconds']:.1f} s)", file=sys.stderr,
+              flush=True)
+        return entry
+
+    with ThreadPoolExecutor(max_workers=arguments.jobs) as pool:
+        entries = list(pool.map(one, targets))
+    failed = sum(entry["status"] != "ok" for entry in entries)
+    summary = {"template": str(arguments.template), "folder": str(arguments.batch), "jobs": arguments.jobs,
+               "meshes": entries, "ok": len(entries) - failed, "failed": failed}
+    _replace_into(output_dir / "summary.json", lambda path: path.write_text(json.dumps(summary, indent=2) + "\n"))
+    print(f"retarget: {len(entries) - failed} of {len(entries)} meshes retargeted; summary {output_dir / 'summary.json'}",
+          file=sys.stderr)
+    return EXIT_BATCH_FAILURES if failed else 0
+
+
+def main() -> int:
+    arguments = parse_arguments(sys.argv)
+    try:
+        if arguments.batch is not None:
+            return run_batch(arguments)
+        report = retarget(arguments)
+    except RetargetError as error:
+        print(f"retarget: FAILED: {error}", file=sys.stderr)
+        return EXIT_FAILED
+    except Exception as error:  # noqa: BLE001 - any failure must become a non-zero exit code, also under `blender -b`
+        traceback.print_exc()
+        print(f"retarget: FAILED: {type(error).__name__}: {error}", file=sys.stderr)
+        return EXIT_FAILED
+    metrics = report["metrics"]
+    print(f"retarget: {report['vertices']} vertices, {report['wrap']['face_points']} on the target after "
+          f"{report['wrap']['iterations']} iterations; mean distance {metrics['mean_distance']:.2e}, "
+          f"max {metrics['max_distance']:.2e}" + "".join(f"\n  warning: {line}" for line in report["warnings"]))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
