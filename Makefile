@@ -92,18 +92,23 @@ test-all-lanes: test test-bpy42 test-blender34
 
 # The benchmark (issue 4): retargeting accuracy against Shrinkwrap and nricp, the performance sweep,
 # snap throughput, then docs/benchmarks.md and docs/img/*.png. `make bench QUICK=1`: the ~5-minute subset.
+# BENCH_OUT (the JSON) and BENCH_DOCS (benchmarks.md and img/) may point elsewhere for a trial run.
 BENCH_QUICK := $(if $(QUICK),--quick,)
+BENCH_OUT ?= out/bench
+BENCH_DOCS ?= docs
 
 $(STAMPS)/bench-requirements: $(STAMPS)/venv benchmarks/requirements.txt
 	$(PY) -m pip install --quiet -r benchmarks/requirements.txt
 	touch $@
 
 bench: setup $(STAMPS)/bench-requirements
-	$(PY) -m benchmarks.retarget.run $(BENCH_QUICK) --json out/bench/retarget.json
-	$(PY) benchmarks/performance.py $(BENCH_QUICK) --json out/bench/performance.json
-	$(PY) benchmarks/snap_throughput.py $(BENCH_QUICK) --json out/bench/snap_throughput.json
-	$(PY) benchmarks/figures.py $(if $(QUICK),--cases heavy,)
-	$(PY) benchmarks/report.py
+	$(PY) -m benchmarks.retarget.run $(BENCH_QUICK) --json $(BENCH_OUT)/retarget.json
+	$(PY) benchmarks/performance.py $(BENCH_QUICK) --json $(BENCH_OUT)/performance.json
+	$(PY) benchmarks/snap_throughput.py $(BENCH_QUICK) --json $(BENCH_OUT)/snap_throughput.json
+	$(PY) benchmarks/figures.py $(if $(QUICK),--cases heavy,) --retarget $(BENCH_OUT)/retarget.json \
+	  --performance $(BENCH_OUT)/performance.json --positions $(BENCH_OUT)/retarget-positions --output $(BENCH_DOCS)/img
+	$(PY) benchmarks/report.py --retarget $(BENCH_OUT)/retarget.json --performance $(BENCH_OUT)/performance.json \
+	  --snap $(BENCH_OUT)/snap_throughput.json --output $(BENCH_DOCS)/benchmarks.md
 
 clean:
 	rm -rf $(VENV) $(VENV_BPY42) target out dist .cache
