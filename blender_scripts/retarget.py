@@ -155,7 +155,9 @@ def load_mesh(path: Path, object_name, role: str) -> "bpy.types.Object":
         try:
             _import_file(path)
         except RuntimeError as error:
-            message = str(error).strip().splitlines()[-1].removeprefix("Error: ")
+            # The importer's last line, without the "Location: .../ops.py" a Python importer's error ends with.
+            lines = [line for line in str(error).strip().splitlines() if not line.startswith("Location:")]
+            message = (lines[-1] if lines else "unknown error").removeprefix("Error: ")
             raise RetargetError(f"{path}: cannot read: {message}") from None
         objects = [obj for obj in bpy.data.objects if obj not in before]
     chosen = _only_mesh(objects, path, object_name)

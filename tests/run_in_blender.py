@@ -17,10 +17,15 @@ REPOSITORY = Path(__file__).resolve().parent.parent
 
 def main() -> int:
     arguments = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+    import bpy
+
     kernel_path = os.environ.get("SPRINGWRAP_KERNEL_PATH")
     if kernel_path:
         sys.path.insert(0, kernel_path)
+        # Scripts the tests start in their own blender (`--python-use-system-env`) find it there too.
+        os.environ["PYTHONPATH"] = os.pathsep.join(filter(None, [kernel_path, os.environ.get("PYTHONPATH")]))
     os.environ["SPRINGWRAP_TEST_LANE"] = "blender"
+    os.environ["SPRINGWRAP_BLENDER"] = bpy.app.binary_path
     os.chdir(REPOSITORY)
     import pytest
 
