@@ -45,7 +45,7 @@ test-rust:
 	cargo clippy --workspace --all-targets -- -D warnings
 
 test-python: setup
-	$(PY) -m pytest -q tests
+	$(PY) -m pytest -q -rs tests
 
 # ---------------------------------------------------------------- packages
 # dist/springwrap-<version>-extension.zip (Blender 4.2+: manifest, add-on, kernel wheel) and
@@ -56,7 +56,8 @@ package: $(STAMPS)/kernel
 # ---------------------------------------------------------------- compatibility lanes
 # The same add-on tests on bpy 4.2 LTS (a second venv) and on Debian's blender 3.4 (its own Python,
 # with python3-pytest and python3-numpy from .ci/blender-packages.sh). Both use the one abi3 kernel
-# wheel built by $(STAMPS)/kernel. The benchmark harness is left out: it does not touch Blender.
+# wheel built by $(STAMPS)/kernel. Left out: the benchmark harness (it does not touch Blender) and
+# test_package (the default lane already installs the packages into bpy 5.0 and blender 3.4).
 LANE_TESTS := tests --ignore=tests/test_bench_harness.py --ignore=tests/test_package.py
 VENV_BPY42 := .venv-bpy42
 BLENDER ?= blender
@@ -74,7 +75,7 @@ $(VENV_BPY42)/.stamps/kernel: $(VENV_BPY42)/.stamps/venv $(STAMPS)/kernel
 	touch $@
 
 test-bpy42: $(VENV_BPY42)/.stamps/kernel
-	$(VENV_BPY42)/bin/python -m pytest -q $(LANE_TESTS)
+	$(VENV_BPY42)/bin/python -m pytest -q -rs $(LANE_TESTS)
 
 $(BLENDER34_KERNEL)/.stamp: $(STAMPS)/kernel
 	rm -rf $(BLENDER34_KERNEL)
@@ -86,7 +87,7 @@ test-blender34: $(BLENDER34_KERNEL)/.stamp
 	$(BLENDER) --version | head -1 | grep -q "^Blender 3\.4" || { echo "test-blender34: $(BLENDER) is not Blender 3.4"; exit 1; }
 	mkdir -p $(BLENDER34_SCRIPTS)/addons
 	BLENDER_USER_SCRIPTS=$(CURDIR)/$(BLENDER34_SCRIPTS) SPRINGWRAP_KERNEL_PATH=$(CURDIR)/$(BLENDER34_KERNEL) \
-	  $(BLENDER) -b --factory-startup --python-exit-code 1 --python tests/run_in_blender.py -- -q $(LANE_TESTS)
+	  $(BLENDER) -b --factory-startup --python-exit-code 1 --python tests/run_in_blender.py -- -q -rs $(LANE_TESTS)
 
 test-all-lanes: test test-bpy42 test-blender34
 
