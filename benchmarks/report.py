@@ -97,6 +97,13 @@ CASE_HEADER = ["method", "mean %", "p95 %", "max %", "mean mm", "p95 mm", "max m
                "flipped", "degenerate", "angle °", "anchors %", "time s", "MB", "status / notes"]
 
 
+def ordered_methods(records: list[dict]) -> list[str]:
+    """Every method of the records: the baselines, then Springwrap's, then any other, in first-seen order."""
+    seen = list(dict.fromkeys(method for record in records for method in record["methods"]))
+    known = [method for method in BASELINE_METHODS + SPRINGWRAP_METHODS if method in seen]
+    return known + [method for method in seen if method not in known]
+
+
 def mean_over_cases(records: list[dict], method: str, field: str) -> tuple[float, int]:
     """The mean of ``field`` over the cases where ``method`` produced metrics, and how many there were."""
     values = [record["methods"][method]["metrics"][field] for record in records
@@ -115,7 +122,7 @@ def headline(retarget: dict) -> list[str]:
     """The summary: per method, mean and p95 error averaged over the body cases, how often it is best, times."""
     records = retarget["cases"]
     body = [record for record in records if is_body(record)] or records
-    methods = list(dict.fromkeys(method for record in body for method in record["methods"]))
+    methods = ordered_methods(body)
     wins = {method: 0 for method in methods}
     for record in body:
         best = best_method(record, exclude=("aligned template",))
@@ -134,7 +141,11 @@ def headline(retarget: dict) -> list[str]:
                         if (record["methods"].get(method, {}).get("metrics") or {}).get("nonfinite_vertices"))
         if nonfinite:
             statuses.append(f"non-finite vertices on {nonfinite}")
-        rows.append([method, f"{count} / {len(body)}", number(mean), number(p95), number(flipped, 0),
+        case_means = sorted(record["methods"][method]["metrics"]["error_percent_mean"] for record in body
+                            if record["methods"].get(method, {}).get("metrics") is not None)
+        median = (case_means[len(case_means) // 2] if len(case_means) % 2
+                  else sum(case_means[len(case_means) // 2 - 1:len(case_means) // 2 + 1]) / 2) if case_means else None
+        rows.append([method, f"{count} / {len(body)}", number(mean), number(median), number(p95), number(flipped, 0),
                      number(sum(seconds) / len(seconds), 2) if seconds else "-",
                      str(wins[method]) if method != "aligned template" else "(reference)",
                      ", ".join(statuses)])
@@ -145,8 +156,8 @@ def headline(retarget: dict) -> list[str]:
              if diagonals and kind == "body" else "")
     lines = [f"Averaged over the {len(body)} {kind} cases of this run ({retarget['arguments'].get('anchors')} anchors); "
              f"errors in % of the truth's bounding-box diagonal{scale}:", ""]
-    lines += table(["method", "cases with a result", "mean error %", "p95 error %", "flipped quads", "time s",
-                    "best on (cases)", "other outcomes"], rows, "lrrrrrrl")
+    lines += table(["method", "cases with a result", "mean error %", "median of the cases' means %", "p95 error %",
+                    "flipped quads", "time s", "best on (cases)", "other outcomes"], rows, "lrrrrrrrl")
     springwrap = [method for method in methods if method in SPRINGWRAP_METHODS]
     baselines = [method for method in methods if method in BASELINE_METHODS and method != "aligned template"]
     scored = {method: mean_over_cases(body, method, "error_percent_mean")[0] for method in methods}
@@ -161,7 +172,29 @@ def headline(retarget: dict) -> list[str]:
         verdict = "better than" if all(finite[method] < finite[other] for other in baselines if other in finite) \
             else "not better than every baseline:"
         lines.append(f"- {method}: {number(finite[method])} % mean error, {verdict} " + ", ".join(comparisons) + ".")
+    lines += ["", "Mean error per case (% of the diagonal; the lowest of each row in bold, the aligned template "
+              "left out of the contest):", ""] + error_matrix(records)
     return lines
+
+
+def error_matrix(records: list[dict]) -> list[str]:
+    """A case x method table of mean errors, the best retargeting method of each case in bold."""
+    methods = ordered_methods(records)
+    rows = []
+    for record in records:
+        best = best_method(record, exclude=("aligned template",))
+        row = [record["case"]]
+        for method in methods:
+            entry = record["methods"].get(method)
+            if entry is None:
+                row.append("")
+            elif entry.get("metrics") is None:
+                row.append(entry["status"].split(":")[0])
+            else:
+                text = number(entry["metrics"]["error_percent_mean"])
+                row.append(f"**{text}**" if method == best else text)
+        rows.append(row)
+    return table(["case"] + methods, rows)
 
 
 def retarget_section(retarget: dict, image_folder: Path, image_prefix: str) -> list[str]:

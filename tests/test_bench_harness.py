@@ -470,11 +470,14 @@ def test_report_headline_averages_the_body_cases_and_names_the_best():
     text = "\n".join(lines)
     assert "1 body cases" in text and "1 % is 20.0 mm" in text  # the sphere is left out of the average
     wrap_row = next(line for line in lines if line.startswith("| Springwrap wrap "))
-    assert "| 0.250 | 0.900 |" in wrap_row and wrap_row.split("|")[7].strip() == "1"  # best on the one case
+    assert "| 0.250 | 0.250 | 0.900 |" in wrap_row and wrap_row.split("|")[8].strip() == "1"  # best on the case
     refused_row = next(line for line in lines if line.startswith("| Springwrap snap+wrap "))
     assert "0 / 1" in refused_row and "refused" in refused_row
     assert "**Springwrap wrap** (0.250 %)" in text
     assert "Springwrap wrap: 0.250 % mean error, better than Shrinkwrap nearest 0.400 %" in text
+    # the case x method matrix: every case, the best retargeting method in bold, refusals by name
+    assert "| sphere-ellipsoid | 6.000 |  | **2.000** |  |" in text
+    assert "| heavy | 0.500 | 0.400 | **0.250** | refused |" in text
 
 
 def test_report_document_has_every_section_and_says_what_was_not_run(tmp_path):
