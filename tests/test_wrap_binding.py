@@ -84,6 +84,12 @@ def test_bad_wrap_inputs_raise_named_errors():
     collapsed[1] = collapsed[0]
     with pytest.raises(sk.InvalidArgumentError, match="zero length"):
         sk.WrapSolver(target, structure, states, triangles, barycentrics, collapsed)
+    # Points at one place are fine where the template (the rest shape) has no zero-length edge.
+    sk.WrapSolver(target, structure, states, triangles, barycentrics, collapsed, rest_positions=positions)
+    with pytest.raises(sk.InvalidArgumentError, match="rest positions and layout vertices"):
+        sk.WrapSolver(target, structure, states, triangles, barycentrics, positions, rest_positions=positions[:3])
+    with pytest.raises(sk.InvalidArgumentError, match="'TEMPLATE' or 'EVEN'"):
+        sk.WrapSolver(target, structure, states, triangles, barycentrics, positions, rest="SOFT")
     with pytest.raises(sk.InvalidArgumentError, match="vertex 99"):
         sk.WrapSolver(target, structure, states, triangles, barycentrics, positions,
                       anchor_vertices=np.array([99], np.uint32), anchor_triangles=np.array([-1], np.int32),

@@ -54,5 +54,6 @@ pub use layout::{Curve, CurveKind, LayoutStructure, LineTriple};
 pub use mesh::{NO_TRIANGLE, TargetMesh, TargetMeshOptions, TriangleEdge};
 pub use surface::{WalkEnd, WalkOutcome};
 pub use wrap::{
-    Anchor, AnchorTarget, CurveConstraint, StepReport, WrapSettings, WrapSolver, WrapWeights,
+    Anchor, AnchorTarget, CurveConstraint, SpringRest, StepReport, WrapSettings, WrapSolver,
+    WrapWeights,
 };

@@ -17,7 +17,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use springwrap_kernel::{
     Anchor, AnchorTarget, CurveConstraint, CurveKind, FacePoint, KernelError, LayoutPoint,
-    LayoutStructure, NO_TRIANGLE, SurfaceHit, TargetMesh, TargetMeshOptions, VertexHit,
+    LayoutStructure, NO_TRIANGLE, SpringRest, SurfaceHit, TargetMesh, TargetMeshOptions, VertexHit,
     WrapSettings, WrapSolver, WrapWeights,
 };
 
@@ -593,7 +593,7 @@ impl PyWrapSolver {
         anchor_positions = None, unreliable_triangles = None, curve_vertices = None,
         curve_vertex_counts = None, curve_points = None, curve_point_counts = None, fairness = 0.5, arc_length = 0.5, thin_plate = 0.2,
         constraint = 0.5, folding = 0.3, tolerance = 1e-5, landing_distance = 0.25,
-        fold_tolerance = 0.17453292, momentum = 0.9
+        fold_tolerance = 0.17453292, momentum = 0.9, rest = "TEMPLATE", rest_positions = None
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -622,6 +622,8 @@ impl PyWrapSolver {
         landing_distance: f32,
         fold_tolerance: f32,
         momentum: f32,
+        rest: &str,
+        rest_positions: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let states = read_array::<i32>("states", states, None)?;
         let triangles = read_array::<i32>("triangles", triangles, None)?;
@@ -640,6 +642,18 @@ impl PyWrapSolver {
             }
         }
         let points = layout_points(&states, &triangles, &barycentrics, &positions)?;
+        let rest = match rest {
+            "TEMPLATE" => SpringRest::Template,
+            "EVEN" => SpringRest::Even,
+            other => {
+                return Err(InvalidArgumentError::new_err(format!(
+                    "invalid rest: {other:?} is not 'TEMPLATE' or 'EVEN'"
+                )));
+            }
+        };
+        let rest_positions = rest_positions
+            .map(|array| read_positions("rest_positions", array))
+            .transpose()?;
         let anchors = read_anchors(
             anchor_vertices,
             anchor_triangles,
@@ -658,6 +672,7 @@ impl PyWrapSolver {
             landing_distance,
             fold_tolerance,
             momentum,
+            rest,
         };
         let curves = read_curve_constraints(
             curve_vertices,
@@ -671,8 +686,15 @@ impl PyWrapSolver {
         let target = Arc::clone(&target.get().mesh);
         let structure = structure.get().structure.clone();
         let solver = run_kernel(py, || {
-            let solver = WrapSolver::new(target, structure, points, &anchors, settings)?
-                .with_curve_constraints(&curves)?;
+            let solver = WrapSolver::with_rest_shape(
+                target,
+                structure,
+                points,
+                rest_positions,
+                &anchors,
+                settings,
+            )?
+            .with_curve_constraints(&curves)?;
             match unreliable {
                 Some(flags) => solver.with_unreliable_triangles(flags),
                 None => Ok(solver),

@@ -75,6 +75,11 @@ pub struct LayoutStructure {
     pub corners: Vec<u32>,
     /// Border, seam and loose-edge chains.
     pub curves: Vec<Curve>,
+    /// For each vertex, CSR like `neighbor_offsets`: one `(previous, next)` pair per face around
+    /// it, its neighbours before and after it in that face's winding (for oriented normals).
+    pub wedge_offsets: Vec<u32>,
+    /// See `wedge_offsets`.
+    pub wedges: Vec<(u32, u32)>,
 }
 
 impl LayoutStructure {
@@ -237,7 +242,16 @@ impl LayoutStructure {
             is_corner[corner as usize] = true;
         }
         let curves = trace_curves(vertex_count, &adjacency, &kind_of, &is_corner);
+        let mut wedge_offsets = Vec::with_capacity(vertex_count + 1);
+        let mut wedges = Vec::new();
+        wedge_offsets.push(0);
+        for around in &consecutive {
+            wedges.extend_from_slice(around);
+            wedge_offsets.push(wedges.len() as u32);
+        }
         Ok(Self {
+            wedge_offsets,
+            wedges,
             vertex_count,
             neighbor_offsets,
             neighbors,
@@ -246,6 +260,26 @@ impl LayoutStructure {
             corners,
             curves,
         })
+    }
+
+    /// The layout's oriented normal at `vertex` for `positions` (the faces' winding, area
+    /// weighted, not normalised); zero on a vertex of no face.
+    #[must_use]
+    pub fn normal_at(&self, positions: &[glam::Vec3], vertex: u32) -> glam::Vec3 {
+        let (Some(&start), Some(&end)) = (
+            self.wedge_offsets.get(vertex as usize),
+            self.wedge_offsets.get(vertex as usize + 1),
+        ) else {
+            return glam::Vec3::ZERO;
+        };
+        let (start, end) = (start as usize, end as usize);
+        let here = positions[vertex as usize];
+        self.wedges[start..end]
+            .iter()
+            .map(|&(previous, next)| {
+                (positions[next as usize] - here).cross(positions[previous as usize] - here)
+            })
+            .sum()
     }
 
     /// The edge neighbours of `vertex`, sorted.

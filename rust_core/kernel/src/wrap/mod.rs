@@ -8,5 +8,5 @@ pub mod solver;
 
 pub use anchor::{Anchor, AnchorTarget};
 pub use curve_constraint::CurveConstraint;
-pub use settings::{WrapSettings, WrapWeights};
+pub use settings::{SpringRest, WrapSettings, WrapWeights};
 pub use solver::{StepReport, WrapSolver};

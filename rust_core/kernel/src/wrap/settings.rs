@@ -2,6 +2,8 @@
 
 use crate::error::KernelError;
 
+pub use super::forces::SpringRest;
+
 /// Scalar multipliers of the wrap's forces (the paper's α, β, γ_tp, γ_con, γ_fold).
 ///
 /// Every force is a displacement (in model units) toward what it wants; a weight is the fraction
@@ -49,6 +51,9 @@ pub struct WrapSettings {
     /// Relaxing a spring grid by plain iterations takes a number of iterations that grows with the
     /// square of its width; momentum makes it grow with the width. 0 turns it off.
     pub momentum: f32,
+    /// What the springs consider relaxed: the template's own bends and spacing (the default), or
+    /// straight, evenly spaced grid lines (Krishnamurthy & Levoy).
+    pub rest: SpringRest,
 }
 
 impl Default for WrapSettings {
@@ -59,6 +64,7 @@ impl Default for WrapSettings {
             landing_distance: 0.25,
             fold_tolerance: 10f32.to_radians(),
             momentum: 0.9,
+            rest: SpringRest::Template,
         }
     }
 }

@@ -20,7 +20,7 @@ use rayon::prelude::*;
 
 use super::anchor::{Anchor, AnchorTarget};
 use super::curve_constraint::{ArcLengthCurve, CurveConstraint, chain_fractions};
-use super::forces::{LinesByVertex, line_forces, thin_plate, umbrella};
+use super::forces::{Similarity, Springs, thin_plate};
 use super::settings::WrapSettings;
 use crate::error::KernelError;
 use crate::face_point::{FacePoint, LayoutPoint};
@@ -33,6 +33,13 @@ const FOLD_TOLERANCE_RANGE: (f32, f32) = (
     0.5 * std::f32::consts::PI / 180.0,
     std::f32::consts::FRAC_PI_4,
 );
+/// A space-point whose offset from a seed turns more than this from the surface's way does not
+/// fold around that seed (radians).
+const FOLD_MAX_ANGLE: f32 = 75.0 * std::f32::consts::PI / 180.0;
+/// A space-point folds only onto surface facing the same way as the layout around it, within
+/// this cosine (75°): a layout region facing away from the surface (the inside of a mouth bag or
+/// an eye socket pressed against the face) would land inside out.
+const FOLD_MIN_FACING: f32 = 0.26;
 /// Weight of the newest move in a point's moving averages.
 const MOVE_AVERAGING: f32 = 0.25;
 /// A point rocks when its mean move is shorter than this fraction of its mean move length.
@@ -91,7 +98,15 @@ pub struct StepReport {
 pub struct WrapSolver {
     target: Arc<TargetMesh>,
     structure: LayoutStructure,
-    lines: LinesByVertex,
+    springs: Springs,
+    /// Per vertex, the similarity from its rest neighbourhood to its current one (refined each
+    /// iteration from the last).
+    similarities: Vec<Similarity>,
+    /// The template's scale on the target: the median of the vertices' scales at the start. One
+    /// scale for all: with a scale per vertex, nothing would keep a region from shrinking
+    /// (small dense quads at toes and eyelids collapse and flip); with one, the template's sizes
+    /// are kept and a morph's stretch is shared out by the springs.
+    global_scale: f32,
     settings: WrapSettings,
     points: Vec<LayoutPoint>,
     positions: Vec<Vec3>,
@@ -115,6 +130,9 @@ pub struct WrapSolver {
     /// For each curve-constrained (and not anchored) vertex, its fixed point on the target curve.
     curve_target_of_vertex: Vec<Option<Vec3>>,
     fold_tolerance: f32,
+    /// +1 when the layout's faces wind the same way as the target's, -1 when the other way
+    /// (measured where the layout touches the target at the start).
+    orientation: f32,
     layout_size: f32,
     landing_distance: f32,
     /// Per point: how many times it lifted off a boundary, and the iteration before which it may
@@ -142,6 +160,25 @@ impl WrapSolver {
         anchors: &[Anchor],
         settings: WrapSettings,
     ) -> Result<Self, KernelError> {
+        Self::with_rest_shape(target, structure, points, None, anchors, settings)
+    }
+
+    /// Like [`WrapSolver::new`], with the shape the springs rest in given apart from the starting
+    /// points: `rest` (one position per layout vertex, in any placement, size and orientation: only
+    /// the shape matters) is the template as the artist made it, for a layout that was snapped or
+    /// projected since. `None` rests at the starting positions.
+    ///
+    /// # Errors
+    /// As [`WrapSolver::new`]; the zero-length edge check applies to the rest shape, and a rest
+    /// shape of the wrong length or with a NaN is refused.
+    pub fn with_rest_shape(
+        target: Arc<TargetMesh>,
+        structure: LayoutStructure,
+        points: Vec<LayoutPoint>,
+        rest: Option<Vec<Vec3>>,
+        anchors: &[Anchor],
+        settings: WrapSettings,
+    ) -> Result<Self, KernelError> {
         settings.validate()?;
         if points.len() != structure.vertex_count {
             return Err(KernelError::LengthMismatch {
@@ -157,15 +194,28 @@ impl WrapSolver {
             });
         }
         let positions = resolve_positions(&target, &points)?;
-        let mut edge_length_sum = 0.0f64;
-        let mut edge_count = 0usize;
+        let rest = match rest {
+            None => positions.clone(),
+            Some(rest) => {
+                if rest.len() != structure.vertex_count {
+                    return Err(KernelError::LengthMismatch {
+                        what: "rest positions and layout vertices",
+                        first: rest.len(),
+                        second: structure.vertex_count,
+                    });
+                }
+                if let Some(index) = rest.iter().position(|p| !p.is_finite()) {
+                    return Err(KernelError::NonFinite {
+                        what: "rest position",
+                        index,
+                    });
+                }
+                rest
+            }
+        };
         for vertex in 0..structure.vertex_count as u32 {
             for &other in structure.neighbors_of(vertex) {
-                if other <= vertex {
-                    continue;
-                }
-                let length = positions[vertex as usize].distance(positions[other as usize]);
-                if length == 0.0 {
+                if other > vertex && rest[vertex as usize] == rest[other as usize] {
                     return Err(KernelError::InvalidArgument {
                         name: "layout",
                         reason: format!(
@@ -173,9 +223,26 @@ impl WrapSolver {
                         ),
                     });
                 }
-                edge_length_sum += f64::from(length);
-                edge_count += 1;
             }
+        }
+        // The landing distance is a fraction of the mean edge length where the points are now
+        // (snapping may have made a few edges zero: they do not count).
+        let mut edge_length_sum = 0.0f64;
+        let mut edge_count = 0usize;
+        for vertex in 0..structure.vertex_count as u32 {
+            for &other in structure.neighbors_of(vertex) {
+                let length = positions[vertex as usize].distance(positions[other as usize]);
+                if other > vertex && length > 0.0 {
+                    edge_length_sum += f64::from(length);
+                    edge_count += 1;
+                }
+            }
+        }
+        if edge_count == 0 {
+            return Err(KernelError::InvalidArgument {
+                name: "layout",
+                reason: "all its points are at one place".to_owned(),
+            });
         }
         let mean_edge_length = (edge_length_sum / edge_count as f64) as f32;
         let mut anchor_of_vertex = vec![None; structure.vertex_count];
@@ -217,15 +284,39 @@ impl WrapSolver {
                 (min.min(p), max.max(p))
             });
         let layout_size = (max - min).length().max(f32::MIN_POSITIVE);
-        let lines = LinesByVertex::new(&structure);
+        let springs = Springs::new(&structure, &rest, settings.rest);
         let mut is_corner = vec![false; structure.vertex_count];
         for &corner in &structure.corners {
             is_corner[corner as usize] = true;
         }
-        let _ = target.face_normals(); // built now rather than inside the first iteration
+        let face_normals = target.face_normals(); // built now, not inside the first iteration
+        let mut agreement = 0.0f32;
+        let touching = points
+            .iter()
+            .enumerate()
+            .filter_map(|(vertex, point)| match point {
+                LayoutPoint::Face(face_point) => Some((vertex, face_point.triangle)),
+                LayoutPoint::Space(_) => None,
+            })
+            .chain(anchors.iter().filter_map(|anchor| match anchor.target {
+                AnchorTarget::Face(face_point) => {
+                    Some((anchor.vertex as usize, face_point.triangle))
+                }
+                AnchorTarget::Space(_) => None,
+            }));
+        for (vertex, triangle) in touching {
+            let normal = structure
+                .normal_at(&positions, vertex as u32)
+                .normalize_or_zero();
+            agreement += normal.dot(face_normals[triangle as usize]);
+        }
+        let orientation = if agreement < 0.0 { -1.0 } else { 1.0 };
         Ok(Self {
+            orientation,
             target,
-            lines,
+            springs,
+            similarities: vec![Similarity::IDENTITY; structure.vertex_count],
+            global_scale: 1.0,
             settings,
             fold_tolerance: settings.fold_tolerance,
             landing_distance: settings.landing_distance * mean_edge_length,
@@ -423,11 +514,46 @@ impl WrapSolver {
     /// One Jacobi iteration over all points; returns the largest displacement and the events.
     fn iterate(&mut self) -> (f32, EventCounts) {
         let vertex_count = self.points.len();
-        let umbrellas: Vec<Vec3> = (0..vertex_count as u32)
+        let first = self.iteration == 0;
+        let fitted: Vec<(Similarity, Vec3)> = (0..vertex_count as u32)
             .into_par_iter()
             .with_min_len(1024)
-            .map(|vertex| umbrella(&self.positions, &self.structure, vertex))
+            .map(|vertex| {
+                let mut similarity = self.springs.fit(
+                    &self.positions,
+                    &self.structure,
+                    vertex,
+                    self.similarities[vertex as usize],
+                    first,
+                );
+                if !first {
+                    similarity.scale = self.global_scale;
+                }
+                let deviation = self.springs.umbrella_deviation(
+                    &self.positions,
+                    &self.structure,
+                    vertex,
+                    similarity,
+                );
+                (similarity, deviation)
+            })
             .collect();
+        let deviations: Vec<Vec3> = fitted.iter().map(|&(_, deviation)| deviation).collect();
+        for (slot, &(similarity, _)) in self.similarities.iter_mut().zip(&fitted) {
+            *slot = similarity;
+        }
+        if first {
+            let mut scales: Vec<f32> = self
+                .similarities
+                .iter()
+                .map(|similarity| similarity.scale)
+                .filter(|scale| *scale > 0.0)
+                .collect();
+            if !scales.is_empty() {
+                let middle = scales.len() / 2;
+                self.global_scale = *scales.select_nth_unstable_by(middle, f32::total_cmp).1;
+            }
+        }
         let updates: Vec<(LayoutPoint, Vec3, Event)> = (0..vertex_count as u32)
             .into_par_iter()
             .with_min_len(512)
@@ -437,7 +563,7 @@ impl WrapSolver {
                     .get(vertex as usize)
                     .copied()
                     .flatten();
-                self.update_point(vertex, &umbrellas, curve_target)
+                self.update_point(vertex, &deviations, curve_target)
             })
             .collect();
         let mut counts = EventCounts::default();
@@ -510,7 +636,7 @@ impl WrapSolver {
     fn update_point(
         &self,
         vertex: u32,
-        umbrellas: &[Vec3],
+        deviations: &[Vec3],
         curve_target: Option<Vec3>,
     ) -> (LayoutPoint, Vec3, Event) {
         let weights = self.settings.weights;
@@ -535,16 +661,16 @@ impl WrapSolver {
             // points are pinned once there.
             (target_position - here) * weights.constraint
         } else {
-            let (fairness, arc_length) =
-                line_forces(&self.positions, self.lines.lines_of(vertex), vertex).unwrap_or_else(
-                    || {
-                        if self.is_corner[index] {
-                            (Vec3::ZERO, Vec3::ZERO)
-                        } else {
-                            (umbrellas[index], Vec3::ZERO)
-                        }
-                    },
-                );
+            let (fairness, arc_length) = self
+                .springs
+                .line_forces(&self.positions, vertex, self.similarities[index])
+                .unwrap_or_else(|| {
+                    if self.is_corner[index] {
+                        (Vec3::ZERO, Vec3::ZERO)
+                    } else {
+                        (deviations[index], Vec3::ZERO)
+                    }
+                });
             let spring = fairness * weights.fairness + arc_length * weights.arc_length;
             // Adaptive restart: momentum only while the springs still pull the way the point was
             // going; carrying it against them overshoots, and overshoot is what flips quads.
@@ -582,7 +708,7 @@ impl WrapSolver {
                     here + force
                 } else {
                     here + force
-                        + thin_plate(umbrellas, &self.structure, vertex) * weights.thin_plate
+                        + thin_plate(deviations, &self.structure, vertex) * weights.thin_plate
                 };
                 if let Some((anchor_target, anchor_position)) = anchor
                     && anchor_position.distance(moved) <= self.landing_distance
@@ -635,6 +761,10 @@ impl WrapSolver {
     /// rotated positions. Using every seed keeps the fold continuous: with only the nearest one it
     /// jumps when two neighbours swap places, and the point rocks between two positions.
     fn fold(&self, vertex: u32, position: Vec3) -> Option<(LayoutPoint, Vec3, Event)> {
+        let layout_normal = self
+            .structure
+            .normal_at(&self.positions, vertex)
+            .normalize_or_zero();
         let mut seeds = 0usize;
         let mut best_landing: Option<(f32, FacePoint, Vec3)> = None;
         let mut rotated_sum = Vec3::ZERO;
@@ -643,7 +773,12 @@ impl WrapSolver {
                 continue;
             };
             seeds += 1;
-            match self.fold_from(seed, self.positions[other as usize], position) {
+            match self.fold_from(
+                seed,
+                self.positions[other as usize],
+                position,
+                layout_normal,
+            ) {
                 Fold::Land {
                     angle,
                     face_point,
@@ -670,10 +805,22 @@ impl WrapSolver {
 
     /// The fold of a space-point at `position` around one seed (paper, section 2.5): its offset
     /// from the seed, projected on the seed's tangent plane, is marched along the surface.
-    fn fold_from(&self, seed: FacePoint, seed_position: Vec3, position: Vec3) -> Fold {
+    fn fold_from(
+        &self,
+        seed: FacePoint,
+        seed_position: Vec3,
+        position: Vec3,
+        layout_normal: Vec3,
+    ) -> Fold {
         let offset = position - seed_position;
         let length = offset.length();
         let normal = self.target.face_normals()[seed.triangle as usize];
+        // A vertex of no face (a loose curve) has no facing to check.
+        if layout_normal != Vec3::ZERO
+            && layout_normal.dot(normal) * self.orientation < FOLD_MIN_FACING
+        {
+            return Fold::Stay;
+        }
         let along = (offset - normal * offset.dot(normal)).normalize_or_zero();
         if length == 0.0 || along == Vec3::ZERO {
             return Fold::Stay;
@@ -703,7 +850,10 @@ impl WrapSolver {
             };
         let folded_offset = folded_position - seed_position;
         let angle = offset.angle_between(folded_offset);
-        if !angle.is_finite() {
+        if !angle.is_finite() || angle > FOLD_MAX_ANGLE {
+            // Farther than this from the surface's way, the layout turns away from the target on
+            // purpose (a mouth bag, an eye socket, a nostril the target has no surface for):
+            // folding it flat would crush the region around it.
             return Fold::Stay;
         }
         if angle <= self.fold_tolerance

@@ -5,7 +5,7 @@ Array contract (every function): positions are float32 ``(N, 3)``, triangles uin
 argument, and what was expected and found; nothing is copied or reinterpreted silently.
 """
 
-from typing import NamedTuple
+from typing import Literal, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -212,6 +212,8 @@ class WrapSolver:
         landing_distance: float = 0.25,
         fold_tolerance: float = 0.17453292,
         momentum: float = 0.9,
+        rest: Literal["TEMPLATE", "EVEN"] = "TEMPLATE",
+        rest_positions: npt.NDArray[np.float32] | None = None,
     ) -> None: ...
     def step(self, iterations: int) -> StepReport:
         """Run up to ``iterations`` iterations (fewer once converged), GIL released."""
