@@ -193,7 +193,7 @@ def heatmap_figure(case_record: dict, positions_file: Path, output: Path, work_f
         render_layout(unplace(np.nan_to_num(positions)), finite_quads, error_colors(errors), render_path, frame=frame)
         renders.append((method, errors, Image.open(render_path).convert("RGB")))
 
-    figure, axes = plt.subplots(1, len(renders), figsize=(1.75 * len(renders) + 0.9, 4.3))
+    figure, axes = plt.subplots(1, len(renders), figsize=(1.95 * len(renders) + 1.3, 4.3))
     axes = np.atleast_1d(axes)
     for axis, (method, errors, image) in zip(axes, renders):
         axis.imshow(image)
@@ -241,12 +241,28 @@ def error_bars(retarget: dict, path: Path) -> Path:
             p95s.append(row["error_percent_p95"] if row else np.nan)
             colours.append("#d95f02" if method.startswith("Springwrap") else "#7570b3")
         positions = np.arange(len(names))
-        axis.bar(positions, means, color=colours)
-        axis.scatter(positions, p95s, marker="_", s=120, color="black", zorder=3, label="p95")
+        means_array, p95_array = np.array(means, dtype=float), np.array(p95s, dtype=float)
+        # A method far off the others (10 x their median) would flatten every other bar: the axis stops
+        # above the rest, and the off-scale bars carry their value.
+        finite_means = means_array[np.isfinite(means_array)]
+        typical = np.median(finite_means) if len(finite_means) else 1.0
+        in_scale = np.isfinite(means_array) & (means_array <= 10.0 * typical)
+        top = 1.15 * max(np.nanmax(np.where(in_scale, np.maximum(means_array, np.nan_to_num(p95_array)), np.nan)), 1e-9)
+        axis.bar(positions, np.minimum(np.nan_to_num(means_array, nan=0.0, posinf=top), top), color=colours)
+        axis.scatter(positions[p95_array <= top], p95_array[p95_array <= top], marker="_", s=120, color="black",
+                     zorder=3, label="p95")
+        axis.set_ylim(0.0, top)
         for position, (mean, entry) in enumerate(zip(means, record["methods"].values())):
-            if not np.isfinite(mean):
-                axis.text(position, 0.02 * max(p95 for p95 in p95s if np.isfinite(p95)), entry["status"].split(":")[0],
-                          rotation=90, ha="center", va="bottom", fontsize=7)
+            if entry.get("metrics") is None:
+                label = entry["status"].split(":")[0]
+            elif not np.isfinite(mean):
+                label = f"NaN ({entry['metrics'].get('nonfinite_vertices', '?')} vertices)"
+            elif mean > top:
+                label = f"{mean:.1f} (off scale)"
+            else:
+                continue
+            axis.text(position, 0.03 * top if entry.get("metrics") is None else 0.5 * top, label, rotation=90,
+                      ha="center", va="bottom" if entry.get("metrics") is None else "center", fontsize=7)
         axis.set_xticks(positions, names, rotation=40, ha="right", fontsize=7)
         axis.set_title(record["case"], fontsize=9)
         axis.set_ylabel("error, % of diagonal", fontsize=7)
@@ -291,7 +307,8 @@ def scaling_plot(performance: dict, path: Path) -> Path:
     if wrap:
         right.loglog([row["layout_vertices"] for row in wrap],
                      [row["wrap_seconds"] / row["wrap_iterations"] for row in wrap], "o-",
-                     label=f"wrap operator, seconds per iteration ({wrap[0]['target_triangles']:,} triangles)")
+                     label=f"wrap operator: its time for {wrap[0]['wrap_iterations']} iterations (with setup) / "
+                     f"{wrap[0]['wrap_iterations']} ({wrap[0]['target_triangles']:,} triangles)")
         right.loglog([row["layout_vertices"] for row in wrap], [row["snap_seconds"] for row in wrap], "^--",
                      label="snap operator (incl. reading/writing the mesh)")
     right.set_xlabel("layout vertices (query points)")

@@ -327,7 +327,8 @@ def wrap_speed_lines(retarget: dict) -> list[str]:
 
 
 def machine_lines(name: str, run: dict) -> list[str]:
-    machine = run.get("machine", {})
+    machine = dict(run.get("machine", {}))
+    machine.update(run.get("versions", {}))  # snap_throughput.py keeps the versions apart
     load = machine.get("load_average")
     load_text = ", ".join(number(value, 2) for value in load) if isinstance(load, list) else number(load, 2)
     end = run.get("load_average_end")

@@ -106,8 +106,12 @@ def machine_description() -> dict:
 
 
 def versions(kernel) -> dict:
-    """Versions of everything measured."""
-    return {"bpy": bpy.app.version_string, "numpy": np.__version__, "springwrap_kernel": kernel.__version__}
+    """Versions of everything measured, which build of the kernel's native module, and the git commit."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+    from benchmarks.retarget.run import git_commit, kernel_build
+
+    return {"bpy": bpy.app.version_string, "numpy": np.__version__, "springwrap_kernel": kernel.__version__,
+            "kernel_build": kernel_build(), "git_commit": git_commit()}
 
 
 # ---------------------------------------------------------------- measurements
