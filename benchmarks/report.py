@@ -172,9 +172,40 @@ def headline(retarget: dict) -> list[str]:
         verdict = "better than" if all(finite[method] < finite[other] for other in baselines if other in finite) \
             else "not better than every baseline:"
         lines.append(f"- {method}: {number(finite[method])} % mean error, {verdict} " + ", ".join(comparisons) + ".")
+    lines += outcome_notes(records)
     lines += ["", "Mean error per case (% of the diagonal; the lowest of each row in bold, the aligned template "
               "left out of the contest):", ""] + error_matrix(records)
     return lines
+
+
+def outcome_notes(records: list[dict]) -> list[str]:
+    """What else happened: refusals and failures (with the message and the cases), non-finite results,
+    wraps that stopped at the iteration limit."""
+    messages: dict[tuple[str, str], list[str]] = {}
+    nonfinite: dict[str, list[str]] = {}
+    wraps: dict[str, list[bool]] = {}
+    for record in records:
+        for method, entry in record["methods"].items():
+            if entry["status"] != "ok":
+                # the message without vertex numbers, so one cause on several cases reads once
+                kind, _, message = entry["status"].partition(": ")
+                generic = " ".join("N" if word.isdigit() else word for word in message.split(" "))
+                messages.setdefault((method, f"{kind}: {generic}"), []).append(record["case"])
+            count = (entry.get("metrics") or {}).get("nonfinite_vertices")
+            if count:
+                nonfinite.setdefault(method, []).append(f"{record['case']} ({count} of {record['layout_vertices']:,})")
+            details = entry.get("details") or {}
+            if "converged" in details:
+                wraps.setdefault(method, []).append(bool(details["converged"]))
+    lines = []
+    for (method, message), case_names in messages.items():
+        lines.append(f"- {method}, {len(case_names)} case(s) ({', '.join(case_names)}): {message}")
+    for method, cases_text in nonfinite.items():
+        lines.append(f"- {method} wrote non-finite (NaN) vertex positions on {', '.join(cases_text)}.")
+    for method, converged in wraps.items():
+        lines.append(f"- {method} converged on {sum(converged)} of {len(converged)} cases "
+                     "(the others stopped at the iteration limit).")
+    return ["", "Outcomes to note (all cases):", ""] + lines if lines else []
 
 
 def error_matrix(records: list[dict]) -> list[str]:

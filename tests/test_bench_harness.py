@@ -478,6 +478,8 @@ def test_report_headline_averages_the_body_cases_and_names_the_best():
     # the case x method matrix: every case, the best retargeting method in bold, refusals by name
     assert "| sphere-ellipsoid | 6.000 |  | **2.000** |  |" in text
     assert "| heavy | 0.500 | 0.400 | **0.250** | refused |" in text
+    assert "- Springwrap snap+wrap, 1 case(s) (heavy): refused: springwrap.wrap: zero length" in text
+    assert "- Springwrap wrap converged on 0 of 1 cases" in text
 
 
 def test_report_document_has_every_section_and_says_what_was_not_run(tmp_path):
@@ -510,3 +512,4 @@ def test_non_finite_vertices_are_counted_and_reported():
     run_with_nan["cases"][1] = record
     wrap_line = next(line for line in report.headline(run_with_nan) if line.startswith("| Springwrap wrap "))
     assert "non-finite vertices on 1" in wrap_line
+    assert "- Springwrap wrap wrote non-finite (NaN) vertex positions on heavy (886 of 100)." in report.headline(run_with_nan)
