@@ -115,18 +115,34 @@ def test_retargets_an_obj_template_onto_an_obj_target(inputs, tmp_path):
     assert len(vertices) == GRID_SIDE ** 2 and all(0.97 < radius <= 1.0 + 1e-4 for radius in radii)
 
 
+def blender_from_obj(point):
+    """OBJ files are Y-up (Blender's importer and exporter convert): OBJ (x, y, z) is Blender (x, -z, y)."""
+    x, y, z = point
+    return [x, -z, y]
+
+
 def test_anchors_from_json_and_a_blend_template_object(inputs, tmp_path):
+    # The grid's two opposite corners (OBJ space: z = 1.5) anchored to points nearer the sphere; anchor
+    # targets are world (Blender) coordinates, each vertex is pulled to the surface point closest to its target.
     corner = GRID_SIDE * GRID_SIDE - 1
+    wanted = {0: (-0.5, -0.5, 1.0), corner: (0.5, 0.5, 1.0)}  # OBJ space
     anchors = tmp_path / "anchors.json"
-    anchors.write_text(json.dumps({"anchors": [{"vertex": 0, "target": [-0.5, -0.5, 0.7]},
-                                               {"vertex": corner, "target": [0.5, 0.5, 0.7]}]}))
-    report_path = tmp_path / "r.json"
+    anchors.write_text(json.dumps({"anchors": [{"vertex": vertex, "target": blender_from_obj(point)}
+                                               for vertex, point in wanted.items()]}))
+    report_path, obj_path = tmp_path / "r.json", tmp_path / "r.obj"
     process = run("--template", inputs["blend"], "--template-object", "Grid", "--target", inputs["big"],
-                  "--anchors", anchors, "--report", report_path)
+                  "--anchors", anchors, "--report", report_path, "--output-obj", obj_path)
     assert process.returncode == 0, process.stderr[-3000:]
     report = json.loads(report_path.read_text())
     assert report["anchors"] == 2 and report["vertices"] == GRID_SIDE ** 2
-    assert report["metrics"]["max_distance"] < 1e-4
+    vertices = [[float(value) for value in line.split()[1:4]] for line in obj_path.read_text().splitlines()
+                if line.startswith("v ")]
+    for vertex, point in wanted.items():
+        on_sphere = [1.3 * value / math.dist(point, (0, 0, 0)) for value in point]  # the smooth sphere's closest point
+        assert math.dist(vertices[vertex], on_sphere) < 0.06  # the faceted one is within 1.3 (1 - cos(pi / 12))
+    # Vertices left off the surface are counted and warned about in the report.
+    space_points = report["wrap"]["space_points"]
+    assert space_points == 0 or any(f"{space_points} of {GRID_SIDE ** 2} vertices" in line for line in report["warnings"])
 
 
 @pytest.mark.parametrize("case", ["missing template", "unreadable target", "target without faces",
