@@ -249,7 +249,7 @@ def test_wrap_panel_searches_the_targets_vertex_groups():
     assert SPRINGWRAP_PT_wrap.bl_parent_id == "SPRINGWRAP_PT_layout" and SPRINGWRAP_PT_wrap.poll(bpy.context)
     recorder = _RecordingLayout()
     SPRINGWRAP_PT_wrap.draw(type("Panel", (), {"layout": recorder})(), bpy.context)
-    assert recorder.operators == ["springwrap.wrap"]
+    assert recorder.operators == ["springwrap.wrap", "springwrap.rest_set"]
     assert recorder.searches == [("unreliable_group", "Target", "vertex_groups")]
     layout.springwrap.target = None
     recorder = _RecordingLayout()

@@ -172,17 +172,22 @@ def cached_target_count() -> int:
     return len(_target_cache)
 
 
-def write_layout(layout: bpy.types.Object, positions: np.ndarray, state: LayoutState) -> None:
+def write_layout(
+    layout: bpy.types.Object, positions: np.ndarray, state: LayoutState, rest: Optional[np.ndarray] = None
+) -> None:
     """Write local positions and the per-vertex state into the layout mesh (object mode).
 
     The state attributes are created when missing (or replaced when one with the same name has
-    another type or domain).
+    another type or domain). A layout without a rest shape gets one first: ``rest`` when given,
+    else its positions before this write (the template as made, before Springwrap moved it).
     """
     mesh = layout.data
     vertex_count = len(mesh.vertices)
     positions = np.ascontiguousarray(positions, dtype=np.float32).reshape(vertex_count, 3)
     current = np.empty(vertex_count * 3, dtype=np.float32)
     mesh.vertices.foreach_get("co", current)
+    if read_rest(layout) is None:
+        write_rest(layout, current if rest is None else rest)
     if not np.array_equal(current.view(np.uint32), positions.reshape(-1).view(np.uint32)):
         mesh.vertices.foreach_set("co", positions.reshape(-1))
     for name, data_type, _prop, _dtype, _components in _STATE_ATTRIBUTES:
@@ -196,6 +201,28 @@ def write_layout(layout: bpy.types.Object, positions: np.ndarray, state: LayoutS
         # Look each attribute up again: adding one may move the others in memory.
         mesh.attributes[name].data.foreach_set(prop, np.ascontiguousarray(array, dtype=dtype).reshape(-1))
     mesh.update()
+
+
+def read_rest(layout: bpy.types.Object) -> Optional[np.ndarray]:
+    """The layout's stored rest shape (local (N, 3) float32), or None when it has none (object mode)."""
+    attribute = _state_attribute(layout.data, layout_state.REST_ATTRIBUTE, "FLOAT_VECTOR")
+    if attribute is None:
+        return None
+    values = np.empty(len(layout.data.vertices) * 3, dtype=np.float32)
+    attribute.data.foreach_get("vector", values)
+    return values.reshape(-1, 3)
+
+
+def write_rest(layout: bpy.types.Object, positions: np.ndarray) -> None:
+    """Store ``positions`` (local (N, 3)) as the layout's rest shape, replacing any (object mode)."""
+    mesh = layout.data
+    existing = mesh.attributes.get(layout_state.REST_ATTRIBUTE)
+    if existing is not None and _state_attribute(mesh, layout_state.REST_ATTRIBUTE, "FLOAT_VECTOR") is None:
+        mesh.attributes.remove(existing)
+    if mesh.attributes.get(layout_state.REST_ATTRIBUTE) is None:
+        mesh.attributes.new(layout_state.REST_ATTRIBUTE, "FLOAT_VECTOR", "POINT")
+    values = np.ascontiguousarray(positions, dtype=np.float32).reshape(-1)
+    mesh.attributes[layout_state.REST_ATTRIBUTE].data.foreach_set("vector", values)
 
 
 def has_shape_keys(layout: bpy.types.Object) -> bool:
@@ -552,6 +579,7 @@ def make_wrap_solver(target: Target, structure, inputs, parameters):
         anchor_barycentrics=inputs.anchor_barycentrics,
         anchor_positions=inputs.anchor_positions,
         unreliable_triangles=inputs.unreliable_triangles,
+        rest_positions=inputs.rest_positions,
         **curve_arguments,
         **parameters.solver_settings(),
     )

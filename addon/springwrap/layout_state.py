@@ -19,6 +19,8 @@ FACE_ATTRIBUTE = "springwrap_face"
 """INT attribute: the target triangle of a face-point, :data:`NO_FACE` for a space-point."""
 BARYCENTRIC_ATTRIBUTE = "springwrap_bary"
 """FLOAT_VECTOR attribute: the barycentric weights of a face-point, zero for a space-point."""
+REST_ATTRIBUTE = "springwrap_rest"
+"""FLOAT_VECTOR attribute: the template's shape as made (local), which the wrap's springs rest in."""
 
 SPACE_POINT = 0
 """State value of a vertex free in space."""

@@ -286,11 +286,12 @@ class WrapParameters(NamedTuple):
     thin_plate: float = 0.2
     constraint: float = 0.5
     folding: float = 0.3
+    rest: str = "TEMPLATE"  # the springs rest in the template's shape ("TEMPLATE") or straight and even ("EVEN")
 
     def solver_settings(self) -> dict:
         """The keyword arguments of ``springwrap_kernel.WrapSolver`` these parameters set."""
         names = ("tolerance", *WEIGHT_RANGES)
-        return {name: float(getattr(self, name)) for name in names}
+        return {name: float(getattr(self, name)) for name in names} | {"rest": str(self.rest)}
 
 
 class WrapInputs(NamedTuple):
@@ -309,6 +310,7 @@ class WrapInputs(NamedTuple):
     curve_vertex_counts: Optional[np.ndarray] = None  # (K,) uint32 vertices per chain
     curve_points: Optional[np.ndarray] = None  # (sum P, 3) float32 world target polylines one after another
     curve_point_counts: Optional[np.ndarray] = None  # (K,) uint32 points per polyline
+    rest_positions: Optional[np.ndarray] = None  # (N, 3) float32 world template shape the springs rest in
 
 
 def check_wrap_parameters(parameters: WrapParameters) -> None:
@@ -369,6 +371,20 @@ def wrap_anchor_arrays(anchor_list, vertex_count: int) -> tuple[np.ndarray, np.n
     )
 
 
+def rest_world_positions(layout: LayoutArrays, rest: np.ndarray) -> np.ndarray:
+    """The stored rest shape (local, (N, 3)) in world space, checked: one finite row per layout vertex."""
+    rest = np.asarray(rest, dtype=np.float64)
+    vertex_count = layout.positions.shape[0]
+    if rest.shape != (vertex_count, 3):
+        raise layout_state.LayoutError(
+            f"The stored rest shape has {rest.shape[0]} points for a layout of {vertex_count} vertices"
+        )
+    bad = np.flatnonzero(~np.isfinite(rest).all(axis=1))
+    if bad.size:
+        raise layout_state.LayoutError(f"The stored rest shape of vertex {int(bad[0])} is not finite")
+    return layout_state.as_float32_points(layout_state.transform_points(layout.matrix_world, rest))
+
+
 def prepare_wrap(
     layout: LayoutArrays,
     target: Target,
@@ -376,12 +392,14 @@ def prepare_wrap(
     anchor_list,
     unreliable: Optional[np.ndarray],
     curve_constraints=(),
+    rest: Optional[np.ndarray] = None,
 ) -> tuple[WrapInputs, layout_state.Resolution]:
     """The solver's inputs: the layout's current state (after the deleted-face rule) and positions.
 
     ``anchor_list``: resolved anchors (see :func:`wrap_anchor_arrays`); ``unreliable``: (M,) bool
     flags of the target's triangles, or None; ``curve_constraints``: ``curves.CurveConstraint``
-    with current polylines (checked by ``curves.kernel_arrays``). Every vertex must be finite in world space.
+    with current polylines (checked by ``curves.kernel_arrays``); ``rest``: (N, 3) local template shape the
+    springs rest in (None: the positions now). Every vertex must be finite in world space.
     Returns the inputs and the topology resolution of the layout's face-points (to report).
     """
     vertex_count = layout.positions.shape[0]
@@ -416,6 +434,7 @@ def prepare_wrap(
         curve_vertex_counts=curve_arrays[1],
         curve_points=curve_arrays[2],
         curve_point_counts=curve_arrays[3],
+        rest_positions=None if rest is None else rest_world_positions(layout, rest),
     )
     return inputs, resolution
 

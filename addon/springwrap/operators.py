@@ -9,6 +9,7 @@ import contextlib
 import time
 
 import bpy
+import numpy as np
 
 from .properties import ORIENTATION_ITEMS, PROJECT_DIRECTION_ITEMS, SNAP_MODE_ITEMS, max_distance_property
 
@@ -282,4 +283,43 @@ def _view_region(context):
     return None
 
 
-classes = (SPRINGWRAP_OT_detach, SPRINGWRAP_OT_snap, SPRINGWRAP_OT_project)
+class SPRINGWRAP_OT_rest_set(bpy.types.Operator):
+    """Take the layout's current shape as the template's rest shape: the shape the wrap's springs keep"""
+
+    bl_idname = "springwrap.rest_set"
+    bl_label = "Set Rest Shape"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        problem = layout_problem(context, require_target=False)
+        if problem is not None:
+            cls.poll_message_set(problem)
+            return False
+        return True
+
+    def execute(self, context):
+        problem = layout_problem(context, require_target=False)
+        if problem is not None:
+            self.report({"ERROR"}, problem)
+            return {"CANCELLED"}
+        try:
+            from . import bridge, operations
+        except ImportError as error:
+            self.report({"ERROR"}, f"The Springwrap kernel is not available: {error}")
+            return {"CANCELLED"}
+        layout = context.active_object
+        try:
+            with bridge.object_mode(layout):
+                arrays = bridge.read_layout(layout)
+                operations.check_finite(arrays, np.ones(arrays.positions.shape[0], dtype=bool))
+                bridge.write_rest(layout, arrays.positions)
+                layout.data.update()
+        except bridge.ERRORS as error:
+            self.report({"ERROR"}, str(error))
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"Rest shape of '{layout.name}' set from its {arrays.positions.shape[0]} vertices")
+        return {"FINISHED"}
+
+
+classes = (SPRINGWRAP_OT_detach, SPRINGWRAP_OT_snap, SPRINGWRAP_OT_project, SPRINGWRAP_OT_rest_set)

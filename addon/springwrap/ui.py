@@ -216,6 +216,7 @@ class SPRINGWRAP_PT_wrap(_LayoutSubPanel, bpy.types.Panel):
             row.prop(settings, "unreliable_group")
         layout.label(text="Whole layout; Esc or right-click cancels", icon="INFO")
         layout.operator("springwrap.wrap", icon="MOD_SHRINKWRAP")
+        layout.operator("springwrap.rest_set", icon="ARMATURE_DATA")
 
 
 def _anchor_counts_text(anchors):

@@ -150,8 +150,11 @@ class WrapSession:
         curve_constraints = bridge.resolve_curve_constraints(
             context.evaluated_depsgraph_get(), layout, bridge.read_curve_constraints(layout)
         )
+        # The template's shape as made: stored at the first change of the layout, else as it is now.
+        rest = bridge.read_rest(layout)
+        self.rest = arrays.positions if rest is None else rest
         inputs, resolution = operations.prepare_wrap(
-            arrays, self.target, settings.target_signature, self.anchors, unreliable, curve_constraints
+            arrays, self.target, settings.target_signature, self.anchors, unreliable, curve_constraints, self.rest
         )
         self.solver = bridge.make_wrap_solver(self.target, structure, inputs, parameters)
         self.snapshot = bridge.take_snapshot(layout)
@@ -227,7 +230,7 @@ class WrapSession:
         if self.last_report is None:
             self.step(0)
         positions, state = self.current_layout()
-        self._bridge.write_layout(self.layout, positions, state)
+        self._bridge.write_layout(self.layout, positions, state, rest=self.rest)
         settings = self.layout.springwrap
         settings.target_signature = self.target.signature
         if len(settings.anchors):
@@ -378,6 +381,16 @@ class SPRINGWRAP_OT_wrap(bpy.types.Operator):
         soft_min=0.0,
         soft_max=1.0,
     )
+    rest: bpy.props.EnumProperty(
+        name="Rest Shape",
+        description="What the springs consider relaxed",
+        items=(
+            ("TEMPLATE", "Template", "Keep the template's own spacing and curvature (its shape before the first snap, "
+             "projection or wrap, or as set by Set Rest Shape)"),
+            ("EVEN", "Even", "Straight, evenly spaced grid lines (Krishnamurthy & Levoy's springs)"),
+        ),
+        default="TEMPLATE",
+    )
 
     @classmethod
     def poll(cls, context):
@@ -399,6 +412,7 @@ class SPRINGWRAP_OT_wrap(bpy.types.Operator):
             thin_plate=self.thin_plate,
             constraint=self.constraint,
             folding=self.folding,
+            rest=self.rest,
         )
 
     # A string: typing's cache would keep Optional[WrapSession] (and through it this module) alive until

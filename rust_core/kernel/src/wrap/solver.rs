@@ -40,6 +40,10 @@ const FOLD_MAX_ANGLE: f32 = 75.0 * std::f32::consts::PI / 180.0;
 /// this cosine (75°): a layout region facing away from the surface (the inside of a mouth bag or
 /// an eye socket pressed against the face) would land inside out.
 const FOLD_MIN_FACING: f32 = 0.26;
+/// The facing check waits for this many face-points with a normal...
+const ORIENTATION_MIN_POINTS: usize = 16;
+/// ... whose mean agreement with the target's normals (cosine) is at least this, either way.
+const ORIENTATION_AGREEMENT: f32 = 0.5;
 /// Weight of the newest move in a point's moving averages.
 const MOVE_AVERAGING: f32 = 0.25;
 /// A point rocks when its mean move is shorter than this fraction of its mean move length.
@@ -102,10 +106,11 @@ pub struct WrapSolver {
     /// Per vertex, the similarity from its rest neighbourhood to its current one (refined each
     /// iteration from the last).
     similarities: Vec<Similarity>,
-    /// The template's scale on the target: the median of the vertices' scales at the start. One
-    /// scale for all: with a scale per vertex, nothing would keep a region from shrinking
-    /// (small dense quads at toes and eyelids collapse and flip); with one, the template's sizes
-    /// are kept and a morph's stretch is shared out by the springs.
+    /// The template's scale on the target: the median of the vertices' own scales, updated every
+    /// iteration. One scale for all: with a scale per vertex, nothing would keep a region from
+    /// shrinking (small dense quads at toes and eyelids collapse and flip); with one, the
+    /// template's proportions are kept, a morph's stretch is shared out by the springs, and the
+    /// layout still grows or shrinks as a whole to where its anchors put it.
     global_scale: f32,
     settings: WrapSettings,
     points: Vec<LayoutPoint>,
@@ -130,8 +135,8 @@ pub struct WrapSolver {
     /// For each curve-constrained (and not anchored) vertex, its fixed point on the target curve.
     curve_target_of_vertex: Vec<Option<Vec3>>,
     fold_tolerance: f32,
-    /// +1 when the layout's faces wind the same way as the target's, -1 when the other way
-    /// (measured where the layout touches the target at the start).
+    /// +1 when the layout's faces wind the same way as the target's, -1 when the other way, 0
+    /// while that is not clear yet: measured every iteration over the face-points.
     orientation: f32,
     layout_size: f32,
     landing_distance: f32,
@@ -289,30 +294,9 @@ impl WrapSolver {
         for &corner in &structure.corners {
             is_corner[corner as usize] = true;
         }
-        let face_normals = target.face_normals(); // built now, not inside the first iteration
-        let mut agreement = 0.0f32;
-        let touching = points
-            .iter()
-            .enumerate()
-            .filter_map(|(vertex, point)| match point {
-                LayoutPoint::Face(face_point) => Some((vertex, face_point.triangle)),
-                LayoutPoint::Space(_) => None,
-            })
-            .chain(anchors.iter().filter_map(|anchor| match anchor.target {
-                AnchorTarget::Face(face_point) => {
-                    Some((anchor.vertex as usize, face_point.triangle))
-                }
-                AnchorTarget::Space(_) => None,
-            }));
-        for (vertex, triangle) in touching {
-            let normal = structure
-                .normal_at(&positions, vertex as u32)
-                .normalize_or_zero();
-            agreement += normal.dot(face_normals[triangle as usize]);
-        }
-        let orientation = if agreement < 0.0 { -1.0 } else { 1.0 };
+        let _ = target.face_normals(); // built now rather than inside the first iteration
         Ok(Self {
-            orientation,
+            orientation: 0.0,
             target,
             springs,
             similarities: vec![Similarity::IDENTITY; structure.vertex_count],
@@ -515,45 +499,48 @@ impl WrapSolver {
     fn iterate(&mut self) -> (f32, EventCounts) {
         let vertex_count = self.points.len();
         let first = self.iteration == 0;
-        let fitted: Vec<(Similarity, Vec3)> = (0..vertex_count as u32)
+        // Rotations per vertex; one scale for all: the median of the vertices' own scales (see
+        // `global_scale`), from the fits of the previous iteration (of this one at the start).
+        let fits: Vec<Similarity> = (0..vertex_count as u32)
             .into_par_iter()
             .with_min_len(1024)
             .map(|vertex| {
-                let mut similarity = self.springs.fit(
+                self.springs.fit(
                     &self.positions,
                     &self.structure,
                     vertex,
                     self.similarities[vertex as usize],
                     first,
-                );
-                if !first {
-                    similarity.scale = self.global_scale;
-                }
-                let deviation = self.springs.umbrella_deviation(
+                )
+            })
+            .collect();
+        let scale = if first {
+            median_scale(&fits).unwrap_or(1.0)
+        } else {
+            self.global_scale
+        };
+        if let Some(median) = median_scale(&fits) {
+            self.global_scale = median;
+        }
+        for (slot, fit) in self.similarities.iter_mut().zip(&fits) {
+            *slot = Similarity {
+                rotation: fit.rotation,
+                scale,
+            };
+        }
+        let deviations: Vec<Vec3> = (0..vertex_count as u32)
+            .into_par_iter()
+            .with_min_len(1024)
+            .map(|vertex| {
+                self.springs.umbrella_deviation(
                     &self.positions,
                     &self.structure,
                     vertex,
-                    similarity,
-                );
-                (similarity, deviation)
+                    self.similarities[vertex as usize],
+                )
             })
             .collect();
-        let deviations: Vec<Vec3> = fitted.iter().map(|&(_, deviation)| deviation).collect();
-        for (slot, &(similarity, _)) in self.similarities.iter_mut().zip(&fitted) {
-            *slot = similarity;
-        }
-        if first {
-            let mut scales: Vec<f32> = self
-                .similarities
-                .iter()
-                .map(|similarity| similarity.scale)
-                .filter(|scale| *scale > 0.0)
-                .collect();
-            if !scales.is_empty() {
-                let middle = scales.len() / 2;
-                self.global_scale = *scales.select_nth_unstable_by(middle, f32::total_cmp).1;
-            }
-        }
+        self.orientation = self.measure_orientation();
         let updates: Vec<(LayoutPoint, Vec3, Event)> = (0..vertex_count as u32)
             .into_par_iter()
             .with_min_len(512)
@@ -613,6 +600,41 @@ impl WrapSolver {
         self.anneal(&counts);
         self.iteration += 1;
         (max_displacement, counts)
+    }
+
+    /// Whether the layout's faces wind the way the target's do where it lies on the target: +1,
+    /// -1, or 0 while too few points are on it or they disagree (a layout still turning over).
+    fn measure_orientation(&self) -> f32 {
+        let face_normals = self.target.face_normals();
+        let (agreement, count) = self
+            .points
+            .par_iter()
+            .with_min_len(1024)
+            .enumerate()
+            .filter_map(|(vertex, point)| match point {
+                LayoutPoint::Face(face_point) => {
+                    let normal = self
+                        .structure
+                        .normal_at(&self.positions, vertex as u32)
+                        .normalize_or_zero();
+                    (normal != Vec3::ZERO)
+                        .then(|| normal.dot(face_normals[face_point.triangle as usize]))
+                }
+                LayoutPoint::Space(_) => None,
+            })
+            .map(|dot| (dot, 1usize))
+            .reduce(|| (0.0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+        if count < ORIENTATION_MIN_POINTS {
+            return 0.0;
+        }
+        let mean = agreement / count as f32;
+        if mean > ORIENTATION_AGREEMENT {
+            1.0
+        } else if mean < -ORIENTATION_AGREEMENT {
+            -1.0
+        } else {
+            0.0
+        }
     }
 
     /// Simulated annealing of the folding tolerance: loosen while nothing folds, tighten when a
@@ -817,6 +839,7 @@ impl WrapSolver {
         let normal = self.target.face_normals()[seed.triangle as usize];
         // A vertex of no face (a loose curve) has no facing to check.
         if layout_normal != Vec3::ZERO
+            && self.orientation != 0.0
             && layout_normal.dot(normal) * self.orientation < FOLD_MIN_FACING
         {
             return Fold::Stay;
@@ -894,6 +917,20 @@ struct EventCounts {
     folded: usize,
     fold_candidates: usize,
     lifted: usize,
+}
+
+/// The median of the positive scales of `fits`; `None` when there is none.
+fn median_scale(fits: &[Similarity]) -> Option<f32> {
+    let mut scales: Vec<f32> = fits
+        .iter()
+        .map(|fit| fit.scale)
+        .filter(|scale| *scale > 0.0)
+        .collect();
+    if scales.is_empty() {
+        return None;
+    }
+    let middle = scales.len() / 2;
+    Some(*scales.select_nth_unstable_by(middle, f32::total_cmp).1)
 }
 
 /// Positions of layout points; face-points are checked against the target.
