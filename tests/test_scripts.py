@@ -8,6 +8,7 @@ module), so nothing here touches the ``bpy`` state of other tests.
 """
 
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -124,8 +125,12 @@ def test_wrap_script_wraps_a_layout_of_a_saved_file(demo_blend, tmp_path):
     process = run_script(str(WRAP), "--blend", str(demo_output), "--layout", "Wrapped", "--anchors-spacing", "0.25",
                          "--max-iterations", "300", "--output", str(output))
     assert process.returncode == 0, process.stdout[-2000:] + process.stderr[-3000:]
-    assert "iteration    100/300" in process.stdout and "iteration    300/300" in process.stdout
-    assert "Wrapped 'Wrapped' in 300 iterations" in process.stdout
+    finished = re.search(r"Wrapped 'Wrapped' in (\d+) iterations", process.stdout)
+    assert finished is not None, process.stdout[-2000:]
+    ran = int(finished.group(1))
+    assert 0 < ran <= 300
+    # A progress line per hundred iterations run (the layout is the demo's wrapped one: it may converge early).
+    assert all(f"iteration {done:6d}/300" in process.stdout for done in range(100, ran + 1, 100)), process.stdout
     assert f"saved {output}" in process.stdout
     found = inspect(output, "Wrapped")
     # anchors_auto with spacing 0.25 replaced the demo's 87 (the exact count depends on where the

@@ -705,7 +705,7 @@ impl PyWrapSolver {
 
     /// Runs up to `iterations` iterations (fewer once converged); returns the progress as a tuple
     /// (iterations, total_iterations, max_displacement, converged, face_points, space_points,
-    /// landed, folded, lifted, fold_tolerance).
+    /// landed, folded, lifted, fold_tolerance, mean_displacement).
     #[allow(clippy::type_complexity)]
     fn step(
         &mut self,
@@ -722,6 +722,7 @@ impl PyWrapSolver {
         usize,
         usize,
         f32,
+        f32,
     )> {
         let solver = &mut self.solver;
         let report = run_kernel(py, || Ok(solver.step(iterations)))?;
@@ -736,6 +737,7 @@ impl PyWrapSolver {
             report.folded,
             report.lifted,
             report.fold_tolerance,
+            report.mean_displacement,
         ))
     }
 

@@ -40,6 +40,18 @@ const FOLD_MAX_ANGLE: f32 = 75.0 * std::f32::consts::PI / 180.0;
 /// this cosine (75°): a layout region facing away from the surface (the inside of a mouth bag or
 /// an eye socket pressed against the face) would land inside out.
 const FOLD_MIN_FACING: f32 = 0.26;
+/// At convergence no point moves more than this many times the tolerance (the mean move is below
+/// it): a few points rocking in a crease do not hold the wrap up, a region still sliding does.
+const MAX_MOVE_AT_CONVERGENCE: f32 = 100.0;
+/// Converged only after this many iterations without a change of state: folding comes in bursts
+/// as its tolerance anneals (from its least to its largest in about 30 iterations).
+const QUIET_ITERATIONS: usize = 32;
+/// Every this many iterations, free space-points touching the surface land on it.
+const PROXIMITY_INTERVAL: usize = 4;
+/// A space-point touches the surface within this fraction of its mean edge length...
+const PROXIMITY_REACH: f32 = 0.1;
+/// ... facing the way the layout does there within this cosine (45 degrees).
+const PROXIMITY_FACING: f32 = std::f32::consts::FRAC_1_SQRT_2;
 /// The facing check waits for this many face-points with a normal...
 const ORIENTATION_MIN_POINTS: usize = 16;
 /// ... whose mean agreement with the target's normals (cosine) is at least this, either way.
@@ -81,7 +93,10 @@ pub struct StepReport {
     pub total_iterations: usize,
     /// Largest displacement of the last iteration, as a fraction of the layout's size.
     pub max_displacement: f32,
-    /// The last iteration moved no point more than the tolerance and changed no state.
+    /// Mean displacement of the last iteration, as a fraction of the layout's size.
+    pub mean_displacement: f32,
+    /// The last iteration moved the points by less than the tolerance on average, none by more
+    /// than a hundred times it, and no point changed state for a while (32 iterations).
     pub converged: bool,
     /// Face-points now.
     pub face_points: usize,
@@ -145,6 +160,8 @@ pub struct WrapSolver {
     lift_counts: Vec<u32>,
     no_fold_until: Vec<usize>,
     total_iterations: usize,
+    /// Iterations since a point last changed state.
+    quiet_iterations: usize,
     /// Iterations run so far, counted inside `iterate` (for the fold back-off).
     iteration: usize,
 }
@@ -319,6 +336,7 @@ impl WrapSolver {
             walk_neighbors: None,
             curve_target_of_vertex: Vec::new(),
             total_iterations: 0,
+            quiet_iterations: 0,
             iteration: 0,
         })
     }
@@ -462,6 +480,7 @@ impl WrapSolver {
             iterations: 0,
             total_iterations: self.total_iterations,
             max_displacement: 0.0,
+            mean_displacement: 0.0,
             converged: false,
             face_points: 0,
             space_points: 0,
@@ -471,14 +490,23 @@ impl WrapSolver {
             fold_tolerance: self.fold_tolerance,
         };
         for _ in 0..iterations {
-            let (max_displacement, counts) = self.iterate();
+            let (max_displacement, mean_displacement, counts) = self.iterate();
             report.iterations += 1;
             report.max_displacement = max_displacement / self.layout_size;
+            report.mean_displacement = mean_displacement / self.layout_size;
             report.landed += counts.landed;
             report.folded += counts.folded;
             report.lifted += counts.lifted;
             let changed = counts.landed + counts.folded + counts.lifted;
-            if report.max_displacement <= self.settings.tolerance && changed == 0 {
+            self.quiet_iterations = if changed == 0 {
+                self.quiet_iterations + 1
+            } else {
+                0
+            };
+            if report.mean_displacement <= self.settings.tolerance
+                && report.max_displacement <= self.settings.tolerance * MAX_MOVE_AT_CONVERGENCE
+                && self.quiet_iterations >= QUIET_ITERATIONS
+            {
                 report.converged = true;
                 break;
             }
@@ -495,8 +523,9 @@ impl WrapSolver {
         report
     }
 
-    /// One Jacobi iteration over all points; returns the largest displacement and the events.
-    fn iterate(&mut self) -> (f32, EventCounts) {
+    /// One Jacobi iteration over all points; returns the largest and the mean displacement and
+    /// the events.
+    fn iterate(&mut self) -> (f32, f32, EventCounts) {
         let vertex_count = self.points.len();
         let first = self.iteration == 0;
         // Rotations per vertex; one scale for all: the median of the vertices' own scales (see
@@ -555,9 +584,11 @@ impl WrapSolver {
             .collect();
         let mut counts = EventCounts::default();
         let mut max_displacement = 0.0f32;
+        let mut total_displacement = 0.0f64;
         for (vertex, (point, position, event)) in updates.into_iter().enumerate() {
             let moved = position - self.positions[vertex];
             max_displacement = max_displacement.max(moved.length());
+            total_displacement += f64::from(moved.length());
             let same_state = matches!(
                 (point, self.points[vertex]),
                 (LayoutPoint::Face(_), LayoutPoint::Face(_))
@@ -599,7 +630,8 @@ impl WrapSolver {
         }
         self.anneal(&counts);
         self.iteration += 1;
-        (max_displacement, counts)
+        let mean_displacement = (total_displacement / vertex_count.max(1) as f64) as f32;
+        (max_displacement, mean_displacement, counts)
     }
 
     /// Whether the layout's faces wind the way the target's do where it lies on the target: +1,
@@ -756,11 +788,16 @@ impl WrapSolver {
                     );
                 }
                 let scale = self.step_scales[index];
-                if weights.folding > 0.0
+                let may_fold = weights.folding > 0.0
                     && constraint_target.is_none()
-                    && self.iteration >= self.no_fold_until[index]
-                    && let Some(outcome) = self.fold(vertex, moved)
+                    && self.iteration >= self.no_fold_until[index];
+                if may_fold
+                    && self.iteration.is_multiple_of(PROXIMITY_INTERVAL)
+                    && let Some(landed) = self.land_nearby(vertex, moved)
                 {
+                    return landed;
+                }
+                if may_fold && let Some(outcome) = self.fold(vertex, moved) {
                     return match outcome {
                         (LayoutPoint::Space(rotated), _, event) => {
                             let scaled = here + (rotated - here) * scale;
@@ -773,6 +810,47 @@ impl WrapSolver {
                 (LayoutPoint::Space(scaled), scaled, Event::None)
             }
         }
+    }
+
+    /// A space-point already lying on the surface, facing the way the layout does there, lands
+    /// on it at once (the paper: space-points land once close enough): within a tenth of its mean
+    /// edge length of the surface, and turned less than 45 degrees from it. Folding alone would
+    /// take the points from the anchors one ring at a time; a template aligned on its target is
+    /// mostly touching it already.
+    fn land_nearby(&self, vertex: u32, position: Vec3) -> Option<(LayoutPoint, Vec3, Event)> {
+        if self.orientation == 0.0 {
+            return None;
+        }
+        let neighbors = self.structure.neighbors_of(vertex);
+        if neighbors.is_empty() {
+            return None;
+        }
+        let reach = neighbors
+            .iter()
+            .map(|&other| self.positions[other as usize].distance(position))
+            .sum::<f32>()
+            / neighbors.len() as f32
+            * PROXIMITY_REACH;
+        let normal = self
+            .structure
+            .normal_at(&self.positions, vertex)
+            .normalize_or_zero();
+        if normal == Vec3::ZERO || reach.is_nan() || reach <= 0.0 {
+            return None;
+        }
+        let hit = self.target.closest_point(position, reach)?;
+        let triangle = hit.face_point.triangle;
+        if self.is_unreliable(triangle)
+            || normal.dot(self.target.face_normals()[triangle as usize]) * self.orientation
+                < PROXIMITY_FACING
+        {
+            return None;
+        }
+        Some((
+            LayoutPoint::Face(hit.face_point),
+            hit.position,
+            Event::Folded,
+        ))
     }
 
     /// Folding of a space-point at `position` around its face-point neighbours (the seeds):

@@ -99,7 +99,8 @@ class StepReport(NamedTuple):
     max_displacement: float
     """Largest move of the last iteration, as a fraction of the layout's size."""
     converged: bool
-    """The last iteration moved nothing more than the tolerance and changed no state."""
+    """The last iteration moved the points less than the tolerance on average (none more than 100 times it)
+    and changed no state."""
     face_points: int
     space_points: int
     landed: int
@@ -110,6 +111,8 @@ class StepReport(NamedTuple):
     """Face-points lifted off boundaries (holes) during this call."""
     fold_tolerance: float
     """The annealed folding tolerance, radians."""
+    mean_displacement: float
+    """Mean move of the last iteration, as a fraction of the layout's size."""
 
 
 class WrapSolver(_native.WrapSolver):

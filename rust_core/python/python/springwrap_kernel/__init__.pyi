@@ -171,6 +171,7 @@ class StepReport(NamedTuple):
     folded: int
     lifted: int
     fold_tolerance: float
+    mean_displacement: float
 
 class WrapSolver:
     """A wrap in progress (hybrid spring optimisation onto ``target``).
