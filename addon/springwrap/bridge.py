@@ -414,13 +414,13 @@ def write_wrap_frame(layout: bpy.types.Object, positions: np.ndarray, state: Lay
     mesh.update()
 
 
-def read_layout_structure(layout: bpy.types.Object):
-    """The layout mesh's faces, edges and seams as a kernel ``LayoutStructure`` (object mode data).
+def read_layout_topology(layout: bpy.types.Object):
+    """The layout mesh's faces, edges and seams (object mode data), as a ``subdivision.LayoutTopology``.
 
-    Every edge is passed (those on no face are loose curves), and the seam-marked ones as patch
+    Every edge is listed (those on no face are loose curves), and the seam-marked ones as patch
     boundaries. Raises :class:`LayoutError` for a layout with neither faces nor edges.
     """
-    from . import operations
+    from . import operations, subdivision
 
     mesh = layout.data
     face_count, edge_count = len(mesh.polygons), len(mesh.edges)
@@ -439,13 +439,29 @@ def read_layout_structure(layout: bpy.types.Object):
     edges = edges.reshape(-1, 2)
     seam_flags = np.empty(edge_count, dtype=bool)
     mesh.edges.foreach_get("use_seam", seam_flags)
-    return springwrap_kernel.LayoutStructure(
+    return subdivision.LayoutTopology(
         len(mesh.vertices),
         np.ascontiguousarray(face_corners, dtype=np.uint32),
         np.ascontiguousarray(face_sizes, dtype=np.uint32),
-        edges=np.ascontiguousarray(edges),
-        seams=np.ascontiguousarray(edges[seam_flags]),
+        np.ascontiguousarray(edges),
+        np.ascontiguousarray(edges[seam_flags]),
     )
+
+
+def make_layout_structure(topology):
+    """A kernel ``LayoutStructure`` of a ``subdivision.LayoutTopology``."""
+    return springwrap_kernel.LayoutStructure(
+        int(topology.vertex_count),
+        np.ascontiguousarray(topology.face_corners, dtype=np.uint32),
+        np.ascontiguousarray(topology.face_sizes, dtype=np.uint32),
+        edges=np.ascontiguousarray(topology.edges, dtype=np.uint32).reshape(-1, 2),
+        seams=np.ascontiguousarray(topology.seams, dtype=np.uint32).reshape(-1, 2),
+    )
+
+
+def read_layout_structure(layout: bpy.types.Object):
+    """The layout mesh's faces, edges and seams as a kernel ``LayoutStructure`` (object mode data)."""
+    return make_layout_structure(read_layout_topology(layout))
 
 
 _WEIGHT_ATTRIBUTE = "springwrap_group_weight"

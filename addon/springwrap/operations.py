@@ -287,6 +287,7 @@ class WrapParameters(NamedTuple):
     constraint: float = 0.5
     folding: float = 0.3
     rest: str = "TEMPLATE"  # the springs rest in the template's shape ("TEMPLATE") or straight and even ("EVEN")
+    spring_resolution: int = 1  # > 1: relax, then relax again the faces cut k x k (coarse to fine)
 
     def solver_settings(self) -> dict:
         """The keyword arguments of ``springwrap_kernel.WrapSolver`` these parameters set."""
@@ -317,6 +318,12 @@ def check_wrap_parameters(parameters: WrapParameters) -> None:
     """Raise :class:`~.layout_state.LayoutError` naming the first parameter out of its range."""
     if int(parameters.max_iterations) < 1:
         raise layout_state.LayoutError(f"Max Iterations must be at least 1, not {parameters.max_iterations}")
+    from .subdivision import MAX_RESOLUTION
+
+    if not 1 <= int(parameters.spring_resolution) <= MAX_RESOLUTION:
+        raise layout_state.LayoutError(
+            f"The spring resolution must be within 1 .. {MAX_RESOLUTION}, not {parameters.spring_resolution}"
+        )
     tolerance = float(parameters.tolerance)
     if not (np.isfinite(tolerance) and 0.0 < tolerance <= 1.0):
         raise layout_state.LayoutError(f"The tolerance must be within (0, 1], not {tolerance:g}")
@@ -368,6 +375,72 @@ def wrap_anchor_arrays(anchor_list, vertex_count: int) -> tuple[np.ndarray, np.n
         np.ascontiguousarray(triangles),
         layout_state.as_float32_points(anchor_list.barycentrics),
         layout_state.as_float32_points(anchor_list.locations),
+    )
+
+
+def refine_wrap_inputs(inputs: WrapInputs, fine, positions: np.ndarray, states, target: Target) -> WrapInputs:
+    """The solver's inputs for the fine stage of a wrap (see ``subdivision``), from where the coarse stage ended.
+
+    ``positions`` and ``states`` (states, triangles, barycentrics) are the coarse solver's. The layout's
+    vertices keep their state; a new point starts blended from its layout vertices and lands on the
+    closest surface point when all of them are face-points and that point is within half a fine edge;
+    otherwise it starts as a space-point. The rest shape is blended the same way; anchors, unreliable
+    triangles and target curves are the same; each curve chain takes the points cut into its edges.
+    """
+    coarse_states, coarse_triangles, coarse_barycentrics = (np.asarray(array) for array in states)
+    count = coarse_states.shape[0]
+    fine_positions = fine.interpolate(np.asarray(positions, dtype=np.float64))
+    fine_count = fine_positions.shape[0]
+    on_surface = np.ones(fine_count, dtype=bool)
+    for column in range(fine.sources.shape[1]):
+        used = fine.weights[:, column] > 0.0
+        on_surface[used] &= coarse_states[fine.sources[used, column]] == layout_state.FACE_POINT
+    new = np.arange(fine_count) >= count
+    fine_states = np.zeros(fine_count, dtype=np.int32)
+    fine_triangles = np.full(fine_count, layout_state.NO_FACE, dtype=np.int32)
+    fine_barycentrics = np.zeros((fine_count, 3), dtype=np.float32)
+    fine_states[:count] = coarse_states
+    fine_triangles[:count] = coarse_triangles
+    fine_barycentrics[:count] = coarse_barycentrics
+    candidates = np.flatnonzero(new & on_surface)
+    if candidates.size:
+        corners = fine.topology.face_corners.astype(np.int64)
+        sizes = fine.topology.face_sizes.astype(np.int64)
+        ring_next = np.roll(np.arange(corners.size), -1)
+        starts = np.repeat(np.concatenate([[0], np.cumsum(sizes)[:-1]]), sizes)
+        ends = starts + np.repeat(sizes, sizes)
+        ring_next = np.where(ring_next == ends, starts, ring_next)
+        lengths = np.linalg.norm(fine_positions[corners] - fine_positions[corners[ring_next]], axis=1)
+        reach = 0.5 * float(np.median(lengths)) if lengths.size else 0.0
+        hits = target.mesh.closest_points(
+            layout_state.as_float32_points(fine_positions[candidates]), max_distance=max(reach, 1e-12)
+        )
+        found = hits.triangles >= 0
+        landed = candidates[found]
+        fine_states[landed] = layout_state.FACE_POINT
+        fine_triangles[landed] = hits.triangles[found]
+        fine_barycentrics[landed] = hits.barycentrics[found]
+        fine_positions[landed] = hits.positions[found]
+    curve_arguments = {}
+    if inputs.curve_vertices is not None:
+        chains, offset = [], 0
+        for size in inputs.curve_vertex_counts.astype(np.int64):
+            chains.append(fine.expand_chain(inputs.curve_vertices[offset:offset + size].astype(np.int64)))
+            offset += size
+        curve_arguments = {
+            "curve_vertices": np.ascontiguousarray(np.concatenate(chains), dtype=np.uint32),
+            "curve_vertex_counts": np.array([len(chain) for chain in chains], dtype=np.uint32),
+        }
+    rest = None if inputs.rest_positions is None else layout_state.as_float32_points(
+        fine.interpolate(inputs.rest_positions)
+    )
+    return inputs._replace(
+        states=fine_states,
+        triangles=fine_triangles,
+        barycentrics=fine_barycentrics,
+        positions=layout_state.as_float32_points(fine_positions),
+        rest_positions=rest,
+        **curve_arguments,
     )
 
 

@@ -134,7 +134,8 @@ class WrapSession:
             )
         self.matrix_world = arrays.matrix_world
         self.target = bridge.read_target(context.evaluated_depsgraph_get(), layout)
-        structure = bridge.read_layout_structure(layout)
+        self.layout_topology = bridge.read_layout_topology(layout)
+        structure = bridge.make_layout_structure(self.layout_topology)
         self.anchors, anchor_resolution = anchors.resolve(
             bridge.read_anchors(layout), self.target, settings.anchors_signature
         )
@@ -157,6 +158,12 @@ class WrapSession:
             arrays, self.target, settings.target_signature, self.anchors, unreliable, curve_constraints, self.rest
         )
         self.solver = bridge.make_wrap_solver(self.target, structure, inputs, parameters)
+        self.inputs = inputs
+        # Coarse to fine: with a spring resolution above 1 the layout is relaxed first, then a grid
+        # of its faces cut k x k (its own vertices first) takes over; the layout's vertices are read
+        # back from it.
+        self.stage = "coarse" if int(parameters.spring_resolution) > 1 else "fine"
+        self.coarse_iterations = 0
         self.snapshot = bridge.take_snapshot(layout)
         self.vertex_count = arrays.positions.shape[0]
         self.unreliable_count = 0 if unreliable is None else int(unreliable.sum())
@@ -169,20 +176,32 @@ class WrapSession:
         self._frame_end: Optional[float] = None
 
     @property
-    def total_iterations(self) -> int:
-        """Iterations run so far."""
+    def stage_iterations(self) -> int:
+        """Iterations run so far by the current stage's solver."""
         return 0 if self.last_report is None else self.last_report.total_iterations
 
     @property
+    def total_iterations(self) -> int:
+        """Iterations run so far, both stages."""
+        return self.coarse_iterations + self.stage_iterations
+
+    @property
     def done(self) -> bool:
-        """Converged, or the iteration limit reached."""
-        if self.last_report is None:
+        """The last stage converged, or reached the iteration limit (each stage has it)."""
+        if self.last_report is None or self.stage != "fine":
             return False
-        return self.last_report.converged or self.total_iterations >= self.parameters.max_iterations
+        return self.last_report.converged or self.stage_iterations >= self.parameters.max_iterations
 
     def step(self, iterations: int):
-        """Run up to ``iterations`` kernel iterations (within the limit); the kernel's ``StepReport``."""
-        iterations = min(int(iterations), self.parameters.max_iterations - self.total_iterations)
+        """Run up to ``iterations`` kernel iterations (within the limit); the kernel's ``StepReport``.
+
+        When the coarse stage ends, the next call starts the fine one.
+        """
+        if self.stage == "coarse" and self.last_report is not None and (
+            self.last_report.converged or self.stage_iterations >= self.parameters.max_iterations
+        ):
+            self.refine()
+        iterations = min(int(iterations), self.parameters.max_iterations - self.stage_iterations)
         start = time.perf_counter()
         report = self.solver.step(max(iterations, 0))
         self.kernel_seconds += time.perf_counter() - start
@@ -191,6 +210,23 @@ class WrapSession:
         self.last_report = report
         return report
 
+    def refine(self) -> None:
+        """End the coarse stage: a solver on the layout's faces cut k x k, started where the coarse one ended."""
+        from . import subdivision
+
+        start = time.perf_counter()
+        fine = subdivision.subdivide(self.layout_topology, int(self.parameters.spring_resolution))
+        inputs = self._operations.refine_wrap_inputs(
+            self.inputs, fine, self.solver.positions(), self.solver.states(), self.target
+        )
+        structure = self._bridge.make_layout_structure(fine.topology)
+        self.solver = self._bridge.make_wrap_solver(self.target, structure, inputs, self.parameters)
+        self.kernel_seconds += time.perf_counter() - start
+        self.coarse_iterations = self.stage_iterations
+        self.fine_vertex_count = fine.topology.vertex_count
+        self.last_report = None
+        self.stage = "fine"
+
     def advance(self):
         """One frame of the interactive wrap: as many iterations as the frame allows, then write them.
 
@@ -198,7 +234,7 @@ class WrapSession:
         """
         begin = time.perf_counter()
         overhead = 0.0 if self._frame_end is None else min(begin - self._frame_end, 1.0)
-        count = self.pacer.next_count(self.parameters.max_iterations - self.total_iterations)
+        count = self.pacer.next_count(self.parameters.max_iterations - self.stage_iterations)
         report = self.step(count)
         stepped = time.perf_counter()
         self.write_frame()
@@ -217,8 +253,12 @@ class WrapSession:
 
     def current_layout(self):
         """(local positions float32 (N, 3), ``LayoutState``) of the solver now."""
-        positions = self._operations.to_local(self.matrix_world, self.solver.positions())
-        return positions, self._layout_state.normalized_state(*self.solver.states())
+        count = self.vertex_count  # a fine grid numbers the layout's own vertices first
+        positions = self._operations.to_local(self.matrix_world, self.solver.positions()[:count])
+        states, triangles, barycentrics = self.solver.states()
+        return positions, self._layout_state.normalized_state(
+            states[:count], triangles[:count], barycentrics[:count]
+        )
 
     def write_frame(self) -> None:
         """Write the solver's current positions and state into the layout (an intermediate frame)."""
@@ -241,7 +281,7 @@ class WrapSession:
         return WrapResult(
             layout_name=self.layout.name,
             vertex_count=self.vertex_count,
-            iterations=report.total_iterations,
+            iterations=self.total_iterations,
             converged=bool(report.converged),
             max_displacement=float(report.max_displacement),
             seconds=time.perf_counter() - self.start_time,
@@ -268,8 +308,11 @@ class WrapSession:
         report = self.last_report
         if report is None:
             return f"Springwrap: wrapping '{self.layout.name}'...  Esc / right-click: cancel"
+        stage = ""
+        if int(self.parameters.spring_resolution) > 1:
+            stage = "coarse, " if self.stage == "coarse" else f"fine {self.parameters.spring_resolution}x, "
         return (
-            f"Springwrap: iteration {report.total_iterations} / {self.parameters.max_iterations}, "
+            f"Springwrap: {stage}iteration {report.total_iterations} / {self.parameters.max_iterations}, "
             f"{report.face_points} face-points, {report.space_points} space-points, "
             f"last move {report.max_displacement:.2e}  —  Esc / right-click: cancel"
         )
@@ -391,6 +434,14 @@ class SPRINGWRAP_OT_wrap(bpy.types.Operator):
         ),
         default="TEMPLATE",
     )
+    spring_resolution: bpy.props.IntProperty(
+        name="Spring Resolution",
+        description="Above 1: relax the layout, then relax again with every quad cut into this many by this many "
+        "springs (coarse to fine), and read the layout's vertices back",
+        default=1,
+        min=1,
+        max=8,
+    )
 
     @classmethod
     def poll(cls, context):
@@ -413,6 +464,7 @@ class SPRINGWRAP_OT_wrap(bpy.types.Operator):
             constraint=self.constraint,
             folding=self.folding,
             rest=self.rest,
+            spring_resolution=self.spring_resolution,
         )
 
     # A string: typing's cache would keep Optional[WrapSession] (and through it this module) alive until
