@@ -52,6 +52,9 @@ const PROXIMITY_INTERVAL: usize = 4;
 const PROXIMITY_REACH: f32 = 0.1;
 /// ... facing the way the layout does there within this cosine (45 degrees).
 const PROXIMITY_FACING: f32 = std::f32::consts::FRAC_1_SQRT_2;
+/// A face-point whose layout faces against the surface by more than this cosine (120 degrees)
+/// lifts off.
+const INSIDE_OUT: f32 = -0.5;
 /// The facing check waits for this many face-points with a normal...
 const ORIENTATION_MIN_POINTS: usize = 16;
 /// ... whose mean agreement with the target's normals (cosine) is at least this, either way.
@@ -738,6 +741,12 @@ impl WrapSolver {
         match self.points[index] {
             LayoutPoint::Face(face_point) => {
                 let normal = self.target.face_normals()[face_point.triangle as usize];
+                if anchor.is_none() && curve_target.is_none() && self.is_inside_out(vertex, normal)
+                {
+                    // Pressed onto the surface inside out (a mouth bag snapped onto the lips): it
+                    // lifts off, and the springs give the region its shape back.
+                    return (LayoutPoint::Space(here), here, Event::Lifted);
+                }
                 let tangential = (force - normal * force.dot(normal)) * self.step_scales[index];
                 match self.walk(face_point, tangential) {
                     WalkEnd::OnSurface(moved) => {
@@ -810,6 +819,19 @@ impl WrapSolver {
                 (LayoutPoint::Space(scaled), scaled, Event::None)
             }
         }
+    }
+
+    /// Whether the layout around `vertex` faces against the surface normal `normal` (by more than
+    /// [`INSIDE_OUT`]), once the layout's orientation on the target is known.
+    fn is_inside_out(&self, vertex: u32, normal: Vec3) -> bool {
+        if self.orientation == 0.0 {
+            return false;
+        }
+        let layout_normal = self
+            .structure
+            .normal_at(&self.positions, vertex)
+            .normalize_or_zero();
+        layout_normal != Vec3::ZERO && layout_normal.dot(normal) * self.orientation < INSIDE_OUT
     }
 
     /// A space-point already lying on the surface, facing the way the layout does there, lands
