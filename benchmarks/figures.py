@@ -307,15 +307,17 @@ def scaling_plot(performance: dict, path: Path) -> Path:
     if wrap:
         right.loglog([row["layout_vertices"] for row in wrap],
                      [row["wrap_seconds"] / row["wrap_iterations"] for row in wrap], "o-",
-                     label=f"wrap operator: its time for {wrap[0]['wrap_iterations']} iterations (with setup) / "
-                     f"{wrap[0]['wrap_iterations']} ({wrap[0]['target_triangles']:,} triangles)")
+                     label=f"wrap operator, per iteration (its {wrap[0]['wrap_iterations']} with setup / "
+                     f"{wrap[0]['wrap_iterations']}; {wrap[0]['target_triangles']:,} triangles)")
         right.loglog([row["layout_vertices"] for row in wrap], [row["snap_seconds"] for row in wrap], "^--",
                      label="snap operator (incl. reading/writing the mesh)")
     right.set_xlabel("layout vertices (query points)")
     right.set_title("time vs layout size", fontsize=10)
+    right.set_ylim(top=right.get_ylim()[1] * 30.0)  # room for the legend above the lines
+    left.legend(fontsize=7, loc="lower right")
+    right.legend(fontsize=7, loc="upper left")
     for axis in (left, right):
         axis.grid(which="both", alpha=0.3)
-        axis.legend(fontsize=7)
     machine = performance["machine"]
     figure.suptitle(f"{machine['cpu']}, {machine['cpu_count']} CPUs (shared), kernel {machine['springwrap_kernel']}",
                     fontsize=9)

@@ -374,6 +374,7 @@ def main() -> int:
         report = {
             "machine": machine,
             "versions": version_info,
+            "finished_utc": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
             "sizes": sizes,
             "results": [asdict(row) | {"queries_per_second": row.queries_per_second, "extrapolated": row.extrapolated}
                         for row in rows],
