@@ -531,27 +531,35 @@ def test_an_error_mid_way_restores_the_layout():
     assert snapshot(layout) == before
 
 
-def test_modal_frames_keep_about_thirty_redraws_per_second():
-    """A layout big enough that one iteration is a sizeable part of a frame: frames stay near 1/30 s."""
+def test_modal_frames_each_write_the_layout_and_run_paced_iterations():
+    """Every timer event is one frame: some iterations (as many as the pacer says), then the mesh written.
+
+    The frame rate itself is a speed target: ``benchmarks/wrap_speed.py`` measures it (live wrap), no test times it.
+    """
     from springwrap import wrap_operator
 
-    bpy.ops.mesh.primitive_grid_add(x_subdivisions=200, y_subdivisions=200, size=4)
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=60, y_subdivisions=60, size=4)
     target = bpy.context.active_object
-    bpy.ops.mesh.primitive_grid_add(x_subdivisions=100, y_subdivisions=100, size=3, location=(0.0, 0.0, 0.2))
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=30, y_subdivisions=30, size=3, location=(0.0, 0.0, 0.2))
     layout = _activate(bpy.context.active_object, target)
     bpy.ops.springwrap.anchors_auto(spacing=0.3)
     loop = wrap_operator.WrapLoop(_session(layout, max_iterations=100_000))
-    frame_seconds = []
-    for _ in range(40):
-        start = time.perf_counter()
-        if loop.handle("TIMER") != "RUNNING_MODAL":
+    before = local_positions(layout).copy()
+    iterations, state = [], "RUNNING_MODAL"
+    for _ in range(20):
+        done_before = loop.session.total_iterations
+        state = loop.handle("TIMER")
+        iterations.append(loop.session.total_iterations - done_before)
+        if state != "RUNNING_MODAL":
             break
-        frame_seconds.append(time.perf_counter() - start)
-    loop.cancel()
-    settled = np.array(frame_seconds[10:])  # after the pacer's ramp-up
-    assert len(settled) >= 10
-    assert np.median(settled) < 2.0 / wrap_operator.FRAME_RATE
-    assert loop.session.pacer.last_count > 1  # it ran several iterations per frame, not one
+    assert loop.session.frames == len(iterations) >= 3
+    assert all(count >= 1 for count in iterations)
+    assert not np.array_equal(local_positions(layout), before)  # frames are written into the mesh
+    if state == "RUNNING_MODAL":
+        loop.cancel()
+        np.testing.assert_array_equal(local_positions(layout), before)
+    else:
+        assert state == "FINISHED" and loop.result.converged
 
 
 class _FakeUI:
