@@ -34,7 +34,7 @@ import bpy  # first: importing the PyPI bpy module is what makes mathutils impor
 
 # isort: split
 import numpy as np
-from mathutils import Vector
+from mathutils import Matrix, Vector
 from mathutils.bvhtree import BVHTree
 
 REPOSITORY_ROOT = Path(__file__).resolve().parents[2]
@@ -121,7 +121,7 @@ def anchor_markers(layout: bpy.types.Object, name: str) -> bpy.types.Object:
     bm = bmesh.new()
     for anchor in layout.springwrap.anchors:
         bmesh.ops.create_icosphere(bm, subdivisions=2, radius=0.035,
-                                   matrix=__import__("mathutils").Matrix.Translation(Vector(anchor.location)))
+                                   matrix=Matrix.Translation(Vector(anchor.location)))
     mesh = bpy.data.meshes.new(name)
     bm.to_mesh(mesh)
     bm.free()
@@ -228,7 +228,7 @@ def run(output_dir: Path) -> None:
     bpy.ops.wm.read_factory_settings(use_empty=True)
     demo.enable_addon()
     scene = bpy.context.scene
-    target, _hole_centroid, _cut = demo.build_target()
+    target, hole_centroid, _cut = demo.build_target()
     operators = bpy.ops.springwrap
 
     def activate(obj):
@@ -261,7 +261,7 @@ def run(output_dir: Path) -> None:
     wrap_start = time.perf_counter()
     step(operators.wrap(max_iterations=demo.WRAP_MAX_ITERATIONS))
     print(f"wrap: {time.perf_counter() - wrap_start:.1f} s, {len(wrapped.springwrap.anchors)} anchors")
-    probe = demo.probe_target(target, _hole_centroid)
+    probe = demo.probe_target(target, hole_centroid)
     points = demo.layout_world_positions(wrapped)
     off = np.linalg.norm(points - demo.nearest_target_points(points, probe), axis=1)
     far = np.flatnonzero(off > 0.05)
