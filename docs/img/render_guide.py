@@ -201,26 +201,64 @@ def setup_render(scene: bpy.types.Scene, target: bpy.types.Object) -> None:
     scene.camera = camera
 
 
-def render(scene: bpy.types.Scene, visible: list[bpy.types.Object], path: Path) -> None:
-    """Render only the ``visible`` objects (and the camera) to ``path``."""
+def render(scene: bpy.types.Scene, visible: list[bpy.types.Object], path: Path, colour_bar: bool = False) -> None:
+    """Render only the ``visible`` objects (and the camera) to ``path``; ``colour_bar``: add the heat-maps' scale."""
     for obj in scene.objects:
         obj.hide_render = obj.type == "MESH" and obj not in visible
     scene.render.filepath = str(path)
     bpy.ops.render.render(write_still=True)
-    shrink(path)
+    shrink(path, colour_bar)
     print(f"wrote {path} ({path.stat().st_size // 1024} KB)")
 
 
-def shrink(path: Path) -> None:
-    """Re-save ``path`` with a 256-colour palette when Pillow is there (it keeps the PNGs under 250 KB)."""
+def shrink(path: Path, colour_bar: bool = False) -> None:
+    """Re-save ``path`` with a 256-colour palette when Pillow is there (it keeps the PNGs under 250 KB).
+
+    ``colour_bar``: first draw the heat-map scale (0 to HEAT_SCALE) in the bottom left corner."""
     try:
         from PIL import Image
     except ImportError:
         print(f"Pillow is not installed: {path.name} stays a full-colour PNG")
         return
     with Image.open(path) as image:
-        palette = image.convert("RGB").quantize(colors=256, method=Image.Quantize.MEDIANCUT)
-    palette.save(path, optimize=True)
+        image = image.convert("RGB")
+    if not colour_bar:
+        image.quantize(colors=256, method=Image.Quantize.MEDIANCUT).save(path, optimize=True)
+        return
+    # The render's own 256 - COLOUR_BAR_STEPS colours, then the bar's steps exactly.
+    render_palette = image.quantize(colors=256 - COLOUR_BAR_STEPS, method=Image.Quantize.MEDIANCUT).getpalette()
+    bar = draw_colour_bar(image)
+    entries = render_palette[: 3 * (256 - COLOUR_BAR_STEPS)] + [value for colour in bar for value in colour]
+    palette = Image.new("P", (1, 1))
+    palette.putpalette(entries)
+    image.quantize(palette=palette, dither=Image.Dither.FLOYDSTEINBERG).save(path, optimize=True)
+
+
+COLOUR_BAR_STEPS = 12
+"""Steps of the heat-maps' colour bar (each its own palette entry)."""
+
+
+def draw_colour_bar(image) -> list[tuple[int, int, int]]:
+    """The heat-maps' colour scale, 0 to HEAT_SCALE world units, drawn into the Pillow ``image`` in steps.
+
+    Returns the steps' sRGB colours."""
+    from PIL import ImageDraw
+
+    draw = ImageDraw.Draw(image)
+    left, top, step_width, height = 30, image.height - 50, 20, 14
+    width = step_width * COLOUR_BAR_STEPS
+    values = np.linspace(0.0, HEAT_SCALE, COLOUR_BAR_STEPS)  # first step 0, last HEAT_SCALE
+    # The render's view transform is Standard (sRGB): the colours are linear, shown through sRGB.
+    linear = heat_colours(values)[:, :3]
+    srgb = np.where(linear <= 0.0031308, 12.92 * linear, 1.055 * np.power(linear, 1 / 2.4) - 0.055)
+    colours = [tuple(colour) for colour in (srgb * 255).round().astype(int).tolist()]
+    for step, colour in enumerate(colours):
+        draw.rectangle([left + step * step_width, top, left + (step + 1) * step_width - 1, top + height], fill=colour)
+    draw.rectangle([left - 1, top - 1, left + width, top + height + 1], outline=(0, 0, 0))
+    draw.text((left, top + height + 4), "0", fill=(0, 0, 0))
+    draw.text((left + width - 70, top + height + 4), f">= {HEAT_SCALE:g} units", fill=(0, 0, 0))
+    draw.text((left, top - 16), "distance to the reference (flat colours)", fill=(0, 0, 0))
+    return colours
 
 
 def run(output_dir: Path) -> None:
@@ -291,8 +329,9 @@ def run(output_dir: Path) -> None:
     render(scene, [target, template_wires, markers], output_dir / "guide-anchors.png")
     render(scene, [wrapped_faces, wrapped_wires], output_dir / "guide-after.png")
     render(scene, [target, after_target_wires], output_dir / "guide-after-target.png")
-    render(scene, [snap_heat, snap_wires], output_dir / "guide-heatmap-snap.png")
-    render(scene, [wrap_heat, wrapped_wires], output_dir / "guide-heatmap-wrap.png")
+    scene.display.shading.light = "FLAT"  # heat-maps: the colours as painted, to be read on the bar
+    render(scene, [snap_heat, snap_wires], output_dir / "guide-heatmap-snap.png", colour_bar=True)
+    render(scene, [wrap_heat, wrapped_wires], output_dir / "guide-heatmap-wrap.png", colour_bar=True)
     print(f"done in {time.perf_counter() - start:.1f} s")
 
 
