@@ -111,3 +111,15 @@ def test_every_section_link_of_the_guide_has_its_heading(guide_text):
 
 def test_the_readme_links_the_guide():
     assert "docs/user-guide.md" in README.read_text(encoding="utf-8")
+
+
+def test_troubleshooting_names_every_kernel_exception(guide_text):
+    import springwrap_kernel
+
+    troubleshooting = guide_text[guide_text.index("## Troubleshooting"):]
+    classes = [name for name in dir(springwrap_kernel)
+               if isinstance(getattr(springwrap_kernel, name), type)
+               and issubclass(getattr(springwrap_kernel, name), springwrap_kernel.SpringwrapError)]
+    assert "SpringwrapError" in classes and len(classes) > 1
+    for name in classes:
+        assert f"`{name}`" in troubleshooting, f"springwrap_kernel.{name} is not in the troubleshooting section"
