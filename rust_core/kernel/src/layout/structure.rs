@@ -18,7 +18,8 @@
 //!   neighbours (no cotangent weights: the layout's own geometry is not to be trusted);
 //! - **curves** are maximal chains of border, seam or loose edges between junctions.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
+use std::hash::{BuildHasherDefault, Hasher};
 
 use crate::error::KernelError;
 
@@ -104,7 +105,8 @@ impl LayoutStructure {
 
         // Undirected edges with how many faces use them, and for each vertex the pairs of its
         // neighbours that are consecutive around it within one face.
-        let mut face_count_of_edge: HashMap<(u32, u32), u32> = HashMap::new();
+        let mut face_count_of_edge: FastMap<(u32, u32), u32> =
+            FastMap::with_capacity_and_hasher(face_corners.len(), Default::default());
         let mut consecutive: Vec<Vec<(u32, u32)>> = vec![Vec::new(); vertex_count];
         let mut only_quads = vec![true; vertex_count];
         let mut face_count = vec![0u32; vertex_count];
@@ -131,7 +133,7 @@ impl LayoutStructure {
                 .entry(edge_key(edge[0], edge[1]))
                 .or_insert(0);
         }
-        let seam_keys: std::collections::HashSet<(u32, u32)> = seams
+        let seam_keys: FastSet<(u32, u32)> = seams
             .iter()
             .map(|edge| edge_key(edge[0], edge[1]))
             .collect();
@@ -150,7 +152,7 @@ impl LayoutStructure {
             neighbor_offsets.push(neighbors.len() as u32);
         }
 
-        let kind_of = |a: u32, b: u32| -> Option<CurveKind> {
+        let kind_lookup = |a: u32, b: u32| -> Option<CurveKind> {
             let key = edge_key(a, b);
             match face_count_of_edge.get(&key).copied() {
                 Some(0) => Some(CurveKind::Loose),
@@ -158,6 +160,24 @@ impl LayoutStructure {
                 _ if seam_keys.contains(&key) => Some(CurveKind::Seam),
                 _ => None,
             }
+        };
+        // Each neighbour's edge kind, looked up once (tracing curves asks many times).
+        let kinds: Vec<Vec<Option<CurveKind>>> = adjacency
+            .iter()
+            .enumerate()
+            .map(|(vertex, around)| {
+                around
+                    .iter()
+                    .map(|&other| kind_lookup(vertex as u32, other))
+                    .collect()
+            })
+            .collect();
+        let kind_of = |a: u32, b: u32| -> Option<CurveKind> {
+            let around = &adjacency[a as usize];
+            around
+                .binary_search(&b)
+                .ok()
+                .and_then(|index| kinds[a as usize][index])
         };
 
         let mut line_triples = Vec::new();
@@ -291,6 +311,44 @@ impl LayoutStructure {
     }
 }
 
+/// A multiply-rotate hasher (as rustc's FxHash) for the edge maps: the keys are vertex index
+/// pairs, not attacker-chosen, and SipHash made tracing curves the cost of a 4 M-point layout.
+#[derive(Default, Clone, Copy)]
+struct FastHasher(u64);
+
+impl Hasher for FastHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+
+    fn write(&mut self, bytes: &[u8]) {
+        for &byte in bytes {
+            self.add(u64::from(byte));
+        }
+    }
+
+    fn write_u32(&mut self, value: u32) {
+        self.add(u64::from(value));
+    }
+
+    fn write_u64(&mut self, value: u64) {
+        self.add(value);
+    }
+
+    fn write_usize(&mut self, value: usize) {
+        self.add(value as u64);
+    }
+}
+
+impl FastHasher {
+    fn add(&mut self, value: u64) {
+        self.0 = (self.0.rotate_left(5) ^ value).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
+    }
+}
+
+type FastMap<K, V> = HashMap<K, V, BuildHasherDefault<FastHasher>>;
+type FastSet<K> = HashSet<K, BuildHasherDefault<FastHasher>>;
+
 /// An undirected edge as a sorted pair.
 fn edge_key(a: u32, b: u32) -> (u32, u32) {
     (a.min(b), a.max(b))
@@ -339,7 +397,7 @@ fn trace_curves(
             degree
         }
     };
-    let mut visited: std::collections::HashSet<(u32, u32)> = std::collections::HashSet::new();
+    let mut visited: FastSet<(u32, u32)> = FastSet::default();
     let mut curves = Vec::new();
     for kind in [CurveKind::Border, CurveKind::Seam, CurveKind::Loose] {
         // Open chains first (from every end or junction), then what is left are closed loops.
