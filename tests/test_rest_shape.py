@@ -101,3 +101,18 @@ def test_set_rest_shape_refuses_a_layout_with_a_nan():
     with pytest.raises(RuntimeError, match="Layout vertex 3 has a NaN"):
         bpy.ops.springwrap.rest_set()
     assert read_rest(layout) is None
+
+
+def test_a_layout_snapped_to_coincident_points_wraps_from_its_stored_rest():
+    """Snapping to target vertices puts many layout vertices at one place (zero-length edges now): the wrap
+    takes the stored template as its rest shape, separates them again and writes finite positions."""
+    _target, layout, _normal = plane_scene(subdivisions=30)
+    assert bpy.ops.springwrap.snap(mode="VERTEX") == {"FINISHED"}
+    snapped = local_positions(layout)
+    edges = np.array([tuple(edge.vertices) for edge in layout.data.edges])
+    assert (np.linalg.norm(snapped[edges[:, 0]] - snapped[edges[:, 1]], axis=1) == 0.0).sum() > 10
+    assert wrap_with_anchors(layout, spacing=0.5) == {"FINISHED"}
+    wrapped = local_positions(layout)
+    assert np.isfinite(wrapped).all()
+    lengths = np.linalg.norm(wrapped[edges[:, 0]] - wrapped[edges[:, 1]], axis=1)
+    assert lengths.min() > 0.2 * np.median(lengths)

@@ -595,6 +595,18 @@ impl WrapSolver {
         let mut max_displacement = 0.0f32;
         let mut total_displacement = 0.0f64;
         for (vertex, (point, position, event)) in updates.into_iter().enumerate() {
+            let finite = position.is_finite()
+                && match point {
+                    LayoutPoint::Face(face_point) => face_point.barycentric.is_finite(),
+                    LayoutPoint::Space(at) => at.is_finite(),
+                };
+            // A degenerate configuration (points at one place, a zero-area fold) must never write
+            // a NaN into the layout: such a point stays where it was this iteration.
+            let (point, position, event) = if finite {
+                (point, position, event)
+            } else {
+                (self.points[vertex], self.positions[vertex], Event::None)
+            };
             let moved = position - self.positions[vertex];
             max_displacement = max_displacement.max(moved.length());
             total_displacement += f64::from(moved.length());
