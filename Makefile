@@ -106,10 +106,11 @@ bench: setup $(STAMPS)/bench-requirements
 	$(PY) -m benchmarks.retarget.run $(BENCH_QUICK) --json $(BENCH_OUT)/retarget.json
 	$(PY) benchmarks/performance.py $(BENCH_QUICK) --json $(BENCH_OUT)/performance.json
 	$(PY) benchmarks/snap_throughput.py $(BENCH_QUICK) --json $(BENCH_OUT)/snap_throughput.json
+	$(PY) benchmarks/wrap_speed.py $(if $(QUICK),,--large) --json $(BENCH_OUT)/wrap_speed.json
 	$(PY) benchmarks/figures.py $(if $(QUICK),--cases heavy,) --retarget $(BENCH_OUT)/retarget.json \
 	  --performance $(BENCH_OUT)/performance.json --positions $(BENCH_OUT)/retarget-positions --output $(BENCH_DOCS)/img
 	$(PY) benchmarks/report.py --retarget $(BENCH_OUT)/retarget.json --performance $(BENCH_OUT)/performance.json \
-	  --snap $(BENCH_OUT)/snap_throughput.json --output $(BENCH_DOCS)/benchmarks.md
+	  --snap $(BENCH_OUT)/snap_throughput.json --speed $(BENCH_OUT)/wrap_speed.json --output $(BENCH_DOCS)/benchmarks.md
 
 clean:
 	rm -rf $(VENV) $(VENV_BPY42) target out dist .cache

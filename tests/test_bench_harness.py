@@ -513,3 +513,23 @@ def test_non_finite_vertices_are_counted_and_reported():
     wrap_line = next(line for line in report.headline(run_with_nan) if line.startswith("| Springwrap wrap "))
     assert "non-finite vertices on 1" in wrap_line
     assert "- Springwrap wrap wrote non-finite (NaN) vertex positions on heavy (886 of 100)." in report.headline(run_with_nan)
+
+
+def test_the_wrap_speed_section_states_each_aim_and_measurement():
+    speed = {
+        "machine": {"cpu": "x86_64", "cores": 2, "python": "3.11", "bpy": "5.0.1"},
+        "started_utc": "2026-11-22 03:00 UTC",
+        "load_average_end": [1.0, 2.0, 3.0],
+        "body": {"layout_quads": 13378, "target_triangles": 198792, "anchors": 24, "operators_seconds": 4.0,
+                 "error_percent_mean": 0.36, "error_percent_p95": 1.08,
+                 "wrap": {"wrap_seconds": 2.75, "iterations": 680, "converged": True}},
+        "live": {"frames_per_second": 32.2, "iterations_per_second": 189.0},
+    }
+    lines = "\n".join(report.wrap_aims_section(speed))
+    assert "| 1 s | 2.75 s (680 iterations, converged" in lines
+    assert "| 30 | 32.2 (189 iterations/s) |" in lines
+    assert "spring onto" not in lines  # no large run, no row
+    assert "load average at the end 1.00, 2.00, 3.00" in lines
+    assert report.wrap_aims_section({}) == []
+    document = report.build_document(None, None, None, speed=speed)
+    assert "### Wrap speed against its aims" in document
