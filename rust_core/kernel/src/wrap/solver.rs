@@ -20,7 +20,7 @@ use rayon::prelude::*;
 
 use super::anchor::{Anchor, AnchorTarget};
 use super::curve_constraint::{ArcLengthCurve, CurveConstraint, chain_fractions};
-use super::forces::{Similarity, Springs, thin_plate};
+use super::forces::{Similarity, SpringRest, Springs, thin_plate};
 use super::settings::WrapSettings;
 use crate::error::KernelError;
 use crate::face_point::{FacePoint, LayoutPoint};
@@ -740,7 +740,9 @@ impl WrapSolver {
                 .springs
                 .line_forces(&self.positions, vertex, self.similarities[index])
                 .unwrap_or_else(|| {
-                    if self.is_corner[index] {
+                    // Straightening a corner would cut it and shrink the patch; holding it to its
+                    // rest offset from its two neighbours does not.
+                    if self.is_corner[index] && self.springs.kind() == SpringRest::Even {
                         (Vec3::ZERO, Vec3::ZERO)
                     } else {
                         (deviations[index], Vec3::ZERO)
