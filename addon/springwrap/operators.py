@@ -99,8 +99,8 @@ class _LayoutOperator:
 
 
 class LayoutCollectionOperator:
-    """Shared poll, guard and report of the operators that edit one of the layout's lists
-    (anchors, curve constraints).
+    """Shared poll, guard and report of the operators that edit what the layout keeps besides its
+    positions: its lists (anchors, curve constraints) and its rest shape.
 
     A subclass names the list (``collection``) and what to say when it is empty, and implements
     :meth:`run`: compute the complete new list, write it through the bridge, and return the
@@ -283,43 +283,23 @@ def _view_region(context):
     return None
 
 
-class SPRINGWRAP_OT_rest_set(bpy.types.Operator):
+class SPRINGWRAP_OT_rest_set(LayoutCollectionOperator, bpy.types.Operator):
     """Take the layout's current shape as the template's rest shape: the shape the wrap's springs keep"""
 
     bl_idname = "springwrap.rest_set"
     bl_label = "Set Rest Shape"
     bl_options = {"REGISTER", "UNDO"}
 
-    @classmethod
-    def poll(cls, context):
-        problem = layout_problem(context, require_target=False)
-        if problem is not None:
-            cls.poll_message_set(problem)
-            return False
-        return True
+    requires_target = False
 
-    def execute(self, context):
-        problem = layout_problem(context, require_target=False)
-        if problem is not None:
-            self.report({"ERROR"}, problem)
-            return {"CANCELLED"}
-        try:
-            from . import bridge, operations
-        except ImportError as error:
-            self.report({"ERROR"}, f"The Springwrap kernel is not available: {error}")
-            return {"CANCELLED"}
-        layout = context.active_object
-        try:
-            with bridge.object_mode(layout):
-                arrays = bridge.read_layout(layout)
-                operations.check_finite(arrays, np.ones(arrays.positions.shape[0], dtype=bool))
-                bridge.write_rest(layout, arrays.positions)
-                layout.data.update()
-        except bridge.ERRORS as error:
-            self.report({"ERROR"}, str(error))
-            return {"CANCELLED"}
-        self.report({"INFO"}, f"Rest shape of '{layout.name}' set from its {arrays.positions.shape[0]} vertices")
-        return {"FINISHED"}
+    def run(self, context, bridge, layout):
+        from . import operations
+
+        arrays = bridge.read_layout(layout)
+        operations.check_finite(arrays, np.ones(arrays.positions.shape[0], dtype=bool))
+        bridge.write_rest(layout, arrays.positions)
+        layout.data.update()
+        return [({"INFO"}, f"Rest shape of '{layout.name}' set from its {arrays.positions.shape[0]} vertices")]
 
 
 classes = (SPRINGWRAP_OT_detach, SPRINGWRAP_OT_snap, SPRINGWRAP_OT_project, SPRINGWRAP_OT_rest_set)
