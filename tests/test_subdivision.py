@@ -61,7 +61,7 @@ def test_other_polygons_keep_their_corners_and_take_the_cut_edges_points():
     starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
     hexagon = fine.topology.face_corners[int(starts[sizes == 6][0]):][:6].tolist()
     assert hexagon[0::2] == [1, 4, 2]  # corners in order, each followed by its edge's midpoint
-    middle_12 = fine.edge_points[(1, 2)][0]
+    middle_12 = fine.points_inside(1, 2)[0]
     assert middle_12 in hexagon and middle_12 in fine.topology.face_corners[:16].tolist()  # shared with the quad
 
 
@@ -72,7 +72,8 @@ def test_chains_seams_and_loose_edges_are_cut_too():
     assert len(fine.topology.seams) == 6 and len(fine.topology.edges) == 6
     chain = fine.expand_chain(np.array([11, 10, 9]))
     assert chain[0] == 11 and chain[-1] == 9 and len(chain) == 7
-    assert list(chain[1:3]) == list(fine.edge_points[(10, 11)][::-1])
+    assert list(chain[1:3]) == list(fine.points_inside(11, 10)) == list(fine.points_inside(10, 11)[::-1])
+    assert fine.points_inside(0, 11) is None  # no such edge
 
 
 def test_resolution_out_of_range_is_refused():

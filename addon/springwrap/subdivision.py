@@ -36,7 +36,11 @@ class FineLayout(NamedTuple):
     topology: LayoutTopology
     sources: np.ndarray  # (M, 4) int64: the layout vertices each fine point blends
     weights: np.ndarray  # (M, 4) float64: their weights (rows sum to 1)
-    edge_points: dict  # (a, b) with a < b -> the fine points inside that layout edge, from a to b
+    edges: np.ndarray  # (E, 2) int64: the layout's edges, each as (lower, higher), sorted; edge e's
+    # k - 1 inner points are the fine points first_edge_point + e (k - 1) ... from its lower vertex
+    first_edge_point: int
+    resolution: int
+    edge_keys: np.ndarray  # (E,) int64: lower * first_edge_point + higher per edge, sorted (for lookups)
 
     def interpolate(self, values: np.ndarray) -> np.ndarray:
         """Per-vertex ``values`` of the layout ((n,) or (n, c)) blended onto every fine point."""
@@ -46,22 +50,46 @@ class FineLayout(NamedTuple):
             return np.einsum("mk,mk->m", gathered, self.weights)
         return np.einsum("mkc,mk->mc", gathered, self.weights)
 
+    def points_inside(self, a: int, b: int) -> np.ndarray | None:
+        """The fine points cut into the layout edge a-b, in order from a to b; None when there is no such edge."""
+        inner = self.resolution - 1
+        low, high = min(a, b), max(a, b)
+        index = int(np.searchsorted(self.edge_keys, low * self.first_edge_point + high))
+        if index >= len(self.edges) or tuple(self.edges[index]) != (low, high):
+            return None
+        points = self.first_edge_point + index * inner + np.arange(inner, dtype=np.int64)
+        return points if a < b else points[::-1]
+
     def expand_chain(self, chain: np.ndarray) -> np.ndarray:
         """A chain of layout vertices (consecutive ones joined by edges) with the fine points of its edges put in."""
         chain = np.asarray(chain, dtype=np.int64)
         pieces = [chain[:1]]
-        for a, b in zip(chain[:-1], chain[1:]):
-            inside = self.edge_points.get((min(a, b), max(a, b)))
+        for a, b in zip(chain[:-1].tolist(), chain[1:].tolist()):
+            inside = self.points_inside(a, b)
             if inside is not None:
-                pieces.append(inside if a < b else inside[::-1])
+                pieces.append(inside)
             pieces.append(np.array([b], dtype=np.int64))
         return np.concatenate(pieces)
+
+
+def _edge_keys(edges: np.ndarray, vertex_count: int) -> np.ndarray:
+    """One sortable integer per (lower, higher) edge."""
+    return edges[:, 0] * vertex_count + edges[:, 1]
+
+
+def _ring_next(sizes: np.ndarray) -> np.ndarray:
+    """For the corners of faces laid one after another, the index of the next corner in the same face."""
+    total = int(sizes.sum())
+    starts = np.repeat(np.concatenate([[0], np.cumsum(sizes)[:-1]]), sizes)
+    following = np.arange(1, total + 1)
+    return np.where(following == starts + np.repeat(sizes, sizes), starts, following)
 
 
 def subdivide(topology: LayoutTopology, resolution: int) -> FineLayout:
     """Cut every edge of the layout in ``resolution`` and every quad into ``resolution`` x ``resolution``.
 
-    Raises ``ValueError`` for a resolution outside 1 .. :data:`MAX_RESOLUTION`.
+    The fine faces are the quads' cells (quad by quad), then the other polygons. Raises ``ValueError``
+    for a resolution outside 1 .. :data:`MAX_RESOLUTION`.
     """
     k = int(resolution)
     if not 1 <= k <= MAX_RESOLUTION:
@@ -69,82 +97,70 @@ def subdivide(topology: LayoutTopology, resolution: int) -> FineLayout:
     n = int(topology.vertex_count)
     sizes = np.asarray(topology.face_sizes, dtype=np.int64)
     corners = np.asarray(topology.face_corners, dtype=np.int64)
-    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
+    inner = k - 1
 
     # Every undirected edge, from the faces and the edge list; k - 1 points inside each.
-    face_edges = []
-    for start, size in zip(starts, sizes):
-        ring = corners[start:start + size]
-        face_edges.append(np.stack([ring, np.roll(ring, -1)], axis=1))
+    face_edges = np.stack([corners, corners[_ring_next(sizes)]], axis=1) if corners.size else np.zeros((0, 2), int)
     listed = np.asarray(topology.edges, dtype=np.int64).reshape(-1, 2)
-    all_edges = np.concatenate(face_edges + [listed]) if face_edges else listed
-    all_edges = np.unique(np.sort(all_edges, axis=1), axis=0)
-    inner = k - 1
+    edges = np.unique(np.sort(np.concatenate([face_edges, listed]), axis=1), axis=0)
+    keys = _edge_keys(edges, n)
+
+    def along(u: np.ndarray, v: np.ndarray, step: int) -> np.ndarray:
+        """The fine points ``step`` / k of the way from layout vertices u to v (steps 0 and k are u and v)."""
+        if step == 0:
+            return u
+        if step == k:
+            return v
+        index = np.searchsorted(keys, np.minimum(u, v) * n + np.maximum(u, v))
+        base = n + index * inner
+        return np.where(u < v, base + step - 1, base + k - step - 1)
+
     sources = [np.stack([np.arange(n)] * 4, axis=1)]
     weights = [np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))]
-    edge_points = {}
+    steps = np.arange(1, k) / k
     if inner:
-        steps = np.arange(1, k) / k  # along each edge, from its lower vertex
-        for index, (a, b) in enumerate(all_edges):
-            edge_points[(int(a), int(b))] = n + index * inner + np.arange(inner, dtype=np.int64)
-        a = np.repeat(all_edges[:, 0], inner)
-        b = np.repeat(all_edges[:, 1], inner)
-        t = np.tile(steps, len(all_edges))
+        a, b = np.repeat(edges[:, 0], inner), np.repeat(edges[:, 1], inner)
+        t = np.tile(steps, len(edges))
         sources.append(np.stack([a, b, a, a], axis=1))
         weights.append(np.stack([1.0 - t, t, np.zeros_like(t), np.zeros_like(t)], axis=1))
-    next_index = n + len(all_edges) * inner
+    next_index = n + len(edges) * inner
 
-    def edge_point(u: int, v: int, step: int) -> int:
-        """The fine point ``step`` / k of the way from layout vertex u to v (steps 0 and k are u and v)."""
-        if step == 0:
-            return int(u)
-        if step == k:
-            return int(v)
-        inside = edge_points[(min(u, v), max(u, v))]
-        return int(inside[step - 1] if u < v else inside[k - step - 1])
-
+    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
+    is_quad = (sizes == 4) & (k > 1)
+    quad_corners = corners[starts[is_quad][:, None] + np.arange(4)] if is_quad.any() else np.zeros((0, 4), int)
     fine_corners, fine_sizes = [], []
-    quad_sources, quad_weights = [], []
-    for start, size in zip(starts, sizes):
+    if len(quad_corners):
+        c0, c1, c2, c3 = quad_corners.T
+        count = len(quad_corners)
+        grid = np.empty((count, k + 1, k + 1), dtype=np.int64)  # grid[q, i, j]: u = i / k along c0 -> c1, v = j / k
+        for i in range(k + 1):
+            grid[:, i, 0] = along(c0, c1, i)
+            grid[:, i, k] = along(c3, c2, i)
+            grid[:, 0, i] = along(c0, c3, i)
+            grid[:, k, i] = along(c1, c2, i)
+        per_quad = inner * inner
+        grid[:, 1:k, 1:k] = (next_index + np.arange(count * per_quad)).reshape(count, inner, inner)
+        next_index += count * per_quad
+        u, v = np.meshgrid(steps, steps, indexing="ij")
+        u, v = u.reshape(-1), v.reshape(-1)
+        sources.append(np.repeat(quad_corners, per_quad, axis=0))
+        weights.append(np.tile(np.stack([(1 - u) * (1 - v), u * (1 - v), u * v, (1 - u) * v], axis=1), (count, 1)))
+        cells = np.stack([grid[:, :-1, :-1], grid[:, 1:, :-1], grid[:, 1:, 1:], grid[:, :-1, 1:]], axis=-1)
+        fine_corners.append(cells.reshape(-1))
+        fine_sizes.append(np.full(count * k * k, 4, dtype=np.int64))
+    # Other polygons (and quads at resolution 1) keep their corners, with the cut edges' points.
+    for start, size in zip(starts[~is_quad].tolist(), sizes[~is_quad].tolist()):
         ring = corners[start:start + size]
-        if size == 4 and k > 1:
-            c0, c1, c2, c3 = (int(c) for c in ring)
-            grid = np.empty((k + 1, k + 1), dtype=np.int64)  # grid[i, j]: u = i / k along c0 -> c1, v = j / k
-            for i in range(k + 1):
-                grid[i, 0] = edge_point(c0, c1, i)
-                grid[i, k] = edge_point(c3, c2, i)
-            for j in range(k + 1):
-                grid[0, j] = edge_point(c0, c3, j)
-                grid[k, j] = edge_point(c1, c2, j)
-            count = inner * inner
-            grid[1:k, 1:k] = (next_index + np.arange(count)).reshape(inner, inner)
-            next_index += count
-            u, v = np.meshgrid(steps, steps, indexing="ij")
-            u, v = u.reshape(-1), v.reshape(-1)
-            quad_sources.append(np.tile([c0, c1, c2, c3], (count, 1)))
-            quad_weights.append(np.stack([(1 - u) * (1 - v), u * (1 - v), u * v, (1 - u) * v], axis=1))
-            cells = np.stack(
-                [grid[:-1, :-1], grid[1:, :-1], grid[1:, 1:], grid[:-1, 1:]], axis=-1
-            ).reshape(-1, 4)
-            fine_corners.append(cells.reshape(-1))
-            fine_sizes.append(np.full(len(cells), 4, dtype=np.int64))
-        else:
-            # Other polygons (and quads at resolution 1) keep their corners, with the cut edges' points.
-            polygon = []
-            for u, v in zip(ring, np.roll(ring, -1)):
-                polygon.extend(edge_point(int(u), int(v), step) for step in range(k))
-            fine_corners.append(np.array(polygon, dtype=np.int64))
-            fine_sizes.append(np.array([len(polygon)], dtype=np.int64))
-    sources.extend(quad_sources)
-    weights.extend(quad_weights)
+        following = np.roll(ring, -1)
+        polygon = np.stack([along(ring, following, step) for step in range(k)], axis=1).reshape(-1)
+        fine_corners.append(polygon)
+        fine_sizes.append(np.array([len(polygon)], dtype=np.int64))
 
-    def cut(edges: np.ndarray) -> np.ndarray:
+    def cut(layout_edges: np.ndarray) -> np.ndarray:
         """The fine edges along the given layout edges."""
-        pieces = []
-        for a, b in np.asarray(edges, dtype=np.int64).reshape(-1, 2):
-            chain = [edge_point(a, b, step) for step in range(k + 1)]
-            pieces.extend(zip(chain[:-1], chain[1:]))
-        return np.array(pieces, dtype=np.uint32).reshape(-1, 2)
+        layout_edges = np.asarray(layout_edges, dtype=np.int64).reshape(-1, 2)
+        chain = np.stack([along(layout_edges[:, 0], layout_edges[:, 1], step) for step in range(k + 1)], axis=1)
+        return np.stack([chain[:, :-1], chain[:, 1:]], axis=-1).reshape(-1, 2).astype(np.uint32)
 
     fine = LayoutTopology(
         vertex_count=next_index,
@@ -157,5 +173,8 @@ def subdivide(topology: LayoutTopology, resolution: int) -> FineLayout:
         topology=fine,
         sources=np.concatenate(sources).astype(np.int64),
         weights=np.concatenate(weights).astype(np.float64),
-        edge_points=edge_points,
+        edges=edges,
+        first_edge_point=n,
+        resolution=k,
+        edge_keys=keys,
     )
