@@ -33,18 +33,12 @@ REPOSITORY_ROOT = Path(__file__).resolve().parent.parent
 if str(REPOSITORY_ROOT) not in sys.path:
     sys.path.insert(0, str(REPOSITORY_ROOT))
 
+from benchmarks.retarget import baselines  # noqa: E402
+
 HEATMAP_CLIP_PERCENT = 2.0
 """Errors at or above this (% of the diagonal) get the colour ramp's last colour."""
-HEATMAP_METHODS = (
-    "aligned template",
-    "Shrinkwrap nearest",
-    "Shrinkwrap project",
-    "trimesh nricp_amberg",
-    "Springwrap snap",
-    "Springwrap wrap",
-    "Springwrap snap+wrap",
-    "Springwrap project+wrap",
-)
+HEATMAP_METHODS = baselines.METHODS
+"""Every method of the run, in the tables' order."""
 HEATMAP_CASES = ("heavy", "heavy-holes", "heavy-posed")
 RENDER_SIZE = (360, 720)
 # Colour ramp of the heat-maps (and of their colour bar): dark blue, teal, yellow, red.
