@@ -90,7 +90,11 @@ fn to_python_error(error: &KernelError) -> PyErr {
         KernelError::ZeroDirection { .. }
         | KernelError::LengthMismatch { .. }
         | KernelError::InvalidArgument { .. }
-        | KernelError::TooLarge { .. } => InvalidArgumentError::new_err(message),
+        | KernelError::TooLarge { .. }
+        | KernelError::TooFewPairs { .. }
+        | KernelError::CoincidentAnchors { .. }
+        | KernelError::CollinearAnchors { .. }
+        | KernelError::CoplanarAnchors { .. } => InvalidArgumentError::new_err(message),
     }
 }
 
