@@ -213,6 +213,24 @@ fn bad_anchors_give_typed_errors() {
         error.to_string(),
         "the 4 anchors are coplanar: an affine fit needs 4 not in one plane"
     );
+    // Six anchors on a tilted plane: f32 rounding leaves them a hair off it, which must still
+    // count as coplanar rather than give a wild fit.
+    let tilted: Vec<Vec3> = [
+        (0.1, 0.2),
+        (0.9, 0.3),
+        (0.4, 0.8),
+        (0.7, 0.7),
+        (0.2, 0.6),
+        (0.5, 0.1),
+    ]
+    .iter()
+    .map(|&(x, y)| Vec3::new(x, y, 1.0 - 0.3 * x - 0.7 * y))
+    .collect();
+    let spread: Vec<Vec3> = tilted.iter().map(|&point| point * 2.0 + Vec3::Z).collect();
+    assert_eq!(
+        fit(&tilted, &spread, AlignMethod::Affine),
+        Err(KernelError::CoplanarAnchors { count: 6 })
+    );
     // Coplanar anchors are fine for a similarity.
     assert!(fit(&square, &square, AlignMethod::Similarity).is_ok());
 
