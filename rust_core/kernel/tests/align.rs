@@ -370,12 +370,38 @@ fn icp_converges_on_a_closed_target() {
     let source = misaligned(&samples, &misalignment(size, 1.0));
 
     let report = icp(&mesh, &source, Transform::IDENTITY, IcpSettings::default()).unwrap();
-    println!("closed: {report:?}");
+    println!("closed: diagonal {size}, {report:?}");
     assert!(report.converged, "{report:?}");
     assert!(report.rms_before > 0.02 * size);
     assert!(report.rms_after < 1e-5 * size, "{report:?}");
     assert!(placement_error(&report.transform, &samples, &source) < 1e-4 * size);
     assert!(report.pairs_used >= samples.len() * 89 / 100);
+}
+
+#[test]
+fn icp_reports_an_unfinished_run() {
+    let (vertices, triangles) = lumpy_egg(RADIUS, 24, 32);
+    let samples = surface_samples(&vertices, &triangles);
+    let mesh = TargetMesh::new(vertices, triangles, TargetMeshOptions::default()).unwrap();
+    let size = diagonal(&mesh);
+    let source = misaligned(&samples, &misalignment(size, 1.0));
+    let settings = IcpSettings {
+        max_iterations: 1,
+        ..IcpSettings::default()
+    };
+    let report = icp(&mesh, &source, Transform::IDENTITY, settings).unwrap();
+    assert_eq!(report.iterations, 1);
+    assert!(!report.converged, "{report:?}");
+    assert!(report.rms_after < 0.5 * report.rms_before, "{report:?}");
+    assert!(report.rms_after > 1e-5 * size, "{report:?}");
+    // Zero iterations: the initial transform comes back untouched.
+    let settings = IcpSettings {
+        max_iterations: 0,
+        ..IcpSettings::default()
+    };
+    let report = icp(&mesh, &source, Transform::IDENTITY, settings).unwrap();
+    assert_eq!(report.transform, Transform::IDENTITY);
+    assert_eq!(report.rms_after, report.rms_before);
 }
 
 #[test]
