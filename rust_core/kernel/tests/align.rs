@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{Rng, lumpy_egg, lumpy_egg_with_hole};
+use common::{Rng, lumpy_egg, lumpy_egg_with_hole, uv_sphere};
 use glam::{DMat3, DQuat, DVec3, Vec3};
 use springwrap_kernel::{
     AlignMethod, IcpSettings, IcpUpdate, KernelError, TargetMesh, TargetMeshOptions, Transform,
@@ -376,6 +376,28 @@ fn icp_converges_on_a_closed_target() {
     assert!(report.rms_after < 1e-5 * size, "{report:?}");
     assert!(placement_error(&report.transform, &samples, &source) < 1e-4 * size);
     assert!(report.pairs_used >= samples.len() * 89 / 100);
+}
+
+#[test]
+fn icp_leaves_free_directions_alone() {
+    // A sphere does not fix its spin: ICP must undo the shift and not wander about its centre.
+    let (vertices, triangles) = uv_sphere(RADIUS, 48, 64);
+    let samples = surface_samples(&vertices, &triangles);
+    let mesh = TargetMesh::new(vertices, triangles, TargetMeshOptions::default()).unwrap();
+    let size = diagonal(&mesh);
+    let shift = transform_of(DMat3::IDENTITY, DVec3::new(0.03, -0.02, 0.01) * size);
+    let source = misaligned(&samples, &shift);
+    let report = icp(&mesh, &source, Transform::IDENTITY, IcpSettings::default()).unwrap();
+    println!("sphere: {report:?}");
+    assert!(report.converged, "{report:?}");
+    assert!(report.rms_after < 1e-4 * size, "{report:?}");
+    let spin = (0..3)
+        .flat_map(|r| (0..3).map(move |c| (r, c)))
+        .map(|(r, c)| (report.transform.rows[r][c] - f64::from(u8::from(r == c))).abs())
+        .fold(0.0, f64::max);
+    assert!(spin < 1e-3, "the sphere spun: {spin}, {report:?}");
+    let back = report.transform.translation() + shift.translation();
+    assert!(back.length() < 1e-3 * size, "{report:?}");
 }
 
 #[test]
