@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{Rng, lumpy_egg, lumpy_egg_with_hole, uv_sphere};
+use common::{Rng, grid, lumpy_egg, lumpy_egg_with_hole, uv_sphere};
 use glam::{DMat3, DQuat, DVec3, Vec3};
 use springwrap_kernel::{
     AlignMethod, IcpSettings, IcpUpdate, KernelError, TargetMesh, TargetMeshOptions, Transform,
@@ -398,6 +398,26 @@ fn icp_leaves_free_directions_alone() {
     assert!(spin < 1e-3, "the sphere spun: {spin}, {report:?}");
     let back = report.transform.translation() + shift.translation();
     assert!(back.length() < 1e-3 * size, "{report:?}");
+}
+
+#[test]
+fn icp_settles_on_a_plane_it_can_slide_along() {
+    // On a flat grid, sliding and turning in the plane change nothing: the normal equations are
+    // singular there, and only the damping lets the step solve at all.
+    let (vertices, triangles) = grid(20);
+    let samples = surface_samples(&vertices, &triangles);
+    let mesh = TargetMesh::new(vertices, triangles, TargetMeshOptions::default()).unwrap();
+    let lift = transform_of(
+        DMat3::from_quat(DQuat::from_rotation_x(3f64.to_radians())),
+        DVec3::new(0.0, 0.0, 0.5),
+    );
+    let source = misaligned(&samples, &lift);
+    let report = icp(&mesh, &source, Transform::IDENTITY, IcpSettings::default()).unwrap();
+    println!("plane: {report:?}");
+    assert!(report.converged && report.iterations > 0, "{report:?}");
+    assert!(report.rms_after < 1e-6, "{report:?}");
+    let landed = report.transform.apply_all(&source);
+    assert!(landed.iter().all(|point| point.z.abs() < 1e-5));
 }
 
 #[test]
