@@ -84,6 +84,33 @@ pub enum KernelError {
         /// Why it was refused.
         reason: String,
     },
+    /// An alignment has fewer point pairs than its method needs (3 for a rigid or similarity fit,
+    /// 4 for an affine fit; ICP needs as many as its unknowns). Place more anchors.
+    TooFewPairs {
+        /// What was being solved: `"rigid fit"`, `"similarity fit"`, `"affine fit"`, `"ICP"`.
+        what: &'static str,
+        /// How many pairs were usable (pairs of zero weight, or trimmed, do not count).
+        given: usize,
+        /// The least number that can determine it.
+        needed: usize,
+    },
+    /// All anchors of one side sit at one point, so no rotation or scale can be found. Spread them.
+    CoincidentAnchors {
+        /// `"source"` or `"target"`.
+        side: &'static str,
+    },
+    /// The source anchors lie on one line, so the rotation about that line is unknown. Add an
+    /// anchor off the line.
+    CollinearAnchors {
+        /// Number of anchors.
+        count: usize,
+    },
+    /// The source anchors lie in one plane, so an affine fit cannot find the third axis. Add an
+    /// anchor off the plane, or use a rigid or similarity fit.
+    CoplanarAnchors {
+        /// Number of anchors.
+        count: usize,
+    },
     /// The input is larger than the kernel's 32-bit indices can address.
     TooLarge {
         /// What is too large.
@@ -148,6 +175,26 @@ impl fmt::Display for KernelError {
                 second,
             } => write!(f, "{what}: lengths differ ({first} and {second})"),
             Self::InvalidArgument { name, reason } => write!(f, "invalid {name}: {reason}"),
+            Self::TooFewPairs {
+                what,
+                given,
+                needed,
+            } => write!(
+                f,
+                "{what}: {given} point pairs given, at least {needed} needed"
+            ),
+            Self::CoincidentAnchors { side } => write!(
+                f,
+                "the {side} anchors all sit at one point: no rotation or scale can be found"
+            ),
+            Self::CollinearAnchors { count } => write!(
+                f,
+                "the {count} anchors lie on one line: the rotation about it is unknown (add one off the line)"
+            ),
+            Self::CoplanarAnchors { count } => write!(
+                f,
+                "the {count} anchors are coplanar: an affine fit needs 4 not in one plane"
+            ),
             Self::TooLarge { what, count, max } => {
                 write!(f, "too many {what}: {count} (at most {max} supported)")
             }

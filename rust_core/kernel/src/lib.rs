@@ -39,6 +39,7 @@
 //!
 //! See `docs/architecture.md` in the repository for the layers and the why.
 
+pub mod align;
 pub mod bvh;
 pub mod error;
 pub mod face_point;
@@ -48,6 +49,7 @@ pub mod query;
 pub mod surface;
 pub mod wrap;
 
+pub use align::{AlignMethod, IcpReport, IcpSettings, IcpUpdate, Transform, fit_transform, icp};
 pub use error::KernelError;
 pub use face_point::{FacePoint, LayoutPoint, SurfaceHit, VertexHit};
 pub use layout::{Curve, CurveKind, LayoutStructure, LineTriple};

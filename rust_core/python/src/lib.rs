@@ -16,10 +16,11 @@ use pyo3::create_exception;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use springwrap_kernel::{
-    Anchor, AnchorTarget, CurveConstraint, CurveKind, FacePoint, KernelError, LayoutPoint,
-    LayoutStructure, NO_TRIANGLE, SpringRest, SurfaceHit, TargetMesh, TargetMeshOptions, VertexHit,
-    WrapSettings, WrapSolver, WrapWeights,
+    AlignMethod, Anchor, AnchorTarget, CurveConstraint, CurveKind, FacePoint, KernelError,
+    LayoutPoint, LayoutStructure, NO_TRIANGLE, SpringRest, SurfaceHit, TargetMesh,
+    TargetMeshOptions, VertexHit, WrapSettings, WrapSolver, WrapWeights,
 };
+use springwrap_kernel::{IcpSettings, IcpUpdate, Transform, fit_transform, icp};
 
 create_exception!(
     springwrap_kernel,
@@ -90,7 +91,11 @@ fn to_python_error(error: &KernelError) -> PyErr {
         KernelError::ZeroDirection { .. }
         | KernelError::LengthMismatch { .. }
         | KernelError::InvalidArgument { .. }
-        | KernelError::TooLarge { .. } => InvalidArgumentError::new_err(message),
+        | KernelError::TooLarge { .. }
+        | KernelError::TooFewPairs { .. }
+        | KernelError::CoincidentAnchors { .. }
+        | KernelError::CollinearAnchors { .. }
+        | KernelError::CoplanarAnchors { .. } => InvalidArgumentError::new_err(message),
     }
 }
 
@@ -397,6 +402,65 @@ impl PyTargetMesh {
             .flat_map(|edge| [edge.triangle, u32::from(edge.edge)])
             .collect();
         rows_array(py, flat, 2)
+    }
+
+    /// Point-to-plane ICP of `source` onto this mesh from `initial` (a (4, 4) float64 matrix,
+    /// identity when `None`): (matrix, iterations, converged, rms_before, rms_after, pairs_used).
+    #[pyo3(signature = (
+        source,
+        initial = None,
+        *,
+        update = "RIGID",
+        max_iterations = 50,
+        trim_fraction = 0.1,
+        max_distance = f32::INFINITY,
+        tolerance = 1e-7,
+        ignore_boundary = true,
+    ))]
+    #[allow(clippy::too_many_arguments)] // keyword arguments of one Python method
+    fn icp<'py>(
+        &self,
+        py: Python<'py>,
+        source: &Bound<'py, PyAny>,
+        initial: Option<&Bound<'py, PyAny>>,
+        update: &str,
+        max_iterations: u32,
+        trim_fraction: f32,
+        max_distance: f32,
+        tolerance: f64,
+        ignore_boundary: bool,
+    ) -> PyResult<IcpTuple<'py>> {
+        let source = read_positions("source", source)?;
+        let initial = match initial {
+            Some(array) => read_transform("initial", array)?,
+            None => Transform::IDENTITY,
+        };
+        let update = match update {
+            "RIGID" => IcpUpdate::Rigid,
+            "SIMILARITY" => IcpUpdate::Similarity,
+            other => {
+                return Err(InvalidArgumentError::new_err(format!(
+                    "invalid update: {other:?} (use 'RIGID' or 'SIMILARITY')"
+                )));
+            }
+        };
+        let settings = IcpSettings {
+            update,
+            max_iterations,
+            trim_fraction,
+            max_distance,
+            tolerance,
+            ignore_boundary,
+        };
+        let report = run_kernel(py, || icp(&self.mesh, &source, initial, settings))?;
+        Ok((
+            transform_array(py, &report.transform)?,
+            report.iterations,
+            report.converged,
+            report.rms_before,
+            report.rms_after,
+            report.pairs_used,
+        ))
     }
 
     /// Exact closest surface point of each query: (triangles, barycentrics, positions, distances).
@@ -916,6 +980,75 @@ fn read_anchors(
         .collect())
 }
 
+/// ICP results as returned to Python (the package names them `IcpReport`).
+type IcpTuple<'py> = (Bound<'py, PyArray2<f64>>, u32, bool, f64, f64, usize);
+
+/// Reads a (4, 4) float64 affine matrix whose last row is `0 0 0 1`.
+fn read_transform(name: &str, array: &Bound<'_, PyAny>) -> PyResult<Transform> {
+    let flat = read_array::<f64>(name, array, Some(4))?;
+    if flat.len() != 16 {
+        return Err(ArrayError::new_err(format!(
+            "{name} must be a (4, 4) float64 matrix, got {} rows",
+            flat.len() / 4
+        )));
+    }
+    if flat[12..] != [0.0, 0.0, 0.0, 1.0] {
+        return Err(InvalidArgumentError::new_err(format!(
+            "invalid {name}: the last row must be 0 0 0 1 (an affine matrix), got {:?}",
+            &flat[12..]
+        )));
+    }
+    Ok(Transform {
+        rows: std::array::from_fn(|row| std::array::from_fn(|column| flat[row * 4 + column])),
+    })
+}
+
+/// A transform as a (4, 4) float64 homogeneous matrix.
+fn transform_array<'py>(
+    py: Python<'py>,
+    transform: &Transform,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let flat = transform
+        .to_homogeneous()
+        .iter()
+        .flatten()
+        .copied()
+        .collect();
+    rows_array(py, flat, 4)
+}
+
+/// Least-squares transform taking `source[i]` to `target[i]` (float32 (N, 3) anchors), as a
+/// (4, 4) float64 matrix; `method` is `'RIGID'`, `'SIMILARITY'` or `'AFFINE'`.
+#[pyfunction(name = "fit_transform")]
+#[pyo3(signature = (source, target, method = "SIMILARITY", *, weights = None))]
+fn fit_transform_py<'py>(
+    py: Python<'py>,
+    source: &Bound<'py, PyAny>,
+    target: &Bound<'py, PyAny>,
+    method: &str,
+    weights: Option<&Bound<'py, PyAny>>,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let method = match method {
+        "RIGID" => AlignMethod::Rigid,
+        "SIMILARITY" => AlignMethod::Similarity,
+        "AFFINE" => AlignMethod::Affine,
+        other => {
+            return Err(InvalidArgumentError::new_err(format!(
+                "invalid method: {other:?} (use 'RIGID', 'SIMILARITY' or 'AFFINE')"
+            )));
+        }
+    };
+    let source = read_positions("source", source)?;
+    let target = read_positions("target", target)?;
+    let weights = weights
+        .map(|array| read_array::<f32>("weights", array, None))
+        .transpose()?;
+    let transform = run_kernel(py, || {
+        fit_transform(&source, &target, method, weights.as_deref())
+    })?;
+    transform_array(py, &transform)
+}
+
 /// The native part of `springwrap_kernel`.
 #[pymodule(gil_used = false)]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -924,6 +1057,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyTargetMesh>()?;
     m.add_class::<PyLayoutStructure>()?;
     m.add_class::<PyWrapSolver>()?;
+    m.add_function(wrap_pyfunction!(fit_transform_py, m)?)?;
     m.add("SpringwrapError", py.get_type::<SpringwrapError>())?;
     m.add("ArrayError", py.get_type::<ArrayError>())?;
     m.add("EmptyMeshError", py.get_type::<EmptyMeshError>())?;

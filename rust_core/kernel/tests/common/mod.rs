@@ -118,3 +118,42 @@ pub fn random_soup(rng: &mut Rng, triangle_count: usize) -> (Vec<Vec3>, Vec<[u32
     }
     (vertices, triangles)
 }
+
+/// A closed, lumpy egg with no symmetry ICP could slide along: a UV sphere of the given radius
+/// stretched to an ellipsoid (1, 0.75, 0.55) and displaced radially by a few smooth bumps.
+pub fn lumpy_egg(radius: f32, rings: u32, segments: u32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+    let (vertices, triangles) = uv_sphere(1.0, rings, segments);
+    let vertices = vertices
+        .into_iter()
+        .map(|unit| {
+            let bump = 1.0
+                + 0.12 * (3.0 * unit.x + 1.0).sin() * (2.0 * unit.y).cos()
+                + 0.08 * (4.0 * unit.z - 0.5).sin()
+                + 0.1 * unit.x.max(0.0) * unit.y;
+            radius * bump * unit * Vec3::new(1.0, 0.75, 0.55)
+        })
+        .collect();
+    (vertices, triangles)
+}
+
+/// [`lumpy_egg`] with a hole: the triangles whose centroid has `z` above `cut` are removed.
+pub fn lumpy_egg_with_hole(
+    radius: f32,
+    rings: u32,
+    segments: u32,
+    cut: f32,
+) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+    let (vertices, triangles) = lumpy_egg(radius, rings, segments);
+    let triangles = triangles
+        .into_iter()
+        .filter(|triangle| {
+            let centroid = triangle
+                .iter()
+                .map(|&corner| vertices[corner as usize])
+                .sum::<Vec3>()
+                / 3.0;
+            centroid.z <= cut
+        })
+        .collect();
+    (vertices, triangles)
+}

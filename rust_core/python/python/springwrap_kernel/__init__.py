@@ -22,6 +22,7 @@ from ._native import (
     NonFiniteError,
     SpringwrapError,
     __version__,
+    fit_transform,
 )
 
 __all__ = [
@@ -29,6 +30,7 @@ __all__ = [
     "DegenerateMeshError",
     "DegenerateTriangleError",
     "EmptyMeshError",
+    "IcpReport",
     "IndexOutOfRangeError",
     "InternalError",
     "InvalidArgumentError",
@@ -41,6 +43,7 @@ __all__ = [
     "VertexHits",
     "WrapSolver",
     "__version__",
+    "fit_transform",
 ]
 
 
@@ -63,6 +66,18 @@ class VertexHits(NamedTuple):
     distances: np.ndarray
 
 
+class IcpReport(NamedTuple):
+    """Result of :meth:`TargetMesh.icp`."""
+
+    matrix: np.ndarray
+    """(4, 4) float64: the refined source-to-target transform."""
+    iterations: int
+    converged: bool
+    rms_before: float
+    rms_after: float
+    pairs_used: int
+
+
 class TargetMesh(_native.TargetMesh):
     """A triangle mesh prepared for queries: BVH over triangles, vertex tree, adjacency, normals.
 
@@ -79,6 +94,10 @@ class TargetMesh(_native.TargetMesh):
     def nearest_vertices(self, points, *, max_distance=float("inf")):
         """Nearest mesh vertex (the fast vertex tree), as a face-point at that vertex."""
         return VertexHits(*super().nearest_vertices(points, max_distance=max_distance))
+
+    def icp(self, source, initial=None, **settings):
+        """Point-to-plane ICP of ``source`` onto this mesh from ``initial`` (see the stubs)."""
+        return IcpReport(*super().icp(source, initial, **settings))
 
     def ray_cast(self, origins, directions, *, max_distance=float("inf"), both_directions=False):
         """First hit along each ray (signed distance; backwards too with ``both_directions``)."""

@@ -128,6 +128,52 @@ class TargetMesh:
         self, triangles: npt.NDArray[np.uint32], barycentrics: npt.NDArray[np.float32]
     ) -> npt.NDArray[np.float32]:
         """Positions of face-points ``(triangle, barycentric)`` on this mesh."""
+    def icp(
+        self,
+        source: npt.NDArray[np.float32],
+        initial: npt.NDArray[np.float64] | None = None,
+        *,
+        update: Literal["RIGID", "SIMILARITY"] = "RIGID",
+        max_iterations: int = 50,
+        trim_fraction: float = 0.1,
+        max_distance: float = ...,
+        tolerance: float = 1e-7,
+        ignore_boundary: bool = True,
+    ) -> IcpReport:
+        """Point-to-plane ICP of ``source`` onto this mesh, starting from ``initial`` (a (4, 4)
+        float64 affine matrix, identity when ``None``). Each iteration ignores pairs farther than
+        ``max_distance``, pairs whose closest point lies on a boundary edge (with
+        ``ignore_boundary``) and the worst ``trim_fraction``; it stops when the RMS distance
+        changes by less than ``tolerance`` times the mesh's bounding-box diagonal."""
+
+# ---------------------------------------------------------------- alignment
+class IcpReport(NamedTuple):
+    """Result of :meth:`TargetMesh.icp`."""
+
+    matrix: npt.NDArray[np.float64]
+    """(4, 4) float64: the refined source-to-target transform."""
+    iterations: int
+    converged: bool
+    """The RMS change fell below the tolerance before ``max_iterations``."""
+    rms_before: float
+    """RMS distance of the pairs used, at ``initial``."""
+    rms_after: float
+    """RMS distance of the pairs used, at ``matrix``."""
+    pairs_used: int
+    """Pairs kept in the last evaluation (after trimming, the distance and boundary checks)."""
+
+def fit_transform(
+    source: npt.NDArray[np.float32],
+    target: npt.NDArray[np.float32],
+    method: Literal["RIGID", "SIMILARITY", "AFFINE"] = "SIMILARITY",
+    *,
+    weights: npt.NDArray[np.float32] | None = None,
+) -> npt.NDArray[np.float64]:
+    """Least-squares transform taking anchor ``source[i]`` to ``target[i]``, as a (4, 4) float64
+    matrix. Rigid and similarity fits never mirror (Umeyama); an affine fit may. Needs 3 anchors
+    not on one line (rigid, similarity) or 4 not in one plane (affine), else
+    :class:`InvalidArgumentError` says which; ``weights`` (float32 ``(N,)``, non-negative) weigh
+    the pairs."""
 
 # ---------------------------------------------------------------- the wrap
 class LayoutStructure:

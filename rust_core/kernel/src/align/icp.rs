@@ -1,0 +1,300 @@
+//! Point-to-plane ICP: refines a transform of source points so they land on a target surface.
+//!
+//! Each iteration pairs every transformed source point with its closest point on the target,
+//! drops pairs that cannot be trusted (farther than `max_distance`, landing on a boundary edge of
+//! a hole or border, or among the worst `trim_fraction`), then solves the linearised
+//! small-angle update that minimises the squared distances to the pairs' tangent planes
+//! (6x6 normal equations for a rigid update, 7x7 with a uniform scale), by Cholesky.
+
+use glam::{DQuat, DVec3, Vec3};
+
+use super::linear_algebra::cholesky_solve;
+use super::transform::Transform;
+use crate::error::KernelError;
+use crate::mesh::{NO_TRIANGLE, TargetMesh};
+
+/// Which transforms one ICP step may apply.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum IcpUpdate {
+    /// Rotation and translation.
+    Rigid,
+    /// Rotation, uniform scale and translation.
+    Similarity,
+}
+
+/// How ICP runs. [`IcpSettings::default`] is a rigid update, 50 iterations, 10 % trimmed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct IcpSettings {
+    /// Rigid or similarity steps.
+    pub update: IcpUpdate,
+    /// The most iterations to run.
+    pub max_iterations: u32,
+    /// Fraction of the pairs, the farthest ones, ignored in each iteration; in `[0, 1)`.
+    pub trim_fraction: f32,
+    /// Pairs farther apart than this are ignored (`f32::INFINITY`: no limit).
+    pub max_distance: f32,
+    /// Converged when the RMS distance changes by less than this fraction of the target's
+    /// bounding-box diagonal between two iterations.
+    pub tolerance: f64,
+    /// Ignore pairs whose closest point lies on a boundary edge (a hole or an open border): such
+    /// points are usually over a hole, not near the surface they belong to.
+    pub ignore_boundary: bool,
+}
+
+impl Default for IcpSettings {
+    fn default() -> Self {
+        Self {
+            update: IcpUpdate::Rigid,
+            max_iterations: 50,
+            trim_fraction: 0.1,
+            max_distance: f32::INFINITY,
+            tolerance: 1e-7,
+            ignore_boundary: true,
+        }
+    }
+}
+
+/// What an ICP run did.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct IcpReport {
+    /// The refined transform (source to target), the initial one composed with every step.
+    pub transform: Transform,
+    /// Iterations run (steps applied).
+    pub iterations: u32,
+    /// True when the RMS change fell below the tolerance before `max_iterations`.
+    pub converged: bool,
+    /// RMS distance of the pairs used, at the initial transform.
+    pub rms_before: f64,
+    /// RMS distance of the pairs used, at the returned transform.
+    pub rms_after: f64,
+    /// Pairs used in the last evaluation (after trimming and the distance and boundary checks).
+    pub pairs_used: usize,
+}
+
+/// One trusted pair: the transformed source point, its closest target point and that face's normal.
+struct Pair {
+    point: DVec3,
+    closest: DVec3,
+    normal: DVec3,
+    distance: f64,
+}
+
+/// Refines `initial` so that `source` mapped by it lies on `target`, by trimmed point-to-plane ICP.
+///
+/// # Errors
+/// [`KernelError::NonFinite`] for a NaN or infinite source point;
+/// [`KernelError::InvalidArgument`] for a non-finite `initial`, or settings out of range;
+/// [`KernelError::TooFewPairs`] when fewer trusted pairs remain than the update has unknowns.
+pub fn icp(
+    target: &TargetMesh,
+    source: &[Vec3],
+    initial: Transform,
+    settings: IcpSettings,
+) -> Result<IcpReport, KernelError> {
+    check_settings(&settings)?;
+    if let Some(index) = source.iter().position(|point| !point.is_finite()) {
+        return Err(KernelError::NonFinite {
+            what: "source point",
+            index,
+        });
+    }
+    if !initial.is_finite() {
+        return Err(KernelError::InvalidArgument {
+            name: "initial",
+            reason: "the initial transform has a NaN or infinite entry".to_owned(),
+        });
+    }
+    let (low, high) = target.bounding_box();
+    let diagonal = f64::from((high - low).length()).max(f64::MIN_POSITIVE);
+    let tolerance = settings.tolerance * diagonal;
+    let unknowns = match settings.update {
+        IcpUpdate::Rigid => 6,
+        IcpUpdate::Similarity => 7,
+    };
+
+    let mut transform = initial;
+    let mut pairs = trusted_pairs(target, source, &transform, &settings)?;
+    if pairs.len() < unknowns {
+        return Err(KernelError::TooFewPairs {
+            what: "ICP",
+            given: pairs.len(),
+            needed: unknowns,
+        });
+    }
+    let rms_before = rms(&pairs);
+    let mut current_rms = rms_before;
+    let mut iterations = 0;
+    let mut converged = false;
+    while iterations < settings.max_iterations {
+        let Some(step) = solve_step(&pairs, settings.update) else {
+            break;
+        };
+        let candidate = step.after(&transform);
+        let candidate_pairs = trusted_pairs(target, source, &candidate, &settings)?;
+        if candidate_pairs.len() < unknowns {
+            break;
+        }
+        transform = candidate;
+        pairs = candidate_pairs;
+        iterations += 1;
+        let new_rms = rms(&pairs);
+        let change = (new_rms - current_rms).abs();
+        current_rms = new_rms;
+        if change <= tolerance {
+            converged = true;
+            break;
+        }
+    }
+    Ok(IcpReport {
+        transform,
+        iterations,
+        converged,
+        rms_before,
+        rms_after: current_rms,
+        pairs_used: pairs.len(),
+    })
+}
+
+fn check_settings(settings: &IcpSettings) -> Result<(), KernelError> {
+    if !(0.0..1.0).contains(&settings.trim_fraction) {
+        return Err(KernelError::InvalidArgument {
+            name: "trim_fraction",
+            reason: format!("{} is not in [0, 1)", settings.trim_fraction),
+        });
+    }
+    if settings.max_distance.is_nan() || settings.max_distance <= 0.0 {
+        return Err(KernelError::InvalidArgument {
+            name: "max_distance",
+            reason: format!("{} is not positive", settings.max_distance),
+        });
+    }
+    if !settings.tolerance.is_finite() || settings.tolerance < 0.0 {
+        return Err(KernelError::InvalidArgument {
+            name: "tolerance",
+            reason: format!("{} is not a finite non-negative number", settings.tolerance),
+        });
+    }
+    Ok(())
+}
+
+/// The pairs to trust at `transform`: within `max_distance`, not on a boundary edge (when asked),
+/// on a triangle with a normal, and not among the worst `trim_fraction`; nearest first.
+fn trusted_pairs(
+    target: &TargetMesh,
+    source: &[Vec3],
+    transform: &Transform,
+    settings: &IcpSettings,
+) -> Result<Vec<Pair>, KernelError> {
+    let points: Vec<DVec3> = source
+        .iter()
+        .map(|point| transform.apply_f64(point.as_dvec3()))
+        .collect();
+    let queries: Vec<Vec3> = points.iter().map(|point| point.as_vec3()).collect();
+    let hits = target.closest_points(&queries, settings.max_distance)?;
+    let neighbors = target.triangle_neighbors();
+    let normals = target.face_normals();
+    let mut pairs: Vec<Pair> = points
+        .iter()
+        .zip(hits)
+        .filter_map(|(&point, hit)| {
+            let hit = hit?;
+            let triangle = hit.face_point.triangle as usize;
+            let normal = normals[triangle].as_dvec3();
+            if normal.length_squared() < 0.5 {
+                return None;
+            }
+            if settings.ignore_boundary {
+                let barycentric = hit.face_point.barycentric.to_array();
+                // Edge e runs from corner e to corner e + 1: on it, the weight of corner e + 2 is 0.
+                let on_boundary = (0..3).any(|edge| {
+                    neighbors[triangle][edge] == NO_TRIANGLE && barycentric[(edge + 2) % 3] <= 1e-5
+                });
+                if on_boundary {
+                    return None;
+                }
+            }
+            let closest = hit.position.as_dvec3();
+            Some(Pair {
+                point,
+                closest,
+                normal,
+                distance: point.distance(closest),
+            })
+        })
+        .collect();
+    pairs.sort_by(|a, b| a.distance.total_cmp(&b.distance));
+    let trimmed = (f64::from(settings.trim_fraction) * pairs.len() as f64).floor() as usize;
+    pairs.truncate(pairs.len() - trimmed);
+    Ok(pairs)
+}
+
+/// Root mean square of the pairs' distances.
+fn rms(pairs: &[Pair]) -> f64 {
+    let sum: f64 = pairs.iter().map(|pair| pair.distance * pair.distance).sum();
+    (sum / pairs.len().max(1) as f64).sqrt()
+}
+
+/// The step `x -> c + s R (x - c) + t` (about the pairs' centroid `c`) that minimises
+/// `Σ (n · (step(x) - y))²` to first order in the rotation vector and `s - 1`, or `None` when
+/// the normal equations are singular.
+fn solve_step(pairs: &[Pair], update: IcpUpdate) -> Option<Transform> {
+    let centroid = pairs.iter().map(|pair| pair.point).sum::<DVec3>() / pairs.len() as f64;
+    let mut normal_matrix = [[0.0; 7]; 7];
+    let mut rhs = [0.0; 7];
+    let unknowns = if update == IcpUpdate::Similarity {
+        7
+    } else {
+        6
+    };
+    for pair in pairs {
+        let offset = pair.point - centroid;
+        let residual = pair.normal.dot(pair.point - pair.closest);
+        let rotation_part = offset.cross(pair.normal);
+        let row = [
+            rotation_part.x,
+            rotation_part.y,
+            rotation_part.z,
+            pair.normal.x,
+            pair.normal.y,
+            pair.normal.z,
+            pair.normal.dot(offset),
+        ];
+        for i in 0..unknowns {
+            for j in 0..unknowns {
+                normal_matrix[i][j] += row[i] * row[j];
+            }
+            rhs[i] -= row[i] * residual;
+        }
+    }
+    // A light Levenberg damping keeps directions the surface does not constrain (turning a
+    // sphere about its centre, sliding along a plane) at zero instead of letting them drift.
+    let trace: f64 = (0..unknowns).map(|i| normal_matrix[i][i]).sum();
+    let damping = 1e-9 * trace / unknowns as f64 + f64::MIN_POSITIVE;
+    let delta = if update == IcpUpdate::Similarity {
+        for (i, row) in normal_matrix.iter_mut().enumerate() {
+            row[i] += damping;
+        }
+        cholesky_solve(&normal_matrix, &rhs)?
+    } else {
+        let mut rigid = [[0.0; 6]; 6];
+        for i in 0..6 {
+            rigid[i].copy_from_slice(&normal_matrix[i][..6]);
+            rigid[i][i] += damping;
+        }
+        let solution = cholesky_solve(&rigid, &std::array::from_fn(|i| rhs[i]))?;
+        std::array::from_fn(|i| if i < 6 { solution[i] } else { 0.0 })
+    };
+    if delta.iter().any(|value| !value.is_finite()) {
+        return None;
+    }
+    let rotation = DQuat::from_scaled_axis(DVec3::new(delta[0], delta[1], delta[2]));
+    let translation = DVec3::new(delta[3], delta[4], delta[5]);
+    let scale = (1.0 + delta[6]).max(0.5);
+    let linear = glam::DMat3::from_quat(rotation) * scale;
+    let columns = linear.to_cols_array_2d();
+    let rows = std::array::from_fn(|row| std::array::from_fn(|column| columns[column][row]));
+    Some(Transform::from_linear_translation(
+        rows,
+        centroid + translation - linear * centroid,
+    ))
+}
