@@ -25,9 +25,18 @@ from . import compat
 
 compat.add_vendored_packages()  # the legacy zip's kernel, before bridge imports it
 
-from . import anchor_drawing, anchor_operators, curve_operators, operators, properties, ui, wrap_operator  # noqa: E402
+from . import (  # noqa: E402
+    align_operator,
+    anchor_drawing,
+    anchor_operators,
+    curve_operators,
+    operators,
+    properties,
+    ui,
+    wrap_operator,
+)
 
-_modules = (properties, operators, anchor_operators, curve_operators, wrap_operator, ui)
+_modules = (properties, operators, align_operator, anchor_operators, curve_operators, wrap_operator, ui)
 
 
 def register():

@@ -254,6 +254,29 @@ def _state_attribute(mesh: bpy.types.Mesh, name: str, data_type: str):
     return attribute
 
 
+# ---------------------------------------------------------------- object transform
+
+
+def read_parent_matrix(layout: bpy.types.Object) -> np.ndarray:
+    """The 4x4 matrix taking the object's basis (location, rotation, scale) to world space.
+
+    ``matrix_world = parent_matrix @ matrix_basis``: the parent's world matrix times the parent
+    inverse, identity for an object without a parent. Raises :class:`LayoutError` when the basis
+    has zero scale (the parent part is then unknown).
+    """
+    basis = matrix_array(layout.matrix_basis)
+    if not layout_state.is_invertible(basis):
+        raise LayoutError(f"Layout '{layout.name}' has zero scale: its transform cannot be aligned")
+    return matrix_array(layout.matrix_world) @ layout_state.inverse_matrix(basis)
+
+
+def write_object_basis(layout: bpy.types.Object, basis: np.ndarray) -> None:
+    """Set the object's location, rotation and scale from a 4x4 basis matrix (no shear)."""
+    from mathutils import Matrix
+
+    layout.matrix_basis = Matrix(np.asarray(basis, dtype=np.float64).tolist())
+
+
 # ---------------------------------------------------------------- anchors
 
 

@@ -1,4 +1,4 @@
-"""The Springwrap sidebar panel of the 3D view, and its Anchors, Curve Constraints and Wrap sub-panels."""
+"""The Springwrap sidebar panel of the 3D view, and its Align, Anchors, Curve Constraints and Wrap sub-panels."""
 
 import bpy
 
@@ -197,6 +197,23 @@ class SPRINGWRAP_PT_curve_constraints(_LayoutSubPanel, bpy.types.Panel):
         layout.operator("springwrap.curve_constraints_auto", icon="AUTO")
 
 
+class SPRINGWRAP_PT_align(_LayoutSubPanel, bpy.types.Panel):
+    """Alignment of the template before it is attached: anchor fit and ICP"""
+
+    bl_label = "Align"
+    bl_idname = "SPRINGWRAP_PT_align"
+
+    def draw(self, context):
+        layout = self.layout
+        anchor_count = len(context.active_object.springwrap.anchors)
+        layout.label(text=f"Fit to {anchor_count} anchors, then ICP", icon="INFO")
+        row = layout.row(align=True)
+        row.operator_menu_enum("springwrap.align", "method", text="Align", icon="ORIENTATION_GLOBAL")
+        icp_only = row.operator("springwrap.align", text="ICP Only")
+        icp_only.use_anchors = False
+        icp_only.method = "RIGID"
+
+
 class SPRINGWRAP_PT_wrap(_LayoutSubPanel, bpy.types.Panel):
     """The wrap: the target's unreliable vertex group and the Wrap button"""
 
@@ -235,6 +252,7 @@ def _anchor_counts_text(anchors):
 
 classes = (
     SPRINGWRAP_PT_layout,
+    SPRINGWRAP_PT_align,
     SPRINGWRAP_UL_anchors,
     SPRINGWRAP_PT_anchors,
     SPRINGWRAP_UL_curve_constraints,

@@ -99,9 +99,11 @@ pub enum KernelError {
         /// `"source"` or `"target"`.
         side: &'static str,
     },
-    /// The source anchors lie on one line, so the rotation about that line is unknown. Add an
-    /// anchor off the line.
+    /// The source (layout) or target anchors lie on one line, so a rigid or similarity fit cannot
+    /// tell the rotation about that line. Add an anchor off the line on that side.
     CollinearAnchors {
+        /// `"source"` or `"target"`.
+        side: &'static str,
         /// Number of anchors.
         count: usize,
     },
@@ -187,9 +189,9 @@ impl fmt::Display for KernelError {
                 f,
                 "the {side} anchors all sit at one point: no rotation or scale can be found"
             ),
-            Self::CollinearAnchors { count } => write!(
+            Self::CollinearAnchors { side, count } => write!(
                 f,
-                "the {count} anchors lie on one line: the rotation about it is unknown (add one off the line)"
+                "the {count} {side} anchors lie on one line: the rotation about it is unknown (add one off the line)"
             ),
             Self::CoplanarAnchors { count } => write!(
                 f,

@@ -237,7 +237,18 @@ fn bad_anchors_give_typed_errors() {
     let line = [Vec3::ZERO, Vec3::X, Vec3::X * 2.0];
     assert_eq!(
         fit(&line, &tetrahedron[..3], AlignMethod::Rigid),
-        Err(KernelError::CollinearAnchors { count: 3 })
+        Err(KernelError::CollinearAnchors {
+            side: "source",
+            count: 3
+        })
+    );
+    // Target anchors on one line leave the rotation about that line free too.
+    assert_eq!(
+        fit(&tetrahedron[..3], &line, AlignMethod::Similarity),
+        Err(KernelError::CollinearAnchors {
+            side: "target",
+            count: 3
+        })
     );
 
     let point = [Vec3::ONE; 4];

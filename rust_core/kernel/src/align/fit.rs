@@ -55,8 +55,9 @@ const DEGENERATE_SPREAD: f64 = 1e-6;
 /// [`KernelError::InvalidArgument`] for a negative weight;
 /// [`KernelError::TooFewPairs`] with fewer pairs of positive weight than
 /// [`AlignMethod::minimum_pairs`]; [`KernelError::CoincidentAnchors`] when one side's anchors all
-/// sit at one point; [`KernelError::CollinearAnchors`] (rigid, similarity) and
-/// [`KernelError::CoplanarAnchors`] (affine) when the source anchors cannot fix every axis.
+/// sit at one point; [`KernelError::CollinearAnchors`] (rigid, similarity) when either side's
+/// anchors lie on one line; [`KernelError::CoplanarAnchors`] (affine) when the source anchors
+/// cannot fix every axis.
 pub fn fit_transform(
     source: &[Vec3],
     target: &[Vec3],
@@ -121,7 +122,16 @@ pub fn fit_transform(
     match method {
         AlignMethod::Rigid | AlignMethod::Similarity => {
             if source_deviation[1] <= DEGENERATE_SPREAD * source_deviation[0] {
-                return Err(KernelError::CollinearAnchors { count: usable });
+                return Err(KernelError::CollinearAnchors {
+                    side: "source",
+                    count: usable,
+                });
+            }
+            if target_deviation[1] <= DEGENERATE_SPREAD * target_deviation[0] {
+                return Err(KernelError::CollinearAnchors {
+                    side: "target",
+                    count: usable,
+                });
             }
             // cross[a][b] = Σ w (p - p̄)_a (q - q̄)_b.
             let cross =

@@ -1,0 +1,154 @@
+"""``springwrap.align``: bring the layout into place before it is attached (paper section 2.2).
+
+A transform is fitted to the anchors (rigid, similarity or affine, least squares) and optionally
+refined by ICP against the target; it is applied to the layout object's transform or baked into
+its vertices. The template then floats free of the target: every face-point becomes a
+space-point, to be attached by projection, snap or the wrap.
+"""
+
+import time
+
+import bpy
+
+from .operators import layout_problem
+from .properties import max_distance_property
+
+METHOD_ITEMS = (
+    ("RIGID", "Rigid", "Rotation and translation (needs 3 anchors not on one line)"),
+    ("SIMILARITY", "Similarity", "Rotation, translation and uniform scale (needs 3 anchors not on one line)"),
+    ("AFFINE", "Affine", "Any linear map and translation: also stretches and shears (needs 4 anchors not in one plane)"),
+)
+APPLY_ITEMS = (
+    ("OBJECT", "Object Transform", "Change the layout object's location, rotation and scale; the mesh stays as it is"),
+    ("BAKE", "Bake into Vertices", "Move the layout's vertices; the object's transform stays as it is"),
+)
+
+
+class SPRINGWRAP_OT_align(bpy.types.Operator):
+    """Align the layout to its target: fit a transform to the anchors, then refine it by ICP"""
+
+    bl_idname = "springwrap.align"
+    bl_label = "Align"
+    bl_options = {"REGISTER", "UNDO"}
+
+    method: bpy.props.EnumProperty(
+        name="Method",
+        description="Transform fitted to the anchors (least squares); ICP refines rigid fits rigidly, the others by similarity steps",
+        items=METHOD_ITEMS,
+        default="SIMILARITY",
+    )
+    use_anchors: bpy.props.BoolProperty(
+        name="Fit Anchors",
+        description="Fit the transform to the anchors; off: ICP alone, from the current placement",
+        default=True,
+    )
+    use_icp: bpy.props.BoolProperty(
+        name="ICP",
+        description="Refine by iterative closest points against the target (point-to-plane, trimmed)",
+        default=True,
+    )
+    icp_iterations: bpy.props.IntProperty(
+        name="ICP Iterations",
+        description="Most ICP iterations to run",
+        default=50,
+        min=1,
+        max=10_000,
+    )
+    trim_fraction: bpy.props.FloatProperty(
+        name="Trim",
+        description="Fraction of the farthest pairs ICP ignores each iteration (outliers, parts the target lacks)",
+        default=0.1,
+        min=0.0,
+        max=0.95,
+        subtype="FACTOR",
+    )
+    max_distance: max_distance_property("ICP ignores layout vertices farther than this from the target (0 = unlimited)")
+    only_selected: bpy.props.BoolProperty(
+        name="Only Selected",
+        description="ICP uses the selected layout vertices only (the transform still moves the whole layout)",
+        default=False,
+    )
+    apply: bpy.props.EnumProperty(
+        name="Apply",
+        description="Where the alignment goes",
+        items=APPLY_ITEMS,
+        default="OBJECT",
+    )
+
+    @classmethod
+    def poll(cls, context):
+        problem = layout_problem(context)
+        if problem is not None:
+            cls.poll_message_set(problem)
+            return False
+        return True
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.prop(self, "method")
+        layout.prop(self, "use_anchors")
+        layout.prop(self, "use_icp")
+        column = layout.column()
+        column.active = self.use_icp
+        for name in ("icp_iterations", "trim_fraction", "max_distance", "only_selected"):
+            column.prop(self, name)
+        layout.prop(self, "apply")
+
+    def execute(self, context):
+        problem = layout_problem(context)
+        if problem is not None:
+            self.report({"ERROR"}, problem)
+            return {"CANCELLED"}
+        try:
+            from . import alignment, anchors, bridge
+        except ImportError as error:
+            self.report({"ERROR"}, f"The Springwrap kernel is not available: {error}")
+            return {"CANCELLED"}
+        layout = context.active_object
+        if self.apply == "BAKE" and bridge.has_shape_keys(layout):
+            self.report({"ERROR"}, f"Layout '{layout.name}' has shape keys; bake needs to move its vertices: apply to the object transform")
+            return {"CANCELLED"}
+        parameters = alignment.AlignParameters(
+            method=self.method,
+            use_anchors=self.use_anchors,
+            use_icp=self.use_icp,
+            icp_iterations=self.icp_iterations,
+            trim_fraction=self.trim_fraction,
+            max_distance=self.max_distance,
+            only_selected=self.only_selected,
+        )
+        start = time.perf_counter()
+        try:
+            with bridge.object_mode(layout):
+                arrays = bridge.read_layout(layout)
+                target = bridge.read_target(context.evaluated_depsgraph_get(), layout)
+                anchor_list = anchors.no_anchors()
+                if self.use_anchors:
+                    anchor_list, _resolution = anchors.resolve(
+                        bridge.read_anchors(layout), target, layout.springwrap.anchors_signature
+                    )
+                outcome = alignment.align(arrays, anchor_list, target, parameters)
+                detached = alignment.detached_count(arrays)
+                if self.apply == "OBJECT":
+                    basis = alignment.object_basis(outcome.matrix, arrays.matrix_world, bridge.read_parent_matrix(layout))
+                    bridge.write_layout(layout, arrays.positions, alignment.floating_state(arrays))
+                    bridge.write_object_basis(layout, basis)
+                else:
+                    positions = alignment.baked_positions(arrays, outcome.matrix)
+                    bridge.write_layout(layout, positions, alignment.floating_state(arrays))
+        except bridge.ERRORS as error:
+            self.report({"ERROR"}, str(error))
+            return {"CANCELLED"}
+        milliseconds = (time.perf_counter() - start) * 1000.0
+        self.report({"INFO"}, alignment.summary(layout.name, parameters, outcome, detached, self.apply, milliseconds))
+        if outcome.icp is not None and not outcome.icp.converged:
+            self.report(
+                {"WARNING"},
+                f"ICP did not converge in {outcome.icp.iterations} iterations: run Align again (anchors off) "
+                "or raise ICP Iterations",
+            )
+        return {"FINISHED"}
+
+
+classes = (SPRINGWRAP_OT_align,)
