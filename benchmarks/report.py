@@ -23,7 +23,8 @@ REPOSITORY_ROOT = Path(__file__).resolve().parent.parent
 OUT = REPOSITORY_ROOT / "out" / "bench"
 DOCS = REPOSITORY_ROOT / "docs"
 
-SPRINGWRAP_METHODS = ("Springwrap snap", "Springwrap wrap", "Springwrap snap+wrap", "Springwrap project+wrap")
+SPRINGWRAP_METHODS = ("Springwrap snap", "Springwrap wrap", "Springwrap snap+wrap", "Springwrap project+wrap",
+                      "Springwrap align", "Springwrap align+wrap")
 BASELINE_METHODS = ("aligned template", "Shrinkwrap nearest", "Shrinkwrap project", "trimesh nricp_amberg")
 
 

@@ -203,6 +203,9 @@ def test_icp_alone_converges_from_10_degrees_and_5_percent(delete_faces, capfd):
     assert errors.max() <= 1e-4 * size, f"max error {errors.max() / size:.2e} of the diagonal"
     report = reports(capfd)
     assert "converged" in report and "not converged" not in report
+    from benchmarks.retarget.springwrap_methods import _ALIGN_REPORT
+
+    assert _ALIGN_REPORT.search(report)["ending"] == "converged"  # the benchmark reads this report
 
 
 def test_anchors_then_icp_recover_a_similarity():

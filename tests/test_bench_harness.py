@@ -533,3 +533,8 @@ def test_the_wrap_speed_section_states_each_aim_and_measurement():
     assert report.wrap_aims_section({}) == []
     document = report.build_document(None, None, None, speed=speed)
     assert "### Wrap speed against its aims" in document
+
+
+def test_every_align_method_is_a_method_with_a_short_name():
+    for method in springwrap_methods.ALIGN_METHODS:
+        assert method in baselines.METHODS and method in run.SHORT_NAMES

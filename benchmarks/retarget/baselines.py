@@ -12,6 +12,8 @@ positions on the target) and returns the layout's new vertex positions:
   normals, both directions, no distance limit (vertices whose rays miss stay where they are);
 - ``Springwrap snap``: the add-on's operators on the aligned template, as a user runs them:
   ``springwrap.detach`` then ``springwrap.snap(mode='SURFACE')``;
+- ``Springwrap align`` and ``align+wrap``: the template as given, aligned by the add-on's own
+  ``springwrap.align`` (anchors, then ICP), then wrapped (see ``springwrap_methods``);
 - ``trimesh nricp_amberg``: non-rigid ICP (Amberg et al. 2007) from trimesh, on the aligned
   template triangulated, with the landmarks and their anchors, trimesh's default schedule. The
   target is handed over as the point cloud of its vertices (trimesh then matches with a KD-tree);
@@ -250,6 +252,8 @@ METHODS = (
     "Springwrap wrap",
     "Springwrap snap+wrap",
     "Springwrap project+wrap",
+    "Springwrap align",
+    "Springwrap align+wrap",
 )
 
 
@@ -291,6 +295,17 @@ def run_baselines(
                         start=springwrap_methods.WRAP_METHODS[method], max_iterations=wrap_max_iterations,
                     )
                     result.details = report.as_dict()
+                elif method in springwrap_methods.ALIGN_METHODS:
+                    result.positions, result.notes = springwrap_methods.springwrap_align(
+                        case.layout_vertices, case.layout_quads, target_object, marks.vertices, anchors
+                    )
+                    if method == "Springwrap align+wrap":
+                        result.positions, notes, report = springwrap_methods.springwrap_wrap(
+                            result.positions, case.layout_quads, target_object, marks.vertices, anchors,
+                            max_iterations=wrap_max_iterations,
+                        )
+                        result.notes += notes
+                        result.details = report.as_dict()
                 else:
                     raise BaselineUnavailable(f"unknown method {method!r}")
         except BaselineUnavailable as error:

@@ -39,6 +39,8 @@ SHORT_NAMES = {
     "Springwrap wrap": "wrap",
     "Springwrap snap+wrap": "snap+wrap",
     "Springwrap project+wrap": "proj+wrap",
+    "Springwrap align": "sw-align",
+    "Springwrap align+wrap": "align+wrap",
 }
 
 

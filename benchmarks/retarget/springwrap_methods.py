@@ -10,7 +10,12 @@
 - ``Springwrap project+wrap``: the same, with ``springwrap.project(direction='NORMAL',
   both_directions=True, max_distance=d)`` after the detach, ``d`` = :data:`PROJECT_DISTANCE` of
   the layout's bounding-box diagonal (~5 cm on the body; unlimited rays reach the other leg or
-  arm): the README's workflow without its snap (vertices whose rays miss stay space-points).
+  arm): the README's workflow without its snap (vertices whose rays miss stay space-points);
+- ``Springwrap align``: the template *as given* (not aligned by the harness), one
+  ``springwrap.anchor_add`` per landmark as above, then ``springwrap.align(method='SIMILARITY',
+  use_icp=True, apply='BAKE')``: the add-on's own alignment (anchor fit, then trimmed ICP), to set
+  against the harness's ``aligned template`` (the anchor fit alone);
+- ``Springwrap align+wrap``: that aligned template through ``Springwrap wrap``.
 
 The wrap's own report (``Wrapped 'X' in N iterations (converged), T s: F face-points, S
 space-points ...``, printed to stdout in background mode) is captured and parsed
@@ -33,6 +38,9 @@ from benchmarks.retarget.baselines import MethodRefused, mesh_object, read_posit
 
 WRAP_METHODS = {"Springwrap wrap": "detach", "Springwrap snap+wrap": "snap", "Springwrap project+wrap": "project"}
 """The wrap methods and how each starts (:func:`springwrap_wrap`'s ``start``)."""
+ALIGN_METHODS = ("Springwrap align", "Springwrap align+wrap")
+"""The methods that start from the template as given and align it with ``springwrap.align``."""
+_ALIGN_REPORT = re.compile(r"ICP on \d+ points, (?P<iterations>\d+) iterations, (?P<ending>converged|not converged)")
 PROJECT_DISTANCE = 0.025
 """``project+wrap``'s ray length limit, a fraction of the layout's bounding-box diagonal."""
 
@@ -113,6 +121,51 @@ def _call(name: str, operator, **properties) -> str:
     return output[0]
 
 
+def _select_only(layout) -> None:
+    import bpy
+
+    bpy.context.view_layer.update()  # objects removed since the last update would be listed as None
+    for obj in bpy.context.view_layer.objects:
+        if obj is not None:
+            obj.select_set(obj == layout)
+    bpy.context.view_layer.objects.active = layout
+
+
+def _add_anchors(layout, landmark_vertices: np.ndarray, anchor_positions: np.ndarray) -> int:
+    """One ``anchor_add`` per landmark at its true position (closest target point, as a click); the count."""
+    import bpy
+
+    for vertex, position in zip(np.asarray(landmark_vertices).tolist(), np.asarray(anchor_positions).tolist()):
+        _call("anchor_add", bpy.ops.springwrap.anchor_add, vertex_index=int(vertex), location=position,
+              use_location=True)
+    anchor_count = len(layout.springwrap.anchors)
+    if anchor_count != len(landmark_vertices):
+        raise RuntimeError(f"{anchor_count} anchors on the layout after adding {len(landmark_vertices)}")
+    return anchor_count
+
+
+def springwrap_align(
+    layout_positions: np.ndarray,
+    quads: np.ndarray,
+    target_object,
+    landmark_vertices: np.ndarray,
+    anchor_positions: np.ndarray,
+) -> tuple[np.ndarray, list[str]]:
+    """anchor_add per landmark → align (similarity + ICP, baked) on a new layout object; (positions, notes)."""
+    import bpy
+
+    layout = mesh_object("Springwrap align", layout_positions, quads)
+    layout.springwrap.target = target_object
+    _select_only(layout)
+    anchor_count = _add_anchors(layout, landmark_vertices, anchor_positions)
+    output = _call("align", bpy.ops.springwrap.align, method="SIMILARITY", use_icp=True, apply="BAKE")
+    match = _ALIGN_REPORT.search(output)
+    notes = [f"{anchor_count} anchors, similarity fit then ICP"]
+    if match:
+        notes.append(f"ICP {match['iterations']} iterations ({match['ending']})")
+    return read_positions(layout.data), notes
+
+
 def springwrap_wrap(
     layout_positions: np.ndarray,
     quads: np.ndarray,
@@ -131,11 +184,7 @@ def springwrap_wrap(
         raise ValueError(f"unknown start {start!r}")
     layout = mesh_object(f"Springwrap {start}", layout_positions, quads)
     layout.springwrap.target = target_object
-    bpy.context.view_layer.update()  # objects removed since the last update would be listed as None
-    for obj in bpy.context.view_layer.objects:
-        if obj is not None:
-            obj.select_set(obj == layout)
-    bpy.context.view_layer.objects.active = layout
+    _select_only(layout)
     _call("detach", bpy.ops.springwrap.detach, only_selected=False)
     if start == "snap":
         _call("snap", bpy.ops.springwrap.snap, mode="SURFACE", only_selected=False, max_distance=0.0)
@@ -143,12 +192,7 @@ def springwrap_wrap(
         diagonal = float(np.linalg.norm(np.ptp(np.asarray(layout_positions, dtype=np.float64), axis=0)))
         _call("project", bpy.ops.springwrap.project, direction="NORMAL", both_directions=True,
               max_distance=PROJECT_DISTANCE * diagonal, only_selected=False)
-    for vertex, position in zip(np.asarray(landmark_vertices).tolist(), np.asarray(anchor_positions).tolist()):
-        _call("anchor_add", bpy.ops.springwrap.anchor_add, vertex_index=int(vertex), location=position,
-              use_location=True)
-    anchor_count = len(layout.springwrap.anchors)
-    if anchor_count != len(landmark_vertices):
-        raise RuntimeError(f"{anchor_count} anchors on the layout after adding {len(landmark_vertices)}")
+    anchor_count = _add_anchors(layout, landmark_vertices, anchor_positions)
     wrap_properties = {} if max_iterations is None else {"max_iterations": int(max_iterations)}
     report = parse_wrap_report(_call("wrap", bpy.ops.springwrap.wrap, **wrap_properties))
     ending = "converged" if report.converged else "stopped at the iteration limit"
