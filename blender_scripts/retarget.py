@@ -7,7 +7,9 @@ Runs both ways (arguments after ``--`` when present, else all of ``sys.argv[1:]`
 Template and target: a mesh file (.obj, .ply, .glb / .gltf) or a .blend with ``--template-object`` /
 ``--target-object`` naming the object (without a name, the file's only mesh object). Steps: the
 template is copied as the layout, aligned to the target (``--align bounds``: its bounding box's
-centre and diagonal onto the target's; ``none``, the default: as placed), detached, anchored (``--anchors FILE.json``:
+centre and diagonal onto the target's; ``icp``: that, then ``springwrap.align`` by ICP alone;
+``anchors``: ``springwrap.align`` fitted to the ``--anchors`` file's pairs, then ICP;
+``--align-method`` picks rigid, similarity or affine; ``none``, the default: as placed), detached, anchored (``--anchors FILE.json``:
 ``{"anchors": [{"vertex": 12, "target": [x, y, z]}, ...]}``, each layout vertex pulled to the target
 surface point closest to that world-space point; or ``--anchors-spacing S``, spread automatically;
 0 = a tenth of the layout's size), then wrapped (``--max-iterations``, ``--fairness``,
@@ -65,7 +67,11 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     anchors = parser.add_mutually_exclusive_group()
     anchors.add_argument("--anchors", type=Path, help="JSON file of layout-vertex -> target-point pairs")
     anchors.add_argument("--anchors-spacing", type=float, help="spread anchors automatically (0: automatic spacing)")
-    parser.add_argument("--align", choices=("none", "bounds"), default="none", help="alignment (default none)")
+    parser.add_argument("--align", choices=("none", "bounds", "icp", "anchors"), default="none",
+                        help="alignment: none, bounds (box centre and size), icp (bounds, then ICP), "
+                        "anchors (fit to --anchors, then ICP) (default none)")
+    parser.add_argument("--align-method", choices=("rigid", "similarity", "affine"), default="similarity",
+                        help="transform of --align icp / anchors (default similarity; ICP alone: rigid or similarity)")
     parser.add_argument("--max-iterations", type=int, default=2000, help="wrap iteration limit (default 2000)")
     parser.add_argument("--tolerance", type=float, default=1e-5, help="convergence, fraction of the layout's size")
     parser.add_argument("--fairness", type=float, default=0.5, help="straight grid lines, 0 to 1")
@@ -83,6 +89,10 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
         parser.error("--anchors-spacing must not be negative")
     if arguments.jobs < 1:
         parser.error("--jobs must be at least 1")
+    if arguments.align == "anchors" and arguments.anchors is None:
+        parser.error("--align anchors needs --anchors FILE.json")
+    if arguments.align == "icp" and arguments.align_method == "affine":
+        parser.error("--align icp refines by rigid or similarity steps: --align-method affine needs --align anchors")
     if arguments.batch is not None:
         if arguments.output_dir is None:
             parser.error("--batch needs --output-dir")
@@ -247,6 +257,20 @@ def align_bounds(layout, target) -> dict:
     return {"scale": scale, "translation": (target_centre - layout_centre * scale).tolist()}
 
 
+def align_operator(layout, arguments: argparse.Namespace, blame: str) -> dict:
+    """``springwrap.align`` (anchors then ICP, or ICP alone) on the layout's object transform; what it did."""
+    import numpy as np
+
+    before = np.array(layout.matrix_world, dtype=np.float64)
+    use_anchors = arguments.align == "anchors"
+    _operator(blame, "align", method=arguments.align_method.upper(), use_anchors=use_anchors, use_icp=True,
+              apply="OBJECT")
+    bpy.context.view_layer.update()
+    change = np.array(layout.matrix_world, dtype=np.float64) @ np.linalg.inv(before)
+    return {"method": arguments.align_method, "anchors": use_anchors, "icp": True,
+            "matrix": change.tolist()}
+
+
 def distances_to_target(layout, target) -> dict:
     """Distances of the layout's vertices to the target surface (world space): mean, max, RMS."""
     import numpy as np
@@ -303,15 +327,17 @@ def retarget(arguments: argparse.Namespace) -> dict:
     layout.springwrap.target = target
     lap("load")
 
-    alignment = align_bounds(layout, target) if arguments.align == "bounds" else None
     blame = f"template {arguments.template}, target {arguments.target}"
-    _operator(blame, "detach", only_selected=False)
-    lap("align and detach")
-
+    alignment = align_bounds(layout, target) if arguments.align in ("bounds", "icp") else None
     if anchor_pairs is not None:
         for vertex, point in anchor_pairs:
             _operator(f"{arguments.anchors}", "anchor_add", vertex_index=vertex, location=point, use_location=True)
-    else:
+    if arguments.align in ("icp", "anchors"):
+        alignment = (alignment or {}) | align_operator(layout, arguments, blame)
+    _operator(blame, "detach", only_selected=False)
+    lap("align and detach")
+
+    if anchor_pairs is None:
         _operator(blame, "anchors_auto", spacing=arguments.anchors_spacing or 0.0, replace=True)
     if len(layout.springwrap.anchors) == 0:
         warnings.append("no anchors: the wrap is pulled by folding alone")
@@ -404,7 +430,7 @@ def worker_command(arguments: argparse.Namespace, target: Path, output_dir: Path
     """The command retargeting onto one mesh of the batch, in a fresh process of this same Blender."""
     own = [
         "--template", str(arguments.template.resolve()), "--target", str(target.resolve()),
-        "--align", arguments.align, "--max-iterations", str(arguments.max_iterations),
+        "--align", arguments.align, "--align-method", arguments.align_method, "--max-iterations", str(arguments.max_iterations),
         "--tolerance", repr(arguments.tolerance), "--fairness", repr(arguments.fairness),
         "--arc-length", repr(arguments.arc_length), "--thin-plate", repr(arguments.thin_plate),
         "--output-blend", str(output_dir / f"{target.stem}.blend"),

@@ -206,3 +206,38 @@ def test_batch_retargets_every_mesh_and_skips_a_failing_one(inputs, tmp_path):
     for stem in ("ball", "big_ball"):
         report = json.loads((out / f"{stem}.json").read_text())
         assert report["wrap"]["face_points"] == GRID_SIDE ** 2
+
+
+def test_align_anchors_then_icp_recovers_the_targets_placement(inputs, tmp_path):
+    """The template is the ball; the target the same ball scaled by 1.3 and moved: ``--align anchors`` finds it."""
+    scale, shift = 1.3, (0.4, -0.2, 0.1)  # OBJ space
+    template_lines = inputs["target"].read_text().splitlines()
+    moved = []
+    for line in template_lines:
+        if line.startswith("v "):
+            point = [scale * float(value) + offset for value, offset in zip(line.split()[1:4], shift)]
+            line = "v " + " ".join(f"{value:.6f}" for value in point)
+        moved.append(line)
+    target = tmp_path / "moved_ball.obj"
+    target.write_text("\n".join(moved) + "\n")
+    points = [[float(value) for value in line.split()[1:4]] for line in template_lines if line.startswith("v ")]
+    chosen = [0, len(points) - 1, 1 + 7 * 32, 1 + 7 * 32 + 8, 1 + 3 * 32 + 20]  # poles, equator, upper ring
+    anchors = tmp_path / "anchors.json"
+    anchors.write_text(json.dumps({"anchors": [
+        {"vertex": vertex, "target": blender_from_obj([scale * value + offset for value, offset in zip(points[vertex], shift)])}
+        for vertex in chosen]}))
+    report_path = tmp_path / "r.json"
+    process = run("--template", inputs["target"], "--target", target, "--anchors", anchors, "--align", "anchors",
+                  "--report", report_path)
+    assert process.returncode == 0, process.stderr[-3000:]
+    alignment = json.loads(report_path.read_text())["alignment"]
+    assert alignment["method"] == "similarity" and alignment["anchors"] and alignment["icp"]
+    expected = [[scale, 0, 0, shift[0]], [0, scale, 0, -shift[2]], [0, 0, scale, shift[1]], [0, 0, 0, 1]]
+    for row, expected_row in zip(alignment["matrix"], expected):
+        assert all(abs(value - wanted) < 1e-4 for value, wanted in zip(row, expected_row)), alignment["matrix"]
+
+
+def test_align_arguments_that_cannot_work_exit_with_code_2(inputs):
+    assert run("--template", inputs["template"], "--target", inputs["target"], "--align", "anchors").returncode == 2
+    assert run("--template", inputs["template"], "--target", inputs["target"], "--align", "icp",
+               "--align-method", "affine").returncode == 2
