@@ -208,17 +208,43 @@ def test_icp_alone_converges_from_10_degrees_and_5_percent(delete_faces, capfd):
     assert _ALIGN_REPORT.search(report)["ending"] == "converged"  # the benchmark reads this report
 
 
-def test_anchors_then_icp_recover_a_similarity():
-    """Three rough anchors (1 % off) bring the layout close; ICP finishes the job."""
-    target, layout = make_scene(KNOWN["SIMILARITY"])
-    truth = true_positions(target, layout)
-    rng = np.random.default_rng(5)
-    size = diagonal(target)
-    for vertex in ANCHOR_VERTICES[:3]:
-        noisy = truth[vertex] + rng.normal(size=3) * 0.01 * size
-        bpy.ops.springwrap.anchor_add(vertex_index=vertex, location=tuple(noisy), use_location=True, on_surface=False)
-    assert bpy.ops.springwrap.align(method="SIMILARITY", use_icp=True, icp_iterations=100, apply="BAKE") == {"FINISHED"}
-    assert max_error(layout, truth) <= 1e-4 * size
+def test_rough_anchors_then_icp_recover_a_similarity():
+    """Three rough anchors (1 % off) bring the layout close; ICP finishes the job, exactly when told to
+    follow the surface alone (anchor weight 0), partly when it also keeps the rough anchors."""
+    errors = {}
+    for weight in (None, 1.0, 0.0):
+        bpy.ops.wm.read_homefile(use_empty=True)
+        target, layout = make_scene(KNOWN["SIMILARITY"])
+        truth = true_positions(target, layout)
+        rng = np.random.default_rng(5)
+        size = diagonal(target)
+        for vertex in ANCHOR_VERTICES[:3]:
+            noisy = truth[vertex] + rng.normal(size=3) * 0.01 * size
+            bpy.ops.springwrap.anchor_add(vertex_index=vertex, location=tuple(noisy), use_location=True, on_surface=False)
+        options = {"use_icp": False} if weight is None else {"use_icp": True, "anchor_weight": weight}
+        assert bpy.ops.springwrap.align(method="SIMILARITY", icp_iterations=100, apply="BAKE", **options) == {"FINISHED"}
+        errors[weight] = max_error(layout, truth) / size
+    assert errors[0.0] <= 1e-4, errors
+    assert errors[1.0] < 0.7 * errors[None], errors
+
+
+def test_the_anchor_weight_holds_icp_to_the_anchors_where_the_shapes_differ():
+    """The layout is Suzanne stretched 20 % along one axis: no similarity puts it on the target, so
+    ICP drifts from the anchors' fit; the heavier the anchors, the closer they stay."""
+    residuals = []
+    for weight in (0.0, 1.0, 10.0):
+        bpy.ops.wm.read_homefile(use_empty=True)
+        target, layout = make_scene(KNOWN["SIMILARITY"])
+        truth = add_exact_anchors(target, layout)
+        local = np.empty(len(layout.data.vertices) * 3, dtype=np.float32)
+        layout.data.vertices.foreach_get("co", local)
+        local = local.reshape(-1, 3) * np.array([1.2, 1.0, 1.0], dtype=np.float32)
+        layout.data.vertices.foreach_set("co", local.ravel())
+        layout.data.update()
+        assert bpy.ops.springwrap.align(method="SIMILARITY", use_icp=True, anchor_weight=weight, apply="BAKE") == {"FINISHED"}
+        anchored = list(ANCHOR_VERTICES)
+        residuals.append(float(np.linalg.norm(world_positions(layout)[anchored] - truth[anchored], axis=1).mean()))
+    assert residuals[0] > residuals[1] > residuals[2], residuals
 
 
 def test_alignment_detaches_every_face_point_and_keeps_the_rest_shape():

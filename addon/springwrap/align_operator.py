@@ -63,6 +63,14 @@ class SPRINGWRAP_OT_align(bpy.types.Operator):
         subtype="FACTOR",
     )
     max_distance: max_distance_property("ICP ignores layout vertices farther than this from the target (0 = unlimited)")
+    anchor_weight: bpy.props.FloatProperty(
+        name="Anchor Weight",
+        description="How firmly ICP keeps the anchors where the fit put them: all anchors together weigh this "
+        "much against the whole surface (0: ICP follows the surface alone)",
+        default=1.0,
+        min=0.0,
+        soft_max=10.0,
+    )
     only_selected: bpy.props.BoolProperty(
         name="Only Selected",
         description="ICP uses the selected layout vertices only (the transform still moves the whole layout)",
@@ -91,7 +99,7 @@ class SPRINGWRAP_OT_align(bpy.types.Operator):
         layout.prop(self, "use_icp")
         column = layout.column()
         column.active = self.use_icp
-        for name in ("icp_iterations", "trim_fraction", "max_distance", "only_selected"):
+        for name in ("icp_iterations", "trim_fraction", "max_distance", "anchor_weight", "only_selected"):
             column.prop(self, name)
         layout.prop(self, "apply")
 
@@ -117,6 +125,7 @@ class SPRINGWRAP_OT_align(bpy.types.Operator):
             trim_fraction=self.trim_fraction,
             max_distance=self.max_distance,
             only_selected=self.only_selected,
+            anchor_weight=self.anchor_weight,
         )
         start = time.perf_counter()
         try:

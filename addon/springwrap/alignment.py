@@ -40,6 +40,7 @@ class AlignParameters(NamedTuple):
     trim_fraction: float  # fraction of the farthest pairs ICP ignores each iteration, [0, 1)
     max_distance: float  # ICP ignores pairs farther apart than this (world units); 0: no limit
     only_selected: bool  # ICP uses the selected layout vertices only
+    anchor_weight: float = 1.0  # ICP keeps the anchors: their share of the fit (0: ICP ignores them)
 
 
 class AlignOutcome(NamedTuple):
@@ -66,6 +67,8 @@ def check_parameters(parameters: AlignParameters) -> None:
             raise LayoutError(f"The ICP trim fraction must be in [0, 1), got {parameters.trim_fraction}")
         if not (np.isfinite(parameters.max_distance) and parameters.max_distance >= 0.0):
             raise LayoutError(f"The ICP max distance must be 0 (no limit) or positive, got {parameters.max_distance}")
+        if not (np.isfinite(parameters.anchor_weight) and parameters.anchor_weight >= 0.0):
+            raise LayoutError(f"The ICP anchor weight must be 0 or positive, got {parameters.anchor_weight}")
 
 
 def anchor_pairs(anchor_list: anchor_arrays.Anchors, world_points: np.ndarray, method: str) -> tuple[np.ndarray, np.ndarray]:
@@ -136,6 +139,10 @@ def align(
         options = {}
         if parameters.max_distance > 0.0:
             options["max_distance"] = float(parameters.max_distance)
+        if len(source) and parameters.anchor_weight > 0.0:
+            options["anchor_source"] = layout_state.as_float32_points(source)
+            options["anchor_target"] = layout_state.as_float32_points(target_points)
+            options["anchor_weight"] = float(parameters.anchor_weight)
         report = target.mesh.icp(
             layout_state.as_float32_points(world[mask]),
             np.ascontiguousarray(matrix, dtype=np.float64),

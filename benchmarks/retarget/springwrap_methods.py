@@ -150,15 +150,19 @@ def springwrap_align(
     target_object,
     landmark_vertices: np.ndarray,
     anchor_positions: np.ndarray,
+    anchor_weight: float | None = None,
 ) -> tuple[np.ndarray, list[str]]:
-    """anchor_add per landmark → align (similarity + ICP, baked) on a new layout object; (positions, notes)."""
+    """anchor_add per landmark → align (similarity + ICP, baked) on a new layout object; (positions, notes).
+
+    ``anchor_weight=None`` keeps the operator's default."""
     import bpy
 
     layout = mesh_object("Springwrap align", layout_positions, quads)
     layout.springwrap.target = target_object
     _select_only(layout)
     anchor_count = _add_anchors(layout, landmark_vertices, anchor_positions)
-    output = _call("align", bpy.ops.springwrap.align, method="SIMILARITY", use_icp=True, apply="BAKE")
+    weight = {} if anchor_weight is None else {"anchor_weight": float(anchor_weight)}
+    output = _call("align", bpy.ops.springwrap.align, method="SIMILARITY", use_icp=True, apply="BAKE", **weight)
     match = _ALIGN_REPORT.search(output)
     notes = [f"{anchor_count} anchors, similarity fit then ICP"]
     if match:

@@ -49,7 +49,10 @@ pub mod query;
 pub mod surface;
 pub mod wrap;
 
-pub use align::{AlignMethod, IcpReport, IcpSettings, IcpUpdate, Transform, fit_transform, icp};
+pub use align::{
+    AlignMethod, IcpAnchors, IcpReport, IcpSettings, IcpUpdate, Transform, fit_transform, icp,
+    icp_anchored,
+};
 pub use error::KernelError;
 pub use face_point::{FacePoint, LayoutPoint, SurfaceHit, VertexHit};
 pub use layout::{Curve, CurveKind, LayoutStructure, LineTriple};

@@ -6,8 +6,8 @@ mod common;
 use common::{Rng, grid, lumpy_egg, lumpy_egg_with_hole, uv_sphere};
 use glam::{DMat3, DQuat, DVec3, Vec3};
 use springwrap_kernel::{
-    AlignMethod, IcpSettings, IcpUpdate, KernelError, TargetMesh, TargetMeshOptions, Transform,
-    fit_transform, icp,
+    AlignMethod, IcpAnchors, IcpSettings, IcpUpdate, KernelError, TargetMesh, TargetMeshOptions,
+    Transform, fit_transform, icp, icp_anchored,
 };
 
 /// A unit axis in a random direction.
@@ -605,5 +605,173 @@ fn icp_refuses_bad_input() {
     assert!(matches!(
         run(&far, settings),
         Err(KernelError::TooFewPairs { given: 0, .. })
+    ));
+}
+
+#[test]
+fn anchored_icp_follows_the_anchors_where_the_surface_leaves_it_free() {
+    // On a plane, ICP alone cannot tell where along the plane the grid belongs; anchors can.
+    let (vertices, triangles) = grid(24);
+    let samples: Vec<Vec3> = surface_samples(&vertices, &triangles)
+        .into_iter()
+        .filter(|point| (8.0..16.0).contains(&point.x) && (8.0..16.0).contains(&point.y))
+        .collect();
+    let mesh = TargetMesh::new(vertices, triangles, TargetMeshOptions::default()).unwrap();
+    let lift = transform_of(DMat3::IDENTITY, DVec3::new(0.0, 0.0, 0.3));
+    let source = misaligned(&samples, &lift);
+    let anchor_source = [
+        source[0],
+        source[source.len() / 2],
+        source[source.len() - 1],
+    ];
+    let slide = Vec3::new(2.5, -1.0, 0.0);
+    let anchor_target: Vec<Vec3> = [
+        samples[0],
+        samples[samples.len() / 2],
+        samples[samples.len() - 1],
+    ]
+    .iter()
+    .map(|&point| point + slide)
+    .collect();
+    let anchors = IcpAnchors {
+        source: &anchor_source,
+        target: &anchor_target,
+        weight: 1.0,
+    };
+    let report = icp_anchored(
+        &mesh,
+        &source,
+        anchors,
+        Transform::IDENTITY,
+        IcpSettings::default(),
+    )
+    .unwrap();
+    assert!(report.converged, "{report:?}");
+    let landed = report.transform.apply_all(&source);
+    assert!(
+        landed.iter().all(|point| point.z.abs() < 1e-4),
+        "{report:?}"
+    );
+    for (found, wanted) in report
+        .transform
+        .apply_all(&anchor_source)
+        .iter()
+        .zip(&anchor_target)
+    {
+        assert!(found.distance(*wanted) < 1e-4, "{found} vs {wanted}");
+    }
+    // Plain ICP (or weight 0) lands on the plane but does not slide.
+    for weight in [0.0, f64::NAN] {
+        let report = if weight.is_nan() {
+            icp(&mesh, &source, Transform::IDENTITY, IcpSettings::default()).unwrap()
+        } else {
+            let anchors = IcpAnchors { weight, ..anchors };
+            icp_anchored(
+                &mesh,
+                &source,
+                anchors,
+                Transform::IDENTITY,
+                IcpSettings::default(),
+            )
+            .unwrap()
+        };
+        let moved = report.transform.apply_all(&anchor_source);
+        assert!(moved[0].distance(anchor_target[0]) > 2.0, "{report:?}");
+    }
+}
+
+#[test]
+fn anchored_icp_weighs_the_anchors_against_the_surface() {
+    // The egg is scaled 5 % about its centre and the anchors say so; a rigid ICP cannot scale, so
+    // the heavier the anchors, the nearer the anchored points get to their targets.
+    let (vertices, triangles) = lumpy_egg(RADIUS, 24, 32);
+    let samples = surface_samples(&vertices, &triangles);
+    let mesh = TargetMesh::new(vertices, triangles, TargetMeshOptions::default()).unwrap();
+    let picks = [
+        0,
+        samples.len() / 3,
+        2 * samples.len() / 3,
+        samples.len() - 1,
+    ];
+    let anchor_source: Vec<Vec3> = picks.iter().map(|&index| samples[index]).collect();
+    let anchor_target: Vec<Vec3> = anchor_source
+        .iter()
+        .map(|&point| point * 1.05 + Vec3::X * 0.2)
+        .collect();
+    let mut previous = f32::INFINITY;
+    for weight in [0.0, 0.1, 1.0, 10.0] {
+        let anchors = IcpAnchors {
+            source: &anchor_source,
+            target: &anchor_target,
+            weight,
+        };
+        let report = icp_anchored(
+            &mesh,
+            &samples,
+            anchors,
+            Transform::IDENTITY,
+            IcpSettings::default(),
+        )
+        .unwrap();
+        let residual: f32 = report
+            .transform
+            .apply_all(&anchor_source)
+            .iter()
+            .zip(&anchor_target)
+            .map(|(found, wanted)| found.distance(*wanted))
+            .sum();
+        assert!(
+            residual < previous,
+            "weight {weight}: {residual} after {previous}"
+        );
+        previous = residual;
+    }
+}
+
+#[test]
+fn anchored_icp_refuses_bad_anchors() {
+    let (vertices, triangles) = grid(4);
+    let samples = surface_samples(&vertices, &triangles);
+    let mesh = TargetMesh::new(vertices, triangles, TargetMeshOptions::default()).unwrap();
+    let one = [Vec3::ZERO];
+    let two = [Vec3::ZERO, Vec3::X];
+    let run = |anchors: IcpAnchors<'_>| {
+        icp_anchored(
+            &mesh,
+            &samples,
+            anchors,
+            Transform::IDENTITY,
+            IcpSettings::default(),
+        )
+    };
+    assert!(matches!(
+        run(IcpAnchors {
+            source: &one,
+            target: &two,
+            weight: 1.0
+        }),
+        Err(KernelError::LengthMismatch { .. })
+    ));
+    assert!(matches!(
+        run(IcpAnchors {
+            source: &one,
+            target: &[Vec3::NAN],
+            weight: 1.0
+        }),
+        Err(KernelError::NonFinite {
+            what: "anchor target",
+            index: 0
+        })
+    ));
+    assert!(matches!(
+        run(IcpAnchors {
+            source: &one,
+            target: &one,
+            weight: -1.0
+        }),
+        Err(KernelError::InvalidArgument {
+            name: "anchor_weight",
+            ..
+        })
     ));
 }

@@ -20,7 +20,9 @@ use springwrap_kernel::{
     LayoutPoint, LayoutStructure, NO_TRIANGLE, SpringRest, SurfaceHit, TargetMesh,
     TargetMeshOptions, VertexHit, WrapSettings, WrapSolver, WrapWeights,
 };
-use springwrap_kernel::{IcpSettings, IcpUpdate, Transform, fit_transform, icp};
+use springwrap_kernel::{
+    IcpAnchors, IcpSettings, IcpUpdate, Transform, fit_transform, icp_anchored,
+};
 
 create_exception!(
     springwrap_kernel,
@@ -406,6 +408,8 @@ impl PyTargetMesh {
 
     /// Point-to-plane ICP of `source` onto this mesh from `initial` (a (4, 4) float64 matrix,
     /// identity when `None`): (matrix, iterations, converged, rms_before, rms_after, pairs_used).
+    /// With `anchor_source` / `anchor_target` ((K, 3) float32 each) the anchors stay in the fit,
+    /// all together weighing `anchor_weight` times the surface pairs.
     #[pyo3(signature = (
         source,
         initial = None,
@@ -416,6 +420,9 @@ impl PyTargetMesh {
         max_distance = f32::INFINITY,
         tolerance = 1e-7,
         ignore_boundary = true,
+        anchor_source = None,
+        anchor_target = None,
+        anchor_weight = 1.0,
     ))]
     #[allow(clippy::too_many_arguments)] // keyword arguments of one Python method
     fn icp<'py>(
@@ -429,8 +436,23 @@ impl PyTargetMesh {
         max_distance: f32,
         tolerance: f64,
         ignore_boundary: bool,
+        anchor_source: Option<&Bound<'py, PyAny>>,
+        anchor_target: Option<&Bound<'py, PyAny>>,
+        anchor_weight: f64,
     ) -> PyResult<IcpTuple<'py>> {
         let source = read_positions("source", source)?;
+        let (anchor_source, anchor_target) = match (anchor_source, anchor_target) {
+            (Some(source), Some(target)) => (
+                read_positions("anchor_source", source)?,
+                read_positions("anchor_target", target)?,
+            ),
+            (None, None) => (Vec::new(), Vec::new()),
+            _ => {
+                return Err(InvalidArgumentError::new_err(
+                    "anchor_source and anchor_target come together: give both or neither",
+                ));
+            }
+        };
         let initial = match initial {
             Some(array) => read_transform("initial", array)?,
             None => Transform::IDENTITY,
@@ -452,7 +474,14 @@ impl PyTargetMesh {
             tolerance,
             ignore_boundary,
         };
-        let report = run_kernel(py, || icp(&self.mesh, &source, initial, settings))?;
+        let anchors = IcpAnchors {
+            source: &anchor_source,
+            target: &anchor_target,
+            weight: anchor_weight,
+        };
+        let report = run_kernel(py, || {
+            icp_anchored(&self.mesh, &source, anchors, initial, settings)
+        })?;
         Ok((
             transform_array(py, &report.transform)?,
             report.iterations,

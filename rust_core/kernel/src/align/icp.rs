@@ -5,6 +5,10 @@
 //! a hole or border, or among the worst `trim_fraction`), then solves the linearised
 //! small-angle update that minimises the squared distances to the pairs' tangent planes
 //! (6x6 normal equations for a rigid update, 7x7 with a uniform scale), by Cholesky.
+//!
+//! [`icp_anchored`] also keeps anchor pairs (a source point and where it must go) in the fit, as
+//! point-to-point terms with a chosen share of the weight, so that ICP refines an anchor fit
+//! without sliding away from what the anchors say where the shapes differ.
 
 use glam::{DQuat, DVec3, Vec3};
 
@@ -71,12 +75,28 @@ pub struct IcpReport {
     pub pairs_used: usize,
 }
 
-/// One trusted pair: the transformed source point, its closest target point and that face's normal.
+/// Anchor pairs ICP keeps in its fit: `source[i]` (mapped by the transform) is pulled to
+/// `target[i]`, point to point.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct IcpAnchors<'a> {
+    /// Anchor points on the source side (the same space as ICP's source points).
+    pub source: &'a [Vec3],
+    /// Where each anchor point must go.
+    pub target: &'a [Vec3],
+    /// The anchors' share of the fit: all anchors together weigh `weight` times all the surface
+    /// pairs together (0: the anchors are ignored; 1: as much as the surface).
+    pub weight: f64,
+}
+
+/// One trusted pair: the transformed source point, its closest target point and that face's
+/// normal (an anchor gives three pairs, one per axis), and its weight in the fit.
+#[derive(Clone, Copy)]
 struct Pair {
     point: DVec3,
     closest: DVec3,
     normal: DVec3,
     distance: f64,
+    weight: f64,
 }
 
 /// Refines `initial` so that `source` mapped by it lies on `target`, by trimmed point-to-plane ICP.
@@ -91,7 +111,25 @@ pub fn icp(
     initial: Transform,
     settings: IcpSettings,
 ) -> Result<IcpReport, KernelError> {
+    icp_anchored(target, source, IcpAnchors::default(), initial, settings)
+}
+
+/// [`icp`] that also keeps `anchors` in the fit (see [`IcpAnchors`]). The report's RMS values are
+/// the surface pairs' alone; convergence is judged on the whole weighted fit.
+///
+/// # Errors
+/// Those of [`icp`]; [`KernelError::LengthMismatch`] when the anchors' two sides differ in
+/// length; [`KernelError::NonFinite`] for a NaN or infinite anchor point;
+/// [`KernelError::InvalidArgument`] for a negative or non-finite anchor weight.
+pub fn icp_anchored(
+    target: &TargetMesh,
+    source: &[Vec3],
+    anchors: IcpAnchors<'_>,
+    initial: Transform,
+    settings: IcpSettings,
+) -> Result<IcpReport, KernelError> {
     check_settings(&settings)?;
+    check_anchors(&anchors)?;
     if let Some(index) = source.iter().position(|point| !point.is_finite()) {
         return Err(KernelError::NonFinite {
             what: "source point",
@@ -123,10 +161,13 @@ pub fn icp(
     }
     let rms_before = rms(&pairs);
     let mut current_rms = rms_before;
+    let mut current_fit = fit_rms(&pairs, &anchors, &transform);
     let mut iterations = 0;
     let mut converged = false;
     while iterations < settings.max_iterations {
-        let Some(step) = solve_step(&pairs, settings.update) else {
+        let mut all_pairs = anchor_pairs(&anchors, &transform, pairs.len());
+        all_pairs.extend_from_slice(&pairs);
+        let Some(step) = solve_step(&all_pairs, settings.update) else {
             break;
         };
         let candidate = step.after(&transform);
@@ -137,9 +178,10 @@ pub fn icp(
         transform = candidate;
         pairs = candidate_pairs;
         iterations += 1;
-        let new_rms = rms(&pairs);
-        let change = (new_rms - current_rms).abs();
-        current_rms = new_rms;
+        current_rms = rms(&pairs);
+        let new_fit = fit_rms(&pairs, &anchors, &transform);
+        let change = (new_fit - current_fit).abs();
+        current_fit = new_fit;
         if change <= tolerance {
             converged = true;
             break;
@@ -153,6 +195,87 @@ pub fn icp(
         rms_after: current_rms,
         pairs_used: pairs.len(),
     })
+}
+
+fn check_anchors(anchors: &IcpAnchors<'_>) -> Result<(), KernelError> {
+    if anchors.source.len() != anchors.target.len() {
+        return Err(KernelError::LengthMismatch {
+            what: "anchor sources and targets",
+            first: anchors.source.len(),
+            second: anchors.target.len(),
+        });
+    }
+    for (what, points) in [
+        ("anchor source", anchors.source),
+        ("anchor target", anchors.target),
+    ] {
+        if let Some(index) = points.iter().position(|point| !point.is_finite()) {
+            return Err(KernelError::NonFinite { what, index });
+        }
+    }
+    if !anchors.weight.is_finite() || anchors.weight < 0.0 {
+        return Err(KernelError::InvalidArgument {
+            name: "anchor_weight",
+            reason: format!("{} is not a finite non-negative number", anchors.weight),
+        });
+    }
+    Ok(())
+}
+
+/// The weight of one anchor: all anchors together weigh `weight` times the `surface_count` pairs.
+fn anchor_weight(anchors: &IcpAnchors<'_>, surface_count: usize) -> f64 {
+    if anchors.source.is_empty() {
+        return 0.0;
+    }
+    anchors.weight * surface_count as f64 / anchors.source.len() as f64
+}
+
+/// Three point-to-point pairs per anchor (one per axis), at `transform`; none when the weight is 0.
+fn anchor_pairs(
+    anchors: &IcpAnchors<'_>,
+    transform: &Transform,
+    surface_count: usize,
+) -> Vec<Pair> {
+    let weight = anchor_weight(anchors, surface_count);
+    if weight <= 0.0 {
+        return Vec::new();
+    }
+    let mut pairs = Vec::with_capacity(anchors.source.len() * 3);
+    for (source, target) in anchors.source.iter().zip(anchors.target) {
+        let point = transform.apply_f64(source.as_dvec3());
+        for normal in [DVec3::X, DVec3::Y, DVec3::Z] {
+            pairs.push(Pair {
+                point,
+                closest: target.as_dvec3(),
+                normal,
+                distance: 0.0, // unused: the RMS values are the surface pairs' alone
+                weight,
+            });
+        }
+    }
+    pairs
+}
+
+/// The whole fit's error as an RMS over the surface pairs: `sqrt((Σ d² + Σ w |p − q|²) / n)`.
+fn fit_rms(pairs: &[Pair], anchors: &IcpAnchors<'_>, transform: &Transform) -> f64 {
+    let surface: f64 = pairs.iter().map(|pair| pair.distance * pair.distance).sum();
+    let weight = anchor_weight(anchors, pairs.len());
+    let anchored: f64 = if weight > 0.0 {
+        anchors
+            .source
+            .iter()
+            .zip(anchors.target)
+            .map(|(source, target)| {
+                weight
+                    * transform
+                        .apply_f64(source.as_dvec3())
+                        .distance_squared(target.as_dvec3())
+            })
+            .sum()
+    } else {
+        0.0
+    };
+    ((surface + anchored) / pairs.len().max(1) as f64).sqrt()
 }
 
 fn check_settings(settings: &IcpSettings) -> Result<(), KernelError> {
@@ -219,6 +342,7 @@ fn trusted_pairs(
                 closest,
                 normal,
                 distance: point.distance(closest),
+                weight: 1.0,
             })
         })
         .collect();
@@ -238,7 +362,12 @@ fn rms(pairs: &[Pair]) -> f64 {
 /// `Σ (n · (step(x) - y))²` to first order in the rotation vector and `s - 1`, or `None` when
 /// the normal equations are singular.
 fn solve_step(pairs: &[Pair], update: IcpUpdate) -> Option<Transform> {
-    let centroid = pairs.iter().map(|pair| pair.point).sum::<DVec3>() / pairs.len() as f64;
+    let total_weight: f64 = pairs.iter().map(|pair| pair.weight).sum();
+    let centroid = pairs
+        .iter()
+        .map(|pair| pair.point * pair.weight)
+        .sum::<DVec3>()
+        / total_weight;
     let mut normal_matrix = [[0.0; 7]; 7];
     let mut rhs = [0.0; 7];
     let unknowns = if update == IcpUpdate::Similarity {
@@ -261,9 +390,9 @@ fn solve_step(pairs: &[Pair], update: IcpUpdate) -> Option<Transform> {
         ];
         for i in 0..unknowns {
             for j in 0..unknowns {
-                normal_matrix[i][j] += row[i] * row[j];
+                normal_matrix[i][j] += pair.weight * row[i] * row[j];
             }
-            rhs[i] -= row[i] * residual;
+            rhs[i] -= pair.weight * row[i] * residual;
         }
     }
     // A light Levenberg damping keeps directions the surface does not constrain (turning a

@@ -7,5 +7,5 @@ pub mod linear_algebra;
 pub mod transform;
 
 pub use fit::{AlignMethod, fit_transform};
-pub use icp::{IcpReport, IcpSettings, IcpUpdate, icp};
+pub use icp::{IcpAnchors, IcpReport, IcpSettings, IcpUpdate, icp, icp_anchored};
 pub use transform::Transform;

@@ -139,12 +139,18 @@ class TargetMesh:
         max_distance: float = ...,
         tolerance: float = 1e-7,
         ignore_boundary: bool = True,
+        anchor_source: npt.NDArray[np.float32] | None = None,
+        anchor_target: npt.NDArray[np.float32] | None = None,
+        anchor_weight: float = 1.0,
     ) -> IcpReport:
         """Point-to-plane ICP of ``source`` onto this mesh, starting from ``initial`` (a (4, 4)
         float64 affine matrix, identity when ``None``). Each iteration ignores pairs farther than
         ``max_distance``, pairs whose closest point lies on a boundary edge (with
         ``ignore_boundary``) and the worst ``trim_fraction``; it stops when the RMS distance
-        changes by less than ``tolerance`` times the mesh's bounding-box diagonal."""
+        changes by less than ``tolerance`` times the mesh's bounding-box diagonal. With
+        ``anchor_source`` and ``anchor_target`` ((K, 3) float32, both or neither) each anchor point
+        is also pulled to its target, point to point, all anchors together weighing
+        ``anchor_weight`` times the surface pairs (0: ignored); convergence then judges the whole fit."""
 
 # ---------------------------------------------------------------- alignment
 class IcpReport(NamedTuple):
