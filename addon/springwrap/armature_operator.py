@@ -93,14 +93,16 @@ def _pose_snapshot(armature) -> list:
             tuple(pose_bone.rotation_euler),
             tuple(pose_bone.rotation_axis_angle),
             tuple(pose_bone.scale),
+            pose_bone.bone.inherit_scale,
         )
         for pose_bone in armature.pose.bones
     ]
 
 
 def _restore_pose(armature, snapshot) -> None:
-    for name, mode, location, quaternion, euler, axis_angle, scale in snapshot:
+    for name, mode, location, quaternion, euler, axis_angle, scale, inherit_scale in snapshot:
         pose_bone = armature.pose.bones[name]
+        pose_bone.bone.inherit_scale = inherit_scale
         pose_bone.rotation_mode = mode
         pose_bone.location = location
         pose_bone.rotation_quaternion = quaternion
@@ -130,7 +132,7 @@ def pose_onto(context, template, target, match_roll, scale_mode, progress=None) 
     """Pose ``template`` so that each bone lies on ``target``'s bone of the same name (world space).
 
     Matched bones get :func:`armature_align.desired_pose_matrix` through Blender's ``PoseBone.matrix``
-    setter, a depth level at a time (each level is evaluated before the next, since the setter reads
+    setter (with :data:`SCALE_ALONG` their Inherit Scale is set to None first), a depth level at a time (each level is evaluated before the next, since the setter reads
     the parent's evaluated pose); bones without a partner are cleared to their rest transform, so they
     follow their parent. Raises :class:`AlignmentError` when no bone matches (nothing changed then)."""
     context.view_layer.update()
@@ -158,6 +160,11 @@ def pose_onto(context, template, target, match_roll, scale_mode, progress=None) 
             raise AlignmentError(f"Bone '{name}': {error}") from error
     from mathutils import Matrix
 
+    if scale_mode == SCALE_ALONG:
+        # A child inherits its parent's stretch along the parent's axis as a shear, which a pose
+        # (location, rotation, scale) cannot undo: matched bones take no scale from their parent.
+        for name in matched:
+            template.data.bones[name].inherit_scale = "NONE"
     levels = armature_align.depth_levels(names, [bone.parent.name if bone.parent else "" for bone in template.data.bones])
     for level_index, level in enumerate(levels):
         for name in level:
