@@ -20,7 +20,11 @@ from . import armature_align
 from .armature_align import SCALE_ALONG, SCALE_NONE, SCALE_UNIFORM
 
 SCALE_MODE_ITEMS = (
-    (SCALE_ALONG, "Along Bones", "Stretch each bone along its length so that its tail meets the target's"),
+    (
+        SCALE_ALONG,
+        "Along Bones",
+        "Stretch each bone along its length so that its tail meets the target's (matched bones then inherit no scale)",
+    ),
     (SCALE_UNIFORM, "Uniform", "Scale each bone uniformly by the ratio of the lengths (thicker when longer)"),
     (SCALE_NONE, "None", "Match heads and directions only (a longer target bone leaves a gap at the joint)"),
 )
@@ -242,7 +246,12 @@ class SPRINGWRAP_OT_align_armature(bpy.types.Operator):
         description="Turn each bone about itself as the target's bone is turned (off: only its direction)",
         default=True,
     )
-    scale_mode: bpy.props.EnumProperty(name="Scale", items=SCALE_MODE_ITEMS, default=SCALE_ALONG)
+    scale_mode: bpy.props.EnumProperty(
+        name="Scale",
+        description="How a template bone takes the length of its target bone",
+        items=SCALE_MODE_ITEMS,
+        default=SCALE_ALONG,
+    )
     bake: bpy.props.BoolProperty(
         name="Bake",
         description=(
