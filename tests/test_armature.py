@@ -339,3 +339,27 @@ def test_anny_rest_template_is_aligned_onto_a_posed_heavier_body(anny_cache):
     assert mean_before > 5.0
     assert mean_after < 0.5 and max_after < 4.0, (mean_after, max_after)
     assert mean_after < mean_before / 10.0
+
+
+def test_connected_bones_and_edit_mode():
+    """Connected bones (the child's head locked to the parent's tail) align exactly too; a layout in
+    Edit Mode is aligned and left in Edit Mode."""
+    layout, template_armature, target_armature, truth = cylinder_scene(BENT, upper_length=1.3)
+    for armature in (template_armature, target_armature):
+        bpy.context.view_layer.objects.active = armature
+        bpy.ops.object.mode_set(mode="EDIT")
+        armature.data.edit_bones["upper"].use_connect = True
+        bpy.ops.object.mode_set(mode="OBJECT")
+    activate(layout)
+    bpy.ops.object.mode_set(mode="EDIT")
+    assert bpy.ops.springwrap.align_armature(target_armature="Target Rig") == {"FINISHED"}
+    assert layout.mode == "EDIT"
+    bpy.ops.object.mode_set(mode="OBJECT")
+    bpy.context.view_layer.update()
+    for name in ("lower", "upper"):
+        posed, goal = template_armature.pose.bones[name], target_armature.pose.bones[name]
+        assert (posed.head - goal.head).length < 1e-6 and (posed.tail - goal.tail).length < 1e-6, name
+    # The top ring reached the longer target bone's tail (girth kept).
+    top = cylinder()[0][:, 2] > 2.0 - 1e-6
+    centre = world_positions(layout)[top].mean(axis=0)
+    assert np.linalg.norm(centre - np.array(target_armature.pose.bones["upper"].tail)) < 1e-5
