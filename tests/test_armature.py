@@ -38,14 +38,17 @@ def cylinder(rings=21, segments=12, height=2.0):
     return vertices, quads
 
 
-def cylinder_rig(vertices, upper_length=1.0, with_tip=False, names=("lower", "upper", "tip")):
-    """Bones along the tube: ``lower`` 0..1, ``upper`` 1..1+L (child), optionally ``tip`` above it
+def cylinder_rig(vertices, upper_length=1.0, with_tip=False, names=("lower", "upper", "tip"), lower_length=1.0):
+    """Bones along the tube: ``lower`` 0..L0, ``upper`` L0..L0+L (child), optionally ``tip`` above it
     (child of upper, weighting the top ring); weights blend lower / upper over z = 0.8..1.2."""
     z = vertices[:, 2]
     lower = np.clip((1.2 - z) / 0.4, 0.0, 1.0)
     everything = np.arange(len(vertices))
-    top = 1.0 + upper_length
-    bones = [(names[0], "", (0.0, 0.0, 0.0), (0.0, 0.0, 1.0)), (names[1], names[0], (0.0, 0.0, 1.0), (0.0, 0.0, top))]
+    top = lower_length + upper_length
+    bones = [
+        (names[0], "", (0.0, 0.0, 0.0), (0.0, 0.0, lower_length)),
+        (names[1], names[0], (0.0, 0.0, lower_length), (0.0, 0.0, top)),
+    ]
     weights = {names[0]: (everything[lower > 0], lower[lower > 0]), names[1]: (everything[lower < 1], 1.0 - lower[lower < 1])}
     if with_tip:
         bones.append((names[2], names[1], (0.0, 0.0, top), (0.0, 0.0, top + 0.3)))
@@ -68,7 +71,7 @@ def activate(layout):
     bpy.context.view_layer.objects.active = layout
 
 
-def cylinder_scene(pose, upper_length=1.0, with_tip=False):
+def cylinder_scene(pose, upper_length=1.0, with_tip=False, lower_length=1.0):
     """Template (rest tube skinned to ``Template Rig``), ``Target Rig`` posed by ``pose`` (bone -> Euler XYZ
     degrees) and the truth: the template's tube skinned to the target rig, baked (world positions)."""
     vertices, quads = cylinder()
@@ -76,7 +79,7 @@ def cylinder_scene(pose, upper_length=1.0, with_tip=False):
     template_armature = rig_scene.build_armature("Template Rig", template_rig)
     layout = rig_scene.build_mesh_object("Layout", vertices, quads)
     rig_scene.skin(layout, template_armature, template_rig)
-    target_rig = cylinder_rig(vertices, upper_length=upper_length, with_tip=with_tip)
+    target_rig = cylinder_rig(vertices, upper_length=upper_length, with_tip=with_tip, lower_length=lower_length)
     target_armature = rig_scene.build_armature("Target Rig", target_rig)
     rig_scene.pose_armature(target_armature, {bone: tuple(np.radians(angles)) for bone, angles in pose.items()})
     truth_body = rig_scene.build_mesh_object("Truth Skinned", vertices, quads)
@@ -363,3 +366,21 @@ def test_connected_bones_and_edit_mode():
     top = cylinder()[0][:, 2] > 2.0 - 1e-6
     centre = world_positions(layout)[top].mean(axis=0)
     assert np.linalg.norm(centre - np.array(target_armature.pose.bones["upper"].tail)) < 1e-5
+
+
+@pytest.mark.parametrize("mode", ["ALONG", "UNIFORM"])
+def test_a_stretched_parent_does_not_shear_its_child(mode):
+    """The target's lower bone 1.6 long, its upper bone bent 70 degrees: every template bone lands on its
+    target bone (a child inheriting its parent's stretch along another axis would be sheared off it),
+    and with ALONG the tube's top ring stays round with its radius."""
+    layout, template_armature, target_armature, _truth = cylinder_scene({"upper": (70.0, 0.0, 30.0)}, lower_length=1.6)
+    assert bpy.ops.springwrap.align_armature(target_armature="Target Rig", scale_mode=mode) == {"FINISHED"}
+    bpy.context.view_layer.update()
+    for name in ("lower", "upper"):
+        posed, goal = template_armature.pose.bones[name], target_armature.pose.bones[name]
+        assert (posed.head - goal.head).length < 1e-6 and (posed.tail - goal.tail).length < 1e-6, name
+    if mode == "ALONG":
+        top = cylinder()[0][:, 2] > 2.0 - 1e-6
+        ring = world_positions(layout)[top]
+        np.testing.assert_allclose(np.linalg.norm(ring - ring.mean(axis=0), axis=1), RADIUS, rtol=1e-5)
+
