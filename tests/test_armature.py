@@ -14,7 +14,7 @@ import pytest
 from mathutils import Euler, Matrix
 
 from test_addon import local_positions, world_positions
-from test_wrap import wrap_scene  # noqa: F401 (autouse: empty scene, add-on enabled, undo initialized)
+from test_wrap import _RecordingLayout, wrap_scene  # noqa: F401 (wrap_scene, autouse: empty scene, add-on enabled, undo initialized)
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # `benchmarks` lives at the root
 
@@ -383,4 +383,20 @@ def test_a_stretched_parent_does_not_shear_its_child(mode):
         top = cylinder()[0][:, 2] > 2.0 - 1e-6
         ring = world_positions(layout)[top]
         np.testing.assert_allclose(np.linalg.norm(ring - ring.mean(axis=0), axis=1), RADIUS, rtol=1e-5)
+
+
+def test_operator_setting_and_panel_are_registered():
+    from springwrap.ui import SPRINGWRAP_PT_armature
+
+    rna = bpy.ops.springwrap.align_armature.get_rna_type()
+    assert rna.identifier == "SPRINGWRAP_OT_align_armature" and rna.description
+    assert bpy.types.SPRINGWRAP_OT_align_armature.bl_options == {"REGISTER", "UNDO"}
+    assert [item.identifier for item in rna.properties["scale_mode"].enum_items] == ["ALONG", "UNIFORM", "NONE"]
+    settings = bpy.types.Object.bl_rna.properties["springwrap"].fixed_type
+    assert settings.properties["target_armature"].fixed_type.identifier == "Object"
+    cylinder_scene(BENT)
+    assert SPRINGWRAP_PT_armature.bl_parent_id == "SPRINGWRAP_PT_layout" and SPRINGWRAP_PT_armature.poll(bpy.context)
+    recorder = _RecordingLayout()
+    SPRINGWRAP_PT_armature.draw(type("Panel", (), {"layout": recorder})(), bpy.context)
+    assert recorder.props == [("target_armature", True)] and recorder.operators == ["springwrap.align_armature"]
 
