@@ -29,6 +29,7 @@ from . import (  # noqa: E402
     align_operator,
     anchor_drawing,
     anchor_operators,
+    armature_operator,
     curve_operators,
     operators,
     properties,
@@ -36,7 +37,16 @@ from . import (  # noqa: E402
     wrap_operator,
 )
 
-_modules = (properties, operators, align_operator, anchor_operators, curve_operators, wrap_operator, ui)
+_modules = (
+    properties,
+    operators,
+    align_operator,
+    anchor_operators,
+    curve_operators,
+    wrap_operator,
+    armature_operator,
+    ui,
+)
 
 
 def register():

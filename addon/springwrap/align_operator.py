@@ -67,7 +67,7 @@ class SPRINGWRAP_OT_align(bpy.types.Operator):
         name="Anchor Weight",
         description="How firmly ICP keeps the anchors where the fit put them: all anchors together weigh this "
         "much against the whole surface (0: ICP follows the surface alone)",
-        default=1.0,
+        default=0.3,
         min=0.0,
         soft_max=10.0,
     )

@@ -40,7 +40,7 @@ class AlignParameters(NamedTuple):
     trim_fraction: float  # fraction of the farthest pairs ICP ignores each iteration, [0, 1)
     max_distance: float  # ICP ignores pairs farther apart than this (world units); 0: no limit
     only_selected: bool  # ICP uses the selected layout vertices only
-    anchor_weight: float = 1.0  # ICP keeps the anchors: their share of the fit (0: ICP ignores them)
+    anchor_weight: float = 0.3  # ICP keeps the anchors: their share of the fit (0: ICP ignores them)
 
 
 class AlignOutcome(NamedTuple):

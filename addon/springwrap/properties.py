@@ -64,6 +64,11 @@ def _is_target_candidate(settings, candidate):
     return candidate is not None and candidate.type == "MESH" and candidate != settings.id_data
 
 
+def _is_armature(_settings, candidate):
+    """Poll of ``target_armature``: an armature object."""
+    return candidate is not None and candidate.type == "ARMATURE"
+
+
 class SpringwrapAnchorItem(bpy.types.PropertyGroup):
     """An anchor: a layout vertex and the target point it is pulled to (paper section 2.4)"""
 
@@ -258,6 +263,13 @@ class SpringwrapObjectSettings(bpy.types.PropertyGroup):
             "whose three corners weigh more than 0.5 as space-points (read from the evaluated target)"
         ),
         default="",
+    )
+    # Armature alignment (armature_operator).
+    target_armature: bpy.props.PointerProperty(
+        name="Target Armature",
+        description="Armature of the target whose bones the layout's armature is posed onto (bones matched by name)",
+        type=bpy.types.Object,
+        poll=compat.pointer_poll(_is_armature),
     )
 
 

@@ -236,6 +236,21 @@ class SPRINGWRAP_PT_wrap(_LayoutSubPanel, bpy.types.Panel):
         layout.operator("springwrap.rest_set", icon="ARMATURE_DATA")
 
 
+class SPRINGWRAP_PT_armature(_LayoutSubPanel, bpy.types.Panel):
+    """Armature alignment: the target armature and the Align Armature button"""
+
+    bl_label = "Armature"
+    bl_idname = "SPRINGWRAP_PT_armature"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        layout.prop(context.active_object.springwrap, "target_armature")
+        layout.operator("springwrap.align_armature", icon="ARMATURE_DATA")
+
+
 def _anchor_counts_text(anchors):
     """"K anchors (F on the surface)", the kinds read at once (the list may be long)."""
     import numpy as np
@@ -253,6 +268,7 @@ def _anchor_counts_text(anchors):
 classes = (
     SPRINGWRAP_PT_layout,
     SPRINGWRAP_PT_align,
+    SPRINGWRAP_PT_armature,
     SPRINGWRAP_UL_anchors,
     SPRINGWRAP_PT_anchors,
     SPRINGWRAP_UL_curve_constraints,
