@@ -24,7 +24,8 @@ OUT = REPOSITORY_ROOT / "out" / "bench"
 DOCS = REPOSITORY_ROOT / "docs"
 
 SPRINGWRAP_METHODS = ("Springwrap snap", "Springwrap wrap", "Springwrap snap+wrap", "Springwrap project+wrap",
-                      "Springwrap align", "Springwrap align+wrap")
+                      "Springwrap align", "Springwrap align+wrap", "Springwrap armature",
+                      "Springwrap armature+wrap")
 BASELINE_METHODS = ("aligned template", "Shrinkwrap nearest", "Shrinkwrap project", "trimesh nricp_amberg")
 
 

@@ -14,6 +14,9 @@ positions on the target) and returns the layout's new vertex positions:
   ``springwrap.detach`` then ``springwrap.snap(mode='SURFACE')``;
 - ``Springwrap align`` and ``align+wrap``: the template as given, aligned by the add-on's own
   ``springwrap.align`` (anchors, then ICP), then wrapped (see ``springwrap_methods``);
+- ``Springwrap armature`` and ``armature+wrap``: posed cases only: the template skinned to
+  MakeHuman's rig, posed onto the target's rig by ``springwrap.align_armature``, then wrapped (see
+  ``armature_methods``);
 - ``trimesh nricp_amberg``: non-rigid ICP (Amberg et al. 2007) from trimesh, on the aligned
   template triangulated, with the landmarks and their anchors, trimesh's default schedule. The
   target is handed over as the point cloud of its vertices (trimesh then matches with a KD-tree);
@@ -254,6 +257,8 @@ METHODS = (
     "Springwrap project+wrap",
     "Springwrap align",
     "Springwrap align+wrap",
+    "Springwrap armature",
+    "Springwrap armature+wrap",
 )
 
 
@@ -263,7 +268,7 @@ def run_baselines(
     """Run ``methods`` on a case (the Blender scene is cleared first), with its first ``anchor_count`` landmarks.
 
     ``wrap_max_iterations`` caps the wrap methods' iterations (None: the operator's default)."""
-    from benchmarks.retarget import springwrap_methods
+    from benchmarks.retarget import armature_methods, springwrap_methods
 
     marks = case.landmarks(anchor_count)
     anchors = case.true_positions[marks.vertices]
@@ -306,6 +311,11 @@ def run_baselines(
                         )
                         result.notes += notes
                         result.details = report.as_dict()
+                elif method in armature_methods.ARMATURE_METHODS:
+                    result.positions, result.notes, result.details = armature_methods.springwrap_armature(
+                        case, target_object, marks.vertices, anchors, wrap=method == "Springwrap armature+wrap",
+                        max_iterations=wrap_max_iterations,
+                    )
                 else:
                     raise BaselineUnavailable(f"unknown method {method!r}")
         except BaselineUnavailable as error:

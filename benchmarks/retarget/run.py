@@ -41,6 +41,8 @@ SHORT_NAMES = {
     "Springwrap project+wrap": "proj+wrap",
     "Springwrap align": "sw-align",
     "Springwrap align+wrap": "align+wrap",
+    "Springwrap armature": "sw-arm",
+    "Springwrap armature+wrap": "arm+wrap",
 }
 
 

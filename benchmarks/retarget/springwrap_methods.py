@@ -182,12 +182,25 @@ def springwrap_wrap(
     """detach [→ snap or project] → anchor_add per landmark → wrap, on a new layout object; (positions, notes, report).
 
     ``start`` is ``"detach"``, ``"snap"`` or ``"project"``; ``max_iterations=None`` keeps the operator's default."""
-    import bpy
-
     if start not in ("detach", "snap", "project"):
         raise ValueError(f"unknown start {start!r}")
     layout = mesh_object(f"Springwrap {start}", layout_positions, quads)
     layout.springwrap.target = target_object
+    return wrap_layout(layout, layout_positions, landmark_vertices, anchor_positions, start, max_iterations)
+
+
+def wrap_layout(
+    layout,
+    layout_positions: np.ndarray,
+    landmark_vertices: np.ndarray,
+    anchor_positions: np.ndarray,
+    start: str = "detach",
+    max_iterations: int | None = None,
+) -> tuple[np.ndarray, list[str], WrapReport]:
+    """:func:`springwrap_wrap` on an existing layout object whose target is set (``layout_positions``: its
+    vertices, for ``project``'s ray length); (positions, notes, report)."""
+    import bpy
+
     _select_only(layout)
     _call("detach", bpy.ops.springwrap.detach, only_selected=False)
     if start == "snap":
