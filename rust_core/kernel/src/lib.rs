@@ -43,6 +43,7 @@ pub mod align;
 pub mod bvh;
 pub mod error;
 pub mod face_point;
+pub mod features;
 pub mod layout;
 pub mod mesh;
 pub mod query;
@@ -52,6 +53,10 @@ pub mod wrap;
 pub use align::{AlignMethod, IcpReport, IcpSettings, IcpUpdate, Transform, fit_transform, icp};
 pub use error::KernelError;
 pub use face_point::{FacePoint, LayoutPoint, SurfaceHit, VertexHit};
+pub use features::{
+    FeatureCurve, FeatureCurveKind, FeatureRegion, FeatureSettings, Features, PrincipalCurvatures,
+    classify_regions, detect_features, principal_curvatures,
+};
 pub use layout::{Curve, CurveKind, LayoutStructure, LineTriple};
 pub use mesh::{NO_TRIANGLE, TargetMesh, TargetMeshOptions, TriangleEdge};
 pub use surface::{WalkEnd, WalkOutcome};
