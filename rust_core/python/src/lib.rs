@@ -22,6 +22,8 @@ use springwrap_kernel::{
 };
 use springwrap_kernel::{IcpSettings, IcpUpdate, Transform, fit_transform, icp};
 
+mod features;
+
 create_exception!(
     springwrap_kernel,
     SpringwrapError,
@@ -96,6 +98,8 @@ fn to_python_error(error: &KernelError) -> PyErr {
         | KernelError::CoincidentAnchors { .. }
         | KernelError::CollinearAnchors { .. }
         | KernelError::CoplanarAnchors { .. } => InvalidArgumentError::new_err(message),
+        KernelError::InvalidScale { .. } => InvalidArgumentError::new_err(message),
+        KernelError::FlatSurface { .. } => features::FlatSurfaceError::new_err(message),
     }
 }
 
@@ -1076,5 +1080,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
         py.get_type::<InvalidArgumentError>(),
     )?;
     m.add("InternalError", py.get_type::<InternalError>())?;
+    features::register(m)?;
     Ok(())
 }
