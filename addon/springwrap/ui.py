@@ -195,6 +195,7 @@ class SPRINGWRAP_PT_curve_constraints(_LayoutSubPanel, bpy.types.Panel):
         layout.prop(settings, "curve_source")
         layout.label(text="Add: selected edge chain (Edit Mode)", icon="INFO")
         layout.operator("springwrap.curve_constraints_auto", icon="AUTO")
+        layout.operator("springwrap.detect_features", icon="CURVE_BEZCURVE")
 
 
 class SPRINGWRAP_PT_wrap(_LayoutSubPanel, bpy.types.Panel):

@@ -150,12 +150,12 @@ fn a_sphere_seen_from_inside_is_concave() {
 #[test]
 fn noisy_sphere_curvatures_hold_at_a_larger_scale() {
     // Noise of ±0.5 % of the radius, about a tenth of an edge (edges ~0.05): estimates at the
-    // scale of the edges are far off; a fit over 0.6 of the radius averages it out.
+    // scale of the edges are far off; a fit over 0.8 of the radius averages it out.
     let radius = 1.0;
     let (mut vertices, triangles) = rounded_box(radius, radius, 32);
     add_radial_noise(&mut vertices, 0.005 * radius, 7);
     let sphere = mesh((vertices, triangles));
-    let curvatures = principal_curvatures(&sphere, 0.6 * radius).unwrap();
+    let curvatures = principal_curvatures(&sphere, 0.8 * radius).unwrap();
     let (mean1, max1) = relative_errors(&curvatures.k1, 1.0 / radius, true);
     let (mean2, max2) = relative_errors(&curvatures.k2, 1.0 / radius, true);
     println!("noisy sphere: k1 mean {mean1:.4} p99 {max1:.4}, k2 mean {mean2:.4} p99 {max2:.4}");
@@ -327,6 +327,28 @@ fn check_box_curves(inside_out: bool, noise: f32, scale: f32) -> (f32, f32) {
     } else {
         FeatureRegion::Convex
     };
+    let saddles = features
+        .regions
+        .iter()
+        .filter(|&&region| region == FeatureRegion::Saddle)
+        .count();
+    let concave_or_convex_the_wrong_way = features
+        .regions
+        .iter()
+        .filter(|&&region| {
+            region
+                == if inside_out {
+                    FeatureRegion::Convex
+                } else {
+                    FeatureRegion::Concave
+                }
+        })
+        .count();
+    println!("saddle vertices {saddles}, of the wrong sign {concave_or_convex_the_wrong_way}");
+    if noise == 0.0 {
+        assert_eq!(saddles, 0, "a box has no saddle");
+        assert_eq!(concave_or_convex_the_wrong_way, 0);
+    }
     for (vertex, &position) in target.vertices().iter().enumerate() {
         if noise > 0.0 {
             break; // noise makes k2 on a blend stray below zero (saddle) here and there
@@ -381,9 +403,9 @@ fn rounded_box_inside_out_gives_twelve_valleys() {
 
 #[test]
 fn noisy_rounded_box_still_gives_twelve_curves() {
-    // Noise of ±2 % of the blend radius (a tenth of an edge), at a scale a little over the radius:
+    // Noise of ±2 % of the blend radius (a tenth of an edge), at a scale of 1.4 times the radius:
     // every point within 0.4 of the radius (two edges), on average within a twentieth.
-    let (worst, mean) = check_box_curves(false, 0.005, 0.3);
+    let (worst, mean) = check_box_curves(false, 0.005, 0.35);
     assert!(worst < 0.1, "a curve point is {worst} from its centre-line");
     assert!(
         mean < 0.0125,

@@ -45,7 +45,10 @@ pub struct PrincipalCurvatures {
 }
 
 /// The fewest vertices a fit uses: below it, rings beyond the scale are added.
-const MIN_FIT_VERTICES: usize = 12;
+const MIN_FIT_VERTICES: usize = 16;
+
+/// Coefficients of the fitted height function: quadric, linear, constant and the quartic terms.
+const FIT_TERMS: usize = 11;
 
 /// Checks a feature scale: positive, finite and no larger than the mesh's bounding-box diagonal.
 ///
@@ -152,23 +155,35 @@ fn fit_vertex(
         .unwrap_or_else(|| vertex_normals[vertex as usize].as_dvec3());
     let (u_axis, w_axis) = normal.any_orthonormal_pair();
 
-    // Normal equations of the seven coefficients, in coordinates divided by the radius.
-    let mut matrix = [[0.0f64; 7]; 7];
-    let mut rhs = [0.0f64; 7];
+    // Normal equations of the coefficients, in coordinates divided by the radius.
+    let mut matrix = [[0.0f64; FIT_TERMS]; FIT_TERMS];
+    let mut rhs = [0.0f64; FIT_TERMS];
     for &index in neighborhood {
         let offset = (positions[index as usize].as_dvec3() - origin) / radius;
         let weight = weight_of(offset.length() * radius);
         let (u, w, h) = (offset.dot(u_axis), offset.dot(w_axis), offset.dot(normal));
-        let radial = u * u + w * w;
-        let basis = [u * u, u * w, w * w, u, w, 1.0, radial * radial];
-        for row in 0..7 {
-            for column in 0..7 {
+        let (uu, ww) = (u * u, w * w);
+        let basis = [
+            uu,
+            u * w,
+            ww,
+            u,
+            w,
+            1.0,
+            uu * uu,
+            uu * u * w,
+            uu * ww,
+            u * w * ww,
+            ww * ww,
+        ];
+        for row in 0..FIT_TERMS {
+            for column in 0..FIT_TERMS {
                 matrix[row][column] += weight * basis[row] * basis[column];
             }
             rhs[row] += weight * basis[row] * h;
         }
     }
-    let trace: f64 = (0..7).map(|i| matrix[i][i]).sum();
+    let trace: f64 = (0..FIT_TERMS).map(|i| matrix[i][i]).sum();
     for (i, row) in matrix.iter_mut().enumerate() {
         row[i] += 1e-9 * trace;
     }
