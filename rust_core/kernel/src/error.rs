@@ -219,7 +219,7 @@ impl fmt::Display for KernelError {
             ),
             Self::FlatSurface { largest, threshold } => write!(
                 f,
-                "the surface has no curvature at this scale (largest |k| x scale is {largest:.3}, the flat threshold {threshold}): nothing to detect"
+                "the surface has no curvature at this scale (largest |k| x scale is {largest:.3}, the flat threshold {threshold}): nothing to detect; raise the scale or lower the flat threshold if it is curved"
             ),
             Self::TooLarge { what, count, max } => {
                 write!(f, "too many {what}: {count} (at most {max} supported)")

@@ -176,11 +176,19 @@ fn fit_vertex(
             u * w * ww,
             ww * ww,
         ];
+        // The lower triangle only (the matrix is symmetric): half the work of the whole fit.
         for row in 0..FIT_TERMS {
-            for column in 0..FIT_TERMS {
-                matrix[row][column] += weight * basis[row] * basis[column];
+            let weighted = weight * basis[row];
+            for column in 0..=row {
+                matrix[row][column] += weighted * basis[column];
             }
-            rhs[row] += weight * basis[row] * h;
+            rhs[row] += weighted * h;
+        }
+    }
+    #[allow(clippy::needless_range_loop)] // a transpose reads one index pair both ways
+    for row in 0..FIT_TERMS {
+        for column in row + 1..FIT_TERMS {
+            matrix[row][column] = matrix[column][row];
         }
     }
     let trace: f64 = (0..FIT_TERMS).map(|i| matrix[i][i]).sum();
