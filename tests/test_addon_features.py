@@ -12,6 +12,7 @@ import pytest
 from test_addon import snapshot, world_positions
 from test_curves import chain_pairs, distance_to_polyline, select_edges
 from test_feature_binding import centre_line_distance, rounded_box
+from test_wrap import _RecordingLayout
 
 OFFSET = np.array([0.3, -0.2, 0.1])
 COLOR_ATTRIBUTE = "springwrap_curvature"
@@ -73,6 +74,21 @@ def test_operator_is_registered_with_a_poll_message():
     assert not bpy.ops.springwrap.detect_features.poll()
     with pytest.raises(RuntimeError, match="No active mesh object"):
         bpy.ops.springwrap.detect_features()
+
+
+def test_panel_names_the_object_and_has_the_button():
+    from springwrap.ui import SPRINGWRAP_PT_features
+
+    box = box_target()
+    assert SPRINGWRAP_PT_features.bl_parent_id == "SPRINGWRAP_PT_layout" and SPRINGWRAP_PT_features.poll(bpy.context)
+    recorder = _RecordingLayout()
+    SPRINGWRAP_PT_features.draw(type("Panel", (), {"layout": recorder})(), bpy.context)
+    assert recorder.operators == ["springwrap.detect_features"] and recorder.labels == ["On 'Box'"]
+    bpy.ops.mesh.primitive_grid_add(size=1, location=(0, 0, 3))
+    bpy.context.active_object.springwrap.target = box
+    recorder = _RecordingLayout()
+    SPRINGWRAP_PT_features.draw(type("Panel", (), {"layout": recorder})(), bpy.context)
+    assert recorder.labels == ["On 'Box'"]
 
 
 def test_rounded_box_gets_region_colours_and_twelve_ridge_curves(capfd):

@@ -195,7 +195,6 @@ class SPRINGWRAP_PT_curve_constraints(_LayoutSubPanel, bpy.types.Panel):
         layout.prop(settings, "curve_source")
         layout.label(text="Add: selected edge chain (Edit Mode)", icon="INFO")
         layout.operator("springwrap.curve_constraints_auto", icon="AUTO")
-        layout.operator("springwrap.detect_features", icon="CURVE_BEZCURVE")
 
 
 class SPRINGWRAP_PT_wrap(_LayoutSubPanel, bpy.types.Panel):
@@ -220,6 +219,20 @@ class SPRINGWRAP_PT_wrap(_LayoutSubPanel, bpy.types.Panel):
         layout.operator("springwrap.rest_set", icon="ARMATURE_DATA")
 
 
+class SPRINGWRAP_PT_features(_LayoutSubPanel, bpy.types.Panel):
+    """Feature detection on the target: region colours and ridge / valley curves for curve constraints"""
+
+    bl_label = "Features"
+    bl_idname = "SPRINGWRAP_PT_features"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        obj = context.active_object
+        source = obj.springwrap.target if obj.springwrap.target is not None else obj
+        self.layout.label(text=f"On '{source.name}'", icon="MESH_DATA")
+        self.layout.operator("springwrap.detect_features", icon="CURVE_BEZCURVE")
+
+
 def _anchor_counts_text(anchors):
     """"K anchors (F on the surface)", the kinds read at once (the list may be long)."""
     import numpy as np
@@ -241,4 +254,5 @@ classes = (
     SPRINGWRAP_UL_curve_constraints,
     SPRINGWRAP_PT_curve_constraints,
     SPRINGWRAP_PT_wrap,
+    SPRINGWRAP_PT_features,
 )
