@@ -348,18 +348,20 @@ fn polyline_length(points: &[Vec3], closed: bool) -> f32 {
 
 /// The outward direction at one end of a polyline, over up to `reach` of its length.
 fn end_tangent(points: &[Vec3], at_start: bool, reach: f32) -> Vec3 {
-    let ordered: Box<dyn Iterator<Item = &Vec3>> = if at_start {
-        Box::new(points.iter())
-    } else {
-        Box::new(points.iter().rev())
+    let count = points.len();
+    let point = |index: usize| {
+        if at_start {
+            points[index]
+        } else {
+            points[count - 1 - index]
+        }
     };
-    let ordered: Vec<Vec3> = ordered.copied().collect();
-    let end = ordered[0];
+    let end = point(0);
     let mut inner = end;
     let mut travelled = 0.0;
-    for pair in ordered.windows(2) {
-        travelled += pair[0].distance(pair[1]);
-        inner = pair[1];
+    for index in 1..count {
+        travelled += point(index - 1).distance(point(index));
+        inner = point(index);
         if travelled >= reach {
             break;
         }
