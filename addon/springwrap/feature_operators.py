@@ -54,7 +54,7 @@ def feature_object(context, name: str = ""):
 
 
 class SPRINGWRAP_OT_detect_features(bpy.types.Operator):
-    """Detect curvature features of the target (the active object's Springwrap target, or the active mesh): colour its concave, convex and flat regions and trace ridge and valley curves (blend centre-lines) as curve objects usable as curve constraints"""
+    """Colour the target's concave, convex and flat regions and trace its ridge and valley curves (blend centre-lines) for curve constraints"""
 
     bl_idname = "springwrap.detect_features"
     bl_label = "Detect Features"
