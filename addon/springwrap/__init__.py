@@ -31,6 +31,7 @@ from . import (  # noqa: E402
     anchor_operators,
     armature_operator,
     curve_operators,
+    feature_operators,
     operators,
     properties,
     ui,
@@ -45,6 +46,7 @@ _modules = (
     curve_operators,
     wrap_operator,
     armature_operator,
+    feature_operators,
     ui,
 )
 

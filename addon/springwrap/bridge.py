@@ -779,3 +779,115 @@ def leave_edit_mode(layout: bpy.types.Object) -> bool:
 def enter_edit_mode() -> None:
     """Switch the active object back into edit mode (after :func:`leave_edit_mode`)."""
     bpy.ops.object.mode_set(mode="EDIT")
+
+
+# ---------------------------------------------------------------- feature detection
+
+FEATURE_COLLECTION = "Springwrap Features"
+"""Collection holding the feature curve objects of ``springwrap.detect_features``."""
+FEATURE_COLOR_ATTRIBUTE = "springwrap_curvature"
+"""Point colour attribute of the regions (flat / convex / concave / saddle)."""
+FEATURE_SOURCE_PROPERTY = "springwrap_feature_source"
+"""Custom property of a feature curve object: the name of the mesh object it was detected on."""
+FEATURE_KIND_PROPERTY = "springwrap_feature"
+"""Custom property of a feature curve object: ``RIDGE`` or ``VALLEY``."""
+
+
+class FeatureMesh(NamedTuple):
+    """A mesh object's evaluated geometry in world space, as the kernel takes it."""
+
+    vertices: np.ndarray  # (V, 3) float32 world positions of the evaluated mesh
+    triangles: np.ndarray  # (T, 3) uint32 loop triangles
+    base_vertex_count: int  # vertices of the object's own mesh (colours go there)
+
+
+def read_feature_mesh(depsgraph: bpy.types.Depsgraph, obj: bpy.types.Object) -> FeatureMesh:
+    """The evaluated mesh of ``obj`` in world space; raises :class:`LayoutError` when it has no faces."""
+    evaluated = obj.evaluated_get(depsgraph)
+    mesh = evaluated.to_mesh()
+    try:
+        mesh.calc_loop_triangles()
+        local = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+        mesh.vertices.foreach_get("co", local)
+        triangles = np.empty(len(mesh.loop_triangles) * 3, dtype=np.uint32)
+        mesh.loop_triangles.foreach_get("vertices", triangles)
+    finally:
+        evaluated.to_mesh_clear()
+    if local.size == 0 or triangles.size == 0:
+        raise LayoutError(f"'{obj.name}' has no faces: there is no surface to detect features on")
+    world = layout_state.transform_points(matrix_array(evaluated.matrix_world), local.reshape(-1, 3))
+    return FeatureMesh(
+        vertices=layout_state.as_float32_points(world),
+        triangles=np.ascontiguousarray(triangles.reshape(-1, 3)),
+        base_vertex_count=len(obj.data.vertices),
+    )
+
+
+def detect_features(feature_mesh: FeatureMesh, scale: float, **settings):
+    """``springwrap_kernel.TargetMesh.detect_features`` on the mesh (raises one of :data:`ERRORS`)."""
+    mesh = springwrap_kernel.TargetMesh(feature_mesh.vertices, feature_mesh.triangles)
+    return mesh.detect_features(scale, **settings)
+
+
+def write_feature_colors(obj: bpy.types.Object, colors: np.ndarray) -> None:
+    """Store (V, 4) RGBA colours as the point colour attribute ``springwrap_curvature`` of ``obj``'s
+    mesh (replacing one of another type) and make it the active and render colour (object mode)."""
+    mesh = obj.data
+    existing = mesh.attributes.get(FEATURE_COLOR_ATTRIBUTE)
+    if existing is not None and (existing.domain != "POINT" or existing.data_type != "FLOAT_COLOR"):
+        mesh.attributes.remove(existing)
+        existing = None
+    if existing is None:
+        mesh.attributes.new(FEATURE_COLOR_ATTRIBUTE, "FLOAT_COLOR", "POINT")
+    values = np.ascontiguousarray(colors, dtype=np.float32).reshape(-1)
+    mesh.attributes[FEATURE_COLOR_ATTRIBUTE].data.foreach_set("color", values)
+    compat.set_active_color(mesh, FEATURE_COLOR_ATTRIBUTE)
+    mesh.update()
+
+
+def remove_feature_curves(source_name: str) -> int:
+    """Remove the feature curve objects detected on the object called ``source_name`` (and their
+    curve data when nothing else uses it); how many were removed."""
+    collection = bpy.data.collections.get(FEATURE_COLLECTION)
+    if collection is None:
+        return 0
+    doomed = [obj for obj in collection.objects if obj.get(FEATURE_SOURCE_PROPERTY) == source_name]
+    for obj in doomed:
+        data = obj.data
+        bpy.data.objects.remove(obj)
+        if data is not None and data.users == 0:
+            bpy.data.curves.remove(data)
+    return len(doomed)
+
+
+def write_feature_curves(context, source: bpy.types.Object, curves) -> list:
+    """One poly-curve object per feature curve (world space, identity transform), in the collection
+    ``Springwrap Features`` (made and linked to the scene when missing), named by kind; each an open
+    spline, a closed curve ending on its first point again, so that it can be a curve constraint's
+    target. Replaces the curves detected on ``source`` before. Returns the new objects."""
+    remove_feature_curves(source.name)
+    collection = bpy.data.collections.get(FEATURE_COLLECTION)
+    if collection is None:
+        collection = bpy.data.collections.new(FEATURE_COLLECTION)
+    if collection not in context.scene.collection.children_recursive:
+        context.scene.collection.children.link(collection)
+    created = []
+    counts = collections.Counter()
+    for curve in curves:
+        counts[curve.kind] += 1
+        name = f"{source.name} {curve.kind.title()} {counts[curve.kind]}"
+        points = np.asarray(curve.points, dtype=np.float32)
+        if curve.closed:
+            points = np.concatenate([points, points[:1]])
+        data = bpy.data.curves.new(name, "CURVE")
+        data.dimensions = "3D"
+        spline = data.splines.new("POLY")
+        spline.points.add(points.shape[0] - 1)
+        homogeneous = np.concatenate([points, np.ones((points.shape[0], 1), dtype=np.float32)], axis=1)
+        spline.points.foreach_set("co", np.ascontiguousarray(homogeneous).reshape(-1))
+        obj = bpy.data.objects.new(name, data)
+        obj[FEATURE_SOURCE_PROPERTY] = source.name
+        obj[FEATURE_KIND_PROPERTY] = curve.kind
+        collection.objects.link(obj)
+        created.append(obj)
+    return created

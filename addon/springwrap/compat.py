@@ -74,3 +74,17 @@ def add_vendored_packages() -> None:
     vendor = Path(__file__).resolve().parent / "_vendor"
     if vendor.is_dir() and str(vendor) not in sys.path:
         sys.path.insert(0, str(vendor))
+
+
+def set_active_color(mesh: "bpy.types.Mesh", name: str) -> None:
+    """Make the colour attribute ``name`` the mesh's active and render colour (what the viewport's
+    Attribute colour shows). Blender 3.5+ names them (``active_color_name``, ``default_color_name``);
+    3.4 only has the ``active_color`` pointer and ``render_color_index``."""
+    colors = mesh.color_attributes
+    if hasattr(colors, "active_color_name"):
+        colors.active_color_name = name
+        colors.default_color_name = name
+        return
+    colors.active_color = colors[name]
+    if hasattr(colors, "render_color_index"):
+        colors.render_color_index = colors.find(name)

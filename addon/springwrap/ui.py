@@ -251,6 +251,20 @@ class SPRINGWRAP_PT_armature(_LayoutSubPanel, bpy.types.Panel):
         layout.operator("springwrap.align_armature", icon="ARMATURE_DATA")
 
 
+class SPRINGWRAP_PT_features(_LayoutSubPanel, bpy.types.Panel):
+    """Feature detection on the target: region colours and ridge / valley curves for curve constraints"""
+
+    bl_label = "Features"
+    bl_idname = "SPRINGWRAP_PT_features"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        obj = context.active_object
+        source = obj.springwrap.target if obj.springwrap.target is not None else obj
+        self.layout.label(text=f"On '{source.name}'", icon="MESH_DATA")
+        self.layout.operator("springwrap.detect_features", icon="CURVE_BEZCURVE")
+
+
 def _anchor_counts_text(anchors):
     """"K anchors (F on the surface)", the kinds read at once (the list may be long)."""
     import numpy as np
@@ -274,4 +288,5 @@ classes = (
     SPRINGWRAP_UL_curve_constraints,
     SPRINGWRAP_PT_curve_constraints,
     SPRINGWRAP_PT_wrap,
+    SPRINGWRAP_PT_features,
 )

@@ -113,6 +113,24 @@ pub enum KernelError {
         /// Number of anchors.
         count: usize,
     },
+    /// A feature-detection scale is not a positive finite radius no larger than the mesh's
+    /// bounding-box diagonal. Give the radius (model units) over which to fit the surface, e.g. a
+    /// few edge lengths, or the radius of the blends sought.
+    InvalidScale {
+        /// The scale given.
+        scale: f32,
+        /// The mesh's bounding-box diagonal.
+        diagonal: f32,
+    },
+    /// Feature detection found no curvature: no vertex bends by `|k| × scale ≥ threshold` (a
+    /// plane, or a scale far below the surface's features). Nothing is classified or traced.
+    /// Pick a curved target, a larger scale or a lower flat threshold.
+    FlatSurface {
+        /// The largest `|k| × scale` found.
+        largest: f32,
+        /// The flat threshold it had to reach.
+        threshold: f32,
+    },
     /// The input is larger than the kernel's 32-bit indices can address.
     TooLarge {
         /// What is too large.
@@ -196,6 +214,14 @@ impl fmt::Display for KernelError {
             Self::CoplanarAnchors { count } => write!(
                 f,
                 "the {count} anchors are coplanar: an affine fit needs 4 not in one plane"
+            ),
+            Self::InvalidScale { scale, diagonal } => write!(
+                f,
+                "invalid feature scale {scale}: give a radius > 0 and at most the mesh's diagonal ({diagonal})"
+            ),
+            Self::FlatSurface { largest, threshold } => write!(
+                f,
+                "the surface has no curvature at this scale (largest |k| x scale is {largest:.3}, the flat threshold {threshold}): nothing to detect; raise the scale or lower the flat threshold if it is curved"
             ),
             Self::TooLarge { what, count, max } => {
                 write!(f, "too many {what}: {count} (at most {max} supported)")

@@ -43,6 +43,7 @@ pub mod align;
 pub mod bvh;
 pub mod error;
 pub mod face_point;
+pub mod features;
 pub mod layout;
 pub mod mesh;
 pub mod query;
@@ -55,6 +56,10 @@ pub use align::{
 };
 pub use error::KernelError;
 pub use face_point::{FacePoint, LayoutPoint, SurfaceHit, VertexHit};
+pub use features::{
+    FeatureCurve, FeatureCurveKind, FeatureRegion, FeatureSettings, Features, PrincipalCurvatures,
+    classify_regions, detect_features, principal_curvatures,
+};
 pub use layout::{Curve, CurveKind, LayoutStructure, LineTriple};
 pub use mesh::{NO_TRIANGLE, TargetMesh, TargetMeshOptions, TriangleEdge};
 pub use surface::{WalkEnd, WalkOutcome};

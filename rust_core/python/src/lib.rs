@@ -24,6 +24,8 @@ use springwrap_kernel::{
     IcpAnchors, IcpSettings, IcpUpdate, Transform, fit_transform, icp_anchored,
 };
 
+mod features;
+
 create_exception!(
     springwrap_kernel,
     SpringwrapError,
@@ -98,6 +100,8 @@ fn to_python_error(error: &KernelError) -> PyErr {
         | KernelError::CoincidentAnchors { .. }
         | KernelError::CollinearAnchors { .. }
         | KernelError::CoplanarAnchors { .. } => InvalidArgumentError::new_err(message),
+        KernelError::InvalidScale { .. } => InvalidArgumentError::new_err(message),
+        KernelError::FlatSurface { .. } => features::FlatSurfaceError::new_err(message),
     }
 }
 
@@ -1105,5 +1109,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
         py.get_type::<InvalidArgumentError>(),
     )?;
     m.add("InternalError", py.get_type::<InternalError>())?;
+    features::register(m)?;
     Ok(())
 }

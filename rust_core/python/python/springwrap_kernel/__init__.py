@@ -15,6 +15,7 @@ from ._native import (
     DegenerateMeshError,
     DegenerateTriangleError,
     EmptyMeshError,
+    FlatSurfaceError,
     IndexOutOfRangeError,
     InternalError,
     InvalidArgumentError,
@@ -27,9 +28,13 @@ from ._native import (
 
 __all__ = [
     "ArrayError",
+    "Curvatures",
     "DegenerateMeshError",
     "DegenerateTriangleError",
     "EmptyMeshError",
+    "FeatureCurve",
+    "Features",
+    "FlatSurfaceError",
     "IcpReport",
     "IndexOutOfRangeError",
     "InternalError",
@@ -78,6 +83,32 @@ class IcpReport(NamedTuple):
     pairs_used: int
 
 
+class Curvatures(NamedTuple):
+    """Per-vertex principal curvatures (convex positive, ``k1 >= k2``) and unit directions."""
+
+    k1: np.ndarray
+    k2: np.ndarray
+    d1: np.ndarray
+    d2: np.ndarray
+
+
+class FeatureCurve(NamedTuple):
+    """A ridge or valley polyline: ``kind`` is ``'RIDGE'`` or ``'VALLEY'``."""
+
+    kind: str
+    closed: bool
+    points: np.ndarray
+
+
+class Features(NamedTuple):
+    """Result of :meth:`TargetMesh.detect_features`."""
+
+    curvatures: Curvatures
+    regions: np.ndarray
+    """(N,) uint8: 0 flat, 1 convex, 2 concave, 3 saddle."""
+    curves: list
+
+
 class TargetMesh(_native.TargetMesh):
     """A triangle mesh prepared for queries: BVH over triangles, vertex tree, adjacency, normals.
 
@@ -98,6 +129,21 @@ class TargetMesh(_native.TargetMesh):
     def icp(self, source, initial=None, **settings):
         """Point-to-plane ICP of ``source`` onto this mesh from ``initial`` (see the stubs)."""
         return IcpReport(*super().icp(source, initial, **settings))
+
+    def principal_curvatures(self, scale):
+        """Principal curvatures and directions of every vertex, fitted over ``scale`` (see the stubs)."""
+        return Curvatures(*_native.principal_curvatures(self, scale))
+
+    def detect_features(self, scale, **settings):
+        """Curvatures, concave / convex / flat regions and ridge / valley curves (see the stubs)."""
+        k1, k2, d1, d2, regions, curves = _native.detect_features(self, scale, **settings)
+        return Features(
+            Curvatures(k1, k2, d1, d2), regions, [FeatureCurve(*curve) for curve in curves]
+        )
+
+    def feature_curves(self, scale, **settings):
+        """The ridge and valley curves of :meth:`detect_features` alone."""
+        return self.detect_features(scale, **settings).curves
 
     def ray_cast(self, origins, directions, *, max_distance=float("inf"), both_directions=False):
         """First hit along each ray (signed distance; backwards too with ``both_directions``)."""

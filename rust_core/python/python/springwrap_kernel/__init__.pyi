@@ -37,6 +37,9 @@ class DegenerateTriangleError(SpringwrapError):
 class InvalidArgumentError(SpringwrapError):
     """A scalar argument is out of its domain (negative distance, zero direction...)."""
 
+class FlatSurfaceError(SpringwrapError):
+    """Feature detection found no curvature at the scale given (a plane): nothing to detect."""
+
 class InternalError(SpringwrapError):
     """A bug in the kernel (a caught Rust panic). Please report it."""
 
@@ -151,6 +154,63 @@ class TargetMesh:
         ``anchor_source`` and ``anchor_target`` ((K, 3) float32, both or neither) each anchor point
         is also pulled to its target, point to point, all anchors together weighing
         ``anchor_weight`` times the surface pairs (0: ignored); convergence then judges the whole fit."""
+
+    def principal_curvatures(self, scale: float) -> Curvatures:
+        """Principal curvatures and directions of every vertex, from a quadric (plus isotropic
+        quartic) fitted by weighted least squares to the vertices within ``scale`` (model units)
+        of it: bumps and noise smaller than the scale are ignored. Convex is positive for outward
+        normals (right-handed winding): ``+1/r`` on a sphere of radius ``r``. Raises
+        :class:`InvalidArgumentError` when ``scale`` is not positive and finite or exceeds the
+        mesh's bounding-box diagonal."""
+    def detect_features(
+        self,
+        scale: float,
+        *,
+        flat_threshold: float = 0.1,
+        ridge_threshold: float = 0.25,
+        min_length: float | None = None,
+        join_distance: float | None = None,
+    ) -> Features:
+        """Curvatures, regions and ridge / valley curves. A direction is flat while
+        ``|k| * scale < flat_threshold``; a ridge (valley) is where the largest (most negative)
+        curvature is extremal across itself, with ``k * scale >= ridge_threshold``; curves
+        shorter than ``min_length`` (default ``2 * scale``) are dropped, pieces whose ends are
+        within ``join_distance`` (default ``scale``) and continue each other are joined. For the
+        centre-lines of blends, ``scale`` about the blend radius. Raises
+        :class:`FlatSurfaceError` when no vertex bends beyond ``flat_threshold`` (a plane)."""
+    def feature_curves(
+        self,
+        scale: float,
+        *,
+        flat_threshold: float = 0.1,
+        ridge_threshold: float = 0.25,
+        min_length: float | None = None,
+        join_distance: float | None = None,
+    ) -> list[FeatureCurve]:
+        """The curves of :meth:`detect_features` alone."""
+
+# ---------------------------------------------------------------- features
+class Curvatures(NamedTuple):
+    """Per-vertex principal curvatures (1 / length, convex positive, ``k1 >= k2``)."""
+
+    k1: npt.NDArray[np.float32]  # (N,)
+    k2: npt.NDArray[np.float32]  # (N,)
+    d1: npt.NDArray[np.float32]  # (N, 3) unit direction of k1 (zero on vertices of no triangle)
+    d2: npt.NDArray[np.float32]  # (N, 3) unit direction of k2 (normal x d1)
+
+class FeatureCurve(NamedTuple):
+    """A ridge or valley polyline on the surface (a closed one does not repeat its first point)."""
+
+    kind: Literal["RIDGE", "VALLEY"]
+    closed: bool
+    points: npt.NDArray[np.float32]  # (P, 3)
+
+class Features(NamedTuple):
+    """Result of :meth:`TargetMesh.detect_features`."""
+
+    curvatures: Curvatures
+    regions: npt.NDArray[np.uint8]  # (N,) 0 flat, 1 convex, 2 concave, 3 saddle
+    curves: list[FeatureCurve]
 
 # ---------------------------------------------------------------- alignment
 class IcpReport(NamedTuple):

@@ -1,0 +1,179 @@
+"""Feature detection on a target mesh (paper, section 3.2 and Figure 9): ``springwrap.detect_features``.
+
+The kernel fits the principal curvatures over a scale, classifies each vertex as flat, convex,
+concave or saddle, and traces ridge and valley curves (the centre-lines of blends). The operator
+writes the regions as a point colour attribute and the curves as poly-curve objects, which the
+curve-constraint operators take as target curves. It computes everything first and writes only
+when that succeeded: a target with no curvature (a plane) is reported and the scene is left as it
+was.
+"""
+
+import contextlib
+import time
+
+import bpy
+import numpy as np
+
+REGION_COLORS = np.array(
+    [
+        (0.55, 0.55, 0.55, 1.0),  # flat: grey
+        (0.85, 0.25, 0.15, 1.0),  # convex: red
+        (0.15, 0.35, 0.85, 1.0),  # concave: blue
+        (0.90, 0.75, 0.15, 1.0),  # saddle: yellow
+    ],
+    dtype=np.float32,
+)
+"""RGBA per region number (the kernel's order: flat, convex, concave, saddle)."""
+
+DEFAULT_SCALE_EDGES = 3.0
+"""With ``scale = 0``, the scale is this many mean edge lengths of the target."""
+
+
+def mean_edge_length(vertices: np.ndarray, triangles: np.ndarray) -> float:
+    """Mean length of the triangles' edges (each inner edge counted twice: it does not matter for a mean)."""
+    corners = vertices[triangles.astype(np.int64)]
+    edges = corners - np.roll(corners, 1, axis=1)
+    return float(np.linalg.norm(edges, axis=2).mean())
+
+
+def region_colors(regions: np.ndarray) -> np.ndarray:
+    """(V, 4) RGBA of the region numbers."""
+    return REGION_COLORS[np.asarray(regions, dtype=np.int64)]
+
+
+def feature_object(context, name: str = ""):
+    """The object to detect features on: the one called ``name``, else the active object's Springwrap
+    target when it has one, else the active object. None when there is no such mesh."""
+    if name:
+        obj = bpy.data.objects.get(name)
+    else:
+        obj = context.active_object
+        if obj is not None and obj.type == "MESH" and obj.springwrap.target is not None:
+            obj = obj.springwrap.target
+    return obj if obj is not None and obj.type == "MESH" else None
+
+
+class SPRINGWRAP_OT_detect_features(bpy.types.Operator):
+    """Colour the target's concave, convex and flat regions and trace its ridge and valley curves (blend centre-lines) for curve constraints"""
+
+    bl_idname = "springwrap.detect_features"
+    bl_label = "Detect Features"
+    bl_options = {"REGISTER", "UNDO"}
+
+    object_name: bpy.props.StringProperty(
+        name="Object",
+        description="Mesh object to analyse; empty: the active object's Springwrap target, or the active mesh",
+        default="",
+    )
+    scale: bpy.props.FloatProperty(
+        name="Scale",
+        description=(
+            "Radius over which the surface is fitted: bumps and noise smaller than this are ignored; for blend "
+            f"centre-lines about the blend radius (0 = {DEFAULT_SCALE_EDGES:g} mean edge lengths)"
+        ),
+        default=0.0,
+        min=0.0,
+        subtype="DISTANCE",
+        unit="LENGTH",
+    )
+    flat_threshold: bpy.props.FloatProperty(
+        name="Flat Threshold",
+        description="A curvature k counts as flat while |k| x scale is below this",
+        default=0.1,
+        min=0.0,
+        soft_max=1.0,
+    )
+    ridge_threshold: bpy.props.FloatProperty(
+        name="Ridge Threshold",
+        description="k x scale a ridge or valley must reach to be traced",
+        default=0.25,
+        min=0.0,
+        soft_max=2.0,
+    )
+    min_length: bpy.props.FloatProperty(
+        name="Min Length",
+        description="Curves shorter than this are dropped (0 = twice the scale)",
+        default=0.0,
+        min=0.0,
+        subtype="DISTANCE",
+        unit="LENGTH",
+    )
+    write_colors: bpy.props.BoolProperty(
+        name="Region Colours",
+        description="Write the regions as the colour attribute 'springwrap_curvature' (grey flat, red convex, "
+        "blue concave, yellow saddle) and make it the active colour (Solid shading > Color > Attribute)",
+        default=True,
+    )
+    write_curves: bpy.props.BoolProperty(
+        name="Feature Curves",
+        description="Create the ridge and valley curves as poly-curve objects in the 'Springwrap Features' collection",
+        default=True,
+    )
+
+    @classmethod
+    def poll(cls, context):
+        if feature_object(context) is None:
+            cls.poll_message_set("No active mesh object (the target, or a layout with a target)")
+            return False
+        return True
+
+    def execute(self, context):
+        source = feature_object(context, self.object_name)
+        if source is None:
+            where = f"'{self.object_name}'" if self.object_name else "the active object (or its target)"
+            self.report({"ERROR"}, f"No mesh object to detect features on: {where}")
+            return {"CANCELLED"}
+        if not (self.write_colors or self.write_curves):
+            self.report({"ERROR"}, "Nothing to write: enable Region Colours or Feature Curves")
+            return {"CANCELLED"}
+        try:
+            from . import bridge
+        except ImportError as error:
+            self.report({"ERROR"}, f"The Springwrap kernel is not available: {error}")
+            return {"CANCELLED"}
+        window_manager = context.window_manager
+        show_progress = not bpy.app.background
+        if show_progress:
+            window_manager.progress_begin(0, 3)
+        start = time.perf_counter()
+        try:
+            feature_mesh = bridge.read_feature_mesh(context.evaluated_depsgraph_get(), source)
+            scale = self.scale or DEFAULT_SCALE_EDGES * mean_edge_length(feature_mesh.vertices, feature_mesh.triangles)
+            if show_progress:
+                window_manager.progress_update(1)
+            settings = {"flat_threshold": self.flat_threshold, "ridge_threshold": self.ridge_threshold}
+            if self.min_length > 0.0:
+                settings["min_length"] = self.min_length
+            features = bridge.detect_features(feature_mesh, scale, **settings)
+            if show_progress:
+                window_manager.progress_update(2)
+            colors_fit = feature_mesh.vertices.shape[0] == feature_mesh.base_vertex_count
+            if self.write_colors and colors_fit:
+                with bridge.object_mode(source) if source == context.active_object else contextlib.nullcontext():
+                    bridge.write_feature_colors(source, region_colors(features.regions))
+            curve_objects = bridge.write_feature_curves(context, source, features.curves) if self.write_curves else []
+        except bridge.ERRORS as error:
+            self.report({"ERROR"}, f"'{source.name}': {error}")
+            return {"CANCELLED"}
+        finally:
+            if show_progress:
+                window_manager.progress_end()
+        counts = np.bincount(np.asarray(features.regions, dtype=np.int64), minlength=4)
+        kinds = [curve.kind for curve in features.curves]
+        self.report(
+            {"INFO"},
+            f"'{source.name}' at scale {scale:.4g}: {counts[0]} flat, {counts[1]} convex, {counts[2]} concave, "
+            f"{counts[3]} saddle vertices; {kinds.count('RIDGE')} ridges and {kinds.count('VALLEY')} valleys"
+            + (f" in '{bridge.FEATURE_COLLECTION}'" if curve_objects else "")
+            + f" ({time.perf_counter() - start:.2f} s)",
+        )
+        if self.write_colors and not colors_fit:
+            self.report(
+                {"WARNING"},
+                f"Region colours not written: the modifiers of '{source.name}' change its vertex count "
+                f"({feature_mesh.base_vertex_count} -> {feature_mesh.vertices.shape[0]}); apply them to see the colours",
+            )
+        return {"FINISHED"}
+
+
+classes = (SPRINGWRAP_OT_detect_features,)

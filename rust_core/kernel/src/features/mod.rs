@@ -1,0 +1,14 @@
+//! Feature detection on a target mesh (issue 5, item 4; the paper's section 3.2 and Figure 9):
+//! principal curvatures fitted over a scale, concave / convex / flat regions, and ridge and valley
+//! curves (the centre-lines of blends) that can serve as curve constraints.
+
+pub mod curvature;
+pub mod detect;
+pub mod neighborhood;
+pub mod regions;
+pub mod ridges;
+
+pub use curvature::{PrincipalCurvatures, principal_curvatures};
+pub use detect::{FeatureSettings, Features, detect_features};
+pub use regions::{FeatureRegion, classify_regions};
+pub use ridges::{CurveSettings, FeatureCurve, FeatureCurveKind, feature_curves};
