@@ -26,8 +26,9 @@ from . import compat
 compat.add_vendored_packages()  # the legacy zip's kernel, before bridge imports it
 
 from . import anchor_drawing, anchor_operators, curve_operators, operators, properties, ui, wrap_operator  # noqa: E402
+from . import mirror_operator  # noqa: E402
 
-_modules = (properties, operators, anchor_operators, curve_operators, wrap_operator, ui)
+_modules = (properties, operators, anchor_operators, curve_operators, wrap_operator, mirror_operator, ui)
 
 
 def register():

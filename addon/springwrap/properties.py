@@ -260,6 +260,12 @@ class SpringwrapObjectSettings(bpy.types.PropertyGroup):
         default="",
     )
 
+    mirror_object: bpy.props.PointerProperty(
+        name="Mirror Object",
+        description="Object (an empty) whose local plane the Mirror button mirrors across; none: the layout's own",
+        type=bpy.types.Object,
+    )
+
 
 classes = (
     SpringwrapAnchorItem,

@@ -102,7 +102,7 @@ fn start_points(target: &TargetMesh, positions: &[Vec3], around: u32) -> Vec<Lay
         .collect()
 }
 
-fn wrap_band(target: Arc<TargetMesh>, around: u32) -> WrapSolver {
+fn wrap_band(target: Arc<TargetMesh>, around: u32, slide: bool) -> WrapSolver {
     let (structure, positions) = band_layout(around, 4, 1.1, 0.05);
     let points = start_points(&target, &positions, around);
     let (point, normal) = plane();
@@ -120,6 +120,7 @@ fn wrap_band(target: Arc<TargetMesh>, around: u32) -> WrapSolver {
         vertices: (0..around).collect(),
         point,
         normal,
+        slide,
     })
     .unwrap();
     let report = solver.step(3000);
@@ -131,7 +132,7 @@ fn wrap_band(target: Arc<TargetMesh>, around: u32) -> WrapSolver {
 fn a_seam_held_on_the_plane_lands_on_the_closed_cross_section() {
     let around = 40;
     let target = sphere_target(Vec3::splat(10.0), 0.0);
-    let solver = wrap_band(target.clone(), around);
+    let solver = wrap_band(target.clone(), around, true);
     let (point, normal) = plane();
     let seam = &solver.positions()[..around as usize];
     for (vertex, &position) in seam.iter().enumerate() {
@@ -174,7 +175,7 @@ fn a_seam_over_a_hole_stays_on_the_plane_in_space_and_lands_elsewhere() {
     let on_section = (Quat::from_rotation_arc(Vec3::Y, normal) * Vec3::X).normalize();
     let hole_centre = point + on_section;
     let target = sphere_target(hole_centre, 0.3);
-    let solver = wrap_band(target.clone(), around);
+    let solver = wrap_band(target.clone(), around, true);
     let mut over_hole = 0;
     let mut landed = 0;
     for (vertex, &position) in solver.positions()[..around as usize].iter().enumerate() {
@@ -240,6 +241,7 @@ fn bad_plane_constraints_are_refused() {
             vertices: vec![0],
             point: Vec3::ZERO,
             normal: Vec3::ZERO,
+            slide: true,
         },
         "zero length",
     );
@@ -248,6 +250,7 @@ fn bad_plane_constraints_are_refused() {
             vertices: vec![0],
             point: Vec3::NAN,
             normal: Vec3::Y,
+            slide: true,
         },
         "NaN",
     );
@@ -256,6 +259,7 @@ fn bad_plane_constraints_are_refused() {
             vertices: vec![99],
             point: Vec3::ZERO,
             normal: Vec3::Y,
+            slide: true,
         },
         "vertex 99 does not exist",
     );
@@ -270,6 +274,7 @@ fn bad_plane_constraints_are_refused() {
             vertices: vec![1],
             point: Vec3::ZERO,
             normal: Vec3::Y,
+            slide: true,
         })
         .err()
         .unwrap();
@@ -284,6 +289,7 @@ fn bad_plane_constraints_are_refused() {
             vertices: vec![1],
             point: Vec3::ZERO,
             normal: Vec3::Y,
+            slide: true,
         })
         .unwrap()
         .with_curve_constraints(&[curve])
@@ -295,4 +301,38 @@ fn bad_plane_constraints_are_refused() {
             .contains("also held on the plane constraint"),
         "{error}"
     );
+}
+
+#[test]
+fn a_held_seam_that_does_not_slide_only_moves_onto_the_cross_section() {
+    let around = 40;
+    let target = sphere_target(Vec3::splat(10.0), 0.0);
+    let (point, normal) = plane();
+    let mut solver = wrap_band(target.clone(), around, false);
+    let settled: Vec<Vec3> = solver.positions()[..around as usize].to_vec();
+    // Started off the plane and off the surface: on both now.
+    for (vertex, &position) in settled.iter().enumerate() {
+        let off_plane = (position - point).dot(normal).abs();
+        assert!(
+            off_plane < 1e-5,
+            "seam vertex {vertex} is {off_plane} off the plane"
+        );
+        let off_surface = target
+            .closest_point(position, f32::INFINITY)
+            .unwrap()
+            .distance;
+        assert!(
+            off_surface < 1e-5,
+            "seam vertex {vertex} is {off_surface} off the surface"
+        );
+    }
+    // And it stays there, whatever the springs say.
+    solver.step(200);
+    for (vertex, (&now, &then)) in solver.positions().iter().zip(&settled).enumerate() {
+        assert!(
+            now.distance(then) < 1e-6,
+            "seam vertex {vertex} slid by {}",
+            now.distance(then)
+        );
+    }
 }

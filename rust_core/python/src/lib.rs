@@ -658,7 +658,7 @@ impl PyWrapSolver {
         curve_vertex_counts = None, curve_points = None, curve_point_counts = None, fairness = 0.5, arc_length = 0.5, thin_plate = 0.2,
         constraint = 0.5, folding = 0.3, tolerance = 1e-5, landing_distance = 0.25,
         fold_tolerance = 0.17453292, momentum = 0.9, rest = "TEMPLATE", rest_positions = None,
-        plane_vertices = None, plane_point = None, plane_normal = None
+        plane_vertices = None, plane_point = None, plane_normal = None, plane_slide = true
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -692,8 +692,9 @@ impl PyWrapSolver {
         plane_vertices: Option<&Bound<'_, PyAny>>,
         plane_point: Option<[f32; 3]>,
         plane_normal: Option<[f32; 3]>,
+        plane_slide: bool,
     ) -> PyResult<Self> {
-        let plane = read_plane_constraint(plane_vertices, plane_point, plane_normal)?;
+        let plane = read_plane_constraint(plane_vertices, plane_point, plane_normal, plane_slide)?;
         let states = read_array::<i32>("states", states, None)?;
         let triangles = read_array::<i32>("triangles", triangles, None)?;
         let barycentrics = read_positions("barycentrics", barycentrics)?;
@@ -942,11 +943,12 @@ fn read_curve_constraints(
 }
 
 /// The mirror plane constraint: held vertices (uint32) and the plane's point and normal, all
-/// three or none.
+/// three or none; `slide`: whether held points slide along the cross-section.
 fn read_plane_constraint(
     vertices: Option<&Bound<'_, PyAny>>,
     point: Option<[f32; 3]>,
     normal: Option<[f32; 3]>,
+    slide: bool,
 ) -> PyResult<Option<PlaneConstraint>> {
     match (vertices, point, normal) {
         (None, None, None) => Ok(None),
@@ -954,6 +956,7 @@ fn read_plane_constraint(
             vertices: read_array::<u32>("plane_vertices", vertices, None)?,
             point: Vec3::from_array(point),
             normal: Vec3::from_array(normal),
+            slide,
         })),
         _ => Err(ArrayError::new_err(
             "a plane constraint needs all three of plane_vertices, plane_point and plane_normal",

@@ -21,6 +21,10 @@ pub struct PlaneConstraint {
     pub point: Vec3,
     /// The plane's normal (any length but zero).
     pub normal: Vec3,
+    /// Whether held points slide along the cross-section, moved by the springs (the seam settles
+    /// between both halves), or only move onto the cross-section, the shortest way, and stay
+    /// there (the seam stays as the surfaced half has it).
+    pub slide: bool,
 }
 
 /// A checked plane: a point and a unit normal.

@@ -167,6 +167,8 @@ pub struct WrapSolver {
     /// The mirror plane and, per vertex, whether it is held on it (empty: no plane constraint).
     plane: Option<Plane>,
     on_plane: Vec<bool>,
+    /// Whether held points slide along the cross-section (else they only move onto it).
+    plane_slide: bool,
     fold_tolerance: f32,
     /// +1 when the layout's faces wind the same way as the target's, -1 when the other way, 0
     /// while that is not clear yet: measured every iteration over the face-points.
@@ -355,6 +357,7 @@ impl WrapSolver {
             curve_target_of_vertex: Vec::new(),
             plane: None,
             on_plane: Vec::new(),
+            plane_slide: true,
             total_iterations: 0,
             quiet_iterations: 0,
             iteration: 0,
@@ -506,6 +509,7 @@ impl WrapSolver {
             on_plane[vertex as usize] = true;
         }
         self.plane = Some(plane);
+        self.plane_slide = constraint.slide;
         self.on_plane = on_plane;
         Ok(self)
     }
@@ -559,14 +563,23 @@ impl WrapSolver {
     ) -> (LayoutPoint, Vec3, Event) {
         let index = vertex as usize;
         let here = self.positions[index];
-        let scale = self.step_scales[index];
+        let scale = if self.plane_slide {
+            self.step_scales[index]
+        } else {
+            0.0
+        };
         match self.points[index] {
             LayoutPoint::Face(face_point) => {
                 let normal = self.target.face_normals()[face_point.triangle as usize];
                 // Along the cross-section only: where the surface's tangent plane meets the plane.
                 let along = normal.cross(plane.normal).normalize_or_zero();
                 let slide = along * force.dot(along) * scale;
-                let moved = match self.walk(face_point, slide) {
+                let walked = if slide == Vec3::ZERO {
+                    WalkEnd::OnSurface(face_point)
+                } else {
+                    self.walk(face_point, slide)
+                };
+                let moved = match walked {
                     WalkEnd::OnSurface(moved) if !self.is_unreliable(moved.triangle) => moved,
                     WalkEnd::OnSurface(moved) => {
                         let position = plane
@@ -594,12 +607,19 @@ impl WrapSolver {
                     + thin_plate(deviations, &self.structure, vertex)
                         * self.settings.weights.thin_plate;
                 let moved = plane.project(here + plane.in_plane(push) * scale);
+                // Sliding, the springs bring the point down to the surface; held, it only looks
+                // as far as about an edge length (a landing distance is a quarter of one).
+                let reach = if self.plane_slide {
+                    self.landing_distance
+                } else {
+                    self.landing_distance * 4.0
+                };
                 if self.iteration >= self.no_fold_until[index]
-                    && let Some(hit) = self.target.closest_point(moved, self.landing_distance)
+                    && let Some(hit) = self.target.closest_point(moved, reach)
                     && !self.is_unreliable(hit.face_point.triangle)
                     && let Some((face_point, position)) =
                         self.walk_onto_plane(plane, hit.face_point)
-                    && position.distance(moved) <= self.landing_distance
+                    && position.distance(moved) <= reach
                 {
                     return (LayoutPoint::Face(face_point), position, Event::Landed);
                 }
