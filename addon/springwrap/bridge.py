@@ -588,6 +588,7 @@ def make_wrap_solver(target: Target, structure, inputs, parameters):
             "plane_vertices": inputs.plane_vertices,
             "plane_point": tuple(float(value) for value in inputs.plane_point),
             "plane_normal": tuple(float(value) for value in inputs.plane_normal),
+            "plane_slide": bool(inputs.plane_slide),
         }
     return springwrap_kernel.WrapSolver(
         target.mesh,

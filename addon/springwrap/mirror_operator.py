@@ -28,6 +28,8 @@ import numpy as np
 from .mirroring import AXES, DEFAULT_WELD_FRACTION
 from .operators import layout_problem
 
+LANDING_REACH = 0.25
+"""Before the wrap, a copy within this fraction of its mean edge length of the target lands there at once."""
 ON_PLANE_TOLERANCE = 1e-6
 """Without a wrap, a seam face-point moved onto the plane by more than this fraction of the layout's
 size becomes a space-point (its face no longer lies under it)."""
@@ -74,6 +76,17 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
         description="Wrap the new half onto the target's other half (surfaced half pinned, seam held on the plane); "
         "off: only mirror",
         default=True,
+    )
+    seam: bpy.props.EnumProperty(
+        name="Seam",
+        description="What the seam (the vertices on the plane) does during the wrap",
+        items=(
+            ("SLIDE", "Slide", "Seam points slide along the target's cross-section with the plane, pulled by the "
+             "springs of both halves"),
+            ("HOLD", "Hold", "Seam points only move onto the target's cross-section, the shortest way, and stay: the "
+             "seam stays as the surfaced half has it (on a symmetric target the result is then symmetric)"),
+        ),
+        default="SLIDE",
     )
     mirror_anchors: bpy.props.BoolProperty(
         name="Mirror Anchors",
@@ -200,12 +213,18 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
             prepared["world"], arrays.state, prepared["world_rest"], source, decided.seam, plane,
             keep_seam_face_points=self.wrap, on_plane_tolerance=ON_PLANE_TOLERANCE * size,
         )
-        to_local = lambda points: operations.to_local(arrays.matrix_world, points)  # noqa: E731
-        bridge.write_rest(layout, to_local(mirrored.rest))
-        bridge.write_layout(layout, to_local(mirrored.positions), mirrored.state)
         target = None
         if layout.springwrap.target is not None:
             target = bridge.read_target(context.evaluated_depsgraph_get(), layout)
+        landed_copies = 0
+        if self.wrap:
+            edge_lengths = mirroring.vertex_edge_lengths(mirrored.positions, bridge.read_layout_topology(layout).edges)
+            before = int((mirrored.state.states == layout_state.FACE_POINT).sum())
+            mirrored = mirroring.land_copies(mirrored, edge_lengths, target, LANDING_REACH)
+            landed_copies = int((mirrored.state.states == layout_state.FACE_POINT).sum()) - before
+        to_local = lambda points: operations.to_local(arrays.matrix_world, points)  # noqa: E731
+        bridge.write_rest(layout, to_local(mirrored.rest))
+        bridge.write_layout(layout, to_local(mirrored.positions), mirrored.state)
         anchor_list = bridge.read_anchors(layout)
         if target is not None:
             anchor_list, _ = anchors.resolve(anchor_list, target, layout.springwrap.anchors_signature)
@@ -222,7 +241,9 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
             seam_vertices = np.flatnonzero(mirrored.seam)
             session = WrapSession(
                 context, layout, self.parameters(),
-                adjust_inputs=lambda inputs: mirroring.hold_inputs(inputs, pinned, seam_vertices, plane),
+                adjust_inputs=lambda inputs: mirroring.hold_inputs(
+                    inputs, pinned, seam_vertices, plane, slide=self.seam == "SLIDE"
+                ),
             )
             if window_manager is not None:
                 session.run(progress=lambda report: window_manager.progress_update(report.total_iterations))
@@ -250,6 +271,7 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
             seam_max_distance=float(seam_distances.max()) if seam_distances.size else 0.0,
             mirror_seconds=mirror_seconds,
             mirrored_anchors=mirrored_anchors.mirrored_count,
+            landed_copies=landed_copies,
             dropped_anchors=mirrored_anchors.dropped_count,
             wrap=result,
             seconds=time.perf_counter() - start,

@@ -262,13 +262,14 @@ def partner_errors(positions: np.ndarray, source: np.ndarray, is_copy: np.ndarra
     return np.linalg.norm(positions[is_copy] - reflect(positions[source[is_copy]], plane), axis=1)
 
 
-def hold_inputs(inputs, pinned: np.ndarray, plane_vertices: np.ndarray, plane: Plane):
+def hold_inputs(inputs, pinned: np.ndarray, plane_vertices: np.ndarray, plane: Plane, slide: bool = True):
     """The wrap's inputs (``operations.WrapInputs``) for the mirrored half: the surfaced half pinned, the seam on the plane.
 
     Each ``pinned`` vertex gets an anchor at itself (its own face-point, or its own position for a
     space-point): the kernel pins an anchored point that sits on its anchor, so the surfaced half
     does not move at all. User anchors on pinned vertices are replaced by these pins; the others
-    stay. ``plane_vertices`` are held on the plane (the kernel leaves anchored ones to their anchors).
+    stay. ``plane_vertices`` are held on the plane (the kernel leaves anchored ones to their anchors);
+    with ``slide`` they slide along the target's cross-section with it, else they only move onto it.
     """
     pinned = np.asarray(pinned, dtype=bool).reshape(-1)
     keep = ~pinned[np.asarray(inputs.anchor_vertices, dtype=np.int64)]
@@ -288,6 +289,7 @@ def hold_inputs(inputs, pinned: np.ndarray, plane_vertices: np.ndarray, plane: P
         plane_vertices=np.ascontiguousarray(plane_vertices, dtype=np.uint32),
         plane_point=tuple(float(value) for value in plane.point),
         plane_normal=tuple(float(value) for value in plane.normal),
+        plane_slide=bool(slide),
     )
 
 
@@ -338,3 +340,28 @@ def mirrored_anchors(anchor_list, source: np.ndarray, is_copy: np.ndarray, seam:
         locations[found] = hits.positions[found]
     added = anchor_module.make_anchors(partners[has_partner], kinds, triangles, barycentrics, locations)
     return MirroredAnchors(anchor_module.concatenate(kept, added), count, int(on_seam.sum()))
+
+
+def land_copies(mirrored: MirrorLayout, edge_lengths: np.ndarray, target, reach_fraction: float) -> MirrorLayout:
+    """The copies that lie on the target already (within ``reach_fraction`` of their own mean edge length of its
+    surface) made face-points there; the others stay space-points for the wrap to fold.
+
+    On a symmetric target the reflection of a face-point is on the surface, and its closest point
+    is itself: the copy starts exactly where the wrap would put it. ``edge_lengths`` (M,) per vertex.
+    """
+    candidates = np.flatnonzero(mirrored.is_copy)
+    if candidates.size == 0:
+        return mirrored
+    hits = target.mesh.closest_points(layout_state.as_float32_points(mirrored.positions[candidates]))
+    reach = reach_fraction * np.asarray(edge_lengths, dtype=np.float64)[candidates]
+    found = (hits.triangles >= 0) & (np.asarray(hits.distances, dtype=np.float64) <= reach)
+    landed = candidates[found]
+    states = mirrored.state.states.copy()
+    faces = mirrored.state.faces.copy()
+    barycentrics = mirrored.state.barycentrics.copy()
+    positions = mirrored.positions.copy()
+    states[landed] = layout_state.FACE_POINT
+    faces[landed] = hits.triangles[found]
+    barycentrics[landed] = hits.barycentrics[found]
+    positions[landed] = hits.positions[found]
+    return mirrored._replace(positions=positions, state=layout_state.normalized_state(states, faces, barycentrics))

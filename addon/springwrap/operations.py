@@ -315,6 +315,7 @@ class WrapInputs(NamedTuple):
     plane_vertices: Optional[np.ndarray] = None  # (S,) uint32 vertices held on the mirror plane; None: no plane
     plane_point: Optional[tuple] = None  # (3,) world point of the mirror plane
     plane_normal: Optional[tuple] = None  # (3,) world normal of the mirror plane
+    plane_slide: bool = True  # held points slide along the target's cross-section (False: only move onto it)
 
 
 def check_wrap_parameters(parameters: WrapParameters) -> None:
