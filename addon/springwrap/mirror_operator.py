@@ -77,6 +77,16 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
         "off: only mirror",
         default=True,
     )
+    surfaced_half: bpy.props.EnumProperty(
+        name="Surfaced Half",
+        description="What the half that was there before does during the wrap",
+        items=(
+            ("PIN", "Pin", "It is done: it does not move, only the new half is wrapped"),
+            ("FREE", "Free", "Both halves are wrapped together, the seam held on the plane (on a symmetric target "
+             "the result stays symmetric)"),
+        ),
+        default="PIN",
+    )
     seam: bpy.props.EnumProperty(
         name="Seam",
         description="What the seam (the vertices on the plane) does during the wrap",
@@ -238,6 +248,8 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
             from .wrap_operator import WrapSession
 
             pinned = ~mirrored.is_copy & ~mirrored.seam
+            if self.surfaced_half == "FREE":
+                pinned = np.zeros_like(pinned)
             seam_vertices = np.flatnonzero(mirrored.seam)
             session = WrapSession(
                 context, layout, self.parameters(),
