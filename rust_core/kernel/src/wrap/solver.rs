@@ -508,6 +508,24 @@ impl WrapSolver {
             }
             on_plane[vertex as usize] = true;
         }
+        // Held points start on the plane: the springs' first look at the seam is where it stays.
+        for (vertex, _) in on_plane.iter().enumerate().filter(|(_, held)| **held) {
+            let (point, position) = match self.points[vertex] {
+                LayoutPoint::Face(face_point) => match self.walk_onto_plane(&plane, face_point) {
+                    Some((face_point, position)) => (LayoutPoint::Face(face_point), position),
+                    None => {
+                        let position = plane.project(self.positions[vertex]);
+                        (LayoutPoint::Space(position), position)
+                    }
+                },
+                LayoutPoint::Space(position) => {
+                    let position = plane.project(position);
+                    (LayoutPoint::Space(position), position)
+                }
+            };
+            self.points[vertex] = point;
+            self.positions[vertex] = position;
+        }
         self.plane = Some(plane);
         self.plane_slide = constraint.slide;
         self.on_plane = on_plane;
