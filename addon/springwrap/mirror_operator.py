@@ -82,8 +82,7 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
         description="What the half that was there before does during the wrap",
         items=(
             ("PIN", "Pin", "It is done: it does not move, only the new half is wrapped"),
-            ("FREE", "Free", "Both halves are wrapped together, the seam held on the plane (on a symmetric target "
-             "the result stays symmetric)"),
+            ("FREE", "Free", "Both halves are wrapped together, the seam held on the plane"),
         ),
         default="PIN",
     )
@@ -94,7 +93,7 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
             ("SLIDE", "Slide", "Seam points slide along the target's cross-section with the plane, pulled by the "
              "springs of both halves"),
             ("HOLD", "Hold", "Seam points only move onto the target's cross-section, the shortest way, and stay: the "
-             "seam stays as the surfaced half has it (on a symmetric target the result is then symmetric)"),
+             "seam stays as the surfaced half has it"),
         ),
         default="SLIDE",
     )
