@@ -15,13 +15,17 @@ template vertex it stands for (its mirror partner in the symmetric template), as
 the body's bounding-box diagonal.
 """
 
+import sys
 import time
+from pathlib import Path
 
 import bpy  # isort: skip
 import numpy as np
 import pytest
 
 from test_addon import world_positions
+
+REPOSITORY = Path(__file__).resolve().parent.parent
 
 ASYMMETRY = (
     ("asym/asym-nose-1-l.target.gz", 1.0),
@@ -40,6 +44,8 @@ alone: 0.123 %)."""
 @pytest.fixture(scope="module")
 def body():
     """The template body, the asymmetric truth, and each vertex's mirror partner; skipped without the data."""
+    if str(REPOSITORY) not in sys.path:  # `python -m pytest` has it (the working directory); a blender binary not
+        sys.path.insert(0, str(REPOSITORY))
     from benchmarks.retarget import cases, data
 
     try:
