@@ -69,7 +69,8 @@ def test_the_workflow_names_the_operators(guide_text):
     for words in ("springwrap.anchor_add", "springwrap.anchors_auto", "springwrap.curve_constraint_add",
                   "springwrap.curve_constraints_auto", "springwrap.rest_set", "springwrap_rest",
                   "Spring Resolution", "Esc or right-click cancels", "one undo step", "springwrap.align", "ICP Only",
-                  "Mirror: not built yet", "springwrap.detect_features", "## Troubleshooting", "## Command line"):
+                  "springwrap.detect_features", "springwrap.mirror", "Mirror a surfaced half", "## Troubleshooting",
+                  "## Command line"):
         assert words in guide_text, words
 
 

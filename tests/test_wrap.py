@@ -228,6 +228,9 @@ class _RecordingLayout:
     def row(self, *args, **kwargs):
         return self
 
+    def box(self, *args, **kwargs):
+        return self
+
     def label(self, text="", **kwargs):
         self.labels.append(text)
 
@@ -249,12 +252,13 @@ def test_wrap_panel_searches_the_targets_vertex_groups():
     assert SPRINGWRAP_PT_wrap.bl_parent_id == "SPRINGWRAP_PT_layout" and SPRINGWRAP_PT_wrap.poll(bpy.context)
     recorder = _RecordingLayout()
     SPRINGWRAP_PT_wrap.draw(type("Panel", (), {"layout": recorder})(), bpy.context)
-    assert recorder.operators == ["springwrap.wrap", "springwrap.rest_set"]
+    assert recorder.operators == ["springwrap.wrap", "springwrap.rest_set", "springwrap.mirror"]
     assert recorder.searches == [("unreliable_group", "Target", "vertex_groups")]
     layout.springwrap.target = None
     recorder = _RecordingLayout()
     SPRINGWRAP_PT_wrap.draw(type("Panel", (), {"layout": recorder})(), bpy.context)
-    assert recorder.searches == [] and recorder.props == [("unreliable_group", False)]
+    # (the recorder's rows are itself: the mirror box below the disabled row records as disabled too)
+    assert recorder.searches == [] and recorder.props == [("unreliable_group", False), ("mirror_object", False)]
 
 
 def test_poll_needs_a_target():

@@ -32,6 +32,7 @@ from . import (  # noqa: E402
     armature_operator,
     curve_operators,
     feature_operators,
+    mirror_operator,
     operators,
     properties,
     ui,
@@ -47,6 +48,7 @@ _modules = (
     wrap_operator,
     armature_operator,
     feature_operators,
+    mirror_operator,
     ui,
 )
 

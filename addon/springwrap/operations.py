@@ -312,6 +312,10 @@ class WrapInputs(NamedTuple):
     curve_points: Optional[np.ndarray] = None  # (sum P, 3) float32 world target polylines one after another
     curve_point_counts: Optional[np.ndarray] = None  # (K,) uint32 points per polyline
     rest_positions: Optional[np.ndarray] = None  # (N, 3) float32 world template shape the springs rest in
+    plane_vertices: Optional[np.ndarray] = None  # (S,) uint32 vertices held on the mirror plane; None: no plane
+    plane_point: Optional[tuple] = None  # (3,) world point of the mirror plane
+    plane_normal: Optional[tuple] = None  # (3,) world normal of the mirror plane
+    plane_slide: bool = True  # held points slide along the target's cross-section (False: only move onto it)
 
 
 def check_wrap_parameters(parameters: WrapParameters) -> None:

@@ -272,6 +272,12 @@ class SpringwrapObjectSettings(bpy.types.PropertyGroup):
         poll=compat.pointer_poll(_is_armature),
     )
 
+    mirror_object: bpy.props.PointerProperty(
+        name="Mirror Object",
+        description="Object (an empty) whose local plane the Mirror button mirrors across; none: the layout's own",
+        type=bpy.types.Object,
+    )
+
 
 classes = (
     SpringwrapAnchorItem,

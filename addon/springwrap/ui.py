@@ -234,6 +234,10 @@ class SPRINGWRAP_PT_wrap(_LayoutSubPanel, bpy.types.Panel):
         layout.label(text="Whole layout; Esc or right-click cancels", icon="INFO")
         layout.operator("springwrap.wrap", icon="MOD_SHRINKWRAP")
         layout.operator("springwrap.rest_set", icon="ARMATURE_DATA")
+        box = layout.box()
+        box.prop(settings, "mirror_object")
+        mirror = box.operator("springwrap.mirror", icon="MOD_MIRROR")
+        mirror.mirror_object = settings.mirror_object.name if settings.mirror_object is not None else ""
 
 
 class SPRINGWRAP_PT_armature(_LayoutSubPanel, bpy.types.Panel):

@@ -113,10 +113,11 @@ class WrapSession:
     The constructor reads and checks everything and builds the solver; it writes nothing (an error
     is raised as one of ``bridge.ERRORS`` and the scene is untouched). The layout must be in
     object mode for the whole session (the operator sees to it). ``parameters`` is an
-    ``operations.WrapParameters``.
+    ``operations.WrapParameters``. ``adjust_inputs`` (optional) takes the prepared
+    ``operations.WrapInputs`` and returns them changed (the mirror's pins and plane).
     """
 
-    def __init__(self, context, layout: bpy.types.Object, parameters):
+    def __init__(self, context, layout: bpy.types.Object, parameters, adjust_inputs=None):
         from . import anchors, bridge, layout_state, operations
 
         self._bridge, self._operations, self._layout_state = bridge, operations, layout_state
@@ -157,6 +158,8 @@ class WrapSession:
         inputs, resolution = operations.prepare_wrap(
             arrays, self.target, settings.target_signature, self.anchors, unreliable, curve_constraints, self.rest
         )
+        if adjust_inputs is not None:
+            inputs = adjust_inputs(inputs)
         self.solver = bridge.make_wrap_solver(self.target, structure, inputs, parameters)
         self.inputs = inputs
         # Coarse to fine: with a spring resolution above 1 the layout is relaxed first, then a grid

@@ -17,7 +17,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use springwrap_kernel::{
     AlignMethod, Anchor, AnchorTarget, CurveConstraint, CurveKind, FacePoint, KernelError,
-    LayoutPoint, LayoutStructure, NO_TRIANGLE, SpringRest, SurfaceHit, TargetMesh,
+    LayoutPoint, LayoutStructure, NO_TRIANGLE, PlaneConstraint, SpringRest, SurfaceHit, TargetMesh,
     TargetMeshOptions, VertexHit, WrapSettings, WrapSolver, WrapWeights,
 };
 use springwrap_kernel::{
@@ -690,7 +690,8 @@ impl PyWrapSolver {
         anchor_positions = None, unreliable_triangles = None, curve_vertices = None,
         curve_vertex_counts = None, curve_points = None, curve_point_counts = None, fairness = 0.5, arc_length = 0.5, thin_plate = 0.2,
         constraint = 0.5, folding = 0.3, tolerance = 1e-5, landing_distance = 0.25,
-        fold_tolerance = 0.17453292, momentum = 0.9, rest = "TEMPLATE", rest_positions = None
+        fold_tolerance = 0.17453292, momentum = 0.9, rest = "TEMPLATE", rest_positions = None,
+        plane_vertices = None, plane_point = None, plane_normal = None, plane_slide = true
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -721,7 +722,12 @@ impl PyWrapSolver {
         momentum: f32,
         rest: &str,
         rest_positions: Option<&Bound<'_, PyAny>>,
+        plane_vertices: Option<&Bound<'_, PyAny>>,
+        plane_point: Option<[f32; 3]>,
+        plane_normal: Option<[f32; 3]>,
+        plane_slide: bool,
     ) -> PyResult<Self> {
+        let plane = read_plane_constraint(plane_vertices, plane_point, plane_normal, plane_slide)?;
         let states = read_array::<i32>("states", states, None)?;
         let triangles = read_array::<i32>("triangles", triangles, None)?;
         let barycentrics = read_positions("barycentrics", barycentrics)?;
@@ -792,6 +798,10 @@ impl PyWrapSolver {
                 settings,
             )?
             .with_curve_constraints(&curves)?;
+            let solver = match &plane {
+                Some(plane) => solver.with_plane_constraint(plane)?,
+                None => solver,
+            };
             match unreliable {
                 Some(flags) => solver.with_unreliable_triangles(flags),
                 None => Ok(solver),
@@ -963,6 +973,28 @@ fn read_curve_constraints(
             constraint
         })
         .collect())
+}
+
+/// The mirror plane constraint: held vertices (uint32) and the plane's point and normal, all
+/// three or none; `slide`: whether held points slide along the cross-section.
+fn read_plane_constraint(
+    vertices: Option<&Bound<'_, PyAny>>,
+    point: Option<[f32; 3]>,
+    normal: Option<[f32; 3]>,
+    slide: bool,
+) -> PyResult<Option<PlaneConstraint>> {
+    match (vertices, point, normal) {
+        (None, None, None) => Ok(None),
+        (Some(vertices), Some(point), Some(normal)) => Ok(Some(PlaneConstraint {
+            vertices: read_array::<u32>("plane_vertices", vertices, None)?,
+            point: Vec3::from_array(point),
+            normal: Vec3::from_array(normal),
+            slide,
+        })),
+        _ => Err(ArrayError::new_err(
+            "a plane constraint needs all three of plane_vertices, plane_point and plane_normal",
+        )),
+    }
 }
 
 /// Anchors from parallel arrays; a negative triangle means a space anchor at its position.

@@ -3,10 +3,12 @@
 pub mod anchor;
 pub mod curve_constraint;
 pub mod forces;
+pub mod plane_constraint;
 pub mod settings;
 pub mod solver;
 
 pub use anchor::{Anchor, AnchorTarget};
 pub use curve_constraint::CurveConstraint;
+pub use plane_constraint::PlaneConstraint;
 pub use settings::{SpringRest, WrapSettings, WrapWeights};
 pub use solver::{StepReport, WrapSolver};

@@ -21,6 +21,7 @@ use rayon::prelude::*;
 use super::anchor::{Anchor, AnchorTarget};
 use super::curve_constraint::{ArcLengthCurve, CurveConstraint, chain_fractions};
 use super::forces::{Similarity, SpringRest, Springs, thin_plate};
+use super::plane_constraint::{Plane, PlaneConstraint};
 use super::settings::WrapSettings;
 use crate::error::KernelError;
 use crate::face_point::{FacePoint, LayoutPoint};
@@ -74,6 +75,14 @@ const FOLD_BACK_OFF: usize = 2;
 const ON_CURVE: f32 = 1e-2;
 /// Aim of the annealing: the fraction of foldable points that fold in one iteration.
 const FOLD_FRACTION_HIGH: f32 = 0.25;
+/// A point held on the plane is on it within this fraction of the layout's size.
+const ON_PLANE: f32 = 1e-7;
+/// Walks that bring a held face-point back onto the plane after each move (each one is exact
+/// within a triangle, so one or two suffice unless the point crosses an edge).
+const PLANE_WALKS: usize = 4;
+/// Below this squared sine between the surface's normal and the plane's, the surface runs along
+/// the plane there and walking across it cannot reach the plane.
+const PLANE_GRAZING: f32 = 1e-6;
 
 /// What one point's update did, besides moving.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -155,6 +164,11 @@ pub struct WrapSolver {
     walk_neighbors: Option<Vec<[u32; 3]>>,
     /// For each curve-constrained (and not anchored) vertex, its fixed point on the target curve.
     curve_target_of_vertex: Vec<Option<Vec3>>,
+    /// The mirror plane and, per vertex, whether it is held on it (empty: no plane constraint).
+    plane: Option<Plane>,
+    on_plane: Vec<bool>,
+    /// Whether held points slide along the cross-section (else they only move onto it).
+    plane_slide: bool,
     fold_tolerance: f32,
     /// +1 when the layout's faces wind the same way as the target's, -1 when the other way, 0
     /// while that is not clear yet: measured every iteration over the face-points.
@@ -341,6 +355,9 @@ impl WrapSolver {
             unreliable: Vec::new(),
             walk_neighbors: None,
             curve_target_of_vertex: Vec::new(),
+            plane: None,
+            on_plane: Vec::new(),
+            plane_slide: true,
             total_iterations: 0,
             quiet_iterations: 0,
             iteration: 0,
@@ -425,6 +442,11 @@ impl WrapSolver {
                 if self.anchor_of_vertex[vertex as usize].is_some() {
                     continue;
                 }
+                if self.is_on_plane(vertex) {
+                    return Err(invalid(format!(
+                        "vertex {vertex} is also held on the plane constraint"
+                    )));
+                }
                 if let Some(other) = *slot
                     && other != index
                 {
@@ -444,6 +466,184 @@ impl WrapSolver {
         }
         self.curve_target_of_vertex = targets;
         Ok(self)
+    }
+
+    /// Holds layout vertices on a plane (a mirrored layout's seam; paper, section 3): a held
+    /// face-point slides only along the target's cross-section with the plane and is walked back
+    /// onto the plane after every move; a held space-point moves within the plane and lands on
+    /// the cross-section when it comes within the landing distance of it. Anchored vertices keep
+    /// their anchors; held points do not fold.
+    ///
+    /// # Errors
+    /// [`KernelError::InvalidArgument`] for a NaN or a zero normal, a vertex that does not exist,
+    /// or a vertex also held by a curve constraint.
+    pub fn with_plane_constraint(
+        mut self,
+        constraint: &PlaneConstraint,
+    ) -> Result<Self, KernelError> {
+        let plane = Plane::new(constraint.point, constraint.normal)?;
+        let mut on_plane = vec![false; self.points.len()];
+        for &vertex in &constraint.vertices {
+            let invalid = |reason: String| KernelError::InvalidArgument {
+                name: "plane constraint",
+                reason,
+            };
+            if vertex as usize >= self.points.len() {
+                return Err(invalid(format!(
+                    "vertex {vertex} does not exist (the layout has {} vertices)",
+                    self.points.len()
+                )));
+            }
+            if self.anchor_of_vertex[vertex as usize].is_some() {
+                continue;
+            }
+            if self
+                .curve_target_of_vertex
+                .get(vertex as usize)
+                .is_some_and(Option::is_some)
+            {
+                return Err(invalid(format!(
+                    "vertex {vertex} is also held by a curve constraint"
+                )));
+            }
+            on_plane[vertex as usize] = true;
+        }
+        // Held points start on the plane: the springs' first look at the seam is where it stays.
+        for (vertex, _) in on_plane.iter().enumerate().filter(|(_, held)| **held) {
+            let (point, position) = match self.points[vertex] {
+                LayoutPoint::Face(face_point) => match self.walk_onto_plane(&plane, face_point) {
+                    Some((face_point, position)) => (LayoutPoint::Face(face_point), position),
+                    None => {
+                        let position = plane.project(self.positions[vertex]);
+                        (LayoutPoint::Space(position), position)
+                    }
+                },
+                LayoutPoint::Space(position) => {
+                    let position = plane.project(position);
+                    (LayoutPoint::Space(position), position)
+                }
+            };
+            self.points[vertex] = point;
+            self.positions[vertex] = position;
+        }
+        self.plane = Some(plane);
+        self.plane_slide = constraint.slide;
+        self.on_plane = on_plane;
+        Ok(self)
+    }
+
+    /// Whether `vertex` is held on the plane.
+    fn is_on_plane(&self, vertex: u32) -> bool {
+        self.on_plane.get(vertex as usize).copied().unwrap_or(false)
+    }
+
+    /// Walks a face-point onto the plane along the surface (across the cross-section): `None`
+    /// when the walk leaves the surface (a hole) or the surface runs along the plane there.
+    fn walk_onto_plane(&self, plane: &Plane, start: FacePoint) -> Option<(FacePoint, Vec3)> {
+        let tolerance = ON_PLANE * self.layout_size;
+        let mut face_point = start;
+        let mut position = self
+            .target
+            .interpolate(face_point.triangle, face_point.barycentric);
+        for _ in 0..PLANE_WALKS {
+            let distance = plane.distance(position);
+            if distance.abs() <= tolerance {
+                return Some((face_point, position));
+            }
+            let normal = self.target.face_normals()[face_point.triangle as usize];
+            // The steepest way across the plane on the surface; walking `across * t` changes the
+            // distance by `t |across|²`.
+            let across = plane.normal - normal * plane.normal.dot(normal);
+            let rate = across.length_squared();
+            if rate < PLANE_GRAZING {
+                return None;
+            }
+            let step = across * (-distance / rate);
+            let step = step.clamp_length_max(distance.abs() * 4.0 + self.landing_distance);
+            match self.walk(face_point, step) {
+                WalkEnd::OnSurface(moved) if !self.is_unreliable(moved.triangle) => {
+                    face_point = moved;
+                    position = self.target.interpolate(moved.triangle, moved.barycentric);
+                }
+                _ => return None,
+            }
+        }
+        (plane.distance(position).abs() <= tolerance * 100.0).then_some((face_point, position))
+    }
+
+    /// The new state of a point held on the plane, pushed by `force` (reads only the snapshot).
+    fn update_on_plane(
+        &self,
+        plane: &Plane,
+        vertex: u32,
+        force: Vec3,
+        deviations: &[Vec3],
+    ) -> (LayoutPoint, Vec3, Event) {
+        let index = vertex as usize;
+        let here = self.positions[index];
+        let scale = if self.plane_slide {
+            self.step_scales[index]
+        } else {
+            0.0
+        };
+        match self.points[index] {
+            LayoutPoint::Face(face_point) => {
+                let normal = self.target.face_normals()[face_point.triangle as usize];
+                // Along the cross-section only: where the surface's tangent plane meets the plane.
+                let along = normal.cross(plane.normal).normalize_or_zero();
+                let slide = along * force.dot(along) * scale;
+                let walked = if slide == Vec3::ZERO {
+                    WalkEnd::OnSurface(face_point)
+                } else {
+                    self.walk(face_point, slide)
+                };
+                let moved = match walked {
+                    WalkEnd::OnSurface(moved) if !self.is_unreliable(moved.triangle) => moved,
+                    WalkEnd::OnSurface(moved) => {
+                        let position = plane
+                            .project(self.target.interpolate(moved.triangle, moved.barycentric));
+                        return (LayoutPoint::Space(position), position, Event::Lifted);
+                    }
+                    WalkEnd::Lifted { position, .. } => {
+                        let position = plane.project(position);
+                        return (LayoutPoint::Space(position), position, Event::Lifted);
+                    }
+                };
+                match self.walk_onto_plane(plane, moved) {
+                    Some((face_point, position)) => {
+                        (LayoutPoint::Face(face_point), position, Event::None)
+                    }
+                    None => {
+                        let position = plane
+                            .project(self.target.interpolate(moved.triangle, moved.barycentric));
+                        (LayoutPoint::Space(position), position, Event::Lifted)
+                    }
+                }
+            }
+            LayoutPoint::Space(_) => {
+                let push = force
+                    + thin_plate(deviations, &self.structure, vertex)
+                        * self.settings.weights.thin_plate;
+                let moved = plane.project(here + plane.in_plane(push) * scale);
+                // Sliding, the springs bring the point down to the surface; held, it only looks
+                // as far as about an edge length (a landing distance is a quarter of one).
+                let reach = if self.plane_slide {
+                    self.landing_distance
+                } else {
+                    self.landing_distance * 4.0
+                };
+                if self.iteration >= self.no_fold_until[index]
+                    && let Some(hit) = self.target.closest_point(moved, reach)
+                    && !self.is_unreliable(hit.face_point.triangle)
+                    && let Some((face_point, position)) =
+                        self.walk_onto_plane(plane, hit.face_point)
+                    && position.distance(moved) <= reach
+                {
+                    return (LayoutPoint::Face(face_point), position, Event::Landed);
+                }
+                (LayoutPoint::Space(moved), moved, Event::None)
+            }
+        }
     }
 
     /// Walks on the target, stopping at unreliable regions as at holes.
@@ -758,6 +958,12 @@ impl WrapSolver {
                 spring
             }
         };
+        if anchor.is_none()
+            && self.is_on_plane(vertex)
+            && let Some(plane) = &self.plane
+        {
+            return self.update_on_plane(plane, vertex, force, deviations);
+        }
         match self.points[index] {
             LayoutPoint::Face(face_point) => {
                 let normal = self.target.face_normals()[face_point.triangle as usize];

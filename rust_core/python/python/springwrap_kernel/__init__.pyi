@@ -296,6 +296,10 @@ class WrapSolver:
     flat arrays: chain ``c`` is the next ``curve_vertex_counts[c]`` entries of ``curve_vertices``
     (layout vertices in order), its target polyline the next ``curve_point_counts[c]`` rows of
     ``curve_points`` (world space, same direction); matched by the chain's arc length now.
+    ``plane_vertices`` (uint32) are held on the plane through ``plane_point`` with normal
+    ``plane_normal`` (a mirrored layout's seam: face-points slide along the target's cross-section
+    with the plane, space-points move within it); all three or none. ``plane_slide=False``: held
+    points only move onto the cross-section, the shortest way, and stay there.
     """
 
     def __init__(
@@ -327,6 +331,10 @@ class WrapSolver:
         momentum: float = 0.9,
         rest: Literal["TEMPLATE", "EVEN"] = "TEMPLATE",
         rest_positions: npt.NDArray[np.float32] | None = None,
+        plane_vertices: npt.NDArray[np.uint32] | None = None,
+        plane_point: tuple[float, float, float] | None = None,
+        plane_normal: tuple[float, float, float] | None = None,
+        plane_slide: bool = True,
     ) -> None: ...
     def step(self, iterations: int) -> StepReport:
         """Run up to ``iterations`` iterations (fewer once converged), GIL released."""

@@ -1,0 +1,315 @@
+"""``springwrap.mirror``: mirror the surfaced half of a layout and wrap the copy onto the target's other half.
+
+Paper, section 3 ("Mirroring example", Figure 8). The plane is the layout's local X, Y or Z plane,
+or that plane of a mirror object (an empty), as in Blender's Mirror modifier. The operator
+
+1. reads the layout and decides the seam (vertices on the plane), the faces that cross the plane
+   and whether the plane meets the layout at all (``mirroring.plan``): a plane that misses it is
+   an error and nothing is changed;
+2. adds the reflected copy of the layout's faces and loose edges, winding reversed, every mesh
+   attribute carried over, the seam welded (``bridge.mirror_mesh_topology``); writes the reflected
+   positions, the rest shape reflected the same way, and the state: the surfaced half keeps its
+   face-points, the copy is made of space-points (``mirroring.mirrored_layout``);
+3. unless ``wrap`` is off, wraps the copy onto the target with the surfaced half pinned (anchors at
+   themselves) and the seam held on the plane (the kernel's plane constraint: seam points slide along
+   the target's cross-section with the plane), through the same ``WrapSession`` as ``springwrap.wrap``.
+
+Faces that cross the plane are reported with a warning and selected. Any error after step 2 puts
+the mesh back as it was. Anchors and curve constraints of the surfaced half are not mirrored: they
+mark features of that half of the target, and on a near-symmetric target their mirror images are
+only guesses (a wrong anchor is a hard constraint); the pinned half and the seam guide the wrap.
+"""
+
+import time
+
+import bpy
+import numpy as np
+
+from .mirroring import AXES, DEFAULT_WELD_FRACTION
+from .operators import layout_problem
+
+LANDING_REACH = 0.25
+"""Before the wrap, a copy within this fraction of its mean edge length of the target lands there at once."""
+ON_PLANE_TOLERANCE = 1e-6
+"""Without a wrap, a seam face-point moved onto the plane by more than this fraction of the layout's
+size becomes a space-point (its face no longer lies under it)."""
+
+
+class MirrorOutcome:
+    """What a mirror did, for the report (and for scripts: ``SPRINGWRAP_OT_mirror.last_outcome``)."""
+
+    def __init__(self, **values):
+        self.__dict__.update(values)
+
+
+class SPRINGWRAP_OT_mirror(bpy.types.Operator):
+    """Mirror the layout across its local X, Y or Z plane (or a mirror object's), weld the seam, and wrap the new half onto the target's other half"""
+
+    bl_idname = "springwrap.mirror"
+    bl_label = "Mirror"
+    bl_options = {"REGISTER", "UNDO"}
+
+    last_outcome = None  # the last run's MirrorOutcome (class attribute: scripts and tests read it)
+
+    axis: bpy.props.EnumProperty(
+        name="Axis",
+        description="The mirror plane is perpendicular to this axis of the layout object (or of the mirror object)",
+        items=tuple((axis, axis, f"Mirror across the plane {axis.lower()} = 0") for axis in AXES),
+        default="X",
+    )
+    mirror_object: bpy.props.StringProperty(
+        name="Mirror Object",
+        description="Name of an object (an empty) whose local plane is the mirror plane; empty: the layout's own",
+        default="",
+    )
+    weld_distance: bpy.props.FloatProperty(
+        name="Weld Distance",
+        description="Vertices this close to the plane, as a fraction of the mean length of their edges, are "
+        "snapped onto it and shared by both halves (the seam)",
+        default=DEFAULT_WELD_FRACTION,
+        min=1e-6,
+        soft_max=0.5,
+        precision=3,
+    )
+    wrap: bpy.props.BoolProperty(
+        name="Wrap",
+        description="Wrap the new half onto the target's other half (surfaced half pinned, seam held on the plane); "
+        "off: only mirror",
+        default=True,
+    )
+    surfaced_half: bpy.props.EnumProperty(
+        name="Surfaced Half",
+        description="What the half that was there before does during the wrap",
+        items=(
+            ("PIN", "Pin", "It is done: it does not move, only the new half is wrapped"),
+            ("FREE", "Free", "Both halves are wrapped together, the seam held on the plane"),
+        ),
+        default="PIN",
+    )
+    seam: bpy.props.EnumProperty(
+        name="Seam",
+        description="What the seam (the vertices on the plane) does during the wrap",
+        items=(
+            ("SLIDE", "Slide", "Seam points slide along the target's cross-section with the plane, pulled by the "
+             "springs of both halves"),
+            ("HOLD", "Hold", "Seam points only move onto the target's cross-section, the shortest way, and stay: the "
+             "seam stays as the surfaced half has it"),
+        ),
+        default="SLIDE",
+    )
+    mirror_anchors: bpy.props.BoolProperty(
+        name="Mirror Anchors",
+        description="Give the new half the mirror images of the surfaced half's anchors, put on the closest target "
+        "point (a guess as good as the target's symmetry); anchors on the seam are dropped either way",
+        default=True,
+    )
+    max_iterations: bpy.props.IntProperty(
+        name="Max Iterations",
+        description="Stop the wrap after this many iterations if it has not converged by then",
+        default=2000,
+        min=1,
+        soft_max=20000,
+    )
+    tolerance: bpy.props.FloatProperty(
+        name="Tolerance",
+        description="The wrap has converged when no point moves more than this fraction of the layout's size",
+        default=1e-5,
+        soft_min=1e-7,
+        soft_max=1e-2,
+        precision=7,
+    )
+
+    @classmethod
+    def poll(cls, context):
+        problem = layout_problem(context, require_target=False)
+        if problem is not None:
+            cls.poll_message_set(problem)
+            return False
+        return True
+
+    def execute(self, context):
+        problem = layout_problem(context, require_target=self.wrap)
+        if problem is not None:
+            self.report({"ERROR"}, problem)
+            return {"CANCELLED"}
+        try:
+            from . import bridge
+        except ImportError as error:
+            self.report({"ERROR"}, f"The Springwrap kernel is not available: {error}")
+            return {"CANCELLED"}
+        layout = context.active_object
+        type(self).last_outcome = None
+        with bridge.object_mode(layout):
+            try:
+                prepared = self._prepare(context, layout)
+            except bridge.ERRORS as error:
+                self.report({"ERROR"}, str(error))
+                return {"CANCELLED"}
+            backup = bridge.backup_mesh(layout)
+            anchors_before = (bridge.read_anchors(layout), layout.springwrap.anchors_signature,
+                              layout.springwrap.active_anchor_index)
+            window_manager = context.window_manager
+            progress = not bpy.app.background
+            try:
+                if progress:
+                    window_manager.progress_begin(0, self.max_iterations)
+                outcome = self._run(context, layout, prepared, window_manager if progress else None)
+            except Exception as error:  # noqa: BLE001 - any failure puts the mesh back, then reports
+                bridge.restore_mesh(layout, backup)
+                bridge.write_anchors(layout, anchors_before[0], anchors_before[2], anchors_before[1])
+                self.report({"ERROR"}, f"Mirroring failed and was undone: {error}")
+                return {"CANCELLED"}
+            finally:
+                bpy.data.meshes.remove(backup)
+                if progress:
+                    window_manager.progress_end()
+        type(self).last_outcome = outcome
+        self._report(outcome)
+        return {"FINISHED"}
+
+    def _plane(self, context, layout):
+        from . import bridge, mirroring
+
+        if not self.mirror_object:
+            return mirroring.plane_from_matrix(bridge.matrix_array(layout.matrix_world), self.axis), layout.name
+        mirror = context.scene.objects.get(self.mirror_object) or bpy.data.objects.get(self.mirror_object)
+        if mirror is None:
+            raise mirroring.LayoutError(f"There is no object named '{self.mirror_object}' to mirror across")
+        if mirror == layout:
+            return mirroring.plane_from_matrix(bridge.matrix_array(layout.matrix_world), self.axis), layout.name
+        return mirroring.plane_from_matrix(bridge.matrix_array(mirror.matrix_world), self.axis), mirror.name
+
+    def _prepare(self, context, layout):
+        """Read and check everything; decide the mirror. Writes nothing."""
+        from . import bridge, layout_state, mirroring, operations
+
+        if bridge.has_shape_keys(layout):
+            raise layout_state.LayoutError(f"Layout '{layout.name}' has shape keys; Springwrap cannot move its vertices")
+        if self.wrap:
+            bridge.check_target(layout)
+            operations.check_wrap_parameters(self.parameters())
+        arrays = bridge.read_layout(layout)
+        if not layout_state.is_invertible(arrays.matrix_world):
+            raise layout_state.LayoutError(f"Layout '{layout.name}' has zero scale: it cannot be mirrored")
+        plane, plane_owner = self._plane(context, layout)
+        topology = bridge.read_layout_topology(layout)
+        world = operations.world_positions(arrays)
+        decided = mirroring.plan(
+            world, topology.face_corners, topology.face_sizes, topology.edges, plane, self.weld_distance,
+            layout_name=f"layout '{layout.name}'",
+        )
+        rest = bridge.read_rest(layout)
+        world_rest = world if rest is None else operations.rest_world_positions(arrays, rest)
+        return {"arrays": arrays, "plane": plane, "plane_owner": plane_owner, "plan": decided, "world": world,
+                "world_rest": world_rest}
+
+    def parameters(self):
+        """The wrap's ``operations.WrapParameters`` (the wrap operator's defaults, this operator's limits)."""
+        from .operations import WrapParameters
+
+        return WrapParameters(max_iterations=self.max_iterations, tolerance=self.tolerance)
+
+    def _run(self, context, layout, prepared, window_manager):
+        """Mirror the mesh, then wrap; raises on failure (the caller restores the mesh)."""
+        from . import anchors, bridge, layout_state, mirroring, operations
+
+        start = time.perf_counter()
+        arrays, plane, decided = prepared["arrays"], prepared["plane"], prepared["plan"]
+        original_count = arrays.positions.shape[0]
+        source = bridge.mirror_mesh_topology(layout, decided.duplicate_faces, decided.duplicate_edges, decided.seam)
+        size = float(np.linalg.norm(np.ptp(prepared["world"], axis=0))) or 1.0
+        mirrored = mirroring.mirrored_layout(
+            prepared["world"], arrays.state, prepared["world_rest"], source, decided.seam, plane,
+            keep_seam_face_points=self.wrap, on_plane_tolerance=ON_PLANE_TOLERANCE * size,
+        )
+        target = None
+        if layout.springwrap.target is not None:
+            target = bridge.read_target(context.evaluated_depsgraph_get(), layout)
+        landed_copies = 0
+        if self.wrap:
+            edge_lengths = mirroring.vertex_edge_lengths(mirrored.positions, bridge.read_layout_topology(layout).edges)
+            before = int((mirrored.state.states == layout_state.FACE_POINT).sum())
+            mirrored = mirroring.land_copies(mirrored, edge_lengths, target, LANDING_REACH)
+            landed_copies = int((mirrored.state.states == layout_state.FACE_POINT).sum()) - before
+        to_local = lambda points: operations.to_local(arrays.matrix_world, points)  # noqa: E731
+        bridge.write_rest(layout, to_local(mirrored.rest))
+        bridge.write_layout(layout, to_local(mirrored.positions), mirrored.state)
+        anchor_list = bridge.read_anchors(layout)
+        if target is not None:
+            anchor_list, _ = anchors.resolve(anchor_list, target, layout.springwrap.anchors_signature)
+        mirrored_anchors = mirroring.mirrored_anchors(
+            anchor_list, source, mirrored.is_copy, decided.seam, plane, target, mirror=self.mirror_anchors
+        )
+        bridge.write_anchors(layout, mirrored_anchors.anchors, -1, None if target is None else target.signature)
+        mirror_seconds = time.perf_counter() - start
+        result = None
+        if self.wrap:
+            from .wrap_operator import WrapSession
+
+            pinned = ~mirrored.is_copy & ~mirrored.seam
+            if self.surfaced_half == "FREE":
+                pinned = np.zeros_like(pinned)
+            seam_vertices = np.flatnonzero(mirrored.seam)
+            session = WrapSession(
+                context, layout, self.parameters(),
+                adjust_inputs=lambda inputs: mirroring.hold_inputs(
+                    inputs, pinned, seam_vertices, plane, slide=self.seam == "SLIDE"
+                ),
+            )
+            if window_manager is not None:
+                session.run(progress=lambda report: window_manager.progress_update(report.total_iterations))
+            else:
+                session.run()
+            result = session.finish()
+        if decided.crossing_faces.size:
+            bridge.select_faces(layout, decided.crossing_faces)
+        world_now = operations.world_positions(bridge.read_layout(layout))
+        seam_distances = np.abs(mirroring.signed_distances(world_now[mirrored.seam], plane))
+        return MirrorOutcome(
+            layout_name=layout.name,
+            plane_owner=prepared["plane_owner"],
+            axis=self.axis,
+            original_vertices=original_count,
+            vertices=int(source.shape[0]),
+            copies=int(mirrored.is_copy.sum()),
+            seam_vertices=int(mirrored.seam.sum()),
+            crossing_faces=decided.crossing_faces.copy(),
+            in_plane_faces=decided.in_plane_faces,
+            source=source,
+            is_copy=mirrored.is_copy,
+            seam=mirrored.seam,
+            plane=plane,
+            seam_max_distance=float(seam_distances.max()) if seam_distances.size else 0.0,
+            mirror_seconds=mirror_seconds,
+            mirrored_anchors=mirrored_anchors.mirrored_count,
+            landed_copies=landed_copies,
+            dropped_anchors=mirrored_anchors.dropped_count,
+            wrap=result,
+            seconds=time.perf_counter() - start,
+            face_points=layout_state.point_counts(bridge.read_state(layout.data).states)[0],
+        )
+
+    def _report(self, outcome) -> None:
+        text = (
+            f"Mirrored '{outcome.layout_name}' across the {outcome.axis} plane of '{outcome.plane_owner}': "
+            f"{outcome.copies} new vertices, {outcome.seam_vertices} on the seam"
+        )
+        if outcome.wrap is not None:
+            ending = "converged" if outcome.wrap.converged else "stopped at the iteration limit"
+            text += (
+                f"; the new half wrapped in {outcome.wrap.iterations} iterations ({ending}), "
+                f"{outcome.wrap.face_points} face-points, {outcome.wrap.space_points} space-points"
+            )
+        if outcome.mirrored_anchors or outcome.dropped_anchors:
+            text += f"; {outcome.mirrored_anchors} anchors mirrored, {outcome.dropped_anchors} on the seam dropped"
+        text += f" ({outcome.seconds:.2f} s)"
+        self.report({"INFO"} if outcome.wrap is None or outcome.wrap.converged else {"WARNING"}, text)
+        if outcome.crossing_faces.size:
+            self.report(
+                {"WARNING"},
+                f"{outcome.crossing_faces.size} faces of the layout cross the mirror plane (corners clearly on both "
+                "sides): their mirror overlaps them. They are selected; cut them at the plane or move them to one side",
+            )
+
+
+classes = (SPRINGWRAP_OT_mirror,)

@@ -1,0 +1,177 @@
+"""Mirror the surfaced half of a layout and wrap the new half onto the target's other half, headless.
+
+Runs both ways (arguments after ``--`` when present, else all of ``sys.argv[1:]``):
+    .venv/bin/python blender_scripts/mirror.py --layout L --target T --axis X [options]
+    blender -b --python blender_scripts/mirror.py -- --layout L --target T --axis X [options]
+
+Layout and target: a mesh file (.obj, .ply, .glb / .gltf) or a .blend with ``--layout-object`` /
+``--target-object`` naming the object (without a name, the file's only mesh object). A layout from a
+.blend keeps its Springwrap state (face-points, rest shape, anchors); ``--snap`` first snaps it onto
+the target (a layout read from a mesh file is all space-points otherwise). The plane is the
+layout's local ``--axis`` plane, or that plane of ``--mirror-object`` (an object of the layout's
+.blend, e.g. an empty: its local YZ plane for X). Then ``springwrap.mirror`` runs with
+``--weld-distance``, ``--seam SLIDE|HOLD``, ``--surfaced-half PIN|FREE``, ``--no-mirror-anchors``,
+``--max-iterations``, ``--tolerance``; ``--no-wrap`` only mirrors (no target needed).
+
+Outputs: ``--output-blend F.blend``, ``--output-obj F.obj`` (the mirrored layout alone) and
+``--report F.json`` (counts, the seam's distance from the plane, faces crossing the plane, the wrap,
+distances to the target, timings, warnings), each written to a temporary file and renamed.
+
+Exit codes (as ``retarget.py``): 0 done; 1 failed (one line ``mirror: FAILED: ...`` on stderr naming
+the file and the problem, e.g. a plane that misses the layout; nothing is written); 2 bad arguments.
+Faces crossing the plane and a wrap stopped at the iteration limit are warnings, not failures.
+"""
+
+import argparse
+import sys
+import time
+import traceback
+from pathlib import Path
+
+import bpy
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # `blender --python` does not add it
+from retarget import RetargetError, distances_to_target, enable_addon, load_mesh, write_outputs  # noqa: E402
+from script_arguments import script_arguments  # noqa: E402
+
+EXIT_FAILED, EXIT_USAGE = 1, 2
+
+
+def parse_arguments(argv: list[str]) -> argparse.Namespace:
+    """Parse the script's own arguments (see the module docstring); exits with code 2 when they are wrong."""
+    parser = argparse.ArgumentParser(prog="mirror.py", description=__doc__.splitlines()[0])
+    parser.add_argument("--layout", type=Path, required=True, help="the layout: mesh file or .blend")
+    parser.add_argument("--layout-object", help="the layout's object in a .blend")
+    parser.add_argument("--target", type=Path, help="the target: mesh file or .blend (not needed with --no-wrap)")
+    parser.add_argument("--target-object", help="the target's object in a .blend")
+    parser.add_argument("--axis", choices=("X", "Y", "Z"), default="X", help="the mirror plane's axis (default X)")
+    parser.add_argument("--mirror-object", help="an object of the layout's .blend whose local plane is the mirror")
+    parser.add_argument("--weld-distance", type=float, default=0.1,
+                        help="seam: vertices this close to the plane, fraction of their edge length (default 0.1)")
+    parser.add_argument("--seam", choices=("SLIDE", "HOLD"), default="SLIDE", help="seam during the wrap")
+    parser.add_argument("--surfaced-half", choices=("PIN", "FREE"), default="PIN",
+                        help="the half that was there: pinned (default) or wrapped too")
+    parser.add_argument("--no-mirror-anchors", action="store_true", help="do not mirror the anchors")
+    parser.add_argument("--no-wrap", action="store_true", help="only mirror")
+    parser.add_argument("--snap", action="store_true", help="snap the layout onto the target first")
+    parser.add_argument("--max-iterations", type=int, default=2000, help="wrap iteration limit (default 2000)")
+    parser.add_argument("--tolerance", type=float, default=1e-5, help="convergence, fraction of the layout's size")
+    parser.add_argument("--output-blend", type=Path, help="save layout, target and result here")
+    parser.add_argument("--output-obj", type=Path, help="export the mirrored layout here")
+    parser.add_argument("--report", type=Path, help="write the JSON report here")
+    arguments = parser.parse_args(script_arguments(argv, __file__))
+    if arguments.max_iterations < 1:
+        parser.error("--max-iterations must be at least 1")
+    if not arguments.weld_distance > 0:
+        parser.error("--weld-distance must be positive")
+    if arguments.target is None and not arguments.no_wrap:
+        parser.error("--target is needed unless --no-wrap")
+    if arguments.snap and arguments.target is None:
+        parser.error("--snap needs --target")
+    if arguments.mirror_object and arguments.layout.suffix.lower() != ".blend":
+        parser.error("--mirror-object names an object of the layout's .blend")
+    return arguments
+
+
+def _load_mirror_object(path: Path, name: str) -> str:
+    """Link the object ``name`` of the .blend ``path`` into the scene; its name there."""
+    with bpy.data.libraries.load(str(path), link=False) as (source, loaded):
+        if name not in source.objects:
+            raise RetargetError(f"{path}: no object '{name}' to mirror across")
+        loaded.objects = [name]
+    mirror = loaded.objects[0]
+    bpy.context.scene.collection.objects.link(mirror)
+    return mirror.name
+
+
+def _run(blame: str, name: str, **properties) -> None:
+    try:
+        result = getattr(bpy.ops.springwrap, name)(**properties)
+    except RuntimeError as error:
+        message = str(error).strip().removeprefix("Error: ").splitlines()[0]
+        raise RetargetError(f"{blame}: springwrap.{name}: {message}") from None
+    if result != {"FINISHED"}:
+        raise RetargetError(f"{blame}: springwrap.{name} returned {sorted(result)}")
+
+
+def mirror(arguments: argparse.Namespace) -> dict:
+    """Load, (snap,) mirror and wrap, measure, write; the report (also written to --report)."""
+    from springwrap.mirror_operator import SPRINGWRAP_OT_mirror
+
+    timings, warnings = {}, []
+    clock = time.perf_counter()
+
+    def lap(step: str) -> None:
+        nonlocal clock
+        now = time.perf_counter()
+        timings[step] = round(now - clock, 4)
+        clock = now
+
+    enable_addon()
+    bpy.ops.wm.read_homefile(use_empty=True)
+    layout = load_mesh(arguments.layout, arguments.layout_object, "Layout")
+    target = load_mesh(arguments.target, arguments.target_object, "Target") if arguments.target else None
+    mirror_object = _load_mirror_object(arguments.layout, arguments.mirror_object) if arguments.mirror_object else ""
+    for obj in bpy.context.view_layer.objects:
+        obj.select_set(obj == layout)
+    bpy.context.view_layer.objects.active = layout
+    layout.springwrap.target = target
+    lap("load")
+    blame = f"layout {arguments.layout}" + (f", target {arguments.target}" if arguments.target else "")
+    if arguments.snap:
+        _run(blame, "snap")
+        lap("snap")
+    _run(blame, "mirror", axis=arguments.axis, mirror_object=mirror_object, weld_distance=arguments.weld_distance,
+         wrap=not arguments.no_wrap, seam=arguments.seam, surfaced_half=arguments.surfaced_half,
+         mirror_anchors=not arguments.no_mirror_anchors, max_iterations=arguments.max_iterations,
+         tolerance=arguments.tolerance)
+    outcome = SPRINGWRAP_OT_mirror.last_outcome
+    lap("mirror and wrap")
+    if outcome.crossing_faces.size:
+        warnings.append(f"{outcome.crossing_faces.size} faces cross the mirror plane (their mirror overlaps them): "
+                        f"faces {outcome.crossing_faces[:20].tolist()}")
+    wrap = None
+    if outcome.wrap is not None:
+        wrap = {"iterations": outcome.wrap.iterations, "converged": outcome.wrap.converged,
+                "face_points": outcome.wrap.face_points, "space_points": outcome.wrap.space_points,
+                "kernel_seconds": round(outcome.wrap.kernel_seconds, 4)}
+        if not outcome.wrap.converged:
+            warnings.append(f"the wrap did not converge within {arguments.max_iterations} iterations; the result is kept")
+        if outcome.wrap.space_points:
+            warnings.append(f"{outcome.wrap.space_points} of {outcome.vertices} vertices are off the surface")
+    report = {
+        "layout": str(arguments.layout), "target": str(arguments.target) if arguments.target else None,
+        "plane": {"axis": arguments.axis, "object": outcome.plane_owner, "point": outcome.plane.point.tolist(),
+                  "normal": outcome.plane.normal.tolist()},
+        "vertices_before": outcome.original_vertices, "vertices": outcome.vertices, "new_vertices": outcome.copies,
+        "seam_vertices": outcome.seam_vertices, "seam_max_distance_to_plane": outcome.seam_max_distance,
+        "crossing_faces": outcome.crossing_faces.tolist(), "anchors_mirrored": outcome.mirrored_anchors,
+        "anchors_dropped": outcome.dropped_anchors, "wrap": wrap,
+        "metrics": distances_to_target(layout, target) if target is not None else None,
+        "timings": timings, "warnings": warnings, "blender": bpy.app.version_string,
+    }
+    lap("metrics")
+    write_outputs(arguments, layout, report)
+    return report
+
+
+def main() -> int:
+    arguments = parse_arguments(sys.argv)
+    try:
+        report = mirror(arguments)
+    except RetargetError as error:
+        print(f"mirror: FAILED: {error}", file=sys.stderr)
+        return EXIT_FAILED
+    except Exception as error:  # noqa: BLE001 - any failure must become a non-zero exit code, also under `blender -b`
+        traceback.print_exc()
+        print(f"mirror: FAILED: {type(error).__name__}: {error}", file=sys.stderr)
+        return EXIT_FAILED
+    wrap = report["wrap"]
+    print(f"mirror: {report['vertices']} vertices ({report['new_vertices']} new, {report['seam_vertices']} on the seam)"
+          + (f", wrapped in {wrap['iterations']} iterations" if wrap else "")
+          + "".join(f"\n  warning: {line}" for line in report["warnings"]))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
