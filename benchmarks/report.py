@@ -24,7 +24,7 @@ OUT = REPOSITORY_ROOT / "out" / "bench"
 DOCS = REPOSITORY_ROOT / "docs"
 
 SPRINGWRAP_METHODS = ("Springwrap snap", "Springwrap wrap", "Springwrap snap+wrap", "Springwrap project+wrap",
-                      "Springwrap align", "Springwrap align+wrap", "Springwrap armature",
+                      "Springwrap align", "Springwrap align+wrap", "Springwrap wrap+mirror", "Springwrap armature",
                       "Springwrap armature+wrap")
 BASELINE_METHODS = ("aligned template", "Shrinkwrap nearest", "Shrinkwrap project", "trimesh nricp_amberg")
 

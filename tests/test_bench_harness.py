@@ -538,3 +538,30 @@ def test_the_wrap_speed_section_states_each_aim_and_measurement():
 def test_every_align_method_is_a_method_with_a_short_name():
     for method in springwrap_methods.ALIGN_METHODS:
         assert method in baselines.METHODS and method in run.SHORT_NAMES
+
+
+def test_the_mirror_method_is_a_method_and_needs_the_half_layout_case():
+    from benchmarks.retarget import mirror_methods
+
+    for method in mirror_methods.MIRROR_METHODS:
+        assert method in baselines.METHODS and method in run.SHORT_NAMES
+    whole = type("Case", (), {"spec": cases.CaseSpec("heavy", "anny", "heavy")})()
+    with pytest.raises(baselines.BaselineUnavailable, match="half-layout"):
+        mirror_methods.springwrap_wrap_mirror(whole, None, None, None, None)
+
+
+def test_mirror_partners_and_the_reflection_across_a_placed_plane():
+    from benchmarks.retarget import mirror_methods
+
+    rng = np.random.default_rng(3)
+    right = rng.normal(size=(40, 3)) + np.array([1.5, 0.0, 0.0])
+    template = np.concatenate([right, right * np.array([-1.0, 1.0, 1.0]), [[0.0, 0.3, 0.2]]])
+    partners = mirror_methods.mirror_partners(template)
+    np.testing.assert_array_equal(partners[:40], np.arange(40, 80))
+    np.testing.assert_array_equal(partners[40:80], np.arange(40))
+    assert partners[80] == 80  # on the plane: its own partner
+    with pytest.raises(ValueError, match="not symmetric"):
+        mirror_methods.mirror_partners(template[1:])
+    placement = cases.similarity_matrix(rotation_degrees=25.0, scale=1.05, translation=(0.3, 0.05, -0.2))
+    placed = cases.transform_points(placement, template)
+    np.testing.assert_allclose(mirror_methods.reflect(placed[:40], placement), placed[40:80], atol=1e-12)

@@ -135,6 +135,8 @@ def mesh_object(name: str, vertices: np.ndarray, faces: np.ndarray):
     mesh.loops.foreach_set("vertex_index", faces.ravel())
     mesh.polygons.add(len(faces))
     mesh.polygons.foreach_set("loop_start", np.arange(0, faces.size, corner_count, dtype=np.int32))
+    if bpy.app.version < (4, 0, 0):  # before 4.0 the corner counts are stored, not derived from loop_start
+        mesh.polygons.foreach_set("loop_total", np.full(len(faces), corner_count, dtype=np.int32))
     mesh.update(calc_edges=True)
     obj = bpy.data.objects.new(name, mesh)
     bpy.context.scene.collection.objects.link(obj)
@@ -259,6 +261,7 @@ METHODS = (
     "Springwrap align+wrap",
     "Springwrap armature",
     "Springwrap armature+wrap",
+    "Springwrap wrap+mirror",
 )
 
 
@@ -268,7 +271,7 @@ def run_baselines(
     """Run ``methods`` on a case (the Blender scene is cleared first), with its first ``anchor_count`` landmarks.
 
     ``wrap_max_iterations`` caps the wrap methods' iterations (None: the operator's default)."""
-    from benchmarks.retarget import armature_methods, springwrap_methods
+    from benchmarks.retarget import armature_methods, mirror_methods, springwrap_methods
 
     marks = case.landmarks(anchor_count)
     anchors = case.true_positions[marks.vertices]
@@ -315,6 +318,10 @@ def run_baselines(
                     result.positions, result.notes, result.details = armature_methods.springwrap_armature(
                         case, target_object, marks.vertices, anchors, wrap=method == "Springwrap armature+wrap",
                         max_iterations=wrap_max_iterations,
+                    )
+                elif method in mirror_methods.MIRROR_METHODS:
+                    result.positions, result.notes, result.details = mirror_methods.springwrap_wrap_mirror(
+                        case, aligned, target_object, marks.vertices, anchors, max_iterations=wrap_max_iterations,
                     )
                 else:
                     raise BaselineUnavailable(f"unknown method {method!r}")

@@ -41,6 +41,7 @@ SHORT_NAMES = {
     "Springwrap project+wrap": "proj+wrap",
     "Springwrap align": "sw-align",
     "Springwrap align+wrap": "align+wrap",
+    "Springwrap wrap+mirror": "wrap+mirror",
     "Springwrap armature": "sw-arm",
     "Springwrap armature+wrap": "arm+wrap",
 }
