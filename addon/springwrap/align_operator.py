@@ -10,7 +10,7 @@ import time
 
 import bpy
 
-from .operators import layout_problem
+from .operators import checked_bridge, poll_layout
 from .properties import max_distance_property
 
 METHOD_ITEMS = (
@@ -85,11 +85,7 @@ class SPRINGWRAP_OT_align(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        problem = layout_problem(context)
-        if problem is not None:
-            cls.poll_message_set(problem)
-            return False
-        return True
+        return poll_layout(cls, context)
 
     def draw(self, context):
         layout = self.layout
@@ -104,15 +100,10 @@ class SPRINGWRAP_OT_align(bpy.types.Operator):
         layout.prop(self, "apply")
 
     def execute(self, context):
-        problem = layout_problem(context)
-        if problem is not None:
-            self.report({"ERROR"}, problem)
+        bridge = checked_bridge(self, context)
+        if bridge is None:
             return {"CANCELLED"}
-        try:
-            from . import alignment, anchors, bridge
-        except ImportError as error:
-            self.report({"ERROR"}, f"The Springwrap kernel is not available: {error}")
-            return {"CANCELLED"}
+        from . import alignment, anchors
         layout = context.active_object
         if self.apply == "BAKE" and bridge.has_shape_keys(layout):
             self.report({"ERROR"}, f"Layout '{layout.name}' has shape keys; bake needs to move its vertices: apply to the object transform")

@@ -18,6 +18,7 @@ import numpy as np
 
 from . import armature_align
 from .armature_align import SCALE_ALONG, SCALE_NONE, SCALE_UNIFORM
+from .operators import import_bridge
 
 SCALE_MODE_ITEMS = (
     (
@@ -290,10 +291,8 @@ class SPRINGWRAP_OT_align_armature(bpy.types.Operator):
                 "with automatic weights) to deform it with the template's armature",
             )
             return {"CANCELLED"}
-        try:
-            from . import bridge
-        except ImportError as error:
-            self.report({"ERROR"}, f"The Springwrap kernel is not available: {error}")
+        bridge = import_bridge(self)
+        if bridge is None:
             return {"CANCELLED"}
         start = time.perf_counter()
         window_manager = context.window_manager

@@ -14,6 +14,8 @@ import time
 import bpy
 import numpy as np
 
+from .operators import import_bridge
+
 REGION_COLORS = np.array(
     [
         (0.55, 0.55, 0.55, 1.0),  # flat: grey
@@ -126,10 +128,8 @@ class SPRINGWRAP_OT_detect_features(bpy.types.Operator):
         if not (self.write_colors or self.write_curves):
             self.report({"ERROR"}, "Nothing to write: enable Region Colours or Feature Curves")
             return {"CANCELLED"}
-        try:
-            from . import bridge
-        except ImportError as error:
-            self.report({"ERROR"}, f"The Springwrap kernel is not available: {error}")
+        bridge = import_bridge(self)
+        if bridge is None:
             return {"CANCELLED"}
         window_manager = context.window_manager
         show_progress = not bpy.app.background

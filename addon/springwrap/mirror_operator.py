@@ -26,7 +26,7 @@ import bpy
 import numpy as np
 
 from .mirroring import AXES, DEFAULT_WELD_FRACTION
-from .operators import layout_problem
+from .operators import checked_bridge, poll_layout
 
 LANDING_REACH = 0.25
 """Before the wrap, a copy within this fraction of its mean edge length of the target lands there at once."""
@@ -121,21 +121,11 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        problem = layout_problem(context, require_target=False)
-        if problem is not None:
-            cls.poll_message_set(problem)
-            return False
-        return True
+        return poll_layout(cls, context, require_target=False)
 
     def execute(self, context):
-        problem = layout_problem(context, require_target=self.wrap)
-        if problem is not None:
-            self.report({"ERROR"}, problem)
-            return {"CANCELLED"}
-        try:
-            from . import bridge
-        except ImportError as error:
-            self.report({"ERROR"}, f"The Springwrap kernel is not available: {error}")
+        bridge = checked_bridge(self, context, require_target=self.wrap)
+        if bridge is None:
             return {"CANCELLED"}
         layout = context.active_object
         type(self).last_outcome = None

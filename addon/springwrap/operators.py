@@ -29,6 +29,36 @@ def layout_problem(context, require_target=True):
     return None
 
 
+def import_bridge(operator):
+    """The ``bridge`` module (importing it imports the kernel), or None after an ERROR report that the
+    kernel is missing."""
+    try:
+        from . import bridge
+    except ImportError as error:
+        operator.report({"ERROR"}, f"The Springwrap kernel is not available: {error}")
+        return None
+    return bridge
+
+
+def checked_bridge(operator, context, require_target=True):
+    """What a layout operator's ``execute`` starts with: :func:`layout_problem`, then the kernel; the
+    ``bridge`` module, or None after an ERROR report saying why not."""
+    problem = layout_problem(context, require_target)
+    if problem is not None:
+        operator.report({"ERROR"}, problem)
+        return None
+    return import_bridge(operator)
+
+
+def poll_layout(cls, context, require_target=True) -> bool:
+    """A layout operator's ``poll``: whether it can run, with the reason set when not."""
+    problem = layout_problem(context, require_target)
+    if problem is not None:
+        cls.poll_message_set(problem)
+        return False
+    return True
+
+
 class _LayoutOperator:
     """Shared poll, run and report of the Springwrap operators."""
 
@@ -43,22 +73,13 @@ class _LayoutOperator:
 
     @classmethod
     def poll(cls, context):
-        problem = layout_problem(context, cls.requires_target)
-        if problem is not None:
-            cls.poll_message_set(problem)
-            return False
-        return True
+        return poll_layout(cls, context, cls.requires_target)
 
     def execute(self, context):
-        problem = layout_problem(context, self.requires_target)
-        if problem is not None:
-            self.report({"ERROR"}, problem)
+        bridge = checked_bridge(self, context, self.requires_target)
+        if bridge is None:
             return {"CANCELLED"}
-        try:
-            from . import bridge, operations
-        except ImportError as error:
-            self.report({"ERROR"}, f"The Springwrap kernel is not available: {error}")
-            return {"CANCELLED"}
+        from . import operations
         layout = context.active_object
         if self.moves_vertices and bridge.has_shape_keys(layout):
             self.report({"ERROR"}, f"Layout '{layout.name}' has shape keys; Springwrap cannot move its vertices")
@@ -139,10 +160,8 @@ class LayoutCollectionOperator:
         if problem is not None:
             self.report({"ERROR"}, problem)
             return {"CANCELLED"}
-        try:
-            from . import bridge
-        except ImportError as error:
-            self.report({"ERROR"}, f"The Springwrap kernel is not available: {error}")
+        bridge = import_bridge(self)
+        if bridge is None:
             return {"CANCELLED"}
         layout = context.active_object
         try:
