@@ -132,3 +132,27 @@ def test_pins_replace_anchors_on_the_surfaced_half():
     assert held.anchor_triangles.tolist() == [-1, 5, -1]
     assert np.array_equal(held.anchor_positions[1:], inputs.positions[:2])
     assert held.plane_vertices.tolist() == [2] and held.plane_slide is False
+
+
+def test_held_on_plane_holds_the_midline_and_leaves_its_anchors_out():
+    positions = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0], [2e-3, 2, 0]], dtype=np.float64)
+    edges = np.array([[0, 1], [0, 2], [1, 3], [2, 3], [2, 4]])
+    inputs = types.SimpleNamespace(
+        anchor_vertices=np.array([0, 3, 4], dtype=np.uint32), anchor_triangles=np.array([9, -1, 2], dtype=np.int32),
+        anchor_barycentrics=np.zeros((3, 3), dtype=np.float32), anchor_positions=np.ones((3, 3), dtype=np.float32),
+    )
+    inputs._replace = lambda **changes: _namespace_with_replace(vars(inputs) | changes)
+    plane = mirroring.Plane(np.zeros(3), np.array([1.0, 0.0, 0.0]))
+    held = mirroring.held_on_plane(inputs, positions, edges, plane)
+    # Vertices 0 and 2 on x = 0; 4 is 2e-3 off, within a tenth of its edge (1.0): on it too.
+    assert held.plane_vertices.tolist() == [0, 2, 4] and held.plane_slide is True
+    assert held.plane_normal == (1.0, 0.0, 0.0)
+    assert held.anchor_vertices.tolist() == [3] and held.anchor_triangles.tolist() == [-1]
+    with pytest.raises(layout_state.LayoutError, match="No layout vertex lies on the hold plane"):
+        mirroring.held_on_plane(inputs, positions + [5.0, 0.0, 0.0], edges, plane)
+
+
+def _namespace_with_replace(values):
+    namespace = types.SimpleNamespace(**values)
+    namespace._replace = lambda **changes: _namespace_with_replace(vars(namespace) | changes)
+    return namespace

@@ -365,3 +365,39 @@ def land_copies(mirrored: MirrorLayout, edge_lengths: np.ndarray, target, reach_
     barycentrics[landed] = hits.barycentrics[found]
     positions[landed] = hits.positions[found]
     return mirrored._replace(positions=positions, state=layout_state.normalized_state(states, faces, barycentrics))
+
+
+def held_on_plane(inputs, world_positions: np.ndarray, edges: np.ndarray, plane: Plane,
+                  weld_fraction: float = DEFAULT_WELD_FRACTION):
+    """The wrap's inputs (``operations.WrapInputs``) with the layout's vertices on ``plane`` held on it.
+
+    For a half to be mirrored: its midline (each vertex within ``weld_fraction`` of its own mean
+    edge length of the plane, as the mirror's seam) stays on the plane while the half is wrapped,
+    so that the mirror finds it there. Held points slide along the target's cross-section.
+
+    The kernel lets an anchor win over the plane; here the plane wins: anchors on held vertices are
+    left out of this wrap (the layout keeps them). An anchor's target off the plane (the closest
+    point of a snapped midline vertex beside a nose, say) would pull the midline off it, and a
+    target moved onto the plane may lie off the surface. Raises :class:`LayoutError` when no vertex
+    lies on the plane.
+    """
+    distances = np.abs(signed_distances(world_positions, plane))
+    on_plane = distances <= weld_fraction * vertex_edge_lengths(world_positions, edges)
+    if not on_plane.any():
+        raise LayoutError(
+            f"No layout vertex lies on the hold plane (the nearest is {distances.min():.4g} from it): "
+            "choose the axis (or the Mirror Object) of the plane the half's midline lies on"
+        )
+    free_anchor = ~on_plane[np.asarray(inputs.anchor_vertices, dtype=np.int64)]
+    inputs = inputs._replace(
+        anchor_vertices=np.ascontiguousarray(inputs.anchor_vertices[free_anchor]),
+        anchor_triangles=np.ascontiguousarray(inputs.anchor_triangles[free_anchor]),
+        anchor_barycentrics=np.ascontiguousarray(inputs.anchor_barycentrics[free_anchor]),
+        anchor_positions=np.ascontiguousarray(inputs.anchor_positions[free_anchor]),
+    )
+    return inputs._replace(
+        plane_vertices=np.ascontiguousarray(np.flatnonzero(on_plane), dtype=np.uint32),
+        plane_point=tuple(float(value) for value in plane.point),
+        plane_normal=tuple(float(value) for value in plane.normal),
+        plane_slide=True,
+    )

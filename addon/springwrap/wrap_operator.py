@@ -445,6 +445,18 @@ class SPRINGWRAP_OT_wrap(bpy.types.Operator):
         min=1,
         max=8,
     )
+    hold_plane: bpy.props.EnumProperty(
+        name="Hold on Plane",
+        description="Keep the vertices that lie on this plane of the layout (or of the panel's Mirror Object) on it "
+        "during the wrap: surface one half of a symmetric model with its midline on the plane, then Mirror",
+        items=(
+            ("NONE", "None", "No plane: every vertex is free"),
+            ("X", "X", "The plane x = 0 of the layout (or of the Mirror Object)"),
+            ("Y", "Y", "The plane y = 0 of the layout (or of the Mirror Object)"),
+            ("Z", "Z", "The plane z = 0 of the layout (or of the Mirror Object)"),
+        ),
+        default="NONE",
+    )
 
     @classmethod
     def poll(cls, context):
@@ -470,6 +482,18 @@ class SPRINGWRAP_OT_wrap(bpy.types.Operator):
             spring_resolution=self.spring_resolution,
         )
 
+    def _plane_holder(self, layout):
+        """``adjust_inputs`` for :class:`WrapSession` holding the midline on ``hold_plane``; None without one."""
+        if self.hold_plane == "NONE":
+            return None
+        from . import bridge, mirroring, operations
+
+        owner = layout.springwrap.mirror_object or layout
+        plane = mirroring.plane_from_matrix(bridge.matrix_array(owner.matrix_world), self.hold_plane)
+        world = operations.world_positions(bridge.read_layout(layout))
+        edges = bridge.read_layout_topology(layout).edges
+        return lambda inputs: mirroring.held_on_plane(inputs, world, edges, plane)
+
     # A string: typing's cache would keep Optional[WrapSession] (and through it this module) alive until
     # after Python finalizes, and the PyPI bpy 4.2 module then crashes on exit freeing the operator class.
     def _start(self, context) -> "Optional[WrapSession]":
@@ -484,7 +508,8 @@ class SPRINGWRAP_OT_wrap(bpy.types.Operator):
             self.report({"ERROR"}, f"The Springwrap kernel is not available: {error}")
             return None
         try:
-            return WrapSession(context, context.active_object, self.parameters())
+            layout = context.active_object
+            return WrapSession(context, layout, self.parameters(), adjust_inputs=self._plane_holder(layout))
         except errors as error:
             self.report({"ERROR"}, str(error))
             return None

@@ -2,7 +2,8 @@
 
 ``Springwrap wrap+mirror``, as a user with a half-surfaced, near-symmetric model would: the
 aligned left half is wrapped exactly as ``Springwrap wrap`` does (detach, ``anchor_add`` per
-landmark, ``springwrap.wrap``; :func:`springwrap_methods.wrap_layout`), then ``springwrap.mirror``
+landmark, ``springwrap.wrap``; :func:`springwrap_methods.wrap_layout`; ``hold_midline=True``
+holds its midline on the symmetry plane, ``hold_plane='X'``), then ``springwrap.mirror``
 with its defaults mirrors it across the target's plane of symmetry and wraps the new half onto the
 target's other half, the surfaced half pinned and the seam held on the plane. The plane is an
 empty placed like the target (the template's x = 0 plane moved by :data:`cases.PLACEMENT`): the
@@ -80,6 +81,7 @@ def springwrap_wrap_mirror(
     anchor_positions: np.ndarray,
     max_iterations: int | None = None,
     mirror_options: dict | None = None,
+    hold_midline: bool = False,
 ) -> tuple[np.ndarray, list[str], dict]:
     """wrap the aligned half, then ``springwrap.mirror`` (its defaults, or ``mirror_options``);
     (positions of the half, notes, details)."""
@@ -95,16 +97,18 @@ def springwrap_wrap_mirror(
         raise RuntimeError(f"the case's half has {len(case.layout_vertices)} vertices, the template's {len(kept)}")
     partners = mirror_partners(template)
 
-    layout = mesh_object("Springwrap mirror", aligned, case.layout_quads)
-    layout.springwrap.target = target_object
-    half, notes, report = springwrap_methods.wrap_layout(
-        layout, aligned, landmark_vertices, anchor_positions, "detach", max_iterations
-    )
     placement = cases.similarity_matrix(**cases.PLACEMENT)
     plane = bpy.data.objects.new("Mirror plane", None)
     bpy.context.scene.collection.objects.link(plane)
     plane.matrix_world = Matrix(placement.tolist())
+    layout = mesh_object("Springwrap mirror", aligned, case.layout_quads)
+    layout.springwrap.target = target_object
+    layout.springwrap.mirror_object = plane
     bpy.context.view_layer.update()
+    half, notes, report = springwrap_methods.wrap_layout(
+        layout, aligned, landmark_vertices, anchor_positions, "detach", max_iterations,
+        wrap_options={"hold_plane": "X"} if hold_midline else None,
+    )
     output = springwrap_methods._call("mirror", bpy.ops.springwrap.mirror, axis="X", mirror_object=plane.name,
                                        **(mirror_options or {}))
     from springwrap.mirror_operator import SPRINGWRAP_OT_mirror

@@ -196,9 +196,11 @@ def wrap_layout(
     anchor_positions: np.ndarray,
     start: str = "detach",
     max_iterations: int | None = None,
+    wrap_options: dict | None = None,
 ) -> tuple[np.ndarray, list[str], WrapReport]:
     """:func:`springwrap_wrap` on an existing layout object whose target is set (``layout_positions``: its
-    vertices, for ``project``'s ray length); (positions, notes, report)."""
+    vertices, for ``project``'s ray length; ``wrap_options``: more ``springwrap.wrap`` properties);
+    (positions, notes, report)."""
     import bpy
 
     _select_only(layout)
@@ -211,7 +213,7 @@ def wrap_layout(
               max_distance=PROJECT_DISTANCE * diagonal, only_selected=False)
     anchor_count = _add_anchors(layout, landmark_vertices, anchor_positions)
     wrap_properties = {} if max_iterations is None else {"max_iterations": int(max_iterations)}
-    report = parse_wrap_report(_call("wrap", bpy.ops.springwrap.wrap, **wrap_properties))
+    report = parse_wrap_report(_call("wrap", bpy.ops.springwrap.wrap, **wrap_properties, **(wrap_options or {})))
     ending = "converged" if report.converged else "stopped at the iteration limit"
     notes = [
         f"{report.iterations} iterations ({ending}), wrap {report.seconds:.2f} s, "
