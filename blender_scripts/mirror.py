@@ -24,7 +24,6 @@ Faces crossing the plane and a wrap stopped at the iteration limit are warnings,
 
 import argparse
 import sys
-import time
 import traceback
 from pathlib import Path
 
@@ -32,6 +31,7 @@ import bpy
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # `blender --python` does not add it
 from retarget import (  # noqa: E402
+    Laps,
     RetargetError,
     distances_to_target,
     enable_addon,
@@ -95,14 +95,8 @@ def mirror(arguments: argparse.Namespace) -> dict:
     """Load, (snap,) mirror and wrap, measure, write; the report (also written to --report)."""
     from springwrap.mirror_operator import SPRINGWRAP_OT_mirror
 
-    timings, warnings = {}, []
-    clock = time.perf_counter()
-
-    def lap(step: str) -> None:
-        nonlocal clock
-        now = time.perf_counter()
-        timings[step] = round(now - clock, 4)
-        clock = now
+    lap, warnings = Laps(), []
+    timings = lap.timings
 
     enable_addon()
     bpy.ops.wm.read_homefile(use_empty=True)

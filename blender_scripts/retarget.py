@@ -286,6 +286,19 @@ def distances_to_target(layout, target) -> dict:
             "rms_distance": float(np.sqrt((distances ** 2).mean())), "target_diagonal": size}
 
 
+class Laps:
+    """Seconds per named step of a run, each counted from the end of the one before (``timings``)."""
+
+    def __init__(self) -> None:
+        self.timings: dict[str, float] = {}
+        self._clock = time.perf_counter()
+
+    def __call__(self, step: str) -> None:
+        now = time.perf_counter()
+        self.timings[step] = round(now - self._clock, 4)
+        self._clock = now
+
+
 def run_operator(blame: str, name: str, **properties) -> None:
     """Run ``springwrap.<name>``; its error (it names the object: Template, Target, Retargeted) prefixed by ``blame``."""
     try:
@@ -301,14 +314,8 @@ def retarget(arguments: argparse.Namespace) -> dict:
     """Load, align, detach, anchor, wrap, measure, write; the report (also written to --report)."""
     from springwrap import bridge, operations, wrap_operator
 
-    timings, warnings = {}, []
-    clock = time.perf_counter()
-
-    def lap(step: str) -> None:
-        nonlocal clock
-        now = time.perf_counter()
-        timings[step] = round(now - clock, 4)
-        clock = now
+    lap, warnings = Laps(), []
+    timings = lap.timings
 
     enable_addon()
     bpy.ops.wm.read_homefile(use_empty=True)

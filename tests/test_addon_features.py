@@ -9,7 +9,7 @@ import bpy  # isort: skip  (mathutils needs bpy imported first)
 import numpy as np
 import pytest
 
-from test_addon import snapshot, world_positions
+from test_addon import world_positions
 from test_curves import chain_pairs, distance_to_polyline, select_edges
 from test_feature_binding import centre_line_distance, rounded_box
 from test_wrap import _RecordingLayout

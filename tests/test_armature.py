@@ -18,7 +18,7 @@ from test_wrap import _RecordingLayout, wrap_scene  # noqa: F401 (wrap_scene, au
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # `benchmarks` lives at the root
 
-from benchmarks.retarget import data, rig_scene, rigging  # noqa: E402
+from benchmarks.retarget import rig_scene, rigging  # noqa: E402
 
 RADIUS = 0.2
 
