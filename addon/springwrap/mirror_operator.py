@@ -27,6 +27,7 @@ import numpy as np
 
 from .mirroring import AXES, DEFAULT_WELD_FRACTION
 from .operators import checked_bridge, poll_layout
+from .properties import max_iterations_property, tolerance_property
 
 LANDING_REACH = 0.25
 """Before the wrap, a copy within this fraction of its mean edge length of the target lands there at once."""
@@ -103,21 +104,8 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
         "point (a guess as good as the target's symmetry); anchors on the seam are dropped either way",
         default=True,
     )
-    max_iterations: bpy.props.IntProperty(
-        name="Max Iterations",
-        description="Stop the wrap after this many iterations if it has not converged by then",
-        default=2000,
-        min=1,
-        soft_max=20000,
-    )
-    tolerance: bpy.props.FloatProperty(
-        name="Tolerance",
-        description="The wrap has converged when no point moves more than this fraction of the layout's size",
-        default=1e-5,
-        soft_min=1e-7,
-        soft_max=1e-2,
-        precision=7,
-    )
+    max_iterations: max_iterations_property()
+    tolerance: tolerance_property()
 
     @classmethod
     def poll(cls, context):

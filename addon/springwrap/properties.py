@@ -22,6 +22,20 @@ def max_distance_property(description: str):
     )
 
 
+def max_iterations_property(description: str = "Stop the wrap after this many iterations if it has not converged by then"):
+    """The wrap's iteration limit: shared by the operators that wrap (wrap, mirror)."""
+    return bpy.props.IntProperty(name="Max Iterations", description=description, default=2000, min=1, soft_max=20000)
+
+
+def tolerance_property(
+    description: str = "The wrap has converged when no point moves more than this fraction of the layout's size",
+):
+    """The wrap's convergence tolerance: shared by the operators that wrap (wrap, mirror)."""
+    return bpy.props.FloatProperty(
+        name="Tolerance", description=description, default=1e-5, soft_min=1e-7, soft_max=1e-2, precision=7
+    )
+
+
 SNAP_MODE_ITEMS = (
     ("SURFACE", "Surface", "Closest point on the target surface (exact, uses the face tree)"),
     ("VERTEX", "Vertex", "Nearest target vertex (fast, uses the vertex tree)"),

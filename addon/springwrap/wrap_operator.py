@@ -22,6 +22,7 @@ from typing import Callable, NamedTuple, Optional
 import bpy
 
 from .operators import layout_problem
+from .properties import max_iterations_property, tolerance_property
 
 FRAME_RATE = 30.0
 """Redraws per second the modal wrap aims for."""
@@ -377,20 +378,9 @@ class SPRINGWRAP_OT_wrap(bpy.types.Operator):
     bl_label = "Wrap"
     bl_options = {"REGISTER", "UNDO"}
 
-    max_iterations: bpy.props.IntProperty(
-        name="Max Iterations",
-        description="Stop after this many iterations if it has not converged by then",
-        default=2000,
-        min=1,
-        soft_max=20000,
-    )
-    tolerance: bpy.props.FloatProperty(
-        name="Tolerance",
-        description="Converged when no point moves more than this fraction of the layout's size in an iteration",
-        default=1e-5,
-        soft_min=1e-7,
-        soft_max=1e-2,
-        precision=7,
+    max_iterations: max_iterations_property("Stop after this many iterations if it has not converged by then")
+    tolerance: tolerance_property(
+        "Converged when no point moves more than this fraction of the layout's size in an iteration"
     )
     fairness: bpy.props.FloatProperty(
         name="Fairness",
