@@ -64,6 +64,6 @@ pub use layout::{Curve, CurveKind, LayoutStructure, LineTriple};
 pub use mesh::{NO_TRIANGLE, TargetMesh, TargetMeshOptions, TriangleEdge};
 pub use surface::{WalkEnd, WalkOutcome};
 pub use wrap::{
-    Anchor, AnchorTarget, CurveConstraint, PlaneConstraint, SpringRest, StepReport, WrapSettings,
-    WrapSolver, WrapWeights,
+    Anchor, AnchorTarget, CurveConstraint, PlaneConstraint, SolverKind, SpringRest, StepReport,
+    WrapSettings, WrapSolver, WrapWeights,
 };

@@ -123,7 +123,7 @@ fn wrap_band(target: Arc<TargetMesh>, around: u32, slide: bool) -> WrapSolver {
         slide,
     })
     .unwrap();
-    let report = solver.step(3000);
+    let report = solver.step(3000).expect("the spring solver steps");
     assert!(report.converged, "{report:?}");
     solver
 }
@@ -327,7 +327,7 @@ fn a_held_seam_that_does_not_slide_only_moves_onto_the_cross_section() {
         );
     }
     // And it stays there, whatever the springs say.
-    solver.step(200);
+    solver.step(200).expect("the spring solver steps");
     for (vertex, (&now, &then)) in solver.positions().iter().zip(&settled).enumerate() {
         assert!(
             now.distance(then) < 1e-6,

@@ -79,7 +79,7 @@ fn wrapped(rest: SpringRest, anchors_at: &[u32]) -> (Vec<f32>, Vec<Vec3>) {
         ..WrapSettings::default()
     };
     let mut solver = WrapSolver::new(target, structure, points, &anchors, settings).unwrap();
-    let report = solver.step(20_000);
+    let report = solver.step(20_000).expect("the spring solver steps");
     assert!(report.converged, "{rest:?}: {report:?}");
     assert_eq!(report.space_points, 0, "{rest:?}: {report:?}");
     (xs, solver.positions().to_vec())
@@ -152,7 +152,7 @@ fn the_rest_shape_counts_in_any_placement() {
         WrapSettings::default(),
     )
     .unwrap();
-    let report = solver.step(20_000);
+    let report = solver.step(20_000).expect("the spring solver steps");
     assert!(report.converged, "{report:?}");
     let middle = 2 * xs.len();
     for (column, &x) in xs.iter().enumerate() {
@@ -244,7 +244,7 @@ fn a_flap_turned_away_from_the_target_does_not_fold_onto_it() {
     let points = positions.iter().map(|&p| LayoutPoint::Space(p)).collect();
     let mut solver =
         WrapSolver::new(target, structure, points, &anchors, WrapSettings::default()).unwrap();
-    let report = solver.step(5000);
+    let report = solver.step(5000).expect("the spring solver steps");
     assert!(report.face_points >= 15, "{report:?}");
     for y in 0..3usize {
         for x in 7..10usize {

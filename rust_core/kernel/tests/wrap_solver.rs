@@ -101,7 +101,7 @@ fn a_template_above_a_plane_wraps_onto_it_through_its_anchors() {
         WrapSettings::default(),
     )
     .unwrap();
-    let report = solver.step(2000);
+    let report = solver.step(2000).expect("the spring solver steps");
     assert!(report.converged, "{report:?}");
     assert_eq!(report.space_points, 0, "{report:?}");
     for (vertex, position) in solver.positions().iter().enumerate() {
@@ -134,7 +134,7 @@ fn points_over_a_hole_stay_space_points_on_the_continued_surface() {
     let points = positions.iter().map(|&p| LayoutPoint::Space(p)).collect();
     let mut solver =
         WrapSolver::new(target, structure, points, &anchors, WrapSettings::default()).unwrap();
-    let report = solver.step(3000);
+    let report = solver.step(3000).expect("the spring solver steps");
     assert!(report.converged, "{report:?}");
     let mut over_hole = 0;
     for (vertex, (point, position)) in solver.points().iter().zip(solver.positions()).enumerate() {
@@ -163,10 +163,10 @@ fn stepping_reports_progress_and_resumes() {
     let points: Vec<LayoutPoint> = positions.iter().map(|&p| LayoutPoint::Space(p)).collect();
     let mut solver =
         WrapSolver::new(target, structure, points, &anchors, WrapSettings::default()).unwrap();
-    let first = solver.step(5);
+    let first = solver.step(5).expect("the spring solver steps");
     assert_eq!((first.iterations, first.total_iterations), (5, 5));
     assert!(!first.converged && first.max_displacement > 0.0);
-    let second = solver.step(5);
+    let second = solver.step(5).expect("the spring solver steps");
     assert_eq!(second.total_iterations, 10);
     assert!(first.landed + second.landed >= 1 || second.space_points < 49);
 }
@@ -260,7 +260,7 @@ fn points_over_unreliable_data_behave_as_over_a_hole() {
         .unwrap()
         .with_unreliable_triangles(unreliable)
         .unwrap();
-    let report = solver.step(3000);
+    let report = solver.step(3000).expect("the spring solver steps");
     assert!(report.converged, "{report:?}");
     let mut over_noise = 0;
     for (vertex, (point, position)) in solver.points().iter().zip(solver.positions()).enumerate() {
@@ -314,7 +314,7 @@ fn a_border_held_to_a_curve_on_the_surface_lies_on_it_evenly() {
         .unwrap()
         .with_curve_constraints(&[constraint])
         .unwrap();
-    let report = solver.step(3000);
+    let report = solver.step(3000).expect("the spring solver steps");
     assert!(report.converged, "{report:?}");
     let border: Vec<Vec3> = (0..=10).map(|vertex| solver.positions()[vertex]).collect();
     for (vertex, &position) in border.iter().enumerate() {
@@ -356,7 +356,7 @@ fn a_curve_floating_above_the_surface_holds_its_points_in_space() {
         .unwrap()
         .with_curve_constraints(&[constraint])
         .unwrap();
-    let report = solver.step(3000);
+    let report = solver.step(3000).expect("the spring solver steps");
     assert!(report.converged, "{report:?}");
     for &vertex in &middle[1..middle.len() - 1] {
         let position = solver.positions()[vertex as usize];
@@ -459,7 +459,7 @@ fn a_point_balanced_at_a_hole_rim_does_not_fold_and_lift_forever() {
     let points = positions.iter().map(|&p| LayoutPoint::Space(p)).collect();
     let mut solver =
         WrapSolver::new(target, structure, points, &anchors, WrapSettings::default()).unwrap();
-    let report = solver.step(2000);
+    let report = solver.step(2000).expect("the spring solver steps");
     assert!(report.converged, "{report:?}");
     assert!(report.lifted < 20, "{report:?}");
 }

@@ -17,8 +17,8 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use springwrap_kernel::{
     AlignMethod, Anchor, AnchorTarget, CurveConstraint, CurveKind, FacePoint, KernelError,
-    LayoutPoint, LayoutStructure, NO_TRIANGLE, PlaneConstraint, SpringRest, SurfaceHit, TargetMesh,
-    TargetMeshOptions, VertexHit, WrapSettings, WrapSolver, WrapWeights,
+    LayoutPoint, LayoutStructure, NO_TRIANGLE, PlaneConstraint, SolverKind, SpringRest, SurfaceHit,
+    TargetMesh, TargetMeshOptions, VertexHit, WrapSettings, WrapSolver, WrapWeights,
 };
 use springwrap_kernel::{
     IcpAnchors, IcpSettings, IcpUpdate, Transform, fit_transform, icp_anchored,
@@ -691,7 +691,8 @@ impl PyWrapSolver {
         curve_vertex_counts = None, curve_points = None, curve_point_counts = None, fairness = 0.5, arc_length = 0.5, thin_plate = 0.2,
         constraint = 0.5, folding = 0.3, tolerance = 1e-5, landing_distance = 0.25,
         fold_tolerance = 0.17453292, momentum = 0.9, rest = "TEMPLATE", rest_positions = None,
-        plane_vertices = None, plane_point = None, plane_normal = None, plane_slide = true
+        plane_vertices = None, plane_point = None, plane_normal = None, plane_slide = true,
+        solver = "SPRINGS"
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -726,7 +727,17 @@ impl PyWrapSolver {
         plane_point: Option<[f32; 3]>,
         plane_normal: Option<[f32; 3]>,
         plane_slide: bool,
+        solver: &str,
     ) -> PyResult<Self> {
+        let solver_kind = match solver {
+            "SPRINGS" => SolverKind::Springs,
+            "ENERGY" => SolverKind::Energy,
+            other => {
+                return Err(InvalidArgumentError::new_err(format!(
+                    "invalid solver: {other:?} is not 'SPRINGS' or 'ENERGY'"
+                )));
+            }
+        };
         let plane = read_plane_constraint(plane_vertices, plane_point, plane_normal, plane_slide)?;
         let states = read_array::<i32>("states", states, None)?;
         let triangles = read_array::<i32>("triangles", triangles, None)?;
@@ -776,6 +787,7 @@ impl PyWrapSolver {
             fold_tolerance,
             momentum,
             rest,
+            solver: solver_kind,
         };
         let curves = read_curve_constraints(
             curve_vertices,
@@ -832,7 +844,7 @@ impl PyWrapSolver {
         f32,
     )> {
         let solver = &mut self.solver;
-        let report = run_kernel(py, || Ok(solver.step(iterations)))?;
+        let report = run_kernel(py, || solver.step(iterations))?;
         Ok((
             report.iterations,
             report.total_iterations,

@@ -2,7 +2,9 @@
 
 pub mod anchor;
 pub mod curve_constraint;
+mod energy_solver;
 pub mod forces;
+pub mod linear_system;
 pub mod plane_constraint;
 pub mod settings;
 pub mod solver;
@@ -10,5 +12,5 @@ pub mod solver;
 pub use anchor::{Anchor, AnchorTarget};
 pub use curve_constraint::CurveConstraint;
 pub use plane_constraint::PlaneConstraint;
-pub use settings::{SpringRest, WrapSettings, WrapWeights};
+pub use settings::{SolverKind, SpringRest, WrapSettings, WrapWeights};
 pub use solver::{StepReport, WrapSolver};

@@ -34,6 +34,17 @@ impl Default for WrapWeights {
     }
 }
 
+/// Which algorithm moves the points.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SolverKind {
+    /// The paper's force iteration: spring forces relaxed by Jacobi steps, folding, annealing.
+    #[default]
+    Springs,
+    /// One energy minimised by local–global steps with a sparse Cholesky, no face turned over
+    /// (see `wrap::energy_solver`).
+    Energy,
+}
+
 /// Everything that controls a wrap besides the layout, the target and the anchors.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct WrapSettings {
@@ -54,6 +65,8 @@ pub struct WrapSettings {
     /// What the springs consider relaxed: the template's own bends and spacing (the default), or
     /// straight, evenly spaced grid lines (Krishnamurthy & Levoy).
     pub rest: SpringRest,
+    /// The algorithm.
+    pub solver: SolverKind,
 }
 
 impl Default for WrapSettings {
@@ -65,6 +78,7 @@ impl Default for WrapSettings {
             fold_tolerance: 10f32.to_radians(),
             momentum: 0.9,
             rest: SpringRest::Template,
+            solver: SolverKind::Springs,
         }
     }
 }

@@ -20,9 +20,10 @@ use rayon::prelude::*;
 
 use super::anchor::{Anchor, AnchorTarget};
 use super::curve_constraint::{ArcLengthCurve, CurveConstraint, chain_fractions};
+use super::energy_solver::{EnergyInputs, EnergySolver};
 use super::forces::{Similarity, SpringRest, Springs, thin_plate};
 use super::plane_constraint::{Plane, PlaneConstraint};
-use super::settings::WrapSettings;
+use super::settings::{SolverKind, WrapSettings};
 use crate::error::KernelError;
 use crate::face_point::{FacePoint, LayoutPoint};
 use crate::layout::LayoutStructure;
@@ -125,6 +126,11 @@ pub struct StepReport {
     pub lifted: usize,
     /// The annealed folding tolerance now, in radians.
     pub fold_tolerance: f32,
+    /// The energy after the last iteration (the energy solver; NaN for the spring solver).
+    pub energy: f64,
+    /// Points whose last step was shortened or refused so that no layout face turned over (the
+    /// energy solver; 0 for the spring solver).
+    pub held_back: usize,
 }
 
 /// A wrap in progress: the layout's points on (or near) a target, moved a few iterations at a time.
@@ -184,6 +190,11 @@ pub struct WrapSolver {
     quiet_iterations: usize,
     /// Iterations run so far, counted inside `iterate` (for the fold back-off).
     iteration: usize,
+    /// The rest shape (the energy solver's springs).
+    rest: Vec<Vec3>,
+    mean_edge_length: f32,
+    /// The energy solver, made at the first step of a wrap with [`SolverKind::Energy`].
+    energy: Option<Box<EnergySolver>>,
 }
 
 impl WrapSolver {
@@ -327,6 +338,11 @@ impl WrapSolver {
             });
         let layout_size = (max - min).length().max(f32::MIN_POSITIVE);
         let springs = Springs::new(&structure, &rest, settings.rest);
+        let energy_rest = if settings.solver == SolverKind::Energy {
+            rest
+        } else {
+            Vec::new()
+        };
         let mut is_corner = vec![false; structure.vertex_count];
         for &corner in &structure.corners {
             is_corner[corner as usize] = true;
@@ -361,6 +377,9 @@ impl WrapSolver {
             total_iterations: 0,
             quiet_iterations: 0,
             iteration: 0,
+            rest: energy_rest,
+            mean_edge_length,
+            energy: None,
         })
     }
 
@@ -681,7 +700,41 @@ impl WrapSolver {
     }
 
     /// Runs up to `iterations` iterations, stopping early once converged.
-    pub fn step(&mut self, iterations: usize) -> StepReport {
+    ///
+    /// # Errors
+    /// With [`SolverKind::Energy`]: [`KernelError::InvalidArgument`] when its linear system
+    /// cannot be built or factored, or a plane constraint is set (not supported by it yet).
+    pub fn step(&mut self, iterations: usize) -> Result<StepReport, KernelError> {
+        if self.settings.solver == SolverKind::Energy {
+            return self.step_energy(iterations);
+        }
+        Ok(self.step_springs(iterations))
+    }
+
+    /// [`WrapSolver::step`] with the energy solver.
+    fn step_energy(&mut self, iterations: usize) -> Result<StepReport, KernelError> {
+        if self.plane.is_some() {
+            return Err(KernelError::InvalidArgument {
+                name: "solver",
+                reason: "the energy solver does not hold points on a plane yet: use the spring \
+                         solver for a mirror or a held midline"
+                    .to_owned(),
+            });
+        }
+        if self.energy.is_none() {
+            let inputs = EnergyInputs {
+                target: &self.target,
+                structure: &self.structure,
+                rest: &self.rest,
+                positions: &self.positions,
+                anchor_of_vertex: &self.anchor_of_vertex,
+                curve_target_of_vertex: &self.curve_target_of_vertex,
+                unreliable: &self.unreliable,
+                mean_edge_length: self.mean_edge_length,
+                landing_distance: self.landing_distance,
+            };
+            self.energy = Some(Box::new(EnergySolver::new(&inputs)?));
+        }
         let mut report = StepReport {
             iterations: 0,
             total_iterations: self.total_iterations,
@@ -694,6 +747,68 @@ impl WrapSolver {
             folded: 0,
             lifted: 0,
             fold_tolerance: self.fold_tolerance,
+            energy: f64::NAN,
+            held_back: 0,
+        };
+        let energy = self.energy.as_mut().expect("made above");
+        if energy.is_finished() {
+            report.converged = true;
+        }
+        while report.iterations < iterations && !report.converged {
+            let outcome = energy.iterate()?;
+            report.iterations += 1;
+            report.max_displacement = outcome.max_move / self.layout_size;
+            report.mean_displacement = outcome.mean_move / self.layout_size;
+            report.energy = outcome.energy;
+            report.held_back = outcome.held_back;
+            if outcome.finished {
+                let (points, landed) = energy.land();
+                report.folded = landed;
+                report.landed = points
+                    .iter()
+                    .zip(&self.anchor_of_vertex)
+                    .filter(|(point, anchor)| {
+                        anchor.is_some() && matches!(point, LayoutPoint::Face(_))
+                    })
+                    .count();
+                self.points = points;
+                report.converged = true;
+            } else {
+                self.points = energy
+                    .positions()
+                    .iter()
+                    .map(|&position| LayoutPoint::Space(position))
+                    .collect();
+            }
+            self.positions = energy.positions().to_vec();
+        }
+        self.total_iterations += report.iterations;
+        report.total_iterations = self.total_iterations;
+        report.face_points = self
+            .points
+            .iter()
+            .filter(|point| matches!(point, LayoutPoint::Face(_)))
+            .count();
+        report.space_points = self.points.len() - report.face_points;
+        Ok(report)
+    }
+
+    /// [`WrapSolver::step`] with the spring solver.
+    fn step_springs(&mut self, iterations: usize) -> StepReport {
+        let mut report = StepReport {
+            iterations: 0,
+            total_iterations: self.total_iterations,
+            max_displacement: 0.0,
+            mean_displacement: 0.0,
+            converged: false,
+            face_points: 0,
+            space_points: 0,
+            landed: 0,
+            folded: 0,
+            lifted: 0,
+            fold_tolerance: self.fold_tolerance,
+            energy: f64::NAN,
+            held_back: 0,
         };
         for _ in 0..iterations {
             let (max_displacement, mean_displacement, counts) = self.iterate();

@@ -300,6 +300,9 @@ class WrapSolver:
     ``plane_normal`` (a mirrored layout's seam: face-points slide along the target's cross-section
     with the plane, space-points move within it); all three or none. ``plane_slide=False``: held
     points only move onto the cross-section, the shortest way, and stay there.
+    ``solver="ENERGY"`` minimises one energy by local-global steps with a sparse Cholesky and never
+    turns a layout face over (no plane constraint yet; the force weights and the fold settings
+    do not apply to it).
     """
 
     def __init__(
@@ -335,6 +338,7 @@ class WrapSolver:
         plane_point: tuple[float, float, float] | None = None,
         plane_normal: tuple[float, float, float] | None = None,
         plane_slide: bool = True,
+        solver: Literal["SPRINGS", "ENERGY"] = "SPRINGS",
     ) -> None: ...
     def step(self, iterations: int) -> StepReport:
         """Run up to ``iterations`` iterations (fewer once converged), GIL released."""

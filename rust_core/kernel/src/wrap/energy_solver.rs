@@ -1,0 +1,799 @@
+//! The energy wrap: one energy `E(x)`, minimised by local–global steps with a prefactored sparse
+//! Cholesky, every step and every landing checked so that no layout face turns over.
+//!
+//! ```text
+//! E(x) = w_edge Σ_i Σ_{j∈N(i)} |x_j − x_i − T_i (r_j − r_i)|²                  (shape: edges)
+//!      + w_line Σ_(p,v,n)      |x_p + x_n − 2 x_v − T_v (r_p + r_n − 2 r_v)|²   (fairness + arc length)
+//!      + w_line Σ_v∉lines     |mean_N(x) − x_v − T_v (mean_N(r) − r_v)|²       (umbrella, thin plate)
+//!      + λ_k Σ_i c_i |x_i − p_i|²                                               (data)
+//!      + ε Σ_i |x_i − x_i⁰|²                                                    (proximal, keeps A definite)
+//! ```
+//!
+//! `r` is the rest shape (the template), `T_i = s_i R_i` the similarity of vertex `i`'s rest
+//! neighbourhood onto its current one (a Procrustes fit, as in as-rigid-as-possible), the scales
+//! `s` smoothed over the layout by a stiffness that relaxes level by level (Amberg et al. 2007:
+//! first one scale for all, at the end nearly per vertex). `p_i` is the projection of `x_i` onto
+//! the target's tangent plane at its closest point `q_i` (point-to-plane, so the layout slides
+//! along the surface), `c_i` a robust weight: Welsch in the distance, zero when the layout faces
+//! away from the target's smoothed normal there (cavities, the far side of a thin part), on a
+//! boundary edge (a hole) or on an unreliable triangle. Anchors and curve targets are hard
+//! constraints (their vertices are eliminated from the system).
+//!
+//! **Local step**: fit `T_i` and the correspondences at the current positions. **Global step**:
+//! solve `A x = b`; `A` is the same scalar matrix for x, y and z, its pattern analysed once, its
+//! diagonal (the data weights) refactored every iteration. **Safeguard**: a corner of a layout
+//! face (a vertex and its two face neighbours) that faces the way of its rotated rest normal must
+//! still do so after the step; the vertices of corners that would turn have their step halved,
+//! up to zero (the step is then not taken there). **Landing**: at the end every free point whose
+//! closest surface point is near, trusted and facing lands there as a face-point, unless that
+//! turns a corner; the others stay space-points (holes, cavities).
+
+use std::sync::Arc;
+
+use glam::{DVec3, Vec3};
+use rayon::prelude::*;
+
+use super::anchor::AnchorTarget;
+use super::forces::{Similarity, SpringRest, Springs};
+use super::linear_system::{LinearSystem, Stencils};
+use crate::error::KernelError;
+use crate::face_point::{FacePoint, LayoutPoint, SurfaceHit};
+use crate::layout::LayoutStructure;
+use crate::mesh::{NO_TRIANGLE, TargetMesh};
+
+/// Weight of the edge (shape) terms.
+const EDGE_WEIGHT: f64 = 1.0;
+/// Weight of the line (fairness and arc length) and umbrella terms.
+const LINE_WEIGHT: f64 = 1.0;
+/// The proximal weight, relative to the edge weight: keeps the matrix definite where nothing
+/// else holds a region (a loose piece far from the target, with no anchor).
+const PROXIMAL_WEIGHT: f64 = 1e-6;
+/// A point is taken as touching its correspondence's tangent plane... the data term's Welsch
+/// width, per level, in mean edge lengths, and other per-level settings.
+struct Level {
+    /// λ: the data term's weight, relative to the edge weight.
+    data_weight: f64,
+    /// σ of the Welsch weight, in mean edge lengths; correspondences farther than 3σ are ignored.
+    welsch_width: f32,
+    /// Rounds of averaging of the log scales over edge neighbours; `None`: one scale for all.
+    scale_smoothing: Option<usize>,
+    /// The most iterations at this level.
+    max_iterations: usize,
+}
+
+/// The stiffness schedule: the data term tightens and the scale loosens level by level.
+const LEVELS: [Level; 4] = [
+    Level {
+        data_weight: 0.1,
+        welsch_width: 3.0,
+        scale_smoothing: None,
+        max_iterations: 6,
+    },
+    Level {
+        data_weight: 1.0,
+        welsch_width: 2.0,
+        scale_smoothing: Some(32),
+        max_iterations: 6,
+    },
+    Level {
+        data_weight: 10.0,
+        welsch_width: 1.0,
+        scale_smoothing: Some(8),
+        max_iterations: 6,
+    },
+    Level {
+        data_weight: 100.0,
+        welsch_width: 1.0,
+        scale_smoothing: Some(2),
+        max_iterations: 8,
+    },
+];
+/// A level ends once an iteration lowers the energy by less than this fraction.
+const LEVEL_DECREASE: f64 = 2e-3;
+/// Correspondences count only where the layout faces the target's smoothed normal within this
+/// cosine (60 degrees).
+const MIN_FACING: f32 = 0.5;
+/// Per-vertex scales stay within this factor of their median.
+const SCALE_RANGE: f32 = 3.0;
+/// Halvings of a vertex's step before it is not taken at all.
+const BACKTRACK_HALVINGS: usize = 6;
+/// A free point lands when its closest surface point is within this many landing distances.
+const LANDING_REACH: f32 = 2.0;
+/// Rounds of normal smoothing per (layout edge / target edge)² (diffusion spreads as the square
+/// root of the rounds), and their bounds.
+const NORMAL_SMOOTHING_ROUNDS: (usize, usize) = (1, 24);
+
+/// What the energy solver needs from the wrap's inputs.
+pub(crate) struct EnergyInputs<'a> {
+    pub target: &'a Arc<TargetMesh>,
+    pub structure: &'a LayoutStructure,
+    pub rest: &'a [Vec3],
+    pub positions: &'a [Vec3],
+    pub anchor_of_vertex: &'a [Option<(AnchorTarget, Vec3)>],
+    pub curve_target_of_vertex: &'a [Option<Vec3>],
+    pub unreliable: &'a [bool],
+    pub mean_edge_length: f32,
+    pub landing_distance: f32,
+}
+
+/// One iteration's outcome.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct EnergyStep {
+    /// Largest and mean move of a point.
+    pub max_move: f32,
+    pub mean_move: f32,
+    /// The energy after the step.
+    pub energy: f64,
+    /// Points whose step was shortened (or refused) so that no corner turned.
+    pub held_back: usize,
+    /// The schedule is done: the points may land.
+    pub finished: bool,
+}
+
+/// The energy wrap's state between iterations.
+#[derive(Debug, Clone)]
+pub(crate) struct EnergySolver {
+    target: Arc<TargetMesh>,
+    structure: LayoutStructure,
+    springs: Springs,
+    rest_normals: Vec<Vec3>,
+    stencils: Stencils,
+    /// Per term, its owner (whose similarity turns its rest vector) and its rest vector.
+    term_owner: Vec<u32>,
+    term_rest: Vec<DVec3>,
+    system: LinearSystem,
+    fixed: Vec<Option<DVec3>>,
+    fixed_points: Vec<Option<LayoutPoint>>,
+    unreliable: Vec<bool>,
+    smoothed_normals: Vec<Vec3>,
+    positions: Vec<Vec3>,
+    similarities: Vec<Similarity>,
+    /// +1 when the layout winds as the target, -1 the other way.
+    orientation: f32,
+    mean_edge_length: f32,
+    landing_distance: f32,
+    level: usize,
+    level_iterations: usize,
+    iterations: usize,
+    last_energy: f64,
+    finished: bool,
+}
+
+impl EnergySolver {
+    /// Sets up the energy of a layout at `positions` with the constraints of `inputs`.
+    ///
+    /// # Errors
+    /// [`KernelError::InvalidArgument`] when the linear system cannot be built.
+    pub(crate) fn new(inputs: &EnergyInputs<'_>) -> Result<Self, KernelError> {
+        let structure = inputs.structure;
+        let vertex_count = structure.vertex_count;
+        let mut fixed = vec![None; vertex_count];
+        let mut fixed_points = vec![None; vertex_count];
+        for vertex in 0..vertex_count {
+            if let Some((target, position)) = inputs.anchor_of_vertex[vertex] {
+                fixed[vertex] = Some(position.as_dvec3());
+                fixed_points[vertex] = Some(match target {
+                    AnchorTarget::Face(face_point) => LayoutPoint::Face(face_point),
+                    AnchorTarget::Space(position) => LayoutPoint::Space(position),
+                });
+            } else if let Some(position) =
+                inputs.curve_target_of_vertex.get(vertex).copied().flatten()
+            {
+                fixed[vertex] = Some(position.as_dvec3());
+                // On the surface when the curve lies on it there.
+                let tolerance = inputs.landing_distance * 1e-2;
+                let point = match inputs.target.closest_point(position, tolerance) {
+                    Some(hit) if !is_flagged(inputs.unreliable, hit.face_point.triangle) => {
+                        LayoutPoint::Face(hit.face_point)
+                    }
+                    _ => LayoutPoint::Space(position),
+                };
+                fixed_points[vertex] = Some(point);
+            }
+        }
+        let (stencils, term_owner, term_rest) = build_terms(structure, inputs.rest);
+        let system = LinearSystem::new(&stencils, vertex_count, &fixed)?;
+        let mut positions = inputs.positions.to_vec();
+        for (position, fixed) in positions.iter_mut().zip(&fixed) {
+            if let Some(fixed) = fixed {
+                *position = fixed.as_vec3();
+            }
+        }
+        let rest_normals = (0..vertex_count as u32)
+            .map(|vertex| structure.normal_at(inputs.rest, vertex).normalize_or_zero())
+            .collect();
+        let smoothed_normals = smoothed_vertex_normals(inputs.target, inputs.mean_edge_length);
+        let mut solver = Self {
+            target: Arc::clone(inputs.target),
+            structure: structure.clone(),
+            springs: Springs::new(structure, inputs.rest, SpringRest::Template),
+            rest_normals,
+            stencils,
+            term_owner,
+            term_rest,
+            system,
+            fixed,
+            fixed_points,
+            unreliable: inputs.unreliable.to_vec(),
+            smoothed_normals,
+            positions,
+            similarities: vec![Similarity::IDENTITY; vertex_count],
+            orientation: 1.0,
+            mean_edge_length: inputs.mean_edge_length,
+            landing_distance: inputs.landing_distance,
+            level: 0,
+            level_iterations: 0,
+            iterations: 0,
+            last_energy: f64::INFINITY,
+            finished: false,
+        };
+        solver.fit_similarities(true);
+        solver.orientation = solver.measure_orientation();
+        Ok(solver)
+    }
+
+    /// The current positions.
+    pub(crate) fn positions(&self) -> &[Vec3] {
+        &self.positions
+    }
+
+    /// Whether the schedule is done and the points have landed.
+    pub(crate) fn is_finished(&self) -> bool {
+        self.finished
+    }
+
+    /// The layout points after landing (call once finished): face-points where they landed,
+    /// anchors and curve targets as their constraints say, space-points elsewhere.
+    pub(crate) fn land(&mut self) -> (Vec<LayoutPoint>, usize) {
+        let vertex_count = self.positions.len();
+        let reach = self.landing_distance * LANDING_REACH;
+        let normals = self.layout_normals(&self.positions);
+        let hits: Vec<Option<SurfaceHit>> = (0..vertex_count)
+            .into_par_iter()
+            .with_min_len(256)
+            .map(|vertex| {
+                if self.fixed[vertex].is_some() {
+                    return None;
+                }
+                let hit = self.target.closest_point(self.positions[vertex], reach)?;
+                self.correspondence_trusted(&hit, normals[vertex])
+                    .then_some(hit)
+            })
+            .collect();
+        let mut candidate = self.positions.clone();
+        let mut landing = vec![false; vertex_count];
+        for (vertex, hit) in hits.iter().enumerate() {
+            if let Some(hit) = hit {
+                candidate[vertex] = hit.position;
+                landing[vertex] = true;
+            }
+        }
+        // A landing that would turn a corner is not made; refusing one can turn another corner
+        // back, so repeat until none turns.
+        let before = self.corner_orientations(&self.positions);
+        loop {
+            let turned = self.turned_corners(&before, &candidate);
+            let mut refused = false;
+            for vertex in turned {
+                if landing[vertex as usize] {
+                    landing[vertex as usize] = false;
+                    candidate[vertex as usize] = self.positions[vertex as usize];
+                    refused = true;
+                }
+            }
+            if !refused {
+                break;
+            }
+        }
+        let mut points = Vec::with_capacity(vertex_count);
+        let mut landed = 0;
+        for vertex in 0..vertex_count {
+            let point = if let Some(point) = self.fixed_points[vertex] {
+                point
+            } else if landing[vertex] {
+                landed += 1;
+                let hit = hits[vertex].expect("a landing point has a hit");
+                LayoutPoint::Face(hit.face_point)
+            } else {
+                LayoutPoint::Space(candidate[vertex])
+            };
+            points.push(point);
+        }
+        self.positions = candidate;
+        (points, landed)
+    }
+
+    /// One local–global iteration.
+    ///
+    /// # Errors
+    /// [`KernelError::InvalidArgument`] when the factorization fails.
+    pub(crate) fn iterate(&mut self) -> Result<EnergyStep, KernelError> {
+        if self.finished {
+            return Ok(EnergyStep {
+                finished: true,
+                ..EnergyStep::default()
+            });
+        }
+        let level = &LEVELS[self.level];
+        // Local step: similarities and correspondences at the current positions.
+        if self.iterations > 0 {
+            self.fit_similarities(false);
+        }
+        self.smooth_scales(level.scale_smoothing);
+        let normals = self.layout_normals(&self.positions);
+        let width = level.welsch_width * self.mean_edge_length;
+        let correspondences = self.correspondences(&normals, width);
+        let proposed = self.global_solve(&correspondences, level.data_weight)?;
+        // Safeguard: no corner may turn over.
+        let (accepted, held_back) = self.safeguard(&proposed);
+        let (mut max_move, mut total_move) = (0.0f32, 0.0f64);
+        for (new, old) in accepted.iter().zip(&self.positions) {
+            let moved = new.distance(*old);
+            max_move = max_move.max(moved);
+            total_move += f64::from(moved);
+        }
+        let energy = self.energy_at(
+            &accepted,
+            &correspondences,
+            level.data_weight,
+            &self.positions,
+        );
+        self.positions = accepted;
+        self.iterations += 1;
+        self.level_iterations += 1;
+        let decrease = (self.last_energy - energy) / self.last_energy.max(f64::MIN_POSITIVE);
+        self.last_energy = energy;
+        if self.level_iterations >= level.max_iterations
+            || (self.level_iterations > 1 && decrease.abs() < LEVEL_DECREASE)
+        {
+            self.level += 1;
+            self.level_iterations = 0;
+            self.last_energy = f64::INFINITY;
+            if self.level == LEVELS.len() {
+                self.level = LEVELS.len() - 1;
+                self.finished = true;
+            }
+        }
+        Ok(EnergyStep {
+            max_move,
+            mean_move: (total_move / self.positions.len().max(1) as f64) as f32,
+            energy,
+            held_back,
+            finished: self.finished,
+        })
+    }
+
+    /// Fits every vertex's similarity at the current positions (from the last fit).
+    fn fit_similarities(&mut self, first: bool) {
+        let fits: Vec<Similarity> = (0..self.positions.len() as u32)
+            .into_par_iter()
+            .with_min_len(1024)
+            .map(|vertex| {
+                self.springs.fit(
+                    &self.positions,
+                    &self.structure,
+                    vertex,
+                    self.similarities[vertex as usize],
+                    first,
+                )
+            })
+            .collect();
+        self.similarities = fits;
+    }
+
+    /// Replaces the fitted scales by their median (`None`) or by their log averaged over edge
+    /// neighbours `rounds` times, within [`SCALE_RANGE`] of the median.
+    fn smooth_scales(&mut self, rounds: Option<usize>) {
+        let mut scales: Vec<f32> = self
+            .similarities
+            .iter()
+            .map(|fit| fit.scale)
+            .filter(|scale| *scale > 0.0 && scale.is_finite())
+            .collect();
+        if scales.is_empty() {
+            return;
+        }
+        let middle = scales.len() / 2;
+        let median = *scales.select_nth_unstable_by(middle, f32::total_cmp).1;
+        let Some(rounds) = rounds else {
+            for fit in &mut self.similarities {
+                fit.scale = median;
+            }
+            return;
+        };
+        let (low, high) = ((median / SCALE_RANGE).ln(), (median * SCALE_RANGE).ln());
+        let mut logs: Vec<f32> = self
+            .similarities
+            .iter()
+            .map(|fit| {
+                if fit.scale > 0.0 && fit.scale.is_finite() {
+                    fit.scale.ln().clamp(low, high)
+                } else {
+                    median.ln()
+                }
+            })
+            .collect();
+        for _ in 0..rounds {
+            logs = (0..logs.len() as u32)
+                .into_par_iter()
+                .with_min_len(2048)
+                .map(|vertex| {
+                    let neighbors = self.structure.neighbors_of(vertex);
+                    let sum: f32 = neighbors.iter().map(|&other| logs[other as usize]).sum();
+                    (logs[vertex as usize] + sum) / (1 + neighbors.len()) as f32
+                })
+                .collect();
+        }
+        for (fit, log) in self.similarities.iter_mut().zip(logs) {
+            fit.scale = log.exp();
+        }
+    }
+
+    /// What term `term` asks of its stencil now: its rest vector under its owner's similarity.
+    fn term_target(&self, term: usize) -> DVec3 {
+        let fit = self.similarities[self.term_owner[term] as usize];
+        let turned = fit.rotation.as_dquat() * self.term_rest[term];
+        turned * f64::from(fit.scale)
+    }
+
+    /// The global step: the positions minimising the energy for the current similarities and
+    /// these correspondences (fixed vertices at their constraints).
+    fn global_solve(
+        &mut self,
+        correspondences: &[Option<(f32, Vec3)>],
+        data_weight: f64,
+    ) -> Result<Vec<Vec3>, KernelError> {
+        let rows = self.system.rows();
+        let vertex_of_row = self.system.vertex_of_row().to_vec();
+        let proximal = PROXIMAL_WEIGHT * EDGE_WEIGHT;
+        let mut diagonal = vec![proximal; rows];
+        let mut right_hand_side: Vec<DVec3> = vertex_of_row
+            .iter()
+            .map(|&vertex| self.positions[vertex as usize].as_dvec3() * proximal)
+            .collect();
+        for (row, &vertex) in vertex_of_row.iter().enumerate() {
+            if let Some((weight, point)) = correspondences[vertex as usize] {
+                let weight = f64::from(weight) * data_weight;
+                diagonal[row] += weight;
+                right_hand_side[row] += point.as_dvec3() * weight;
+            }
+        }
+        for term in 0..self.stencils.len() {
+            let wanted = self.term_target(term);
+            let weight = self.stencils.weights[term];
+            for (vertex, coefficient) in self.stencils.entries(term) {
+                if let Some(row) = self.system.row_of(vertex) {
+                    right_hand_side[row as usize] += wanted * (weight * coefficient);
+                }
+            }
+        }
+        self.system.factor(&diagonal)?;
+        let solution = self.system.solve(&right_hand_side)?;
+        let mut proposed = self.positions.clone();
+        for (row, &vertex) in vertex_of_row.iter().enumerate() {
+            let position = solution[row].as_vec3();
+            if position.is_finite() {
+                proposed[vertex as usize] = position;
+            }
+        }
+        Ok(proposed)
+    }
+
+    /// The energy at `positions` with these correspondences, the proximal term measured from
+    /// `previous`.
+    fn energy_at(
+        &self,
+        positions: &[Vec3],
+        correspondences: &[Option<(f32, Vec3)>],
+        data_weight: f64,
+        previous: &[Vec3],
+    ) -> f64 {
+        let positions: Vec<DVec3> = positions.iter().map(|p| p.as_dvec3()).collect();
+        let springs: f64 = (0..self.stencils.len())
+            .into_par_iter()
+            .with_min_len(4096)
+            .map(|term| {
+                let residual = self.stencils.apply(term, &positions) - self.term_target(term);
+                self.stencils.weights[term] * residual.length_squared()
+            })
+            .sum();
+        let mut data = 0.0;
+        let mut proximal = 0.0;
+        for vertex in 0..positions.len() {
+            if self.fixed[vertex].is_some() {
+                continue;
+            }
+            if let Some((weight, point)) = correspondences[vertex] {
+                data += f64::from(weight) * positions[vertex].distance_squared(point.as_dvec3());
+            }
+            proximal += positions[vertex].distance_squared(previous[vertex].as_dvec3());
+        }
+        springs + data * data_weight + proximal * PROXIMAL_WEIGHT * EDGE_WEIGHT
+    }
+
+    /// Per free vertex, its correspondence `(weight, point on the tangent plane)`, or `None`.
+    fn correspondences(&self, normals: &[Vec3], width: f32) -> Vec<Option<(f32, Vec3)>> {
+        (0..self.positions.len())
+            .into_par_iter()
+            .with_min_len(256)
+            .map(|vertex| {
+                if self.fixed[vertex].is_some() {
+                    return None;
+                }
+                let position = self.positions[vertex];
+                let hit = self.target.closest_point(position, width * 3.0)?;
+                if !self.correspondence_trusted(&hit, normals[vertex]) {
+                    return None;
+                }
+                let weight = (-(hit.distance * hit.distance) / (2.0 * width * width)).exp();
+                let normal = self.smoothed_normal(hit.face_point);
+                let face_normal = self.target.face_normals()[hit.face_point.triangle as usize];
+                // The tangent plane of the triangle itself: the point is pulled onto the surface,
+                // not onto a smoothed plane beside it.
+                let plane_normal = if face_normal == Vec3::ZERO {
+                    normal
+                } else {
+                    face_normal
+                };
+                let projected = position - plane_normal * plane_normal.dot(position - hit.position);
+                Some((weight, projected))
+            })
+            .collect()
+    }
+
+    /// Whether a closest-point hit may pull or receive a point whose layout normal is `normal`:
+    /// not on an unreliable triangle, not on a boundary edge (a hole), and facing the way of the
+    /// target's smoothed normal there.
+    fn correspondence_trusted(&self, hit: &SurfaceHit, normal: Vec3) -> bool {
+        let triangle = hit.face_point.triangle;
+        if is_flagged(&self.unreliable, triangle) {
+            return false;
+        }
+        let neighbors = self.target.triangle_neighbors()[triangle as usize];
+        let barycentric = hit.face_point.barycentric.to_array();
+        // Edge e runs from corner e to corner e + 1: on it, the weight of corner e + 2 is 0.
+        if (0..3).any(|edge| neighbors[edge] == NO_TRIANGLE && barycentric[(edge + 2) % 3] <= 1e-5)
+        {
+            return false;
+        }
+        if normal == Vec3::ZERO {
+            return true;
+        }
+        let surface_normal = self.smoothed_normal(hit.face_point);
+        normal.dot(surface_normal) * self.orientation >= MIN_FACING
+    }
+
+    /// The target's smoothed normal at a face-point.
+    fn smoothed_normal(&self, face_point: FacePoint) -> Vec3 {
+        let corners = self.target.triangles()[face_point.triangle as usize];
+        let weights = face_point.barycentric;
+        (self.smoothed_normals[corners[0] as usize] * weights.x
+            + self.smoothed_normals[corners[1] as usize] * weights.y
+            + self.smoothed_normals[corners[2] as usize] * weights.z)
+            .normalize_or_zero()
+    }
+
+    /// +1 when the layout's faces wind as the target's where they are close, -1 when the other
+    /// way (most layouts agree; a mirrored copy does not).
+    fn measure_orientation(&self) -> f32 {
+        let normals = self.layout_normals(&self.positions);
+        let reach = self.mean_edge_length * 2.0;
+        let agreement: f32 = (0..self.positions.len())
+            .into_par_iter()
+            .with_min_len(256)
+            .filter_map(|vertex| {
+                let normal = normals[vertex];
+                if normal == Vec3::ZERO {
+                    return None;
+                }
+                let hit = self.target.closest_point(self.positions[vertex], reach)?;
+                Some(normal.dot(self.smoothed_normal(hit.face_point)))
+            })
+            .sum();
+        if agreement < 0.0 { -1.0 } else { 1.0 }
+    }
+
+    /// Unit layout normals at `positions`.
+    fn layout_normals(&self, positions: &[Vec3]) -> Vec<Vec3> {
+        (0..positions.len() as u32)
+            .into_par_iter()
+            .with_min_len(2048)
+            .map(|vertex| {
+                self.structure
+                    .normal_at(positions, vertex)
+                    .normalize_or_zero()
+            })
+            .collect()
+    }
+
+    /// Per corner (a vertex and one face around it, in `structure.wedges` order), whether it
+    /// faces the way of its vertex's rest normal turned by the vertex's rotation.
+    fn corner_orientations(&self, positions: &[Vec3]) -> Vec<bool> {
+        let structure = &self.structure;
+        (0..positions.len())
+            .into_par_iter()
+            .with_min_len(1024)
+            .flat_map_iter(|vertex| {
+                let start = structure.wedge_offsets[vertex] as usize;
+                let end = structure.wedge_offsets[vertex + 1] as usize;
+                let reference = self.similarities[vertex].rotation * self.rest_normals[vertex];
+                let here = positions[vertex];
+                structure.wedges[start..end]
+                    .iter()
+                    .map(move |&(previous, next)| {
+                        let normal = (positions[next as usize] - here)
+                            .cross(positions[previous as usize] - here);
+                        normal.dot(reference) > 0.0
+                    })
+            })
+            .collect()
+    }
+
+    /// The vertices of corners that face their way in `before` but not at `positions`.
+    fn turned_corners(&self, before: &[bool], positions: &[Vec3]) -> Vec<u32> {
+        let after = self.corner_orientations(positions);
+        let structure = &self.structure;
+        let mut vertices = Vec::new();
+        for vertex in 0..positions.len() {
+            let start = structure.wedge_offsets[vertex] as usize;
+            let end = structure.wedge_offsets[vertex + 1] as usize;
+            for corner in start..end {
+                if before[corner] && !after[corner] {
+                    let (previous, next) = structure.wedges[corner];
+                    vertices.extend([vertex as u32, previous, next]);
+                }
+            }
+        }
+        vertices.sort_unstable();
+        vertices.dedup();
+        vertices
+    }
+
+    /// The proposed positions with the steps of vertices around turning corners halved until
+    /// none turns (at worst not taken); and how many vertices were held back.
+    fn safeguard(&self, proposed: &[Vec3]) -> (Vec<Vec3>, usize) {
+        let before = self.corner_orientations(&self.positions);
+        let mut fractions = vec![1.0f32; proposed.len()];
+        let mut candidate = proposed.to_vec();
+        for round in 0..=BACKTRACK_HALVINGS {
+            let turned = self.turned_corners(&before, &candidate);
+            if turned.is_empty() {
+                break;
+            }
+            for vertex in turned {
+                let vertex = vertex as usize;
+                if self.fixed[vertex].is_some() {
+                    continue;
+                }
+                fractions[vertex] = if round == BACKTRACK_HALVINGS {
+                    0.0
+                } else {
+                    fractions[vertex] * 0.5
+                };
+                candidate[vertex] = self.positions[vertex]
+                    + (proposed[vertex] - self.positions[vertex]) * fractions[vertex];
+            }
+        }
+        let held_back = fractions.iter().filter(|&&fraction| fraction < 1.0).count();
+        (candidate, held_back)
+    }
+}
+
+/// Whether `triangle` is flagged in `flags` (empty: none is).
+fn is_flagged(flags: &[bool], triangle: u32) -> bool {
+    flags.get(triangle as usize).copied().unwrap_or(false)
+}
+
+/// The energy's quadratic terms with their owners and rest vectors: one edge term per directed
+/// edge, one line term per grid-line triple, one umbrella term per vertex on no line (corners
+/// excepted: straightening them would cut them).
+fn build_terms(structure: &LayoutStructure, rest: &[Vec3]) -> (Stencils, Vec<u32>, Vec<DVec3>) {
+    let mut stencils = Stencils::new();
+    let mut owners = Vec::new();
+    let mut rests = Vec::new();
+    let rest: Vec<DVec3> = rest.iter().map(|p| p.as_dvec3()).collect();
+    let mut on_line = vec![false; structure.vertex_count];
+    for triple in &structure.line_triples {
+        on_line[triple.vertex as usize] = true;
+    }
+    let mut is_corner = vec![false; structure.vertex_count];
+    for &corner in &structure.corners {
+        is_corner[corner as usize] = true;
+    }
+    for vertex in 0..structure.vertex_count as u32 {
+        for &other in structure.neighbors_of(vertex) {
+            stencils.push([(other, 1.0), (vertex, -1.0)], EDGE_WEIGHT);
+            owners.push(vertex);
+            rests.push(rest[other as usize] - rest[vertex as usize]);
+        }
+    }
+    for triple in &structure.line_triples {
+        stencils.push(
+            [
+                (triple.previous, 1.0),
+                (triple.next, 1.0),
+                (triple.vertex, -2.0),
+            ],
+            LINE_WEIGHT,
+        );
+        owners.push(triple.vertex);
+        rests.push(
+            rest[triple.previous as usize] + rest[triple.next as usize]
+                - rest[triple.vertex as usize] * 2.0,
+        );
+    }
+    for vertex in 0..structure.vertex_count as u32 {
+        let neighbors = structure.neighbors_of(vertex);
+        if on_line[vertex as usize] || is_corner[vertex as usize] || neighbors.is_empty() {
+            continue;
+        }
+        let share = 1.0 / neighbors.len() as f64;
+        let mean: DVec3 = neighbors
+            .iter()
+            .map(|&other| rest[other as usize])
+            .sum::<DVec3>()
+            * share;
+        stencils.push(
+            neighbors
+                .iter()
+                .map(|&other| (other, share))
+                .chain([(vertex, -1.0)]),
+            LINE_WEIGHT,
+        );
+        owners.push(vertex);
+        rests.push(mean - rest[vertex as usize]);
+    }
+    (stencils, owners, rests)
+}
+
+/// The target's vertex normals averaged over a neighbourhood about `radius` wide (rounds of
+/// vertex → triangle → vertex averaging, as many as `(radius / mean target edge)²`).
+fn smoothed_vertex_normals(target: &TargetMesh, radius: f32) -> Vec<Vec3> {
+    let vertices = target.vertices();
+    let triangles = target.triangles();
+    let mut normals = target.vertex_normals().to_vec();
+    let edge_sum: f64 = triangles
+        .par_iter()
+        .with_min_len(4096)
+        .map(|corners| {
+            f64::from(vertices[corners[0] as usize].distance(vertices[corners[1] as usize]))
+        })
+        .sum();
+    let target_edge = (edge_sum / triangles.len().max(1) as f64) as f32;
+    let ratio = if target_edge > 0.0 {
+        radius / target_edge
+    } else {
+        1.0
+    };
+    let rounds =
+        ((ratio * ratio) as usize).clamp(NORMAL_SMOOTHING_ROUNDS.0, NORMAL_SMOOTHING_ROUNDS.1);
+    let mut triangle_normals = vec![Vec3::ZERO; triangles.len()];
+    for _ in 0..rounds {
+        triangle_normals
+            .par_iter_mut()
+            .with_min_len(4096)
+            .zip(triangles.par_iter())
+            .for_each(|(normal, corners)| {
+                *normal = corners.iter().map(|&corner| normals[corner as usize]).sum();
+            });
+        let mut sums = vec![Vec3::ZERO; vertices.len()];
+        for (corners, normal) in triangles.iter().zip(&triangle_normals) {
+            for &corner in corners {
+                sums[corner as usize] += *normal;
+            }
+        }
+        normals = sums
+            .into_iter()
+            .zip(&normals)
+            .map(|(sum, old)| {
+                let smoothed = sum.normalize_or_zero();
+                if smoothed == Vec3::ZERO {
+                    *old
+                } else {
+                    smoothed
+                }
+            })
+            .collect();
+    }
+    normals
+}
