@@ -2,77 +2,10 @@
 
 mod common;
 
-use std::sync::Arc;
-
 use glam::Vec3;
 use springwrap_kernel::{
-    Anchor, AnchorTarget, KernelError, LayoutPoint, LayoutStructure, TargetMesh, TargetMeshOptions,
-    WrapSettings, WrapSolver,
+    Anchor, AnchorTarget, KernelError, LayoutPoint, LayoutStructure, WrapSettings, WrapSolver,
 };
-
-/// An `n` x `n` quad grid of cell `size`, lower corner at `origin`, in the plane z = origin.z.
-fn quad_layout(n: u32, size: f32, origin: Vec3) -> (LayoutStructure, Vec<Vec3>) {
-    let row = n + 1;
-    let positions = (0..row * row)
-        .map(|index| {
-            origin
-                + Vec3::new(
-                    (index % row) as f32 * size,
-                    (index / row) as f32 * size,
-                    0.0,
-                )
-        })
-        .collect();
-    let mut corners = Vec::new();
-    for y in 0..n {
-        for x in 0..n {
-            let a = y * row + x;
-            corners.extend([a, a + 1, a + row + 1, a + row]);
-        }
-    }
-    let structure = LayoutStructure::new(
-        (row * row) as usize,
-        &corners,
-        &vec![4; (n * n) as usize],
-        &[],
-        &[],
-    )
-    .unwrap();
-    (structure, positions)
-}
-
-/// A flat target: a `cells` x `cells` grid of unit cells scaled by `scale`, centred on the origin,
-/// minus the cells whose centre is within `hole_radius` of the origin.
-fn plane_target(cells: u32, scale: f32, hole_radius: f32) -> Arc<TargetMesh> {
-    let (vertices, triangles) = common::grid(cells);
-    let half = cells as f32 * 0.5;
-    let vertices: Vec<Vec3> = vertices
-        .iter()
-        .map(|v| (*v - Vec3::new(half, half, 0.0)) * scale)
-        .collect();
-    let triangles: Vec<[u32; 3]> = triangles
-        .into_iter()
-        .filter(|corners| {
-            let centre = corners.iter().map(|&i| vertices[i as usize]).sum::<Vec3>() / 3.0;
-            centre.truncate().length() > hole_radius
-        })
-        .collect();
-    Arc::new(TargetMesh::new(vertices, triangles, TargetMeshOptions::default()).unwrap())
-}
-
-fn anchors_below(target: &TargetMesh, positions: &[Vec3], vertices: &[u32]) -> Vec<Anchor> {
-    vertices
-        .iter()
-        .map(|&vertex| {
-            let below = positions[vertex as usize] * Vec3::new(1.0, 1.0, 0.0);
-            let hit = target.closest_point(below, f32::INFINITY).unwrap();
-            Anchor {
-                vertex,
-                target: AnchorTarget::Face(hit.face_point),
-            }
-        })
-        .collect()
-}
 
 fn edge_length_ratio(structure: &LayoutStructure, positions: &[Vec3]) -> f32 {
     let mut shortest = f32::INFINITY;
@@ -89,9 +22,9 @@ fn edge_length_ratio(structure: &LayoutStructure, positions: &[Vec3]) -> f32 {
 
 #[test]
 fn a_template_above_a_plane_wraps_onto_it_through_its_anchors() {
-    let target = plane_target(40, 0.05, 0.0);
-    let (structure, positions) = quad_layout(10, 0.1, Vec3::new(-0.5, -0.5, 0.3));
-    let anchors = anchors_below(&target, &positions, &[0, 10, 110, 120, 60]);
+    let target = common::plane_target(40, 0.05, 0.0);
+    let (structure, positions) = common::quad_layout(10, 0.1, Vec3::new(-0.5, -0.5, 0.3));
+    let anchors = common::anchors_below(&target, &positions, &[0, 10, 110, 120, 60]);
     let points = positions.iter().map(|&p| LayoutPoint::Space(p)).collect();
     let mut solver = WrapSolver::new(
         target.clone(),
@@ -128,9 +61,9 @@ fn a_template_above_a_plane_wraps_onto_it_through_its_anchors() {
 
 #[test]
 fn points_over_a_hole_stay_space_points_on_the_continued_surface() {
-    let target = plane_target(40, 0.05, 0.2);
-    let (structure, positions) = quad_layout(10, 0.1, Vec3::new(-0.5, -0.5, 0.3));
-    let anchors = anchors_below(&target, &positions, &[0, 10, 110, 120]);
+    let target = common::plane_target(40, 0.05, 0.2);
+    let (structure, positions) = common::quad_layout(10, 0.1, Vec3::new(-0.5, -0.5, 0.3));
+    let anchors = common::anchors_below(&target, &positions, &[0, 10, 110, 120]);
     let points = positions.iter().map(|&p| LayoutPoint::Space(p)).collect();
     let mut solver =
         WrapSolver::new(target, structure, points, &anchors, WrapSettings::default()).unwrap();
@@ -157,9 +90,9 @@ fn points_over_a_hole_stay_space_points_on_the_continued_surface() {
 
 #[test]
 fn stepping_reports_progress_and_resumes() {
-    let target = plane_target(20, 0.1, 0.0);
-    let (structure, positions) = quad_layout(6, 0.2, Vec3::new(-0.6, -0.6, 0.2));
-    let anchors = anchors_below(&target, &positions, &[0, 6, 42, 48]);
+    let target = common::plane_target(20, 0.1, 0.0);
+    let (structure, positions) = common::quad_layout(6, 0.2, Vec3::new(-0.6, -0.6, 0.2));
+    let anchors = common::anchors_below(&target, &positions, &[0, 6, 42, 48]);
     let points: Vec<LayoutPoint> = positions.iter().map(|&p| LayoutPoint::Space(p)).collect();
     let mut solver =
         WrapSolver::new(target, structure, points, &anchors, WrapSettings::default()).unwrap();
@@ -173,8 +106,8 @@ fn stepping_reports_progress_and_resumes() {
 
 #[test]
 fn bad_wraps_are_refused_with_the_reason() {
-    let target = plane_target(4, 1.0, 0.0);
-    let (structure, positions) = quad_layout(2, 1.0, Vec3::ZERO);
+    let target = common::plane_target(4, 1.0, 0.0);
+    let (structure, positions) = common::quad_layout(2, 1.0, Vec3::ZERO);
     let points: Vec<LayoutPoint> = positions.iter().map(|&p| LayoutPoint::Space(p)).collect();
     let settings = WrapSettings::default();
     let error = WrapSolver::new(
@@ -239,7 +172,7 @@ fn bad_wraps_are_refused_with_the_reason() {
 
 #[test]
 fn points_over_unreliable_data_behave_as_over_a_hole() {
-    let target = plane_target(40, 0.05, 0.0);
+    let target = common::plane_target(40, 0.05, 0.0);
     // The middle of the plane is "noisy": its triangles are flagged and must not hold points.
     let unreliable: Vec<bool> = target
         .triangles()
@@ -253,8 +186,8 @@ fn points_over_unreliable_data_behave_as_over_a_hole() {
             centre.truncate().length() < 0.2
         })
         .collect();
-    let (structure, positions) = quad_layout(10, 0.1, Vec3::new(-0.5, -0.5, 0.3));
-    let anchors = anchors_below(&target, &positions, &[0, 10, 110, 120]);
+    let (structure, positions) = common::quad_layout(10, 0.1, Vec3::new(-0.5, -0.5, 0.3));
+    let anchors = common::anchors_below(&target, &positions, &[0, 10, 110, 120]);
     let points = positions.iter().map(|&p| LayoutPoint::Space(p)).collect();
     let mut solver = WrapSolver::new(target, structure, points, &anchors, WrapSettings::default())
         .unwrap()
@@ -291,9 +224,9 @@ fn distance_to_polyline(point: Vec3, polyline: &[Vec3]) -> f32 {
 #[test]
 fn a_border_held_to_a_curve_on_the_surface_lies_on_it_evenly() {
     use springwrap_kernel::CurveConstraint;
-    let target = plane_target(40, 0.05, 0.0);
-    let (structure, positions) = quad_layout(10, 0.1, Vec3::new(-0.5, -0.5, 0.3));
-    let anchors = anchors_below(&target, &positions, &[0, 10, 110, 120]);
+    let target = common::plane_target(40, 0.05, 0.0);
+    let (structure, positions) = common::quad_layout(10, 0.1, Vec3::new(-0.5, -0.5, 0.3));
+    let anchors = common::anchors_below(&target, &positions, &[0, 10, 110, 120]);
     // The bottom border (vertices 0..=10) is held to a wave drawn on the plane, end to end.
     let wave: Vec<Vec3> = (0..=200)
         .map(|step| {
@@ -341,9 +274,9 @@ fn a_border_held_to_a_curve_on_the_surface_lies_on_it_evenly() {
 #[test]
 fn a_curve_floating_above_the_surface_holds_its_points_in_space() {
     use springwrap_kernel::CurveConstraint;
-    let target = plane_target(40, 0.05, 0.0);
-    let (structure, positions) = quad_layout(10, 0.1, Vec3::new(-0.5, -0.5, 0.3));
-    let anchors = anchors_below(&target, &positions, &[0, 10, 110, 120]);
+    let target = common::plane_target(40, 0.05, 0.0);
+    let (structure, positions) = common::quad_layout(10, 0.1, Vec3::new(-0.5, -0.5, 0.3));
+    let anchors = common::anchors_below(&target, &positions, &[0, 10, 110, 120]);
     // The middle row (vertices 55..=65) is held to a straight line 0.1 above the plane.
     let line = vec![Vec3::new(-0.5, 0.0, 0.1), Vec3::new(0.5, 0.0, 0.1)];
     let middle: Vec<u32> = (55..=65).collect();
@@ -374,8 +307,8 @@ fn a_curve_floating_above_the_surface_holds_its_points_in_space() {
 #[test]
 fn bad_curve_constraints_are_refused() {
     use springwrap_kernel::CurveConstraint;
-    let target = plane_target(4, 1.0, 0.0);
-    let (structure, positions) = quad_layout(2, 1.0, Vec3::ZERO);
+    let target = common::plane_target(4, 1.0, 0.0);
+    let (structure, positions) = common::quad_layout(2, 1.0, Vec3::ZERO);
     let points: Vec<LayoutPoint> = positions.iter().map(|&p| LayoutPoint::Space(p)).collect();
     let solver = WrapSolver::new(target, structure, points, &[], WrapSettings::default()).unwrap();
     let line = vec![Vec3::ZERO, Vec3::X];
@@ -438,8 +371,8 @@ fn bad_curve_constraints_are_refused() {
 fn a_point_balanced_at_a_hole_rim_does_not_fold_and_lift_forever() {
     // A coarse layout whose anchors pull a vertex to the rim of a round hole: folding it on and
     // walking it off again by turns must die out (fold back-off after lifts) and the wrap converge.
-    let target = plane_target(20, 0.15, 0.3);
-    let (structure, positions) = quad_layout(4, 0.5, Vec3::new(-1.0, -1.0, 0.3));
+    let target = common::plane_target(20, 0.15, 0.3);
+    let (structure, positions) = common::quad_layout(4, 0.5, Vec3::new(-1.0, -1.0, 0.3));
     let anchored: Vec<u32> = [0u32, 2, 4]
         .iter()
         .flat_map(|&i| [0u32, 2, 4].map(|j| i * 5 + j))

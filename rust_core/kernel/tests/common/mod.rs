@@ -1,7 +1,10 @@
 //! Generated test geometry, each generator saying what it builds.
 #![allow(dead_code)]
 
+use std::sync::Arc;
+
 use glam::Vec3;
+use springwrap_kernel::{Anchor, AnchorTarget, LayoutStructure, TargetMesh, TargetMeshOptions};
 
 /// A small deterministic generator (SplitMix64): tests must not depend on a crate or on luck.
 pub struct Rng(u64);
@@ -156,4 +159,68 @@ pub fn lumpy_egg_with_hole(
         })
         .collect();
     (vertices, triangles)
+}
+
+/// An `n` x `n` quad grid of cell `size`, lower corner at `origin`, in the plane z = origin.z.
+pub fn quad_layout(n: u32, size: f32, origin: Vec3) -> (LayoutStructure, Vec<Vec3>) {
+    let row = n + 1;
+    let positions = (0..row * row)
+        .map(|index| {
+            origin
+                + Vec3::new(
+                    (index % row) as f32 * size,
+                    (index / row) as f32 * size,
+                    0.0,
+                )
+        })
+        .collect();
+    let mut corners = Vec::new();
+    for y in 0..n {
+        for x in 0..n {
+            let a = y * row + x;
+            corners.extend([a, a + 1, a + row + 1, a + row]);
+        }
+    }
+    let structure = LayoutStructure::new(
+        (row * row) as usize,
+        &corners,
+        &vec![4; (n * n) as usize],
+        &[],
+        &[],
+    )
+    .unwrap();
+    (structure, positions)
+}
+
+/// A flat target: a `cells` x `cells` grid of unit cells scaled by `scale`, centred on the origin,
+/// minus the cells whose centre is within `hole_radius` of the origin.
+pub fn plane_target(cells: u32, scale: f32, hole_radius: f32) -> Arc<TargetMesh> {
+    let (vertices, triangles) = grid(cells);
+    let half = cells as f32 * 0.5;
+    let vertices: Vec<Vec3> = vertices
+        .iter()
+        .map(|v| (*v - Vec3::new(half, half, 0.0)) * scale)
+        .collect();
+    let triangles: Vec<[u32; 3]> = triangles
+        .into_iter()
+        .filter(|corners| {
+            let centre = corners.iter().map(|&i| vertices[i as usize]).sum::<Vec3>() / 3.0;
+            centre.truncate().length() > hole_radius
+        })
+        .collect();
+    Arc::new(TargetMesh::new(vertices, triangles, TargetMeshOptions::default()).unwrap())
+}
+
+pub fn anchors_below(target: &TargetMesh, positions: &[Vec3], vertices: &[u32]) -> Vec<Anchor> {
+    vertices
+        .iter()
+        .map(|&vertex| {
+            let below = positions[vertex as usize] * Vec3::new(1.0, 1.0, 0.0);
+            let hit = target.closest_point(below, f32::INFINITY).unwrap();
+            Anchor {
+                vertex,
+                target: AnchorTarget::Face(hit.face_point),
+            }
+        })
+        .collect()
 }

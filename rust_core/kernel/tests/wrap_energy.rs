@@ -1,0 +1,296 @@
+//! The energy solver (`SolverKind::Energy`) on targets whose answer is known, and its promise
+//! that no layout face turns over.
+
+mod common;
+
+use std::sync::Arc;
+
+use glam::Vec3;
+use springwrap_kernel::{
+    Anchor, AnchorTarget, KernelError, LayoutPoint, LayoutStructure, PlaneConstraint, SolverKind,
+    StepReport, TargetMesh, TargetMeshOptions, WrapSettings, WrapSolver,
+};
+
+fn energy_settings() -> WrapSettings {
+    WrapSettings {
+        solver: SolverKind::Energy,
+        ..WrapSettings::default()
+    }
+}
+
+fn wrap(
+    target: &Arc<TargetMesh>,
+    structure: &LayoutStructure,
+    positions: &[Vec3],
+    anchors: &[Anchor],
+) -> (WrapSolver, StepReport) {
+    let points = positions.iter().map(|&p| LayoutPoint::Space(p)).collect();
+    let mut solver = WrapSolver::new(
+        Arc::clone(target),
+        structure.clone(),
+        points,
+        anchors,
+        energy_settings(),
+    )
+    .unwrap();
+    let report = solver.step(1000).unwrap();
+    (solver, report)
+}
+
+/// Quad normals (from the diagonals) of a layout of `n` x `n` quads as made by
+/// [`common::quad_layout`].
+fn grid_quad_normals(n: u32, positions: &[Vec3]) -> Vec<Vec3> {
+    let row = n + 1;
+    let mut normals = Vec::new();
+    for y in 0..n {
+        for x in 0..n {
+            let a = (y * row + x) as usize;
+            let (b, c, d) = (a + 1, a + row as usize + 1, a + row as usize);
+            normals.push((positions[c] - positions[a]).cross(positions[d] - positions[b]));
+        }
+    }
+    normals
+}
+
+fn assert_anchors_met(solver: &WrapSolver, target: &TargetMesh, anchors: &[Anchor]) {
+    for anchor in anchors {
+        let AnchorTarget::Face(face_point) = anchor.target else {
+            continue;
+        };
+        let wanted = target.face_point_position(face_point).unwrap();
+        let position = solver.positions()[anchor.vertex as usize];
+        assert_eq!(position, wanted, "anchor on vertex {}", anchor.vertex);
+        assert_eq!(
+            solver.points()[anchor.vertex as usize],
+            LayoutPoint::Face(face_point)
+        );
+    }
+}
+
+#[test]
+fn a_template_above_a_plane_lands_on_it_in_a_few_iterations() {
+    let target = common::plane_target(40, 0.05, 0.0);
+    let (structure, positions) = common::quad_layout(10, 0.1, Vec3::new(-0.5, -0.5, 0.3));
+    let anchors = common::anchors_below(&target, &positions, &[0, 10, 110, 120, 60]);
+    let (solver, report) = wrap(&target, &structure, &positions, &anchors);
+    assert!(report.converged, "{report:?}");
+    assert!(report.total_iterations <= 40, "{report:?}");
+    assert_eq!(report.space_points, 0, "{report:?}");
+    for (vertex, position) in solver.positions().iter().enumerate() {
+        assert!(position.z.abs() < 1e-5, "vertex {vertex} at {position}");
+    }
+    assert_anchors_met(&solver, &target, &anchors);
+    // The template's shape is kept: a flat grid stays an even grid.
+    for normal in grid_quad_normals(10, solver.positions()) {
+        assert!((normal.length() * 0.5 - 0.01).abs() < 1e-4, "{normal}");
+    }
+}
+
+#[test]
+fn points_over_a_hole_float_on_the_continued_surface() {
+    let target = common::plane_target(40, 0.05, 0.25);
+    let (structure, positions) = common::quad_layout(10, 0.1, Vec3::new(-0.5, -0.5, 0.2));
+    let anchors = common::anchors_below(&target, &positions, &[0, 10, 110, 120]);
+    let (solver, report) = wrap(&target, &structure, &positions, &anchors);
+    assert!(report.converged, "{report:?}");
+    for (vertex, (point, position)) in solver.points().iter().zip(solver.positions()).enumerate() {
+        let over_hole = position.truncate().length() < 0.2;
+        let far_from_hole = position.truncate().length() > 0.35;
+        match point {
+            LayoutPoint::Space(_) => {
+                assert!(!far_from_hole, "vertex {vertex} at {position} did not land");
+                assert!(
+                    position.z.abs() < 0.01,
+                    "vertex {vertex} at {position} sags"
+                );
+            }
+            LayoutPoint::Face(_) => {
+                assert!(
+                    !over_hole,
+                    "vertex {vertex} at {position} landed in the hole"
+                );
+                assert!(position.z.abs() < 1e-5, "vertex {vertex} at {position}");
+            }
+        }
+    }
+    assert!(report.space_points > 0, "{report:?}");
+}
+
+/// A band of quads around the z axis (polar angles 30° to 150°), `rings` x `segments`, on an
+/// ellipsoid with the given semi-axes.
+fn band_layout(axes: Vec3, rings: u32, segments: u32) -> (LayoutStructure, Vec<Vec3>) {
+    let mut positions = Vec::new();
+    for ring in 0..=rings {
+        let polar = (30.0 + 120.0 * ring as f32 / rings as f32).to_radians();
+        for segment in 0..segments {
+            let azimuth = std::f32::consts::TAU * segment as f32 / segments as f32;
+            let unit = Vec3::new(
+                polar.sin() * azimuth.cos(),
+                polar.sin() * azimuth.sin(),
+                polar.cos(),
+            );
+            positions.push(unit * axes);
+        }
+    }
+    let mut corners = Vec::new();
+    for ring in 0..rings {
+        for segment in 0..segments {
+            let a = ring * segments + segment;
+            let b = ring * segments + (segment + 1) % segments;
+            // Counter-clockwise seen from outside: the normals point outwards.
+            corners.extend([a, a + segments, b + segments, b]);
+        }
+    }
+    let faces = vec![4; (rings * segments) as usize];
+    let structure = LayoutStructure::new(positions.len(), &corners, &faces, &[], &[]).unwrap();
+    (structure, positions)
+}
+
+fn band_quad_normals(structure_rings: u32, segments: u32, positions: &[Vec3]) -> Vec<(Vec3, Vec3)> {
+    let mut normals = Vec::new();
+    for ring in 0..structure_rings {
+        for segment in 0..segments {
+            let a = (ring * segments + segment) as usize;
+            let b = (ring * segments + (segment + 1) % segments) as usize;
+            let (c, d) = (b + segments as usize, a + segments as usize);
+            let centre = (positions[a] + positions[b] + positions[c] + positions[d]) * 0.25;
+            normals.push((
+                (positions[c] - positions[a]).cross(positions[b] - positions[d]),
+                centre,
+            ));
+        }
+    }
+    normals
+}
+
+#[test]
+fn a_band_wraps_onto_a_sphere_on_the_surface_with_every_face_outwards() {
+    let (vertices, triangles) = common::uv_sphere(1.0, 48, 96);
+    let target =
+        Arc::new(TargetMesh::new(vertices, triangles, TargetMeshOptions::default()).unwrap());
+    let (structure, positions) = band_layout(Vec3::new(1.3, 1.1, 0.9), 12, 32);
+    for (normal, centre) in band_quad_normals(12, 32, &positions) {
+        assert!(normal.dot(centre) > 0.0, "the test's band faces outwards");
+    }
+    let anchors: Vec<Anchor> = [0u32, 8, 16, 24, 12 * 32, 12 * 32 + 16]
+        .iter()
+        .map(|&vertex| {
+            let hit = target
+                .closest_point(positions[vertex as usize].normalize(), f32::INFINITY)
+                .unwrap();
+            Anchor {
+                vertex,
+                target: AnchorTarget::Face(hit.face_point),
+            }
+        })
+        .collect();
+    let (solver, report) = wrap(&target, &structure, &positions, &anchors);
+    assert!(report.converged, "{report:?}");
+    assert_eq!(report.space_points, 0, "{report:?}");
+    for (vertex, position) in solver.positions().iter().enumerate() {
+        let hit = target.closest_point(*position, f32::INFINITY).unwrap();
+        assert!(
+            hit.distance < 1e-5,
+            "vertex {vertex} is {} off",
+            hit.distance
+        );
+    }
+    for (normal, centre) in band_quad_normals(12, 32, solver.positions()) {
+        assert!(normal.dot(centre) > 0.0, "a quad at {centre} turned over");
+    }
+    assert_anchors_met(&solver, &target, &anchors);
+}
+
+/// A bumpy height field `z = h(x, y)` over [-1, 1]², `cells` x `cells`.
+fn bumpy_target(rng: &mut common::Rng, cells: u32) -> Arc<TargetMesh> {
+    let (vertices, triangles) = common::grid(cells);
+    let (a, b, c) = (
+        rng.range(0.05, 0.2),
+        rng.range(1.0, 4.0),
+        rng.range(1.0, 4.0),
+    );
+    let phase = rng.range(0.0, 6.0);
+    let vertices = vertices
+        .into_iter()
+        .map(|v| {
+            let (x, y) = (
+                v.x / cells as f32 * 2.0 - 1.0,
+                v.y / cells as f32 * 2.0 - 1.0,
+            );
+            Vec3::new(x, y, a * (b * x + phase).sin() * (c * y).cos())
+        })
+        .collect();
+    Arc::new(TargetMesh::new(vertices, triangles, TargetMeshOptions::default()).unwrap())
+}
+
+#[test]
+fn random_targets_and_anchor_moves_never_turn_a_face_over() {
+    let mut rng = common::Rng::new(20_261_201);
+    for case in 0..10 {
+        let target = bumpy_target(&mut rng, 60);
+        let n = 12;
+        let (structure, mut positions) = common::quad_layout(n, 0.12, Vec3::new(-0.72, -0.72, 0.3));
+        for position in &mut positions {
+            *position += rng.point_in_box(0.02);
+        }
+        let before = grid_quad_normals(n, &positions);
+        assert!(before.iter().all(|normal| normal.z > 0.0));
+        // Anchors pulled up to half a cell from under their vertex: the layout must stretch and
+        // shear to meet them.
+        let anchors: Vec<Anchor> = (0..6)
+            .map(|_| rng.below(positions.len()) as u32)
+            .collect::<std::collections::BTreeSet<_>>()
+            .into_iter()
+            .map(|vertex| {
+                let moved = positions[vertex as usize] + rng.point_in_box(0.06);
+                let below = Vec3::new(moved.x, moved.y, 0.0);
+                let hit = target.closest_point(below, f32::INFINITY).unwrap();
+                Anchor {
+                    vertex,
+                    target: AnchorTarget::Face(hit.face_point),
+                }
+            })
+            .collect();
+        let (solver, report) = wrap(&target, &structure, &positions, &anchors);
+        assert!(report.converged, "case {case}: {report:?}");
+        for (quad, normal) in grid_quad_normals(n, solver.positions()).iter().enumerate() {
+            assert!(
+                normal.z > 0.0,
+                "case {case}: quad {quad} turned over: {normal}"
+            );
+        }
+        for (vertex, (point, position)) in
+            solver.points().iter().zip(solver.positions()).enumerate()
+        {
+            if let LayoutPoint::Face(face_point) = point {
+                let on = target.face_point_position(*face_point).unwrap();
+                assert_eq!(
+                    on, *position,
+                    "case {case}: face-point {vertex} off its face"
+                );
+            }
+        }
+        assert_anchors_met(&solver, &target, &anchors);
+    }
+}
+
+#[test]
+fn the_energy_solver_refuses_a_plane_constraint_it_cannot_hold_yet() {
+    let target = common::plane_target(40, 0.05, 0.0);
+    let (structure, positions) = common::quad_layout(4, 0.1, Vec3::new(-0.2, -0.2, 0.1));
+    let points = positions.iter().map(|&p| LayoutPoint::Space(p)).collect();
+    let mut solver = WrapSolver::new(target, structure, points, &[], energy_settings())
+        .unwrap()
+        .with_plane_constraint(&PlaneConstraint {
+            point: Vec3::ZERO,
+            normal: Vec3::X,
+            vertices: vec![2, 7, 12],
+            slide: true,
+        })
+        .unwrap();
+    let error = solver.step(10).unwrap_err();
+    assert!(
+        matches!(error, KernelError::InvalidArgument { name: "solver", .. }),
+        "{error:?}"
+    );
+}
