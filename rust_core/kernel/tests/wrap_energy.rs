@@ -235,14 +235,18 @@ fn random_targets_and_anchor_moves_never_turn_a_face_over() {
         }
         let before = grid_quad_normals(n, &positions);
         assert!(before.iter().all(|normal| normal.z > 0.0));
-        // Anchors pulled up to half a cell from under their vertex: the layout must stretch and
-        // shear to meet them.
-        let anchors: Vec<Anchor> = (0..6)
-            .map(|_| rng.below(positions.len()) as u32)
-            .collect::<std::collections::BTreeSet<_>>()
+        // Anchors on every fourth vertex of every fourth row, pulled up to a cell and a half
+        // from under their vertex: the layout must stretch and shear to meet them.
+        let spaced: Vec<u32> = (0..=n / 4)
+            .flat_map(|y| (0..=n / 4).map(move |x| y * 4 * (n + 1) + x * 4))
+            .collect();
+        let anchors: Vec<Anchor> = spaced
+            .into_iter()
+            .filter(|_| rng.unit() < 0.6)
+            .collect::<Vec<_>>()
             .into_iter()
             .map(|vertex| {
-                let moved = positions[vertex as usize] + rng.point_in_box(0.06);
+                let moved = positions[vertex as usize] + rng.point_in_box(0.18);
                 let below = Vec3::new(moved.x, moved.y, 0.0);
                 let hit = target.closest_point(below, f32::INFINITY).unwrap();
                 Anchor {

@@ -193,12 +193,9 @@ impl EnergySolver {
         }
         let (stencils, term_owner, term_rest) = build_terms(structure, inputs.rest);
         let system = LinearSystem::new(&stencils, vertex_count, &fixed)?;
-        let mut positions = inputs.positions.to_vec();
-        for (position, fixed) in positions.iter_mut().zip(&fixed) {
-            if let Some(fixed) = fixed {
-                *position = fixed.as_vec3();
-            }
-        }
+        // Constrained vertices move to their constraints in the first step, with their
+        // neighbours: the safeguard then sees the whole move.
+        let positions = inputs.positions.to_vec();
         let rest_normals = (0..vertex_count as u32)
             .map(|vertex| structure.normal_at(inputs.rest, vertex).normalize_or_zero())
             .collect();
@@ -264,7 +261,10 @@ impl EnergySolver {
         let mut landing = vec![false; vertex_count];
         for (vertex, hit) in hits.iter().enumerate() {
             if let Some(hit) = hit {
-                candidate[vertex] = hit.position;
+                // Where the face-point is, exactly as it will be read back.
+                candidate[vertex] = self
+                    .target
+                    .interpolate(hit.face_point.triangle, hit.face_point.barycentric);
                 landing[vertex] = true;
             }
         }
@@ -470,6 +470,11 @@ impl EnergySolver {
         self.system.factor(&diagonal)?;
         let solution = self.system.solve(&right_hand_side)?;
         let mut proposed = self.positions.clone();
+        for (position, fixed) in proposed.iter_mut().zip(&self.fixed) {
+            if let Some(fixed) = fixed {
+                *position = fixed.as_vec3();
+            }
+        }
         for (row, &vertex) in vertex_of_row.iter().enumerate() {
             let position = solution[row].as_vec3();
             if position.is_finite() {
@@ -796,4 +801,194 @@ fn smoothed_vertex_normals(target: &TargetMesh, radius: f32) -> Vec<Vec3> {
             .collect();
     }
     normals
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::TargetMeshOptions;
+
+    /// A flat target (z = 0, [-1, 1]², 20 x 20 cells) and an `n` x `n` quad grid layout of cell
+    /// `size` at height `height`, lower corner at (-n size / 2, -n size / 2).
+    fn plane_and_grid(
+        n: u32,
+        size: f32,
+        height: f32,
+    ) -> (Arc<TargetMesh>, LayoutStructure, Vec<Vec3>) {
+        let cells = 20u32;
+        let row = cells + 1;
+        let vertices = (0..row * row)
+            .map(|index| {
+                Vec3::new(
+                    (index % row) as f32 / cells as f32 * 2.0 - 1.0,
+                    (index / row) as f32 / cells as f32 * 2.0 - 1.0,
+                    0.0,
+                )
+            })
+            .collect();
+        let mut triangles = Vec::new();
+        for y in 0..cells {
+            for x in 0..cells {
+                let a = y * row + x;
+                triangles.push([a, a + 1, a + row + 1]);
+                triangles.push([a, a + row + 1, a + row]);
+            }
+        }
+        let target =
+            Arc::new(TargetMesh::new(vertices, triangles, TargetMeshOptions::default()).unwrap());
+        let layout_row = n + 1;
+        let half = n as f32 * size * 0.5;
+        let positions: Vec<Vec3> = (0..layout_row * layout_row)
+            .map(|index| {
+                Vec3::new(
+                    (index % layout_row) as f32 * size - half,
+                    (index / layout_row) as f32 * size - half,
+                    height,
+                )
+            })
+            .collect();
+        let mut corners = Vec::new();
+        for y in 0..n {
+            for x in 0..n {
+                let a = y * layout_row + x;
+                corners.extend([a, a + 1, a + layout_row + 1, a + layout_row]);
+            }
+        }
+        let structure = LayoutStructure::new(
+            positions.len(),
+            &corners,
+            &vec![4; (n * n) as usize],
+            &[],
+            &[],
+        )
+        .unwrap();
+        (target, structure, positions)
+    }
+
+    fn solver(
+        target: &Arc<TargetMesh>,
+        structure: &LayoutStructure,
+        positions: &[Vec3],
+        rest: &[Vec3],
+        anchors: &[Option<(AnchorTarget, Vec3)>],
+    ) -> EnergySolver {
+        EnergySolver::new(&EnergyInputs {
+            target,
+            structure,
+            rest,
+            positions,
+            anchor_of_vertex: anchors,
+            curve_target_of_vertex: &[],
+            unreliable: &[],
+            mean_edge_length: 0.1,
+            landing_distance: 0.025,
+        })
+        .unwrap()
+    }
+
+    #[test]
+    fn the_global_step_zeroes_the_energys_gradient_by_finite_differences() {
+        let (target, structure, rest) = plane_and_grid(6, 0.1, 0.05);
+        // Start bent and shifted away from the rest shape, with one anchor, so that every term
+        // (edges, lines, umbrellas at the corners' neighbours, data, fixed columns) is active.
+        let positions: Vec<Vec3> = rest
+            .iter()
+            .map(|p| *p + Vec3::new(0.02 * (p.y * 9.0).sin(), 0.01, 0.1 * p.x * p.x))
+            .collect();
+        let mut anchors = vec![None; rest.len()];
+        let anchor_position = Vec3::new(0.05, 0.0, 0.0);
+        let hit = target.closest_point(anchor_position, 1.0).unwrap();
+        anchors[24] = Some((AnchorTarget::Face(hit.face_point), hit.position));
+        let mut solver = solver(&target, &structure, &positions, &rest, &anchors);
+        solver.smooth_scales(Some(2));
+        let normals = solver.layout_normals(&solver.positions);
+        let correspondences = solver.correspondences(&normals, 0.2);
+        assert!(correspondences.iter().filter(|c| c.is_some()).count() > 30);
+        let data_weight = 3.0;
+        let solution = solver.global_solve(&correspondences, data_weight).unwrap();
+        let previous = solver.positions.clone();
+        let energy = |positions: &[Vec3]| {
+            solver.energy_at(positions, &correspondences, data_weight, &previous)
+        };
+        let gradient_norm = |at: &[Vec3]| {
+            let step = 1e-3f32;
+            let mut norm = 0.0f64;
+            for vertex in 0..at.len() {
+                if solver.fixed[vertex].is_some() {
+                    continue;
+                }
+                for axis in 0..3 {
+                    let mut plus = at.to_vec();
+                    let mut minus = at.to_vec();
+                    plus[vertex][axis] += step;
+                    minus[vertex][axis] -= step;
+                    let derivative = (energy(&plus) - energy(&minus)) / (2.0 * f64::from(step));
+                    norm += derivative * derivative;
+                }
+            }
+            norm.sqrt()
+        };
+        let at_start = gradient_norm(&previous);
+        let at_solution = gradient_norm(&solution);
+        assert!(at_start > 0.1, "{at_start}");
+        assert!(
+            at_solution < at_start * 1e-3,
+            "gradient {at_solution} at the solution, {at_start} at the start"
+        );
+        assert!(energy(&solution) < energy(&previous));
+        assert_eq!(solution[24], hit.position, "the anchor is met exactly");
+    }
+
+    #[test]
+    fn the_safeguard_backs_off_exactly_the_steps_that_turn_a_corner() {
+        let (target, structure, rest) = plane_and_grid(6, 0.1, 0.05);
+        let solver = solver(&target, &structure, &rest, &rest, &vec![None; rest.len()]);
+        // Every point moves down by 0.01; vertex 24 (interior) also jumps across its right-hand
+        // neighbour, which turns its corners over.
+        let mut proposed: Vec<Vec3> = rest.iter().map(|p| *p - Vec3::Z * 0.01).collect();
+        proposed[24] += Vec3::new(0.25, 0.0, 0.0);
+        let before = solver.corner_orientations(&rest);
+        assert!(!solver.turned_corners(&before, &proposed).is_empty());
+        let (accepted, held_back) = solver.safeguard(&proposed);
+        assert!(solver.turned_corners(&before, &accepted).is_empty());
+        assert!(held_back >= 1 && held_back <= 9, "{held_back}");
+        let far_away = [0usize, 6, 42, 48];
+        for vertex in far_away {
+            assert_eq!(
+                accepted[vertex], proposed[vertex],
+                "vertex {vertex} far from the fold"
+            );
+        }
+        assert_ne!(accepted[24], proposed[24]);
+    }
+
+    #[test]
+    fn a_landing_that_would_turn_a_corner_is_refused() {
+        let (target, structure, rest) = plane_and_grid(6, 0.1, 0.0);
+        // The layout hovers just above the plane, but vertex 24 dips below it past its right-hand
+        // neighbour's column: landing it straight down would fold its quads.
+        let mut positions: Vec<Vec3> = rest.iter().map(|p| *p + Vec3::Z * 0.01).collect();
+        positions[24] = Vec3::new(positions[25].x + 0.03, positions[24].y, 0.2);
+        let mut solver = solver(
+            &target,
+            &structure,
+            &positions,
+            &rest,
+            &vec![None; rest.len()],
+        );
+        solver.landing_distance = 1.0;
+        let before = solver.corner_orientations(&positions);
+        let (points, landed) = solver.land();
+        assert!(solver.turned_corners(&before, &solver.positions).is_empty());
+        assert!(landed > 40, "{landed}");
+        assert!(matches!(points[24], LayoutPoint::Space(_)), "{:?}", points[24]);
+        for (vertex, point) in points.iter().enumerate() {
+            if let LayoutPoint::Face(face_point) = point {
+                assert_eq!(
+                    target.face_point_position(*face_point).unwrap(),
+                    solver.positions[vertex]
+                );
+            }
+        }
+    }
 }
