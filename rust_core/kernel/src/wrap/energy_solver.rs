@@ -951,7 +951,7 @@ mod tests {
         assert!(!solver.turned_corners(&before, &proposed).is_empty());
         let (accepted, held_back) = solver.safeguard(&proposed);
         assert!(solver.turned_corners(&before, &accepted).is_empty());
-        assert!(held_back >= 1 && held_back <= 9, "{held_back}");
+        assert!((1..=9).contains(&held_back), "{held_back}");
         let far_away = [0usize, 6, 42, 48];
         for vertex in far_away {
             assert_eq!(
