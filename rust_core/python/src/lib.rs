@@ -822,41 +822,49 @@ impl PyWrapSolver {
         Ok(Self { solver })
     }
 
-    /// Runs up to `iterations` iterations (fewer once converged); returns the progress as a tuple
-    /// (iterations, total_iterations, max_displacement, converged, face_points, space_points,
-    /// landed, folded, lifted, fold_tolerance, mean_displacement).
+    /// Runs up to `iterations` iterations (fewer once converged); returns the progress as
+    /// ((iterations, total_iterations, max_displacement, converged, face_points, space_points,
+    /// landed, folded, lifted, fold_tolerance, mean_displacement), energy, held_back).
     #[allow(clippy::type_complexity)]
     fn step(
         &mut self,
         py: Python<'_>,
         iterations: usize,
     ) -> PyResult<(
+        (
+            usize,
+            usize,
+            f32,
+            bool,
+            usize,
+            usize,
+            usize,
+            usize,
+            usize,
+            f32,
+            f32,
+        ),
+        f64,
         usize,
-        usize,
-        f32,
-        bool,
-        usize,
-        usize,
-        usize,
-        usize,
-        usize,
-        f32,
-        f32,
     )> {
         let solver = &mut self.solver;
         let report = run_kernel(py, || solver.step(iterations))?;
         Ok((
-            report.iterations,
-            report.total_iterations,
-            report.max_displacement,
-            report.converged,
-            report.face_points,
-            report.space_points,
-            report.landed,
-            report.folded,
-            report.lifted,
-            report.fold_tolerance,
-            report.mean_displacement,
+            (
+                report.iterations,
+                report.total_iterations,
+                report.max_displacement,
+                report.converged,
+                report.face_points,
+                report.space_points,
+                report.landed,
+                report.folded,
+                report.lifted,
+                report.fold_tolerance,
+                report.mean_displacement,
+            ),
+            report.energy,
+            report.held_back,
         ))
     }
 

@@ -30,7 +30,7 @@
 
 use std::sync::Arc;
 
-use glam::{DVec3, Vec3};
+use glam::{DVec3, Quat, Vec3, Vec4};
 use rayon::prelude::*;
 
 use super::anchor::AnchorTarget;
@@ -95,6 +95,12 @@ const LEVEL_DECREASE: f64 = 2e-3;
 const MIN_FACING: f32 = 0.5;
 /// Per-vertex scales stay within this factor of their median.
 const SCALE_RANGE: f32 = 3.0;
+/// Rounds of averaging of the rotations over edge neighbours for the rotation field a vertex's
+/// own rotation may not stray far from...
+const ROTATION_SMOOTHING: usize = 8;
+/// ... by more than this angle (radians, 30 degrees): a small region does not roll over on its
+/// own (an eyelid pulled into a socket, a lip rolled in), a whole limb still turns.
+const MAX_ROTATION_STRAY: f32 = std::f32::consts::FRAC_PI_6;
 /// Halvings of a vertex's step before it is not taken at all.
 const BACKTRACK_HALVINGS: usize = 6;
 /// A free point lands when its closest surface point is within this many landing distances.
@@ -102,6 +108,10 @@ const LANDING_REACH: f32 = 2.0;
 /// Rounds of normal smoothing per (layout edge / target edge)² (diffusion spreads as the square
 /// root of the rounds), and their bounds.
 const NORMAL_SMOOTHING_ROUNDS: (usize, usize) = (1, 24);
+
+/// A point's pull toward the target: its Welsch weight and the point on the target's tangent
+/// plane it is pulled to.
+type Correspondence = (f32, Vec3);
 
 /// What the energy solver needs from the wrap's inputs.
 pub(crate) struct EnergyInputs<'a> {
@@ -136,7 +146,9 @@ pub(crate) struct EnergySolver {
     target: Arc<TargetMesh>,
     structure: LayoutStructure,
     springs: Springs,
-    rest_normals: Vec<Vec3>,
+    /// Per corner (a vertex and one face around it, in `structure.wedges` order), its unit normal
+    /// in the rest shape: the orientation the safeguard keeps, turned by the vertex's rotation.
+    rest_corner_normals: Vec<Vec3>,
     stencils: Stencils,
     /// Per term, its owner (whose similarity turns its rest vector) and its rest vector.
     term_owner: Vec<u32>,
@@ -196,15 +208,16 @@ impl EnergySolver {
         // Constrained vertices move to their constraints in the first step, with their
         // neighbours: the safeguard then sees the whole move.
         let positions = inputs.positions.to_vec();
-        let rest_normals = (0..vertex_count as u32)
-            .map(|vertex| structure.normal_at(inputs.rest, vertex).normalize_or_zero())
+        let rest_corner_normals = corner_normals(structure, inputs.rest)
+            .into_iter()
+            .map(Vec3::normalize_or_zero)
             .collect();
         let smoothed_normals = smoothed_vertex_normals(inputs.target, inputs.mean_edge_length);
         let mut solver = Self {
             target: Arc::clone(inputs.target),
             structure: structure.clone(),
             springs: Springs::new(structure, inputs.rest, SpringRest::Template),
-            rest_normals,
+            rest_corner_normals,
             stencils,
             term_owner,
             term_rest,
@@ -379,6 +392,43 @@ impl EnergySolver {
             })
             .collect();
         self.similarities = fits;
+        self.limit_rotations();
+    }
+
+    /// Brings every rotation within [`MAX_ROTATION_STRAY`] of the rotations around it (averaged
+    /// over [`ROTATION_SMOOTHING`] rings).
+    fn limit_rotations(&mut self) {
+        let mut smoothed: Vec<Quat> = self.similarities.iter().map(|fit| fit.rotation).collect();
+        for _ in 0..ROTATION_SMOOTHING {
+            smoothed = (0..smoothed.len() as u32)
+                .into_par_iter()
+                .with_min_len(2048)
+                .map(|vertex| {
+                    let own = Vec4::from(smoothed[vertex as usize]);
+                    let sum = self
+                        .structure
+                        .neighbors_of(vertex)
+                        .iter()
+                        .map(|&other| {
+                            let quaternion = Vec4::from(smoothed[other as usize]);
+                            if quaternion.dot(own) < 0.0 { -quaternion } else { quaternion }
+                        })
+                        .fold(own, |sum, quaternion| sum + quaternion);
+                    let average = Quat::from_vec4(sum);
+                    if average.length_squared() > 0.0 {
+                        average.normalize()
+                    } else {
+                        smoothed[vertex as usize]
+                    }
+                })
+                .collect();
+        }
+        for (fit, field) in self.similarities.iter_mut().zip(smoothed) {
+            let angle = fit.rotation.angle_between(field);
+            if angle > MAX_ROTATION_STRAY {
+                fit.rotation = field.slerp(fit.rotation, MAX_ROTATION_STRAY / angle);
+            }
+        }
     }
 
     /// Replaces the fitted scales by their median (`None`) or by their log averaged over edge
@@ -440,7 +490,7 @@ impl EnergySolver {
     /// these correspondences (fixed vertices at their constraints).
     fn global_solve(
         &mut self,
-        correspondences: &[Option<(f32, Vec3)>],
+        correspondences: &[Option<Correspondence>],
         data_weight: f64,
     ) -> Result<Vec<Vec3>, KernelError> {
         let rows = self.system.rows();
@@ -489,7 +539,7 @@ impl EnergySolver {
     fn energy_at(
         &self,
         positions: &[Vec3],
-        correspondences: &[Option<(f32, Vec3)>],
+        correspondences: &[Option<Correspondence>],
         data_weight: f64,
         previous: &[Vec3],
     ) -> f64 {
@@ -516,8 +566,8 @@ impl EnergySolver {
         springs + data * data_weight + proximal * PROXIMAL_WEIGHT * EDGE_WEIGHT
     }
 
-    /// Per free vertex, its correspondence `(weight, point on the tangent plane)`, or `None`.
-    fn correspondences(&self, normals: &[Vec3], width: f32) -> Vec<Option<(f32, Vec3)>> {
+    /// Per free vertex, its correspondence, or `None`.
+    fn correspondences(&self, normals: &[Vec3], width: f32) -> Vec<Option<Correspondence>> {
         (0..self.positions.len())
             .into_par_iter()
             .with_min_len(256)
@@ -612,24 +662,21 @@ impl EnergySolver {
     }
 
     /// Per corner (a vertex and one face around it, in `structure.wedges` order), whether it
-    /// faces the way of its vertex's rest normal turned by the vertex's rotation.
+    /// faces the way of its rest normal turned by its vertex's rotation.
     fn corner_orientations(&self, positions: &[Vec3]) -> Vec<bool> {
         let structure = &self.structure;
+        let normals = corner_normals(structure, positions);
         (0..positions.len())
             .into_par_iter()
             .with_min_len(1024)
             .flat_map_iter(|vertex| {
                 let start = structure.wedge_offsets[vertex] as usize;
                 let end = structure.wedge_offsets[vertex + 1] as usize;
-                let reference = self.similarities[vertex].rotation * self.rest_normals[vertex];
-                let here = positions[vertex];
-                structure.wedges[start..end]
-                    .iter()
-                    .map(move |&(previous, next)| {
-                        let normal = (positions[next as usize] - here)
-                            .cross(positions[previous as usize] - here);
-                        normal.dot(reference) > 0.0
-                    })
+                let rotation = self.similarities[vertex].rotation;
+                let normals = &normals;
+                (start..end).map(move |corner| {
+                    normals[corner].dot(rotation * self.rest_corner_normals[corner]) > 0.0
+                })
             })
             .collect()
     }
@@ -655,33 +702,54 @@ impl EnergySolver {
     }
 
     /// The proposed positions with the steps of vertices around turning corners halved until
-    /// none turns (at worst not taken); and how many vertices were held back.
+    /// none turns (after [`BACKTRACK_HALVINGS`] halvings a step is not taken at all); and how many
+    /// vertices were held back. Only a corner turned by constrained vertices alone can remain.
     fn safeguard(&self, proposed: &[Vec3]) -> (Vec<Vec3>, usize) {
         let before = self.corner_orientations(&self.positions);
         let mut fractions = vec![1.0f32; proposed.len()];
         let mut candidate = proposed.to_vec();
-        for round in 0..=BACKTRACK_HALVINGS {
-            let turned = self.turned_corners(&before, &candidate);
-            if turned.is_empty() {
-                break;
-            }
-            for vertex in turned {
+        for round in 0.. {
+            let mut changed = false;
+            for vertex in self.turned_corners(&before, &candidate) {
                 let vertex = vertex as usize;
-                if self.fixed[vertex].is_some() {
+                if self.fixed[vertex].is_some() || fractions[vertex] == 0.0 {
                     continue;
                 }
-                fractions[vertex] = if round == BACKTRACK_HALVINGS {
+                fractions[vertex] = if round >= BACKTRACK_HALVINGS {
                     0.0
                 } else {
                     fractions[vertex] * 0.5
                 };
                 candidate[vertex] = self.positions[vertex]
                     + (proposed[vertex] - self.positions[vertex]) * fractions[vertex];
+                changed = true;
+            }
+            if !changed {
+                break;
             }
         }
         let held_back = fractions.iter().filter(|&&fraction| fraction < 1.0).count();
         (candidate, held_back)
     }
+}
+
+/// Per corner (a vertex and one face around it, in `structure.wedges` order), its normal at
+/// `positions` (twice the corner triangle's area long; the faces' winding).
+fn corner_normals(structure: &LayoutStructure, positions: &[Vec3]) -> Vec<Vec3> {
+    (0..positions.len())
+        .into_par_iter()
+        .with_min_len(1024)
+        .flat_map_iter(|vertex| {
+            let start = structure.wedge_offsets[vertex] as usize;
+            let end = structure.wedge_offsets[vertex + 1] as usize;
+            let here = positions[vertex];
+            structure.wedges[start..end]
+                .iter()
+                .map(move |&(previous, next)| {
+                    (positions[next as usize] - here).cross(positions[previous as usize] - here)
+                })
+        })
+        .collect()
 }
 
 /// Whether `triangle` is flagged in `flags` (empty: none is).
@@ -981,7 +1049,11 @@ mod tests {
         let (points, landed) = solver.land();
         assert!(solver.turned_corners(&before, &solver.positions).is_empty());
         assert!(landed > 40, "{landed}");
-        assert!(matches!(points[24], LayoutPoint::Space(_)), "{:?}", points[24]);
+        assert!(
+            matches!(points[24], LayoutPoint::Space(_)),
+            "{:?}",
+            points[24]
+        );
         for (vertex, point) in points.iter().enumerate() {
             if let LayoutPoint::Face(face_point) = point {
                 assert_eq!(

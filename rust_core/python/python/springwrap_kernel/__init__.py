@@ -178,6 +178,11 @@ class StepReport(NamedTuple):
     """The annealed folding tolerance, radians."""
     mean_displacement: float
     """Mean move of the last iteration, as a fraction of the layout's size."""
+    energy: float
+    """The energy after the last iteration (``solver="ENERGY"``; NaN for the spring solver)."""
+    held_back: int
+    """Points whose last step was shortened or refused so that no layout face turned over
+    (``solver="ENERGY"``; 0 for the spring solver)."""
 
 
 class WrapSolver(_native.WrapSolver):
@@ -195,4 +200,5 @@ class WrapSolver(_native.WrapSolver):
 
     def step(self, iterations):
         """Run up to ``iterations`` iterations (fewer once converged); the GIL is released meanwhile."""
-        return StepReport(*super().step(iterations))
+        progress, energy, held_back = super().step(iterations)
+        return StepReport(*progress, energy, held_back)

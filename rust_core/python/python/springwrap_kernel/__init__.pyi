@@ -284,6 +284,8 @@ class StepReport(NamedTuple):
     lifted: int
     fold_tolerance: float
     mean_displacement: float
+    energy: float
+    held_back: int
 
 class WrapSolver:
     """A wrap in progress (hybrid spring optimisation onto ``target``).
