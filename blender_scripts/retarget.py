@@ -77,6 +77,8 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("--fairness", type=float, default=0.5, help="straight grid lines, 0 to 1")
     parser.add_argument("--arc-length", type=float, default=0.5, help="even spacing along grid lines, 0 to 1")
     parser.add_argument("--thin-plate", type=float, default=0.2, help="curvature over holes, 0 to 0.5")
+    parser.add_argument("--solver", choices=("springs", "energy"), default="springs",
+                        help="the wrap's algorithm: the paper's force iteration, or one energy by a global solve")
     parser.add_argument("--output-blend", type=Path, help="save template, target and result here")
     parser.add_argument("--output-obj", type=Path, help="export the retargeted layout here")
     parser.add_argument("--report", type=Path, help="write the JSON report here")
@@ -352,7 +354,7 @@ def retarget(arguments: argparse.Namespace) -> dict:
 
     parameters = operations.WrapParameters(max_iterations=arguments.max_iterations, tolerance=arguments.tolerance,
                                            fairness=arguments.fairness, arc_length=arguments.arc_length,
-                                           thin_plate=arguments.thin_plate)
+                                           thin_plate=arguments.thin_plate, solver=arguments.solver.upper())
     try:
         session = wrap_operator.WrapSession(bpy.context, layout, parameters)
     except bridge.ERRORS as error:

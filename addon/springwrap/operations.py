@@ -288,11 +288,13 @@ class WrapParameters(NamedTuple):
     folding: float = 0.3
     rest: str = "TEMPLATE"  # the springs rest in the template's shape ("TEMPLATE") or straight and even ("EVEN")
     spring_resolution: int = 1  # > 1: relax, then relax again the faces cut k x k (coarse to fine)
+    solver: str = "SPRINGS"  # the paper's force iteration ("SPRINGS") or one energy, no face turned ("ENERGY")
 
     def solver_settings(self) -> dict:
         """The keyword arguments of ``springwrap_kernel.WrapSolver`` these parameters set."""
         names = ("tolerance", *WEIGHT_RANGES)
-        return {name: float(getattr(self, name)) for name in names} | {"rest": str(self.rest)}
+        return {name: float(getattr(self, name)) for name in names} | {"rest": str(self.rest),
+                                                                        "solver": str(self.solver)}
 
 
 class WrapInputs(NamedTuple):

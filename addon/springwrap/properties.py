@@ -170,6 +170,15 @@ class SpringwrapCurveConstraintItem(bpy.types.PropertyGroup):
     )
 
 
+WRAP_SOLVER_ITEMS = (
+    ("SPRINGS", "Springs", "The paper's force iteration: springs relaxed step by step, points folding onto the "
+     "surface one ring at a time"),
+    ("ENERGY", "Energy", "One energy minimised by a global solve: a body in a few dozen iterations, no layout face "
+     "turned over by a step (no Hold on Plane or Mirror yet)"),
+)
+"""The wrap's algorithms (``springwrap_kernel.WrapSolver(solver=...)``)."""
+
+
 class SpringwrapObjectSettings(bpy.types.PropertyGroup):
     """Springwrap settings of a layout object."""
 
@@ -184,6 +193,12 @@ class SpringwrapObjectSettings(bpy.types.PropertyGroup):
         description="Topology signature of the target when face-points were last written",
         default="",
         options={"HIDDEN"},
+    )
+    wrap_solver: bpy.props.EnumProperty(
+        name="Solver",
+        description="Algorithm of the panel's Wrap button",
+        items=WRAP_SOLVER_ITEMS,
+        default="SPRINGS",
     )
     snap_mode: bpy.props.EnumProperty(
         name="Snap Mode",

@@ -231,8 +231,9 @@ class SPRINGWRAP_PT_wrap(_LayoutSubPanel, bpy.types.Panel):
         else:
             row.enabled = False
             row.prop(settings, "unreliable_group")
+        layout.prop(settings, "wrap_solver")
         layout.label(text="Whole layout; Esc or right-click cancels", icon="INFO")
-        layout.operator("springwrap.wrap", icon="MOD_SHRINKWRAP")
+        layout.operator("springwrap.wrap", icon="MOD_SHRINKWRAP").solver = settings.wrap_solver
         layout.operator("springwrap.rest_set", icon="ARMATURE_DATA")
         box = layout.box()
         box.prop(settings, "mirror_object")

@@ -22,7 +22,7 @@ from typing import Callable, NamedTuple, Optional
 import bpy
 
 from .operators import layout_problem
-from .properties import max_iterations_property, tolerance_property
+from .properties import WRAP_SOLVER_ITEMS, max_iterations_property, tolerance_property
 
 FRAME_RATE = 30.0
 """Redraws per second the modal wrap aims for."""
@@ -427,6 +427,12 @@ class SPRINGWRAP_OT_wrap(bpy.types.Operator):
         ),
         default="TEMPLATE",
     )
+    solver: bpy.props.EnumProperty(
+        name="Solver",
+        description="The wrap's algorithm",
+        items=WRAP_SOLVER_ITEMS,
+        default="SPRINGS",
+    )
     spring_resolution: bpy.props.IntProperty(
         name="Spring Resolution",
         description="Above 1: relax the layout, then relax again with every quad cut into this many by this many "
@@ -470,6 +476,7 @@ class SPRINGWRAP_OT_wrap(bpy.types.Operator):
             folding=self.folding,
             rest=self.rest,
             spring_resolution=self.spring_resolution,
+            solver=self.solver,
         )
 
     def _plane_holder(self, layout):

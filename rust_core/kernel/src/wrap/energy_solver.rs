@@ -30,7 +30,7 @@
 
 use std::sync::Arc;
 
-use glam::{DVec3, Quat, Vec3, Vec4};
+use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use super::anchor::AnchorTarget;
@@ -95,12 +95,6 @@ const LEVEL_DECREASE: f64 = 2e-3;
 const MIN_FACING: f32 = 0.5;
 /// Per-vertex scales stay within this factor of their median.
 const SCALE_RANGE: f32 = 3.0;
-/// Rounds of averaging of the rotations over edge neighbours for the rotation field a vertex's
-/// own rotation may not stray far from...
-const ROTATION_SMOOTHING: usize = 8;
-/// ... by more than this angle (radians, 30 degrees): a small region does not roll over on its
-/// own (an eyelid pulled into a socket, a lip rolled in), a whole limb still turns.
-const MAX_ROTATION_STRAY: f32 = std::f32::consts::FRAC_PI_6;
 /// Halvings of a vertex's step before it is not taken at all.
 const BACKTRACK_HALVINGS: usize = 6;
 /// A free point lands when its closest surface point is within this many landing distances.
@@ -392,43 +386,6 @@ impl EnergySolver {
             })
             .collect();
         self.similarities = fits;
-        self.limit_rotations();
-    }
-
-    /// Brings every rotation within [`MAX_ROTATION_STRAY`] of the rotations around it (averaged
-    /// over [`ROTATION_SMOOTHING`] rings).
-    fn limit_rotations(&mut self) {
-        let mut smoothed: Vec<Quat> = self.similarities.iter().map(|fit| fit.rotation).collect();
-        for _ in 0..ROTATION_SMOOTHING {
-            smoothed = (0..smoothed.len() as u32)
-                .into_par_iter()
-                .with_min_len(2048)
-                .map(|vertex| {
-                    let own = Vec4::from(smoothed[vertex as usize]);
-                    let sum = self
-                        .structure
-                        .neighbors_of(vertex)
-                        .iter()
-                        .map(|&other| {
-                            let quaternion = Vec4::from(smoothed[other as usize]);
-                            if quaternion.dot(own) < 0.0 { -quaternion } else { quaternion }
-                        })
-                        .fold(own, |sum, quaternion| sum + quaternion);
-                    let average = Quat::from_vec4(sum);
-                    if average.length_squared() > 0.0 {
-                        average.normalize()
-                    } else {
-                        smoothed[vertex as usize]
-                    }
-                })
-                .collect();
-        }
-        for (fit, field) in self.similarities.iter_mut().zip(smoothed) {
-            let angle = fit.rotation.angle_between(field);
-            if angle > MAX_ROTATION_STRAY {
-                fit.rotation = field.slerp(fit.rotation, MAX_ROTATION_STRAY / angle);
-            }
-        }
     }
 
     /// Replaces the fitted scales by their median (`None`) or by their log averaged over edge

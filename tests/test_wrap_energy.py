@@ -1,0 +1,86 @@
+"""The wrap with ``solver='ENERGY'`` under Blender: the same scenes and independent checks as
+``test_wrap`` (``mathutils`` BVHTree distances, analytic surface normals), plus what the energy solver
+promises on top: few iterations, no quad turned over, and refusals that leave the layout as it was."""
+
+import bpy  # isort: skip  (bmesh and mathutils need bpy imported first)
+import numpy as np
+import pytest
+
+from test_addon import Reference, read_state, snapshot, world_positions
+from test_wrap import (
+    _radial,
+    assert_no_flipped_quads,
+    assert_wrapped_onto,
+    edge_lengths,
+    edges_of,
+    plane_scene,
+    sphere_scene,
+    wrap_scene,  # noqa: F401  (the autouse fixture: an empty scene, the add-on enabled)
+    wrap_with_anchors,
+)
+
+
+def test_grid_above_a_plane_lands_in_a_few_iterations(capfd):
+    target, layout, normal = plane_scene()
+    template = world_positions(layout)
+    assert wrap_with_anchors(layout, spacing=0.5, solver="ENERGY") == {"FINISHED"}
+    states, _faces, _barycentrics = read_state(layout)
+    assert np.all(states == 1)
+    assert_wrapped_onto(layout, Reference(target), template, lambda points: np.tile(normal, (len(points), 1)),
+                        (0.8, 1.25))
+    output = capfd.readouterr().out
+    iterations = int(output.split("Wrapped 'Layout' in ")[1].split(" iterations")[0])
+    assert iterations <= 40 and "(converged)" in output
+
+
+def test_grid_over_a_hole_caps_it_on_the_plane():
+    target, layout, normal = plane_scene(hole=True)
+    template = world_positions(layout)
+    assert wrap_with_anchors(layout, spacing=0.5, solver="ENERGY") == {"FINISHED"}
+    states, _faces, _barycentrics = read_state(layout)
+    world = world_positions(layout)
+    assert_wrapped_onto(layout, Reference(target), template, lambda points: np.tile(normal, (len(points), 1)),
+                        (0.6, 1.6))
+    space = states == 0
+    assert space.sum() >= 4
+    origin = np.array(target.matrix_world.translation)
+    edge = np.median(edge_lengths(world, edges_of(layout)))
+    assert np.abs((world[space] - origin) @ normal).max() < 0.1 * edge  # the plane continued over the hole
+
+
+def test_sphere_cap_lands_on_the_sphere_without_a_flipped_quad():
+    target, layout = sphere_scene()
+    template = world_positions(layout)
+    assert wrap_with_anchors(layout, spacing=0.6, solver="ENERGY") == {"FINISHED"}
+    states, _faces, _barycentrics = read_state(layout)
+    assert np.all(states == 1)
+    assert_wrapped_onto(layout, Reference(target), template, _radial, (0.6, 1.6))
+    assert_no_flipped_quads(layout, _radial)
+
+
+def test_the_panel_setting_chooses_the_solver():
+    target, layout, _normal = plane_scene()
+    assert layout.springwrap.wrap_solver == "SPRINGS"
+    layout.springwrap.wrap_solver = "ENERGY"
+    from springwrap import operations
+
+    assert operations.WrapParameters(solver="ENERGY").solver_settings()["solver"] == "ENERGY"
+
+
+def test_hold_on_plane_with_the_energy_solver_is_refused_with_the_layout_unchanged(capfd):
+    target, layout, _normal = plane_scene()
+    bpy.ops.springwrap.anchors_auto(spacing=0.5)
+    before = snapshot(layout)
+    with pytest.raises(RuntimeError, match="energy solver does not hold points on a plane"):
+        bpy.ops.springwrap.wrap(solver="ENERGY", hold_plane="X")
+    assert snapshot(layout) == before
+
+
+def test_undo_after_an_energy_wrap_restores_the_template():
+    target, layout, _normal = plane_scene()
+    bpy.ops.springwrap.anchors_auto("EXEC_DEFAULT", True, spacing=0.5)
+    before = snapshot(layout)
+    bpy.ops.springwrap.wrap("EXEC_DEFAULT", True, solver="ENERGY")
+    assert snapshot(bpy.data.objects["Layout"]) != before
+    bpy.ops.ed.undo()
+    assert snapshot(bpy.data.objects["Layout"]) == before
