@@ -67,13 +67,13 @@ const LEVELS: [Level; 4] = [
         data_weight: 0.1,
         welsch_width: 3.0,
         scale_smoothing: None,
-        max_iterations: 6,
+        max_iterations: 12,
     },
     Level {
         data_weight: 1.0,
         welsch_width: 2.0,
         scale_smoothing: Some(32),
-        max_iterations: 6,
+        max_iterations: 10,
     },
     Level {
         data_weight: 10.0,
@@ -90,6 +90,8 @@ const LEVELS: [Level; 4] = [
 ];
 /// A level ends once an iteration lowers the energy by less than this fraction.
 const LEVEL_DECREASE: f64 = 2e-3;
+/// A level is settled when at most one point in this many was held back by the safeguard.
+const HELD_BACK_SETTLED: usize = 200;
 /// Correspondences count only where the layout faces the target's smoothed normal within this
 /// cosine (60 degrees).
 const MIN_FACING: f32 = 0.5;
@@ -350,8 +352,10 @@ impl EnergySolver {
         self.level_iterations += 1;
         let decrease = (self.last_energy - energy) / self.last_energy.max(f64::MIN_POSITIVE);
         self.last_energy = energy;
+        // A level also waits while the safeguard holds many points back: they have not arrived.
+        let settled = held_back * HELD_BACK_SETTLED <= self.positions.len();
         if self.level_iterations >= level.max_iterations
-            || (self.level_iterations > 1 && decrease.abs() < LEVEL_DECREASE)
+            || (self.level_iterations > 1 && decrease.abs() < LEVEL_DECREASE && settled)
         {
             self.level += 1;
             self.level_iterations = 0;
