@@ -258,7 +258,9 @@ def test_wrap_panel_searches_the_targets_vertex_groups():
     recorder = _RecordingLayout()
     SPRINGWRAP_PT_wrap.draw(type("Panel", (), {"layout": recorder})(), bpy.context)
     # (the recorder's rows are itself: the mirror box below the disabled row records as disabled too)
-    assert recorder.searches == [] and recorder.props == [("unreliable_group", False), ("mirror_object", False)]
+    assert recorder.searches == [] and recorder.props == [
+        ("unreliable_group", False), ("wrap_solver", False), ("mirror_object", False)
+    ]
 
 
 def test_poll_needs_a_target():
