@@ -116,8 +116,8 @@ def nricp_case(case, anchor_count: int) -> dict:
     return measure(case, "nricp", positions, aligned, landmark_vertices, target, seconds, len(positions), 0, True)
 
 
-def markdown(rows: list[dict]) -> str:
-    """The rows as a generated markdown page."""
+def markdown(rows: list[dict], provenance: str = "") -> str:
+    """The rows as a generated markdown page; ``provenance`` (the commit, the load) is said under the title."""
     lines = [
         "# The wrap's two solvers",
         "",
@@ -130,6 +130,7 @@ def markdown(rows: list[dict]) -> str:
         f"{OFF_SURFACE_PERCENT} % of the diagonal from the target where it has surface; *space*: space-points at the end",
         "(for nricp, every vertex is free).",
         "",
+        *([provenance, ""] if provenance else []),
         "| case | solver | mean | p95 | max | flipped | added | off | space | iterations | seconds |",
         "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
@@ -138,6 +139,21 @@ def markdown(rows: list[dict]) -> str:
                      f"{row['flipped']} | {row['flips_added']} | {row['off_surface']} | {row['space_points']} | "
                      f"{row['iterations']} | {row['seconds']:.2f} |")
     return "\n".join(lines) + "\n"
+
+
+def provenance() -> str:
+    """The commit and the machine's load now, in one line."""
+    import os
+    import subprocess
+
+    try:
+        commit = subprocess.run(["git", "rev-parse", "--short=12", "HEAD"], capture_output=True, text=True,
+                                check=True, cwd=Path(__file__).resolve().parents[1]).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        commit = "unknown"
+    load = ", ".join(f"{value:.2f}" for value in os.getloadavg()) if hasattr(os, "getloadavg") else "unknown"
+    return (f"Run at commit `{commit}` on {os.cpu_count()} CPUs, load average (1, 5, 15 min) {load} at the end: "
+            "the machine was shared, so times are upper bounds.")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -166,7 +182,7 @@ def main(argv: list[str] | None = None) -> int:
         arguments.json.write_text(json.dumps({"benchmark": "wrap_solvers", "rows": rows}, indent=1))
     if arguments.markdown:
         arguments.markdown.parent.mkdir(parents=True, exist_ok=True)
-        arguments.markdown.write_text(markdown(rows))
+        arguments.markdown.write_text(markdown(rows, provenance()))
     return 0
 
 

@@ -16,7 +16,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # `benchmarks` lives at the root
 
-from benchmarks import _noisy_torus, figures, report  # noqa: E402
+from benchmarks import _noisy_torus, figures, report, wrap_solvers  # noqa: E402
 from benchmarks.retarget import baselines, cases, data, landmarks, metrics, posing, run  # noqa: E402
 from benchmarks.retarget import springwrap_methods  # noqa: E402
 
@@ -565,3 +565,13 @@ def test_mirror_partners_and_the_reflection_across_a_placed_plane():
     placement = cases.similarity_matrix(rotation_degrees=25.0, scale=1.05, translation=(0.3, 0.05, -0.2))
     placed = cases.transform_points(placement, template)
     np.testing.assert_allclose(mirror_methods.reflect(placed[:40], placement), placed[40:80], atol=1e-12)
+
+
+def test_wrap_solvers_page_has_a_row_per_case_and_solver_and_its_provenance():
+    row = {"case": "heavy", "solver": "ENERGY", "mean": 0.2271, "p95": 0.9, "max": 1.7, "flipped": 7, "flips_added": 3,
+           "off_surface": 425, "space_points": 968, "iterations": 24, "converged": True, "seconds": 1.16}
+    page = wrap_solvers.markdown([row, row | {"solver": "SPRINGS", "mean": 0.346}], "Run at commit `abc`.")
+    assert "| heavy | ENERGY | 0.227 | 0.900 | 1.700 | 7 | 3 | 425 | 968 | 24 | 1.16 |" in page
+    assert "| heavy | SPRINGS | 0.346 |" in page
+    assert "Run at commit `abc`." in page and page.startswith("# The wrap's two solvers")
+    assert "commit" in wrap_solvers.provenance()
