@@ -302,6 +302,13 @@ impl LayoutStructure {
             .sum()
     }
 
+    /// The positions in `wedges` of the faces around `vertex` (its corners).
+    #[must_use]
+    pub fn wedge_range(&self, vertex: u32) -> std::ops::Range<usize> {
+        self.wedge_offsets[vertex as usize] as usize
+            ..self.wedge_offsets[vertex as usize + 1] as usize
+    }
+
     /// The edge neighbours of `vertex`, sorted.
     #[must_use]
     pub fn neighbors_of(&self, vertex: u32) -> &[u32] {

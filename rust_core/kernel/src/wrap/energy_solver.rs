@@ -376,20 +376,9 @@ impl EnergySolver {
 
     /// Fits every vertex's similarity at the current positions (from the last fit).
     fn fit_similarities(&mut self, first: bool) {
-        let fits: Vec<Similarity> = (0..self.positions.len() as u32)
-            .into_par_iter()
-            .with_min_len(1024)
-            .map(|vertex| {
-                self.springs.fit(
-                    &self.positions,
-                    &self.structure,
-                    vertex,
-                    self.similarities[vertex as usize],
-                    first,
-                )
-            })
-            .collect();
-        self.similarities = fits;
+        self.similarities =
+            self.springs
+                .fit_all(&self.positions, &self.structure, &self.similarities, first);
     }
 
     /// Replaces the fitted scales by their median (`None`) or by their log averaged over edge
@@ -631,11 +620,10 @@ impl EnergySolver {
             .into_par_iter()
             .with_min_len(1024)
             .flat_map_iter(|vertex| {
-                let start = structure.wedge_offsets[vertex] as usize;
-                let end = structure.wedge_offsets[vertex + 1] as usize;
+                let corners = structure.wedge_range(vertex as u32);
                 let rotation = self.similarities[vertex].rotation;
                 let normals = &normals;
-                (start..end).map(move |corner| {
+                corners.map(move |corner| {
                     normals[corner].dot(rotation * self.rest_corner_normals[corner]) > 0.0
                 })
             })
@@ -648,9 +636,7 @@ impl EnergySolver {
         let structure = &self.structure;
         let mut vertices = Vec::new();
         for vertex in 0..positions.len() {
-            let start = structure.wedge_offsets[vertex] as usize;
-            let end = structure.wedge_offsets[vertex + 1] as usize;
-            for corner in start..end {
+            for corner in structure.wedge_range(vertex as u32) {
                 if before[corner] && !after[corner] {
                     let (previous, next) = structure.wedges[corner];
                     vertices.extend([vertex as u32, previous, next]);
@@ -701,10 +687,8 @@ fn corner_normals(structure: &LayoutStructure, positions: &[Vec3]) -> Vec<Vec3> 
         .into_par_iter()
         .with_min_len(1024)
         .flat_map_iter(|vertex| {
-            let start = structure.wedge_offsets[vertex] as usize;
-            let end = structure.wedge_offsets[vertex + 1] as usize;
             let here = positions[vertex];
-            structure.wedges[start..end]
+            structure.wedges[structure.wedge_range(vertex as u32)]
                 .iter()
                 .map(move |&(previous, next)| {
                     (positions[next as usize] - here).cross(positions[previous as usize] - here)

@@ -17,6 +17,7 @@
 //! is not resisted, only distortion of the template's local shape.
 
 use glam::{Mat3, Quat, Vec3};
+use rayon::prelude::*;
 
 use crate::layout::LayoutStructure;
 
@@ -175,6 +176,30 @@ impl Springs {
             + turned.z_axis.dot(covariance.z_axis);
         let scale = (aligned / rest_norm).max(0.0);
         Similarity { rotation, scale }
+    }
+
+    /// [`Springs::fit`] for every vertex, in parallel, each refined from its `previous` fit.
+    #[must_use]
+    pub fn fit_all(
+        &self,
+        positions: &[Vec3],
+        structure: &LayoutStructure,
+        previous: &[Similarity],
+        first: bool,
+    ) -> Vec<Similarity> {
+        (0..positions.len() as u32)
+            .into_par_iter()
+            .with_min_len(1024)
+            .map(|vertex| {
+                self.fit(
+                    positions,
+                    structure,
+                    vertex,
+                    previous[vertex as usize],
+                    first,
+                )
+            })
+            .collect()
     }
 
     /// Fairness and arc-length displacements of `vertex` from its grid lines, averaged over them;

@@ -735,21 +735,7 @@ impl WrapSolver {
             };
             self.energy = Some(Box::new(EnergySolver::new(&inputs)?));
         }
-        let mut report = StepReport {
-            iterations: 0,
-            total_iterations: self.total_iterations,
-            max_displacement: 0.0,
-            mean_displacement: 0.0,
-            converged: false,
-            face_points: 0,
-            space_points: 0,
-            landed: 0,
-            folded: 0,
-            lifted: 0,
-            fold_tolerance: self.fold_tolerance,
-            energy: f64::NAN,
-            held_back: 0,
-        };
+        let mut report = self.empty_report();
         let energy = self.energy.as_mut().expect("made above");
         if energy.is_finished() {
             report.converged = true;
@@ -782,20 +768,13 @@ impl WrapSolver {
             }
             self.positions = energy.positions().to_vec();
         }
-        self.total_iterations += report.iterations;
-        report.total_iterations = self.total_iterations;
-        report.face_points = self
-            .points
-            .iter()
-            .filter(|point| matches!(point, LayoutPoint::Face(_)))
-            .count();
-        report.space_points = self.points.len() - report.face_points;
+        self.close_report(&mut report);
         Ok(report)
     }
 
-    /// [`WrapSolver::step`] with the spring solver.
-    fn step_springs(&mut self, iterations: usize) -> StepReport {
-        let mut report = StepReport {
+    /// A report of no iteration yet, at the current state.
+    fn empty_report(&self) -> StepReport {
+        StepReport {
             iterations: 0,
             total_iterations: self.total_iterations,
             max_displacement: 0.0,
@@ -809,7 +788,25 @@ impl WrapSolver {
             fold_tolerance: self.fold_tolerance,
             energy: f64::NAN,
             held_back: 0,
-        };
+        }
+    }
+
+    /// Counts `report`'s iterations in, and fills in the totals and the point counts.
+    fn close_report(&mut self, report: &mut StepReport) {
+        self.total_iterations += report.iterations;
+        report.total_iterations = self.total_iterations;
+        report.face_points = self
+            .points
+            .iter()
+            .filter(|point| matches!(point, LayoutPoint::Face(_)))
+            .count();
+        report.space_points = self.points.len() - report.face_points;
+        report.fold_tolerance = self.fold_tolerance;
+    }
+
+    /// [`WrapSolver::step`] with the spring solver.
+    fn step_springs(&mut self, iterations: usize) -> StepReport {
+        let mut report = self.empty_report();
         for _ in 0..iterations {
             let (max_displacement, mean_displacement, counts) = self.iterate();
             report.iterations += 1;
@@ -835,15 +832,7 @@ impl WrapSolver {
                 break;
             }
         }
-        self.total_iterations += report.iterations;
-        report.total_iterations = self.total_iterations;
-        report.face_points = self
-            .points
-            .iter()
-            .filter(|point| matches!(point, LayoutPoint::Face(_)))
-            .count();
-        report.space_points = self.points.len() - report.face_points;
-        report.fold_tolerance = self.fold_tolerance;
+        self.close_report(&mut report);
         report
     }
 
@@ -854,19 +843,9 @@ impl WrapSolver {
         let first = self.iteration == 0;
         // Rotations per vertex; one scale for all: the median of the vertices' own scales (see
         // `global_scale`), from the fits of the previous iteration (of this one at the start).
-        let fits: Vec<Similarity> = (0..vertex_count as u32)
-            .into_par_iter()
-            .with_min_len(1024)
-            .map(|vertex| {
-                self.springs.fit(
-                    &self.positions,
-                    &self.structure,
-                    vertex,
-                    self.similarities[vertex as usize],
-                    first,
-                )
-            })
-            .collect();
+        let fits =
+            self.springs
+                .fit_all(&self.positions, &self.structure, &self.similarities, first);
         let scale = if first {
             median_scale(&fits).unwrap_or(1.0)
         } else {
