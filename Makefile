@@ -9,7 +9,7 @@ ADDON_SOURCES := $(shell find addon -name "*.py" -o -name "*.toml")
 
 .PHONY: setup demo test test-rust test-python bench lint clean test-bpy42 test-blender34 test-all-lanes package
 
-setup: $(STAMPS)/kernel $(STAMPS)/addon
+setup: $(STAMPS)/kernel $(STAMPS)/addon $(STAMPS)/ray
 
 $(STAMPS)/venv: requirements-dev.txt .ci/system-packages.sh
 	bash .ci/system-packages.sh
@@ -17,6 +17,12 @@ $(STAMPS)/venv: requirements-dev.txt .ci/system-packages.sh
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -r requirements-dev.txt
 	mkdir -p $(STAMPS) && touch $@
+
+# The batch's Ray executor and progress bar (optional for users, installed here so that `make test`
+# runs the Ray batch test).
+$(STAMPS)/ray: $(STAMPS)/venv requirements-ray.txt
+	$(PY) -m pip install --quiet -r requirements-ray.txt
+	touch $@
 
 # The kernel is built as the same abi3 wheel users get, then installed into the venv: linked by zig
 # against glibc 2.28 (tag manylinux_2_28, so it loads on older distributions), the tag checked
