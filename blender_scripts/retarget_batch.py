@@ -82,14 +82,15 @@ class BatchWorker:
 
         Testing aid: with ``SPRINGWRAP_BATCH_ABORT=NAME`` in its environment, the worker aborts (as an
         importer crash would) when given the mesh file NAME; with ``NAME:MARKER``, only while the file MARKER
-        does not exist (it is created first), so that the retry on a fresh worker succeeds.
+        does not exist (it is created first), so that the retry on a fresh worker succeeds; several are
+        separated by commas.
         """
-        wanted = os.environ.get(ABORT_VARIABLE, "")
-        name, _, marker = wanted.partition(":")
-        if name and Path(task["target"]).name == name and not (marker and Path(marker).exists()):
-            if marker:
-                Path(marker).touch()
-            os.abort()
+        for wanted in filter(None, os.environ.get(ABORT_VARIABLE, "").split(",")):
+            name, _, marker = wanted.partition(":")
+            if Path(task["target"]).name == name and not (marker and Path(marker).exists()):
+                if marker:
+                    Path(marker).touch()
+                os.abort()
         entry = self._retarget.retarget_task(task)
         return {"entry": entry | {"worker": self.identity}, "peak_memory_mb": peak_memory_mb()}
 
@@ -255,7 +256,8 @@ class RayWorker:
                 detail = next((line.partition("Worker exit detail: ")[2] for line in lines
                                if "Worker exit detail: " in line), "")
                 message = f"the Ray worker died: {lines[0] if lines else type(error).__name__}"
-                result.set_exception(WorkerFault(message + (f" ({detail.strip()})" if detail else ""), died=True))
+                detail = detail.strip().split(". ")[0]  # Ray goes on with a paragraph of possible causes
+                result.set_exception(WorkerFault(message + (f" ({detail})" if detail else ""), died=True))
             except concurrent.futures.CancelledError:
                 result.set_exception(WorkerFault("the Ray call was cancelled", died=True))
 
