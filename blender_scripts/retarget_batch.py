@@ -11,7 +11,8 @@ with the one task function, ``retarget.retarget_task``. Two executors provide th
 The scheduler (``run_tasks``) is the same for both. A worker that dies (an importer abort, the out-of-memory
 killer) or raises an error other than the retarget's own ``RetargetError`` is stopped and replaced, and its
 mesh retried once, on the replacement; a mesh that fails so twice counts as failed, and the batch goes on.
-Ctrl-C (or SIGTERM) stops every worker at once; the meshes left are returned as not run.
+Ctrl-C (or SIGTERM) stops the batch at the loop's next turn and every worker at once; the meshes left
+are returned as not run.
 
 This module does not import ``bpy``: only ``BatchWorker``, in a worker, does (through ``retarget``).
 """
@@ -27,6 +28,7 @@ import socket
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 import traceback
 from pathlib import Path
@@ -78,7 +80,8 @@ class BatchWorker:
         return {"worker": self.identity, "import_seconds": self.import_seconds, "peak_memory_mb": peak_memory_mb()}
 
     def run(self, task: dict) -> dict:
-        """Retarget one mesh: ``{"entry": the summary entry, "peak_memory_mb": this worker's peak so far}``.
+        """Retarget one mesh: ``{"entry": the summary entry, "peak_memory_mb": this worker's peak so far,
+        "task_seconds": the task's time in the worker}``.
 
         Testing aid: with ``SPRINGWRAP_BATCH_ABORT=NAME`` in its environment, the worker aborts (as an
         importer crash would) when given the mesh file NAME; with ``NAME:MARKER``, only while the file MARKER
@@ -91,8 +94,10 @@ class BatchWorker:
                 if marker:
                     Path(marker).touch()
                 os.abort()
+        start = time.perf_counter()
         entry = self._retarget.retarget_task(task)
-        return {"entry": entry | {"worker": self.identity}, "peak_memory_mb": peak_memory_mb()}
+        return {"entry": entry | {"worker": self.identity}, "peak_memory_mb": peak_memory_mb(),
+                "task_seconds": time.perf_counter() - start}
 
 
 def serve() -> int:
@@ -357,6 +362,7 @@ class _Slot:
     reserved: tuple[int, int] | None = None  # (task index, attempt) kept for this fresh worker
     ready: bool = False
     busy: bool = False
+    submitted: float = 0.0
 
 
 @dataclasses.dataclass
@@ -373,6 +379,7 @@ def run_tasks(executor, tasks: list[dict], jobs: int, progress: Progress) -> Bat
     """Run every task on ``jobs`` workers of ``executor``, retrying a mesh once on a fresh worker when its
     worker faults; each entry is ``retarget_task``'s (with ``attempts`` and ``worker``), a failure, or not run."""
     entries: list[dict | None] = [None] * len(tasks)
+    remaining = len(tasks)
     pending = collections.deque((index, 1) for index in range(len(tasks)))
     slots: list[_Slot] = []
     records: list[dict] = []
@@ -382,7 +389,7 @@ def run_tasks(executor, tasks: list[dict], jobs: int, progress: Progress) -> Bat
 
     def start_worker(reserved: tuple[int, int] | None = None) -> None:
         record = {"worker": None, "start_seconds": None, "import_seconds": None, "meshes": 0,
-                  "peak_memory_mb": None, "fault": None}
+                  "dispatch_seconds": 0.0, "peak_memory_mb": None, "fault": None}
         records.append(record)
         slot = _Slot(executor.start_worker(), time.perf_counter(), record, reserved)
         slots.append(slot)
@@ -393,15 +400,16 @@ def run_tasks(executor, tasks: list[dict], jobs: int, progress: Progress) -> Bat
         slots.remove(slot)
         slot.handle.stop(now=True)
 
-    previous_handler = _stop_on_sigterm()
+    stop_requested = threading.Event()
+    previous_handlers = _stop_on_signals(stop_requested)
     try:
         for _ in range(min(jobs, len(tasks))):
             start_worker()
-        while any(entry is None for entry in entries):
+        while remaining and not stop_requested.is_set():
             for slot in slots:
                 if slot.ready and not slot.busy and (slot.reserved or pending):
                     index, attempt = slot.reserved or pending.popleft()
-                    slot.reserved, slot.busy = None, True
+                    slot.reserved, slot.busy, slot.submitted = None, True, time.perf_counter()
                     futures[slot.handle.submit(tasks[index])] = (slot, index, attempt)
             if not futures:
                 outcome.stopped = f"no worker could start: {start_fault}"
@@ -424,6 +432,7 @@ def run_tasks(executor, tasks: list[dict], jobs: int, progress: Progress) -> Bat
                     else:
                         entries[index] = {"target": tasks[index]["target"], "status": "failed",
                                           "error": f"{fault} (on two workers)", "attempts": attempt}
+                        remaining -= 1
                         progress.finished(entries[index])
                         if pending:
                             start_worker()
@@ -435,16 +444,24 @@ def run_tasks(executor, tasks: list[dict], jobs: int, progress: Progress) -> Bat
                                        peak_memory_mb=result["peak_memory_mb"])
                 else:
                     slot.busy = False
+                    # Time between handing the mesh over and having its entry back, beyond the task itself.
+                    overhead = time.perf_counter() - slot.submitted - result.get("task_seconds", 0.0)
+                    slot.record["dispatch_seconds"] = round(slot.record["dispatch_seconds"] + max(0.0, overhead), 4)
                     slot.record["meshes"] += 1
                     slot.record["peak_memory_mb"] = result["peak_memory_mb"]
                     entries[index] = result["entry"] | {"attempts": attempt}
+                    remaining -= 1
                     progress.finished(entries[index])
-    except KeyboardInterrupt:
-        outcome.interrupted = True
+    except KeyboardInterrupt:  # a Ctrl-C before the handlers were in place
+        stop_requested.set()
     finally:
-        signal.signal(signal.SIGTERM, previous_handler)
+        for number, handler in previous_handlers.items():
+            signal.signal(number, signal.SIG_DFL if handler is None else handler)
+        outcome.interrupted = stop_requested.is_set()
         for slot in list(slots):
             slot.handle.stop(now=outcome.interrupted)
+        # Let the calls still out settle (their workers are gone) before the executor closes.
+        concurrent.futures.wait(list(futures), timeout=STOP_SECONDS)
         progress.close()
     for index, entry in enumerate(entries):
         if entry is None:
@@ -452,10 +469,14 @@ def run_tasks(executor, tasks: list[dict], jobs: int, progress: Progress) -> Bat
     return outcome
 
 
-def _stop_on_sigterm():
-    """SIGTERM (a job cancelled, a pod stopped) stops the batch as Ctrl-C does; the handler it replaces."""
+def _stop_on_signals(stop_requested: threading.Event) -> dict:
+    """Ctrl-C (SIGINT) and SIGTERM (a job cancelled, a pod stopped) set ``stop_requested``, which the
+    scheduler's loop looks at every turn (at most POLL_SECONDS apart). Not a KeyboardInterrupt raised
+    wherever the loop is: that could leave a lock of the futures' machinery held, and Ray's shutdown
+    waiting on it for ever. Also inside a Blender binary, whose own SIGINT handler only flags a break.
+    Returns the handlers replaced (None: not installed from Python)."""
 
-    def interrupt(_signal_number, _frame):
-        raise KeyboardInterrupt
+    def request_stop(_signal_number, _frame):
+        stop_requested.set()
 
-    return signal.signal(signal.SIGTERM, interrupt)
+    return {number: signal.signal(number, request_stop) for number in (signal.SIGINT, signal.SIGTERM)}

@@ -1,7 +1,7 @@
 """The batch scheduler (``run_tasks`` of blender_scripts/retarget_batch.py) with a stand-in executor.
 
 No Blender and no processes: stand-in workers answer at once, die on the meshes they are told to
-(``WorkerFault``), or raise KeyboardInterrupt as a Ctrl-C would. What is checked: a mesh whose worker
+(``WorkerFault``), or send this process the SIGINT a Ctrl-C would. What is checked: a mesh whose worker
 faults is retried once, on the replacement worker and nowhere else; a second fault fails it; a worker
 that cannot start is not replaced; a Ctrl-C stops every worker at once and leaves the rest not run.
 The end-to-end versions, with real workers, are in test_retarget_cli.py.
@@ -9,6 +9,8 @@ The end-to-end versions, with real workers, are in test_retarget_cli.py.
 
 import concurrent.futures
 import io
+import os
+import signal
 import sys
 from pathlib import Path
 
@@ -43,7 +45,7 @@ class StandInWorker:
         name = task["target"]
         self.served.append(name)
         if name == self.executor.interrupt_on:
-            raise KeyboardInterrupt
+            os.kill(os.getpid(), signal.SIGINT)
         if self.executor.faults.get(name, 0) > 0:
             self.executor.faults[name] -= 1
             return settled(error=retarget_batch.WorkerFault(f"worker {self.number} died", died=name != "odd"))
@@ -119,8 +121,9 @@ def test_a_worker_that_cannot_start_is_not_replaced_and_none_stops_the_batch():
 
 
 def test_ctrl_c_stops_every_worker_at_once_and_leaves_the_rest_not_run():
-    executor = StandInExecutor(interrupt_on="c")
+    executor = StandInExecutor(interrupt_on="c")  # Ctrl-C while c is on its way: c, already done, counts
     outcome, _printed = run(executor, "abcde", jobs=1)
     assert outcome.interrupted
-    assert [entry["status"] for entry in outcome.entries] == ["ok", "ok", "not run", "not run", "not run"]
+    assert [entry["status"] for entry in outcome.entries] == ["ok", "ok", "ok", "not run", "not run"]
     assert [worker.stopped_now for worker in executor.workers] == [True]
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # Python's own handler is back
