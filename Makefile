@@ -98,7 +98,8 @@ test-blender34: $(BLENDER34_KERNEL)/.stamp
 test-all-lanes: test test-bpy42 test-blender34
 
 # The benchmark (issue 4): retargeting accuracy against Shrinkwrap and nricp, the performance sweep,
-# snap throughput, then docs/benchmarks.md and docs/img/*.png. `make bench QUICK=1`: the ~5-minute subset.
+# snap throughput, the batch's throughput (issue 16), then docs/benchmarks.md and docs/img/*.png.
+# `make bench QUICK=1`: the ~5-minute subset.
 # BENCH_OUT (the JSON) and BENCH_DOCS (benchmarks.md and img/) may point elsewhere for a trial run.
 BENCH_QUICK := $(if $(QUICK),--quick,)
 BENCH_OUT ?= out/bench
@@ -113,10 +114,12 @@ bench: setup $(STAMPS)/bench-requirements
 	$(PY) benchmarks/performance.py $(BENCH_QUICK) --json $(BENCH_OUT)/performance.json
 	$(PY) benchmarks/snap_throughput.py $(BENCH_QUICK) --json $(BENCH_OUT)/snap_throughput.json
 	$(PY) benchmarks/wrap_speed.py $(if $(QUICK),,--large) --json $(BENCH_OUT)/wrap_speed.json
+	$(PY) benchmarks/batch_throughput.py $(BENCH_QUICK) --json $(BENCH_OUT)/batch_throughput.json
 	$(PY) benchmarks/figures.py $(if $(QUICK),--cases heavy,) --retarget $(BENCH_OUT)/retarget.json \
 	  --performance $(BENCH_OUT)/performance.json --positions $(BENCH_OUT)/retarget-positions --output $(BENCH_DOCS)/img
 	$(PY) benchmarks/report.py --retarget $(BENCH_OUT)/retarget.json --performance $(BENCH_OUT)/performance.json \
-	  --snap $(BENCH_OUT)/snap_throughput.json --speed $(BENCH_OUT)/wrap_speed.json --output $(BENCH_DOCS)/benchmarks.md
+	  --snap $(BENCH_OUT)/snap_throughput.json --speed $(BENCH_OUT)/wrap_speed.json \
+	  --batch $(BENCH_OUT)/batch_throughput.json --output $(BENCH_DOCS)/benchmarks.md
 
 clean:
 	rm -rf $(VENV) $(VENV_BPY42) target out dist .cache

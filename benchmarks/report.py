@@ -476,7 +476,8 @@ def batch_section(batch: dict) -> list[str]:
               + (" - longer than the compute: **the storage is the bottleneck**, and more nodes would not help."
                  if storage_minutes > compute_minutes else "."),
               f"- **Worker memory**: {number(peak, 0)} MB at peak per worker, so a node of "
-              f"{machine.get('memory_gib', '?')} GiB holds {workers_by_memory} workers by memory against "
+              f"{machine.get('memory_gib', '?')} GiB holds {workers_by_memory} workers by memory (a tenth kept for the "
+              f"system) against "
               f"{machine.get('cpu_count', '?')} by CPU: "
               + ("memory is not what limits a node at this mesh size; meshes of millions of triangles raise the peak "
                  "(see *Scaling* above) and then it can be." if workers_by_memory >= workers_per_node
