@@ -409,6 +409,8 @@ def batch_section(batch: dict) -> list[str]:
     a projection of PROJECTED_MESHES meshes on PROJECTED_NODES nodes like the one measured, with what limits it."""
     library, machine = batch["library"], batch["machine"]
     load = ", ".join(number(value, 2) for value in machine.get("load_average", []))
+    if batch.get("load_average_end"):
+        load += "; at the end " + ", ".join(number(value, 2) for value in batch["load_average_end"])
     lines = ["## Batch on a cluster", "",
              f"`retarget.py --batch` (issue 16) on a library of {library['meshes']} noisy tori of "
              f"{library['triangles']:,} triangles each (every one displaced differently), the template a "
@@ -417,7 +419,8 @@ def batch_section(batch: dict) -> list[str]:
              f"out/bench/batch_throughput.json`). Machine: {machine.get('cpu', '?')}, {machine.get('cpu_count', '?')} "
              f"CPUs, {machine.get('memory_gib', '?')} GiB; ray {batch.get('versions', {}).get('ray', '?')}, commit "
              f"`{batch.get('versions', {}).get('git_commit', '?')}`; finished {batch.get('finished_utc', '?')}; "
-             f"load average (1, 5, 15 min) at the start {load}.", "",
+             f"load average (1, 5, 15 min) at the start {load} (other work shared the 2 CPUs: the runs vary by "
+             f"a fifth or more from one to the next).", "",
              "*All-in* counts the whole command (Python, Ray's start when there is one, every worker's start-up, "
              "the meshes, the summary); *steady* is what the workers sustain once started: workers / (mean time "
              "of a mesh in its worker + its hand-over). *Start-up* runs from starting a worker's process (or "
