@@ -538,8 +538,11 @@ def batch_executor(arguments: argparse.Namespace):
     except ImportError as error:
         raise RetargetError(str(error)) from None
     except (ConnectionError, RuntimeError, ValueError) as error:
+        first_line = str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
+        hint = ("; a cluster with Ray's token authentication also needs RAY_AUTH_MODE=token and its token here"
+                if arguments.address and not os.environ.get("RAY_AUTH_MODE") else "")
         raise RetargetError(f"Ray cannot start or connect ({arguments.address or 'a local instance'}): "
-                            f"{str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__}") from None
+                            f"{first_line}{hint}") from None
 
 
 def run_batch(arguments: argparse.Namespace) -> int:

@@ -233,6 +233,18 @@ def import_ray():
     return ray
 
 
+def check_reachable(address: str, seconds: float = 10.0) -> None:
+    """ConnectionError when the head at ``HOST:PORT`` does not accept a connection (Ray itself would go on
+    retrying for minutes); other forms (``auto``, ``ray://...``) are left to Ray."""
+    host, separator, port = address.rpartition(":")
+    if not separator or "://" in address or not port.isdigit():
+        return
+    try:
+        socket.create_connection((host.strip("[]"), int(port)), timeout=seconds).close()
+    except OSError as error:
+        raise ConnectionError(f"no Ray head answers at {address}: {error.strerror or error}") from None
+
+
 class RayWorker:
     """A Ray actor running BatchWorker; its calls' results as concurrent futures, Ray's errors as WorkerFault."""
 
@@ -287,6 +299,8 @@ class RayExecutor:
 
         ray = import_ray()
         self._ray = ray
+        if address is not None:
+            check_reachable(address)
         options = {"num_cpus": jobs} if address is None else {}
         # The scripts go to every node as the job's working directory; bpy, the add-on and the kernel
         # wheel must be installed there. Workers' own output stays in Ray's logs (session_latest/logs).

@@ -17,6 +17,7 @@ import math
 import os
 import pty
 import signal
+import socket
 import struct
 import subprocess
 import sys
@@ -349,6 +350,65 @@ def test_ray_batch_gives_the_local_batchs_outputs_and_summary(inputs, batch_fold
     assert sorted(path.name for path in (tmp_path / "ray").iterdir()) == sorted(
         path.name for path in (tmp_path / "local").iterdir())  # no partial files left on either side
     print(f"ray batch of {len(BATCH_SPHERES) + 1} meshes: {ray_seconds:.1f} s")
+
+
+@pytest.fixture
+def ray_head(tmp_path):
+    """A Ray head with 2 CPUs started as a cluster is (`ray start --head --block`), on a free loopback port,
+    without token authentication; its address. Stopped afterwards, with every process it started."""
+    require_ray()
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    environment = os.environ | {"RAY_AUTH_MODE": "disabled"}
+    head = subprocess.Popen([str(Path(sys.executable).with_name("ray")), "start", "--head", "--block",
+                             "--port", str(port), "--num-cpus", "2", "--include-dashboard", "false",
+                             "--disable-usage-stats"], env=environment, start_new_session=True,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 60
+        while True:
+            try:
+                socket.create_connection(("127.0.0.1", port), timeout=1).close()
+                break
+            except OSError:
+                assert head.poll() is None and time.monotonic() < deadline, "the Ray head did not start"
+                time.sleep(0.5)
+        yield f"127.0.0.1:{port}"
+    finally:
+        head.terminate()
+        try:
+            head.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            pass
+        try:
+            os.killpg(head.pid, signal.SIGKILL)  # what it started, in its process group
+        except ProcessLookupError:
+            pass
+
+
+def test_ray_batch_on_a_running_cluster_by_its_address(inputs, batch_folder, tmp_path, ray_head):
+    local, local_summary = run_batch(inputs, batch_folder, tmp_path / "local")
+    process = run("--template", inputs["template"], "--batch", batch_folder, "--output-dir", tmp_path / "ray",
+                  "--anchors-spacing", 0.3, "--executor", "ray", "--address", ray_head,
+                  environment={"RAY_AUTH_MODE": "disabled"})
+    assert process.returncode == 3, process.stderr[-3000:]
+    summary = json.loads((tmp_path / "ray" / "summary.json").read_text())
+    assert summary["jobs"] == 2  # without --jobs: one worker per CPU of the cluster
+    assert comparable(summary, tmp_path / "ray") == comparable(local_summary, tmp_path / "local")
+    for name in BATCH_SPHERES:
+        assert obj_vertex_lines(tmp_path / "ray" / f"{name}.obj") == obj_vertex_lines(tmp_path / "local" / f"{name}.obj")
+
+
+def test_an_address_where_no_ray_head_answers_is_one_line(inputs, batch_folder, tmp_path):
+    require_ray()
+    with socket.socket() as probe:  # a loopback port nobody listens on
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    process = run("--template", inputs["template"], "--batch", batch_folder, "--output-dir", tmp_path / "out",
+                  "--executor", "ray", "--address", f"127.0.0.1:{port}")
+    assert process.returncode == 1, process.stderr[-3000:]
+    assert f"retarget: FAILED: Ray cannot start or connect (127.0.0.1:{port}): no Ray head answers" in process.stderr
 
 
 def test_a_long_lived_worker_gives_what_a_single_run_gives(inputs, batch_folder, tmp_path):
