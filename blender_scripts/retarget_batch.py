@@ -466,7 +466,7 @@ def run_tasks(executor, tasks: list[dict], jobs: int, progress: Progress) -> Bat
                     entries[index] = result["entry"] | {"attempts": attempt}
                     remaining -= 1
                     progress.finished(entries[index])
-    except KeyboardInterrupt:  # a Ctrl-C before the handlers were in place
+    except KeyboardInterrupt:  # raised by other code (the handlers above only set the flag)
         stop_requested.set()
     finally:
         for number, handler in previous_handlers.items():
