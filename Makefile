@@ -9,7 +9,7 @@ ADDON_SOURCES := $(shell find addon -name "*.py" -o -name "*.toml")
 
 .PHONY: setup demo test test-rust test-python bench lint clean test-bpy42 test-blender34 test-all-lanes package
 
-setup: $(STAMPS)/kernel $(STAMPS)/addon
+setup: $(STAMPS)/kernel $(STAMPS)/addon $(STAMPS)/ray
 
 $(STAMPS)/venv: requirements-dev.txt .ci/system-packages.sh
 	bash .ci/system-packages.sh
@@ -17,6 +17,12 @@ $(STAMPS)/venv: requirements-dev.txt .ci/system-packages.sh
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -r requirements-dev.txt
 	mkdir -p $(STAMPS) && touch $@
+
+# The batch's Ray executor and progress bar (optional for users, installed here so that `make test`
+# runs the Ray batch test).
+$(STAMPS)/ray: $(STAMPS)/venv requirements-ray.txt
+	$(PY) -m pip install --quiet -r requirements-ray.txt
+	touch $@
 
 # The kernel is built as the same abi3 wheel users get, then installed into the venv: linked by zig
 # against glibc 2.28 (tag manylinux_2_28, so it loads on older distributions), the tag checked
@@ -92,7 +98,8 @@ test-blender34: $(BLENDER34_KERNEL)/.stamp
 test-all-lanes: test test-bpy42 test-blender34
 
 # The benchmark (issue 4): retargeting accuracy against Shrinkwrap and nricp, the performance sweep,
-# snap throughput, then docs/benchmarks.md and docs/img/*.png. `make bench QUICK=1`: the ~5-minute subset.
+# snap throughput, the batch's throughput (issue 16), then docs/benchmarks.md and docs/img/*.png.
+# `make bench QUICK=1`: the ~5-minute subset.
 # BENCH_OUT (the JSON) and BENCH_DOCS (benchmarks.md and img/) may point elsewhere for a trial run.
 BENCH_QUICK := $(if $(QUICK),--quick,)
 BENCH_OUT ?= out/bench
@@ -109,10 +116,12 @@ bench: setup $(STAMPS)/bench-requirements
 	$(PY) benchmarks/wrap_speed.py $(if $(QUICK),,--large) --json $(BENCH_OUT)/wrap_speed.json
 	$(PY) benchmarks/wrap_solvers.py $(if $(QUICK),--cases sphere-ellipsoid heavy,) --nricp \
 	  --json $(BENCH_OUT)/wrap_solvers.json --markdown $(BENCH_DOCS)/wrap-solvers.md
+	$(PY) benchmarks/batch_throughput.py $(BENCH_QUICK) --json $(BENCH_OUT)/batch_throughput.json
 	$(PY) benchmarks/figures.py $(if $(QUICK),--cases heavy,) --retarget $(BENCH_OUT)/retarget.json \
 	  --performance $(BENCH_OUT)/performance.json --positions $(BENCH_OUT)/retarget-positions --output $(BENCH_DOCS)/img
 	$(PY) benchmarks/report.py --retarget $(BENCH_OUT)/retarget.json --performance $(BENCH_OUT)/performance.json \
-	  --snap $(BENCH_OUT)/snap_throughput.json --speed $(BENCH_OUT)/wrap_speed.json --output $(BENCH_DOCS)/benchmarks.md
+	  --snap $(BENCH_OUT)/snap_throughput.json --speed $(BENCH_OUT)/wrap_speed.json \
+	  --batch $(BENCH_OUT)/batch_throughput.json --output $(BENCH_DOCS)/benchmarks.md
 
 clean:
 	rm -rf $(VENV) $(VENV_BPY42) target out dist .cache

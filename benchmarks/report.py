@@ -2,11 +2,11 @@
 
     .venv/bin/python benchmarks/report.py [--retarget out/bench/retarget.json]
         [--performance out/bench/performance.json] [--snap out/bench/snap_throughput.json]
-        [--output docs/benchmarks.md]
+        [--batch out/bench/batch_throughput.json] [--output docs/benchmarks.md]
 
 Reads the retargeting benchmark (``benchmarks.retarget.run``), the performance sweep
-(``benchmarks/performance.py``) and the snap throughput comparison (``benchmarks/snap_throughput.py
---json``); a missing file leaves its section out and says so. Figures are expected under
+(``benchmarks/performance.py``), the snap throughput comparison (``benchmarks/snap_throughput.py
+--json``) and the batch throughput (``benchmarks/batch_throughput.py --json``); a missing file leaves its section out and says so. Figures are expected under
 ``docs/img/`` (``benchmarks/figures.py``) and linked when present. No ``bpy``, no kernel: the
 functions here take the parsed JSON and return Markdown, and are unit-tested on made-up inputs.
 """
@@ -392,6 +392,111 @@ def wrap_aims_section(speed: dict) -> list[str]:
         f"Python {machine.get('python', '?')}, bpy {machine.get('bpy', '?')}; load average at the end {load_text}.", ""]
 
 
+# ---------------------------------------------------------------- batch on a cluster
+
+PROJECTED_MESHES, PROJECTED_NODES = 10_000, 100
+# An assumption, not a measurement: what one shared file system (a single NFS server on a 10 Gb/s link)
+# carries at best. The projection says how much the batch would ask of it.
+SHARED_STORAGE_MB_PER_SECOND = 1_000
+
+
+def _batch_run(batch: dict, executor: str, jobs: int) -> dict | None:
+    return next((run for run in batch.get("runs", []) if run["executor"] == executor and run["jobs"] == jobs), None)
+
+
+def batch_section(batch: dict) -> list[str]:
+    """The *Batch on a cluster* section: the measured runs (``benchmarks/batch_throughput.py``) and, from them,
+    a projection of PROJECTED_MESHES meshes on PROJECTED_NODES nodes like the one measured, with what limits it."""
+    library, machine = batch["library"], batch["machine"]
+    load = ", ".join(number(value, 2) for value in machine.get("load_average", []))
+    if batch.get("load_average_end"):
+        load += "; at the end " + ", ".join(number(value, 2) for value in batch["load_average_end"])
+    lines = ["## Batch on a cluster", "",
+             f"`retarget.py --batch` (issue 16) on a library of {library['meshes']} noisy tori of "
+             f"{library['triangles']:,} triangles each (every one displaced differently), the template a "
+             f"{library['layout_quads']:,}-quad layout, automatic anchors; each executor with 1 and 2 workers, "
+             f"each run in a fresh output folder (`.venv/bin/python benchmarks/batch_throughput.py --json "
+             f"out/bench/batch_throughput.json`). Machine: {machine.get('cpu', '?')}, {machine.get('cpu_count', '?')} "
+             f"CPUs, {machine.get('memory_gib', '?')} GiB; ray {batch.get('versions', {}).get('ray', '?')}, commit "
+             f"`{batch.get('versions', {}).get('git_commit', '?')}`; finished {batch.get('finished_utc', '?')}; "
+             f"load average (1, 5, 15 min) at the start {load} (other work shared the 2 CPUs: the runs vary by "
+             f"a fifth or more from one to the next).", "",
+             "*All-in* counts the whole command (Python, Ray's start when there is one, every worker's start-up, "
+             "the meshes, the summary); *steady* is what the workers sustain once started: workers / (mean time "
+             "of a mesh in its worker + its hand-over). *Start-up* runs from starting a worker's process (or "
+             "creating its actor) to the worker having imported bpy and enabled the add-on; *peak MB* is each "
+             "worker's peak resident memory (a Ray worker's includes Ray's own client).", ""]
+    rows = []
+    for run in batch.get("runs", []):
+        rows.append([run["executor"], str(run["jobs"]), str(run["meshes"]), number(run["process_seconds"], 1),
+                     number(run["meshes_per_minute"], 1), number(run["steady_meshes_per_minute"], 1),
+                     number(run["mesh_seconds_mean"], 2), number(1000 * run["dispatch_seconds_per_mesh"], 1),
+                     ", ".join(number(value, 2) for value in run["worker_start_seconds"]),
+                     ", ".join(number(value, 0) for value in run["worker_peak_memory_mb"])])
+    lines += table(["executor", "workers", "meshes", "all-in s", "meshes/min all-in", "meshes/min steady",
+                    "s per mesh", "hand-over ms per mesh", "worker start-up s", "peak MB per worker"], rows,
+                   "llrrrrrrrr")
+    scheduler = batch.get("scheduler")
+    if scheduler:
+        lines += ["", f"The scheduler itself (`run_tasks`, the same for both executors, with stand-in workers that "
+                      f"answer at once) costs {number(scheduler['milliseconds_per_mesh'], 3)} ms per mesh: "
+                      f"{scheduler['meshes']:,} meshes on {scheduler['workers']} workers in "
+                      f"{number(scheduler['seconds'], 2)} s."]
+    lines += [""]
+    node = _batch_run(batch, "ray", 2) or _batch_run(batch, "local", 2)
+    if node is None:
+        return lines
+    workers_per_node = node["jobs"]
+    node_rate = node["steady_meshes_per_minute"]
+    cluster_rate = PROJECTED_NODES * node_rate  # meshes per minute
+    compute_minutes = PROJECTED_MESHES / cluster_rate
+    fixed_seconds = max(0.0, node["process_seconds"] - 60.0 * node["meshes"] / node_rate)
+    megabytes = node["input_mb_per_mesh"] + node["output_mb_per_mesh"]
+    storage_rate = cluster_rate / 60.0 * megabytes  # MB/s the whole cluster reads and writes
+    storage_minutes = PROJECTED_MESHES * megabytes / SHARED_STORAGE_MB_PER_SECOND / 60.0
+    peak = max(node["worker_peak_memory_mb"])
+    memory_mb = 1024 * float(machine.get("memory_gib") or 0)
+    workers_by_memory = int(0.9 * memory_mb // peak) if peak else 0
+    coordinator_rate = 60_000.0 / scheduler["milliseconds_per_mesh"] if scheduler else math.inf
+    limits = {"the CPUs (the workers' own work)": compute_minutes, "the shared storage": storage_minutes,
+              "the coordinator's scheduling": PROJECTED_MESHES / coordinator_rate}
+    limit = max(limits, key=limits.get)
+    total_minutes = max(limits.values()) + fixed_seconds / 60.0
+    lines += [f"### Projection: {PROJECTED_MESHES:,} meshes on {PROJECTED_NODES} nodes", "",
+              f"From the {node['executor']} run with {workers_per_node} workers: {PROJECTED_NODES} nodes like this one "
+              f"({machine.get('cpu_count', '?')} CPUs, {machine.get('memory_gib', '?')} GiB), {workers_per_node} "
+              f"workers each ({PROJECTED_NODES * workers_per_node} in all), the library and the outputs on one shared "
+              f"file system. Meshes of another size scale these numbers with their time per mesh.", "",
+              f"- **Compute**: a node sustains {number(node_rate, 1)} meshes/min, the cluster "
+              f"{cluster_rate:,.0f}; {PROJECTED_MESHES:,} meshes take **{number(compute_minutes, 1)} min** of "
+              f"work, plus a fixed {number(fixed_seconds, 0)} s (start-up and shutdown, as measured here; workers "
+              f"start in parallel, one per CPU).",
+              f"- **Shared storage**: each mesh reads {number(node['input_mb_per_mesh'], 1)} MB and writes "
+              f"{number(node['output_mb_per_mesh'], 1)} MB (the .blend is most of it), so the cluster asks "
+              f"{storage_rate:,.0f} MB/s of the file system. At {SHARED_STORAGE_MB_PER_SECOND:,} MB/s (one NFS "
+              f"server on 10 Gb/s: an assumption, not measured) moving the library's "
+              f"{PROJECTED_MESHES * megabytes / 1024:,.0f} GB takes {number(storage_minutes, 1)} min"
+              + (" - longer than the compute: **the storage is the bottleneck**, and more nodes would not help."
+                 if storage_minutes > compute_minutes else "."),
+              f"- **Worker memory**: {number(peak, 0)} MB at peak per worker, so a node of "
+              f"{machine.get('memory_gib', '?')} GiB holds {workers_by_memory} workers by memory (a tenth kept for the "
+              f"system) against "
+              f"{machine.get('cpu_count', '?')} by CPU: "
+              + ("memory is not what limits a node at this mesh size; meshes of millions of triangles raise the peak "
+                 "(see *Scaling* above) and then it can be." if workers_by_memory >= workers_per_node
+                 else "**memory limits a node**: use fewer workers (`--jobs`) than CPUs."),
+              f"- **Scheduling**: the coordinator spends {number(scheduler['milliseconds_per_mesh'], 3)} ms per mesh "
+              f"(it could hand out {coordinator_rate:,.0f} meshes/min, against the {cluster_rate:,.0f} the cluster "
+              f"asks for), and each mesh's hand-over through Ray took {number(1000 * node['dispatch_seconds_per_mesh'], 1)} "
+              f"ms here, against {number(node['mesh_seconds_mean'], 2)} s of work: scheduling is not the limit."
+              if scheduler else "- **Scheduling**: not measured.",
+              "",
+              f"So about **{number(total_minutes, 0)} min** for the {PROJECTED_MESHES:,} meshes, limited by "
+              f"{limit}. What this leaves out: nodes' network and disk (the hand-over here is on one machine), "
+              f"stragglers at the end of the batch, and meshes that need retries.", ""]
+    return lines
+
+
 # ---------------------------------------------------------------- the document
 
 
@@ -411,7 +516,8 @@ def machine_lines(name: str, run: dict) -> list[str]:
 
 
 def build_document(retarget: dict | None, performance: dict | None, snap: dict | None,
-                   image_folder: Path = DOCS / "img", image_prefix: str = "img", speed: dict | None = None) -> str:
+                   image_folder: Path = DOCS / "img", image_prefix: str = "img", speed: dict | None = None,
+                   batch: dict | None = None) -> str:
     """The whole of ``docs/benchmarks.md``."""
     lines = ["# Benchmarks", "",
              "<!-- Generated by benchmarks/report.py from out/bench/*.json: do not edit by hand, rerun `make bench`. -->",
@@ -458,6 +564,8 @@ def build_document(retarget: dict | None, performance: dict | None, snap: dict |
         lines += performance_section(performance, image_folder, image_prefix)
     if snap is None and performance is None:
         lines += ["Not run: no performance JSON.", ""]
+    if batch is not None:
+        lines += batch_section(batch)
     return "\n".join(lines).rstrip() + "\n"
 
 
@@ -471,6 +579,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--performance", type=Path, default=OUT / "performance.json")
     parser.add_argument("--snap", type=Path, default=OUT / "snap_throughput.json")
     parser.add_argument("--speed", type=Path, default=OUT / "wrap_speed.json")
+    parser.add_argument("--batch", type=Path, default=OUT / "batch_throughput.json")
     parser.add_argument("--output", type=Path, default=DOCS / "benchmarks.md")
     arguments = parser.parse_args(sys.argv[1:] if argv is None else argv)
     inputs = {name: load(getattr(arguments, name)) for name in ("retarget", "performance", "snap")}
@@ -481,7 +590,7 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     image_folder = arguments.output.parent / "img"
     arguments.output.write_text(build_document(inputs["retarget"], inputs["performance"], inputs["snap"],
-                                               image_folder, "img", load(arguments.speed)))
+                                               image_folder, "img", load(arguments.speed), load(arguments.batch)))
     print(f"wrote {arguments.output}")
     return 0
 

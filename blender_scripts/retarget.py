@@ -20,25 +20,30 @@ F.obj`` (the retargeted layout alone) and ``--report F.json`` (metrics, timings,
 written to a temporary file and renamed: a failing run leaves none of them behind.
 
 Batch: ``--batch DIR --output-dir OUT [--jobs N]`` retargets the template onto every mesh file in
-DIR (sorted), each in its own worker process (N at a time), writing ``OUT/<name>.blend``,
-``OUT/<name>.obj``, ``OUT/<name>.json`` and ``OUT/summary.json``; progress goes to stderr. A mesh
-that fails is reported and skipped, never the whole batch.
+DIR (sorted), writing ``OUT/<name>.blend``, ``OUT/<name>.obj``, ``OUT/<name>.json`` and
+``OUT/summary.json``. N workers (``--executor local``, the default: processes on this machine;
+``--executor ray [--address ADDR]``: Ray actors, on a Ray instance started here or on a cluster;
+see retarget_batch.py) each import bpy and enable the add-on once, then serve many meshes with one
+task function (``retarget_task``). A mesh that fails is reported and skipped, never the whole batch;
+one whose worker dies is retried once on a fresh worker. Progress goes to stderr (a bar with an ETA
+in a terminal, one line per mesh otherwise); ``--resume`` skips the meshes whose outputs are all
+there; Ctrl-C stops the workers and writes a summary listing the meshes not run.
 
 Exit codes: 0 done; 1 the retarget failed (a one-line ``retarget: FAILED: ...`` on stderr names
-the file and the problem: a missing or unreadable file, bad anchors, a wrap that cannot start); 2
-bad command-line arguments; 3 a batch in which at least one mesh failed (the others are written).
+the file and the problem: a missing or unreadable file, bad anchors, a wrap that cannot start), or
+a batch could not run (no worker could start, no ray package); 2 bad command-line arguments; 3 a
+batch in which at least one mesh failed (the others are written); 130 a batch stopped by Ctrl-C.
 A wrap that stops at the iteration limit is not a failure: it is kept and warned about in the report.
+(``--batch-worker`` is internal: a local batch's worker process.)
 """
 
 import argparse
 import json
 import math
 import os
-import subprocess
 import sys
 import time
 import traceback
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import bpy
@@ -47,7 +52,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))  # `blender --python` d
 from script_arguments import script_arguments  # noqa: E402
 
 MESH_SUFFIXES = (".obj", ".ply", ".glb", ".gltf", ".blend")
-EXIT_FAILED, EXIT_USAGE, EXIT_BATCH_FAILURES = 1, 2, 3
+OUTPUT_SUFFIXES = ("blend", "obj", "json")  # a batch's outputs per mesh: OUT/<name>.<suffix>
+EXIT_FAILED, EXIT_USAGE, EXIT_BATCH_FAILURES, EXIT_INTERRUPTED = 1, 2, 3, 130
+WORKER_FLAG = "--batch-worker"
+SCRIPTS_FOLDER = Path(__file__).resolve().parent
 LAYOUT_NAME = "Retargeted"
 
 
@@ -83,14 +91,22 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("--output-obj", type=Path, help="export the retargeted layout here")
     parser.add_argument("--report", type=Path, help="write the JSON report here")
     parser.add_argument("--output-dir", type=Path, help="batch: where each mesh's outputs and summary.json go")
-    parser.add_argument("--jobs", type=int, default=1, help="batch: worker processes at a time (default 1)")
+    parser.add_argument("--jobs", type=int, help="batch: workers at a time (default: local 1; ray, one per CPU "
+                        "of the cluster)")
+    parser.add_argument("--executor", choices=("local", "ray"), default="local",
+                        help="batch: worker processes on this machine, or Ray actors (default local)")
+    parser.add_argument("--address", help="batch, --executor ray: the cluster's address (default: start Ray here)")
+    parser.add_argument("--resume", action="store_true",
+                        help="batch: skip the meshes whose .blend, .obj and report are already in --output-dir")
     arguments = parser.parse_args(script_arguments(argv, __file__))
     if arguments.max_iterations < 1:
         parser.error("--max-iterations must be at least 1")
     if arguments.anchors_spacing is not None and arguments.anchors_spacing < 0:
         parser.error("--anchors-spacing must not be negative")
-    if arguments.jobs < 1:
+    if arguments.jobs is not None and arguments.jobs < 1:
         parser.error("--jobs must be at least 1")
+    if arguments.address is not None and arguments.executor != "ray":
+        parser.error("--address needs --executor ray")
     if arguments.align == "anchors" and arguments.anchors is None:
         parser.error("--align anchors needs --anchors FILE.json")
     if arguments.align == "icp" and arguments.align_method == "affine":
@@ -100,6 +116,8 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
             parser.error("--batch needs --output-dir")
         if arguments.output_blend or arguments.output_obj or arguments.report:
             parser.error("--batch writes into --output-dir: no --output-blend, --output-obj or --report")
+    elif arguments.jobs is not None or arguments.executor != "local" or arguments.resume:
+        parser.error("--jobs, --executor and --resume are for --batch")
     return arguments
 
 
@@ -110,8 +128,12 @@ def enable_addon() -> None:
     """Enable Springwrap: the classic add-on, or an installed extension (``bl_ext.<repository>.springwrap``)."""
     import addon_utils
 
+    if addon_utils.check("springwrap")[1]:  # already on (a batch worker's second mesh)
+        return
     names = ["springwrap"] + [module.__name__ for module in addon_utils.modules()
                               if module.__name__.endswith(".springwrap")]
+    if any(addon_utils.check(name)[1] for name in names[1:]):
+        return
     for name in names:
         if addon_utils.enable(name, default_set=True, handle_error=None) is not None:
             return
@@ -435,73 +457,158 @@ def write_outputs(arguments: argparse.Namespace, layout, report: dict) -> None:
 # ---------------------------------------------------------------- batch
 
 
-def worker_command(arguments: argparse.Namespace, target: Path, output_dir: Path) -> list[str]:
-    """The command retargeting onto one mesh of the batch, in a fresh process of this same Blender."""
-    own = [
-        "--template", str(arguments.template.resolve()), "--target", str(target.resolve()),
-        "--align", arguments.align, "--align-method", arguments.align_method, "--max-iterations", str(arguments.max_iterations),
-        "--tolerance", repr(arguments.tolerance), "--fairness", repr(arguments.fairness),
-        "--arc-length", repr(arguments.arc_length), "--thin-plate", repr(arguments.thin_plate),
-        "--output-blend", str(output_dir / f"{target.stem}.blend"),
-        "--output-obj", str(output_dir / f"{target.stem}.obj"), "--report", str(output_dir / f"{target.stem}.json"),
-    ]
-    for option, value in (("--template-object", arguments.template_object),
-                          ("--target-object", arguments.target_object),
-                          ("--anchors", arguments.anchors and arguments.anchors.resolve()),
-                          ("--anchors-spacing", arguments.anchors_spacing)):
-        if value is not None:
-            own += [option, str(value)]
+def task_outputs(task: dict) -> dict[str, Path]:
+    """A batch task's three outputs, by suffix: ``OUT/<name>.blend``, ``.obj``, ``.json``."""
+    stem = Path(task["target"]).stem
+    return {suffix: Path(task["output_dir"]) / f"{stem}.{suffix}" for suffix in OUTPUT_SUFFIXES}
+
+
+def batch_task(arguments: argparse.Namespace, target: Path, output_dir: Path) -> dict:
+    """One mesh of the batch as plain data (JSON for a local worker's pipe, pickled for Ray): absolute paths."""
+    settings = {name: getattr(arguments, name) for name in (
+        "template_object", "target_object", "anchors_spacing", "align", "align_method", "max_iterations",
+        "tolerance", "fairness", "arc_length", "thin_plate")}
+    settings["template"] = str(arguments.template.resolve())
+    settings["anchors"] = str(arguments.anchors.resolve()) if arguments.anchors is not None else None
+    return {"target": str(target.resolve()), "output_dir": str(output_dir), "settings": settings}
+
+
+def retarget_task(task: dict) -> dict:
+    """The batch's one task function, run by every worker (bpy imported, the add-on enabled): retarget onto
+    ``task["target"]``, write its .blend, .obj and report (atomically) into ``task["output_dir"]``; its
+    summary entry: ok (with the report's path) or failed (with the one-line error), and the seconds taken.
+
+    Errors other than RetargetError propagate: the scheduler then retries the mesh on a fresh worker.
+    """
+    start = time.perf_counter()
+    settings, outputs = task["settings"], task_outputs(task)
+    arguments = argparse.Namespace(**settings | {
+        "template": Path(settings["template"]), "anchors": settings["anchors"] and Path(settings["anchors"]),
+        "target": Path(task["target"]), "output_blend": outputs["blend"], "output_obj": outputs["obj"],
+        "report": outputs["json"]})
+    entry = {"target": task["target"]}
+    try:
+        retarget(arguments)
+    except RetargetError as error:
+        entry |= {"status": "failed", "error": str(error)}
+    else:
+        entry |= {"status": "ok", "report": str(outputs["json"])}
+    entry["seconds"] = round(time.perf_counter() - start, 2)
+    return entry
+
+
+def outputs_complete(task: dict) -> bool:
+    """For --resume: the mesh's .blend and .obj are there and its report (renamed into place last) reads
+    and names this target."""
+    outputs = task_outputs(task)
+    if not all(outputs[suffix].is_file() and outputs[suffix].stat().st_size > 0 for suffix in ("blend", "obj")):
+        return False
+    try:
+        report = json.loads(outputs["json"].read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        return False
+    return isinstance(report, dict) and report.get("target") == task["target"] and "metrics" in report
+
+
+def remove_partial_outputs(task: dict) -> None:
+    """The temporary files a worker stopped mid-write leaves (``OUT/.<name>.partial.<suffix>``)."""
+    for final in task_outputs(task).values():
+        final.with_name(f".{final.stem}.partial{final.suffix}").unlink(missing_ok=True)
+
+
+def local_worker_command() -> list[str]:
+    """The command of a local batch worker: this script in this same Blender or Python, ``--batch-worker``."""
     script = str(Path(__file__).resolve())
     if bpy.app.binary_path:  # inside a Blender binary: the same, and the same use of PYTHONPATH
         system_environment = [] if sys.flags.ignore_environment else ["--python-use-system-env"]
         return [bpy.app.binary_path, "-b", "--factory-startup", *system_environment, "--python-exit-code", "1",
-                "--python", script, "--", *own]
-    return [sys.executable, script, *own]
+                "--python", script, "--", WORKER_FLAG]
+    return [sys.executable, script, WORKER_FLAG]
+
+
+def batch_executor(arguments: argparse.Namespace):
+    """The executor --executor names (see retarget_batch.py); RetargetError when it cannot be had here."""
+    import retarget_batch
+
+    if arguments.executor == "local":
+        return retarget_batch.LocalExecutor(local_worker_command())
+    if bpy.app.binary_path:
+        raise RetargetError("--executor ray runs with the bpy module (python retarget.py ...), "
+                            "not inside a Blender binary")
+    try:
+        return retarget_batch.RayExecutor(arguments.address, arguments.jobs, SCRIPTS_FOLDER)
+    except ImportError as error:
+        raise RetargetError(str(error)) from None
+    except (ConnectionError, RuntimeError, ValueError) as error:
+        first_line = str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
+        hint = ("; a cluster with Ray's token authentication also needs RAY_AUTH_MODE=token and its token here"
+                if arguments.address and not os.environ.get("RAY_AUTH_MODE") else "")
+        raise RetargetError(f"Ray cannot start or connect ({arguments.address or 'a local instance'}): "
+                            f"{first_line}{hint}") from None
 
 
 def run_batch(arguments: argparse.Namespace) -> int:
-    """Retarget onto every mesh file of --batch, --jobs at a time; summary.json; exit code 0 or 3."""
+    """Retarget onto every mesh file of --batch on --jobs workers; summary.json; exit code 0, 1, 3 or 130."""
+    import retarget_batch
+
     if not arguments.template.is_file():
         raise RetargetError(f"{arguments.template}: no such file")
+    if arguments.anchors is not None and not arguments.anchors.is_file():
+        raise RetargetError(f"{arguments.anchors}: no such file")
     if not arguments.batch.is_dir():
         raise RetargetError(f"{arguments.batch}: no such folder")
     targets = sorted(path for path in arguments.batch.iterdir()
                      if path.is_file() and path.suffix.lower() in MESH_SUFFIXES)
     if not targets:
         raise RetargetError(f"{arguments.batch}: no mesh files ({', '.join(MESH_SUFFIXES)})")
+    stems = [path.stem for path in targets]
+    shared = sorted({stem for stem in stems if stems.count(stem) > 1})
+    if shared:
+        raise RetargetError(f"{arguments.batch}: several meshes would write the same outputs ({', '.join(shared)}.*)")
     output_dir = arguments.output_dir.resolve()
     output_dir.mkdir(parents=True, exist_ok=True)
-    done = []
-
-    def one(target: Path) -> dict:
-        start = time.perf_counter()
-        process = subprocess.run(worker_command(arguments, target, output_dir), capture_output=True, text=True)
-        failure = [line for line in process.stderr.splitlines() if line.startswith("retarget: FAILED: ")]
-        entry = {"target": str(target), "seconds": round(time.perf_counter() - start, 2)}
-        if process.returncode == 0:
-            entry |= {"status": "ok", "report": str(output_dir / f"{target.stem}.json")}
-        else:
-            error = (failure[-1][len("retarget: FAILED: "):] if failure
-                     else f"exit code {process.returncode}: {(process.stderr.strip().splitlines() or ['?'])[-1]}")
-            entry |= {"status": "failed", "error": error}
-        done.append(entry)
-        message = "ok" if entry["status"] == "ok" else f"FAILED: {entry['error']}"
-        print(f"[{len(done)}/{len(targets)}] {target.name}: {message} ({entry['seconds']:.1f} s)", file=sys.stderr,
-              flush=True)
-        return entry
-
-    with ThreadPoolExecutor(max_workers=arguments.jobs) as pool:
-        entries = list(pool.map(one, targets))
-    failed = sum(entry["status"] != "ok" for entry in entries)
-    summary = {"template": str(arguments.template), "folder": str(arguments.batch), "jobs": arguments.jobs,
-               "meshes": entries, "ok": len(entries) - failed, "failed": failed}
+    tasks = [batch_task(arguments, target, output_dir) for target in targets]
+    resumed = [arguments.resume and outputs_complete(task) for task in tasks]
+    to_run = [task for task, skip in zip(tasks, resumed) if not skip]
+    start = time.perf_counter()
+    jobs, outcome = arguments.jobs, retarget_batch.BatchOutcome([], [])
+    if to_run:
+        executor = batch_executor(arguments)
+        try:
+            jobs = arguments.jobs or executor.default_jobs()
+            progress = retarget_batch.Progress(len(tasks), already_done=sum(resumed))
+            outcome = retarget_batch.run_tasks(executor, to_run, jobs, progress)
+        finally:
+            executor.close()
+    ran = iter(outcome.entries)
+    entries = [{"target": task["target"], "status": "ok", "report": str(task_outputs(task)["json"]), "resumed": True}
+               if skip else next(ran) for task, skip in zip(tasks, resumed)]
+    for task, entry in zip(tasks, entries):
+        if entry["status"] == "not run":
+            remove_partial_outputs(task)
+    counts = {status: sum(entry["status"] == status for entry in entries) for status in ("ok", "failed", "not run")}
+    summary = {"template": str(arguments.template), "folder": str(arguments.batch), "executor": arguments.executor,
+               "jobs": jobs, "meshes": entries, "ok": counts["ok"], "failed": counts["failed"],
+               "not_run": counts["not run"], "resumed": sum(resumed), "interrupted": outcome.interrupted,
+               "stopped": outcome.stopped, "seconds": round(time.perf_counter() - start, 2), "workers": outcome.workers}
     _replace_into(output_dir / "summary.json", lambda path: path.write_text(json.dumps(summary, indent=2) + "\n"))
-    print(f"retarget: {len(entries) - failed} of {len(entries)} meshes retargeted; summary {output_dir / 'summary.json'}",
-          file=sys.stderr)
-    return EXIT_BATCH_FAILURES if failed else 0
+    not_run = f", {counts['not run']} not run" if counts["not run"] else ""
+    print(f"retarget: {counts['ok']} of {len(entries)} meshes retargeted ({sum(resumed)} already done), "
+          f"{counts['failed']} failed{not_run}; summary {output_dir / 'summary.json'}", file=sys.stderr)
+    if outcome.interrupted:
+        print("retarget: interrupted: the meshes not run are listed in the summary (run again with --resume to go on)", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    if outcome.stopped:
+        raise RetargetError(f"the batch stopped: {outcome.stopped}")
+    return EXIT_BATCH_FAILURES if counts["failed"] else 0
 
 
 def main() -> int:
+    if script_arguments(sys.argv, __file__)[:1] == [WORKER_FLAG]:
+        import retarget_batch
+
+        sys.modules.setdefault("retarget", sys.modules[__name__])  # BatchWorker imports this very module
+        return retarget_batch.serve()
     arguments = parse_arguments(sys.argv)
     try:
         if arguments.batch is not None:
@@ -510,6 +617,9 @@ def main() -> int:
     except RetargetError as error:
         print(f"retarget: FAILED: {error}", file=sys.stderr)
         return EXIT_FAILED
+    except KeyboardInterrupt:
+        print("retarget: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
     except Exception as error:  # noqa: BLE001 - any failure must become a non-zero exit code, also under `blender -b`
         traceback.print_exc()
         print(f"retarget: FAILED: {type(error).__name__}: {error}", file=sys.stderr)

@@ -575,3 +575,38 @@ def test_wrap_solvers_page_has_a_row_per_case_and_solver_and_its_provenance():
     assert "| heavy | SPRINGS | 0.346 |" in page
     assert "Run at commit `abc`." in page and page.startswith("# The wrap's two solvers")
     assert "commit" in wrap_solvers.provenance()
+
+
+def made_up_batch(input_mb: float, output_mb: float, peak_mb: float) -> dict:
+    """A batch_throughput.py result: a Ray node of 2 workers sustaining 60 meshes/min (1 s a mesh each)."""
+    def run(executor, jobs, steady):
+        return {"executor": executor, "jobs": jobs, "meshes": 24, "ok": 24, "process_seconds": 24 * 60 / steady + 10,
+                "batch_seconds": 30.0, "meshes_per_minute": 40.0, "steady_meshes_per_minute": steady,
+                "mesh_seconds_mean": 1.0, "dispatch_seconds_per_mesh": 0.004, "worker_start_seconds": [1.5] * jobs,
+                "worker_import_seconds": [0.9] * jobs, "worker_peak_memory_mb": [peak_mb] * jobs,
+                "worker_meshes": [24 // jobs] * jobs, "input_mb_per_mesh": input_mb, "output_mb_per_mesh": output_mb}
+
+    return {"machine": {"cpu": "test CPU", "cpu_count": 2, "memory_gib": 24.0, "load_average": [1.0, 1.0, 1.0]},
+            "versions": {"ray": "2.60.0", "git_commit": "abc"}, "finished_utc": "now",
+            "library": {"meshes": 24, "triangles": 200_000, "layout_quads": 13_000},
+            "runs": [run("local", 1, 30.0), run("local", 2, 55.0), run("ray", 1, 30.0), run("ray", 2, 60.0)],
+            "scheduler": {"meshes": 10_000, "workers": 200, "seconds": 0.5, "milliseconds_per_mesh": 0.05}}
+
+
+def test_the_batch_section_projects_from_the_two_worker_ray_run():
+    lines = report.batch_section(made_up_batch(input_mb=2.0, output_mb=3.0, peak_mb=500.0))
+    text = "\n".join(lines)
+    assert lines[0] == "## Batch on a cluster" and "### Projection: 10,000 meshes on 100 nodes" in lines
+    assert sum(line.startswith("| ray |") or line.startswith("| local |") for line in lines) == 4
+    # 100 nodes x 60 meshes/min: 10,000 meshes in 1.7 min; 5 MB a mesh at 6,000 meshes/min is 500 MB/s.
+    assert "the cluster 6,000; 10,000 meshes take **1.7 min**" in text and "500 MB/s" in text
+    assert "plus a fixed 10 s" in text  # all-in minus the steady time
+    assert "holds 44 workers by memory (a tenth kept for the system) against 2 by CPU" in text and "memory is not what limits" in text
+    assert "limited by the CPUs" in text and "storage is the bottleneck" not in text
+
+
+def test_the_batch_section_names_storage_and_memory_when_they_limit():
+    text = "\n".join(report.batch_section(made_up_batch(input_mb=20.0, output_mb=40.0, peak_mb=30_000.0)))
+    # 60 MB a mesh: 600 GB through a 1,000 MB/s file system is 10 min, against 1.7 min of compute.
+    assert "takes 10.0 min - longer than the compute: **the storage is the bottleneck**" in text
+    assert "**memory limits a node**" in text and "limited by the shared storage" in text

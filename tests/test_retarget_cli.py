@@ -4,13 +4,25 @@ Inputs are generated here: a grid (the template) and spheres (targets) written a
 .blend holding both; each run is ``sys.executable retarget.py ...`` (the venv's Python with the
 bpy module) or, inside the blender binary (tests/run_in_blender.py), ``blender -b --python
 retarget.py -- ...``, so nothing here touches the bpy state of other tests.
+
+The batch tests run both executors (local worker processes; Ray actors on a Ray instance the script
+starts with 2 CPUs) on one folder of six meshes, one of them broken, and check that they agree; worker
+deaths are made by ``SPRINGWRAP_BATCH_ABORT`` (the worker aborts on the named mesh, see
+``blender_scripts/retarget_batch.py``).
 """
 
+import fcntl
 import json
 import math
 import os
+import pty
+import signal
+import socket
+import struct
 import subprocess
 import sys
+import termios
+import time
 from pathlib import Path
 
 import pytest
@@ -92,9 +104,10 @@ def inputs(tmp_path_factory) -> dict:
     return paths
 
 
-def run(*arguments, cwd=None) -> subprocess.CompletedProcess:
+def run(*arguments, cwd=None, environment=None) -> subprocess.CompletedProcess:
     return subprocess.run([*script_command(RETARGET), *map(str, arguments)], capture_output=True, text=True,
-                          timeout=TIMEOUT_SECONDS, cwd=cwd or REPOSITORY)
+                          timeout=TIMEOUT_SECONDS, cwd=cwd or REPOSITORY,
+                          env=None if environment is None else os.environ | environment)
 
 
 def test_retargets_an_obj_template_onto_an_obj_target(inputs, tmp_path):
@@ -182,6 +195,11 @@ def test_bad_arguments_exit_with_code_2(inputs):
     assert run("--template", inputs["template"]).returncode == 2  # neither --target nor --batch
     assert run("--template", inputs["template"], "--batch", inputs["template"].parent).returncode == 2  # no --output-dir
     assert run("--template", inputs["template"], "--target", inputs["target"], "--jobs", 0).returncode == 2
+    folder = inputs["template"].parent
+    assert run("--template", inputs["template"], "--batch", folder, "--output-dir", folder / "o", "--jobs", 0).returncode == 2
+    assert run("--template", inputs["template"], "--batch", folder, "--output-dir", folder / "o",
+               "--address", "127.0.0.1:6379").returncode == 2  # --address without --executor ray
+    assert run("--template", inputs["template"], "--target", inputs["target"], "--resume").returncode == 2
 
 
 def test_batch_retargets_every_mesh_and_skips_a_failing_one(inputs, tmp_path):
@@ -197,8 +215,16 @@ def test_batch_retargets_every_mesh_and_skips_a_failing_one(inputs, tmp_path):
     assert process.returncode == 3, process.stderr[-3000:]
     progress = [line for line in process.stderr.splitlines() if line.startswith("[")]
     assert len(progress) == 3 and sum("FAILED" in line for line in progress) == 1
+    assert "%|" not in process.stderr  # no progress bar when stderr is not a terminal
     summary = json.loads((out / "summary.json").read_text())
-    assert (summary["ok"], summary["failed"], summary["jobs"]) == (2, 1, 2)
+    assert (summary["ok"], summary["failed"], summary["jobs"], summary["executor"]) == (2, 1, 2, "local")
+    # Two long-lived workers were started (one may have been stopped before it was ready: the other served
+    # all three); each ready one says what starting it cost and its peak memory.
+    assert len(summary["workers"]) == 2 and sum(worker["meshes"] for worker in summary["workers"]) == 3
+    ready = [worker for worker in summary["workers"] if worker["worker"] is not None]
+    assert all(worker["start_seconds"] > 0 and worker["peak_memory_mb"] > 10 and worker["fault"] is None
+               for worker in ready)
+    assert {entry["worker"] for entry in summary["meshes"]} <= {worker["worker"] for worker in ready}
     [failed] = [entry for entry in summary["meshes"] if entry["status"] == "failed"]
     assert failed["target"].endswith("flat.obj") and "no faces" in failed["error"]
     assert sorted(path.name for path in out.iterdir()) == sorted(
@@ -241,3 +267,286 @@ def test_align_arguments_that_cannot_work_exit_with_code_2(inputs):
     assert run("--template", inputs["template"], "--target", inputs["target"], "--align", "anchors").returncode == 2
     assert run("--template", inputs["template"], "--target", inputs["target"], "--align", "icp",
                "--align-method", "affine").returncode == 2
+
+
+# ---------------------------------------------------------------- batch: executors, isolation, resume, progress
+
+BATCH_SPHERES = {"ball_a": (1.0, 32, 16), "ball_b": (1.3, 24, 12), "ball_c": (0.8, 20, 10), "ball_d": (1.1, 28, 14),
+                 "ball_e": (0.9, 16, 8)}  # name: radius, segments, rings
+BROKEN = "flat"  # three vertices, no faces: fails with "no faces"
+VARYING = ("seconds", "worker")  # per-mesh fields that differ from run to run
+
+
+@pytest.fixture(scope="module")
+def batch_folder(tmp_path_factory) -> Path:
+    """Six meshes: five spheres of different sizes and resolutions, and one broken (no faces)."""
+    folder = tmp_path_factory.mktemp("batch_meshes")
+    for name, (radius, segments, rings) in BATCH_SPHERES.items():
+        (folder / f"{name}.obj").write_text(sphere_obj(radius, segments, rings))
+    (folder / f"{BROKEN}.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n")
+    return folder
+
+
+def run_batch(inputs, folder: Path, out: Path, *extra, environment=None) -> tuple[subprocess.CompletedProcess, dict]:
+    """retarget.py --batch on ``folder`` (2 workers, automatic anchors); the process and its summary."""
+    process = run("--template", inputs["template"], "--batch", folder, "--output-dir", out, "--jobs", 2,
+                  "--anchors-spacing", 0.3, *extra, environment=environment)
+    summary_path = out / "summary.json"
+    assert summary_path.is_file(), process.stderr[-3000:]
+    return process, json.loads(summary_path.read_text())
+
+
+def require_ray() -> None:
+    """Where the project's .venv runs the tests, `make setup` installed ray: a missing ray fails the run. The
+    other lanes (the bpy 4.2 venv, a Blender binary) skip the Ray tests."""
+    if os.environ.get("SPRINGWRAP_BLENDER"):
+        pytest.skip("--executor ray runs with the bpy module, not inside a Blender binary")
+    if Path(sys.prefix).resolve() != (REPOSITORY / ".venv").resolve():
+        pytest.importorskip("ray", reason="ray is installed by `make setup`, in .venv only")
+
+
+def comparable(summary: dict, out: Path) -> dict:
+    """A summary without what differs between two equal runs: timings, worker names, the executor, the folder."""
+    text = json.dumps({key: value for key, value in summary.items() if key not in ("seconds", "workers", "executor")})
+    entries = json.loads(text.replace(str(out), "OUT"))
+    for entry in entries["meshes"]:
+        for key in VARYING:
+            entry.pop(key, None)
+    return entries
+
+
+def obj_vertex_lines(path: Path) -> list[str]:
+    return [line for line in path.read_text().splitlines() if line.startswith("v ")]
+
+
+def report_without_timings(path: Path) -> dict:
+    report = json.loads(path.read_text())
+    report.pop("timings")
+    report["wrap"].pop("kernel_seconds")
+    return report
+
+
+def test_ray_batch_gives_the_local_batchs_outputs_and_summary(inputs, batch_folder, tmp_path):
+    require_ray()
+    local, local_summary = run_batch(inputs, batch_folder, tmp_path / "local")
+    start = time.perf_counter()
+    distributed, ray_summary = run_batch(inputs, batch_folder, tmp_path / "ray", "--executor", "ray")
+    ray_seconds = time.perf_counter() - start
+    assert local.returncode == 3 and distributed.returncode == 3, distributed.stderr[-3000:]
+    assert (ray_summary["executor"], ray_summary["jobs"], ray_summary["ok"], ray_summary["failed"]) == ("ray", 2, 5, 1)
+    assert comparable(ray_summary, tmp_path / "ray") == comparable(local_summary, tmp_path / "local")
+    [failed] = [entry for entry in ray_summary["meshes"] if entry["status"] == "failed"]
+    assert failed["target"].endswith(f"{BROKEN}.obj") and "no faces" in failed["error"] and failed["attempts"] == 1
+    # Two Ray workers, each started once, served all six meshes.
+    assert len(ray_summary["workers"]) == 2 and sum(worker["meshes"] for worker in ray_summary["workers"]) == 6
+    assert all(worker["fault"] is None for worker in ray_summary["workers"])
+    assert all(worker["start_seconds"] > 0 for worker in ray_summary["workers"] if worker["meshes"])
+    for name in BATCH_SPHERES:
+        local_obj, ray_obj = tmp_path / "local" / f"{name}.obj", tmp_path / "ray" / f"{name}.obj"
+        assert obj_vertex_lines(ray_obj) == obj_vertex_lines(local_obj) and len(obj_vertex_lines(ray_obj)) == GRID_SIDE ** 2
+        assert (report_without_timings(tmp_path / "ray" / f"{name}.json")
+                == report_without_timings(tmp_path / "local" / f"{name}.json"))
+        assert (tmp_path / "ray" / f"{name}.blend").stat().st_size > 0
+    assert sorted(path.name for path in (tmp_path / "ray").iterdir()) == sorted(
+        path.name for path in (tmp_path / "local").iterdir())  # no partial files left on either side
+    print(f"ray batch of {len(BATCH_SPHERES) + 1} meshes: {ray_seconds:.1f} s")
+
+
+@pytest.fixture
+def ray_head(tmp_path):
+    """A Ray head with 2 CPUs started as a cluster is (`ray start --head --block`), on a free loopback port,
+    without token authentication; its address. Stopped afterwards, with every process it started."""
+    require_ray()
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    environment = os.environ | {"RAY_AUTH_MODE": "disabled"}
+    head = subprocess.Popen([str(Path(sys.executable).with_name("ray")), "start", "--head", "--block",
+                             "--port", str(port), "--num-cpus", "2", "--include-dashboard", "false",
+                             "--disable-usage-stats"], env=environment, start_new_session=True,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 60
+        while True:
+            try:
+                socket.create_connection(("127.0.0.1", port), timeout=1).close()
+                break
+            except OSError:
+                assert head.poll() is None and time.monotonic() < deadline, "the Ray head did not start"
+                time.sleep(0.5)
+        yield f"127.0.0.1:{port}"
+    finally:
+        head.terminate()
+        try:
+            head.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            pass
+        try:
+            os.killpg(head.pid, signal.SIGKILL)  # what it started, in its process group
+        except ProcessLookupError:
+            pass
+
+
+def test_ray_batch_on_a_running_cluster_by_its_address(inputs, batch_folder, tmp_path, ray_head):
+    local, local_summary = run_batch(inputs, batch_folder, tmp_path / "local")
+    process = run("--template", inputs["template"], "--batch", batch_folder, "--output-dir", tmp_path / "ray",
+                  "--anchors-spacing", 0.3, "--executor", "ray", "--address", ray_head,
+                  environment={"RAY_AUTH_MODE": "disabled"})
+    assert process.returncode == 3, process.stderr[-3000:]
+    summary = json.loads((tmp_path / "ray" / "summary.json").read_text())
+    assert summary["jobs"] == 2  # without --jobs: one worker per CPU of the cluster
+    assert comparable(summary, tmp_path / "ray") == comparable(local_summary, tmp_path / "local")
+    for name in BATCH_SPHERES:
+        assert obj_vertex_lines(tmp_path / "ray" / f"{name}.obj") == obj_vertex_lines(tmp_path / "local" / f"{name}.obj")
+
+
+def test_an_address_where_no_ray_head_answers_is_one_line(inputs, batch_folder, tmp_path):
+    require_ray()
+    with socket.socket() as probe:  # a loopback port nobody listens on
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    process = run("--template", inputs["template"], "--batch", batch_folder, "--output-dir", tmp_path / "out",
+                  "--executor", "ray", "--address", f"127.0.0.1:{port}")
+    assert process.returncode == 1, process.stderr[-3000:]
+    assert f"retarget: FAILED: Ray cannot start or connect (127.0.0.1:{port}): no Ray head answers" in process.stderr
+
+
+def test_a_long_lived_worker_gives_what_a_single_run_gives(inputs, batch_folder, tmp_path):
+    """A worker's later meshes see nothing of its earlier ones: the batch's OBJ is the one-mesh run's."""
+    _process, summary = run_batch(inputs, batch_folder, tmp_path / "batch", "--jobs", 1)
+    name = sorted(BATCH_SPHERES)[-1]  # the last mesh of the sorted folder: the worker served four before it
+    assert [worker["meshes"] for worker in summary["workers"]] == [6]
+    single = run("--template", inputs["template"], "--target", batch_folder / f"{name}.obj", "--anchors-spacing", 0.3,
+                 "--output-obj", tmp_path / "single.obj")
+    assert single.returncode == 0, single.stderr[-3000:]
+    assert obj_vertex_lines(tmp_path / "batch" / f"{name}.obj") == obj_vertex_lines(tmp_path / "single.obj")
+
+
+@pytest.mark.parametrize("executor", ["local", "ray"])
+def test_a_worker_that_dies_is_replaced_and_its_mesh_retried_once_on_a_fresh_worker(inputs, batch_folder, tmp_path,
+                                                                                    executor):
+    """ball_a kills its worker once (the retry succeeds); ball_c every time (it fails after two); the batch goes on."""
+    if executor == "ray":
+        require_ray()
+    marker = tmp_path / "ball_a-aborted-once"
+    process, summary = run_batch(inputs, batch_folder, tmp_path / "out", "--executor", executor,
+                                 environment={"SPRINGWRAP_BATCH_ABORT": f"ball_a.obj:{marker},ball_c.obj"})
+    assert process.returncode == 3, process.stderr[-3000:]
+    entries = {Path(entry["target"]).stem: entry for entry in summary["meshes"]}
+    assert entries["ball_a"]["status"] == "ok" and entries["ball_a"]["attempts"] == 2
+    assert entries["ball_c"]["status"] == "failed" and entries["ball_c"]["attempts"] == 2
+    assert "died" in entries["ball_c"]["error"] and "two workers" in entries["ball_c"]["error"]
+    assert entries[BROKEN]["status"] == "failed" and entries[BROKEN]["attempts"] == 1  # its own error: not retried
+    assert all(entries[name]["status"] == "ok" for name in ("ball_b", "ball_d", "ball_e"))
+    assert (summary["ok"], summary["failed"], summary["not_run"]) == (4, 2, 0)
+    faults = [worker["fault"] for worker in summary["workers"] if worker["fault"]]
+    assert len(faults) == 3 and all("died" in fault for fault in faults)
+    if executor == "local":
+        assert all("SIGABRT" in fault for fault in faults)
+    # The retry ran on a fresh worker: one started after the first death, which served nothing before it.
+    retried_on = entries["ball_a"]["worker"]
+    [record] = [worker for worker in summary["workers"] if worker["worker"] == retried_on]
+    assert summary["workers"].index(record) >= 2
+    assert obj_vertex_lines(tmp_path / "out" / "ball_a.obj") and not (tmp_path / "out" / "ball_c.obj").exists()
+    assert sum("retrying on a fresh worker" in line for line in process.stderr.splitlines()) == 2
+
+
+def test_resume_skips_the_meshes_already_done(inputs, batch_folder, tmp_path):
+    folder, out = tmp_path / "meshes", tmp_path / "out"
+    folder.mkdir()
+    for path in batch_folder.iterdir():
+        (folder / path.name).write_text(path.read_text())
+    first, _summary = run_batch(inputs, folder, out)
+    assert first.returncode == 3
+    (out / "ball_b.json").unlink()  # its report missing: incomplete, done again
+    (out / "ball_d.obj").write_text("")  # an empty OBJ: incomplete too
+    kept = {name: (out / f"{name}.obj").stat().st_mtime_ns for name in ("ball_a", "ball_c", "ball_e")}
+    process, summary = run_batch(inputs, folder, out, "--resume")
+    assert process.returncode == 3, process.stderr[-3000:]
+    ran = sorted(line.split()[1].rstrip(":") for line in process.stderr.splitlines() if line.startswith("["))
+    assert ran == ["ball_b.obj", "ball_d.obj", f"{BROKEN}.obj"]  # the failed one is tried again
+    assert (summary["ok"], summary["failed"], summary["resumed"]) == (5, 1, 3)
+    assert {Path(entry["target"]).stem for entry in summary["meshes"] if entry.get("resumed")} == set(kept)
+    assert {name: (out / f"{name}.obj").stat().st_mtime_ns for name in kept} == kept  # untouched
+    assert obj_vertex_lines(out / "ball_d.obj") and (out / "ball_b.json").is_file()
+    # Without the broken mesh, everything is done: no worker is started at all.
+    (folder / f"{BROKEN}.obj").unlink()
+    process, summary = run_batch(inputs, folder, out, "--resume")
+    assert process.returncode == 0, process.stderr[-3000:]
+    assert summary["workers"] == [] and (summary["resumed"], summary["ok"]) == (5, 5)
+
+
+@pytest.mark.parametrize("executor", ["local", "ray"])
+def test_ctrl_c_stops_the_batch_and_the_summary_lists_the_meshes_not_run(inputs, tmp_path, executor):
+    if executor == "ray":
+        require_ray()
+    folder = tmp_path / "many"
+    folder.mkdir()
+    for index in range(30):
+        (folder / f"mesh_{index:02d}.obj").write_text(inputs["target"].read_text())
+    out = tmp_path / "out"
+    # A session of its own, signalled as a whole: as a terminal's Ctrl-C reaches every process in the foreground.
+    process = subprocess.Popen([*script_command(RETARGET), "--template", str(inputs["template"]), "--batch", str(folder),
+                                "--output-dir", str(out), "--jobs", "2", "--anchors-spacing", "0.3",
+                                "--executor", executor], stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        for line in process.stderr:
+            if line.startswith("[2/"):
+                os.killpg(process.pid, signal.SIGINT)
+                break
+        rest = process.stderr.read()
+        assert process.wait(timeout=60) == 130, rest[-3000:]
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["interrupted"] and summary["not_run"] > 0 and summary["ok"] >= 2
+    assert summary["ok"] + summary["failed"] + summary["not_run"] == 30
+    assert all(entry["status"] in ("ok", "not run") for entry in summary["meshes"])
+    assert "run again with --resume" in rest
+    assert not [path.name for path in out.iterdir() if "partial" in path.name]
+    time.sleep(0.5)
+    for worker in summary["workers"]:  # every worker that got going is gone
+        if worker["worker"] is None:
+            continue
+        pid = int(worker["worker"].rpartition(":")[2])
+        assert not Path(f"/proc/{pid}").exists() or "zombie" in Path(f"/proc/{pid}/status").read_text(), worker
+
+
+def test_progress_is_a_bar_with_an_eta_in_a_terminal(inputs, batch_folder, tmp_path):
+    pytest.importorskip("tqdm")
+    leader, follower = pty.openpty()
+    fcntl.ioctl(follower, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 100, 0, 0))  # a new pty is 0 columns wide
+    process = subprocess.Popen([*script_command(RETARGET), "--template", str(inputs["template"]),
+                                "--batch", str(batch_folder), "--output-dir", str(tmp_path / "out"),
+                                "--anchors-spacing", "0.3"], stderr=follower, stdout=subprocess.DEVNULL)
+    os.close(follower)
+    shown = b""
+    while True:
+        try:
+            chunk = os.read(leader, 4096)
+        except OSError:  # the terminal's other end closed
+            break
+        if not chunk:
+            break
+        shown += chunk
+    os.close(leader)
+    assert process.wait(timeout=TIMEOUT_SECONDS) == 3
+    text = shown.decode(errors="replace")
+    assert "6/6" in text and "100%|" in text and "mesh/s" in text and "<" in text, text[-2000:]  # bar, rate, ETA
+    assert f"FAILED: {batch_folder / BROKEN}.obj" in text  # failures are printed above the bar
+    assert "] ball_a.obj: ok" not in text  # successes only move the bar
+
+
+def test_ray_executor_without_ray_says_how_to_install_it(inputs, batch_folder, tmp_path):
+    shadow = tmp_path / "no_ray"
+    shadow.mkdir()
+    (shadow / "ray.py").write_text('raise ImportError("No module named \'ray\'")\n')
+    path = os.pathsep.join(filter(None, [str(shadow), os.environ.get("PYTHONPATH")]))
+    process = run("--template", inputs["template"], "--batch", batch_folder, "--output-dir", tmp_path / "out",
+                  "--executor", "ray", environment={"PYTHONPATH": path})
+    assert process.returncode == 1, process.stderr[-3000:]
+    failures = [line for line in process.stderr.splitlines() if line.startswith("retarget: FAILED: ")]
+    expected = "not inside a Blender binary" if os.environ.get("SPRINGWRAP_BLENDER") else "pip install -r requirements-ray.txt"
+    assert len(failures) == 1 and expected in failures[0], process.stderr[-3000:]
+    assert not (tmp_path / "out" / "summary.json").exists()
