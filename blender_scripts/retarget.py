@@ -467,7 +467,7 @@ def batch_task(arguments: argparse.Namespace, target: Path, output_dir: Path) ->
     """One mesh of the batch as plain data (JSON for a local worker's pipe, pickled for Ray): absolute paths."""
     settings = {name: getattr(arguments, name) for name in (
         "template_object", "target_object", "anchors_spacing", "align", "align_method", "max_iterations",
-        "tolerance", "fairness", "arc_length", "thin_plate")}
+        "tolerance", "fairness", "arc_length", "thin_plate", "solver")}
     settings["template"] = str(arguments.template.resolve())
     settings["anchors"] = str(arguments.anchors.resolve()) if arguments.anchors is not None else None
     return {"target": str(target.resolve()), "output_dir": str(output_dir), "settings": settings}
@@ -511,9 +511,12 @@ def outputs_complete(task: dict) -> bool:
 
 
 def remove_partial_outputs(task: dict) -> None:
-    """The temporary files a worker stopped mid-write leaves (``OUT/.<name>.partial.<suffix>``)."""
+    """The temporary files a worker stopped mid-write leaves (``OUT/.<name>.partial.<suffix>``, and Blender's
+    own ``...partial.blend@``: it saves to ``FILE@`` and renames that when done)."""
     for final in task_outputs(task).values():
-        final.with_name(f".{final.stem}.partial{final.suffix}").unlink(missing_ok=True)
+        temporary = final.with_name(f".{final.stem}.partial{final.suffix}")
+        temporary.unlink(missing_ok=True)
+        temporary.with_name(temporary.name + "@").unlink(missing_ok=True)
 
 
 def local_worker_command() -> list[str]:

@@ -304,7 +304,9 @@ class RayExecutor:
         options = {"num_cpus": jobs} if address is None else {}
         # The scripts go to every node as the job's working directory; bpy, the add-on and the kernel
         # wheel must be installed there. Workers' own output stays in Ray's logs (session_latest/logs).
-        ray.init(address=address, runtime_env={"working_dir": str(scripts_folder), "excludes": ["__pycache__"]},
+        # Without --address a new local instance, even where a cluster started by `ray start` runs on
+        # this machine (ray.init(address=None) would join that one, and refuse num_cpus).
+        ray.init(address=address or "local", runtime_env={"working_dir": str(scripts_folder), "excludes": ["__pycache__"]},
                  log_to_driver=False, include_dashboard=False, logging_level=logging.WARNING, **options)
         self._actor_class = ray.remote(num_cpus=1, max_restarts=0, max_task_retries=0)(BatchWorker)
 
