@@ -599,7 +599,8 @@ def run_batch(arguments: argparse.Namespace) -> int:
     print(f"retarget: {counts['ok']} of {len(entries)} meshes retargeted ({sum(resumed)} already done), "
           f"{counts['failed']} failed{not_run}; summary {output_dir / 'summary.json'}", file=sys.stderr)
     if outcome.interrupted:
-        print("retarget: interrupted: the meshes not run are listed in the summary (run again with --resume to go on)", file=sys.stderr)
+        print("retarget: interrupted: the meshes not run are listed in the summary "
+              "(run again with --resume to go on)", file=sys.stderr)
         return EXIT_INTERRUPTED
     if outcome.stopped:
         raise RetargetError(f"the batch stopped: {outcome.stopped}")

@@ -251,9 +251,13 @@ class RayWorker:
     def __init__(self, ray, actor) -> None:
         self._ray = ray
         self.actor = actor
+        self.identity: str | None = None  # host:pid, once ready
 
     def ready(self) -> concurrent.futures.Future:
-        return self._translated(self.actor.describe.remote())
+        future = self._translated(self.actor.describe.remote())
+        future.add_done_callback(lambda done: setattr(self, "identity", None if done.exception() else
+                                                      done.result()["worker"]))
+        return future
 
     def submit(self, task: dict) -> concurrent.futures.Future:
         return self._translated(self.actor.run.remote(task))
@@ -282,11 +286,28 @@ class RayWorker:
         return result
 
     def stop(self, now: bool = False) -> None:
-        """Kill the actor (its CPU goes back to the cluster)."""
+        """Kill the actor (its CPU goes back to the cluster). Ray kills it a moment later: when stopping
+        ``now`` (Ctrl-C) on this machine, wait (up to STOP_SECONDS) until its process is gone, so that nothing
+        it was writing appears after the batch has cleaned up its half-written files."""
         try:
             self._ray.kill(self.actor, no_restart=True)
         except Exception:  # noqa: BLE001 - already gone
             pass
+        host, _, pid = (self.identity or "").rpartition(":")
+        if not now or host != socket.gethostname() or not pid.isdigit():
+            return
+        deadline = time.monotonic() + STOP_SECONDS
+        while time.monotonic() < deadline and _running(int(pid)):
+            time.sleep(0.05)
+
+
+def _running(pid: int) -> bool:
+    """Whether process ``pid`` of this machine still runs (a zombie, dead but not yet reaped, does not)."""
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()[0]
+    except (OSError, IndexError):
+        return False
+    return state != "Z"
 
 
 class RayExecutor:
@@ -301,11 +322,10 @@ class RayExecutor:
         self._ray = ray
         if address is not None:
             check_reachable(address)
+        # No address: always a new instance here ("local"), never a cluster that `ray start` left recorded
+        # in /tmp/ray. The scripts go to every node as the job's working directory; bpy, the add-on and
+        # the kernel wheel must be installed there. Workers' own output stays in Ray's logs.
         options = {"num_cpus": jobs} if address is None else {}
-        # The scripts go to every node as the job's working directory; bpy, the add-on and the kernel
-        # wheel must be installed there. Workers' own output stays in Ray's logs (session_latest/logs).
-        # Without --address a new local instance, even where a cluster started by `ray start` runs on
-        # this machine (ray.init(address=None) would join that one, and refuse num_cpus).
         ray.init(address=address or "local", runtime_env={"working_dir": str(scripts_folder), "excludes": ["__pycache__"]},
                  log_to_driver=False, include_dashboard=False, logging_level=logging.WARNING, **options)
         self._actor_class = ray.remote(num_cpus=1, max_restarts=0, max_task_retries=0)(BatchWorker)
