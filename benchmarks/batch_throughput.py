@@ -34,6 +34,7 @@ import numpy as np
 REPOSITORY = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPOSITORY / "benchmarks"))
 sys.path.insert(0, str(REPOSITORY / "blender_scripts"))
+import _machine  # noqa: E402
 from _noisy_torus import noisy_torus, torus_layout  # noqa: E402
 import retarget_batch  # noqa: E402  (no bpy)
 
@@ -129,14 +130,7 @@ def scheduler_cost() -> dict:
 
 
 def machine_description() -> dict:
-    cpu_model = platform.processor() or platform.machine()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu_model = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
+    cpu_model = _machine.cpu_model()
     memory_gib = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 2**30
     return {"cpu": cpu_model, "cpu_count": os.cpu_count(), "memory_gib": round(memory_gib, 1),
             "platform": platform.platform(), "python": platform.python_version(),

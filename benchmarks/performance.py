@@ -41,6 +41,9 @@ import sys
 import time
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import _machine  # noqa: E402  (benchmarks/, also when imported from elsewhere)
+
 REPOSITORY_ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_JSON = REPOSITORY_ROOT / "out" / "bench" / "performance.json"
 SEED = 1
@@ -255,14 +258,7 @@ def run_worker(kind: str, size: int) -> dict:
 
 def machine_description() -> dict:
     """CPU, cores, versions, commit."""
-    cpu = platform.processor() or platform.machine()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
+    cpu = _machine.cpu_model()
     versions = subprocess.run(
         [sys.executable, "-c", "import bpy, numpy, springwrap_kernel as k; "
          "print(bpy.app.version_string); print(numpy.__version__); print(k.__version__)"],

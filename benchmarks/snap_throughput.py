@@ -37,6 +37,7 @@ from mathutils.bvhtree import BVHTree
 from mathutils.kdtree import KDTree
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+import _machine  # noqa: E402
 from _noisy_torus import QUERY_OFFSET, noisy_torus, query_points  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "blender_scripts"))
@@ -85,14 +86,7 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
 
 def machine_description() -> dict:
     """CPU, core count and platform of this machine."""
-    cpu_model = platform.processor() or platform.machine()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu_model = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
+    cpu_model = _machine.cpu_model()
     usable = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     return {
         "cpu": cpu_model,

@@ -27,6 +27,7 @@ if not __package__:  # run as a script: make `benchmarks.retarget` importable
 
 import numpy as np  # noqa: E402
 
+from benchmarks import _machine  # noqa: E402
 from benchmarks.retarget import baselines, cases, data, landmarks, metrics  # noqa: E402
 
 DEFAULT_JSON = data.REPOSITORY_ROOT / "out" / "bench" / "retarget.json"
@@ -159,14 +160,7 @@ def machine_description() -> dict:
     import bpy
     import springwrap_kernel
 
-    cpu = platform.processor() or platform.machine()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
+    cpu = _machine.cpu_model()
     return {
         "cpu": cpu,
         "cpu_count": os.cpu_count(),
