@@ -22,15 +22,18 @@
 //! **Local step**: fit `T_i` and the correspondences at the current positions. **Global step**:
 //! solve `A x = b`; `A` is the same scalar matrix for x, y and z, its pattern analysed once, its
 //! diagonal (the data weights) refactored every iteration. **Safeguard**: a corner of a layout
-//! face (a vertex and its two face neighbours) that faces the way of its rotated rest normal must
-//! still do so after the step; the vertices of corners that would turn have their step halved,
-//! up to zero (the step is then not taken there). **Landing**: at the end every free point whose
+//! face (a vertex and its two face neighbours) may not turn more than 90 degrees from its rest
+//! normal turned by the layout's mean rotation (one frame for all: a region cannot roll over by
+//! small steps), and a corner already beyond may only turn back; the vertices of corners that
+//! would turn have their step halved, up to zero (the step is then not taken there), and have no
+//! data term in the next iteration, so the shape terms lead them out of the fold the data pulled
+//! them into. **Landing**: at the end every free point whose
 //! closest surface point is near, trusted and facing lands there as a face-point, unless that
 //! turns a corner; the others stay space-points (holes, cavities).
 
 use std::sync::Arc;
 
-use glam::{DVec3, Vec3};
+use glam::{DVec3, Quat, Vec3, Vec4};
 use rayon::prelude::*;
 
 use super::anchor::AnchorTarget;
@@ -95,6 +98,10 @@ const HELD_BACK_SETTLED: usize = 200;
 /// Correspondences count only where the layout faces the target's smoothed normal within this
 /// cosine (60 degrees).
 const MIN_FACING: f32 = 0.5;
+/// Rounds of sign matching when averaging the fitted rotations into the safeguard's frame.
+const MEAN_ROTATION_ROUNDS: usize = 3;
+/// A corner may turn from its frame until this cosine; beyond it, only back toward it.
+const MIN_ALIGNMENT: f32 = 0.0;
 /// Per-vertex scales stay within this factor of their median.
 const SCALE_RANGE: f32 = 3.0;
 /// Halvings of a vertex's step before it is not taken at all.
@@ -143,7 +150,7 @@ pub(crate) struct EnergySolver {
     structure: LayoutStructure,
     springs: Springs,
     /// Per corner (a vertex and one face around it, in `structure.wedges` order), its unit normal
-    /// in the rest shape: the orientation the safeguard keeps, turned by the vertex's rotation.
+    /// in the rest shape: the orientation the safeguard keeps, turned by the layout's frame.
     rest_corner_normals: Vec<Vec3>,
     stencils: Stencils,
     /// Per term, its owner (whose similarity turns its rest vector) and its rest vector.
@@ -156,6 +163,12 @@ pub(crate) struct EnergySolver {
     smoothed_normals: Vec<Vec3>,
     positions: Vec<Vec3>,
     similarities: Vec<Similarity>,
+    /// The rotation the safeguard turns the rest corner normals by: the mean of the fitted
+    /// rotations. One frame for the whole layout, so that no region (an ear, a lip) can roll
+    /// over by small steps that each look fine to its own turning neighbourhood.
+    frame: Quat,
+    /// Per vertex, whether the safeguard shortened its last step.
+    held_back: Vec<bool>,
     /// +1 when the layout winds as the target, -1 the other way.
     orientation: f32,
     mean_edge_length: f32,
@@ -224,6 +237,8 @@ impl EnergySolver {
             smoothed_normals,
             positions,
             similarities: vec![Similarity::IDENTITY; vertex_count],
+            frame: Quat::IDENTITY,
+            held_back: vec![false; vertex_count],
             orientation: 1.0,
             mean_edge_length: inputs.mean_edge_length,
             landing_distance: inputs.landing_distance,
@@ -331,10 +346,21 @@ impl EnergySolver {
         self.smooth_scales(level.scale_smoothing);
         let normals = self.layout_normals(&self.positions);
         let width = level.welsch_width * self.mean_edge_length;
-        let correspondences = self.correspondences(&normals, width);
+        let mut correspondences = self.correspondences(&normals, width);
+        // A point the safeguard held back last time has no data term now: the shape terms
+        // alone move it, away from the fold the data pulled it into.
+        for (correspondence, held) in correspondences.iter_mut().zip(&self.held_back) {
+            if *held {
+                *correspondence = None;
+            }
+        }
         let proposed = self.global_solve(&correspondences, level.data_weight)?;
         // Safeguard: no corner may turn over.
         let (accepted, held_back) = self.safeguard(&proposed);
+        for ((held, accepted), proposed) in self.held_back.iter_mut().zip(&accepted).zip(&proposed)
+        {
+            *held = accepted != proposed;
+        }
         let (mut max_move, mut total_move) = (0.0f32, 0.0f64);
         for (new, old) in accepted.iter().zip(&self.positions) {
             let moved = new.distance(*old);
@@ -379,6 +405,31 @@ impl EnergySolver {
         self.similarities =
             self.springs
                 .fit_all(&self.positions, &self.structure, &self.similarities, first);
+        self.frame = self.mean_rotation();
+    }
+
+    /// The mean of the fitted rotations (as quaternions, each one's sign matched to the mean's).
+    fn mean_rotation(&self) -> Quat {
+        let Some(first) = self.similarities.first() else {
+            return Quat::IDENTITY;
+        };
+        let mut mean = Vec4::from(first.rotation);
+        for _ in 0..MEAN_ROTATION_ROUNDS {
+            let sum = self.similarities.iter().fold(Vec4::ZERO, |sum, fit| {
+                let rotation = Vec4::from(fit.rotation);
+                if rotation.dot(mean) < 0.0 {
+                    sum - rotation
+                } else {
+                    sum + rotation
+                }
+            });
+            let length = sum.length();
+            if !(length > 0.0 && length.is_finite()) {
+                break;
+            }
+            mean = sum / length;
+        }
+        Quat::from_vec4(mean)
     }
 
     /// Replaces the fitted scales by their median (`None`) or by their log averaged over edge
@@ -611,9 +662,9 @@ impl EnergySolver {
             .collect()
     }
 
-    /// Per corner (a vertex and one face around it, in `structure.wedges` order), whether it
-    /// faces the way of its rest normal turned by its vertex's rotation.
-    fn corner_orientations(&self, positions: &[Vec3]) -> Vec<bool> {
+    /// Per corner (a vertex and one face around it, in `structure.wedges` order), the cosine
+    /// between its normal and its rest normal turned by the layout's frame (0 when degenerate).
+    fn corner_orientations(&self, positions: &[Vec3]) -> Vec<f32> {
         let structure = &self.structure;
         let normals = corner_normals(structure, positions);
         (0..positions.len())
@@ -621,23 +672,26 @@ impl EnergySolver {
             .with_min_len(1024)
             .flat_map_iter(|vertex| {
                 let corners = structure.wedge_range(vertex as u32);
-                let rotation = self.similarities[vertex].rotation;
+                let rotation = self.frame;
                 let normals = &normals;
                 corners.map(move |corner| {
-                    normals[corner].dot(rotation * self.rest_corner_normals[corner]) > 0.0
+                    normals[corner]
+                        .normalize_or_zero()
+                        .dot(rotation * self.rest_corner_normals[corner])
                 })
             })
             .collect()
     }
 
-    /// The vertices of corners that face their way in `before` but not at `positions`.
-    fn turned_corners(&self, before: &[bool], positions: &[Vec3]) -> Vec<u32> {
+    /// The vertices of corners that turn away from their frame at `positions`: below
+    /// [`MIN_ALIGNMENT`] and less aligned than in `before`.
+    fn turned_corners(&self, before: &[f32], positions: &[Vec3]) -> Vec<u32> {
         let after = self.corner_orientations(positions);
         let structure = &self.structure;
         let mut vertices = Vec::new();
         for vertex in 0..positions.len() {
             for corner in structure.wedge_range(vertex as u32) {
-                if before[corner] && !after[corner] {
+                if after[corner] < MIN_ALIGNMENT && after[corner] < before[corner] {
                     let (previous, next) = structure.wedges[corner];
                     vertices.extend([vertex as u32, previous, next]);
                 }
@@ -973,6 +1027,48 @@ mod tests {
             );
         }
         assert_ne!(accepted[24], proposed[24]);
+    }
+
+    #[test]
+    fn a_region_cannot_roll_over_by_small_steps() {
+        // A strip of the grid (the last two columns) folds up about a grid line by 10 degrees a
+        // step, each step small to the strip's own neighbourhood; the safeguard's frame is the
+        // whole layout's, so the strip stops before its faces turn over.
+        let (target, structure, rest) = plane_and_grid(10, 0.1, 0.05);
+        let mut solver = solver(&target, &structure, &rest, &rest, &vec![None; rest.len()]);
+        let hinge = rest[8].x;
+        for step in 1..=18 {
+            let angle = (step as f32 * 10.0).to_radians();
+            let turn = Quat::from_rotation_y(-angle);
+            let proposed: Vec<Vec3> = rest
+                .iter()
+                .map(|&p| {
+                    if p.x > hinge + 1e-6 {
+                        let arm = Vec3::new(p.x - hinge, p.y, p.z - rest[0].z);
+                        let turned = turn * Vec3::new(arm.x, 0.0, arm.z);
+                        Vec3::new(hinge + turned.x, p.y, rest[0].z + turned.z)
+                    } else {
+                        p
+                    }
+                })
+                .collect();
+            solver.fit_similarities(false);
+            let (accepted, _) = solver.safeguard(&proposed);
+            solver.positions = accepted;
+        }
+        solver.fit_similarities(false);
+        let worst = solver
+            .corner_orientations(&solver.positions)
+            .into_iter()
+            .fold(f32::INFINITY, f32::min);
+        assert!(worst >= 0.0, "a corner turned to cosine {worst}");
+        // The strip did fold up, as far as the safeguard let it: past 60 degrees, short of flat.
+        let arm = solver.positions[10] - solver.positions[8];
+        let angle = arm.z.atan2(arm.x).to_degrees();
+        assert!(
+            (60.0..150.0).contains(&angle),
+            "the strip turned by {angle} degrees"
+        );
     }
 
     #[test]
