@@ -66,6 +66,8 @@ pub struct TargetMesh {
     pub(crate) face_tree_corners: Vec<[Vec3A; 3]>,
     /// Whether the triangle in each `face_tree` slot is degenerate.
     pub(crate) face_tree_degenerate: Vec<bool>,
+    /// Per triangle, its `face_tree` slot (the inverse of `primitive_indices`).
+    pub(crate) face_tree_slots: Vec<u32>,
     /// The vertex tree, built on first use (a snap to the surface never needs it).
     pub(crate) vertex_tree: OnceLock<VertexTree>,
 }
@@ -149,6 +151,10 @@ impl TargetMesh {
         let (face_tree, face_tree_corners, face_tree_degenerate) =
             build_face_tree(&vertices, &triangles, &degenerate);
         let bounds = face_tree.nodes[0].aabb;
+        let mut face_tree_slots = vec![0; triangles.len()];
+        for (slot, &triangle) in face_tree.primitive_indices.iter().enumerate() {
+            face_tree_slots[triangle as usize] = slot as u32;
+        }
         Ok(Self {
             vertices,
             triangles,
@@ -160,6 +166,7 @@ impl TargetMesh {
             face_tree,
             face_tree_corners,
             face_tree_degenerate,
+            face_tree_slots,
             vertex_tree: OnceLock::new(),
         })
     }

@@ -20,6 +20,23 @@ impl TargetMesh {
         self.closest_point_with_state(point.into(), max_distance, &mut QueryState::default())
     }
 
+    /// [`TargetMesh::closest_point`] starting from `near`, a triangle likely close to the answer
+    /// (the last answer for a point that moved a little): the same answer, found faster. `state`
+    /// is reused between queries of one thread.
+    pub(crate) fn closest_point_near(
+        &self,
+        point: Vec3,
+        max_distance: f32,
+        near: u32,
+        state: &mut QueryState,
+    ) -> Option<SurfaceHit> {
+        state.previous_slot = self
+            .face_tree_slots
+            .get(near as usize)
+            .map(|&slot| slot as usize);
+        self.closest_point_with_state(point.into(), max_distance, state)
+    }
+
     /// [`TargetMesh::closest_point`] for many points, in parallel.
     ///
     /// # Errors

@@ -43,6 +43,7 @@ use crate::error::KernelError;
 use crate::face_point::{FacePoint, LayoutPoint, SurfaceHit};
 use crate::layout::LayoutStructure;
 use crate::mesh::{NO_TRIANGLE, TargetMesh};
+use crate::query::QueryState;
 
 /// Weight of the edge (shape) terms.
 const EDGE_WEIGHT: f64 = 1.0;
@@ -102,6 +103,12 @@ const MIN_FACING: f32 = 0.5;
 const MEAN_ROTATION_ROUNDS: usize = 3;
 /// A corner may turn from its frame until this cosine; beyond it, only back toward it.
 const MIN_ALIGNMENT: f32 = 0.0;
+/// Relative residual (per axis) at which a solve preconditioned by an earlier factorization is
+/// taken, and the most conjugate-gradient iterations before factoring anew.
+const REUSE_TOLERANCE: f64 = 1e-7;
+const REUSE_ITERATIONS: usize = 10;
+/// A solve that took more conjugate-gradient iterations than this is followed by a factorization.
+const REUSE_FAST: usize = 6;
 /// Per-vertex scales stay within this factor of their median.
 const SCALE_RANGE: f32 = 3.0;
 /// Halvings of a vertex's step before it is not taken at all.
@@ -167,6 +174,16 @@ pub(crate) struct EnergySolver {
     /// rotations. One frame for the whole layout, so that no region (an ear, a lip) can roll
     /// over by small steps that each look fine to its own turning neighbourhood.
     frame: Quat,
+    /// The level whose first diagonal was factored last (later iterations of the level solve by
+    /// conjugate gradients preconditioned with it), or `None`.
+    factored_level: Option<usize>,
+    /// Whether the next solve may try the last factorization.
+    reuse_factor: bool,
+    /// The level in which a preconditioned solve did not converge (no more reuse there).
+    reuse_failed_level: Option<usize>,
+    /// Per vertex, the triangle of its last closest point (where the next query starts), or
+    /// [`NO_TRIANGLE`].
+    last_hits: Vec<u32>,
     /// Per vertex, whether the safeguard shortened its last step.
     held_back: Vec<bool>,
     /// +1 when the layout winds as the target, -1 the other way.
@@ -239,6 +256,10 @@ impl EnergySolver {
             similarities: vec![Similarity::IDENTITY; vertex_count],
             frame: Quat::IDENTITY,
             held_back: vec![false; vertex_count],
+            last_hits: vec![NO_TRIANGLE; vertex_count],
+            factored_level: None,
+            reuse_factor: false,
+            reuse_failed_level: None,
             orientation: 1.0,
             mean_edge_length: inputs.mean_edge_length,
             landing_distance: inputs.landing_distance,
@@ -518,8 +539,40 @@ impl EnergySolver {
                 }
             }
         }
-        self.system.factor(&diagonal)?;
-        let solution = self.system.solve(&right_hand_side)?;
+        // Within a level the diagonal changes little from one iteration to the next: conjugate
+        // gradients preconditioned by the level's factorization are cheaper than a new one.
+        let mut reused = None;
+        let tried = self.factored_level == Some(self.level) && self.reuse_factor;
+        if tried {
+            let start: Vec<DVec3> = vertex_of_row
+                .iter()
+                .map(|&vertex| self.positions[vertex as usize].as_dvec3())
+                .collect();
+            reused = self.system.solve_preconditioned(
+                &diagonal,
+                &right_hand_side,
+                &start,
+                REUSE_TOLERANCE,
+                REUSE_ITERATIONS,
+            )?;
+        }
+        let solution = match reused {
+            Some((solution, iterations)) => {
+                // A slow solve says the diagonal has drifted from the factored one.
+                self.reuse_factor = iterations <= REUSE_FAST;
+                solution
+            }
+            None => {
+                if tried {
+                    // It did not converge: this level's diagonals change too much to reuse.
+                    self.reuse_failed_level = Some(self.level);
+                }
+                self.system.factor(&diagonal)?;
+                self.factored_level = Some(self.level);
+                self.reuse_factor = self.reuse_failed_level != Some(self.level);
+                self.system.solve(&right_hand_side)?
+            }
+        };
         let mut proposed = self.positions.clone();
         for (position, fixed) in proposed.iter_mut().zip(&self.fixed) {
             if let Some(fixed) = fixed {
@@ -567,23 +620,32 @@ impl EnergySolver {
         springs + data * data_weight + proximal * PROXIMAL_WEIGHT * EDGE_WEIGHT
     }
 
-    /// Per free vertex, its correspondence, or `None`.
-    fn correspondences(&self, normals: &[Vec3], width: f32) -> Vec<Option<Correspondence>> {
-        (0..self.positions.len())
+    /// Per free vertex, its correspondence, or `None`; the closest-point queries start from each
+    /// vertex's last hit (and record the new one).
+    fn correspondences(&mut self, normals: &[Vec3], width: f32) -> Vec<Option<Correspondence>> {
+        let found: Vec<(Option<Correspondence>, u32)> = (0..self.positions.len())
             .into_par_iter()
             .with_min_len(256)
-            .map(|vertex| {
+            .map_init(QueryState::default, |state, vertex| {
                 if self.fixed[vertex].is_some() {
-                    return None;
+                    return (None, NO_TRIANGLE);
                 }
                 let position = self.positions[vertex];
-                let hit = self.target.closest_point(position, width * 3.0)?;
+                let Some(hit) = self.target.closest_point_near(
+                    position,
+                    width * 3.0,
+                    self.last_hits[vertex],
+                    state,
+                ) else {
+                    return (None, NO_TRIANGLE);
+                };
+                let triangle = hit.face_point.triangle;
                 if !self.correspondence_trusted(&hit, normals[vertex]) {
-                    return None;
+                    return (None, triangle);
                 }
                 let weight = (-(hit.distance * hit.distance) / (2.0 * width * width)).exp();
                 let normal = self.smoothed_normal(hit.face_point);
-                let face_normal = self.target.face_normals()[hit.face_point.triangle as usize];
+                let face_normal = self.target.face_normals()[triangle as usize];
                 // The tangent plane of the triangle itself: the point is pulled onto the surface,
                 // not onto a smoothed plane beside it.
                 let plane_normal = if face_normal == Vec3::ZERO {
@@ -592,9 +654,17 @@ impl EnergySolver {
                     face_normal
                 };
                 let projected = position - plane_normal * plane_normal.dot(position - hit.position);
-                Some((weight, projected))
+                (Some((weight, projected)), triangle)
             })
-            .collect()
+            .collect();
+        let mut correspondences = Vec::with_capacity(found.len());
+        for (vertex, (correspondence, triangle)) in found.into_iter().enumerate() {
+            if triangle != NO_TRIANGLE {
+                self.last_hits[vertex] = triangle;
+            }
+            correspondences.push(correspondence);
+        }
+        correspondences
     }
 
     /// Whether a closest-point hit may pull or receive a point whose layout normal is `normal`:

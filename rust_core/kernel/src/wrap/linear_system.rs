@@ -125,6 +125,16 @@ impl Clone for LinearSystem {
     }
 }
 
+/// Per axis, the Euclidean norm of a column of `values`.
+fn column_norms(values: &[DVec3]) -> DVec3 {
+    column_dots(values, values).map(f64::sqrt)
+}
+
+/// Per axis, the dot product of the columns of `a` and `b`.
+fn column_dots(a: &[DVec3], b: &[DVec3]) -> DVec3 {
+    a.iter().zip(b).map(|(a, b)| *a * *b).sum()
+}
+
 fn solver_error(reason: impl std::fmt::Display) -> KernelError {
     KernelError::InvalidArgument {
         name: "wrap",
@@ -252,9 +262,181 @@ impl LinearSystem {
             .collect())
     }
 
+    /// Solves `(A + diag(extra)) x = b + fixed part` by conjugate gradients preconditioned with
+    /// the last factorization (of `A + diag(extra')` for an earlier `extra'`), from `start`.
+    /// Returns `None` when the relative residual of some axis is still above `tolerance` after
+    /// `max_iterations` (the caller then factors anew), else `x` and the iterations it took.
+    ///
+    /// # Errors
+    /// [`KernelError::InvalidArgument`] when nothing was factored yet.
+    pub fn solve_preconditioned(
+        &self,
+        extra_diagonal: &[f64],
+        right_hand_side: &[DVec3],
+        start: &[DVec3],
+        tolerance: f64,
+        max_iterations: usize,
+    ) -> Result<Option<(Vec<DVec3>, usize)>, KernelError> {
+        let factor = self
+            .factor
+            .as_ref()
+            .ok_or_else(|| solver_error("solved before it was factored"))?;
+        let rows = self.rows();
+        let wanted: Vec<DVec3> = right_hand_side
+            .iter()
+            .zip(&self.fixed_right_hand_side)
+            .map(|(b, fixed)| *b + *fixed)
+            .collect();
+        let target_norm = column_norms(&wanted) * tolerance;
+        let mut solution = start.to_vec();
+        let product = self.multiply(extra_diagonal, &solution);
+        let mut residual: Vec<DVec3> = wanted
+            .iter()
+            .zip(&product)
+            .map(|(b, ax)| *b - *ax)
+            .collect();
+        let precondition = |residual: &[DVec3]| -> Vec<DVec3> {
+            let mut columns = Mat::<f64>::from_fn(rows, 3, |row, axis| residual[row][axis]);
+            factor.solve_in_place(columns.as_mut());
+            (0..rows)
+                .map(|row| DVec3::new(columns[(row, 0)], columns[(row, 1)], columns[(row, 2)]))
+                .collect()
+        };
+        let mut preconditioned = precondition(&residual);
+        let mut direction = preconditioned.clone();
+        let mut alignment = column_dots(&residual, &preconditioned);
+        for iteration in 0..=max_iterations {
+            let norms = column_norms(&residual);
+            if norms.cmple(target_norm).all() {
+                return Ok(Some((solution, iteration)));
+            }
+            if iteration == max_iterations {
+                break;
+            }
+            let product = self.multiply(extra_diagonal, &direction);
+            let curvature = column_dots(&direction, &product);
+            let step = alignment / curvature;
+            if !step.is_finite() {
+                break;
+            }
+            for row in 0..rows {
+                solution[row] += direction[row] * step;
+                residual[row] -= product[row] * step;
+            }
+            preconditioned = precondition(&residual);
+            let next_alignment = column_dots(&residual, &preconditioned);
+            let ratio = next_alignment / alignment;
+            alignment = next_alignment;
+            for row in 0..rows {
+                direction[row] = preconditioned[row] + direction[row] * ratio;
+            }
+        }
+        Ok(None)
+    }
+
+    /// `(A + diag(extra)) x`, from the stored lower triangle.
+    fn multiply(&self, extra_diagonal: &[f64], x: &[DVec3]) -> Vec<DVec3> {
+        let mut product: Vec<DVec3> = x
+            .iter()
+            .zip(extra_diagonal)
+            .map(|(x, extra)| *x * *extra)
+            .collect();
+        let column_pointers = self.matrix.symbolic().col_ptr();
+        let row_indices = self.matrix.symbolic().row_idx();
+        let values = self.matrix.val();
+        for column in 0..self.rows() {
+            for entry in column_pointers[column]..column_pointers[column + 1] {
+                let row = row_indices[entry];
+                let value = values[entry];
+                product[row] += x[column] * value;
+                if row != column {
+                    product[column] += x[row] * value;
+                }
+            }
+        }
+        product
+    }
+
     /// The layout vertex of each row.
     #[must_use]
     pub fn vertex_of_row(&self) -> &[u32] {
         &self.vertex_of_row
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A closed chain of `n` vertices with edge terms and second differences, vertex 0 fixed at
+    /// the origin.
+    fn chain(n: u32) -> (Stencils, Vec<Option<DVec3>>) {
+        let mut stencils = Stencils::new();
+        for vertex in 0..n {
+            let next = (vertex + 1) % n;
+            let after = (vertex + 2) % n;
+            stencils.push([(next, 1.0), (vertex, -1.0)], 1.0);
+            stencils.push([(vertex, 1.0), (after, 1.0), (next, -2.0)], 0.5);
+        }
+        let mut fixed = vec![None; n as usize];
+        fixed[0] = Some(DVec3::new(0.5, -1.0, 2.0));
+        (stencils, fixed)
+    }
+
+    fn right_hand_side(rows: usize) -> Vec<DVec3> {
+        (0..rows)
+            .map(|row| {
+                let t = row as f64;
+                DVec3::new(t.sin(), (0.3 * t).cos(), 0.1 * t)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_solve_preconditioned_by_an_older_factor_matches_a_fresh_factor() {
+        let (stencils, fixed) = chain(60);
+        let mut system = LinearSystem::new(&stencils, 60, &fixed).unwrap();
+        let rows = system.rows();
+        let b = right_hand_side(rows);
+        let old: Vec<f64> = (0..rows).map(|row| 1.0 + (row % 3) as f64).collect();
+        let new: Vec<f64> = (0..rows)
+            .map(|row| {
+                if row % 7 == 0 {
+                    0.0
+                } else {
+                    1.2 + (row % 3) as f64
+                }
+            })
+            .collect();
+        system.factor(&old).unwrap();
+        let (iterative, iterations) = system
+            .solve_preconditioned(&new, &b, &vec![DVec3::ZERO; rows], 1e-10, 200)
+            .unwrap()
+            .expect("converges");
+        assert!(iterations > 0);
+        system.factor(&new).unwrap();
+        let direct = system.solve(&b).unwrap();
+        for (a, b) in iterative.iter().zip(&direct) {
+            assert!(a.distance(*b) < 1e-7, "{a} against {b}");
+        }
+        // From the answer itself it takes no iteration.
+        let (_, iterations) = system
+            .solve_preconditioned(&new, &b, &direct, 1e-8, 5)
+            .unwrap()
+            .expect("converged at the start");
+        assert_eq!(iterations, 0);
+    }
+
+    #[test]
+    fn a_preconditioned_solve_that_does_not_converge_says_so() {
+        let (stencils, fixed) = chain(60);
+        let mut system = LinearSystem::new(&stencils, 60, &fixed).unwrap();
+        let rows = system.rows();
+        let b = right_hand_side(rows);
+        system.factor(&vec![100.0; rows]).unwrap();
+        let answer = system
+            .solve_preconditioned(&vec![0.0; rows], &b, &vec![DVec3::ZERO; rows], 1e-12, 1)
+            .unwrap();
+        assert!(answer.is_none());
     }
 }
