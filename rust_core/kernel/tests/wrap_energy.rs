@@ -298,3 +298,178 @@ fn the_energy_solver_refuses_a_plane_constraint_it_cannot_hold_yet() {
         "{error:?}"
     );
 }
+
+/// A plane ([-1, 1]², 40 x 40 cells) with a round bump of height 0.15 and radius about 0.3 at
+/// the origin.
+fn bump_target() -> Arc<TargetMesh> {
+    let (vertices, triangles) = common::grid(40);
+    let vertices = vertices
+        .iter()
+        .map(|v| {
+            let p = (*v - Vec3::new(20.0, 20.0, 0.0)) * 0.05;
+            let r2 = p.truncate().length_squared();
+            Vec3::new(p.x, p.y, 0.15 * (-r2 / (2.0 * 0.12 * 0.12)).exp())
+        })
+        .collect();
+    Arc::new(TargetMesh::new(vertices, triangles, TargetMeshOptions::default()).unwrap())
+}
+
+/// Wraps the 10 x 10 layout (cell 0.1, 0.3 above the plane, anchored at its corners) onto the
+/// bump target, with the vertices within 0.2 of the axis set up by `region`.
+fn wrap_over_bump(
+    region: impl Fn(WrapSolver, Vec<bool>) -> WrapSolver,
+) -> (WrapSolver, StepReport, Vec<bool>) {
+    let target = bump_target();
+    let (structure, positions) = common::quad_layout(10, 0.1, Vec3::new(-0.5, -0.5, 0.3));
+    let anchors = common::anchors_below(&target, &positions, &[0, 10, 110, 120]);
+    let inside: Vec<bool> = positions
+        .iter()
+        .map(|p| p.truncate().length() < 0.2)
+        .collect();
+    let points = positions.iter().map(|&p| LayoutPoint::Space(p)).collect();
+    let solver = WrapSolver::new(target, structure, points, &anchors, energy_settings()).unwrap();
+    let mut solver = region(solver, inside.clone());
+    let report = solver.step(1000).unwrap();
+    (solver, report, inside)
+}
+
+/// The largest relative change of a layout edge's length from the template's 0.1, over the
+/// edges between two vertices of `region`.
+fn worst_stretch(positions: &[Vec3], region: &[bool]) -> f32 {
+    let row = 11;
+    let mut worst = 0.0f32;
+    for a in 0..positions.len() {
+        for b in [a + 1, a + row] {
+            let same_row = b != a + 1 || (a % row) + 1 < row;
+            if b < positions.len() && same_row && region[a] && region[b] {
+                let length = positions[a].distance(positions[b]);
+                worst = worst.max((length / 0.1 - 1.0).abs());
+            }
+        }
+    }
+    worst
+}
+
+#[test]
+fn free_vertices_float_over_the_target_and_change_nothing_far_away() {
+    let (plain, plain_report, inside) = wrap_over_bump(|solver, _| solver);
+    assert!(plain_report.converged, "{plain_report:?}");
+    let (free, report, _) =
+        wrap_over_bump(|solver, inside| solver.with_free_vertices(inside).unwrap());
+    assert!(report.converged, "{report:?}");
+    let mut floated = 0;
+    for (vertex, &is_inside) in inside.iter().enumerate() {
+        let (position, plain_position) = (free.positions()[vertex], plain.positions()[vertex]);
+        if is_inside {
+            // Not pulled, not landed: the template's flat shape, spanned by its neighbours.
+            assert!(
+                matches!(free.points()[vertex], LayoutPoint::Space(_)),
+                "free vertex {vertex} landed"
+            );
+            assert!(
+                matches!(plain.points()[vertex], LayoutPoint::Face(_)),
+                "vertex {vertex} did not land without the group"
+            );
+            if plain_position.z - position.z > 0.02 {
+                floated += 1;
+            }
+        } else if position.truncate().length() > 0.45 {
+            assert!(
+                position.distance(plain_position) < 5e-3,
+                "vertex {vertex} far from the free region moved from {plain_position} to {position}"
+            );
+        }
+    }
+    // Over the bump's top the free points stay below the surface they would have landed on.
+    assert!(floated >= 4, "{floated} free points below the bump");
+}
+
+#[test]
+fn stiffness_one_keeps_the_templates_shape_and_zero_follows_the_target() {
+    let neutral = |solver: WrapSolver, inside: Vec<bool>, value: f32| {
+        let stiffness = inside
+            .iter()
+            .map(|&inside| if inside { value } else { 0.5 })
+            .collect();
+        solver.with_vertex_stiffness(stiffness).unwrap()
+    };
+    let (plain, _, inside) = wrap_over_bump(|solver, inside| neutral(solver, inside, 0.5));
+    let (stiff, stiff_report, _) = wrap_over_bump(|solver, inside| neutral(solver, inside, 1.0));
+    let (soft, soft_report, _) = wrap_over_bump(|solver, inside| neutral(solver, inside, 0.0));
+    assert!(stiff_report.converged && soft_report.converged);
+    let stretch = |solver: &WrapSolver| worst_stretch(solver.positions(), &inside);
+    assert!(
+        stretch(&stiff) < 0.5 * stretch(&plain),
+        "stiff {} against neutral {}",
+        stretch(&stiff),
+        stretch(&plain)
+    );
+    assert!(
+        stretch(&soft) >= stretch(&plain) * 0.999,
+        "soft {} against neutral {}",
+        stretch(&soft),
+        stretch(&plain)
+    );
+    // The soft region is on the target, face-points all.
+    for vertex in (0..inside.len()).filter(|&vertex| inside[vertex]) {
+        assert!(
+            matches!(soft.points()[vertex], LayoutPoint::Face(_)),
+            "soft vertex {vertex} did not land"
+        );
+    }
+}
+
+#[test]
+fn vertex_stiffness_and_free_vertices_are_checked_and_need_the_energy_solver() {
+    let target = common::plane_target(40, 0.05, 0.0);
+    let (structure, positions) = common::quad_layout(4, 0.1, Vec3::new(-0.2, -0.2, 0.1));
+    let count = positions.len();
+    let points: Vec<LayoutPoint> = positions.iter().map(|&p| LayoutPoint::Space(p)).collect();
+    let make = |settings: WrapSettings| {
+        WrapSolver::new(
+            Arc::clone(&target),
+            structure.clone(),
+            points.clone(),
+            &[],
+            settings,
+        )
+        .unwrap()
+    };
+    let mut too_stiff = vec![0.5; count];
+    too_stiff[3] = 1.5;
+    let error = make(energy_settings())
+        .with_vertex_stiffness(too_stiff)
+        .unwrap_err();
+    assert!(
+        matches!(
+            error,
+            KernelError::InvalidArgument {
+                name: "stiffness",
+                ..
+            }
+        ),
+        "{error:?}"
+    );
+    let mut not_a_number = vec![0.5; count];
+    not_a_number[0] = f32::NAN;
+    assert!(
+        make(energy_settings())
+            .with_vertex_stiffness(not_a_number)
+            .is_err()
+    );
+    let error = make(energy_settings())
+        .with_free_vertices(vec![false; count - 1])
+        .unwrap_err();
+    assert!(
+        matches!(error, KernelError::LengthMismatch { .. }),
+        "{error:?}"
+    );
+    let mut springs = make(WrapSettings::default())
+        .with_free_vertices(vec![false; count])
+        .unwrap();
+    let error = springs.step(5).unwrap_err();
+    assert!(
+        matches!(error, KernelError::InvalidArgument { name: "solver", .. }),
+        "{error:?}"
+    );
+}

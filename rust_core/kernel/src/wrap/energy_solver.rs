@@ -61,34 +61,41 @@ struct Level {
     welsch_width: f32,
     /// Rounds of averaging of the log scales over edge neighbours; `None`: one scale for all.
     scale_smoothing: Option<usize>,
+    /// Rounds of averaging of the fitted rotations over edge neighbours (0: each vertex its own).
+    rotation_smoothing: usize,
     /// The most iterations at this level.
     max_iterations: usize,
 }
 
-/// The stiffness schedule: the data term tightens and the scale loosens level by level.
+/// The stiffness schedule: the data term tightens, the scale and the rotations loosen level by
+/// level (at the first, rotations averaged over about 8 rings move each region as one piece).
 const LEVELS: [Level; 4] = [
     Level {
         data_weight: 0.1,
         welsch_width: 3.0,
         scale_smoothing: None,
+        rotation_smoothing: 64,
         max_iterations: 12,
     },
     Level {
         data_weight: 1.0,
         welsch_width: 2.0,
         scale_smoothing: Some(32),
+        rotation_smoothing: 0,
         max_iterations: 10,
     },
     Level {
         data_weight: 10.0,
         welsch_width: 1.0,
         scale_smoothing: Some(8),
+        rotation_smoothing: 0,
         max_iterations: 6,
     },
     Level {
         data_weight: 100.0,
         welsch_width: 1.0,
         scale_smoothing: Some(2),
+        rotation_smoothing: 0,
         max_iterations: 8,
     },
 ];
@@ -109,6 +116,10 @@ const REUSE_TOLERANCE: f64 = 1e-7;
 const REUSE_ITERATIONS: usize = 10;
 /// A solve that took more conjugate-gradient iterations than this is followed by a factorization.
 const REUSE_FAST: usize = 6;
+/// The stiffness at which a vertex has the energy's own weights.
+pub(crate) const NEUTRAL_STIFFNESS: f32 = 0.5;
+/// The factor on the shape terms a vertex owns at stiffness 1 (and its inverse at 0).
+const STIFFNESS_RANGE: f64 = 100.0;
 /// Per-vertex scales stay within this factor of their median.
 const SCALE_RANGE: f32 = 3.0;
 /// Halvings of a vertex's step before it is not taken at all.
@@ -132,6 +143,10 @@ pub(crate) struct EnergyInputs<'a> {
     pub anchor_of_vertex: &'a [Option<(AnchorTarget, Vec3)>],
     pub curve_target_of_vertex: &'a [Option<Vec3>],
     pub unreliable: &'a [bool],
+    /// Per vertex, its stiffness in [0, 1] (empty: [`NEUTRAL_STIFFNESS`] everywhere).
+    pub stiffness: &'a [f32],
+    /// Per vertex, whether it has no data term (empty: none).
+    pub free: &'a [bool],
     pub mean_edge_length: f32,
     pub landing_distance: f32,
 }
@@ -167,6 +182,8 @@ pub(crate) struct EnergySolver {
     fixed: Vec<Option<DVec3>>,
     fixed_points: Vec<Option<LayoutPoint>>,
     unreliable: Vec<bool>,
+    /// Per vertex, the factor on its data term (0: free, or stiff enough to keep the template).
+    data_factors: Vec<f32>,
     smoothed_normals: Vec<Vec3>,
     positions: Vec<Vec3>,
     similarities: Vec<Similarity>,
@@ -229,7 +246,26 @@ impl EnergySolver {
                 fixed_points[vertex] = Some(point);
             }
         }
-        let (stencils, term_owner, term_rest) = build_terms(structure, inputs.rest);
+        let (mut stencils, term_owner, term_rest) = build_terms(structure, inputs.rest);
+        let stiffness_of = |vertex: usize| {
+            inputs
+                .stiffness
+                .get(vertex)
+                .copied()
+                .unwrap_or(NEUTRAL_STIFFNESS)
+        };
+        for (weight, &owner) in stencils.weights.iter_mut().zip(&term_owner) {
+            *weight *= shape_factor(stiffness_of(owner as usize));
+        }
+        let data_factors: Vec<f32> = (0..vertex_count)
+            .map(|vertex| {
+                if inputs.free.get(vertex).copied().unwrap_or(false) {
+                    0.0
+                } else {
+                    data_factor(stiffness_of(vertex))
+                }
+            })
+            .collect();
         let system = LinearSystem::new(&stencils, vertex_count, &fixed)?;
         // Constrained vertices move to their constraints in the first step, with their
         // neighbours: the safeguard then sees the whole move.
@@ -251,6 +287,7 @@ impl EnergySolver {
             fixed,
             fixed_points,
             unreliable: inputs.unreliable.to_vec(),
+            data_factors,
             smoothed_normals,
             positions,
             similarities: vec![Similarity::IDENTITY; vertex_count],
@@ -294,7 +331,7 @@ impl EnergySolver {
             .into_par_iter()
             .with_min_len(256)
             .map(|vertex| {
-                if self.fixed[vertex].is_some() {
+                if self.fixed[vertex].is_some() || self.data_factors[vertex] == 0.0 {
                     return None;
                 }
                 let hit = self.target.closest_point(self.positions[vertex], reach)?;
@@ -365,6 +402,7 @@ impl EnergySolver {
             self.fit_similarities(false);
         }
         self.smooth_scales(level.scale_smoothing);
+        self.smooth_rotations(level.rotation_smoothing);
         let normals = self.layout_normals(&self.positions);
         let width = level.welsch_width * self.mean_edge_length;
         let mut correspondences = self.correspondences(&normals, width);
@@ -427,6 +465,46 @@ impl EnergySolver {
             self.springs
                 .fit_all(&self.positions, &self.structure, &self.similarities, first);
         self.frame = self.mean_rotation();
+    }
+
+    /// Replaces each fitted rotation by its average over edge neighbours, `rounds` times (as
+    /// quaternions, each neighbour's sign matched to the vertex's own): the shape terms then
+    /// keep regions about `√rounds` rings wide rigid.
+    fn smooth_rotations(&mut self, rounds: usize) {
+        if rounds == 0 {
+            return;
+        }
+        let mut rotations: Vec<Quat> = self.similarities.iter().map(|fit| fit.rotation).collect();
+        for _ in 0..rounds {
+            rotations = (0..rotations.len() as u32)
+                .into_par_iter()
+                .with_min_len(2048)
+                .map(|vertex| {
+                    let own = Vec4::from(rotations[vertex as usize]);
+                    let sum =
+                        self.structure
+                            .neighbors_of(vertex)
+                            .iter()
+                            .fold(own, |sum, &other| {
+                                let other = Vec4::from(rotations[other as usize]);
+                                if other.dot(own) < 0.0 {
+                                    sum - other
+                                } else {
+                                    sum + other
+                                }
+                            });
+                    let length = sum.length();
+                    if length > 0.0 && length.is_finite() {
+                        Quat::from_vec4(sum / length)
+                    } else {
+                        rotations[vertex as usize]
+                    }
+                })
+                .collect();
+        }
+        for (fit, rotation) in self.similarities.iter_mut().zip(rotations) {
+            fit.rotation = rotation;
+        }
     }
 
     /// The mean of the fitted rotations (as quaternions, each one's sign matched to the mean's).
@@ -627,7 +705,7 @@ impl EnergySolver {
             .into_par_iter()
             .with_min_len(256)
             .map_init(QueryState::default, |state, vertex| {
-                if self.fixed[vertex].is_some() {
+                if self.fixed[vertex].is_some() || self.data_factors[vertex] == 0.0 {
                     return (None, NO_TRIANGLE);
                 }
                 let position = self.positions[vertex];
@@ -643,7 +721,8 @@ impl EnergySolver {
                 if !self.correspondence_trusted(&hit, normals[vertex]) {
                     return (None, triangle);
                 }
-                let weight = (-(hit.distance * hit.distance) / (2.0 * width * width)).exp();
+                let weight = (-(hit.distance * hit.distance) / (2.0 * width * width)).exp()
+                    * self.data_factors[vertex];
                 let normal = self.smoothed_normal(hit.face_point);
                 let face_normal = self.target.face_normals()[triangle as usize];
                 // The tangent plane of the triangle itself: the point is pulled onto the surface,
@@ -819,6 +898,18 @@ fn corner_normals(structure: &LayoutStructure, positions: &[Vec3]) -> Vec<Vec3> 
                 })
         })
         .collect()
+}
+
+/// The factor on the shape terms a vertex of this stiffness owns: 1 at
+/// [`NEUTRAL_STIFFNESS`], [`STIFFNESS_RANGE`] at 1, its inverse at 0 (geometric in between).
+fn shape_factor(stiffness: f32) -> f64 {
+    STIFFNESS_RANGE.powf(f64::from(stiffness - NEUTRAL_STIFFNESS) / f64::from(NEUTRAL_STIFFNESS))
+}
+
+/// The factor on the data term of a vertex of this stiffness: 1 up to [`NEUTRAL_STIFFNESS`],
+/// falling linearly to 0 at 1 (a vertex that keeps the template's shape is not pulled).
+fn data_factor(stiffness: f32) -> f32 {
+    ((1.0 - stiffness) / (1.0 - NEUTRAL_STIFFNESS)).clamp(0.0, 1.0)
 }
 
 /// Whether `triangle` is flagged in `flags` (empty: none is).
@@ -1017,6 +1108,8 @@ mod tests {
             anchor_of_vertex: anchors,
             curve_target_of_vertex: &[],
             unreliable: &[],
+            stiffness: &[],
+            free: &[],
             mean_edge_length: 0.1,
             landing_distance: 0.025,
         })

@@ -193,6 +193,12 @@ pub struct WrapSolver {
     /// The rest shape (the energy solver's springs).
     rest: Vec<Vec3>,
     mean_edge_length: f32,
+    /// Per vertex, how firmly it keeps the template's shape (0 … 1, 0.5 the wrap's own balance);
+    /// empty: 0.5 everywhere. Energy solver only.
+    stiffness: Vec<f32>,
+    /// Per vertex, whether it has no pull toward the target (a socket, teeth); empty: none.
+    /// Energy solver only.
+    free: Vec<bool>,
     /// The energy solver, made at the first step of a wrap with [`SolverKind::Energy`].
     energy: Option<Box<EnergySolver>>,
 }
@@ -379,8 +385,61 @@ impl WrapSolver {
             iteration: 0,
             rest: energy_rest,
             mean_edge_length,
+            stiffness: Vec::new(),
+            free: Vec::new(),
             energy: None,
         })
+    }
+
+    /// Sets how firmly each vertex keeps the template's shape: 0 follows the target freely, 0.5
+    /// is the wrap's own balance, 1 keeps the template's shape (no pull toward the target; the
+    /// shape terms it owns weigh 100 times more). One value per layout vertex, in [0, 1]. Only the
+    /// energy solver ([`SolverKind::Energy`]) takes it; the spring solver refuses it at its first
+    /// step.
+    ///
+    /// # Errors
+    /// [`KernelError::LengthMismatch`] unless there is one value per layout vertex,
+    /// [`KernelError::InvalidArgument`] for a value outside [0, 1] or NaN.
+    pub fn with_vertex_stiffness(mut self, stiffness: Vec<f32>) -> Result<Self, KernelError> {
+        if stiffness.len() != self.structure.vertex_count {
+            return Err(KernelError::LengthMismatch {
+                what: "stiffness values and layout vertices",
+                first: stiffness.len(),
+                second: self.structure.vertex_count,
+            });
+        }
+        if let Some(vertex) = stiffness
+            .iter()
+            .position(|value| !(0.0..=1.0).contains(value))
+        {
+            return Err(KernelError::InvalidArgument {
+                name: "stiffness",
+                reason: format!(
+                    "vertex {vertex} has stiffness {}; it must be within 0 … 1",
+                    stiffness[vertex]
+                ),
+            });
+        }
+        self.stiffness = stiffness;
+        Ok(self)
+    }
+
+    /// Marks layout vertices as free: no pull toward the target (eye and mouth sockets, teeth,
+    /// a region the target does not have); they follow their neighbours by the template's shape
+    /// and stay space-points. One flag per layout vertex. Only the energy solver takes it.
+    ///
+    /// # Errors
+    /// [`KernelError::LengthMismatch`] unless there is one flag per layout vertex.
+    pub fn with_free_vertices(mut self, free: Vec<bool>) -> Result<Self, KernelError> {
+        if free.len() != self.structure.vertex_count {
+            return Err(KernelError::LengthMismatch {
+                what: "free vertex flags and layout vertices",
+                first: free.len(),
+                second: self.structure.vertex_count,
+            });
+        }
+        self.free = free;
+        Ok(self)
     }
 
     /// Marks target triangles as unreliable (noisy or untrusted data, paper 2.5): points there
@@ -703,10 +762,18 @@ impl WrapSolver {
     ///
     /// # Errors
     /// With [`SolverKind::Energy`]: [`KernelError::InvalidArgument`] when its linear system
-    /// cannot be built or factored, or a plane constraint is set (not supported by it yet).
+    /// cannot be built or factored, or a plane constraint is set (not supported by it yet); with
+    /// [`SolverKind::Springs`]: [`KernelError::InvalidArgument`] when vertex stiffness or free
+    /// vertices are set.
     pub fn step(&mut self, iterations: usize) -> Result<StepReport, KernelError> {
         if self.settings.solver == SolverKind::Energy {
             return self.step_energy(iterations);
+        }
+        if !self.stiffness.is_empty() || !self.free.is_empty() {
+            return Err(KernelError::InvalidArgument {
+                name: "solver",
+                reason: "vertex stiffness and free vertices need the energy solver".to_owned(),
+            });
         }
         Ok(self.step_springs(iterations))
     }
@@ -730,6 +797,8 @@ impl WrapSolver {
                 anchor_of_vertex: &self.anchor_of_vertex,
                 curve_target_of_vertex: &self.curve_target_of_vertex,
                 unreliable: &self.unreliable,
+                stiffness: &self.stiffness,
+                free: &self.free,
                 mean_edge_length: self.mean_edge_length,
                 landing_distance: self.landing_distance,
             };
