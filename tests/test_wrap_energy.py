@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from test_addon import Reference, read_state, snapshot, world_positions
+from test_addon_mirror import head_scene, local_positions, midline_drift, mirror_outcome
 from test_wrap import (
     _radial,
     assert_no_flipped_quads,
@@ -67,13 +68,20 @@ def test_the_panel_setting_chooses_the_solver():
     assert operations.WrapParameters(solver="ENERGY").solver_settings()["solver"] == "ENERGY"
 
 
-def test_hold_on_plane_with_the_energy_solver_is_refused_with_the_layout_unchanged(capfd):
-    target, layout, _normal = plane_scene()
-    bpy.ops.springwrap.anchors_auto(spacing=0.5)
-    before = snapshot(layout)
-    with pytest.raises(RuntimeError, match="energy solver does not hold points on a plane"):
-        bpy.ops.springwrap.wrap(solver="ENERGY", hold_plane="X")
-    assert snapshot(layout) == before
+def test_hold_on_plane_keeps_a_lone_half_s_midline_on_the_plane_with_the_energy_solver():
+    """As ``test_addon_mirror``'s test for the spring solver: the held midline ends on the plane, so the
+    mirror that follows finds no face crossing it."""
+    target, layout = head_scene()
+    midline = np.flatnonzero(local_positions(layout)[:, 0] == 0.0)
+    assert midline.size >= 10
+    assert bpy.ops.springwrap.snap() == {"FINISHED"}
+    assert bpy.ops.springwrap.anchors_auto(spacing=0.6) == {"FINISHED"}
+    assert bpy.ops.springwrap.wrap(solver="ENERGY", hold_plane="X") == {"FINISHED"}
+    assert midline_drift(layout, midline) < 1e-5
+    assert bpy.ops.springwrap.mirror(axis="X", max_iterations=3000) == {"FINISHED"}
+    outcome = mirror_outcome()
+    assert outcome.crossing_faces.size == 0
+    assert outcome.seam_max_distance < 1e-5
 
 
 def test_undo_after_an_energy_wrap_restores_the_template():

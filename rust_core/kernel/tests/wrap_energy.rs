@@ -279,24 +279,65 @@ fn random_targets_and_anchor_moves_never_turn_a_face_over() {
 }
 
 #[test]
-fn the_energy_solver_refuses_a_plane_constraint_it_cannot_hold_yet() {
-    let target = common::plane_target(40, 0.05, 0.0);
-    let (structure, positions) = common::quad_layout(4, 0.1, Vec3::new(-0.2, -0.2, 0.1));
-    let points = positions.iter().map(|&p| LayoutPoint::Space(p)).collect();
-    let mut solver = WrapSolver::new(target, structure, points, &[], energy_settings())
+fn held_points_end_exactly_on_the_plane_and_on_the_surface() {
+    // A wavy target crossed by the plane x = 0.05; the layout's column at x = 0.05 is held on it.
+    let (vertices, triangles) = common::grid(40);
+    let vertices = vertices
+        .iter()
+        .map(|v| {
+            let p = (*v - Vec3::new(20.0, 20.0, 0.0)) * 0.05;
+            Vec3::new(p.x, p.y, 0.1 * (3.0 * p.y).sin() + 0.05 * (2.0 * p.x).cos())
+        })
+        .collect();
+    let target =
+        Arc::new(TargetMesh::new(vertices, triangles, TargetMeshOptions::default()).unwrap());
+    let (structure, positions) = common::quad_layout(10, 0.1, Vec3::new(-0.45, -0.5, 0.3));
+    let held: Vec<u32> = (0..121).filter(|vertex| vertex % 11 == 5).collect();
+    assert!(
+        held.iter()
+            .all(|&vertex| (positions[vertex as usize].x - 0.05).abs() < 1e-6)
+    );
+    let anchors = common::anchors_below(&target, &positions, &[0, 10, 110, 120]);
+    for slide in [true, false] {
+        let points = positions.iter().map(|&p| LayoutPoint::Space(p)).collect();
+        let mut solver = WrapSolver::new(
+            Arc::clone(&target),
+            structure.clone(),
+            points,
+            &anchors,
+            energy_settings(),
+        )
         .unwrap()
         .with_plane_constraint(&PlaneConstraint {
-            point: Vec3::ZERO,
+            point: Vec3::new(0.05, 0.0, 0.0),
             normal: Vec3::X,
-            vertices: vec![2, 7, 12],
-            slide: true,
+            vertices: held.clone(),
+            slide,
         })
         .unwrap();
-    let error = solver.step(10).unwrap_err();
-    assert!(
-        matches!(error, KernelError::InvalidArgument { name: "solver", .. }),
-        "{error:?}"
-    );
+        let report = solver.step(1000).unwrap();
+        assert!(report.converged, "{report:?}");
+        for &vertex in &held {
+            let position = solver.positions()[vertex as usize];
+            assert!(
+                (position.x - 0.05).abs() < 1e-6,
+                "held vertex {vertex} at {position} (slide {slide})"
+            );
+            {
+                let hit = target.closest_point(position, f32::INFINITY).unwrap();
+                assert!(
+                    hit.distance < 1e-4,
+                    "held vertex {vertex} {} off the surface",
+                    hit.distance
+                );
+            }
+        }
+        let normals = grid_quad_normals(10, solver.positions());
+        assert!(
+            normals.iter().all(|normal| normal.z > 0.0),
+            "a quad turned over (slide {slide})"
+        );
+    }
 }
 
 /// A plane ([-1, 1]², 40 x 40 cells) with a round bump of height 0.15 and radius about 0.3 at

@@ -39,6 +39,7 @@ use rayon::prelude::*;
 use super::anchor::AnchorTarget;
 use super::forces::{Similarity, SpringRest, Springs};
 use super::linear_system::{LinearSystem, Stencils};
+use super::plane_constraint::Plane;
 use crate::error::KernelError;
 use crate::face_point::{FacePoint, LayoutPoint, SurfaceHit};
 use crate::layout::LayoutStructure;
@@ -147,6 +148,13 @@ pub(crate) struct EnergyInputs<'a> {
     pub stiffness: &'a [f32],
     /// Per vertex, whether it has no data term (empty: none).
     pub free: &'a [bool],
+    /// The points at the start (held points not sliding on the plane stay as they are).
+    pub points: &'a [LayoutPoint],
+    /// The mirror plane, and per vertex whether it is held on it (empty: none is).
+    pub plane: Option<Plane>,
+    pub on_plane: &'a [bool],
+    /// Whether held points slide along the plane (else they stay where they start).
+    pub plane_slide: bool,
     pub mean_edge_length: f32,
     pub landing_distance: f32,
 }
@@ -184,6 +192,9 @@ pub(crate) struct EnergySolver {
     unreliable: Vec<bool>,
     /// Per vertex, the factor on its data term (0: free, or stiff enough to keep the template).
     data_factors: Vec<f32>,
+    /// The mirror plane when some vertex slides on it, and per vertex whether it is held there.
+    plane: Option<Plane>,
+    on_plane: Vec<bool>,
     smoothed_normals: Vec<Vec3>,
     positions: Vec<Vec3>,
     similarities: Vec<Similarity>,
@@ -231,6 +242,14 @@ impl EnergySolver {
                     AnchorTarget::Face(face_point) => LayoutPoint::Face(face_point),
                     AnchorTarget::Space(position) => LayoutPoint::Space(position),
                 });
+            } else if inputs.on_plane.get(vertex).copied().unwrap_or(false)
+                && !inputs.plane_slide
+                && matches!(inputs.points[vertex], LayoutPoint::Face(_))
+            {
+                // Held where it starts, on the cross-section (a held space-point slides within
+                // the plane until it lands).
+                fixed[vertex] = Some(inputs.positions[vertex].as_dvec3());
+                fixed_points[vertex] = Some(inputs.points[vertex]);
             } else if let Some(position) =
                 inputs.curve_target_of_vertex.get(vertex).copied().flatten()
             {
@@ -288,6 +307,10 @@ impl EnergySolver {
             fixed_points,
             unreliable: inputs.unreliable.to_vec(),
             data_factors,
+            plane: inputs
+                .plane
+                .filter(|_| inputs.on_plane.iter().any(|&held| held)),
+            on_plane: inputs.on_plane.to_vec(),
             smoothed_normals,
             positions,
             similarities: vec![Similarity::IDENTITY; vertex_count],
@@ -385,6 +408,18 @@ impl EnergySolver {
         (points, landed)
     }
 
+    /// Moves the positions to `points` (after the caller corrected some landed points).
+    pub(crate) fn set_positions_of(&mut self, points: &[LayoutPoint], target: &TargetMesh) {
+        for (position, point) in self.positions.iter_mut().zip(points) {
+            *position = match *point {
+                LayoutPoint::Face(face_point) => {
+                    target.interpolate(face_point.triangle, face_point.barycentric)
+                }
+                LayoutPoint::Space(position) => position,
+            };
+        }
+    }
+
     /// One local–global iteration.
     ///
     /// # Errors
@@ -413,7 +448,16 @@ impl EnergySolver {
                 *correspondence = None;
             }
         }
-        let proposed = self.global_solve(&correspondences, level.data_weight)?;
+        let mut proposed = self.global_solve(&correspondences, level.data_weight)?;
+        // Held points slide within the plane: the step's part across it is dropped (a step
+        // shortened by the safeguard stays within it, between two points on it).
+        if let Some(plane) = self.plane {
+            for (position, &held) in proposed.iter_mut().zip(&self.on_plane) {
+                if held {
+                    *position = plane.project(*position);
+                }
+            }
+        }
         // Safeguard: no corner may turn over.
         let (accepted, held_back) = self.safeguard(&proposed);
         for ((held, accepted), proposed) in self.held_back.iter_mut().zip(&accepted).zip(&proposed)
@@ -732,7 +776,13 @@ impl EnergySolver {
                 } else {
                     face_normal
                 };
-                let projected = position - plane_normal * plane_normal.dot(position - hit.position);
+                let mut projected =
+                    position - plane_normal * plane_normal.dot(position - hit.position);
+                if let Some(plane) = self.plane
+                    && self.on_plane.get(vertex).copied().unwrap_or(false)
+                {
+                    projected = plane.project(projected);
+                }
                 (Some((weight, projected)), triangle)
             })
             .collect();
@@ -1100,6 +1150,7 @@ mod tests {
         rest: &[Vec3],
         anchors: &[Option<(AnchorTarget, Vec3)>],
     ) -> EnergySolver {
+        let points: Vec<LayoutPoint> = positions.iter().map(|&p| LayoutPoint::Space(p)).collect();
         EnergySolver::new(&EnergyInputs {
             target,
             structure,
@@ -1110,6 +1161,10 @@ mod tests {
             unreliable: &[],
             stiffness: &[],
             free: &[],
+            points: &points,
+            plane: None,
+            on_plane: &[],
+            plane_slide: true,
             mean_edge_length: 0.1,
             landing_distance: 0.025,
         })

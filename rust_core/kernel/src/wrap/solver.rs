@@ -762,7 +762,7 @@ impl WrapSolver {
     ///
     /// # Errors
     /// With [`SolverKind::Energy`]: [`KernelError::InvalidArgument`] when its linear system
-    /// cannot be built or factored, or a plane constraint is set (not supported by it yet); with
+    /// cannot be built or factored; with
     /// [`SolverKind::Springs`]: [`KernelError::InvalidArgument`] when vertex stiffness or free
     /// vertices are set.
     pub fn step(&mut self, iterations: usize) -> Result<StepReport, KernelError> {
@@ -780,14 +780,6 @@ impl WrapSolver {
 
     /// [`WrapSolver::step`] with the energy solver.
     fn step_energy(&mut self, iterations: usize) -> Result<StepReport, KernelError> {
-        if self.plane.is_some() {
-            return Err(KernelError::InvalidArgument {
-                name: "solver",
-                reason: "the energy solver does not hold points on a plane yet: use the spring \
-                         solver for a mirror or a held midline"
-                    .to_owned(),
-            });
-        }
         if self.energy.is_none() {
             let inputs = EnergyInputs {
                 target: &self.target,
@@ -799,25 +791,58 @@ impl WrapSolver {
                 unreliable: &self.unreliable,
                 stiffness: &self.stiffness,
                 free: &self.free,
+                points: &self.points,
+                plane: self.plane,
+                on_plane: &self.on_plane,
+                plane_slide: self.plane_slide,
                 mean_edge_length: self.mean_edge_length,
                 landing_distance: self.landing_distance,
             };
             self.energy = Some(Box::new(EnergySolver::new(&inputs)?));
         }
         let mut report = self.empty_report();
-        let energy = self.energy.as_mut().expect("made above");
+        // Taken out while it steps, so that the plane's walks can read the rest of `self`.
+        let mut energy = self.energy.take().expect("made above");
         if energy.is_finished() {
             report.converged = true;
         }
         while report.iterations < iterations && !report.converged {
-            let outcome = energy.iterate()?;
+            let outcome = match energy.iterate() {
+                Ok(outcome) => outcome,
+                Err(error) => {
+                    self.energy = Some(energy);
+                    return Err(error);
+                }
+            };
             report.iterations += 1;
             report.max_displacement = outcome.max_move / self.layout_size;
             report.mean_displacement = outcome.mean_move / self.layout_size;
             report.energy = outcome.energy;
             report.held_back = outcome.held_back;
             if outcome.finished {
-                let (points, landed) = energy.land();
+                let (mut points, landed) = energy.land();
+                // Held points end exactly on the plane: on the cross-section where they landed.
+                if let Some(plane) = self.plane {
+                    for (vertex, point) in points.iter_mut().enumerate() {
+                        if !self.on_plane.get(vertex).copied().unwrap_or(false) {
+                            continue;
+                        }
+                        *point = match *point {
+                            LayoutPoint::Face(face_point) => {
+                                match self.walk_onto_plane(&plane, face_point) {
+                                    Some((face_point, _)) => LayoutPoint::Face(face_point),
+                                    None => LayoutPoint::Space(
+                                        plane.project(energy.positions()[vertex]),
+                                    ),
+                                }
+                            }
+                            LayoutPoint::Space(position) => {
+                                LayoutPoint::Space(plane.project(position))
+                            }
+                        };
+                    }
+                    energy.set_positions_of(&points, &self.target);
+                }
                 report.folded = landed;
                 report.landed = points
                     .iter()
@@ -837,6 +862,7 @@ impl WrapSolver {
             }
             self.positions = energy.positions().to_vec();
         }
+        self.energy = Some(energy);
         self.close_report(&mut report);
         Ok(report)
     }
