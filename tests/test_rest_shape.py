@@ -103,6 +103,22 @@ def test_set_rest_shape_refuses_a_layout_with_a_nan():
     assert read_rest(layout) is None
 
 
+def test_set_rest_shape_refuses_collapsed_edges_and_the_next_wrap_still_works():
+    """A snap to the target's vertices collapses edges; taking that shape as the rest made every later wrap
+    fail ("edge ... has zero length"). Set Rest Shape refuses it, names an edge, and keeps the stored rest."""
+    _target, layout, _normal = plane_scene(subdivisions=30)
+    template = local_positions(layout).copy()
+    assert bpy.ops.springwrap.snap(mode="VERTEX") == {"FINISHED"}
+    np.testing.assert_array_equal(read_rest(layout), template)
+    before = snapshot(layout)
+    with pytest.raises(RuntimeError, match=r"edge between layout vertices \d+ and \d+ has zero length"):
+        bpy.ops.springwrap.rest_set()
+    assert snapshot(layout) == before
+    np.testing.assert_array_equal(read_rest(layout), template)
+    assert wrap_with_anchors(layout, spacing=0.5) == {"FINISHED"}
+    assert np.isfinite(local_positions(layout)).all()
+
+
 def test_a_layout_snapped_to_coincident_points_wraps_from_its_stored_rest():
     """Snapping to target vertices puts many layout vertices at one place (zero-length edges now): the wrap
     takes the stored template as its rest shape, separates them again and writes finite positions."""

@@ -62,6 +62,30 @@ def check_finite(layout: LayoutArrays, mask: np.ndarray) -> None:
         )
 
 
+COLLAPSED_EDGE = 1e-6
+"""An edge shorter than this fraction of the layout's mean edge length has collapsed (a rest shape refuses it)."""
+
+
+def check_rest_edges(positions: np.ndarray, edges: np.ndarray) -> None:
+    """Raise :class:`~.layout_state.LayoutError` when an edge of ``positions`` has collapsed to (nearly) zero
+    length: a rest shape must give every edge a length, or the wrap cannot keep it (a snap to the target's
+    vertices or closed lips put two vertices on one point)."""
+    edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    if edges.size == 0:
+        return
+    positions = np.asarray(positions, dtype=np.float64)
+    lengths = np.linalg.norm(positions[edges[:, 0]] - positions[edges[:, 1]], axis=1)
+    positive = lengths[lengths > 0.0]
+    limit = COLLAPSED_EDGE * float(positive.mean()) if positive.size else 0.0
+    collapsed = np.flatnonzero(lengths <= limit)
+    if collapsed.size:
+        a, b = (int(vertex) for vertex in edges[collapsed[0]])
+        raise layout_state.LayoutError(
+            f"The edge between layout vertices {a} and {b} has zero length ({collapsed.size} such edges, e.g. "
+            "where a snap put two vertices on one point): move them apart, or set the rest shape before snapping"
+        )
+
+
 def resolve_topology(
     layout: LayoutArrays, target: Target, stored_signature: str
 ) -> layout_state.Resolution:

@@ -316,6 +316,7 @@ class SPRINGWRAP_OT_rest_set(LayoutCollectionOperator, bpy.types.Operator):
 
         arrays = bridge.read_layout(layout)
         operations.check_finite(arrays, np.ones(arrays.positions.shape[0], dtype=bool))
+        operations.check_rest_edges(arrays.positions, bridge.read_layout_topology(layout).edges)
         bridge.write_rest(layout, arrays.positions)
         layout.data.update()
         return [({"INFO"}, f"Rest shape of '{layout.name}' set from its {arrays.positions.shape[0]} vertices")]
