@@ -92,3 +92,17 @@ def test_undo_after_an_energy_wrap_restores_the_template():
     assert snapshot(bpy.data.objects["Layout"]) != before
     bpy.ops.ed.undo()
     assert snapshot(bpy.data.objects["Layout"]) == before
+
+
+def test_the_report_says_what_each_solver_did(capfd):
+    target, layout, _normal = plane_scene()
+    bpy.ops.springwrap.anchors_auto(spacing=0.5)
+    capfd.readouterr()
+    assert bpy.ops.springwrap.wrap(solver="SPRINGS") == {"FINISHED"}
+    springs = capfd.readouterr().out
+    assert "landed on anchors or curves" in springs and "fold tolerance" in springs, springs
+    assert bpy.ops.springwrap.detach() == {"FINISHED"}
+    capfd.readouterr()
+    assert bpy.ops.springwrap.wrap(solver="ENERGY") == {"FINISHED"}
+    energy = capfd.readouterr().out
+    assert "landed at the end" in energy and "held back" in energy and "fold tolerance" not in energy, energy

@@ -16,6 +16,7 @@ step, write frames, finish, cancel) and :class:`WrapLoop` (the modal's state mac
 operator results out), so tests drive them directly.
 """
 
+import math
 import time
 from typing import Callable, NamedTuple, Optional
 
@@ -89,9 +90,12 @@ class WrapResult(NamedTuple):
     frames: int  # frames written while it ran (0 when it ran at once)
     face_points: int
     space_points: int
-    landed: int
-    folded: int
+    landed: int  # points that landed on their anchors or curve constraints (spring solver)
+    folded: int  # points that folded onto the surface (spring solver) or landed at the end (energy solver)
     lifted: int
+    solver: str  # 'SPRINGS' or 'ENERGY'
+    fold_tolerance: float  # the annealed folding tolerance at the end, radians (spring solver)
+    held_back: int  # points whose last step was shortened so that no face turned (energy solver)
     anchor_count: int
     unreliable_triangles: int
     topology_detached_count: int  # face-points whose target face was gone, made space-points
@@ -101,10 +105,16 @@ class WrapResult(NamedTuple):
     def summary(self) -> str:
         """One line: iterations, time, face / space points and what changed state."""
         ending = "converged" if self.converged else "stopped at the iteration limit"
+        if self.solver == "ENERGY":
+            details = f"{self.folded} landed at the end, {self.held_back} held back by the last step"
+        else:
+            details = (
+                f"{self.landed} landed on anchors or curves, {self.folded} folded, {self.lifted} lifted off borders; "
+                f"fold tolerance {math.degrees(self.fold_tolerance):.1f}°"
+            )
         return (
             f"Wrapped '{self.layout_name}' in {self.iterations} iterations ({ending}), {self.seconds:.2f} s: "
-            f"{self.face_points} face-points, {self.space_points} space-points "
-            f"({self.landed} landed on anchors, {self.folded} folded, {self.lifted} lifted off borders)"
+            f"{self.face_points} face-points, {self.space_points} space-points ({details})"
         )
 
 
@@ -296,6 +306,9 @@ class WrapSession:
             landed=self.events["landed"],
             folded=self.events["folded"],
             lifted=self.events["lifted"],
+            solver=self.parameters.solver,
+            fold_tolerance=float(report.fold_tolerance),
+            held_back=int(report.held_back),
             anchor_count=int(self.anchors.vertex_indices.shape[0]),
             unreliable_triangles=self.unreliable_count,
             topology_detached_count=detached,
