@@ -174,7 +174,7 @@ WRAP_SOLVER_ITEMS = (
     ("SPRINGS", "Springs", "The paper's force iteration: springs relaxed step by step, points folding onto the "
      "surface one ring at a time"),
     ("ENERGY", "Energy", "One energy minimised by a global solve: a body in a few dozen iterations, no layout face "
-     "turned over by a step (the mirror's own wrap still uses Springs)"),
+     "turned over by a step"),
 )
 """The wrap's algorithms (``springwrap_kernel.WrapSolver(solver=...)``)."""
 
@@ -196,7 +196,7 @@ class SpringwrapObjectSettings(bpy.types.PropertyGroup):
     )
     wrap_solver: bpy.props.EnumProperty(
         name="Solver",
-        description="Algorithm of the panel's Wrap button",
+        description="Algorithm of the panel's Wrap and Mirror buttons",
         items=WRAP_SOLVER_ITEMS,
         default="SPRINGS",
     )

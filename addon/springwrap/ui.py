@@ -238,6 +238,7 @@ class SPRINGWRAP_PT_wrap(_LayoutSubPanel, bpy.types.Panel):
         box = layout.box()
         box.prop(settings, "mirror_object")
         mirror = box.operator("springwrap.mirror", icon="MOD_MIRROR")
+        mirror.solver = settings.wrap_solver
         mirror.mirror_object = settings.mirror_object.name if settings.mirror_object is not None else ""
 
 
