@@ -63,6 +63,16 @@ class RetargetError(Exception):
     """A problem with the input or the run: the message is the one line printed, naming the file."""
 
 
+def wrap_settings(arguments: argparse.Namespace):
+    """The ``springwrap_kernel.WrapSettings`` of --tolerance, --fairness, --arc-length, --thin-plate and --solver
+    (checked by the kernel: ``springwrap_kernel.InvalidArgumentError`` names a value out of its range)."""
+    import springwrap_kernel
+
+    return springwrap_kernel.WrapSettings(
+        tolerance=arguments.tolerance, fairness=arguments.fairness, arc_length=arguments.arc_length,
+        thin_plate=arguments.thin_plate, solver=arguments.solver.upper())
+
+
 def parse_arguments(argv: list[str]) -> argparse.Namespace:
     """Parse the script's own arguments (see the module docstring); exits with code 2 when they are wrong."""
     parser = argparse.ArgumentParser(prog="retarget.py", description=__doc__.splitlines()[0])
@@ -374,10 +384,9 @@ def retarget(arguments: argparse.Namespace) -> dict:
         warnings.append("no anchors: the wrap is pulled by folding alone")
     lap("anchors")
 
-    parameters = operations.WrapParameters(max_iterations=arguments.max_iterations, tolerance=arguments.tolerance,
-                                           fairness=arguments.fairness, arc_length=arguments.arc_length,
-                                           thin_plate=arguments.thin_plate, solver=arguments.solver.upper())
     try:
+        parameters = operations.WrapParameters(max_iterations=arguments.max_iterations,
+                                               settings=wrap_settings(arguments))
         session = wrap_operator.WrapSession(bpy.context, layout, parameters)
     except bridge.ERRORS as error:
         raise RetargetError(f"{blame}: cannot wrap: {error}") from None

@@ -22,7 +22,7 @@ from typing import Callable, NamedTuple, Optional
 import bpy
 
 from .operators import layout_problem
-from .properties import WRAP_SOLVER_ITEMS, max_iterations_property, tolerance_property
+from .properties import WRAP_DEFAULTS, WRAP_SOLVER_ITEMS, max_iterations_property, tolerance_property
 
 FRAME_RATE = 30.0
 """Redraws per second the modal wrap aims for."""
@@ -463,20 +463,18 @@ class SPRINGWRAP_OT_wrap(bpy.types.Operator):
         return True
 
     def parameters(self):
-        """The operator's properties as ``operations.WrapParameters``."""
+        """The operator's properties as ``operations.WrapParameters``.
+
+        The kernel checks the settings here: a value out of its range raises
+        ``springwrap_kernel.InvalidArgumentError`` naming it.
+        """
         from .operations import WrapParameters
 
+        names = ("tolerance", "fairness", "arc_length", "thin_plate", "constraint", "folding", "rest", "solver")
         return WrapParameters(
             max_iterations=self.max_iterations,
-            tolerance=self.tolerance,
-            fairness=self.fairness,
-            arc_length=self.arc_length,
-            thin_plate=self.thin_plate,
-            constraint=self.constraint,
-            folding=self.folding,
-            rest=self.rest,
+            settings=WRAP_DEFAULTS.replace(**{name: getattr(self, name) for name in names}),
             spring_resolution=self.spring_resolution,
-            solver=self.solver,
         )
 
     def _plane_holder(self, layout):

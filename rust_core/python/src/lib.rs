@@ -11,6 +11,7 @@ mod features;
 mod layout;
 mod target_mesh;
 mod wrap;
+mod wrap_settings;
 
 use pyo3::prelude::*;
 
@@ -20,6 +21,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_class::<target_mesh::PyTargetMesh>()?;
     m.add_class::<layout::PyLayoutStructure>()?;
+    m.add_class::<wrap_settings::PyWrapSettings>()?;
     m.add_class::<wrap::PyWrapSolver>()?;
     m.add_function(wrap_pyfunction!(align::fit_transform_py, m)?)?;
     errors::register(m)?;

@@ -6,14 +6,15 @@ use glam::Vec3;
 use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
 use springwrap_kernel::{
-    Anchor, AnchorTarget, CurveConstraint, FacePoint, LayoutPoint, PlaneConstraint, SolverKind,
-    SpringRest, WrapSettings, WrapSolver, WrapWeights,
+    Anchor, AnchorTarget, CurveConstraint, FacePoint, LayoutPoint, PlaneConstraint, WrapSettings,
+    WrapSolver,
 };
 
 use crate::arrays::{read_array, read_positions, rows_array};
-use crate::errors::{ArrayError, IndexOutOfRangeError, InvalidArgumentError, run_kernel};
+use crate::errors::{ArrayError, IndexOutOfRangeError, run_kernel};
 use crate::layout::PyLayoutStructure;
 use crate::target_mesh::PyTargetMesh;
+use crate::wrap_settings::PyWrapSettings;
 
 /// Per-vertex state arrays: (states, triangles, barycentrics).
 type StateArrays<'py> = (
@@ -22,7 +23,9 @@ type StateArrays<'py> = (
     Bound<'py, PyArray2<f32>>,
 );
 
-/// A wrap in progress: call `step(n)` repeatedly, read `positions()` and `states()`.
+/// A wrap in progress: call `step(n)` repeatedly, read `positions()` and `states()`; its
+/// weights, tolerance, rest shape and solver are one `WrapSettings` (the kernel's defaults when
+/// none is given).
 #[pyclass(name = "WrapSolver", module = "springwrap_kernel", subclass)]
 pub(crate) struct PyWrapSolver {
     solver: WrapSolver,
@@ -35,11 +38,9 @@ impl PyWrapSolver {
         target, structure, states, triangles, barycentrics, positions, *,
         anchor_vertices = None, anchor_triangles = None, anchor_barycentrics = None,
         anchor_positions = None, unreliable_triangles = None, curve_vertices = None,
-        curve_vertex_counts = None, curve_points = None, curve_point_counts = None, fairness = 0.5, arc_length = 0.5, thin_plate = 0.2,
-        constraint = 0.5, folding = 0.3, tolerance = 1e-5, landing_distance = 0.25,
-        fold_tolerance = 0.17453292, momentum = 0.9, rest = "TEMPLATE", rest_positions = None,
-        plane_vertices = None, plane_point = None, plane_normal = None, plane_slide = true,
-        solver = "SPRINGS"
+        curve_vertex_counts = None, curve_points = None, curve_point_counts = None,
+        rest_positions = None, plane_vertices = None, plane_point = None, plane_normal = None,
+        plane_slide = true, settings = None
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -59,32 +60,15 @@ impl PyWrapSolver {
         curve_vertex_counts: Option<&Bound<'_, PyAny>>,
         curve_points: Option<&Bound<'_, PyAny>>,
         curve_point_counts: Option<&Bound<'_, PyAny>>,
-        fairness: f32,
-        arc_length: f32,
-        thin_plate: f32,
-        constraint: f32,
-        folding: f32,
-        tolerance: f32,
-        landing_distance: f32,
-        fold_tolerance: f32,
-        momentum: f32,
-        rest: &str,
         rest_positions: Option<&Bound<'_, PyAny>>,
         plane_vertices: Option<&Bound<'_, PyAny>>,
         plane_point: Option<[f32; 3]>,
         plane_normal: Option<[f32; 3]>,
         plane_slide: bool,
-        solver: &str,
+        settings: Option<&Bound<'_, PyWrapSettings>>,
     ) -> PyResult<Self> {
-        let solver_kind = match solver {
-            "SPRINGS" => SolverKind::Springs,
-            "ENERGY" => SolverKind::Energy,
-            other => {
-                return Err(InvalidArgumentError::new_err(format!(
-                    "invalid solver: {other:?} is not 'SPRINGS' or 'ENERGY'"
-                )));
-            }
-        };
+        let settings =
+            settings.map_or_else(WrapSettings::default, |settings| settings.get().settings);
         let plane = read_plane_constraint(plane_vertices, plane_point, plane_normal, plane_slide)?;
         let states = read_array::<i32>("states", states, None)?;
         let triangles = read_array::<i32>("triangles", triangles, None)?;
@@ -103,15 +87,6 @@ impl PyWrapSolver {
             }
         }
         let points = layout_points(&states, &triangles, &barycentrics, &positions)?;
-        let rest = match rest {
-            "TEMPLATE" => SpringRest::Template,
-            "EVEN" => SpringRest::Even,
-            other => {
-                return Err(InvalidArgumentError::new_err(format!(
-                    "invalid rest: {other:?} is not 'TEMPLATE' or 'EVEN'"
-                )));
-            }
-        };
         let rest_positions = rest_positions
             .map(|array| read_positions("rest_positions", array))
             .transpose()?;
@@ -121,21 +96,6 @@ impl PyWrapSolver {
             anchor_barycentrics,
             anchor_positions,
         )?;
-        let settings = WrapSettings {
-            weights: WrapWeights {
-                fairness,
-                arc_length,
-                thin_plate,
-                constraint,
-                folding,
-            },
-            tolerance,
-            landing_distance,
-            fold_tolerance,
-            momentum,
-            rest,
-            solver: solver_kind,
-        };
         let curves = read_curve_constraints(
             curve_vertices,
             curve_vertex_counts,
@@ -213,6 +173,14 @@ impl PyWrapSolver {
             report.energy,
             report.held_back,
         ))
+    }
+
+    /// The settings the wrap runs with (a `WrapSettings`).
+    #[getter]
+    fn settings(&self) -> PyWrapSettings {
+        PyWrapSettings {
+            settings: *self.solver.settings(),
+        }
     }
 
     /// (N, 3) float32 positions of the layout points.
