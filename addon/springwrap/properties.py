@@ -52,7 +52,12 @@ def tolerance_property(
 ):
     """The wrap's convergence tolerance: shared by the operators that wrap (wrap, mirror)."""
     return bpy.props.FloatProperty(
-        name="Tolerance", description=description, default=1e-5, soft_min=1e-7, soft_max=1e-2, precision=7
+        name="Tolerance",
+        description=description,
+        default=WRAP_DEFAULTS.tolerance,
+        soft_min=1e-7,
+        soft_max=1e-2,
+        precision=7,
     )
 
 
@@ -218,7 +223,7 @@ class SpringwrapObjectSettings(bpy.types.PropertyGroup):
         name="Solver",
         description="Algorithm of the panel's Wrap button",
         items=WRAP_SOLVER_ITEMS,
-        default="SPRINGS",
+        default=WRAP_DEFAULTS.solver,
     )
     snap_mode: bpy.props.EnumProperty(
         name="Snap Mode",

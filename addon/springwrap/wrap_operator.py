@@ -385,35 +385,35 @@ class SPRINGWRAP_OT_wrap(bpy.types.Operator):
     fairness: bpy.props.FloatProperty(
         name="Fairness",
         description="Straightens the layout's grid lines (paper's alpha), 0 to 1",
-        default=0.5,
+        default=WRAP_DEFAULTS.fairness,
         soft_min=0.0,
         soft_max=1.0,
     )
     arc_length: bpy.props.FloatProperty(
         name="Arc Length",
         description="Evens the spacing along the grid lines (paper's beta), 0 to 1",
-        default=0.5,
+        default=WRAP_DEFAULTS.arc_length,
         soft_min=0.0,
         soft_max=1.0,
     )
     thin_plate: bpy.props.FloatProperty(
         name="Thin Plate",
         description="Space-points continue the curvature of the surface around them (over holes), 0 to 0.5",
-        default=0.2,
+        default=WRAP_DEFAULTS.thin_plate,
         soft_min=0.0,
         soft_max=0.5,
     )
     constraint: bpy.props.FloatProperty(
         name="Constraint",
         description="Pull of anchored points toward their targets, 0 to 1",
-        default=0.5,
+        default=WRAP_DEFAULTS.constraint,
         soft_min=0.0,
         soft_max=1.0,
     )
     folding: bpy.props.FloatProperty(
         name="Folding",
         description="Pull of space-points next to face-points onto the surface, 0 to 1",
-        default=0.3,
+        default=WRAP_DEFAULTS.folding,
         soft_min=0.0,
         soft_max=1.0,
     )
@@ -425,13 +425,13 @@ class SPRINGWRAP_OT_wrap(bpy.types.Operator):
              "projection or wrap, or as set by Set Rest Shape)"),
             ("EVEN", "Even", "Straight, evenly spaced grid lines (Krishnamurthy & Levoy's springs)"),
         ),
-        default="TEMPLATE",
+        default=WRAP_DEFAULTS.rest,
     )
     solver: bpy.props.EnumProperty(
         name="Solver",
         description="The wrap's algorithm",
         items=WRAP_SOLVER_ITEMS,
-        default="SPRINGS",
+        default=WRAP_DEFAULTS.solver,
     )
     spring_resolution: bpy.props.IntProperty(
         name="Spring Resolution",
