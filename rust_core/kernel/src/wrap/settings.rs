@@ -209,8 +209,10 @@ mod tests {
 
     #[test]
     fn a_zero_tolerance_is_refused_but_any_other_bound_is_allowed() {
-        let mut settings = WrapSettings::default();
-        settings.tolerance = 0.0;
+        let mut settings = WrapSettings {
+            tolerance: 0.0,
+            ..WrapSettings::default()
+        };
         assert_eq!(
             message(settings),
             "invalid tolerance: the tolerance must be within (0, 1], not 0"
