@@ -3,8 +3,8 @@
 For each retargeting case (``benchmarks/retarget/cases.py``): the template aligned to the anchors
 (Umeyama, as the retarget benchmark's ``aligned template``), the anchors as face-points at the
 closest target point to their truth, then a ``springwrap_kernel.WrapSolver`` with
-``solver="SPRINGS"`` (the paper's force iteration) and ``solver="ENERGY"`` (one energy, local–global
-steps, no face turned over). Per solver: mean / p95 / max error (% of the truth's diagonal), flipped
+``WrapSettings(solver="SPRINGS")`` (the paper's force iteration) and ``WrapSettings(solver="ENERGY")``
+(one energy, local–global steps, no face turned over), the kernel's defaults otherwise. Per solver: mean / p95 / max error (% of the truth's diagonal), flipped
 quads and how many were added over the aligned template, vertices off the surface where the surface
 exists (farther than 0.1 % of the diagonal), iterations and seconds. ``--nricp`` adds trimesh's
 ``nricp_amberg`` on the same aligned template and anchors in the same run (``benchmarks/requirements.txt``).
@@ -95,7 +95,7 @@ def wrap_case(case, anchor_count: int, solver: str, max_iterations: int) -> dict
         np.zeros((count, 3), np.float32), np.ascontiguousarray(aligned),
         anchor_vertices=np.ascontiguousarray(landmark_vertices, dtype=np.uint32),
         anchor_triangles=hits.triangles, anchor_barycentrics=hits.barycentrics,
-        anchor_positions=hits.positions, solver=solver,
+        anchor_positions=hits.positions, settings=kernel.WrapSettings(solver=solver),
     )
     report = solver_object.step(max_iterations)
     seconds = time.perf_counter() - start

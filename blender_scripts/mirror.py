@@ -35,6 +35,7 @@ from retarget import (  # noqa: E402
     RetargetError,
     distances_to_target,
     enable_addon,
+    kernel_wrap_defaults,
     load_mesh,
     run_operator,
     write_outputs,
@@ -46,6 +47,7 @@ EXIT_FAILED, EXIT_USAGE = 1, 2
 
 def parse_arguments(argv: list[str]) -> argparse.Namespace:
     """Parse the script's own arguments (see the module docstring); exits with code 2 when they are wrong."""
+    defaults = kernel_wrap_defaults()
     parser = argparse.ArgumentParser(prog="mirror.py", description=__doc__.splitlines()[0])
     parser.add_argument("--layout", type=Path, required=True, help="the layout: mesh file or .blend")
     parser.add_argument("--layout-object", help="the layout's object in a .blend")
@@ -62,13 +64,18 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("--no-wrap", action="store_true", help="only mirror")
     parser.add_argument("--snap", action="store_true", help="snap the layout onto the target first")
     parser.add_argument("--max-iterations", type=int, default=2000, help="wrap iteration limit (default 2000)")
-    parser.add_argument("--tolerance", type=float, default=1e-5, help="convergence, fraction of the layout's size")
+    parser.add_argument("--tolerance", type=float, default=defaults.tolerance,
+                        help="convergence, fraction of the layout's size (default %(default)s)")
     parser.add_argument("--output-blend", type=Path, help="save layout, target and result here")
     parser.add_argument("--output-obj", type=Path, help="export the mirrored layout here")
     parser.add_argument("--report", type=Path, help="write the JSON report here")
     arguments = parser.parse_args(script_arguments(argv, __file__))
     if arguments.max_iterations < 1:
         parser.error("--max-iterations must be at least 1")
+    try:
+        defaults.replace(tolerance=arguments.tolerance)
+    except ValueError as error:  # springwrap_kernel.InvalidArgumentError
+        parser.error(str(error))
     if not arguments.weld_distance > 0:
         parser.error("--weld-distance must be positive")
     if arguments.target is None and not arguments.no_wrap:
@@ -147,8 +154,8 @@ def mirror(arguments: argparse.Namespace) -> dict:
 
 
 def main() -> int:
-    arguments = parse_arguments(sys.argv)
     try:
+        arguments = parse_arguments(sys.argv)  # reads the kernel's defaults: RetargetError without the add-on
         report = mirror(arguments)
     except RetargetError as error:
         print(f"mirror: FAILED: {error}", file=sys.stderr)

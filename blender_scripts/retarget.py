@@ -63,8 +63,33 @@ class RetargetError(Exception):
     """A problem with the input or the run: the message is the one line printed, naming the file."""
 
 
+def kernel_wrap_defaults():
+    """``springwrap_kernel.WrapSettings()``: the wrap's defaults, defined once, in the kernel.
+
+    The kernel comes with the add-on (the legacy zip carries it in the add-on's folder), so the
+    add-on is enabled first when the kernel cannot be imported by itself.
+    """
+    try:
+        import springwrap_kernel
+    except ImportError:
+        enable_addon()
+        import springwrap_kernel
+    return springwrap_kernel.WrapSettings()
+
+
+def wrap_settings(arguments: argparse.Namespace):
+    """The ``springwrap_kernel.WrapSettings`` of --tolerance, --fairness, --arc-length, --thin-plate and --solver
+    (checked by the kernel: ``springwrap_kernel.InvalidArgumentError`` names a value out of its range)."""
+    import springwrap_kernel
+
+    return springwrap_kernel.WrapSettings(
+        tolerance=arguments.tolerance, fairness=arguments.fairness, arc_length=arguments.arc_length,
+        thin_plate=arguments.thin_plate, solver=arguments.solver.upper())
+
+
 def parse_arguments(argv: list[str]) -> argparse.Namespace:
     """Parse the script's own arguments (see the module docstring); exits with code 2 when they are wrong."""
+    defaults = kernel_wrap_defaults()
     parser = argparse.ArgumentParser(prog="retarget.py", description=__doc__.splitlines()[0])
     parser.add_argument("--template", type=Path, required=True, help="the template layout: mesh file or .blend")
     parser.add_argument("--template-object", help="the template's object in a .blend")
@@ -81,12 +106,18 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("--align-method", choices=("rigid", "similarity", "affine"), default="similarity",
                         help="transform of --align icp / anchors (default similarity; ICP alone: rigid or similarity)")
     parser.add_argument("--max-iterations", type=int, default=2000, help="wrap iteration limit (default 2000)")
-    parser.add_argument("--tolerance", type=float, default=1e-5, help="convergence, fraction of the layout's size")
-    parser.add_argument("--fairness", type=float, default=0.5, help="straight grid lines, 0 to 1")
-    parser.add_argument("--arc-length", type=float, default=0.5, help="even spacing along grid lines, 0 to 1")
-    parser.add_argument("--thin-plate", type=float, default=0.2, help="curvature over holes, 0 to 0.5")
-    parser.add_argument("--solver", choices=("springs", "energy"), default="springs",
-                        help="the wrap's algorithm: the paper's force iteration, or one energy by a global solve")
+    # The wrap's settings: their defaults are the kernel's.
+    parser.add_argument("--tolerance", type=float, default=defaults.tolerance,
+                        help="convergence, fraction of the layout's size (default %(default)s)")
+    parser.add_argument("--fairness", type=float, default=defaults.fairness,
+                        help="straight grid lines, 0 to 1 (default %(default)s)")
+    parser.add_argument("--arc-length", type=float, default=defaults.arc_length,
+                        help="even spacing along grid lines, 0 to 1 (default %(default)s)")
+    parser.add_argument("--thin-plate", type=float, default=defaults.thin_plate,
+                        help="curvature over holes, 0 to 0.5 (default %(default)s)")
+    parser.add_argument("--solver", choices=("springs", "energy"), default=defaults.solver.lower(),
+                        help="the wrap's algorithm: the paper's force iteration, or one energy by a global solve "
+                        "(default %(default)s)")
     parser.add_argument("--output-blend", type=Path, help="save template, target and result here")
     parser.add_argument("--output-obj", type=Path, help="export the retargeted layout here")
     parser.add_argument("--report", type=Path, help="write the JSON report here")
@@ -101,6 +132,10 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     arguments = parser.parse_args(script_arguments(argv, __file__))
     if arguments.max_iterations < 1:
         parser.error("--max-iterations must be at least 1")
+    try:
+        wrap_settings(arguments)
+    except ValueError as error:  # springwrap_kernel.InvalidArgumentError
+        parser.error(str(error))
     if arguments.anchors_spacing is not None and arguments.anchors_spacing < 0:
         parser.error("--anchors-spacing must not be negative")
     if arguments.jobs is not None and arguments.jobs < 1:
@@ -374,10 +409,9 @@ def retarget(arguments: argparse.Namespace) -> dict:
         warnings.append("no anchors: the wrap is pulled by folding alone")
     lap("anchors")
 
-    parameters = operations.WrapParameters(max_iterations=arguments.max_iterations, tolerance=arguments.tolerance,
-                                           fairness=arguments.fairness, arc_length=arguments.arc_length,
-                                           thin_plate=arguments.thin_plate, solver=arguments.solver.upper())
     try:
+        parameters = operations.WrapParameters(max_iterations=arguments.max_iterations,
+                                               settings=wrap_settings(arguments))
         session = wrap_operator.WrapSession(bpy.context, layout, parameters)
     except bridge.ERRORS as error:
         raise RetargetError(f"{blame}: cannot wrap: {error}") from None
@@ -613,8 +647,8 @@ def main() -> int:
 
         sys.modules.setdefault("retarget", sys.modules[__name__])  # BatchWorker imports this very module
         return retarget_batch.serve()
-    arguments = parse_arguments(sys.argv)
     try:
+        arguments = parse_arguments(sys.argv)  # reads the kernel's defaults: RetargetError without the add-on
         if arguments.batch is not None:
             return run_batch(arguments)
         report = retarget(arguments)

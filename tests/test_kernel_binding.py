@@ -241,3 +241,28 @@ def test_type_stubs_match_the_module():
     runtime_methods = {name for name in dir(sk.TargetMesh) if not name.startswith("_")}
     assert stub_methods == runtime_methods
     assert (stub.parent / "py.typed").exists()
+
+
+def test_the_stubs_wrap_settings_defaults_are_the_kernels():
+    """The stub's ``WrapSettings(...)`` defaults (all a reader or an IDE sees) are the kernel's ``WrapSettings()``."""
+    import ast
+    from pathlib import Path
+
+    tree = ast.parse(Path(sk.__file__).with_name("__init__.pyi").read_text())
+    stub_class = next(node for node in tree.body if isinstance(node, ast.ClassDef) and node.name == "WrapSettings")
+    init = next(node for node in stub_class.body if isinstance(node, ast.FunctionDef) and node.name == "__init__")
+    stub_defaults = {argument.arg: ast.literal_eval(default)
+                     for argument, default in zip(init.args.kwonlyargs, init.args.kw_defaults)}
+    kernel = sk.WrapSettings().to_dict()
+    assert list(stub_defaults) == list(kernel)
+    for name, value in kernel.items():
+        stub_value = stub_defaults[name]
+        if isinstance(value, str):
+            assert stub_value == value, name
+        else:  # float32 inside the kernel: the stub's number must give the same float32
+            assert np.float32(stub_value) == np.float32(value), name
+    stub_properties = {node.name for node in stub_class.body if isinstance(node, ast.FunctionDef)} - {"__init__"}
+    assert stub_properties == {name for name in dir(sk.WrapSettings) if not name.startswith("_")}
+    solver_class = next(node for node in tree.body if isinstance(node, ast.ClassDef) and node.name == "WrapSolver")
+    solver_init = next(node for node in solver_class.body if isinstance(node, ast.FunctionDef) and node.name == "__init__")
+    assert not set(kernel) & {argument.arg for argument in solver_init.args.kwonlyargs}, "settings go in WrapSettings"

@@ -208,10 +208,8 @@ def test_wrap_operator_panel_and_setting_are_registered():
     assert bpy.types.SPRINGWRAP_OT_wrap.bl_options == {"REGISTER", "UNDO"}
     properties = rna.properties
     assert properties["max_iterations"].default == 2000
-    assert properties["tolerance"].default == pytest.approx(1e-5)
-    defaults = {"fairness": 0.5, "arc_length": 0.5, "thin_plate": 0.2, "constraint": 0.5, "folding": 0.3}
-    for name, default in defaults.items():
-        assert properties[name].default == pytest.approx(default)
+    for name in ("tolerance", "fairness", "arc_length", "thin_plate", "constraint", "folding", "rest", "solver"):
+        assert name in properties  # their defaults are the kernel's: test_addon_wrap_defaults
     assert "only_selected" not in properties
     settings = bpy.types.Object.bl_rna.properties["springwrap"].fixed_type
     assert settings.properties["unreliable_group"].type == "STRING"

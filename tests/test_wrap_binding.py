@@ -28,14 +28,14 @@ def quad_layout(n=12, size=0.05, height=0.25):
     return positions.astype(np.float32), face_corners, np.full(n * n, 4, np.uint32)
 
 
-def make_solver(target, positions, structure, anchor_vertices, **weights):
+def make_solver(target, positions, structure, anchor_vertices, **arguments):
     below = np.ascontiguousarray(positions[anchor_vertices] * [1, 1, 0], dtype=np.float32)
     hits = target.closest_points(below)
     count = len(positions)
     return sk.WrapSolver(
         target, structure, np.zeros(count, np.int32), np.full(count, -1, np.int32), np.zeros((count, 3), np.float32),
         positions, anchor_vertices=np.asarray(anchor_vertices, np.uint32), anchor_triangles=hits.triangles,
-        anchor_barycentrics=hits.barycentrics, anchor_positions=hits.positions, **weights,
+        anchor_barycentrics=hits.barycentrics, anchor_positions=hits.positions, **arguments,
     ), hits
 
 
@@ -78,8 +78,10 @@ def test_bad_wrap_inputs_raise_named_errors():
     barycentrics = np.zeros((count, 3), np.float32)
     with pytest.raises(sk.ArrayError, match="one per layout vertex"):
         sk.WrapSolver(target, structure, states[:3], triangles, barycentrics, positions)
-    with pytest.raises(sk.InvalidArgumentError, match="fairness"):
-        sk.WrapSolver(target, structure, states, triangles, barycentrics, positions, fairness=float("nan"))
+    with pytest.raises(TypeError, match="fairness"):  # a setting belongs in WrapSettings
+        sk.WrapSolver(target, structure, states, triangles, barycentrics, positions, fairness=0.5)
+    with pytest.raises(TypeError, match="WrapSettings"):
+        sk.WrapSolver(target, structure, states, triangles, barycentrics, positions, settings={"fairness": 0.5})
     collapsed = positions.copy()
     collapsed[1] = collapsed[0]
     with pytest.raises(sk.InvalidArgumentError, match="zero length"):
@@ -88,8 +90,6 @@ def test_bad_wrap_inputs_raise_named_errors():
     sk.WrapSolver(target, structure, states, triangles, barycentrics, collapsed, rest_positions=positions)
     with pytest.raises(sk.InvalidArgumentError, match="rest positions and layout vertices"):
         sk.WrapSolver(target, structure, states, triangles, barycentrics, positions, rest_positions=positions[:3])
-    with pytest.raises(sk.InvalidArgumentError, match="'TEMPLATE' or 'EVEN'"):
-        sk.WrapSolver(target, structure, states, triangles, barycentrics, positions, rest="SOFT")
     with pytest.raises(sk.InvalidArgumentError, match="vertex 99"):
         sk.WrapSolver(target, structure, states, triangles, barycentrics, positions,
                       anchor_vertices=np.array([99], np.uint32), anchor_triangles=np.array([-1], np.int32),
@@ -102,3 +102,82 @@ def test_bad_wrap_inputs_raise_named_errors():
                       unreliable_triangles=np.zeros(3, bool))
     with pytest.raises(sk.IndexOutOfRangeError, match="layout face 0"):
         sk.LayoutStructure(3, np.array([0, 1, 7], np.uint32), np.array([3], np.uint32))
+
+
+# ---------------------------------------------------------------- WrapSettings
+
+SETTING_NAMES = ["fairness", "arc_length", "thin_plate", "constraint", "folding", "tolerance", "landing_distance",
+                 "fold_tolerance", "momentum", "rest", "solver"]
+
+
+def test_wrap_settings_hold_the_kernels_defaults_and_read_every_field():
+    settings = sk.WrapSettings()
+    assert list(settings.to_dict()) == SETTING_NAMES
+    assert settings.to_dict() == {name: getattr(settings, name) for name in SETTING_NAMES}
+    # The kernel's WrapSettings::default(), as the shortest decimal of each float32.
+    assert settings.to_dict() == {
+        "fairness": 0.5, "arc_length": 0.5, "thin_plate": 0.2, "constraint": 0.5, "folding": 0.3, "tolerance": 1e-5,
+        "landing_distance": 0.25, "fold_tolerance": 0.17453292, "momentum": 0.9, "rest": "TEMPLATE",
+        "solver": "SPRINGS",
+    }
+    assert np.float32(settings.fold_tolerance) == np.float32(np.radians(10))
+    assert repr(settings) == (
+        "WrapSettings(fairness=0.5, arc_length=0.5, thin_plate=0.2, constraint=0.5, folding=0.3, tolerance=1e-05, "
+        "landing_distance=0.25, fold_tolerance=0.17453292, momentum=0.9, rest='TEMPLATE', solver='SPRINGS')"
+    )
+
+
+def test_wrap_settings_take_keywords_compare_by_value_and_are_immutable():
+    settings = sk.WrapSettings(fairness=0.25, thin_plate=0.1, rest="EVEN", solver="ENERGY")
+    assert (settings.fairness, settings.thin_plate, settings.rest, settings.solver) == (0.25, 0.1, "EVEN", "ENERGY")
+    assert settings.arc_length == sk.WrapSettings().arc_length
+    assert settings == sk.WrapSettings(solver="ENERGY", rest="EVEN", thin_plate=0.1, fairness=0.25)
+    assert settings != sk.WrapSettings() and sk.WrapSettings() == sk.WrapSettings()
+    assert eval(repr(settings), {"WrapSettings": sk.WrapSettings}) == settings
+    changed = settings.replace(momentum=0.5)
+    assert changed.momentum == 0.5 and changed.replace(momentum=settings.momentum) == settings
+    assert settings.momentum == sk.WrapSettings().momentum  # replace made a copy
+    with pytest.raises(AttributeError):
+        settings.fairness = 0.3
+    with pytest.raises(TypeError):
+        sk.WrapSettings(0.5)  # keywords only
+    with pytest.raises(TypeError, match="stiffness"):
+        sk.WrapSettings(stiffness=1.0)
+    with pytest.raises(TypeError):
+        settings.replace(stiffness=1.0)
+
+
+BAD_SETTINGS = {
+    "fairness": (-0.1, r"invalid fairness: the fairness weight must be within \[0, 1\], not -0.1"),
+    "arc_length": (float("nan"), r"invalid arc_length: the arc length weight must be within \[0, 1\], not NaN"),
+    "thin_plate": (0.7, r"invalid thin_plate: the thin plate weight must be within \[0, 0.5\], not 0.7"),
+    "constraint": (1.5, "invalid constraint: "),
+    "folding": (float("inf"), "invalid folding: "),
+    "tolerance": (0.0, r"invalid tolerance: the tolerance must be within \(0, 1\], not 0"),
+    "landing_distance": (-1.0, "invalid landing_distance: "),
+    "fold_tolerance": (2.0, "invalid fold_tolerance: "),
+    "momentum": (1.0, r"invalid momentum: the momentum must be within \[0, 0.99\], not 1"),
+    "rest": ("SOFT", "invalid rest: \"SOFT\" is not 'TEMPLATE' or 'EVEN'"),
+    "solver": ("FAST", "invalid solver: \"FAST\" is not 'SPRINGS' or 'ENERGY'"),
+}
+
+
+@pytest.mark.parametrize("name", list(BAD_SETTINGS))
+def test_a_bad_wrap_setting_raises_the_kernels_error_naming_it(name):
+    value, message = BAD_SETTINGS[name]
+    with pytest.raises(sk.InvalidArgumentError, match=message):
+        sk.WrapSettings(**{name: value})
+    with pytest.raises(sk.InvalidArgumentError, match=message):
+        sk.WrapSettings().replace(**{name: value})
+
+
+def test_the_solver_runs_with_the_settings_it_was_given():
+    target = plane_target(8, 0.2)
+    positions, face_corners, face_sizes = quad_layout(3)
+    structure = sk.LayoutStructure(len(positions), face_corners, face_sizes)
+    solver, _hits = make_solver(target, positions, structure, [0])
+    assert solver.settings == sk.WrapSettings()
+    settings = sk.WrapSettings(solver="ENERGY", tolerance=1e-4)
+    solver, _hits = make_solver(target, positions, structure, [0], settings=settings)
+    assert solver.settings == settings
+    assert not np.isnan(solver.step(1).energy)  # the energy solver reports its energy, the springs NaN

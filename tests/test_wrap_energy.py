@@ -63,9 +63,15 @@ def test_the_panel_setting_chooses_the_solver():
     target, layout, _normal = plane_scene()
     assert layout.springwrap.wrap_solver == "SPRINGS"
     layout.springwrap.wrap_solver = "ENERGY"
-    from springwrap import operations
+    from types import SimpleNamespace
 
-    assert operations.WrapParameters(solver="ENERGY").solver_settings()["solver"] == "ENERGY"
+    from springwrap import wrap_operator
+
+    rna = bpy.ops.springwrap.wrap.get_rna_type()
+    properties = SimpleNamespace(**{prop.identifier: prop.default for prop in rna.properties
+                                    if prop.identifier != "rna_type"})
+    properties.solver = layout.springwrap.wrap_solver  # what the panel's button sets
+    assert wrap_operator.SPRINGWRAP_OT_wrap.parameters(properties).settings.solver == "ENERGY"
 
 
 def test_hold_on_plane_keeps_a_lone_half_s_midline_on_the_plane_with_the_energy_solver():

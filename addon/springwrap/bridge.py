@@ -626,8 +626,8 @@ def make_wrap_solver(target: Target, structure, inputs, parameters):
         anchor_positions=inputs.anchor_positions,
         unreliable_triangles=inputs.unreliable_triangles,
         rest_positions=inputs.rest_positions,
+        settings=parameters.settings,
         **curve_arguments,
-        **parameters.solver_settings(),
     )
 
 

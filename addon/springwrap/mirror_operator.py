@@ -27,7 +27,7 @@ import numpy as np
 
 from .mirroring import AXES, DEFAULT_WELD_FRACTION
 from .operators import checked_bridge, poll_layout
-from .properties import WRAP_SOLVER_ITEMS, max_iterations_property, tolerance_property
+from .properties import WRAP_DEFAULTS, WRAP_SOLVER_ITEMS, max_iterations_property, tolerance_property
 
 LANDING_REACH = 0.25
 """Before the wrap, a copy within this fraction of its mean edge length of the target lands there at once."""
@@ -191,7 +191,10 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
         """The wrap's ``operations.WrapParameters`` (the wrap operator's defaults, this operator's limits)."""
         from .operations import WrapParameters
 
-        return WrapParameters(max_iterations=self.max_iterations, tolerance=self.tolerance, solver=self.solver)
+        return WrapParameters(
+            max_iterations=self.max_iterations,
+            settings=WRAP_DEFAULTS.replace(tolerance=self.tolerance, solver=self.solver),
+        )
 
     def _run(self, context, layout, prepared, window_manager):
         """Mirror the mesh, then wrap; raises on failure (the caller restores the mesh)."""

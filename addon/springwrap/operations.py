@@ -286,39 +286,16 @@ def _outcome(
 
 # ---------------------------------------------------------------- wrap (paper, section 2.5)
 
-WEIGHT_RANGES = {
-    # parameter name: (label, low, high); the kernel's stable ranges (its WrapSettings::validate)
-    "fairness": ("fairness weight", 0.0, 1.0),
-    "arc_length": ("arc length weight", 0.0, 1.0),
-    "thin_plate": ("thin plate weight", 0.0, 0.5),
-    "constraint": ("constraint weight", 0.0, 1.0),
-    "folding": ("folding weight", 0.0, 1.0),
-}
-"""The wrap's force weights and the range each must lie in."""
-
 UNRELIABLE_WEIGHT = 0.5
 """A target triangle is unreliable when all three corners weigh more than this in the unreliable group."""
 
 
 class WrapParameters(NamedTuple):
-    """What the user sets for a wrap: iteration controls and the five force weights (paper's α β γ)."""
+    """What the user sets for a wrap: the iteration limit, the spring resolution and the kernel's settings."""
 
     max_iterations: int = 2000
-    tolerance: float = 1e-5  # converged when no point moves more than this fraction of the layout's size
-    fairness: float = 0.5
-    arc_length: float = 0.5
-    thin_plate: float = 0.2
-    constraint: float = 0.5
-    folding: float = 0.3
-    rest: str = "TEMPLATE"  # the springs rest in the template's shape ("TEMPLATE") or straight and even ("EVEN")
+    settings: Any = None  # springwrap_kernel.WrapSettings (weights, tolerance, rest, solver); None: the kernel's defaults
     spring_resolution: int = 1  # > 1: relax, then relax again the faces cut k x k (coarse to fine)
-    solver: str = "SPRINGS"  # the paper's force iteration ("SPRINGS") or one energy, no face turned ("ENERGY")
-
-    def solver_settings(self) -> dict:
-        """The keyword arguments of ``springwrap_kernel.WrapSolver`` these parameters set."""
-        names = ("tolerance", *WEIGHT_RANGES)
-        return {name: float(getattr(self, name)) for name in names} | {"rest": str(self.rest),
-                                                                        "solver": str(self.solver)}
 
 
 class WrapInputs(NamedTuple):
@@ -345,7 +322,10 @@ class WrapInputs(NamedTuple):
 
 
 def check_wrap_parameters(parameters: WrapParameters) -> None:
-    """Raise :class:`~.layout_state.LayoutError` naming the first parameter out of its range."""
+    """Raise :class:`~.layout_state.LayoutError` naming the first parameter out of its range.
+
+    The kernel's settings were checked by the kernel when they were made (``WrapSettings(...)``).
+    """
     if int(parameters.max_iterations) < 1:
         raise layout_state.LayoutError(f"Max Iterations must be at least 1, not {parameters.max_iterations}")
     from .subdivision import MAX_RESOLUTION
@@ -354,13 +334,6 @@ def check_wrap_parameters(parameters: WrapParameters) -> None:
         raise layout_state.LayoutError(
             f"The spring resolution must be within 1 .. {MAX_RESOLUTION}, not {parameters.spring_resolution}"
         )
-    tolerance = float(parameters.tolerance)
-    if not (np.isfinite(tolerance) and 0.0 < tolerance <= 1.0):
-        raise layout_state.LayoutError(f"The tolerance must be within (0, 1], not {tolerance:g}")
-    for name, (label, low, high) in WEIGHT_RANGES.items():
-        value = float(getattr(parameters, name))
-        if not (np.isfinite(value) and low <= value <= high):
-            raise layout_state.LayoutError(f"The {label} must be within [{low:g}, {high:g}], not {value:g}")
 
 
 def check_wrappable(layout_name: str, face_count: int, edge_count: int) -> None:

@@ -10,6 +10,26 @@ import bpy
 from . import compat
 
 
+def _kernel_wrap_defaults():
+    """``springwrap_kernel.WrapSettings()``: the wrap's defaults, defined once, in the kernel.
+
+    Read when the add-on is imported, because a Blender property's default is fixed when its class
+    is defined: without its kernel the add-on cannot be enabled, and this error says why.
+    """
+    try:
+        import springwrap_kernel
+    except ImportError as error:
+        raise ImportError(
+            f"The Springwrap kernel is not available ({error}): the add-on needs its springwrap_kernel package "
+            "(bundled in the extension and in the legacy zip; `make setup` in a checkout)"
+        ) from error
+    return springwrap_kernel.WrapSettings()
+
+
+WRAP_DEFAULTS = _kernel_wrap_defaults()
+"""The kernel's default wrap settings: the defaults of the wrap's operator, panel and scripts."""
+
+
 def max_distance_property(description: str):
     """A world-space distance limit, 0 meaning unlimited: shared by the operators and the panel defaults."""
     return bpy.props.FloatProperty(
@@ -32,7 +52,12 @@ def tolerance_property(
 ):
     """The wrap's convergence tolerance: shared by the operators that wrap (wrap, mirror)."""
     return bpy.props.FloatProperty(
-        name="Tolerance", description=description, default=1e-5, soft_min=1e-7, soft_max=1e-2, precision=7
+        name="Tolerance",
+        description=description,
+        default=WRAP_DEFAULTS.tolerance,
+        soft_min=1e-7,
+        soft_max=1e-2,
+        precision=7,
     )
 
 
@@ -176,7 +201,7 @@ WRAP_SOLVER_ITEMS = (
     ("ENERGY", "Energy", "One energy minimised by a global solve: a body in a few dozen iterations, no layout face "
      "turned over by a step"),
 )
-"""The wrap's algorithms (``springwrap_kernel.WrapSolver(solver=...)``)."""
+"""The wrap's algorithms (``springwrap_kernel.WrapSettings(solver=...)``)."""
 
 
 class SpringwrapObjectSettings(bpy.types.PropertyGroup):
@@ -198,7 +223,7 @@ class SpringwrapObjectSettings(bpy.types.PropertyGroup):
         name="Solver",
         description="Algorithm of the panel's Wrap and Mirror buttons",
         items=WRAP_SOLVER_ITEMS,
-        default="SPRINGS",
+        default=WRAP_DEFAULTS.solver,
     )
     snap_mode: bpy.props.EnumProperty(
         name="Snap Mode",

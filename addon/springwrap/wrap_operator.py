@@ -23,7 +23,7 @@ from typing import Callable, NamedTuple, Optional
 import bpy
 
 from .operators import layout_problem
-from .properties import WRAP_SOLVER_ITEMS, max_iterations_property, tolerance_property
+from .properties import WRAP_DEFAULTS, WRAP_SOLVER_ITEMS, max_iterations_property, tolerance_property
 
 FRAME_RATE = 30.0
 """Redraws per second the modal wrap aims for."""
@@ -306,7 +306,7 @@ class WrapSession:
             landed=self.events["landed"],
             folded=self.events["folded"],
             lifted=self.events["lifted"],
-            solver=self.parameters.solver,
+            solver=self.solver.settings.solver,
             fold_tolerance=float(report.fold_tolerance),
             held_back=int(report.held_back),
             anchor_count=int(self.anchors.vertex_indices.shape[0]),
@@ -398,35 +398,35 @@ class SPRINGWRAP_OT_wrap(bpy.types.Operator):
     fairness: bpy.props.FloatProperty(
         name="Fairness",
         description="Straightens the layout's grid lines (paper's alpha), 0 to 1",
-        default=0.5,
+        default=WRAP_DEFAULTS.fairness,
         soft_min=0.0,
         soft_max=1.0,
     )
     arc_length: bpy.props.FloatProperty(
         name="Arc Length",
         description="Evens the spacing along the grid lines (paper's beta), 0 to 1",
-        default=0.5,
+        default=WRAP_DEFAULTS.arc_length,
         soft_min=0.0,
         soft_max=1.0,
     )
     thin_plate: bpy.props.FloatProperty(
         name="Thin Plate",
         description="Space-points continue the curvature of the surface around them (over holes), 0 to 0.5",
-        default=0.2,
+        default=WRAP_DEFAULTS.thin_plate,
         soft_min=0.0,
         soft_max=0.5,
     )
     constraint: bpy.props.FloatProperty(
         name="Constraint",
         description="Pull of anchored points toward their targets, 0 to 1",
-        default=0.5,
+        default=WRAP_DEFAULTS.constraint,
         soft_min=0.0,
         soft_max=1.0,
     )
     folding: bpy.props.FloatProperty(
         name="Folding",
         description="Pull of space-points next to face-points onto the surface, 0 to 1",
-        default=0.3,
+        default=WRAP_DEFAULTS.folding,
         soft_min=0.0,
         soft_max=1.0,
     )
@@ -438,13 +438,13 @@ class SPRINGWRAP_OT_wrap(bpy.types.Operator):
              "projection or wrap, or as set by Set Rest Shape)"),
             ("EVEN", "Even", "Straight, evenly spaced grid lines (Krishnamurthy & Levoy's springs)"),
         ),
-        default="TEMPLATE",
+        default=WRAP_DEFAULTS.rest,
     )
     solver: bpy.props.EnumProperty(
         name="Solver",
         description="The wrap's algorithm",
         items=WRAP_SOLVER_ITEMS,
-        default="SPRINGS",
+        default=WRAP_DEFAULTS.solver,
     )
     spring_resolution: bpy.props.IntProperty(
         name="Spring Resolution",
@@ -476,20 +476,18 @@ class SPRINGWRAP_OT_wrap(bpy.types.Operator):
         return True
 
     def parameters(self):
-        """The operator's properties as ``operations.WrapParameters``."""
+        """The operator's properties as ``operations.WrapParameters``.
+
+        The kernel checks the settings here: a value out of its range raises
+        ``springwrap_kernel.InvalidArgumentError`` naming it.
+        """
         from .operations import WrapParameters
 
+        names = ("tolerance", "fairness", "arc_length", "thin_plate", "constraint", "folding", "rest", "solver")
         return WrapParameters(
             max_iterations=self.max_iterations,
-            tolerance=self.tolerance,
-            fairness=self.fairness,
-            arc_length=self.arc_length,
-            thin_plate=self.thin_plate,
-            constraint=self.constraint,
-            folding=self.folding,
-            rest=self.rest,
+            settings=WRAP_DEFAULTS.replace(**{name: getattr(self, name) for name in names}),
             spring_resolution=self.spring_resolution,
-            solver=self.solver,
         )
 
     def _plane_holder(self, layout):

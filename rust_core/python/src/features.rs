@@ -12,7 +12,9 @@ use springwrap_kernel::{
     FeatureCurveKind, FeatureSettings, PrincipalCurvatures, detect_features, principal_curvatures,
 };
 
-use super::{PyTargetMesh, SpringwrapError, rows_array, run_kernel};
+use crate::arrays::rows_array;
+use crate::errors::{SpringwrapError, run_kernel};
+use crate::target_mesh::PyTargetMesh;
 
 create_exception!(
     springwrap_kernel,

@@ -87,33 +87,140 @@ impl WrapSettings {
     /// Checks every number is finite and in its range.
     ///
     /// # Errors
-    /// [`KernelError::InvalidArgument`] naming the first bad setting.
+    /// [`KernelError::InvalidArgument`] naming the first bad setting by its field (`fairness`,
+    /// `arc_length`, ..., as this struct and [`WrapWeights`] spell it, and as the binding's
+    /// keywords do) and saying its range.
     pub fn validate(&self) -> Result<(), KernelError> {
         let weights = self.weights;
-        let checks: [(&'static str, f32, f32, f32); 9] = [
-            ("fairness weight", weights.fairness, 0.0, 1.0),
-            ("arc length weight", weights.arc_length, 0.0, 1.0),
-            ("thin plate weight", weights.thin_plate, 0.0, 0.5),
-            ("constraint weight", weights.constraint, 0.0, 1.0),
-            ("folding weight", weights.folding, 0.0, 1.0),
-            ("tolerance", self.tolerance, 0.0, 1.0),
-            ("landing distance", self.landing_distance, 0.0, 10.0),
+        // (field, what it is, value, low, high, whether low itself is refused)
+        let checks: [(&'static str, &str, f32, f32, f32, bool); 9] = [
             (
+                "fairness",
+                "fairness weight",
+                weights.fairness,
+                0.0,
+                1.0,
+                false,
+            ),
+            (
+                "arc_length",
+                "arc length weight",
+                weights.arc_length,
+                0.0,
+                1.0,
+                false,
+            ),
+            (
+                "thin_plate",
+                "thin plate weight",
+                weights.thin_plate,
+                0.0,
+                0.5,
+                false,
+            ),
+            (
+                "constraint",
+                "constraint weight",
+                weights.constraint,
+                0.0,
+                1.0,
+                false,
+            ),
+            (
+                "folding",
+                "folding weight",
+                weights.folding,
+                0.0,
+                1.0,
+                false,
+            ),
+            // 0 would never be met: the wrap would always run to its iteration limit.
+            ("tolerance", "tolerance", self.tolerance, 0.0, 1.0, true),
+            (
+                "landing_distance",
+                "landing distance",
+                self.landing_distance,
+                0.0,
+                10.0,
+                false,
+            ),
+            (
+                "fold_tolerance",
                 "fold tolerance",
                 self.fold_tolerance,
                 0.0,
                 std::f32::consts::FRAC_PI_2,
+                false,
             ),
-            ("momentum", self.momentum, 0.0, 0.99),
+            ("momentum", "momentum", self.momentum, 0.0, 0.99, false),
         ];
-        for (name, value, low, high) in checks {
-            if !(low..=high).contains(&value) {
+        for (field, label, value, low, high, low_refused) in checks {
+            let above_low = if low_refused {
+                value > low
+            } else {
+                value >= low
+            };
+            if !(above_low && value <= high) {
+                let opening = if low_refused { '(' } else { '[' };
                 return Err(KernelError::InvalidArgument {
-                    name,
-                    reason: format!("{value} is outside [{low}, {high}]"),
+                    name: field,
+                    reason: format!(
+                        "the {label} must be within {opening}{low}, {high}], not {value}"
+                    ),
                 });
             }
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn message(settings: WrapSettings) -> String {
+        settings.validate().unwrap_err().to_string()
+    }
+
+    #[test]
+    fn the_defaults_are_valid() {
+        assert_eq!(WrapSettings::default().validate(), Ok(()));
+    }
+
+    #[test]
+    fn a_bad_setting_is_named_by_its_field_with_its_range() {
+        let defaults = WrapSettings::default();
+        let mut settings = defaults;
+        settings.weights.thin_plate = 0.7;
+        assert_eq!(
+            message(settings),
+            "invalid thin_plate: the thin plate weight must be within [0, 0.5], not 0.7"
+        );
+        let mut settings = defaults;
+        settings.weights.arc_length = f32::NAN;
+        assert_eq!(
+            message(settings),
+            "invalid arc_length: the arc length weight must be within [0, 1], not NaN"
+        );
+        let mut settings = defaults;
+        settings.momentum = 1.0;
+        assert!(message(settings).starts_with("invalid momentum: "));
+    }
+
+    #[test]
+    fn a_zero_tolerance_is_refused_but_any_other_bound_is_allowed() {
+        let mut settings = WrapSettings {
+            tolerance: 0.0,
+            ..WrapSettings::default()
+        };
+        assert_eq!(
+            message(settings),
+            "invalid tolerance: the tolerance must be within (0, 1], not 0"
+        );
+        settings.tolerance = 1.0;
+        settings.weights.fairness = 0.0;
+        settings.weights.thin_plate = 0.5;
+        settings.momentum = 0.0;
+        assert_eq!(settings.validate(), Ok(()));
     }
 }

@@ -22,6 +22,7 @@ from ._native import (
     LayoutStructure,
     NonFiniteError,
     SpringwrapError,
+    WrapSettings,
     __version__,
     fit_transform,
 )
@@ -46,6 +47,7 @@ __all__ = [
     "SurfaceHits",
     "TargetMesh",
     "VertexHits",
+    "WrapSettings",
     "WrapSolver",
     "__version__",
     "fit_transform",
@@ -191,9 +193,9 @@ class WrapSolver(_native.WrapSolver):
     ``WrapSolver(target, structure, states, triangles, barycentrics, positions, *, anchor_vertices=None,
     anchor_triangles=None, anchor_barycentrics=None, anchor_positions=None,
     unreliable_triangles=None, curve_vertices=None, curve_vertex_counts=None, curve_points=None,
-    curve_point_counts=None, fairness=0.5,
-    arc_length=0.5, thin_plate=0.2, constraint=0.5, folding=0.3, tolerance=1e-5,
-    landing_distance=0.25, fold_tolerance=radians(10), momentum=0.9)``
+    curve_point_counts=None, rest_positions=None, plane_vertices=None, plane_point=None,
+    plane_normal=None, plane_slide=True, settings=None)``; ``settings`` is a :class:`WrapSettings`
+    (weights, tolerance, rest shape, solver), the kernel's defaults when ``None``.
     """
 
     __slots__ = ()

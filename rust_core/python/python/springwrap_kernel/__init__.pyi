@@ -287,6 +287,70 @@ class StepReport(NamedTuple):
     energy: float
     held_back: int
 
+class WrapSettings:
+    """Everything that controls a wrap besides the layout, the target and the constraints.
+
+    Immutable. ``WrapSettings()`` holds the kernel's defaults (Rust's ``WrapSettings::default()``,
+    the one place they are written; the defaults below are checked against it by the tests).
+    Keyword arguments override them; a value out of its range raises :class:`InvalidArgumentError`
+    naming the keyword, e.g. ``invalid thin_plate: the thin plate weight must be within [0, 0.5],
+    not 0.7``. Values are float32 inside; a getter returns the shortest decimal of the float32
+    (``0.2``, not ``0.20000000298023224``). Equal when every setting is.
+    """
+
+    def __init__(
+        self,
+        *,
+        fairness: float = 0.5,
+        arc_length: float = 0.5,
+        thin_plate: float = 0.2,
+        constraint: float = 0.5,
+        folding: float = 0.3,
+        tolerance: float = 1e-05,
+        landing_distance: float = 0.25,
+        fold_tolerance: float = 0.17453292,
+        momentum: float = 0.9,
+        rest: Literal["TEMPLATE", "EVEN"] = "TEMPLATE",
+        solver: Literal["SPRINGS", "ENERGY"] = "SPRINGS",
+    ) -> None: ...
+    @property
+    def fairness(self) -> float:
+        """α: fairness, straightening grid lines, 0 to 1."""
+    @property
+    def arc_length(self) -> float:
+        """β: equal arc length along grid lines, 0 to 1."""
+    @property
+    def thin_plate(self) -> float:
+        """γ_tp: thin plate on space-points, continuing the surface over holes, 0 to 0.5."""
+    @property
+    def constraint(self) -> float:
+        """γ_con: attraction of anchored points to their targets, 0 to 1."""
+    @property
+    def folding(self) -> float:
+        """γ_fold: fraction of the folding rotation applied per iteration, 0 to 1."""
+    @property
+    def tolerance(self) -> float:
+        """Converged when the points move less than this fraction of the layout's size, (0, 1]."""
+    @property
+    def landing_distance(self) -> float:
+        """An anchored space-point lands on its face-point target within this fraction of the mean edge length, 0 to 10."""
+    @property
+    def fold_tolerance(self) -> float:
+        """The starting folding tolerance in radians (it anneals), 0 to pi / 2."""
+    @property
+    def momentum(self) -> float:
+        """Heavy-ball momentum of free points, 0 (off) to 0.99."""
+    @property
+    def rest(self) -> Literal["TEMPLATE", "EVEN"]:
+        """What the springs consider relaxed: the template's shape, or straight and even grid lines."""
+    @property
+    def solver(self) -> Literal["SPRINGS", "ENERGY"]:
+        """The algorithm: the paper's force iteration, or one energy minimised by global solves."""
+    def to_dict(self) -> dict[str, float | str]:
+        """Every setting by its keyword, in the constructor's order."""
+    def replace(self, **changes: float | str) -> WrapSettings:
+        """A copy with the given settings changed (checked like the constructor)."""
+
 class WrapSolver:
     """A wrap in progress (hybrid spring optimisation onto ``target``).
 
@@ -302,9 +366,10 @@ class WrapSolver:
     ``plane_normal`` (a mirrored layout's seam: face-points slide along the target's cross-section
     with the plane, space-points move within it); all three or none. ``plane_slide=False``: held
     points only move onto the cross-section, the shortest way, and stay there.
-    ``solver="ENERGY"`` minimises one energy by local-global steps with a sparse Cholesky and never
-    turns a layout face over (no plane constraint yet; the force weights and the fold settings
-    do not apply to it).
+    ``settings`` (a :class:`WrapSettings`; the kernel's defaults when ``None``) holds the force
+    weights, the tolerance, the rest shape and the solver: ``WrapSettings(solver="ENERGY")``
+    minimises one energy by local-global steps with a sparse Cholesky and never turns a layout face
+    over (no plane constraint yet; the force weights and the fold settings do not apply to it).
     """
 
     def __init__(
@@ -325,22 +390,12 @@ class WrapSolver:
         curve_vertex_counts: npt.NDArray[np.uint32] | None = None,
         curve_points: npt.NDArray[np.float32] | None = None,
         curve_point_counts: npt.NDArray[np.uint32] | None = None,
-        fairness: float = 0.5,
-        arc_length: float = 0.5,
-        thin_plate: float = 0.2,
-        constraint: float = 0.5,
-        folding: float = 0.3,
-        tolerance: float = 1e-5,
-        landing_distance: float = 0.25,
-        fold_tolerance: float = 0.17453292,
-        momentum: float = 0.9,
-        rest: Literal["TEMPLATE", "EVEN"] = "TEMPLATE",
         rest_positions: npt.NDArray[np.float32] | None = None,
         plane_vertices: npt.NDArray[np.uint32] | None = None,
         plane_point: tuple[float, float, float] | None = None,
         plane_normal: tuple[float, float, float] | None = None,
         plane_slide: bool = True,
-        solver: Literal["SPRINGS", "ENERGY"] = "SPRINGS",
+        settings: WrapSettings | None = None,
     ) -> None: ...
     def step(self, iterations: int) -> StepReport:
         """Run up to ``iterations`` iterations (fewer once converged), GIL released."""
@@ -348,3 +403,6 @@ class WrapSolver:
         """(N, 3) positions of the layout points."""
     def states(self) -> tuple[npt.NDArray[np.int32], npt.NDArray[np.int32], npt.NDArray[np.float32]]:
         """(states, triangles, barycentrics) as given to the constructor."""
+    @property
+    def settings(self) -> WrapSettings:
+        """The settings the wrap runs with."""

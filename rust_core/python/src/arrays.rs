@@ -1,0 +1,92 @@
+//! numpy arrays in and out: the array contract checked (dtype, shape, C order) and copied.
+
+use glam::Vec3;
+use numpy::{
+    Element, PyArray1, PyArray2, PyArrayDescrMethods, PyArrayMethods, PyUntypedArray,
+    PyUntypedArrayMethods,
+};
+use pyo3::prelude::*;
+
+use crate::errors::ArrayError;
+
+/// Checks that `array` is a C-contiguous numpy array of `T` with `columns` columns (or 1-D when
+/// `columns` is `None`) and copies it out. Says exactly what was wrong otherwise.
+pub(crate) fn read_array<T: Element + Copy>(
+    name: &str,
+    array: &Bound<'_, PyAny>,
+    columns: Option<usize>,
+) -> PyResult<Vec<T>> {
+    let py = array.py();
+    let expected_dtype = numpy::dtype::<T>(py);
+    let expected_shape = match columns {
+        Some(columns) => format!("(N, {columns})"),
+        None => "(N,)".to_owned(),
+    };
+    let expectation = format!(
+        "{name} must be a C-contiguous numpy array of dtype {expected_dtype} and shape {expected_shape}"
+    );
+    let Ok(untyped) = array.cast::<PyUntypedArray>() else {
+        let type_name = array.get_type().name()?;
+        return Err(ArrayError::new_err(format!(
+            "{expectation}, got a {type_name}"
+        )));
+    };
+    let dtype = untyped.dtype();
+    if !dtype.is_equiv_to(&expected_dtype) {
+        return Err(ArrayError::new_err(format!(
+            "{expectation}, got dtype {dtype} (convert with .astype(numpy.{expected_dtype}))"
+        )));
+    }
+    let shape = untyped.shape();
+    let shape_ok = match columns {
+        Some(columns) => shape.len() == 2 && shape[1] == columns,
+        None => shape.len() == 1,
+    };
+    if !shape_ok {
+        return Err(ArrayError::new_err(format!(
+            "{expectation}, got shape {shape:?}"
+        )));
+    }
+    if !untyped.is_c_contiguous() {
+        return Err(ArrayError::new_err(format!(
+            "{expectation}, got a non-contiguous array (use numpy.ascontiguousarray)"
+        )));
+    }
+    let values: Vec<T> = if columns.is_some() {
+        let typed = untyped.cast::<PyArray2<T>>()?.readonly();
+        typed.as_slice()?.to_vec()
+    } else {
+        let typed = untyped.cast::<PyArray1<T>>()?.readonly();
+        typed.as_slice()?.to_vec()
+    };
+    Ok(values)
+}
+
+pub(crate) fn read_positions(name: &str, array: &Bound<'_, PyAny>) -> PyResult<Vec<Vec3>> {
+    let flat = read_array::<f32>(name, array, Some(3))?;
+    Ok(flat
+        .chunks_exact(3)
+        .map(|row| Vec3::new(row[0], row[1], row[2]))
+        .collect())
+}
+
+pub(crate) fn rows_array<'py, T: Element>(
+    py: Python<'py>,
+    flat: Vec<T>,
+    columns: usize,
+) -> PyResult<Bound<'py, PyArray2<T>>> {
+    let rows = flat.len() / columns;
+    PyArray1::from_vec(py, flat).reshape([rows, columns])
+}
+
+/// Optional (K, 2) uint32 rows as pairs; none when `array` is `None`.
+pub(crate) fn read_pairs(name: &str, array: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<[u32; 2]>> {
+    let Some(array) = array else {
+        return Ok(Vec::new());
+    };
+    let flat = read_array::<u32>(name, array, Some(2))?;
+    Ok(flat
+        .chunks_exact(2)
+        .map(|pair| [pair[0], pair[1]])
+        .collect())
+}

@@ -1,0 +1,252 @@
+//! `WrapSettings`: the kernel's `WrapSettings` as one immutable Python object.
+//!
+//! Every default is the kernel's `WrapSettings::default()` (the signature's defaults are Rust
+//! expressions reading it, never numbers typed again), and every check is the kernel's
+//! `WrapSettings::validate()`, so the add-on, the scripts and the stubs read them from here.
+
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyFloat};
+use springwrap_kernel::{SolverKind, SpringRest, WrapSettings, WrapWeights};
+
+use crate::errors::{InvalidArgumentError, to_python_error};
+
+/// The kernel's defaults, read by the constructor's signature.
+fn defaults() -> WrapSettings {
+    WrapSettings::default()
+}
+
+/// The binding's name of a rest shape.
+fn rest_name(rest: SpringRest) -> &'static str {
+    match rest {
+        SpringRest::Template => "TEMPLATE",
+        SpringRest::Even => "EVEN",
+    }
+}
+
+/// The binding's name of a solver.
+fn solver_name(solver: SolverKind) -> &'static str {
+    match solver {
+        SolverKind::Springs => "SPRINGS",
+        SolverKind::Energy => "ENERGY",
+    }
+}
+
+fn parse_rest(name: &str) -> PyResult<SpringRest> {
+    [SpringRest::Template, SpringRest::Even]
+        .into_iter()
+        .find(|&rest| rest_name(rest) == name)
+        .ok_or_else(|| {
+            InvalidArgumentError::new_err(format!(
+                "invalid rest: {name:?} is not 'TEMPLATE' or 'EVEN'"
+            ))
+        })
+}
+
+fn parse_solver(name: &str) -> PyResult<SolverKind> {
+    [SolverKind::Springs, SolverKind::Energy]
+        .into_iter()
+        .find(|&solver| solver_name(solver) == name)
+        .ok_or_else(|| {
+            InvalidArgumentError::new_err(format!(
+                "invalid solver: {name:?} is not 'SPRINGS' or 'ENERGY'"
+            ))
+        })
+}
+
+/// A float32 setting as the Python float of its shortest decimal (`0.2`, not
+/// `0.20000000298023224`); it converts back to the same float32.
+fn decimal(value: f32) -> f64 {
+    value.to_string().parse().unwrap_or(f64::from(value))
+}
+
+/// Everything that controls a wrap besides the layout, the target and the constraints: the force
+/// weights, the convergence tolerance, landing, folding, momentum, the rest shape and the solver.
+/// Immutable; `WrapSettings()` holds the kernel's defaults.
+#[pyclass(
+    name = "WrapSettings",
+    module = "springwrap_kernel",
+    frozen,
+    eq,
+    subclass
+)]
+#[derive(Clone, PartialEq)]
+pub(crate) struct PyWrapSettings {
+    pub(crate) settings: WrapSettings,
+}
+
+#[pymethods]
+impl PyWrapSettings {
+    #[new]
+    #[pyo3(signature = (
+        *,
+        fairness = defaults().weights.fairness,
+        arc_length = defaults().weights.arc_length,
+        thin_plate = defaults().weights.thin_plate,
+        constraint = defaults().weights.constraint,
+        folding = defaults().weights.folding,
+        tolerance = defaults().tolerance,
+        landing_distance = defaults().landing_distance,
+        fold_tolerance = defaults().fold_tolerance,
+        momentum = defaults().momentum,
+        rest = rest_name(defaults().rest),
+        solver = solver_name(defaults().solver),
+    ))]
+    #[allow(clippy::too_many_arguments)] // keyword arguments of one Python constructor
+    fn new(
+        fairness: f32,
+        arc_length: f32,
+        thin_plate: f32,
+        constraint: f32,
+        folding: f32,
+        tolerance: f32,
+        landing_distance: f32,
+        fold_tolerance: f32,
+        momentum: f32,
+        rest: &str,
+        solver: &str,
+    ) -> PyResult<Self> {
+        let settings = WrapSettings {
+            weights: WrapWeights {
+                fairness,
+                arc_length,
+                thin_plate,
+                constraint,
+                folding,
+            },
+            tolerance,
+            landing_distance,
+            fold_tolerance,
+            momentum,
+            rest: parse_rest(rest)?,
+            solver: parse_solver(solver)?,
+        };
+        settings
+            .validate()
+            .map_err(|error| to_python_error(&error))?;
+        Ok(Self { settings })
+    }
+
+    /// α: fairness, straightening grid lines, 0 to 1.
+    #[getter]
+    fn fairness(&self) -> f64 {
+        decimal(self.settings.weights.fairness)
+    }
+
+    /// β: equal arc length along grid lines, 0 to 1.
+    #[getter]
+    fn arc_length(&self) -> f64 {
+        decimal(self.settings.weights.arc_length)
+    }
+
+    /// γ_tp: thin plate on space-points, continuing the surface over holes, 0 to 0.5.
+    #[getter]
+    fn thin_plate(&self) -> f64 {
+        decimal(self.settings.weights.thin_plate)
+    }
+
+    /// γ_con: attraction of anchored points to their targets, 0 to 1.
+    #[getter]
+    fn constraint(&self) -> f64 {
+        decimal(self.settings.weights.constraint)
+    }
+
+    /// γ_fold: fraction of the folding rotation applied per iteration, 0 to 1.
+    #[getter]
+    fn folding(&self) -> f64 {
+        decimal(self.settings.weights.folding)
+    }
+
+    /// Converged when the points move less than this fraction of the layout's size, (0, 1].
+    #[getter]
+    fn tolerance(&self) -> f64 {
+        decimal(self.settings.tolerance)
+    }
+
+    /// An anchored space-point lands on its face-point target within this fraction of the mean
+    /// edge length, 0 to 10.
+    #[getter]
+    fn landing_distance(&self) -> f64 {
+        decimal(self.settings.landing_distance)
+    }
+
+    /// The starting folding tolerance in radians (it anneals), 0 to pi / 2.
+    #[getter]
+    fn fold_tolerance(&self) -> f64 {
+        decimal(self.settings.fold_tolerance)
+    }
+
+    /// Heavy-ball momentum of free points, 0 (off) to 0.99.
+    #[getter]
+    fn momentum(&self) -> f64 {
+        decimal(self.settings.momentum)
+    }
+
+    /// What the springs consider relaxed: `'TEMPLATE'` (the template's shape) or `'EVEN'`.
+    #[getter]
+    fn rest(&self) -> &'static str {
+        rest_name(self.settings.rest)
+    }
+
+    /// The algorithm: `'SPRINGS'` (the force iteration) or `'ENERGY'` (one energy, global solves).
+    #[getter]
+    fn solver(&self) -> &'static str {
+        solver_name(self.settings.solver)
+    }
+
+    /// Every setting by its keyword, in the constructor's order.
+    fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let dict = PyDict::new(py);
+        for (name, value) in self.numbers() {
+            dict.set_item(name, decimal(value))?;
+        }
+        dict.set_item("rest", self.rest())?;
+        dict.set_item("solver", self.solver())?;
+        Ok(dict)
+    }
+
+    /// A copy with the given settings changed (checked like the constructor).
+    #[pyo3(signature = (**changes))]
+    fn replace<'py>(
+        slf: &Bound<'py, Self>,
+        changes: Option<&Bound<'py, PyDict>>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let arguments = slf.get().to_dict(slf.py())?;
+        if let Some(changes) = changes {
+            arguments.update(changes.as_mapping())?;
+        }
+        slf.get_type().call((), Some(&arguments))
+    }
+
+    fn __repr__(&self, py: Python<'_>) -> PyResult<String> {
+        let mut parts = Vec::new();
+        for (name, value) in self.numbers() {
+            let value = PyFloat::new(py, decimal(value)).repr()?;
+            parts.push(format!("{name}={value}"));
+        }
+        Ok(format!(
+            "WrapSettings({}, rest='{}', solver='{}')",
+            parts.join(", "),
+            self.rest(),
+            self.solver()
+        ))
+    }
+}
+
+impl PyWrapSettings {
+    /// The numeric settings by keyword, in the constructor's order.
+    fn numbers(&self) -> [(&'static str, f32); 9] {
+        let settings = &self.settings;
+        let weights = &settings.weights;
+        [
+            ("fairness", weights.fairness),
+            ("arc_length", weights.arc_length),
+            ("thin_plate", weights.thin_plate),
+            ("constraint", weights.constraint),
+            ("folding", weights.folding),
+            ("tolerance", settings.tolerance),
+            ("landing_distance", settings.landing_distance),
+            ("fold_tolerance", settings.fold_tolerance),
+            ("momentum", settings.momentum),
+        ]
+    }
+}
