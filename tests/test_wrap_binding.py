@@ -181,3 +181,27 @@ def test_the_solver_runs_with_the_settings_it_was_given():
     solver, _hits = make_solver(target, positions, structure, [0], settings=settings)
     assert solver.settings == settings
     assert not np.isnan(solver.step(1).energy)  # the energy solver reports its energy, the springs NaN
+
+
+def test_free_vertices_and_stiffness_reach_the_energy_solver_and_are_checked():
+    target = plane_target()
+    positions, face_corners, face_sizes = quad_layout()
+    structure = sk.LayoutStructure(len(positions), face_corners, face_sizes)
+    anchors = [0, 12, 156, 168]
+    energy = sk.WrapSettings(solver="ENERGY")
+    free = np.zeros(len(positions), bool)
+    free[[84, 85, 71]] = True
+    solver, _ = make_solver(target, positions, structure, anchors, settings=energy, free_vertices=free)
+    report = solver.step(1000)
+    assert report.converged
+    states = solver.states()[0]
+    assert (states[free] == 0).all() and (states[~free] == 1).all()
+    stiffness = np.full(len(positions), 0.5, np.float32)
+    stiffness[5] = 1.5
+    with pytest.raises(sk.InvalidArgumentError, match="vertex 5 has stiffness 1.5"):
+        make_solver(target, positions, structure, anchors, settings=energy, stiffness=stiffness)
+    with pytest.raises(sk.ArrayError, match="stiffness must be a C-contiguous numpy array of dtype float32"):
+        make_solver(target, positions, structure, anchors, settings=energy, stiffness=np.full(len(positions), 0.5))
+    springs, _ = make_solver(target, positions, structure, anchors, free_vertices=free)
+    with pytest.raises(sk.InvalidArgumentError, match="need the energy solver"):
+        springs.step(1)

@@ -40,7 +40,7 @@ impl PyWrapSolver {
         anchor_positions = None, unreliable_triangles = None, curve_vertices = None,
         curve_vertex_counts = None, curve_points = None, curve_point_counts = None,
         rest_positions = None, plane_vertices = None, plane_point = None, plane_normal = None,
-        plane_slide = true, settings = None
+        plane_slide = true, settings = None, stiffness = None, free_vertices = None
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -66,6 +66,8 @@ impl PyWrapSolver {
         plane_normal: Option<[f32; 3]>,
         plane_slide: bool,
         settings: Option<&Bound<'_, PyWrapSettings>>,
+        stiffness: Option<&Bound<'_, PyAny>>,
+        free_vertices: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let settings =
             settings.map_or_else(WrapSettings::default, |settings| settings.get().settings);
@@ -105,6 +107,12 @@ impl PyWrapSolver {
         let unreliable = unreliable_triangles
             .map(|flags| read_array::<bool>("unreliable_triangles", flags, None))
             .transpose()?;
+        let stiffness = stiffness
+            .map(|values| read_array::<f32>("stiffness", values, None))
+            .transpose()?;
+        let free_vertices = free_vertices
+            .map(|flags| read_array::<bool>("free_vertices", flags, None))
+            .transpose()?;
         let target = Arc::clone(&target.get().mesh);
         let structure = structure.get().structure.clone();
         let solver = run_kernel(py, || {
@@ -121,8 +129,16 @@ impl PyWrapSolver {
                 Some(plane) => solver.with_plane_constraint(plane)?,
                 None => solver,
             };
-            match unreliable {
-                Some(flags) => solver.with_unreliable_triangles(flags),
+            let solver = match unreliable {
+                Some(flags) => solver.with_unreliable_triangles(flags)?,
+                None => solver,
+            };
+            let solver = match stiffness {
+                Some(values) => solver.with_vertex_stiffness(values)?,
+                None => solver,
+            };
+            match free_vertices {
+                Some(flags) => solver.with_free_vertices(flags),
                 None => Ok(solver),
             }
         })?;

@@ -368,8 +368,12 @@ class WrapSolver:
     points only move onto the cross-section, the shortest way, and stay there.
     ``settings`` (a :class:`WrapSettings`; the kernel's defaults when ``None``) holds the force
     weights, the tolerance, the rest shape and the solver: ``WrapSettings(solver="ENERGY")``
-    minimises one energy by local-global steps with a sparse Cholesky and never turns a layout face
-    over (no plane constraint yet; the force weights and the fold settings do not apply to it).
+    minimises one energy by local-global steps with a sparse Cholesky and turns no layout face more
+    than 90 degrees from the template's orientation (the force weights and the fold settings do not
+    apply to it). With it only: ``stiffness`` (float32, one per layout vertex, 0 … 1: 0 follows the
+    target freely, 0.5 the wrap's own balance, 1 keeps the template's shape) and ``free_vertices``
+    (bool, one per layout vertex: no pull toward the target, they stay space-points); the spring
+    solver refuses them at its first step.
     """
 
     def __init__(
@@ -396,6 +400,8 @@ class WrapSolver:
         plane_normal: tuple[float, float, float] | None = None,
         plane_slide: bool = True,
         settings: WrapSettings | None = None,
+        stiffness: npt.NDArray[np.float32] | None = None,
+        free_vertices: npt.NDArray[np.bool_] | None = None,
     ) -> None: ...
     def step(self, iterations: int) -> StepReport:
         """Run up to ``iterations`` iterations (fewer once converged), GIL released."""
