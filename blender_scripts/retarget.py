@@ -118,6 +118,12 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("--solver", choices=("springs", "energy"), default=defaults.solver.lower(),
                         help="the wrap's algorithm: the paper's force iteration, or one energy by a global solve "
                         "(default %(default)s)")
+    parser.add_argument("--stiffness-group", default="",
+                        help="the template's vertex group of per-vertex stiffness, energy solver only (weight 0 "
+                        "follows the target freely, 0.5 as the others, 1 keeps the template's shape)")
+    parser.add_argument("--free-group", default="",
+                        help="the template's vertex group with no pull toward the target, energy solver only "
+                        "(sockets, teeth: they follow their neighbours and stay off the surface)")
     parser.add_argument("--output-blend", type=Path, help="save template, target and result here")
     parser.add_argument("--output-obj", type=Path, help="export the retargeted layout here")
     parser.add_argument("--report", type=Path, help="write the JSON report here")
@@ -411,7 +417,9 @@ def retarget(arguments: argparse.Namespace) -> dict:
 
     try:
         parameters = operations.WrapParameters(max_iterations=arguments.max_iterations,
-                                               settings=wrap_settings(arguments))
+                                               settings=wrap_settings(arguments),
+                                               stiffness_group=arguments.stiffness_group,
+                                               free_group=arguments.free_group)
         session = wrap_operator.WrapSession(bpy.context, layout, parameters)
     except bridge.ERRORS as error:
         raise RetargetError(f"{blame}: cannot wrap: {error}") from None
@@ -501,7 +509,7 @@ def batch_task(arguments: argparse.Namespace, target: Path, output_dir: Path) ->
     """One mesh of the batch as plain data (JSON for a local worker's pipe, pickled for Ray): absolute paths."""
     settings = {name: getattr(arguments, name) for name in (
         "template_object", "target_object", "anchors_spacing", "align", "align_method", "max_iterations",
-        "tolerance", "fairness", "arc_length", "thin_plate", "solver")}
+        "tolerance", "fairness", "arc_length", "thin_plate", "solver", "stiffness_group", "free_group")}
     settings["template"] = str(arguments.template.resolve())
     settings["anchors"] = str(arguments.anchors.resolve()) if arguments.anchors is not None else None
     return {"target": str(target.resolve()), "output_dir": str(output_dir), "settings": settings}

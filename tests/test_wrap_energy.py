@@ -112,3 +112,68 @@ def test_the_report_says_what_each_solver_did(capfd):
     assert bpy.ops.springwrap.wrap(solver="ENERGY") == {"FINISHED"}
     energy = capfd.readouterr().out
     assert "landed at the end" in energy and "held back" in energy and "fold tolerance" not in energy, energy
+
+
+def _group(layout, name, vertices, weight=1.0):
+    group = layout.vertex_groups.new(name=name)
+    group.add([int(vertex) for vertex in vertices], weight, "REPLACE")
+    return group
+
+
+def test_the_free_group_floats_and_changes_nothing_far_from_it():
+    target, layout, _normal = plane_scene()
+    local = np.array([vertex.co[:] for vertex in layout.data.vertices])
+    centre = np.flatnonzero(np.linalg.norm(local[:, :2], axis=1) < 0.3)
+    far = np.linalg.norm(local[:, :2], axis=1) > 0.7
+    assert centre.size >= 4
+    bpy.ops.springwrap.anchors_auto(spacing=0.5)
+    assert bpy.ops.springwrap.wrap(solver="ENERGY") == {"FINISHED"}
+    plain = world_positions(layout).copy()
+    assert (read_state(layout)[0] == 1).all()
+    # Back to the template, then with the group.
+    for vertex, co in zip(layout.data.vertices, local):
+        vertex.co = co
+    bpy.ops.springwrap.detach()
+    _group(layout, "Sockets", centre)
+    layout.springwrap.free_group = "Sockets"
+    assert bpy.ops.springwrap.wrap(solver="ENERGY") == {"FINISHED"}
+    states = read_state(layout)[0]
+    anchored = [anchor.vertex_index for anchor in layout.springwrap.anchors]  # an anchor wins over the group
+    floating = np.setdiff1d(centre, anchored)
+    assert floating.size >= 4
+    assert (states[floating] == 0).all() and (np.delete(states, floating) == 1).all()
+    moved = np.linalg.norm(world_positions(layout) - plain, axis=1)
+    assert moved[far].max() < 1e-3, moved[far].max()
+
+
+def test_the_stiffness_group_reaches_the_wrap_and_the_operator_overrides_the_setting():
+    target, layout, _normal = plane_scene()
+    local = np.array([vertex.co[:] for vertex in layout.data.vertices])
+    centre = np.flatnonzero(np.linalg.norm(local[:, :2], axis=1) < 0.3)
+    _group(layout, "Rigid", centre, 1.0)  # 1: keeps the template's shape, no pull: stays in space
+    bpy.ops.springwrap.anchors_auto(spacing=0.5)
+    layout.springwrap.stiffness_group = "Missing"
+    before = snapshot(layout)
+    with pytest.raises(RuntimeError, match="no vertex group 'Missing'"):
+        bpy.ops.springwrap.wrap(solver="ENERGY")
+    assert snapshot(layout) == before
+    assert bpy.ops.springwrap.wrap(solver="ENERGY", stiffness_group="Rigid") == {"FINISHED"}
+    states = read_state(layout)[0]
+    anchored = [anchor.vertex_index for anchor in layout.springwrap.anchors]  # an anchor wins over the group
+    rigid = np.setdiff1d(centre, anchored)
+    assert rigid.size >= 4
+    assert (states[rigid] == 0).all() and (np.delete(states, rigid) == 1).all()
+
+
+def test_the_groups_need_the_energy_solver_and_leave_the_layout_as_it_was():
+    target, layout, _normal = plane_scene()
+    _group(layout, "Sockets", [0, 1, 2])
+    layout.springwrap.free_group = "Sockets"
+    bpy.ops.springwrap.anchors_auto(spacing=0.5)
+    before = snapshot(layout)
+    with pytest.raises(RuntimeError, match="need the Energy solver"):
+        bpy.ops.springwrap.wrap(solver="SPRINGS")
+    assert snapshot(layout) == before
+    with pytest.raises(RuntimeError, match="need Spring Resolution 1"):
+        bpy.ops.springwrap.wrap(solver="ENERGY", spring_resolution=2)
+    assert snapshot(layout) == before

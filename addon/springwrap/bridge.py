@@ -491,6 +491,24 @@ _WEIGHT_ATTRIBUTE = "springwrap_group_weight"
 _EXISTS_ATTRIBUTE = "springwrap_group_exists"
 
 
+def read_layout_group(layout: bpy.types.Object, group_name: str) -> tuple[np.ndarray, np.ndarray]:
+    """((N,) float32 weights, (N,) bool membership) of the layout's vertex group ``group_name`` on its own
+    (base) mesh. Raises :class:`LayoutError` when the layout has no such group."""
+    group = layout.vertex_groups.get(group_name)
+    if group is None:
+        raise LayoutError(f"Layout '{layout.name}' has no vertex group '{group_name}'")
+    mesh = layout.data
+    weights = np.zeros(len(mesh.vertices), dtype=np.float32)
+    member = np.zeros(len(mesh.vertices), dtype=bool)
+    index = group.index
+    for vertex in mesh.vertices:
+        for element in vertex.groups:
+            if element.group == index:
+                weights[vertex.index] = element.weight
+                member[vertex.index] = True
+    return weights, member
+
+
 def read_vertex_group_weights(context, target_object: bpy.types.Object, group_name: str) -> np.ndarray:
     """(V,) float32 weights of ``group_name`` on the *evaluated* target's vertices (0 outside the group).
 
@@ -627,6 +645,8 @@ def make_wrap_solver(target: Target, structure, inputs, parameters):
         unreliable_triangles=inputs.unreliable_triangles,
         rest_positions=inputs.rest_positions,
         settings=parameters.settings,
+        stiffness=getattr(inputs, "stiffness", None),
+        free_vertices=getattr(inputs, "free_vertices", None),
         **curve_arguments,
     )
 

@@ -66,6 +66,17 @@ COLLAPSED_EDGE = 1e-6
 """An edge shorter than this fraction of the layout's mean edge length has collapsed (a rest shape refuses it)."""
 
 
+NEUTRAL_STIFFNESS = 0.5
+"""The stiffness of a layout vertex outside the Stiffness group: the wrap's own balance."""
+
+
+def group_stiffness(weights: np.ndarray, in_group: np.ndarray) -> np.ndarray:
+    """(N,) float32 per-vertex stiffness: the group's weight (0 follows the target freely … 1 keeps the template's
+    shape) on its vertices, :data:`NEUTRAL_STIFFNESS` elsewhere."""
+    weights = np.clip(np.asarray(weights, dtype=np.float32), 0.0, 1.0)
+    return np.where(np.asarray(in_group, dtype=bool), weights, np.float32(NEUTRAL_STIFFNESS)).astype(np.float32)
+
+
 def check_rest_edges(positions: np.ndarray, edges: np.ndarray) -> None:
     """Raise :class:`~.layout_state.LayoutError` when an edge of ``positions`` has collapsed to (nearly) zero
     length: a rest shape must give every edge a length, or the wrap cannot keep it (a snap to the target's
@@ -296,6 +307,8 @@ class WrapParameters(NamedTuple):
     max_iterations: int = 2000
     settings: Any = None  # springwrap_kernel.WrapSettings (weights, tolerance, rest, solver); None: the kernel's defaults
     spring_resolution: int = 1  # > 1: relax, then relax again the faces cut k x k (coarse to fine)
+    stiffness_group: str = ""  # layout vertex group of per-vertex stiffness (energy solver); "": the layout's setting
+    free_group: str = ""  # layout vertex group of vertices without a pull to the target; "": the layout's setting
 
 
 class WrapInputs(NamedTuple):
@@ -319,6 +332,8 @@ class WrapInputs(NamedTuple):
     plane_point: Optional[tuple] = None  # (3,) world point of the mirror plane
     plane_normal: Optional[tuple] = None  # (3,) world normal of the mirror plane
     plane_slide: bool = True  # held points slide along the target's cross-section (False: only move onto it)
+    stiffness: Optional[np.ndarray] = None  # (N,) float32 per-vertex stiffness 0 … 1 (energy solver); None: neutral
+    free_vertices: Optional[np.ndarray] = None  # (N,) bool vertices without a data term (energy solver); None: none
 
 
 def check_wrap_parameters(parameters: WrapParameters) -> None:

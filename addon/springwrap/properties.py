@@ -318,6 +318,22 @@ class SpringwrapObjectSettings(bpy.types.PropertyGroup):
         ),
         default="",
     )
+    stiffness_group: bpy.props.StringProperty(
+        name="Stiffness",
+        description=(
+            "Vertex group of the layout: how firmly its vertices keep the template's shape in the Energy wrap "
+            "(weight 0 follows the target freely, 0.5 as the others, 1 keeps the template's shape)"
+        ),
+        default="",
+    )
+    free_group: bpy.props.StringProperty(
+        name="Free",
+        description=(
+            "Vertex group of the layout with no pull toward the target in the Energy wrap (eye and mouth sockets, "
+            "teeth): its vertices follow their neighbours by the template's shape and stay off the surface"
+        ),
+        default="",
+    )
     # Armature alignment (armature_operator).
     target_armature: bpy.props.PointerProperty(
         name="Target Armature",

@@ -232,6 +232,10 @@ class SPRINGWRAP_PT_wrap(_LayoutSubPanel, bpy.types.Panel):
             row.enabled = False
             row.prop(settings, "unreliable_group")
         layout.prop(settings, "wrap_solver")
+        groups = layout.column()
+        groups.active = settings.wrap_solver == "ENERGY"
+        groups.prop_search(settings, "stiffness_group", context.active_object, "vertex_groups", icon="GROUP_VERTEX")
+        groups.prop_search(settings, "free_group", context.active_object, "vertex_groups", icon="GROUP_VERTEX")
         layout.label(text="Whole layout; Esc or right-click cancels", icon="INFO")
         layout.operator("springwrap.wrap", icon="MOD_SHRINKWRAP").solver = settings.wrap_solver
         layout.operator("springwrap.rest_set", icon="ARMATURE_DATA")

@@ -21,6 +21,7 @@ import time
 from typing import Callable, NamedTuple, Optional
 
 import bpy
+import numpy as np
 
 from .operators import layout_problem
 from .properties import WRAP_DEFAULTS, WRAP_SOLVER_ITEMS, max_iterations_property, tolerance_property
@@ -169,6 +170,7 @@ class WrapSession:
         inputs, resolution = operations.prepare_wrap(
             arrays, self.target, settings.target_signature, self.anchors, unreliable, curve_constraints, self.rest
         )
+        inputs = self._vertex_groups(inputs, layout, parameters)
         if adjust_inputs is not None:
             inputs = adjust_inputs(inputs)
         self.solver = bridge.make_wrap_solver(self.target, structure, inputs, parameters)
@@ -193,6 +195,28 @@ class WrapSession:
     def stage_iterations(self) -> int:
         """Iterations run so far by the current stage's solver."""
         return 0 if self.last_report is None else self.last_report.total_iterations
+
+    def _vertex_groups(self, inputs, layout, parameters):
+        """``inputs`` with the Stiffness and Free groups (the operator's, else the layout's settings) read in."""
+        settings = layout.springwrap
+        stiffness_group = getattr(parameters, "stiffness_group", "") or settings.stiffness_group
+        free_group = getattr(parameters, "free_group", "") or settings.free_group
+        if not stiffness_group and not free_group:
+            return inputs
+        solver = WRAP_DEFAULTS.solver if parameters.settings is None else parameters.settings.solver
+        if solver != "ENERGY":
+            raise self._layout_state.LayoutError(
+                "The Stiffness and Free groups need the Energy solver (the Springs solver has no per-vertex stiffness)"
+            )
+        if int(parameters.spring_resolution) > 1:
+            raise self._layout_state.LayoutError("The Stiffness and Free groups need Spring Resolution 1")
+        if stiffness_group:
+            weights, member = self._bridge.read_layout_group(layout, stiffness_group)
+            inputs = inputs._replace(stiffness=self._operations.group_stiffness(weights, member))
+        if free_group:
+            weights, member = self._bridge.read_layout_group(layout, free_group)
+            inputs = inputs._replace(free_vertices=np.ascontiguousarray(member & (weights > 0.0)))
+        return inputs
 
     @property
     def total_iterations(self) -> int:
@@ -454,6 +478,18 @@ class SPRINGWRAP_OT_wrap(bpy.types.Operator):
         min=1,
         max=8,
     )
+    stiffness_group: bpy.props.StringProperty(
+        name="Stiffness Group",
+        description="Layout vertex group of per-vertex stiffness (Energy solver: weight 0 follows the target freely, "
+        "0.5 as the others, 1 keeps the template's shape); empty: the layout's Stiffness setting",
+        default="",
+    )
+    free_group: bpy.props.StringProperty(
+        name="Free Group",
+        description="Layout vertex group without a pull toward the target (Energy solver: sockets, teeth); empty: the "
+        "layout's Free setting",
+        default="",
+    )
     hold_plane: bpy.props.EnumProperty(
         name="Hold on Plane",
         description="Keep the vertices that lie on this plane of the layout (or of the panel's Mirror Object) on it "
@@ -488,6 +524,8 @@ class SPRINGWRAP_OT_wrap(bpy.types.Operator):
             max_iterations=self.max_iterations,
             settings=WRAP_DEFAULTS.replace(**{name: getattr(self, name) for name in names}),
             spring_resolution=self.spring_resolution,
+            stiffness_group=self.stiffness_group,
+            free_group=self.free_group,
         )
 
     def _plane_holder(self, layout):
