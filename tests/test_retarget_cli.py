@@ -84,6 +84,10 @@ bpy.ops.wm.read_homefile(use_empty=True)
 for path, name in ((template, "Grid"), (target, "Ball")):
     bpy.ops.wm.obj_import(filepath=path)
     bpy.context.selected_objects[0].name = name
+grid = bpy.data.objects["Grid"]
+centre = sum((vertex.co for vertex in grid.data.vertices), grid.data.vertices[0].co * 0) / len(grid.data.vertices)
+group = grid.vertex_groups.new(name="Centre")  # the middle of the grid, for --free-group / --stiffness-group
+group.add([vertex.index for vertex in grid.data.vertices if (vertex.co - centre).length < 0.25], 1.0, "REPLACE")
 bpy.ops.wm.save_as_mainfile(filepath=output)
 """
 
@@ -156,6 +160,21 @@ def test_anchors_from_json_and_a_blend_template_object(inputs, tmp_path):
     # Vertices left off the surface are counted and warned about in the report.
     space_points = report["wrap"]["space_points"]
     assert space_points == 0 or any(f"{space_points} of {GRID_SIDE ** 2} vertices" in line for line in report["warnings"])
+
+
+def test_a_free_group_floats_with_the_energy_solver_and_is_refused_with_springs(inputs, tmp_path):
+    common = ("--template", inputs["blend"], "--template-object", "Grid", "--target", inputs["target"],
+              "--anchors-spacing", 0.6, "--free-group", "Centre")
+    report_path = tmp_path / "r.json"
+    process = run(*common, "--solver", "energy", "--report", report_path)
+    assert process.returncode == 0, process.stderr[-3000:]
+    report = json.loads(report_path.read_text())
+    assert report["wrap"]["converged"] and report["wrap"]["space_points"] >= 1, report["wrap"]
+    refused = run(*common, "--solver", "springs", "--report", tmp_path / "refused.json")
+    assert refused.returncode == 1
+    assert "need the Energy solver" in refused.stderr and not (tmp_path / "refused.json").exists()
+    missing = run(*common[:-1], "Nowhere", "--solver", "energy")
+    assert missing.returncode == 1 and "no vertex group 'Nowhere'" in missing.stderr
 
 
 @pytest.mark.parametrize("case", ["missing template", "unreadable target", "target without faces",
