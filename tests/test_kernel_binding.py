@@ -197,7 +197,7 @@ def test_bad_queries_raise_named_errors(sphere_mesh):
 
 def test_every_error_is_a_springwrap_error_and_a_value_error():
     for name in ("ArrayError", "EmptyMeshError", "NonFiniteError", "IndexOutOfRangeError", "DegenerateMeshError",
-                 "DegenerateTriangleError", "InvalidArgumentError", "InternalError"):
+                 "DegenerateTriangleError", "InvalidArgumentError", "DivergedError", "InternalError"):
         error = getattr(sk, name)
         assert issubclass(error, sk.SpringwrapError) and issubclass(error, ValueError)
 

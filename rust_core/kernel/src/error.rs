@@ -131,6 +131,16 @@ pub enum KernelError {
         /// The flat threshold it had to reach.
         threshold: f32,
     },
+    /// The wrap diverged: a point's position stopped being finite or left the region the wrap
+    /// can reach (ten times the size of the target and the layout's start about the target's
+    /// centre). The positions are rolled back to where they were before the failing step; lower
+    /// the thin plate weight, or use the energy solver.
+    Diverged {
+        /// The iteration (since the solver was made) at which it was seen.
+        iteration: usize,
+        /// The point that left.
+        vertex: usize,
+    },
     /// The input is larger than the kernel's 32-bit indices can address.
     TooLarge {
         /// What is too large.
@@ -222,6 +232,12 @@ impl fmt::Display for KernelError {
             Self::FlatSurface { largest, threshold } => write!(
                 f,
                 "the surface has no curvature at this scale (largest |k| x scale is {largest:.3}, the flat threshold {threshold}): nothing to detect; raise the scale or lower the flat threshold if it is curved"
+            ),
+            Self::Diverged { iteration, vertex } => write!(
+                f,
+                "the wrap diverged at iteration {iteration}: layout vertex {vertex} left the region it can reach \
+                 (ten times the target's size); the layout was rolled back to before that step \
+                 (lower the thin plate weight, or use the energy solver)"
             ),
             Self::TooLarge { what, count, max } => {
                 write!(f, "too many {what}: {count} (at most {max} supported)")

@@ -59,6 +59,13 @@ create_exception!(
 );
 create_exception!(
     springwrap_kernel,
+    DivergedError,
+    SpringwrapError,
+    "The wrap diverged (a point stopped being finite or left the region it can reach); the layout \
+     was rolled back to before the failing step."
+);
+create_exception!(
+    springwrap_kernel,
     InternalError,
     SpringwrapError,
     "A bug in the kernel (a caught Rust panic). Please report it."
@@ -85,6 +92,7 @@ pub(crate) fn to_python_error(error: &KernelError) -> PyErr {
         | KernelError::CoplanarAnchors { .. } => InvalidArgumentError::new_err(message),
         KernelError::InvalidScale { .. } => InvalidArgumentError::new_err(message),
         KernelError::FlatSurface { .. } => features::FlatSurfaceError::new_err(message),
+        KernelError::Diverged { .. } => DivergedError::new_err(message),
     }
 }
 
@@ -130,6 +138,7 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
         "InvalidArgumentError",
         py.get_type::<InvalidArgumentError>(),
     )?;
+    m.add("DivergedError", py.get_type::<DivergedError>())?;
     m.add("InternalError", py.get_type::<InternalError>())?;
     Ok(())
 }

@@ -76,6 +76,9 @@ const FOLD_BACK_OFF: usize = 2;
 const ON_CURVE: f32 = 1e-2;
 /// Aim of the annealing: the fraction of foldable points that fold in one iteration.
 const FOLD_FRACTION_HIGH: f32 = 0.25;
+/// Points may move this many times the size of the target (or of the layout's start, if
+/// larger) from the target's centre; beyond, the wrap has diverged.
+const REACH_FACTOR: f32 = 10.0;
 /// A point held on the plane is on it within this fraction of the layout's size.
 const ON_PLANE: f32 = 1e-7;
 /// Walks that bring a held face-point back onto the plane after each move (each one is exact
@@ -201,6 +204,11 @@ pub struct WrapSolver {
     free: Vec<bool>,
     /// The energy solver, made at the first step of a wrap with [`SolverKind::Energy`].
     energy: Option<Box<EnergySolver>>,
+    /// The region the points may reach: a centre and a radius (ten times the target's size and
+    /// the layout's start about the target's centre); leaving it is divergence.
+    reach: (Vec3, f32),
+    /// Set once the wrap diverged: every later step returns it.
+    diverged: Option<KernelError>,
 }
 
 impl WrapSolver {
@@ -354,6 +362,16 @@ impl WrapSolver {
             is_corner[corner as usize] = true;
         }
         let _ = target.face_normals(); // built now rather than inside the first iteration
+        let reach = {
+            let bounds = target.bounds;
+            let centre = Vec3::from((bounds.min + bounds.max) * 0.5);
+            let target_size = Vec3::from(bounds.max - bounds.min).length();
+            let start_size = positions
+                .iter()
+                .map(|position| position.distance(centre))
+                .fold(0.0f32, f32::max);
+            (centre, REACH_FACTOR * target_size.max(start_size))
+        };
         Ok(Self {
             orientation: 0.0,
             target,
@@ -388,6 +406,8 @@ impl WrapSolver {
             stiffness: Vec::new(),
             free: Vec::new(),
             energy: None,
+            reach,
+            diverged: None,
         })
     }
 
@@ -761,11 +781,41 @@ impl WrapSolver {
     /// Runs up to `iterations` iterations, stopping early once converged.
     ///
     /// # Errors
-    /// With [`SolverKind::Energy`]: [`KernelError::InvalidArgument`] when its linear system
-    /// cannot be built or factored; with
+    /// [`KernelError::Diverged`] when a point stops being finite or leaves the region the wrap
+    /// can reach (the points are rolled back to where they were before this call, and every
+    /// later call returns the same error). With [`SolverKind::Energy`]:
+    /// [`KernelError::InvalidArgument`] when its linear system cannot be built or factored; with
     /// [`SolverKind::Springs`]: [`KernelError::InvalidArgument`] when vertex stiffness or free
     /// vertices are set.
     pub fn step(&mut self, iterations: usize) -> Result<StepReport, KernelError> {
+        if let Some(error) = &self.diverged {
+            return Err(error.clone());
+        }
+        let before = (self.points.clone(), self.positions.clone());
+        let report = self.step_either(iterations);
+        if let Some(vertex) = self.escaped_vertex() {
+            (self.points, self.positions) = before;
+            let error = KernelError::Diverged {
+                iteration: self.total_iterations,
+                vertex,
+            };
+            self.diverged = Some(error.clone());
+            return Err(error);
+        }
+        report
+    }
+
+    /// The first point outside the region the wrap can reach (or not finite), if any.
+    fn escaped_vertex(&self) -> Option<usize> {
+        let (centre, radius) = self.reach;
+        self.positions.iter().position(|position| {
+            let distance = position.distance_squared(centre);
+            distance.is_nan() || distance > radius * radius
+        })
+    }
+
+    /// [`WrapSolver::step`] with the configured solver, before the divergence check.
+    fn step_either(&mut self, iterations: usize) -> Result<StepReport, KernelError> {
         if self.settings.solver == SolverKind::Energy {
             return self.step_energy(iterations);
         }
@@ -910,6 +960,9 @@ impl WrapSolver {
             report.landed += counts.landed;
             report.folded += counts.folded;
             report.lifted += counts.lifted;
+            if self.escaped_vertex().is_some() {
+                break; // diverged: `step` rolls back and reports it
+            }
             let changed = counts.landed + counts.folded + counts.lifted;
             // A few points flipping state at a hole's rim or in a crease do not keep a large layout
             // from converging; a front of folding points does.
@@ -1516,5 +1569,66 @@ fn relabel_anchor_error(error: KernelError, anchor: usize) -> KernelError {
             index: anchor,
         },
         other => other,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::TargetMeshOptions;
+
+    /// A flat square target and a 3 x 3 quad layout floating 0.2 above it.
+    fn plane_and_layout() -> (Arc<TargetMesh>, LayoutStructure, Vec<LayoutPoint>) {
+        let vertices = vec![
+            Vec3::new(-1.0, -1.0, 0.0),
+            Vec3::new(1.0, -1.0, 0.0),
+            Vec3::new(1.0, 1.0, 0.0),
+            Vec3::new(-1.0, 1.0, 0.0),
+        ];
+        let target = Arc::new(
+            TargetMesh::new(
+                vertices,
+                vec![[0, 1, 2], [0, 2, 3]],
+                TargetMeshOptions::default(),
+            )
+            .unwrap(),
+        );
+        let mut corners = Vec::new();
+        for y in 0..3u32 {
+            for x in 0..3u32 {
+                let a = y * 4 + x;
+                corners.extend([a, a + 1, a + 5, a + 4]);
+            }
+        }
+        let structure = LayoutStructure::new(16, &corners, &[4; 9], &[], &[]).unwrap();
+        let points = (0..16)
+            .map(|index| {
+                let (x, y) = ((index % 4) as f32, (index / 4) as f32);
+                LayoutPoint::Space(Vec3::new(x * 0.2 - 0.3, y * 0.2 - 0.3, 0.2))
+            })
+            .collect();
+        (target, structure, points)
+    }
+
+    #[test]
+    fn a_wrap_that_leaves_its_reach_is_rolled_back_and_stays_failed() {
+        for solver_kind in [SolverKind::Springs, SolverKind::Energy] {
+            let (target, structure, points) = plane_and_layout();
+            let settings = WrapSettings {
+                solver: solver_kind,
+                ..WrapSettings::default()
+            };
+            let mut solver = WrapSolver::new(target, structure, points, &[], settings).unwrap();
+            let start = solver.positions().to_vec();
+            // A reach smaller than the layout: the first step leaves it.
+            solver.reach = (Vec3::new(0.0, 0.0, 10.0), 1e-3);
+            let error = solver.step(5).unwrap_err();
+            assert!(
+                matches!(error, KernelError::Diverged { .. }),
+                "{solver_kind:?}: {error:?}"
+            );
+            assert_eq!(solver.positions(), start.as_slice(), "{solver_kind:?}");
+            assert_eq!(solver.step(1).unwrap_err(), error);
+        }
     }
 }

@@ -40,6 +40,10 @@ class InvalidArgumentError(SpringwrapError):
 class FlatSurfaceError(SpringwrapError):
     """Feature detection found no curvature at the scale given (a plane): nothing to detect."""
 
+class DivergedError(SpringwrapError):
+    """The wrap diverged (a point stopped being finite or left the region it can reach); the layout
+    was rolled back to before the failing step."""
+
 class InternalError(SpringwrapError):
     """A bug in the kernel (a caught Rust panic). Please report it."""
 
