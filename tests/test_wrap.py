@@ -229,6 +229,9 @@ class _RecordingLayout:
     def box(self, *args, **kwargs):
         return self
 
+    def column(self, *args, **kwargs):
+        return self
+
     def label(self, text="", **kwargs):
         self.labels.append(text)
 
@@ -251,12 +254,13 @@ def test_wrap_panel_searches_the_targets_vertex_groups():
     recorder = _RecordingLayout()
     SPRINGWRAP_PT_wrap.draw(type("Panel", (), {"layout": recorder})(), bpy.context)
     assert recorder.operators == ["springwrap.wrap", "springwrap.rest_set", "springwrap.mirror"]
-    assert recorder.searches == [("unreliable_group", "Target", "vertex_groups")]
+    layout_groups = [("stiffness_group", "Layout", "vertex_groups"), ("free_group", "Layout", "vertex_groups")]
+    assert recorder.searches == [("unreliable_group", "Target", "vertex_groups"), *layout_groups]
     layout.springwrap.target = None
     recorder = _RecordingLayout()
     SPRINGWRAP_PT_wrap.draw(type("Panel", (), {"layout": recorder})(), bpy.context)
     # (the recorder's rows are itself: the mirror box below the disabled row records as disabled too)
-    assert recorder.searches == [] and recorder.props == [
+    assert recorder.searches == layout_groups and recorder.props == [
         ("unreliable_group", False), ("wrap_solver", False), ("mirror_object", False)
     ]
 
