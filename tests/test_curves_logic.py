@@ -2,7 +2,8 @@
 
 Chains, shortest paths and automatic pairing run on generated grids (a W x H lattice of unit
 spacing in the plane z = 0) whose answers are known: a row of the grid is the shortest path
-between its ends, a border of a quad grid is one curve.
+between its ends, a border of a quad grid is one curve. Orientation runs on rings (issue 11): an
+opened ring's two ends are next to each other.
 """
 
 import importlib
@@ -90,10 +91,58 @@ def test_shortest_path_scales_to_a_large_grid():
     np.testing.assert_array_equal(path, index[200, :])
 
 
-def test_orientation_puts_the_start_nearest_to_the_chain_start():
+def ring(count, turn=0.0, radius=1.0, z=0.0):
+    """(count, 3) points round the z axis, 2 pi / count apart, the first at ``turn`` steps from +x."""
+    angles = 2.0 * np.pi * (np.arange(count) + turn) / count
+    return np.stack([radius * np.cos(angles), radius * np.sin(angles), np.full(count, z)], axis=1)
+
+
+def test_orientation_follows_a_straight_chain():
     points = np.array([[0.0, 0, 0], [1, 0, 0], [2, 0, 0]])
-    np.testing.assert_array_equal(cu.oriented(points, [2.1, 0.3, 0]), points[::-1])
-    np.testing.assert_array_equal(cu.oriented(points, [-0.1, 0.3, 0]), points)
+    chain = np.array([[2.1, 0.3, 0], [1.0, 0.3, 0], [-0.1, 0.3, 0]])
+    np.testing.assert_array_equal(cu.orient_to_chain(points, chain), points[::-1])
+    np.testing.assert_array_equal(cu.orient_to_chain(points, chain[::-1]), points)
+    np.testing.assert_array_equal(cu.orient_to_chain(points, chain[:1]), points[::-1])  # one vertex: the nearer end
+
+
+@pytest.mark.parametrize("turn", [-0.6, -0.4, 0.0, 0.4, 0.6])
+def test_an_opened_ring_keeps_its_direction_on_a_turned_chain(turn):
+    """Issue 11: the chain (an opened 16-vertex ring) turned by 0.6 of an edge backwards has its first
+    vertex 0.4 of an edge from the curve's *last* point; the end-nearest rule of v1 reversed the
+    curve (90 degrees of mean error). The whole chain decides."""
+    points = ring(16)
+    chain = ring(16, turn)
+    kept = cu.orient_to_chain(points, chain)
+    np.testing.assert_array_equal(kept, points)
+    np.testing.assert_array_equal(cu.orient_to_chain(points[::-1], chain), points)  # drawn backwards: turned round
+    assert cu.matching_error(chain, kept) < 0.5 * cu.matching_error(chain, points[::-1])
+    along = cu.arc_length_points(chain, kept)
+    np.testing.assert_allclose(along, points, atol=1e-12)  # vertex k goes to curve point k
+    if turn == -0.6:  # the trap: the first vertex is nearer the curve's end than its start
+        assert np.linalg.norm(chain[0] - points[-1]) < np.linalg.norm(chain[0] - points[0])
+
+
+def test_a_closed_curve_is_cut_where_the_chain_starts_and_ends():
+    """A closed curve (its last point on its first, as a closed feature curve) has no ends of its
+    own: the chain's ends decide where the piece starts and ends, the whole chain which way round."""
+    loop = np.concatenate([ring(32, turn=5.0), ring(32, turn=5.0)[:1]])  # starts at 5 steps, ends there again
+    assert cu.is_closed(loop) and not cu.is_closed(loop[:-1]) and not cu.is_closed(loop[:3])
+    for chain, turn_sign in ((ring(16, turn=-0.3), 1.0), (ring(16, turn=-0.3)[::-1], -1.0)):  # both ways round
+        piece = cu.orient_to_chain(loop, chain)
+        sag = 1.0 - np.cos(np.pi / 32)  # the loop's chords pass inside the ring the chain is on
+        np.testing.assert_allclose(piece[0], chain[0], atol=sag)  # the loop's point nearest to the chain's ends
+        np.testing.assert_allclose(piece[-1], chain[-1], atol=sag)
+        assert cu.matching_error(chain, piece) < 0.01  # vertex k within a chord's sag of its place
+        angles = np.unwrap(np.arctan2(piece[:, 1], piece[:, 0]))
+        assert np.all(turn_sign * np.diff(angles) > 0)
+        assert np.isclose(abs(angles[-1] - angles[0]), 2 * np.pi * 15 / 16)  # the gap is left out
+    half = ring(32)[8:25]  # half a ring (90 to 270 degrees), the other way round from the loop's start
+    piece = cu.orient_to_chain(loop, half[::-1])
+    np.testing.assert_allclose(piece, half[::-1], atol=1e-12)
+    closed_chain = np.concatenate([ring(16, turn=0.2), ring(16, turn=0.2)[:1]])  # ends on one point: the whole loop
+    piece = cu.orient_to_chain(loop, closed_chain)
+    assert np.isclose(cu._cumulative(piece)[-1], cu._cumulative(loop)[-1])
+    assert cu.matching_error(closed_chain, piece) < 0.01
 
 
 # ---------------------------------------------------------------- automatic pairing

@@ -59,20 +59,20 @@ class SPRINGWRAP_OT_curve_constraint_add(_CurveOperator, bpy.types.Operator):
 
         anchored = anchors.anchored_mask(anchor_list, vertex_count)
         curves.check_free(chain, existing, anchored)
-        ends = bridge.read_world_vertex_positions(layout, chain[[0, -1]])
+        chain_positions = bridge.read_world_vertex_positions(layout, chain)
         if self.curve_object:
             curve_object = bpy.data.objects.get(self.curve_object)
             if curve_object is None or curve_object.type != "CURVE":
                 raise curves.LayoutError(f"There is no curve object called '{self.curve_object}'")
-            points = curves.oriented(bridge.read_curve_polyline(depsgraph, curve_object), ends[0])
+            points = curves.orient_to_chain(bridge.read_curve_polyline(depsgraph, curve_object), chain_positions)
             new = curves.make_constraint(chain, points, curves.CURVE_OBJECT, (), curve_object)
         else:
             location_of = {
                 int(vertex): location
                 for vertex, location in zip(anchor_list.vertex_indices.tolist(), anchor_list.locations)
             }
-            start = location_of.get(int(chain[0]), ends[0])
-            end = location_of.get(int(chain[-1]), ends[1])
+            start = location_of.get(int(chain[0]), chain_positions[0])
+            end = location_of.get(int(chain[-1]), chain_positions[-1])
             target_positions, target_edges = bridge.read_target_edges(depsgraph, layout)
             new = curves.target_edge_constraint(chain, start, end, target_positions, target_edges)
         self._new = new

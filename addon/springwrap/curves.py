@@ -6,9 +6,9 @@ edges. The wrap hands them to the kernel, which matches each chain vertex to the
 at the same fraction of arc length.
 
 The functions here order selected edges into a chain, find target edge chains (Dijkstra over
-edge lengths), orient polylines, pair layout curves automatically, and check and flatten
-constraints for the kernel; ``bridge`` reads and writes them, ``curve_operators`` only call and
-report. Every function returns new arrays and leaves its inputs untouched.
+edge lengths), orient polylines by the whole chain, pair layout curves automatically, and check
+and flatten constraints for the kernel; ``bridge`` reads and writes them, ``curve_operators``
+only call and report. Every function returns new arrays and leaves its inputs untouched.
 """
 
 import heapq
@@ -165,17 +165,96 @@ def nearest_vertex(positions, point) -> int:
     return int(np.argmin(((positions - np.asarray(point, dtype=np.float64).reshape(1, 3)) ** 2).sum(axis=1)))
 
 
-def orient(points, first_point) -> bool:
-    """Whether the polyline ``points`` must be reversed so that its start is nearest to ``first_point``."""
-    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    first_point = np.asarray(first_point, dtype=np.float64).reshape(3)
-    return bool(np.linalg.norm(points[-1] - first_point) < np.linalg.norm(points[0] - first_point))
+# ---------------------------------------------------------------- orientation
+
+CLOSED_TOLERANCE = 1e-5
+"""A polyline whose last point is within this fraction of its length of its first is closed (a loop)."""
 
 
-def oriented(points, first_point) -> np.ndarray:
-    """The polyline ``points`` (P, 3), reversed when its end is nearer to ``first_point`` than its start."""
+def _cumulative(points: np.ndarray) -> np.ndarray:
+    """(P,) arc length at each point of a polyline, from 0."""
+    return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
+
+
+def _fractions(chain_positions: np.ndarray) -> np.ndarray:
+    """(C,) each vertex's fraction of the chain's arc length (even when the chain has no length)."""
+    lengths = _cumulative(chain_positions)
+    if lengths[-1] > 0.0:
+        return lengths / lengths[-1]
+    return np.linspace(0.0, 1.0, chain_positions.shape[0])
+
+
+def is_closed(points) -> bool:
+    """Whether the polyline ``points`` (P, 3) ends where it starts (a loop: a closed feature curve)."""
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    return points[::-1].copy() if orient(points, first_point) else points.copy()
+    if points.shape[0] < 4:  # a loop needs three distinct points
+        return False
+    length = _cumulative(points)[-1]
+    return bool(length > 0.0 and np.linalg.norm(points[-1] - points[0]) <= CLOSED_TOLERANCE * length)
+
+
+def matching_error(chain_positions, points) -> float:
+    """Mean distance between the chain's vertices and the points of the polyline the wrap pulls them
+    to (the same fraction of arc length: :func:`arc_length_points`)."""
+    chain_positions = np.asarray(chain_positions, dtype=np.float64).reshape(-1, 3)
+    return float(np.linalg.norm(arc_length_points(chain_positions, points) - chain_positions, axis=1).mean())
+
+
+def _loop_parameter(loop: np.ndarray, cumulative: np.ndarray, point: np.ndarray) -> float:
+    """Arc-length parameter of the point of the closed polyline ``loop`` nearest to ``point``."""
+    starts, direction = loop[:-1], np.diff(loop, axis=0)
+    squared = np.maximum((direction**2).sum(axis=1), 1e-300)
+    t = np.clip(((point[None, :] - starts) * direction).sum(axis=1) / squared, 0.0, 1.0)
+    distances = ((starts + t[:, None] * direction - point[None, :]) ** 2).sum(axis=1)
+    segment = int(np.argmin(distances))
+    return float(cumulative[segment] + t[segment] * (cumulative[segment + 1] - cumulative[segment]))
+
+
+def _loop_arc(loop: np.ndarray, cumulative: np.ndarray, begin: float, length: float) -> np.ndarray:
+    """The piece of the closed polyline ``loop`` from parameter ``begin`` on, ``length`` long (at most once round)."""
+    total = cumulative[-1]
+    twice = np.concatenate([loop[:-1], loop])
+    twice_cumulative = np.concatenate([cumulative[:-1], cumulative + total])
+    finish = begin + length
+    margin = 1e-9 * total
+    inside = (twice_cumulative > begin + margin) & (twice_cumulative < finish - margin)
+    ends = np.stack([np.interp([begin, finish], twice_cumulative, twice[:, axis]) for axis in range(3)], axis=1)
+    return np.concatenate([ends[:1], twice[inside], ends[1:]])
+
+
+def _candidates(points: np.ndarray, chain_positions: np.ndarray) -> list:
+    """The polylines a chain may follow along ``points``: both directions of an open polyline; for a
+    closed one, in each direction, the piece from the point nearest the chain's first vertex to the
+    point nearest its last, and the whole loop from the first (a chain whose ends meet)."""
+    if not is_closed(points):
+        return [points, points[::-1]]
+    found = []
+    for loop in (points, points[::-1]):
+        cumulative = _cumulative(loop)
+        total = cumulative[-1]
+        begin = _loop_parameter(loop, cumulative, chain_positions[0])
+        finish = _loop_parameter(loop, cumulative, chain_positions[-1])
+        piece = (finish - begin) % total
+        if piece > 1e-6 * total:
+            found.append(_loop_arc(loop, cumulative, begin, piece))
+        found.append(_loop_arc(loop, cumulative, begin, total))
+    return found
+
+
+def orient_to_chain(points, chain_positions) -> np.ndarray:
+    """The target polyline ``points`` (P, 3) as a chain (``chain_positions``, (C, 3) in order) should
+    follow it: the way round — and, for a closed polyline (:func:`is_closed`), the piece of it —
+    along which the chain's vertices lie nearest to the points the wrap pulls them to
+    (:func:`matching_error`: the whole chain decides, not its first vertex alone; an opened ring's
+    two ends are next to each other). Ties keep the polyline as it is.
+    """
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    chain_positions = np.asarray(chain_positions, dtype=np.float64).reshape(-1, 3)
+    if points.shape[0] < 2 or chain_positions.shape[0] < 1:
+        return points.copy()
+    candidates = _candidates(points, chain_positions)
+    errors = [matching_error(chain_positions, candidate) for candidate in candidates]
+    return np.array(candidates[int(np.argmin(errors))], dtype=np.float64)
 
 
 # ---------------------------------------------------------------- pairing
@@ -337,13 +416,8 @@ def arc_length_points(chain_positions, points) -> np.ndarray:
         return np.full_like(chain_positions, np.nan)
     if points.shape[0] == 1:
         return np.repeat(points, chain_positions.shape[0], axis=0)
-    chain_lengths = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(chain_positions, axis=0), axis=1))])
-    point_lengths = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
-    if chain_lengths[-1] > 0.0:
-        fractions = chain_lengths / chain_lengths[-1]
-    else:
-        fractions = np.linspace(0.0, 1.0, chain_positions.shape[0])
-    wanted = fractions * point_lengths[-1]
+    point_lengths = _cumulative(points)
+    wanted = _fractions(chain_positions) * point_lengths[-1]
     return np.stack([np.interp(wanted, point_lengths, points[:, axis]) for axis in range(3)], axis=1)
 
 
