@@ -416,8 +416,9 @@ def test_panel_lists_the_constraints_with_their_buttons():
 
 # ---------------------------------------------------------------- regressions (issue 11)
 #
-# A defect of v1 on rings, reproduced on a tube: which way a target curve runs was decided by its
-# ends alone (an opened ring's two ends are next to each other).
+# Two defects of v1 on rings, reproduced on a tube: which way a target curve runs was decided by
+# its ends alone (an opened ring's two ends are next to each other), and a chain of target edges
+# was the shortest one between the anchors, wherever the layout chain ran.
 
 TUBE_SEGMENTS = 48  # target vertices around the tube (7.5 degrees apart)
 TUBE_RINGS = 21  # z from -1 to 1 in steps of 0.1
@@ -451,6 +452,11 @@ def tube_target():
     target = bpy.data.objects.new("Target", mesh)
     bpy.context.scene.collection.objects.link(target)
     return target
+
+
+def tube_vertex(ring, segment):
+    """Index of the tube target's vertex at ring ``ring`` (z = -1 + 0.1 ring) and angle 7.5 degrees x ``segment``."""
+    return ring * TUBE_SEGMENTS + segment % TUBE_SEGMENTS
 
 
 def ring_band(target, angles, closed, radius=1.06):
@@ -523,5 +529,35 @@ def test_a_curve_turned_after_pairing_keeps_its_direction_at_the_wrap():
     assert bpy.ops.springwrap.wrap() == {"FINISHED"}
     turned = np.array([(np.cos(RING_STEP * (k + 2 / 3)), np.sin(RING_STEP * (k + 2 / 3)), 0.0) for k in range(16)])
     mean, largest = chain_errors(layout, chain, turned)
+    assert largest < 1e-3, (mean, largest)
+    assert flipped_quads(layout) == 0
+
+
+@pytest.mark.parametrize("pairing", ["by hand", "automatic"])
+def test_a_target_edge_chain_follows_the_layout_chain_the_long_way_round(pairing):
+    """v1 joined the anchored ends by the shortest chain of target edges wherever the layout chain
+    ran: a chain round 225 degrees of the tube was paired with the 135 degrees the other way. The
+    target edges follow the chain's own course now."""
+    target = tube_target()
+    layout = ring_band(target, RING_STEP * np.arange(11), closed=False)  # 0 to 225 degrees
+    row, ring = (2, 10) if pairing == "by hand" else (0, 7)  # the middle row, or the bottom border (z = -0.3)
+    chain = [row * 11 + k for k in range(11)]
+    for vertex, segment in ((chain[0], 0), (chain[-1], 30)):
+        location = Vector(world_positions(target)[tube_vertex(ring, segment)])
+        assert bpy.ops.springwrap.anchor_add(vertex_index=vertex, location=location, use_location=True) == {"FINISHED"}
+    if pairing == "by hand":
+        select_edges(layout, chain_pairs(chain))
+        assert bpy.ops.springwrap.curve_constraint_add() == {"FINISHED"}
+        bpy.ops.object.mode_set(mode="OBJECT")
+    else:
+        assert bpy.ops.springwrap.curve_constraints_auto() == {"FINISHED"}
+    (item,) = layout.springwrap.curve_constraints
+    assert item.layout_vertices == " ".join(map(str, chain))
+    followed = [int(index) for index in item.target_vertices.split()]
+    assert followed == [tube_vertex(ring, segment) for segment in range(31)], followed
+    assert bpy.ops.springwrap.wrap() == {"FINISHED"}
+    z = -1.0 + 0.1 * ring
+    truth = np.array([(np.cos(RING_STEP * k), np.sin(RING_STEP * k), z) for k in range(11)])
+    mean, largest = chain_errors(layout, chain, truth)
     assert largest < 1e-3, (mean, largest)
     assert flipped_quads(layout) == 0
