@@ -15,7 +15,7 @@ from mathutils import Vector
 
 from test_addon import snapshot, world_positions
 from test_anchors import anchor_snapshot
-from test_wrap import _curves_layout, plane_scene, plane_target
+from test_wrap import _curves_layout, plane_scene, plane_target, quad_normals, quads_of
 
 ROW = 13  # vertices per row of the test_wrap grid layout (12 subdivisions)
 
@@ -412,3 +412,152 @@ def test_panel_lists_the_constraints_with_their_buttons():
     item = layout.springwrap.curve_constraints[0]
     SPRINGWRAP_UL_curve_constraints.draw_item(None, bpy.context, row, layout.springwrap, item, 0, None, "")
     assert row.labels == ["0..3 (4)", "Curve"]
+
+
+# ---------------------------------------------------------------- regressions (issue 11)
+#
+# Two defects of v1 on rings, reproduced on a tube: which way a target curve runs was decided by
+# its ends alone (an opened ring's two ends are next to each other), and a chain of target edges
+# was the shortest one between the anchors, wherever the layout chain ran.
+
+TUBE_SEGMENTS = 48  # target vertices around the tube (7.5 degrees apart)
+TUBE_RINGS = 21  # z from -1 to 1 in steps of 0.1
+RING_STEP = 2.0 * np.pi / 16  # a 16-vertex layout ring: 22.5 degrees, three target edges
+BAND_ROWS = (-0.3, -0.15, 0.0, 0.15, 0.3)  # z of the band's rows; row 2 runs round the tube's ring 10
+
+
+def quad_mesh(name, vertices, faces):
+    """A mesh made by bmesh (bpy 5.0.1's ``from_pydata`` leaves selection layers that crash
+    ``edges.foreach_set("select", ...)``)."""
+    editable = bmesh.new()
+    made = [editable.verts.new(vertex) for vertex in vertices]
+    for face in faces:
+        editable.faces.new([made[index] for index in face])
+    mesh = bpy.data.meshes.new(name)
+    editable.to_mesh(mesh)
+    editable.free()
+    return mesh
+
+
+def tube_target():
+    """An open tube along z (radius 1, z from -1 to 1, 48 x 20 quads): the target of the ring cases."""
+    angles = 2.0 * np.pi * np.arange(TUBE_SEGMENTS) / TUBE_SEGMENTS
+    vertices = [(np.cos(a), np.sin(a), z) for z in np.linspace(-1.0, 1.0, TUBE_RINGS) for a in angles]
+    faces = [
+        (ring * TUBE_SEGMENTS + s, ring * TUBE_SEGMENTS + (s + 1) % TUBE_SEGMENTS,
+         (ring + 1) * TUBE_SEGMENTS + (s + 1) % TUBE_SEGMENTS, (ring + 1) * TUBE_SEGMENTS + s)
+        for ring in range(TUBE_RINGS - 1) for s in range(TUBE_SEGMENTS)
+    ]
+    mesh = quad_mesh("Tube", vertices, faces)
+    target = bpy.data.objects.new("Target", mesh)
+    bpy.context.scene.collection.objects.link(target)
+    return target
+
+
+def tube_vertex(ring, segment):
+    """Index of the tube target's vertex at ring ``ring`` (z = -1 + 0.1 ring) and angle 7.5 degrees x ``segment``."""
+    return ring * TUBE_SEGMENTS + segment % TUBE_SEGMENTS
+
+
+def ring_band(target, angles, closed, radius=1.06):
+    """A quad layout band round the tube's axis, a little outside it: a row per ``BAND_ROWS`` z, a
+    column per angle (vertex row * columns + column); ``closed``: the last column joins the first."""
+    columns = len(angles)
+    vertices = [(radius * np.cos(a), radius * np.sin(a), z) for z in BAND_ROWS for a in angles]
+    faces = [
+        (row * columns + c, row * columns + (c + 1) % columns,
+         (row + 1) * columns + (c + 1) % columns, (row + 1) * columns + c)
+        for row in range(len(BAND_ROWS) - 1) for c in range(columns if closed else columns - 1)
+    ]
+    mesh = quad_mesh("Band", vertices, faces)
+    layout = bpy.data.objects.new("Layout", mesh)
+    bpy.context.scene.collection.objects.link(layout)
+    layout.springwrap.target = target
+    activate(layout)
+    return layout
+
+
+def flipped_quads(layout):
+    """How many of the band's quads face into the tube (their outward normal is radial)."""
+    world = world_positions(layout)
+    quads = quads_of(layout)
+    centres = world[quads].mean(axis=1) * np.array([1.0, 1.0, 0.0])
+    outward = centres / np.linalg.norm(centres, axis=1)[:, None]
+    return int((np.einsum("kx,kx->k", quad_normals(world, quads), outward) <= 0.0).sum())
+
+
+def chain_errors(layout, chain, truth):
+    """(mean, max) distance of the chain's vertices from where they belong."""
+    distances = np.linalg.norm(world_positions(layout)[chain] - truth, axis=1)
+    return distances.mean(), distances.max()
+
+
+def test_an_opened_ring_follows_its_curve_the_right_way_round_on_a_turned_template():
+    """v1 oriented the curve by its end nearer the chain's first vertex: an opened ring on a
+    template turned by 0.6 of an edge (its first vertex 0.4 of an edge from the curve's *last*
+    point) got the curve reversed, 90 degrees of mean error. The whole chain decides now."""
+    target = tube_target()
+    layout = ring_band(target, RING_STEP * (np.arange(16) - 0.6), closed=True)
+    chain = [2 * 16 + k for k in range(16)]  # the row at z = 0, opened between its last and first vertex
+    truth = np.array([(np.cos(RING_STEP * k), np.sin(RING_STEP * k), 0.0) for k in range(16)])
+    poly_curve("Ring", truth)  # the ring on the tube, opened the same way: no segment from the last point back
+    select_edges(layout, chain_pairs(chain))
+    assert bpy.ops.springwrap.curve_constraint_add(curve_object="Ring") == {"FINISHED"}
+    bpy.ops.object.mode_set(mode="OBJECT")
+    stored = np.array([tuple(point.co) for point in layout.springwrap.curve_constraints[0].points])
+    assert np.allclose(stored, truth, atol=1e-5), "the curve was turned round"
+    assert bpy.ops.springwrap.wrap() == {"FINISHED"}
+    mean, largest = chain_errors(layout, chain, truth)
+    assert largest < 1e-3, (mean, largest)
+    assert flipped_quads(layout) == 0
+
+
+def test_a_curve_turned_after_pairing_keeps_its_direction_at_the_wrap():
+    """The wrap reads a curve object again; v1 kept the direction whose start was nearer the cached
+    start point, so an opened ring turned by over half an edge after pairing ran backwards (turned
+    by two thirds of an edge here: two tube edges, so that its points stay on the tube)."""
+    target = tube_target()
+    layout = ring_band(target, RING_STEP * np.arange(16), closed=True)
+    chain = [2 * 16 + k for k in range(16)]
+    points = np.array([(np.cos(RING_STEP * k), np.sin(RING_STEP * k), 0.0) for k in range(16)])
+    curve = poly_curve("Ring", points)
+    select_edges(layout, chain_pairs(chain))
+    assert bpy.ops.springwrap.curve_constraint_add(curve_object="Ring") == {"FINISHED"}
+    bpy.ops.object.mode_set(mode="OBJECT")
+    curve.rotation_euler = (0.0, 0.0, RING_STEP * 2 / 3)
+    bpy.context.view_layer.update()
+    assert bpy.ops.springwrap.wrap() == {"FINISHED"}
+    turned = np.array([(np.cos(RING_STEP * (k + 2 / 3)), np.sin(RING_STEP * (k + 2 / 3)), 0.0) for k in range(16)])
+    mean, largest = chain_errors(layout, chain, turned)
+    assert largest < 1e-3, (mean, largest)
+    assert flipped_quads(layout) == 0
+
+
+@pytest.mark.parametrize("pairing", ["by hand", "automatic"])
+def test_a_target_edge_chain_follows_the_layout_chain_the_long_way_round(pairing):
+    """v1 joined the anchored ends by the shortest chain of target edges wherever the layout chain
+    ran: a chain round 225 degrees of the tube was paired with the 135 degrees the other way. The
+    target edges follow the chain's own course now."""
+    target = tube_target()
+    layout = ring_band(target, RING_STEP * np.arange(11), closed=False)  # 0 to 225 degrees
+    row, ring = (2, 10) if pairing == "by hand" else (0, 7)  # the middle row, or the bottom border (z = -0.3)
+    chain = [row * 11 + k for k in range(11)]
+    for vertex, segment in ((chain[0], 0), (chain[-1], 30)):
+        location = Vector(world_positions(target)[tube_vertex(ring, segment)])
+        assert bpy.ops.springwrap.anchor_add(vertex_index=vertex, location=location, use_location=True) == {"FINISHED"}
+    if pairing == "by hand":
+        select_edges(layout, chain_pairs(chain))
+        assert bpy.ops.springwrap.curve_constraint_add() == {"FINISHED"}
+        bpy.ops.object.mode_set(mode="OBJECT")
+    else:
+        assert bpy.ops.springwrap.curve_constraints_auto() == {"FINISHED"}
+    (item,) = layout.springwrap.curve_constraints
+    assert item.layout_vertices == " ".join(map(str, chain))
+    followed = [int(index) for index in item.target_vertices.split()]
+    assert followed == [tube_vertex(ring, segment) for segment in range(31)], followed
+    assert bpy.ops.springwrap.wrap() == {"FINISHED"}
+    z = -1.0 + 0.1 * ring
+    truth = np.array([(np.cos(RING_STEP * k), np.sin(RING_STEP * k), z) for k in range(11)])
+    mean, largest = chain_errors(layout, chain, truth)
+    assert largest < 1e-3, (mean, largest)
+    assert flipped_quads(layout) == 0

@@ -760,8 +760,9 @@ def write_curve_constraints(layout: bpy.types.Object, constraints, active_index:
 def resolve_curve_constraints(depsgraph: bpy.types.Depsgraph, layout: bpy.types.Object, constraints) -> list:
     """The constraints with their target polylines read again from their sources (evaluated, world space).
 
-    A curve object's polyline keeps the direction of the cached one (or, with no cache, starts
-    nearest to the chain's first vertex); a target edge chain is read at its target vertices.
+    A curve object's polyline is oriented (and a closed one cut) to follow the cached polyline as a
+    whole (or, with no cache, the chain: ``curves.orient_to_chain``); a target edge chain is read
+    at its target vertices.
     Raises :class:`LayoutError` naming the constraint whose source is gone or unusable.
     """
     constraints = list(constraints)
@@ -775,11 +776,11 @@ def resolve_curve_constraints(depsgraph: bpy.types.Depsgraph, layout: bpy.types.
                 points = read_curve_polyline(depsgraph, constraint.curve_object)
             except LayoutError as error:
                 raise LayoutError(f"Curve constraint {number}: {error}") from error
-            if constraint.points.shape[0]:
-                reference = constraint.points[0]
+            if constraint.points.shape[0] >= 2:
+                reference = constraint.points
             else:
-                reference = read_world_vertex_positions(layout, constraint.layout_vertices[:1])[0]
-            points = curves.oriented(points, reference)
+                reference = read_world_vertex_positions(layout, constraint.layout_vertices)
+            points = curves.orient_to_chain(points, reference)
         else:
             if target_positions is None:
                 target_positions, _edges = read_target_edges(depsgraph, layout)

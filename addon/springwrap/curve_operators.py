@@ -7,6 +7,7 @@ problem is reported as an error and the constraints are left exactly as they wer
 """
 
 import bpy
+import numpy as np
 
 from .operators import LayoutCollectionOperator
 
@@ -43,8 +44,9 @@ class SPRINGWRAP_OT_curve_constraint_add(_CurveOperator, bpy.types.Operator):
     curve_object: bpy.props.StringProperty(
         name="Curve Object",
         description=(
-            "Name of the curve object the chain follows; empty: the shortest chain of target edges between the "
-            "target vertices nearest to the chain's end anchors (or to its end vertices where they have none)"
+            "Name of the curve object the chain follows; empty: the chain of target edges along the layout chain's "
+            "course between the target vertices nearest to its end anchors (or to its end vertices where they have "
+            "none)"
         ),
         default="",
     )
@@ -59,22 +61,22 @@ class SPRINGWRAP_OT_curve_constraint_add(_CurveOperator, bpy.types.Operator):
 
         anchored = anchors.anchored_mask(anchor_list, vertex_count)
         curves.check_free(chain, existing, anchored)
-        ends = bridge.read_world_vertex_positions(layout, chain[[0, -1]])
+        chain_positions = bridge.read_world_vertex_positions(layout, chain)
         if self.curve_object:
             curve_object = bpy.data.objects.get(self.curve_object)
             if curve_object is None or curve_object.type != "CURVE":
                 raise curves.LayoutError(f"There is no curve object called '{self.curve_object}'")
-            points = curves.oriented(bridge.read_curve_polyline(depsgraph, curve_object), ends[0])
+            points = curves.orient_to_chain(bridge.read_curve_polyline(depsgraph, curve_object), chain_positions)
             new = curves.make_constraint(chain, points, curves.CURVE_OBJECT, (), curve_object)
         else:
             location_of = {
                 int(vertex): location
                 for vertex, location in zip(anchor_list.vertex_indices.tolist(), anchor_list.locations)
             }
-            start = location_of.get(int(chain[0]), ends[0])
-            end = location_of.get(int(chain[-1]), ends[1])
+            start = location_of.get(int(chain[0]), chain_positions[0])
+            end = location_of.get(int(chain[-1]), chain_positions[-1])
             target_positions, target_edges = bridge.read_target_edges(depsgraph, layout)
-            new = curves.target_edge_constraint(chain, start, end, target_positions, target_edges)
+            new = curves.target_edge_constraint(chain, chain_positions, start, end, target_positions, target_edges)
         self._new = new
         return existing + [new], len(existing)
 
@@ -91,7 +93,7 @@ class SPRINGWRAP_OT_curve_constraint_add(_CurveOperator, bpy.types.Operator):
 
 
 class SPRINGWRAP_OT_curve_constraints_auto(_CurveOperator, bpy.types.Operator):
-    """Pair every layout curve (border, seam, loose chain) whose two ends are anchored with the target edges between the anchors"""
+    """Pair every layout curve (border, seam, loose chain) whose two ends are anchored with the target edges along it between the anchors"""
 
     bl_idname = "springwrap.curve_constraints_auto"
     bl_label = "Auto Curve Constraints"
@@ -108,7 +110,7 @@ class SPRINGWRAP_OT_curve_constraints_auto(_CurveOperator, bpy.types.Operator):
             existing,
             target_positions,
             target_edges,
-            len(layout.data.vertices),
+            bridge.read_world_vertex_positions(layout, np.arange(len(layout.data.vertices))),
         )
         self._outcome = outcome
         return existing + outcome.constraints, -1

@@ -5,10 +5,11 @@ world-space polyline in the same direction: a Blender curve object, or a chain o
 edges. The wrap hands them to the kernel, which matches each chain vertex to the polyline point
 at the same fraction of arc length.
 
-The functions here order selected edges into a chain, find target edge chains (Dijkstra over
-edge lengths), orient polylines, pair layout curves automatically, and check and flatten
-constraints for the kernel; ``bridge`` reads and writes them, ``curve_operators`` only call and
-report. Every function returns new arrays and leaves its inputs untouched.
+The functions here order selected edges into a chain, find target edge chains that follow a
+layout chain's course (Dijkstra over edge lengths, segment by segment), orient polylines by the
+whole chain, pair layout curves automatically, and check and flatten constraints for the kernel;
+``bridge`` reads and writes them, ``curve_operators`` only call and report. Every function
+returns new arrays and leaves its inputs untouched.
 """
 
 import heapq
@@ -108,29 +109,66 @@ def chain_from_edges(edges) -> np.ndarray:
     return np.asarray(chain, dtype=np.int64)
 
 
-def shortest_path(positions, edges, start: int, end: int) -> np.ndarray:
-    """Vertices of the shortest edge path from ``start`` to ``end`` (Dijkstra over edge lengths).
+class EdgeGraph(NamedTuple):
+    """A target's edges as adjacency lists (CSR, both directions) with their lengths, and which
+    connected piece each vertex is in: built once, searched many times."""
 
-    ``positions`` (V, 3), ``edges`` (E, 2). Raises :class:`LayoutError` when ``end`` cannot be
-    reached. Ties are broken by vertex index, so the result is deterministic.
-    """
+    offsets: list  # (V + 1) start of each vertex's neighbours in ``neighbours``
+    neighbours: list  # the neighbouring vertices, grouped by vertex
+    lengths: list  # the length of the edge to each of them
+    pieces: np.ndarray  # (V,) int64 label of each vertex's connected piece (equal labels: joined by edges)
+
+
+def edge_graph(positions, edges) -> EdgeGraph:
+    """The :class:`EdgeGraph` of ``edges`` ((E, 2) vertex pairs) over ``positions`` ((V, 3))."""
     positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
     edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
     vertex_count = positions.shape[0]
-    start, end = int(start), int(end)
-    for vertex in (start, end):
-        if not 0 <= vertex < vertex_count:
-            raise LayoutError(f"Target vertex {vertex} is out of range: the target has {vertex_count} vertices")
-    if start == end:
-        return np.asarray([start], dtype=np.int64)
-    # Adjacency in CSR form, both directions.
     sources = np.concatenate([edges[:, 0], edges[:, 1]])
     destinations = np.concatenate([edges[:, 1], edges[:, 0]])
     lengths = np.linalg.norm(positions[sources] - positions[destinations], axis=1)
     order = np.argsort(sources, kind="stable")
     sources, destinations, lengths = sources[order], destinations[order], lengths[order]
     offsets = np.searchsorted(sources, np.arange(vertex_count + 1)).tolist()
-    destinations, lengths = destinations.tolist(), lengths.tolist()
+    return EdgeGraph(offsets, destinations.tolist(), lengths.tolist(), _pieces(vertex_count, edges))
+
+
+def _pieces(vertex_count: int, edges: np.ndarray) -> np.ndarray:
+    """(V,) the lowest vertex index of each vertex's connected piece (union-find by hooking and
+    pointer jumping, vectorised: a few passes over the edges)."""
+    parent = np.arange(vertex_count, dtype=np.int64)
+    if not edges.shape[0]:
+        return parent
+    while True:
+        first, second = parent[edges[:, 0]], parent[edges[:, 1]]
+        joined = first != second
+        if not joined.any():
+            return parent
+        low, high = np.minimum(first[joined], second[joined]), np.maximum(first[joined], second[joined])
+        np.minimum.at(parent, high, low)
+        while True:
+            jumped = parent[parent]
+            if np.array_equal(jumped, parent):
+                break
+            parent = jumped
+
+
+def _check_vertex(vertex: int, vertex_count: int) -> int:
+    vertex = int(vertex)
+    if not 0 <= vertex < vertex_count:
+        raise LayoutError(f"Target vertex {vertex} is out of range: the target has {vertex_count} vertices")
+    return vertex
+
+
+def _unreachable(start: int, end: int) -> LayoutError:
+    return LayoutError(f"No chain of target edges joins target vertices {start} and {end}")
+
+
+def _dijkstra(graph: EdgeGraph, start: int, end: int) -> list:
+    """Vertices of the shortest edge path from ``start`` to ``end`` (joined: same piece)."""
+    if start == end:
+        return [start]
+    offsets, neighbours, lengths = graph.offsets, graph.neighbours, graph.lengths
     distances = {start: 0.0}
     previous = {start: -1}
     done = set()
@@ -143,18 +181,113 @@ def shortest_path(positions, edges, start: int, end: int) -> np.ndarray:
             break
         done.add(vertex)
         for slot in range(offsets[vertex], offsets[vertex + 1]):
-            neighbour = destinations[slot]
+            neighbour = neighbours[slot]
             candidate = distance + lengths[slot]
             if candidate < distances.get(neighbour, np.inf):
                 distances[neighbour] = candidate
                 previous[neighbour] = vertex
                 heapq.heappush(heap, (candidate, neighbour))
     if end not in previous:
-        raise LayoutError(f"No chain of target edges joins target vertices {start} and {end}")
+        raise _unreachable(start, end)
     path = [end]
     while previous[path[-1]] != -1:
         path.append(previous[path[-1]])
-    return np.asarray(path[::-1], dtype=np.int64)
+    return path[::-1]
+
+
+def shortest_path(positions, edges, start: int, end: int) -> np.ndarray:
+    """Vertices of the shortest edge path from ``start`` to ``end`` (Dijkstra over edge lengths).
+
+    ``positions`` (V, 3), ``edges`` (E, 2). Raises :class:`LayoutError` when ``end`` cannot be
+    reached. Ties are broken by vertex index, so the result is deterministic.
+    """
+    graph = edge_graph(positions, edges)
+    vertex_count = len(graph.offsets) - 1
+    start, end = _check_vertex(start, vertex_count), _check_vertex(end, vertex_count)
+    if graph.pieces[start] != graph.pieces[end]:
+        raise _unreachable(start, end)
+    return np.asarray(_dijkstra(graph, start, end), dtype=np.int64)
+
+
+def chain_course(chain_positions, start_point, end_point) -> np.ndarray:
+    """(C, 3) the chain moved so that its ends sit on ``start_point`` and ``end_point``: each vertex
+    by the blend of the two ends' offsets at its fraction of the chain's arc length.
+
+    A template chain beside the target keeps its course, and its ends meet their anchors.
+    """
+    chain_positions = np.asarray(chain_positions, dtype=np.float64).reshape(-1, 3)
+    fractions = _fractions(chain_positions)[:, None]
+    start_offset = np.asarray(start_point, dtype=np.float64).reshape(1, 3) - chain_positions[:1]
+    end_offset = np.asarray(end_point, dtype=np.float64).reshape(1, 3) - chain_positions[-1:]
+    return chain_positions + (1.0 - fractions) * start_offset + fractions * end_offset
+
+
+def following_path(positions, graph: EdgeGraph, course, start: int, end: int) -> np.ndarray:
+    """Vertices of a target edge path from ``start`` to ``end`` that follows ``course`` ((C, 3),
+    a layout chain from start to end, see :func:`chain_course`).
+
+    The path goes through the target vertex nearest to each of the course's inner points in turn
+    (only vertices joined to ``start`` by edges count), by the shortest path from one to the next,
+    with any loop cut out (a vertex reached again continues from its first visit). The globally
+    shortest path between the ends would ignore the course: round the back of a neck, or the
+    short way round a ring the chain goes the long way round.
+
+    Raises :class:`LayoutError` when no edge path joins ``start`` and ``end``.
+    """
+    positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+    course = np.asarray(course, dtype=np.float64).reshape(-1, 3)
+    vertex_count = positions.shape[0]
+    start, end = _check_vertex(start, vertex_count), _check_vertex(end, vertex_count)
+    if graph.pieces[start] != graph.pieces[end]:
+        raise _unreachable(start, end)
+    joined = np.flatnonzero(graph.pieces == graph.pieces[start])
+    inner = joined[nearest_vertices(positions[joined], course[1:-1])].tolist() if course.shape[0] > 2 else []
+    path = [start]
+    visited = {start: 0}
+    previous = start
+    for waypoint in inner + [end]:
+        if waypoint == previous:
+            continue
+        for vertex in _dijkstra(graph, previous, waypoint)[1:]:
+            if vertex in visited:  # a loop (a spike out and back, or a step back): cut it out
+                cut = visited[vertex] + 1
+                for dropped in path[cut:]:
+                    del visited[dropped]
+                del path[cut:]
+            else:
+                visited[vertex] = len(path)
+                path.append(vertex)
+        previous = waypoint
+    return np.asarray(path, dtype=np.int64)
+
+
+def nearest_vertices(positions, points) -> np.ndarray:
+    """(K,) index of the row of ``positions`` (V, 3) nearest to each of ``points`` (K, 3) (ties: the lowest).
+
+    Exact, by blocks of consecutive points (a chain's, so near each other): a sample of the
+    vertices bounds how far each point's nearest vertex can be, and only the vertices in the
+    block's box grown by that bound are compared.
+    """
+    positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    if not positions.shape[0]:
+        raise LayoutError("The target has no vertices")
+    nearest = np.empty(points.shape[0], dtype=np.int64)
+    sample = positions[:: max(1, positions.shape[0] // 2048)]
+    for first in range(0, points.shape[0], 64):
+        block = points[first : first + 64]
+        bound = np.sqrt(((block[:, None, :] - sample[None, :, :]) ** 2).sum(axis=2).min(axis=1).max())
+        low, high = block.min(axis=0) - bound, block.max(axis=0) + bound
+        candidates = np.flatnonzero(np.all((positions >= low) & (positions <= high), axis=1))
+        near = positions[candidates]
+        near_squared = (near**2).sum(axis=1)
+        rows = max(1, (1 << 21) // candidates.size)  # at most 16 MB of distances at a time
+        for row in range(0, block.shape[0], rows):
+            part = block[row : row + rows]
+            # |p - q|^2 - |q|^2 = |p|^2 - 2 p.q: the same order for each point q.
+            closest = np.argmin(near_squared[None, :] - 2.0 * part @ near.T, axis=1)
+            nearest[first + row : first + row + part.shape[0]] = candidates[closest]
+    return nearest
 
 
 def nearest_vertex(positions, point) -> int:
@@ -165,17 +298,96 @@ def nearest_vertex(positions, point) -> int:
     return int(np.argmin(((positions - np.asarray(point, dtype=np.float64).reshape(1, 3)) ** 2).sum(axis=1)))
 
 
-def orient(points, first_point) -> bool:
-    """Whether the polyline ``points`` must be reversed so that its start is nearest to ``first_point``."""
-    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    first_point = np.asarray(first_point, dtype=np.float64).reshape(3)
-    return bool(np.linalg.norm(points[-1] - first_point) < np.linalg.norm(points[0] - first_point))
+# ---------------------------------------------------------------- orientation
+
+CLOSED_TOLERANCE = 1e-5
+"""A polyline whose last point is within this fraction of its length of its first is closed (a loop)."""
 
 
-def oriented(points, first_point) -> np.ndarray:
-    """The polyline ``points`` (P, 3), reversed when its end is nearer to ``first_point`` than its start."""
+def _cumulative(points: np.ndarray) -> np.ndarray:
+    """(P,) arc length at each point of a polyline, from 0."""
+    return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
+
+
+def _fractions(chain_positions: np.ndarray) -> np.ndarray:
+    """(C,) each vertex's fraction of the chain's arc length (even when the chain has no length)."""
+    lengths = _cumulative(chain_positions)
+    if lengths[-1] > 0.0:
+        return lengths / lengths[-1]
+    return np.linspace(0.0, 1.0, chain_positions.shape[0])
+
+
+def is_closed(points) -> bool:
+    """Whether the polyline ``points`` (P, 3) ends where it starts (a loop: a closed feature curve)."""
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    return points[::-1].copy() if orient(points, first_point) else points.copy()
+    if points.shape[0] < 4:  # a loop needs three distinct points
+        return False
+    length = _cumulative(points)[-1]
+    return bool(length > 0.0 and np.linalg.norm(points[-1] - points[0]) <= CLOSED_TOLERANCE * length)
+
+
+def matching_error(chain_positions, points) -> float:
+    """Mean distance between the chain's vertices and the points of the polyline the wrap pulls them
+    to (the same fraction of arc length: :func:`arc_length_points`)."""
+    chain_positions = np.asarray(chain_positions, dtype=np.float64).reshape(-1, 3)
+    return float(np.linalg.norm(arc_length_points(chain_positions, points) - chain_positions, axis=1).mean())
+
+
+def _loop_parameter(loop: np.ndarray, cumulative: np.ndarray, point: np.ndarray) -> float:
+    """Arc-length parameter of the point of the closed polyline ``loop`` nearest to ``point``."""
+    starts, direction = loop[:-1], np.diff(loop, axis=0)
+    squared = np.maximum((direction**2).sum(axis=1), 1e-300)
+    t = np.clip(((point[None, :] - starts) * direction).sum(axis=1) / squared, 0.0, 1.0)
+    distances = ((starts + t[:, None] * direction - point[None, :]) ** 2).sum(axis=1)
+    segment = int(np.argmin(distances))
+    return float(cumulative[segment] + t[segment] * (cumulative[segment + 1] - cumulative[segment]))
+
+
+def _loop_arc(loop: np.ndarray, cumulative: np.ndarray, begin: float, length: float) -> np.ndarray:
+    """The piece of the closed polyline ``loop`` from parameter ``begin`` on, ``length`` long (at most once round)."""
+    total = cumulative[-1]
+    twice = np.concatenate([loop[:-1], loop])
+    twice_cumulative = np.concatenate([cumulative[:-1], cumulative + total])
+    finish = begin + length
+    margin = 1e-9 * total
+    inside = (twice_cumulative > begin + margin) & (twice_cumulative < finish - margin)
+    ends = np.stack([np.interp([begin, finish], twice_cumulative, twice[:, axis]) for axis in range(3)], axis=1)
+    return np.concatenate([ends[:1], twice[inside], ends[1:]])
+
+
+def _candidates(points: np.ndarray, chain_positions: np.ndarray) -> list:
+    """The polylines a chain may follow along ``points``: both directions of an open polyline; for a
+    closed one, in each direction, the piece from the point nearest the chain's first vertex to the
+    point nearest its last, and the whole loop from the first (a chain whose ends meet)."""
+    if not is_closed(points):
+        return [points, points[::-1]]
+    found = []
+    for loop in (points, points[::-1]):
+        cumulative = _cumulative(loop)
+        total = cumulative[-1]
+        begin = _loop_parameter(loop, cumulative, chain_positions[0])
+        finish = _loop_parameter(loop, cumulative, chain_positions[-1])
+        piece = (finish - begin) % total
+        if piece > 1e-6 * total:
+            found.append(_loop_arc(loop, cumulative, begin, piece))
+        found.append(_loop_arc(loop, cumulative, begin, total))
+    return found
+
+
+def orient_to_chain(points, chain_positions) -> np.ndarray:
+    """The target polyline ``points`` (P, 3) as a chain (``chain_positions``, (C, 3) in order) should
+    follow it: the way round — and, for a closed polyline (:func:`is_closed`), the piece of it —
+    along which the chain's vertices lie nearest to the points the wrap pulls them to
+    (:func:`matching_error`: the whole chain decides, not its first vertex alone; an opened ring's
+    two ends are next to each other). Ties keep the polyline as it is.
+    """
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    chain_positions = np.asarray(chain_positions, dtype=np.float64).reshape(-1, 3)
+    if points.shape[0] < 2 or chain_positions.shape[0] < 1:
+        return points.copy()
+    candidates = _candidates(points, chain_positions)
+    errors = [matching_error(chain_positions, candidate) for candidate in candidates]
+    return np.array(candidates[int(np.argmin(errors))], dtype=np.float64)
 
 
 # ---------------------------------------------------------------- pairing
@@ -202,9 +414,12 @@ def check_free(chain, constraints, anchored: Optional[np.ndarray] = None) -> Non
             )
 
 
-def target_edge_constraint(chain, start_point, end_point, target_positions, target_edges) -> CurveConstraint:
-    """A TARGET_EDGES constraint: ``chain`` paired with the shortest target edge path between the
-    target vertices nearest to ``start_point`` (the chain's first vertex's end) and ``end_point``.
+def target_edge_constraint(
+    chain, chain_positions, start_point, end_point, target_positions, target_edges
+) -> CurveConstraint:
+    """A TARGET_EDGES constraint: ``chain`` paired with a target edge path between the target
+    vertices nearest to ``start_point`` (the chain's first vertex's end) and ``end_point`` that
+    follows the chain's course (``chain_positions``, (C, 3) world; :func:`following_path`).
 
     Raises :class:`LayoutError` when both ends find the same target vertex (ambiguous) or no path.
     """
@@ -214,7 +429,9 @@ def target_edge_constraint(chain, start_point, end_point, target_positions, targ
         raise LayoutError(
             f"Both ends of the chain are nearest to target vertex {start}: the target curve is ambiguous"
         )
-    path = shortest_path(target_positions, target_edges, start, end)
+    graph = edge_graph(target_positions, target_edges)
+    course = chain_course(chain_positions, start_point, end_point)
+    path = following_path(target_positions, graph, course, start, end)
     points = np.asarray(target_positions, dtype=np.float64).reshape(-1, 3)[path]
     return make_constraint(chain, points, TARGET_EDGES, path)
 
@@ -226,17 +443,21 @@ def auto_pairs(
     existing,
     target_positions,
     target_edges,
-    vertex_count: int,
+    layout_positions,
 ) -> AutoOutcome:
-    """Pair every layout curve whose two ends carry anchors with the target edge chain between them.
+    """Pair every layout curve whose two ends carry anchors with the target edge path between them
+    that follows the curve's course (:func:`following_path`).
 
     ``layout_curves``: (kind, vertices in order, closed) per curve (the kernel's
     ``LayoutStructure.curves()``); ``anchor_vertices`` (K,) and ``anchor_locations`` (K, 3) the
-    anchors' vertices and world-space targets; ``existing`` the constraints already there. A curve
-    is skipped (and counted under a :data:`SKIP_REASONS` key) when it is closed, an end has no
-    anchor, both anchors find the same target vertex, a vertex (not anchored) is already
-    constrained, or no target path joins them.
+    anchors' vertices and world-space targets; ``existing`` the constraints already there;
+    ``layout_positions`` (V, 3) the layout's world positions. A curve is skipped (and counted
+    under a :data:`SKIP_REASONS` key) when it is closed, an end has no anchor, both anchors find
+    the same target vertex, a vertex (not anchored) is already constrained, or no target path
+    joins them.
     """
+    layout_positions = np.asarray(layout_positions, dtype=np.float64).reshape(-1, 3)
+    vertex_count = layout_positions.shape[0]
     anchor_vertices = np.asarray(anchor_vertices, dtype=np.int64).reshape(-1)
     anchor_locations = np.asarray(anchor_locations, dtype=np.float64).reshape(-1, 3)
     location_of = {int(vertex): anchor_locations[row] for row, vertex in enumerate(anchor_vertices.tolist())}
@@ -245,6 +466,7 @@ def auto_pairs(
     anchored[valid] = True
     skipped = {key: 0 for key in SKIP_REASONS}
     found = []
+    graph = None
     for _kind, vertices, closed in layout_curves:
         chain = np.asarray(vertices, dtype=np.int64).reshape(-1)
         if closed or chain.size < 2 or chain[0] == chain[-1]:
@@ -264,8 +486,11 @@ def auto_pairs(
         if start == end:
             skipped["ambiguous"] += 1
             continue
+        if graph is None:
+            graph = edge_graph(target_positions, target_edges)
+        course = chain_course(layout_positions[chain], location_of[first], location_of[last])
         try:
-            path = shortest_path(target_positions, target_edges, start, end)
+            path = following_path(target_positions, graph, course, start, end)
         except LayoutError:
             skipped["unreachable"] += 1
             continue
@@ -337,13 +562,8 @@ def arc_length_points(chain_positions, points) -> np.ndarray:
         return np.full_like(chain_positions, np.nan)
     if points.shape[0] == 1:
         return np.repeat(points, chain_positions.shape[0], axis=0)
-    chain_lengths = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(chain_positions, axis=0), axis=1))])
-    point_lengths = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
-    if chain_lengths[-1] > 0.0:
-        fractions = chain_lengths / chain_lengths[-1]
-    else:
-        fractions = np.linspace(0.0, 1.0, chain_positions.shape[0])
-    wanted = fractions * point_lengths[-1]
+    point_lengths = _cumulative(points)
+    wanted = _fractions(chain_positions) * point_lengths[-1]
     return np.stack([np.interp(wanted, point_lengths, points[:, axis]) for axis in range(3)], axis=1)
 
 
