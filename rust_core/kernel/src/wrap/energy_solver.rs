@@ -107,6 +107,10 @@ const HELD_BACK_SETTLED: usize = 200;
 /// Correspondences count only where the layout faces the target's smoothed normal within this
 /// cosine (60 degrees).
 const MIN_FACING: f32 = 0.5;
+/// A point lands only where the layout faces the target's smoothed normal within this cosine
+/// (75 degrees, as the spring solver folds): more lenient than the data term, since the landing
+/// is checked corner by corner.
+const LANDING_FACING: f32 = 0.26;
 /// Rounds of sign matching when averaging the fitted rotations into the safeguard's frame.
 const MEAN_ROTATION_ROUNDS: usize = 3;
 /// A corner may turn from its frame until this cosine; beyond it, only back toward it.
@@ -358,7 +362,7 @@ impl EnergySolver {
                     return None;
                 }
                 let hit = self.target.closest_point(self.positions[vertex], reach)?;
-                self.correspondence_trusted(&hit, normals[vertex])
+                self.surface_trusted(&hit, normals[vertex], LANDING_FACING)
                     .then_some(hit)
             })
             .collect();
@@ -388,6 +392,27 @@ impl EnergySolver {
             }
             if !refused {
                 break;
+            }
+        }
+        // Refusing every vertex of a turning corner refuses some that could land alone: try
+        // those one at a time, nearest first, each kept only if it turns no corner around it.
+        let mut retry: Vec<usize> = (0..vertex_count)
+            .filter(|&vertex| hits[vertex].is_some() && !landing[vertex])
+            .collect();
+        retry.sort_by(|&a, &b| {
+            let distance = |vertex: usize| hits[vertex].map_or(f32::INFINITY, |hit| hit.distance);
+            distance(a).total_cmp(&distance(b))
+        });
+        for vertex in retry {
+            let hit = hits[vertex].expect("retried points have a hit");
+            let old = candidate[vertex];
+            candidate[vertex] = self
+                .target
+                .interpolate(hit.face_point.triangle, hit.face_point.barycentric);
+            if self.turns_corner_around(vertex as u32, &before, &candidate) {
+                candidate[vertex] = old;
+            } else {
+                landing[vertex] = true;
             }
         }
         let mut points = Vec::with_capacity(vertex_count);
@@ -800,6 +825,11 @@ impl EnergySolver {
     /// not on an unreliable triangle, not on a boundary edge (a hole), and facing the way of the
     /// target's smoothed normal there.
     fn correspondence_trusted(&self, hit: &SurfaceHit, normal: Vec3) -> bool {
+        self.surface_trusted(hit, normal, MIN_FACING)
+    }
+
+    /// [`Self::correspondence_trusted`] with the facing cosine `min_facing`.
+    fn surface_trusted(&self, hit: &SurfaceHit, normal: Vec3, min_facing: f32) -> bool {
         let triangle = hit.face_point.triangle;
         if is_flagged(&self.unreliable, triangle) {
             return false;
@@ -815,7 +845,7 @@ impl EnergySolver {
             return true;
         }
         let surface_normal = self.smoothed_normal(hit.face_point);
-        normal.dot(surface_normal) * self.orientation >= MIN_FACING
+        normal.dot(surface_normal) * self.orientation >= min_facing
     }
 
     /// The target's smoothed normal at a face-point.
@@ -899,6 +929,30 @@ impl EnergySolver {
         vertices.sort_unstable();
         vertices.dedup();
         vertices
+    }
+
+    /// Whether `positions` turn a corner (as [`Self::turned_corners`] judges against `before`)
+    /// among the corners that `vertex` belongs to: its own and its neighbours'.
+    fn turns_corner_around(&self, vertex: u32, before: &[f32], positions: &[Vec3]) -> bool {
+        let structure = &self.structure;
+        let turned = |owner: u32, corner: usize| {
+            let (previous, next) = structure.wedges[corner];
+            let here = positions[owner as usize];
+            let normal = (positions[next as usize] - here)
+                .cross(positions[previous as usize] - here)
+                .normalize_or_zero();
+            let alignment = normal.dot(self.frame * self.rest_corner_normals[corner]);
+            alignment < MIN_ALIGNMENT && alignment < before[corner]
+        };
+        let own = structure
+            .wedge_range(vertex)
+            .any(|corner| turned(vertex, corner));
+        own || structure.neighbors_of(vertex).iter().any(|&other| {
+            structure.wedge_range(other).any(|corner| {
+                let (previous, next) = structure.wedges[corner];
+                (previous == vertex || next == vertex) && turned(other, corner)
+            })
+        })
     }
 
     /// The proposed positions with the steps of vertices around turning corners halved until
@@ -1307,7 +1361,10 @@ mod tests {
         let before = solver.corner_orientations(&positions);
         let (points, landed) = solver.land();
         assert!(solver.turned_corners(&before, &solver.positions).is_empty());
-        assert!(landed > 40, "{landed}");
+        // Vertex 24 stays up, and at most one neighbour whose quad it would fold; the others,
+        // refused with it at first (their corners turn when all land at once), land one by one
+        // afterwards (43 landed without that second pass).
+        assert!(landed >= points.len() - 2, "{landed}");
         assert!(
             matches!(points[24], LayoutPoint::Space(_)),
             "{:?}",
