@@ -32,7 +32,8 @@ def test_the_first_change_stores_the_template_and_later_ones_keep_it():
 
 
 def test_a_wrap_keeps_the_templates_spacing_from_the_stored_rest():
-    """A layout half squeezed after its first snap: the wrap evens it back to the template's spacing."""
+    """A layout half squeezed after its first snap: the spring wrap evens it back to the template's spacing
+    (the energy wrap lets each region keep a scale of its own, as a morph needs)."""
     _target, layout, _normal = plane_scene()
     template = local_positions(layout).astype(np.float64)
     bpy.ops.springwrap.snap(mode="SURFACE")
@@ -49,7 +50,7 @@ def test_a_wrap_keeps_the_templates_spacing_from_the_stored_rest():
         assert bpy.ops.springwrap.anchor_add(vertex_index=vertex, location=world[vertex], use_location=True) == {
             "FINISHED"
         }
-    assert bpy.ops.springwrap.wrap() == {"FINISHED"}
+    assert bpy.ops.springwrap.wrap(solver="SPRINGS") == {"FINISHED"}
     wrapped = local_positions(layout).astype(np.float64)
     edges = np.array([tuple(edge.vertices) for edge in layout.data.edges])
     along_x = np.abs(template[edges[:, 0], 1] - template[edges[:, 1], 1]) < 1e-6
@@ -74,7 +75,11 @@ def test_set_rest_shape_takes_the_current_shape_and_is_undoable():
 
 def test_even_springs_are_kept_apart_and_named_in_the_operator():
     _target, layout, _normal = plane_scene()
-    assert wrap_with_anchors(layout, spacing=0.5, rest="EVEN") == {"FINISHED"}
+    before = snapshot(layout)
+    with pytest.raises(RuntimeError, match="even rest shape .* needs the spring solver"):
+        bpy.ops.springwrap.wrap(solver="ENERGY", rest="EVEN")
+    assert snapshot(layout) == before
+    assert wrap_with_anchors(layout, spacing=0.5, rest="EVEN", solver="SPRINGS") == {"FINISHED"}
     states, _faces, _barycentrics = read_state(layout)
     assert np.all(states == 1)
     with pytest.raises(TypeError):

@@ -439,10 +439,13 @@ def test_space_points_next_to_anchors_on_target_vertices_fold():
 # ---------------------------------------------------------------- the modal logic, without a window
 
 
-def _session(layout, **parameters):
+def _session(layout, solver="SPRINGS", **parameters):
+    """A wrap session; the spring solver unless said (its hundreds of iterations make many frames)."""
+    import springwrap_kernel
     from springwrap import operations, wrap_operator
 
-    return wrap_operator.WrapSession(bpy.context, layout, operations.WrapParameters(**parameters))
+    settings = springwrap_kernel.WrapSettings(solver=solver)
+    return wrap_operator.WrapSession(bpy.context, layout, operations.WrapParameters(settings=settings, **parameters))
 
 
 @pytest.mark.parametrize("start", ["fresh", "with_state"])
@@ -484,23 +487,24 @@ def test_right_click_cancels_too():
     assert snapshot(layout) == before
 
 
-def test_modal_loop_finishes_with_the_same_result_as_exec():
+@pytest.mark.parametrize("solver", ["SPRINGS", "ENERGY"])
+def test_modal_loop_finishes_with_the_same_result_as_exec(solver):
     """Frames of a few iterations each end exactly where one synchronous run ends (the solver is deterministic)."""
     from springwrap import wrap_operator
 
     plane_scene()
     bpy.ops.springwrap.anchors_auto(spacing=0.5)
-    loop = wrap_operator.WrapLoop(_session(bpy.context.active_object))
+    loop = wrap_operator.WrapLoop(_session(bpy.context.active_object, solver=solver))
     outcome = "RUNNING_MODAL"
     while outcome == "RUNNING_MODAL":
         outcome = loop.handle("TIMER")
-    assert outcome == "FINISHED" and loop.result.converged and loop.result.frames > 3
+    assert outcome == "FINISHED" and loop.result.converged and loop.result.frames > 2
     modal = snapshot(bpy.data.objects["Layout"])
 
     bpy.ops.wm.read_homefile(use_empty=True)
     plane_scene()
     bpy.ops.springwrap.anchors_auto(spacing=0.5)
-    assert bpy.ops.springwrap.wrap() == {"FINISHED"}
+    assert bpy.ops.springwrap.wrap(solver=solver) == {"FINISHED"}
     assert snapshot(bpy.data.objects["Layout"]) == modal
 
 

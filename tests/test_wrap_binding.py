@@ -118,20 +118,22 @@ def test_wrap_settings_hold_the_kernels_defaults_and_read_every_field():
     assert settings.to_dict() == {
         "fairness": 0.5, "arc_length": 0.5, "thin_plate": 0.2, "constraint": 0.5, "folding": 0.3, "tolerance": 1e-5,
         "landing_distance": 0.25, "fold_tolerance": 0.17453292, "momentum": 0.9, "rest": "TEMPLATE",
-        "solver": "SPRINGS",
+        "solver": "ENERGY",
     }
     assert np.float32(settings.fold_tolerance) == np.float32(np.radians(10))
     assert repr(settings) == (
         "WrapSettings(fairness=0.5, arc_length=0.5, thin_plate=0.2, constraint=0.5, folding=0.3, tolerance=1e-05, "
-        "landing_distance=0.25, fold_tolerance=0.17453292, momentum=0.9, rest='TEMPLATE', solver='SPRINGS')"
+        "landing_distance=0.25, fold_tolerance=0.17453292, momentum=0.9, rest='TEMPLATE', solver='ENERGY')"
     )
 
 
 def test_wrap_settings_take_keywords_compare_by_value_and_are_immutable():
-    settings = sk.WrapSettings(fairness=0.25, thin_plate=0.1, rest="EVEN", solver="ENERGY")
-    assert (settings.fairness, settings.thin_plate, settings.rest, settings.solver) == (0.25, 0.1, "EVEN", "ENERGY")
+    settings = sk.WrapSettings(fairness=0.25, thin_plate=0.1, rest="EVEN", solver="SPRINGS")
+    assert (settings.fairness, settings.thin_plate, settings.rest, settings.solver) == (0.25, 0.1, "EVEN", "SPRINGS")
     assert settings.arc_length == sk.WrapSettings().arc_length
-    assert settings == sk.WrapSettings(solver="ENERGY", rest="EVEN", thin_plate=0.1, fairness=0.25)
+    assert settings == sk.WrapSettings(solver="SPRINGS", rest="EVEN", thin_plate=0.1, fairness=0.25)
+    with pytest.raises(sk.InvalidArgumentError, match="invalid rest: the even rest shape"):
+        sk.WrapSettings(rest="EVEN")  # the energy solver (the default) keeps the template's shape
     assert settings != sk.WrapSettings() and sk.WrapSettings() == sk.WrapSettings()
     assert eval(repr(settings), {"WrapSettings": sk.WrapSettings}) == settings
     changed = settings.replace(momentum=0.5)
@@ -202,6 +204,7 @@ def test_free_vertices_and_stiffness_reach_the_energy_solver_and_are_checked():
         make_solver(target, positions, structure, anchors, settings=energy, stiffness=stiffness)
     with pytest.raises(sk.ArrayError, match="stiffness must be a C-contiguous numpy array of dtype float32"):
         make_solver(target, positions, structure, anchors, settings=energy, stiffness=np.full(len(positions), 0.5))
-    springs, _ = make_solver(target, positions, structure, anchors, free_vertices=free)
+    springs, _ = make_solver(target, positions, structure, anchors, settings=sk.WrapSettings(solver="SPRINGS"),
+                             free_vertices=free)
     with pytest.raises(sk.InvalidArgumentError, match="need the energy solver"):
         springs.step(1)

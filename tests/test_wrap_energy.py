@@ -61,8 +61,8 @@ def test_sphere_cap_lands_on_the_sphere_without_a_flipped_quad():
 
 def test_the_panel_setting_chooses_the_solver():
     target, layout, _normal = plane_scene()
-    assert layout.springwrap.wrap_solver == "SPRINGS"
-    layout.springwrap.wrap_solver = "ENERGY"
+    assert layout.springwrap.wrap_solver == "ENERGY"  # the default
+    layout.springwrap.wrap_solver = "SPRINGS"
     from types import SimpleNamespace
 
     from springwrap import wrap_operator
@@ -71,7 +71,7 @@ def test_the_panel_setting_chooses_the_solver():
     properties = SimpleNamespace(**{prop.identifier: prop.default for prop in rna.properties
                                     if prop.identifier != "rna_type"})
     properties.solver = layout.springwrap.wrap_solver  # what the panel's button sets
-    assert wrap_operator.SPRINGWRAP_OT_wrap.parameters(properties).settings.solver == "ENERGY"
+    assert wrap_operator.SPRINGWRAP_OT_wrap.parameters(properties).settings.solver == "SPRINGS"
 
 
 def test_hold_on_plane_keeps_a_lone_half_s_midline_on_the_plane_with_the_energy_solver():

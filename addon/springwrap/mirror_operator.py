@@ -108,7 +108,7 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
         name="Solver",
         description="The new half's wrap algorithm",
         items=WRAP_SOLVER_ITEMS,
-        default="SPRINGS",
+        default=WRAP_DEFAULTS.solver,
     )
     max_iterations: max_iterations_property()
     tolerance: tolerance_property()

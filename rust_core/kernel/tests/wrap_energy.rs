@@ -505,9 +505,12 @@ fn vertex_stiffness_and_free_vertices_are_checked_and_need_the_energy_solver() {
         matches!(error, KernelError::LengthMismatch { .. }),
         "{error:?}"
     );
-    let mut springs = make(WrapSettings::default())
-        .with_free_vertices(vec![false; count])
-        .unwrap();
+    let mut springs = make(WrapSettings {
+        solver: SolverKind::Springs,
+        ..WrapSettings::default()
+    })
+    .with_free_vertices(vec![false; count])
+    .unwrap();
     let error = springs.step(5).unwrap_err();
     assert!(
         matches!(error, KernelError::InvalidArgument { name: "solver", .. }),

@@ -8,8 +8,8 @@ use std::sync::Arc;
 
 use glam::{Quat, Vec3};
 use springwrap_kernel::{
-    Anchor, AnchorTarget, LayoutPoint, LayoutStructure, SpringRest, TargetMesh, TargetMeshOptions,
-    WrapSettings, WrapSolver,
+    Anchor, AnchorTarget, LayoutPoint, LayoutStructure, SolverKind, SpringRest, TargetMesh,
+    TargetMeshOptions, WrapSettings, WrapSolver,
 };
 
 /// A grid layout with the given x and y coordinates of its columns and rows, at height `z`.
@@ -76,6 +76,7 @@ fn wrapped(rest: SpringRest, anchors_at: &[u32]) -> (Vec<f32>, Vec<Vec3>) {
     let points = positions.iter().map(|&p| LayoutPoint::Space(p)).collect();
     let settings = WrapSettings {
         rest,
+        solver: SolverKind::Springs,
         ..WrapSettings::default()
     };
     let mut solver = WrapSolver::new(target, structure, points, &anchors, settings).unwrap();

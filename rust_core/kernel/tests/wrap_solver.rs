@@ -4,7 +4,8 @@ mod common;
 
 use glam::Vec3;
 use springwrap_kernel::{
-    Anchor, AnchorTarget, KernelError, LayoutPoint, LayoutStructure, WrapSettings, WrapSolver,
+    Anchor, AnchorTarget, KernelError, LayoutPoint, LayoutStructure, SolverKind, WrapSettings,
+    WrapSolver,
 };
 
 fn edge_length_ratio(structure: &LayoutStructure, positions: &[Vec3]) -> f32 {
@@ -94,8 +95,11 @@ fn stepping_reports_progress_and_resumes() {
     let (structure, positions) = common::quad_layout(6, 0.2, Vec3::new(-0.6, -0.6, 0.2));
     let anchors = common::anchors_below(&target, &positions, &[0, 6, 42, 48]);
     let points: Vec<LayoutPoint> = positions.iter().map(|&p| LayoutPoint::Space(p)).collect();
-    let mut solver =
-        WrapSolver::new(target, structure, points, &anchors, WrapSettings::default()).unwrap();
+    let settings = WrapSettings {
+        solver: SolverKind::Springs,
+        ..WrapSettings::default()
+    };
+    let mut solver = WrapSolver::new(target, structure, points, &anchors, settings).unwrap();
     let first = solver.step(5).expect("the spring solver steps");
     assert_eq!((first.iterations, first.total_iterations), (5, 5));
     assert!(!first.converged && first.max_displacement > 0.0);

@@ -38,10 +38,10 @@ impl Default for WrapWeights {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum SolverKind {
     /// The paper's force iteration: spring forces relaxed by Jacobi steps, folding, annealing.
-    #[default]
     Springs,
     /// One energy minimised by local–global steps with a sparse Cholesky, no face turned over
     /// (see `wrap::energy_solver`).
+    #[default]
     Energy,
 }
 
@@ -78,7 +78,7 @@ impl Default for WrapSettings {
             fold_tolerance: 10f32.to_radians(),
             momentum: 0.9,
             rest: SpringRest::Template,
-            solver: SolverKind::Springs,
+            solver: SolverKind::default(),
         }
     }
 }
@@ -169,6 +169,15 @@ impl WrapSettings {
                     ),
                 });
             }
+        }
+        if self.solver == SolverKind::Energy && self.rest == SpringRest::Even {
+            return Err(KernelError::InvalidArgument {
+                name: "rest",
+                reason:
+                    "the even rest shape (straight, evenly spaced grid lines) needs the spring \
+                         solver; the energy solver keeps the template's shape"
+                        .to_owned(),
+            });
         }
         Ok(())
     }

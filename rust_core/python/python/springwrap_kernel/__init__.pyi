@@ -315,7 +315,7 @@ class WrapSettings:
         fold_tolerance: float = 0.17453292,
         momentum: float = 0.9,
         rest: Literal["TEMPLATE", "EVEN"] = "TEMPLATE",
-        solver: Literal["SPRINGS", "ENERGY"] = "SPRINGS",
+        solver: Literal["SPRINGS", "ENERGY"] = "ENERGY",
     ) -> None: ...
     @property
     def fairness(self) -> float:
