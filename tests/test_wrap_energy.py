@@ -112,6 +112,7 @@ def test_the_report_says_what_each_solver_did(capfd):
     assert bpy.ops.springwrap.wrap(solver="ENERGY") == {"FINISHED"}
     energy = capfd.readouterr().out
     assert "landed at the end" in energy and "held back" in energy and "fold tolerance" not in energy, energy
+    assert "lowered the energy by" in energy, energy
 
 
 def _group(layout, name, vertices, weight=1.0):

@@ -97,6 +97,7 @@ class WrapResult(NamedTuple):
     solver: str  # 'SPRINGS' or 'ENERGY'
     fold_tolerance: float  # the annealed folding tolerance at the end, radians (spring solver)
     held_back: int  # points whose last step was shortened so that no face turned (energy solver)
+    energy_decrease: float  # how much the last step lowered the energy, relative (energy solver; NaN otherwise)
     anchor_count: int
     unreliable_triangles: int
     topology_detached_count: int  # face-points whose target face was gone, made space-points
@@ -108,6 +109,8 @@ class WrapResult(NamedTuple):
         ending = "converged" if self.converged else "stopped at the iteration limit"
         if self.solver == "ENERGY":
             details = f"{self.folded} landed at the end, {self.held_back} held back by the last step"
+            if math.isfinite(self.energy_decrease):
+                details += f", which lowered the energy by {100.0 * self.energy_decrease:.2g} %"
         else:
             details = (
                 f"{self.landed} landed on anchors or curves, {self.folded} folded, {self.lifted} lifted off borders; "
@@ -333,6 +336,7 @@ class WrapSession:
             solver=self.solver.settings.solver,
             fold_tolerance=float(report.fold_tolerance),
             held_back=int(report.held_back),
+            energy_decrease=float(report.energy_decrease),
             anchor_count=int(self.anchors.vertex_indices.shape[0]),
             unreliable_triangles=self.unreliable_count,
             topology_detached_count=detached,

@@ -147,7 +147,8 @@ impl PyWrapSolver {
 
     /// Runs up to `iterations` iterations (fewer once converged); returns the progress as
     /// ((iterations, total_iterations, max_displacement, converged, face_points, space_points,
-    /// landed, folded, lifted, fold_tolerance, mean_displacement), energy, held_back).
+    /// landed, folded, lifted, fold_tolerance, mean_displacement), energy, held_back,
+    /// energy_decrease).
     #[allow(clippy::type_complexity)]
     fn step(
         &mut self,
@@ -169,6 +170,7 @@ impl PyWrapSolver {
         ),
         f64,
         usize,
+        f64,
     )> {
         let solver = &mut self.solver;
         let report = run_kernel(py, || solver.step(iterations))?;
@@ -188,6 +190,7 @@ impl PyWrapSolver {
             ),
             report.energy,
             report.held_back,
+            report.energy_decrease,
         ))
     }
 

@@ -173,6 +173,9 @@ pub(crate) struct EnergyStep {
     pub energy: f64,
     /// Points whose step was shortened (or refused) so that no corner turned.
     pub held_back: usize,
+    /// How much the step lowered the energy, relative to the energy before it (NaN for a
+    /// level's first step, whose energy has nothing to compare with).
+    pub energy_decrease: f64,
     /// The schedule is done: the points may land.
     pub finished: bool,
 }
@@ -504,7 +507,11 @@ impl EnergySolver {
         self.positions = accepted;
         self.iterations += 1;
         self.level_iterations += 1;
-        let decrease = (self.last_energy - energy) / self.last_energy.max(f64::MIN_POSITIVE);
+        let decrease = if self.last_energy.is_finite() {
+            (self.last_energy - energy) / self.last_energy.max(f64::MIN_POSITIVE)
+        } else {
+            f64::NAN
+        };
         self.last_energy = energy;
         // A level also waits while the safeguard holds many points back: they have not arrived.
         let settled = held_back * HELD_BACK_SETTLED <= self.positions.len();
@@ -524,6 +531,7 @@ impl EnergySolver {
             mean_move: (total_move / self.positions.len().max(1) as f64) as f32,
             energy,
             held_back,
+            energy_decrease: decrease,
             finished: self.finished,
         })
     }

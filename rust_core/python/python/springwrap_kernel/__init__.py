@@ -187,6 +187,9 @@ class StepReport(NamedTuple):
     held_back: int
     """Points whose last step was shortened or refused so that no layout face turned over
     (``solver="ENERGY"``; 0 for the spring solver)."""
+    energy_decrease: float
+    """How much the last iteration lowered the energy, relative to it: what the energy solver stops on
+    (each stiffness level ends below 0.002); NaN for the spring solver and a level's first iteration."""
 
 
 class WrapSolver(_native.WrapSolver):
@@ -206,5 +209,5 @@ class WrapSolver(_native.WrapSolver):
 
     def step(self, iterations):
         """Run up to ``iterations`` iterations (fewer once converged); the GIL is released meanwhile."""
-        progress, energy, held_back = super().step(iterations)
-        return StepReport(*progress, energy, held_back)
+        progress, energy, held_back, energy_decrease = super().step(iterations)
+        return StepReport(*progress, energy, held_back, energy_decrease)

@@ -290,6 +290,7 @@ class StepReport(NamedTuple):
     mean_displacement: float
     energy: float
     held_back: int
+    energy_decrease: float
 
 class WrapSettings:
     """Everything that controls a wrap besides the layout, the target and the constraints.
