@@ -321,9 +321,91 @@ def test_read_obj_keeps_quads_and_groups(tmp_path):
     with pytest.raises(data.DataError):
         data.read_obj(obj, ("missing",))
     bad = tmp_path / "bad.obj"
-    bad.write_text("v 0 0 0\nv 1 0 0\nf 1 2 -1\n")
+    bad.write_text("v 0 0 0\nv 1 0 0\nf 1 2 -3\n")  # -3: before the first vertex
     with pytest.raises(data.DataError):
         data.read_obj(bad)
+
+
+def test_read_obj_resolves_relative_indices_against_the_vertices_written_so_far(tmp_path):
+    obj = tmp_path / "relative.obj"
+    # -1 is the last vertex written before the face line: the second face's -1 is vertex 5, not 3.
+    obj.write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nf -3/-1 -2/-1 -1/-1\nv 2 0 0\nv 2 1 0\nf 2 -2 -1\n")
+    mesh = data.read_obj(obj)
+    assert mesh.face_corners.tolist() == [0, 1, 2, 1, 3, 4]
+    assert mesh.face_sizes.tolist() == [3, 3]
+
+
+def test_read_off(tmp_path):
+    off = tmp_path / "mesh.off"
+    off.write_text("OFF\n# a square and a triangle\n5 2 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n2 0 0\n"
+                   "4 0 1 2 3\n3 1 4 2 255 0 0\n")
+    mesh = data.read_off(off)
+    assert mesh.vertices.shape == (5, 3) and mesh.face_sizes.tolist() == [4, 3]
+    assert mesh.face_corners.tolist() == [0, 1, 2, 3, 1, 4, 2]  # the colour after the indices is ignored
+    same_line = tmp_path / "same_line.off"
+    same_line.write_text("OFF 3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
+    assert data.read_off(same_line).face_corners.tolist() == [0, 1, 2]
+    for text in ("3 1 0\n", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n", "OFF\n3 2 0\n0 0 0\n"):
+        bad = tmp_path / "bad.off"
+        bad.write_text(text)
+        with pytest.raises(data.DataError):
+            data.read_off(bad)
+
+
+def test_a_pymeshlab_sample_mesh_is_found_under_the_wheels_data_folder(tmp_path):
+    import zipfile
+
+    wheels = tmp_path / "wheels"
+    wheels.mkdir()
+    wheel = wheels / f"pymeshlab-{data.PYMESHLAB_VERSION}-cp311-cp311-manylinux_2_31_x86_64.whl"
+    with zipfile.ZipFile(wheel, "w") as archive:  # in the cache already: no pip
+        archive.writestr(f"pymeshlab-{data.PYMESHLAB_VERSION}.data/purelib/{data.PYMESHLAB_SAMPLES}/tiny.obj",
+                         "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\n")
+    extracted = data.pymeshlab_file("tiny.obj", tmp_path)
+    assert data.read_obj(extracted).face_corners.tolist() == [0, 1, 2]
+    with pytest.raises(data.DataError, match="not in"):
+        data.pymeshlab_file("missing.obj", tmp_path)
+
+
+def _ar_member(name: str, content: bytes) -> bytes:
+    header = f"{name:<16}{0:<12}{0:<6}{0:<6}{'100644':<8}{len(content):<10}`\n".encode()
+    return header + content + (b"\n" if len(content) % 2 else b"")
+
+
+def test_a_file_is_read_out_of_a_debian_package_and_the_cgal_data_in_it(tmp_path):
+    import io
+    import tarfile
+
+    def tar_gz(files: dict[str, bytes]) -> bytes:
+        buffer = io.BytesIO()
+        with tarfile.open(fileobj=buffer, mode="w:gz") as archive:
+            for name, content in files.items():
+                info = tarfile.TarInfo(name)
+                info.size = len(content)
+                archive.addfile(info, io.BytesIO(content))
+        return buffer.getvalue()
+
+    mesh = b"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n"
+    inner = tar_gz({"data/meshes/tiny.off": mesh})
+    outer = tar_gz({"./usr/share/doc/libcgal-dev/data.tar.gz": inner})
+    debs = tmp_path / "debs"
+    debs.mkdir()
+    deb = debs / f"{data.CGAL_DEMO_PACKAGE}_1.0-1_all.deb"
+    deb.write_bytes(b"!<arch>\n" + _ar_member("debian-binary", b"2.0\n") + _ar_member("control.tar.gz", b"x")
+                    + _ar_member("data.tar.gz", outer))
+    assert data.deb_data_member(deb, data.CGAL_DATA_ARCHIVE) == inner
+    with pytest.raises(data.DataError, match="not in"):
+        data.deb_data_member(deb, "usr/share/missing")
+    # The package is in the cache: no apt-get; the file is unpacked beside it and read again from there.
+    extracted = data.cgal_data_file("data/meshes/tiny.off", tmp_path)
+    assert extracted.read_bytes() == mesh and extracted.parent.parent.parent.name == deb.stem
+    assert data.read_off(extracted).face_sizes.tolist() == [3]
+    with pytest.raises(data.DataError, match="not in"):
+        data.cgal_data_file("data/meshes/missing.off", tmp_path)
+    not_a_deb = tmp_path / "plain.deb"
+    not_a_deb.write_bytes(b"hello")
+    with pytest.raises(data.DataError, match="ar header"):
+        data.deb_data_member(not_a_deb, "anything")
 
 
 def test_read_morph_target(tmp_path):
