@@ -184,7 +184,8 @@ def scan_case_line(case) -> str:
     return (f"- **{case.spec.name}**: {case.spec.description}. Scan: {info['target_triangles']:,} triangles, "
             f"{info['target_boundary_edges']:,} rim edges; template: {info['template_quads']:,} quads (voxel "
             f"{case.spec.voxel_fraction * 100:.2f} % of the diagonal), smoothed {case.spec.smooth_iterations} times, "
-            f"pushed out by {case.spec.inflate_fraction:.0%} of the diagonal; its remeshed (unmoved) vertices were "
+            f"pushed out by {case.spec.inflate_fraction * 100:g} % of the diagonal; its remeshed (unmoved) vertices "
+            "were "
             f"{info['remeshed_to_scan_mean_percent']:.3f} % from the scan on average, the moved ones "
             f"{info['moved_to_scan_mean_percent']:.2f} %.")
 

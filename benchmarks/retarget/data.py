@@ -150,7 +150,8 @@ def pymeshlab_file(name: str, cache: Path | None = None) -> Path:
     suffix = f"{PYMESHLAB_SAMPLES}/{name}"
     with zipfile.ZipFile(wheel) as archive:
         # The wheel keeps its package under pymeshlab-<version>.data/purelib/: match the path's tail.
-        members = [info for info in archive.infolist() if info.filename == suffix or info.filename.endswith("/" + suffix)]
+        members = [info for info in archive.infolist()
+                   if info.filename == suffix or info.filename.endswith("/" + suffix)]
         if not members:
             raise DataError(f"{suffix} is not in {wheel.name}")
         return _extract_member(archive, members[0], cache / f"pymeshlab-{PYMESHLAB_VERSION}" / name)
