@@ -772,6 +772,9 @@ def test_scan_geometry_helpers():
     vertices = np.concatenate([small + [10.0, 0.0, 0.0], big])
     kept, kept_quads = scans.largest_piece(vertices, np.concatenate([small_quads, big_quads + len(small)]))
     assert np.allclose(kept, big) and (kept_quads == big_quads).all()
+    # Pieces are labelled by their smallest vertex, whatever the edges' order (a path numbered backwards).
+    path = np.array([[5, 4], [4, 3], [3, 2], [2, 1], [1, 0], [7, 8]])
+    assert scans.connected_labels(10, path).tolist() == [0, 0, 0, 0, 0, 0, 6, 7, 7, 9]
     # A flat grid's normals are +Z; smoothing leaves its centre vertex in place and pulls the corners in.
     assert np.allclose(scans.vertex_normals(big, big_quads), [0.0, 0.0, 1.0])
     smoothed = scans.umbrella_smoothed(big, big_quads, 3, 0.5)

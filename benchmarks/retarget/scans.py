@@ -155,14 +155,25 @@ def polygon_edges(faces: np.ndarray) -> np.ndarray:
     return np.unique(np.sort(pairs, axis=1), axis=0)
 
 
+def connected_labels(vertex_count: int, edges: np.ndarray) -> np.ndarray:
+    """(vertex_count,) the smallest vertex index of each vertex's edge-connected piece (label
+    propagation with pointer jumping, numpy only)."""
+    labels = np.arange(vertex_count)
+    first, second = edges[:, 0], edges[:, 1]
+    while True:
+        lower = np.minimum(labels[first], labels[second])
+        lowered = labels.copy()
+        np.minimum.at(lowered, first, lower)
+        np.minimum.at(lowered, second, lower)
+        lowered = lowered[lowered]  # a label is a smaller vertex of the same piece: follow it
+        if np.array_equal(lowered, labels):
+            return labels
+        labels = lowered
+
+
 def largest_piece(vertices: np.ndarray, quads: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The quads of the largest edge-connected piece (by vertex count), renumbered, and its vertices."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    edges = polygon_edges(quads)
-    graph = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(len(vertices), len(vertices)))
-    _count, labels = connected_components(graph, directed=False)
+    labels = connected_labels(len(vertices), polygon_edges(quads))
     used = np.unique(quads)
     biggest = np.bincount(labels[used]).argmax()
     kept_quads = quads[labels[quads[:, 0]] == biggest]
