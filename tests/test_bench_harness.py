@@ -17,7 +17,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # `benchmarks` lives at the root
 
 from benchmarks import _noisy_torus, figures, report, wrap_solvers  # noqa: E402
-from benchmarks.retarget import baselines, cases, data, landmarks, metrics, posing, run  # noqa: E402
+from benchmarks.retarget import baselines, cases, data, landmarks, metrics, posing, run, scans  # noqa: E402
 from benchmarks.retarget import springwrap_methods  # noqa: E402
 
 
@@ -321,9 +321,91 @@ def test_read_obj_keeps_quads_and_groups(tmp_path):
     with pytest.raises(data.DataError):
         data.read_obj(obj, ("missing",))
     bad = tmp_path / "bad.obj"
-    bad.write_text("v 0 0 0\nv 1 0 0\nf 1 2 -1\n")
+    bad.write_text("v 0 0 0\nv 1 0 0\nf 1 2 -3\n")  # -3: before the first vertex
     with pytest.raises(data.DataError):
         data.read_obj(bad)
+
+
+def test_read_obj_resolves_relative_indices_against_the_vertices_written_so_far(tmp_path):
+    obj = tmp_path / "relative.obj"
+    # -1 is the last vertex written before the face line: the second face's -1 is vertex 5, not 3.
+    obj.write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nf -3/-1 -2/-1 -1/-1\nv 2 0 0\nv 2 1 0\nf 2 -2 -1\n")
+    mesh = data.read_obj(obj)
+    assert mesh.face_corners.tolist() == [0, 1, 2, 1, 3, 4]
+    assert mesh.face_sizes.tolist() == [3, 3]
+
+
+def test_read_off(tmp_path):
+    off = tmp_path / "mesh.off"
+    off.write_text("OFF\n# a square and a triangle\n5 2 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n2 0 0\n"
+                   "4 0 1 2 3\n3 1 4 2 255 0 0\n")
+    mesh = data.read_off(off)
+    assert mesh.vertices.shape == (5, 3) and mesh.face_sizes.tolist() == [4, 3]
+    assert mesh.face_corners.tolist() == [0, 1, 2, 3, 1, 4, 2]  # the colour after the indices is ignored
+    same_line = tmp_path / "same_line.off"
+    same_line.write_text("OFF 3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
+    assert data.read_off(same_line).face_corners.tolist() == [0, 1, 2]
+    for text in ("3 1 0\n", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n", "OFF\n3 2 0\n0 0 0\n"):
+        bad = tmp_path / "bad.off"
+        bad.write_text(text)
+        with pytest.raises(data.DataError):
+            data.read_off(bad)
+
+
+def test_a_pymeshlab_sample_mesh_is_found_under_the_wheels_data_folder(tmp_path):
+    import zipfile
+
+    wheels = tmp_path / "wheels"
+    wheels.mkdir()
+    wheel = wheels / f"pymeshlab-{data.PYMESHLAB_VERSION}-cp311-cp311-manylinux_2_31_x86_64.whl"
+    with zipfile.ZipFile(wheel, "w") as archive:  # in the cache already: no pip
+        archive.writestr(f"pymeshlab-{data.PYMESHLAB_VERSION}.data/purelib/{data.PYMESHLAB_SAMPLES}/tiny.obj",
+                         "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\n")
+    extracted = data.pymeshlab_file("tiny.obj", tmp_path)
+    assert data.read_obj(extracted).face_corners.tolist() == [0, 1, 2]
+    with pytest.raises(data.DataError, match="not in"):
+        data.pymeshlab_file("missing.obj", tmp_path)
+
+
+def _ar_member(name: str, content: bytes) -> bytes:
+    header = f"{name:<16}{0:<12}{0:<6}{0:<6}{'100644':<8}{len(content):<10}`\n".encode()
+    return header + content + (b"\n" if len(content) % 2 else b"")
+
+
+def test_a_file_is_read_out_of_a_debian_package_and_the_cgal_data_in_it(tmp_path):
+    import io
+    import tarfile
+
+    def tar_gz(files: dict[str, bytes]) -> bytes:
+        buffer = io.BytesIO()
+        with tarfile.open(fileobj=buffer, mode="w:gz") as archive:
+            for name, content in files.items():
+                info = tarfile.TarInfo(name)
+                info.size = len(content)
+                archive.addfile(info, io.BytesIO(content))
+        return buffer.getvalue()
+
+    mesh = b"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n"
+    inner = tar_gz({"data/meshes/tiny.off": mesh})
+    outer = tar_gz({"./usr/share/doc/libcgal-dev/data.tar.gz": inner})
+    debs = tmp_path / "debs"
+    debs.mkdir()
+    deb = debs / f"{data.CGAL_DEMO_PACKAGE}_1.0-1_all.deb"
+    deb.write_bytes(b"!<arch>\n" + _ar_member("debian-binary", b"2.0\n") + _ar_member("control.tar.gz", b"x")
+                    + _ar_member("data.tar.gz", outer))
+    assert data.deb_data_member(deb, data.CGAL_DATA_ARCHIVE) == inner
+    with pytest.raises(data.DataError, match="not in"):
+        data.deb_data_member(deb, "usr/share/missing")
+    # The package is in the cache: no apt-get; the file is unpacked beside it and read again from there.
+    extracted = data.cgal_data_file("data/meshes/tiny.off", tmp_path)
+    assert extracted.read_bytes() == mesh and extracted.parent.parent.parent.name == deb.stem
+    assert data.read_off(extracted).face_sizes.tolist() == [3]
+    with pytest.raises(data.DataError, match="not in"):
+        data.cgal_data_file("data/meshes/missing.off", tmp_path)
+    not_a_deb = tmp_path / "plain.deb"
+    not_a_deb.write_bytes(b"hello")
+    with pytest.raises(data.DataError, match="ar header"):
+        data.deb_data_member(not_a_deb, "anything")
 
 
 def test_read_morph_target(tmp_path):
@@ -610,3 +692,128 @@ def test_the_batch_section_names_storage_and_memory_when_they_limit():
     # 60 MB a mesh: 600 GB through a 1,000 MB/s file system is 10 min, against 1.7 min of compute.
     assert "takes 10.0 min - longer than the compute: **the storage is the bottleneck**" in text
     assert "**memory limits a node**" in text and "limited by the shared storage" in text
+
+
+# ---------------------------------------------------------------- scans without a known answer
+
+
+def test_a_closest_point_on_a_holes_rim_is_told_from_one_inside():
+    # A square cut into the triangles 0 1 2 and 0 2 3: they share the edge 0-2; every other edge is a rim.
+    triangles = np.array([[0, 1, 2], [0, 2, 3]])
+    hit_triangles = np.array([0, 0, 0, 1, 0])
+    barycentrics = np.array([
+        [0.2, 0.3, 0.5],  # inside
+        [0.5, 0.5, 0.0],  # on edge 0-1 (corner 2's barycentric is 0): a rim
+        [0.5, 0.0, 0.5],  # on edge 0-2 (corner 1's is 0): shared, not a rim
+        [0.0, 0.0, 1.0],  # at corner 3, where the rims 2-3 and 3-0 meet
+        [1.0, 0.0, 0.0],  # at corner 0: two rims end there
+    ])
+    assert metrics.on_boundary(triangles, hit_triangles, barycentrics).tolist() == [False, True, False, True, True]
+    # A closed tetrahedron has no rim.
+    closed = np.array([[0, 1, 2], [0, 3, 1], [1, 3, 2], [2, 3, 0]])
+    assert not metrics.on_boundary(closed, np.array([0, 1]), np.array([[1.0, 0, 0], [0.5, 0.5, 0]])).any()
+
+
+def test_stretch_ratios_of_a_grid_scaled_along_one_axis():
+    vertices, quads = grid(2)
+    stretched = vertices * [2.0, 1.0, 1.0]
+    assert np.allclose(metrics.quad_areas(stretched, quads) / metrics.quad_areas(vertices, quads), 2.0)
+    edges = metrics.quad_edges(quads)
+    assert len(edges) == 12 and (edges[:, 0] < edges[:, 1]).all()
+    ratios = metrics.edge_length_ratios(stretched, vertices, quads)
+    assert sorted(set(np.round(ratios, 9))) == [1.0, 2.0] and (ratios == 2.0).sum() == 6
+    stats = metrics.RatioStats.of(np.array([0.05, 1.0, 1.0, 1.0, 20.0, np.inf]))
+    assert stats.count == 6 and stats.below == 1 and stats.above == 2 and stats.median == 1.0
+    assert np.isnan(metrics.RatioStats.of(np.array([np.nan])).median)
+
+
+def test_scan_metrics_on_a_plane_with_a_lifted_vertex_and_a_folded_one():
+    import springwrap_kernel
+
+    vertices, quads = grid()
+    # The target: the grid's square (two triangles), so every rim is the square's border.
+    target_vertices = np.array([[0, 0, 0], [4, 0, 0], [4, 4, 0], [0, 4, 0]], dtype=np.float32)
+    target_triangles = np.array([[0, 1, 2], [0, 2, 3]], dtype=np.uint32)
+    target = springwrap_kernel.TargetMesh(target_vertices, target_triangles)
+    result = vertices.copy()
+    result[6] = [1.0, 1.0, 0.4]  # an inner vertex lifted by 0.4: off the surface
+    measured = metrics.scan_metrics(result, vertices, quads, target, target_vertices, target_triangles)
+    diagonal = np.sqrt(32.0)
+    inner = 9  # the 3 x 3 inner vertices; the border ones lie on the rim and are left out
+    assert measured.diagonal == pytest.approx(diagonal) and measured.over_surface == inner
+    assert measured.distance_percent.max == pytest.approx(40.0 / diagonal, rel=1e-5)
+    assert measured.distance_percent.mean == pytest.approx(40.0 / diagonal / inner, rel=1e-5)
+    assert measured.off_surface == 1 and measured.flipped_vs_template == 0 and measured.flipped_vs_target == 0
+    assert measured.quads_over_surface == 16 and measured.area.below == 0 and measured.edge.above == 0
+    # Vertex 6 pushed across its neighbours: the quads around it turn over, against the template and the scan.
+    result[6] = [2.6, 2.6, 0.0]
+    folded = metrics.scan_metrics(result, vertices, quads, target, target_vertices, target_triangles)
+    flipped = int(metrics.flipped_quads(result, vertices, quads).sum())
+    assert flipped > 0 and folded.flipped_vs_template == flipped
+    assert folded.flipped_vs_target == flipped and folded.flipped_vs_target_on_surface == flipped
+    # The whole layout upside down (winding reversed) faces against the scan everywhere.
+    upside_down = metrics.scan_metrics(vertices, vertices, quads[:, ::-1], target, target_vertices, target_triangles)
+    assert upside_down.flipped_vs_target == 16 and upside_down.flipped_vs_template == 0
+    nan_result = vertices.copy()
+    nan_result[0] = np.nan
+    with_nan = metrics.scan_metrics(nan_result, vertices, quads, target, target_vertices, target_triangles)
+    assert with_nan.nonfinite_vertices == 1
+    assert {"distance_mean", "off_surface", "area_p5", "edge_p95", "flipped_vs_target_on_surface"} <= set(
+        measured.row())
+
+
+def test_scan_geometry_helpers():
+    # Fan triangulation keeps the polygons' order and winding.
+    mesh = data.PolygonMesh(np.zeros((6, 3)), np.array([0, 1, 2, 3, 1, 4, 5]), np.array([4, 3]))
+    assert scans.triangulated(mesh).tolist() == [[0, 1, 2], [0, 2, 3], [1, 4, 5]]
+    # Two separate grids: the larger piece is kept, renumbered from 0.
+    small, small_quads = grid(1)
+    big, big_quads = grid(2)
+    vertices = np.concatenate([small + [10.0, 0.0, 0.0], big])
+    kept, kept_quads = scans.largest_piece(vertices, np.concatenate([small_quads, big_quads + len(small)]))
+    assert np.allclose(kept, big) and (kept_quads == big_quads).all()
+    # Pieces are labelled by their smallest vertex, whatever the edges' order (a path numbered backwards).
+    path = np.array([[5, 4], [4, 3], [3, 2], [2, 1], [1, 0], [7, 8]])
+    assert scans.connected_labels(10, path).tolist() == [0, 0, 0, 0, 0, 0, 6, 7, 7, 9]
+    # A flat grid's normals are +Z; smoothing leaves its centre vertex in place and pulls the corners in.
+    assert np.allclose(scans.vertex_normals(big, big_quads), [0.0, 0.0, 1.0])
+    smoothed = scans.umbrella_smoothed(big, big_quads, 3, 0.5)
+    assert np.allclose(smoothed[4], big[4])
+    assert np.linalg.norm(smoothed[0] - [1.0, 1.0, 0.0]) < np.linalg.norm(big[0] - [1.0, 1.0, 0.0])
+    assert scans.boundary_edges(np.array([[0, 1, 2], [0, 2, 3]])).tolist() == [[0, 1], [0, 3], [1, 2], [2, 3]]
+    assert [spec.name for spec in scans.scan_specs()] == ["bunny-scan", "elephant-holes"]
+    with pytest.raises(KeyError):
+        scans.scan_specs(["no-such-scan"])
+
+
+def made_up_scan_row(solver: str, mean: float) -> dict:
+    return {"case": "bunny-scan", "solver": solver, "distance_mean": mean, "distance_p95": 0.0, "distance_max": 1.5,
+            "off_surface": 4, "flipped_vs_template": 21, "flipped_vs_target": 10, "flipped_vs_target_on_surface": 7,
+            "area_p5": 0.49, "area_median": 0.95, "area_p95": 1.24, "area_below": 0, "area_above": 3,
+            "edge_p5": 0.69, "edge_p95": 1.15, "edge_below": 0, "edge_above": 0, "space_points": 74,
+            "iterations": 536, "converged": True, "seconds": 0.63}
+
+
+def test_wrap_solvers_page_keeps_the_section_that_was_not_run():
+    body = {"case": "heavy", "solver": "ENERGY", "mean": 0.2271, "p95": 0.9, "max": 1.7, "flipped": 7,
+            "flips_added": 3, "off_surface": 425, "space_points": 968, "iterations": 24, "converged": True,
+            "seconds": 1.16}
+    both = wrap_solvers.markdown([body], "Bodies at `abc`.", [made_up_scan_row("SPRINGS", 0.0012)], "Scans at `def`.",
+                                 ["- **bunny-scan**: a bunny."])
+    assert "| bunny-scan | SPRINGS | 0.001 | 0.000 | 1.500 | 4 | 21 | 10 | 7 | 0.49 | 0.95 | 1.24 | 0.69 | 1.15 | " \
+           "3 / 0 | 74 | 536 | 0.63 |" in both
+    assert "- **bunny-scan**: a bunny." in both and "## Scanned surfaces (no known answer)" in both
+    assert both.index("| heavy | ENERGY |") < both.index("| bunny-scan |")
+    assert set(wrap_solvers.page_sections(both)) == {"bodies", "scans"}
+    # Only the scans run again: the bodies' section is kept as it was, the scans' replaced.
+    again = wrap_solvers.markdown([], "", [made_up_scan_row("ENERGY", 0.024)], "Scans at `ghi`.", existing=both)
+    assert "| heavy | ENERGY | 0.227 |" in again and "Bodies at `abc`." in again
+    assert "| bunny-scan | ENERGY | 0.024 |" in again and "Scans at `ghi`." in again and "Scans at `def`." not in again
+    # A page from before the sections: all of it after the generated note is the bodies' section.
+    legacy = (f"{wrap_solvers.PAGE_TITLE}\n\n{wrap_solvers.GENERATED}\n\nSome text.\n\n| case | solver |\n"
+              "| heavy | SPRINGS | 0.346 |\n")
+    merged = wrap_solvers.markdown([], "", [made_up_scan_row("ENERGY", 0.024)], existing=legacy)
+    assert merged.index("| heavy | SPRINGS | 0.346 |") < merged.index("## Scanned surfaces")
+    assert merged.count(wrap_solvers.GENERATED) == 1 and merged.startswith(wrap_solvers.PAGE_TITLE)
+    # The bodies alone, no page before: no scans' section.
+    assert "Scanned" not in wrap_solvers.markdown([body], "")
