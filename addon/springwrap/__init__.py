@@ -25,6 +25,14 @@ from . import compat
 
 compat.add_vendored_packages()  # the legacy zip's kernel, before bridge imports it
 
+try:
+    import numpy  # noqa: F401  (checked first: every module below needs it, and the kernel too)
+except ImportError as _error:
+    raise ImportError(
+        "Springwrap needs numpy, which this Blender's Python does not have (Debian's and Ubuntu's Blender: "
+        "`sudo apt-get install python3-numpy`, then enable the add-on again)"
+    ) from _error
+
 from . import (  # noqa: E402
     align_operator,
     anchor_drawing,
