@@ -557,25 +557,15 @@ impl EnergySolver {
                 .into_par_iter()
                 .with_min_len(2048)
                 .map(|vertex| {
-                    let own = Vec4::from(rotations[vertex as usize]);
-                    let sum =
-                        self.structure
-                            .neighbors_of(vertex)
-                            .iter()
-                            .fold(own, |sum, &other| {
-                                let other = Vec4::from(rotations[other as usize]);
-                                if other.dot(own) < 0.0 {
-                                    sum - other
-                                } else {
-                                    sum + other
-                                }
-                            });
-                    let length = sum.length();
-                    if length > 0.0 && length.is_finite() {
-                        Quat::from_vec4(sum / length)
-                    } else {
-                        rotations[vertex as usize]
-                    }
+                    let own = rotations[vertex as usize];
+                    let sum = self
+                        .structure
+                        .neighbors_of(vertex)
+                        .iter()
+                        .fold(Vec4::from(own), |sum, &other| {
+                            add_matched(sum, rotations[other as usize], own)
+                        });
+                    normalized_rotation(sum).unwrap_or(own)
                 })
                 .collect();
         }
@@ -589,23 +579,18 @@ impl EnergySolver {
         let Some(first) = self.similarities.first() else {
             return Quat::IDENTITY;
         };
-        let mut mean = Vec4::from(first.rotation);
+        let mut mean = first.rotation;
         for _ in 0..MEAN_ROTATION_ROUNDS {
-            let sum = self.similarities.iter().fold(Vec4::ZERO, |sum, fit| {
-                let rotation = Vec4::from(fit.rotation);
-                if rotation.dot(mean) < 0.0 {
-                    sum - rotation
-                } else {
-                    sum + rotation
-                }
-            });
-            let length = sum.length();
-            if !(length > 0.0 && length.is_finite()) {
+            let sum = self
+                .similarities
+                .iter()
+                .fold(Vec4::ZERO, |sum, fit| add_matched(sum, fit.rotation, mean));
+            let Some(next) = normalized_rotation(sum) else {
                 break;
-            }
-            mean = sum / length;
+            };
+            mean = next;
         }
-        Quat::from_vec4(mean)
+        mean
     }
 
     /// Replaces the fitted scales by their median (`None`) or by their log averaged over edge
@@ -903,21 +888,26 @@ impl EnergySolver {
     /// between its normal and its rest normal turned by the layout's frame (0 when degenerate).
     fn corner_orientations(&self, positions: &[Vec3]) -> Vec<f32> {
         let structure = &self.structure;
-        let normals = corner_normals(structure, positions);
-        (0..positions.len())
+        (0..positions.len() as u32)
             .into_par_iter()
             .with_min_len(1024)
             .flat_map_iter(|vertex| {
-                let corners = structure.wedge_range(vertex as u32);
-                let rotation = self.frame;
-                let normals = &normals;
-                corners.map(move |corner| {
-                    normals[corner]
-                        .normalize_or_zero()
-                        .dot(rotation * self.rest_corner_normals[corner])
-                })
+                structure
+                    .wedge_range(vertex)
+                    .map(move |corner| self.corner_alignment(vertex, corner, positions))
             })
             .collect()
+    }
+
+    /// The cosine between corner `corner` (of vertex `owner`) at `positions` and its rest
+    /// normal turned by the layout's frame (0 when degenerate).
+    fn corner_alignment(&self, owner: u32, corner: usize, positions: &[Vec3]) -> f32 {
+        let (previous, next) = self.structure.wedges[corner];
+        let here = positions[owner as usize];
+        (positions[next as usize] - here)
+            .cross(positions[previous as usize] - here)
+            .normalize_or_zero()
+            .dot(self.frame * self.rest_corner_normals[corner])
     }
 
     /// The vertices of corners that turn away from their frame at `positions`: below
@@ -928,7 +918,7 @@ impl EnergySolver {
         let mut vertices = Vec::new();
         for vertex in 0..positions.len() {
             for corner in structure.wedge_range(vertex as u32) {
-                if after[corner] < MIN_ALIGNMENT && after[corner] < before[corner] {
+                if turned(before[corner], after[corner]) {
                     let (previous, next) = structure.wedges[corner];
                     vertices.extend([vertex as u32, previous, next]);
                 }
@@ -943,22 +933,19 @@ impl EnergySolver {
     /// among the corners that `vertex` belongs to: its own and its neighbours'.
     fn turns_corner_around(&self, vertex: u32, before: &[f32], positions: &[Vec3]) -> bool {
         let structure = &self.structure;
-        let turned = |owner: u32, corner: usize| {
-            let (previous, next) = structure.wedges[corner];
-            let here = positions[owner as usize];
-            let normal = (positions[next as usize] - here)
-                .cross(positions[previous as usize] - here)
-                .normalize_or_zero();
-            let alignment = normal.dot(self.frame * self.rest_corner_normals[corner]);
-            alignment < MIN_ALIGNMENT && alignment < before[corner]
+        let turns = |owner: u32, corner: usize| {
+            turned(
+                before[corner],
+                self.corner_alignment(owner, corner, positions),
+            )
         };
         let own = structure
             .wedge_range(vertex)
-            .any(|corner| turned(vertex, corner));
+            .any(|corner| turns(vertex, corner));
         own || structure.neighbors_of(vertex).iter().any(|&other| {
             structure.wedge_range(other).any(|corner| {
                 let (previous, next) = structure.wedges[corner];
-                (previous == vertex || next == vertex) && turned(other, corner)
+                (previous == vertex || next == vertex) && turns(other, corner)
             })
         })
     }
@@ -993,6 +980,29 @@ impl EnergySolver {
         let held_back = fractions.iter().filter(|&&fraction| fraction < 1.0).count();
         (candidate, held_back)
     }
+}
+
+/// Whether a corner aligned `before` with its frame has turned at `after`: beyond
+/// [`MIN_ALIGNMENT`] and further from its frame than it was.
+fn turned(before: f32, after: f32) -> bool {
+    after < MIN_ALIGNMENT && after < before
+}
+
+/// `sum` plus `rotation` as a quaternion, its sign matched to `reference` (q and -q are the
+/// same rotation; averaging must not let them cancel).
+fn add_matched(sum: Vec4, rotation: Quat, reference: Quat) -> Vec4 {
+    let rotation = Vec4::from(rotation);
+    if rotation.dot(Vec4::from(reference)) < 0.0 {
+        sum - rotation
+    } else {
+        sum + rotation
+    }
+}
+
+/// The unit quaternion along `sum`, or `None` when it has no length (or is not finite).
+fn normalized_rotation(sum: Vec4) -> Option<Quat> {
+    let length = sum.length();
+    (length > 0.0 && length.is_finite()).then(|| Quat::from_vec4(sum / length))
 }
 
 /// Per corner (a vertex and one face around it, in `structure.wedges` order), its normal at
