@@ -40,6 +40,7 @@ Cases are built deterministically (fixed seeds, fixed rules) and cached as ``.np
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import time
@@ -412,6 +413,30 @@ def left_half(vertices: np.ndarray, quads: np.ndarray) -> tuple[np.ndarray, np.n
     return renumber[kept_quads], used
 
 
+@contextlib.contextmanager
+def voxel_remeshed(mesh, voxel_size: float):
+    """Blender's Remesh modifier (VOXEL, adaptivity 0) on the bpy ``mesh``, headless: yields the remeshed
+    (evaluated) mesh while it lives; ``mesh`` and the temporary object are removed afterwards."""
+    import bpy
+
+    source = bpy.data.objects.new(mesh.name, mesh)
+    bpy.context.scene.collection.objects.link(source)
+    try:
+        modifier = source.modifiers.new("Remesh", "REMESH")
+        modifier.mode = "VOXEL"
+        modifier.voxel_size = voxel_size
+        modifier.adaptivity = 0.0
+        evaluated = source.evaluated_get(bpy.context.evaluated_depsgraph_get())
+        result = evaluated.to_mesh()
+        try:
+            yield result
+        finally:
+            evaluated.to_mesh_clear()
+    finally:
+        bpy.data.objects.remove(source)
+        bpy.data.meshes.remove(mesh)
+
+
 def voxel_remesh(vertices: np.ndarray, quads: np.ndarray, voxel_size: float) -> tuple[np.ndarray, np.ndarray]:
     """Blender's Remesh modifier (VOXEL) on a quad mesh, headless: (V, 3) float32, (T, 3) uint32 triangles."""
     import bpy
@@ -424,26 +449,12 @@ def voxel_remesh(vertices: np.ndarray, quads: np.ndarray, voxel_size: float) -> 
     mesh.polygons.add(len(quads))
     mesh.polygons.foreach_set("loop_start", np.arange(0, quads.size, 4, dtype=np.int32))
     mesh.update(calc_edges=True)
-    source = bpy.data.objects.new("springwrap_bench_remesh", mesh)
-    bpy.context.scene.collection.objects.link(source)
-    try:
-        modifier = source.modifiers.new("Remesh", "REMESH")
-        modifier.mode = "VOXEL"
-        modifier.voxel_size = voxel_size
-        modifier.adaptivity = 0.0
-        evaluated = source.evaluated_get(bpy.context.evaluated_depsgraph_get())
-        result = evaluated.to_mesh()
-        try:
-            result.calc_loop_triangles()
-            positions = np.empty(len(result.vertices) * 3, dtype=np.float32)
-            result.vertices.foreach_get("co", positions)
-            triangles = np.empty(len(result.loop_triangles) * 3, dtype=np.int32)
-            result.loop_triangles.foreach_get("vertices", triangles)
-        finally:
-            evaluated.to_mesh_clear()
-    finally:
-        bpy.data.objects.remove(source)
-        bpy.data.meshes.remove(mesh)
+    with voxel_remeshed(mesh, voxel_size) as result:
+        result.calc_loop_triangles()
+        positions = np.empty(len(result.vertices) * 3, dtype=np.float32)
+        result.vertices.foreach_get("co", positions)
+        triangles = np.empty(len(result.loop_triangles) * 3, dtype=np.int32)
+        result.loop_triangles.foreach_get("vertices", triangles)
     if len(triangles) == 0:
         raise RuntimeError(f"the voxel remesh (voxel size {voxel_size}) produced no triangle")
     return positions.reshape(-1, 3), triangles.reshape(-1, 3).astype(np.uint32)

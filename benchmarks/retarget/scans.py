@@ -258,30 +258,14 @@ def filled_holes(mesh: data.PolygonMesh) -> data.PolygonMesh:
 
 def voxel_quads(mesh: data.PolygonMesh, voxel_size: float) -> tuple[np.ndarray, np.ndarray]:
     """Blender's Remesh modifier (VOXEL, adaptivity 0) on a closed polygon mesh: (N, 3) float64, (F, 4) int64."""
-    import bpy
-
     blender_mesh = _blender_mesh("springwrap_bench_voxels", mesh.vertices, mesh)
-    source = bpy.data.objects.new("springwrap_bench_voxels", blender_mesh)
-    bpy.context.scene.collection.objects.link(source)
-    try:
-        modifier = source.modifiers.new("Remesh", "REMESH")
-        modifier.mode = "VOXEL"
-        modifier.voxel_size = voxel_size
-        modifier.adaptivity = 0.0
-        evaluated = source.evaluated_get(bpy.context.evaluated_depsgraph_get())
-        result = evaluated.to_mesh()
-        try:
-            positions = np.empty(len(result.vertices) * 3, dtype=np.float32)
-            result.vertices.foreach_get("co", positions)
-            sizes = np.empty(len(result.polygons), dtype=np.int32)
-            result.polygons.foreach_get("loop_total", sizes)
-            corners = np.empty(len(result.loops), dtype=np.int32)
-            result.loops.foreach_get("vertex_index", corners)
-        finally:
-            evaluated.to_mesh_clear()
-    finally:
-        bpy.data.objects.remove(source)
-        bpy.data.meshes.remove(blender_mesh)
+    with cases.voxel_remeshed(blender_mesh, voxel_size) as result:
+        positions = np.empty(len(result.vertices) * 3, dtype=np.float32)
+        result.vertices.foreach_get("co", positions)
+        sizes = np.empty(len(result.polygons), dtype=np.int32)
+        result.polygons.foreach_get("loop_total", sizes)
+        corners = np.empty(len(result.loops), dtype=np.int32)
+        result.loops.foreach_get("vertex_index", corners)
     if len(sizes) == 0 or np.any(sizes != 4):
         raise RuntimeError(f"the voxel remesh (voxel {voxel_size}) gave {len(sizes)} faces, not all quads")
     return positions.reshape(-1, 3).astype(np.float64), corners.reshape(-1, 4).astype(np.int64)
