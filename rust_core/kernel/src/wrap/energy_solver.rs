@@ -19,6 +19,10 @@
 //! boundary edge (a hole) or on an unreliable triangle. Anchors and curve targets are hard
 //! constraints (their vertices are eliminated from the system).
 //!
+//! **Warm-up**: before any data term, the constraints alone pull the layout as rigidly as
+//! possible (the same steps with `λ = 0`, rotations averaged over neighbours, no safeguard), so
+//! that a posed target's limbs turn with their anchors instead of being dragged by the data.
+//!
 //! **Local step**: fit `T_i` and the correspondences at the current positions. **Global step**:
 //! solve `A x = b`; `A` is the same scalar matrix for x, y and z, its pattern analysed once, its
 //! diagonal (the data weights) refactored every iteration. **Safeguard**: a corner of a layout
@@ -100,6 +104,12 @@ const LEVELS: [Level; 4] = [
         max_iterations: 8,
     },
 ];
+/// The warm-up before the schedule: the anchors and curve targets alone deform the layout as
+/// rigidly as possible (no data term, no safeguard), rotations averaged over this many rounds, for
+/// at most this many iterations or until no point moves more than this fraction of a mean edge.
+const WARMUP_ROTATION_SMOOTHING: usize = 16;
+const WARMUP_MAX_ITERATIONS: usize = 12;
+const WARMUP_SETTLED_MOVE: f32 = 0.05;
 /// A level ends once an iteration lowers the energy by less than this fraction.
 const LEVEL_DECREASE: f64 = 2e-3;
 /// A level is settled when at most one point in this many was held back by the safeguard.
@@ -225,6 +235,8 @@ pub(crate) struct EnergySolver {
     orientation: f32,
     mean_edge_length: f32,
     landing_distance: f32,
+    /// Whether the anchors-only warm-up is still running.
+    warming_up: bool,
     level: usize,
     level_iterations: usize,
     iterations: usize,
@@ -330,6 +342,7 @@ impl EnergySolver {
             orientation: 1.0,
             mean_edge_length: inputs.mean_edge_length,
             landing_distance: inputs.landing_distance,
+            warming_up: true,
             level: 0,
             level_iterations: 0,
             iterations: 0,
@@ -459,6 +472,9 @@ impl EnergySolver {
                 ..EnergyStep::default()
             });
         }
+        if self.warming_up {
+            return self.warm_up();
+        }
         let level = &LEVELS[self.level];
         // Local step: similarities and correspondences at the current positions.
         if self.iterations > 0 {
@@ -533,6 +549,41 @@ impl EnergySolver {
             held_back,
             energy_decrease: decrease,
             finished: self.finished,
+        })
+    }
+
+    /// One iteration of the warm-up: the constraints alone pull the layout, as rigidly as
+    /// possible (a posed target's limbs turn with their anchors before any data is asked for).
+    fn warm_up(&mut self) -> Result<EnergyStep, KernelError> {
+        if self.iterations > 0 {
+            self.fit_similarities(false);
+        }
+        self.smooth_scales(None);
+        self.smooth_rotations(WARMUP_ROTATION_SMOOTHING);
+        let none = vec![None; self.positions.len()];
+        let proposed = self.global_solve(&none, 0.0)?;
+        let (mut max_move, mut total_move) = (0.0f32, 0.0f64);
+        for (new, old) in proposed.iter().zip(&self.positions) {
+            let moved = new.distance(*old);
+            max_move = max_move.max(moved);
+            total_move += f64::from(moved);
+        }
+        let energy = self.energy_at(&proposed, &none, 0.0, &self.positions);
+        self.positions = proposed;
+        self.iterations += 1;
+        if self.iterations >= WARMUP_MAX_ITERATIONS
+            || max_move <= WARMUP_SETTLED_MOVE * self.mean_edge_length
+        {
+            self.warming_up = false;
+            self.factored_level = None;
+        }
+        Ok(EnergyStep {
+            max_move,
+            mean_move: (total_move / self.positions.len().max(1) as f64) as f32,
+            energy,
+            held_back: 0,
+            energy_decrease: f64::NAN,
+            finished: false,
         })
     }
 
@@ -1395,6 +1446,36 @@ mod tests {
                     solver.positions[vertex]
                 );
             }
+        }
+    }
+
+    #[test]
+    fn the_warm_up_carries_the_layout_with_its_anchors_as_rigidly_as_possible() {
+        // Anchors far from the template (a posed limb): the corners of the grid, turned 70
+        // degrees and shifted by three grid widths. Before any data term, the warm-up moves the
+        // whole grid with them, with no step held back.
+        let (target, structure, rest) = plane_and_grid(8, 0.1, 0.05);
+        let motion =
+            |p: Vec3| Quat::from_rotation_y(70f32.to_radians()) * p + Vec3::new(0.5, 0.3, 2.4);
+        let mut anchors = vec![None; rest.len()];
+        for vertex in [0, 8, 72, 80] {
+            let position = motion(rest[vertex]);
+            anchors[vertex] = Some((AnchorTarget::Space(position), position));
+        }
+        let mut solver = solver(&target, &structure, &rest, &rest, &anchors);
+        let mut steps = 0;
+        while solver.warming_up {
+            let step = solver.iterate().unwrap();
+            assert_eq!(step.held_back, 0);
+            steps += 1;
+        }
+        assert!(steps <= WARMUP_MAX_ITERATIONS, "{steps}");
+        for (vertex, position) in solver.positions.iter().enumerate() {
+            let wanted = motion(rest[vertex]);
+            assert!(
+                position.distance(wanted) < 0.01,
+                "vertex {vertex} at {position}, {wanted} wanted (edge 0.1)"
+            );
         }
     }
 }
