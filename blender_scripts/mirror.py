@@ -100,7 +100,7 @@ def _load_mirror_object(path: Path, name: str) -> str:
 
 def mirror(arguments: argparse.Namespace) -> dict:
     """Load, (snap,) mirror and wrap, measure, write; the report (also written to --report)."""
-    from springwrap.mirror_operator import SPRINGWRAP_OT_mirror
+    from springwrap.operators.mirror import SPRINGWRAP_OT_mirror
 
     lap, warnings = Laps(), []
     timings = lap.timings

@@ -377,7 +377,9 @@ def run_operator(blame: str, name: str, **properties) -> None:
 
 def retarget(arguments: argparse.Namespace) -> dict:
     """Load, align, detach, anchor, wrap, measure, write; the report (also written to --report)."""
-    from springwrap import bridge, operations, wrap_operator
+    from springwrap.blender.wrap_session import WrapSession
+    from springwrap.core.errors import ERRORS
+    from springwrap.core.wrap_inputs import WrapParameters
 
     lap, warnings = Laps(), []
     timings = lap.timings
@@ -416,12 +418,12 @@ def retarget(arguments: argparse.Namespace) -> dict:
     lap("anchors")
 
     try:
-        parameters = operations.WrapParameters(max_iterations=arguments.max_iterations,
+        parameters = WrapParameters(max_iterations=arguments.max_iterations,
                                                settings=wrap_settings(arguments),
                                                stiffness_group=arguments.stiffness_group,
                                                free_group=arguments.free_group)
-        session = wrap_operator.WrapSession(bpy.context, layout, parameters)
-    except bridge.ERRORS as error:
+        session = WrapSession(bpy.context, layout, parameters)
+    except ERRORS as error:
         raise RetargetError(f"{blame}: cannot wrap: {error}") from None
     session.run()
     result = session.finish()

@@ -89,7 +89,9 @@ def prepare(arguments: argparse.Namespace) -> bpy.types.Object:
 
 def wrap(layout: bpy.types.Object, max_iterations: int):
     """Run the wrap to the end with progress lines, then write it; returns the ``WrapResult``."""
-    from springwrap import bridge, operations, wrap_operator
+    from springwrap.blender.wrap_session import WrapSession
+    from springwrap.core.errors import ERRORS
+    from springwrap.core.wrap_inputs import WrapParameters
 
     def progress(report) -> None:
         print(
@@ -99,8 +101,8 @@ def wrap(layout: bpy.types.Object, max_iterations: int):
         )
 
     try:
-        session = wrap_operator.WrapSession(bpy.context, layout, operations.WrapParameters(max_iterations=max_iterations))
-    except bridge.ERRORS as error:
+        session = WrapSession(bpy.context, layout, WrapParameters(max_iterations=max_iterations))
+    except ERRORS as error:
         raise RuntimeError(f"cannot wrap '{layout.name}': {error}") from error
     session.run(progress=progress, chunk=PROGRESS_CHUNK)
     return session.finish()

@@ -1,6 +1,12 @@
-"""The Springwrap sidebar panel of the 3D view, and its Align, Anchors, Curve Constraints and Wrap sub-panels."""
+"""The Springwrap sidebar panel of the 3D view, and its Align, Armature, Anchors, Curve Constraints, Wrap and
+Features sub-panels (their lists are in ``lists``)."""
 
 import bpy
+import numpy as np
+
+from ..blender import compat
+from ..core import layout_state
+from ..core.anchors import FACE_ANCHOR
 
 
 class _SidebarPanel:
@@ -69,10 +75,6 @@ class SPRINGWRAP_PT_layout(_SidebarPanel, bpy.types.Panel):
 
 def _draw_point_counts(layout, obj):
     """Face-point / space-point counts, read from the state attribute (not available in edit mode)."""
-    import numpy as np
-
-    from . import layout_state
-
     mesh = obj.data
     attribute = mesh.attributes.get(layout_state.STATE_ATTRIBUTE)
     vertex_count = len(mesh.vertices)
@@ -89,23 +91,6 @@ def _draw_point_counts(layout, obj):
     else:
         face_count, space_count = counts
         layout.label(text=f"{face_count} face-points, {space_count} space-points", icon="INFO")
-
-
-class SPRINGWRAP_UL_anchors(bpy.types.UIList):
-    """The layout's anchors: vertex index, target kind and target location"""
-
-    bl_idname = "SPRINGWRAP_UL_anchors"
-
-    def draw_item(self, context, layout, data, item, icon, active_data, active_property, index=0, flt_flag=0):
-        vertex_count = len(data.id_data.data.vertices) if data.id_data.type == "MESH" else 0
-        missing = not 0 <= item.vertex_index < vertex_count
-        row = layout.row(align=True)
-        row.alert = missing
-        vertex_text = f"Vertex {item.vertex_index}" + (" (missing)" if missing else "")
-        row.label(text=vertex_text, icon="ERROR" if missing else "VERTEXSEL")
-        x, y, z = item.location
-        kind_icon = "SNAP_FACE" if item.target_kind == "FACE" else "EMPTY_AXIS"
-        row.label(text=f"{item.target_kind.title()} ({x:.3g}, {y:.3g}, {z:.3g})", icon=kind_icon)
 
 
 class SPRINGWRAP_PT_anchors(_LayoutSubPanel, bpy.types.Panel):
@@ -144,24 +129,6 @@ class SPRINGWRAP_PT_anchors(_LayoutSubPanel, bpy.types.Panel):
         auto.spacing = settings.anchor_spacing
         auto.method = settings.anchor_method
         auto.max_distance = settings.max_distance
-
-
-class SPRINGWRAP_UL_curve_constraints(bpy.types.UIList):
-    """The layout's curve constraints: the chain's end vertices and the target curve's source"""
-
-    bl_idname = "SPRINGWRAP_UL_curve_constraints"
-
-    def draw_item(self, context, layout, data, item, icon, active_data, active_property, index=0, flt_flag=0):
-        vertices = item.layout_vertices.split()
-        chain = f"{vertices[0]}..{vertices[-1]} ({len(vertices)})" if vertices else "(empty)"
-        row = layout.row(align=True)
-        row.label(text=chain, icon="EDGESEL")
-        if item.source_kind == "CURVE_OBJECT":
-            name = item.curve_object.name if item.curve_object is not None else "(missing curve)"
-            row.alert = item.curve_object is None
-            row.label(text=name, icon="CURVE_DATA")
-        else:
-            row.label(text=f"{len(item.points)} target vertices", icon="MESH_DATA")
 
 
 class SPRINGWRAP_PT_curve_constraints(_LayoutSubPanel, bpy.types.Panel):
@@ -277,11 +244,6 @@ class SPRINGWRAP_PT_features(_LayoutSubPanel, bpy.types.Panel):
 
 def _anchor_counts_text(anchors):
     """"K anchors (F on the surface)", the kinds read at once (the list may be long)."""
-    import numpy as np
-
-    from . import compat
-    from .anchors import FACE_ANCHOR
-
     kinds = np.empty(len(anchors), dtype=np.int32)
     if len(anchors):
         compat.foreach_get(anchors, "target_kind", kinds)
@@ -293,9 +255,7 @@ classes = (
     SPRINGWRAP_PT_layout,
     SPRINGWRAP_PT_align,
     SPRINGWRAP_PT_armature,
-    SPRINGWRAP_UL_anchors,
     SPRINGWRAP_PT_anchors,
-    SPRINGWRAP_UL_curve_constraints,
     SPRINGWRAP_PT_curve_constraints,
     SPRINGWRAP_PT_wrap,
     SPRINGWRAP_PT_features,
