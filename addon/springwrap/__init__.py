@@ -15,6 +15,9 @@ The Rust kernel is the ``springwrap_kernel`` package. This file imports ``bpy`` 
 so ``import springwrap.core`` works in a plain Python.
 """
 
+import sys
+from pathlib import Path
+
 bl_info = {
     "name": "Springwrap",
     "author": "Springwrap developers",
@@ -34,9 +37,6 @@ def _add_vendored_packages() -> None:
     enabled, and the kernel matching this add-on wins over any other copy. The extension (4.2+,
     the wheel installed by Blender) and a development checkout have no such folder.
     """
-    import sys
-    from pathlib import Path
-
     vendor = Path(__file__).resolve().parent / "_vendor"
     if vendor.is_dir() and str(vendor) not in sys.path:
         sys.path.insert(0, str(vendor))
