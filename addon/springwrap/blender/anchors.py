@@ -29,6 +29,15 @@ def read_anchors(layout: bpy.types.Object) -> anchors.Anchors:
         arrays.append(values)
     return anchors.make_anchors(*arrays)
 
+def face_anchor_count(layout: bpy.types.Object) -> int:
+    """How many of the layout's anchors are on the target surface (the kinds read at once: the list may be long)."""
+    items = layout.springwrap.anchors
+    kinds = np.empty(len(items), dtype=np.int32)
+    if len(items):
+        compat.foreach_get(items, "target_kind", kinds)
+    return int(np.count_nonzero(kinds == anchors.FACE_ANCHOR))
+
+
 def write_anchors(
     layout: bpy.types.Object, anchor_list: anchors.Anchors, active_index: int = -1, signature: Optional[str] = None
 ) -> None:

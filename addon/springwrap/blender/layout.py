@@ -13,7 +13,7 @@ import numpy as np
 import springwrap_kernel
 from mathutils import Matrix
 
-from ..core import subdivision, transforms, wrap_inputs
+from ..core import layout_state, subdivision, transforms, wrap_inputs
 from ..core.errors import LayoutError
 from ..core.layout_state import LayoutArrays, LayoutState
 from ..core.transforms import matrix_array
@@ -44,6 +44,19 @@ def read_layout(layout: bpy.types.Object) -> LayoutArrays:
         selection=selection,
         state=attributes.read_state(mesh),
     )
+
+
+def read_point_counts(layout: bpy.types.Object) -> Optional[tuple[int, int]]:
+    """(face-points, space-points) from the state attribute; None when they cannot be read from it (edit mode,
+    which holds the mesh data back, or an attribute of another type or length)."""
+    mesh = layout.data
+    vertex_count = len(mesh.vertices)
+    if mesh.attributes.get(layout_state.STATE_ATTRIBUTE) is None:
+        return None if layout.mode == "EDIT" else (0, vertex_count)
+    states = attributes.read_point_attribute(mesh, layout_state.STATE_ATTRIBUTE, "INT")
+    if states is None or states.size != vertex_count:
+        return None
+    return layout_state.point_counts(states)
 
 
 def read_world_normals(layout: bpy.types.Object) -> np.ndarray:

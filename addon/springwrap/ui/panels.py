@@ -2,11 +2,9 @@
 Features sub-panels (their lists are in ``lists``)."""
 
 import bpy
-import numpy as np
 
-from ..blender import compat
-from ..core import layout_state
-from ..core.anchors import FACE_ANCHOR
+from ..blender import anchors as anchor_data
+from ..blender import layout as layout_data
 
 
 class _SidebarPanel:
@@ -75,17 +73,7 @@ class SPRINGWRAP_PT_layout(_SidebarPanel, bpy.types.Panel):
 
 def _draw_point_counts(layout, obj):
     """Face-point / space-point counts, read from the state attribute (not available in edit mode)."""
-    mesh = obj.data
-    attribute = mesh.attributes.get(layout_state.STATE_ATTRIBUTE)
-    vertex_count = len(mesh.vertices)
-    if attribute is None:
-        counts = None if obj.mode == "EDIT" else (0, vertex_count)
-    elif attribute.domain != "POINT" or attribute.data_type != "INT" or len(attribute.data) != vertex_count:
-        counts = None
-    else:
-        states = np.empty(vertex_count, dtype=np.int32)
-        attribute.data.foreach_get("value", states)
-        counts = layout_state.point_counts(states)
+    counts = layout_data.read_point_counts(obj)
     if counts is None:
         layout.label(text="Point counts shown in Object Mode", icon="INFO")
     else:
@@ -105,7 +93,7 @@ class SPRINGWRAP_PT_anchors(_LayoutSubPanel, bpy.types.Panel):
     def draw(self, context):
         layout = self.layout
         settings = context.active_object.springwrap
-        layout.label(text=_anchor_counts_text(settings.anchors), icon="PINNED")
+        layout.label(text=_anchor_counts_text(context.active_object), icon="PINNED")
 
         row = layout.row()
         row.template_list(
@@ -242,13 +230,9 @@ class SPRINGWRAP_PT_features(_LayoutSubPanel, bpy.types.Panel):
         self.layout.operator("springwrap.detect_features", icon="CURVE_BEZCURVE")
 
 
-def _anchor_counts_text(anchors):
+def _anchor_counts_text(obj):
     """"K anchors (F on the surface)", the kinds read at once (the list may be long)."""
-    kinds = np.empty(len(anchors), dtype=np.int32)
-    if len(anchors):
-        compat.foreach_get(anchors, "target_kind", kinds)
-    face_count = int(np.count_nonzero(kinds == FACE_ANCHOR))
-    return f"{len(anchors)} anchors ({face_count} on the surface)"
+    return f"{len(obj.springwrap.anchors)} anchors ({anchor_data.face_anchor_count(obj)} on the surface)"
 
 
 classes = (
