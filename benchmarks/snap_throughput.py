@@ -41,7 +41,7 @@ import _machine  # noqa: E402
 from _noisy_torus import QUERY_OFFSET, noisy_torus, query_points  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "blender_scripts"))
-from script_arguments import script_arguments  # noqa: E402
+from headless import script_arguments  # noqa: E402
 
 SEED = 1
 # Distances may differ by float32 rounding; relative to the target's bounding-box diagonal.

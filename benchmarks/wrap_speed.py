@@ -106,9 +106,10 @@ def measure_live(case, vertices, triangles, seconds_limit: float = 20.0) -> dict
     bpy.ops.springwrap.detach(only_selected=False)
     for vertex, position in zip(landmark_vertices.tolist(), anchors.tolist()):
         bpy.ops.springwrap.anchor_add(vertex_index=int(vertex), location=position, use_location=True)
-    from springwrap import operations, wrap_operator
+    from springwrap.blender.wrap_session import WrapSession
+    from springwrap.core.wrap_inputs import WrapParameters
 
-    session = wrap_operator.WrapSession(bpy.context, layout, operations.WrapParameters())
+    session = WrapSession(bpy.context, layout, WrapParameters())
     start = time.perf_counter()
     while not session.done and time.perf_counter() - start < seconds_limit:
         session.advance()
@@ -132,7 +133,7 @@ def measure_large(max_iterations: int, seconds_limit: float) -> dict:
     from benchmarks import _noisy_torus
 
     sys.path.insert(0, str(REPOSITORY / "addon"))
-    from springwrap import subdivision
+    from springwrap.core import subdivision
 
     build = time.perf_counter()
     torus_vertices, torus_triangles = _noisy_torus.noisy_torus(1_000_000)

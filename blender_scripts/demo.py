@@ -18,7 +18,6 @@ world space. It saves the scene as a .blend and exits non-zero on any failure.
 import argparse
 import sys
 import time
-import traceback
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -31,7 +30,7 @@ from mathutils import Euler, Matrix, Vector
 from mathutils.bvhtree import BVHTree
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # `blender --python` does not add it
-from script_arguments import script_arguments  # noqa: E402
+from headless import EXIT_OK, enable_addon, failed, script_arguments  # noqa: E402
 
 REPOSITORY_ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_OUTPUT = REPOSITORY_ROOT / "out" / "demo.blend"
@@ -331,15 +330,6 @@ def check_wrap(wrapped: bpy.types.Object, probe: TargetProbe, vertex_count: int)
 # ---------------------------------------------------------------- main
 
 
-def enable_addon() -> None:
-    """Enable the Springwrap add-on, raising when it cannot be."""
-    import addon_utils
-
-    module = addon_utils.enable("springwrap", default_set=True, handle_error=None)
-    if module is None or not hasattr(bpy.ops, "springwrap"):
-        raise RuntimeError("addon_utils.enable('springwrap') failed: run `make setup` first")
-
-
 def run(output: Path) -> None:
     """Build the scene, retarget the layout step by step, print the table and save ``output``."""
     start = time.perf_counter()
@@ -415,11 +405,9 @@ def main() -> int:
     arguments = parse_arguments(sys.argv)
     try:
         run(arguments.output)
-    except Exception:  # noqa: BLE001 - any failure must become a non-zero exit code, also under `blender -b`
-        traceback.print_exc()
-        print("demo: FAILED", file=sys.stderr)
-        return 1
-    return 0
+    except Exception as error:  # noqa: BLE001 - any failure must become a non-zero exit code, also under `blender -b`
+        return failed("demo", error)
+    return EXIT_OK
 
 
 if __name__ == "__main__":

@@ -24,25 +24,13 @@ Faces crossing the plane and a wrap stopped at the iteration limit are warnings,
 
 import argparse
 import sys
-import traceback
 from pathlib import Path
 
 import bpy
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # `blender --python` does not add it
-from retarget import (  # noqa: E402
-    Laps,
-    RetargetError,
-    distances_to_target,
-    enable_addon,
-    kernel_wrap_defaults,
-    load_mesh,
-    run_operator,
-    write_outputs,
-)
-from script_arguments import script_arguments  # noqa: E402
-
-EXIT_FAILED, EXIT_USAGE = 1, 2
+from headless import EXIT_OK, ScriptError, addon_module, failed, script_arguments  # noqa: E402
+from retarget import Laps, distances_to_target, kernel_wrap_defaults, load_mesh, run_operator, write_outputs  # noqa: E402
 
 
 def parse_arguments(argv: list[str]) -> argparse.Namespace:
@@ -91,7 +79,7 @@ def _load_mirror_object(path: Path, name: str) -> str:
     """Link the object ``name`` of the .blend ``path`` into the scene; its name there."""
     with bpy.data.libraries.load(str(path), link=False) as (source, loaded):
         if name not in source.objects:
-            raise RetargetError(f"{path}: no object '{name}' to mirror across")
+            raise ScriptError(f"{path}: no object '{name}' to mirror across")
         loaded.objects = [name]
     mirror = loaded.objects[0]
     bpy.context.scene.collection.objects.link(mirror)
@@ -100,12 +88,10 @@ def _load_mirror_object(path: Path, name: str) -> str:
 
 def mirror(arguments: argparse.Namespace) -> dict:
     """Load, (snap,) mirror and wrap, measure, write; the report (also written to --report)."""
-    from springwrap.mirror_operator import SPRINGWRAP_OT_mirror
-
     lap, warnings = Laps(), []
     timings = lap.timings
 
-    enable_addon()
+    SPRINGWRAP_OT_mirror = addon_module("operators.mirror").SPRINGWRAP_OT_mirror  # noqa: N806
     bpy.ops.wm.read_homefile(use_empty=True)
     layout = load_mesh(arguments.layout, arguments.layout_object, "Layout")
     target = load_mesh(arguments.target, arguments.target_object, "Target") if arguments.target else None
@@ -155,20 +141,15 @@ def mirror(arguments: argparse.Namespace) -> dict:
 
 def main() -> int:
     try:
-        arguments = parse_arguments(sys.argv)  # reads the kernel's defaults: RetargetError without the add-on
+        arguments = parse_arguments(sys.argv)  # reads the kernel's defaults: ScriptError without the add-on
         report = mirror(arguments)
-    except RetargetError as error:
-        print(f"mirror: FAILED: {error}", file=sys.stderr)
-        return EXIT_FAILED
     except Exception as error:  # noqa: BLE001 - any failure must become a non-zero exit code, also under `blender -b`
-        traceback.print_exc()
-        print(f"mirror: FAILED: {type(error).__name__}: {error}", file=sys.stderr)
-        return EXIT_FAILED
+        return failed("mirror", error)
     wrap = report["wrap"]
     print(f"mirror: {report['vertices']} vertices ({report['new_vertices']} new, {report['seam_vertices']} on the seam)"
           + (f", wrapped in {wrap['iterations']} iterations" if wrap else "")
           + "".join(f"\n  warning: {line}" for line in report["warnings"]))
-    return 0
+    return EXIT_OK
 
 
 if __name__ == "__main__":

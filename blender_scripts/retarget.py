@@ -43,24 +43,30 @@ import math
 import os
 import sys
 import time
-import traceback
 from pathlib import Path
 
 import bpy
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # `blender --python` does not add it
-from script_arguments import script_arguments  # noqa: E402
+from headless import (  # noqa: E402
+    EXIT_BATCH_FAILURES,
+    EXIT_INTERRUPTED,
+    EXIT_OK,
+    ScriptError,
+    addon_module,
+    enable_addon,
+    failed,
+    partial_path,
+    script_arguments,
+    write_all_or_nothing,
+    write_atomically,
+)
 
 MESH_SUFFIXES = (".obj", ".ply", ".glb", ".gltf", ".blend")
 OUTPUT_SUFFIXES = ("blend", "obj", "json")  # a batch's outputs per mesh: OUT/<name>.<suffix>
-EXIT_FAILED, EXIT_USAGE, EXIT_BATCH_FAILURES, EXIT_INTERRUPTED = 1, 2, 3, 130
 WORKER_FLAG = "--batch-worker"
 SCRIPTS_FOLDER = Path(__file__).resolve().parent
 LAYOUT_NAME = "Retargeted"
-
-
-class RetargetError(Exception):
-    """A problem with the input or the run: the message is the one line printed, naming the file."""
 
 
 def kernel_wrap_defaults():
@@ -165,22 +171,6 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
 # ---------------------------------------------------------------- loading
 
 
-def enable_addon() -> None:
-    """Enable Springwrap: the classic add-on, or an installed extension (``bl_ext.<repository>.springwrap``)."""
-    import addon_utils
-
-    if addon_utils.check("springwrap")[1]:  # already on (a batch worker's second mesh)
-        return
-    names = ["springwrap"] + [module.__name__ for module in addon_utils.modules()
-                              if module.__name__.endswith(".springwrap")]
-    if any(addon_utils.check(name)[1] for name in names[1:]):
-        return
-    for name in names:
-        if addon_utils.enable(name, default_set=True, handle_error=None) is not None:
-            return
-    raise RetargetError("the Springwrap add-on cannot be enabled (run `make setup`, or install it in Blender)")
-
-
 def _import_file(path: Path) -> None:
     """Run the importer for ``path``'s format."""
     import addon_utils
@@ -198,32 +188,32 @@ def _import_file(path: Path) -> None:
         addon_utils.enable("io_scene_gltf2", default_set=True, handle_error=None)
         bpy.ops.import_scene.gltf(filepath=str(path))
     else:
-        raise RetargetError(f"{path}: not a mesh file ({', '.join(MESH_SUFFIXES)})")
+        raise ScriptError(f"{path}: not a mesh file ({', '.join(MESH_SUFFIXES)})")
 
 
 def _only_mesh(objects: list, path: Path, object_name) -> "bpy.types.Object":
     meshes = [obj for obj in objects if obj.type == "MESH" and (object_name is None or obj.name == object_name)]
     if object_name is not None and not meshes:
         found = ", ".join(sorted(obj.name for obj in objects if obj.type == "MESH")) or "none"
-        raise RetargetError(f"{path}: no mesh object '{object_name}' (mesh objects: {found})")
+        raise ScriptError(f"{path}: no mesh object '{object_name}' (mesh objects: {found})")
     if not meshes:
-        raise RetargetError(f"{path}: holds no mesh")
+        raise ScriptError(f"{path}: holds no mesh")
     if len(meshes) > 1:
         found = ", ".join(sorted(obj.name for obj in meshes))
-        raise RetargetError(f"{path}: several mesh objects ({found}): name one with --template-object / --target-object")
+        raise ScriptError(f"{path}: several mesh objects ({found}): name one with --template-object / --target-object")
     return meshes[0]
 
 
 def load_mesh(path: Path, object_name, role: str) -> "bpy.types.Object":
     """The mesh object of ``path`` (a mesh file, or a .blend's object), linked into the scene, named ``role``."""
     if not path.is_file():
-        raise RetargetError(f"{path}: no such file")
+        raise ScriptError(f"{path}: no such file")
     if path.suffix.lower() == ".blend":
         try:
             with bpy.data.libraries.load(str(path), link=False) as (source, loaded):
                 loaded.objects = [name for name in source.objects if object_name is None or name == object_name]
         except (OSError, RuntimeError) as error:
-            raise RetargetError(f"{path}: cannot read: {str(error).strip().splitlines()[0]}") from None
+            raise ScriptError(f"{path}: cannot read: {str(error).strip().splitlines()[0]}") from None
         objects = [obj for obj in loaded.objects if obj is not None]
     else:
         before = set(bpy.data.objects)
@@ -233,7 +223,7 @@ def load_mesh(path: Path, object_name, role: str) -> "bpy.types.Object":
             # The importer's last line, without the "Location: .../ops.py" a Python importer's error ends with.
             lines = [line for line in str(error).strip().splitlines() if not line.startswith("Location:")]
             message = (lines[-1] if lines else "unknown error").removeprefix("Error: ")
-            raise RetargetError(f"{path}: cannot read: {message}") from None
+            raise ScriptError(f"{path}: cannot read: {message}") from None
         objects = [obj for obj in bpy.data.objects if obj not in before]
     chosen = _only_mesh(objects, path, object_name)
     for obj in objects:  # keep only the chosen mesh in the scene
@@ -242,9 +232,9 @@ def load_mesh(path: Path, object_name, role: str) -> "bpy.types.Object":
     if chosen.name not in bpy.context.scene.collection.objects and not chosen.users_collection:
         bpy.context.scene.collection.objects.link(chosen)
     if len(chosen.data.vertices) == 0:
-        raise RetargetError(f"{path}: the mesh has no vertices")
+        raise ScriptError(f"{path}: the mesh has no vertices")
     if role == "Target" and len(chosen.data.polygons) == 0:
-        raise RetargetError(f"{path}: the mesh has no faces to retarget onto")
+        raise ScriptError(f"{path}: the mesh has no faces to retarget onto")
     chosen.name = role
     return chosen
 
@@ -252,31 +242,31 @@ def load_mesh(path: Path, object_name, role: str) -> "bpy.types.Object":
 def read_anchors(path: Path, vertex_count: int) -> list[tuple[int, tuple[float, float, float]]]:
     """The (layout vertex, world target point) pairs of an anchors JSON file, all checked first."""
     if not path.is_file():
-        raise RetargetError(f"{path}: no such file")
+        raise ScriptError(f"{path}: no such file")
     try:
         data = json.loads(path.read_text())
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
-        raise RetargetError(f"{path}: not valid JSON: {error}") from None
+        raise ScriptError(f"{path}: not valid JSON: {error}") from None
     entries = data.get("anchors") if isinstance(data, dict) else data
     if not isinstance(entries, list):
-        raise RetargetError(f'{path}: expected {{"anchors": [{{"vertex": i, "target": [x, y, z]}}, ...]}}')
+        raise ScriptError(f'{path}: expected {{"anchors": [{{"vertex": i, "target": [x, y, z]}}, ...]}}')
     pairs = []
     for index, entry in enumerate(entries):
         where = f"{path}: anchor {index}"
         if not isinstance(entry, dict) or "vertex" not in entry or "target" not in entry:
-            raise RetargetError(f'{where}: expected {{"vertex": i, "target": [x, y, z]}}, found {entry!r}')
+            raise ScriptError(f'{where}: expected {{"vertex": i, "target": [x, y, z]}}, found {entry!r}')
         vertex, target = entry["vertex"], entry["target"]
         if not isinstance(vertex, int) or isinstance(vertex, bool):
-            raise RetargetError(f"{where}: vertex {vertex!r} is not an integer")
+            raise ScriptError(f"{where}: vertex {vertex!r} is not an integer")
         if not 0 <= vertex < vertex_count:
-            raise RetargetError(f"{where}: vertex {vertex} does not exist (the template has {vertex_count} vertices)")
+            raise ScriptError(f"{where}: vertex {vertex} does not exist (the template has {vertex_count} vertices)")
         if (not isinstance(target, list) or len(target) != 3
                 or not all(isinstance(value, (int, float)) and not isinstance(value, bool) for value in target)
                 or not all(math.isfinite(value) for value in target)):
-            raise RetargetError(f"{where}: target {target!r} is not three finite numbers")
+            raise ScriptError(f"{where}: target {target!r} is not three finite numbers")
         pairs.append((vertex, tuple(float(value) for value in target)))
     if len({vertex for vertex, _ in pairs}) != len(pairs):
-        raise RetargetError(f"{path}: a vertex is anchored twice")
+        raise ScriptError(f"{path}: a vertex is anchored twice")
     return pairs
 
 
@@ -313,7 +303,7 @@ def align_bounds(layout, target) -> dict:
     target_low, target_high = target_points.min(axis=0), target_points.max(axis=0)
     layout_size = float(np.linalg.norm(layout_high - layout_low))
     if layout_size == 0.0:
-        raise RetargetError("the template is a single point: it cannot be aligned")
+        raise ScriptError("the template is a single point: it cannot be aligned")
     scale = float(np.linalg.norm(target_high - target_low)) / layout_size
     layout_centre, target_centre = (layout_low + layout_high) / 2, (target_low + target_high) / 2
     transform = (Matrix.Translation(Vector(target_centre)) @ Matrix.Scale(scale, 4)
@@ -370,14 +360,16 @@ def run_operator(blame: str, name: str, **properties) -> None:
         result = getattr(bpy.ops.springwrap, name)(**properties)
     except RuntimeError as error:
         message = str(error).strip().removeprefix("Error: ").splitlines()[0]
-        raise RetargetError(f"{blame}: springwrap.{name}: {message}") from None
+        raise ScriptError(f"{blame}: springwrap.{name}: {message}") from None
     if result != {"FINISHED"}:
-        raise RetargetError(f"{blame}: springwrap.{name} returned {sorted(result)}")
+        raise ScriptError(f"{blame}: springwrap.{name} returned {sorted(result)}")
 
 
 def retarget(arguments: argparse.Namespace) -> dict:
     """Load, align, detach, anchor, wrap, measure, write; the report (also written to --report)."""
-    from springwrap import bridge, operations, wrap_operator
+    WrapSession = addon_module("blender.wrap_session").WrapSession
+    ERRORS = addon_module("core.errors").ERRORS
+    WrapParameters = addon_module("core.wrap_inputs").WrapParameters
 
     lap, warnings = Laps(), []
     timings = lap.timings
@@ -416,13 +408,13 @@ def retarget(arguments: argparse.Namespace) -> dict:
     lap("anchors")
 
     try:
-        parameters = operations.WrapParameters(max_iterations=arguments.max_iterations,
+        parameters = WrapParameters(max_iterations=arguments.max_iterations,
                                                settings=wrap_settings(arguments),
                                                stiffness_group=arguments.stiffness_group,
                                                free_group=arguments.free_group)
-        session = wrap_operator.WrapSession(bpy.context, layout, parameters)
-    except bridge.ERRORS as error:
-        raise RetargetError(f"{blame}: cannot wrap: {error}") from None
+        session = WrapSession(bpy.context, layout, parameters)
+    except ERRORS as error:
+        raise ScriptError(f"{blame}: cannot wrap: {error}") from None
     session.run()
     result = session.finish()
     if not result.converged:
@@ -446,28 +438,12 @@ def retarget(arguments: argparse.Namespace) -> dict:
     return report
 
 
-def _replace_into(final: Path, write) -> Path:
-    """Call ``write(temporary path)`` then rename it to ``final``; the temporary file is removed on failure."""
-    final = final.resolve()
-    final.parent.mkdir(parents=True, exist_ok=True)
-    temporary = final.with_name(f".{final.stem}.partial{final.suffix}")
-    try:
-        write(temporary)
-        if not temporary.is_file():
-            raise RetargetError(f"{final}: nothing was written")
-        os.replace(temporary, final)
-    finally:
-        temporary.unlink(missing_ok=True)
-    return final
-
-
 def write_outputs(arguments: argparse.Namespace, layout, report: dict) -> None:
     """Write every requested output to temporary files, then rename them all (nothing half-written)."""
-    temporaries = []
 
     def save_blend(path: Path) -> None:
         if bpy.ops.wm.save_as_mainfile(filepath=str(path), check_existing=False, copy=True) != {"FINISHED"}:
-            raise RetargetError(f"{path}: could not save")
+            raise ScriptError(f"{path}: could not save")
 
     def export_obj(path: Path) -> None:
         for obj in bpy.context.view_layer.objects:
@@ -477,23 +453,8 @@ def write_outputs(arguments: argparse.Namespace, layout, report: dict) -> None:
     def write_report(path: Path) -> None:
         path.write_text(json.dumps(report, indent=2) + "\n")
 
-    plan = [(arguments.output_blend, save_blend), (arguments.output_obj, export_obj), (arguments.report, write_report)]
-    try:
-        for final, write in plan:
-            if final is None:
-                continue
-            final = final.resolve()
-            final.parent.mkdir(parents=True, exist_ok=True)
-            temporary = final.with_name(f".{final.stem}.partial{final.suffix}")
-            temporaries.append((temporary, final))
-            write(temporary)
-            if not temporary.is_file():
-                raise RetargetError(f"{final}: nothing was written")
-        for temporary, final in temporaries:
-            os.replace(temporary, final)
-    finally:
-        for temporary, _final in temporaries:
-            temporary.unlink(missing_ok=True)
+    write_all_or_nothing([(arguments.output_blend, save_blend), (arguments.output_obj, export_obj),
+                          (arguments.report, write_report)])
 
 
 # ---------------------------------------------------------------- batch
@@ -520,7 +481,7 @@ def retarget_task(task: dict) -> dict:
     ``task["target"]``, write its .blend, .obj and report (atomically) into ``task["output_dir"]``; its
     summary entry: ok (with the report's path) or failed (with the one-line error), and the seconds taken.
 
-    Errors other than RetargetError propagate: the scheduler then retries the mesh on a fresh worker.
+    Errors other than ScriptError propagate: the scheduler then retries the mesh on a fresh worker.
     """
     start = time.perf_counter()
     settings, outputs = task["settings"], task_outputs(task)
@@ -531,7 +492,7 @@ def retarget_task(task: dict) -> dict:
     entry = {"target": task["target"]}
     try:
         retarget(arguments)
-    except RetargetError as error:
+    except ScriptError as error:
         entry |= {"status": "failed", "error": str(error)}
     else:
         entry |= {"status": "ok", "report": str(outputs["json"])}
@@ -556,7 +517,7 @@ def remove_partial_outputs(task: dict) -> None:
     """The temporary files a worker stopped mid-write leaves (``OUT/.<name>.partial.<suffix>``, and Blender's
     own ``...partial.blend@``: it saves to ``FILE@`` and renames that when done)."""
     for final in task_outputs(task).values():
-        temporary = final.with_name(f".{final.stem}.partial{final.suffix}")
+        temporary = partial_path(final)
         temporary.unlink(missing_ok=True)
         temporary.with_name(temporary.name + "@").unlink(missing_ok=True)
 
@@ -572,23 +533,23 @@ def local_worker_command() -> list[str]:
 
 
 def batch_executor(arguments: argparse.Namespace):
-    """The executor --executor names (see retarget_batch.py); RetargetError when it cannot be had here."""
+    """The executor --executor names (see retarget_batch.py); ScriptError when it cannot be had here."""
     import retarget_batch
 
     if arguments.executor == "local":
         return retarget_batch.LocalExecutor(local_worker_command())
     if bpy.app.binary_path:
-        raise RetargetError("--executor ray runs with the bpy module (python retarget.py ...), "
+        raise ScriptError("--executor ray runs with the bpy module (python retarget.py ...), "
                             "not inside a Blender binary")
     try:
         return retarget_batch.RayExecutor(arguments.address, arguments.jobs, SCRIPTS_FOLDER)
     except ImportError as error:
-        raise RetargetError(str(error)) from None
+        raise ScriptError(str(error)) from None
     except (ConnectionError, RuntimeError, ValueError) as error:
         first_line = str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
         hint = ("; a cluster with Ray's token authentication also needs RAY_AUTH_MODE=token and its token here"
                 if arguments.address and not os.environ.get("RAY_AUTH_MODE") else "")
-        raise RetargetError(f"Ray cannot start or connect ({arguments.address or 'a local instance'}): "
+        raise ScriptError(f"Ray cannot start or connect ({arguments.address or 'a local instance'}): "
                             f"{first_line}{hint}") from None
 
 
@@ -597,19 +558,19 @@ def run_batch(arguments: argparse.Namespace) -> int:
     import retarget_batch
 
     if not arguments.template.is_file():
-        raise RetargetError(f"{arguments.template}: no such file")
+        raise ScriptError(f"{arguments.template}: no such file")
     if arguments.anchors is not None and not arguments.anchors.is_file():
-        raise RetargetError(f"{arguments.anchors}: no such file")
+        raise ScriptError(f"{arguments.anchors}: no such file")
     if not arguments.batch.is_dir():
-        raise RetargetError(f"{arguments.batch}: no such folder")
+        raise ScriptError(f"{arguments.batch}: no such folder")
     targets = sorted(path for path in arguments.batch.iterdir()
                      if path.is_file() and path.suffix.lower() in MESH_SUFFIXES)
     if not targets:
-        raise RetargetError(f"{arguments.batch}: no mesh files ({', '.join(MESH_SUFFIXES)})")
+        raise ScriptError(f"{arguments.batch}: no mesh files ({', '.join(MESH_SUFFIXES)})")
     stems = [path.stem for path in targets]
     shared = sorted({stem for stem in stems if stems.count(stem) > 1})
     if shared:
-        raise RetargetError(f"{arguments.batch}: several meshes would write the same outputs ({', '.join(shared)}.*)")
+        raise ScriptError(f"{arguments.batch}: several meshes would write the same outputs ({', '.join(shared)}.*)")
     output_dir = arguments.output_dir.resolve()
     output_dir.mkdir(parents=True, exist_ok=True)
     tasks = [batch_task(arguments, target, output_dir) for target in targets]
@@ -636,7 +597,7 @@ def run_batch(arguments: argparse.Namespace) -> int:
                "jobs": jobs, "meshes": entries, "ok": counts["ok"], "failed": counts["failed"],
                "not_run": counts["not run"], "resumed": sum(resumed), "interrupted": outcome.interrupted,
                "stopped": outcome.stopped, "seconds": round(time.perf_counter() - start, 2), "workers": outcome.workers}
-    _replace_into(output_dir / "summary.json", lambda path: path.write_text(json.dumps(summary, indent=2) + "\n"))
+    write_atomically(output_dir / "summary.json", lambda path: path.write_text(json.dumps(summary, indent=2) + "\n"))
     not_run = f", {counts['not run']} not run" if counts["not run"] else ""
     print(f"retarget: {counts['ok']} of {len(entries)} meshes retargeted ({sum(resumed)} already done), "
           f"{counts['failed']} failed{not_run}; summary {output_dir / 'summary.json'}", file=sys.stderr)
@@ -645,8 +606,8 @@ def run_batch(arguments: argparse.Namespace) -> int:
               "(run again with --resume to go on)", file=sys.stderr)
         return EXIT_INTERRUPTED
     if outcome.stopped:
-        raise RetargetError(f"the batch stopped: {outcome.stopped}")
-    return EXIT_BATCH_FAILURES if counts["failed"] else 0
+        raise ScriptError(f"the batch stopped: {outcome.stopped}")
+    return EXIT_BATCH_FAILURES if counts["failed"] else EXIT_OK
 
 
 def main() -> int:
@@ -656,25 +617,20 @@ def main() -> int:
         sys.modules.setdefault("retarget", sys.modules[__name__])  # BatchWorker imports this very module
         return retarget_batch.serve()
     try:
-        arguments = parse_arguments(sys.argv)  # reads the kernel's defaults: RetargetError without the add-on
+        arguments = parse_arguments(sys.argv)  # reads the kernel's defaults: ScriptError without the add-on
         if arguments.batch is not None:
             return run_batch(arguments)
         report = retarget(arguments)
-    except RetargetError as error:
-        print(f"retarget: FAILED: {error}", file=sys.stderr)
-        return EXIT_FAILED
     except KeyboardInterrupt:
         print("retarget: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
     except Exception as error:  # noqa: BLE001 - any failure must become a non-zero exit code, also under `blender -b`
-        traceback.print_exc()
-        print(f"retarget: FAILED: {type(error).__name__}: {error}", file=sys.stderr)
-        return EXIT_FAILED
+        return failed("retarget", error)
     metrics = report["metrics"]
     print(f"retarget: {report['vertices']} vertices, {report['wrap']['face_points']} on the target after "
           f"{report['wrap']['iterations']} iterations; mean distance {metrics['mean_distance']:.2e}, "
           f"max {metrics['max_distance']:.2e}" + "".join(f"\n  warning: {line}" for line in report["warnings"]))
-    return 0
+    return EXIT_OK
 
 
 if __name__ == "__main__":

@@ -9,7 +9,7 @@ with the one task function, ``retarget.retarget_task``. Two executors provide th
   (``--address``); this folder travels to every node as the job's working directory.
 
 The scheduler (``run_tasks``) is the same for both. A worker that dies (an importer abort, the out-of-memory
-killer) or raises an error other than the retarget's own ``RetargetError`` is stopped and replaced, and its
+killer) or raises an error other than the scripts' own ``headless.ScriptError`` is stopped and replaced, and its
 mesh retried once, on the replacement; a mesh that fails so twice counts as failed, and the batch goes on.
 Ctrl-C (or SIGTERM) stops the batch at the loop's next turn and every worker at once; the meshes left
 are returned as not run.
@@ -68,9 +68,10 @@ class BatchWorker:
 
     def __init__(self) -> None:
         start = time.perf_counter()
+        import headless
         import retarget  # imports bpy
 
-        retarget.enable_addon()
+        headless.enable_addon()
         self._retarget = retarget
         self.identity = f"{socket.gethostname()}:{os.getpid()}"
         self.import_seconds = round(time.perf_counter() - start, 3)

@@ -14,13 +14,12 @@ the iteration limit is not a failure: it is kept and reported).
 import argparse
 import sys
 import time
-import traceback
 from pathlib import Path
 
 import bpy
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # `blender --python` does not add it
-from script_arguments import script_arguments  # noqa: E402
+from headless import EXIT_OK, ScriptError, addon_module, enable_addon, failed, script_arguments  # noqa: E402
 
 PROGRESS_CHUNK = 100
 """Iterations between two progress lines."""
@@ -43,21 +42,12 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     return arguments
 
 
-def enable_addon() -> None:
-    """Enable the Springwrap add-on, raising when it cannot be."""
-    import addon_utils
-
-    module = addon_utils.enable("springwrap", default_set=True, handle_error=None)
-    if module is None or not hasattr(bpy.ops, "springwrap"):
-        raise RuntimeError("addon_utils.enable('springwrap') failed: run `make setup` first")
-
-
 def find_object(name: str, what: str) -> bpy.types.Object:
     """The mesh object called ``name``; raises naming the mesh objects there are."""
     obj = bpy.data.objects.get(name)
     if obj is None or obj.type != "MESH":
         meshes = ", ".join(sorted(o.name for o in bpy.data.objects if o.type == "MESH")) or "none"
-        raise RuntimeError(f"no mesh object '{name}' for the {what} (mesh objects: {meshes})")
+        raise ScriptError(f"no mesh object '{name}' for the {what} (mesh objects: {meshes})")
     return obj
 
 
@@ -66,21 +56,21 @@ def prepare(arguments: argparse.Namespace) -> bpy.types.Object:
     enable_addon()
     if arguments.blend is not None:
         if not arguments.blend.is_file():
-            raise RuntimeError(f"no such file: {arguments.blend}")
+            raise ScriptError(f"no such file: {arguments.blend}")
         bpy.ops.wm.open_mainfile(filepath=str(arguments.blend.resolve()))
     if arguments.layout is not None:
         layout = find_object(arguments.layout, "layout")
     else:
         layout = bpy.context.view_layer.objects.active
         if layout is None or layout.type != "MESH":
-            raise RuntimeError("no --layout given and the active object is not a mesh")
+            raise ScriptError("no --layout given and the active object is not a mesh")
     if layout.mode != "OBJECT":
         bpy.context.view_layer.objects.active = layout
         bpy.ops.object.mode_set(mode="OBJECT")
     if arguments.target is not None:
         layout.springwrap.target = find_object(arguments.target, "target")
     if layout.springwrap.target is None:
-        raise RuntimeError(f"layout '{layout.name}' has no target: give --target")
+        raise ScriptError(f"layout '{layout.name}' has no target: give --target")
     for obj in bpy.context.view_layer.objects:
         obj.select_set(obj == layout)
     bpy.context.view_layer.objects.active = layout
@@ -89,7 +79,9 @@ def prepare(arguments: argparse.Namespace) -> bpy.types.Object:
 
 def wrap(layout: bpy.types.Object, max_iterations: int):
     """Run the wrap to the end with progress lines, then write it; returns the ``WrapResult``."""
-    from springwrap import bridge, operations, wrap_operator
+    WrapSession = addon_module("blender.wrap_session").WrapSession  # noqa: N806
+    ERRORS = addon_module("core.errors").ERRORS  # noqa: N806
+    WrapParameters = addon_module("core.wrap_inputs").WrapParameters  # noqa: N806
 
     def progress(report) -> None:
         print(
@@ -99,9 +91,9 @@ def wrap(layout: bpy.types.Object, max_iterations: int):
         )
 
     try:
-        session = wrap_operator.WrapSession(bpy.context, layout, operations.WrapParameters(max_iterations=max_iterations))
-    except bridge.ERRORS as error:
-        raise RuntimeError(f"cannot wrap '{layout.name}': {error}") from error
+        session = WrapSession(bpy.context, layout, WrapParameters(max_iterations=max_iterations))
+    except ERRORS as error:
+        raise ScriptError(f"cannot wrap '{layout.name}': {error}") from error
     session.run(progress=progress, chunk=PROGRESS_CHUNK)
     return session.finish()
 
@@ -116,7 +108,7 @@ def run(arguments: argparse.Namespace) -> None:
     if arguments.anchors_spacing is not None:
         result = bpy.ops.springwrap.anchors_auto(spacing=arguments.anchors_spacing, replace=True)
         if result != {"FINISHED"}:
-            raise RuntimeError(f"anchors_auto returned {result}")
+            raise ScriptError(f"anchors_auto returned {result}")
     print(f"anchors: {len(layout.springwrap.anchors)}")
     result = wrap(layout, arguments.max_iterations)
     print(result.summary())
@@ -129,7 +121,7 @@ def run(arguments: argparse.Namespace) -> None:
         output = arguments.output.resolve()
         output.parent.mkdir(parents=True, exist_ok=True)
         if bpy.ops.wm.save_as_mainfile(filepath=str(output), check_existing=False) != {"FINISHED"}:
-            raise RuntimeError(f"could not save {output}")
+            raise ScriptError(f"could not save {output}")
         print(f"saved {output}")
     else:
         print("not saved (no --output)")
@@ -141,11 +133,8 @@ def main() -> int:
     try:
         run(arguments)
     except Exception as error:  # noqa: BLE001 - any failure must become a non-zero exit code, also under `blender -b`
-        if not isinstance(error, RuntimeError):
-            traceback.print_exc()
-        print(f"wrap: FAILED: {error}", file=sys.stderr)
-        return 1
-    return 0
+        return failed("wrap", error)
+    return EXIT_OK
 
 
 if __name__ == "__main__":

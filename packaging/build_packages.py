@@ -8,7 +8,7 @@
   installed).
 - ``springwrap-<version>-legacy.zip``, for Blender 3.4 to 4.1 (Install Add-on from File): the
   ``springwrap/`` folder with ``bl_info``, the kernel wheel unpacked in ``springwrap/_vendor``,
-  which the add-on puts on ``sys.path`` when it is enabled (``compat.add_vendored_packages``):
+  which the add-on puts on ``sys.path`` when it is imported (``springwrap/__init__.py``):
   nothing is downloaded or installed with pip when it is enabled, so it works offline and the
   kernel is the one built with this add-on.
 

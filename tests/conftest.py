@@ -73,9 +73,9 @@ def blender_scene(request):
     bpy.ops.wm.read_homefile(use_empty=True)
     if not addon_utils.check("springwrap")[1]:
         assert addon_utils.enable("springwrap", default_set=True, handle_error=None) is not None
-    from springwrap import bridge
+    from springwrap.blender import target
 
-    bridge.clear_target_cache()
+    target.clear_target_cache()
     # In background mode undo starts disabled: the first push initializes it.
     bpy.ops.ed.undo_push(message="Springwrap test start")
     yield bpy

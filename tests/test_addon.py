@@ -161,7 +161,7 @@ class Reference:
         return np.einsum("kc,kcx->kx", barycentrics.astype(np.float64), corners)
 
     def signature(self):
-        return addon_module("layout_state").target_signature(self.triangles.astype(np.uint32), len(self.vertices))
+        return addon_module("core.layout_state").target_signature(self.triangles.astype(np.uint32), len(self.vertices))
 
 
 def assert_closest_points(reference, queries, results):
@@ -333,9 +333,9 @@ def test_snap_only_selected_touches_only_selected_vertices():
 def test_snap_follows_target_changes_and_caches_at_most_two_targets():
     target, layout = scene()
     bpy.ops.springwrap.snap()
-    assert addon_module("bridge").cached_target_count() == 1
+    assert addon_module("blender.target").cached_target_count() == 1
     bpy.ops.springwrap.snap()  # same content: no rebuild
-    assert addon_module("bridge").cached_target_count() == 1
+    assert addon_module("blender.target").cached_target_count() == 1
 
     target.location.z += 0.25  # new world content: rebuilt
     bpy.context.view_layer.update()
@@ -344,12 +344,12 @@ def test_snap_follows_target_changes_and_caches_at_most_two_targets():
     bpy.ops.springwrap.snap()
     reference = Reference(target)
     assert_closest_points(reference, before, world_positions(layout))
-    assert addon_module("bridge").cached_target_count() == 2
+    assert addon_module("blender.target").cached_target_count() == 2
 
     layout.springwrap.target = make_target("Other", location=(0.0, 0.0, 0.0))
     bpy.context.view_layer.objects.active = layout
     bpy.ops.springwrap.snap()
-    assert addon_module("bridge").cached_target_count() == 2
+    assert addon_module("blender.target").cached_target_count() == 2
 
 
 def test_snap_uses_the_evaluated_target_with_modifiers():
@@ -851,7 +851,7 @@ class _RecordingLayout:
 
 @pytest.mark.parametrize("mode", ["OBJECT", "EDIT"])
 def test_panel_buttons_act_on_the_selection_in_edit_mode(mode):
-    from springwrap.ui import SPRINGWRAP_PT_layout
+    from springwrap.ui.panels import SPRINGWRAP_PT_layout
 
     target, layout = scene()
     layout.springwrap.snap_mode = "VERTEX"
@@ -872,7 +872,7 @@ def test_panel_buttons_act_on_the_selection_in_edit_mode(mode):
 
 
 def test_panel_counts_face_and_space_points():
-    from springwrap.ui import SPRINGWRAP_PT_layout
+    from springwrap.ui.panels import SPRINGWRAP_PT_layout
 
     target, layout = scene()
     set_selection(layout, np.arange(len(layout.data.vertices)) < 40)

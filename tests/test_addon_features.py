@@ -77,7 +77,7 @@ def test_operator_is_registered_with_a_poll_message():
 
 
 def test_panel_names_the_object_and_has_the_button():
-    from springwrap.ui import SPRINGWRAP_PT_features
+    from springwrap.ui.panels import SPRINGWRAP_PT_features
 
     box = box_target()
     assert SPRINGWRAP_PT_features.bl_parent_id == "SPRINGWRAP_PT_layout" and SPRINGWRAP_PT_features.poll(bpy.context)
@@ -104,7 +104,7 @@ def test_rounded_box_gets_region_colours_and_twelve_ridge_curves(capfd):
     vertices = world_positions(box) - OFFSET
     face_middle = np.sort(np.abs(vertices), axis=1)[:, 1] < 0.4
     on_blend = centre_line_distance(vertices) < 0.02
-    from springwrap.feature_operators import REGION_COLORS
+    from springwrap.operators.features import REGION_COLORS
 
     np.testing.assert_array_equal(colors[face_middle], np.broadcast_to(REGION_COLORS[0], colors[face_middle].shape))
     np.testing.assert_array_equal(colors[on_blend], np.broadcast_to(REGION_COLORS[1], colors[on_blend].shape))

@@ -112,14 +112,14 @@ def world_plane():
 
 
 def mirror_outcome():
-    from springwrap.mirror_operator import SPRINGWRAP_OT_mirror
+    from springwrap.operators.mirror import SPRINGWRAP_OT_mirror
 
     return SPRINGWRAP_OT_mirror.last_outcome
 
 
 def symmetry_errors(layout, outcome):
     """(copies' distance from their partner's reflection, seam vertices' distance from the plane), world units."""
-    from springwrap import mirroring
+    from springwrap.core import mirroring
 
     positions = world_positions(layout)
     point, normal = world_plane()

@@ -85,7 +85,7 @@ def make_object(name, vertices, faces):
 def surfaced_half(body):
     """Target (the asymmetric body) and layout (the template's x >= 0 half at its true positions, midline on x = 0)."""
     from benchmarks.retarget import cases
-    from springwrap import bridge
+    from springwrap.blender import attributes
 
     target = make_object("Target", body["truth"], body["quads"])
     half_quads, kept = cases.left_half(body["template"], body["quads"])
@@ -93,7 +93,7 @@ def surfaced_half(body):
     midline = np.abs(body["template"][kept, 0]) < 1e-6
     positions[midline, 0] = 0.0
     layout = make_object("Layout", positions, half_quads)
-    bridge.write_rest(layout, body["template"][kept])
+    attributes.write_rest(layout, body["template"][kept])
     layout.springwrap.target = target
     for obj in bpy.context.view_layer.objects:
         obj.select_set(obj == layout)
@@ -115,7 +115,7 @@ def new_half_errors(body, layout, kept, outcome):
 def test_the_mirrored_half_lands_on_the_asymmetric_body(body):
     target, layout, kept = surfaced_half(body)
     assert bpy.ops.springwrap.mirror(axis="X", wrap=False) == {"FINISHED"}
-    from springwrap.mirror_operator import SPRINGWRAP_OT_mirror
+    from springwrap.operators.mirror import SPRINGWRAP_OT_mirror
 
     mirrored_only = new_half_errors(body, layout, kept, SPRINGWRAP_OT_mirror.last_outcome)
     bpy.ops.wm.read_homefile(use_empty=True)

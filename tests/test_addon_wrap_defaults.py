@@ -38,7 +38,7 @@ def operator_defaults(operator) -> SimpleNamespace:
 
 
 def test_the_wrap_operators_defaults_are_the_kernels():
-    from springwrap import wrap_operator
+    from springwrap.operators import wrap as wrap_operator
 
     defaults = operator_defaults(bpy.ops.springwrap.wrap)
     for name in WRAP_OPERATOR_SETTINGS:
@@ -47,7 +47,7 @@ def test_the_wrap_operators_defaults_are_the_kernels():
 
 
 def test_the_mirror_operators_tolerance_and_the_panels_solver_are_the_kernels():
-    from springwrap import mirror_operator
+    from springwrap.operators import mirror as mirror_operator
 
     defaults = operator_defaults(bpy.ops.springwrap.mirror)
     assert same(defaults.tolerance, KERNEL.tolerance)
@@ -57,16 +57,18 @@ def test_the_mirror_operators_tolerance_and_the_panels_solver_are_the_kernels():
 
 
 def test_the_add_ons_parameters_default_to_the_kernels_settings():
-    from springwrap import operations, properties, wrap_operator
+    from springwrap import properties
+    from springwrap.blender.wrap_session import WrapSession
+    from springwrap.core.wrap_inputs import WrapParameters
 
     assert properties.WRAP_DEFAULTS == KERNEL
     _target, layout, _normal = plane_scene()
-    session = wrap_operator.WrapSession(bpy.context, layout, operations.WrapParameters())
+    session = WrapSession(bpy.context, layout, WrapParameters())
     assert session.solver.settings == KERNEL
 
 
 def test_a_bad_setting_is_refused_by_the_kernel_naming_it():
-    from springwrap import wrap_operator
+    from springwrap.operators import wrap as wrap_operator
 
     defaults = operator_defaults(bpy.ops.springwrap.wrap)
     defaults.thin_plate = 0.7

@@ -31,9 +31,9 @@ def align_scene(springwrap_installed):
     bpy.ops.wm.read_homefile(use_empty=True)
     if not springwrap_installed.check("springwrap")[1]:
         assert springwrap_installed.enable("springwrap", default_set=True, handle_error=None) is not None
-    from springwrap import bridge
+    from springwrap.blender import target
 
-    bridge.clear_target_cache()
+    target.clear_target_cache()
     bpy.ops.ed.undo_push(message="Springwrap align test start")
     yield
     if bpy.context.object is not None and bpy.context.object.mode != "OBJECT":
@@ -256,9 +256,9 @@ def test_alignment_detaches_every_face_point_and_keeps_the_rest_shape():
     assert (read_state(layout)[0] != SPACE_POINT).any()
     assert bpy.ops.springwrap.align(method="RIGID", use_icp=False, apply="BAKE") == {"FINISHED"}
     assert (read_state(layout)[0] == SPACE_POINT).all()
-    from springwrap import bridge
+    from springwrap.blender import attributes
 
-    rest = bridge.read_rest(layout)
+    rest = attributes.read_rest(layout)
     assert rest is not None
     np.testing.assert_array_equal(rest.reshape(-1), local_before)
 
@@ -323,7 +323,7 @@ def test_undo_restores_the_transform_and_the_vertices():
 
 
 def test_sidebar_panel_offers_the_anchor_fit_and_icp_alone():
-    from springwrap.ui import SPRINGWRAP_PT_align
+    from springwrap.ui.panels import SPRINGWRAP_PT_align
     from test_anchors import _Recorder
 
     class Recorder(_Recorder):

@@ -24,9 +24,9 @@ def anchor_scene(springwrap_installed):
     bpy.ops.wm.read_homefile(use_empty=True)
     if not springwrap_installed.check("springwrap")[1]:
         assert springwrap_installed.enable("springwrap", default_set=True, handle_error=None) is not None
-    from springwrap import bridge
+    from springwrap.blender import target
 
-    bridge.clear_target_cache()
+    target.clear_target_cache()
     bpy.ops.ed.undo_push(message="Springwrap anchor test start")
     yield
     if bpy.context.object is not None and bpy.context.object.mode != "OBJECT":
@@ -96,7 +96,7 @@ def assert_is_closest_point(reference, query, result):
 
 def test_enable_registers_anchor_operators_list_panel_and_drawing():
     import addon_utils
-    from springwrap import anchor_drawing
+    from springwrap.ui import overlays as anchor_drawing
 
     for name in ("anchor_add", "anchors_auto", "anchors_update", "anchor_remove", "anchors_clear"):
         operator = getattr(bpy.ops.springwrap, name)
@@ -115,7 +115,7 @@ def test_enable_registers_anchor_operators_list_panel_and_drawing():
     assert not anchor_drawing.is_installed()
     assert anchor_drawing._on_depsgraph_update not in bpy.app.handlers.depsgraph_update_post
     addon_utils.enable("springwrap", default_set=True)
-    from springwrap import anchor_drawing as reloaded
+    from springwrap.ui import overlays as reloaded
 
     assert reloaded.is_installed()
 
@@ -546,7 +546,7 @@ def test_bad_input_is_reported_and_leaves_the_anchors_untouched(case):
 
 
 def test_anchor_whose_vertex_was_deleted_is_kept_but_not_drawn():
-    from springwrap import anchor_drawing
+    from springwrap.ui import overlays as anchor_drawing
 
     target, layout = scene()
     bpy.ops.springwrap.anchor_add(vertex_index=120, location=(0, 0, 3), use_location=True)
@@ -568,7 +568,7 @@ def test_anchor_whose_vertex_was_deleted_is_kept_but_not_drawn():
 
 
 def test_drawn_segments_join_layout_vertices_to_targets():
-    from springwrap import anchor_drawing
+    from springwrap.ui import overlays as anchor_drawing
 
     target, layout = scene()
     bpy.ops.springwrap.anchors_auto(spacing=0.6)
@@ -589,7 +589,7 @@ def test_drawn_segments_join_layout_vertices_to_targets():
 
 
 def test_drawn_segments_follow_edit_mode_changes():
-    from springwrap import anchor_drawing
+    from springwrap.ui import overlays as anchor_drawing
 
     target, layout = scene()
     bpy.ops.springwrap.anchor_add(vertex_index=8, location=(0, 0, 3), use_location=True)
@@ -638,7 +638,8 @@ class _Recorder:
 
 
 def test_anchor_panel_lists_anchors_and_offers_the_operators():
-    from springwrap.ui import SPRINGWRAP_PT_anchors, SPRINGWRAP_UL_anchors
+    from springwrap.ui.lists import SPRINGWRAP_UL_anchors
+    from springwrap.ui.panels import SPRINGWRAP_PT_anchors
 
     target, layout = scene()
     layout.springwrap.anchor_spacing = 0.4

@@ -1,4 +1,4 @@
-"""Plain tests of the add-on's bpy-free anchor logic (``addon/springwrap/anchors.py``), no Blender.
+"""Plain tests of the add-on's bpy-free anchor logic (``addon/springwrap/core/anchors.py``), no Blender.
 
 The spacing choice is checked against a brute-force greedy reference; resolution, add and auto
 run on small generated targets built with the kernel (``springwrap_kernel``, importable without
@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 import springwrap_kernel
 
-ADDON_DIR = Path(__file__).resolve().parent.parent / "addon" / "springwrap"
+CORE_DIR = Path(__file__).resolve().parent.parent / "addon" / "springwrap" / "core"
 
 
 def _load_anchors():
@@ -22,14 +22,15 @@ def _load_anchors():
     package_name = "springwrap_anchor_logic_under_test"
     if package_name not in sys.modules:
         package = types.ModuleType(package_name)
-        package.__path__ = [str(ADDON_DIR)]
+        package.__path__ = [str(CORE_DIR)]
         sys.modules[package_name] = package
     return importlib.import_module(f"{package_name}.anchors")
 
 
 an = _load_anchors()
 ls = sys.modules[an.__name__.rpartition(".")[0] + ".layout_state"]
-ops = sys.modules[an.__name__.rpartition(".")[0] + ".operations"]
+tf = sys.modules[an.__name__.rpartition(".")[0] + ".transforms"]
+tg = sys.modules[an.__name__.rpartition(".")[0] + ".target"]
 
 
 # ---------------------------------------------------------------- generated geometry
@@ -50,12 +51,12 @@ def grid_target(size=4.0, cells=8, height=0.0):
 
 
 def make_target(vertices, triangles):
-    """An ``operations.Target`` over a kernel mesh, as ``bridge.read_target`` builds it."""
+    """A ``core.target.Target`` over a kernel mesh, as ``blender.target.read_target`` builds it."""
     vertices = np.ascontiguousarray(vertices, dtype=np.float32)
     triangles = np.ascontiguousarray(triangles, dtype=np.uint32)
     mesh = springwrap_kernel.TargetMesh(vertices, triangles)
     low, high = mesh.bounding_box()
-    return ops.Target(
+    return tg.Target(
         name="Target",
         mesh=mesh,
         triangle_polygons=np.arange(len(triangles), dtype=np.int32),
@@ -102,7 +103,7 @@ def pairwise_min_distance(points):
 
 
 def test_module_does_not_import_bpy():
-    source = (ADDON_DIR / "anchors.py").read_text()
+    source = (CORE_DIR / "anchors.py").read_text()
     assert "import bpy" not in source and "mathutils" not in source and "bmesh" not in source
 
 
@@ -339,7 +340,7 @@ def test_auto_closest_spacing_coverage_and_targets():
     matrix = np.diag([2.0, 1.0, 1.0, 1.0])  # a non-uniform world transform
     matrix[:3, 3] = (0.1, 0.2, 0.5)
     layout = layout_arrays(layout_grid(count=21, size=1.8, height=0.5), matrix)
-    world = ops.world_positions(layout)
+    world = tf.world_positions(layout)
     outcome = an.auto(layout, None, an.no_anchors(), target, "", 0.5, "CLOSEST", True)
     chosen = outcome.anchors.vertex_indices
     assert outcome.spacing == 0.5 and outcome.added_count == len(chosen) > 10
@@ -356,7 +357,7 @@ def test_auto_closest_spacing_coverage_and_targets():
 def test_auto_default_spacing_and_keeping_existing_anchors():
     target = grid_target()
     layout = layout_arrays(layout_grid(count=11, size=2.0))
-    world = ops.world_positions(layout)
+    world = tf.world_positions(layout)
     existing = an.add(len(world), an.no_anchors(), target, "", 60, world[60]).anchors
     outcome = an.auto(layout, None, existing, target, target.signature, 0.0, "CLOSEST", False)
     assert outcome.spacing == pytest.approx(0.1 * np.sqrt(8.0))
@@ -370,7 +371,7 @@ def test_auto_default_spacing_and_keeping_existing_anchors():
 def test_auto_project_skips_vertices_without_normals_and_counts_misses():
     target = grid_target(size=2.2, cells=4)
     layout = layout_arrays(layout_grid(count=7, size=3.0, height=1.0))  # wider than the target
-    world = ops.world_positions(layout)
+    world = tf.world_positions(layout)
     normals = np.tile([0.0, 0.0, 1.0], (len(world), 1))  # pointing away: both directions must hit
     normals[0] = 0.0  # a vertex on no face
     outcome = an.auto(layout, normals, an.no_anchors(), target, "", 0.4, "PROJECT", True)

@@ -376,7 +376,7 @@ def test_a_stretched_parent_does_not_shear_its_child(mode):
 
 
 def test_operator_setting_and_panel_are_registered():
-    from springwrap.ui import SPRINGWRAP_PT_armature
+    from springwrap.ui.panels import SPRINGWRAP_PT_armature
 
     rna = bpy.ops.springwrap.align_armature.get_rna_type()
     assert rna.identifier == "SPRINGWRAP_OT_align_armature" and rna.description

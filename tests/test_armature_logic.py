@@ -1,4 +1,4 @@
-"""Plain tests of the armature alignment's bpy-free logic (``addon/springwrap/armature_align.py``), no Blender."""
+"""Plain tests of the armature alignment's bpy-free logic (``addon/springwrap/core/armature.py``), no Blender."""
 
 import importlib.util
 from pathlib import Path
@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-MODULE_PATH = Path(__file__).resolve().parent.parent / "addon" / "springwrap" / "armature_align.py"
+MODULE_PATH = Path(__file__).resolve().parent.parent / "addon" / "springwrap" / "core" / "armature.py"
 _spec = importlib.util.spec_from_file_location("springwrap_armature_align_under_test", MODULE_PATH)
 armature_align = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(armature_align)

@@ -26,9 +26,9 @@ def curve_scene(springwrap_installed):
     bpy.ops.wm.read_homefile(use_empty=True)
     if not springwrap_installed.check("springwrap")[1]:
         assert springwrap_installed.enable("springwrap", default_set=True, handle_error=None) is not None
-    from springwrap import bridge
+    from springwrap.blender import target
 
-    bridge.clear_target_cache()
+    target.clear_target_cache()
     bpy.ops.ed.undo_push(message="Springwrap curve test start")
     yield
     if bpy.context.object is not None and bpy.context.object.mode != "OBJECT":
@@ -338,7 +338,7 @@ def test_save_and_reload_keep_the_constraints(tmp_path):
 
 
 def test_drawing_data_joins_each_chain_vertex_to_its_curve_point():
-    from springwrap import anchor_drawing
+    from springwrap.ui import overlays as anchor_drawing
 
     _target, layout, normal = plane_scene()
     bent_curve_under_row(layout, normal)
@@ -385,7 +385,8 @@ class _Recorder:
 
 
 def test_panel_lists_the_constraints_with_their_buttons():
-    from springwrap.ui import SPRINGWRAP_PT_curve_constraints, SPRINGWRAP_UL_curve_constraints
+    from springwrap.ui.lists import SPRINGWRAP_UL_curve_constraints
+    from springwrap.ui.panels import SPRINGWRAP_PT_curve_constraints
 
     _target, layout, normal = plane_scene()
     curve, _points = bent_curve_under_row(layout, normal)

@@ -1,4 +1,4 @@
-"""Plain tests of the add-on's bpy-free curve-constraint logic (``addon/springwrap/curves.py``), no Blender.
+"""Plain tests of the add-on's bpy-free curve-constraint logic (``addon/springwrap/core/curves.py``), no Blender.
 
 Chains, shortest paths and automatic pairing run on generated grids (a W x H lattice of unit
 spacing in the plane z = 0) whose answers are known: a row of the grid is the shortest path
@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-ADDON_DIR = Path(__file__).resolve().parent.parent / "addon" / "springwrap"
+CORE_DIR = Path(__file__).resolve().parent.parent / "addon" / "springwrap" / "core"
 
 
 def _load_curves():
@@ -23,12 +23,13 @@ def _load_curves():
     package_name = "springwrap_curve_logic_under_test"
     if package_name not in sys.modules:
         package = types.ModuleType(package_name)
-        package.__path__ = [str(ADDON_DIR)]
+        package.__path__ = [str(CORE_DIR)]
         sys.modules[package_name] = package
     return importlib.import_module(f"{package_name}.curves")
 
 
 cu = _load_curves()
+ep = sys.modules[cu.__name__.rpartition(".")[0] + ".edge_paths"]
 LayoutError = cu.LayoutError
 
 
@@ -49,8 +50,8 @@ def grid(width, height, diagonals=False):
 
 def test_chain_from_shuffled_edges_is_in_order_from_the_lower_end():
     edges = np.array([[7, 3], [3, 9], [1, 7], [9, 4]])
-    np.testing.assert_array_equal(cu.chain_from_edges(edges), [1, 7, 3, 9, 4])
-    np.testing.assert_array_equal(cu.chain_from_edges(edges[::-1, ::-1]), [1, 7, 3, 9, 4])
+    np.testing.assert_array_equal(ep.chain_from_edges(edges), [1, 7, 3, 9, 4])
+    np.testing.assert_array_equal(ep.chain_from_edges(edges[::-1, ::-1]), [1, 7, 3, 9, 4])
 
 
 @pytest.mark.parametrize(
@@ -65,7 +66,7 @@ def test_chain_from_shuffled_edges_is_in_order_from_the_lower_end():
 )
 def test_chain_refusals_say_why(edges, reason):
     with pytest.raises(LayoutError, match=reason):
-        cu.chain_from_edges(edges)
+        ep.chain_from_edges(edges)
 
 
 # ---------------------------------------------------------------- shortest paths
@@ -73,22 +74,22 @@ def test_chain_refusals_say_why(edges, reason):
 
 def test_shortest_path_on_a_grid_is_the_straight_row():
     positions, edges, index = grid(9, 6, diagonals=True)
-    path = cu.shortest_path(positions, edges, index[3, 0], index[3, 8])
+    path = ep.shortest_path(positions, edges, index[3, 0], index[3, 8])
     np.testing.assert_array_equal(path, index[3, :])
-    np.testing.assert_array_equal(cu.shortest_path(positions, edges, index[3, 8], index[3, 0]), index[3, ::-1])
+    np.testing.assert_array_equal(ep.shortest_path(positions, edges, index[3, 8], index[3, 0]), index[3, ::-1])
 
 
 def test_shortest_path_takes_the_diagonal_when_shorter_and_refuses_unreachable():
     positions, edges, index = grid(5, 5, diagonals=True)
-    np.testing.assert_array_equal(cu.shortest_path(positions, edges, index[0, 0], index[4, 4]), np.diag(index))
+    np.testing.assert_array_equal(ep.shortest_path(positions, edges, index[0, 0], index[4, 4]), np.diag(index))
     cut = edges[~np.isin(edges, index[:, 2]).any(axis=1)]  # column 2 removed: left and right halves apart
     with pytest.raises(LayoutError, match="No chain of target edges"):
-        cu.shortest_path(positions, cut, index[0, 0], index[0, 4])
+        ep.shortest_path(positions, cut, index[0, 0], index[0, 4])
 
 
 def test_shortest_path_scales_to_a_large_grid():
     positions, edges, index = grid(400, 400)  # 160,000 vertices, 319,200 edges
-    path = cu.shortest_path(positions, edges, index[200, 0], index[200, 399])
+    path = ep.shortest_path(positions, edges, index[200, 0], index[200, 399])
     np.testing.assert_array_equal(path, index[200, :])
 
 
@@ -154,7 +155,7 @@ def test_a_closed_curve_is_cut_where_the_chain_starts_and_ends():
     np.testing.assert_allclose(piece, half[::-1], atol=1e-12)
     closed_chain = np.concatenate([ring(16, turn=0.2), ring(16, turn=0.2)[:1]])  # ends on one point: the whole loop
     piece = cu.orient_to_chain(loop, closed_chain)
-    assert np.isclose(cu._cumulative(piece)[-1], cu._cumulative(loop)[-1])
+    assert np.isclose(ep.cumulative_lengths(piece)[-1], ep.cumulative_lengths(loop)[-1])
     assert cu.matching_error(closed_chain, piece) < 0.01
 
 
@@ -163,16 +164,16 @@ def test_nearest_vertices_and_pieces():
     positions = generator.normal(size=(500, 3))
     points = generator.normal(size=(70, 3))
     brute = np.argmin(((points[:, None, :] - positions[None, :, :]) ** 2).sum(axis=2), axis=1)
-    np.testing.assert_array_equal(cu.nearest_vertices(positions, points), brute)
-    assert cu.nearest_vertex(positions, points[3]) == brute[3]
+    np.testing.assert_array_equal(ep.nearest_vertices(positions, points), brute)
+    assert ep.nearest_vertex(positions, points[3]) == brute[3]
     first, first_edges, _ = grid(4, 3)
-    two = cu.edge_graph(np.concatenate([first, first + 10.0]), np.concatenate([first_edges, first_edges + 12]))
+    two = ep.edge_graph(np.concatenate([first, first + 10.0]), np.concatenate([first_edges, first_edges + 12]))
     np.testing.assert_array_equal(two.pieces, np.repeat([0, 12], 12))  # each piece labelled by its lowest vertex
 
 
 def test_chain_course_moves_the_ends_onto_the_anchors():
     chain = np.array([[0.0, 0, 1], [1, 0, 1], [3, 0, 1]])  # fractions 0, 1/3, 1
-    course = cu.chain_course(chain, [0.0, 0, 0], [3.0, 0, 3])  # the ends move by (0, 0, -1) and (0, 0, 2)
+    course = ep.chain_course(chain, [0.0, 0, 0], [3.0, 0, 3])  # the ends move by (0, 0, -1) and (0, 0, 2)
     np.testing.assert_allclose(course, [[0, 0, 0], [1, 0, 1 - 2 / 3 + 2 / 3], [3, 0, 3]])
 
 
@@ -183,10 +184,10 @@ def test_a_path_follows_the_chain_the_long_way_round(diagonals):
     positions, edges, index = tube(48, 5, diagonals)
     chain = ring(16, radius=1.05, z=0.2)[:11]  # 0 to 225 degrees, beside the tube
     start, end = index[2, 0], index[2, 30]
-    np.testing.assert_array_equal(cu.shortest_path(positions, edges, start, end), index[2, [0, *range(47, 29, -1)]])
-    graph = cu.edge_graph(positions, edges)
-    course = cu.chain_course(chain, positions[start], positions[end])
-    np.testing.assert_array_equal(cu.following_path(positions, graph, course, start, end), index[2, :31])
+    np.testing.assert_array_equal(ep.shortest_path(positions, edges, start, end), index[2, [0, *range(47, 29, -1)]])
+    graph = ep.edge_graph(positions, edges)
+    course = ep.chain_course(chain, positions[start], positions[end])
+    np.testing.assert_array_equal(ep.following_path(positions, graph, course, start, end), index[2, :31])
     constraint = cu.target_edge_constraint(np.arange(11), chain, positions[start], positions[end], positions, edges)
     np.testing.assert_array_equal(constraint.target_vertices, index[2, :31])
     np.testing.assert_allclose(constraint.points, positions[index[2, :31]])
@@ -197,8 +198,8 @@ def test_a_path_follows_an_opened_ring_past_its_gap():
     shortest path, the ring all the way round is the chain's course."""
     positions, edges, index = tube(48, 3)
     chain = ring(16, radius=1.02, z=0.1)  # ends on target vertices 0 and 45 (22.5 degrees x 15 = 337.5)
-    graph = cu.edge_graph(positions, edges)
-    path = cu.following_path(positions, graph, chain, index[1, 0], index[1, 45])
+    graph = ep.edge_graph(positions, edges)
+    path = ep.following_path(positions, graph, chain, index[1, 0], index[1, 45])
     np.testing.assert_array_equal(path, index[1, :46])
 
 
@@ -207,18 +208,18 @@ def test_a_path_cuts_out_loops_and_ignores_other_pieces():
     # A chain along row 3 with a spike out to row 1 and back, and a step back.
     chain = np.array([[0, 3], [2, 3], [2, 1], [2, 3], [4, 3], [6, 3], [5.4, 3], [8, 3], [11, 3]], dtype=np.float64)
     chain = np.c_[chain, np.full(9, 0.5)]
-    graph = cu.edge_graph(positions, edges)
-    path = cu.following_path(positions, graph, chain, index[3, 0], index[3, 11])
+    graph = ep.edge_graph(positions, edges)
+    path = ep.following_path(positions, graph, chain, index[3, 0], index[3, 11])
     assert len(set(path.tolist())) == path.size  # a simple path
     assert path[0] == index[3, 0] and path[-1] == index[3, 11]
     np.testing.assert_array_equal(path, index[3, :])  # the spike out to row 1 and the step back are cut out
     # A second piece (a copy of the grid lifted by 0.4, nearer the chain than the first): not followed.
     both = np.concatenate([positions, positions + [0.0, 0.0, 0.4]])
     both_edges = np.concatenate([edges, edges + positions.shape[0]])
-    path = cu.following_path(both, cu.edge_graph(both, both_edges), chain, index[3, 0], index[3, 11])
+    path = ep.following_path(both, ep.edge_graph(both, both_edges), chain, index[3, 0], index[3, 11])
     np.testing.assert_array_equal(path, index[3, :])
     with pytest.raises(LayoutError, match="No chain of target edges joins"):
-        cu.following_path(both, cu.edge_graph(both, both_edges), chain, index[3, 0], index[3, 11] + positions.shape[0])
+        ep.following_path(both, ep.edge_graph(both, both_edges), chain, index[3, 0], index[3, 11] + positions.shape[0])
 
 
 # ---------------------------------------------------------------- automatic pairing

@@ -1,25 +1,29 @@
-"""Plain numpy tests of the add-on's bpy-free state helpers (no Blender needed)."""
+"""Plain numpy tests of the add-on's bpy-free state and transform helpers (``core.layout_state``,
+``core.transforms``; no Blender needed)."""
 
-import importlib.util
+import importlib
 import sys
+import types
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-ADDON_DIR = Path(__file__).resolve().parent.parent / "addon" / "springwrap"
+CORE_DIR = Path(__file__).resolve().parent.parent / "addon" / "springwrap" / "core"
 
 
-def _load_layout_state():
-    """Import addon/springwrap/layout_state.py by path, without the package (whose __init__ needs bpy)."""
-    spec = importlib.util.spec_from_file_location("springwrap_layout_state_under_test", ADDON_DIR / "layout_state.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
+def _load(name):
+    """Import a module of ``core`` (numpy and the kernel, no bpy) as a package of its own."""
+    package_name = "springwrap_core_state_under_test"
+    if package_name not in sys.modules:
+        package = types.ModuleType(package_name)
+        package.__path__ = [str(CORE_DIR)]
+        sys.modules[package_name] = package
+    return importlib.import_module(f"{package_name}.{name}")
 
 
-ls = _load_layout_state()
+ls = _load("layout_state")
+tf = _load("transforms")
 
 
 def face_state(faces, barycentrics=None):
@@ -32,7 +36,7 @@ def face_state(faces, barycentrics=None):
 
 
 def test_module_does_not_import_bpy():
-    source = (ADDON_DIR / "layout_state.py").read_text()
+    source = (CORE_DIR / "layout_state.py").read_text()
     assert "import bpy" not in source and "mathutils" not in source
 
 
@@ -156,9 +160,9 @@ def test_transform_points_matches_homogeneous_product_and_inverts():
     matrix = random_affine(1)
     points = np.random.default_rng(2).normal(size=(10, 3)).astype(np.float32)
     homogeneous = np.c_[points.astype(np.float64), np.ones(10)] @ matrix.T
-    world = ls.transform_points(matrix, points)
+    world = tf.transform_points(matrix, points)
     np.testing.assert_allclose(world, homogeneous[:, :3], rtol=0, atol=1e-12)
-    back = ls.transform_points(ls.inverse_matrix(matrix), world)
+    back = tf.transform_points(tf.inverse_matrix(matrix), world)
     np.testing.assert_allclose(back, points, rtol=0, atol=1e-6)
 
 
@@ -166,46 +170,46 @@ def test_transform_directions_ignores_translation():
     matrix = np.eye(4)
     matrix[:3, 3] = (5, 6, 7)
     matrix[0, 0] = 2.0
-    result = ls.transform_directions(matrix, np.array([1.0, 1.0, 0.0]))
+    result = tf.transform_directions(matrix, np.array([1.0, 1.0, 0.0]))
     assert result.tolist() == [[2.0, 1.0, 0.0]]
 
 
 def test_transform_normals_stays_perpendicular_under_non_uniform_scale():
     matrix = np.diag([4.0, 1.0, 1.0, 1.0])
     # The plane x = y has normal (1, -1, 0); after scaling x by 4 the plane is x = 4y.
-    normal = ls.transform_normals(matrix, np.array([[1.0, -1.0, 0.0], [0.0, 0.0, 0.0]]))
-    tangent = ls.transform_directions(matrix, np.array([1.0, 1.0, 0.0]))[0]
+    normal = tf.transform_normals(matrix, np.array([[1.0, -1.0, 0.0], [0.0, 0.0, 0.0]]))
+    tangent = tf.transform_directions(matrix, np.array([1.0, 1.0, 0.0]))[0]
     assert abs(normal[0] @ tangent) < 1e-12
     assert np.linalg.norm(normal[0]) == pytest.approx(1.0)
     assert normal[1].tolist() == [0.0, 0.0, 0.0]
 
 
 def test_normalize_or_zero():
-    result = ls.normalize_or_zero(np.array([[3.0, 0, 4], [0, 0, 0], [np.nan, 0, 0]]))
+    result = tf.normalize_or_zero(np.array([[3.0, 0, 4], [0, 0, 0], [np.nan, 0, 0]]))
     np.testing.assert_allclose(result[0], [0.6, 0, 0.8])
     assert not result[1:].any()
 
 
 def test_is_invertible():
-    assert ls.is_invertible(random_affine(3))
-    assert ls.is_invertible(np.diag([1e-4, 1e-4, 1e-4, 1.0]))  # small but not zero scale
-    assert not ls.is_invertible(np.diag([1.0, 0.0, 1.0, 1.0]))
+    assert tf.is_invertible(random_affine(3))
+    assert tf.is_invertible(np.diag([1e-4, 1e-4, 1e-4, 1.0]))  # small but not zero scale
+    assert not tf.is_invertible(np.diag([1.0, 0.0, 1.0, 1.0]))
     nan = np.eye(4)
     nan[0, 3] = np.nan
-    assert not ls.is_invertible(nan)
+    assert not tf.is_invertible(nan)
 
 
 def test_axis_direction():
-    assert ls.axis_direction("X").tolist() == [1, 0, 0]
-    assert ls.axis_direction("-Z").tolist() == [0, 0, -1]
+    assert tf.axis_direction("X").tolist() == [1, 0, 0]
+    assert tf.axis_direction("-Z").tolist() == [0, 0, -1]
     with pytest.raises(ValueError):
-        ls.axis_direction("W")
+        tf.axis_direction("W")
     with pytest.raises(ValueError):
-        ls.axis_direction("--X")
+        tf.axis_direction("--X")
 
 
 def test_as_float32_points_is_c_contiguous_float32():
     fortran = np.asfortranarray(np.arange(12, dtype=np.float64).reshape(4, 3))
-    result = ls.as_float32_points(fortran)
+    result = tf.as_float32_points(fortran)
     assert result.dtype == np.float32 and result.flags.c_contiguous and result.shape == (4, 3)
     assert result.tolist() == fortran.tolist()

@@ -1,4 +1,4 @@
-"""Mirroring's bpy-free logic (``addon/springwrap/mirroring.py``): planes, the seam, crossing faces, the state.
+"""Mirroring's bpy-free logic (``addon/springwrap/core/mirroring.py``): planes, the seam, crossing faces, the state.
 
 Plain numpy on generated geometry, no Blender: the add-on package is imported from ``addon/``
 without running its ``__init__`` (which needs ``bpy``).
@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-ADDON = Path(__file__).resolve().parent.parent / "addon" / "springwrap"
+CORE = Path(__file__).resolve().parent.parent / "addon" / "springwrap" / "core"
 
 
 def _load(name):
@@ -20,7 +20,7 @@ def _load(name):
     package_name = "springwrap_mirror_logic_under_test"
     if package_name not in sys.modules:
         package = types.ModuleType(package_name)
-        package.__path__ = [str(ADDON)]
+        package.__path__ = [str(CORE)]
         sys.modules[package_name] = package
     return importlib.import_module(f"{package_name}.{name}")
 

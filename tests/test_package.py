@@ -93,7 +93,7 @@ def names_in(archive_path: Path) -> list[str]:
 
 
 def addon_sources() -> list[str]:
-    return sorted(path.name for path in ADDON.glob("*.py"))
+    return sorted(str(path.relative_to(ADDON)) for path in ADDON.rglob("*.py") if "_vendor" not in path.parts)
 
 
 def bl_info() -> dict:
@@ -176,13 +176,14 @@ def test_legacy_zip_holds_the_addon_folder_and_the_vendored_kernel(packages):
 def test_addon_imports_itself_only_relatively():
     """The extension is imported as ``bl_ext.<repository>.springwrap``: ``import springwrap...`` would fail there."""
     absolute = []
-    for path in ADDON.glob("*.py"):
+    for path in ADDON.rglob("*.py"):
+        name = path.relative_to(ADDON)
         for node in ast.walk(ast.parse(path.read_text())):
             if isinstance(node, ast.Import):
-                absolute += [f"{path.name}: import {alias.name}" for alias in node.names
+                absolute += [f"{name}: import {alias.name}" for alias in node.names
                              if alias.name.split(".")[0] == "springwrap"]
             elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module.split(".")[0] == "springwrap":
-                absolute.append(f"{path.name}: from {node.module} import ...")
+                absolute.append(f"{name}: from {node.module} import ...")
     assert absolute == []
 
 

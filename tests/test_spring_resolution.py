@@ -72,7 +72,7 @@ def test_cancel_in_the_fine_stage_restores_the_layout_bit_for_bit():
 def test_a_resolution_out_of_range_is_refused():
     _target, layout, _normal = plane_scene()
     bpy.ops.springwrap.anchors_auto(spacing=0.5)
-    from springwrap import layout_state
+    from springwrap.core import layout_state
 
     with pytest.raises(layout_state.LayoutError, match="spring resolution must be within 1 .. 8, not 9"):
         _session(layout, spring_resolution=9)

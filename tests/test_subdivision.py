@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-_PATH = Path(__file__).resolve().parents[1] / "addon" / "springwrap" / "subdivision.py"
+_PATH = Path(__file__).resolve().parents[1] / "addon" / "springwrap" / "core" / "subdivision.py"
 _spec = importlib.util.spec_from_file_location("springwrap_subdivision", _PATH)
 subdivision = importlib.util.module_from_spec(_spec)
 sys.modules[_spec.name] = subdivision

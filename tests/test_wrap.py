@@ -41,9 +41,9 @@ def wrap_scene(springwrap_installed):
     bpy.ops.wm.read_homefile(use_empty=True)
     if not springwrap_installed.check("springwrap")[1]:
         assert springwrap_installed.enable("springwrap", default_set=True, handle_error=None) is not None
-    from springwrap import bridge
+    from springwrap.blender import target
 
-    bridge.clear_target_cache()
+    target.clear_target_cache()
     bpy.ops.ed.undo_push(message="Springwrap wrap test start")
     yield
     if bpy.context.object is not None and bpy.context.object.mode != "OBJECT":
@@ -247,7 +247,7 @@ class _RecordingLayout:
 
 
 def test_wrap_panel_searches_the_targets_vertex_groups():
-    from springwrap.ui import SPRINGWRAP_PT_wrap
+    from springwrap.ui.panels import SPRINGWRAP_PT_wrap
 
     target, layout, _normal = plane_scene()
     assert SPRINGWRAP_PT_wrap.bl_parent_id == "SPRINGWRAP_PT_layout" and SPRINGWRAP_PT_wrap.poll(bpy.context)
@@ -442,15 +442,16 @@ def test_space_points_next_to_anchors_on_target_vertices_fold():
 def _session(layout, solver="SPRINGS", **parameters):
     """A wrap session; the spring solver unless said (its hundreds of iterations make many frames)."""
     import springwrap_kernel
-    from springwrap import operations, wrap_operator
+    from springwrap.blender.wrap_session import WrapSession
+    from springwrap.core.wrap_inputs import WrapParameters
 
     settings = springwrap_kernel.WrapSettings(solver=solver)
-    return wrap_operator.WrapSession(bpy.context, layout, operations.WrapParameters(settings=settings, **parameters))
+    return WrapSession(bpy.context, layout, WrapParameters(settings=settings, **parameters))
 
 
 @pytest.mark.parametrize("start", ["fresh", "with_state"])
 def test_cancel_restores_positions_and_attributes_bit_for_bit(start):
-    from springwrap import wrap_operator
+    from springwrap.core.wrap_run import WrapLoop
 
     target, layout, _normal = plane_scene()
     bpy.ops.springwrap.anchors_auto(spacing=0.5)
@@ -459,7 +460,7 @@ def test_cancel_restores_positions_and_attributes_bit_for_bit(start):
         bpy.ops.springwrap.project(direction="NORMAL", only_selected=True)  # a hybrid: some face-points
     before = snapshot(layout)
     anchors_before = anchor_snapshot(layout)
-    loop = wrap_operator.WrapLoop(_session(layout))
+    loop = WrapLoop(_session(layout))
     for _ in range(3):  # the pacer starts at 1 iteration and at most quadruples: 1 + 4 + 16 iterations
         assert loop.handle("TIMER") == "RUNNING_MODAL"
     assert loop.session.frames == 3
@@ -475,12 +476,12 @@ def test_cancel_restores_positions_and_attributes_bit_for_bit(start):
 
 
 def test_right_click_cancels_too():
-    from springwrap import wrap_operator
+    from springwrap.core.wrap_run import WrapLoop
 
     target, layout, _normal = plane_scene()
     bpy.ops.springwrap.anchors_auto(spacing=0.5)
     before = snapshot(layout)
-    loop = wrap_operator.WrapLoop(_session(layout))
+    loop = WrapLoop(_session(layout))
     loop.handle("TIMER")
     assert loop.handle("RIGHTMOUSE", "RELEASE") == "RUNNING_MODAL"
     assert loop.handle("RIGHTMOUSE", "PRESS") == "CANCELLED"
@@ -490,11 +491,11 @@ def test_right_click_cancels_too():
 @pytest.mark.parametrize("solver", ["SPRINGS", "ENERGY"])
 def test_modal_loop_finishes_with_the_same_result_as_exec(solver):
     """Frames of a few iterations each end exactly where one synchronous run ends (the solver is deterministic)."""
-    from springwrap import wrap_operator
+    from springwrap.core.wrap_run import WrapLoop
 
     plane_scene()
     bpy.ops.springwrap.anchors_auto(spacing=0.5)
-    loop = wrap_operator.WrapLoop(_session(bpy.context.active_object, solver=solver))
+    loop = WrapLoop(_session(bpy.context.active_object, solver=solver))
     outcome = "RUNNING_MODAL"
     while outcome == "RUNNING_MODAL":
         outcome = loop.handle("TIMER")
@@ -509,7 +510,7 @@ def test_modal_loop_finishes_with_the_same_result_as_exec(solver):
 
 
 def test_an_error_mid_way_restores_the_layout():
-    from springwrap import wrap_operator
+    from springwrap.core.wrap_run import WrapLoop
 
     target, layout, _normal = plane_scene()
     bpy.ops.springwrap.anchors_auto(spacing=0.5)
@@ -534,7 +535,7 @@ def test_an_error_mid_way_restores_the_layout():
             return getattr(self.solver, name)
 
     session.solver = FailingSolver(session.solver)
-    loop = wrap_operator.WrapLoop(session)
+    loop = WrapLoop(session)
     assert loop.handle("TIMER") == "RUNNING_MODAL"
     assert loop.handle("TIMER") == "RUNNING_MODAL"
     assert snapshot(layout) != before
@@ -548,14 +549,14 @@ def test_modal_frames_each_write_the_layout_and_run_paced_iterations():
 
     The frame rate itself is a speed target: ``benchmarks/wrap_speed.py`` measures it (live wrap), no test times it.
     """
-    from springwrap import wrap_operator
+    from springwrap.core.wrap_run import WrapLoop
 
     bpy.ops.mesh.primitive_grid_add(x_subdivisions=60, y_subdivisions=60, size=4)
     target = bpy.context.active_object
     bpy.ops.mesh.primitive_grid_add(x_subdivisions=30, y_subdivisions=30, size=3, location=(0.0, 0.0, 0.2))
     layout = _activate(bpy.context.active_object, target)
     bpy.ops.springwrap.anchors_auto(spacing=0.3)
-    loop = wrap_operator.WrapLoop(_session(layout, max_iterations=100_000))
+    loop = WrapLoop(_session(layout, max_iterations=100_000))
     before = local_positions(layout).copy()
     iterations, state = [], "RUNNING_MODAL"
     for _ in range(20):
@@ -590,9 +591,9 @@ def _operator_standing_in(loop, ui):
     """An object with the wrap operator's methods bound to it, as ``invoke`` leaves them (no window needed)."""
     import types
 
-    from springwrap.wrap_operator import SPRINGWRAP_OT_wrap
+    from springwrap.operators.wrap import SPRINGWRAP_OT_wrap
 
-    operator = types.SimpleNamespace(_loop=loop, _area=ui, _timer="timer", _was_editing=False, reports=[])
+    operator = types.SimpleNamespace(_loop=loop, _area=ui, _timer="timer", _mode=None, reports=[])
     operator.report = lambda kinds, text: operator.reports.append((set(kinds), text))
     for name in ("modal", "cancel", "_show_status", "_end", "_restore_mode", "_report_result"):
         setattr(operator, name, types.MethodType(getattr(SPRINGWRAP_OT_wrap, name), operator))
@@ -602,13 +603,13 @@ def _operator_standing_in(loop, ui):
 
 @pytest.mark.parametrize("ending", ["finish", "escape"])
 def test_operator_modal_shows_progress_and_cleans_up(ending):
-    from springwrap import wrap_operator
+    from springwrap.core.wrap_run import WrapLoop
 
     target, layout, _normal = plane_scene()
     bpy.ops.springwrap.anchors_auto(spacing=0.5)
     before = snapshot(layout)
     ui = _FakeUI()
-    operator, context = _operator_standing_in(wrap_operator.WrapLoop(_session(layout)), ui)
+    operator, context = _operator_standing_in(WrapLoop(_session(layout)), ui)
     event = lambda kind, value="NOTHING": type("Event", (), {"type": kind, "value": value})()  # noqa: E731
     assert operator.modal(context, event("TIMER")) == {"RUNNING_MODAL"}
     assert operator.modal(context, event("MIDDLEMOUSE", "PRESS")) == {"PASS_THROUGH"}
@@ -633,7 +634,7 @@ def test_operator_modal_shows_progress_and_cleans_up(ending):
 
 
 def test_modal_actions():
-    from springwrap.wrap_operator import modal_action
+    from springwrap.core.wrap_run import modal_action
 
     assert modal_action("ESC", "PRESS") == "CANCEL"
     assert modal_action("RIGHTMOUSE", "PRESS") == "CANCEL"
@@ -646,7 +647,7 @@ def test_modal_actions():
 
 
 def test_iteration_pacer_fills_the_frame():
-    from springwrap.operations import IterationPacer
+    from springwrap.core.wrap_run import IterationPacer
 
     pacer = IterationPacer(frame_rate=30.0)
     counts = []
@@ -756,7 +757,7 @@ def test_low_weights_are_reliable():
 
 
 def test_unreliable_triangles_need_all_three_corners_heavy():
-    from springwrap.operations import unreliable_triangles
+    from springwrap.core.wrap_inputs import unreliable_triangles
 
     triangles = np.array([[0, 1, 2], [1, 2, 3], [2, 3, 4]])
     weights = np.array([0.9, 0.6, 0.51, 0.5, 1.0])

@@ -65,7 +65,7 @@ def test_the_panel_setting_chooses_the_solver():
     layout.springwrap.wrap_solver = "SPRINGS"
     from types import SimpleNamespace
 
-    from springwrap import wrap_operator
+    from springwrap.operators import wrap as wrap_operator
 
     rna = bpy.ops.springwrap.wrap.get_rna_type()
     properties = SimpleNamespace(**{prop.identifier: prop.default for prop in rna.properties

@@ -1,13 +1,13 @@
 """Springwrap's per-object settings, hung on ``bpy.types.Object.springwrap``.
 
 All add-on state lives here (no loose Scene properties), anchors included. The per-vertex state is
-not here but in mesh attributes on the layout (see ``layout_state``), so that it follows the mesh
+not here but in mesh attributes on the layout (see ``core.layout_state``), so that it follows the mesh
 through edits, undo and save/reload.
 """
 
 import bpy
 
-from . import compat
+from .blender import compat
 
 
 def _kernel_wrap_defaults():
@@ -334,7 +334,7 @@ class SpringwrapObjectSettings(bpy.types.PropertyGroup):
         ),
         default="",
     )
-    # Armature alignment (armature_operator).
+    # Armature alignment (operators.armature).
     target_armature: bpy.props.PointerProperty(
         name="Target Armature",
         description="Armature of the target whose bones the layout's armature is posed onto (bones matched by name)",

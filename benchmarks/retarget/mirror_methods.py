@@ -111,7 +111,7 @@ def springwrap_wrap_mirror(
     )
     output = springwrap_methods._call("mirror", bpy.ops.springwrap.mirror, axis="X", mirror_object=plane.name,
                                        **(mirror_options or {}))
-    from springwrap.mirror_operator import SPRINGWRAP_OT_mirror
+    from springwrap.operators.mirror import SPRINGWRAP_OT_mirror
 
     outcome = SPRINGWRAP_OT_mirror.last_outcome
     positions = read_positions(layout.data)

@@ -31,7 +31,7 @@ REPOSITORY_ROOT = HERE.parents[1]
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(REPOSITORY_ROOT))
 import render_guide  # noqa: E402
-from script_arguments import script_arguments  # noqa: E402  (render_guide put blender_scripts on the path)
+from headless import script_arguments  # noqa: E402  (render_guide put blender_scripts on the path)
 
 from benchmarks.retarget import rig_scene  # noqa: E402
 

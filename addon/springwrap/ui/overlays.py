@@ -12,7 +12,14 @@ re-read the mesh; the anchor list itself is a few small arrays, read on every dr
 """
 
 import bpy
+import gpu
 import numpy as np
+from gpu_extras.batch import batch_for_shader
+
+from ..blender import anchors as anchor_data
+from ..blender import curves as curve_data
+from ..blender import layout as layout_data
+from ..core import anchors, curves
 
 LINE_COLOR = (1.0, 0.55, 0.1, 0.9)
 """Colour of the lines (orange)."""
@@ -83,13 +90,11 @@ def anchor_segments(layout) -> tuple[np.ndarray, np.ndarray]:
     Empty when the layout has no anchors or hides them. Anchors whose vertex no longer exists are
     left out.
     """
-    from . import anchors, bridge
-
     empty = np.zeros((0, 3), dtype=np.float32)
     settings = layout.springwrap
     if not settings.show_anchors or not len(settings.anchors):
         return empty, empty
-    anchor_list = bridge.read_anchors(layout)
+    anchor_list = anchor_data.read_anchors(layout)
     key = (
         _generation,
         layout.as_pointer(),
@@ -98,7 +103,7 @@ def anchor_segments(layout) -> tuple[np.ndarray, np.ndarray]:
         anchor_list.vertex_indices.tobytes(),
     )
     if _position_cache["key"] != key:
-        positions = bridge.read_world_vertex_positions(layout, anchor_list.vertex_indices)
+        positions = layout_data.read_world_vertex_positions(layout, anchor_list.vertex_indices)
         _position_cache.update(key=key, positions=positions)
     return anchors.segments(anchor_list, _position_cache["positions"])
 
@@ -109,13 +114,11 @@ def curve_segments(layout) -> tuple[np.ndarray, np.ndarray]:
     Each chain vertex is joined to the point of its target polyline (as last resolved) at the same
     fraction of arc length, by a dashed line. Empty when there are none or they are hidden.
     """
-    from . import bridge, curves
-
     empty = np.zeros((0, 3), dtype=np.float32)
     settings = layout.springwrap
     if not settings.show_curve_constraints or not len(settings.curve_constraints):
         return empty, empty
-    constraints = bridge.read_curve_constraints(layout)
+    constraints = curve_data.read_curve_constraints(layout)
     key = (
         _generation,
         layout.as_pointer(),
@@ -126,7 +129,7 @@ def curve_segments(layout) -> tuple[np.ndarray, np.ndarray]:
     if _curve_cache["key"] != key:
         starts, ends = [], []
         for constraint in constraints:
-            chain = bridge.read_world_vertex_positions(layout, constraint.layout_vertices)
+            chain = layout_data.read_world_vertex_positions(layout, constraint.layout_vertices)
             starts.append(chain)
             ends.append(curves.arc_length_points(chain, constraint.points))
         segments = curves.dashed_segments(np.concatenate(starts), np.concatenate(ends), CURVE_DASH_COUNT)
@@ -162,8 +165,6 @@ def draw_anchors() -> None:
 
 
 def _draw_segments(starts: np.ndarray, ends: np.ndarray, color=LINE_COLOR, with_points=True) -> None:
-    import gpu
-    from gpu_extras.batch import batch_for_shader
 
     lines = np.empty((starts.shape[0] * 2, 3), dtype=np.float32)
     lines[0::2] = starts
@@ -204,8 +205,6 @@ def _draw_segments(starts: np.ndarray, ends: np.ndarray, color=LINE_COLOR, with_
 
 def _shader(names):
     """The first builtin shader of ``names`` this Blender has, as ``(name, shader)``; cached."""
-    import gpu
-
     if names not in _shaders:
         for name in names:
             try:

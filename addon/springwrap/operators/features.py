@@ -14,7 +14,9 @@ import time
 import bpy
 import numpy as np
 
-from .operators import import_bridge
+from ..blender import features as feature_data
+from ..blender.edit_mode import object_mode
+from ..core.errors import ERRORS
 
 REGION_COLORS = np.array(
     [
@@ -128,31 +130,28 @@ class SPRINGWRAP_OT_detect_features(bpy.types.Operator):
         if not (self.write_colors or self.write_curves):
             self.report({"ERROR"}, "Nothing to write: enable Region Colours or Feature Curves")
             return {"CANCELLED"}
-        bridge = import_bridge(self)
-        if bridge is None:
-            return {"CANCELLED"}
         window_manager = context.window_manager
         show_progress = not bpy.app.background
         if show_progress:
             window_manager.progress_begin(0, 3)
         start = time.perf_counter()
         try:
-            feature_mesh = bridge.read_feature_mesh(context.evaluated_depsgraph_get(), source)
+            feature_mesh = feature_data.read_feature_mesh(context.evaluated_depsgraph_get(), source)
             scale = self.scale or DEFAULT_SCALE_EDGES * mean_edge_length(feature_mesh.vertices, feature_mesh.triangles)
             if show_progress:
                 window_manager.progress_update(1)
             settings = {"flat_threshold": self.flat_threshold, "ridge_threshold": self.ridge_threshold}
             if self.min_length > 0.0:
                 settings["min_length"] = self.min_length
-            features = bridge.detect_features(feature_mesh, scale, **settings)
+            features = feature_data.detect_features(feature_mesh, scale, **settings)
             if show_progress:
                 window_manager.progress_update(2)
             colors_fit = feature_mesh.vertices.shape[0] == feature_mesh.base_vertex_count
             if self.write_colors and colors_fit:
-                with bridge.object_mode(source) if source == context.active_object else contextlib.nullcontext():
-                    bridge.write_feature_colors(source, region_colors(features.regions))
-            curve_objects = bridge.write_feature_curves(context, source, features.curves) if self.write_curves else []
-        except bridge.ERRORS as error:
+                with object_mode(source) if source == context.active_object else contextlib.nullcontext():
+                    feature_data.write_feature_colors(source, region_colors(features.regions))
+            curve_objects = feature_data.write_feature_curves(context, source, features.curves) if self.write_curves else []
+        except ERRORS as error:
             self.report({"ERROR"}, f"'{source.name}': {error}")
             return {"CANCELLED"}
         finally:
@@ -164,7 +163,7 @@ class SPRINGWRAP_OT_detect_features(bpy.types.Operator):
             {"INFO"},
             f"'{source.name}' at scale {scale:.4g}: {counts[0]} flat, {counts[1]} convex, {counts[2]} concave, "
             f"{counts[3]} saddle vertices; {kinds.count('RIDGE')} ridges and {kinds.count('VALLEY')} valleys"
-            + (f" in '{bridge.FEATURE_COLLECTION}'" if curve_objects else "")
+            + (f" in '{feature_data.FEATURE_COLLECTION}'" if curve_objects else "")
             + f" ({time.perf_counter() - start:.2f} s)",
         )
         if self.write_colors and not colors_fit:

@@ -5,8 +5,8 @@ are snapped onto it and shared by both halves; the new half's faces are the old 
 winding reversed (so both halves face the same way). Then the new half is wrapped onto the
 target's other half, with the surfaced half held where it is and the seam held on the plane.
 
-Everything here is plain numpy on world-space arrays: the operator (``mirror_operator``) reads,
-the bridge duplicates the mesh, this module decides and computes.
+Everything here is plain numpy on world-space arrays: the operator (``operators.mirror``) reads,
+``blender.mirror`` duplicates the mesh, this module decides and computes.
 
 - The **plane** is the layout object's local X, Y or Z plane (``axis='X'``: the plane x = 0 of
   the object, normal its X axis), or the same plane of another object (an empty): its local YZ
@@ -25,8 +25,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import layout_state
-from .layout_state import LayoutError, LayoutState
+from . import anchors as anchor_module
+from . import layout_state, transforms
+from .errors import LayoutError
+from .layout_state import LayoutState
 
 AXES = ("X", "Y", "Z")
 """The mirror axes: the plane is perpendicular to this axis of the layout (or of the mirror object)."""
@@ -75,7 +77,7 @@ def plane_from_matrix(matrix_world, axis: str) -> Plane:
     if axis not in AXES:
         raise LayoutError(f"The mirror axis must be one of {', '.join(AXES)}, not {axis!r}")
     matrix = np.asarray(matrix_world, dtype=np.float64).reshape(4, 4)
-    if not layout_state.is_invertible(matrix):
+    if not transforms.is_invertible(matrix):
         raise LayoutError("The mirror plane's object has zero scale: its plane is undefined")
     linear = matrix[:3, :3]
     normal = np.linalg.inv(linear).T @ np.eye(3)[AXES.index(axis)]
@@ -263,7 +265,7 @@ def partner_errors(positions: np.ndarray, source: np.ndarray, is_copy: np.ndarra
 
 
 def hold_inputs(inputs, pinned: np.ndarray, plane_vertices: np.ndarray, plane: Plane, slide: bool = True):
-    """The wrap's inputs (``operations.WrapInputs``) for the mirrored half: the surfaced half pinned, the seam on the plane.
+    """The wrap's inputs (``wrap_inputs.WrapInputs``) for the mirrored half: the surfaced half pinned, the seam on the plane.
 
     Each ``pinned`` vertex gets an anchor at itself (its own face-point, or its own position for a
     space-point): the kernel pins an anchored point that sits on its anchor, so the surfaced half
@@ -280,10 +282,10 @@ def hold_inputs(inputs, pinned: np.ndarray, plane_vertices: np.ndarray, plane: P
     return inputs._replace(
         anchor_vertices=np.ascontiguousarray(np.concatenate([inputs.anchor_vertices[keep], pins]), dtype=np.uint32),
         anchor_triangles=np.ascontiguousarray(np.concatenate([inputs.anchor_triangles[keep], pin_triangles]), dtype=np.int32),
-        anchor_barycentrics=layout_state.as_float32_points(
+        anchor_barycentrics=transforms.as_float32_points(
             np.concatenate([inputs.anchor_barycentrics[keep], pin_barycentrics])
         ),
-        anchor_positions=layout_state.as_float32_points(
+        anchor_positions=transforms.as_float32_points(
             np.concatenate([inputs.anchor_positions[keep], np.asarray(inputs.positions)[pins]])
         ),
         plane_vertices=np.ascontiguousarray(plane_vertices, dtype=np.uint32),
@@ -307,12 +309,10 @@ def mirrored_anchors(anchor_list, source: np.ndarray, is_copy: np.ndarray, seam:
 
     Anchors on seam vertices are dropped (the plane holds the seam). With ``mirror``, each anchor
     of the surfaced half gets a partner on its vertex's copy, at its location reflected across the
-    plane, put on the closest point of ``target`` (an ``operations.Target``) when one is given
+    plane, put on the closest point of ``target`` (a ``target.Target``) when one is given
     (a face anchor), else left there (a space anchor). On a near-symmetric target the reflected
     point is a guess, as good as the symmetry.
     """
-    from . import anchors as anchor_module
-
     source = np.asarray(source, dtype=np.int64).reshape(-1)
     is_copy = np.asarray(is_copy, dtype=bool).reshape(-1)
     seam = np.asarray(seam, dtype=bool).reshape(-1)
@@ -332,7 +332,7 @@ def mirrored_anchors(anchor_list, source: np.ndarray, is_copy: np.ndarray, seam:
     triangles = np.full(count, layout_state.NO_FACE, dtype=np.int32)
     barycentrics = np.zeros((count, 3), dtype=np.float32)
     if target is not None and count:
-        hits = target.mesh.closest_points(layout_state.as_float32_points(locations))
+        hits = target.mesh.closest_points(transforms.as_float32_points(locations))
         found = hits.triangles >= 0
         kinds[found] = anchor_module.FACE_ANCHOR
         triangles[found] = hits.triangles[found]
@@ -352,7 +352,7 @@ def land_copies(mirrored: MirrorLayout, edge_lengths: np.ndarray, target, reach_
     candidates = np.flatnonzero(mirrored.is_copy)
     if candidates.size == 0:
         return mirrored
-    hits = target.mesh.closest_points(layout_state.as_float32_points(mirrored.positions[candidates]))
+    hits = target.mesh.closest_points(transforms.as_float32_points(mirrored.positions[candidates]))
     reach = reach_fraction * np.asarray(edge_lengths, dtype=np.float64)[candidates]
     found = (hits.triangles >= 0) & (np.asarray(hits.distances, dtype=np.float64) <= reach)
     landed = candidates[found]
@@ -369,7 +369,7 @@ def land_copies(mirrored: MirrorLayout, edge_lengths: np.ndarray, target, reach_
 
 def held_on_plane(inputs, world_positions: np.ndarray, edges: np.ndarray, plane: Plane,
                   weld_fraction: float = DEFAULT_WELD_FRACTION):
-    """The wrap's inputs (``operations.WrapInputs``) with the layout's vertices on ``plane`` held on it.
+    """The wrap's inputs (``wrap_inputs.WrapInputs``) with the layout's vertices on ``plane`` held on it.
 
     For a half to be mirrored: its midline (each vertex within ``weld_fraction`` of its own mean
     edge length of the plane, as the mirror's seam) stays on the plane while the half is wrapped,

@@ -1,6 +1,6 @@
 """Armature alignment on plain numpy arrays (no ``bpy``): which bones pair up, where each template bone goes.
 
-``springwrap.align_armature`` (``armature_operator``) poses a template armature so that each of its
+``springwrap.align_armature`` (``operators.armature``, ``blender.armature``) poses a template armature so that each of its
 bones lies on the target armature's bone of the same name. Per matched bone it asks Blender for the
 pose whose *armature-space* matrix is :func:`desired_pose_matrix`: the target bone's head, its
 direction and (optionally) its roll, and a scale along the bone so that the template bone's tail

@@ -16,8 +16,10 @@ import numpy as np
 import springwrap_kernel
 
 from . import anchors as anchor_arrays
-from . import layout_state, operations
-from .layout_state import LayoutArrays, LayoutError
+from . import layout_state, transforms
+from .errors import LayoutError
+from .layout_state import LayoutArrays
+from .target import Target
 
 METHODS = ("RIGID", "SIMILARITY", "AFFINE")
 """Transforms fitted to the anchors: rotation + translation, + uniform scale, or any affine map."""
@@ -103,7 +105,7 @@ def rms_distance(first: np.ndarray, second: np.ndarray) -> float:
 def align(
     layout: LayoutArrays,
     anchor_list: anchor_arrays.Anchors,
-    target: operations.Target,
+    target: Target,
     parameters: AlignParameters,
 ) -> AlignOutcome:
     """The world-space transform that aligns the layout: anchor fit, then ICP (as ``parameters`` say).
@@ -113,8 +115,8 @@ def align(
     """
     check_parameters(parameters)
     everything = np.ones(layout.positions.shape[0], dtype=bool)
-    operations.check_finite(layout, everything)
-    world = operations.world_positions(layout)
+    layout_state.check_finite(layout, everything)
+    world = transforms.world_positions(layout)
 
     matrix = np.eye(4)
     source = target_points = np.empty((0, 3))
@@ -122,8 +124,8 @@ def align(
         source, target_points = anchor_pairs(anchor_list, world, parameters.method)
         matrix = np.asarray(
             springwrap_kernel.fit_transform(
-                layout_state.as_float32_points(source),
-                layout_state.as_float32_points(target_points),
+                transforms.as_float32_points(source),
+                transforms.as_float32_points(target_points),
                 parameters.method,
             ),
             dtype=np.float64,
@@ -132,7 +134,7 @@ def align(
     report = None
     icp_points = 0
     if parameters.use_icp:
-        mask = operations.operation_mask(layout, parameters.only_selected)
+        mask = layout_state.operation_mask(layout, parameters.only_selected)
         icp_points = int(mask.sum())
         if icp_points < 3:
             raise LayoutError(f"ICP needs at least 3 layout vertices; {icp_points} are selected")
@@ -140,11 +142,11 @@ def align(
         if parameters.max_distance > 0.0:
             options["max_distance"] = float(parameters.max_distance)
         if len(source) and parameters.anchor_weight > 0.0:
-            options["anchor_source"] = layout_state.as_float32_points(source)
-            options["anchor_target"] = layout_state.as_float32_points(target_points)
+            options["anchor_source"] = transforms.as_float32_points(source)
+            options["anchor_target"] = transforms.as_float32_points(target_points)
             options["anchor_weight"] = float(parameters.anchor_weight)
         report = target.mesh.icp(
-            layout_state.as_float32_points(world[mask]),
+            transforms.as_float32_points(world[mask]),
             np.ascontiguousarray(matrix, dtype=np.float64),
             update=ICP_UPDATE[parameters.method],
             max_iterations=int(parameters.icp_iterations),
@@ -153,13 +155,13 @@ def align(
         )
         matrix = np.asarray(report.matrix, dtype=np.float64)
 
-    if not np.all(np.isfinite(matrix)) or not layout_state.is_invertible(matrix):
+    if not np.all(np.isfinite(matrix)) or not transforms.is_invertible(matrix):
         raise LayoutError("The alignment found no usable transform (it collapses or is not finite)")
     return AlignOutcome(
         matrix=matrix,
         anchor_count=len(source),
         anchor_rms_before=rms_distance(source, target_points),
-        anchor_rms_after=rms_distance(layout_state.transform_points(matrix, source), target_points),
+        anchor_rms_after=rms_distance(transforms.transform_points(matrix, source), target_points),
         icp=report,
         icp_point_count=icp_points,
     )
@@ -167,8 +169,8 @@ def align(
 
 def baked_positions(layout: LayoutArrays, matrix: np.ndarray) -> np.ndarray:
     """(N, 3) float32 local positions of the layout with the world transform ``matrix`` baked in."""
-    world = layout_state.transform_points(matrix, operations.world_positions(layout))
-    return operations.to_local(layout.matrix_world, world)
+    world = transforms.transform_points(matrix, transforms.world_positions(layout))
+    return transforms.to_local(layout.matrix_world, world)
 
 
 def object_basis(matrix: np.ndarray, matrix_world: np.ndarray, parent_matrix: np.ndarray) -> np.ndarray:
@@ -179,10 +181,10 @@ def object_basis(matrix: np.ndarray, matrix_world: np.ndarray, parent_matrix: np
     :class:`LayoutError` when the basis would need a shear, which location / rotation / scale
     cannot hold (an affine fit, or a rotation under a non-uniformly scaled parent).
     """
-    if not layout_state.is_invertible(parent_matrix):
+    if not transforms.is_invertible(parent_matrix):
         raise LayoutError("The layout's parent has zero scale: bake the alignment into the vertices instead")
     new_world = np.asarray(matrix, dtype=np.float64) @ np.asarray(matrix_world, dtype=np.float64)
-    basis = layout_state.inverse_matrix(parent_matrix) @ new_world
+    basis = transforms.inverse_matrix(parent_matrix) @ new_world
     columns = basis[:3, :3]
     lengths = np.linalg.norm(columns, axis=0)
     if np.any(lengths <= 0.0) or not np.all(np.isfinite(lengths)):

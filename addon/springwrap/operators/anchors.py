@@ -8,9 +8,15 @@ step succeeded; any problem is reported as an error and the anchors are left exa
 import time
 
 import bpy
+import numpy as np
 
-from .operators import LayoutCollectionOperator
-from .properties import ANCHOR_METHOD_ITEMS, max_distance_property
+from ..blender import anchors as anchor_data
+from ..blender import layout as layout_data
+from ..blender import target as target_data
+from ..core import anchors
+from ..core.errors import LayoutError
+from ..properties import ANCHOR_METHOD_ITEMS, max_distance_property
+from .base import LayoutCollectionOperator
 
 
 class _AnchorOperator(LayoutCollectionOperator):
@@ -19,12 +25,10 @@ class _AnchorOperator(LayoutCollectionOperator):
     collection = "anchors"
     empty_message = "The layout has no anchors"
 
-    def run(self, context, bridge, layout):
-        from . import anchors
-
+    def run(self, context, layout):
         start = time.perf_counter()
-        outcome, signature = self.compute(context, anchors, bridge, layout)
-        bridge.write_anchors(layout, outcome.anchors, outcome.active_index, signature)
+        outcome, signature = self.compute(context, layout)
+        anchor_data.write_anchors(layout, outcome.anchors, outcome.active_index, signature)
         milliseconds = (time.perf_counter() - start) * 1000.0
         reports = [({"INFO"}, self.summary(anchors, outcome, milliseconds))]
         detached, reattached = outcome.topology_detached_count, outcome.topology_reattached_count
@@ -38,8 +42,8 @@ class _AnchorOperator(LayoutCollectionOperator):
             )
         return reports
 
-    def compute(self, context, anchors, bridge, layout):
-        """``(anchors.AnchorOutcome, signature or None)``; raises one of ``bridge.ERRORS`` on bad input."""
+    def compute(self, context, layout):
+        """``(anchors.AnchorOutcome, signature or None)``; raises one of ``ERRORS`` on bad input."""
         raise NotImplementedError
 
     def summary(self, anchors, outcome, milliseconds):
@@ -79,10 +83,10 @@ class SPRINGWRAP_OT_anchor_add(_AnchorOperator, bpy.types.Operator):
         default=True,
     )
 
-    def compute(self, context, anchors, bridge, layout):
-        selection, active_vertex = bridge.read_vertex_selection(layout)
+    def compute(self, context, layout):
+        selection, active_vertex = layout_data.read_vertex_selection(layout)
         if not selection.size:
-            raise anchors.LayoutError(f"Layout '{layout.name}' has no vertices")
+            raise LayoutError(f"Layout '{layout.name}' has no vertices")
         if self.vertex_index == -1:
             self._vertex = anchors.pick_vertex(selection, active_vertex)
         else:
@@ -91,10 +95,10 @@ class SPRINGWRAP_OT_anchor_add(_AnchorOperator, bpy.types.Operator):
         self._source = anchors.check_location(
             tuple(source), "The anchor location" if self.use_location else "The 3D cursor"
         )
-        target = bridge.read_target(context.evaluated_depsgraph_get(), layout)
+        target = target_data.read_target(context.evaluated_depsgraph_get(), layout)
         outcome = anchors.add(
             selection.size,
-            bridge.read_anchors(layout),
+            anchor_data.read_anchors(layout),
             target,
             layout.springwrap.anchors_signature,
             self._vertex,
@@ -104,8 +108,6 @@ class SPRINGWRAP_OT_anchor_add(_AnchorOperator, bpy.types.Operator):
         return outcome, target.signature
 
     def summary(self, anchors, outcome, milliseconds):
-        import numpy as np
-
         location = outcome.anchors.locations[-1]
         where = "the target surface" if outcome.anchors.kinds[-1] == anchors.FACE_ANCHOR else "a point in space"
         distance = float(np.linalg.norm(location - self._source))
@@ -142,14 +144,14 @@ class SPRINGWRAP_OT_anchors_auto(_AnchorOperator, bpy.types.Operator):
     )
     max_distance: max_distance_property("Vertices whose target point is farther than this get no anchor (0 = unlimited)")
 
-    def compute(self, context, anchors, bridge, layout):
-        arrays = bridge.read_layout(layout)
-        target = bridge.read_target(context.evaluated_depsgraph_get(), layout)
-        normals = bridge.read_world_normals(layout) if self.method == "PROJECT" else None
+    def compute(self, context, layout):
+        arrays = layout_data.read_layout(layout)
+        target = target_data.read_target(context.evaluated_depsgraph_get(), layout)
+        normals = layout_data.read_world_normals(layout) if self.method == "PROJECT" else None
         outcome = anchors.auto(
             arrays,
             normals,
-            bridge.read_anchors(layout),
+            anchor_data.read_anchors(layout),
             target,
             layout.springwrap.anchors_signature,
             self.spacing,
@@ -185,9 +187,9 @@ class SPRINGWRAP_OT_anchors_update(_AnchorOperator, bpy.types.Operator):
     requires_items = True
     reads_layout_mesh = False
 
-    def compute(self, context, anchors, bridge, layout):
-        target = bridge.read_target(context.evaluated_depsgraph_get(), layout)
-        outcome = anchors.update(bridge.read_anchors(layout), target, layout.springwrap.anchors_signature)
+    def compute(self, context, layout):
+        target = target_data.read_target(context.evaluated_depsgraph_get(), layout)
+        outcome = anchors.update(anchor_data.read_anchors(layout), target, layout.springwrap.anchors_signature)
         return outcome, target.signature
 
     def summary(self, anchors, outcome, milliseconds):
@@ -213,8 +215,8 @@ class SPRINGWRAP_OT_anchor_remove(_AnchorOperator, bpy.types.Operator):
         soft_min=-1,
     )
 
-    def compute(self, context, anchors, bridge, layout):
-        existing = bridge.read_anchors(layout)
+    def compute(self, context, layout):
+        existing = anchor_data.read_anchors(layout)
         index = layout.springwrap.active_anchor_index if self.index == -1 else self.index
         self._vertex = int(existing.vertex_indices[index]) if 0 <= index < anchors.anchor_count(existing) else -1
         remaining = anchors.remove(existing, index)
@@ -237,7 +239,7 @@ class SPRINGWRAP_OT_anchors_clear(_AnchorOperator, bpy.types.Operator):
     requires_items = True
     reads_layout_mesh = False
 
-    def compute(self, context, anchors, bridge, layout):
+    def compute(self, context, layout):
         self._count = len(layout.springwrap.anchors)
         return _list_outcome(anchors, anchors.no_anchors(), 0), None
 

@@ -10,8 +10,14 @@ import time
 
 import bpy
 
-from .operators import checked_bridge, poll_layout
-from .properties import max_distance_property
+from ..blender import anchors as anchor_data
+from ..blender import layout as layout_data
+from ..blender import target as target_data
+from ..blender.edit_mode import object_mode
+from ..core import alignment, anchors
+from ..core.errors import ERRORS
+from ..properties import max_distance_property
+from .base import LayoutOperator, open_layout
 
 METHOD_ITEMS = (
     ("RIGID", "Rigid", "Rotation and translation (needs 3 anchors not on one line)"),
@@ -24,7 +30,7 @@ APPLY_ITEMS = (
 )
 
 
-class SPRINGWRAP_OT_align(bpy.types.Operator):
+class SPRINGWRAP_OT_align(LayoutOperator, bpy.types.Operator):
     """Align the layout to its target: fit a transform to the anchors, then refine it by ICP"""
 
     bl_idname = "springwrap.align"
@@ -83,10 +89,6 @@ class SPRINGWRAP_OT_align(bpy.types.Operator):
         default="OBJECT",
     )
 
-    @classmethod
-    def poll(cls, context):
-        return poll_layout(cls, context)
-
     def draw(self, context):
         layout = self.layout
         layout.use_property_split = True
@@ -100,13 +102,11 @@ class SPRINGWRAP_OT_align(bpy.types.Operator):
         layout.prop(self, "apply")
 
     def execute(self, context):
-        bridge = checked_bridge(self, context)
-        if bridge is None:
-            return {"CANCELLED"}
-        from . import alignment, anchors
-        layout = context.active_object
-        if self.apply == "BAKE" and bridge.has_shape_keys(layout):
-            self.report({"ERROR"}, f"Layout '{layout.name}' has shape keys; bake needs to move its vertices: apply to the object transform")
+        layout = open_layout(
+            self, context, moves_vertices=self.apply == "BAKE",
+            consequence="bake needs to move its vertices: apply to the object transform",
+        )
+        if layout is None:
             return {"CANCELLED"}
         parameters = alignment.AlignParameters(
             method=self.method,
@@ -120,24 +120,24 @@ class SPRINGWRAP_OT_align(bpy.types.Operator):
         )
         start = time.perf_counter()
         try:
-            with bridge.object_mode(layout):
-                arrays = bridge.read_layout(layout)
-                target = bridge.read_target(context.evaluated_depsgraph_get(), layout)
+            with object_mode(layout):
+                arrays = layout_data.read_layout(layout)
+                target = target_data.read_target(context.evaluated_depsgraph_get(), layout)
                 anchor_list = anchors.no_anchors()
                 if self.use_anchors:
                     anchor_list, _resolution = anchors.resolve(
-                        bridge.read_anchors(layout), target, layout.springwrap.anchors_signature
+                        anchor_data.read_anchors(layout), target, layout.springwrap.anchors_signature
                     )
                 outcome = alignment.align(arrays, anchor_list, target, parameters)
                 detached = alignment.detached_count(arrays)
                 if self.apply == "OBJECT":
-                    basis = alignment.object_basis(outcome.matrix, arrays.matrix_world, bridge.read_parent_matrix(layout))
-                    bridge.write_layout(layout, arrays.positions, alignment.floating_state(arrays))
-                    bridge.write_object_basis(layout, basis)
+                    basis = alignment.object_basis(outcome.matrix, arrays.matrix_world, layout_data.read_parent_matrix(layout))
+                    layout_data.write_layout(layout, arrays.positions, alignment.floating_state(arrays))
+                    layout_data.write_object_basis(layout, basis)
                 else:
                     positions = alignment.baked_positions(arrays, outcome.matrix)
-                    bridge.write_layout(layout, positions, alignment.floating_state(arrays))
-        except bridge.ERRORS as error:
+                    layout_data.write_layout(layout, positions, alignment.floating_state(arrays))
+        except ERRORS as error:
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}
         milliseconds = (time.perf_counter() - start) * 1000.0

@@ -60,22 +60,6 @@ def foreach_set(collection, name: str, values: np.ndarray) -> None:
         setattr(item, name, identifiers[int(value)])
 
 
-def add_vendored_packages() -> None:
-    """Put the add-on's ``_vendor`` folder first on ``sys.path`` when it has one.
-
-    The legacy add-on zip (Blender 3.4 to 4.1, which know no extension wheels) carries the kernel
-    wheel unpacked in ``springwrap/_vendor``: nothing is installed or downloaded when the add-on is
-    enabled, and the kernel matching this add-on wins over any other copy. The extension (4.2+,
-    the wheel installed by Blender) and a development checkout have no such folder.
-    """
-    import sys
-    from pathlib import Path
-
-    vendor = Path(__file__).resolve().parent / "_vendor"
-    if vendor.is_dir() and str(vendor) not in sys.path:
-        sys.path.insert(0, str(vendor))
-
-
 def set_active_color(mesh: "bpy.types.Mesh", name: str) -> None:
     """Make the colour attribute ``name`` the mesh's active and render colour (what the viewport's
     Attribute colour shows). Blender 3.5+ names them (``active_color_name``, ``default_color_name``);

@@ -6,10 +6,10 @@ like a face-point) or a free point in 3D (a *space* anchor). Every anchor also k
 point in world space (``locations``): for a space anchor it is the point itself; for a face
 anchor it is a cache, recomputed from triangle + barycentric whenever an anchor operation reads
 the target, and the position from which the anchor is found again when the target's topology
-changed (the deleted-face rule of ``layout_state``, applied through ``operations.resolve_points``).
+changed (the deleted-face rule of ``layout_state``, applied through ``target.resolve_points``).
 
 The functions here compute complete new anchor lists and return them with what to report;
-``bridge`` reads and writes them, the operators in ``anchor_operators`` only call and report.
+``blender.anchors`` reads and writes them, the operators in ``operators.anchors`` only call and report.
 Every function returns new arrays and leaves its inputs untouched.
 """
 
@@ -17,8 +17,10 @@ from typing import NamedTuple, Optional
 
 import numpy as np
 
-from . import layout_state, operations
-from .layout_state import FACE_POINT, NO_FACE, SPACE_POINT, LayoutArrays, LayoutError, LayoutState
+from . import layout_state, transforms
+from .errors import LayoutError
+from .layout_state import FACE_POINT, NO_FACE, SPACE_POINT, LayoutArrays, LayoutState
+from .target import Target, resolve_points
 
 FACE_ANCHOR = FACE_POINT
 """Kind of an anchor whose target is a point of the target surface (triangle + barycentric)."""
@@ -182,7 +184,7 @@ def pick_vertex(selection: np.ndarray, active_vertex: int) -> int:
 
 
 def resolve(
-    anchors: Anchors, target: operations.Target, stored_signature: str
+    anchors: Anchors, target: Target, stored_signature: str
 ) -> tuple[Anchors, layout_state.Resolution]:
     """Apply the deleted-face rule to the face anchors, then refresh every face anchor's location.
 
@@ -194,12 +196,12 @@ def resolve(
     state = as_state(anchors)
     mask = layout_state.face_points_to_resolve(state, target.mesh.triangle_count, stored_signature, target.signature)
     check_anchor_locations(anchors, mask)
-    resolution = operations.resolve_points(state, mask, anchors.locations[mask], target)
+    resolution = resolve_points(state, mask, anchors.locations[mask], target)
     resolved = with_state(anchors, resolution.state)
     return refresh_locations(resolved, target), resolution
 
 
-def refresh_locations(anchors: Anchors, target: operations.Target) -> Anchors:
+def refresh_locations(anchors: Anchors, target: Target) -> Anchors:
     """The anchors with each face anchor's location recomputed on the target (triangle + barycentric).
 
     The triangles must exist on the target (:func:`resolve` sees to it).
@@ -297,7 +299,7 @@ def spaced_indices(
 def add(
     vertex_count: int,
     existing: Anchors,
-    target: operations.Target,
+    target: Target,
     stored_signature: str,
     vertex_index: int,
     location,
@@ -312,7 +314,7 @@ def add(
     location = check_location(location)
     anchors, resolution = resolve(existing, target, stored_signature)
     if on_surface:
-        hits = target.mesh.closest_points(layout_state.as_float32_points(location))
+        hits = target.mesh.closest_points(transforms.as_float32_points(location))
         triangle = int(hits.triangles[0])
         if triangle < 0:
             raise LayoutError(f"No point of target '{target.name}' found near {tuple(location.tolist())}")
@@ -338,7 +340,7 @@ def auto(
     layout: LayoutArrays,
     world_normals: Optional[np.ndarray],
     existing: Anchors,
-    target: operations.Target,
+    target: Target,
     stored_signature: str,
     spacing: float,
     method: str,
@@ -360,14 +362,14 @@ def auto(
     if not (np.isfinite(max_distance) and max_distance >= 0.0):
         raise LayoutError(f"The maximum distance must not be negative, not {max_distance!r}")
     vertex_count = layout.positions.shape[0]
-    world = operations.world_positions(layout)
+    world = transforms.world_positions(layout)
     if replace:
         kept, resolution = no_anchors(), layout_state.Resolution(as_state(no_anchors()), 0, 0)
     else:
         kept, resolution = resolve(existing, target, stored_signature)
     spacing = float(spacing) if spacing > 0.0 else default_spacing(world)
     candidates = ~anchored_mask(kept, vertex_count)
-    operations.check_finite(layout, candidates)
+    layout_state.check_finite(layout, candidates)
     seeds = world[kept.vertex_indices[valid_vertex_mask(kept, vertex_count)]]
     chosen = spaced_indices(world, spacing, candidates, seeds)
     if chosen.size > MAX_AUTO_ANCHORS:
@@ -378,18 +380,18 @@ def auto(
     skipped_count = 0
     limit = {"max_distance": float(max_distance)} if max_distance > 0.0 else {}
     if method == "CLOSEST" or not chosen.size:
-        hits = target.mesh.closest_points(layout_state.as_float32_points(world[chosen]), **limit)
+        hits = target.mesh.closest_points(transforms.as_float32_points(world[chosen]), **limit)
         queried = chosen
     else:
         if world_normals is None:
             raise ValueError("PROJECT needs the layout's world normals")
-        directions = layout_state.normalize_or_zero(np.asarray(world_normals)[chosen])
+        directions = transforms.normalize_or_zero(np.asarray(world_normals)[chosen])
         has_direction = np.any(directions != 0.0, axis=1)
         skipped_count = int(np.count_nonzero(~has_direction))
         queried = chosen[has_direction]
         hits = target.mesh.ray_cast(
-            layout_state.as_float32_points(world[queried]),
-            layout_state.as_float32_points(directions[has_direction]),
+            transforms.as_float32_points(world[queried]),
+            transforms.as_float32_points(directions[has_direction]),
             both_directions=True,
             **limit,
         )
@@ -417,7 +419,7 @@ def auto(
     )
 
 
-def update(existing: Anchors, target: operations.Target, stored_signature: str) -> AnchorOutcome:
+def update(existing: Anchors, target: Target, stored_signature: str) -> AnchorOutcome:
     """The anchors resolved on the current target and their locations refreshed; nothing added."""
     anchors, resolution = resolve(existing, target, stored_signature)
     return AnchorOutcome(anchors, -1, 0, 0, 0, 0, 0.0, resolution.detached_count, resolution.reattached_count)
@@ -449,4 +451,4 @@ def segments(anchors: Anchors, world_vertex_positions: np.ndarray) -> tuple[np.n
     starts = np.asarray(world_vertex_positions, dtype=np.float64).reshape(-1, 3)
     ends = anchors.locations
     drawable = np.all(np.isfinite(starts), axis=1) & np.all(np.isfinite(ends), axis=1)
-    return layout_state.as_float32_points(starts[drawable]), layout_state.as_float32_points(ends[drawable])
+    return transforms.as_float32_points(starts[drawable]), transforms.as_float32_points(ends[drawable])

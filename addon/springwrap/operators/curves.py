@@ -9,7 +9,13 @@ problem is reported as an error and the constraints are left exactly as they wer
 import bpy
 import numpy as np
 
-from .operators import LayoutCollectionOperator
+from ..blender import anchors as anchor_data
+from ..blender import curves as curve_data
+from ..blender import layout as layout_data
+from ..blender import target as target_data
+from ..core import anchors, curves, edge_paths
+from ..core.errors import LayoutError
+from .base import LayoutCollectionOperator
 
 
 class _CurveOperator(LayoutCollectionOperator):
@@ -18,15 +24,13 @@ class _CurveOperator(LayoutCollectionOperator):
     collection = "curve_constraints"
     empty_message = "The layout has no curve constraints"
 
-    def run(self, context, bridge, layout):
-        from . import curves
-
-        constraints, active_index = self.compute(context, curves, bridge, layout)
-        bridge.write_curve_constraints(layout, constraints, active_index)
+    def run(self, context, layout):
+        constraints, active_index = self.compute(context, layout)
+        curve_data.write_curve_constraints(layout, constraints, active_index)
         return [({"INFO"}, self.summary(constraints))]
 
-    def compute(self, context, curves, bridge, layout):
-        """``(complete new list of curves.CurveConstraint, active index)``; raises one of ``bridge.ERRORS``."""
+    def compute(self, context, layout):
+        """``(complete new list of curves.CurveConstraint, active index)``; raises one of ``ERRORS``."""
         raise NotImplementedError
 
     def summary(self, constraints):
@@ -51,22 +55,20 @@ class SPRINGWRAP_OT_curve_constraint_add(_CurveOperator, bpy.types.Operator):
         default="",
     )
 
-    def compute(self, context, curves, bridge, layout):
+    def compute(self, context, layout):
         depsgraph = context.evaluated_depsgraph_get()
-        chain = curves.chain_from_edges(bridge.read_selected_edges(layout))
-        existing = bridge.read_curve_constraints(layout)
-        anchor_list = bridge.read_anchors(layout)
+        chain = edge_paths.chain_from_edges(layout_data.read_selected_edges(layout))
+        existing = curve_data.read_curve_constraints(layout)
+        anchor_list = anchor_data.read_anchors(layout)
         vertex_count = len(layout.data.vertices)
-        from . import anchors
-
         anchored = anchors.anchored_mask(anchor_list, vertex_count)
         curves.check_free(chain, existing, anchored)
-        chain_positions = bridge.read_world_vertex_positions(layout, chain)
+        chain_positions = layout_data.read_world_vertex_positions(layout, chain)
         if self.curve_object:
             curve_object = bpy.data.objects.get(self.curve_object)
             if curve_object is None or curve_object.type != "CURVE":
-                raise curves.LayoutError(f"There is no curve object called '{self.curve_object}'")
-            points = curves.orient_to_chain(bridge.read_curve_polyline(depsgraph, curve_object), chain_positions)
+                raise LayoutError(f"There is no curve object called '{self.curve_object}'")
+            points = curves.orient_to_chain(curve_data.read_curve_polyline(depsgraph, curve_object), chain_positions)
             new = curves.make_constraint(chain, points, curves.CURVE_OBJECT, (), curve_object)
         else:
             location_of = {
@@ -75,7 +77,7 @@ class SPRINGWRAP_OT_curve_constraint_add(_CurveOperator, bpy.types.Operator):
             }
             start = location_of.get(int(chain[0]), chain_positions[0])
             end = location_of.get(int(chain[-1]), chain_positions[-1])
-            target_positions, target_edges = bridge.read_target_edges(depsgraph, layout)
+            target_positions, target_edges = target_data.read_target_edges(depsgraph, layout)
             new = curves.target_edge_constraint(chain, chain_positions, start, end, target_positions, target_edges)
         self._new = new
         return existing + [new], len(existing)
@@ -99,25 +101,23 @@ class SPRINGWRAP_OT_curve_constraints_auto(_CurveOperator, bpy.types.Operator):
     bl_label = "Auto Curve Constraints"
     bl_options = {"REGISTER", "UNDO"}
 
-    def compute(self, context, curves, bridge, layout):
-        existing = bridge.read_curve_constraints(layout)
-        anchor_list = bridge.read_anchors(layout)
-        target_positions, target_edges = bridge.read_target_edges(context.evaluated_depsgraph_get(), layout)
+    def compute(self, context, layout):
+        existing = curve_data.read_curve_constraints(layout)
+        anchor_list = anchor_data.read_anchors(layout)
+        target_positions, target_edges = target_data.read_target_edges(context.evaluated_depsgraph_get(), layout)
         outcome = curves.auto_pairs(
-            bridge.read_layout_curves(layout),
+            layout_data.read_layout_curves(layout),
             anchor_list.vertex_indices,
             anchor_list.locations,
             existing,
             target_positions,
             target_edges,
-            bridge.read_world_vertex_positions(layout, np.arange(len(layout.data.vertices))),
+            layout_data.read_world_vertex_positions(layout, np.arange(len(layout.data.vertices))),
         )
         self._outcome = outcome
         return existing + outcome.constraints, -1
 
     def summary(self, constraints):
-        from . import curves
-
         text = f"Paired {len(self._outcome.constraints)} layout curves with target edge chains"
         skipped = curves.skip_report(self._outcome.skipped)
         return f"{text}; {skipped}" if skipped else text
@@ -141,11 +141,11 @@ class SPRINGWRAP_OT_curve_constraint_remove(_CurveOperator, bpy.types.Operator):
         soft_min=-1,
     )
 
-    def compute(self, context, curves, bridge, layout):
-        existing = bridge.read_curve_constraints(layout)
+    def compute(self, context, layout):
+        existing = curve_data.read_curve_constraints(layout)
         index = layout.springwrap.active_curve_constraint_index if self.index == -1 else self.index
         if not 0 <= index < len(existing):
-            raise curves.LayoutError(f"There is no curve constraint {index}: the layout has {len(existing)}")
+            raise LayoutError(f"There is no curve constraint {index}: the layout has {len(existing)}")
         remaining = existing[:index] + existing[index + 1 :]
         return remaining, max(min(index, len(remaining) - 1), 0)
 
@@ -164,7 +164,7 @@ class SPRINGWRAP_OT_curve_constraints_clear(_CurveOperator, bpy.types.Operator):
     requires_items = True
     reads_layout_mesh = False
 
-    def compute(self, context, curves, bridge, layout):
+    def compute(self, context, layout):
         self._count = len(layout.springwrap.curve_constraints)
         return [], 0
 

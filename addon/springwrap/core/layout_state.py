@@ -3,7 +3,7 @@
 A layout vertex is either a *space-point* (free in 3D) or a *face-point* (on a target triangle,
 given by the triangle index in the evaluated target's loop-triangle order and the barycentric
 weights of its three corners). The state lives in three POINT-domain mesh attributes, named
-below; ``bridge`` moves them between the mesh and the :class:`LayoutState` arrays used here.
+below; ``blender.attributes`` moves them between the mesh and the :class:`LayoutState` arrays used here.
 
 Every function returns new arrays and leaves its inputs untouched.
 """
@@ -12,6 +12,9 @@ import hashlib
 from typing import NamedTuple
 
 import numpy as np
+
+from . import transforms
+from .errors import LayoutError
 
 STATE_ATTRIBUTE = "springwrap_state"
 """INT attribute: :data:`SPACE_POINT` or :data:`FACE_POINT`."""
@@ -32,10 +35,6 @@ NO_FACE = -1
 REATTACH_TOLERANCE = 1e-5
 """A face-point whose face is gone re-attaches when the surface is this close, relative to the
 target's bounding-box diagonal; farther away it becomes a space-point (paper section 2.1)."""
-
-
-class LayoutError(ValueError):
-    """Input the add-on cannot work with (no target, empty mesh, zero scale...); the message is for the user."""
 
 
 class LayoutState(NamedTuple):
@@ -233,65 +232,18 @@ def merge_positions(
     return result
 
 
-def transform_points(matrix, points: np.ndarray) -> np.ndarray:
-    """Apply a 4x4 affine matrix to (N, 3) points; computed in float64, returned as float64."""
-    matrix = np.asarray(matrix, dtype=np.float64).reshape(4, 4)
-    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    return points @ matrix[:3, :3].T + matrix[:3, 3]
+def operation_mask(layout: LayoutArrays, only_selected: bool) -> np.ndarray:
+    """The vertices an operation acts on: the selected ones, or all."""
+    if only_selected:
+        return np.asarray(layout.selection, dtype=bool).copy()
+    return np.ones(layout.positions.shape[0], dtype=bool)
 
 
-def transform_directions(matrix, directions: np.ndarray) -> np.ndarray:
-    """Apply the linear part of a 4x4 matrix to (N, 3) directions (no translation, not normalized)."""
-    matrix = np.asarray(matrix, dtype=np.float64).reshape(4, 4)
-    return np.asarray(directions, dtype=np.float64).reshape(-1, 3) @ matrix[:3, :3].T
-
-
-def transform_normals(matrix, normals: np.ndarray) -> np.ndarray:
-    """Transform (N, 3) normals by the normal matrix (inverse transpose of the linear part), unit length.
-
-    Zero normals stay zero. Raises ``numpy.linalg.LinAlgError`` for a singular matrix.
-    """
-    matrix = np.asarray(matrix, dtype=np.float64).reshape(4, 4)
-    normal_matrix = np.linalg.inv(matrix[:3, :3]).T
-    transformed = np.asarray(normals, dtype=np.float64).reshape(-1, 3) @ normal_matrix.T
-    return normalize_or_zero(transformed)
-
-
-def normalize_or_zero(vectors: np.ndarray) -> np.ndarray:
-    """Unit-length rows; rows of zero (or non-finite) length become zero."""
-    vectors = np.asarray(vectors, dtype=np.float64).reshape(-1, 3)
-    lengths = np.linalg.norm(vectors, axis=1)
-    valid = np.isfinite(lengths) & (lengths > 0.0)
-    result = np.zeros_like(vectors)
-    result[valid] = vectors[valid] / lengths[valid, None]
-    return result
-
-
-def is_invertible(matrix) -> bool:
-    """Whether a 4x4 affine matrix can be inverted (finite, no zero scale)."""
-    matrix = np.asarray(matrix, dtype=np.float64).reshape(4, 4)
-    if not np.all(np.isfinite(matrix)):
-        return False
-    linear = matrix[:3, :3]
-    scale = max(float(np.abs(linear).max()), 1e-300)
-    return abs(float(np.linalg.det(linear / scale))) > 1e-12
-
-
-def inverse_matrix(matrix) -> np.ndarray:
-    """Inverse of a 4x4 affine matrix (float64). Raises ``numpy.linalg.LinAlgError`` when singular."""
-    return np.linalg.inv(np.asarray(matrix, dtype=np.float64).reshape(4, 4))
-
-
-def axis_direction(axis: str) -> np.ndarray:
-    """The unit vector of an axis name ``'X'``, ``'-Y'``, ...; raises ``ValueError`` for another name."""
-    axes = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
-    sign = -1.0 if axis.startswith("-") else 1.0
-    name = axis.lstrip("-")
-    if name not in axes or axis.count("-") > 1:
-        raise ValueError(f"unknown axis {axis!r}")
-    return sign * np.array(axes[name], dtype=np.float64)
-
-
-def as_float32_points(points: np.ndarray) -> np.ndarray:
-    """(N, 3) float32 C-contiguous: the kernel's array contract."""
-    return np.ascontiguousarray(np.asarray(points).reshape(-1, 3), dtype=np.float32)
+def check_finite(layout: LayoutArrays, mask: np.ndarray) -> None:
+    """Raise :class:`~.errors.LayoutError` naming the first masked vertex that is not finite in world space."""
+    world = transforms.world_positions(layout)
+    bad = np.flatnonzero(mask & ~np.all(np.isfinite(world), axis=1))
+    if bad.size:
+        raise LayoutError(
+            f"Layout vertex {int(bad[0])} has a NaN or infinite coordinate ({bad.size} such vertices)"
+        )

@@ -7,7 +7,7 @@ or that plane of a mirror object (an empty), as in Blender's Mirror modifier. Th
    and whether the plane meets the layout at all (``mirroring.plan``): a plane that misses it is
    an error and nothing is changed;
 2. adds the reflected copy of the layout's faces and loose edges, winding reversed, every mesh
-   attribute carried over, the seam welded (``bridge.mirror_mesh_topology``); writes the reflected
+   attribute carried over, the seam welded (``mirror_data.mirror_mesh_topology``); writes the reflected
    positions, the rest shape reflected the same way, and the state: the surfaced half keeps its
    face-points, the copy is made of space-points (``mirroring.mirrored_layout``);
 3. unless ``wrap`` is off, wraps the copy onto the target with the surfaced half pinned (anchors at
@@ -25,9 +25,20 @@ import time
 import bpy
 import numpy as np
 
-from .mirroring import AXES, DEFAULT_WELD_FRACTION
-from .operators import checked_bridge, poll_layout
-from .properties import WRAP_DEFAULTS, WRAP_SOLVER_ITEMS, max_iterations_property, tolerance_property
+from ..blender import anchors as anchor_data
+from ..blender import attributes
+from ..blender import layout as layout_data
+from ..blender import mirror as mirror_data
+from ..blender import target as target_data
+from ..blender.edit_mode import object_mode
+from ..blender.wrap_session import WrapSession
+from ..core import anchors, layout_state, mirroring, transforms, wrap_inputs
+from ..core.errors import ERRORS, LayoutError
+from ..core.mirroring import AXES, DEFAULT_WELD_FRACTION
+from ..core.transforms import matrix_array
+from ..core.wrap_inputs import WrapParameters
+from ..properties import WRAP_DEFAULTS, WRAP_SOLVER_ITEMS, max_iterations_property, tolerance_property
+from .base import open_layout, poll_layout
 
 LANDING_REACH = 0.25
 """Before the wrap, a copy within this fraction of its mean edge length of the target lands there at once."""
@@ -118,19 +129,18 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
         return poll_layout(cls, context, require_target=False)
 
     def execute(self, context):
-        bridge = checked_bridge(self, context, require_target=self.wrap)
-        if bridge is None:
+        layout = open_layout(self, context, require_target=self.wrap, moves_vertices=True)
+        if layout is None:
             return {"CANCELLED"}
-        layout = context.active_object
         type(self).last_outcome = None
-        with bridge.object_mode(layout):
+        with object_mode(layout):
             try:
                 prepared = self._prepare(context, layout)
-            except bridge.ERRORS as error:
+            except ERRORS as error:
                 self.report({"ERROR"}, str(error))
                 return {"CANCELLED"}
-            backup = bridge.backup_mesh(layout)
-            anchors_before = (bridge.read_anchors(layout), layout.springwrap.anchors_signature,
+            backup = mirror_data.backup_mesh(layout)
+            anchors_before = (anchor_data.read_anchors(layout), layout.springwrap.anchors_signature,
                               layout.springwrap.active_anchor_index)
             window_manager = context.window_manager
             progress = not bpy.app.background
@@ -139,8 +149,8 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
                     window_manager.progress_begin(0, self.max_iterations)
                 outcome = self._run(context, layout, prepared, window_manager if progress else None)
             except Exception as error:  # noqa: BLE001 - any failure puts the mesh back, then reports
-                bridge.restore_mesh(layout, backup)
-                bridge.write_anchors(layout, anchors_before[0], anchors_before[2], anchors_before[1])
+                mirror_data.restore_mesh(layout, backup)
+                anchor_data.write_anchors(layout, anchors_before[0], anchors_before[2], anchors_before[1])
                 self.report({"ERROR"}, f"Mirroring failed and was undone: {error}")
                 return {"CANCELLED"}
             finally:
@@ -152,45 +162,37 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
         return {"FINISHED"}
 
     def _plane(self, context, layout):
-        from . import bridge, mirroring
-
         if not self.mirror_object:
-            return mirroring.plane_from_matrix(bridge.matrix_array(layout.matrix_world), self.axis), layout.name
+            return mirroring.plane_from_matrix(matrix_array(layout.matrix_world), self.axis), layout.name
         mirror = context.scene.objects.get(self.mirror_object) or bpy.data.objects.get(self.mirror_object)
         if mirror is None:
-            raise mirroring.LayoutError(f"There is no object named '{self.mirror_object}' to mirror across")
+            raise LayoutError(f"There is no object named '{self.mirror_object}' to mirror across")
         if mirror == layout:
-            return mirroring.plane_from_matrix(bridge.matrix_array(layout.matrix_world), self.axis), layout.name
-        return mirroring.plane_from_matrix(bridge.matrix_array(mirror.matrix_world), self.axis), mirror.name
+            return mirroring.plane_from_matrix(matrix_array(layout.matrix_world), self.axis), layout.name
+        return mirroring.plane_from_matrix(matrix_array(mirror.matrix_world), self.axis), mirror.name
 
     def _prepare(self, context, layout):
         """Read and check everything; decide the mirror. Writes nothing."""
-        from . import bridge, layout_state, mirroring, operations
-
-        if bridge.has_shape_keys(layout):
-            raise layout_state.LayoutError(f"Layout '{layout.name}' has shape keys; Springwrap cannot move its vertices")
         if self.wrap:
-            bridge.check_target(layout)
-            operations.check_wrap_parameters(self.parameters())
-        arrays = bridge.read_layout(layout)
-        if not layout_state.is_invertible(arrays.matrix_world):
-            raise layout_state.LayoutError(f"Layout '{layout.name}' has zero scale: it cannot be mirrored")
+            target_data.check_target(layout)
+            wrap_inputs.check_wrap_parameters(self.parameters())
+        arrays = layout_data.read_layout(layout)
+        if not transforms.is_invertible(arrays.matrix_world):
+            raise LayoutError(f"Layout '{layout.name}' has zero scale: it cannot be mirrored")
         plane, plane_owner = self._plane(context, layout)
-        topology = bridge.read_layout_topology(layout)
-        world = operations.world_positions(arrays)
+        topology = layout_data.read_layout_topology(layout)
+        world = transforms.world_positions(arrays)
         decided = mirroring.plan(
             world, topology.face_corners, topology.face_sizes, topology.edges, plane, self.weld_distance,
             layout_name=f"layout '{layout.name}'",
         )
-        rest = bridge.read_rest(layout)
-        world_rest = world if rest is None else operations.rest_world_positions(arrays, rest)
+        rest = attributes.read_rest(layout)
+        world_rest = world if rest is None else wrap_inputs.rest_world_positions(arrays, rest)
         return {"arrays": arrays, "plane": plane, "plane_owner": plane_owner, "plan": decided, "world": world,
                 "world_rest": world_rest}
 
     def parameters(self):
-        """The wrap's ``operations.WrapParameters`` (the wrap operator's defaults, this operator's limits)."""
-        from .operations import WrapParameters
-
+        """The wrap's ``wrap_inputs.WrapParameters`` (the wrap operator's defaults, this operator's limits)."""
         return WrapParameters(
             max_iterations=self.max_iterations,
             settings=WRAP_DEFAULTS.replace(tolerance=self.tolerance, solver=self.solver),
@@ -198,12 +200,10 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
 
     def _run(self, context, layout, prepared, window_manager):
         """Mirror the mesh, then wrap; raises on failure (the caller restores the mesh)."""
-        from . import anchors, bridge, layout_state, mirroring, operations
-
         start = time.perf_counter()
         arrays, plane, decided = prepared["arrays"], prepared["plane"], prepared["plan"]
         original_count = arrays.positions.shape[0]
-        source = bridge.mirror_mesh_topology(layout, decided.duplicate_faces, decided.duplicate_edges, decided.seam)
+        source = mirror_data.mirror_mesh_topology(layout, decided.duplicate_faces, decided.duplicate_edges, decided.seam)
         size = float(np.linalg.norm(np.ptp(prepared["world"], axis=0))) or 1.0
         mirrored = mirroring.mirrored_layout(
             prepared["world"], arrays.state, prepared["world_rest"], source, decided.seam, plane,
@@ -211,28 +211,26 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
         )
         target = None
         if layout.springwrap.target is not None:
-            target = bridge.read_target(context.evaluated_depsgraph_get(), layout)
+            target = target_data.read_target(context.evaluated_depsgraph_get(), layout)
         landed_copies = 0
         if self.wrap:
-            edge_lengths = mirroring.vertex_edge_lengths(mirrored.positions, bridge.read_layout_topology(layout).edges)
+            edge_lengths = mirroring.vertex_edge_lengths(mirrored.positions, layout_data.read_layout_topology(layout).edges)
             before = int((mirrored.state.states == layout_state.FACE_POINT).sum())
             mirrored = mirroring.land_copies(mirrored, edge_lengths, target, LANDING_REACH)
             landed_copies = int((mirrored.state.states == layout_state.FACE_POINT).sum()) - before
-        to_local = lambda points: operations.to_local(arrays.matrix_world, points)  # noqa: E731
-        bridge.write_rest(layout, to_local(mirrored.rest))
-        bridge.write_layout(layout, to_local(mirrored.positions), mirrored.state)
-        anchor_list = bridge.read_anchors(layout)
+        to_local = lambda points: transforms.to_local(arrays.matrix_world, points)  # noqa: E731
+        attributes.write_rest(layout, to_local(mirrored.rest))
+        layout_data.write_layout(layout, to_local(mirrored.positions), mirrored.state)
+        anchor_list = anchor_data.read_anchors(layout)
         if target is not None:
             anchor_list, _ = anchors.resolve(anchor_list, target, layout.springwrap.anchors_signature)
         mirrored_anchors = mirroring.mirrored_anchors(
             anchor_list, source, mirrored.is_copy, decided.seam, plane, target, mirror=self.mirror_anchors
         )
-        bridge.write_anchors(layout, mirrored_anchors.anchors, -1, None if target is None else target.signature)
+        anchor_data.write_anchors(layout, mirrored_anchors.anchors, -1, None if target is None else target.signature)
         mirror_seconds = time.perf_counter() - start
         result = None
         if self.wrap:
-            from .wrap_operator import WrapSession
-
             pinned = ~mirrored.is_copy & ~mirrored.seam
             if self.surfaced_half == "FREE":
                 pinned = np.zeros_like(pinned)
@@ -249,8 +247,8 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
                 session.run()
             result = session.finish()
         if decided.crossing_faces.size:
-            bridge.select_faces(layout, decided.crossing_faces)
-        world_now = operations.world_positions(bridge.read_layout(layout))
+            mirror_data.select_faces(layout, decided.crossing_faces)
+        world_now = transforms.world_positions(layout_data.read_layout(layout))
         seam_distances = np.abs(mirroring.signed_distances(world_now[mirrored.seam], plane))
         return MirrorOutcome(
             layout_name=layout.name,
@@ -273,7 +271,7 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
             dropped_anchors=mirrored_anchors.dropped_count,
             wrap=result,
             seconds=time.perf_counter() - start,
-            face_points=layout_state.point_counts(bridge.read_state(layout.data).states)[0],
+            face_points=layout_state.point_counts(attributes.read_state(layout.data).states)[0],
         )
 
     def _report(self, outcome) -> None:

@@ -1,6 +1,10 @@
-"""The Springwrap sidebar panel of the 3D view, and its Align, Anchors, Curve Constraints and Wrap sub-panels."""
+"""The Springwrap sidebar panel of the 3D view, and its Align, Armature, Anchors, Curve Constraints, Wrap and
+Features sub-panels (their lists are in ``lists``)."""
 
 import bpy
+
+from ..blender import anchors as anchor_data
+from ..blender import layout as layout_data
 
 
 class _SidebarPanel:
@@ -69,43 +73,12 @@ class SPRINGWRAP_PT_layout(_SidebarPanel, bpy.types.Panel):
 
 def _draw_point_counts(layout, obj):
     """Face-point / space-point counts, read from the state attribute (not available in edit mode)."""
-    import numpy as np
-
-    from . import layout_state
-
-    mesh = obj.data
-    attribute = mesh.attributes.get(layout_state.STATE_ATTRIBUTE)
-    vertex_count = len(mesh.vertices)
-    if attribute is None:
-        counts = None if obj.mode == "EDIT" else (0, vertex_count)
-    elif attribute.domain != "POINT" or attribute.data_type != "INT" or len(attribute.data) != vertex_count:
-        counts = None
-    else:
-        states = np.empty(vertex_count, dtype=np.int32)
-        attribute.data.foreach_get("value", states)
-        counts = layout_state.point_counts(states)
+    counts = layout_data.read_point_counts(obj)
     if counts is None:
         layout.label(text="Point counts shown in Object Mode", icon="INFO")
     else:
         face_count, space_count = counts
         layout.label(text=f"{face_count} face-points, {space_count} space-points", icon="INFO")
-
-
-class SPRINGWRAP_UL_anchors(bpy.types.UIList):
-    """The layout's anchors: vertex index, target kind and target location"""
-
-    bl_idname = "SPRINGWRAP_UL_anchors"
-
-    def draw_item(self, context, layout, data, item, icon, active_data, active_property, index=0, flt_flag=0):
-        vertex_count = len(data.id_data.data.vertices) if data.id_data.type == "MESH" else 0
-        missing = not 0 <= item.vertex_index < vertex_count
-        row = layout.row(align=True)
-        row.alert = missing
-        vertex_text = f"Vertex {item.vertex_index}" + (" (missing)" if missing else "")
-        row.label(text=vertex_text, icon="ERROR" if missing else "VERTEXSEL")
-        x, y, z = item.location
-        kind_icon = "SNAP_FACE" if item.target_kind == "FACE" else "EMPTY_AXIS"
-        row.label(text=f"{item.target_kind.title()} ({x:.3g}, {y:.3g}, {z:.3g})", icon=kind_icon)
 
 
 class SPRINGWRAP_PT_anchors(_LayoutSubPanel, bpy.types.Panel):
@@ -120,7 +93,7 @@ class SPRINGWRAP_PT_anchors(_LayoutSubPanel, bpy.types.Panel):
     def draw(self, context):
         layout = self.layout
         settings = context.active_object.springwrap
-        layout.label(text=_anchor_counts_text(settings.anchors), icon="PINNED")
+        layout.label(text=_anchor_counts_text(context.active_object), icon="PINNED")
 
         row = layout.row()
         row.template_list(
@@ -144,24 +117,6 @@ class SPRINGWRAP_PT_anchors(_LayoutSubPanel, bpy.types.Panel):
         auto.spacing = settings.anchor_spacing
         auto.method = settings.anchor_method
         auto.max_distance = settings.max_distance
-
-
-class SPRINGWRAP_UL_curve_constraints(bpy.types.UIList):
-    """The layout's curve constraints: the chain's end vertices and the target curve's source"""
-
-    bl_idname = "SPRINGWRAP_UL_curve_constraints"
-
-    def draw_item(self, context, layout, data, item, icon, active_data, active_property, index=0, flt_flag=0):
-        vertices = item.layout_vertices.split()
-        chain = f"{vertices[0]}..{vertices[-1]} ({len(vertices)})" if vertices else "(empty)"
-        row = layout.row(align=True)
-        row.label(text=chain, icon="EDGESEL")
-        if item.source_kind == "CURVE_OBJECT":
-            name = item.curve_object.name if item.curve_object is not None else "(missing curve)"
-            row.alert = item.curve_object is None
-            row.label(text=name, icon="CURVE_DATA")
-        else:
-            row.label(text=f"{len(item.points)} target vertices", icon="MESH_DATA")
 
 
 class SPRINGWRAP_PT_curve_constraints(_LayoutSubPanel, bpy.types.Panel):
@@ -275,27 +230,16 @@ class SPRINGWRAP_PT_features(_LayoutSubPanel, bpy.types.Panel):
         self.layout.operator("springwrap.detect_features", icon="CURVE_BEZCURVE")
 
 
-def _anchor_counts_text(anchors):
+def _anchor_counts_text(obj):
     """"K anchors (F on the surface)", the kinds read at once (the list may be long)."""
-    import numpy as np
-
-    from . import compat
-    from .anchors import FACE_ANCHOR
-
-    kinds = np.empty(len(anchors), dtype=np.int32)
-    if len(anchors):
-        compat.foreach_get(anchors, "target_kind", kinds)
-    face_count = int(np.count_nonzero(kinds == FACE_ANCHOR))
-    return f"{len(anchors)} anchors ({face_count} on the surface)"
+    return f"{len(obj.springwrap.anchors)} anchors ({anchor_data.face_anchor_count(obj)} on the surface)"
 
 
 classes = (
     SPRINGWRAP_PT_layout,
     SPRINGWRAP_PT_align,
     SPRINGWRAP_PT_armature,
-    SPRINGWRAP_UL_anchors,
     SPRINGWRAP_PT_anchors,
-    SPRINGWRAP_UL_curve_constraints,
     SPRINGWRAP_PT_curve_constraints,
     SPRINGWRAP_PT_wrap,
     SPRINGWRAP_PT_features,

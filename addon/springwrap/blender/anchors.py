@@ -1,0 +1,61 @@
+"""The layout's anchors (``Object.springwrap.anchors``) as ``core.anchors.Anchors`` arrays, and back."""
+
+from typing import Optional
+
+import bpy
+import numpy as np
+
+from ..core import anchors
+from . import compat
+
+_ANCHOR_FIELDS = (
+    # AnchorItem property, numpy dtype, components (the order of anchors.make_anchors' arguments)
+    ("vertex_index", np.int32, 1),
+    ("target_kind", np.int32, 1),  # enum: its item numbers are the anchor kinds
+    ("triangle", np.int32, 1),
+    ("barycentric", np.float32, 3),
+    ("location", np.float64, 3),
+)
+
+def read_anchors(layout: bpy.types.Object) -> anchors.Anchors:
+    """The layout's anchors (``Object.springwrap.anchors``) as arrays, in list order."""
+    items = layout.springwrap.anchors
+    count = len(items)
+    arrays = []
+    for name, dtype, components in _ANCHOR_FIELDS:
+        values = np.empty(count * components, dtype=dtype)
+        if count:
+            compat.foreach_get(items, name, values)
+        arrays.append(values)
+    return anchors.make_anchors(*arrays)
+
+def face_anchor_count(layout: bpy.types.Object) -> int:
+    """How many of the layout's anchors are on the target surface (the kinds read at once: the list may be long)."""
+    items = layout.springwrap.anchors
+    kinds = np.empty(len(items), dtype=np.int32)
+    if len(items):
+        compat.foreach_get(items, "target_kind", kinds)
+    return int(np.count_nonzero(kinds == anchors.FACE_ANCHOR))
+
+
+def write_anchors(
+    layout: bpy.types.Object, anchor_list: anchors.Anchors, active_index: int = -1, signature: Optional[str] = None
+) -> None:
+    """Replace the layout's anchor list; make ``active_index`` active (-1 keeps the current one, clamped).
+
+    ``signature`` (the target's topology signature the face anchors refer to) is stored when given.
+    """
+    settings = layout.springwrap
+    items = settings.anchors
+    count = anchors.anchor_count(anchor_list)
+    if len(items) != count:
+        items.clear()
+        for _ in range(count):
+            items.add()
+    if count:
+        for (name, dtype, _components), array in zip(_ANCHOR_FIELDS, anchor_list):
+            compat.foreach_set(items, name, np.ascontiguousarray(array, dtype=dtype).reshape(-1))
+    chosen = active_index if active_index >= 0 else settings.active_anchor_index
+    settings.active_anchor_index = max(anchors.clamp_active_index(chosen, count), 0)
+    if signature is not None:
+        settings.anchors_signature = signature

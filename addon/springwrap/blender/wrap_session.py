@@ -1,0 +1,299 @@
+"""A wrap in progress on one layout, without any UI (:class:`WrapSession`): read and check everything, build
+the kernel's ``WrapSolver``, step it, write frames, then finish (one write) or cancel (put back bit for
+bit). The wrap operator, the mirror and the headless scripts all run it.
+"""
+
+import time
+from typing import Callable, Optional
+
+import bpy
+import numpy as np
+import springwrap_kernel
+
+from ..core import anchors, layout_state, subdivision, transforms, wrap_inputs
+from ..core.errors import LayoutError
+from ..core.target import Target
+from ..core.wrap_run import IterationPacer, WrapResult
+from ..properties import WRAP_DEFAULTS
+from . import anchors as anchor_data
+from . import attributes
+from . import curves as curve_data
+from . import layout as layout_data
+from . import target as target_data
+
+FRAME_RATE = 30.0
+"""Redraws per second the modal wrap aims for."""
+SYNCHRONOUS_CHUNK = 100
+"""Iterations per kernel call when the wrap runs to the end at once."""
+
+
+def make_wrap_solver(target: Target, structure, inputs, parameters):
+    """A kernel ``WrapSolver`` for the prepared inputs (``core.wrap_inputs.WrapInputs``, world space)."""
+    curve_arguments = {}
+    if inputs.curve_vertices is not None:
+        curve_arguments = {
+            "curve_vertices": inputs.curve_vertices,
+            "curve_vertex_counts": inputs.curve_vertex_counts,
+            "curve_points": inputs.curve_points,
+            "curve_point_counts": inputs.curve_point_counts,
+        }
+    if getattr(inputs, "plane_vertices", None) is not None:
+        curve_arguments |= {
+            "plane_vertices": inputs.plane_vertices,
+            "plane_point": tuple(float(value) for value in inputs.plane_point),
+            "plane_normal": tuple(float(value) for value in inputs.plane_normal),
+            "plane_slide": bool(inputs.plane_slide),
+        }
+    return springwrap_kernel.WrapSolver(
+        target.mesh,
+        structure,
+        inputs.states,
+        inputs.triangles,
+        inputs.barycentrics,
+        inputs.positions,
+        anchor_vertices=inputs.anchor_vertices,
+        anchor_triangles=inputs.anchor_triangles,
+        anchor_barycentrics=inputs.anchor_barycentrics,
+        anchor_positions=inputs.anchor_positions,
+        unreliable_triangles=inputs.unreliable_triangles,
+        rest_positions=inputs.rest_positions,
+        settings=parameters.settings,
+        stiffness=getattr(inputs, "stiffness", None),
+        free_vertices=getattr(inputs, "free_vertices", None),
+        **curve_arguments,
+    )
+
+
+class WrapSession:
+    """A wrap in progress on one layout, without any UI: read, step, write frames, then finish or cancel.
+
+    The constructor reads and checks everything and builds the solver; it writes nothing (an error
+    is raised as one of ``core.errors.ERRORS`` and the scene is untouched). The layout must be in
+    object mode for the whole session (the operator sees to it). ``parameters`` is an
+    ``core.wrap_inputs.WrapParameters``. ``adjust_inputs`` (optional) takes the prepared
+    ``core.wrap_inputs.WrapInputs`` and returns them changed (the mirror's pins and plane).
+    """
+
+    def __init__(self, context, layout: bpy.types.Object, parameters, adjust_inputs=None):
+        self.start_time = time.perf_counter()
+        self.layout = layout
+        self.parameters = parameters
+        wrap_inputs.check_wrap_parameters(parameters)
+        layout_data.refuse_shape_keys(layout)
+        settings = layout.springwrap
+        arrays = layout_data.read_layout(layout)
+        if not transforms.is_invertible(arrays.matrix_world):
+            raise LayoutError(
+                f"Layout '{layout.name}' has zero scale: the wrap's world positions cannot be written back"
+            )
+        self.matrix_world = arrays.matrix_world
+        self.target = target_data.read_target(context.evaluated_depsgraph_get(), layout)
+        self.layout_topology = layout_data.read_layout_topology(layout)
+        structure = layout_data.make_layout_structure(self.layout_topology)
+        self.anchors, anchor_resolution = anchors.resolve(
+            anchor_data.read_anchors(layout), self.target, settings.anchors_signature
+        )
+        unreliable = None
+        if settings.unreliable_group:
+            weights = target_data.read_vertex_group_weights(context, settings.target, settings.unreliable_group)
+            if weights.shape[0] != self.target.mesh.vertex_count:
+                raise LayoutError(
+                    f"Vertex group '{settings.unreliable_group}' has {weights.shape[0]} weights for a target of "
+                    f"{self.target.mesh.vertex_count} vertices"
+                )
+            unreliable = wrap_inputs.unreliable_triangles(self.target.mesh.triangles(), weights)
+        curve_constraints = curve_data.resolve_curve_constraints(
+            context.evaluated_depsgraph_get(), layout, curve_data.read_curve_constraints(layout)
+        )
+        # The template's shape as made: stored at the first change of the layout, else as it is now.
+        rest = attributes.read_rest(layout)
+        self.rest = arrays.positions if rest is None else rest
+        inputs, resolution = wrap_inputs.prepare_wrap(
+            arrays, self.target, settings.target_signature, self.anchors, unreliable, curve_constraints, self.rest
+        )
+        inputs = self._vertex_groups(inputs, layout, parameters)
+        if adjust_inputs is not None:
+            inputs = adjust_inputs(inputs)
+        self.solver = make_wrap_solver(self.target, structure, inputs, parameters)
+        self.inputs = inputs
+        # Coarse to fine: with a spring resolution above 1 the layout is relaxed first, then a grid
+        # of its faces cut k x k (its own vertices first) takes over; the layout's vertices are read
+        # back from it.
+        self.stage = "coarse" if int(parameters.spring_resolution) > 1 else "fine"
+        self.coarse_iterations = 0
+        self.snapshot = attributes.take_snapshot(layout)
+        self.vertex_count = arrays.positions.shape[0]
+        self.unreliable_count = 0 if unreliable is None else int(unreliable.sum())
+        self.topology = (resolution.detached_count, resolution.reattached_count, anchor_resolution.detached_count)
+        self.pacer = IterationPacer(FRAME_RATE)
+        self.last_report = None
+        self.kernel_seconds = 0.0
+        self.frames = 0
+        self.events = {"landed": 0, "folded": 0, "lifted": 0}
+        self._frame_end: Optional[float] = None
+
+    @property
+    def stage_iterations(self) -> int:
+        """Iterations run so far by the current stage's solver."""
+        return 0 if self.last_report is None else self.last_report.total_iterations
+
+    def _vertex_groups(self, inputs, layout, parameters):
+        """``inputs`` with the Stiffness and Free groups (the operator's, else the layout's settings) read in."""
+        settings = layout.springwrap
+        stiffness_group = getattr(parameters, "stiffness_group", "") or settings.stiffness_group
+        free_group = getattr(parameters, "free_group", "") or settings.free_group
+        if not stiffness_group and not free_group:
+            return inputs
+        solver = WRAP_DEFAULTS.solver if parameters.settings is None else parameters.settings.solver
+        if solver != "ENERGY":
+            raise LayoutError(
+                "The Stiffness and Free groups need the Energy solver (the Springs solver has no per-vertex stiffness)"
+            )
+        if int(parameters.spring_resolution) > 1:
+            raise LayoutError("The Stiffness and Free groups need Spring Resolution 1")
+        if stiffness_group:
+            weights, member = layout_data.read_layout_group(layout, stiffness_group)
+            inputs = inputs._replace(stiffness=wrap_inputs.group_stiffness(weights, member))
+        if free_group:
+            weights, member = layout_data.read_layout_group(layout, free_group)
+            inputs = inputs._replace(free_vertices=np.ascontiguousarray(member & (weights > 0.0)))
+        return inputs
+
+    @property
+    def total_iterations(self) -> int:
+        """Iterations run so far, both stages."""
+        return self.coarse_iterations + self.stage_iterations
+
+    @property
+    def done(self) -> bool:
+        """The last stage converged, or reached the iteration limit (each stage has it)."""
+        if self.last_report is None or self.stage != "fine":
+            return False
+        return self.last_report.converged or self.stage_iterations >= self.parameters.max_iterations
+
+    def step(self, iterations: int):
+        """Run up to ``iterations`` kernel iterations (within the limit); the kernel's ``StepReport``.
+
+        When the coarse stage ends, the next call starts the fine one.
+        """
+        if self.stage == "coarse" and self.last_report is not None and (
+            self.last_report.converged or self.stage_iterations >= self.parameters.max_iterations
+        ):
+            self.refine()
+        iterations = min(int(iterations), self.parameters.max_iterations - self.stage_iterations)
+        start = time.perf_counter()
+        report = self.solver.step(max(iterations, 0))
+        self.kernel_seconds += time.perf_counter() - start
+        for name in self.events:
+            self.events[name] += getattr(report, name)
+        self.last_report = report
+        return report
+
+    def refine(self) -> None:
+        """End the coarse stage: a solver on the layout's faces cut k x k, started where the coarse one ended."""
+        start = time.perf_counter()
+        fine = subdivision.subdivide(self.layout_topology, int(self.parameters.spring_resolution))
+        inputs = wrap_inputs.refine_wrap_inputs(
+            self.inputs, fine, self.solver.positions(), self.solver.states(), self.target
+        )
+        structure = layout_data.make_layout_structure(fine.topology)
+        self.solver = make_wrap_solver(self.target, structure, inputs, self.parameters)
+        self.kernel_seconds += time.perf_counter() - start
+        self.coarse_iterations = self.stage_iterations
+        self.fine_vertex_count = fine.topology.vertex_count
+        self.last_report = None
+        self.stage = "fine"
+
+    def advance(self):
+        """One frame of the interactive wrap: as many iterations as the frame allows, then write them.
+
+        Writes positions and state into the layout mesh (no undo step). Returns the ``StepReport``.
+        """
+        begin = time.perf_counter()
+        overhead = 0.0 if self._frame_end is None else min(begin - self._frame_end, 1.0)
+        count = self.pacer.next_count(self.parameters.max_iterations - self.stage_iterations)
+        report = self.step(count)
+        stepped = time.perf_counter()
+        self.write_frame()
+        self._frame_end = time.perf_counter()
+        self.pacer.record(report.iterations, stepped - begin, self._frame_end - stepped + overhead)
+        self.frames += 1
+        return report
+
+    def run(self, progress: Optional[Callable] = None, chunk: int = SYNCHRONOUS_CHUNK):
+        """Step to the end at once (converged or the limit), writing nothing; ``progress(report)`` after each chunk."""
+        while not self.done:
+            report = self.step(chunk)
+            if progress is not None:
+                progress(report)
+        return self.last_report
+
+    def current_layout(self):
+        """(local positions float32 (N, 3), ``LayoutState``) of the solver now."""
+        count = self.vertex_count  # a fine grid numbers the layout's own vertices first
+        positions = transforms.to_local(self.matrix_world, self.solver.positions()[:count])
+        states, triangles, barycentrics = self.solver.states()
+        return positions, layout_state.normalized_state(
+            states[:count], triangles[:count], barycentrics[:count]
+        )
+
+    def write_frame(self) -> None:
+        """Write the solver's current positions and state into the layout (an intermediate frame)."""
+        positions, state = self.current_layout()
+        attributes.write_wrap_frame(self.layout, positions, state)
+
+    def finish(self) -> WrapResult:
+        """Write the result for good: positions, state, the target signature and the resolved anchors."""
+        if self.last_report is None:
+            self.step(0)
+        positions, state = self.current_layout()
+        layout_data.write_layout(self.layout, positions, state, rest=self.rest)
+        settings = self.layout.springwrap
+        settings.target_signature = self.target.signature
+        if len(settings.anchors):
+            anchor_data.write_anchors(self.layout, self.anchors, -1, self.target.signature)
+        report = self.last_report
+        face_points, space_points = layout_state.point_counts(state.states)
+        detached, reattached, anchors_detached = self.topology
+        return WrapResult(
+            layout_name=self.layout.name,
+            vertex_count=self.vertex_count,
+            iterations=self.total_iterations,
+            converged=bool(report.converged),
+            max_displacement=float(report.max_displacement),
+            seconds=time.perf_counter() - self.start_time,
+            kernel_seconds=self.kernel_seconds,
+            frames=self.frames,
+            face_points=face_points,
+            space_points=space_points,
+            landed=self.events["landed"],
+            folded=self.events["folded"],
+            lifted=self.events["lifted"],
+            solver=self.solver.settings.solver,
+            fold_tolerance=float(report.fold_tolerance),
+            held_back=int(report.held_back),
+            energy_decrease=float(report.energy_decrease),
+            anchor_count=int(self.anchors.vertex_indices.shape[0]),
+            unreliable_triangles=self.unreliable_count,
+            topology_detached_count=detached,
+            topology_reattached_count=reattached,
+            anchors_detached_count=anchors_detached,
+        )
+
+    def cancel(self) -> None:
+        """Put the layout's positions and state attributes back exactly as they were at the start."""
+        attributes.restore_snapshot(self.layout, self.snapshot)
+
+    def status_text(self) -> str:
+        """The progress line shown in the status bar."""
+        report = self.last_report
+        if report is None:
+            return f"Springwrap: wrapping '{self.layout.name}'...  Esc / right-click: cancel"
+        stage = ""
+        if int(self.parameters.spring_resolution) > 1:
+            stage = "coarse, " if self.stage == "coarse" else f"fine {self.parameters.spring_resolution}x, "
+        return (
+            f"Springwrap: {stage}iteration {report.total_iterations} / {self.parameters.max_iterations}, "
+            f"{report.face_points} face-points, {report.space_points} space-points, "
+            f"last move {report.max_displacement:.2e}  —  Esc / right-click: cancel"
+        )

@@ -1,0 +1,278 @@
+"""The wrap's inputs on arrays (paper, section 2.5): parameters, checks, anchors, unreliable triangles,
+the rest shape and the fine stage of a spring resolution above 1. Numpy and the kernel, no ``bpy``.
+"""
+
+from typing import Any, NamedTuple, Optional
+
+import numpy as np
+
+from . import curves, layout_state, transforms
+from .errors import LayoutError
+from .layout_state import LayoutArrays, check_finite
+from .subdivision import MAX_RESOLUTION
+from .target import Target, resolve_topology
+from .transforms import world_positions
+
+
+COLLAPSED_EDGE = 1e-6
+"""An edge shorter than this fraction of the layout's mean edge length has collapsed (a rest shape refuses it)."""
+
+
+NEUTRAL_STIFFNESS = 0.5
+"""The stiffness of a layout vertex outside the Stiffness group: the wrap's own balance."""
+
+
+def group_stiffness(weights: np.ndarray, in_group: np.ndarray) -> np.ndarray:
+    """(N,) float32 per-vertex stiffness: the group's weight (0 follows the target freely … 1 keeps the template's
+    shape) on its vertices, :data:`NEUTRAL_STIFFNESS` elsewhere."""
+    weights = np.clip(np.asarray(weights, dtype=np.float32), 0.0, 1.0)
+    return np.where(np.asarray(in_group, dtype=bool), weights, np.float32(NEUTRAL_STIFFNESS)).astype(np.float32)
+
+
+def check_rest_edges(positions: np.ndarray, edges: np.ndarray) -> None:
+    """Raise :class:`~.errors.LayoutError` when an edge of ``positions`` has collapsed to (nearly) zero
+    length: a rest shape must give every edge a length, or the wrap cannot keep it (a snap to the target's
+    vertices or closed lips put two vertices on one point)."""
+    edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    if edges.size == 0:
+        return
+    positions = np.asarray(positions, dtype=np.float64)
+    lengths = np.linalg.norm(positions[edges[:, 0]] - positions[edges[:, 1]], axis=1)
+    positive = lengths[lengths > 0.0]
+    limit = COLLAPSED_EDGE * float(positive.mean()) if positive.size else 0.0
+    collapsed = np.flatnonzero(lengths <= limit)
+    if collapsed.size:
+        a, b = (int(vertex) for vertex in edges[collapsed[0]])
+        raise LayoutError(
+            f"The edge between layout vertices {a} and {b} has zero length ({collapsed.size} such edges, e.g. "
+            "where a snap put two vertices on one point): move them apart, or set the rest shape before snapping"
+        )
+
+
+UNRELIABLE_WEIGHT = 0.5
+"""A target triangle is unreliable when all three corners weigh more than this in the unreliable group."""
+
+
+class WrapParameters(NamedTuple):
+    """What the user sets for a wrap: the iteration limit, the spring resolution and the kernel's settings."""
+
+    max_iterations: int = 2000
+    settings: Any = None  # springwrap_kernel.WrapSettings (weights, tolerance, rest, solver); None: the kernel's defaults
+    spring_resolution: int = 1  # > 1: relax, then relax again the faces cut k x k (coarse to fine)
+    stiffness_group: str = ""  # layout vertex group of per-vertex stiffness (energy solver); "": the layout's setting
+    free_group: str = ""  # layout vertex group of vertices without a pull to the target; "": the layout's setting
+
+
+class WrapInputs(NamedTuple):
+    """Everything the kernel's ``WrapSolver`` takes besides the target and the layout structure (world space)."""
+
+    states: np.ndarray  # (N,) int32 1 face-point, 0 space-point
+    triangles: np.ndarray  # (N,) int32 face-point triangle, -1 for space-points
+    barycentrics: np.ndarray  # (N, 3) float32
+    positions: np.ndarray  # (N, 3) float32 world positions (used for space-points)
+    anchor_vertices: np.ndarray  # (A,) uint32
+    anchor_triangles: np.ndarray  # (A,) int32, -1 for a space anchor
+    anchor_barycentrics: np.ndarray  # (A, 3) float32
+    anchor_positions: np.ndarray  # (A, 3) float32 world target points
+    unreliable_triangles: Optional[np.ndarray]  # (M,) bool, or None when no group is set
+    curve_vertices: Optional[np.ndarray] = None  # (sum C,) uint32 chains one after another; None: no curves
+    curve_vertex_counts: Optional[np.ndarray] = None  # (K,) uint32 vertices per chain
+    curve_points: Optional[np.ndarray] = None  # (sum P, 3) float32 world target polylines one after another
+    curve_point_counts: Optional[np.ndarray] = None  # (K,) uint32 points per polyline
+    rest_positions: Optional[np.ndarray] = None  # (N, 3) float32 world template shape the springs rest in
+    plane_vertices: Optional[np.ndarray] = None  # (S,) uint32 vertices held on the mirror plane; None: no plane
+    plane_point: Optional[tuple] = None  # (3,) world point of the mirror plane
+    plane_normal: Optional[tuple] = None  # (3,) world normal of the mirror plane
+    plane_slide: bool = True  # held points slide along the target's cross-section (False: only move onto it)
+    stiffness: Optional[np.ndarray] = None  # (N,) float32 per-vertex stiffness 0 … 1 (energy solver); None: neutral
+    free_vertices: Optional[np.ndarray] = None  # (N,) bool vertices without a data term (energy solver); None: none
+
+
+def check_wrap_parameters(parameters: WrapParameters) -> None:
+    """Raise :class:`~.errors.LayoutError` naming the first parameter out of its range.
+
+    The kernel's settings were checked by the kernel when they were made (``WrapSettings(...)``).
+    """
+    if int(parameters.max_iterations) < 1:
+        raise LayoutError(f"Max Iterations must be at least 1, not {parameters.max_iterations}")
+    if not 1 <= int(parameters.spring_resolution) <= MAX_RESOLUTION:
+        raise LayoutError(
+            f"The spring resolution must be within 1 .. {MAX_RESOLUTION}, not {parameters.spring_resolution}"
+        )
+
+
+def check_wrappable(layout_name: str, face_count: int, edge_count: int) -> None:
+    """Raise :class:`~.errors.LayoutError` when the layout has nothing for the springs to act on."""
+    if face_count == 0 and edge_count == 0:
+        raise LayoutError(
+            f"Layout '{layout_name}' has no faces and no edges: there is nothing to wrap"
+        )
+
+
+def unreliable_triangles(triangles: np.ndarray, vertex_weights: np.ndarray) -> np.ndarray:
+    """(M,) bool: the triangles whose three corners all weigh more than :data:`UNRELIABLE_WEIGHT`.
+
+    ``triangles`` (M, 3) vertex indices of the target, ``vertex_weights`` (V,) one weight per
+    target vertex (0 for vertices outside the group).
+    """
+    triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    heavy = np.asarray(vertex_weights, dtype=np.float64).reshape(-1) > UNRELIABLE_WEIGHT
+    return np.ascontiguousarray(heavy[triangles].all(axis=1), dtype=bool)
+
+
+def wrap_anchor_arrays(anchor_list, vertex_count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The kernel's anchor arrays (vertices, triangles, barycentrics, positions) from an anchor list.
+
+    ``anchor_list`` is an ``anchors.Anchors`` (resolved on the current target: face anchors have
+    valid triangles, locations are current). Raises :class:`~.errors.LayoutError` naming the
+    anchors whose vertex the layout no longer has.
+    """
+    vertex_indices = np.asarray(anchor_list.vertex_indices, dtype=np.int64).reshape(-1)
+    missing = np.flatnonzero((vertex_indices < 0) | (vertex_indices >= vertex_count))
+    if missing.size:
+        shown = ", ".join(f"anchor {int(index)} (vertex {int(vertex_indices[index])})" for index in missing[:5])
+        more = f" and {missing.size - 5} more" if missing.size > 5 else ""
+        raise LayoutError(
+            f"{missing.size} anchors are on vertices the layout no longer has (it has {vertex_count}): "
+            f"{shown}{more}; remove them or update the anchors"
+        )
+    is_face = np.asarray(anchor_list.kinds) == layout_state.FACE_POINT
+    triangles = np.where(is_face, anchor_list.triangles, layout_state.NO_FACE).astype(np.int32)
+    return (
+        np.ascontiguousarray(vertex_indices, dtype=np.uint32),
+        np.ascontiguousarray(triangles),
+        transforms.as_float32_points(anchor_list.barycentrics),
+        transforms.as_float32_points(anchor_list.locations),
+    )
+
+
+def refine_wrap_inputs(inputs: WrapInputs, fine, positions: np.ndarray, states, target: Target) -> WrapInputs:
+    """The solver's inputs for the fine stage of a wrap (see ``subdivision``), from where the coarse stage ended.
+
+    ``positions`` and ``states`` (states, triangles, barycentrics) are the coarse solver's. The layout's
+    vertices keep their state; a new point starts blended from its layout vertices and lands on the
+    closest surface point when all of them are face-points and that point is within half a fine edge;
+    otherwise it starts as a space-point. The rest shape is blended the same way; anchors, unreliable
+    triangles and target curves are the same; each curve chain takes the points cut into its edges.
+    """
+    coarse_states, coarse_triangles, coarse_barycentrics = (np.asarray(array) for array in states)
+    count = coarse_states.shape[0]
+    fine_positions = fine.interpolate(np.asarray(positions, dtype=np.float64))
+    fine_count = fine_positions.shape[0]
+    on_surface = np.ones(fine_count, dtype=bool)
+    for column in range(fine.sources.shape[1]):
+        used = fine.weights[:, column] > 0.0
+        on_surface[used] &= coarse_states[fine.sources[used, column]] == layout_state.FACE_POINT
+    new = np.arange(fine_count) >= count
+    fine_states = np.zeros(fine_count, dtype=np.int32)
+    fine_triangles = np.full(fine_count, layout_state.NO_FACE, dtype=np.int32)
+    fine_barycentrics = np.zeros((fine_count, 3), dtype=np.float32)
+    fine_states[:count] = coarse_states
+    fine_triangles[:count] = coarse_triangles
+    fine_barycentrics[:count] = coarse_barycentrics
+    candidates = np.flatnonzero(new & on_surface)
+    if candidates.size:
+        corners = fine.topology.face_corners.astype(np.int64)
+        sizes = fine.topology.face_sizes.astype(np.int64)
+        ring_next = np.roll(np.arange(corners.size), -1)
+        starts = np.repeat(np.concatenate([[0], np.cumsum(sizes)[:-1]]), sizes)
+        ends = starts + np.repeat(sizes, sizes)
+        ring_next = np.where(ring_next == ends, starts, ring_next)
+        lengths = np.linalg.norm(fine_positions[corners] - fine_positions[corners[ring_next]], axis=1)
+        reach = 0.5 * float(np.median(lengths)) if lengths.size else 0.0
+        hits = target.mesh.closest_points(
+            transforms.as_float32_points(fine_positions[candidates]), max_distance=max(reach, 1e-12)
+        )
+        found = hits.triangles >= 0
+        landed = candidates[found]
+        fine_states[landed] = layout_state.FACE_POINT
+        fine_triangles[landed] = hits.triangles[found]
+        fine_barycentrics[landed] = hits.barycentrics[found]
+        fine_positions[landed] = hits.positions[found]
+    curve_arguments = {}
+    if inputs.curve_vertices is not None:
+        chains, offset = [], 0
+        for size in inputs.curve_vertex_counts.astype(np.int64):
+            chains.append(fine.expand_chain(inputs.curve_vertices[offset:offset + size].astype(np.int64)))
+            offset += size
+        curve_arguments = {
+            "curve_vertices": np.ascontiguousarray(np.concatenate(chains), dtype=np.uint32),
+            "curve_vertex_counts": np.array([len(chain) for chain in chains], dtype=np.uint32),
+        }
+    rest = None if inputs.rest_positions is None else transforms.as_float32_points(
+        fine.interpolate(inputs.rest_positions)
+    )
+    return inputs._replace(
+        states=fine_states,
+        triangles=fine_triangles,
+        barycentrics=fine_barycentrics,
+        positions=transforms.as_float32_points(fine_positions),
+        rest_positions=rest,
+        **curve_arguments,
+    )
+
+
+def rest_world_positions(layout: LayoutArrays, rest: np.ndarray) -> np.ndarray:
+    """The stored rest shape (local, (N, 3)) in world space, checked: one finite row per layout vertex."""
+    rest = np.asarray(rest, dtype=np.float64)
+    vertex_count = layout.positions.shape[0]
+    if rest.shape != (vertex_count, 3):
+        raise LayoutError(
+            f"The stored rest shape has {rest.shape[0]} points for a layout of {vertex_count} vertices"
+        )
+    bad = np.flatnonzero(~np.isfinite(rest).all(axis=1))
+    if bad.size:
+        raise LayoutError(f"The stored rest shape of vertex {int(bad[0])} is not finite")
+    return transforms.as_float32_points(transforms.transform_points(layout.matrix_world, rest))
+
+
+def prepare_wrap(
+    layout: LayoutArrays,
+    target: Target,
+    stored_signature: str,
+    anchor_list,
+    unreliable: Optional[np.ndarray],
+    curve_constraints=(),
+    rest: Optional[np.ndarray] = None,
+) -> tuple[WrapInputs, layout_state.Resolution]:
+    """The solver's inputs: the layout's current state (after the deleted-face rule) and positions.
+
+    ``anchor_list``: resolved anchors (see :func:`wrap_anchor_arrays`); ``unreliable``: (M,) bool
+    flags of the target's triangles, or None; ``curve_constraints``: ``curves.CurveConstraint``
+    with current polylines (checked by ``curves.kernel_arrays``); ``rest``: (N, 3) local template shape the
+    springs rest in (None: the positions now). Every vertex must be finite in world space.
+    Returns the inputs and the topology resolution of the layout's face-points (to report).
+    """
+    vertex_count = layout.positions.shape[0]
+    check_finite(layout, np.ones(vertex_count, dtype=bool))
+    resolution = resolve_topology(layout, target, stored_signature)
+    state = resolution.state
+    anchor_vertices, anchor_triangles, anchor_barycentrics, anchor_positions = wrap_anchor_arrays(
+        anchor_list, vertex_count
+    )
+    if unreliable is not None:
+        unreliable = np.ascontiguousarray(unreliable, dtype=bool).reshape(-1)
+        if unreliable.shape[0] != target.mesh.triangle_count:
+            raise LayoutError(
+                f"{unreliable.shape[0]} unreliable-triangle flags for a target of {target.mesh.triangle_count} triangles"
+            )
+    anchored = np.zeros(vertex_count, dtype=bool)
+    anchored[anchor_vertices] = True
+    curve_arrays = curves.kernel_arrays(curve_constraints, vertex_count, anchored) or (None, None, None, None)
+    inputs = WrapInputs(
+        states=np.ascontiguousarray(state.states, dtype=np.int32),
+        triangles=np.ascontiguousarray(state.faces, dtype=np.int32),
+        barycentrics=transforms.as_float32_points(state.barycentrics),
+        positions=transforms.as_float32_points(world_positions(layout)),
+        anchor_vertices=anchor_vertices,
+        anchor_triangles=anchor_triangles,
+        anchor_barycentrics=anchor_barycentrics,
+        anchor_positions=anchor_positions,
+        unreliable_triangles=unreliable,
+        curve_vertices=curve_arrays[0],
+        curve_vertex_counts=curve_arrays[1],
+        curve_points=curve_arrays[2],
+        curve_point_counts=curve_arrays[3],
+        rest_positions=None if rest is None else rest_world_positions(layout, rest),
+    )
+    return inputs, resolution

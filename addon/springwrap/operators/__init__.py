@@ -1,0 +1,10 @@
+"""The add-on's operators: ``poll`` says why one cannot run, ``execute`` / ``invoke`` check, call ``core`` and
+``blender``, and report. One module per operator family; ``base`` holds their shared opening."""
+
+from . import align, anchors, armature, curves, features, mirror, snapping, wrap
+
+classes = (
+    snapping.classes + align.classes + anchors.classes + curves.classes + wrap.classes + armature.classes
+    + features.classes + mirror.classes
+)
+"""Every operator class, in the order they are registered."""

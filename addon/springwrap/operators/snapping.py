@@ -1,0 +1,208 @@
+"""Springwrap operators: detach, snap and project the active layout object onto its target; set its rest shape.
+
+Each operator reads everything, computes the complete result (``core.snapping``), and writes only
+when every step succeeded; any problem is reported as an error and the layout is left exactly as
+it was.
+"""
+
+import time
+
+import bpy
+import numpy as np
+
+from ..blender import attributes
+from ..blender import layout as layout_data
+from ..blender import target as target_data
+from ..blender.edit_mode import object_mode
+from ..core import layout_state, snapping, transforms, wrap_inputs
+from ..core.errors import ERRORS, LayoutError
+from ..core.transforms import matrix_array
+from ..properties import ORIENTATION_ITEMS, PROJECT_DIRECTION_ITEMS, SNAP_MODE_ITEMS, max_distance_property
+from .base import LayoutCollectionOperator, LayoutOperator, open_layout
+
+
+class _SnapOperator(LayoutOperator):
+    """Shared run and report of detach, snap and project."""
+
+    moves_vertices = True
+
+    only_selected: bpy.props.BoolProperty(
+        name="Only Selected",
+        description="Act on the selected vertices only (face-points whose target face is gone are still resolved everywhere)",
+        default=False,
+    )
+
+    def execute(self, context):
+        layout = open_layout(self, context, self.requires_target, self.moves_vertices)
+        if layout is None:
+            return {"CANCELLED"}
+        start = time.perf_counter()
+        try:
+            with object_mode(layout):
+                settings = layout.springwrap
+                arrays = layout_data.read_layout(layout)
+                target = None
+                if settings.target is not None:
+                    target = target_data.read_target(context.evaluated_depsgraph_get(), layout)
+                outcome = self.compute(context, layout, arrays, target)
+                layout_data.write_layout(layout, outcome.positions, outcome.state)
+                if target is not None:
+                    settings.target_signature = target.signature
+        except ERRORS as error:
+            self.report({"ERROR"}, str(error))
+            return {"CANCELLED"}
+        milliseconds = (time.perf_counter() - start) * 1000.0
+        self.report({"INFO"}, self.summary(outcome, milliseconds))
+        detached, reattached = outcome.topology_detached_count, outcome.topology_reattached_count
+        if detached or reattached:
+            self.report(
+                {"WARNING"} if detached else {"INFO"},
+                f"Target topology changed: {detached} face-points lost their target face and became "
+                f"space-points, {reattached} re-attached",
+            )
+        return {"FINISHED"}
+
+    def compute(self, context, layout, arrays, target):
+        """The operation's :class:`snapping.Outcome`; raises one of ``ERRORS`` on bad input."""
+        raise NotImplementedError
+
+    def summary(self, outcome, milliseconds):
+        """The report of a finished operation."""
+        raise NotImplementedError
+
+
+class SPRINGWRAP_OT_detach(_SnapOperator, bpy.types.Operator):
+    """Detach vertices from the target: they become space-points and keep their positions"""
+
+    bl_idname = "springwrap.detach"
+    bl_label = "Detach"
+    bl_options = {"REGISTER", "UNDO"}
+
+    requires_target = False
+    moves_vertices = False
+
+    def compute(self, context, layout, arrays, target):
+        return snapping.detach(arrays, target, layout.springwrap.target_signature, self.only_selected)
+
+    def summary(self, outcome, milliseconds):
+        return f"Detached {outcome.changed_count} vertices in {milliseconds:.1f} ms"
+
+
+class SPRINGWRAP_OT_snap(_SnapOperator, bpy.types.Operator):
+    """Snap vertices onto the target (closest surface point or nearest vertex); they become face-points"""
+
+    bl_idname = "springwrap.snap"
+    bl_label = "Snap"
+    bl_options = {"REGISTER", "UNDO"}
+
+    mode: bpy.props.EnumProperty(name="Mode", items=SNAP_MODE_ITEMS, default="SURFACE")
+    max_distance: max_distance_property("Vertices farther than this from the target are left untouched (0 = unlimited)")
+
+    def compute(self, context, layout, arrays, target):
+        return snapping.snap(
+            arrays, target, layout.springwrap.target_signature, self.only_selected, self.mode, self.max_distance
+        )
+
+    def summary(self, outcome, milliseconds):
+        text = (
+            f"Snapped {outcome.changed_count} vertices ({self.mode}), "
+            f"max distance {outcome.moved_distance:.4g} in {milliseconds:.1f} ms"
+        )
+        if outcome.missed_count:
+            text += f"; {outcome.missed_count} beyond max distance left untouched"
+        return text
+
+
+class SPRINGWRAP_OT_project(_SnapOperator, bpy.types.Operator):
+    """Project vertices onto the target along a direction (ray cast); hits become face-points"""
+
+    bl_idname = "springwrap.project"
+    bl_label = "Project"
+    bl_options = {"REGISTER", "UNDO"}
+
+    direction: bpy.props.EnumProperty(name="Direction", items=PROJECT_DIRECTION_ITEMS, default="NORMAL")
+    orientation: bpy.props.EnumProperty(
+        name="Orientation",
+        description="Space of the axis directions (View and Normal ignore it)",
+        items=ORIENTATION_ITEMS,
+        default="GLOBAL",
+    )
+    both_directions: bpy.props.BoolProperty(
+        name="Both Directions",
+        description="Also cast each ray backwards and keep the nearer hit",
+        default=True,
+    )
+    max_distance: max_distance_property("Hits farther than this along the ray are ignored (0 = unlimited)")
+
+    def compute(self, context, layout, arrays, target):
+        directions = self.world_directions(context, layout)
+        return snapping.project(
+            arrays,
+            target,
+            layout.springwrap.target_signature,
+            self.only_selected,
+            directions,
+            self.both_directions,
+            self.max_distance,
+        )
+
+    def world_directions(self, context, layout):
+        """One world-space direction, or (N, 3) per-vertex directions for NORMAL."""
+        if self.direction == "NORMAL":
+            return layout_data.read_world_normals(layout)
+        if self.direction == "VIEW":
+            region_3d = _view_region(context)
+            if region_3d is None:
+                raise LayoutError("Project along View needs a 3D view (none in this context)")
+            rotation = matrix_array(region_3d.view_rotation.to_matrix().to_4x4())
+            return transforms.transform_directions(rotation, np.array([0.0, 0.0, -1.0]))[0]
+        axis = transforms.axis_direction(self.direction)
+        if self.orientation == "LOCAL":
+            axis = transforms.transform_directions(matrix_array(layout.matrix_world), axis)[0]
+            if not np.any(axis):
+                raise LayoutError(f"Layout '{layout.name}' has zero scale along {self.direction}")
+        return axis
+
+    def summary(self, outcome, milliseconds):
+        label = self.direction if self.direction in ("VIEW", "NORMAL") else f"{self.direction} {self.orientation}"
+        text = (
+            f"Projected {outcome.changed_count} vertices ({label}), "
+            f"max distance {outcome.moved_distance:.4g} in {milliseconds:.1f} ms"
+        )
+        if outcome.missed_count:
+            text += f"; {outcome.missed_count} missed the target and were left untouched"
+        if outcome.skipped_count:
+            text += f"; {outcome.skipped_count} on no face (no normal) skipped"
+        return text
+
+
+def _view_region(context):
+    """The 3D view's region data: from the region itself, or the view of the sidebar's area."""
+    region_3d = getattr(context, "region_data", None)
+    if isinstance(region_3d, bpy.types.RegionView3D):
+        return region_3d
+    space = getattr(context, "space_data", None)
+    if space is not None and space.type == "VIEW_3D":
+        return space.region_3d
+    return None
+
+
+class SPRINGWRAP_OT_rest_set(LayoutCollectionOperator, bpy.types.Operator):
+    """Take the layout's current shape as the template's rest shape: the shape the wrap's springs keep"""
+
+    bl_idname = "springwrap.rest_set"
+    bl_label = "Set Rest Shape"
+    bl_options = {"REGISTER", "UNDO"}
+
+    requires_target = False
+
+    def run(self, context, layout):
+        arrays = layout_data.read_layout(layout)
+        layout_state.check_finite(arrays, np.ones(arrays.positions.shape[0], dtype=bool))
+        wrap_inputs.check_rest_edges(arrays.positions, layout_data.read_layout_topology(layout).edges)
+        attributes.write_rest(layout, arrays.positions)
+        layout.data.update()
+        return [({"INFO"}, f"Rest shape of '{layout.name}' set from its {arrays.positions.shape[0]} vertices")]
+
+
+classes = (SPRINGWRAP_OT_detach, SPRINGWRAP_OT_snap, SPRINGWRAP_OT_project, SPRINGWRAP_OT_rest_set)

@@ -1,0 +1,284 @@
+"""The wrap (paper, section 2.5): springs pull the whole layout onto the target like a rubber sheet.
+
+``springwrap.wrap`` hands the layout (its faces, edges and seams, its face-point state and world
+positions), its anchors and the evaluated target to the kernel's ``WrapSolver`` and steps it until
+it converges or reaches the iteration limit.
+
+- Interactively (``invoke`` in a window) it is a modal operator: a timer steps the solver a few
+  iterations at a time (as many as keep about 30 redraws per second), writes every frame into the
+  layout mesh so the viewport shows it settling (paper, Figure 12), and shows its progress in the
+  status bar. Esc or right-click cancels and puts positions and state back bit for bit; finishing
+  keeps the result as one undo step.
+- In background mode, or with ``EXEC_DEFAULT`` (scripts), it runs to the end at once and writes once.
+
+The logic is in two plain classes that need no window or events: ``blender.wrap_session.WrapSession``
+(read, step, write frames, finish, cancel) and ``core.wrap_run.WrapLoop`` (the modal's state machine:
+events in, operator results out), so tests drive them directly.
+"""
+
+from typing import Optional
+
+import bpy
+
+from ..blender import layout as layout_data
+from ..blender.edit_mode import EditModeGuard, object_mode
+from ..blender.wrap_session import WrapSession
+from ..core import mirroring, transforms
+from ..core.errors import ERRORS
+from ..core.transforms import matrix_array
+from ..core.wrap_inputs import WrapParameters
+from ..core.wrap_run import WrapLoop, WrapResult
+from ..properties import WRAP_DEFAULTS, WRAP_SOLVER_ITEMS, max_iterations_property, tolerance_property
+from .base import LayoutOperator, layout_problem
+
+TIMER_SECONDS = 0.01
+"""Interval of the modal's timer: a frame starts as soon as the previous one is drawn."""
+
+
+class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
+    """Wrap the layout onto the target: springs with anchors pull it on like a rubber sheet (Esc cancels)"""
+
+    bl_idname = "springwrap.wrap"
+    bl_label = "Wrap"
+    bl_options = {"REGISTER", "UNDO"}
+
+    max_iterations: max_iterations_property("Stop after this many iterations if it has not converged by then")
+    tolerance: tolerance_property(
+        "Converged when no point moves more than this fraction of the layout's size in an iteration"
+    )
+    fairness: bpy.props.FloatProperty(
+        name="Fairness",
+        description="Straightens the layout's grid lines (paper's alpha), 0 to 1",
+        default=WRAP_DEFAULTS.fairness,
+        soft_min=0.0,
+        soft_max=1.0,
+    )
+    arc_length: bpy.props.FloatProperty(
+        name="Arc Length",
+        description="Evens the spacing along the grid lines (paper's beta), 0 to 1",
+        default=WRAP_DEFAULTS.arc_length,
+        soft_min=0.0,
+        soft_max=1.0,
+    )
+    thin_plate: bpy.props.FloatProperty(
+        name="Thin Plate",
+        description="Space-points continue the curvature of the surface around them (over holes), 0 to 0.5",
+        default=WRAP_DEFAULTS.thin_plate,
+        soft_min=0.0,
+        soft_max=0.5,
+    )
+    constraint: bpy.props.FloatProperty(
+        name="Constraint",
+        description="Pull of anchored points toward their targets, 0 to 1",
+        default=WRAP_DEFAULTS.constraint,
+        soft_min=0.0,
+        soft_max=1.0,
+    )
+    folding: bpy.props.FloatProperty(
+        name="Folding",
+        description="Pull of space-points next to face-points onto the surface, 0 to 1",
+        default=WRAP_DEFAULTS.folding,
+        soft_min=0.0,
+        soft_max=1.0,
+    )
+    rest: bpy.props.EnumProperty(
+        name="Rest Shape",
+        description="What the springs consider relaxed",
+        items=(
+            ("TEMPLATE", "Template", "Keep the template's own spacing and curvature (its shape before the first snap, "
+             "projection or wrap, or as set by Set Rest Shape)"),
+            ("EVEN", "Even", "Straight, evenly spaced grid lines (Krishnamurthy & Levoy's springs)"),
+        ),
+        default=WRAP_DEFAULTS.rest,
+    )
+    solver: bpy.props.EnumProperty(
+        name="Solver",
+        description="The wrap's algorithm",
+        items=WRAP_SOLVER_ITEMS,
+        default=WRAP_DEFAULTS.solver,
+    )
+    spring_resolution: bpy.props.IntProperty(
+        name="Spring Resolution",
+        description="Above 1: relax the layout, then relax again with every quad cut into this many by this many "
+        "springs (coarse to fine), and read the layout's vertices back",
+        default=1,
+        min=1,
+        max=8,
+    )
+    stiffness_group: bpy.props.StringProperty(
+        name="Stiffness Group",
+        description="Layout vertex group of per-vertex stiffness (Energy solver: weight 0 follows the target freely, "
+        "0.5 as the others, 1 keeps the template's shape); empty: the layout's Stiffness setting",
+        default="",
+    )
+    free_group: bpy.props.StringProperty(
+        name="Free Group",
+        description="Layout vertex group without a pull toward the target (Energy solver: sockets, teeth); empty: the "
+        "layout's Free setting",
+        default="",
+    )
+    hold_plane: bpy.props.EnumProperty(
+        name="Hold on Plane",
+        description="Keep the vertices that lie on this plane of the layout (or of the panel's Mirror Object) on it "
+        "during the wrap: surface one half of a symmetric model with its midline on the plane, then Mirror",
+        items=(
+            ("NONE", "None", "No plane: every vertex is free"),
+            ("X", "X", "The plane x = 0 of the layout (or of the Mirror Object)"),
+            ("Y", "Y", "The plane y = 0 of the layout (or of the Mirror Object)"),
+            ("Z", "Z", "The plane z = 0 of the layout (or of the Mirror Object)"),
+        ),
+        default="NONE",
+    )
+
+    def parameters(self):
+        """The operator's properties as ``wrap_inputs.WrapParameters``.
+
+        The kernel checks the settings here: a value out of its range raises
+        ``springwrap_kernel.InvalidArgumentError`` naming it.
+        """
+        names = ("tolerance", "fairness", "arc_length", "thin_plate", "constraint", "folding", "rest", "solver")
+        return WrapParameters(
+            max_iterations=self.max_iterations,
+            settings=WRAP_DEFAULTS.replace(**{name: getattr(self, name) for name in names}),
+            spring_resolution=self.spring_resolution,
+            stiffness_group=self.stiffness_group,
+            free_group=self.free_group,
+        )
+
+    def _plane_holder(self, layout):
+        """``adjust_inputs`` for :class:`WrapSession` holding the midline on ``hold_plane``; None without one."""
+        if self.hold_plane == "NONE":
+            return None
+        owner = layout.springwrap.mirror_object or layout
+        plane = mirroring.plane_from_matrix(matrix_array(owner.matrix_world), self.hold_plane)
+        world = transforms.world_positions(layout_data.read_layout(layout))
+        edges = layout_data.read_layout_topology(layout).edges
+        return lambda inputs: mirroring.held_on_plane(inputs, world, edges, plane)
+
+    # A string: typing's cache would keep Optional[WrapSession] (and through it this module) alive until
+    # after Python finalizes, and the PyPI bpy 4.2 module then crashes on exit freeing the operator class.
+    def _start(self, context) -> "Optional[WrapSession]":
+        """Check, then build the session (in object mode); None after reporting why not."""
+        problem = layout_problem(context)
+        if problem is not None:
+            self.report({"ERROR"}, problem)
+            return None
+        try:
+            layout = context.active_object
+            return WrapSession(context, layout, self.parameters(), adjust_inputs=self._plane_holder(layout))
+        except ERRORS as error:
+            self.report({"ERROR"}, str(error))
+            return None
+
+    def execute(self, context):
+        layout = context.active_object
+        if layout is None or layout.type != "MESH":
+            self.report({"ERROR"}, layout_problem(context) or "No active mesh object (the layout)")
+            return {"CANCELLED"}
+        with object_mode(layout):
+            session = self._start(context)
+            if session is None:
+                return {"CANCELLED"}
+            try:
+                session.run()
+                result = session.finish()
+            except Exception as error:  # noqa: BLE001 - restore whatever was written, then report
+                session.cancel()
+                self.report({"ERROR"}, f"The wrap failed: {error}")
+                return {"CANCELLED"}
+        self._report_result(result)
+        return {"FINISHED"}
+
+    def invoke(self, context, event):
+        if bpy.app.background or context.window is None:
+            return self.execute(context)
+        layout = context.active_object
+        if layout is None or layout.type != "MESH":
+            return self.execute(context)  # reports why
+        self._mode = EditModeGuard(layout)
+        session = self._start(context)
+        if session is None:
+            self._restore_mode()
+            return {"CANCELLED"}
+        self._loop = WrapLoop(session)
+        self._area = context.area  # the header to write in; events may come with another area as context
+        window_manager = context.window_manager
+        self._timer = window_manager.event_timer_add(TIMER_SECONDS, window=context.window)
+        window_manager.progress_begin(0, session.parameters.max_iterations)
+        window_manager.modal_handler_add(self)
+        self._show_status(context)
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context, event):
+        outcome = self._loop.handle(event.type, event.value)
+        if outcome == "RUNNING_MODAL":
+            if event.type == "TIMER":
+                self._show_status(context)
+            return {"RUNNING_MODAL"}
+        if outcome == "PASS_THROUGH":
+            return {"PASS_THROUGH"}
+        self._end(context)
+        if outcome == "FINISHED":
+            self._report_result(self._loop.result)
+            return {"FINISHED"}
+        if self._loop.error is not None:
+            self.report({"ERROR"}, f"The wrap failed and was undone: {self._loop.error}")
+        else:
+            self.report({"INFO"}, "Wrap cancelled: the layout is back as it was")
+        return {"CANCELLED"}
+
+    def cancel(self, context):
+        """Blender ends the modal wrap from outside (window closed, file loaded): restore the layout."""
+        loop = getattr(self, "_loop", None)
+        if loop is not None and loop.state == "RUNNING_MODAL":
+            loop.cancel()
+            try:
+                self._end(context)
+            except RuntimeError:  # the context may no longer allow a mode switch; the data is restored
+                pass
+
+    def _show_status(self, context) -> None:
+        session = self._loop.session
+        text = session.status_text()
+        if context.workspace is not None:
+            context.workspace.status_text_set(text)
+        if self._area is not None:
+            self._area.header_text_set(text)
+        context.window_manager.progress_update(session.total_iterations)
+        screen = context.screen
+        if screen is not None:
+            for area in screen.areas:
+                if area.type == "VIEW_3D":
+                    area.tag_redraw()
+
+    def _end(self, context) -> None:
+        """Remove the timer, the status text and the progress, and go back to edit mode if the layout was in it."""
+        window_manager = context.window_manager
+        if getattr(self, "_timer", None) is not None:
+            window_manager.event_timer_remove(self._timer)
+            self._timer = None
+        window_manager.progress_end()
+        if context.workspace is not None:
+            context.workspace.status_text_set(None)
+        if getattr(self, "_area", None) is not None:
+            self._area.header_text_set(None)
+            self._area = None
+        self._restore_mode()
+
+    def _restore_mode(self) -> None:
+        mode = getattr(self, "_mode", None)
+        if mode is not None:
+            mode.restore()
+
+    def _report_result(self, result: WrapResult) -> None:
+        self.report({"INFO"} if result.converged else {"WARNING"}, result.summary())
+        detached, reattached = result.topology_detached_count, result.topology_reattached_count
+        if detached or reattached or result.anchors_detached_count:
+            self.report(
+                {"WARNING"},
+                f"Target topology changed: {detached} face-points and {result.anchors_detached_count} face anchors "
+                f"lost their target face and became space-points, {reattached} face-points re-attached",
+            )
+
+
+classes = (SPRINGWRAP_OT_wrap,)
