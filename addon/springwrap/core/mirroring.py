@@ -29,6 +29,7 @@ from . import anchors as anchor_module
 from . import layout_state, transforms
 from .errors import LayoutError
 from .layout_state import LayoutState
+from .wrap_inputs import check_rest_edges
 
 AXES = ("X", "Y", "Z")
 """The mirror axes: the plane is perpendicular to this axis of the layout (or of the mirror object)."""
@@ -264,7 +265,8 @@ def partner_errors(positions: np.ndarray, source: np.ndarray, is_copy: np.ndarra
     return np.linalg.norm(positions[is_copy] - reflect(positions[source[is_copy]], plane), axis=1)
 
 
-def hold_inputs(inputs, pinned: np.ndarray, plane_vertices: np.ndarray, plane: Plane, slide: bool = True):
+def hold_inputs(inputs, pinned: np.ndarray, plane_vertices: np.ndarray, plane: Plane, slide: bool = True,
+                rest: "np.ndarray | None" = None):
     """The wrap's inputs (``wrap_inputs.WrapInputs``) for the mirrored half: the surfaced half pinned, the seam on the plane.
 
     Each ``pinned`` vertex gets an anchor at itself (its own face-point, or its own position for a
@@ -272,7 +274,11 @@ def hold_inputs(inputs, pinned: np.ndarray, plane_vertices: np.ndarray, plane: P
     does not move at all. User anchors on pinned vertices are replaced by these pins; the others
     stay. ``plane_vertices`` are held on the plane (the kernel leaves anchored ones to their anchors);
     with ``slide`` they slide along the target's cross-section with it, else they only move onto it.
+    ``rest`` (world, one row per vertex), when given, is the shape the wrap keeps instead of the stored one
+    (:func:`surfaced_rest`).
     """
+    if rest is not None:
+        inputs = inputs._replace(rest_positions=transforms.as_float32_points(rest))
     pinned = np.asarray(pinned, dtype=bool).reshape(-1)
     keep = ~pinned[np.asarray(inputs.anchor_vertices, dtype=np.int64)]
     pins = np.flatnonzero(pinned)
@@ -293,6 +299,23 @@ def hold_inputs(inputs, pinned: np.ndarray, plane_vertices: np.ndarray, plane: P
         plane_normal=tuple(float(value) for value in plane.normal),
         plane_slide=bool(slide),
     )
+
+
+def surfaced_rest(mirrored: MirrorLayout, edges: np.ndarray) -> "np.ndarray | None":
+    """The rest shape for wrapping the new half next to a pinned surfaced half: the surfaced half as it is,
+    its copy reflected (``mirrored.positions`` as :func:`mirrored_layout` placed them, before any landing).
+
+    The new half then keeps the shape the artist gave the surfaced half rather than the template's, so on a
+    symmetric target it stays the surfaced half's exact reflection and on an asymmetric one it looks like it.
+    ``None`` when that shape has a collapsed edge (a snap put two vertices on one point): the stored rest
+    shape is kept then.
+    """
+    shape = np.asarray(mirrored.positions, dtype=np.float64)
+    try:
+        check_rest_edges(shape, edges)
+    except LayoutError:
+        return None
+    return shape.copy()
 
 
 class MirroredAnchors(NamedTuple):

@@ -213,8 +213,12 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
         if layout.springwrap.target is not None:
             target = target_data.read_target(context.evaluated_depsgraph_get(), layout)
         landed_copies = 0
+        wrap_rest = None
         if self.wrap:
-            edge_lengths = mirroring.vertex_edge_lengths(mirrored.positions, layout_data.read_layout_topology(layout).edges)
+            mirrored_edges = layout_data.read_layout_topology(layout).edges
+            if self.surfaced_half == "PIN":
+                wrap_rest = mirroring.surfaced_rest(mirrored, mirrored_edges)
+            edge_lengths = mirroring.vertex_edge_lengths(mirrored.positions, mirrored_edges)
             before = int((mirrored.state.states == layout_state.FACE_POINT).sum())
             mirrored = mirroring.land_copies(mirrored, edge_lengths, target, LANDING_REACH)
             landed_copies = int((mirrored.state.states == layout_state.FACE_POINT).sum()) - before
@@ -238,7 +242,7 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
             session = WrapSession(
                 context, layout, self.parameters(),
                 adjust_inputs=lambda inputs: mirroring.hold_inputs(
-                    inputs, pinned, seam_vertices, plane, slide=self.seam == "SLIDE"
+                    inputs, pinned, seam_vertices, plane, slide=self.seam == "SLIDE", rest=wrap_rest
                 ),
             )
             if window_manager is not None:
