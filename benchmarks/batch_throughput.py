@@ -1,4 +1,4 @@
-"""How fast a batch retargets a library (issue 16): meshes per minute, worker start-up and memory; not a test.
+"""How fast a batch retargets a library: meshes per minute, worker start-up and memory; not a test.
 
 A library of ``--meshes`` noisy tori (``_noisy_torus.noisy_torus``, ``--triangles`` each, every one with
 another displacement) is written as OBJ files, with a quad layout over a torus (``--layout-quads``) as the

@@ -1,4 +1,4 @@
-"""How fast the wrap is (issue 3, item 10): three measurements, none of them a test.
+"""How fast the wrap is: three measurements, none of them a test.
 
 1. **Body**: the MakeHuman quad body (13,380 vertices, 13,378 quads) onto the same body with the
    ``heavy`` morph (macro weight and muscle), placed elsewhere and voxel-remeshed to ~200k

@@ -1,4 +1,4 @@
-"""Ground-truth retargeting benchmark (issue 4): cases from real data, baselines, metrics.
+"""Ground-truth retargeting benchmark: cases from real data, baselines, metrics.
 
 Modules, each usable alone:
 

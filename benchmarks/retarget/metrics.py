@@ -1,4 +1,4 @@
-"""Metrics of a retargeted layout against the ground truth (issue 4, item 3). numpy only.
+"""Metrics of a retargeted layout against the ground truth. numpy only.
 
 For a result (the layout's vertex positions after a method ran) and a case:
 

@@ -377,7 +377,7 @@ def test_panel_lists_the_constraints_with_their_buttons():
     assert row.labels == ["0..3 (4)", "Curve"]
 
 
-# ---------------------------------------------------------------- regressions (issue 11)
+# ---------------------------------------------------------------- regressions (rings and tubes)
 #
 # Two defects of v1 on rings, reproduced on a tube: which way a target curve runs was decided by
 # its ends alone (an opened ring's two ends are next to each other), and a chain of target edges

@@ -1,4 +1,4 @@
-"""The wrap onto a cylinder with a hole in its side (issue 3, item 9: plane, sphere and cylinder)."""
+"""The wrap onto a cylinder with a hole in its side (plane, sphere and cylinder)."""
 
 import math
 

@@ -3,7 +3,7 @@
 Chains, shortest paths and automatic pairing run on generated grids (a W x H lattice of unit
 spacing in the plane z = 0) whose answers are known: a row of the grid is the shortest path
 between its ends, a border of a quad grid is one curve. Orientation and chain-following paths run
-on rings and tubes (issue 11): an opened ring's two ends are next to each other, and between two
+on rings and tubes: an opened ring's two ends are next to each other, and between two
 points of a ring the shortest path is the short way round whichever way the layout chain runs.
 """
 
@@ -111,7 +111,7 @@ def test_orientation_follows_a_straight_chain():
 
 @pytest.mark.parametrize("turn", [-0.6, -0.4, 0.0, 0.4, 0.6])
 def test_an_opened_ring_keeps_its_direction_on_a_turned_chain(turn):
-    """Issue 11: the chain (an opened 16-vertex ring) turned by 0.6 of an edge backwards has its first
+    """Regression on a ring: the chain (an opened 16-vertex ring) turned by 0.6 of an edge backwards has its first
     vertex 0.4 of an edge from the curve's *last* point; the end-nearest rule of v1 reversed the
     curve (90 degrees of mean error). The whole chain decides."""
     points = ring(16)
@@ -169,7 +169,7 @@ def test_chain_course_moves_the_ends_onto_the_anchors():
 
 @pytest.mark.parametrize("diagonals", [False, True])
 def test_a_path_follows_the_chain_the_long_way_round(diagonals):
-    """Issue 11: between two points of a ring 135 degrees apart the shortest edge path is the short
+    """Regression on a ring: between two points of a ring 135 degrees apart the shortest edge path is the short
     way round; a layout chain going the long way (225 degrees) must be followed that way."""
     positions, edges, index = tube(48, 5, diagonals)
     chain = ring(16, radius=1.05, z=0.2)[:11]  # 0 to 225 degrees, beside the tube
