@@ -43,12 +43,17 @@ $(STAMPS)/addon: $(STAMPS)/venv $(ADDON_SOURCES)
 demo: setup
 	$(PY) blender_scripts/demo.py
 
-test: setup test-rust test-python
+test: setup lint test-rust test-python
+
+# Python: ruff (rules and format in pyproject.toml); Rust: rustfmt and clippy (lints in Cargo.toml's
+# [workspace.lints]), warnings as errors.
+lint: $(STAMPS)/venv
+	$(VENV)/bin/ruff check .
+	cargo fmt --all -- --check
+	cargo clippy --workspace --all-targets -- -D warnings
 
 test-rust:
-	cargo fmt --all -- --check
 	cargo test --workspace --exclude springwrap-python
-	cargo clippy --workspace --all-targets -- -D warnings
 
 test-python: setup
 	$(PY) -m pytest -q -rs tests benchmarks/tests
@@ -98,8 +103,8 @@ test-blender34: $(BLENDER34_KERNEL)/.stamp
 
 test-all-lanes: test test-bpy42 test-blender34
 
-# The benchmark (issue 4): retargeting accuracy against Shrinkwrap and nricp, the performance sweep,
-# snap throughput, the batch's throughput (issue 16), then docs/benchmarks.md and docs/img/*.png.
+# The benchmark: retargeting accuracy against Shrinkwrap and nricp, the performance sweep,
+# snap throughput, the batch's throughput, then docs/benchmarks.md and docs/img/*.png.
 # `make bench QUICK=1`: the ~5-minute subset.
 # BENCH_OUT (the JSON) and BENCH_DOCS (benchmarks.md and img/) may point elsewhere for a trial run.
 BENCH_QUICK := $(if $(QUICK),--quick,)

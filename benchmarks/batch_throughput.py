@@ -36,6 +36,7 @@ sys.path.insert(0, str(REPOSITORY / "benchmarks"))
 sys.path.insert(0, str(REPOSITORY / "blender_scripts"))
 import _machine  # noqa: E402
 from _noisy_torus import noisy_torus, torus_layout  # noqa: E402
+
 import retarget_batch  # noqa: E402  (no bpy)
 
 RETARGET = REPOSITORY / "blender_scripts" / "retarget.py"

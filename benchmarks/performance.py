@@ -42,7 +42,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import _machine  # noqa: E402  (benchmarks/, also when imported from elsewhere)
+import _machine
 
 REPOSITORY_ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_JSON = REPOSITORY_ROOT / "out" / "bench" / "performance.json"
@@ -102,8 +102,9 @@ def _random_queries(count: int):
 
 def worker_target(triangles: int) -> dict:
     """Build, prepare, query and memory of a kernel TargetMesh of ~``triangles``; then Shrinkwrap on it."""
-    import springwrap_kernel
     from _noisy_torus import noisy_torus
+
+    import springwrap_kernel
 
     vertices, faces = noisy_torus(triangles, seed=SEED)
     queries = _random_queries(QUERY_POINTS)
@@ -119,7 +120,7 @@ def worker_target(triangles: int) -> dict:
     prepare_seconds = time.perf_counter() - start
     rss_prepared = _status_kilobytes("VmRSS")
     mesh.closest_points(queries[:64])  # the thread pool starts outside the timing
-    query_seconds, hits = _best(lambda: mesh.closest_points(queries), 3)
+    query_seconds, hits = _best(lambda mesh=mesh: mesh.closest_points(queries), 3)
     if (hits.triangles < 0).any():
         raise RuntimeError("closest_points missed")
     count = len(faces)
@@ -162,6 +163,7 @@ def _mesh_object(bpy, name, vertices, polygons=None):
 def _shrinkwrap_first_evaluation(vertices, faces, queries) -> dict:
     """Blender's Shrinkwrap (NEAREST_SURFACEPOINT) on the query points: first evaluation (BVH build + queries)."""
     import bpy
+
     import numpy as np
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
@@ -185,8 +187,9 @@ def _shrinkwrap_first_evaluation(vertices, faces, queries) -> dict:
 
 def worker_layout(points: int) -> dict:
     """closest_points of ~``points`` random-order queries on the 1M-triangle target."""
-    import springwrap_kernel
     from _noisy_torus import noisy_torus
+
+    import springwrap_kernel
 
     vertices, faces = noisy_torus(LAYOUT_TARGET_TRIANGLES, seed=SEED)
     queries = _random_queries(points)
@@ -206,8 +209,9 @@ def worker_wrap(quads: int) -> dict:
     import addon_utils
 
     sys.path.insert(0, str(REPOSITORY_ROOT))
-    from benchmarks.retarget.springwrap_methods import captured_stdout, parse_wrap_report
     from _noisy_torus import noisy_torus, torus_layout
+
+    from benchmarks.retarget.springwrap_methods import captured_stdout, parse_wrap_report
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     if addon_utils.enable("springwrap", default_set=True, handle_error=None) is None:

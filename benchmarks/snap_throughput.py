@@ -37,11 +37,11 @@ from mathutils.bvhtree import BVHTree
 from mathutils.kdtree import KDTree
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import _machine  # noqa: E402
-from _noisy_torus import QUERY_OFFSET, noisy_torus, query_points  # noqa: E402
+import _machine
+from _noisy_torus import QUERY_OFFSET, noisy_torus, query_points
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "blender_scripts"))
-from headless import script_arguments  # noqa: E402
+from headless import script_arguments
 
 SEED = 1
 # Distances may differ by float32 rounding; relative to the target's bounding-box diagonal.
@@ -156,10 +156,10 @@ def measure_kernel(kernel, vertices, triangles, orders: dict[str, np.ndarray], r
     mesh.closest_points(orders["coherent"][:64])  # start the thread pool outside the timing
     rows, surface_hits, vertex_hits = [], {}, {}
     for order, points in orders.items():
-        seconds, surface_hits[order] = best_time(lambda: mesh.closest_points(points), repeat)
+        seconds, surface_hits[order] = best_time(lambda points=points: mesh.closest_points(points), repeat)
         rows.append(Row("kernel closest_points", order, len(points), len(points), seconds, build_seconds))
     for order, points in orders.items():
-        seconds, vertex_hits[order] = best_time(lambda: mesh.nearest_vertices(points), repeat)
+        seconds, vertex_hits[order] = best_time(lambda points=points: mesh.nearest_vertices(points), repeat)
         rows.append(Row("kernel nearest_vertices", order, len(points), len(points), seconds, build_seconds))
     return rows, mesh, surface_hits, vertex_hits
 
@@ -276,7 +276,7 @@ def run_checks(orders, permutation, mesh, surface_hits, vertex_hits, shrinkwrap_
         "kernel closest_points, random vs coherent order (distance)", len(permutation),
         float(np.abs(surface_hits["random"].distances - coherent.distances[permutation]).max()), tolerance,
     ))
-    for order, points in orders.items():
+    for order, _points in orders.items():
         distances = mathutils_distances[order]
         kernel_distances = surface_hits[order].distances[: len(distances)]
         checks.append(Check(

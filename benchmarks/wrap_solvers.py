@@ -34,7 +34,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks.retarget import baselines, cases, data, metrics, scans  # noqa: E402
+from benchmarks.retarget import baselines, cases, data, metrics, scans
 
 SOLVERS = ("SPRINGS", "ENERGY")
 OFF_SURFACE_PERCENT = 0.1

@@ -129,7 +129,6 @@ def measure_live(case, vertices, triangles, seconds_limit: float = 20.0) -> dict
 def measure_large(max_iterations: int, seconds_limit: float) -> dict:
     """A 2048 x 2048 spring (256 x 256 at resolution 8) on a 1M-triangle torus, through the kernel."""
     import springwrap_kernel
-
     from benchmarks import _noisy_torus
 
     sys.path.insert(0, str(REPOSITORY / "addon"))
@@ -187,7 +186,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", type=Path, default=REPOSITORY / "out" / "bench" / "wrap_speed.json")
     arguments = parser.parse_args(argv)
 
-    import bpy  # noqa: F401  (the add-on and the remesh need it)
+    import bpy
+
     import addon_utils
 
     if addon_utils.enable("springwrap", default_set=True, handle_error=None) is None:

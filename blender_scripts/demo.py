@@ -30,7 +30,7 @@ from mathutils import Euler, Matrix, Vector
 from mathutils.bvhtree import BVHTree
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # `blender --python` does not add it
-from headless import EXIT_OK, enable_addon, failed, script_arguments  # noqa: E402
+from headless import EXIT_OK, enable_addon, failed, script_arguments
 
 REPOSITORY_ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_OUTPUT = REPOSITORY_ROOT / "out" / "demo.blend"

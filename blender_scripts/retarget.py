@@ -44,11 +44,12 @@ import os
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import bpy
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # `blender --python` does not add it
-from headless import (  # noqa: E402
+from headless import (
     EXIT_BATCH_FAILURES,
     EXIT_INTERRUPTED,
     EXIT_OK,
@@ -61,6 +62,9 @@ from headless import (  # noqa: E402
     write_all_or_nothing,
     write_atomically,
 )
+
+if TYPE_CHECKING:
+    import numpy as np
 
 MESH_SUFFIXES = (".obj", ".ply", ".glb", ".gltf", ".blend")
 OUTPUT_SUFFIXES = ("blend", "obj", "json")  # a batch's outputs per mesh: OUT/<name>.<suffix>
@@ -329,6 +333,7 @@ def align_with_operator(layout, arguments: argparse.Namespace, blame: str) -> di
 def distances_to_target(layout, target) -> dict:
     """Distances of the layout's vertices to the target surface (world space): mean, max, RMS."""
     import numpy as np
+
     import springwrap_kernel
 
     layout_points, _ = world_vertices(layout)
@@ -367,9 +372,9 @@ def run_operator(blame: str, name: str, **properties) -> None:
 
 def retarget(arguments: argparse.Namespace) -> dict:
     """Load, align, detach, anchor, wrap, measure, write; the report (also written to --report)."""
-    WrapSession = addon_module("blender.wrap_session").WrapSession
-    ERRORS = addon_module("core.errors").ERRORS
-    WrapParameters = addon_module("core.wrap_inputs").WrapParameters
+    WrapSession = addon_module("blender.wrap_session").WrapSession  # noqa: N806 - a class of the enabled add-on
+    ERRORS = addon_module("core.errors").ERRORS  # noqa: N806 - the add-on's tuple of error types
+    WrapParameters = addon_module("core.wrap_inputs").WrapParameters  # noqa: N806 - a class of the enabled add-on
 
     lap, warnings = Laps(), []
     timings = lap.timings

@@ -19,7 +19,7 @@ from pathlib import Path
 import bpy
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # `blender --python` does not add it
-from headless import EXIT_OK, ScriptError, addon_module, enable_addon, failed, script_arguments  # noqa: E402
+from headless import EXIT_OK, ScriptError, addon_module, enable_addon, failed, script_arguments
 
 PROGRESS_CHUNK = 100
 """Iterations between two progress lines."""

@@ -22,9 +22,10 @@ a check fails.
 import argparse
 import ast
 import sys
-import tomllib
 import zipfile
 from pathlib import Path
+
+import tomllib
 
 PACKAGING = Path(__file__).resolve().parent
 REPOSITORY = PACKAGING.parent

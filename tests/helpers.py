@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 import springwrap_kernel as sk
 
 REPOSITORY = Path(__file__).resolve().parent.parent
@@ -154,7 +155,7 @@ TIMEOUT_SECONDS = 180
 
 def sphere_obj(radius: float, segments: int = 32, rings: int = 16) -> str:
     """A UV sphere at the origin, as OBJ text (triangle fans at the poles, quads between)."""
-    lines = ["v 0 0 %.6f" % radius]
+    lines = [f"v 0 0 {radius:.6f}"]
     for ring in range(1, rings):
         polar = math.pi * ring / rings
         for segment in range(segments):

@@ -88,6 +88,7 @@ def springwrap_wrap_mirror(
     if case.spec.layout_half != "left" or case.spec.source != "anny":
         raise BaselineUnavailable("needs the half-layout body case (mirror-left-half)")
     import bpy
+
     from mathutils import Matrix
 
     from benchmarks.retarget import springwrap_methods

@@ -25,10 +25,10 @@ from pathlib import Path
 if not __package__:  # run as a script: make `benchmarks.retarget` importable
     sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-import numpy as np  # noqa: E402
+import numpy as np
 
-from benchmarks import _machine  # noqa: E402
-from benchmarks.retarget import baselines, cases, data, landmarks, metrics  # noqa: E402
+from benchmarks import _machine
+from benchmarks.retarget import baselines, cases, data, landmarks, metrics
 
 DEFAULT_JSON = data.REPOSITORY_ROOT / "out" / "bench" / "retarget.json"
 SHORT_NAMES = {
@@ -78,7 +78,8 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
 
 def enable_addon() -> None:
     """Enable the Springwrap add-on (the snap baseline runs its operators)."""
-    import bpy  # noqa: F401  (addon_utils needs bpy imported first)
+    import bpy
+
     import addon_utils
 
     module = addon_utils.enable("springwrap", default_set=True, handle_error=None)
@@ -158,6 +159,7 @@ def kernel_build() -> str:
 def machine_description() -> dict:
     """CPU, cores, load, versions: what the numbers were measured on."""
     import bpy
+
     import springwrap_kernel
 
     cpu = _machine.cpu_model()

@@ -234,8 +234,9 @@ def _blender_mesh(name: str, vertices: np.ndarray, mesh: data.PolygonMesh):
 
 def filled_holes(mesh: data.PolygonMesh) -> data.PolygonMesh:
     """The mesh with every hole closed by one polygon (``bmesh.ops.holes_fill``, headless)."""
-    import bmesh
     import bpy
+
+    import bmesh
 
     blender_mesh = _blender_mesh("springwrap_bench_fill", mesh.vertices, mesh)
     try:

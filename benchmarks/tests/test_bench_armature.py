@@ -9,7 +9,6 @@ the project's own code; skipped with the reason only when PyPI cannot be reached
 import numpy as np
 import pytest
 
-
 from benchmarks import report
 from benchmarks.retarget import armature_methods, baselines, cases, posing, rigging, run
 

@@ -12,10 +12,8 @@ import gzip
 import numpy as np
 import pytest
 
-
 from benchmarks import _noisy_torus, figures, report, wrap_solvers
-from benchmarks.retarget import baselines, cases, data, landmarks, metrics, posing, run, scans
-from benchmarks.retarget import springwrap_methods
+from benchmarks.retarget import baselines, cases, data, landmarks, metrics, posing, run, scans, springwrap_methods
 
 
 def grid(size: int = 4) -> tuple[np.ndarray, np.ndarray]:

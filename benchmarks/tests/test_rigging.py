@@ -9,7 +9,6 @@ weights cover the body and the t-pose names bones of the rig.
 import numpy as np
 import pytest
 
-
 from benchmarks.retarget import cases, data, rigging
 
 

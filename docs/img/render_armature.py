@@ -31,9 +31,9 @@ REPOSITORY_ROOT = HERE.parents[1]
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(REPOSITORY_ROOT))
 import render_guide  # noqa: E402
-from headless import script_arguments  # noqa: E402  (render_guide put blender_scripts on the path)
 
 from benchmarks.retarget import rig_scene  # noqa: E402
+from headless import script_arguments  # noqa: E402  (render_guide put blender_scripts on the path)
 
 HEAT_SCALE = 0.03
 """Metres shown as full red in the error picture (the body's bounding-box diagonal is about 2.2 m)."""

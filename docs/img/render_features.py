@@ -19,7 +19,7 @@ import numpy as np
 from mathutils import Vector
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import render_guide  # noqa: E402  (paint, setup_render, shrink)
+import render_guide
 
 
 def rounded_box(half=1.0, radius=0.25, cells=40, noise=0.003, seed=1):

@@ -40,6 +40,7 @@ from mathutils.bvhtree import BVHTree
 REPOSITORY_ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPOSITORY_ROOT / "blender_scripts"))
 import demo  # noqa: E402
+
 from headless import script_arguments  # noqa: E402
 
 RESOLUTION = (800, 600)

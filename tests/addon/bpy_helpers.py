@@ -8,13 +8,13 @@ helpers that need no Blender are in ``tests/helpers.py``.
 import importlib
 import math
 
-import bpy  # isort: skip  (bmesh and mathutils need bpy imported first)
+import bpy
+
 import bmesh
 import numpy as np
 from mathutils import Matrix, Vector
 from mathutils.bvhtree import BVHTree
 from mathutils.kdtree import KDTree
-
 
 # ---------------------------------------------------------------- scenes, readers, references
 

@@ -13,6 +13,7 @@ from helpers import REPOSITORY
 def springwrap_installed():
     """Link the add-on into bpy's add-on folder (idempotent) and check that it enables."""
     import bpy  # noqa: F401  (addon_utils needs bpy imported first)
+
     import addon_utils
 
     install = runpy.run_path(str(REPOSITORY / "blender_scripts" / "install_addon.py"))

@@ -8,7 +8,8 @@ built on the evaluated target in world space, independent of the kernel.
 
 import math
 
-import bpy  # isort: skip  (bmesh and mathutils need bpy imported first)
+import bpy
+
 import bmesh
 import numpy as np
 import pytest
@@ -17,26 +18,29 @@ from mathutils import Quaternion, Vector
 from bpy_helpers import (
     BARYCENTRIC_ATTRIBUTE,
     FACE_ATTRIBUTE,
-    STATE_ATTRIBUTE,
     FACE_POINT,
     SPACE_POINT,
+    STATE_ATTRIBUTE,
     STATE_NAMES,
     TOLERANCE,
+    Reference,
     addon_module,
     as_layout,
     assert_face_points_consistent,
+    empty_target,
     local_positions,
     make_grid_layout,
     make_target,
+    nan_layout_vertex,
+    nan_target_vertex,
+    no_target,
     read_state,
-    Reference,
     scene,
     set_selection,
     snapshot,
+    target_without_faces,
     world_positions,
 )
-
-from bpy_helpers import empty_target, nan_layout_vertex, nan_target_vertex, no_target, target_without_faces
 
 REATTACH_TOLERANCE = 1e-5  # relative to the target's bounding-box diagonal (paper 2.1 rule)
 AXES = {"X": (1, 0, 0), "Y": (0, 1, 0), "Z": (0, 0, 1), "-X": (-1, 0, 0), "-Y": (0, -1, 0), "-Z": (0, 0, -1)}
@@ -71,6 +75,7 @@ def assert_closest_points(reference, queries, results):
 
 def test_enable_registers_operators_panel_and_settings():
     import addon_utils
+
     import springwrap
 
     assert springwrap.bl_info["name"] == "Springwrap"

@@ -6,13 +6,13 @@ the true alignment is known: every layout vertex must come back onto its target 
 
 import math
 
-import bpy  # isort: skip  (mathutils needs bpy imported first)
+import bpy
+
 import numpy as np
 import pytest
 from mathutils import Euler, Matrix, Vector
 
 from bpy_helpers import SPACE_POINT, PanelRecorder, read_state, snapshot, world_positions
-
 
 KNOWN = {
     # A transform of the layout away from the target: rotation, translation, scale (and shear for affine).

@@ -7,7 +7,8 @@ space, independent of the kernel.
 
 import math
 
-import bpy  # isort: skip  (bmesh and mathutils need bpy imported first)
+import bpy
+
 import bmesh
 import numpy as np
 import pytest
@@ -15,17 +16,19 @@ from mathutils import Vector
 
 from bpy_helpers import (
     TOLERANCE,
-    anchor_rows,
-    anchor_snapshot,
     PanelRecorder,
     Reference,
+    anchor_rows,
+    anchor_snapshot,
+    empty_target,
+    nan_layout_vertex,
+    nan_target_vertex,
+    no_target,
     scene,
     set_selection,
+    target_without_faces,
     world_positions,
 )
-
-from bpy_helpers import empty_target, nan_layout_vertex, nan_target_vertex, no_target, target_without_faces
-
 
 FACE, SPACE = "FACE", "SPACE"
 
@@ -73,6 +76,7 @@ def assert_is_closest_point(reference, query, result):
 
 def test_enable_registers_anchor_operators_list_panel_and_drawing():
     import addon_utils
+
     from springwrap.ui import overlays as anchor_drawing
 
     for name in ("anchor_add", "anchors_auto", "anchors_update", "anchor_remove", "anchors_clear"):

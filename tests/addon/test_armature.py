@@ -6,16 +6,14 @@ template aligned onto the same body posed (t-pose plus bent elbow, knee, hip and
 """
 
 
-import bpy  # isort: skip
+import bpy
+
 import numpy as np
 import pytest
 from mathutils import Euler, Matrix
 
-
-
 from benchmarks.retarget import rig_scene, rigging
-
-from bpy_helpers import local_positions, RecordingLayout, world_positions
+from bpy_helpers import RecordingLayout, local_positions, world_positions
 
 RADIUS = 0.2
 

@@ -8,10 +8,10 @@ checks against ``posing.pose_body``'s target.
 """
 
 
-import bpy  # isort: skip
+import bpy
+
 import numpy as np
 import pytest
-
 
 from benchmarks.retarget import armature_methods, baselines, cases, posing, rigging
 

@@ -7,7 +7,8 @@ vertices is the shortest edge chain between its ends, and after a wrap every con
 vertex lies on its curve (checked against the curve's own evaluated polyline).
 """
 
-import bpy  # isort: skip  (bmesh and mathutils need bpy imported first)
+import bpy
+
 import bmesh
 import numpy as np
 import pytest
@@ -26,7 +27,6 @@ from bpy_helpers import (
     snapshot,
     world_positions,
 )
-
 
 ROW = 13  # vertices per row of the test_wrap grid layout (12 subdivisions)
 

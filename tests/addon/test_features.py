@@ -5,14 +5,13 @@ The target is the rounded box of ``test_feature_binding`` (half-size 1, blend ra
 by ``OFFSET``), whose answer is known: 12 ridges on the blends' centre-lines, flat faces, convex blends.
 """
 
-import bpy  # isort: skip  (mathutils needs bpy imported first)
+import bpy
+
 import numpy as np
 import pytest
 
-from bpy_helpers import chain_pairs, distance_to_polyline, RecordingLayout, select_edges, world_positions
-
+from bpy_helpers import RecordingLayout, chain_pairs, distance_to_polyline, select_edges, world_positions
 from helpers import centre_line_distance, rounded_box
-
 
 OFFSET = np.array([0.3, -0.2, 0.1])
 COLOR_ATTRIBUTE = "springwrap_curvature"

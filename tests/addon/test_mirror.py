@@ -9,7 +9,8 @@ each new vertex against the reflection of the vertex it was copied from, seam ve
 plane, the target surface with ``mathutils`` BVHTree.
 """
 
-import bpy  # isort: skip  (bmesh and mathutils need bpy imported first)
+import bpy
+
 import numpy as np
 import pytest
 from mathutils import Matrix, Vector
@@ -27,7 +28,6 @@ from bpy_helpers import (
     world_plane,
     world_positions,
 )
-
 
 SYMMETRY_TOLERANCE = 1e-5
 """Symmetric target: every new vertex within this (world units; the layout is ~2.6 across) of its partner's mirror."""

@@ -17,14 +17,12 @@ the body's bounding-box diagonal.
 
 import time
 
-import bpy  # isort: skip
+import bpy
+
 import numpy as np
 import pytest
 
 from bpy_helpers import world_positions
-
-
-
 
 ASYMMETRY = (
     ("asym/asym-nose-1-l.target.gz", 1.0),

@@ -1,11 +1,11 @@
 """The template's rest shape: stored at the layout's first change, kept by the wrap's springs, set anew on request."""
 
-import bpy  # isort: skip
+import bpy
+
 import numpy as np
 import pytest
 
 from bpy_helpers import local_positions, plane_scene, read_state, snapshot, wrap_with_anchors
-
 
 REST = "springwrap_rest"
 

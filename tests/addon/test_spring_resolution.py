@@ -1,26 +1,26 @@
 """The wrap's spring resolution (coarse to fine): the layout relaxed, then its faces cut k x k relaxed again."""
 
-import bpy  # isort: skip
+import bpy
+
 import numpy as np
 import pytest
 
 from bpy_helpers import (
     SPHERE_CENTER,
     SPHERE_RADIUS,
+    Reference,
     assert_no_flipped_quads,
     assert_wrapped_onto,
     local_positions,
     plane_scene,
     radial,
     read_state,
-    Reference,
     snapshot,
     sphere_scene,
     world_positions,
     wrap_session,
     wrap_with_anchors,
 )
-
 
 
 def test_a_sphere_cap_wrapped_at_resolution_3_lies_on_the_sphere(capfd):

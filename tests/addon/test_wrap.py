@@ -8,7 +8,8 @@ The modal operator's logic is driven without a window through ``WrapSession`` / 
 """
 
 
-import bpy  # isort: skip  (bmesh and mathutils need bpy imported first)
+import bpy
+
 import numpy as np
 import pytest
 
@@ -18,6 +19,8 @@ from bpy_helpers import (
     SPHERE_CENTER,
     SPHERE_RADIUS,
     TOLERANCE,
+    RecordingLayout,
+    Reference,
     activate_layout,
     anchor_snapshot,
     anchor_targets,
@@ -31,8 +34,6 @@ from bpy_helpers import (
     plane_target,
     radial,
     read_state,
-    RecordingLayout,
-    Reference,
     snapshot,
     sphere_scene,
     surface_distances,
@@ -40,7 +41,6 @@ from bpy_helpers import (
     wrap_session,
     wrap_with_anchors,
 )
-
 
 # ---------------------------------------------------------------- scenes
 

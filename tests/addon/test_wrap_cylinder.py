@@ -2,22 +2,22 @@
 
 import math
 
-import bpy  # isort: skip  (bmesh and mathutils need bpy imported first)
+import bpy
+
 import bmesh
 import numpy as np
 from mathutils import Vector
 
 from bpy_helpers import (
+    Reference,
     activate_layout,
     assert_no_flipped_quads,
     assert_wrapped_onto,
     local_positions,
     read_state,
-    Reference,
     world_positions,
     wrap_with_anchors,
 )
-
 
 RADIUS = 1.0
 SEGMENTS = 64

@@ -11,14 +11,13 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import bpy
+
 import numpy as np
 import pytest
+
 import springwrap_kernel as sk
-
 from bpy_helpers import plane_scene
-
 from helpers import REPOSITORY
-
 
 KERNEL = sk.WrapSettings()
 WRAP_OPERATOR_SETTINGS = ("tolerance", "fairness", "arc_length", "thin_plate", "constraint", "folding", "rest",

@@ -2,11 +2,13 @@
 ``test_wrap`` (``mathutils`` BVHTree distances, analytic surface normals), plus what the energy solver
 promises on top: few iterations, no quad turned over, and refusals that leave the layout as it was."""
 
-import bpy  # isort: skip  (bmesh and mathutils need bpy imported first)
+import bpy
+
 import numpy as np
 import pytest
 
 from bpy_helpers import (
+    Reference,
     assert_no_flipped_quads,
     assert_wrapped_onto,
     edge_lengths,
@@ -18,13 +20,11 @@ from bpy_helpers import (
     plane_scene,
     radial,
     read_state,
-    Reference,
     snapshot,
     sphere_scene,
     world_positions,
     wrap_with_anchors,
 )
-
 
 
 def test_grid_above_a_plane_lands_in_a_few_iterations(capfd):

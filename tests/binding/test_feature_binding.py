@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 import springwrap_kernel as sk
-
 from helpers import centre_line_distance, grid, rounded_box
 
 

@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 
 import springwrap_kernel as sk
-
 from helpers import grid
 
 

@@ -4,7 +4,6 @@ import numpy as np
 import pytest
 
 import springwrap_kernel as sk
-
 from helpers import make_solver, plane_target, quad_layout
 
 

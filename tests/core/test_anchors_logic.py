@@ -9,13 +9,9 @@ import sys
 
 import numpy as np
 import pytest
+
 import springwrap_kernel
-
 from helpers import CORE, core_module
-
-
-
-
 
 an = core_module("anchors")
 ls = sys.modules[an.__name__.rpartition(".")[0] + ".layout_state"]

@@ -14,10 +14,6 @@ import pytest
 
 from helpers import core_module
 
-
-
-
-
 cu = core_module("curves")
 ep = sys.modules[cu.__name__.rpartition(".")[0] + ".edge_paths"]
 LayoutError = cu.LayoutError

@@ -7,10 +7,6 @@ import pytest
 
 from helpers import CORE, core_module
 
-
-
-
-
 ls = core_module("layout_state")
 tf = core_module("transforms")
 

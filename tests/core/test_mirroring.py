@@ -11,10 +11,6 @@ import pytest
 
 from helpers import core_module
 
-
-
-
-
 layout_state = core_module("layout_state")
 mirroring = core_module("mirroring")
 

@@ -16,14 +16,14 @@ import re
 import shutil
 import subprocess
 import sys
-import tomllib
 import zipfile
 from pathlib import Path
 
-import build_packages
 import pytest
-import wheel_glibc
+import tomllib
 
+import build_packages
+import wheel_glibc
 from helpers import REPOSITORY
 
 ADDON = REPOSITORY / "addon" / "springwrap"

@@ -14,7 +14,6 @@ import pytest
 
 from helpers import REPOSITORY, TIMEOUT_SECONDS, script_command, sphere_obj
 
-
 MIRROR = REPOSITORY / "blender_scripts" / "mirror.py"
 RINGS, COLUMNS = 8, 6  # of the half-sphere layout: 7 rings between the poles, 7 meridians from -90 to +90 degrees
 

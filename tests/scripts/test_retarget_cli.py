@@ -27,9 +27,7 @@ from pathlib import Path
 
 import pytest
 
-from helpers import TIMEOUT_SECONDS, script_command, sphere_obj
-
-from helpers import REPOSITORY
+from helpers import REPOSITORY, TIMEOUT_SECONDS, script_command, sphere_obj
 
 RETARGET = REPOSITORY / "blender_scripts" / "retarget.py"
 GRID_SIDE = 7  # vertices per side of the template grid

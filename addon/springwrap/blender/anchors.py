@@ -1,8 +1,8 @@
 """The layout's anchors (``Object.springwrap.anchors``) as ``core.anchors.Anchors`` arrays, and back."""
 
-from typing import Optional
 
 import bpy
+
 import numpy as np
 
 from ..core import anchors
@@ -39,7 +39,7 @@ def face_anchor_count(layout: bpy.types.Object) -> int:
 
 
 def write_anchors(
-    layout: bpy.types.Object, anchor_list: anchors.Anchors, active_index: int = -1, signature: Optional[str] = None
+    layout: bpy.types.Object, anchor_list: anchors.Anchors, active_index: int = -1, signature: str | None = None
 ) -> None:
     """Replace the layout's anchor list; make ``active_index`` active (-1 keeps the current one, clamped).
 

@@ -6,6 +6,7 @@ A failure after the pose was set is undone with :func:`restore_pose` by the oper
 """
 
 import bpy
+
 import numpy as np
 from mathutils import Matrix
 

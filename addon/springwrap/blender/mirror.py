@@ -2,8 +2,9 @@
 and restored, faces selected. ``core.mirroring`` decides everything first.
 """
 
-import bmesh
 import bpy
+
+import bmesh
 import numpy as np
 
 from . import attributes

@@ -10,9 +10,10 @@ vertices (``new local = matrix_world⁻¹ @ M @ matrix_world @ local``).
 Nothing is written here; the functions check everything and return the complete result.
 """
 
-from typing import Any, NamedTuple, Optional
+from typing import Any, NamedTuple
 
 import numpy as np
+
 import springwrap_kernel
 
 from . import anchors as anchor_arrays
@@ -52,7 +53,7 @@ class AlignOutcome(NamedTuple):
     anchor_count: int  # anchors the fit used (0 without use_anchors)
     anchor_rms_before: float  # RMS distance layout vertex -> anchor target, before (world units)
     anchor_rms_after: float  # the same after the whole alignment
-    icp: Optional[Any]  # springwrap_kernel.IcpReport, None without ICP
+    icp: Any | None  # springwrap_kernel.IcpReport, None without ICP
     icp_point_count: int  # layout vertices fed to ICP
 
 

@@ -2,7 +2,7 @@
 the rest shape and the fine stage of a spring resolution above 1. Numpy and the kernel, no ``bpy``.
 """
 
-from typing import Any, NamedTuple, Optional
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -12,7 +12,6 @@ from .layout_state import LayoutArrays, check_finite
 from .subdivision import MAX_RESOLUTION
 from .target import Target, resolve_topology
 from .transforms import world_positions
-
 
 COLLAPSED_EDGE = 1e-6
 """An edge shorter than this fraction of the layout's mean edge length has collapsed (a rest shape refuses it)."""
@@ -74,18 +73,18 @@ class WrapInputs(NamedTuple):
     anchor_triangles: np.ndarray  # (A,) int32, -1 for a space anchor
     anchor_barycentrics: np.ndarray  # (A, 3) float32
     anchor_positions: np.ndarray  # (A, 3) float32 world target points
-    unreliable_triangles: Optional[np.ndarray]  # (M,) bool, or None when no group is set
-    curve_vertices: Optional[np.ndarray] = None  # (sum C,) uint32 chains one after another; None: no curves
-    curve_vertex_counts: Optional[np.ndarray] = None  # (K,) uint32 vertices per chain
-    curve_points: Optional[np.ndarray] = None  # (sum P, 3) float32 world target polylines one after another
-    curve_point_counts: Optional[np.ndarray] = None  # (K,) uint32 points per polyline
-    rest_positions: Optional[np.ndarray] = None  # (N, 3) float32 world template shape the springs rest in
-    plane_vertices: Optional[np.ndarray] = None  # (S,) uint32 vertices held on the mirror plane; None: no plane
-    plane_point: Optional[tuple] = None  # (3,) world point of the mirror plane
-    plane_normal: Optional[tuple] = None  # (3,) world normal of the mirror plane
+    unreliable_triangles: np.ndarray | None  # (M,) bool, or None when no group is set
+    curve_vertices: np.ndarray | None = None  # (sum C,) uint32 chains one after another; None: no curves
+    curve_vertex_counts: np.ndarray | None = None  # (K,) uint32 vertices per chain
+    curve_points: np.ndarray | None = None  # (sum P, 3) float32 world target polylines one after another
+    curve_point_counts: np.ndarray | None = None  # (K,) uint32 points per polyline
+    rest_positions: np.ndarray | None = None  # (N, 3) float32 world template shape the springs rest in
+    plane_vertices: np.ndarray | None = None  # (S,) uint32 vertices held on the mirror plane; None: no plane
+    plane_point: tuple | None = None  # (3,) world point of the mirror plane
+    plane_normal: tuple | None = None  # (3,) world normal of the mirror plane
     plane_slide: bool = True  # held points slide along the target's cross-section (False: only move onto it)
-    stiffness: Optional[np.ndarray] = None  # (N,) float32 per-vertex stiffness 0 … 1 (energy solver); None: neutral
-    free_vertices: Optional[np.ndarray] = None  # (N,) bool vertices without a data term (energy solver); None: none
+    stiffness: np.ndarray | None = None  # (N,) float32 per-vertex stiffness 0 … 1 (energy solver); None: neutral
+    free_vertices: np.ndarray | None = None  # (N,) bool vertices without a data term (energy solver); None: none
 
 
 def check_wrap_parameters(parameters: WrapParameters) -> None:
@@ -231,9 +230,9 @@ def prepare_wrap(
     target: Target,
     stored_signature: str,
     anchor_list,
-    unreliable: Optional[np.ndarray],
+    unreliable: np.ndarray | None,
     curve_constraints=(),
-    rest: Optional[np.ndarray] = None,
+    rest: np.ndarray | None = None,
 ) -> tuple[WrapInputs, layout_state.Resolution]:
     """The solver's inputs: the layout's current state (after the deleted-face rule) and positions.
 

@@ -8,6 +8,7 @@ step succeeded; any problem is reported as an error and the anchors are left exa
 import time
 
 import bpy
+
 import numpy as np
 
 from ..blender import anchors as anchor_data

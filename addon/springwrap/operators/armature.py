@@ -14,6 +14,7 @@ armature's pose back exactly, so an error leaves the scene as it was.
 import time
 
 import bpy
+
 import numpy as np
 
 from ..blender import armature as armature_data

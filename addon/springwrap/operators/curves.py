@@ -7,6 +7,7 @@ problem is reported as an error and the constraints are left exactly as they wer
 """
 
 import bpy
+
 import numpy as np
 
 from ..blender import anchors as anchor_data

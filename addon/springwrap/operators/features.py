@@ -12,6 +12,7 @@ import contextlib
 import time
 
 import bpy
+
 import numpy as np
 
 from ..blender import features as feature_data

@@ -23,6 +23,7 @@ only guesses (a wrong anchor is a hard constraint); the pinned half and the seam
 import time
 
 import bpy
+
 import numpy as np
 
 from ..blender import anchors as anchor_data
