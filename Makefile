@@ -49,6 +49,7 @@ test: setup lint test-rust test-python
 # [workspace.lints]), warnings as errors.
 lint: $(STAMPS)/venv
 	$(VENV)/bin/ruff check .
+	$(VENV)/bin/ruff format --check .
 	cargo fmt --all -- --check
 	cargo clippy --workspace --all-targets -- -D warnings
 

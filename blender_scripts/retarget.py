@@ -93,8 +93,12 @@ def wrap_settings(arguments: argparse.Namespace):
     import springwrap_kernel
 
     return springwrap_kernel.WrapSettings(
-        tolerance=arguments.tolerance, fairness=arguments.fairness, arc_length=arguments.arc_length,
-        thin_plate=arguments.thin_plate, solver=arguments.solver.upper())
+        tolerance=arguments.tolerance,
+        fairness=arguments.fairness,
+        arc_length=arguments.arc_length,
+        thin_plate=arguments.thin_plate,
+        solver=arguments.solver.upper(),
+    )
 
 
 def parse_arguments(argv: list[str]) -> argparse.Namespace:
@@ -110,41 +114,79 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     anchors = parser.add_mutually_exclusive_group()
     anchors.add_argument("--anchors", type=Path, help="JSON file of layout-vertex -> target-point pairs")
     anchors.add_argument("--anchors-spacing", type=float, help="spread anchors automatically (0: automatic spacing)")
-    parser.add_argument("--align", choices=("none", "bounds", "icp", "anchors"), default="none",
-                        help="alignment: none, bounds (box centre and size), icp (bounds, then ICP), "
-                        "anchors (fit to --anchors, then ICP) (default none)")
-    parser.add_argument("--align-method", choices=("rigid", "similarity", "affine"), default="similarity",
-                        help="transform of --align icp / anchors (default similarity; ICP alone: rigid or similarity)")
+    parser.add_argument(
+        "--align",
+        choices=("none", "bounds", "icp", "anchors"),
+        default="none",
+        help="alignment: none, bounds (box centre and size), icp (bounds, then ICP), "
+        "anchors (fit to --anchors, then ICP) (default none)",
+    )
+    parser.add_argument(
+        "--align-method",
+        choices=("rigid", "similarity", "affine"),
+        default="similarity",
+        help="transform of --align icp / anchors (default similarity; ICP alone: rigid or similarity)",
+    )
     parser.add_argument("--max-iterations", type=int, default=2000, help="wrap iteration limit (default 2000)")
     # The wrap's settings: their defaults are the kernel's.
-    parser.add_argument("--tolerance", type=float, default=defaults.tolerance,
-                        help="convergence, fraction of the layout's size (default %(default)s)")
-    parser.add_argument("--fairness", type=float, default=defaults.fairness,
-                        help="straight grid lines, 0 to 1 (default %(default)s)")
-    parser.add_argument("--arc-length", type=float, default=defaults.arc_length,
-                        help="even spacing along grid lines, 0 to 1 (default %(default)s)")
-    parser.add_argument("--thin-plate", type=float, default=defaults.thin_plate,
-                        help="curvature over holes, 0 to 0.5 (default %(default)s)")
-    parser.add_argument("--solver", choices=("springs", "energy"), default=defaults.solver.lower(),
-                        help="the wrap's algorithm: the paper's force iteration, or one energy by a global solve "
-                        "(default %(default)s)")
-    parser.add_argument("--stiffness-group", default="",
-                        help="the template's vertex group of per-vertex stiffness, energy solver only (weight 0 "
-                        "follows the target freely, 0.5 as the others, 1 keeps the template's shape)")
-    parser.add_argument("--free-group", default="",
-                        help="the template's vertex group with no pull toward the target, energy solver only "
-                        "(sockets, teeth: they follow their neighbours and stay off the surface)")
+    parser.add_argument(
+        "--tolerance",
+        type=float,
+        default=defaults.tolerance,
+        help="convergence, fraction of the layout's size (default %(default)s)",
+    )
+    parser.add_argument(
+        "--fairness", type=float, default=defaults.fairness, help="straight grid lines, 0 to 1 (default %(default)s)"
+    )
+    parser.add_argument(
+        "--arc-length",
+        type=float,
+        default=defaults.arc_length,
+        help="even spacing along grid lines, 0 to 1 (default %(default)s)",
+    )
+    parser.add_argument(
+        "--thin-plate",
+        type=float,
+        default=defaults.thin_plate,
+        help="curvature over holes, 0 to 0.5 (default %(default)s)",
+    )
+    parser.add_argument(
+        "--solver",
+        choices=("springs", "energy"),
+        default=defaults.solver.lower(),
+        help="the wrap's algorithm: the paper's force iteration, or one energy by a global solve (default %(default)s)",
+    )
+    parser.add_argument(
+        "--stiffness-group",
+        default="",
+        help="the template's vertex group of per-vertex stiffness, energy solver only (weight 0 "
+        "follows the target freely, 0.5 as the others, 1 keeps the template's shape)",
+    )
+    parser.add_argument(
+        "--free-group",
+        default="",
+        help="the template's vertex group with no pull toward the target, energy solver only "
+        "(sockets, teeth: they follow their neighbours and stay off the surface)",
+    )
     parser.add_argument("--output-blend", type=Path, help="save template, target and result here")
     parser.add_argument("--output-obj", type=Path, help="export the retargeted layout here")
     parser.add_argument("--report", type=Path, help="write the JSON report here")
     parser.add_argument("--output-dir", type=Path, help="batch: where each mesh's outputs and summary.json go")
-    parser.add_argument("--jobs", type=int, help="batch: workers at a time (default: local 1; ray, one per CPU "
-                        "of the cluster)")
-    parser.add_argument("--executor", choices=("local", "ray"), default="local",
-                        help="batch: worker processes on this machine, or Ray actors (default local)")
+    parser.add_argument(
+        "--jobs", type=int, help="batch: workers at a time (default: local 1; ray, one per CPU of the cluster)"
+    )
+    parser.add_argument(
+        "--executor",
+        choices=("local", "ray"),
+        default="local",
+        help="batch: worker processes on this machine, or Ray actors (default local)",
+    )
     parser.add_argument("--address", help="batch, --executor ray: the cluster's address (default: start Ray here)")
-    parser.add_argument("--resume", action="store_true",
-                        help="batch: skip the meshes whose .blend, .obj and report are already in --output-dir")
+    parser.add_argument(
+        "--resume",
+        action="store_true",
+        help="batch: skip the meshes whose .blend, .obj and report are already in --output-dir",
+    )
     arguments = parser.parse_args(script_arguments(argv, __file__))
     if arguments.max_iterations < 1:
         parser.error("--max-iterations must be at least 1")
@@ -264,9 +306,12 @@ def read_anchors(path: Path, vertex_count: int) -> list[tuple[int, tuple[float, 
             raise ScriptError(f"{where}: vertex {vertex!r} is not an integer")
         if not 0 <= vertex < vertex_count:
             raise ScriptError(f"{where}: vertex {vertex} does not exist (the template has {vertex_count} vertices)")
-        if (not isinstance(target, list) or len(target) != 3
-                or not all(isinstance(value, (int, float)) and not isinstance(value, bool) for value in target)
-                or not all(math.isfinite(value) for value in target)):
+        if (
+            not isinstance(target, list)
+            or len(target) != 3
+            or not all(isinstance(value, (int, float)) and not isinstance(value, bool) for value in target)
+            or not all(math.isfinite(value) for value in target)
+        ):
             raise ScriptError(f"{where}: target {target!r} is not three finite numbers")
         pairs.append((vertex, tuple(float(value) for value in target)))
     if len({vertex for vertex, _ in pairs}) != len(pairs):
@@ -310,8 +355,9 @@ def align_bounds(layout, target) -> dict:
         raise ScriptError("the template is a single point: it cannot be aligned")
     scale = float(np.linalg.norm(target_high - target_low)) / layout_size
     layout_centre, target_centre = (layout_low + layout_high) / 2, (target_low + target_high) / 2
-    transform = (Matrix.Translation(Vector(target_centre)) @ Matrix.Scale(scale, 4)
-                 @ Matrix.Translation(-Vector(layout_centre)))
+    transform = (
+        Matrix.Translation(Vector(target_centre)) @ Matrix.Scale(scale, 4) @ Matrix.Translation(-Vector(layout_centre))
+    )
     layout.matrix_world = transform @ layout.matrix_world
     return {"scale": scale, "translation": (target_centre - layout_centre * scale).tolist()}
 
@@ -322,12 +368,12 @@ def align_with_operator(layout, arguments: argparse.Namespace, blame: str) -> di
 
     before = np.array(layout.matrix_world, dtype=np.float64)
     use_anchors = arguments.align == "anchors"
-    run_operator(blame, "align", method=arguments.align_method.upper(), use_anchors=use_anchors, use_icp=True,
-              apply="OBJECT")
+    run_operator(
+        blame, "align", method=arguments.align_method.upper(), use_anchors=use_anchors, use_icp=True, apply="OBJECT"
+    )
     bpy.context.view_layer.update()
     change = np.array(layout.matrix_world, dtype=np.float64) @ np.linalg.inv(before)
-    return {"method": arguments.align_method, "anchors": use_anchors, "icp": True,
-            "matrix": change.tolist()}
+    return {"method": arguments.align_method, "anchors": use_anchors, "icp": True, "matrix": change.tolist()}
 
 
 def distances_to_target(layout, target) -> dict:
@@ -342,8 +388,12 @@ def distances_to_target(layout, target) -> dict:
     hits = mesh.closest_points(np.ascontiguousarray(layout_points, dtype=np.float32))
     distances = np.asarray(hits.distances, dtype=np.float64)
     size = float(np.linalg.norm(target_points.max(axis=0) - target_points.min(axis=0)))
-    return {"mean_distance": float(distances.mean()), "max_distance": float(distances.max()),
-            "rms_distance": float(np.sqrt((distances ** 2).mean())), "target_diagonal": size}
+    return {
+        "mean_distance": float(distances.mean()),
+        "max_distance": float(distances.max()),
+        "rms_distance": float(np.sqrt((distances**2).mean())),
+        "target_diagonal": size,
+    }
 
 
 class Laps:
@@ -383,8 +433,9 @@ def retarget(arguments: argparse.Namespace) -> dict:
     bpy.ops.wm.read_homefile(use_empty=True)
     template = load_mesh(arguments.template, arguments.template_object, "Template")
     target = load_mesh(arguments.target, arguments.target_object, "Target")
-    anchor_pairs = (read_anchors(arguments.anchors, len(template.data.vertices))
-                    if arguments.anchors is not None else None)
+    anchor_pairs = (
+        read_anchors(arguments.anchors, len(template.data.vertices)) if arguments.anchors is not None else None
+    )
     layout = template.copy()
     layout.data = template.data.copy()
     layout.name = LAYOUT_NAME
@@ -413,30 +464,44 @@ def retarget(arguments: argparse.Namespace) -> dict:
     lap("anchors")
 
     try:
-        parameters = WrapParameters(max_iterations=arguments.max_iterations,
-                                               settings=wrap_settings(arguments),
-                                               stiffness_group=arguments.stiffness_group,
-                                               free_group=arguments.free_group)
+        parameters = WrapParameters(
+            max_iterations=arguments.max_iterations,
+            settings=wrap_settings(arguments),
+            stiffness_group=arguments.stiffness_group,
+            free_group=arguments.free_group,
+        )
         session = WrapSession(bpy.context, layout, parameters)
     except ERRORS as error:
         raise ScriptError(f"{blame}: cannot wrap: {error}") from None
     session.run()
     result = session.finish()
     if not result.converged:
-        warnings.append(f"did not converge within {arguments.max_iterations} iterations "
-                        f"(last move {result.max_displacement:.2e} of the layout's size); the result is kept")
+        warnings.append(
+            f"did not converge within {arguments.max_iterations} iterations "
+            f"(last move {result.max_displacement:.2e} of the layout's size); the result is kept"
+        )
     if result.space_points:
         warnings.append(f"{result.space_points} of {result.vertex_count} vertices are off the surface (space-points)")
     lap("wrap")
 
     report = {
-        "template": str(arguments.template), "target": str(arguments.target),
-        "vertices": result.vertex_count, "faces": len(layout.data.polygons),
-        "anchors": len(layout.springwrap.anchors), "alignment": alignment,
-        "wrap": {"iterations": result.iterations, "converged": result.converged, "face_points": result.face_points,
-                 "space_points": result.space_points, "kernel_seconds": round(result.kernel_seconds, 4)},
+        "template": str(arguments.template),
+        "target": str(arguments.target),
+        "vertices": result.vertex_count,
+        "faces": len(layout.data.polygons),
+        "anchors": len(layout.springwrap.anchors),
+        "alignment": alignment,
+        "wrap": {
+            "iterations": result.iterations,
+            "converged": result.converged,
+            "face_points": result.face_points,
+            "space_points": result.space_points,
+            "kernel_seconds": round(result.kernel_seconds, 4),
+        },
         "metrics": distances_to_target(layout, target),
-        "timings": timings, "warnings": warnings, "blender": bpy.app.version_string,
+        "timings": timings,
+        "warnings": warnings,
+        "blender": bpy.app.version_string,
     }
     lap("metrics")
     write_outputs(arguments, layout, report)
@@ -458,8 +523,9 @@ def write_outputs(arguments: argparse.Namespace, layout, report: dict) -> None:
     def write_report(path: Path) -> None:
         path.write_text(json.dumps(report, indent=2) + "\n")
 
-    write_all_or_nothing([(arguments.output_blend, save_blend), (arguments.output_obj, export_obj),
-                          (arguments.report, write_report)])
+    write_all_or_nothing(
+        [(arguments.output_blend, save_blend), (arguments.output_obj, export_obj), (arguments.report, write_report)]
+    )
 
 
 # ---------------------------------------------------------------- batch
@@ -473,9 +539,24 @@ def task_outputs(task: dict) -> dict[str, Path]:
 
 def batch_task(arguments: argparse.Namespace, target: Path, output_dir: Path) -> dict:
     """One mesh of the batch as plain data (JSON for a local worker's pipe, pickled for Ray): absolute paths."""
-    settings = {name: getattr(arguments, name) for name in (
-        "template_object", "target_object", "anchors_spacing", "align", "align_method", "max_iterations",
-        "tolerance", "fairness", "arc_length", "thin_plate", "solver", "stiffness_group", "free_group")}
+    settings = {
+        name: getattr(arguments, name)
+        for name in (
+            "template_object",
+            "target_object",
+            "anchors_spacing",
+            "align",
+            "align_method",
+            "max_iterations",
+            "tolerance",
+            "fairness",
+            "arc_length",
+            "thin_plate",
+            "solver",
+            "stiffness_group",
+            "free_group",
+        )
+    }
     settings["template"] = str(arguments.template.resolve())
     settings["anchors"] = str(arguments.anchors.resolve()) if arguments.anchors is not None else None
     return {"target": str(target.resolve()), "output_dir": str(output_dir), "settings": settings}
@@ -490,10 +571,17 @@ def retarget_task(task: dict) -> dict:
     """
     start = time.perf_counter()
     settings, outputs = task["settings"], task_outputs(task)
-    arguments = argparse.Namespace(**settings | {
-        "template": Path(settings["template"]), "anchors": settings["anchors"] and Path(settings["anchors"]),
-        "target": Path(task["target"]), "output_blend": outputs["blend"], "output_obj": outputs["obj"],
-        "report": outputs["json"]})
+    arguments = argparse.Namespace(
+        **settings
+        | {
+            "template": Path(settings["template"]),
+            "anchors": settings["anchors"] and Path(settings["anchors"]),
+            "target": Path(task["target"]),
+            "output_blend": outputs["blend"],
+            "output_obj": outputs["obj"],
+            "report": outputs["json"],
+        }
+    )
     entry = {"target": task["target"]}
     try:
         retarget(arguments)
@@ -532,8 +620,18 @@ def local_worker_command() -> list[str]:
     script = str(Path(__file__).resolve())
     if bpy.app.binary_path:  # inside a Blender binary: the same, and the same use of PYTHONPATH
         system_environment = [] if sys.flags.ignore_environment else ["--python-use-system-env"]
-        return [bpy.app.binary_path, "-b", "--factory-startup", *system_environment, "--python-exit-code", "1",
-                "--python", script, "--", WORKER_FLAG]
+        return [
+            bpy.app.binary_path,
+            "-b",
+            "--factory-startup",
+            *system_environment,
+            "--python-exit-code",
+            "1",
+            "--python",
+            script,
+            "--",
+            WORKER_FLAG,
+        ]
     return [sys.executable, script, WORKER_FLAG]
 
 
@@ -544,18 +642,23 @@ def batch_executor(arguments: argparse.Namespace):
     if arguments.executor == "local":
         return retarget_batch.LocalExecutor(local_worker_command())
     if bpy.app.binary_path:
-        raise ScriptError("--executor ray runs with the bpy module (python retarget.py ...), "
-                            "not inside a Blender binary")
+        raise ScriptError(
+            "--executor ray runs with the bpy module (python retarget.py ...), not inside a Blender binary"
+        )
     try:
         return retarget_batch.RayExecutor(arguments.address, arguments.jobs, SCRIPTS_FOLDER)
     except ImportError as error:
         raise ScriptError(str(error)) from None
     except (ConnectionError, RuntimeError, ValueError) as error:
         first_line = str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
-        hint = ("; a cluster with Ray's token authentication also needs RAY_AUTH_MODE=token and its token here"
-                if arguments.address and not os.environ.get("RAY_AUTH_MODE") else "")
-        raise ScriptError(f"Ray cannot start or connect ({arguments.address or 'a local instance'}): "
-                            f"{first_line}{hint}") from None
+        hint = (
+            "; a cluster with Ray's token authentication also needs RAY_AUTH_MODE=token and its token here"
+            if arguments.address and not os.environ.get("RAY_AUTH_MODE")
+            else ""
+        )
+        raise ScriptError(
+            f"Ray cannot start or connect ({arguments.address or 'a local instance'}): {first_line}{hint}"
+        ) from None
 
 
 def run_batch(arguments: argparse.Namespace) -> int:
@@ -568,8 +671,9 @@ def run_batch(arguments: argparse.Namespace) -> int:
         raise ScriptError(f"{arguments.anchors}: no such file")
     if not arguments.batch.is_dir():
         raise ScriptError(f"{arguments.batch}: no such folder")
-    targets = sorted(path for path in arguments.batch.iterdir()
-                     if path.is_file() and path.suffix.lower() in MESH_SUFFIXES)
+    targets = sorted(
+        path for path in arguments.batch.iterdir() if path.is_file() and path.suffix.lower() in MESH_SUFFIXES
+    )
     if not targets:
         raise ScriptError(f"{arguments.batch}: no mesh files ({', '.join(MESH_SUFFIXES)})")
     stems = [path.stem for path in targets]
@@ -592,23 +696,43 @@ def run_batch(arguments: argparse.Namespace) -> int:
         finally:
             executor.close()
     ran = iter(outcome.entries)
-    entries = [{"target": task["target"], "status": "ok", "report": str(task_outputs(task)["json"]), "resumed": True}
-               if skip else next(ran) for task, skip in zip(tasks, resumed)]
+    entries = [
+        {"target": task["target"], "status": "ok", "report": str(task_outputs(task)["json"]), "resumed": True}
+        if skip
+        else next(ran)
+        for task, skip in zip(tasks, resumed)
+    ]
     for task, entry in zip(tasks, entries):
         if entry["status"] == "not run":
             remove_partial_outputs(task)
     counts = {status: sum(entry["status"] == status for entry in entries) for status in ("ok", "failed", "not run")}
-    summary = {"template": str(arguments.template), "folder": str(arguments.batch), "executor": arguments.executor,
-               "jobs": jobs, "meshes": entries, "ok": counts["ok"], "failed": counts["failed"],
-               "not_run": counts["not run"], "resumed": sum(resumed), "interrupted": outcome.interrupted,
-               "stopped": outcome.stopped, "seconds": round(time.perf_counter() - start, 2), "workers": outcome.workers}
+    summary = {
+        "template": str(arguments.template),
+        "folder": str(arguments.batch),
+        "executor": arguments.executor,
+        "jobs": jobs,
+        "meshes": entries,
+        "ok": counts["ok"],
+        "failed": counts["failed"],
+        "not_run": counts["not run"],
+        "resumed": sum(resumed),
+        "interrupted": outcome.interrupted,
+        "stopped": outcome.stopped,
+        "seconds": round(time.perf_counter() - start, 2),
+        "workers": outcome.workers,
+    }
     write_atomically(output_dir / "summary.json", lambda path: path.write_text(json.dumps(summary, indent=2) + "\n"))
     not_run = f", {counts['not run']} not run" if counts["not run"] else ""
-    print(f"retarget: {counts['ok']} of {len(entries)} meshes retargeted ({sum(resumed)} already done), "
-          f"{counts['failed']} failed{not_run}; summary {output_dir / 'summary.json'}", file=sys.stderr)
+    print(
+        f"retarget: {counts['ok']} of {len(entries)} meshes retargeted ({sum(resumed)} already done), "
+        f"{counts['failed']} failed{not_run}; summary {output_dir / 'summary.json'}",
+        file=sys.stderr,
+    )
     if outcome.interrupted:
-        print("retarget: interrupted: the meshes not run are listed in the summary "
-              "(run again with --resume to go on)", file=sys.stderr)
+        print(
+            "retarget: interrupted: the meshes not run are listed in the summary (run again with --resume to go on)",
+            file=sys.stderr,
+        )
         return EXIT_INTERRUPTED
     if outcome.stopped:
         raise ScriptError(f"the batch stopped: {outcome.stopped}")
@@ -632,9 +756,11 @@ def main() -> int:
     except Exception as error:  # noqa: BLE001 - any failure must become a non-zero exit code, also under `blender -b`
         return failed("retarget", error)
     metrics = report["metrics"]
-    print(f"retarget: {report['vertices']} vertices, {report['wrap']['face_points']} on the target after "
-          f"{report['wrap']['iterations']} iterations; mean distance {metrics['mean_distance']:.2e}, "
-          f"max {metrics['max_distance']:.2e}" + "".join(f"\n  warning: {line}" for line in report["warnings"]))
+    print(
+        f"retarget: {report['vertices']} vertices, {report['wrap']['face_points']} on the target after "
+        f"{report['wrap']['iterations']} iterations; mean distance {metrics['mean_distance']:.2e}, "
+        f"max {metrics['max_distance']:.2e}" + "".join(f"\n  warning: {line}" for line in report["warnings"])
+    )
     return EXIT_OK
 
 

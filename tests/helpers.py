@@ -65,7 +65,9 @@ def plane_target(cells=60, size=0.025):
     """A flat square target in z = 0 centred on the origin."""
     row = cells + 1
     xs, ys = np.meshgrid(np.arange(row), np.arange(row))
-    vertices = np.stack([xs.ravel(), ys.ravel(), np.zeros(row * row)], 1) * size - np.array([cells * size / 2, cells * size / 2, 0])
+    vertices = np.stack([xs.ravel(), ys.ravel(), np.zeros(row * row)], 1) * size - np.array(
+        [cells * size / 2, cells * size / 2, 0]
+    )
     corner = (np.arange(cells)[None] + row * np.arange(cells)[:, None]).ravel()
     triangles = np.concatenate(
         [np.stack([corner, corner + 1, corner + row + 1], 1), np.stack([corner, corner + row + 1, corner + row], 1)]
@@ -77,7 +79,9 @@ def quad_layout(n=12, size=0.05, height=0.25):
     """An n x n quad grid centred over the origin at z = height, as flat face arrays."""
     row = n + 1
     xs, ys = np.meshgrid(np.arange(row), np.arange(row))
-    positions = np.stack([xs.ravel(), ys.ravel(), np.zeros(row * row)], 1) * size + np.array([-n * size / 2, -n * size / 2, height])
+    positions = np.stack([xs.ravel(), ys.ravel(), np.zeros(row * row)], 1) * size + np.array(
+        [-n * size / 2, -n * size / 2, height]
+    )
     corner = (np.arange(n)[None] + row * np.arange(n)[:, None]).ravel()
     face_corners = np.stack([corner, corner + 1, corner + row + 1, corner + row], 1).astype(np.uint32).ravel()
     return positions.astype(np.float32), face_corners, np.full(n * n, 4, np.uint32)
@@ -88,9 +92,17 @@ def make_solver(target, positions, structure, anchor_vertices, **arguments):
     hits = target.closest_points(below)
     count = len(positions)
     return sk.WrapSolver(
-        target, structure, np.zeros(count, np.int32), np.full(count, -1, np.int32), np.zeros((count, 3), np.float32),
-        positions, anchor_vertices=np.asarray(anchor_vertices, np.uint32), anchor_triangles=hits.triangles,
-        anchor_barycentrics=hits.barycentrics, anchor_positions=hits.positions, **arguments,
+        target,
+        structure,
+        np.zeros(count, np.int32),
+        np.full(count, -1, np.int32),
+        np.zeros((count, 3), np.float32),
+        positions,
+        anchor_vertices=np.asarray(anchor_vertices, np.uint32),
+        anchor_triangles=hits.triangles,
+        anchor_barycentrics=hits.barycentrics,
+        anchor_positions=hits.positions,
+        **arguments,
     ), hits
 
 
@@ -120,8 +132,9 @@ def rounded_box(half: float = 1.0, radius: float = 0.25, cells: int = 40):
             triangles.append(np.concatenate([quad[:, [0, 1, 2]], quad[:, [0, 2, 3]]]) + offset)
             offset += face.shape[0]
     points = np.concatenate(points)
-    keys, first, inverse = np.unique(np.round(points * 1e4).astype(np.int64), axis=0, return_index=True,
-                                     return_inverse=True)
+    keys, first, inverse = np.unique(
+        np.round(points * 1e4).astype(np.int64), axis=0, return_index=True, return_inverse=True
+    )
     on_cube = points[first]
     center = np.clip(on_cube, -inner, inner)
     outward = on_cube - center
@@ -160,8 +173,10 @@ def sphere_obj(radius: float, segments: int = 32, rings: int = 16) -> str:
         polar = math.pi * ring / rings
         for segment in range(segments):
             azimuth = 2 * math.pi * segment / segments
-            lines.append(f"v {radius * math.sin(polar) * math.cos(azimuth):.6f} "
-                         f"{radius * math.sin(polar) * math.sin(azimuth):.6f} {radius * math.cos(polar):.6f}")
+            lines.append(
+                f"v {radius * math.sin(polar) * math.cos(azimuth):.6f} "
+                f"{radius * math.sin(polar) * math.sin(azimuth):.6f} {radius * math.cos(polar):.6f}"
+            )
     lines.append("v 0 0 %.6f" % -radius)
     bottom = 2 + (rings - 1) * segments
 
@@ -172,8 +187,10 @@ def sphere_obj(radius: float, segments: int = 32, rings: int = 16) -> str:
         lines.append(f"f 1 {ring_vertex(1, segment)} {ring_vertex(1, segment + 1)}")
         lines.append(f"f {bottom} {ring_vertex(rings - 1, segment + 1)} {ring_vertex(rings - 1, segment)}")
         for ring in range(1, rings - 1):
-            lines.append(f"f {ring_vertex(ring, segment)} {ring_vertex(ring + 1, segment)} "
-                         f"{ring_vertex(ring + 1, segment + 1)} {ring_vertex(ring, segment + 1)}")
+            lines.append(
+                f"f {ring_vertex(ring, segment)} {ring_vertex(ring + 1, segment)} "
+                f"{ring_vertex(ring + 1, segment + 1)} {ring_vertex(ring, segment + 1)}"
+            )
     return "\n".join(lines) + "\n"
 
 
@@ -181,6 +198,15 @@ def script_command(script: Path) -> list[str]:
     """How to run a Blender script here: with this Python (bpy module) or with this lane's blender binary."""
     blender = os.environ.get("SPRINGWRAP_BLENDER")
     if blender:
-        return [blender, "-b", "--factory-startup", "--python-use-system-env", "--python-exit-code", "1",
-                "--python", str(script), "--"]
+        return [
+            blender,
+            "-b",
+            "--factory-startup",
+            "--python-use-system-env",
+            "--python-exit-code",
+            "1",
+            "--python",
+            str(script),
+            "--",
+        ]
     return [sys.executable, str(script)]

@@ -5,7 +5,6 @@ the project's own code; skipped with the reason only when PyPI cannot be reached
 ``posing.pose_body`` put the heavy-posed target's joints, placed like the target.
 """
 
-
 import numpy as np
 import pytest
 
@@ -26,8 +25,9 @@ def test_the_case_frame_matrix_undoes_the_blender_frame():
     np.testing.assert_allclose(back, points, atol=1e-12)
     assert np.linalg.det(armature_methods.CASE_FROM_BLENDER[:3, :3]) == pytest.approx(1.0)  # a turn, no mirror
     placed = cases.transform_points(armature_methods.target_armature_matrix(), blender)
-    np.testing.assert_allclose(placed, cases.transform_points(cases.similarity_matrix(**cases.PLACEMENT), points),
-                               atol=1e-12)
+    np.testing.assert_allclose(
+        placed, cases.transform_points(cases.similarity_matrix(**cases.PLACEMENT), points), atol=1e-12
+    )
 
 
 def chain_rig():
@@ -57,10 +57,15 @@ def test_posed_joints_of_a_chain_are_known():
 
 
 def test_the_operator_report_is_parsed():
-    text = ("Info: Aligned 163 bones of 'Template Rig' onto 'Target Rig' (0 without a partner follow their "
-            "parent), largest bone mismatch 1.43e-07; baked 13380 vertices (space-points, moved up to 0.5) in 812 ms")
+    text = (
+        "Info: Aligned 163 bones of 'Template Rig' onto 'Target Rig' (0 without a partner follow their "
+        "parent), largest bone mismatch 1.43e-07; baked 13380 vertices (space-points, moved up to 0.5) in 812 ms"
+    )
     assert armature_methods.parse_armature_report(text) == {
-        "matched_bones": 163, "unmatched_bones": 0, "bone_mismatch": pytest.approx(1.43e-7)}
+        "matched_bones": 163,
+        "unmatched_bones": 0,
+        "bone_mismatch": pytest.approx(1.43e-7),
+    }
     assert armature_methods.parse_armature_report("nothing here") == {}
 
 
@@ -96,8 +101,9 @@ def test_the_posed_target_armature_sits_on_the_posed_targets_joints(cached_base)
     heads, _tails = armature_methods.posed_joints(rig, posing.POSES[spec.pose])
     placement = cases.similarity_matrix(**cases.PLACEMENT)
     armature_heads = cases.transform_points(armature_methods.target_armature_matrix(), heads)
-    expected = cases.transform_points(placement, np.array(
-        [posing.joint_position(bones[name]["head"], posed_body, groups) for name in rig.names]))
+    expected = cases.transform_points(
+        placement, np.array([posing.joint_position(bones[name]["head"], posed_body, groups) for name in rig.names])
+    )
     on_cubes = np.array([bones[name]["head"].get("strategy") == "CUBE" for name in rig.names])
     assert on_cubes.sum() > 100
     errors = np.linalg.norm(armature_heads - expected, axis=1)
@@ -106,6 +112,7 @@ def test_the_posed_target_armature_sits_on_the_posed_targets_joints(cached_base)
     # blended (measured: 7 of 163, up to 5 cm at the bent elbow's forearm twist bone).
     assert np.count_nonzero(errors < 1e-6) >= 150
     # Not trivially at rest: many of those heads moved by the pose (the left arm and leg, the head).
-    rest = cases.transform_points(placement, np.array(
-        [posing.joint_position(bones[name]["head"], morphed, groups) for name in rig.names]))
+    rest = cases.transform_points(
+        placement, np.array([posing.joint_position(bones[name]["head"], morphed, groups) for name in rig.names])
+    )
     assert np.count_nonzero(np.linalg.norm(expected - rest, axis=1)[on_cubes] > 0.05) > 20

@@ -226,8 +226,16 @@ def test_synthetic_case_generation_is_deterministic():
         if spec.source == "anny":
             continue
         first, second = cases.build_case(spec), cases.build_case(spec)
-        for name in ("layout_vertices", "layout_quads", "true_positions", "target_vertices", "target_triangles",
-                     "over_hole", "in_cavity", "landmark_vertices"):
+        for name in (
+            "layout_vertices",
+            "layout_quads",
+            "true_positions",
+            "target_vertices",
+            "target_triangles",
+            "over_hole",
+            "in_cavity",
+            "landmark_vertices",
+        ):
             assert np.array_equal(getattr(first, name), getattr(second, name)), (spec.name, name)
         assert first.landmark_names == second.landmark_names
         assert first.target_vertices.dtype == np.float32 and first.target_triangles.dtype == np.uint32
@@ -241,8 +249,10 @@ def test_synthetic_truth_lies_on_the_analytic_surface():
 
 
 def test_variants_share_the_truth_and_differ_as_stated():
-    clean, holes, noise = (cases.build_case(spec) for spec in cases.case_specs(
-        ["sphere-ellipsoid", "sphere-ellipsoid-holes", "sphere-ellipsoid-noise"]))
+    clean, holes, noise = (
+        cases.build_case(spec)
+        for spec in cases.case_specs(["sphere-ellipsoid", "sphere-ellipsoid-holes", "sphere-ellipsoid-noise"])
+    )
     assert np.array_equal(clean.true_positions, holes.true_positions)
     assert np.array_equal(clean.true_positions, noise.true_positions)
     assert len(holes.target_triangles) < len(clean.target_triangles) and holes.over_hole.any()
@@ -332,8 +342,9 @@ def test_read_obj_resolves_relative_indices_against_the_vertices_written_so_far(
 
 def test_read_off(tmp_path):
     off = tmp_path / "mesh.off"
-    off.write_text("OFF\n# a square and a triangle\n5 2 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n2 0 0\n"
-                   "4 0 1 2 3\n3 1 4 2 255 0 0\n")
+    off.write_text(
+        "OFF\n# a square and a triangle\n5 2 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n2 0 0\n4 0 1 2 3\n3 1 4 2 255 0 0\n"
+    )
     mesh = data.read_off(off)
     assert mesh.vertices.shape == (5, 3) and mesh.face_sizes.tolist() == [4, 3]
     assert mesh.face_corners.tolist() == [0, 1, 2, 3, 1, 4, 2]  # the colour after the indices is ignored
@@ -354,8 +365,10 @@ def test_a_pymeshlab_sample_mesh_is_found_under_the_wheels_data_folder(tmp_path)
     wheels.mkdir()
     wheel = wheels / f"pymeshlab-{data.PYMESHLAB_VERSION}-cp311-cp311-manylinux_2_31_x86_64.whl"
     with zipfile.ZipFile(wheel, "w") as archive:  # in the cache already: no pip
-        archive.writestr(f"pymeshlab-{data.PYMESHLAB_VERSION}.data/purelib/{data.PYMESHLAB_SAMPLES}/tiny.obj",
-                         "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\n")
+        archive.writestr(
+            f"pymeshlab-{data.PYMESHLAB_VERSION}.data/purelib/{data.PYMESHLAB_SAMPLES}/tiny.obj",
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\n",
+        )
     extracted = data.pymeshlab_file("tiny.obj", tmp_path)
     assert data.read_obj(extracted).face_corners.tolist() == [0, 1, 2]
     with pytest.raises(data.DataError, match="not in"):
@@ -386,8 +399,12 @@ def test_a_file_is_read_out_of_a_debian_package_and_the_cgal_data_in_it(tmp_path
     debs = tmp_path / "debs"
     debs.mkdir()
     deb = debs / f"{data.CGAL_DEMO_PACKAGE}_1.0-1_all.deb"
-    deb.write_bytes(b"!<arch>\n" + _ar_member("debian-binary", b"2.0\n") + _ar_member("control.tar.gz", b"x")
-                    + _ar_member("data.tar.gz", outer))
+    deb.write_bytes(
+        b"!<arch>\n"
+        + _ar_member("debian-binary", b"2.0\n")
+        + _ar_member("control.tar.gz", b"x")
+        + _ar_member("data.tar.gz", outer)
+    )
     assert data.deb_data_member(deb, data.CGAL_DATA_ARCHIVE) == inner
     with pytest.raises(data.DataError, match="not in"):
         data.deb_data_member(deb, "usr/share/missing")
@@ -437,7 +454,9 @@ def test_the_wrap_report_is_parsed():
     first = springwrap_methods.parse_wrap_report(text.splitlines()[1])
     assert first.converged and first.iterations == 412 and first.as_dict()["space_points"] == 3
     with pytest.raises(ValueError, match="no wrap report"):
-        springwrap_methods.parse_wrap_report("Error: invalid layout: the edge between vertices 9 and 4850 has zero length")
+        springwrap_methods.parse_wrap_report(
+            "Error: invalid layout: the edge between vertices 9 and 4850 has zero length"
+        )
 
 
 def test_every_wrap_method_is_a_method_with_a_known_start():
@@ -468,11 +487,17 @@ def test_saved_positions_hold_every_method_that_produced_some(tmp_path):
     from types import SimpleNamespace
 
     vertices, quads = grid(2)
-    case = SimpleNamespace(true_positions=vertices, layout_quads=quads, over_hole=np.zeros(len(vertices), bool),
-                           in_cavity=np.ones(len(vertices), bool))
-    results = [baselines.MethodResult("aligned template", "ok", vertices + 1.0),
-               baselines.MethodResult("Springwrap snap+wrap", "refused: zero-length edge"),
-               baselines.MethodResult("Springwrap wrap", "ok", vertices * 2.0)]
+    case = SimpleNamespace(
+        true_positions=vertices,
+        layout_quads=quads,
+        over_hole=np.zeros(len(vertices), bool),
+        in_cavity=np.ones(len(vertices), bool),
+    )
+    results = [
+        baselines.MethodResult("aligned template", "ok", vertices + 1.0),
+        baselines.MethodResult("Springwrap snap+wrap", "refused: zero-length edge"),
+        baselines.MethodResult("Springwrap wrap", "ok", vertices * 2.0),
+    ]
     run.save_positions(tmp_path / "case.npz", case, results)
     stored = np.load(tmp_path / "case.npz")
     assert list(stored["methods"]) == ["aligned template", "Springwrap wrap"]
@@ -495,34 +520,81 @@ def test_torus_layout_is_a_closed_consistently_wound_quad_grid():
 
 def made_up_entry(mean: float, p95: float, seconds: float, diagonal: float = 2.0, **extra) -> dict:
     """A method's JSON entry with round numbers (errors in %, the diagonal in metres)."""
-    metrics_row = {"diagonal": diagonal, "error_mean": mean / 100.0 * diagonal, "error_p95": p95 / 100.0 * diagonal,
-                   "error_max": 2 * p95 / 100.0 * diagonal, "error_percent_mean": mean, "error_percent_p95": p95,
-                   "error_percent_max": 2 * p95, "surface_distance_percent_mean": 0.0,
-                   "error_over_holes_percent_mean": float("nan"), "flipped_quads": 7, "degenerate_quads": 1,
-                   "angle_distortion_degrees": 3.25, "anchor_error_percent": 0.01}
+    metrics_row = {
+        "diagonal": diagonal,
+        "error_mean": mean / 100.0 * diagonal,
+        "error_p95": p95 / 100.0 * diagonal,
+        "error_max": 2 * p95 / 100.0 * diagonal,
+        "error_percent_mean": mean,
+        "error_percent_p95": p95,
+        "error_percent_max": 2 * p95,
+        "surface_distance_percent_mean": 0.0,
+        "error_over_holes_percent_mean": float("nan"),
+        "flipped_quads": 7,
+        "degenerate_quads": 1,
+        "angle_distortion_degrees": 3.25,
+        "anchor_error_percent": 0.01,
+    }
     return {"status": "ok", "seconds": seconds, "peak_megabytes": 12.0, "notes": [], "metrics": metrics_row} | extra
 
 
 def made_up_run() -> dict:
-    body = {"case": "heavy", "spec": {"source": "anny", "description": "a heavy body."}, "info": {},
-            "layout_vertices": 100, "layout_quads": 98, "target_triangles": 1000, "over_hole": 0, "in_cavity": 3,
-            "anchors": ["crown"] * 24,
-            "methods": {"aligned template": made_up_entry(0.5, 1.8, 0.0),
-                        "Shrinkwrap nearest": made_up_entry(0.4, 1.4, 0.2),
-                        "Springwrap wrap": made_up_entry(0.25, 0.9, 20.0, details={
-                            "iterations": 2000, "converged": False, "wrap_seconds": 18.5,
-                            "iterations_per_second": 108.1}),
-                        "Springwrap snap+wrap": {"status": "refused: springwrap.wrap: zero length", "seconds": 1.0,
-                                                 "peak_megabytes": 0.0, "notes": []}}}
-    sphere = {"case": "sphere-ellipsoid", "spec": {"source": "sphere-ellipsoid", "description": "a sphere."},
-              "info": {}, "layout_vertices": 10, "layout_quads": 8, "target_triangles": 50, "over_hole": 0,
-              "in_cavity": 0, "anchors": ["a"] * 24,
-              "methods": {"aligned template": made_up_entry(6.0, 8.0, 0.0, diagonal=3.0),
-                          "Springwrap wrap": made_up_entry(2.0, 4.0, 0.4, diagonal=3.0)}}
-    return {"arguments": {"quick": True, "anchors": 24, "wrap_max_iterations": None}, "seconds": 100.0,
-            "machine": {"cpu": "Test CPU", "cpu_count": 2, "bpy": "5.0.1", "python": "3.11.7",
-                        "springwrap_kernel": "0.1.0", "git_commit": "abc123", "load_average": [3.0, 2.0, 1.0]},
-            "cases": [sphere, body]}
+    body = {
+        "case": "heavy",
+        "spec": {"source": "anny", "description": "a heavy body."},
+        "info": {},
+        "layout_vertices": 100,
+        "layout_quads": 98,
+        "target_triangles": 1000,
+        "over_hole": 0,
+        "in_cavity": 3,
+        "anchors": ["crown"] * 24,
+        "methods": {
+            "aligned template": made_up_entry(0.5, 1.8, 0.0),
+            "Shrinkwrap nearest": made_up_entry(0.4, 1.4, 0.2),
+            "Springwrap wrap": made_up_entry(
+                0.25,
+                0.9,
+                20.0,
+                details={"iterations": 2000, "converged": False, "wrap_seconds": 18.5, "iterations_per_second": 108.1},
+            ),
+            "Springwrap snap+wrap": {
+                "status": "refused: springwrap.wrap: zero length",
+                "seconds": 1.0,
+                "peak_megabytes": 0.0,
+                "notes": [],
+            },
+        },
+    }
+    sphere = {
+        "case": "sphere-ellipsoid",
+        "spec": {"source": "sphere-ellipsoid", "description": "a sphere."},
+        "info": {},
+        "layout_vertices": 10,
+        "layout_quads": 8,
+        "target_triangles": 50,
+        "over_hole": 0,
+        "in_cavity": 0,
+        "anchors": ["a"] * 24,
+        "methods": {
+            "aligned template": made_up_entry(6.0, 8.0, 0.0, diagonal=3.0),
+            "Springwrap wrap": made_up_entry(2.0, 4.0, 0.4, diagonal=3.0),
+        },
+    }
+    return {
+        "arguments": {"quick": True, "anchors": 24, "wrap_max_iterations": None},
+        "seconds": 100.0,
+        "machine": {
+            "cpu": "Test CPU",
+            "cpu_count": 2,
+            "bpy": "5.0.1",
+            "python": "3.11.7",
+            "springwrap_kernel": "0.1.0",
+            "git_commit": "abc123",
+            "load_average": [3.0, 2.0, 1.0],
+        },
+        "cases": [sphere, body],
+    }
 
 
 def test_report_numbers_and_formatting():
@@ -563,8 +635,15 @@ def test_report_document_has_every_section_and_says_what_was_not_run(tmp_path):
     (tmp_path / "heatmap-heavy.png").write_bytes(b"png")
     document = report.build_document(made_up_run(), None, None, image_folder=tmp_path, image_prefix="img")
     assert document.startswith("# Benchmarks\n") and "do not edit by hand" in document
-    for heading in ("## How to rerun", "## Machine and versions", "## Headline", "### heavy", "### sphere-ellipsoid",
-                    "## Performance", "### Wrap on the retarget cases"):
+    for heading in (
+        "## How to rerun",
+        "## Machine and versions",
+        "## Headline",
+        "### heavy",
+        "### sphere-ellipsoid",
+        "## Performance",
+        "### Wrap on the retarget cases",
+    ):
         assert heading in document
     assert "![error heat-map, heavy](img/heatmap-heavy.png)" in document
     assert "heatmap-sphere-ellipsoid" not in document and "errors-per-method" not in document  # no such files
@@ -577,8 +656,15 @@ def test_non_finite_vertices_are_counted_and_reported():
     vertices, quads = grid()
     result = vertices.copy()
     result[[2, 7]] = np.nan
-    measured = metrics.evaluate(result, vertices, quads, plane_target(), np.zeros(len(vertices), bool),
-                                np.zeros(len(vertices), bool), np.array([0]))
+    measured = metrics.evaluate(
+        result,
+        vertices,
+        quads,
+        plane_target(),
+        np.zeros(len(vertices), bool),
+        np.zeros(len(vertices), bool),
+        np.array([0]),
+    )
     assert measured.nonfinite_vertices == 2 and measured.error_percent.mean == np.inf
     assert measured.row()["nonfinite_vertices"] == 2
     record = made_up_run()["cases"][1]
@@ -589,7 +675,9 @@ def test_non_finite_vertices_are_counted_and_reported():
     run_with_nan["cases"][1] = record
     wrap_line = next(line for line in report.headline(run_with_nan) if line.startswith("| Springwrap wrap "))
     assert "non-finite vertices on 1" in wrap_line
-    assert "- Springwrap wrap wrote non-finite (NaN) vertex positions on heavy (886 of 100)." in report.headline(run_with_nan)
+    assert "- Springwrap wrap wrote non-finite (NaN) vertex positions on heavy (886 of 100)." in report.headline(
+        run_with_nan
+    )
 
 
 def test_the_wrap_speed_section_states_each_aim_and_measurement():
@@ -597,9 +685,15 @@ def test_the_wrap_speed_section_states_each_aim_and_measurement():
         "machine": {"cpu": "x86_64", "cores": 2, "python": "3.11", "bpy": "5.0.1"},
         "started_utc": "2026-11-22 03:00 UTC",
         "load_average_end": [1.0, 2.0, 3.0],
-        "body": {"layout_quads": 13378, "target_triangles": 198792, "anchors": 24, "operators_seconds": 4.0,
-                 "error_percent_mean": 0.36, "error_percent_p95": 1.08,
-                 "wrap": {"wrap_seconds": 2.75, "iterations": 680, "converged": True}},
+        "body": {
+            "layout_quads": 13378,
+            "target_triangles": 198792,
+            "anchors": 24,
+            "operators_seconds": 4.0,
+            "error_percent_mean": 0.36,
+            "error_percent_p95": 1.08,
+            "wrap": {"wrap_seconds": 2.75, "iterations": 680, "converged": True},
+        },
         "live": {"frames_per_second": 32.2, "iterations_per_second": 189.0},
     }
     lines = "\n".join(report.wrap_aims_section(speed))
@@ -645,8 +739,20 @@ def test_mirror_partners_and_the_reflection_across_a_placed_plane():
 
 
 def test_wrap_solvers_page_has_a_row_per_case_and_solver_and_its_provenance():
-    row = {"case": "heavy", "solver": "ENERGY", "mean": 0.2271, "p95": 0.9, "max": 1.7, "flipped": 7, "flips_added": 3,
-           "off_surface": 425, "space_points": 968, "iterations": 24, "converged": True, "seconds": 1.16}
+    row = {
+        "case": "heavy",
+        "solver": "ENERGY",
+        "mean": 0.2271,
+        "p95": 0.9,
+        "max": 1.7,
+        "flipped": 7,
+        "flips_added": 3,
+        "off_surface": 425,
+        "space_points": 968,
+        "iterations": 24,
+        "converged": True,
+        "seconds": 1.16,
+    }
     page = wrap_solvers.markdown([row, row | {"solver": "SPRINGS", "mean": 0.346}], "Run at commit `abc`.")
     assert "| heavy | ENERGY | 0.227 | 0.900 | 1.700 | 7 | 3 | 425 | 968 | 24 | 1.16 |" in page
     assert "| heavy | SPRINGS | 0.346 |" in page
@@ -656,18 +762,35 @@ def test_wrap_solvers_page_has_a_row_per_case_and_solver_and_its_provenance():
 
 def made_up_batch(input_mb: float, output_mb: float, peak_mb: float) -> dict:
     """A batch_throughput.py result: a Ray node of 2 workers sustaining 60 meshes/min (1 s a mesh each)."""
-    def run(executor, jobs, steady):
-        return {"executor": executor, "jobs": jobs, "meshes": 24, "ok": 24, "process_seconds": 24 * 60 / steady + 10,
-                "batch_seconds": 30.0, "meshes_per_minute": 40.0, "steady_meshes_per_minute": steady,
-                "mesh_seconds_mean": 1.0, "dispatch_seconds_per_mesh": 0.004, "worker_start_seconds": [1.5] * jobs,
-                "worker_import_seconds": [0.9] * jobs, "worker_peak_memory_mb": [peak_mb] * jobs,
-                "worker_meshes": [24 // jobs] * jobs, "input_mb_per_mesh": input_mb, "output_mb_per_mesh": output_mb}
 
-    return {"machine": {"cpu": "test CPU", "cpu_count": 2, "memory_gib": 24.0, "load_average": [1.0, 1.0, 1.0]},
-            "versions": {"ray": "2.60.0", "git_commit": "abc"}, "finished_utc": "now",
-            "library": {"meshes": 24, "triangles": 200_000, "layout_quads": 13_000},
-            "runs": [run("local", 1, 30.0), run("local", 2, 55.0), run("ray", 1, 30.0), run("ray", 2, 60.0)],
-            "scheduler": {"meshes": 10_000, "workers": 200, "seconds": 0.5, "milliseconds_per_mesh": 0.05}}
+    def run(executor, jobs, steady):
+        return {
+            "executor": executor,
+            "jobs": jobs,
+            "meshes": 24,
+            "ok": 24,
+            "process_seconds": 24 * 60 / steady + 10,
+            "batch_seconds": 30.0,
+            "meshes_per_minute": 40.0,
+            "steady_meshes_per_minute": steady,
+            "mesh_seconds_mean": 1.0,
+            "dispatch_seconds_per_mesh": 0.004,
+            "worker_start_seconds": [1.5] * jobs,
+            "worker_import_seconds": [0.9] * jobs,
+            "worker_peak_memory_mb": [peak_mb] * jobs,
+            "worker_meshes": [24 // jobs] * jobs,
+            "input_mb_per_mesh": input_mb,
+            "output_mb_per_mesh": output_mb,
+        }
+
+    return {
+        "machine": {"cpu": "test CPU", "cpu_count": 2, "memory_gib": 24.0, "load_average": [1.0, 1.0, 1.0]},
+        "versions": {"ray": "2.60.0", "git_commit": "abc"},
+        "finished_utc": "now",
+        "library": {"meshes": 24, "triangles": 200_000, "layout_quads": 13_000},
+        "runs": [run("local", 1, 30.0), run("local", 2, 55.0), run("ray", 1, 30.0), run("ray", 2, 60.0)],
+        "scheduler": {"meshes": 10_000, "workers": 200, "seconds": 0.5, "milliseconds_per_mesh": 0.05},
+    }
 
 
 def test_the_batch_section_projects_from_the_two_worker_ray_run():
@@ -678,7 +801,10 @@ def test_the_batch_section_projects_from_the_two_worker_ray_run():
     # 100 nodes x 60 meshes/min: 10,000 meshes in 1.7 min; 5 MB a mesh at 6,000 meshes/min is 500 MB/s.
     assert "the cluster 6,000; 10,000 meshes take **1.7 min**" in text and "500 MB/s" in text
     assert "plus a fixed 10 s" in text  # all-in minus the steady time
-    assert "holds 44 workers by memory (a tenth kept for the system) against 2 by CPU" in text and "memory is not what limits" in text
+    assert (
+        "holds 44 workers by memory (a tenth kept for the system) against 2 by CPU" in text
+        and "memory is not what limits" in text
+    )
     assert "limited by the CPUs" in text and "storage is the bottleneck" not in text
 
 
@@ -696,13 +822,15 @@ def test_a_closest_point_on_a_holes_rim_is_told_from_one_inside():
     # A square cut into the triangles 0 1 2 and 0 2 3: they share the edge 0-2; every other edge is a rim.
     triangles = np.array([[0, 1, 2], [0, 2, 3]])
     hit_triangles = np.array([0, 0, 0, 1, 0])
-    barycentrics = np.array([
-        [0.2, 0.3, 0.5],  # inside
-        [0.5, 0.5, 0.0],  # on edge 0-1 (corner 2's barycentric is 0): a rim
-        [0.5, 0.0, 0.5],  # on edge 0-2 (corner 1's is 0): shared, not a rim
-        [0.0, 0.0, 1.0],  # at corner 3, where the rims 2-3 and 3-0 meet
-        [1.0, 0.0, 0.0],  # at corner 0: two rims end there
-    ])
+    barycentrics = np.array(
+        [
+            [0.2, 0.3, 0.5],  # inside
+            [0.5, 0.5, 0.0],  # on edge 0-1 (corner 2's barycentric is 0): a rim
+            [0.5, 0.0, 0.5],  # on edge 0-2 (corner 1's is 0): shared, not a rim
+            [0.0, 0.0, 1.0],  # at corner 3, where the rims 2-3 and 3-0 meet
+            [1.0, 0.0, 0.0],  # at corner 0: two rims end there
+        ]
+    )
     assert metrics.on_boundary(triangles, hit_triangles, barycentrics).tolist() == [False, True, False, True, True]
     # A closed tetrahedron has no rim.
     closed = np.array([[0, 1, 2], [0, 3, 1], [1, 3, 2], [2, 3, 0]])
@@ -754,7 +882,8 @@ def test_scan_metrics_on_a_plane_with_a_lifted_vertex_and_a_folded_one():
     with_nan = metrics.scan_metrics(nan_result, vertices, quads, target, target_vertices, target_triangles)
     assert with_nan.nonfinite_vertices == 1
     assert {"distance_mean", "off_surface", "area_p5", "edge_p95", "flipped_vs_target_on_surface"} <= set(
-        measured.row())
+        measured.row()
+    )
 
 
 def test_scan_geometry_helpers():
@@ -782,21 +911,58 @@ def test_scan_geometry_helpers():
 
 
 def made_up_scan_row(solver: str, mean: float) -> dict:
-    return {"case": "bunny-scan", "solver": solver, "distance_mean": mean, "distance_p95": 0.0, "distance_max": 1.5,
-            "off_surface": 4, "flipped_vs_template": 21, "flipped_vs_target": 10, "flipped_vs_target_on_surface": 7,
-            "area_p5": 0.49, "area_median": 0.95, "area_p95": 1.24, "area_below": 0, "area_above": 3,
-            "edge_p5": 0.69, "edge_p95": 1.15, "edge_below": 0, "edge_above": 0, "space_points": 74,
-            "iterations": 536, "converged": True, "seconds": 0.63}
+    return {
+        "case": "bunny-scan",
+        "solver": solver,
+        "distance_mean": mean,
+        "distance_p95": 0.0,
+        "distance_max": 1.5,
+        "off_surface": 4,
+        "flipped_vs_template": 21,
+        "flipped_vs_target": 10,
+        "flipped_vs_target_on_surface": 7,
+        "area_p5": 0.49,
+        "area_median": 0.95,
+        "area_p95": 1.24,
+        "area_below": 0,
+        "area_above": 3,
+        "edge_p5": 0.69,
+        "edge_p95": 1.15,
+        "edge_below": 0,
+        "edge_above": 0,
+        "space_points": 74,
+        "iterations": 536,
+        "converged": True,
+        "seconds": 0.63,
+    }
 
 
 def test_wrap_solvers_page_keeps_the_section_that_was_not_run():
-    body = {"case": "heavy", "solver": "ENERGY", "mean": 0.2271, "p95": 0.9, "max": 1.7, "flipped": 7,
-            "flips_added": 3, "off_surface": 425, "space_points": 968, "iterations": 24, "converged": True,
-            "seconds": 1.16}
-    both = wrap_solvers.markdown([body], "Bodies at `abc`.", [made_up_scan_row("SPRINGS", 0.0012)], "Scans at `def`.",
-                                 ["- **bunny-scan**: a bunny."])
-    assert "| bunny-scan | SPRINGS | 0.001 | 0.000 | 1.500 | 4 | 21 | 10 | 7 | 0.49 | 0.95 | 1.24 | 0.69 | 1.15 | " \
-           "3 / 0 | 74 | 536 | 0.63 |" in both
+    body = {
+        "case": "heavy",
+        "solver": "ENERGY",
+        "mean": 0.2271,
+        "p95": 0.9,
+        "max": 1.7,
+        "flipped": 7,
+        "flips_added": 3,
+        "off_surface": 425,
+        "space_points": 968,
+        "iterations": 24,
+        "converged": True,
+        "seconds": 1.16,
+    }
+    both = wrap_solvers.markdown(
+        [body],
+        "Bodies at `abc`.",
+        [made_up_scan_row("SPRINGS", 0.0012)],
+        "Scans at `def`.",
+        ["- **bunny-scan**: a bunny."],
+    )
+    assert (
+        "| bunny-scan | SPRINGS | 0.001 | 0.000 | 1.500 | 4 | 21 | 10 | 7 | 0.49 | 0.95 | 1.24 | 0.69 | 1.15 | "
+        "3 / 0 | 74 | 536 | 0.63 |" in both
+    )
     assert "- **bunny-scan**: a bunny." in both and "## Scanned surfaces (no known answer)" in both
     assert both.index("| heavy | ENERGY |") < both.index("| bunny-scan |")
     assert set(wrap_solvers.page_sections(both)) == {"bodies", "scans"}
@@ -805,8 +971,10 @@ def test_wrap_solvers_page_keeps_the_section_that_was_not_run():
     assert "| heavy | ENERGY | 0.227 |" in again and "Bodies at `abc`." in again
     assert "| bunny-scan | ENERGY | 0.024 |" in again and "Scans at `ghi`." in again and "Scans at `def`." not in again
     # A page from before the sections: all of it after the generated note is the bodies' section.
-    legacy = (f"{wrap_solvers.PAGE_TITLE}\n\n{wrap_solvers.GENERATED}\n\nSome text.\n\n| case | solver |\n"
-              "| heavy | SPRINGS | 0.346 |\n")
+    legacy = (
+        f"{wrap_solvers.PAGE_TITLE}\n\n{wrap_solvers.GENERATED}\n\nSome text.\n\n| case | solver |\n"
+        "| heavy | SPRINGS | 0.346 |\n"
+    )
     merged = wrap_solvers.markdown([], "", [made_up_scan_row("ENERGY", 0.024)], existing=legacy)
     assert merged.index("| heavy | SPRINGS | 0.346 |") < merged.index("## Scanned surfaces")
     assert merged.count(wrap_solvers.GENERATED) == 1 and merged.startswith(wrap_solvers.PAGE_TITLE)

@@ -5,7 +5,6 @@ already cached: no download here), that every bone is placed, parents come first
 weights cover the body and the t-pose names bones of the rig.
 """
 
-
 import numpy as np
 import pytest
 

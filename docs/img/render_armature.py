@@ -81,8 +81,10 @@ def run(output_dir: Path) -> None:
     render_guide.HEAT_SCALE = HEAT_SCALE  # the colour scale and its bar's label
     render_guide.paint(scene_data.template, render_guide.heat_colours(errors))
     render_guide.render(scene, [scene_data.template], output_dir / "guide-armature-after.png", colour_bar=True)
-    print(f"aligned template: distance to the truth mean {errors.mean() * 1000:.1f} mm, "
-          f"p95 {np.percentile(errors, 95) * 1000:.1f} mm, max {errors.max() * 1000:.1f} mm")
+    print(
+        f"aligned template: distance to the truth mean {errors.mean() * 1000:.1f} mm, "
+        f"p95 {np.percentile(errors, 95) * 1000:.1f} mm, max {errors.max() * 1000:.1f} mm"
+    )
 
 
 def main() -> int:

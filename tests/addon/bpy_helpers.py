@@ -529,7 +529,9 @@ def half_sphere_grid(rings: int, segments: int):
         faces.append([index(rings - 2, column + 1), index(rings - 2, column), south])
     for ring in range(rings - 2):
         for column in range(segments):
-            faces.append([index(ring + 1, column), index(ring + 1, column + 1), index(ring, column + 1), index(ring, column)])
+            faces.append(
+                [index(ring + 1, column), index(ring + 1, column + 1), index(ring, column + 1), index(ring, column)]
+            )
     return directions, faces
 
 

@@ -458,7 +458,9 @@ def test_deleting_target_faces_detaches_the_face_points_on_them(capfd):
     assert local_positions(layout).tobytes() == positions_before.tobytes()
     assert_face_points_consistent(layout, current)  # the survivors' new triangle indices are right
     assert layout.springwrap.target_signature == current.signature() != reference.signature()
-    report = f"{detached.sum()} face-points lost their target face and became space-points, {(~detached).sum()} re-attached"
+    report = (
+        f"{detached.sum()} face-points lost their target face and became space-points, {(~detached).sum()} re-attached"
+    )
     assert report in capfd.readouterr().out
 
 

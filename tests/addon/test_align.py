@@ -140,7 +140,9 @@ def test_a_shearing_fit_on_the_object_transform_is_refused_and_nothing_changes()
     local = np.empty(len(layout.data.vertices) * 3, dtype=np.float32)
     layout.data.vertices.foreach_get("co", local)
     shear = np.array(KNOWN["AFFINE"].inverted(), dtype=np.float64)
-    layout.data.vertices.foreach_set("co", (local.reshape(-1, 3) @ shear[:3, :3].T + shear[:3, 3]).astype(np.float32).ravel())
+    layout.data.vertices.foreach_set(
+        "co", (local.reshape(-1, 3) @ shear[:3, :3].T + shear[:3, 3]).astype(np.float32).ravel()
+    )
     layout.data.update()
     before, matrix = snapshot(layout), layout.matrix_world.copy()
     with pytest.raises(RuntimeError, match="shears the layout"):
@@ -206,9 +208,13 @@ def test_rough_anchors_then_icp_recover_a_similarity():
         size = diagonal(target)
         for vertex in ANCHOR_VERTICES[:3]:
             noisy = truth[vertex] + rng.normal(size=3) * 0.01 * size
-            bpy.ops.springwrap.anchor_add(vertex_index=vertex, location=tuple(noisy), use_location=True, on_surface=False)
+            bpy.ops.springwrap.anchor_add(
+                vertex_index=vertex, location=tuple(noisy), use_location=True, on_surface=False
+            )
         options = {"use_icp": False} if weight is None else {"use_icp": True, "anchor_weight": weight}
-        assert bpy.ops.springwrap.align(method="SIMILARITY", icp_iterations=100, apply="BAKE", **options) == {"FINISHED"}
+        assert bpy.ops.springwrap.align(method="SIMILARITY", icp_iterations=100, apply="BAKE", **options) == {
+            "FINISHED"
+        }
         errors[weight] = max_error(layout, truth) / size
     assert errors[0.0] <= 1e-4, errors
     assert errors[1.0] < 0.7 * errors[None], errors
@@ -227,7 +233,9 @@ def test_the_anchor_weight_holds_icp_to_the_anchors_where_the_shapes_differ():
         local = local.reshape(-1, 3) * np.array([1.2, 1.0, 1.0], dtype=np.float32)
         layout.data.vertices.foreach_set("co", local.ravel())
         layout.data.update()
-        assert bpy.ops.springwrap.align(method="SIMILARITY", use_icp=True, anchor_weight=weight, apply="BAKE") == {"FINISHED"}
+        assert bpy.ops.springwrap.align(method="SIMILARITY", use_icp=True, anchor_weight=weight, apply="BAKE") == {
+            "FINISHED"
+        }
         anchored = list(ANCHOR_VERTICES)
         residuals.append(float(np.linalg.norm(world_positions(layout)[anchored] - truth[anchored], axis=1).mean()))
     assert residuals[0] > residuals[1] > residuals[2], residuals
@@ -281,7 +289,9 @@ def test_degenerate_anchor_targets_are_named(method, offsets, message):
     base = true_positions(target, layout)[0]
     for vertex, offset in zip(ANCHOR_VERTICES, offsets):
         location = base + np.array(offset)
-        bpy.ops.springwrap.anchor_add(vertex_index=vertex, location=tuple(location), use_location=True, on_surface=False)
+        bpy.ops.springwrap.anchor_add(
+            vertex_index=vertex, location=tuple(location), use_location=True, on_surface=False
+        )
     before, matrix = snapshot(layout), layout.matrix_world.copy()
     with pytest.raises(RuntimeError, match=message):
         bpy.ops.springwrap.align(method=method, use_icp=False)

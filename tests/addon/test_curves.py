@@ -82,7 +82,12 @@ def activate(layout):
 
 
 def test_operators_panel_and_settings_are_registered():
-    for name in ("curve_constraint_add", "curve_constraints_auto", "curve_constraint_remove", "curve_constraints_clear"):
+    for name in (
+        "curve_constraint_add",
+        "curve_constraints_auto",
+        "curve_constraint_remove",
+        "curve_constraints_clear",
+    ):
         operator = getattr(bpy.ops.springwrap, name)
         assert operator.get_rna_type().identifier == f"SPRINGWRAP_OT_{name}"
         assert operator.get_rna_type().description
@@ -185,8 +190,9 @@ def test_auto_pairs_the_anchored_loose_chain_and_seam_and_reports_the_rest(capfd
     layout = curves_layout(target, shift=0.037)
     # Anchor both ends of the loose chain (27..35) and of the seam (9..17); one end of nothing else.
     for vertex in (27, 35, 9, 17):
-        assert bpy.ops.springwrap.anchor_add(vertex_index=vertex, location=world_positions(layout)[vertex],
-                                             use_location=True) == {"FINISHED"}
+        assert bpy.ops.springwrap.anchor_add(
+            vertex_index=vertex, location=world_positions(layout)[vertex], use_location=True
+        ) == {"FINISHED"}
     assert bpy.ops.springwrap.curve_constraints_auto() == {"FINISHED"}
     rows = curve_rows(layout)
     chains = sorted(row[0] for row in rows)
@@ -407,9 +413,14 @@ def tube_target():
     angles = 2.0 * np.pi * np.arange(TUBE_SEGMENTS) / TUBE_SEGMENTS
     vertices = [(np.cos(a), np.sin(a), z) for z in np.linspace(-1.0, 1.0, TUBE_RINGS) for a in angles]
     faces = [
-        (ring * TUBE_SEGMENTS + s, ring * TUBE_SEGMENTS + (s + 1) % TUBE_SEGMENTS,
-         (ring + 1) * TUBE_SEGMENTS + (s + 1) % TUBE_SEGMENTS, (ring + 1) * TUBE_SEGMENTS + s)
-        for ring in range(TUBE_RINGS - 1) for s in range(TUBE_SEGMENTS)
+        (
+            ring * TUBE_SEGMENTS + s,
+            ring * TUBE_SEGMENTS + (s + 1) % TUBE_SEGMENTS,
+            (ring + 1) * TUBE_SEGMENTS + (s + 1) % TUBE_SEGMENTS,
+            (ring + 1) * TUBE_SEGMENTS + s,
+        )
+        for ring in range(TUBE_RINGS - 1)
+        for s in range(TUBE_SEGMENTS)
     ]
     mesh = quad_mesh("Tube", vertices, faces)
     target = bpy.data.objects.new("Target", mesh)
@@ -428,9 +439,14 @@ def ring_band(target, angles, closed, radius=1.06):
     columns = len(angles)
     vertices = [(radius * np.cos(a), radius * np.sin(a), z) for z in BAND_ROWS for a in angles]
     faces = [
-        (row * columns + c, row * columns + (c + 1) % columns,
-         (row + 1) * columns + (c + 1) % columns, (row + 1) * columns + c)
-        for row in range(len(BAND_ROWS) - 1) for c in range(columns if closed else columns - 1)
+        (
+            row * columns + c,
+            row * columns + (c + 1) % columns,
+            (row + 1) * columns + (c + 1) % columns,
+            (row + 1) * columns + c,
+        )
+        for row in range(len(BAND_ROWS) - 1)
+        for c in range(columns if closed else columns - 1)
     ]
     mesh = quad_mesh("Band", vertices, faces)
     layout = bpy.data.objects.new("Layout", mesh)

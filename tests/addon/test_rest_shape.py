@@ -44,8 +44,12 @@ def test_a_wrap_keeps_the_templates_spacing_from_the_stored_rest():
     layout.data.vertices.foreach_set("co", squeezed.reshape(-1))
     layout.data.update()
     world = np.array([tuple(layout.matrix_world @ vertex.co) for vertex in layout.data.vertices])
-    corners = [int(np.argmin(squeezed[:, 0] + squeezed[:, 1])), int(np.argmax(squeezed[:, 0] + squeezed[:, 1])),
-               int(np.argmin(squeezed[:, 0] - squeezed[:, 1])), int(np.argmax(squeezed[:, 0] - squeezed[:, 1]))]
+    corners = [
+        int(np.argmin(squeezed[:, 0] + squeezed[:, 1])),
+        int(np.argmax(squeezed[:, 0] + squeezed[:, 1])),
+        int(np.argmin(squeezed[:, 0] - squeezed[:, 1])),
+        int(np.argmax(squeezed[:, 0] - squeezed[:, 1])),
+    ]
     for vertex in corners:
         assert bpy.ops.springwrap.anchor_add(vertex_index=vertex, location=world[vertex], use_location=True) == {
             "FINISHED"

@@ -47,8 +47,17 @@ def test_every_operator_and_each_of_its_parameters_is_in_the_guide(generator, gu
     assert reference is not None, "the guide has no generated operator reference (markers missing)"
     documented = operator_sections(reference)
     registered = generator["operator_names"]()
-    assert {"detach", "snap", "project", "wrap", "rest_set", "anchor_add", "anchors_auto",
-            "curve_constraint_add", "curve_constraints_auto"} <= set(registered)
+    assert {
+        "detach",
+        "snap",
+        "project",
+        "wrap",
+        "rest_set",
+        "anchor_add",
+        "anchors_auto",
+        "curve_constraint_add",
+        "curve_constraints_auto",
+    } <= set(registered)
     assert sorted(documented) == registered, "operators missing from (or stale in) the guide"
     for name in registered:
         rna = getattr(bpy.ops.springwrap, name).get_rna_type()
@@ -67,11 +76,24 @@ def test_the_generated_sections_match_the_operators_rna(generator, guide_text):
 
 
 def test_the_workflow_names_the_operators(guide_text):
-    for words in ("springwrap.anchor_add", "springwrap.anchors_auto", "springwrap.curve_constraint_add",
-                  "springwrap.curve_constraints_auto", "springwrap.rest_set", "springwrap_rest",
-                  "Spring Resolution", "Esc or right-click cancels", "one undo step", "springwrap.align", "ICP Only",
-                  "springwrap.detect_features", "springwrap.mirror", "Mirror a surfaced half", "## Troubleshooting",
-                  "## Command line"):
+    for words in (
+        "springwrap.anchor_add",
+        "springwrap.anchors_auto",
+        "springwrap.curve_constraint_add",
+        "springwrap.curve_constraints_auto",
+        "springwrap.rest_set",
+        "springwrap_rest",
+        "Spring Resolution",
+        "Esc or right-click cancels",
+        "one undo step",
+        "springwrap.align",
+        "ICP Only",
+        "springwrap.detect_features",
+        "springwrap.mirror",
+        "Mirror a surfaced half",
+        "## Troubleshooting",
+        "## Command line",
+    ):
         assert words in guide_text, words
 
 
@@ -118,10 +140,15 @@ def test_the_readme_links_the_guide():
 def test_troubleshooting_names_every_kernel_exception(guide_text):
     import springwrap_kernel
 
-    troubleshooting = guide_text[guide_text.index("## Troubleshooting"):]
-    classes = [name for name in dir(springwrap_kernel)
-               if isinstance(getattr(springwrap_kernel, name), type)
-               and issubclass(getattr(springwrap_kernel, name), springwrap_kernel.SpringwrapError)]
+    troubleshooting = guide_text[guide_text.index("## Troubleshooting") :]
+    classes = [
+        name
+        for name in dir(springwrap_kernel)
+        if isinstance(getattr(springwrap_kernel, name), type)
+        and issubclass(getattr(springwrap_kernel, name), springwrap_kernel.SpringwrapError)
+    ]
     assert "SpringwrapError" in classes and len(classes) > 1
     for name in classes:
-        assert re.search(rf"\b{name}`", troubleshooting), f"springwrap_kernel.{name} is not in the troubleshooting section"
+        assert re.search(rf"\b{name}`", troubleshooting), (
+            f"springwrap_kernel.{name} is not in the troubleshooting section"
+        )

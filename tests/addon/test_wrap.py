@@ -7,7 +7,6 @@ evaluated target, flips against the analytic surface normal, edge lengths agains
 The modal operator's logic is driven without a window through ``WrapSession`` / ``WrapLoop``.
 """
 
-
 import bpy
 
 import numpy as np
@@ -76,7 +75,9 @@ def test_wrap_panel_searches_the_targets_vertex_groups():
     SPRINGWRAP_PT_wrap.draw(type("Panel", (), {"layout": recorder})(), bpy.context)
     # (the recorder's rows are itself: the mirror box below the disabled row records as disabled too)
     assert recorder.searches == layout_groups and recorder.props == [
-        ("unreliable_group", False), ("wrap_solver", False), ("mirror_object", False)
+        ("unreliable_group", False),
+        ("wrap_solver", False),
+        ("mirror_object", False),
     ]
 
 

@@ -33,11 +33,14 @@ def cylinder_scene():
     ring_vertices = []
     for ring in range(rings):
         z = -1.5 + 3.0 * ring / (rings - 1)
-        ring_vertices.append([
-            editable.verts.new((RADIUS * math.cos(2 * math.pi * s / SEGMENTS),
-                                RADIUS * math.sin(2 * math.pi * s / SEGMENTS), z))
-            for s in range(SEGMENTS)
-        ])
+        ring_vertices.append(
+            [
+                editable.verts.new(
+                    (RADIUS * math.cos(2 * math.pi * s / SEGMENTS), RADIUS * math.sin(2 * math.pi * s / SEGMENTS), z)
+                )
+                for s in range(SEGMENTS)
+            ]
+        )
     for ring in range(rings - 1):
         for s in range(SEGMENTS):
             a, b = ring_vertices[ring][s], ring_vertices[ring][(s + 1) % SEGMENTS]

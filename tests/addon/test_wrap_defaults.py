@@ -20,8 +20,16 @@ from bpy_helpers import plane_scene
 from helpers import REPOSITORY
 
 KERNEL = sk.WrapSettings()
-WRAP_OPERATOR_SETTINGS = ("tolerance", "fairness", "arc_length", "thin_plate", "constraint", "folding", "rest",
-                          "solver")
+WRAP_OPERATOR_SETTINGS = (
+    "tolerance",
+    "fairness",
+    "arc_length",
+    "thin_plate",
+    "constraint",
+    "folding",
+    "rest",
+    "solver",
+)
 """The kernel settings ``springwrap.wrap`` has a property for."""
 
 
@@ -35,7 +43,9 @@ def same(value, kernel_value) -> bool:
 def operator_defaults(operator) -> SimpleNamespace:
     """Every property's default of ``operator`` (a ``bpy.ops`` function), as attributes."""
     rna = operator.get_rna_type()
-    return SimpleNamespace(**{prop.identifier: prop.default for prop in rna.properties if prop.identifier != "rna_type"})
+    return SimpleNamespace(
+        **{prop.identifier: prop.default for prop in rna.properties if prop.identifier != "rna_type"}
+    )
 
 
 def test_the_wrap_operators_defaults_are_the_kernels():
@@ -96,14 +106,26 @@ def test_the_mirror_command_lines_tolerance_is_the_kernels():
     assert arguments.tolerance == KERNEL.tolerance
 
 
-@pytest.mark.parametrize("script, options, message", [
-    ("retarget.py", ["--template", "t.obj", "--target", "m.obj", "--thin-plate", "0.7"],
-     r"invalid thin_plate: the thin plate weight must be within [0, 0.5], not 0.7"),
-    ("retarget.py", ["--template", "t.obj", "--target", "m.obj", "--tolerance", "0"],
-     r"invalid tolerance: the tolerance must be within (0, 1], not 0"),
-    ("mirror.py", ["--layout", "l.obj", "--target", "m.obj", "--tolerance", "2"],
-     r"invalid tolerance: the tolerance must be within (0, 1], not 2"),
-])
+@pytest.mark.parametrize(
+    "script, options, message",
+    [
+        (
+            "retarget.py",
+            ["--template", "t.obj", "--target", "m.obj", "--thin-plate", "0.7"],
+            r"invalid thin_plate: the thin plate weight must be within [0, 0.5], not 0.7",
+        ),
+        (
+            "retarget.py",
+            ["--template", "t.obj", "--target", "m.obj", "--tolerance", "0"],
+            r"invalid tolerance: the tolerance must be within (0, 1], not 0",
+        ),
+        (
+            "mirror.py",
+            ["--layout", "l.obj", "--target", "m.obj", "--tolerance", "2"],
+            r"invalid tolerance: the tolerance must be within (0, 1], not 2",
+        ),
+    ],
+)
 def test_a_bad_setting_on_the_command_line_is_a_usage_error_naming_it(script, options, message, capsys):
     parse_arguments = _script(script)["parse_arguments"]
     with pytest.raises(SystemExit) as exit_info:

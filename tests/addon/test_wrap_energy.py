@@ -33,8 +33,9 @@ def test_grid_above_a_plane_lands_in_a_few_iterations(capfd):
     assert wrap_with_anchors(layout, spacing=0.5, solver="ENERGY") == {"FINISHED"}
     states, _faces, _barycentrics = read_state(layout)
     assert np.all(states == 1)
-    assert_wrapped_onto(layout, Reference(target), template, lambda points: np.tile(normal, (len(points), 1)),
-                        (0.8, 1.25))
+    assert_wrapped_onto(
+        layout, Reference(target), template, lambda points: np.tile(normal, (len(points), 1)), (0.8, 1.25)
+    )
     output = capfd.readouterr().out
     iterations = int(output.split("Wrapped 'Layout' in ")[1].split(" iterations")[0])
     assert iterations <= 40 and "(converged)" in output
@@ -46,8 +47,9 @@ def test_grid_over_a_hole_caps_it_on_the_plane():
     assert wrap_with_anchors(layout, spacing=0.5, solver="ENERGY") == {"FINISHED"}
     states, _faces, _barycentrics = read_state(layout)
     world = world_positions(layout)
-    assert_wrapped_onto(layout, Reference(target), template, lambda points: np.tile(normal, (len(points), 1)),
-                        (0.6, 1.6))
+    assert_wrapped_onto(
+        layout, Reference(target), template, lambda points: np.tile(normal, (len(points), 1)), (0.6, 1.6)
+    )
     space = states == 0
     assert space.sum() >= 4
     origin = np.array(target.matrix_world.translation)
@@ -74,8 +76,9 @@ def test_the_panel_setting_chooses_the_solver():
     from springwrap.operators import wrap as wrap_operator
 
     rna = bpy.ops.springwrap.wrap.get_rna_type()
-    properties = SimpleNamespace(**{prop.identifier: prop.default for prop in rna.properties
-                                    if prop.identifier != "rna_type"})
+    properties = SimpleNamespace(
+        **{prop.identifier: prop.default for prop in rna.properties if prop.identifier != "rna_type"}
+    )
     properties.solver = layout.springwrap.wrap_solver  # what the panel's button sets
     assert wrap_operator.SPRINGWRAP_OT_wrap.parameters(properties).settings.solver == "SPRINGS"
 

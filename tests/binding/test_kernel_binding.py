@@ -147,7 +147,11 @@ def test_topology_and_normals_of_a_grid():
         (lambda v, t: (v, t.astype(np.int64)), sk.ArrayError, "triangles must be"),
         (lambda v, t: (v[:0], t[:0]), sk.EmptyMeshError, "empty mesh"),
         (lambda v, t: (v, t[:0]), sk.EmptyMeshError, "0 triangles"),
-        (lambda v, t: (np.where(np.arange(len(v))[:, None] == 3, np.nan, v).astype(np.float32), t), sk.NonFiniteError, "vertex 3"),
+        (
+            lambda v, t: (np.where(np.arange(len(v))[:, None] == 3, np.nan, v).astype(np.float32), t),
+            sk.NonFiniteError,
+            "vertex 3",
+        ),
         (lambda v, t: (v, np.where(t == 5, 99, t).astype(np.uint32)), sk.IndexOutOfRangeError, "vertex 99"),
         (lambda v, t: (np.zeros_like(v), t), sk.DegenerateMeshError, "degenerate"),
     ],
@@ -185,8 +189,17 @@ def test_bad_queries_raise_named_errors(sphere_mesh):
 
 
 def test_every_error_is_a_springwrap_error_and_a_value_error():
-    for name in ("ArrayError", "EmptyMeshError", "NonFiniteError", "IndexOutOfRangeError", "DegenerateMeshError",
-                 "DegenerateTriangleError", "InvalidArgumentError", "DivergedError", "InternalError"):
+    for name in (
+        "ArrayError",
+        "EmptyMeshError",
+        "NonFiniteError",
+        "IndexOutOfRangeError",
+        "DegenerateMeshError",
+        "DegenerateTriangleError",
+        "InvalidArgumentError",
+        "DivergedError",
+        "InternalError",
+    ):
         error = getattr(sk, name)
         assert issubclass(error, sk.SpringwrapError) and issubclass(error, ValueError)
 
@@ -240,8 +253,10 @@ def test_the_stubs_wrap_settings_defaults_are_the_kernels():
     tree = ast.parse(Path(sk.__file__).with_name("__init__.pyi").read_text())
     stub_class = next(node for node in tree.body if isinstance(node, ast.ClassDef) and node.name == "WrapSettings")
     init = next(node for node in stub_class.body if isinstance(node, ast.FunctionDef) and node.name == "__init__")
-    stub_defaults = {argument.arg: ast.literal_eval(default)
-                     for argument, default in zip(init.args.kwonlyargs, init.args.kw_defaults)}
+    stub_defaults = {
+        argument.arg: ast.literal_eval(default)
+        for argument, default in zip(init.args.kwonlyargs, init.args.kw_defaults)
+    }
     kernel = sk.WrapSettings().to_dict()
     assert list(stub_defaults) == list(kernel)
     for name, value in kernel.items():
@@ -253,5 +268,7 @@ def test_the_stubs_wrap_settings_defaults_are_the_kernels():
     stub_properties = {node.name for node in stub_class.body if isinstance(node, ast.FunctionDef)} - {"__init__"}
     assert stub_properties == {name for name in dir(sk.WrapSettings) if not name.startswith("_")}
     solver_class = next(node for node in tree.body if isinstance(node, ast.ClassDef) and node.name == "WrapSolver")
-    solver_init = next(node for node in solver_class.body if isinstance(node, ast.FunctionDef) and node.name == "__init__")
+    solver_init = next(
+        node for node in solver_class.body if isinstance(node, ast.FunctionDef) and node.name == "__init__"
+    )
     assert not set(kernel) & {argument.arg for argument in solver_init.args.kwonlyargs}, "settings go in WrapSettings"

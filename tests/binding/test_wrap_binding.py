@@ -34,7 +34,9 @@ def test_a_template_wraps_onto_a_plane_and_meets_its_anchors():
     wrapped = solver.positions()
     np.testing.assert_allclose(wrapped[:, 2], 0.0, atol=1e-5)
     np.testing.assert_allclose(wrapped[anchors], hits.positions, atol=1e-5)
-    np.testing.assert_allclose(target.face_point_positions(triangles.astype(np.uint32), barycentrics), wrapped, atol=1e-5)
+    np.testing.assert_allclose(
+        target.face_point_positions(triangles.astype(np.uint32), barycentrics), wrapped, atol=1e-5
+    )
 
 
 def test_bad_wrap_inputs_raise_named_errors():
@@ -59,23 +61,45 @@ def test_bad_wrap_inputs_raise_named_errors():
     with pytest.raises(sk.InvalidArgumentError, match="rest positions and layout vertices"):
         sk.WrapSolver(target, structure, states, triangles, barycentrics, positions, rest_positions=positions[:3])
     with pytest.raises(sk.InvalidArgumentError, match="vertex 99"):
-        sk.WrapSolver(target, structure, states, triangles, barycentrics, positions,
-                      anchor_vertices=np.array([99], np.uint32), anchor_triangles=np.array([-1], np.int32),
-                      anchor_barycentrics=np.zeros((1, 3), np.float32), anchor_positions=np.zeros((1, 3), np.float32))
+        sk.WrapSolver(
+            target,
+            structure,
+            states,
+            triangles,
+            barycentrics,
+            positions,
+            anchor_vertices=np.array([99], np.uint32),
+            anchor_triangles=np.array([-1], np.int32),
+            anchor_barycentrics=np.zeros((1, 3), np.float32),
+            anchor_positions=np.zeros((1, 3), np.float32),
+        )
     with pytest.raises(sk.ArrayError, match="all four"):
-        sk.WrapSolver(target, structure, states, triangles, barycentrics, positions,
-                      anchor_vertices=np.array([0], np.uint32))
+        sk.WrapSolver(
+            target, structure, states, triangles, barycentrics, positions, anchor_vertices=np.array([0], np.uint32)
+        )
     with pytest.raises(sk.InvalidArgumentError, match="unreliable"):
-        sk.WrapSolver(target, structure, states, triangles, barycentrics, positions,
-                      unreliable_triangles=np.zeros(3, bool))
+        sk.WrapSolver(
+            target, structure, states, triangles, barycentrics, positions, unreliable_triangles=np.zeros(3, bool)
+        )
     with pytest.raises(sk.IndexOutOfRangeError, match="layout face 0"):
         sk.LayoutStructure(3, np.array([0, 1, 7], np.uint32), np.array([3], np.uint32))
 
 
 # ---------------------------------------------------------------- WrapSettings
 
-SETTING_NAMES = ["fairness", "arc_length", "thin_plate", "constraint", "folding", "tolerance", "landing_distance",
-                 "fold_tolerance", "momentum", "rest", "solver"]
+SETTING_NAMES = [
+    "fairness",
+    "arc_length",
+    "thin_plate",
+    "constraint",
+    "folding",
+    "tolerance",
+    "landing_distance",
+    "fold_tolerance",
+    "momentum",
+    "rest",
+    "solver",
+]
 
 
 def test_wrap_settings_hold_the_kernels_defaults_and_read_every_field():
@@ -84,8 +108,16 @@ def test_wrap_settings_hold_the_kernels_defaults_and_read_every_field():
     assert settings.to_dict() == {name: getattr(settings, name) for name in SETTING_NAMES}
     # The kernel's WrapSettings::default(), as the shortest decimal of each float32.
     assert settings.to_dict() == {
-        "fairness": 0.5, "arc_length": 0.5, "thin_plate": 0.2, "constraint": 0.5, "folding": 0.3, "tolerance": 1e-5,
-        "landing_distance": 0.25, "fold_tolerance": 0.17453292, "momentum": 0.9, "rest": "TEMPLATE",
+        "fairness": 0.5,
+        "arc_length": 0.5,
+        "thin_plate": 0.2,
+        "constraint": 0.5,
+        "folding": 0.3,
+        "tolerance": 1e-5,
+        "landing_distance": 0.25,
+        "fold_tolerance": 0.17453292,
+        "momentum": 0.9,
+        "rest": "TEMPLATE",
         "solver": "ENERGY",
     }
     assert np.float32(settings.fold_tolerance) == np.float32(np.radians(10))
@@ -172,7 +204,8 @@ def test_free_vertices_and_stiffness_reach_the_energy_solver_and_are_checked():
         make_solver(target, positions, structure, anchors, settings=energy, stiffness=stiffness)
     with pytest.raises(sk.ArrayError, match="stiffness must be a C-contiguous numpy array of dtype float32"):
         make_solver(target, positions, structure, anchors, settings=energy, stiffness=np.full(len(positions), 0.5))
-    springs, _ = make_solver(target, positions, structure, anchors, settings=sk.WrapSettings(solver="SPRINGS"),
-                             free_vertices=free)
+    springs, _ = make_solver(
+        target, positions, structure, anchors, settings=sk.WrapSettings(solver="SPRINGS"), free_vertices=free
+    )
     with pytest.raises(sk.InvalidArgumentError, match="need the energy solver"):
         springs.step(1)

@@ -1,6 +1,5 @@
 """Plain tests of the armature alignment's bpy-free logic (``addon/springwrap/core/armature.py``), no Blender."""
 
-
 import numpy as np
 import pytest
 
@@ -66,7 +65,9 @@ def test_desired_pose_without_roll_keeps_the_templates_twist():
     """Without roll matching, the rest frame only swings (smallest rotation) onto the target direction."""
     rest_rotation = rotation_about([0.0, 1.0, 0.0], 40.0)  # a bone along +Y, twisted 40 degrees about itself
     target = armature_align.BoneFrame(np.zeros(3), np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0]))
-    matrix = armature_align.desired_pose_matrix(target, rest_matrix(rest_rotation, [0.0, 0.0, 0.0]), 1.0, match_roll=False)
+    matrix = armature_align.desired_pose_matrix(
+        target, rest_matrix(rest_rotation, [0.0, 0.0, 0.0]), 1.0, match_roll=False
+    )
     swing = armature_align.rotation_between([0.0, 1.0, 0.0], [0.0, 0.0, 1.0])
     np.testing.assert_allclose(matrix[:3, :3], swing @ rest_rotation, atol=1e-12)
     rolled = armature_align.desired_pose_matrix(target, rest_matrix(rest_rotation, [0.0, 0.0, 0.0]), 1.0)

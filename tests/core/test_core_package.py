@@ -41,18 +41,26 @@ def test_core_imports_nothing_of_blender():
         assert not imported_modules(path) & BLENDER_MODULES, path.name
 
 
-@pytest.mark.skipif(os.environ.get("SPRINGWRAP_TEST_LANE") == "blender",
-                    reason="inside the blender binary sys.executable is Blender itself, not a plain Python")
+@pytest.mark.skipif(
+    os.environ.get("SPRINGWRAP_TEST_LANE") == "blender",
+    reason="inside the blender binary sys.executable is Blender itself, not a plain Python",
+)
 def test_core_imports_in_a_plain_python():
     process = subprocess.run(
         [sys.executable, "-c", IMPORT_CORE.replace("{names}", repr(BLENDER_MODULES))],
-        cwd=ADDON, capture_output=True, text=True, timeout=120,
+        cwd=ADDON,
+        capture_output=True,
+        text=True,
+        timeout=120,
     )
     assert process.returncode == 0, process.stderr
     assert "LEAKED []" in process.stdout, process.stdout
 
 
 def test_no_add_on_module_is_over_500_lines():
-    long = {str(path.relative_to(PACKAGE)): len(path.read_text().splitlines())
-            for path in PACKAGE.rglob("*.py") if "_vendor" not in path.parts}
+    long = {
+        str(path.relative_to(PACKAGE)): len(path.read_text().splitlines())
+        for path in PACKAGE.rglob("*.py")
+        if "_vendor" not in path.parts
+    }
     assert {name: count for name, count in long.items() if count > 500} == {}

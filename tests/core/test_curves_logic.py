@@ -221,9 +221,7 @@ def test_auto_pairs_a_border_with_anchored_ends_and_counts_the_refusals():
         ("LOOSE", np.array([0, 2, 30, 31]), False),  # vertex 2 (not anchored) taken by the first pairing
     ]
     anchor_vertices = np.array([0, 4, 20, 22, 31])
-    anchor_locations = np.array(
-        [[0.1, 2.0, 0.2], [7.9, 2.1, 0.1], [5.0, 5.0, 0.0], [5.2, 4.9, 0.0], [9.0, 9.0, 0.0]]
-    )
+    anchor_locations = np.array([[0.1, 2.0, 0.2], [7.9, 2.1, 0.1], [5.0, 5.0, 0.0], [5.2, 4.9, 0.0], [9.0, 9.0, 0.0]])
     layout_positions = np.zeros((40, 3))
     layout_positions[:5] = [[2.0 * k, 2.2, 0.3] for k in range(5)]  # the first curve runs along row y = 2
     outcome = cu.auto_pairs(
@@ -239,7 +237,12 @@ def test_auto_pairs_a_border_with_anchored_ends_and_counts_the_refusals():
     assert report.startswith("4 skipped") and "same target vertex" in report
 
     again = cu.auto_pairs(
-        layout_curves[:1], anchor_vertices, anchor_locations, outcome.constraints, target_positions, target_edges,
+        layout_curves[:1],
+        anchor_vertices,
+        anchor_locations,
+        outcome.constraints,
+        target_positions,
+        target_edges,
         layout_positions,
     )
     assert not again.constraints and again.skipped["constrained"] == 1

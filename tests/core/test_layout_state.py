@@ -1,7 +1,6 @@
 """Plain numpy tests of the add-on's bpy-free state and transform helpers (``core.layout_state``,
 ``core.transforms``; no Blender needed)."""
 
-
 import numpy as np
 import pytest
 

@@ -86,18 +86,21 @@ def test_the_mirrored_state_copies_are_space_points_and_the_seam_is_on_the_plane
     positions, *_ = grid(columns=3, rows=2)
     positions[0, 0] = 0.004  # a seam vertex slightly off the plane
     plane = mirroring.Plane(np.zeros(3), np.array([1.0, 0.0, 0.0]))
-    state = layout_state.LayoutState(np.ones(6, dtype=np.int32), np.arange(6, dtype=np.int32),
-                                     np.full((6, 3), 1 / 3, dtype=np.float32))
+    state = layout_state.LayoutState(
+        np.ones(6, dtype=np.int32), np.arange(6, dtype=np.int32), np.full((6, 3), 1 / 3, dtype=np.float32)
+    )
     seam = np.abs(positions[:, 0]) < 0.01
     source = np.concatenate([np.arange(6), np.flatnonzero(~seam)])
-    result = mirroring.mirrored_layout(positions, state, positions * 2.0, source, seam, plane,
-                                       keep_seam_face_points=False, on_plane_tolerance=1e-6)
+    result = mirroring.mirrored_layout(
+        positions, state, positions * 2.0, source, seam, plane, keep_seam_face_points=False, on_plane_tolerance=1e-6
+    )
     assert np.allclose(result.positions[6:], positions[~seam] * [-1.0, 1.0, 1.0])
     assert np.allclose(result.positions[seam.nonzero()[0], 0], 0.0)
     assert np.allclose(result.rest[6:], positions[~seam] * [-2.0, 2.0, 2.0])
     assert result.state.states.tolist() == [0, 1, 1, 1, 1, 1] + [0] * 4  # vertex 0 moved onto the plane: detached
-    kept = mirroring.mirrored_layout(positions, state, positions, source, seam, plane,
-                                     keep_seam_face_points=True, on_plane_tolerance=1e-6)
+    kept = mirroring.mirrored_layout(
+        positions, state, positions, source, seam, plane, keep_seam_face_points=True, on_plane_tolerance=1e-6
+    )
     assert kept.state.states[:6].tolist() == [1] * 6
     with pytest.raises(layout_state.LayoutError, match="seam vertex was copied"):
         mirroring.mirrored_layout(positions, state, positions, np.arange(7) % 6, seam, plane, True, 1e-6)
@@ -106,10 +109,14 @@ def test_the_mirrored_state_copies_are_space_points_and_the_seam_is_on_the_plane
 def test_pins_replace_anchors_on_the_surfaced_half():
     operations_inputs = types.SimpleNamespace
     inputs = operations_inputs(
-        states=np.array([1, 0, 1, 0], dtype=np.int32), triangles=np.array([5, -1, 7, -1], dtype=np.int32),
-        barycentrics=np.full((4, 3), 0.25, dtype=np.float32), positions=np.arange(12, dtype=np.float32).reshape(4, 3),
-        anchor_vertices=np.array([0, 3], dtype=np.uint32), anchor_triangles=np.array([9, -1], dtype=np.int32),
-        anchor_barycentrics=np.zeros((2, 3), dtype=np.float32), anchor_positions=np.ones((2, 3), dtype=np.float32),
+        states=np.array([1, 0, 1, 0], dtype=np.int32),
+        triangles=np.array([5, -1, 7, -1], dtype=np.int32),
+        barycentrics=np.full((4, 3), 0.25, dtype=np.float32),
+        positions=np.arange(12, dtype=np.float32).reshape(4, 3),
+        anchor_vertices=np.array([0, 3], dtype=np.uint32),
+        anchor_triangles=np.array([9, -1], dtype=np.int32),
+        anchor_barycentrics=np.zeros((2, 3), dtype=np.float32),
+        anchor_positions=np.ones((2, 3), dtype=np.float32),
     )
     inputs._replace = lambda **changes: types.SimpleNamespace(**(vars(inputs) | changes))
     plane = mirroring.Plane(np.zeros(3), np.array([1.0, 0.0, 0.0]))
@@ -124,8 +131,10 @@ def test_held_on_plane_holds_the_midline_and_leaves_its_anchors_out():
     positions = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0], [2e-3, 2, 0]], dtype=np.float64)
     edges = np.array([[0, 1], [0, 2], [1, 3], [2, 3], [2, 4]])
     inputs = types.SimpleNamespace(
-        anchor_vertices=np.array([0, 3, 4], dtype=np.uint32), anchor_triangles=np.array([9, -1, 2], dtype=np.int32),
-        anchor_barycentrics=np.zeros((3, 3), dtype=np.float32), anchor_positions=np.ones((3, 3), dtype=np.float32),
+        anchor_vertices=np.array([0, 3, 4], dtype=np.uint32),
+        anchor_triangles=np.array([9, -1, 2], dtype=np.int32),
+        anchor_barycentrics=np.zeros((3, 3), dtype=np.float32),
+        anchor_positions=np.ones((3, 3), dtype=np.float32),
     )
     inputs._replace = lambda **changes: _namespace_with_replace(vars(inputs) | changes)
     plane = mirroring.Plane(np.zeros(3), np.array([1.0, 0.0, 0.0]))

@@ -1,6 +1,5 @@
 """The wrap's spring resolution: a layout subdivided k x k (pure numpy, no Blender)."""
 
-
 import numpy as np
 import pytest
 
@@ -54,7 +53,7 @@ def test_other_polygons_keep_their_corners_and_take_the_cut_edges_points():
     assert sorted(sizes.tolist()) == [4, 4, 4, 4, 6]
     assert fine.topology.vertex_count == 5 + 6 + 1  # 6 edges (one shared) cut once, one quad centre
     starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
-    hexagon = fine.topology.face_corners[int(starts[sizes == 6][0]):][:6].tolist()
+    hexagon = fine.topology.face_corners[int(starts[sizes == 6][0]) :][:6].tolist()
     assert hexagon[0::2] == [1, 4, 2]  # corners in order, each followed by its edge's midpoint
     middle_12 = fine.points_inside(1, 2)[0]
     assert middle_12 in hexagon and middle_12 in fine.topology.face_corners[:16].tolist()  # shared with the quad

@@ -42,17 +42,33 @@ def covers(entry: str, path: str) -> bool:
 
 def test_the_map_names_every_top_level_source_folder():
     roots = module_map()
-    assert {"addon/springwrap/", "rust_core/kernel/src/", "rust_core/python/src/", "blender_scripts/",
-            "packaging/", "benchmarks/", "tests/", "docs/"} <= set(roots)
+    assert {
+        "addon/springwrap/",
+        "rust_core/kernel/src/",
+        "rust_core/python/src/",
+        "blender_scripts/",
+        "packaging/",
+        "benchmarks/",
+        "tests/",
+        "docs/",
+    } <= set(roots)
 
 
 def test_every_path_in_the_map_exists():
-    missing = [f"{root}{entry}" for root, entries in module_map().items() for entry in entries
-               if not any(covers(entry, path) for path in sources(root))]
+    missing = [
+        f"{root}{entry}"
+        for root, entries in module_map().items()
+        for entry in entries
+        if not any(covers(entry, path) for path in sources(root))
+    ]
     assert not missing, f"docs/architecture.md's module map names what is not in the tree: {missing}"
 
 
 def test_every_source_file_is_in_the_map():
-    unnamed = [f"{root}{path}" for root, entries in module_map().items() for path in sources(root)
-               if not any(covers(entry, path) for entry in entries)]
+    unnamed = [
+        f"{root}{path}"
+        for root, entries in module_map().items()
+        for path in sources(root)
+        if not any(covers(entry, path) for entry in entries)
+    ]
     assert not unnamed, f"add these to docs/architecture.md's module map: {unnamed}"

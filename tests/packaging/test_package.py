@@ -179,8 +179,9 @@ def test_addon_imports_itself_only_relatively():
         name = path.relative_to(ADDON)
         for node in ast.walk(ast.parse(path.read_text())):
             if isinstance(node, ast.Import):
-                absolute += [f"{name}: import {alias.name}" for alias in node.names
-                             if alias.name.split(".")[0] == "springwrap"]
+                absolute += [
+                    f"{name}: import {alias.name}" for alias in node.names if alias.name.split(".")[0] == "springwrap"
+                ]
             elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module.split(".")[0] == "springwrap":
                 absolute.append(f"{name}: from {node.module} import ...")
     assert absolute == []
@@ -200,8 +201,12 @@ def test_extension_passes_blenders_own_validation(packages):
     if checker is None:
         pytest.skip("this bpy module has no extension tool (Blender < 4.2)")
     extension, _legacy = packages
-    process = subprocess.run([sys.executable, str(checker), "validate", str(extension)], capture_output=True,
-                             text=True, timeout=TIMEOUT_SECONDS)
+    process = subprocess.run(
+        [sys.executable, str(checker), "validate", str(extension)],
+        capture_output=True,
+        text=True,
+        timeout=TIMEOUT_SECONDS,
+    )
     assert process.returncode == 0, process.stdout + process.stderr
     assert "Success" in process.stdout
 
@@ -212,10 +217,14 @@ def install_and_run(command: list[str], form: str, package: Path, home: Path, en
     script.write_text(INSTALL_AND_RUN)
     hidden = os.path.realpath(Path(importlib.util.find_spec("numpy").origin).parent.parent)  # site-packages
     arguments = [form, str(package), hidden]
-    full = [*command, str(script), *arguments] if command[0] == sys.executable else \
-        [*command, str(script), "--", *arguments]
-    process = subprocess.run(full, capture_output=True, text=True, timeout=TIMEOUT_SECONDS, cwd=home,
-                             env={**os.environ, **environment})
+    full = (
+        [*command, str(script), *arguments]
+        if command[0] == sys.executable
+        else [*command, str(script), "--", *arguments]
+    )
+    process = subprocess.run(
+        full, capture_output=True, text=True, timeout=TIMEOUT_SECONDS, cwd=home, env={**os.environ, **environment}
+    )
     output = process.stdout + process.stderr
     assert process.returncode == 0, output[-4000:]
     assert "RESULT" in process.stdout, output[-4000:]
@@ -246,12 +255,18 @@ def test_legacy_zip_installs_and_runs_in_debian_blender_3_4(packages, tmp_path):
     _extension, legacy = packages
     scripts = tmp_path / "scripts"
     (scripts / "addons").mkdir(parents=True)
-    found = install_and_run([blender, "-b", "--factory-startup", "--python-exit-code", "1", "--python"], "legacy",
-                            legacy, tmp_path, {"BLENDER_USER_SCRIPTS": str(scripts)})
+    found = install_and_run(
+        [blender, "-b", "--factory-startup", "--python-exit-code", "1", "--python"],
+        "legacy",
+        legacy,
+        tmp_path,
+        {"BLENDER_USER_SCRIPTS": str(scripts)},
+    )
     assert found["version"].startswith("3.4")
     assert found["install"] == ["FINISHED"]
     assert found["module_file"] == str(scripts / "addons" / "springwrap" / "__init__.py")
-    assert found["kernel_file"] == str(scripts / "addons" / "springwrap" / "_vendor" / "springwrap_kernel" /
-                                       "__init__.py")
+    assert found["kernel_file"] == str(
+        scripts / "addons" / "springwrap" / "_vendor" / "springwrap_kernel" / "__init__.py"
+    )
     assert found["operators"] == [["FINISHED"], ["FINISHED"]]
     assert found["face_points"] == found["vertices"] == 49

@@ -55,8 +55,12 @@ class StandInWorker:
 class StandInExecutor:
     name = "stand-in"
 
-    def __init__(self, faults: dict[str, int] | None = None, cannot_start: set[int] = frozenset(),
-                 interrupt_on: str | None = None) -> None:
+    def __init__(
+        self,
+        faults: dict[str, int] | None = None,
+        cannot_start: set[int] = frozenset(),
+        interrupt_on: str | None = None,
+    ) -> None:
         self.faults = dict(faults or {})
         self.cannot_start, self.interrupt_on = cannot_start, interrupt_on
         self.workers: list[StandInWorker] = []
@@ -87,7 +91,9 @@ def test_a_mesh_whose_worker_dies_is_retried_once_on_the_fresh_replacement():
     [dead] = [worker for worker in executor.workers if worker.served[-1:] == ["b"] and worker.number < 3]
     replacement = executor.workers[2]  # the third started: after the death
     assert replacement.served[0] == "b" and entries["b"]["worker"] == "stand-in:3"
-    assert [record["fault"] is not None for record in outcome.workers] == [worker is dead for worker in executor.workers]
+    assert [record["fault"] is not None for record in outcome.workers] == [
+        worker is dead for worker in executor.workers
+    ]
     assert f"b: worker {dead.number} died; retrying on a fresh worker" in printed
     assert not outcome.interrupted and outcome.stopped is None
 

@@ -1,7 +1,6 @@
 """What the headless scripts share (``blender_scripts/headless.py``): their arguments, the one-line failure,
 outputs written all or nothing. Plain Python, no Blender."""
 
-
 import pytest
 
 import headless
@@ -28,8 +27,9 @@ def test_outputs_are_written_all_or_nothing(tmp_path):
     with pytest.raises(headless.ScriptError):
         headless.write_all_or_nothing([(first, lambda path: path.write_text("a")), (second, failing)])
     assert sorted(path.name for path in (tmp_path / "out").iterdir()) == []
-    written = headless.write_all_or_nothing([(first, lambda path: path.write_text("a")), (None, failing),
-                                             (second, lambda path: path.write_text("b"))])
+    written = headless.write_all_or_nothing(
+        [(first, lambda path: path.write_text("a")), (None, failing), (second, lambda path: path.write_text("b"))]
+    )
     assert written == [first, second] and first.read_text() == "a" and second.read_text() == "b"
     with pytest.raises(headless.ScriptError, match="nothing was written"):
         headless.write_atomically(tmp_path / "c.json", lambda path: None)

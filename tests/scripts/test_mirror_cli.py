@@ -26,8 +26,9 @@ def half_sphere_obj(radius: float = 1.1, shift: float = 0.0) -> str:
         for column in range(COLUMNS + 1):
             azimuth = -math.pi / 2 + math.pi * column / COLUMNS
             x = 0.0 if column in (0, COLUMNS) else radius * math.sin(polar) * math.cos(azimuth)
-            lines.append(f"v {x + shift:.6f} {radius * math.sin(polar) * math.sin(azimuth):.6f} "
-                         f"{radius * math.cos(polar):.6f}")
+            lines.append(
+                f"v {x + shift:.6f} {radius * math.sin(polar) * math.sin(azimuth):.6f} {radius * math.cos(polar):.6f}"
+            )
     lines.append(f"v {shift:.6f} 0 {-radius:.6f}")
     bottom = 2 + (RINGS - 1) * (COLUMNS + 1)
 
@@ -38,8 +39,10 @@ def half_sphere_obj(radius: float = 1.1, shift: float = 0.0) -> str:
         lines.append(f"f 1 {vertex(1, column)} {vertex(1, column + 1)}")
         lines.append(f"f {bottom} {vertex(RINGS - 1, column + 1)} {vertex(RINGS - 1, column)}")
         for ring in range(1, RINGS - 1):
-            lines.append(f"f {vertex(ring, column)} {vertex(ring + 1, column)} "
-                         f"{vertex(ring + 1, column + 1)} {vertex(ring, column + 1)}")
+            lines.append(
+                f"f {vertex(ring, column)} {vertex(ring + 1, column)} "
+                f"{vertex(ring + 1, column + 1)} {vertex(ring, column + 1)}"
+            )
     return "\n".join(lines) + "\n"
 
 
@@ -54,14 +57,32 @@ def inputs(tmp_path_factory) -> dict:
 
 
 def run(*arguments) -> subprocess.CompletedProcess:
-    return subprocess.run([*script_command(MIRROR), *map(str, arguments)], capture_output=True, text=True,
-                          timeout=TIMEOUT_SECONDS, cwd=REPOSITORY)
+    return subprocess.run(
+        [*script_command(MIRROR), *map(str, arguments)],
+        capture_output=True,
+        text=True,
+        timeout=TIMEOUT_SECONDS,
+        cwd=REPOSITORY,
+    )
 
 
 def test_mirrors_and_wraps_an_obj_half_onto_an_obj_target(inputs, tmp_path):
     out = tmp_path / "out"
-    process = run("--layout", inputs["half"], "--target", inputs["target"], "--axis", "X", "--snap",
-                  "--output-blend", out / "m.blend", "--output-obj", out / "m.obj", "--report", out / "m.json")
+    process = run(
+        "--layout",
+        inputs["half"],
+        "--target",
+        inputs["target"],
+        "--axis",
+        "X",
+        "--snap",
+        "--output-blend",
+        out / "m.blend",
+        "--output-obj",
+        out / "m.obj",
+        "--report",
+        out / "m.json",
+    )
     assert process.returncode == 0, process.stderr[-3000:]
     report = json.loads((out / "m.json").read_text())
     half_vertices = 2 + (RINGS - 1) * (COLUMNS + 1)
@@ -90,8 +111,18 @@ def test_mirror_only_needs_no_target(inputs, tmp_path):
 
 def test_a_plane_that_misses_the_layout_fails_in_one_line_and_writes_nothing(inputs, tmp_path):
     out = tmp_path / "out"
-    process = run("--layout", inputs["far"], "--target", inputs["target"], "--axis", "X",
-                  "--output-obj", out / "m.obj", "--report", out / "m.json")
+    process = run(
+        "--layout",
+        inputs["far"],
+        "--target",
+        inputs["target"],
+        "--axis",
+        "X",
+        "--output-obj",
+        out / "m.obj",
+        "--report",
+        out / "m.json",
+    )
     assert process.returncode == 1, process.stderr[-3000:]
     failures = [line for line in process.stderr.splitlines() if line.startswith("mirror: FAILED: ")]
     assert len(failures) == 1 and str(inputs["far"]) in failures[0] and "misses" in failures[0], process.stderr

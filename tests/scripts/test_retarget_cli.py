@@ -35,8 +35,11 @@ GRID_SIDE = 7  # vertices per side of the template grid
 
 def grid_obj(side: int = GRID_SIDE, size: float = 1.0, height: float = 1.5) -> str:
     """A flat square grid of side x side vertices above the origin, as OBJ text."""
-    lines = [f"v {size * (i / (side - 1) - 0.5):.6f} {size * (j / (side - 1) - 0.5):.6f} {height}"
-             for j in range(side) for i in range(side)]
+    lines = [
+        f"v {size * (i / (side - 1) - 0.5):.6f} {size * (j / (side - 1) - 0.5):.6f} {height}"
+        for j in range(side)
+        for i in range(side)
+    ]
     for j in range(side - 1):
         for i in range(side - 1):
             a = j * side + i + 1
@@ -69,34 +72,55 @@ def inputs(tmp_path_factory) -> dict:
     paths["blend"] = folder / "both.blend"
     maker = folder / "make_blend.py"
     maker.write_text(MAKE_BLEND)
-    made = subprocess.run([*script_command(maker), str(paths["template"]), str(paths["target"]), str(paths["blend"])],
-                          capture_output=True, text=True, timeout=TIMEOUT_SECONDS)
+    made = subprocess.run(
+        [*script_command(maker), str(paths["template"]), str(paths["target"]), str(paths["blend"])],
+        capture_output=True,
+        text=True,
+        timeout=TIMEOUT_SECONDS,
+    )
     assert made.returncode == 0, made.stderr[-2000:]
     return paths
 
 
 def run(*arguments, cwd=None, environment=None) -> subprocess.CompletedProcess:
-    return subprocess.run([*script_command(RETARGET), *map(str, arguments)], capture_output=True, text=True,
-                          timeout=TIMEOUT_SECONDS, cwd=cwd or REPOSITORY,
-                          env=None if environment is None else os.environ | environment)
+    return subprocess.run(
+        [*script_command(RETARGET), *map(str, arguments)],
+        capture_output=True,
+        text=True,
+        timeout=TIMEOUT_SECONDS,
+        cwd=cwd or REPOSITORY,
+        env=None if environment is None else os.environ | environment,
+    )
 
 
 def test_retargets_an_obj_template_onto_an_obj_target(inputs, tmp_path):
     out = tmp_path / "out"
-    process = run("--template", inputs["template"], "--target", inputs["target"], "--anchors-spacing", 0,
-                  "--output-blend", out / "r.blend", "--output-obj", out / "r.obj", "--report", out / "r.json")
+    process = run(
+        "--template",
+        inputs["template"],
+        "--target",
+        inputs["target"],
+        "--anchors-spacing",
+        0,
+        "--output-blend",
+        out / "r.blend",
+        "--output-obj",
+        out / "r.obj",
+        "--report",
+        out / "r.json",
+    )
     assert process.returncode == 0, process.stderr[-3000:]
     assert sorted(path.name for path in out.iterdir()) == ["r.blend", "r.json", "r.obj"]  # no partial files left
     report = json.loads((out / "r.json").read_text())
-    assert report["vertices"] == GRID_SIDE ** 2 and report["faces"] == (GRID_SIDE - 1) ** 2
+    assert report["vertices"] == GRID_SIDE**2 and report["faces"] == (GRID_SIDE - 1) ** 2
     assert report["anchors"] > 0 and report["wrap"]["converged"]
-    assert report["wrap"]["face_points"] == GRID_SIDE ** 2  # the whole grid lies on the sphere
+    assert report["wrap"]["face_points"] == GRID_SIDE**2  # the whole grid lies on the sphere
     # On the sphere (the faceted one: its flat faces are within 1 - cos(pi/16) ~ 0.02 of the radius).
     assert report["metrics"]["max_distance"] < 1e-5
     assert set(report["timings"]) == {"load", "align and detach", "anchors", "wrap", "metrics"}
     vertices = [line.split()[1:] for line in (out / "r.obj").read_text().splitlines() if line.startswith("v ")]
     radii = [math.dist([float(value) for value in vertex], (0, 0, 0)) for vertex in vertices]
-    assert len(vertices) == GRID_SIDE ** 2 and all(0.97 < radius <= 1.0 + 1e-4 for radius in radii)
+    assert len(vertices) == GRID_SIDE**2 and all(0.97 < radius <= 1.0 + 1e-4 for radius in radii)
 
 
 def blender_from_obj(point):
@@ -111,27 +135,55 @@ def test_anchors_from_json_and_a_blend_template_object(inputs, tmp_path):
     corner = GRID_SIDE * GRID_SIDE - 1
     wanted = {0: (-0.5, -0.5, 1.0), corner: (0.5, 0.5, 1.0)}  # OBJ space
     anchors = tmp_path / "anchors.json"
-    anchors.write_text(json.dumps({"anchors": [{"vertex": vertex, "target": blender_from_obj(point)}
-                                               for vertex, point in wanted.items()]}))
+    anchors.write_text(
+        json.dumps(
+            {"anchors": [{"vertex": vertex, "target": blender_from_obj(point)} for vertex, point in wanted.items()]}
+        )
+    )
     report_path, obj_path = tmp_path / "r.json", tmp_path / "r.obj"
-    process = run("--template", inputs["blend"], "--template-object", "Grid", "--target", inputs["big"],
-                  "--anchors", anchors, "--report", report_path, "--output-obj", obj_path)
+    process = run(
+        "--template",
+        inputs["blend"],
+        "--template-object",
+        "Grid",
+        "--target",
+        inputs["big"],
+        "--anchors",
+        anchors,
+        "--report",
+        report_path,
+        "--output-obj",
+        obj_path,
+    )
     assert process.returncode == 0, process.stderr[-3000:]
     report = json.loads(report_path.read_text())
-    assert report["anchors"] == 2 and report["vertices"] == GRID_SIDE ** 2
-    vertices = [[float(value) for value in line.split()[1:4]] for line in obj_path.read_text().splitlines()
-                if line.startswith("v ")]
+    assert report["anchors"] == 2 and report["vertices"] == GRID_SIDE**2
+    vertices = [
+        [float(value) for value in line.split()[1:4]]
+        for line in obj_path.read_text().splitlines()
+        if line.startswith("v ")
+    ]
     for vertex, point in wanted.items():
         on_sphere = [1.3 * value / math.dist(point, (0, 0, 0)) for value in point]  # the smooth sphere's closest point
         assert math.dist(vertices[vertex], on_sphere) < 0.06  # the faceted one is within 1.3 (1 - cos(pi / 12))
     # Vertices left off the surface are counted and warned about in the report.
     space_points = report["wrap"]["space_points"]
-    assert space_points == 0 or any(f"{space_points} of {GRID_SIDE ** 2} vertices" in line for line in report["warnings"])
+    assert space_points == 0 or any(f"{space_points} of {GRID_SIDE**2} vertices" in line for line in report["warnings"])
 
 
 def test_a_free_group_floats_with_the_energy_solver_and_is_refused_with_springs(inputs, tmp_path):
-    common = ("--template", inputs["blend"], "--template-object", "Grid", "--target", inputs["target"],
-              "--anchors-spacing", 0.6, "--free-group", "Centre")
+    common = (
+        "--template",
+        inputs["blend"],
+        "--template-object",
+        "Grid",
+        "--target",
+        inputs["target"],
+        "--anchors-spacing",
+        0.6,
+        "--free-group",
+        "Centre",
+    )
     report_path = tmp_path / "r.json"
     process = run(*common, "--solver", "energy", "--report", report_path)
     assert process.returncode == 0, process.stderr[-3000:]
@@ -144,15 +196,29 @@ def test_a_free_group_floats_with_the_energy_solver_and_is_refused_with_springs(
     assert missing.returncode == 1 and "no vertex group 'Nowhere'" in missing.stderr
 
 
-@pytest.mark.parametrize("case", ["missing template", "unreadable target", "target without faces",
-                                  "several meshes unnamed", "anchors not JSON", "anchors not a list",
-                                  "anchor on a missing vertex", "anchor target not numbers"])
+@pytest.mark.parametrize(
+    "case",
+    [
+        "missing template",
+        "unreadable target",
+        "target without faces",
+        "several meshes unnamed",
+        "anchors not JSON",
+        "anchors not a list",
+        "anchor on a missing vertex",
+        "anchor target not numbers",
+    ],
+)
 def test_bad_input_is_one_line_naming_the_file_and_leaves_nothing(inputs, tmp_path, case):
     out = tmp_path / "out"
     template, target, extra = inputs["template"], inputs["target"], []
     anchors = tmp_path / "anchors.json"
-    blamed = {"missing template": tmp_path / "nowhere.obj", "unreadable target": tmp_path / "junk.ply",
-              "target without faces": tmp_path / "points.obj", "several meshes unnamed": inputs["blend"]}.get(case, anchors)
+    blamed = {
+        "missing template": tmp_path / "nowhere.obj",
+        "unreadable target": tmp_path / "junk.ply",
+        "target without faces": tmp_path / "points.obj",
+        "several meshes unnamed": inputs["blend"],
+    }.get(case, anchors)
     if case == "missing template":
         template = blamed
     elif case == "unreadable target":
@@ -164,12 +230,28 @@ def test_bad_input_is_one_line_naming_the_file_and_leaves_nothing(inputs, tmp_pa
     elif case == "several meshes unnamed":
         target = blamed
     else:
-        anchors.write_text({"anchors not JSON": '{"anchors": [', "anchors not a list": '{"anchors": 3}',
-                            "anchor on a missing vertex": '{"anchors": [{"vertex": 4900, "target": [0, 0, 1]}]}',
-                            "anchor target not numbers": '[{"vertex": 1, "target": [0, "up", 1]}]'}[case])
+        anchors.write_text(
+            {
+                "anchors not JSON": '{"anchors": [',
+                "anchors not a list": '{"anchors": 3}',
+                "anchor on a missing vertex": '{"anchors": [{"vertex": 4900, "target": [0, 0, 1]}]}',
+                "anchor target not numbers": '[{"vertex": 1, "target": [0, "up", 1]}]',
+            }[case]
+        )
         extra = ["--anchors", anchors]
-    process = run("--template", template, "--target", target, *extra, "--output-blend", out / "r.blend",
-                  "--output-obj", out / "r.obj", "--report", out / "r.json")
+    process = run(
+        "--template",
+        template,
+        "--target",
+        target,
+        *extra,
+        "--output-blend",
+        out / "r.blend",
+        "--output-obj",
+        out / "r.obj",
+        "--report",
+        out / "r.json",
+    )
     assert process.returncode == 1, process.stderr[-3000:]
     failures = [line for line in process.stderr.splitlines() if line.startswith("retarget: FAILED: ")]
     assert len(failures) == 1 and str(blamed) in failures[0], process.stderr[-3000:]
@@ -179,12 +261,28 @@ def test_bad_input_is_one_line_naming_the_file_and_leaves_nothing(inputs, tmp_pa
 
 def test_bad_arguments_exit_with_code_2(inputs):
     assert run("--template", inputs["template"]).returncode == 2  # neither --target nor --batch
-    assert run("--template", inputs["template"], "--batch", inputs["template"].parent).returncode == 2  # no --output-dir
+    assert (
+        run("--template", inputs["template"], "--batch", inputs["template"].parent).returncode == 2
+    )  # no --output-dir
     assert run("--template", inputs["template"], "--target", inputs["target"], "--jobs", 0).returncode == 2
     folder = inputs["template"].parent
-    assert run("--template", inputs["template"], "--batch", folder, "--output-dir", folder / "o", "--jobs", 0).returncode == 2
-    assert run("--template", inputs["template"], "--batch", folder, "--output-dir", folder / "o",
-               "--address", "127.0.0.1:6379").returncode == 2  # --address without --executor ray
+    assert (
+        run("--template", inputs["template"], "--batch", folder, "--output-dir", folder / "o", "--jobs", 0).returncode
+        == 2
+    )
+    assert (
+        run(
+            "--template",
+            inputs["template"],
+            "--batch",
+            folder,
+            "--output-dir",
+            folder / "o",
+            "--address",
+            "127.0.0.1:6379",
+        ).returncode
+        == 2
+    )  # --address without --executor ray
     assert run("--template", inputs["template"], "--target", inputs["target"], "--resume").returncode == 2
 
 
@@ -196,8 +294,9 @@ def test_batch_retargets_every_mesh_and_skips_a_failing_one(inputs, tmp_path):
     (folder / "flat.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n")  # no faces: fails
     (folder / "notes.txt").write_text("not a mesh")
     out = tmp_path / "out"
-    process = run("--template", inputs["template"], "--batch", folder, "--output-dir", out, "--jobs", 2,
-                  "--anchors-spacing", 0.3)
+    process = run(
+        "--template", inputs["template"], "--batch", folder, "--output-dir", out, "--jobs", 2, "--anchors-spacing", 0.3
+    )
     assert process.returncode == 3, process.stderr[-3000:]
     progress = [line for line in process.stderr.splitlines() if line.startswith("[")]
     assert len(progress) == 3 and sum("FAILED" in line for line in progress) == 1
@@ -208,16 +307,18 @@ def test_batch_retargets_every_mesh_and_skips_a_failing_one(inputs, tmp_path):
     # all three); each ready one says what starting it cost and its peak memory.
     assert len(summary["workers"]) == 2 and sum(worker["meshes"] for worker in summary["workers"]) == 3
     ready = [worker for worker in summary["workers"] if worker["worker"] is not None]
-    assert all(worker["start_seconds"] > 0 and worker["peak_memory_mb"] > 10 and worker["fault"] is None
-               for worker in ready)
+    assert all(
+        worker["start_seconds"] > 0 and worker["peak_memory_mb"] > 10 and worker["fault"] is None for worker in ready
+    )
     assert {entry["worker"] for entry in summary["meshes"]} <= {worker["worker"] for worker in ready}
     [failed] = [entry for entry in summary["meshes"] if entry["status"] == "failed"]
     assert failed["target"].endswith("flat.obj") and "no faces" in failed["error"]
     assert sorted(path.name for path in out.iterdir()) == sorted(
-        f"{stem}.{suffix}" for stem in ("ball", "big_ball") for suffix in ("blend", "obj", "json")) + ["summary.json"]
+        f"{stem}.{suffix}" for stem in ("ball", "big_ball") for suffix in ("blend", "obj", "json")
+    ) + ["summary.json"]
     for stem in ("ball", "big_ball"):
         report = json.loads((out / f"{stem}.json").read_text())
-        assert report["wrap"]["face_points"] == GRID_SIDE ** 2
+        assert report["wrap"]["face_points"] == GRID_SIDE**2
 
 
 def test_align_anchors_then_icp_recovers_the_targets_placement(inputs, tmp_path):
@@ -235,12 +336,34 @@ def test_align_anchors_then_icp_recovers_the_targets_placement(inputs, tmp_path)
     points = [[float(value) for value in line.split()[1:4]] for line in template_lines if line.startswith("v ")]
     chosen = [0, len(points) - 1, 1 + 7 * 32, 1 + 7 * 32 + 8, 1 + 3 * 32 + 20]  # poles, equator, upper ring
     anchors = tmp_path / "anchors.json"
-    anchors.write_text(json.dumps({"anchors": [
-        {"vertex": vertex, "target": blender_from_obj([scale * value + offset for value, offset in zip(points[vertex], shift)])}
-        for vertex in chosen]}))
+    anchors.write_text(
+        json.dumps(
+            {
+                "anchors": [
+                    {
+                        "vertex": vertex,
+                        "target": blender_from_obj(
+                            [scale * value + offset for value, offset in zip(points[vertex], shift)]
+                        ),
+                    }
+                    for vertex in chosen
+                ]
+            }
+        )
+    )
     report_path = tmp_path / "r.json"
-    process = run("--template", inputs["target"], "--target", target, "--anchors", anchors, "--align", "anchors",
-                  "--report", report_path)
+    process = run(
+        "--template",
+        inputs["target"],
+        "--target",
+        target,
+        "--anchors",
+        anchors,
+        "--align",
+        "anchors",
+        "--report",
+        report_path,
+    )
     assert process.returncode == 0, process.stderr[-3000:]
     alignment = json.loads(report_path.read_text())["alignment"]
     assert alignment["method"] == "similarity" and alignment["anchors"] and alignment["icp"]
@@ -251,14 +374,23 @@ def test_align_anchors_then_icp_recovers_the_targets_placement(inputs, tmp_path)
 
 def test_align_arguments_that_cannot_work_exit_with_code_2(inputs):
     assert run("--template", inputs["template"], "--target", inputs["target"], "--align", "anchors").returncode == 2
-    assert run("--template", inputs["template"], "--target", inputs["target"], "--align", "icp",
-               "--align-method", "affine").returncode == 2
+    assert (
+        run(
+            "--template", inputs["template"], "--target", inputs["target"], "--align", "icp", "--align-method", "affine"
+        ).returncode
+        == 2
+    )
 
 
 # ---------------------------------------------------------------- batch: executors, isolation, resume, progress
 
-BATCH_SPHERES = {"ball_a": (1.0, 32, 16), "ball_b": (1.3, 24, 12), "ball_c": (0.8, 20, 10), "ball_d": (1.1, 28, 14),
-                 "ball_e": (0.9, 16, 8)}  # name: radius, segments, rings
+BATCH_SPHERES = {
+    "ball_a": (1.0, 32, 16),
+    "ball_b": (1.3, 24, 12),
+    "ball_c": (0.8, 20, 10),
+    "ball_d": (1.1, 28, 14),
+    "ball_e": (0.9, 16, 8),
+}  # name: radius, segments, rings
 BROKEN = "flat"  # three vertices, no faces: fails with "no faces"
 VARYING = ("seconds", "worker")  # per-mesh fields that differ from run to run
 
@@ -275,8 +407,20 @@ def batch_folder(tmp_path_factory) -> Path:
 
 def run_batch(inputs, folder: Path, out: Path, *extra, environment=None) -> tuple[subprocess.CompletedProcess, dict]:
     """retarget.py --batch on ``folder`` (2 workers, automatic anchors); the process and its summary."""
-    process = run("--template", inputs["template"], "--batch", folder, "--output-dir", out, "--jobs", 2,
-                  "--anchors-spacing", 0.3, *extra, environment=environment)
+    process = run(
+        "--template",
+        inputs["template"],
+        "--batch",
+        folder,
+        "--output-dir",
+        out,
+        "--jobs",
+        2,
+        "--anchors-spacing",
+        0.3,
+        *extra,
+        environment=environment,
+    )
     summary_path = out / "summary.json"
     assert summary_path.is_file(), process.stderr[-3000:]
     return process, json.loads(summary_path.read_text())
@@ -329,12 +473,16 @@ def test_ray_batch_gives_the_local_batchs_outputs_and_summary(inputs, batch_fold
     assert all(worker["start_seconds"] > 0 for worker in ray_summary["workers"] if worker["meshes"])
     for name in BATCH_SPHERES:
         local_obj, ray_obj = tmp_path / "local" / f"{name}.obj", tmp_path / "ray" / f"{name}.obj"
-        assert obj_vertex_lines(ray_obj) == obj_vertex_lines(local_obj) and len(obj_vertex_lines(ray_obj)) == GRID_SIDE ** 2
-        assert (report_without_timings(tmp_path / "ray" / f"{name}.json")
-                == report_without_timings(tmp_path / "local" / f"{name}.json"))
+        assert (
+            obj_vertex_lines(ray_obj) == obj_vertex_lines(local_obj) and len(obj_vertex_lines(ray_obj)) == GRID_SIDE**2
+        )
+        assert report_without_timings(tmp_path / "ray" / f"{name}.json") == report_without_timings(
+            tmp_path / "local" / f"{name}.json"
+        )
         assert (tmp_path / "ray" / f"{name}.blend").stat().st_size > 0
     assert sorted(path.name for path in (tmp_path / "ray").iterdir()) == sorted(
-        path.name for path in (tmp_path / "local").iterdir())  # no partial files left on either side
+        path.name for path in (tmp_path / "local").iterdir()
+    )  # no partial files left on either side
     print(f"ray batch of {len(BATCH_SPHERES) + 1} meshes: {ray_seconds:.1f} s")
 
 
@@ -347,10 +495,25 @@ def ray_head(tmp_path):
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
     environment = os.environ | {"RAY_AUTH_MODE": "disabled"}
-    head = subprocess.Popen([str(Path(sys.executable).with_name("ray")), "start", "--head", "--block",
-                             "--port", str(port), "--num-cpus", "2", "--include-dashboard", "false",
-                             "--disable-usage-stats"], env=environment, start_new_session=True,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    head = subprocess.Popen(
+        [
+            str(Path(sys.executable).with_name("ray")),
+            "start",
+            "--head",
+            "--block",
+            "--port",
+            str(port),
+            "--num-cpus",
+            "2",
+            "--include-dashboard",
+            "false",
+            "--disable-usage-stats",
+        ],
+        env=environment,
+        start_new_session=True,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     try:
         deadline = time.monotonic() + 60
         while True:
@@ -375,15 +538,29 @@ def ray_head(tmp_path):
 
 def test_ray_batch_on_a_running_cluster_by_its_address(inputs, batch_folder, tmp_path, ray_head):
     local, local_summary = run_batch(inputs, batch_folder, tmp_path / "local")
-    process = run("--template", inputs["template"], "--batch", batch_folder, "--output-dir", tmp_path / "ray",
-                  "--anchors-spacing", 0.3, "--executor", "ray", "--address", ray_head,
-                  environment={"RAY_AUTH_MODE": "disabled"})
+    process = run(
+        "--template",
+        inputs["template"],
+        "--batch",
+        batch_folder,
+        "--output-dir",
+        tmp_path / "ray",
+        "--anchors-spacing",
+        0.3,
+        "--executor",
+        "ray",
+        "--address",
+        ray_head,
+        environment={"RAY_AUTH_MODE": "disabled"},
+    )
     assert process.returncode == 3, process.stderr[-3000:]
     summary = json.loads((tmp_path / "ray" / "summary.json").read_text())
     assert summary["jobs"] == 2  # without --jobs: one worker per CPU of the cluster
     assert comparable(summary, tmp_path / "ray") == comparable(local_summary, tmp_path / "local")
     for name in BATCH_SPHERES:
-        assert obj_vertex_lines(tmp_path / "ray" / f"{name}.obj") == obj_vertex_lines(tmp_path / "local" / f"{name}.obj")
+        assert obj_vertex_lines(tmp_path / "ray" / f"{name}.obj") == obj_vertex_lines(
+            tmp_path / "local" / f"{name}.obj"
+        )
 
 
 def test_an_address_where_no_ray_head_answers_is_one_line(inputs, batch_folder, tmp_path):
@@ -391,8 +568,18 @@ def test_an_address_where_no_ray_head_answers_is_one_line(inputs, batch_folder, 
     with socket.socket() as probe:  # a loopback port nobody listens on
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
-    process = run("--template", inputs["template"], "--batch", batch_folder, "--output-dir", tmp_path / "out",
-                  "--executor", "ray", "--address", f"127.0.0.1:{port}")
+    process = run(
+        "--template",
+        inputs["template"],
+        "--batch",
+        batch_folder,
+        "--output-dir",
+        tmp_path / "out",
+        "--executor",
+        "ray",
+        "--address",
+        f"127.0.0.1:{port}",
+    )
     assert process.returncode == 1, process.stderr[-3000:]
     assert f"retarget: FAILED: Ray cannot start or connect (127.0.0.1:{port}): no Ray head answers" in process.stderr
 
@@ -402,21 +589,36 @@ def test_a_long_lived_worker_gives_what_a_single_run_gives(inputs, batch_folder,
     _process, summary = run_batch(inputs, batch_folder, tmp_path / "batch", "--jobs", 1)
     name = sorted(BATCH_SPHERES)[-1]  # the last mesh of the sorted folder: the worker served four before it
     assert [worker["meshes"] for worker in summary["workers"]] == [6]
-    single = run("--template", inputs["template"], "--target", batch_folder / f"{name}.obj", "--anchors-spacing", 0.3,
-                 "--output-obj", tmp_path / "single.obj")
+    single = run(
+        "--template",
+        inputs["template"],
+        "--target",
+        batch_folder / f"{name}.obj",
+        "--anchors-spacing",
+        0.3,
+        "--output-obj",
+        tmp_path / "single.obj",
+    )
     assert single.returncode == 0, single.stderr[-3000:]
     assert obj_vertex_lines(tmp_path / "batch" / f"{name}.obj") == obj_vertex_lines(tmp_path / "single.obj")
 
 
 @pytest.mark.parametrize("executor", ["local", "ray"])
-def test_a_worker_that_dies_is_replaced_and_its_mesh_retried_once_on_a_fresh_worker(inputs, batch_folder, tmp_path,
-                                                                                    executor):
+def test_a_worker_that_dies_is_replaced_and_its_mesh_retried_once_on_a_fresh_worker(
+    inputs, batch_folder, tmp_path, executor
+):
     """ball_a kills its worker once (the retry succeeds); ball_c every time (it fails after two); the batch goes on."""
     if executor == "ray":
         require_ray()
     marker = tmp_path / "ball_a-aborted-once"
-    process, summary = run_batch(inputs, batch_folder, tmp_path / "out", "--executor", executor,
-                                 environment={"SPRINGWRAP_BATCH_ABORT": f"ball_a.obj:{marker},ball_c.obj"})
+    process, summary = run_batch(
+        inputs,
+        batch_folder,
+        tmp_path / "out",
+        "--executor",
+        executor,
+        environment={"SPRINGWRAP_BATCH_ABORT": f"ball_a.obj:{marker},ball_c.obj"},
+    )
     assert process.returncode == 3, process.stderr[-3000:]
     entries = {Path(entry["target"]).stem: entry for entry in summary["meshes"]}
     assert entries["ball_a"]["status"] == "ok" and entries["ball_a"]["attempts"] == 2
@@ -472,9 +674,26 @@ def test_ctrl_c_stops_the_batch_and_the_summary_lists_the_meshes_not_run(inputs,
         (folder / f"mesh_{index:02d}.obj").write_text(inputs["target"].read_text())
     out = tmp_path / "out"
     # A session of its own, signalled as a whole: as a terminal's Ctrl-C reaches every process in the foreground.
-    process = subprocess.Popen([*script_command(RETARGET), "--template", str(inputs["template"]), "--batch", str(folder),
-                                "--output-dir", str(out), "--jobs", "2", "--anchors-spacing", "0.3",
-                                "--executor", executor], stderr=subprocess.PIPE, text=True, start_new_session=True)
+    process = subprocess.Popen(
+        [
+            *script_command(RETARGET),
+            "--template",
+            str(inputs["template"]),
+            "--batch",
+            str(folder),
+            "--output-dir",
+            str(out),
+            "--jobs",
+            "2",
+            "--anchors-spacing",
+            "0.3",
+            "--executor",
+            executor,
+        ],
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
     try:
         for line in process.stderr:
             if line.startswith("[2/"):
@@ -503,9 +722,21 @@ def test_progress_is_a_bar_with_an_eta_in_a_terminal(inputs, batch_folder, tmp_p
     pytest.importorskip("tqdm")
     leader, follower = pty.openpty()
     fcntl.ioctl(follower, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 100, 0, 0))  # a new pty is 0 columns wide
-    process = subprocess.Popen([*script_command(RETARGET), "--template", str(inputs["template"]),
-                                "--batch", str(batch_folder), "--output-dir", str(tmp_path / "out"),
-                                "--anchors-spacing", "0.3"], stderr=follower, stdout=subprocess.DEVNULL)
+    process = subprocess.Popen(
+        [
+            *script_command(RETARGET),
+            "--template",
+            str(inputs["template"]),
+            "--batch",
+            str(batch_folder),
+            "--output-dir",
+            str(tmp_path / "out"),
+            "--anchors-spacing",
+            "0.3",
+        ],
+        stderr=follower,
+        stdout=subprocess.DEVNULL,
+    )
     os.close(follower)
     shown = b""
     while True:
@@ -527,12 +758,23 @@ def test_progress_is_a_bar_with_an_eta_in_a_terminal(inputs, batch_folder, tmp_p
 def test_ray_executor_without_ray_says_how_to_install_it(inputs, batch_folder, tmp_path):
     shadow = tmp_path / "no_ray"
     shadow.mkdir()
-    (shadow / "ray.py").write_text('raise ImportError("No module named \'ray\'")\n')
+    (shadow / "ray.py").write_text("raise ImportError(\"No module named 'ray'\")\n")
     path = os.pathsep.join(filter(None, [str(shadow), os.environ.get("PYTHONPATH")]))
-    process = run("--template", inputs["template"], "--batch", batch_folder, "--output-dir", tmp_path / "out",
-                  "--executor", "ray", environment={"PYTHONPATH": path})
+    process = run(
+        "--template",
+        inputs["template"],
+        "--batch",
+        batch_folder,
+        "--output-dir",
+        tmp_path / "out",
+        "--executor",
+        "ray",
+        environment={"PYTHONPATH": path},
+    )
     assert process.returncode == 1, process.stderr[-3000:]
     failures = [line for line in process.stderr.splitlines() if line.startswith("retarget: FAILED: ")]
-    expected = "not inside a Blender binary" if os.environ.get("SPRINGWRAP_BLENDER") else "pip install -r requirements-ray.txt"
+    expected = (
+        "not inside a Blender binary" if os.environ.get("SPRINGWRAP_BLENDER") else "pip install -r requirements-ray.txt"
+    )
     assert len(failures) == 1 and expected in failures[0], process.stderr[-3000:]
     assert not (tmp_path / "out" / "summary.json").exists()

@@ -29,8 +29,12 @@ pytestmark = pytest.mark.skipif(
     reason="runs scripts as `sys.executable script.py` with the PyPI bpy module; inside the blender binary "
     "sys.executable is a plain Python without bpy",
 )
-METHODS = ("kernel closest_points", "kernel nearest_vertices", "Shrinkwrap NEAREST_SURFACEPOINT",
-           "mathutils BVHTree.find_nearest")
+METHODS = (
+    "kernel closest_points",
+    "kernel nearest_vertices",
+    "Shrinkwrap NEAREST_SURFACEPOINT",
+    "mathutils BVHTree.find_nearest",
+)
 
 # Run in a fresh process on the saved file: prints what the layout holds, as JSON.
 INSPECT_BLEND = """
@@ -81,8 +85,15 @@ def inspect(path: Path, layout_name: str = "Layout") -> dict:
 def test_demo_exits_zero_and_prints_each_step(demo_blend):
     output, process = demo_blend
     assert process.returncode == 0, process.stdout[-2000:] + process.stderr[-3000:]
-    steps = ("detach", "project (NORMAL, <=0.3)", "snap (SURFACE)", "copy of the template", "detach (copy)",
-             "anchors_auto (spacing 0.3)", "wrap (<=2000 iterations)")
+    steps = (
+        "detach",
+        "project (NORMAL, <=0.3)",
+        "snap (SURFACE)",
+        "copy of the template",
+        "detach (copy)",
+        "anchors_auto (spacing 0.3)",
+        "wrap (<=2000 iterations)",
+    )
     rows = {line[:26].strip(): line[26:].split() for line in process.stdout.splitlines()}
     for step in steps:
         assert step in rows, step
@@ -131,8 +142,19 @@ def test_wrap_script_wraps_a_layout_of_a_saved_file(demo_blend, tmp_path):
     demo_output, demo = demo_blend
     assert demo.returncode == 0, demo.stderr[-3000:]
     output = tmp_path / "wrapped.blend"
-    process = run_script(str(WRAP), "--blend", str(demo_output), "--layout", "Wrapped", "--anchors-spacing", "0.25",
-                         "--max-iterations", "300", "--output", str(output))
+    process = run_script(
+        str(WRAP),
+        "--blend",
+        str(demo_output),
+        "--layout",
+        "Wrapped",
+        "--anchors-spacing",
+        "0.25",
+        "--max-iterations",
+        "300",
+        "--output",
+        str(output),
+    )
     assert process.returncode == 0, process.stdout[-2000:] + process.stderr[-3000:]
     finished = re.search(r"Wrapped 'Wrapped' in (\d+) iterations", process.stdout)
     assert finished is not None, process.stdout[-2000:]
@@ -176,8 +198,19 @@ def test_demo_rejects_unknown_arguments():
 
 def test_benchmark_tiny_run_prints_table_and_json(tmp_path):
     report_path = tmp_path / "bench.json"
-    process = run_script(str(BENCHMARK), "--triangles", "20000", "--points", "20000", "--mathutils-points", "5000",
-                         "--repeat", "1", "--json", str(report_path))
+    process = run_script(
+        str(BENCHMARK),
+        "--triangles",
+        "20000",
+        "--points",
+        "20000",
+        "--mathutils-points",
+        "5000",
+        "--repeat",
+        "1",
+        "--json",
+        str(report_path),
+    )
     assert process.returncode == 0, process.stdout[-3000:] + process.stderr[-3000:]
     table_rows = {tuple(line.split()[:3]) for line in process.stdout.splitlines()}
     for method in METHODS:
@@ -187,9 +220,7 @@ def test_benchmark_tiny_run_prints_table_and_json(tmp_path):
     assert "MISMATCH" not in process.stdout
     report = json.loads(report_path.read_text())
     assert {(row["method"], row["order"]) for row in report["results"]} == {
-        (method, order)
-        for method in METHODS
-        for order in ("coherent", "random")
+        (method, order) for method in METHODS for order in ("coherent", "random")
     }
     assert all(row["queries"] == 20000 and row["seconds"] > 0 for row in report["results"])
     assert all(check["passed"] for check in report["checks"])

@@ -1,6 +1,5 @@
 """The layout's anchors (``Object.springwrap.anchors``) as ``core.anchors.Anchors`` arrays, and back."""
 
-
 import bpy
 
 import numpy as np
@@ -17,6 +16,7 @@ _ANCHOR_FIELDS = (
     ("location", np.float64, 3),
 )
 
+
 def read_anchors(layout: bpy.types.Object) -> anchors.Anchors:
     """The layout's anchors (``Object.springwrap.anchors``) as arrays, in list order."""
     items = layout.springwrap.anchors
@@ -28,6 +28,7 @@ def read_anchors(layout: bpy.types.Object) -> anchors.Anchors:
             compat.foreach_get(items, name, values)
         arrays.append(values)
     return anchors.make_anchors(*arrays)
+
 
 def face_anchor_count(layout: bpy.types.Object) -> int:
     """How many of the layout's anchors are on the target surface (the kinds read at once: the list may be long)."""

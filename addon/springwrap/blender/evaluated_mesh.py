@@ -26,7 +26,10 @@ class EvaluatedMesh(NamedTuple):
 
 
 def read_evaluated_mesh(
-    depsgraph: bpy.types.Depsgraph, obj: bpy.types.Object, triangles: bool = False, edges: bool = False,
+    depsgraph: bpy.types.Depsgraph,
+    obj: bpy.types.Object,
+    triangles: bool = False,
+    edges: bool = False,
     world: bool = True,
 ) -> EvaluatedMesh | None:
     """``obj`` evaluated in ``depsgraph``; None when it gives no mesh (a curve without points).

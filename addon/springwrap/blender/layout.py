@@ -5,7 +5,6 @@ Object mode data unless a function says otherwise (:func:`read_world_vertex_posi
 edit-mesh). Bulk data moves through ``foreach_get`` / ``foreach_set``.
 """
 
-
 import bpy
 
 import bmesh

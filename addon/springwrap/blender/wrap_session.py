@@ -178,8 +178,10 @@ class WrapSession:
 
         When the coarse stage ends, the next call starts the fine one.
         """
-        if self.stage == "coarse" and self.last_report is not None and (
-            self.last_report.converged or self.stage_iterations >= self.parameters.max_iterations
+        if (
+            self.stage == "coarse"
+            and self.last_report is not None
+            and (self.last_report.converged or self.stage_iterations >= self.parameters.max_iterations)
         ):
             self.refine()
         iterations = min(int(iterations), self.parameters.max_iterations - self.stage_iterations)
@@ -235,9 +237,7 @@ class WrapSession:
         count = self.vertex_count  # a fine grid numbers the layout's own vertices first
         positions = transforms.to_local(self.matrix_world, self.solver.positions()[:count])
         states, triangles, barycentrics = self.solver.states()
-        return positions, layout_state.normalized_state(
-            states[:count], triangles[:count], barycentrics[:count]
-        )
+        return positions, layout_state.normalized_state(states[:count], triangles[:count], barycentrics[:count])
 
     def write_frame(self) -> None:
         """Write the solver's current positions and state into the layout (an intermediate frame)."""

@@ -74,7 +74,9 @@ def check_parameters(parameters: AlignParameters) -> None:
             raise LayoutError(f"The ICP anchor weight must be 0 or positive, got {parameters.anchor_weight}")
 
 
-def anchor_pairs(anchor_list: anchor_arrays.Anchors, world_points: np.ndarray, method: str) -> tuple[np.ndarray, np.ndarray]:
+def anchor_pairs(
+    anchor_list: anchor_arrays.Anchors, world_points: np.ndarray, method: str
+) -> tuple[np.ndarray, np.ndarray]:
     """(source, target) world points of the anchors whose vertex exists: layout vertex -> anchor target.
 
     Raises :class:`LayoutError` when there are fewer than the method needs, or a location is not finite.
@@ -224,7 +226,9 @@ def detached_count(layout: LayoutArrays) -> int:
     return layout_state.point_counts(layout.state.states)[0]
 
 
-def summary(name: str, parameters: AlignParameters, outcome: AlignOutcome, detached: int, apply: str, milliseconds: float) -> str:
+def summary(
+    name: str, parameters: AlignParameters, outcome: AlignOutcome, detached: int, apply: str, milliseconds: float
+) -> str:
     """The report of a finished alignment."""
     parts = [f"Aligned '{name}'"]
     if outcome.anchor_count:

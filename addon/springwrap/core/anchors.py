@@ -183,9 +183,7 @@ def pick_vertex(selection: np.ndarray, active_vertex: int) -> int:
 # ---------------------------------------------------------------- target changes
 
 
-def resolve(
-    anchors: Anchors, target: Target, stored_signature: str
-) -> tuple[Anchors, layout_state.Resolution]:
+def resolve(anchors: Anchors, target: Target, stored_signature: str) -> tuple[Anchors, layout_state.Resolution]:
     """Apply the deleted-face rule to the face anchors, then refresh every face anchor's location.
 
     When the target's topology changed since the anchors were written (``stored_signature``), or

@@ -179,9 +179,7 @@ def target_edge_constraint(
     start = nearest_vertex(target_positions, start_point)
     end = nearest_vertex(target_positions, end_point)
     if start == end:
-        raise LayoutError(
-            f"Both ends of the chain are nearest to target vertex {start}: the target curve is ambiguous"
-        )
+        raise LayoutError(f"Both ends of the chain are nearest to target vertex {start}: the target curve is ambiguous")
     graph = edge_graph(target_positions, target_edges)
     course = chain_course(chain_positions, start_point, end_point)
     path = following_path(target_positions, graph, course, start, end)

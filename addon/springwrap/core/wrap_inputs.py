@@ -56,7 +56,9 @@ class WrapParameters(NamedTuple):
     """What the user sets for a wrap: the iteration limit, the spring resolution and the kernel's settings."""
 
     max_iterations: int = 2000
-    settings: Any = None  # springwrap_kernel.WrapSettings (weights, tolerance, rest, solver); None: the kernel's defaults
+    settings: Any = (
+        None  # springwrap_kernel.WrapSettings (weights, tolerance, rest, solver); None: the kernel's defaults
+    )
     spring_resolution: int = 1  # > 1: relax, then relax again the faces cut k x k (coarse to fine)
     stiffness_group: str = ""  # layout vertex group of per-vertex stiffness (energy solver); "": the layout's setting
     free_group: str = ""  # layout vertex group of vertices without a pull to the target; "": the layout's setting
@@ -103,9 +105,7 @@ def check_wrap_parameters(parameters: WrapParameters) -> None:
 def check_wrappable(layout_name: str, face_count: int, edge_count: int) -> None:
     """Raise :class:`~.errors.LayoutError` when the layout has nothing for the springs to act on."""
     if face_count == 0 and edge_count == 0:
-        raise LayoutError(
-            f"Layout '{layout_name}' has no faces and no edges: there is nothing to wrap"
-        )
+        raise LayoutError(f"Layout '{layout_name}' has no faces and no edges: there is nothing to wrap")
 
 
 def unreliable_triangles(triangles: np.ndarray, vertex_weights: np.ndarray) -> np.ndarray:
@@ -192,14 +192,14 @@ def refine_wrap_inputs(inputs: WrapInputs, fine, positions: np.ndarray, states, 
     if inputs.curve_vertices is not None:
         chains, offset = [], 0
         for size in inputs.curve_vertex_counts.astype(np.int64):
-            chains.append(fine.expand_chain(inputs.curve_vertices[offset:offset + size].astype(np.int64)))
+            chains.append(fine.expand_chain(inputs.curve_vertices[offset : offset + size].astype(np.int64)))
             offset += size
         curve_arguments = {
             "curve_vertices": np.ascontiguousarray(np.concatenate(chains), dtype=np.uint32),
             "curve_vertex_counts": np.array([len(chain) for chain in chains], dtype=np.uint32),
         }
-    rest = None if inputs.rest_positions is None else transforms.as_float32_points(
-        fine.interpolate(inputs.rest_positions)
+    rest = (
+        None if inputs.rest_positions is None else transforms.as_float32_points(fine.interpolate(inputs.rest_positions))
     )
     return inputs._replace(
         states=fine_states,
@@ -216,9 +216,7 @@ def rest_world_positions(layout: LayoutArrays, rest: np.ndarray) -> np.ndarray:
     rest = np.asarray(rest, dtype=np.float64)
     vertex_count = layout.positions.shape[0]
     if rest.shape != (vertex_count, 3):
-        raise LayoutError(
-            f"The stored rest shape has {rest.shape[0]} points for a layout of {vertex_count} vertices"
-        )
+        raise LayoutError(f"The stored rest shape has {rest.shape[0]} points for a layout of {vertex_count} vertices")
     bad = np.flatnonzero(~np.isfinite(rest).all(axis=1))
     if bad.size:
         raise LayoutError(f"The stored rest shape of vertex {int(bad[0])} is not finite")

@@ -40,7 +40,10 @@ def poll_layout(cls, context, require_target=True) -> bool:
 
 
 def open_layout(
-    operator, context, require_target=True, moves_vertices=False,
+    operator,
+    context,
+    require_target=True,
+    moves_vertices=False,
     consequence: str = layout_data.SHAPE_KEYS_CONSEQUENCE,
 ) -> bpy.types.Object | None:
     """The common opening of a layout operator's ``execute``: :func:`layout_problem`, then (when it moves

@@ -151,7 +151,9 @@ class SPRINGWRAP_OT_detect_features(bpy.types.Operator):
             if self.write_colors and colors_fit:
                 with object_mode(source) if source == context.active_object else contextlib.nullcontext():
                     feature_data.write_feature_colors(source, region_colors(features.regions))
-            curve_objects = feature_data.write_feature_curves(context, source, features.curves) if self.write_curves else []
+            curve_objects = (
+                feature_data.write_feature_curves(context, source, features.curves) if self.write_curves else []
+            )
         except ERRORS as error:
             self.report({"ERROR"}, f"'{source.name}': {error}")
             return {"CANCELLED"}

@@ -103,10 +103,18 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
         name="Seam",
         description="What the seam (the vertices on the plane) does during the wrap",
         items=(
-            ("SLIDE", "Slide", "Seam points slide along the target's cross-section with the plane, pulled by the "
-             "springs of both halves"),
-            ("HOLD", "Hold", "Seam points only move onto the target's cross-section, the shortest way, and stay: the "
-             "seam stays as the surfaced half has it"),
+            (
+                "SLIDE",
+                "Slide",
+                "Seam points slide along the target's cross-section with the plane, pulled by the "
+                "springs of both halves",
+            ),
+            (
+                "HOLD",
+                "Hold",
+                "Seam points only move onto the target's cross-section, the shortest way, and stay: the "
+                "seam stays as the surfaced half has it",
+            ),
         ),
         default="SLIDE",
     )
@@ -141,8 +149,11 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
                 self.report({"ERROR"}, str(error))
                 return {"CANCELLED"}
             backup = mirror_data.backup_mesh(layout)
-            anchors_before = (anchor_data.read_anchors(layout), layout.springwrap.anchors_signature,
-                              layout.springwrap.active_anchor_index)
+            anchors_before = (
+                anchor_data.read_anchors(layout),
+                layout.springwrap.anchors_signature,
+                layout.springwrap.active_anchor_index,
+            )
             window_manager = context.window_manager
             progress = not bpy.app.background
             try:
@@ -184,13 +195,24 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
         topology = layout_data.read_layout_topology(layout)
         world = transforms.world_positions(arrays)
         decided = mirroring.plan(
-            world, topology.face_corners, topology.face_sizes, topology.edges, plane, self.weld_distance,
+            world,
+            topology.face_corners,
+            topology.face_sizes,
+            topology.edges,
+            plane,
+            self.weld_distance,
             layout_name=f"layout '{layout.name}'",
         )
         rest = attributes.read_rest(layout)
         world_rest = world if rest is None else wrap_inputs.rest_world_positions(arrays, rest)
-        return {"arrays": arrays, "plane": plane, "plane_owner": plane_owner, "plan": decided, "world": world,
-                "world_rest": world_rest}
+        return {
+            "arrays": arrays,
+            "plane": plane,
+            "plane_owner": plane_owner,
+            "plan": decided,
+            "world": world,
+            "world_rest": world_rest,
+        }
 
     def parameters(self):
         """The wrap's ``wrap_inputs.WrapParameters`` (the wrap operator's defaults, this operator's limits)."""
@@ -204,18 +226,28 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
         start = time.perf_counter()
         arrays, plane, decided = prepared["arrays"], prepared["plane"], prepared["plan"]
         original_count = arrays.positions.shape[0]
-        source = mirror_data.mirror_mesh_topology(layout, decided.duplicate_faces, decided.duplicate_edges, decided.seam)
+        source = mirror_data.mirror_mesh_topology(
+            layout, decided.duplicate_faces, decided.duplicate_edges, decided.seam
+        )
         size = float(np.linalg.norm(np.ptp(prepared["world"], axis=0))) or 1.0
         mirrored = mirroring.mirrored_layout(
-            prepared["world"], arrays.state, prepared["world_rest"], source, decided.seam, plane,
-            keep_seam_face_points=self.wrap, on_plane_tolerance=ON_PLANE_TOLERANCE * size,
+            prepared["world"],
+            arrays.state,
+            prepared["world_rest"],
+            source,
+            decided.seam,
+            plane,
+            keep_seam_face_points=self.wrap,
+            on_plane_tolerance=ON_PLANE_TOLERANCE * size,
         )
         target = None
         if layout.springwrap.target is not None:
             target = target_data.read_target(context.evaluated_depsgraph_get(), layout)
         landed_copies = 0
         if self.wrap:
-            edge_lengths = mirroring.vertex_edge_lengths(mirrored.positions, layout_data.read_layout_topology(layout).edges)
+            edge_lengths = mirroring.vertex_edge_lengths(
+                mirrored.positions, layout_data.read_layout_topology(layout).edges
+            )
             before = int((mirrored.state.states == layout_state.FACE_POINT).sum())
             mirrored = mirroring.land_copies(mirrored, edge_lengths, target, LANDING_REACH)
             landed_copies = int((mirrored.state.states == layout_state.FACE_POINT).sum()) - before
@@ -237,7 +269,9 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
                 pinned = np.zeros_like(pinned)
             seam_vertices = np.flatnonzero(mirrored.seam)
             session = WrapSession(
-                context, layout, self.parameters(),
+                context,
+                layout,
+                self.parameters(),
                 adjust_inputs=lambda inputs: mirroring.hold_inputs(
                     inputs, pinned, seam_vertices, plane, slide=self.seam == "SLIDE"
                 ),

@@ -16,7 +16,6 @@ The logic is in two plain classes that need no window or events: ``blender.wrap_
 events in, operator results out), so tests drive them directly.
 """
 
-
 import bpy
 
 from ..blender import layout as layout_data
@@ -84,8 +83,12 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
         name="Rest Shape",
         description="What the springs consider relaxed",
         items=(
-            ("TEMPLATE", "Template", "Keep the template's own spacing and curvature (its shape before the first snap, "
-             "projection or wrap, or as set by Set Rest Shape)"),
+            (
+                "TEMPLATE",
+                "Template",
+                "Keep the template's own spacing and curvature (its shape before the first snap, "
+                "projection or wrap, or as set by Set Rest Shape)",
+            ),
             ("EVEN", "Even", "Straight, evenly spaced grid lines (Krishnamurthy & Levoy's springs)"),
         ),
         default=WRAP_DEFAULTS.rest,
