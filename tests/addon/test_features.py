@@ -103,7 +103,7 @@ def test_rounded_box_gets_region_colours_and_twelve_ridge_curves(capfd):
     vertices = world_positions(box) - OFFSET
     face_middle = np.sort(np.abs(vertices), axis=1)[:, 1] < 0.4
     on_blend = centre_line_distance(vertices) < 0.02
-    from springwrap.operators.features import REGION_COLORS
+    from springwrap.core.features import REGION_COLORS
 
     np.testing.assert_array_equal(colors[face_middle], np.broadcast_to(REGION_COLORS[0], colors[face_middle].shape))
     np.testing.assert_array_equal(colors[on_blend], np.broadcast_to(REGION_COLORS[1], colors[on_blend].shape))

@@ -411,3 +411,10 @@ def held_on_plane(
         plane_normal=tuple(float(value) for value in plane.normal),
         plane_slide=True,
     )
+
+
+class MirrorOutcome:
+    """What a mirror did, for the report (and for scripts: ``SPRINGWRAP_OT_mirror.last_outcome``)."""
+
+    def __init__(self, **values):
+        self.__dict__.update(values)

@@ -35,7 +35,7 @@ from ..blender.edit_mode import object_mode
 from ..blender.wrap_session import WrapSession
 from ..core import anchors, layout_state, mirroring, transforms, wrap_inputs
 from ..core.errors import ERRORS, LayoutError
-from ..core.mirroring import AXES, DEFAULT_WELD_FRACTION
+from ..core.mirroring import AXES, DEFAULT_WELD_FRACTION, MirrorOutcome
 from ..core.transforms import matrix_array
 from ..core.wrap_inputs import WrapParameters
 from ..properties import WRAP_DEFAULTS, WRAP_SOLVER_ITEMS, max_iterations_property, tolerance_property
@@ -46,13 +46,6 @@ LANDING_REACH = 0.25
 ON_PLANE_TOLERANCE = 1e-6
 """Without a wrap, a seam face-point moved onto the plane by more than this fraction of the layout's
 size becomes a space-point (its face no longer lies under it)."""
-
-
-class MirrorOutcome:
-    """What a mirror did, for the report (and for scripts: ``SPRINGWRAP_OT_mirror.last_outcome``)."""
-
-    def __init__(self, **values):
-        self.__dict__.update(values)
 
 
 class SPRINGWRAP_OT_mirror(bpy.types.Operator):
