@@ -30,7 +30,7 @@ import bpy
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # `blender --python` does not add it
 from headless import EXIT_OK, ScriptError, addon_module, failed, script_arguments
-from retarget import Laps, distances_to_target, kernel_wrap_defaults, load_mesh, run_operator, write_outputs
+from scene_io import Laps, distances_to_target, kernel_wrap_defaults, load_mesh, run_operator, write_outputs
 
 
 def parse_arguments(argv: list[str]) -> argparse.Namespace:

@@ -27,12 +27,12 @@ SKIPPED_PROPERTIES = {"rna_type"}
 
 
 def enable_addon() -> None:
-    """Enable the Springwrap add-on, raising when it cannot be."""
-    import addon_utils
+    """Enable the Springwrap add-on the scripts' way (``blender_scripts/headless.py``), raising when it cannot be."""
+    if str(REPOSITORY_ROOT / "blender_scripts") not in sys.path:
+        sys.path.insert(0, str(REPOSITORY_ROOT / "blender_scripts"))
+    import headless
 
-    module = addon_utils.enable("springwrap", default_set=True, handle_error=None)
-    if module is None or not hasattr(bpy.ops, "springwrap"):
-        raise RuntimeError("addon_utils.enable('springwrap') failed: run `make setup` first")
+    headless.enable_addon()
 
 
 def operator_names() -> list[str]:

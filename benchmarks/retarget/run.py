@@ -97,14 +97,14 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
 
 
 def enable_addon() -> None:
-    """Enable the Springwrap add-on (the snap baseline runs its operators)."""
-    import bpy
+    """Enable the Springwrap add-on (the snap baseline runs its operators) the scripts' way
+    (``blender_scripts/headless.py``), raising when it cannot be."""
+    scripts = str(data.REPOSITORY_ROOT / "blender_scripts")
+    if scripts not in sys.path:
+        sys.path.insert(0, scripts)
+    import headless
 
-    import addon_utils
-
-    module = addon_utils.enable("springwrap", default_set=True, handle_error=None)
-    if module is None or not hasattr(bpy.ops, "springwrap"):
-        raise RuntimeError("addon_utils.enable('springwrap') failed: run `make setup` first")
+    headless.enable_addon()
 
 
 def format_percent(value: float) -> str:
