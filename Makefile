@@ -43,15 +43,21 @@ $(STAMPS)/addon: $(STAMPS)/venv $(ADDON_SOURCES)
 demo: setup
 	$(PY) blender_scripts/demo.py
 
-test: setup test-rust test-python
+test: setup lint test-rust test-python
 
-test-rust:
+# Python: ruff (rules and format in pyproject.toml); Rust: rustfmt and clippy (lints in Cargo.toml's
+# [workspace.lints]), warnings as errors.
+lint: $(STAMPS)/venv
+	$(VENV)/bin/ruff check .
+	$(VENV)/bin/ruff format --check .
 	cargo fmt --all -- --check
-	cargo test --workspace --exclude springwrap-python
 	cargo clippy --workspace --all-targets -- -D warnings
 
+test-rust:
+	cargo test --workspace --exclude springwrap-python
+
 test-python: setup
-	$(PY) -m pytest -q -rs tests
+	$(PY) -m pytest -q -rs tests benchmarks/tests
 
 # ---------------------------------------------------------------- packages
 # dist/springwrap-<version>-extension.zip (Blender 4.2+: manifest, add-on, kernel wheel) and
@@ -62,9 +68,10 @@ package: $(STAMPS)/kernel
 # ---------------------------------------------------------------- compatibility lanes
 # The same add-on tests on bpy 4.2 LTS (a second venv) and on Debian's blender 3.4 (its own Python,
 # with python3-pytest and python3-numpy from .ci/blender-packages.sh). Both use the one abi3 kernel
-# wheel built by $(STAMPS)/kernel. Left out: the benchmark harness (it does not touch Blender) and
-# test_package (the default lane already installs the packages into bpy 5.0 and blender 3.4).
-LANE_TESTS := tests --ignore=tests/test_bench_harness.py --ignore=tests/test_package.py
+# wheel built by $(STAMPS)/kernel. Left out: the benchmark harness's tests (benchmarks/tests: they do not
+# touch Blender) and tests/packaging (the default lane already installs the packages into bpy 5.0 and
+# blender 3.4).
+LANE_TESTS := tests --ignore=tests/packaging
 VENV_BPY42 := .venv-bpy42
 BLENDER ?= blender
 BLENDER34_KERNEL := .cache/blender34/kernel
@@ -97,8 +104,8 @@ test-blender34: $(BLENDER34_KERNEL)/.stamp
 
 test-all-lanes: test test-bpy42 test-blender34
 
-# The benchmark (issue 4): retargeting accuracy against Shrinkwrap and nricp, the performance sweep,
-# snap throughput, the batch's throughput (issue 16), then docs/benchmarks.md and docs/img/*.png.
+# The benchmark: retargeting accuracy against Shrinkwrap and nricp, the performance sweep,
+# snap throughput, the batch's throughput, then docs/benchmarks.md and docs/img/*.png.
 # `make bench QUICK=1`: the ~5-minute subset.
 # BENCH_OUT (the JSON) and BENCH_DOCS (benchmarks.md and img/) may point elsewhere for a trial run.
 BENCH_QUICK := $(if $(QUICK),--quick,)

@@ -1,4 +1,4 @@
-"""How fast a batch retargets a library (issue 16): meshes per minute, worker start-up and memory; not a test.
+"""How fast a batch retargets a library: meshes per minute, worker start-up and memory; not a test.
 
 A library of ``--meshes`` noisy tori (``_noisy_torus.noisy_torus``, ``--triangles`` each, every one with
 another displacement) is written as OBJ files, with a quad layout over a torus (``--layout-quads``) as the
@@ -36,6 +36,7 @@ sys.path.insert(0, str(REPOSITORY / "benchmarks"))
 sys.path.insert(0, str(REPOSITORY / "blender_scripts"))
 import _machine  # noqa: E402
 from _noisy_torus import noisy_torus, torus_layout  # noqa: E402
+
 import retarget_batch  # noqa: E402  (no bpy)
 
 RETARGET = REPOSITORY / "blender_scripts" / "retarget.py"
@@ -63,9 +64,27 @@ def make_library(folder: Path, meshes: int, triangles: int, layout_quads: int) -
 def run_batch(template: Path, library: Path, output: Path, executor: str, jobs: int) -> dict:
     """One batch run; its numbers (from summary.json and the clock)."""
     start = time.perf_counter()
-    process = subprocess.run([sys.executable, str(RETARGET), "--template", str(template), "--batch", str(library),
-                              "--output-dir", str(output), "--executor", executor, "--jobs", str(jobs),
-                              "--anchors-spacing", "0"], capture_output=True, text=True, timeout=3600)
+    process = subprocess.run(
+        [
+            sys.executable,
+            str(RETARGET),
+            "--template",
+            str(template),
+            "--batch",
+            str(library),
+            "--output-dir",
+            str(output),
+            "--executor",
+            executor,
+            "--jobs",
+            str(jobs),
+            "--anchors-spacing",
+            "0",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=3600,
+    )
     wall = time.perf_counter() - start
     if process.returncode != 0:
         raise RuntimeError(f"{executor} x {jobs}: exit {process.returncode}: {process.stderr[-2000:]}")
@@ -78,16 +97,24 @@ def run_batch(template: Path, library: Path, output: Path, executor: str, jobs: 
     dispatch = sum(worker["dispatch_seconds"] for worker in workers) / len(meshes)
     # Steady state: each worker serves one mesh per (mesh time + hand-over time); the workers add up.
     steady = 60.0 * len(workers) / (float(np.mean(mesh_seconds)) + dispatch)
-    return {"executor": executor, "jobs": jobs, "meshes": len(meshes), "ok": summary["ok"],
-            "process_seconds": round(wall, 2), "batch_seconds": summary["seconds"],
-            "meshes_per_minute": round(60.0 * len(meshes) / wall, 1), "steady_meshes_per_minute": round(steady, 1),
-            "mesh_seconds_mean": round(float(np.mean(mesh_seconds)), 3),
-            "dispatch_seconds_per_mesh": round(dispatch, 4),
-            "worker_start_seconds": [worker["start_seconds"] for worker in workers],
-            "worker_import_seconds": [worker["import_seconds"] for worker in workers],
-            "worker_peak_memory_mb": [worker["peak_memory_mb"] for worker in workers],
-            "worker_meshes": [worker["meshes"] for worker in workers],
-            "input_mb_per_mesh": round(input_bytes / 2**20, 2), "output_mb_per_mesh": round(output_bytes / 2**20, 2)}
+    return {
+        "executor": executor,
+        "jobs": jobs,
+        "meshes": len(meshes),
+        "ok": summary["ok"],
+        "process_seconds": round(wall, 2),
+        "batch_seconds": summary["seconds"],
+        "meshes_per_minute": round(60.0 * len(meshes) / wall, 1),
+        "steady_meshes_per_minute": round(steady, 1),
+        "mesh_seconds_mean": round(float(np.mean(mesh_seconds)), 3),
+        "dispatch_seconds_per_mesh": round(dispatch, 4),
+        "worker_start_seconds": [worker["start_seconds"] for worker in workers],
+        "worker_import_seconds": [worker["import_seconds"] for worker in workers],
+        "worker_peak_memory_mb": [worker["peak_memory_mb"] for worker in workers],
+        "worker_meshes": [worker["meshes"] for worker in workers],
+        "input_mb_per_mesh": round(input_bytes / 2**20, 2),
+        "output_mb_per_mesh": round(output_bytes / 2**20, 2),
+    }
 
 
 class _InstantWorker:
@@ -97,8 +124,13 @@ class _InstantWorker:
         return _settled({"worker": "stand-in", "import_seconds": 0.0, "peak_memory_mb": 0.0})
 
     def submit(self, task: dict) -> concurrent.futures.Future:
-        return _settled({"entry": {"target": task["target"], "status": "ok", "seconds": 0.0}, "peak_memory_mb": 0.0,
-                         "task_seconds": 0.0})
+        return _settled(
+            {
+                "entry": {"target": task["target"], "status": "ok", "seconds": 0.0},
+                "peak_memory_mb": 0.0,
+                "task_seconds": 0.0,
+            }
+        )
 
     def stop(self, now: bool = False) -> None:
         pass
@@ -121,20 +153,30 @@ def scheduler_cost() -> dict:
     """Seconds of ``run_tasks`` for SCHEDULER_MESHES meshes on SCHEDULER_WORKERS stand-in workers."""
     tasks = [{"target": f"mesh_{index}.obj"} for index in range(SCHEDULER_MESHES)]
     start = time.perf_counter()
-    outcome = retarget_batch.run_tasks(_InstantExecutor(), tasks, SCHEDULER_WORKERS,
-                                       retarget_batch.Progress(len(tasks), stream=io.StringIO()))
+    outcome = retarget_batch.run_tasks(
+        _InstantExecutor(), tasks, SCHEDULER_WORKERS, retarget_batch.Progress(len(tasks), stream=io.StringIO())
+    )
     seconds = time.perf_counter() - start
     assert all(entry["status"] == "ok" for entry in outcome.entries)
-    return {"meshes": SCHEDULER_MESHES, "workers": SCHEDULER_WORKERS, "seconds": round(seconds, 3),
-            "milliseconds_per_mesh": round(1000 * seconds / SCHEDULER_MESHES, 4)}
+    return {
+        "meshes": SCHEDULER_MESHES,
+        "workers": SCHEDULER_WORKERS,
+        "seconds": round(seconds, 3),
+        "milliseconds_per_mesh": round(1000 * seconds / SCHEDULER_MESHES, 4),
+    }
 
 
 def machine_description() -> dict:
     cpu_model = _machine.cpu_model()
     memory_gib = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 2**30
-    return {"cpu": cpu_model, "cpu_count": os.cpu_count(), "memory_gib": round(memory_gib, 1),
-            "platform": platform.platform(), "python": platform.python_version(),
-            "load_average": [round(value, 2) for value in os.getloadavg()]}
+    return {
+        "cpu": cpu_model,
+        "cpu_count": os.cpu_count(),
+        "memory_gib": round(memory_gib, 1),
+        "platform": platform.platform(),
+        "python": platform.python_version(),
+        "load_average": [round(value, 2) for value in os.getloadavg()],
+    }
 
 
 def versions() -> dict:
@@ -164,20 +206,32 @@ def main(argv: list[str] | None = None) -> int:
     triangles = arguments.triangles or (50_000 if arguments.quick else 200_000)
     executors = [name for name in arguments.executors if name != "ray" or _has_ray()]
     sys.path.insert(0, str(REPOSITORY))
-    result = {"machine": machine_description(), "versions": versions(),
-              "library": {"meshes": meshes, "triangles": triangles, "layout_quads": arguments.layout_quads},
-              "runs": [], "scheduler": scheduler_cost()}
-    print(f"scheduler: {result['scheduler']['milliseconds_per_mesh']} ms per mesh "
-          f"({SCHEDULER_MESHES} meshes, {SCHEDULER_WORKERS} stand-in workers)", flush=True)
+    result = {
+        "machine": machine_description(),
+        "versions": versions(),
+        "library": {"meshes": meshes, "triangles": triangles, "layout_quads": arguments.layout_quads},
+        "runs": [],
+        "scheduler": scheduler_cost(),
+    }
+    print(
+        f"scheduler: {result['scheduler']['milliseconds_per_mesh']} ms per mesh "
+        f"({SCHEDULER_MESHES} meshes, {SCHEDULER_WORKERS} stand-in workers)",
+        flush=True,
+    )
     with tempfile.TemporaryDirectory(prefix="springwrap-batch-bench-") as folder:
         template = make_library(Path(folder), meshes, triangles, arguments.layout_quads)
         for executor in executors:
             for jobs in (1, 2):
-                run = run_batch(template, Path(folder) / "library", Path(folder) / f"out-{executor}-{jobs}", executor, jobs)
+                run = run_batch(
+                    template, Path(folder) / "library", Path(folder) / f"out-{executor}-{jobs}", executor, jobs
+                )
                 result["runs"].append(run)
-                print(f"{executor} x {jobs}: {run['meshes_per_minute']} meshes/min all-in "
-                      f"({run['steady_meshes_per_minute']} steady), {run['mesh_seconds_mean']} s a mesh, start-up "
-                      f"{run['worker_start_seconds']} s, peak {run['worker_peak_memory_mb']} MB", flush=True)
+                print(
+                    f"{executor} x {jobs}: {run['meshes_per_minute']} meshes/min all-in "
+                    f"({run['steady_meshes_per_minute']} steady), {run['mesh_seconds_mean']} s a mesh, start-up "
+                    f"{run['worker_start_seconds']} s, peak {run['worker_peak_memory_mb']} MB",
+                    flush=True,
+                )
     result["load_average_end"] = [round(value, 2) for value in os.getloadavg()]
     result["finished_utc"] = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
     if arguments.json:

@@ -18,7 +18,7 @@ import numpy as np
 import springwrap_kernel as sk
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
-from test_feature_binding import rounded_box  # noqa: E402  (the generator the tests use)
+from test_feature_binding import rounded_box
 
 
 def read_off(path: Path):
@@ -61,13 +61,17 @@ def measure(name, vertices, triangles, scale, repeats):
         (detect_time, detect_cpu), features = best_time(lambda: mesh.detect_features(scale), repeats)
         counts = np.bincount(features.regions, minlength=4)
         kinds = [curve.kind for curve in features.curves]
-        found = (f"{counts[0]} flat / {counts[1]} convex / {counts[2]} concave / {counts[3]} saddle, "
-                 f"{kinds.count('RIDGE')} ridges, {kinds.count('VALLEY')} valleys")
+        found = (
+            f"{counts[0]} flat / {counts[1]} convex / {counts[2]} concave / {counts[3]} saddle, "
+            f"{kinds.count('RIDGE')} ridges, {kinds.count('VALLEY')} valleys"
+        )
     except sk.FlatSurfaceError:
         detect_time, detect_cpu, found = float("nan"), float("nan"), "flat"
-    print(f"{name}: {vertices.shape[0]} vertices, {triangles.shape[0]} triangles, scale {scale:.4g} "
-          f"({scale / mean_edge(vertices, triangles):.1f} edges): curvatures {curvature_time:.3f} s "
-          f"(CPU {curvature_cpu:.2f} s), detect_features {detect_time:.3f} s (CPU {detect_cpu:.2f} s); {found}")
+    print(
+        f"{name}: {vertices.shape[0]} vertices, {triangles.shape[0]} triangles, scale {scale:.4g} "
+        f"({scale / mean_edge(vertices, triangles):.1f} edges): curvatures {curvature_time:.3f} s "
+        f"(CPU {curvature_cpu:.2f} s), detect_features {detect_time:.3f} s (CPU {detect_cpu:.2f} s); {found}"
+    )
 
 
 def main() -> int:

@@ -48,8 +48,9 @@ RAMP = np.array([[0.05, 0.10, 0.45], [0.00, 0.55, 0.60], [0.95, 0.85, 0.10], [0.
 # ---------------------------------------------------------------- plain helpers (tested without Blender)
 
 
-def error_colors(errors_percent: np.ndarray, clip_percent: float = HEATMAP_CLIP_PERCENT,
-                 ramp: np.ndarray = RAMP) -> np.ndarray:
+def error_colors(
+    errors_percent: np.ndarray, clip_percent: float = HEATMAP_CLIP_PERCENT, ramp: np.ndarray = RAMP
+) -> np.ndarray:
     """(N, 4) RGBA in [0, 1] of errors on the piecewise-linear ``ramp`` from 0 to ``clip_percent`` (clipped).
 
     Non-finite errors are magenta, so they stand out."""
@@ -94,8 +95,14 @@ def save_palette_png(figure_or_image, path: Path) -> None:
 # ---------------------------------------------------------------- heat-maps (Blender)
 
 
-def render_layout(positions: np.ndarray, quads: np.ndarray, colors: np.ndarray, path: Path,
-                  size: tuple[int, int] = RENDER_SIZE, frame: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+def render_layout(
+    positions: np.ndarray,
+    quads: np.ndarray,
+    colors: np.ndarray,
+    path: Path,
+    size: tuple[int, int] = RENDER_SIZE,
+    frame: tuple[np.ndarray, np.ndarray] | None = None,
+) -> None:
     """Render a quad mesh with per-vertex colours, front view (camera on +Z, looking at -Z, +Y up), Workbench.
 
     ``frame`` (minimum, maximum corners) fixes the camera so several renders line up; by default
@@ -203,9 +210,11 @@ def heatmap_figure(case_record: dict, positions_file: Path, output: Path, work_f
     millimetres = HEATMAP_CLIP_PERCENT / 100.0 * diagonal * 1000.0
     bar.set_label(f"error, % of the diagonal (≥ {HEATMAP_CLIP_PERCENT:g} % = {millimetres:.0f} mm)", fontsize=7)
     bar.ax.tick_params(labelsize=7)
-    figure.suptitle(f"Error to the true position, case {case_record['case']} "
-                    f"({case_record['layout_vertices']:,} layout vertices, {len(case_record['anchors'])} anchors)",
-                    fontsize=9)
+    figure.suptitle(
+        f"Error to the true position, case {case_record['case']} "
+        f"({case_record['layout_vertices']:,} layout vertices, {len(case_record['anchors'])} anchors)",
+        fontsize=9,
+    )
     path = output / f"heatmap-{case_record['case']}.png"
     save_palette_png(figure, path)
     plt.close(figure)
@@ -243,8 +252,15 @@ def error_bars(retarget: dict, path: Path) -> Path:
         in_scale = np.isfinite(means_array) & (means_array <= 10.0 * typical)
         top = 1.15 * max(np.nanmax(np.where(in_scale, np.maximum(means_array, np.nan_to_num(p95_array)), np.nan)), 1e-9)
         axis.bar(positions, np.minimum(np.nan_to_num(means_array, nan=0.0, posinf=top), top), color=colours)
-        axis.scatter(positions[p95_array <= top], p95_array[p95_array <= top], marker="_", s=120, color="black",
-                     zorder=3, label="p95")
+        axis.scatter(
+            positions[p95_array <= top],
+            p95_array[p95_array <= top],
+            marker="_",
+            s=120,
+            color="black",
+            zorder=3,
+            label="p95",
+        )
         axis.set_ylim(0.0, top)
         for position, (mean, entry) in enumerate(zip(means, record["methods"].values())):
             if entry.get("metrics") is None:
@@ -255,14 +271,21 @@ def error_bars(retarget: dict, path: Path) -> Path:
                 label = f"{mean:.1f} (off scale)"
             else:
                 continue
-            axis.text(position, 0.03 * top if entry.get("metrics") is None else 0.5 * top, label, rotation=90,
-                      ha="center", va="bottom" if entry.get("metrics") is None else "center", fontsize=7)
+            axis.text(
+                position,
+                0.03 * top if entry.get("metrics") is None else 0.5 * top,
+                label,
+                rotation=90,
+                ha="center",
+                va="bottom" if entry.get("metrics") is None else "center",
+                fontsize=7,
+            )
         axis.set_xticks(positions, names, rotation=40, ha="right", fontsize=7)
         axis.set_title(record["case"], fontsize=9)
         axis.set_ylabel("error, % of diagonal", fontsize=7)
         axis.tick_params(axis="y", labelsize=7)
         axis.grid(axis="y", alpha=0.3)
-    for axis in axes.ravel()[len(records):]:
+    for axis in axes.ravel()[len(records) :]:
         axis.set_axis_off()
     axes.ravel()[0].legend(fontsize=7)
     figure.suptitle("Mean error per method (bars) and 95th percentile (marks)", fontsize=10)
@@ -285,26 +308,49 @@ def scaling_plot(performance: dict, path: Path) -> Path:
     if target:
         triangles = [row["triangles"] for row in target]
         left.loglog(triangles, [row["build_seconds"] for row in target], "o-", label="kernel BVH build (face tree)")
-        left.loglog(triangles, [row["prepare_all_seconds"] for row in target], "o--",
-                    label="kernel prepare_all (vertex tree, adjacency, normals)")
-        left.loglog(triangles, [row["query_seconds"] for row in target], "s-",
-                    label=f"kernel snap of {target[0]['queries']:,} points")
-        left.loglog(triangles, [row["shrinkwrap_first_evaluation_seconds"] for row in target], "^-",
-                    label=f"Shrinkwrap: BVH + {target[0]['queries']:,} points")
+        left.loglog(
+            triangles,
+            [row["prepare_all_seconds"] for row in target],
+            "o--",
+            label="kernel prepare_all (vertex tree, adjacency, normals)",
+        )
+        left.loglog(
+            triangles,
+            [row["query_seconds"] for row in target],
+            "s-",
+            label=f"kernel snap of {target[0]['queries']:,} points",
+        )
+        left.loglog(
+            triangles,
+            [row["shrinkwrap_first_evaluation_seconds"] for row in target],
+            "^-",
+            label=f"Shrinkwrap: BVH + {target[0]['queries']:,} points",
+        )
     left.set_xlabel("target triangles")
     left.set_ylabel("seconds")
     left.set_title("time vs target size", fontsize=10)
     layout, wrap = results["layout"], results["wrap"]
     if layout:
-        right.loglog([row["points"] for row in layout], [row["query_seconds"] for row in layout], "s-",
-                     label=f"kernel snap on {layout[0]['target_triangles']:,} triangles")
+        right.loglog(
+            [row["points"] for row in layout],
+            [row["query_seconds"] for row in layout],
+            "s-",
+            label=f"kernel snap on {layout[0]['target_triangles']:,} triangles",
+        )
     if wrap:
-        right.loglog([row["layout_vertices"] for row in wrap],
-                     [row["wrap_seconds"] / row["wrap_iterations"] for row in wrap], "o-",
-                     label=f"wrap operator, per iteration (its {wrap[0]['wrap_iterations']} with setup / "
-                     f"{wrap[0]['wrap_iterations']}; {wrap[0]['target_triangles']:,} triangles)")
-        right.loglog([row["layout_vertices"] for row in wrap], [row["snap_seconds"] for row in wrap], "^--",
-                     label="snap operator (incl. reading/writing the mesh)")
+        right.loglog(
+            [row["layout_vertices"] for row in wrap],
+            [row["wrap_seconds"] / row["wrap_iterations"] for row in wrap],
+            "o-",
+            label=f"wrap operator, per iteration (its {wrap[0]['wrap_iterations']} with setup / "
+            f"{wrap[0]['wrap_iterations']}; {wrap[0]['target_triangles']:,} triangles)",
+        )
+        right.loglog(
+            [row["layout_vertices"] for row in wrap],
+            [row["snap_seconds"] for row in wrap],
+            "^--",
+            label="snap operator (incl. reading/writing the mesh)",
+        )
     right.set_xlabel("layout vertices (query points)")
     right.set_title("time vs layout size", fontsize=10)
     right.set_ylim(top=right.get_ylim()[1] * 30.0)  # room for the legend above the lines
@@ -313,8 +359,9 @@ def scaling_plot(performance: dict, path: Path) -> Path:
     for axis in (left, right):
         axis.grid(which="both", alpha=0.3)
     machine = performance["machine"]
-    figure.suptitle(f"{machine['cpu']}, {machine['cpu_count']} CPUs (shared), kernel {machine['springwrap_kernel']}",
-                    fontsize=9)
+    figure.suptitle(
+        f"{machine['cpu']}, {machine['cpu_count']} CPUs (shared), kernel {machine['springwrap_kernel']}", fontsize=9
+    )
     figure.tight_layout()
     save_palette_png(figure, path)
     plt.close(figure)
@@ -350,8 +397,10 @@ def main(argv: list[str] | None = None) -> int:
     else:
         print(f"figures.py: no {arguments.performance}; run `benchmarks/performance.py` first", file=sys.stderr)
     for path in written:
-        print(f"wrote {path.relative_to(REPOSITORY_ROOT) if path.is_relative_to(REPOSITORY_ROOT) else path} "
-              f"({path.stat().st_size / 1024:.0f} KB)")
+        print(
+            f"wrote {path.relative_to(REPOSITORY_ROOT) if path.is_relative_to(REPOSITORY_ROOT) else path} "
+            f"({path.stat().st_size / 1024:.0f} KB)"
+        )
     return 0 if retarget is not None and performance is not None else 1
 
 

@@ -42,7 +42,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import _machine  # noqa: E402  (benchmarks/, also when imported from elsewhere)
+import _machine
 
 REPOSITORY_ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_JSON = REPOSITORY_ROOT / "out" / "bench" / "performance.json"
@@ -102,8 +102,9 @@ def _random_queries(count: int):
 
 def worker_target(triangles: int) -> dict:
     """Build, prepare, query and memory of a kernel TargetMesh of ~``triangles``; then Shrinkwrap on it."""
-    import springwrap_kernel
     from _noisy_torus import noisy_torus
+
+    import springwrap_kernel
 
     vertices, faces = noisy_torus(triangles, seed=SEED)
     queries = _random_queries(QUERY_POINTS)
@@ -119,7 +120,7 @@ def worker_target(triangles: int) -> dict:
     prepare_seconds = time.perf_counter() - start
     rss_prepared = _status_kilobytes("VmRSS")
     mesh.closest_points(queries[:64])  # the thread pool starts outside the timing
-    query_seconds, hits = _best(lambda: mesh.closest_points(queries), 3)
+    query_seconds, hits = _best(lambda mesh=mesh: mesh.closest_points(queries), 3)
     if (hits.triangles < 0).any():
         raise RuntimeError("closest_points missed")
     count = len(faces)
@@ -162,6 +163,7 @@ def _mesh_object(bpy, name, vertices, polygons=None):
 def _shrinkwrap_first_evaluation(vertices, faces, queries) -> dict:
     """Blender's Shrinkwrap (NEAREST_SURFACEPOINT) on the query points: first evaluation (BVH build + queries)."""
     import bpy
+
     import numpy as np
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
@@ -185,8 +187,9 @@ def _shrinkwrap_first_evaluation(vertices, faces, queries) -> dict:
 
 def worker_layout(points: int) -> dict:
     """closest_points of ~``points`` random-order queries on the 1M-triangle target."""
-    import springwrap_kernel
     from _noisy_torus import noisy_torus
+
+    import springwrap_kernel
 
     vertices, faces = noisy_torus(LAYOUT_TARGET_TRIANGLES, seed=SEED)
     queries = _random_queries(points)
@@ -195,9 +198,13 @@ def worker_layout(points: int) -> dict:
     seconds, hits = _best(lambda: mesh.closest_points(queries), 3 if points <= 1_000_000 else 1)
     if (hits.triangles < 0).any():
         raise RuntimeError("closest_points missed")
-    return {"points": points, "target_triangles": len(faces), "query_seconds": seconds,
-            "queries_per_second": points / seconds,
-            "threads": os.environ.get("RAYON_NUM_THREADS", str(os.cpu_count()))}
+    return {
+        "points": points,
+        "target_triangles": len(faces),
+        "query_seconds": seconds,
+        "queries_per_second": points / seconds,
+        "threads": os.environ.get("RAYON_NUM_THREADS", str(os.cpu_count())),
+    }
 
 
 def worker_wrap(quads: int) -> dict:
@@ -206,8 +213,9 @@ def worker_wrap(quads: int) -> dict:
     import addon_utils
 
     sys.path.insert(0, str(REPOSITORY_ROOT))
-    from benchmarks.retarget.springwrap_methods import captured_stdout, parse_wrap_report
     from _noisy_torus import noisy_torus, torus_layout
+
+    from benchmarks.retarget.springwrap_methods import captured_stdout, parse_wrap_report
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     if addon_utils.enable("springwrap", default_set=True, handle_error=None) is None:
@@ -234,12 +242,18 @@ def worker_wrap(quads: int) -> dict:
         if result != {"FINISHED"}:
             raise RuntimeError(f"springwrap.{name} returned {result}: {output[0][-300:]}")
     report = parse_wrap_report(output[0])
-    return {"layout_vertices": len(layout_vertices), "layout_quads": len(layout_quads),
-            "target_triangles": len(faces), "detach_seconds": times["detach"], "snap_seconds": times["snap"],
-            "wrap_seconds": times["wrap"], "wrap_iterations": report.iterations,
-            "wrap_report_seconds": report.seconds,
-            "iterations_per_second": report.iterations / times["wrap"],
-            "vertex_iterations_per_second": report.iterations * len(layout_vertices) / times["wrap"]}
+    return {
+        "layout_vertices": len(layout_vertices),
+        "layout_quads": len(layout_quads),
+        "target_triangles": len(faces),
+        "detach_seconds": times["detach"],
+        "snap_seconds": times["snap"],
+        "wrap_seconds": times["wrap"],
+        "wrap_iterations": report.iterations,
+        "wrap_report_seconds": report.seconds,
+        "iterations_per_second": report.iterations / times["wrap"],
+        "vertex_iterations_per_second": report.iterations * len(layout_vertices) / times["wrap"],
+    }
 
 
 WORKERS = {"target": worker_target, "layout": worker_layout, "wrap": worker_wrap, "threads": worker_layout}
@@ -260,20 +274,41 @@ def machine_description() -> dict:
     """CPU, cores, versions, commit."""
     cpu = _machine.cpu_model()
     versions = subprocess.run(
-        [sys.executable, "-c", "import bpy, numpy, springwrap_kernel as k; "
-         "print(bpy.app.version_string); print(numpy.__version__); print(k.__version__)"],
-        capture_output=True, text=True, check=True,
+        [
+            sys.executable,
+            "-c",
+            "import bpy, numpy, springwrap_kernel as k; "
+            "print(bpy.app.version_string); print(numpy.__version__); print(k.__version__)",
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
     ).stdout.split("\n")
     sys.path.insert(0, str(REPOSITORY_ROOT))
     from benchmarks.retarget.run import kernel_build  # the workers load the same installed module
-    commit = subprocess.run(["git", "rev-parse", "--short=12", "HEAD"], cwd=REPOSITORY_ROOT,
-                            capture_output=True, text=True).stdout.strip() or "unknown"
-    if subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=REPOSITORY_ROOT,
-                      capture_output=True, text=True).stdout.strip():
+
+    commit = (
+        subprocess.run(
+            ["git", "rev-parse", "--short=12", "HEAD"], cwd=REPOSITORY_ROOT, capture_output=True, text=True
+        ).stdout.strip()
+        or "unknown"
+    )
+    if subprocess.run(
+        ["git", "status", "--porcelain", "--untracked-files=no"], cwd=REPOSITORY_ROOT, capture_output=True, text=True
+    ).stdout.strip():
         commit += "+dirty"  # tracked files changed since the commit (the installed kernel wheel may differ too)
-    return {"cpu": cpu, "cpu_count": os.cpu_count(), "python": platform.python_version(),
-            "platform": platform.platform(), "bpy": versions[0], "numpy": versions[1],
-            "springwrap_kernel": versions[2], "kernel_build": kernel_build(), "git_commit": commit, "load_average": list(os.getloadavg())}
+    return {
+        "cpu": cpu,
+        "cpu_count": os.cpu_count(),
+        "python": platform.python_version(),
+        "platform": platform.platform(),
+        "bpy": versions[0],
+        "numpy": versions[1],
+        "springwrap_kernel": versions[2],
+        "kernel_build": kernel_build(),
+        "git_commit": commit,
+        "load_average": list(os.getloadavg()),
+    }
 
 
 def measure(kind: str, size: int, threads: int | None = None) -> dict:
@@ -288,14 +323,20 @@ def measure(kind: str, size: int, threads: int | None = None) -> dict:
         environment["RAYON_NUM_THREADS"] = str(threads)
     load_before = os.getloadavg()[0]
     start = time.perf_counter()
-    process = subprocess.run([sys.executable, __file__, "--worker", kind, str(size)], capture_output=True,
-                             text=True, env=environment)
+    process = subprocess.run(
+        [sys.executable, __file__, "--worker", kind, str(size)], capture_output=True, text=True, env=environment
+    )
     lines = [line for line in process.stdout.splitlines() if line.startswith("RESULT ")]
     if process.returncode != 0 or not lines:
         raise RuntimeError(f"worker {kind} {size} failed ({process.returncode}):\n{process.stderr[-2000:]}")
-    result = json.loads(lines[-1][len("RESULT "):])
-    result.update(kind=kind, requested=size, worker_seconds=time.perf_counter() - start,
-                  load_average_before=load_before, load_average_after=os.getloadavg()[0])
+    result = json.loads(lines[-1][len("RESULT ") :])
+    result.update(
+        kind=kind,
+        requested=size,
+        worker_seconds=time.perf_counter() - start,
+        load_average_before=load_before,
+        load_average_after=os.getloadavg()[0],
+    )
     return result
 
 
@@ -303,18 +344,24 @@ def describe(result: dict) -> str:
     """One progress line."""
     kind = result["kind"]
     if kind == "target":
-        return (f"target {result['triangles']:>9,} triangles: build {result['build_seconds']:.3f} s, "
-                f"prepare_all {result['prepare_all_seconds']:.3f} s, {result['queries_per_second']:,.0f} snaps/s, "
-                f"{result['bytes_per_triangle_face_tree']:.0f} B/triangle (face tree), "
-                f"{result['bytes_per_triangle_all']:.0f} B/triangle (all), "
-                f"Shrinkwrap first evaluation {result['shrinkwrap_first_evaluation_seconds']:.3f} s")
+        return (
+            f"target {result['triangles']:>9,} triangles: build {result['build_seconds']:.3f} s, "
+            f"prepare_all {result['prepare_all_seconds']:.3f} s, {result['queries_per_second']:,.0f} snaps/s, "
+            f"{result['bytes_per_triangle_face_tree']:.0f} B/triangle (face tree), "
+            f"{result['bytes_per_triangle_all']:.0f} B/triangle (all), "
+            f"Shrinkwrap first evaluation {result['shrinkwrap_first_evaluation_seconds']:.3f} s"
+        )
     if kind in ("layout", "threads"):
-        return (f"{kind} {result['points']:>9,} points on {result['target_triangles']:,} triangles, "
-                f"{result['threads']} threads: {result['query_seconds']:.3f} s, "
-                f"{result['queries_per_second']:,.0f} snaps/s")
-    return (f"wrap {result['layout_vertices']:>9,} vertices: detach {result['detach_seconds']:.2f} s, snap "
-            f"{result['snap_seconds']:.2f} s, wrap {result['wrap_iterations']} iterations {result['wrap_seconds']:.2f} s "
-            f"({result['iterations_per_second']:.1f} it/s, {result['vertex_iterations_per_second']:,.0f} vertex-it/s)")
+        return (
+            f"{kind} {result['points']:>9,} points on {result['target_triangles']:,} triangles, "
+            f"{result['threads']} threads: {result['query_seconds']:.3f} s, "
+            f"{result['queries_per_second']:,.0f} snaps/s"
+        )
+    return (
+        f"wrap {result['layout_vertices']:>9,} vertices: detach {result['detach_seconds']:.2f} s, snap "
+        f"{result['snap_seconds']:.2f} s, wrap {result['wrap_iterations']} iterations {result['wrap_seconds']:.2f} s "
+        f"({result['iterations_per_second']:.1f} it/s, {result['vertex_iterations_per_second']:,.0f} vertex-it/s)"
+    )
 
 
 def sweep(quick: bool) -> dict:
@@ -325,14 +372,18 @@ def sweep(quick: bool) -> dict:
         for size in sizes[kind]:
             result = measure(kind, size)
             results[kind].append(result)
-            print(f"  {describe(result)}  [{result['worker_seconds']:.1f} s, load {result['load_average_before']:.2f}]",
-                  flush=True)
+            print(
+                f"  {describe(result)}  [{result['worker_seconds']:.1f} s, load {result['load_average_before']:.2f}]",
+                flush=True,
+            )
     for size in sizes["threads"]:
         for threads in sorted({1, os.cpu_count() or 1}):
             result = measure("threads", size, threads)
             results["threads"].append(result)
-            print(f"  {describe(result)}  [{result['worker_seconds']:.1f} s, load {result['load_average_before']:.2f}]",
-                  flush=True)
+            print(
+                f"  {describe(result)}  [{result['worker_seconds']:.1f} s, load {result['load_average_before']:.2f}]",
+                flush=True,
+            )
     return results
 
 
@@ -347,19 +398,31 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", type=Path, default=DEFAULT_JSON, help=f"where to write ({DEFAULT_JSON})")
     arguments = parser.parse_args(argv)
     machine = machine_description()
-    print(f"performance sweep ({'quick' if arguments.quick else 'full'}): {machine['cpu']}, {machine['cpu_count']} CPUs, "
-          f"load average {os.getloadavg()[0]:.2f}", flush=True)
+    print(
+        f"performance sweep ({'quick' if arguments.quick else 'full'}): {machine['cpu']}, {machine['cpu_count']} CPUs, "
+        f"load average {os.getloadavg()[0]:.2f}",
+        flush=True,
+    )
     start = time.perf_counter()
     try:
         results = sweep(arguments.quick)
     except RuntimeError as error:
         print(f"performance.py: {error}", file=sys.stderr)
         return 1
-    output = {"benchmark": "performance", "quick": arguments.quick, "machine": machine,
-              "finished_utc": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
-              "parameters": {"query_points": QUERY_POINTS, "layout_target_triangles": LAYOUT_TARGET_TRIANGLES,
-                             "wrap_target_triangles": WRAP_TARGET_TRIANGLES, "wrap_iterations": WRAP_ITERATIONS},
-              "seconds": time.perf_counter() - start, "results": results}
+    output = {
+        "benchmark": "performance",
+        "quick": arguments.quick,
+        "machine": machine,
+        "finished_utc": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
+        "parameters": {
+            "query_points": QUERY_POINTS,
+            "layout_target_triangles": LAYOUT_TARGET_TRIANGLES,
+            "wrap_target_triangles": WRAP_TARGET_TRIANGLES,
+            "wrap_iterations": WRAP_ITERATIONS,
+        },
+        "seconds": time.perf_counter() - start,
+        "results": results,
+    }
     arguments.json.parent.mkdir(parents=True, exist_ok=True)
     arguments.json.write_text(json.dumps(output, indent=1) + "\n")
     print(f"wrote {arguments.json} ({output['seconds']:.0f} s)")

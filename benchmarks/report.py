@@ -23,9 +23,17 @@ REPOSITORY_ROOT = Path(__file__).resolve().parent.parent
 OUT = REPOSITORY_ROOT / "out" / "bench"
 DOCS = REPOSITORY_ROOT / "docs"
 
-SPRINGWRAP_METHODS = ("Springwrap snap", "Springwrap wrap", "Springwrap snap+wrap", "Springwrap project+wrap",
-                      "Springwrap align", "Springwrap align+wrap", "Springwrap wrap+mirror", "Springwrap armature",
-                      "Springwrap armature+wrap")
+SPRINGWRAP_METHODS = (
+    "Springwrap snap",
+    "Springwrap wrap",
+    "Springwrap snap+wrap",
+    "Springwrap project+wrap",
+    "Springwrap align",
+    "Springwrap align+wrap",
+    "Springwrap wrap+mirror",
+    "Springwrap armature",
+    "Springwrap armature+wrap",
+)
 BASELINE_METHODS = ("aligned template", "Shrinkwrap nearest", "Shrinkwrap project", "trimesh nricp_amberg")
 
 
@@ -75,28 +83,48 @@ def case_rows(record: dict) -> list[list[str]]:
         if metrics is None:
             rows.append([method] + ["-"] * 12 + [number(entry.get("seconds"), 2), "-", comment])
             continue
-        millimetres = [number(metrics[f"error_{field}"] * 1000.0, 1) if body else "-" for field in ("mean", "p95", "max")]
-        rows.append([
-            method,
-            number(metrics["error_percent_mean"]),
-            number(metrics["error_percent_p95"]),
-            number(metrics["error_percent_max"], 2),
-            *millimetres,
-            number(metrics["surface_distance_percent_mean"], 4),
-            number(metrics["error_over_holes_percent_mean"]),
-            str(metrics["flipped_quads"]),
-            str(metrics["degenerate_quads"]),
-            number(metrics["angle_distortion_degrees"], 2),
-            number(metrics["anchor_error_percent"]),
-            number(entry.get("seconds"), 2),
-            number(entry.get("peak_megabytes"), 0),
-            comment,
-        ])
+        millimetres = [
+            number(metrics[f"error_{field}"] * 1000.0, 1) if body else "-" for field in ("mean", "p95", "max")
+        ]
+        rows.append(
+            [
+                method,
+                number(metrics["error_percent_mean"]),
+                number(metrics["error_percent_p95"]),
+                number(metrics["error_percent_max"], 2),
+                *millimetres,
+                number(metrics["surface_distance_percent_mean"], 4),
+                number(metrics["error_over_holes_percent_mean"]),
+                str(metrics["flipped_quads"]),
+                str(metrics["degenerate_quads"]),
+                number(metrics["angle_distortion_degrees"], 2),
+                number(metrics["anchor_error_percent"]),
+                number(entry.get("seconds"), 2),
+                number(entry.get("peak_megabytes"), 0),
+                comment,
+            ]
+        )
     return rows
 
 
-CASE_HEADER = ["method", "mean %", "p95 %", "max %", "mean mm", "p95 mm", "max mm", "surface %", "holes %",
-               "flipped", "degenerate", "angle °", "anchors %", "time s", "MB", "status / notes"]
+CASE_HEADER = [
+    "method",
+    "mean %",
+    "p95 %",
+    "max %",
+    "mean mm",
+    "p95 mm",
+    "max mm",
+    "surface %",
+    "holes %",
+    "flipped",
+    "degenerate",
+    "angle °",
+    "anchors %",
+    "time s",
+    "MB",
+    "status / notes",
+]
 
 
 def ordered_methods(records: list[dict]) -> list[str]:
@@ -108,15 +136,21 @@ def ordered_methods(records: list[dict]) -> list[str]:
 
 def mean_over_cases(records: list[dict], method: str, field: str) -> tuple[float, int]:
     """The mean of ``field`` over the cases where ``method`` produced metrics, and how many there were."""
-    values = [record["methods"][method]["metrics"][field] for record in records
-              if record["methods"].get(method, {}).get("metrics") is not None]
+    values = [
+        record["methods"][method]["metrics"][field]
+        for record in records
+        if record["methods"].get(method, {}).get("metrics") is not None
+    ]
     return (sum(values) / len(values), len(values)) if values else (float("nan"), 0)
 
 
 def best_method(record: dict, field: str = "error_percent_mean", exclude: tuple[str, ...] = ()) -> str | None:
     """The method with the smallest ``field`` on a case (among those with metrics), or None."""
-    scored = [(entry["metrics"][field], method) for method, entry in record["methods"].items()
-              if entry.get("metrics") is not None and method not in exclude]
+    scored = [
+        (entry["metrics"][field], method)
+        for method, entry in record["methods"].items()
+        if entry.get("metrics") is not None and method not in exclude
+    ]
     return min(scored)[1] if scored else None
 
 
@@ -135,31 +169,82 @@ def headline(retarget: dict) -> list[str]:
         mean, count = mean_over_cases(body, method, "error_percent_mean")
         p95, _ = mean_over_cases(body, method, "error_percent_p95")
         flipped, _ = mean_over_cases(body, method, "flipped_quads")
-        seconds = [record["methods"][method]["seconds"] for record in body
-                   if record["methods"].get(method, {}).get("metrics") is not None]
-        statuses = sorted({record["methods"][method]["status"].split(":")[0] for record in body
-                           if method in record["methods"] and record["methods"][method].get("metrics") is None})
-        nonfinite = sum(1 for record in body
-                        if (record["methods"].get(method, {}).get("metrics") or {}).get("nonfinite_vertices"))
+        seconds = [
+            record["methods"][method]["seconds"]
+            for record in body
+            if record["methods"].get(method, {}).get("metrics") is not None
+        ]
+        statuses = sorted(
+            {
+                record["methods"][method]["status"].split(":")[0]
+                for record in body
+                if method in record["methods"] and record["methods"][method].get("metrics") is None
+            }
+        )
+        nonfinite = sum(
+            1 for record in body if (record["methods"].get(method, {}).get("metrics") or {}).get("nonfinite_vertices")
+        )
         if nonfinite:
             statuses.append(f"non-finite vertices on {nonfinite}")
-        case_means = sorted(record["methods"][method]["metrics"]["error_percent_mean"] for record in body
-                            if record["methods"].get(method, {}).get("metrics") is not None)
-        median = (case_means[len(case_means) // 2] if len(case_means) % 2
-                  else sum(case_means[len(case_means) // 2 - 1:len(case_means) // 2 + 1]) / 2) if case_means else None
-        rows.append([method, f"{count} / {len(body)}", number(mean), number(median), number(p95), number(flipped, 0),
-                     number(sum(seconds) / len(seconds), 2) if seconds else "-",
-                     str(wins[method]) if method != "aligned template" else "(reference)",
-                     ", ".join(statuses)])
+        case_means = sorted(
+            record["methods"][method]["metrics"]["error_percent_mean"]
+            for record in body
+            if record["methods"].get(method, {}).get("metrics") is not None
+        )
+        median = (
+            (
+                case_means[len(case_means) // 2]
+                if len(case_means) % 2
+                else sum(case_means[len(case_means) // 2 - 1 : len(case_means) // 2 + 1]) / 2
+            )
+            if case_means
+            else None
+        )
+        rows.append(
+            [
+                method,
+                f"{count} / {len(body)}",
+                number(mean),
+                number(median),
+                number(p95),
+                number(flipped, 0),
+                number(sum(seconds) / len(seconds), 2) if seconds else "-",
+                str(wins[method]) if method != "aligned template" else "(reference)",
+                ", ".join(statuses),
+            ]
+        )
     kind = "body" if any(is_body(record) for record in records) else "all"
-    diagonals = [entry["metrics"]["diagonal"] for record in body for entry in record["methods"].values()
-                 if entry.get("metrics") is not None]
-    scale = (f" (1 % is {number(sum(diagonals) / len(diagonals) * 10.0, 1)} mm on the body)"
-             if diagonals and kind == "body" else "")
-    lines = [f"Averaged over the {len(body)} {kind} cases of this run ({retarget['arguments'].get('anchors')} anchors); "
-             f"errors in % of the truth's bounding-box diagonal{scale}:", ""]
-    lines += table(["method", "cases with a result", "mean error %", "median of the cases' means %", "p95 error %",
-                    "flipped quads", "time s", "best on (cases)", "other outcomes"], rows, "lrrrrrrrl")
+    diagonals = [
+        entry["metrics"]["diagonal"]
+        for record in body
+        for entry in record["methods"].values()
+        if entry.get("metrics") is not None
+    ]
+    scale = (
+        f" (1 % is {number(sum(diagonals) / len(diagonals) * 10.0, 1)} mm on the body)"
+        if diagonals and kind == "body"
+        else ""
+    )
+    lines = [
+        f"Averaged over the {len(body)} {kind} cases of this run ({retarget['arguments'].get('anchors')} anchors); "
+        f"errors in % of the truth's bounding-box diagonal{scale}:",
+        "",
+    ]
+    lines += table(
+        [
+            "method",
+            "cases with a result",
+            "mean error %",
+            "median of the cases' means %",
+            "p95 error %",
+            "flipped quads",
+            "time s",
+            "best on (cases)",
+            "other outcomes",
+        ],
+        rows,
+        "lrrrrrrrl",
+    )
     springwrap = [method for method in methods if method in SPRINGWRAP_METHODS]
     baselines = [method for method in methods if method in BASELINE_METHODS and method != "aligned template"]
     scored = {method: mean_over_cases(body, method, "error_percent_mean")[0] for method in methods}
@@ -171,12 +256,19 @@ def headline(retarget: dict) -> list[str]:
         if method not in finite:
             continue
         comparisons = [f"{other} {number(finite[other])} %" for other in baselines if other in finite]
-        verdict = "better than" if all(finite[method] < finite[other] for other in baselines if other in finite) \
+        verdict = (
+            "better than"
+            if all(finite[method] < finite[other] for other in baselines if other in finite)
             else "not better than every baseline:"
+        )
         lines.append(f"- {method}: {number(finite[method])} % mean error, {verdict} " + ", ".join(comparisons) + ".")
     lines += outcome_notes(records)
-    lines += ["", "Mean error per case (% of the diagonal; the lowest of each row in bold, the aligned template "
-              "left out of the contest):", ""] + error_matrix(records)
+    lines += [
+        "",
+        "Mean error per case (% of the diagonal; the lowest of each row in bold, the aligned template "
+        "left out of the contest):",
+        "",
+    ] + error_matrix(records)
     return lines
 
 
@@ -205,8 +297,10 @@ def outcome_notes(records: list[dict]) -> list[str]:
     for method, cases_text in nonfinite.items():
         lines.append(f"- {method} wrote non-finite (NaN) vertex positions on {', '.join(cases_text)}.")
     for method, converged in wraps.items():
-        lines.append(f"- {method} converged on {sum(converged)} of {len(converged)} cases "
-                     "(the others stopped at the iteration limit).")
+        lines.append(
+            f"- {method} converged on {sum(converged)} of {len(converged)} cases "
+            "(the others stopped at the iteration limit)."
+        )
     return ["", "Outcomes to note (all cases):", ""] + lines if lines else []
 
 
@@ -234,18 +328,27 @@ def retarget_section(retarget: dict, image_folder: Path, image_prefix: str) -> l
     """The per-case tables and the figures of the retargeting benchmark."""
     arguments = retarget["arguments"]
     lines = ["## Accuracy: retargeting with a known answer", ""]
-    lines.append(f"Run: {'`--quick` (' if arguments.get('quick') else 'all cases ('}{len(retarget['cases'])} cases), "
-                 f"{arguments.get('anchors')} anchors, {number(retarget.get('seconds'), 0)} s in all"
-                 + (f", wrap capped at {arguments['wrap_max_iterations']} iterations"
-                    if arguments.get("wrap_max_iterations") else ", the wrap at its default limit (2000 iterations)")
-                 + ".")
-    lines += ["", "Columns: error to the true position (mean, 95th percentile, max) in % of the truth's bounding-box "
-              "diagonal and in mm (body cases); *surface*: mean distance to the target surface where it exists (%); "
-              "*holes*: mean error of the vertices over holes (%); *flipped* / *degenerate*: quads whose normal "
-              "turned against the true one / whose area fell under 1 % of the true area; *angle*: mean |corner angle "
-              "− true corner angle|; *anchors*: mean error at the anchored landmarks (%); *time*: wall time of the "
-              "method (for Springwrap, every operator call); *MB*: growth of the process's peak resident memory "
-              "(methods share one process, so later ones often read 0).", ""]
+    lines.append(
+        f"Run: {'`--quick` (' if arguments.get('quick') else 'all cases ('}{len(retarget['cases'])} cases), "
+        f"{arguments.get('anchors')} anchors, {number(retarget.get('seconds'), 0)} s in all"
+        + (
+            f", wrap capped at {arguments['wrap_max_iterations']} iterations"
+            if arguments.get("wrap_max_iterations")
+            else ", the wrap at its default limit (2000 iterations)"
+        )
+        + "."
+    )
+    lines += [
+        "",
+        "Columns: error to the true position (mean, 95th percentile, max) in % of the truth's bounding-box "
+        "diagonal and in mm (body cases); *surface*: mean distance to the target surface where it exists (%); "
+        "*holes*: mean error of the vertices over holes (%); *flipped* / *degenerate*: quads whose normal "
+        "turned against the true one / whose area fell under 1 % of the true area; *angle*: mean |corner angle "
+        "− true corner angle|; *anchors*: mean error at the anchored landmarks (%); *time*: wall time of the "
+        "method (for Springwrap, every operator call); *MB*: growth of the process's peak resident memory "
+        "(methods share one process, so later ones often read 0).",
+        "",
+    ]
     bars = image_folder / "errors-per-method.png"
     if bars.exists():
         lines += [f"![mean and p95 error per method and case]({image_prefix}/{bars.name})", ""]
@@ -253,9 +356,11 @@ def retarget_section(retarget: dict, image_folder: Path, image_prefix: str) -> l
         spec = record.get("spec", {})
         lines += [f"### {record['case']}", ""]
         description = spec.get("description") or ""
-        lines.append(f"{description} Layout {record['layout_vertices']:,} vertices / {record['layout_quads']:,} quads; "
-                     f"target {record['target_triangles']:,} triangles; {record['over_hole']} vertices over holes, "
-                     f"{record['in_cavity']} in cavities.".strip())
+        lines.append(
+            f"{description} Layout {record['layout_vertices']:,} vertices / {record['layout_quads']:,} quads; "
+            f"target {record['target_triangles']:,} triangles; {record['over_hole']} vertices over holes, "
+            f"{record['in_cavity']} in cavities.".strip()
+        )
         lines.append("")
         lines += table(CASE_HEADER, case_rows(record), "l" + "r" * 14 + "l")
         heatmap = image_folder / f"heatmap-{record['case']}.png"
@@ -271,19 +376,36 @@ def retarget_section(retarget: dict, image_folder: Path, image_prefix: str) -> l
 def snap_section(snap: dict) -> list[str]:
     """The snap throughput comparison (``benchmarks/snap_throughput.py --json``)."""
     sizes = snap["sizes"]
-    lines = ["### Snap throughput: kernel vs Shrinkwrap vs mathutils BVHTree", "",
-             f"Target: noisy torus, {sizes['target_triangles']:,} triangles; {sizes['points']:,} query points within "
-             f"{sizes['query_offset']} of the surface, asked in mesh order (*coherent*) and shuffled (*random*). "
-             f"Load average at the start: {snap['machine'].get('load_average')}.", ""]
+    lines = [
+        "### Snap throughput: kernel vs Shrinkwrap vs mathutils BVHTree",
+        "",
+        f"Target: noisy torus, {sizes['target_triangles']:,} triangles; {sizes['points']:,} query points within "
+        f"{sizes['query_offset']} of the surface, asked in mesh order (*coherent*) and shuffled (*random*). "
+        f"Load average at the start: {snap['machine'].get('load_average')}.",
+        "",
+    ]
     rows = []
     for row in snap["results"]:
         note = f"extrapolated from {row['measured_queries']:,}" if row.get("extrapolated") else ""
-        rows.append([row["method"], row["order"], f"{row['queries']:,}", number(row["seconds"]),
-                     f"{row['queries_per_second']:,.0f}", number(row["build_seconds"]), note])
+        rows.append(
+            [
+                row["method"],
+                row["order"],
+                f"{row['queries']:,}",
+                number(row["seconds"]),
+                f"{row['queries_per_second']:,.0f}",
+                number(row["build_seconds"]),
+                note,
+            ]
+        )
     lines += table(["method", "order", "queries", "seconds", "queries/s", "build s", "note"], rows, "llrrrrl")
     failed = [check["name"] for check in snap.get("checks", []) if not check.get("passed")]
-    lines += ["", "Checks (kernel against Shrinkwrap, mathutils BVHTree and KDTree, random against coherent order): "
-              + ("all passed." if not failed else "FAILED: " + "; ".join(failed)), ""]
+    lines += [
+        "",
+        "Checks (kernel against Shrinkwrap, mathutils BVHTree and KDTree, random against coherent order): "
+        + ("all passed." if not failed else "FAILED: " + "; ".join(failed)),
+        "",
+    ]
     return lines
 
 
@@ -291,48 +413,121 @@ def performance_section(performance: dict, image_folder: Path, image_prefix: str
     """Scaling with target and layout size, wrap speed, memory per triangle, threads."""
     results = performance["results"]
     parameters = performance["parameters"]
-    lines = [f"### Scaling ({'quick subset' if performance.get('quick') else 'full sweep'}, "
-             f"{number(performance.get('seconds'), 0)} s, each size in a fresh process)", ""]
+    lines = [
+        f"### Scaling ({'quick subset' if performance.get('quick') else 'full sweep'}, "
+        f"{number(performance.get('seconds'), 0)} s, each size in a fresh process)",
+        "",
+    ]
     scaling = image_folder / "scaling.png"
     if scaling.exists():
         lines += [f"![time against target and layout size, log-log]({image_prefix}/{scaling.name})", ""]
     if results.get("target"):
-        lines += [f"**Target size** (kernel `TargetMesh` build, `prepare_all()`, snap of {parameters['query_points']:,} "
-                  "random points; Blender's Shrinkwrap on the same points, first evaluation = its BVH build + the "
-                  "queries; memory = growth of the resident set over the triangle count):", ""]
-        rows = [[f"{row['triangles']:,}", number(row["build_seconds"]), number(row["prepare_all_seconds"]),
-                 number(row["query_seconds"]), f"{row['queries_per_second']:,.0f}",
-                 number(row["shrinkwrap_first_evaluation_seconds"]), number(row["bytes_per_triangle_face_tree"], 0),
-                 number(row["bytes_per_triangle_peak_build"], 0), number(row["bytes_per_triangle_all"], 0),
-                 number(row["process_peak_megabytes"], 0), number(row["load_average_before"], 2)]
-                for row in results["target"]]
-        lines += table(["triangles", "build s", "prepare_all s", "snap s", "snaps/s", "Shrinkwrap s",
-                        "B/tri face tree", "B/tri build peak", "B/tri all trees", "process peak MB", "load"], rows)
+        lines += [
+            f"**Target size** (kernel `TargetMesh` build, `prepare_all()`, snap of {parameters['query_points']:,} "
+            "random points; Blender's Shrinkwrap on the same points, first evaluation = its BVH build + the "
+            "queries; memory = growth of the resident set over the triangle count):",
+            "",
+        ]
+        rows = [
+            [
+                f"{row['triangles']:,}",
+                number(row["build_seconds"]),
+                number(row["prepare_all_seconds"]),
+                number(row["query_seconds"]),
+                f"{row['queries_per_second']:,.0f}",
+                number(row["shrinkwrap_first_evaluation_seconds"]),
+                number(row["bytes_per_triangle_face_tree"], 0),
+                number(row["bytes_per_triangle_peak_build"], 0),
+                number(row["bytes_per_triangle_all"], 0),
+                number(row["process_peak_megabytes"], 0),
+                number(row["load_average_before"], 2),
+            ]
+            for row in results["target"]
+        ]
+        lines += table(
+            [
+                "triangles",
+                "build s",
+                "prepare_all s",
+                "snap s",
+                "snaps/s",
+                "Shrinkwrap s",
+                "B/tri face tree",
+                "B/tri build peak",
+                "B/tri all trees",
+                "process peak MB",
+                "load",
+            ],
+            rows,
+        )
         lines.append("")
     if results.get("layout"):
-        lines += [f"**Layout size** (kernel `closest_points`, random order, on {parameters['layout_target_triangles']:,} "
-                  "triangles):", ""]
-        rows = [[f"{row['points']:,}", number(row["query_seconds"]), f"{row['queries_per_second']:,.0f}",
-                 number(row["process_peak_megabytes"], 0), number(row["load_average_before"], 2)]
-                for row in results["layout"]]
+        lines += [
+            f"**Layout size** (kernel `closest_points`, random order, on {parameters['layout_target_triangles']:,} "
+            "triangles):",
+            "",
+        ]
+        rows = [
+            [
+                f"{row['points']:,}",
+                number(row["query_seconds"]),
+                f"{row['queries_per_second']:,.0f}",
+                number(row["process_peak_megabytes"], 0),
+                number(row["load_average_before"], 2),
+            ]
+            for row in results["layout"]
+        ]
         lines += table(["points", "seconds", "snaps/s", "process peak MB", "load"], rows)
         lines.append("")
     if results.get("wrap"):
-        lines += [f"**Wrap** (the add-on's operators on a torus quad grid over {parameters['wrap_target_triangles']:,} "
-                  f"triangles: detach, snap, then `springwrap.wrap(max_iterations={parameters['wrap_iterations']}, "
-                  "tolerance=1e-12)`; the wrap's time includes building its solver and writing the mesh):", ""]
-        rows = [[f"{row['layout_vertices']:,}", number(row["detach_seconds"], 2), number(row["snap_seconds"], 2),
-                 str(row["wrap_iterations"]), number(row["wrap_seconds"], 2), number(row["iterations_per_second"], 1),
-                 f"{row['vertex_iterations_per_second']:,.0f}", number(row["process_peak_megabytes"], 0),
-                 number(row["load_average_before"], 2)] for row in results["wrap"]]
-        lines += table(["layout vertices", "detach s", "snap s", "iterations", "wrap s", "iterations/s",
-                        "vertex-iterations/s", "process peak MB", "load"], rows)
+        lines += [
+            f"**Wrap** (the add-on's operators on a torus quad grid over {parameters['wrap_target_triangles']:,} "
+            f"triangles: detach, snap, then `springwrap.wrap(max_iterations={parameters['wrap_iterations']}, "
+            "tolerance=1e-12)`; the wrap's time includes building its solver and writing the mesh):",
+            "",
+        ]
+        rows = [
+            [
+                f"{row['layout_vertices']:,}",
+                number(row["detach_seconds"], 2),
+                number(row["snap_seconds"], 2),
+                str(row["wrap_iterations"]),
+                number(row["wrap_seconds"], 2),
+                number(row["iterations_per_second"], 1),
+                f"{row['vertex_iterations_per_second']:,.0f}",
+                number(row["process_peak_megabytes"], 0),
+                number(row["load_average_before"], 2),
+            ]
+            for row in results["wrap"]
+        ]
+        lines += table(
+            [
+                "layout vertices",
+                "detach s",
+                "snap s",
+                "iterations",
+                "wrap s",
+                "iterations/s",
+                "vertex-iterations/s",
+                "process peak MB",
+                "load",
+            ],
+            rows,
+        )
         lines.append("")
     if results.get("threads"):
         lines += ["**Threads** (`RAYON_NUM_THREADS`, closest_points of random points):", ""]
-        rows = [[row["threads"], f"{row['points']:,}", f"{row['target_triangles']:,}", number(row["query_seconds"]),
-                 f"{row['queries_per_second']:,.0f}", number(row["load_average_before"], 2)]
-                for row in results["threads"]]
+        rows = [
+            [
+                row["threads"],
+                f"{row['points']:,}",
+                f"{row['target_triangles']:,}",
+                number(row["query_seconds"]),
+                f"{row['queries_per_second']:,.0f}",
+                number(row["load_average_before"], 2),
+            ]
+            for row in results["threads"]
+        ]
         lines += table(["threads", "points", "triangles", "seconds", "snaps/s", "load"], rows)
         lines.append("")
     return lines
@@ -345,51 +540,92 @@ def wrap_speed_lines(retarget: dict) -> list[str]:
         for method, entry in record["methods"].items():
             details = entry.get("details") or {}
             if "iterations" in details:
-                rows.append([record["case"], method, str(details["iterations"]),
-                             "yes" if details["converged"] else "no (limit)", number(details["wrap_seconds"], 2),
-                             number(details["iterations_per_second"], 0), number(entry["seconds"], 2)])
+                rows.append(
+                    [
+                        record["case"],
+                        method,
+                        str(details["iterations"]),
+                        "yes" if details["converged"] else "no (limit)",
+                        number(details["wrap_seconds"], 2),
+                        number(details["iterations_per_second"], 0),
+                        number(entry["seconds"], 2),
+                    ]
+                )
     if not rows:
         return []
-    return ["### Wrap on the retarget cases", "",
+    return (
+        [
+            "### Wrap on the retarget cases",
+            "",
             "Iterations and time as the wrap operator reported them; *total* adds detach, snap or project and the "
-            "anchor_add calls.", ""] + table(
-        ["case", "method", "iterations", "converged", "wrap s", "iterations/s", "total s"], rows, "llrlrrr") + [""]
+            "anchor_add calls.",
+            "",
+        ]
+        + table(["case", "method", "iterations", "converged", "wrap s", "iterations/s", "total s"], rows, "llrlrrr")
+        + [""]
+    )
 
 
 def wrap_aims_section(speed: dict) -> list[str]:
-    """Issue 3's speed aims against ``benchmarks/wrap_speed.py``'s measurements."""
-    lines = ["### Wrap speed against its aims", "",
-             "From `benchmarks/wrap_speed.py` (the body through the add-on's operators, the modal wrap's "
-             "frames, and a 2048 x 2048 spring through the kernel).", ""]
+    """The wrap's speed aims against ``benchmarks/wrap_speed.py``'s measurements."""
+    lines = [
+        "### Wrap speed against its aims",
+        "",
+        "From `benchmarks/wrap_speed.py` (the body through the add-on's operators, the modal wrap's "
+        "frames, and a 2048 x 2048 spring through the kernel).",
+        "",
+    ]
     rows = []
     body = speed.get("body")
     if body:
         wrap = body["wrap"]
-        rows.append([f"MakeHuman body ({body['layout_quads']} quads) onto {body['target_triangles']} triangles, "
-                     f"{body['anchors']} anchors: whole wrap", "1 s",
-                     f"{number(wrap['wrap_seconds'], 2)} s ({wrap['iterations']} iterations, "
-                     f"{'converged' if wrap['converged'] else 'not converged'}; operators "
-                     f"{number(body['operators_seconds'], 2)} s; error mean {number(body['error_percent_mean'])} %, "
-                     f"p95 {number(body['error_percent_p95'])} %)"])
+        rows.append(
+            [
+                f"MakeHuman body ({body['layout_quads']} quads) onto {body['target_triangles']} triangles, "
+                f"{body['anchors']} anchors: whole wrap",
+                "1 s",
+                f"{number(wrap['wrap_seconds'], 2)} s ({wrap['iterations']} iterations, "
+                f"{'converged' if wrap['converged'] else 'not converged'}; operators "
+                f"{number(body['operators_seconds'], 2)} s; error mean {number(body['error_percent_mean'])} %, "
+                f"p95 {number(body['error_percent_p95'])} %)",
+            ]
+        )
     live = speed.get("live")
     if live:
-        rows.append(["live wrap on the body: redraws per second", "30",
-                     f"{number(live['frames_per_second'], 1)} ({number(live['iterations_per_second'], 0)} iterations/s)"])
+        rows.append(
+            [
+                "live wrap on the body: redraws per second",
+                "30",
+                f"{number(live['frames_per_second'], 1)} ({number(live['iterations_per_second'], 0)} iterations/s)",
+            ]
+        )
     large = speed.get("large")
     if large:
-        rows.append([f"{large['spring_points']}-point spring onto {large['target_triangles']} triangles", "30 s",
-                     f"{number(large['seconds'], 1)} s for {large['iterations']} iterations "
-                     f"({'converged' if large['converged'] else 'cap reached'}), "
-                     f"{number(large['seconds_per_iteration'] * 1000, 0)} ms each, after a "
-                     f"{number(large['setup_seconds'], 1)} s set-up"])
+        rows.append(
+            [
+                f"{large['spring_points']}-point spring onto {large['target_triangles']} triangles",
+                "30 s",
+                f"{number(large['seconds'], 1)} s for {large['iterations']} iterations "
+                f"({'converged' if large['converged'] else 'cap reached'}), "
+                f"{number(large['seconds_per_iteration'] * 1000, 0)} ms each, after a "
+                f"{number(large['setup_seconds'], 1)} s set-up",
+            ]
+        )
     if not rows:
         return []
     machine = speed.get("machine", {})
     load = speed.get("load_average_end")
     load_text = ", ".join(number(value, 2) for value in load) if load else "?"
-    return lines + table(["measurement", "aim", "measured"], rows, "lll") + [
-        "", f"Run {speed.get('started_utc', '?')}: {machine.get('cpu', '?')}, {machine.get('cores', '?')} cores, "
-        f"Python {machine.get('python', '?')}, bpy {machine.get('bpy', '?')}; load average at the end {load_text}.", ""]
+    return (
+        lines
+        + table(["measurement", "aim", "measured"], rows, "lll")
+        + [
+            "",
+            f"Run {speed.get('started_utc', '?')}: {machine.get('cpu', '?')}, {machine.get('cores', '?')} cores, "
+            f"Python {machine.get('python', '?')}, bpy {machine.get('bpy', '?')}; load average at the end {load_text}.",
+            "",
+        ]
+    )
 
 
 # ---------------------------------------------------------------- batch on a cluster
@@ -411,37 +647,67 @@ def batch_section(batch: dict) -> list[str]:
     load = ", ".join(number(value, 2) for value in machine.get("load_average", []))
     if batch.get("load_average_end"):
         load += "; at the end " + ", ".join(number(value, 2) for value in batch["load_average_end"])
-    lines = ["## Batch on a cluster", "",
-             f"`retarget.py --batch` (issue 16) on a library of {library['meshes']} noisy tori of "
-             f"{library['triangles']:,} triangles each (every one displaced differently), the template a "
-             f"{library['layout_quads']:,}-quad layout, automatic anchors; each executor with 1 and 2 workers, "
-             f"each run in a fresh output folder (`.venv/bin/python benchmarks/batch_throughput.py --json "
-             f"out/bench/batch_throughput.json`). Machine: {machine.get('cpu', '?')}, {machine.get('cpu_count', '?')} "
-             f"CPUs, {machine.get('memory_gib', '?')} GiB; ray {batch.get('versions', {}).get('ray', '?')}, commit "
-             f"`{batch.get('versions', {}).get('git_commit', '?')}`; finished {batch.get('finished_utc', '?')}; "
-             f"load average (1, 5, 15 min) at the start {load} (other work shared the 2 CPUs: the runs vary by "
-             f"a fifth or more from one to the next).", "",
-             "*All-in* counts the whole command (Python, Ray's start when there is one, every worker's start-up, "
-             "the meshes, the summary); *steady* is what the workers sustain once started: workers / (mean time "
-             "of a mesh in its worker + its hand-over). *Start-up* runs from starting a worker's process (or "
-             "creating its actor) to the worker having imported bpy and enabled the add-on; *peak MB* is each "
-             "worker's peak resident memory (a Ray worker's includes Ray's own client).", ""]
+    lines = [
+        "## Batch on a cluster",
+        "",
+        f"`retarget.py --batch` on a library of {library['meshes']} noisy tori of "
+        f"{library['triangles']:,} triangles each (every one displaced differently), the template a "
+        f"{library['layout_quads']:,}-quad layout, automatic anchors; each executor with 1 and 2 workers, "
+        f"each run in a fresh output folder (`.venv/bin/python benchmarks/batch_throughput.py --json "
+        f"out/bench/batch_throughput.json`). Machine: {machine.get('cpu', '?')}, {machine.get('cpu_count', '?')} "
+        f"CPUs, {machine.get('memory_gib', '?')} GiB; ray {batch.get('versions', {}).get('ray', '?')}, commit "
+        f"`{batch.get('versions', {}).get('git_commit', '?')}`; finished {batch.get('finished_utc', '?')}; "
+        f"load average (1, 5, 15 min) at the start {load} (other work shared the 2 CPUs: the runs vary by "
+        f"a fifth or more from one to the next).",
+        "",
+        "*All-in* counts the whole command (Python, Ray's start when there is one, every worker's start-up, "
+        "the meshes, the summary); *steady* is what the workers sustain once started: workers / (mean time "
+        "of a mesh in its worker + its hand-over). *Start-up* runs from starting a worker's process (or "
+        "creating its actor) to the worker having imported bpy and enabled the add-on; *peak MB* is each "
+        "worker's peak resident memory (a Ray worker's includes Ray's own client).",
+        "",
+    ]
     rows = []
     for run in batch.get("runs", []):
-        rows.append([run["executor"], str(run["jobs"]), str(run["meshes"]), number(run["process_seconds"], 1),
-                     number(run["meshes_per_minute"], 1), number(run["steady_meshes_per_minute"], 1),
-                     number(run["mesh_seconds_mean"], 2), number(1000 * run["dispatch_seconds_per_mesh"], 1),
-                     ", ".join(number(value, 2) for value in run["worker_start_seconds"]),
-                     ", ".join(number(value, 0) for value in run["worker_peak_memory_mb"])])
-    lines += table(["executor", "workers", "meshes", "all-in s", "meshes/min all-in", "meshes/min steady",
-                    "s per mesh", "hand-over ms per mesh", "worker start-up s", "peak MB per worker"], rows,
-                   "llrrrrrrrr")
+        rows.append(
+            [
+                run["executor"],
+                str(run["jobs"]),
+                str(run["meshes"]),
+                number(run["process_seconds"], 1),
+                number(run["meshes_per_minute"], 1),
+                number(run["steady_meshes_per_minute"], 1),
+                number(run["mesh_seconds_mean"], 2),
+                number(1000 * run["dispatch_seconds_per_mesh"], 1),
+                ", ".join(number(value, 2) for value in run["worker_start_seconds"]),
+                ", ".join(number(value, 0) for value in run["worker_peak_memory_mb"]),
+            ]
+        )
+    lines += table(
+        [
+            "executor",
+            "workers",
+            "meshes",
+            "all-in s",
+            "meshes/min all-in",
+            "meshes/min steady",
+            "s per mesh",
+            "hand-over ms per mesh",
+            "worker start-up s",
+            "peak MB per worker",
+        ],
+        rows,
+        "llrrrrrrrr",
+    )
     scheduler = batch.get("scheduler")
     if scheduler:
-        lines += ["", f"The scheduler itself (`run_tasks`, the same for both executors, with stand-in workers that "
-                      f"answer at once) costs {number(scheduler['milliseconds_per_mesh'], 3)} ms per mesh: "
-                      f"{scheduler['meshes']:,} meshes on {scheduler['workers']} workers in "
-                      f"{number(scheduler['seconds'], 2)} s."]
+        lines += [
+            "",
+            f"The scheduler itself (`run_tasks`, the same for both executors, with stand-in workers that "
+            f"answer at once) costs {number(scheduler['milliseconds_per_mesh'], 3)} ms per mesh: "
+            f"{scheduler['meshes']:,} meshes on {scheduler['workers']} workers in "
+            f"{number(scheduler['seconds'], 2)} s.",
+        ]
     lines += [""]
     node = _batch_run(batch, "ray", 2) or _batch_run(batch, "local", 2)
     if node is None:
@@ -458,42 +724,57 @@ def batch_section(batch: dict) -> list[str]:
     memory_mb = 1024 * float(machine.get("memory_gib") or 0)
     workers_by_memory = int(0.9 * memory_mb // peak) if peak else 0
     coordinator_rate = 60_000.0 / scheduler["milliseconds_per_mesh"] if scheduler else math.inf
-    limits = {"the CPUs (the workers' own work)": compute_minutes, "the shared storage": storage_minutes,
-              "the coordinator's scheduling": PROJECTED_MESHES / coordinator_rate}
+    limits = {
+        "the CPUs (the workers' own work)": compute_minutes,
+        "the shared storage": storage_minutes,
+        "the coordinator's scheduling": PROJECTED_MESHES / coordinator_rate,
+    }
     limit = max(limits, key=limits.get)
     total_minutes = max(limits.values()) + fixed_seconds / 60.0
-    lines += [f"### Projection: {PROJECTED_MESHES:,} meshes on {PROJECTED_NODES} nodes", "",
-              f"From the {node['executor']} run with {workers_per_node} workers: {PROJECTED_NODES} nodes like this one "
-              f"({machine.get('cpu_count', '?')} CPUs, {machine.get('memory_gib', '?')} GiB), {workers_per_node} "
-              f"workers each ({PROJECTED_NODES * workers_per_node} in all), the library and the outputs on one shared "
-              f"file system. Meshes of another size scale these numbers with their time per mesh.", "",
-              f"- **Compute**: a node sustains {number(node_rate, 1)} meshes/min, the cluster "
-              f"{cluster_rate:,.0f}; {PROJECTED_MESHES:,} meshes take **{number(compute_minutes, 1)} min** of "
-              f"work, plus a fixed {number(fixed_seconds, 0)} s (start-up and shutdown, as measured here; workers "
-              f"start in parallel, one per CPU).",
-              f"- **Shared storage**: each mesh reads {number(node['input_mb_per_mesh'], 1)} MB and writes "
-              f"{number(node['output_mb_per_mesh'], 1)} MB (the .blend is most of it), so the cluster asks "
-              f"{storage_rate:,.0f} MB/s of the file system. At {SHARED_STORAGE_MB_PER_SECOND:,} MB/s (one NFS "
-              f"server on 10 Gb/s: an assumption, not measured) moving the library's "
-              f"{PROJECTED_MESHES * megabytes / 1024:,.0f} GB takes {number(storage_minutes, 1)} min"
-              + (" - longer than the compute: **the storage is the bottleneck**, and more nodes would not help."
-                 if storage_minutes > compute_minutes else "."),
-              f"- **Worker memory**: {number(peak, 0)} MB at peak per worker, so a node of "
-              f"{machine.get('memory_gib', '?')} GiB holds {workers_by_memory} workers by memory (a tenth kept for the "
-              f"system) against "
-              f"{machine.get('cpu_count', '?')} by CPU: "
-              + ("memory is not what limits a node at this mesh size; meshes of millions of triangles raise the peak "
-                 "(see *Scaling* above) and then it can be." if workers_by_memory >= workers_per_node
-                 else "**memory limits a node**: use fewer workers (`--jobs`) than CPUs."),
-              f"- **Scheduling**: the coordinator spends {number(scheduler['milliseconds_per_mesh'], 3)} ms per mesh "
-              f"(it could hand out {coordinator_rate:,.0f} meshes/min, against the {cluster_rate:,.0f} the cluster "
-              f"asks for), and each mesh's hand-over through Ray took {number(1000 * node['dispatch_seconds_per_mesh'], 1)} "
-              f"ms here, against {number(node['mesh_seconds_mean'], 2)} s of work: scheduling is not the limit."
-              if scheduler else "- **Scheduling**: not measured.",
-              "",
-              f"So about **{number(total_minutes, 0)} min** for the {PROJECTED_MESHES:,} meshes, limited by "
-              f"{limit}. What this leaves out: nodes' network and disk (the hand-over here is on one machine), "
-              f"stragglers at the end of the batch, and meshes that need retries.", ""]
+    lines += [
+        f"### Projection: {PROJECTED_MESHES:,} meshes on {PROJECTED_NODES} nodes",
+        "",
+        f"From the {node['executor']} run with {workers_per_node} workers: {PROJECTED_NODES} nodes like this one "
+        f"({machine.get('cpu_count', '?')} CPUs, {machine.get('memory_gib', '?')} GiB), {workers_per_node} "
+        f"workers each ({PROJECTED_NODES * workers_per_node} in all), the library and the outputs on one shared "
+        f"file system. Meshes of another size scale these numbers with their time per mesh.",
+        "",
+        f"- **Compute**: a node sustains {number(node_rate, 1)} meshes/min, the cluster "
+        f"{cluster_rate:,.0f}; {PROJECTED_MESHES:,} meshes take **{number(compute_minutes, 1)} min** of "
+        f"work, plus a fixed {number(fixed_seconds, 0)} s (start-up and shutdown, as measured here; workers "
+        f"start in parallel, one per CPU).",
+        f"- **Shared storage**: each mesh reads {number(node['input_mb_per_mesh'], 1)} MB and writes "
+        f"{number(node['output_mb_per_mesh'], 1)} MB (the .blend is most of it), so the cluster asks "
+        f"{storage_rate:,.0f} MB/s of the file system. At {SHARED_STORAGE_MB_PER_SECOND:,} MB/s (one NFS "
+        f"server on 10 Gb/s: an assumption, not measured) moving the library's "
+        f"{PROJECTED_MESHES * megabytes / 1024:,.0f} GB takes {number(storage_minutes, 1)} min"
+        + (
+            " - longer than the compute: **the storage is the bottleneck**, and more nodes would not help."
+            if storage_minutes > compute_minutes
+            else "."
+        ),
+        f"- **Worker memory**: {number(peak, 0)} MB at peak per worker, so a node of "
+        f"{machine.get('memory_gib', '?')} GiB holds {workers_by_memory} workers by memory (a tenth kept for the "
+        f"system) against "
+        f"{machine.get('cpu_count', '?')} by CPU: "
+        + (
+            "memory is not what limits a node at this mesh size; meshes of millions of triangles raise the peak "
+            "(see *Scaling* above) and then it can be."
+            if workers_by_memory >= workers_per_node
+            else "**memory limits a node**: use fewer workers (`--jobs`) than CPUs."
+        ),
+        f"- **Scheduling**: the coordinator spends {number(scheduler['milliseconds_per_mesh'], 3)} ms per mesh "
+        f"(it could hand out {coordinator_rate:,.0f} meshes/min, against the {cluster_rate:,.0f} the cluster "
+        f"asks for), and each mesh's hand-over through Ray took {number(1000 * node['dispatch_seconds_per_mesh'], 1)} "
+        f"ms here, against {number(node['mesh_seconds_mean'], 2)} s of work: scheduling is not the limit."
+        if scheduler
+        else "- **Scheduling**: not measured.",
+        "",
+        f"So about **{number(total_minutes, 0)} min** for the {PROJECTED_MESHES:,} meshes, limited by "
+        f"{limit}. What this leaves out: nodes' network and disk (the hand-over here is on one machine), "
+        f"stragglers at the end of the batch, and meshes that need retries.",
+        "",
+    ]
     return lines
 
 
@@ -507,41 +788,59 @@ def machine_lines(name: str, run: dict) -> list[str]:
     load_text = ", ".join(number(value, 2) for value in load) if isinstance(load, list) else number(load, 2)
     end = run.get("load_average_end")
     end_text = f"; at the end {', '.join(number(value, 2) for value in end)}" if end else ""
-    return [f"- **{name}**: {machine.get('cpu', '?')}, {machine.get('cpu_count', '?')} CPUs, "
-            f"{machine.get('platform', '?')}; Python {machine.get('python', '?')}, bpy {machine.get('bpy', '?')}, "
-            f"numpy {machine.get('numpy', '?')}, springwrap_kernel {machine.get('springwrap_kernel', '?')} "
-            f"(native module {machine.get('kernel_build', '?')}), "
-            f"commit `{machine.get('git_commit', '?')}`; finished {run.get('finished_utc', '?')}; load average "
-            f"(1, 5, 15 min) at the start {load_text}{end_text}"]
+    return [
+        f"- **{name}**: {machine.get('cpu', '?')}, {machine.get('cpu_count', '?')} CPUs, "
+        f"{machine.get('platform', '?')}; Python {machine.get('python', '?')}, bpy {machine.get('bpy', '?')}, "
+        f"numpy {machine.get('numpy', '?')}, springwrap_kernel {machine.get('springwrap_kernel', '?')} "
+        f"(native module {machine.get('kernel_build', '?')}), "
+        f"commit `{machine.get('git_commit', '?')}`; finished {run.get('finished_utc', '?')}; load average "
+        f"(1, 5, 15 min) at the start {load_text}{end_text}"
+    ]
 
 
-def build_document(retarget: dict | None, performance: dict | None, snap: dict | None,
-                   image_folder: Path = DOCS / "img", image_prefix: str = "img", speed: dict | None = None,
-                   batch: dict | None = None) -> str:
+def build_document(
+    retarget: dict | None,
+    performance: dict | None,
+    snap: dict | None,
+    image_folder: Path = DOCS / "img",
+    image_prefix: str = "img",
+    speed: dict | None = None,
+    batch: dict | None = None,
+) -> str:
     """The whole of ``docs/benchmarks.md``."""
-    lines = ["# Benchmarks", "",
-             "<!-- Generated by benchmarks/report.py from out/bench/*.json: do not edit by hand, rerun `make bench`. -->",
-             "",
-             "How well and how fast Springwrap retargets a patch layout, against what a Blender user would use "
-             "otherwise (issue 4). Every number and picture below comes from the runs named in *Machine and "
-             "versions*; the machine was shared with other work while they ran (the load averages say how much), "
-             "so times are upper bounds.", ""]
-    lines += ["## How to rerun", "", "```sh",
-              "make bench           # every case and the full performance sweep, then this page and docs/img/*.png",
-              "make bench QUICK=1   # the quick subset (~5 minutes on 2 cores)",
-              ".venv/bin/python -m benchmarks.retarget.run [--quick] [--cases NAME ...] [--anchors N]",
-              ".venv/bin/python benchmarks/performance.py [--quick]",
-              ".venv/bin/python benchmarks/snap_throughput.py [--quick] --json out/bench/snap_throughput.json",
-              ".venv/bin/python benchmarks/wrap_speed.py [--large] --json out/bench/wrap_speed.json",
-              ".venv/bin/python benchmarks/wrap_solvers.py --scans --nricp --json out/bench/wrap_solvers.json "
-              "--markdown docs/wrap-solvers.md",
-              ".venv/bin/python benchmarks/figures.py && .venv/bin/python benchmarks/report.py",
-              "```", "",
-              "Cases, landmarks, metrics and methods are described in "
-              "[benchmarks/retarget/README.md](../benchmarks/retarget/README.md). The wrap's two solvers (the "
-              "paper's force iteration and the energy solver) against nricp, case by case, through the kernel "
-              "alone, and on real scans without a known answer (the range-scanned bunny, CGAL's elephant with "
-              "holes): [wrap-solvers.md](wrap-solvers.md).", ""]
+    lines = [
+        "# Benchmarks",
+        "",
+        "<!-- Generated by benchmarks/report.py from out/bench/*.json: do not edit by hand, rerun `make bench`. -->",
+        "",
+        "How well and how fast Springwrap retargets a patch layout, against what a Blender user would use "
+        "otherwise. Every number and picture below comes from the runs named in *Machine and "
+        "versions*; the machine was shared with other work while they ran (the load averages say how much), "
+        "so times are upper bounds.",
+        "",
+    ]
+    lines += [
+        "## How to rerun",
+        "",
+        "```sh",
+        "make bench           # every case and the full performance sweep, then this page and docs/img/*.png",
+        "make bench QUICK=1   # the quick subset (~5 minutes on 2 cores)",
+        ".venv/bin/python -m benchmarks.retarget.run [--quick] [--cases NAME ...] [--anchors N]",
+        ".venv/bin/python benchmarks/performance.py [--quick]",
+        ".venv/bin/python benchmarks/snap_throughput.py [--quick] --json out/bench/snap_throughput.json",
+        ".venv/bin/python benchmarks/wrap_speed.py [--large] --json out/bench/wrap_speed.json",
+        ".venv/bin/python benchmarks/wrap_solvers.py --scans --nricp --json out/bench/wrap_solvers.json "
+        "--markdown docs/wrap-solvers.md",
+        ".venv/bin/python benchmarks/figures.py && .venv/bin/python benchmarks/report.py",
+        "```",
+        "",
+        "Cases, landmarks, metrics and methods are described in "
+        "[benchmarks/retarget/README.md](../benchmarks/retarget/README.md). The wrap's two solvers (the "
+        "paper's force iteration and the energy solver) against nricp, case by case, through the kernel "
+        "alone, and on real scans without a known answer (the range-scanned bunny, CGAL's elephant with "
+        "holes): [wrap-solvers.md](wrap-solvers.md).",
+        "",
+    ]
     lines += ["## Machine and versions", ""]
     for name, run in (("retarget", retarget), ("performance", performance), ("snap throughput", snap)):
         if run is not None:
@@ -590,8 +889,17 @@ def main(argv: list[str] | None = None) -> int:
     if inputs["retarget"] is None and inputs["performance"] is None and inputs["snap"] is None:
         return 1
     image_folder = arguments.output.parent / "img"
-    arguments.output.write_text(build_document(inputs["retarget"], inputs["performance"], inputs["snap"],
-                                               image_folder, "img", load(arguments.speed), load(arguments.batch)))
+    arguments.output.write_text(
+        build_document(
+            inputs["retarget"],
+            inputs["performance"],
+            inputs["snap"],
+            image_folder,
+            "img",
+            load(arguments.speed),
+            load(arguments.batch),
+        )
+    )
     print(f"wrote {arguments.output}")
     return 0
 

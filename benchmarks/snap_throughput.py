@@ -37,11 +37,11 @@ from mathutils.bvhtree import BVHTree
 from mathutils.kdtree import KDTree
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import _machine  # noqa: E402
-from _noisy_torus import QUERY_OFFSET, noisy_torus, query_points  # noqa: E402
+import _machine
+from _noisy_torus import QUERY_OFFSET, noisy_torus, query_points
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "blender_scripts"))
-from headless import script_arguments  # noqa: E402
+from headless import script_arguments
 
 SEED = 1
 # Distances may differ by float32 rounding; relative to the target's bounding-box diagonal.
@@ -61,7 +61,9 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("--triangles", type=int, help="target triangle count (default 1,000,000; --quick 100,000)")
     parser.add_argument("--points", type=int, help="query point count (default 1,000,000; --quick 100,000)")
     parser.add_argument(
-        "--mathutils-points", type=int, default=MATHUTILS_POINTS,
+        "--mathutils-points",
+        type=int,
+        default=MATHUTILS_POINTS,
         help=f"time mathutils find_nearest on at most this many points per order and extrapolate "
         f"(default {MATHUTILS_POINTS:,}; 0 for all)",
     )
@@ -104,8 +106,13 @@ def versions(kernel) -> dict:
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
     from benchmarks.retarget.run import git_commit, kernel_build
 
-    return {"bpy": bpy.app.version_string, "numpy": np.__version__, "springwrap_kernel": kernel.__version__,
-            "kernel_build": kernel_build(), "git_commit": git_commit()}
+    return {
+        "bpy": bpy.app.version_string,
+        "numpy": np.__version__,
+        "springwrap_kernel": kernel.__version__,
+        "kernel_build": kernel_build(),
+        "git_commit": git_commit(),
+    }
 
 
 # ---------------------------------------------------------------- measurements
@@ -151,15 +158,17 @@ def measure_kernel(kernel, vertices, triangles, orders: dict[str, np.ndarray], r
     start = time.perf_counter()
     mesh.prepare_all()
     prepare_seconds = time.perf_counter() - start
-    print(f"kernel: TargetMesh(...) {build_seconds:.3f} s (face tree); "
-          f"prepare_all() {prepare_seconds:.3f} s (vertex tree, adjacency, normals)")
+    print(
+        f"kernel: TargetMesh(...) {build_seconds:.3f} s (face tree); "
+        f"prepare_all() {prepare_seconds:.3f} s (vertex tree, adjacency, normals)"
+    )
     mesh.closest_points(orders["coherent"][:64])  # start the thread pool outside the timing
     rows, surface_hits, vertex_hits = [], {}, {}
     for order, points in orders.items():
-        seconds, surface_hits[order] = best_time(lambda: mesh.closest_points(points), repeat)
+        seconds, surface_hits[order] = best_time(lambda points=points: mesh.closest_points(points), repeat)
         rows.append(Row("kernel closest_points", order, len(points), len(points), seconds, build_seconds))
     for order, points in orders.items():
-        seconds, vertex_hits[order] = best_time(lambda: mesh.nearest_vertices(points), repeat)
+        seconds, vertex_hits[order] = best_time(lambda points=points: mesh.nearest_vertices(points), repeat)
         rows.append(Row("kernel nearest_vertices", order, len(points), len(points), seconds, build_seconds))
     return rows, mesh, surface_hits, vertex_hits
 
@@ -239,8 +248,14 @@ def measure_mathutils(vertices, triangles, orders: dict[str, np.ndarray], subset
         seconds = time.perf_counter() - start
         distances[order] = np.array(subset_distances, dtype=np.float64)  # None (no hit) becomes nan
         rows.append(
-            Row("mathutils BVHTree.find_nearest", order, len(points), len(subset),
-                seconds * len(points) / len(subset), build_seconds)
+            Row(
+                "mathutils BVHTree.find_nearest",
+                order,
+                len(points),
+                len(subset),
+                seconds * len(points) / len(subset),
+                build_seconds,
+            )
         )
     return rows, vertex_list, distances
 
@@ -262,38 +277,71 @@ class Check:
         return bool(self.max_difference <= self.tolerance)
 
 
-def run_checks(orders, permutation, mesh, surface_hits, vertex_hits, shrinkwrap_positions,
-               mathutils_distances, vertex_list, tolerance) -> list[Check]:
+def run_checks(
+    orders,
+    permutation,
+    mesh,
+    surface_hits,
+    vertex_hits,
+    shrinkwrap_positions,
+    mathutils_distances,
+    vertex_list,
+    tolerance,
+) -> list[Check]:
     """Compare the kernel with Shrinkwrap, mathutils BVHTree and mathutils KDTree."""
     checks = []
     for order, hits in surface_hits.items():
         if (hits.triangles < 0).any():
-            checks.append(Check(f"kernel closest_points {order}: queries without a hit", len(hits.triangles),
-                                float((hits.triangles < 0).sum()), 0.0))
+            checks.append(
+                Check(
+                    f"kernel closest_points {order}: queries without a hit",
+                    len(hits.triangles),
+                    float((hits.triangles < 0).sum()),
+                    0.0,
+                )
+            )
     coherent = surface_hits["coherent"]
     # The random order is the coherent one shuffled: its answers must be the same answers, shuffled.
-    checks.append(Check(
-        "kernel closest_points, random vs coherent order (distance)", len(permutation),
-        float(np.abs(surface_hits["random"].distances - coherent.distances[permutation]).max()), tolerance,
-    ))
-    for order, points in orders.items():
+    checks.append(
+        Check(
+            "kernel closest_points, random vs coherent order (distance)",
+            len(permutation),
+            float(np.abs(surface_hits["random"].distances - coherent.distances[permutation]).max()),
+            tolerance,
+        )
+    )
+    for order, _points in orders.items():
         distances = mathutils_distances[order]
         kernel_distances = surface_hits[order].distances[: len(distances)]
-        checks.append(Check(
-            f"|kernel - mathutils find_nearest| distance, {order}", len(distances),
-            float(np.nan_to_num(np.abs(kernel_distances - distances), nan=np.inf).max()), tolerance,
-        ))
+        checks.append(
+            Check(
+                f"|kernel - mathutils find_nearest| distance, {order}",
+                len(distances),
+                float(np.nan_to_num(np.abs(kernel_distances - distances), nan=np.inf).max()),
+                tolerance,
+            )
+        )
     for order, points in orders.items():
         positions = shrinkwrap_positions[order]
         moved = np.linalg.norm(positions - points, axis=1)
-        checks.append(Check(
-            f"|kernel - Shrinkwrap| distance, {order}", len(points),
-            float(np.abs(moved - surface_hits[order].distances).max()), tolerance,
-        ))
+        checks.append(
+            Check(
+                f"|kernel - Shrinkwrap| distance, {order}",
+                len(points),
+                float(np.abs(moved - surface_hits[order].distances).max()),
+                tolerance,
+            )
+        )
     # Shrinkwrap really ran: its outputs lie on the surface (a no-op would leave them off it).
     on_surface = mesh.closest_points(shrinkwrap_positions["random"])
-    checks.append(Check("Shrinkwrap output's distance to the surface (kernel), random", len(on_surface.distances),
-                        float(on_surface.distances.max()), tolerance))
+    checks.append(
+        Check(
+            "Shrinkwrap output's distance to the surface (kernel), random",
+            len(on_surface.distances),
+            float(on_surface.distances.max()),
+            tolerance,
+        )
+    )
     # Nearest vertex against a KD-tree, on a sample.
     tree = KDTree(len(vertex_list))
     for index, position in enumerate(vertex_list):
@@ -301,8 +349,14 @@ def run_checks(orders, permutation, mesh, surface_hits, vertex_hits, shrinkwrap_
     tree.balance()
     sample = orders["random"][:VERTEX_CHECK_POINTS]
     kd_distances = np.array([tree.find(point)[2] for point in sample.tolist()])
-    checks.append(Check("|kernel nearest_vertices - mathutils KDTree| distance, random", len(sample),
-                        float(np.abs(vertex_hits["random"].distances[: len(sample)] - kd_distances).max()), tolerance))
+    checks.append(
+        Check(
+            "|kernel nearest_vertices - mathutils KDTree| distance, random",
+            len(sample),
+            float(np.abs(vertex_hits["random"].distances[: len(sample)] - kd_distances).max()),
+            tolerance,
+        )
+    )
     return checks
 
 
@@ -311,28 +365,40 @@ def run_checks(orders, permutation, mesh, surface_hits, vertex_hits, shrinkwrap_
 
 def print_report(machine, version_info, sizes, rows: list[Row], checks: list[Check]) -> None:
     """Print the environment, the throughput table and the checks."""
-    print(f"machine:  {machine['cpu']}, {machine['cpu_count']} CPUs ({machine['usable_cpus']} usable), "
-          f"{machine['platform']}, Python {machine['python']}, load average {machine['load_average']}")
+    print(
+        f"machine:  {machine['cpu']}, {machine['cpu_count']} CPUs ({machine['usable_cpus']} usable), "
+        f"{machine['platform']}, Python {machine['python']}, load average {machine['load_average']}"
+    )
     print("versions: " + ", ".join(f"{name} {version}" for name, version in version_info.items()))
-    print(f"target:   noisy torus, {sizes['target_vertices']:,} vertices, {sizes['target_triangles']:,} triangles; "
-          f"queries: {sizes['points']:,} points within {sizes['query_offset']} of the surface\n")
-    header = (f"{'method':<32} {'order':<9} {'queries':>10} {'seconds':>9} {'queries/s':>12} {'build (s)':>10}  note")
+    print(
+        f"target:   noisy torus, {sizes['target_vertices']:,} vertices, {sizes['target_triangles']:,} triangles; "
+        f"queries: {sizes['points']:,} points within {sizes['query_offset']} of the surface\n"
+    )
+    header = f"{'method':<32} {'order':<9} {'queries':>10} {'seconds':>9} {'queries/s':>12} {'build (s)':>10}  note"
     print(header)
     print("-" * (len(header) + 24))
     for row in rows:
         note = f"extrapolated from {row.measured_queries:,}" if row.extrapolated else ""
-        print(f"{row.method:<32} {row.order:<9} {row.queries:>10,} {row.seconds:>9.3f} "
-              f"{row.queries_per_second:>12,.0f} {row.build_seconds:>10.3f}  {note}")
-    print("\ncoherent: the points in mesh-vertex order (a second grid over the surface); "
-          "random: the same points shuffled.")
-    print("kernel: best of the repeats; build = TargetMesh(...) (the face tree; the vertex tree is built by prepare_all(), printed above).")
+        print(
+            f"{row.method:<32} {row.order:<9} {row.queries:>10,} {row.seconds:>9.3f} "
+            f"{row.queries_per_second:>12,.0f} {row.build_seconds:>10.3f}  {note}"
+        )
+    print(
+        "\ncoherent: the points in mesh-vertex order (a second grid over the surface); "
+        "random: the same points shuffled."
+    )
+    print(
+        "kernel: best of the repeats; build = TargetMesh(...) (the face tree; the vertex tree is built by prepare_all(), printed above)."
+    )
     print("Shrinkwrap: depsgraph evaluation + reading positions; build = first evaluation (Blender's target BVH).")
     print("mathutils: one find_nearest call per point in a Python loop; build = FromPolygons from Python lists.\n")
     print("checks:")
     for check in checks:
         status = "ok" if check.passed else "MISMATCH"
-        print(f"  {status:<8} {check.name}: max {check.max_difference:.3g} over {check.compared:,} "
-              f"(tolerance {check.tolerance:.3g})")
+        print(
+            f"  {status:<8} {check.name}: max {check.max_difference:.3g} over {check.compared:,} "
+            f"(tolerance {check.tolerance:.3g})"
+        )
 
 
 def main() -> int:
@@ -350,8 +416,14 @@ def main() -> int:
     permutation = np.random.default_rng(SEED).permutation(len(coherent))
     orders = {"coherent": coherent, "random": np.ascontiguousarray(coherent[permutation])}
     diagonal = float(np.linalg.norm(vertices.max(axis=0) - vertices.min(axis=0)))
-    sizes = {"target_vertices": len(vertices), "target_triangles": len(triangles), "points": len(coherent),
-             "mathutils_points": arguments.mathutils_points, "query_offset": QUERY_OFFSET, "seed": SEED}
+    sizes = {
+        "target_vertices": len(vertices),
+        "target_triangles": len(triangles),
+        "points": len(coherent),
+        "mathutils_points": arguments.mathutils_points,
+        "query_offset": QUERY_OFFSET,
+        "seed": SEED,
+    }
 
     kernel_rows, mesh, surface_hits, vertex_hits = measure_kernel(kernel, vertices, triangles, orders, arguments.repeat)
     shrinkwrap_rows, shrinkwrap_positions = measure_shrinkwrap(vertices, triangles, orders)
@@ -359,8 +431,17 @@ def main() -> int:
         vertices, triangles, orders, arguments.mathutils_points
     )
     rows = kernel_rows + shrinkwrap_rows + mathutils_rows
-    checks = run_checks(orders, permutation, mesh, surface_hits, vertex_hits, shrinkwrap_positions,
-                        mathutils_distances, vertex_list, DISTANCE_TOLERANCE * diagonal)
+    checks = run_checks(
+        orders,
+        permutation,
+        mesh,
+        surface_hits,
+        vertex_hits,
+        shrinkwrap_positions,
+        mathutils_distances,
+        vertex_list,
+        DISTANCE_TOLERANCE * diagonal,
+    )
 
     version_info = versions(kernel)
     print_report(machine, version_info, sizes, rows, checks)
@@ -370,8 +451,10 @@ def main() -> int:
             "versions": version_info,
             "finished_utc": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
             "sizes": sizes,
-            "results": [asdict(row) | {"queries_per_second": row.queries_per_second, "extrapolated": row.extrapolated}
-                        for row in rows],
+            "results": [
+                asdict(row) | {"queries_per_second": row.queries_per_second, "extrapolated": row.extrapolated}
+                for row in rows
+            ],
             "checks": [asdict(check) | {"passed": check.passed} for check in checks],
         }
         arguments.json.parent.mkdir(parents=True, exist_ok=True)

@@ -34,22 +34,40 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks.retarget import baselines, cases, data, metrics, scans  # noqa: E402
+from benchmarks.retarget import baselines, cases, data, metrics, scans
 
 SOLVERS = ("SPRINGS", "ENERGY")
 OFF_SURFACE_PERCENT = 0.1
-BODY_CASES = ("heavy", "heavy-holes", "heavy-noise", "heavy-noise-strong", "old-male", "old-male-holes", "young-female",
-              "head-nose", "expression", "heavy-posed")
+BODY_CASES = (
+    "heavy",
+    "heavy-holes",
+    "heavy-noise",
+    "heavy-noise-strong",
+    "old-male",
+    "old-male-holes",
+    "young-female",
+    "head-nose",
+    "expression",
+    "heavy-posed",
+)
 ALL_CASES = ("sphere-ellipsoid", "sphere-ellipsoid-holes", "sphere-bumps", *BODY_CASES)
 
 
 def parse_arguments(argv: list[str]) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--cases", nargs="*", default=list(ALL_CASES),
-                        help="case names (default: all but the mirror; none with `--cases` alone)")
-    parser.add_argument("--scans", nargs="*", metavar="SCAN",
-                        help="also the scans without a known answer: those named, or all with `--scans` alone "
-                             f"({', '.join(spec.name for spec in scans.SCAN_CASES)})")
+    parser.add_argument(
+        "--cases",
+        nargs="*",
+        default=list(ALL_CASES),
+        help="case names (default: all but the mirror; none with `--cases` alone)",
+    )
+    parser.add_argument(
+        "--scans",
+        nargs="*",
+        metavar="SCAN",
+        help="also the scans without a known answer: those named, or all with `--scans` alone "
+        f"({', '.join(spec.name for spec in scans.SCAN_CASES)})",
+    )
     parser.add_argument("--anchors", type=int, default=24, help="anchors per case (default 24)")
     parser.add_argument("--solvers", nargs="+", default=list(SOLVERS), choices=SOLVERS)
     parser.add_argument("--max-iterations", type=int, default=2000, help="iteration limit per solver")
@@ -63,21 +81,34 @@ def prepared(case, anchor_count: int):
     """(landmark vertices, their true positions, the aligned template) of ``case``."""
     marks = case.landmarks(anchor_count)
     anchors = case.true_positions[marks.vertices]
-    aligned = baselines.apply_matrix(baselines.umeyama(case.layout_vertices[marks.vertices], anchors),
-                                     case.layout_vertices).astype(np.float32)
+    aligned = baselines.apply_matrix(
+        baselines.umeyama(case.layout_vertices[marks.vertices], anchors), case.layout_vertices
+    ).astype(np.float32)
     return marks.vertices, anchors, aligned
 
 
-def measure(case, method: str, positions: np.ndarray, aligned: np.ndarray, landmark_vertices, target, seconds: float,
-            space_points: int, iterations: int, converged: bool) -> dict:
+def measure(
+    case,
+    method: str,
+    positions: np.ndarray,
+    aligned: np.ndarray,
+    landmark_vertices,
+    target,
+    seconds: float,
+    space_points: int,
+    iterations: int,
+    converged: bool,
+) -> dict:
     """One row: the metrics of ``positions`` on ``case``."""
-    measured = metrics.evaluate(positions, case.true_positions, case.layout_quads, target, case.over_hole,
-                                case.in_cavity, landmark_vertices)
+    measured = metrics.evaluate(
+        positions, case.true_positions, case.layout_quads, target, case.over_hole, case.in_cavity, landmark_vertices
+    )
     aligned_flips = int(metrics.flipped_quads(aligned, case.true_positions, case.layout_quads).sum())
     on_surface = ~case.over_hole & ~case.in_cavity
     off = metrics.surface_distances(positions, target) * 100.0 / measured.diagonal > OFF_SURFACE_PERCENT
-    folded, truth_folded = (folded_on_surface(case, target, points, measured.diagonal)
-                            for points in (positions, case.true_positions))
+    folded, truth_folded = (
+        folded_on_surface(case, target, points, measured.diagonal) for points in (positions, case.true_positions)
+    )
     return {
         "case": case.spec.name,
         "solver": method,
@@ -100,13 +131,21 @@ def folded_on_surface(case, target, positions: np.ndarray, diagonal: float) -> i
     """Quads of ``positions`` facing against the target triangle under their centre, where the centre is
     within ``OFF_SURFACE_PERCENT`` of the target: folds an artist sees on the surface, whatever the truth
     says (the truth itself faces against a remeshed target where the remesh merged its parts)."""
-    facing_flips, _over, distances = metrics.target_facing_flips(positions, case.layout_quads, target,
-                                                                 case.target_vertices, case.target_triangles)
+    facing_flips, _over, distances = metrics.target_facing_flips(
+        positions, case.layout_quads, target, case.target_vertices, case.target_triangles
+    )
     return int((facing_flips & (distances <= OFF_SURFACE_PERCENT * diagonal / 100.0)).sum())
 
 
-def wrap(target, quads: np.ndarray, aligned: np.ndarray, anchor_vertices: np.ndarray, anchor_positions: np.ndarray,
-         solver: str, max_iterations: int):
+def wrap(
+    target,
+    quads: np.ndarray,
+    aligned: np.ndarray,
+    anchor_vertices: np.ndarray,
+    anchor_positions: np.ndarray,
+    solver: str,
+    max_iterations: int,
+):
     """One kernel wrap of ``aligned`` onto ``target`` with face-point anchors at the target's closest
     points to ``anchor_positions``: (positions, the step's report, seconds)."""
     import springwrap_kernel as kernel
@@ -117,11 +156,17 @@ def wrap(target, quads: np.ndarray, aligned: np.ndarray, anchor_vertices: np.nda
     count = len(aligned)
     start = time.perf_counter()
     solver_object = kernel.WrapSolver(
-        target, structure, np.zeros(count, np.int32), np.full(count, -1, np.int32),
-        np.zeros((count, 3), np.float32), np.ascontiguousarray(aligned, dtype=np.float32),
+        target,
+        structure,
+        np.zeros(count, np.int32),
+        np.full(count, -1, np.int32),
+        np.zeros((count, 3), np.float32),
+        np.ascontiguousarray(aligned, dtype=np.float32),
         anchor_vertices=np.ascontiguousarray(anchor_vertices, dtype=np.uint32),
-        anchor_triangles=hits.triangles, anchor_barycentrics=hits.barycentrics,
-        anchor_positions=hits.positions, settings=kernel.WrapSettings(solver=solver),
+        anchor_triangles=hits.triangles,
+        anchor_barycentrics=hits.barycentrics,
+        anchor_positions=hits.positions,
+        settings=kernel.WrapSettings(solver=solver),
     )
     report = solver_object.step(max_iterations)
     return solver_object.positions(), report, time.perf_counter() - start
@@ -133,10 +178,21 @@ def wrap_case(case, anchor_count: int, solver: str, max_iterations: int) -> dict
 
     landmark_vertices, anchors, aligned = prepared(case, anchor_count)
     target = kernel.TargetMesh(case.target_vertices, case.target_triangles)
-    positions, report, seconds = wrap(target, case.layout_quads, aligned, landmark_vertices, anchors, solver,
-                                      max_iterations)
-    return measure(case, solver, positions, aligned, landmark_vertices, target, seconds,
-                   report.space_points, report.iterations, report.converged)
+    positions, report, seconds = wrap(
+        target, case.layout_quads, aligned, landmark_vertices, anchors, solver, max_iterations
+    )
+    return measure(
+        case,
+        solver,
+        positions,
+        aligned,
+        landmark_vertices,
+        target,
+        seconds,
+        report.space_points,
+        report.iterations,
+        report.converged,
+    )
 
 
 def nricp_case(case, anchor_count: int) -> dict:
@@ -146,8 +202,9 @@ def nricp_case(case, anchor_count: int) -> dict:
     landmark_vertices, anchors, aligned = prepared(case, anchor_count)
     target = kernel.TargetMesh(case.target_vertices, case.target_triangles)
     start = time.perf_counter()
-    positions, _notes = baselines.nricp_amberg(aligned.astype(np.float64), case.layout_quads, case.target_vertices,
-                                               landmark_vertices, anchors)
+    positions, _notes = baselines.nricp_amberg(
+        aligned.astype(np.float64), case.layout_quads, case.target_vertices, landmark_vertices, anchors
+    )
     seconds = time.perf_counter() - start
     return measure(case, "nricp", positions, aligned, landmark_vertices, target, seconds, len(positions), 0, True)
 
@@ -161,13 +218,30 @@ def aligned_scan_template(case) -> np.ndarray:
     return baselines.apply_matrix(matrix, case.template_vertices).astype(np.float32)
 
 
-def scan_row(case, method: str, positions: np.ndarray, aligned: np.ndarray, target, seconds: float,
-             space_points: int, iterations: int, converged: bool) -> dict:
+def scan_row(
+    case,
+    method: str,
+    positions: np.ndarray,
+    aligned: np.ndarray,
+    target,
+    seconds: float,
+    space_points: int,
+    iterations: int,
+    converged: bool,
+) -> dict:
     """One row of the scans' table: :func:`metrics.scan_metrics` of ``positions`` and the run's counts."""
-    measured = metrics.scan_metrics(positions, aligned, case.template_quads, target, case.target_vertices,
-                                    case.target_triangles)
-    return {"case": case.spec.name, "solver": method, **measured.row(), "space_points": space_points,
-            "iterations": iterations, "converged": converged, "seconds": seconds}
+    measured = metrics.scan_metrics(
+        positions, aligned, case.template_quads, target, case.target_vertices, case.target_triangles
+    )
+    return {
+        "case": case.spec.name,
+        "solver": method,
+        **measured.row(),
+        "space_points": space_points,
+        "iterations": iterations,
+        "converged": converged,
+        "seconds": seconds,
+    }
 
 
 def scan_rows(case, solvers: list[str], max_iterations: int, nricp: bool = False) -> list[dict]:
@@ -178,29 +252,49 @@ def scan_rows(case, solvers: list[str], max_iterations: int, nricp: bool = False
     aligned = aligned_scan_template(case)
     rows = [scan_row(case, "template", aligned, aligned, target, 0.0, len(aligned), 0, True)]
     for solver in solvers:
-        positions, report, seconds = wrap(target, case.template_quads, aligned, case.anchor_vertices,
-                                          case.anchor_positions, solver, max_iterations)
-        rows.append(scan_row(case, solver, positions, aligned, target, seconds, report.space_points,
-                             report.iterations, report.converged))
+        positions, report, seconds = wrap(
+            target, case.template_quads, aligned, case.anchor_vertices, case.anchor_positions, solver, max_iterations
+        )
+        rows.append(
+            scan_row(
+                case,
+                solver,
+                positions,
+                aligned,
+                target,
+                seconds,
+                report.space_points,
+                report.iterations,
+                report.converged,
+            )
+        )
     if nricp:
         start = time.perf_counter()
-        positions, _notes = baselines.nricp_amberg(aligned.astype(np.float64), case.template_quads,
-                                                   case.target_vertices, case.anchor_vertices, case.anchor_positions)
-        rows.append(scan_row(case, "nricp", positions, aligned, target, time.perf_counter() - start,
-                             len(positions), 0, True))
+        positions, _notes = baselines.nricp_amberg(
+            aligned.astype(np.float64),
+            case.template_quads,
+            case.target_vertices,
+            case.anchor_vertices,
+            case.anchor_positions,
+        )
+        rows.append(
+            scan_row(case, "nricp", positions, aligned, target, time.perf_counter() - start, len(positions), 0, True)
+        )
     return rows
 
 
 def scan_case_line(case) -> str:
     """A bullet saying what a scan case is made of (for the page)."""
     info = case.info
-    return (f"- **{case.spec.name}**: {case.spec.description}. Scan: {info['target_triangles']:,} triangles, "
-            f"{info['target_boundary_edges']:,} rim edges; template: {info['template_quads']:,} quads (voxel "
-            f"{case.spec.voxel_fraction * 100:.2f} % of the diagonal), smoothed {case.spec.smooth_iterations} times, "
-            f"pushed out by {case.spec.inflate_fraction * 100:g} % of the diagonal; its remeshed (unmoved) vertices "
-            "were "
-            f"{info['remeshed_to_scan_mean_percent']:.3f} % from the scan on average, the moved ones "
-            f"{info['moved_to_scan_mean_percent']:.2f} %.")
+    return (
+        f"- **{case.spec.name}**: {case.spec.description}. Scan: {info['target_triangles']:,} triangles, "
+        f"{info['target_boundary_edges']:,} rim edges; template: {info['template_quads']:,} quads (voxel "
+        f"{case.spec.voxel_fraction * 100:.2f} % of the diagonal), smoothed {case.spec.smooth_iterations} times, "
+        f"pushed out by {case.spec.inflate_fraction * 100:g} % of the diagonal; its remeshed (unmoved) vertices "
+        "were "
+        f"{info['remeshed_to_scan_mean_percent']:.3f} % from the scan on average, the moved ones "
+        f"{info['moved_to_scan_mean_percent']:.2f} %."
+    )
 
 
 # ---------------------------------------------------------------- the page
@@ -218,12 +312,12 @@ def page_sections(page: str) -> dict[str, str]:
         return {}
     markers = list(SECTION.finditer(body))
     sections = {}
-    leading = body[:markers[0].start()] if markers else body
+    leading = body[: markers[0].start()] if markers else body
     if leading.strip():
         sections["bodies"] = leading.strip("\n")
     for index, marker in enumerate(markers):
         end = markers[index + 1].start() if index + 1 < len(markers) else len(body)
-        sections[marker.group(1)] = body[marker.end():end].strip("\n")
+        sections[marker.group(1)] = body[marker.end() : end].strip("\n")
     return sections
 
 
@@ -245,10 +339,12 @@ def body_section(rows: list[dict], provenance: str = "") -> str:
         "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for row in rows:
-        lines.append(f"| {row['case']} | {row['solver']} | {row['mean']:.3f} | {row['p95']:.3f} | {row['max']:.3f} | "
-                     f"{row['flipped']} | {row['flips_added']} | {row['folded']} ({row['truth_folded']}) | "
-                     f"{row['off_surface']} | {row['space_points']} | "
-                     f"{row['iterations']} | {row['seconds']:.2f} |")
+        lines.append(
+            f"| {row['case']} | {row['solver']} | {row['mean']:.3f} | {row['p95']:.3f} | {row['max']:.3f} | "
+            f"{row['flipped']} | {row['flips_added']} | {row['folded']} ({row['truth_folded']}) | "
+            f"{row['off_surface']} | {row['space_points']} | "
+            f"{row['iterations']} | {row['seconds']:.2f} |"
+        )
     return "\n".join(lines)
 
 
@@ -288,12 +384,19 @@ def scan_section(rows: list[dict], provenance: str = "", case_lines: list[str] =
             f"{row['flipped_vs_target']} | {row['flipped_vs_target_on_surface']} | {row['area_p5']:.2f} | "
             f"{row['area_median']:.2f} | {row['area_p95']:.2f} | {row['edge_p5']:.2f} | {row['edge_p95']:.2f} | "
             f"{row['area_below'] + row['area_above']} / {row['edge_below'] + row['edge_above']} | "
-            f"{row['space_points']} | {row['iterations']} | {row['seconds']:.2f} |")
+            f"{row['space_points']} | {row['iterations']} | {row['seconds']:.2f} |"
+        )
     return "\n".join(lines)
 
 
-def markdown(rows: list[dict], provenance: str = "", scan_rows: list[dict] = (), scan_provenance: str = "",
-             scan_case_lines: list[str] = (), existing: str = "") -> str:
+def markdown(
+    rows: list[dict],
+    provenance: str = "",
+    scan_rows: list[dict] = (),
+    scan_provenance: str = "",
+    scan_case_lines: list[str] = (),
+    existing: str = "",
+) -> str:
     """The generated page: the body cases' section from ``rows`` and the scans' from ``scan_rows``; a
     section with no rows is taken from ``existing`` (the page as it was) when it has one, else left out.
     ``provenance`` (the commit, the load) is said under each regenerated section's text."""
@@ -319,13 +422,20 @@ def provenance() -> str:
     import subprocess
 
     try:
-        commit = subprocess.run(["git", "rev-parse", "--short=12", "HEAD"], capture_output=True, text=True,
-                                check=True, cwd=Path(__file__).resolve().parents[1]).stdout.strip()
+        commit = subprocess.run(
+            ["git", "rev-parse", "--short=12", "HEAD"],
+            capture_output=True,
+            text=True,
+            check=True,
+            cwd=Path(__file__).resolve().parents[1],
+        ).stdout.strip()
     except (OSError, subprocess.CalledProcessError):
         commit = "unknown"
     load = ", ".join(f"{value:.2f}" for value in os.getloadavg()) if hasattr(os, "getloadavg") else "unknown"
-    return (f"Run at commit `{commit}` on {os.cpu_count()} CPUs, load average (1, 5, 15 min) {load} at the end: "
-            "the machine was shared, so times are upper bounds.")
+    return (
+        f"Run at commit `{commit}` on {os.cpu_count()} CPUs, load average (1, 5, 15 min) {load} at the end: "
+        "the machine was shared, so times are upper bounds."
+    )
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -336,8 +446,10 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     body_specs = cases.case_specs(arguments.cases) if arguments.cases else []
     if body_specs:
-        print(f"{'case':<22} {'solver':<8} {'mean %':>8} {'p95 %':>8} {'max %':>8} {'flips':>6} {'added':>6} "
-              f"{'folded':>6} {'off':>6} {'space':>6} {'iter':>6} {'s':>7}")
+        print(
+            f"{'case':<22} {'solver':<8} {'mean %':>8} {'p95 %':>8} {'max %':>8} {'flips':>6} {'added':>6} "
+            f"{'folded':>6} {'off':>6} {'space':>6} {'iter':>6} {'s':>7}"
+        )
     for spec in body_specs:
         case, _ = cases.get_case(spec, cache)
         anchor_count = min(arguments.anchors, len(case.landmark_names))
@@ -348,15 +460,20 @@ def main(argv: list[str] | None = None) -> int:
             else:
                 row = wrap_case(case, anchor_count, solver, arguments.max_iterations)
             rows.append(row)
-            print(f"{row['case']:<22} {solver:<8} {row['mean']:8.3f} {row['p95']:8.3f} {row['max']:8.3f} "
-                  f"{row['flipped']:6d} {row['flips_added']:6d} {row['folded']:6d} {row['off_surface']:6d} {row['space_points']:6d} "
-                  f"{row['iterations']:6d} {row['seconds']:7.2f}", flush=True)
+            print(
+                f"{row['case']:<22} {solver:<8} {row['mean']:8.3f} {row['p95']:8.3f} {row['max']:8.3f} "
+                f"{row['flipped']:6d} {row['flips_added']:6d} {row['folded']:6d} {row['off_surface']:6d} {row['space_points']:6d} "
+                f"{row['iterations']:6d} {row['seconds']:7.2f}",
+                flush=True,
+            )
     body_provenance = provenance() if rows else ""
     found_scans, case_lines = [], []
     if arguments.scans is not None:
-        print(f"{'scan':<16} {'solver':<8} {'mean %':>7} {'p95 %':>7} {'max %':>7} {'off':>5} {'flipT':>5} "
-              f"{'flipS':>5} {'onS':>5} {'area p5/50/95':>15} {'edge p5/95':>10} {'out':>7} {'space':>6} {'iter':>5} "
-              f"{'s':>6}")
+        print(
+            f"{'scan':<16} {'solver':<8} {'mean %':>7} {'p95 %':>7} {'max %':>7} {'off':>5} {'flipT':>5} "
+            f"{'flipS':>5} {'onS':>5} {'area p5/50/95':>15} {'edge p5/95':>10} {'out':>7} {'space':>6} {'iter':>5} "
+            f"{'s':>6}"
+        )
     for spec in scans.scan_specs(arguments.scans) if arguments.scans is not None else []:
         case, _ = scans.get_scan(spec, cache)
         anchor_count = min(arguments.anchors, len(case.anchor_vertices))
@@ -366,22 +483,27 @@ def main(argv: list[str] | None = None) -> int:
         case_lines.append(scan_case_line(case))
         for row in scan_rows(case, arguments.solvers, arguments.max_iterations, arguments.nricp):
             found_scans.append(row)
-            print(f"{row['case']:<16} {row['solver']:<8} {row['distance_mean']:7.3f} {row['distance_p95']:7.3f} "
-                  f"{row['distance_max']:7.3f} {row['off_surface']:5d} {row['flipped_vs_template']:5d} "
-                  f"{row['flipped_vs_target']:5d} {row['flipped_vs_target_on_surface']:5d} "
-                  f"{row['area_p5']:5.2f}/{row['area_median']:4.2f}/{row['area_p95']:4.2f} "
-                  f"{row['edge_p5']:4.2f}/{row['edge_p95']:4.2f} "
-                  f"{row['area_below'] + row['area_above']:3d}/{row['edge_below'] + row['edge_above']:<3d} "
-                  f"{row['space_points']:6d} {row['iterations']:5d} {row['seconds']:6.2f}", flush=True)
+            print(
+                f"{row['case']:<16} {row['solver']:<8} {row['distance_mean']:7.3f} {row['distance_p95']:7.3f} "
+                f"{row['distance_max']:7.3f} {row['off_surface']:5d} {row['flipped_vs_template']:5d} "
+                f"{row['flipped_vs_target']:5d} {row['flipped_vs_target_on_surface']:5d} "
+                f"{row['area_p5']:5.2f}/{row['area_median']:4.2f}/{row['area_p95']:4.2f} "
+                f"{row['edge_p5']:4.2f}/{row['edge_p95']:4.2f} "
+                f"{row['area_below'] + row['area_above']:3d}/{row['edge_below'] + row['edge_above']:<3d} "
+                f"{row['space_points']:6d} {row['iterations']:5d} {row['seconds']:6.2f}",
+                flush=True,
+            )
     if arguments.json:
         arguments.json.parent.mkdir(parents=True, exist_ok=True)
-        arguments.json.write_text(json.dumps({"benchmark": "wrap_solvers", "rows": rows, "scan_rows": found_scans},
-                                             indent=1))
+        arguments.json.write_text(
+            json.dumps({"benchmark": "wrap_solvers", "rows": rows, "scan_rows": found_scans}, indent=1)
+        )
     if arguments.markdown:
         arguments.markdown.parent.mkdir(parents=True, exist_ok=True)
         existing = arguments.markdown.read_text() if arguments.markdown.is_file() else ""
-        arguments.markdown.write_text(markdown(rows, body_provenance, found_scans, provenance() if found_scans else "",
-                                               case_lines, existing))
+        arguments.markdown.write_text(
+            markdown(rows, body_provenance, found_scans, provenance() if found_scans else "", case_lines, existing)
+        )
     return 0
 
 

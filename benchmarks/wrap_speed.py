@@ -1,4 +1,4 @@
-"""How fast the wrap is (issue 3, item 10): three measurements, none of them a test.
+"""How fast the wrap is: three measurements, none of them a test.
 
 1. **Body**: the MakeHuman quad body (13,380 vertices, 13,378 quads) onto the same body with the
    ``heavy`` morph (macro weight and muscle), placed elsewhere and voxel-remeshed to ~200k
@@ -129,7 +129,6 @@ def measure_live(case, vertices, triangles, seconds_limit: float = 20.0) -> dict
 def measure_large(max_iterations: int, seconds_limit: float) -> dict:
     """A 2048 x 2048 spring (256 x 256 at resolution 8) on a 1M-triangle torus, through the kernel."""
     import springwrap_kernel
-
     from benchmarks import _noisy_torus
 
     sys.path.insert(0, str(REPOSITORY / "addon"))
@@ -155,14 +154,23 @@ def measure_large(max_iterations: int, seconds_limit: float) -> dict:
         fine.topology.vertex_count, fine.topology.face_corners, fine.topology.face_sizes
     )
     solver = springwrap_kernel.WrapSolver(
-        target, structure, np.ones(len(positions), np.int32), hits.triangles.astype(np.int32), hits.barycentrics,
-        hits.positions, rest_positions=positions,
+        target,
+        structure,
+        np.ones(len(positions), np.int32),
+        hits.triangles.astype(np.int32),
+        hits.barycentrics,
+        hits.positions,
+        rest_positions=positions,
     )
     setup = time.perf_counter() - build
     start = time.perf_counter()
     report = solver.step(1)
     first = time.perf_counter() - start
-    while not report.converged and report.total_iterations < max_iterations and time.perf_counter() - start < seconds_limit:
+    while (
+        not report.converged
+        and report.total_iterations < max_iterations
+        and time.perf_counter() - start < seconds_limit
+    ):
         report = solver.step(10)
     seconds = time.perf_counter() - start
     return {
@@ -187,15 +195,20 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", type=Path, default=REPOSITORY / "out" / "bench" / "wrap_speed.json")
     arguments = parser.parse_args(argv)
 
-    import bpy  # noqa: F401  (the add-on and the remesh need it)
+    import bpy
+
     import addon_utils
 
     if addon_utils.enable("springwrap", default_set=True, handle_error=None) is None:
         print("wrap_speed: the springwrap add-on does not enable: run `make setup`", file=sys.stderr)
         return 1
     results = {
-        "machine": {"cpu": platform.processor() or platform.machine(), "cores": os.cpu_count(),
-                    "python": platform.python_version(), "bpy": bpy.app.version_string},
+        "machine": {
+            "cpu": platform.processor() or platform.machine(),
+            "cores": os.cpu_count(),
+            "python": platform.python_version(),
+            "bpy": bpy.app.version_string,
+        },
         "started_utc": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
     }
     case, vertices, triangles, voxel = body_case()
@@ -203,22 +216,31 @@ def main(argv: list[str] | None = None) -> int:
     body = measure_body(case, vertices, triangles)
     results["body"] = body
     wrap = body["wrap"]
-    print(f"body wrap: {wrap['iterations']} iterations ({'converged' if wrap['converged'] else 'not converged'}), "
-          f"wrap {wrap['wrap_seconds']:.2f} s ({wrap['iterations_per_second']:.0f} it/s), operators "
-          f"{body['operators_seconds']:.2f} s; error mean {body['error_percent_mean']:.3f} % p95 "
-          f"{body['error_percent_p95']:.3f} % of the diagonal, {body['flipped_quads']} flipped quads "
-          f"(aim: 1 s)", flush=True)
+    print(
+        f"body wrap: {wrap['iterations']} iterations ({'converged' if wrap['converged'] else 'not converged'}), "
+        f"wrap {wrap['wrap_seconds']:.2f} s ({wrap['iterations_per_second']:.0f} it/s), operators "
+        f"{body['operators_seconds']:.2f} s; error mean {body['error_percent_mean']:.3f} % p95 "
+        f"{body['error_percent_p95']:.3f} % of the diagonal, {body['flipped_quads']} flipped quads "
+        f"(aim: 1 s)",
+        flush=True,
+    )
     live = measure_live(case, vertices, triangles)
     results["live"] = live
-    print(f"live wrap: {live['frames_per_second']:.1f} frames/s, {live['iterations_per_second']:.0f} it/s over "
-          f"{live['seconds']:.1f} s ({'finished' if live['finished'] else 'time cap'}) (aim: 30 frames/s)", flush=True)
+    print(
+        f"live wrap: {live['frames_per_second']:.1f} frames/s, {live['iterations_per_second']:.0f} it/s over "
+        f"{live['seconds']:.1f} s ({'finished' if live['finished'] else 'time cap'}) (aim: 30 frames/s)",
+        flush=True,
+    )
     if arguments.large:
         large = measure_large(arguments.large_iterations, arguments.large_seconds)
         results["large"] = large
-        print(f"large spring: {large['spring_points']} points on {large['target_triangles']} triangles: "
-              f"setup {large['setup_seconds']:.1f} s, {large['seconds_per_iteration'] * 1000:.0f} ms per iteration, "
-              f"{large['iterations']} iterations in {large['seconds']:.1f} s "
-              f"({'converged' if large['converged'] else 'cap reached'}) (aim: 30 s)", flush=True)
+        print(
+            f"large spring: {large['spring_points']} points on {large['target_triangles']} triangles: "
+            f"setup {large['setup_seconds']:.1f} s, {large['seconds_per_iteration'] * 1000:.0f} ms per iteration, "
+            f"{large['iterations']} iterations in {large['seconds']:.1f} s "
+            f"({'converged' if large['converged'] else 'cap reached'}) (aim: 30 s)",
+            flush=True,
+        )
     results["load_average_end"] = os.getloadavg()
     arguments.json.parent.mkdir(parents=True, exist_ok=True)
     arguments.json.write_text(json.dumps(results, indent=2))

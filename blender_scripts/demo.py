@@ -30,7 +30,7 @@ from mathutils import Euler, Matrix, Vector
 from mathutils.bvhtree import BVHTree
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # `blender --python` does not add it
-from headless import EXIT_OK, enable_addon, failed, script_arguments  # noqa: E402
+from headless import EXIT_OK, enable_addon, failed, script_arguments
 
 REPOSITORY_ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_OUTPUT = REPOSITORY_ROOT / "out" / "demo.blend"
@@ -277,8 +277,13 @@ def measure(step: str, seconds: float | None, layout: bpy.types.Object, probe: T
     on_rim = distance_to_segments(nearest, probe.rim_starts, probe.rim_ends) < probe.tolerance
     off_surface = distances > probe.tolerance
     return StepReport(
-        step, seconds, face_point_count(layout), float(distances.mean()), float(distances.max()),
-        over_hole=int((on_rim & off_surface).sum()), on_rim=int((on_rim & ~off_surface).sum()),
+        step,
+        seconds,
+        face_point_count(layout),
+        float(distances.mean()),
+        float(distances.max()),
+        over_hole=int((on_rim & off_surface).sum()),
+        on_rim=int((on_rim & ~off_surface).sum()),
     )
 
 
@@ -323,8 +328,10 @@ def check_wrap(wrapped: bpy.types.Object, probe: TargetProbe, vertex_count: int)
     missed = np.linalg.norm(points[vertices] - locations, axis=1).max() if len(anchors) else 0.0
     if missed > probe.tolerance:
         raise RuntimeError(f"after the wrap an anchored vertex is {missed:.3g} from its anchor")
-    print(f"wrap: {on_face.sum()} of {vertex_count} vertices on the target (face-points within "
-          f"{off_surface:.2e}), {len(anchors)} anchors met within {missed:.2e}")
+    print(
+        f"wrap: {on_face.sum()} of {vertex_count} vertices on the target (face-points within "
+        f"{off_surface:.2e}), {len(anchors)} anchors met within {missed:.2e}"
+    )
 
 
 # ---------------------------------------------------------------- main
@@ -347,17 +354,26 @@ def run(output: Path) -> None:
         f"target: Suzanne, {cut_faces} faces cut, subdivision {SUBDIVISION_LEVELS} + cloud displace, "
         f"{probe.triangle_count} evaluated triangles, {len(probe.rim_starts)} hole-rim edges"
     )
-    print(f"layout: Suzanne's quads, {vertex_count} vertices, {len(layout.data.polygons)} faces, "
-          f"moved {LAYOUT_OFFSET.length:g} and scaled {LAYOUT_SCALE:g}")
+    print(
+        f"layout: Suzanne's quads, {vertex_count} vertices, {len(layout.data.polygons)} faces, "
+        f"moved {LAYOUT_OFFSET.length:g} and scaled {LAYOUT_SCALE:g}"
+    )
     print(f"distances: world space, to the evaluated target (mathutils BVHTree); tolerance {probe.tolerance:.2e}\n")
 
     operators = bpy.ops.springwrap
     reports = [measure("template (as placed)", None, layout, probe)]
     reports.append(run_step("detach", operators.detach, layout, probe, only_selected=False))
     reports.append(
-        run_step(f"project (NORMAL, <={PROJECT_MAX_DISTANCE:g})", operators.project, layout, probe,
-                 direction="NORMAL", only_selected=False, both_directions=True,
-                 max_distance=PROJECT_MAX_DISTANCE)
+        run_step(
+            f"project (NORMAL, <={PROJECT_MAX_DISTANCE:g})",
+            operators.project,
+            layout,
+            probe,
+            direction="NORMAL",
+            only_selected=False,
+            both_directions=True,
+            max_distance=PROJECT_MAX_DISTANCE,
+        )
     )
     reports.append(
         run_step("snap (SURFACE)", operators.snap, layout, probe, mode="SURFACE", only_selected=False, max_distance=0.0)
@@ -373,15 +389,28 @@ def run(output: Path) -> None:
     reports.append(measure("copy of the template", None, wrapped, probe))
     reports.append(run_step("detach (copy)", operators.detach, wrapped, probe, only_selected=False))
     reports.append(
-        run_step(f"anchors_auto (spacing {WRAP_ANCHOR_SPACING:g})", operators.anchors_auto, wrapped, probe,
-                 spacing=WRAP_ANCHOR_SPACING, method="CLOSEST", replace=True)
+        run_step(
+            f"anchors_auto (spacing {WRAP_ANCHOR_SPACING:g})",
+            operators.anchors_auto,
+            wrapped,
+            probe,
+            spacing=WRAP_ANCHOR_SPACING,
+            method="CLOSEST",
+            replace=True,
+        )
     )
-    reports.append(run_step(f"wrap (<={WRAP_MAX_ITERATIONS} iterations)", operators.wrap, wrapped, probe,
-                            max_iterations=WRAP_MAX_ITERATIONS))
+    reports.append(
+        run_step(
+            f"wrap (<={WRAP_MAX_ITERATIONS} iterations)",
+            operators.wrap,
+            wrapped,
+            probe,
+            max_iterations=WRAP_MAX_ITERATIONS,
+        )
+    )
     print()
     print_table(reports, vertex_count)
-    print("over hole: vertices off the surface whose nearest target point is on the hole's rim "
-          "(no surface under them)")
+    print("over hole: vertices off the surface whose nearest target point is on the hole's rim (no surface under them)")
     print("on rim: vertices on the surface, on the hole's rim")
     print("from 'copy of the template' on: a second copy of the template, 'Wrapped', for the wrap")
 

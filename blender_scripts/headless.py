@@ -50,8 +50,9 @@ def enable_addon():
     unless it is on already; its package. Raises :class:`ScriptError` when it cannot be enabled."""
     import addon_utils
 
-    names = ["springwrap"] + [module.__name__ for module in addon_utils.modules()
-                              if module.__name__.endswith(".springwrap")]
+    names = ["springwrap"] + [
+        module.__name__ for module in addon_utils.modules() if module.__name__.endswith(".springwrap")
+    ]
     for name in names:
         if addon_utils.check(name)[1]:  # already on (a batch worker's second mesh)
             return sys.modules[name]

@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 import bpy  # noqa: F401  (must come first: addon_utils needs a running bpy)
+
 import addon_utils
 
 ADDON_SOURCE = Path(__file__).resolve().parent.parent / "addon" / "springwrap"

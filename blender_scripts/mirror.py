@@ -29,8 +29,8 @@ from pathlib import Path
 import bpy
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # `blender --python` does not add it
-from headless import EXIT_OK, ScriptError, addon_module, failed, script_arguments  # noqa: E402
-from retarget import Laps, distances_to_target, kernel_wrap_defaults, load_mesh, run_operator, write_outputs  # noqa: E402
+from headless import EXIT_OK, ScriptError, addon_module, failed, script_arguments
+from scene_io import Laps, distances_to_target, kernel_wrap_defaults, load_mesh, run_operator, write_outputs
 
 
 def parse_arguments(argv: list[str]) -> argparse.Namespace:
@@ -43,17 +43,29 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("--target-object", help="the target's object in a .blend")
     parser.add_argument("--axis", choices=("X", "Y", "Z"), default="X", help="the mirror plane's axis (default X)")
     parser.add_argument("--mirror-object", help="an object of the layout's .blend whose local plane is the mirror")
-    parser.add_argument("--weld-distance", type=float, default=0.1,
-                        help="seam: vertices this close to the plane, fraction of their edge length (default 0.1)")
+    parser.add_argument(
+        "--weld-distance",
+        type=float,
+        default=0.1,
+        help="seam: vertices this close to the plane, fraction of their edge length (default 0.1)",
+    )
     parser.add_argument("--seam", choices=("SLIDE", "HOLD"), default="SLIDE", help="seam during the wrap")
-    parser.add_argument("--surfaced-half", choices=("PIN", "FREE"), default="PIN",
-                        help="the half that was there: pinned (default) or wrapped too")
+    parser.add_argument(
+        "--surfaced-half",
+        choices=("PIN", "FREE"),
+        default="PIN",
+        help="the half that was there: pinned (default) or wrapped too",
+    )
     parser.add_argument("--no-mirror-anchors", action="store_true", help="do not mirror the anchors")
     parser.add_argument("--no-wrap", action="store_true", help="only mirror")
     parser.add_argument("--snap", action="store_true", help="snap the layout onto the target first")
     parser.add_argument("--max-iterations", type=int, default=2000, help="wrap iteration limit (default 2000)")
-    parser.add_argument("--tolerance", type=float, default=defaults.tolerance,
-                        help="convergence, fraction of the layout's size (default %(default)s)")
+    parser.add_argument(
+        "--tolerance",
+        type=float,
+        default=defaults.tolerance,
+        help="convergence, fraction of the layout's size (default %(default)s)",
+    )
     parser.add_argument("--output-blend", type=Path, help="save layout, target and result here")
     parser.add_argument("--output-obj", type=Path, help="export the mirrored layout here")
     parser.add_argument("--report", type=Path, help="write the JSON report here")
@@ -105,34 +117,63 @@ def mirror(arguments: argparse.Namespace) -> dict:
     if arguments.snap:
         run_operator(blame, "snap")
         lap("snap")
-    run_operator(blame, "mirror", axis=arguments.axis, mirror_object=mirror_object, weld_distance=arguments.weld_distance,
-         wrap=not arguments.no_wrap, seam=arguments.seam, surfaced_half=arguments.surfaced_half,
-         mirror_anchors=not arguments.no_mirror_anchors, max_iterations=arguments.max_iterations,
-         tolerance=arguments.tolerance)
+    run_operator(
+        blame,
+        "mirror",
+        axis=arguments.axis,
+        mirror_object=mirror_object,
+        weld_distance=arguments.weld_distance,
+        wrap=not arguments.no_wrap,
+        seam=arguments.seam,
+        surfaced_half=arguments.surfaced_half,
+        mirror_anchors=not arguments.no_mirror_anchors,
+        max_iterations=arguments.max_iterations,
+        tolerance=arguments.tolerance,
+    )
     outcome = SPRINGWRAP_OT_mirror.last_outcome
     lap("mirror and wrap")
     if outcome.crossing_faces.size:
-        warnings.append(f"{outcome.crossing_faces.size} faces cross the mirror plane (their mirror overlaps them): "
-                        f"faces {outcome.crossing_faces[:20].tolist()}")
+        warnings.append(
+            f"{outcome.crossing_faces.size} faces cross the mirror plane (their mirror overlaps them): "
+            f"faces {outcome.crossing_faces[:20].tolist()}"
+        )
     wrap = None
     if outcome.wrap is not None:
-        wrap = {"iterations": outcome.wrap.iterations, "converged": outcome.wrap.converged,
-                "face_points": outcome.wrap.face_points, "space_points": outcome.wrap.space_points,
-                "kernel_seconds": round(outcome.wrap.kernel_seconds, 4)}
+        wrap = {
+            "iterations": outcome.wrap.iterations,
+            "converged": outcome.wrap.converged,
+            "face_points": outcome.wrap.face_points,
+            "space_points": outcome.wrap.space_points,
+            "kernel_seconds": round(outcome.wrap.kernel_seconds, 4),
+        }
         if not outcome.wrap.converged:
-            warnings.append(f"the wrap did not converge within {arguments.max_iterations} iterations; the result is kept")
+            warnings.append(
+                f"the wrap did not converge within {arguments.max_iterations} iterations; the result is kept"
+            )
         if outcome.wrap.space_points:
             warnings.append(f"{outcome.wrap.space_points} of {outcome.vertices} vertices are off the surface")
     report = {
-        "layout": str(arguments.layout), "target": str(arguments.target) if arguments.target else None,
-        "plane": {"axis": arguments.axis, "object": outcome.plane_owner, "point": outcome.plane.point.tolist(),
-                  "normal": outcome.plane.normal.tolist()},
-        "vertices_before": outcome.original_vertices, "vertices": outcome.vertices, "new_vertices": outcome.copies,
-        "seam_vertices": outcome.seam_vertices, "seam_max_distance_to_plane": outcome.seam_max_distance,
-        "crossing_faces": outcome.crossing_faces.tolist(), "anchors_mirrored": outcome.mirrored_anchors,
-        "anchors_dropped": outcome.dropped_anchors, "wrap": wrap,
+        "layout": str(arguments.layout),
+        "target": str(arguments.target) if arguments.target else None,
+        "plane": {
+            "axis": arguments.axis,
+            "object": outcome.plane_owner,
+            "point": outcome.plane.point.tolist(),
+            "normal": outcome.plane.normal.tolist(),
+        },
+        "vertices_before": outcome.original_vertices,
+        "vertices": outcome.vertices,
+        "new_vertices": outcome.copies,
+        "seam_vertices": outcome.seam_vertices,
+        "seam_max_distance_to_plane": outcome.seam_max_distance,
+        "crossing_faces": outcome.crossing_faces.tolist(),
+        "anchors_mirrored": outcome.mirrored_anchors,
+        "anchors_dropped": outcome.dropped_anchors,
+        "wrap": wrap,
         "metrics": distances_to_target(layout, target) if target is not None else None,
-        "timings": timings, "warnings": warnings, "blender": bpy.app.version_string,
+        "timings": timings,
+        "warnings": warnings,
+        "blender": bpy.app.version_string,
     }
     lap("metrics")
     write_outputs(arguments, layout, report)
@@ -146,9 +187,11 @@ def main() -> int:
     except Exception as error:  # noqa: BLE001 - any failure must become a non-zero exit code, also under `blender -b`
         return failed("mirror", error)
     wrap = report["wrap"]
-    print(f"mirror: {report['vertices']} vertices ({report['new_vertices']} new, {report['seam_vertices']} on the seam)"
-          + (f", wrapped in {wrap['iterations']} iterations" if wrap else "")
-          + "".join(f"\n  warning: {line}" for line in report["warnings"]))
+    print(
+        f"mirror: {report['vertices']} vertices ({report['new_vertices']} new, {report['seam_vertices']} on the seam)"
+        + (f", wrapped in {wrap['iterations']} iterations" if wrap else "")
+        + "".join(f"\n  warning: {line}" for line in report["warnings"])
+    )
     return EXIT_OK
 
 

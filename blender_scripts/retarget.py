@@ -44,11 +44,12 @@ import os
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import bpy
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # `blender --python` does not add it
-from headless import (  # noqa: E402
+from headless import (
     EXIT_BATCH_FAILURES,
     EXIT_INTERRUPTED,
     EXIT_OK,
@@ -58,29 +59,26 @@ from headless import (  # noqa: E402
     failed,
     partial_path,
     script_arguments,
-    write_all_or_nothing,
     write_atomically,
 )
+from scene_io import (
+    MESH_SUFFIXES,
+    Laps,
+    distances_to_target,
+    kernel_wrap_defaults,
+    load_mesh,
+    run_operator,
+    world_vertices,
+    write_outputs,
+)
 
-MESH_SUFFIXES = (".obj", ".ply", ".glb", ".gltf", ".blend")
+if TYPE_CHECKING:
+    pass
+
 OUTPUT_SUFFIXES = ("blend", "obj", "json")  # a batch's outputs per mesh: OUT/<name>.<suffix>
 WORKER_FLAG = "--batch-worker"
 SCRIPTS_FOLDER = Path(__file__).resolve().parent
 LAYOUT_NAME = "Retargeted"
-
-
-def kernel_wrap_defaults():
-    """``springwrap_kernel.WrapSettings()``: the wrap's defaults, defined once, in the kernel.
-
-    The kernel comes with the add-on (the legacy zip carries it in the add-on's folder), so the
-    add-on is enabled first when the kernel cannot be imported by itself.
-    """
-    try:
-        import springwrap_kernel
-    except ImportError:
-        enable_addon()
-        import springwrap_kernel
-    return springwrap_kernel.WrapSettings()
 
 
 def wrap_settings(arguments: argparse.Namespace):
@@ -89,8 +87,12 @@ def wrap_settings(arguments: argparse.Namespace):
     import springwrap_kernel
 
     return springwrap_kernel.WrapSettings(
-        tolerance=arguments.tolerance, fairness=arguments.fairness, arc_length=arguments.arc_length,
-        thin_plate=arguments.thin_plate, solver=arguments.solver.upper())
+        tolerance=arguments.tolerance,
+        fairness=arguments.fairness,
+        arc_length=arguments.arc_length,
+        thin_plate=arguments.thin_plate,
+        solver=arguments.solver.upper(),
+    )
 
 
 def parse_arguments(argv: list[str]) -> argparse.Namespace:
@@ -106,41 +108,79 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     anchors = parser.add_mutually_exclusive_group()
     anchors.add_argument("--anchors", type=Path, help="JSON file of layout-vertex -> target-point pairs")
     anchors.add_argument("--anchors-spacing", type=float, help="spread anchors automatically (0: automatic spacing)")
-    parser.add_argument("--align", choices=("none", "bounds", "icp", "anchors"), default="none",
-                        help="alignment: none, bounds (box centre and size), icp (bounds, then ICP), "
-                        "anchors (fit to --anchors, then ICP) (default none)")
-    parser.add_argument("--align-method", choices=("rigid", "similarity", "affine"), default="similarity",
-                        help="transform of --align icp / anchors (default similarity; ICP alone: rigid or similarity)")
+    parser.add_argument(
+        "--align",
+        choices=("none", "bounds", "icp", "anchors"),
+        default="none",
+        help="alignment: none, bounds (box centre and size), icp (bounds, then ICP), "
+        "anchors (fit to --anchors, then ICP) (default none)",
+    )
+    parser.add_argument(
+        "--align-method",
+        choices=("rigid", "similarity", "affine"),
+        default="similarity",
+        help="transform of --align icp / anchors (default similarity; ICP alone: rigid or similarity)",
+    )
     parser.add_argument("--max-iterations", type=int, default=2000, help="wrap iteration limit (default 2000)")
     # The wrap's settings: their defaults are the kernel's.
-    parser.add_argument("--tolerance", type=float, default=defaults.tolerance,
-                        help="convergence, fraction of the layout's size (default %(default)s)")
-    parser.add_argument("--fairness", type=float, default=defaults.fairness,
-                        help="straight grid lines, 0 to 1 (default %(default)s)")
-    parser.add_argument("--arc-length", type=float, default=defaults.arc_length,
-                        help="even spacing along grid lines, 0 to 1 (default %(default)s)")
-    parser.add_argument("--thin-plate", type=float, default=defaults.thin_plate,
-                        help="curvature over holes, 0 to 0.5 (default %(default)s)")
-    parser.add_argument("--solver", choices=("springs", "energy"), default=defaults.solver.lower(),
-                        help="the wrap's algorithm: the paper's force iteration, or one energy by a global solve "
-                        "(default %(default)s)")
-    parser.add_argument("--stiffness-group", default="",
-                        help="the template's vertex group of per-vertex stiffness, energy solver only (weight 0 "
-                        "follows the target freely, 0.5 as the others, 1 keeps the template's shape)")
-    parser.add_argument("--free-group", default="",
-                        help="the template's vertex group with no pull toward the target, energy solver only "
-                        "(sockets, teeth: they follow their neighbours and stay off the surface)")
+    parser.add_argument(
+        "--tolerance",
+        type=float,
+        default=defaults.tolerance,
+        help="convergence, fraction of the layout's size (default %(default)s)",
+    )
+    parser.add_argument(
+        "--fairness", type=float, default=defaults.fairness, help="straight grid lines, 0 to 1 (default %(default)s)"
+    )
+    parser.add_argument(
+        "--arc-length",
+        type=float,
+        default=defaults.arc_length,
+        help="even spacing along grid lines, 0 to 1 (default %(default)s)",
+    )
+    parser.add_argument(
+        "--thin-plate",
+        type=float,
+        default=defaults.thin_plate,
+        help="curvature over holes, 0 to 0.5 (default %(default)s)",
+    )
+    parser.add_argument(
+        "--solver",
+        choices=("springs", "energy"),
+        default=defaults.solver.lower(),
+        help="the wrap's algorithm: the paper's force iteration, or one energy by a global solve (default %(default)s)",
+    )
+    parser.add_argument(
+        "--stiffness-group",
+        default="",
+        help="the template's vertex group of per-vertex stiffness, energy solver only (weight 0 "
+        "follows the target freely, 0.5 as the others, 1 keeps the template's shape)",
+    )
+    parser.add_argument(
+        "--free-group",
+        default="",
+        help="the template's vertex group with no pull toward the target, energy solver only "
+        "(sockets, teeth: they follow their neighbours and stay off the surface)",
+    )
     parser.add_argument("--output-blend", type=Path, help="save template, target and result here")
     parser.add_argument("--output-obj", type=Path, help="export the retargeted layout here")
     parser.add_argument("--report", type=Path, help="write the JSON report here")
     parser.add_argument("--output-dir", type=Path, help="batch: where each mesh's outputs and summary.json go")
-    parser.add_argument("--jobs", type=int, help="batch: workers at a time (default: local 1; ray, one per CPU "
-                        "of the cluster)")
-    parser.add_argument("--executor", choices=("local", "ray"), default="local",
-                        help="batch: worker processes on this machine, or Ray actors (default local)")
+    parser.add_argument(
+        "--jobs", type=int, help="batch: workers at a time (default: local 1; ray, one per CPU of the cluster)"
+    )
+    parser.add_argument(
+        "--executor",
+        choices=("local", "ray"),
+        default="local",
+        help="batch: worker processes on this machine, or Ray actors (default local)",
+    )
     parser.add_argument("--address", help="batch, --executor ray: the cluster's address (default: start Ray here)")
-    parser.add_argument("--resume", action="store_true",
-                        help="batch: skip the meshes whose .blend, .obj and report are already in --output-dir")
+    parser.add_argument(
+        "--resume",
+        action="store_true",
+        help="batch: skip the meshes whose .blend, .obj and report are already in --output-dir",
+    )
     arguments = parser.parse_args(script_arguments(argv, __file__))
     if arguments.max_iterations < 1:
         parser.error("--max-iterations must be at least 1")
@@ -171,74 +211,6 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
 # ---------------------------------------------------------------- loading
 
 
-def _import_file(path: Path) -> None:
-    """Run the importer for ``path``'s format."""
-    import addon_utils
-
-    suffix = path.suffix.lower()
-    if suffix == ".obj":
-        bpy.ops.wm.obj_import(filepath=str(path))
-    elif suffix == ".ply":
-        if bpy.app.version >= (4, 0, 0):
-            bpy.ops.wm.ply_import(filepath=str(path))
-        else:
-            addon_utils.enable("io_mesh_ply", default_set=True, handle_error=None)
-            bpy.ops.import_mesh.ply(filepath=str(path))
-    elif suffix in (".glb", ".gltf"):
-        addon_utils.enable("io_scene_gltf2", default_set=True, handle_error=None)
-        bpy.ops.import_scene.gltf(filepath=str(path))
-    else:
-        raise ScriptError(f"{path}: not a mesh file ({', '.join(MESH_SUFFIXES)})")
-
-
-def _only_mesh(objects: list, path: Path, object_name) -> "bpy.types.Object":
-    meshes = [obj for obj in objects if obj.type == "MESH" and (object_name is None or obj.name == object_name)]
-    if object_name is not None and not meshes:
-        found = ", ".join(sorted(obj.name for obj in objects if obj.type == "MESH")) or "none"
-        raise ScriptError(f"{path}: no mesh object '{object_name}' (mesh objects: {found})")
-    if not meshes:
-        raise ScriptError(f"{path}: holds no mesh")
-    if len(meshes) > 1:
-        found = ", ".join(sorted(obj.name for obj in meshes))
-        raise ScriptError(f"{path}: several mesh objects ({found}): name one with --template-object / --target-object")
-    return meshes[0]
-
-
-def load_mesh(path: Path, object_name, role: str) -> "bpy.types.Object":
-    """The mesh object of ``path`` (a mesh file, or a .blend's object), linked into the scene, named ``role``."""
-    if not path.is_file():
-        raise ScriptError(f"{path}: no such file")
-    if path.suffix.lower() == ".blend":
-        try:
-            with bpy.data.libraries.load(str(path), link=False) as (source, loaded):
-                loaded.objects = [name for name in source.objects if object_name is None or name == object_name]
-        except (OSError, RuntimeError) as error:
-            raise ScriptError(f"{path}: cannot read: {str(error).strip().splitlines()[0]}") from None
-        objects = [obj for obj in loaded.objects if obj is not None]
-    else:
-        before = set(bpy.data.objects)
-        try:
-            _import_file(path)
-        except RuntimeError as error:
-            # The importer's last line, without the "Location: .../ops.py" a Python importer's error ends with.
-            lines = [line for line in str(error).strip().splitlines() if not line.startswith("Location:")]
-            message = (lines[-1] if lines else "unknown error").removeprefix("Error: ")
-            raise ScriptError(f"{path}: cannot read: {message}") from None
-        objects = [obj for obj in bpy.data.objects if obj not in before]
-    chosen = _only_mesh(objects, path, object_name)
-    for obj in objects:  # keep only the chosen mesh in the scene
-        if obj is not chosen:
-            bpy.data.objects.remove(obj)
-    if chosen.name not in bpy.context.scene.collection.objects and not chosen.users_collection:
-        bpy.context.scene.collection.objects.link(chosen)
-    if len(chosen.data.vertices) == 0:
-        raise ScriptError(f"{path}: the mesh has no vertices")
-    if role == "Target" and len(chosen.data.polygons) == 0:
-        raise ScriptError(f"{path}: the mesh has no faces to retarget onto")
-    chosen.name = role
-    return chosen
-
-
 def read_anchors(path: Path, vertex_count: int) -> list[tuple[int, tuple[float, float, float]]]:
     """The (layout vertex, world target point) pairs of an anchors JSON file, all checked first."""
     if not path.is_file():
@@ -260,9 +232,12 @@ def read_anchors(path: Path, vertex_count: int) -> list[tuple[int, tuple[float, 
             raise ScriptError(f"{where}: vertex {vertex!r} is not an integer")
         if not 0 <= vertex < vertex_count:
             raise ScriptError(f"{where}: vertex {vertex} does not exist (the template has {vertex_count} vertices)")
-        if (not isinstance(target, list) or len(target) != 3
-                or not all(isinstance(value, (int, float)) and not isinstance(value, bool) for value in target)
-                or not all(math.isfinite(value) for value in target)):
+        if (
+            not isinstance(target, list)
+            or len(target) != 3
+            or not all(isinstance(value, (int, float)) and not isinstance(value, bool) for value in target)
+            or not all(math.isfinite(value) for value in target)
+        ):
             raise ScriptError(f"{where}: target {target!r} is not three finite numbers")
         pairs.append((vertex, tuple(float(value) for value in target)))
     if len({vertex for vertex, _ in pairs}) != len(pairs):
@@ -271,25 +246,6 @@ def read_anchors(path: Path, vertex_count: int) -> list[tuple[int, tuple[float, 
 
 
 # ---------------------------------------------------------------- the retarget
-
-
-def world_vertices(obj) -> "np.ndarray":
-    """(N, 3) float64 world positions of an object's evaluated mesh, and its (M, 3) triangles."""
-    import numpy as np
-
-    evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
-    mesh = evaluated.to_mesh()
-    try:
-        positions = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
-        mesh.vertices.foreach_get("co", positions)
-        mesh.calc_loop_triangles()
-        triangles = np.empty(len(mesh.loop_triangles) * 3, dtype=np.uint32)
-        mesh.loop_triangles.foreach_get("vertices", triangles)
-    finally:
-        evaluated.to_mesh_clear()
-    matrix = np.array(obj.matrix_world, dtype=np.float64)
-    world = positions.reshape(-1, 3).astype(np.float64) @ matrix[:3, :3].T + matrix[:3, 3]
-    return world, triangles.reshape(-1, 3)
 
 
 def align_bounds(layout, target) -> dict:
@@ -306,8 +262,9 @@ def align_bounds(layout, target) -> dict:
         raise ScriptError("the template is a single point: it cannot be aligned")
     scale = float(np.linalg.norm(target_high - target_low)) / layout_size
     layout_centre, target_centre = (layout_low + layout_high) / 2, (target_low + target_high) / 2
-    transform = (Matrix.Translation(Vector(target_centre)) @ Matrix.Scale(scale, 4)
-                 @ Matrix.Translation(-Vector(layout_centre)))
+    transform = (
+        Matrix.Translation(Vector(target_centre)) @ Matrix.Scale(scale, 4) @ Matrix.Translation(-Vector(layout_centre))
+    )
     layout.matrix_world = transform @ layout.matrix_world
     return {"scale": scale, "translation": (target_centre - layout_centre * scale).tolist()}
 
@@ -318,58 +275,19 @@ def align_with_operator(layout, arguments: argparse.Namespace, blame: str) -> di
 
     before = np.array(layout.matrix_world, dtype=np.float64)
     use_anchors = arguments.align == "anchors"
-    run_operator(blame, "align", method=arguments.align_method.upper(), use_anchors=use_anchors, use_icp=True,
-              apply="OBJECT")
+    run_operator(
+        blame, "align", method=arguments.align_method.upper(), use_anchors=use_anchors, use_icp=True, apply="OBJECT"
+    )
     bpy.context.view_layer.update()
     change = np.array(layout.matrix_world, dtype=np.float64) @ np.linalg.inv(before)
-    return {"method": arguments.align_method, "anchors": use_anchors, "icp": True,
-            "matrix": change.tolist()}
-
-
-def distances_to_target(layout, target) -> dict:
-    """Distances of the layout's vertices to the target surface (world space): mean, max, RMS."""
-    import numpy as np
-    import springwrap_kernel
-
-    layout_points, _ = world_vertices(layout)
-    target_points, triangles = world_vertices(target)
-    mesh = springwrap_kernel.TargetMesh(np.ascontiguousarray(target_points, dtype=np.float32), triangles)
-    hits = mesh.closest_points(np.ascontiguousarray(layout_points, dtype=np.float32))
-    distances = np.asarray(hits.distances, dtype=np.float64)
-    size = float(np.linalg.norm(target_points.max(axis=0) - target_points.min(axis=0)))
-    return {"mean_distance": float(distances.mean()), "max_distance": float(distances.max()),
-            "rms_distance": float(np.sqrt((distances ** 2).mean())), "target_diagonal": size}
-
-
-class Laps:
-    """Seconds per named step of a run, each counted from the end of the one before (``timings``)."""
-
-    def __init__(self) -> None:
-        self.timings: dict[str, float] = {}
-        self._clock = time.perf_counter()
-
-    def __call__(self, step: str) -> None:
-        now = time.perf_counter()
-        self.timings[step] = round(now - self._clock, 4)
-        self._clock = now
-
-
-def run_operator(blame: str, name: str, **properties) -> None:
-    """Run ``springwrap.<name>``; its error (it names the object: Template, Target, Retargeted) prefixed by ``blame``."""
-    try:
-        result = getattr(bpy.ops.springwrap, name)(**properties)
-    except RuntimeError as error:
-        message = str(error).strip().removeprefix("Error: ").splitlines()[0]
-        raise ScriptError(f"{blame}: springwrap.{name}: {message}") from None
-    if result != {"FINISHED"}:
-        raise ScriptError(f"{blame}: springwrap.{name} returned {sorted(result)}")
+    return {"method": arguments.align_method, "anchors": use_anchors, "icp": True, "matrix": change.tolist()}
 
 
 def retarget(arguments: argparse.Namespace) -> dict:
     """Load, align, detach, anchor, wrap, measure, write; the report (also written to --report)."""
-    WrapSession = addon_module("blender.wrap_session").WrapSession
-    ERRORS = addon_module("core.errors").ERRORS
-    WrapParameters = addon_module("core.wrap_inputs").WrapParameters
+    WrapSession = addon_module("blender.wrap_session").WrapSession  # noqa: N806 - a class of the enabled add-on
+    ERRORS = addon_module("core.errors").ERRORS  # noqa: N806 - the add-on's tuple of error types
+    WrapParameters = addon_module("core.wrap_inputs").WrapParameters  # noqa: N806 - a class of the enabled add-on
 
     lap, warnings = Laps(), []
     timings = lap.timings
@@ -378,8 +296,9 @@ def retarget(arguments: argparse.Namespace) -> dict:
     bpy.ops.wm.read_homefile(use_empty=True)
     template = load_mesh(arguments.template, arguments.template_object, "Template")
     target = load_mesh(arguments.target, arguments.target_object, "Target")
-    anchor_pairs = (read_anchors(arguments.anchors, len(template.data.vertices))
-                    if arguments.anchors is not None else None)
+    anchor_pairs = (
+        read_anchors(arguments.anchors, len(template.data.vertices)) if arguments.anchors is not None else None
+    )
     layout = template.copy()
     layout.data = template.data.copy()
     layout.name = LAYOUT_NAME
@@ -408,53 +327,48 @@ def retarget(arguments: argparse.Namespace) -> dict:
     lap("anchors")
 
     try:
-        parameters = WrapParameters(max_iterations=arguments.max_iterations,
-                                               settings=wrap_settings(arguments),
-                                               stiffness_group=arguments.stiffness_group,
-                                               free_group=arguments.free_group)
+        parameters = WrapParameters(
+            max_iterations=arguments.max_iterations,
+            settings=wrap_settings(arguments),
+            stiffness_group=arguments.stiffness_group,
+            free_group=arguments.free_group,
+        )
         session = WrapSession(bpy.context, layout, parameters)
     except ERRORS as error:
         raise ScriptError(f"{blame}: cannot wrap: {error}") from None
     session.run()
     result = session.finish()
     if not result.converged:
-        warnings.append(f"did not converge within {arguments.max_iterations} iterations "
-                        f"(last move {result.max_displacement:.2e} of the layout's size); the result is kept")
+        warnings.append(
+            f"did not converge within {arguments.max_iterations} iterations "
+            f"(last move {result.max_displacement:.2e} of the layout's size); the result is kept"
+        )
     if result.space_points:
         warnings.append(f"{result.space_points} of {result.vertex_count} vertices are off the surface (space-points)")
     lap("wrap")
 
     report = {
-        "template": str(arguments.template), "target": str(arguments.target),
-        "vertices": result.vertex_count, "faces": len(layout.data.polygons),
-        "anchors": len(layout.springwrap.anchors), "alignment": alignment,
-        "wrap": {"iterations": result.iterations, "converged": result.converged, "face_points": result.face_points,
-                 "space_points": result.space_points, "kernel_seconds": round(result.kernel_seconds, 4)},
+        "template": str(arguments.template),
+        "target": str(arguments.target),
+        "vertices": result.vertex_count,
+        "faces": len(layout.data.polygons),
+        "anchors": len(layout.springwrap.anchors),
+        "alignment": alignment,
+        "wrap": {
+            "iterations": result.iterations,
+            "converged": result.converged,
+            "face_points": result.face_points,
+            "space_points": result.space_points,
+            "kernel_seconds": round(result.kernel_seconds, 4),
+        },
         "metrics": distances_to_target(layout, target),
-        "timings": timings, "warnings": warnings, "blender": bpy.app.version_string,
+        "timings": timings,
+        "warnings": warnings,
+        "blender": bpy.app.version_string,
     }
     lap("metrics")
     write_outputs(arguments, layout, report)
     return report
-
-
-def write_outputs(arguments: argparse.Namespace, layout, report: dict) -> None:
-    """Write every requested output to temporary files, then rename them all (nothing half-written)."""
-
-    def save_blend(path: Path) -> None:
-        if bpy.ops.wm.save_as_mainfile(filepath=str(path), check_existing=False, copy=True) != {"FINISHED"}:
-            raise ScriptError(f"{path}: could not save")
-
-    def export_obj(path: Path) -> None:
-        for obj in bpy.context.view_layer.objects:
-            obj.select_set(obj == layout)
-        bpy.ops.wm.obj_export(filepath=str(path), export_selected_objects=True, export_materials=False)
-
-    def write_report(path: Path) -> None:
-        path.write_text(json.dumps(report, indent=2) + "\n")
-
-    write_all_or_nothing([(arguments.output_blend, save_blend), (arguments.output_obj, export_obj),
-                          (arguments.report, write_report)])
 
 
 # ---------------------------------------------------------------- batch
@@ -468,9 +382,24 @@ def task_outputs(task: dict) -> dict[str, Path]:
 
 def batch_task(arguments: argparse.Namespace, target: Path, output_dir: Path) -> dict:
     """One mesh of the batch as plain data (JSON for a local worker's pipe, pickled for Ray): absolute paths."""
-    settings = {name: getattr(arguments, name) for name in (
-        "template_object", "target_object", "anchors_spacing", "align", "align_method", "max_iterations",
-        "tolerance", "fairness", "arc_length", "thin_plate", "solver", "stiffness_group", "free_group")}
+    settings = {
+        name: getattr(arguments, name)
+        for name in (
+            "template_object",
+            "target_object",
+            "anchors_spacing",
+            "align",
+            "align_method",
+            "max_iterations",
+            "tolerance",
+            "fairness",
+            "arc_length",
+            "thin_plate",
+            "solver",
+            "stiffness_group",
+            "free_group",
+        )
+    }
     settings["template"] = str(arguments.template.resolve())
     settings["anchors"] = str(arguments.anchors.resolve()) if arguments.anchors is not None else None
     return {"target": str(target.resolve()), "output_dir": str(output_dir), "settings": settings}
@@ -485,10 +414,17 @@ def retarget_task(task: dict) -> dict:
     """
     start = time.perf_counter()
     settings, outputs = task["settings"], task_outputs(task)
-    arguments = argparse.Namespace(**settings | {
-        "template": Path(settings["template"]), "anchors": settings["anchors"] and Path(settings["anchors"]),
-        "target": Path(task["target"]), "output_blend": outputs["blend"], "output_obj": outputs["obj"],
-        "report": outputs["json"]})
+    arguments = argparse.Namespace(
+        **settings
+        | {
+            "template": Path(settings["template"]),
+            "anchors": settings["anchors"] and Path(settings["anchors"]),
+            "target": Path(task["target"]),
+            "output_blend": outputs["blend"],
+            "output_obj": outputs["obj"],
+            "report": outputs["json"],
+        }
+    )
     entry = {"target": task["target"]}
     try:
         retarget(arguments)
@@ -527,8 +463,18 @@ def local_worker_command() -> list[str]:
     script = str(Path(__file__).resolve())
     if bpy.app.binary_path:  # inside a Blender binary: the same, and the same use of PYTHONPATH
         system_environment = [] if sys.flags.ignore_environment else ["--python-use-system-env"]
-        return [bpy.app.binary_path, "-b", "--factory-startup", *system_environment, "--python-exit-code", "1",
-                "--python", script, "--", WORKER_FLAG]
+        return [
+            bpy.app.binary_path,
+            "-b",
+            "--factory-startup",
+            *system_environment,
+            "--python-exit-code",
+            "1",
+            "--python",
+            script,
+            "--",
+            WORKER_FLAG,
+        ]
     return [sys.executable, script, WORKER_FLAG]
 
 
@@ -539,18 +485,23 @@ def batch_executor(arguments: argparse.Namespace):
     if arguments.executor == "local":
         return retarget_batch.LocalExecutor(local_worker_command())
     if bpy.app.binary_path:
-        raise ScriptError("--executor ray runs with the bpy module (python retarget.py ...), "
-                            "not inside a Blender binary")
+        raise ScriptError(
+            "--executor ray runs with the bpy module (python retarget.py ...), not inside a Blender binary"
+        )
     try:
         return retarget_batch.RayExecutor(arguments.address, arguments.jobs, SCRIPTS_FOLDER)
     except ImportError as error:
         raise ScriptError(str(error)) from None
     except (ConnectionError, RuntimeError, ValueError) as error:
         first_line = str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
-        hint = ("; a cluster with Ray's token authentication also needs RAY_AUTH_MODE=token and its token here"
-                if arguments.address and not os.environ.get("RAY_AUTH_MODE") else "")
-        raise ScriptError(f"Ray cannot start or connect ({arguments.address or 'a local instance'}): "
-                            f"{first_line}{hint}") from None
+        hint = (
+            "; a cluster with Ray's token authentication also needs RAY_AUTH_MODE=token and its token here"
+            if arguments.address and not os.environ.get("RAY_AUTH_MODE")
+            else ""
+        )
+        raise ScriptError(
+            f"Ray cannot start or connect ({arguments.address or 'a local instance'}): {first_line}{hint}"
+        ) from None
 
 
 def run_batch(arguments: argparse.Namespace) -> int:
@@ -563,8 +514,9 @@ def run_batch(arguments: argparse.Namespace) -> int:
         raise ScriptError(f"{arguments.anchors}: no such file")
     if not arguments.batch.is_dir():
         raise ScriptError(f"{arguments.batch}: no such folder")
-    targets = sorted(path for path in arguments.batch.iterdir()
-                     if path.is_file() and path.suffix.lower() in MESH_SUFFIXES)
+    targets = sorted(
+        path for path in arguments.batch.iterdir() if path.is_file() and path.suffix.lower() in MESH_SUFFIXES
+    )
     if not targets:
         raise ScriptError(f"{arguments.batch}: no mesh files ({', '.join(MESH_SUFFIXES)})")
     stems = [path.stem for path in targets]
@@ -587,23 +539,43 @@ def run_batch(arguments: argparse.Namespace) -> int:
         finally:
             executor.close()
     ran = iter(outcome.entries)
-    entries = [{"target": task["target"], "status": "ok", "report": str(task_outputs(task)["json"]), "resumed": True}
-               if skip else next(ran) for task, skip in zip(tasks, resumed)]
+    entries = [
+        {"target": task["target"], "status": "ok", "report": str(task_outputs(task)["json"]), "resumed": True}
+        if skip
+        else next(ran)
+        for task, skip in zip(tasks, resumed)
+    ]
     for task, entry in zip(tasks, entries):
         if entry["status"] == "not run":
             remove_partial_outputs(task)
     counts = {status: sum(entry["status"] == status for entry in entries) for status in ("ok", "failed", "not run")}
-    summary = {"template": str(arguments.template), "folder": str(arguments.batch), "executor": arguments.executor,
-               "jobs": jobs, "meshes": entries, "ok": counts["ok"], "failed": counts["failed"],
-               "not_run": counts["not run"], "resumed": sum(resumed), "interrupted": outcome.interrupted,
-               "stopped": outcome.stopped, "seconds": round(time.perf_counter() - start, 2), "workers": outcome.workers}
+    summary = {
+        "template": str(arguments.template),
+        "folder": str(arguments.batch),
+        "executor": arguments.executor,
+        "jobs": jobs,
+        "meshes": entries,
+        "ok": counts["ok"],
+        "failed": counts["failed"],
+        "not_run": counts["not run"],
+        "resumed": sum(resumed),
+        "interrupted": outcome.interrupted,
+        "stopped": outcome.stopped,
+        "seconds": round(time.perf_counter() - start, 2),
+        "workers": outcome.workers,
+    }
     write_atomically(output_dir / "summary.json", lambda path: path.write_text(json.dumps(summary, indent=2) + "\n"))
     not_run = f", {counts['not run']} not run" if counts["not run"] else ""
-    print(f"retarget: {counts['ok']} of {len(entries)} meshes retargeted ({sum(resumed)} already done), "
-          f"{counts['failed']} failed{not_run}; summary {output_dir / 'summary.json'}", file=sys.stderr)
+    print(
+        f"retarget: {counts['ok']} of {len(entries)} meshes retargeted ({sum(resumed)} already done), "
+        f"{counts['failed']} failed{not_run}; summary {output_dir / 'summary.json'}",
+        file=sys.stderr,
+    )
     if outcome.interrupted:
-        print("retarget: interrupted: the meshes not run are listed in the summary "
-              "(run again with --resume to go on)", file=sys.stderr)
+        print(
+            "retarget: interrupted: the meshes not run are listed in the summary (run again with --resume to go on)",
+            file=sys.stderr,
+        )
         return EXIT_INTERRUPTED
     if outcome.stopped:
         raise ScriptError(f"the batch stopped: {outcome.stopped}")
@@ -627,9 +599,11 @@ def main() -> int:
     except Exception as error:  # noqa: BLE001 - any failure must become a non-zero exit code, also under `blender -b`
         return failed("retarget", error)
     metrics = report["metrics"]
-    print(f"retarget: {report['vertices']} vertices, {report['wrap']['face_points']} on the target after "
-          f"{report['wrap']['iterations']} iterations; mean distance {metrics['mean_distance']:.2e}, "
-          f"max {metrics['max_distance']:.2e}" + "".join(f"\n  warning: {line}" for line in report["warnings"]))
+    print(
+        f"retarget: {report['vertices']} vertices, {report['wrap']['face_points']} on the target after "
+        f"{report['wrap']['iterations']} iterations; mean distance {metrics['mean_distance']:.2e}, "
+        f"max {metrics['max_distance']:.2e}" + "".join(f"\n  warning: {line}" for line in report["warnings"])
+    )
     return EXIT_OK
 
 

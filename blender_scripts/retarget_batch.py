@@ -37,8 +37,9 @@ PROTOCOL_PREFIX = "springwrap-batch-worker: "  # a local worker's replies on std
 ABORT_VARIABLE = "SPRINGWRAP_BATCH_ABORT"  # testing aid: see BatchWorker.run
 POLL_SECONDS = 0.5
 STOP_SECONDS = 10
-RAY_MISSING = ("--executor ray needs the ray package in the Python that runs retarget.py "
-               "(pip install -r requirements-ray.txt)")
+RAY_MISSING = (
+    "--executor ray needs the ray package in the Python that runs retarget.py (pip install -r requirements-ray.txt)"
+)
 
 
 class WorkerFault(Exception):
@@ -97,8 +98,11 @@ class BatchWorker:
                 os.abort()
         start = time.perf_counter()
         entry = self._retarget.retarget_task(task)
-        return {"entry": entry | {"worker": self.identity}, "peak_memory_mb": peak_memory_mb(),
-                "task_seconds": time.perf_counter() - start}
+        return {
+            "entry": entry | {"worker": self.identity},
+            "peak_memory_mb": peak_memory_mb(),
+            "task_seconds": time.perf_counter() - start,
+        }
 
 
 def serve() -> int:
@@ -144,8 +148,15 @@ class LocalWorker:
         self._log_path = log_path
         with open(log_path, "wb") as log:
             # Its own session: a Ctrl-C in the terminal reaches the coordinator alone, which stops the workers.
-            self.process = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=log,
-                                            text=True, bufsize=1, start_new_session=True)
+            self.process = subprocess.Popen(
+                command,
+                stdin=subprocess.PIPE,
+                stdout=subprocess.PIPE,
+                stderr=log,
+                text=True,
+                bufsize=1,
+                start_new_session=True,
+            )
         self._thread = concurrent.futures.ThreadPoolExecutor(max_workers=1)
 
     def ready(self) -> concurrent.futures.Future:
@@ -167,7 +178,7 @@ class LocalWorker:
     def _receive(self) -> dict:
         for line in self.process.stdout:
             if line.startswith(PROTOCOL_PREFIX):
-                message = json.loads(line[len(PROTOCOL_PREFIX):])
+                message = json.loads(line[len(PROTOCOL_PREFIX) :])
                 if "fault" in message:
                     raise WorkerFault(message["fault"], died=False)
                 return message["ready"] if "ready" in message else message["result"]
@@ -175,8 +186,11 @@ class LocalWorker:
 
     def _death(self) -> WorkerFault:
         code = self.process.wait()
-        how = (f"signal {signal.Signals(-code).name}" if code < 0 and -code in signal.valid_signals()
-               else f"exit code {code}")
+        how = (
+            f"signal {signal.Signals(-code).name}"
+            if code < 0 and -code in signal.valid_signals()
+            else f"exit code {code}"
+        )
         try:
             lines = [line.strip() for line in self._log_path.read_text(errors="replace").splitlines() if line.strip()]
         except OSError:
@@ -256,8 +270,9 @@ class RayWorker:
 
     def ready(self) -> concurrent.futures.Future:
         future = self._translated(self.actor.describe.remote())
-        future.add_done_callback(lambda done: setattr(self, "identity", None if done.exception() else
-                                                      done.result()["worker"]))
+        future.add_done_callback(
+            lambda done: setattr(self, "identity", None if done.exception() else done.result()["worker"])
+        )
         return future
 
     def submit(self, task: dict) -> concurrent.futures.Future:
@@ -275,8 +290,9 @@ class RayWorker:
                 result.set_exception(WorkerFault(lines[-1] if lines else type(error).__name__, died=False))
             except (exceptions.RayActorError, exceptions.RayError) as error:  # the actor's process died
                 lines = [line.strip() for line in str(error).splitlines() if line.strip()]
-                detail = next((line.partition("Worker exit detail: ")[2] for line in lines
-                               if "Worker exit detail: " in line), "")
+                detail = next(
+                    (line.partition("Worker exit detail: ")[2] for line in lines if "Worker exit detail: " in line), ""
+                )
                 message = f"the Ray worker died: {lines[0] if lines else type(error).__name__}"
                 detail = detail.strip().split(". ")[0]  # Ray goes on with a paragraph of possible causes
                 result.set_exception(WorkerFault(message + (f" ({detail})" if detail else ""), died=True))
@@ -327,8 +343,14 @@ class RayExecutor:
         # in /tmp/ray. The scripts go to every node as the job's working directory; bpy, the add-on and
         # the kernel wheel must be installed there. Workers' own output stays in Ray's logs.
         options = {"num_cpus": jobs} if address is None else {}
-        ray.init(address=address or "local", runtime_env={"working_dir": str(scripts_folder), "excludes": ["__pycache__"]},
-                 log_to_driver=False, include_dashboard=False, logging_level=logging.WARNING, **options)
+        ray.init(
+            address=address or "local",
+            runtime_env={"working_dir": str(scripts_folder), "excludes": ["__pycache__"]},
+            log_to_driver=False,
+            include_dashboard=False,
+            logging_level=logging.WARNING,
+            **options,
+        )
         self._actor_class = ray.remote(num_cpus=1, max_restarts=0, max_task_retries=0)(BatchWorker)
 
     def default_jobs(self) -> int:
@@ -371,8 +393,10 @@ class Progress:
         """One mesh done (ok or failed)."""
         self.done += 1
         ok = entry["status"] == "ok"
-        line = (f"[{self.done}/{self.total}] {Path(entry['target']).name}: "
-                f"{'ok' if ok else 'FAILED: ' + entry.get('error', '?')} ({entry.get('seconds', 0):.1f} s)")
+        line = (
+            f"[{self.done}/{self.total}] {Path(entry['target']).name}: "
+            f"{'ok' if ok else 'FAILED: ' + entry.get('error', '?')} ({entry.get('seconds', 0):.1f} s)"
+        )
         if self.bar is None or not ok:
             self.say(line)
         if self.bar is not None:
@@ -425,8 +449,15 @@ def run_tasks(executor, tasks: list[dict], jobs: int, progress: Progress) -> Bat
     start_fault = None
 
     def start_worker(reserved: tuple[int, int] | None = None) -> None:
-        record = {"worker": None, "start_seconds": None, "import_seconds": None, "meshes": 0,
-                  "dispatch_seconds": 0.0, "peak_memory_mb": None, "fault": None}
+        record = {
+            "worker": None,
+            "start_seconds": None,
+            "import_seconds": None,
+            "meshes": 0,
+            "dispatch_seconds": 0.0,
+            "peak_memory_mb": None,
+            "fault": None,
+        }
         records.append(record)
         slot = _Slot(executor.start_worker(), time.perf_counter(), record, reserved)
         slots.append(slot)
@@ -451,8 +482,9 @@ def run_tasks(executor, tasks: list[dict], jobs: int, progress: Progress) -> Bat
             if not futures:
                 outcome.stopped = f"no worker could start: {start_fault}"
                 break
-            done, _ = concurrent.futures.wait(list(futures), timeout=POLL_SECONDS,
-                                              return_when=concurrent.futures.FIRST_COMPLETED)
+            done, _ = concurrent.futures.wait(
+                list(futures), timeout=POLL_SECONDS, return_when=concurrent.futures.FIRST_COMPLETED
+            )
             for future in done:
                 slot, index, attempt = futures.pop(future)
                 try:
@@ -467,8 +499,12 @@ def run_tasks(executor, tasks: list[dict], jobs: int, progress: Progress) -> Bat
                         progress.retrying(tasks[index]["target"], fault)
                         start_worker(reserved=(index, 2))
                     else:
-                        entries[index] = {"target": tasks[index]["target"], "status": "failed",
-                                          "error": f"{fault} (on two workers)", "attempts": attempt}
+                        entries[index] = {
+                            "target": tasks[index]["target"],
+                            "status": "failed",
+                            "error": f"{fault} (on two workers)",
+                            "attempts": attempt,
+                        }
                         remaining -= 1
                         progress.finished(entries[index])
                         if pending:
@@ -476,9 +512,12 @@ def run_tasks(executor, tasks: list[dict], jobs: int, progress: Progress) -> Bat
                     continue
                 if index is None:
                     slot.ready = True
-                    slot.record.update(worker=result["worker"], import_seconds=result["import_seconds"],
-                                       start_seconds=round(time.perf_counter() - slot.started, 3),
-                                       peak_memory_mb=result["peak_memory_mb"])
+                    slot.record.update(
+                        worker=result["worker"],
+                        import_seconds=result["import_seconds"],
+                        start_seconds=round(time.perf_counter() - slot.started, 3),
+                        peak_memory_mb=result["peak_memory_mb"],
+                    )
                 else:
                     slot.busy = False
                     # Time between handing the mesh over and having its entry back, beyond the task itself.

@@ -19,7 +19,7 @@ from pathlib import Path
 import bpy
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # `blender --python` does not add it
-from headless import EXIT_OK, ScriptError, addon_module, enable_addon, failed, script_arguments  # noqa: E402
+from headless import EXIT_OK, ScriptError, addon_module, enable_addon, failed, script_arguments
 
 PROGRESS_CHUNK = 100
 """Iterations between two progress lines."""
@@ -103,8 +103,10 @@ def run(arguments: argparse.Namespace) -> None:
     start = time.perf_counter()
     layout = prepare(arguments)
     target = layout.springwrap.target
-    print(f"layout '{layout.name}': {len(layout.data.vertices)} vertices, {len(layout.data.polygons)} faces; "
-          f"target '{target.name}'")
+    print(
+        f"layout '{layout.name}': {len(layout.data.vertices)} vertices, {len(layout.data.polygons)} faces; "
+        f"target '{target.name}'"
+    )
     if arguments.anchors_spacing is not None:
         result = bpy.ops.springwrap.anchors_auto(spacing=arguments.anchors_spacing, replace=True)
         if result != {"FINISHED"}:
@@ -112,11 +114,15 @@ def run(arguments: argparse.Namespace) -> None:
     print(f"anchors: {len(layout.springwrap.anchors)}")
     result = wrap(layout, arguments.max_iterations)
     print(result.summary())
-    print(f"  kernel {result.kernel_seconds:.2f} s; {result.anchor_count} anchors, "
-          f"{result.unreliable_triangles} unreliable target triangles")
+    print(
+        f"  kernel {result.kernel_seconds:.2f} s; {result.anchor_count} anchors, "
+        f"{result.unreliable_triangles} unreliable target triangles"
+    )
     if not result.converged:
-        print(f"WARNING: did not converge within {arguments.max_iterations} iterations "
-              f"(last move {result.max_displacement:.2e} of the layout's size); the result is kept")
+        print(
+            f"WARNING: did not converge within {arguments.max_iterations} iterations "
+            f"(last move {result.max_displacement:.2e} of the layout's size); the result is kept"
+        )
     if arguments.output is not None:
         output = arguments.output.resolve()
         output.parent.mkdir(parents=True, exist_ok=True)

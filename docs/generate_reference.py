@@ -27,12 +27,12 @@ SKIPPED_PROPERTIES = {"rna_type"}
 
 
 def enable_addon() -> None:
-    """Enable the Springwrap add-on, raising when it cannot be."""
-    import addon_utils
+    """Enable the Springwrap add-on the scripts' way (``blender_scripts/headless.py``), raising when it cannot be."""
+    if str(REPOSITORY_ROOT / "blender_scripts") not in sys.path:
+        sys.path.insert(0, str(REPOSITORY_ROOT / "blender_scripts"))
+    import headless
 
-    module = addon_utils.enable("springwrap", default_set=True, handle_error=None)
-    if module is None or not hasattr(bpy.ops, "springwrap"):
-        raise RuntimeError("addon_utils.enable('springwrap') failed: run `make setup` first")
+    headless.enable_addon()
 
 
 def operator_names() -> list[str]:
@@ -56,8 +56,15 @@ def _number(value) -> str:
 
 def _type_text(prop) -> str:
     """``int``, ``float[3]``, ``enum``, ... with the range when there is one."""
-    kind = {"BOOLEAN": "bool", "INT": "int", "FLOAT": "float", "STRING": "string", "ENUM": "enum",
-            "POINTER": "pointer", "COLLECTION": "collection"}.get(prop.type, prop.type.lower())
+    kind = {
+        "BOOLEAN": "bool",
+        "INT": "int",
+        "FLOAT": "float",
+        "STRING": "string",
+        "ENUM": "enum",
+        "POINTER": "pointer",
+        "COLLECTION": "collection",
+    }.get(prop.type, prop.type.lower())
     if getattr(prop, "is_array", False) and prop.array_length:
         kind += f"[{prop.array_length}]"
     if prop.type == "POINTER":
@@ -107,8 +114,9 @@ def _cell(text: str) -> str:
 def _description(prop) -> str:
     text = _cell(prop.description) or _cell(prop.name)
     if prop.type == "ENUM":
-        items = "; ".join(f"`'{item.identifier}'` {_cell(item.description) or _cell(item.name)}"
-                          for item in prop.enum_items)
+        items = "; ".join(
+            f"`'{item.identifier}'` {_cell(item.description) or _cell(item.name)}" for item in prop.enum_items
+        )
         text = f"{text}. Items: {items}" if text else f"Items: {items}"
     return text
 
@@ -149,7 +157,12 @@ def cli_help(script: str) -> str:
     environment = dict(os.environ, COLUMNS="100")  # argparse wraps to the terminal's width otherwise
     completed = subprocess.run(
         [sys.executable, str(REPOSITORY_ROOT / "blender_scripts" / script), "--help"],
-        capture_output=True, text=True, timeout=300, cwd=REPOSITORY_ROOT, check=False, env=environment,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=REPOSITORY_ROOT,
+        check=False,
+        env=environment,
     )
     if completed.returncode != 0:
         raise RuntimeError(f"{script} --help exited {completed.returncode}: {completed.stderr.strip()}")

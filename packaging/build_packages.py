@@ -22,9 +22,10 @@ a check fails.
 import argparse
 import ast
 import sys
-import tomllib
 import zipfile
 from pathlib import Path
+
+import tomllib
 
 PACKAGING = Path(__file__).resolve().parent
 REPOSITORY = PACKAGING.parent
@@ -108,12 +109,14 @@ def build(wheel_dir: Path, output: Path) -> tuple[Path, Path]:
     sources = [(str(path.relative_to(ADDON)), path.read_bytes()) for path in addon_files()]
 
     extension = output / f"springwrap-{version}-extension.zip"
-    write_zip(extension, [("blender_manifest.toml", manifest_text), (f"wheels/{wheel.name}", wheel.read_bytes()),
-                          *sources])
+    write_zip(
+        extension, [("blender_manifest.toml", manifest_text), (f"wheels/{wheel.name}", wheel.read_bytes()), *sources]
+    )
 
     with zipfile.ZipFile(wheel) as archive:
-        vendored = [(f"springwrap/_vendor/{name}", archive.read(name)) for name in archive.namelist()
-                    if not name.endswith("/")]
+        vendored = [
+            (f"springwrap/_vendor/{name}", archive.read(name)) for name in archive.namelist() if not name.endswith("/")
+        ]
     legacy = output / f"springwrap-{version}-legacy.zip"
     write_zip(legacy, [(f"springwrap/{name}", data) for name, data in sources] + vendored)
     return extension, legacy

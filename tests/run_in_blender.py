@@ -16,7 +16,7 @@ REPOSITORY = Path(__file__).resolve().parent.parent
 
 
 def main() -> int:
-    arguments = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+    arguments = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else []
     import bpy
 
     kernel_path = os.environ.get("SPRINGWRAP_KERNEL_PATH")

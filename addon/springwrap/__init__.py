@@ -61,6 +61,7 @@ def register():
         ) from error
     from . import properties  # first: it says so when the kernel is missing
 
+    # isort: split
     from . import operators, ui
 
     _registered_classes = properties.classes + operators.classes + ui.classes

@@ -42,7 +42,9 @@ def max_distance_property(description: str):
     )
 
 
-def max_iterations_property(description: str = "Stop the wrap after this many iterations if it has not converged by then"):
+def max_iterations_property(
+    description: str = "Stop the wrap after this many iterations if it has not converged by then",
+):
     """The wrap's iteration limit: shared by the operators that wrap (wrap, mirror)."""
     return bpy.props.IntProperty(name="Max Iterations", description=description, default=2000, min=1, soft_max=20000)
 
@@ -146,7 +148,13 @@ class SpringwrapAnchorItem(bpy.types.PropertyGroup):
 
 
 CURVE_SOURCE_ITEMS = (
-    ("CURVE_OBJECT", "Curve Object", "The target curve is a Blender curve object (evaluated, world space)", "CURVE_DATA", 0),
+    (
+        "CURVE_OBJECT",
+        "Curve Object",
+        "The target curve is a Blender curve object (evaluated, world space)",
+        "CURVE_DATA",
+        0,
+    ),
     ("TARGET_EDGES", "Target Edges", "The target curve is a chain of target mesh edges", "EDGESEL", 1),
 )
 """Sources of a curve constraint's target curve (``curves.CURVE_OBJECT`` / ``curves.TARGET_EDGES``)."""
@@ -196,10 +204,17 @@ class SpringwrapCurveConstraintItem(bpy.types.PropertyGroup):
 
 
 WRAP_SOLVER_ITEMS = (
-    ("SPRINGS", "Springs", "The paper's force iteration: springs relaxed step by step, points folding onto the "
-     "surface one ring at a time"),
-    ("ENERGY", "Energy", "One energy minimised by a global solve: a body in a few dozen iterations, no layout face "
-     "turned over by a step"),
+    (
+        "SPRINGS",
+        "Springs",
+        "The paper's force iteration: springs relaxed step by step, points folding onto the surface one ring at a time",
+    ),
+    (
+        "ENERGY",
+        "Energy",
+        "One energy minimised by a global solve: a body in a few dozen iterations, no layout face "
+        "turned over by a step",
+    ),
 )
 """The wrap's algorithms (``springwrap_kernel.WrapSettings(solver=...)``)."""
 

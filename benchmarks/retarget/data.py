@@ -77,8 +77,19 @@ def _pip_wheel(package: str, version: str, purpose: str, cache: Path | None = No
     if found:
         return found[0]
     wheels.mkdir(parents=True, exist_ok=True)
-    command = [sys.executable, "-m", "pip", "download", "--no-deps", "--only-binary=:all:",
-               "--disable-pip-version-check", "--quiet", f"{package}=={version}", "-d", str(wheels)]
+    command = [
+        sys.executable,
+        "-m",
+        "pip",
+        "download",
+        "--no-deps",
+        "--only-binary=:all:",
+        "--disable-pip-version-check",
+        "--quiet",
+        f"{package}=={version}",
+        "-d",
+        str(wheels),
+    ]
     try:
         completed = subprocess.run(command, capture_output=True, text=True, timeout=900)
     except (OSError, subprocess.TimeoutExpired) as error:
@@ -150,8 +161,9 @@ def pymeshlab_file(name: str, cache: Path | None = None) -> Path:
     suffix = f"{PYMESHLAB_SAMPLES}/{name}"
     with zipfile.ZipFile(wheel) as archive:
         # The wheel keeps its package under pymeshlab-<version>.data/purelib/: match the path's tail.
-        members = [info for info in archive.infolist()
-                   if info.filename == suffix or info.filename.endswith("/" + suffix)]
+        members = [
+            info for info in archive.infolist() if info.filename == suffix or info.filename.endswith("/" + suffix)
+        ]
         if not members:
             raise DataError(f"{suffix} is not in {wheel.name}")
         return _extract_member(archive, members[0], cache / f"pymeshlab-{PYMESHLAB_VERSION}" / name)
@@ -191,10 +203,10 @@ def deb_data_member(deb: Path, member: str) -> bytes:
         raise DataError(f"{deb}: not a Debian package (no ar header)")
     position = 8
     while position + 60 <= len(raw):
-        header = raw[position:position + 60]
+        header = raw[position : position + 60]
         name = header[:16].decode("ascii", "replace").strip().rstrip("/")
         size = int(header[48:58].decode("ascii").strip())
-        body = raw[position + 60:position + 60 + size]
+        body = raw[position + 60 : position + 60 + size]
         position += 60 + size + (size % 2)
         if not name.startswith("data.tar"):
             continue
@@ -329,9 +341,11 @@ def read_off(path: Path) -> PolygonMesh:
         raise DataError(f"{path}: {vertex_count} vertices and {face_count} faces announced, {len(body)} lines found")
     try:
         vertices = np.array([row.split()[:3] for row in body[:vertex_count]], dtype=np.float64)
-        rows = [row.split() for row in body[vertex_count:vertex_count + face_count]]
+        rows = [row.split() for row in body[vertex_count : vertex_count + face_count]]
         sizes = np.array([int(row[0]) for row in rows], dtype=np.int64)
-        corners = np.array([int(index) for row, size in zip(rows, sizes) for index in row[1:1 + size]], dtype=np.int64)
+        corners = np.array(
+            [int(index) for row, size in zip(rows, sizes) for index in row[1 : 1 + size]], dtype=np.int64
+        )
     except ValueError:
         raise DataError(f"{path}: malformed vertex or face line") from None
     if vertices.shape != (vertex_count, 3) or len(corners) != sizes.sum() or np.any(sizes < 3):

@@ -1,4 +1,4 @@
-"""Metrics of a retargeted layout against the ground truth (issue 4, item 3). numpy only.
+"""Metrics of a retargeted layout against the ground truth. numpy only.
 
 For a result (the layout's vertex positions after a method ran) and a case:
 
@@ -135,14 +135,31 @@ class CaseMetrics:
     def row(self) -> dict:
         """A flat dict (for JSON and tables)."""
         flat = {"diagonal": self.diagonal}
-        for name in ("error", "error_percent", "error_on_surface_percent", "error_over_holes_percent",
-                     "error_in_cavities_percent", "surface_distance_percent"):
+        for name in (
+            "error",
+            "error_percent",
+            "error_on_surface_percent",
+            "error_over_holes_percent",
+            "error_in_cavities_percent",
+            "surface_distance_percent",
+        ):
             stats = getattr(self, name)
-            flat.update({f"{name}_mean": stats.mean, f"{name}_p95": stats.p95, f"{name}_max": stats.max,
-                         f"{name}_count": stats.count})
-        flat.update(flipped_quads=self.flipped_quads, degenerate_quads=self.degenerate_quads,
-                    quad_count=self.quad_count, angle_distortion_degrees=self.angle_distortion_degrees,
-                    anchor_error_percent=self.anchor_error_percent, nonfinite_vertices=self.nonfinite_vertices)
+            flat.update(
+                {
+                    f"{name}_mean": stats.mean,
+                    f"{name}_p95": stats.p95,
+                    f"{name}_max": stats.max,
+                    f"{name}_count": stats.count,
+                }
+            )
+        flat.update(
+            flipped_quads=self.flipped_quads,
+            degenerate_quads=self.degenerate_quads,
+            quad_count=self.quad_count,
+            angle_distortion_degrees=self.angle_distortion_degrees,
+            anchor_error_percent=self.anchor_error_percent,
+            nonfinite_vertices=self.nonfinite_vertices,
+        )
         return flat
 
 
@@ -195,8 +212,9 @@ def triangle_normals(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     return np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
 
 
-def on_boundary(triangles: np.ndarray, hit_triangles: np.ndarray, barycentrics: np.ndarray,
-                tolerance: float = EDGE_BARYCENTRIC) -> np.ndarray:
+def on_boundary(
+    triangles: np.ndarray, hit_triangles: np.ndarray, barycentrics: np.ndarray, tolerance: float = EDGE_BARYCENTRIC
+) -> np.ndarray:
     """(K,) bool: closest points (a triangle index and barycentrics each) that lie on the rim of a hole.
 
     A point is on the rim when it is on an edge used by one triangle only (the barycentric of the
@@ -268,8 +286,14 @@ class RatioStats:
         if len(finite) == 0:
             return cls(len(ratios), float("nan"), float("nan"), float("nan"), 0, len(ratios))
         p5, median, p95 = (float(value) for value in np.percentile(finite, [5, 50, 95]))
-        return cls(len(ratios), p5, median, p95, int((finite < 1.0 / limit).sum()),
-                   int((finite > limit).sum() + (len(ratios) - len(finite))))
+        return cls(
+            len(ratios),
+            p5,
+            median,
+            p95,
+            int((finite < 1.0 / limit).sum()),
+            int((finite > limit).sum() + (len(ratios) - len(finite))),
+        )
 
 
 @dataclass
@@ -290,22 +314,36 @@ class ScanMetrics:
 
     def row(self) -> dict:
         """A flat dict (for JSON and tables)."""
-        flat = {"diagonal": self.diagonal, "distance_mean": self.distance_percent.mean,
-                "distance_p95": self.distance_percent.p95, "distance_max": self.distance_percent.max,
-                "over_surface": self.over_surface, "off_surface": self.off_surface,
-                "flipped_vs_template": self.flipped_vs_template, "flipped_vs_target": self.flipped_vs_target,
-                "flipped_vs_target_on_surface": self.flipped_vs_target_on_surface,
-                "quads_over_surface": self.quads_over_surface,
-                "nonfinite_vertices": self.nonfinite_vertices}
+        flat = {
+            "diagonal": self.diagonal,
+            "distance_mean": self.distance_percent.mean,
+            "distance_p95": self.distance_percent.p95,
+            "distance_max": self.distance_percent.max,
+            "over_surface": self.over_surface,
+            "off_surface": self.off_surface,
+            "flipped_vs_template": self.flipped_vs_template,
+            "flipped_vs_target": self.flipped_vs_target,
+            "flipped_vs_target_on_surface": self.flipped_vs_target_on_surface,
+            "quads_over_surface": self.quads_over_surface,
+            "nonfinite_vertices": self.nonfinite_vertices,
+        }
         for name in ("area", "edge"):
             stats = getattr(self, name)
-            flat.update({f"{name}_p5": stats.p5, f"{name}_median": stats.median, f"{name}_p95": stats.p95,
-                         f"{name}_below": stats.below, f"{name}_above": stats.above})
+            flat.update(
+                {
+                    f"{name}_p5": stats.p5,
+                    f"{name}_median": stats.median,
+                    f"{name}_p95": stats.p95,
+                    f"{name}_below": stats.below,
+                    f"{name}_above": stats.above,
+                }
+            )
         return flat
 
 
-def target_facing_flips(positions: np.ndarray, quads: np.ndarray, target, target_vertices: np.ndarray,
-                        target_triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def target_facing_flips(
+    positions: np.ndarray, quads: np.ndarray, target, target_vertices: np.ndarray, target_triangles: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(F,) bool quads facing against the target triangle under their centre's closest point, (F,)
     bool quads whose centre's closest point is over the target's surface (not on a hole's rim; flips
     are only counted there), and (F,) the distance of each centre to the target. Non-finite quads are
@@ -326,8 +364,14 @@ def target_facing_flips(positions: np.ndarray, quads: np.ndarray, target, target
     return flipped, over, distances
 
 
-def scan_metrics(result: np.ndarray, template: np.ndarray, quads: np.ndarray, target, target_vertices: np.ndarray,
-                 target_triangles: np.ndarray) -> ScanMetrics:
+def scan_metrics(
+    result: np.ndarray,
+    template: np.ndarray,
+    quads: np.ndarray,
+    target,
+    target_vertices: np.ndarray,
+    target_triangles: np.ndarray,
+) -> ScanMetrics:
     """Every metric of ``result`` ((N, 3) positions) wrapped from ``template`` (the aligned template, the
     same quads) onto a scan: ``target`` is its kernel ``TargetMesh``, built from ``target_vertices``
     and ``target_triangles``. Distances count the vertices over the surface only (see :func:`on_boundary`)."""
@@ -340,8 +384,9 @@ def scan_metrics(result: np.ndarray, template: np.ndarray, quads: np.ndarray, ta
         hits = target.closest_points(np.ascontiguousarray(result[finite], dtype=np.float32))
         distances[finite] = hits.distances
         over[finite] = ~on_boundary(target_triangles, hits.triangles, hits.barycentrics)
-    facing_flips, quads_over, centre_distances = target_facing_flips(result, quads, target, target_vertices,
-                                                                     target_triangles)
+    facing_flips, quads_over, centre_distances = target_facing_flips(
+        result, quads, target, target_vertices, target_triangles
+    )
     near = OFF_SURFACE_PERCENT * diagonal / 100.0
     with np.errstate(divide="ignore", invalid="ignore"):
         area_ratios = quad_areas(result, quads) / quad_areas(template, quads)

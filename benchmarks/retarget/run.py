@@ -25,10 +25,10 @@ from pathlib import Path
 if not __package__:  # run as a script: make `benchmarks.retarget` importable
     sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-import numpy as np  # noqa: E402
+import numpy as np
 
-from benchmarks import _machine  # noqa: E402
-from benchmarks.retarget import baselines, cases, data, landmarks, metrics  # noqa: E402
+from benchmarks import _machine
+from benchmarks.retarget import baselines, cases, data, landmarks, metrics
 
 DEFAULT_JSON = data.REPOSITORY_ROOT / "out" / "bench" / "retarget.json"
 SHORT_NAMES = {
@@ -52,20 +52,40 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     """The command line."""
     parser = argparse.ArgumentParser(prog="benchmarks.retarget.run", description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help=f"only the quick cases ({', '.join(cases.QUICK_CASES)})")
-    parser.add_argument("--cases", nargs="+", metavar="NAME",
-                        help=f"these cases, in this order (known: {', '.join(spec.name for spec in cases.ALL_CASES)})")
-    parser.add_argument("--anchors", type=int, default=landmarks.DEFAULT_COUNT,
-                        help=f"landmarks used as anchors (default {landmarks.DEFAULT_COUNT}, "
-                        f"at most {len(landmarks.BODY_LANDMARKS)})")
-    parser.add_argument("--methods", nargs="+", metavar="METHOD", choices=baselines.METHODS,
-                        help="run only these methods (quote names with spaces)")
+    parser.add_argument(
+        "--cases",
+        nargs="+",
+        metavar="NAME",
+        help=f"these cases, in this order (known: {', '.join(spec.name for spec in cases.ALL_CASES)})",
+    )
+    parser.add_argument(
+        "--anchors",
+        type=int,
+        default=landmarks.DEFAULT_COUNT,
+        help=f"landmarks used as anchors (default {landmarks.DEFAULT_COUNT}, at most {len(landmarks.BODY_LANDMARKS)})",
+    )
+    parser.add_argument(
+        "--methods",
+        nargs="+",
+        metavar="METHOD",
+        choices=baselines.METHODS,
+        help="run only these methods (quote names with spaces)",
+    )
     parser.add_argument("--json", type=Path, default=DEFAULT_JSON, help=f"where to write the results ({DEFAULT_JSON})")
     parser.add_argument("--rebuild", action="store_true", help="rebuild the cases even when cached")
-    parser.add_argument("--wrap-max-iterations", type=int, metavar="N",
-                        help="cap the wrap methods' iterations (default: the operator's own default)")
-    parser.add_argument("--positions", type=Path, metavar="FOLDER",
-                        help="also save every method's layout positions per case as FOLDER/<case>.npz "
-                        "(default: beside the JSON, in retarget-positions/; the figures read them)")
+    parser.add_argument(
+        "--wrap-max-iterations",
+        type=int,
+        metavar="N",
+        help="cap the wrap methods' iterations (default: the operator's own default)",
+    )
+    parser.add_argument(
+        "--positions",
+        type=Path,
+        metavar="FOLDER",
+        help="also save every method's layout positions per case as FOLDER/<case>.npz "
+        "(default: beside the JSON, in retarget-positions/; the figures read them)",
+    )
     arguments = parser.parse_args(argv)
     if arguments.wrap_max_iterations is not None and arguments.wrap_max_iterations < 1:
         parser.error("--wrap-max-iterations must be >= 1")
@@ -77,13 +97,14 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
 
 
 def enable_addon() -> None:
-    """Enable the Springwrap add-on (the snap baseline runs its operators)."""
-    import bpy  # noqa: F401  (addon_utils needs bpy imported first)
-    import addon_utils
+    """Enable the Springwrap add-on (the snap baseline runs its operators) the scripts' way
+    (``blender_scripts/headless.py``), raising when it cannot be."""
+    scripts = str(data.REPOSITORY_ROOT / "blender_scripts")
+    if scripts not in sys.path:
+        sys.path.insert(0, scripts)
+    import headless
 
-    module = addon_utils.enable("springwrap", default_set=True, handle_error=None)
-    if module is None or not hasattr(bpy.ops, "springwrap"):
-        raise RuntimeError("addon_utils.enable('springwrap') failed: run `make setup` first")
+    headless.enable_addon()
 
 
 def format_percent(value: float) -> str:
@@ -92,16 +113,20 @@ def format_percent(value: float) -> str:
 
 def print_table(records: list[dict]) -> None:
     """The metrics of every case and method (errors in % of the truth's bounding-box diagonal)."""
-    header = (f"{'case':<24} {'method':<21} {'err mean':>8} {'p95':>7} {'max':>7} {'surface':>7} {'holes':>7} "
-              f"{'flip':>5} {'degen':>5} {'angle°':>6} {'time s':>7} {'MB':>6}  status")
+    header = (
+        f"{'case':<24} {'method':<21} {'err mean':>8} {'p95':>7} {'max':>7} {'surface':>7} {'holes':>7} "
+        f"{'flip':>5} {'degen':>5} {'angle°':>6} {'time s':>7} {'MB':>6}  status"
+    )
     print(header)
     print("-" * len(header))
     for record in records:
         for method, entry in record["methods"].items():
             row = entry.get("metrics")
             if row is None:
-                print(f"{record['case']:<24} {method:<21} {'':>8} {'':>7} {'':>7} {'':>7} {'':>7} {'':>5} {'':>5} "
-                      f"{'':>6} {'':>7} {'':>6}  {entry['status']}")
+                print(
+                    f"{record['case']:<24} {method:<21} {'':>8} {'':>7} {'':>7} {'':>7} {'':>7} {'':>5} {'':>5} "
+                    f"{'':>6} {'':>7} {'':>6}  {entry['status']}"
+                )
                 continue
             print(
                 f"{record['case']:<24} {method:<21} {row['error_percent_mean']:>8.3f} {row['error_percent_p95']:>7.3f} "
@@ -110,16 +135,24 @@ def print_table(records: list[dict]) -> None:
                 f"{row['degenerate_quads']:>5} {row['angle_distortion_degrees']:>6.2f} {entry['seconds']:>7.2f} "
                 f"{entry['peak_megabytes']:>6.0f}  {entry['status']}"
             )
-    print("err: distance to the true position, % of the truth's bounding-box diagonal (mean, p95, max); "
-          "surface: mean distance to the target surface where it exists, %; holes: mean error over holes, %;")
-    print("flip / degen: flipped / collapsed quads; angle: mean |corner angle - true corner angle|; "
-          "MB: peak resident memory growth")
+    print(
+        "err: distance to the true position, % of the truth's bounding-box diagonal (mean, p95, max); "
+        "surface: mean distance to the target surface where it exists, %; holes: mean error over holes, %;"
+    )
+    print(
+        "flip / degen: flipped / collapsed quads; angle: mean |corner angle - true corner angle|; "
+        "MB: peak resident memory growth"
+    )
 
 
 def save_positions(path: Path, case, results) -> None:
     """Every method's layout positions on a case, with the truth and the quads (for the figures)."""
-    arrays = {"true_positions": case.true_positions.astype(np.float32), "layout_quads": case.layout_quads,
-              "over_hole": case.over_hole, "in_cavity": case.in_cavity}
+    arrays = {
+        "true_positions": case.true_positions.astype(np.float32),
+        "layout_quads": case.layout_quads,
+        "over_hole": case.over_hole,
+        "in_cavity": case.in_cavity,
+    }
     names = []
     for result in results:
         if result.positions is not None:
@@ -133,10 +166,20 @@ def save_positions(path: Path, case, results) -> None:
 def git_commit() -> str:
     """The repository's commit (with ``+dirty`` when tracked files changed), or ``unknown``."""
     try:
-        commit = subprocess.run(["git", "rev-parse", "--short=12", "HEAD"], cwd=data.REPOSITORY_ROOT,
-                                capture_output=True, text=True, check=True).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=data.REPOSITORY_ROOT,
-                               capture_output=True, text=True, check=True).stdout.strip()
+        commit = subprocess.run(
+            ["git", "rev-parse", "--short=12", "HEAD"],
+            cwd=data.REPOSITORY_ROOT,
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"],
+            cwd=data.REPOSITORY_ROOT,
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
     return commit + ("+dirty" if dirty else "")
@@ -158,6 +201,7 @@ def kernel_build() -> str:
 def machine_description() -> dict:
     """CPU, cores, load, versions: what the numbers were measured on."""
     import bpy
+
     import springwrap_kernel
 
     cpu = _machine.cpu_model()
@@ -226,14 +270,28 @@ def run(arguments: argparse.Namespace) -> int:
         }
         summary = []
         for result in results:
-            entry = {"status": result.status, "seconds": result.seconds, "peak_megabytes": result.peak_megabytes,
-                     "notes": result.notes, "details": result.details}
+            entry = {
+                "status": result.status,
+                "seconds": result.seconds,
+                "peak_megabytes": result.peak_megabytes,
+                "notes": result.notes,
+                "details": result.details,
+            }
             if result.positions is not None:
-                measured = metrics.evaluate(result.positions, case.true_positions, case.layout_quads, target,
-                                            case.over_hole, case.in_cavity, case.landmark_vertices[:anchor_count])
+                measured = metrics.evaluate(
+                    result.positions,
+                    case.true_positions,
+                    case.layout_quads,
+                    target,
+                    case.over_hole,
+                    case.in_cavity,
+                    case.landmark_vertices[:anchor_count],
+                )
                 entry["metrics"] = measured.row()
-                summary.append(f"{SHORT_NAMES.get(result.method, result.method)} {measured.error_percent.mean:.3f}%"
-                               + (f" ({measured.nonfinite_vertices} NaN)" if measured.nonfinite_vertices else ""))
+                summary.append(
+                    f"{SHORT_NAMES.get(result.method, result.method)} {measured.error_percent.mean:.3f}%"
+                    + (f" ({measured.nonfinite_vertices} NaN)" if measured.nonfinite_vertices else "")
+                )
             else:
                 summary.append(f"{SHORT_NAMES.get(result.method, result.method)} {result.status.split(':')[0]}")
                 if result.status.startswith("failed"):
@@ -244,15 +302,22 @@ def run(arguments: argparse.Namespace) -> int:
         records.append(record)
         save_positions(arguments.positions / f"{spec.name}.npz", case, results)
         origin = "cached" if cached else f"built in {build_seconds:.1f} s"
-        print(f"[{number}/{len(specs)}] {spec.name:<24} ({origin}; {len(case.target_triangles)} target triangles, "
-              f"{anchor_count} anchors) mean error: {', '.join(summary)}  [{time.perf_counter() - case_start:.1f} s]",
-              flush=True)
+        print(
+            f"[{number}/{len(specs)}] {spec.name:<24} ({origin}; {len(case.target_triangles)} target triangles, "
+            f"{anchor_count} anchors) mean error: {', '.join(summary)}  [{time.perf_counter() - case_start:.1f} s]",
+            flush=True,
+        )
     print()
     print_table(records)
     output = {
         "benchmark": "retarget",
-        "arguments": {"quick": arguments.quick, "cases": arguments.cases, "anchors": arguments.anchors,
-                      "methods": list(methods), "wrap_max_iterations": arguments.wrap_max_iterations},
+        "arguments": {
+            "quick": arguments.quick,
+            "cases": arguments.cases,
+            "anchors": arguments.anchors,
+            "methods": list(methods),
+            "wrap_max_iterations": arguments.wrap_max_iterations,
+        },
         "machine": machine,
         "finished_utc": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
         "load_average_end": list(os.getloadavg()) if hasattr(os, "getloadavg") else None,

@@ -92,13 +92,24 @@ class ScanSpec:
 
 
 SCAN_CASES: tuple[ScanSpec, ...] = (
-    ScanSpec("bunny-scan", "pymeshlab", "bunny10k_textured.obj", "filled", voxel_fraction=1.0 / 60.0,
-             description="range-scanned Stanford bunny (pymeshlab's bunny10k_textured.obj: 10k triangles, "
-                         "5 holes); template: the scan with its holes filled, voxel-remeshed"),
-    ScanSpec("elephant-holes", "cgal", "data/meshes/elephant-with-holes.off", "data/meshes/elephant.off",
-             voxel_fraction=1.0 / 80.0,
-             description="CGAL's elephant with holes (4.5k triangles, 88 holes); template: CGAL's closed "
-                         "elephant.off, voxel-remeshed"),
+    ScanSpec(
+        "bunny-scan",
+        "pymeshlab",
+        "bunny10k_textured.obj",
+        "filled",
+        voxel_fraction=1.0 / 60.0,
+        description="range-scanned Stanford bunny (pymeshlab's bunny10k_textured.obj: 10k triangles, "
+        "5 holes); template: the scan with its holes filled, voxel-remeshed",
+    ),
+    ScanSpec(
+        "elephant-holes",
+        "cgal",
+        "data/meshes/elephant-with-holes.off",
+        "data/meshes/elephant.off",
+        voxel_fraction=1.0 / 80.0,
+        description="CGAL's elephant with holes (4.5k triangles, 88 holes); template: CGAL's closed "
+        "elephant.off, voxel-remeshed",
+    ),
 )
 
 
@@ -234,8 +245,9 @@ def _blender_mesh(name: str, vertices: np.ndarray, mesh: data.PolygonMesh):
 
 def filled_holes(mesh: data.PolygonMesh) -> data.PolygonMesh:
     """The mesh with every hole closed by one polygon (``bmesh.ops.holes_fill``, headless)."""
-    import bmesh
     import bpy
+
+    import bmesh
 
     blender_mesh = _blender_mesh("springwrap_bench_fill", mesh.vertices, mesh)
     try:
@@ -252,8 +264,9 @@ def filled_holes(mesh: data.PolygonMesh) -> data.PolygonMesh:
         blender_mesh.loops.foreach_get("vertex_index", corners)
     finally:
         bpy.data.meshes.remove(blender_mesh)
-    return data.PolygonMesh(vertices.reshape(-1, 3).astype(np.float64), corners.astype(np.int64),
-                            sizes.astype(np.int64))
+    return data.PolygonMesh(
+        vertices.reshape(-1, 3).astype(np.float64), corners.astype(np.int64), sizes.astype(np.int64)
+    )
 
 
 def voxel_quads(mesh: data.PolygonMesh, voxel_size: float) -> tuple[np.ndarray, np.ndarray]:
@@ -296,8 +309,10 @@ def build_scan(spec: ScanSpec, cache: Path | None = None) -> ScanCase:
     moved = umbrella_smoothed(remeshed, quads, spec.smooth_iterations, SMOOTH_FACTOR)
     moved = moved + spec.inflate_fraction * diagonal * vertex_normals(moved, quads)
     placement = cases.similarity_matrix(
-        PLACEMENT["rotation_degrees"], PLACEMENT["scale"],
-        tuple(fraction * diagonal for fraction in PLACEMENT["translation_fractions"]))
+        PLACEMENT["rotation_degrees"],
+        PLACEMENT["scale"],
+        tuple(fraction * diagonal for fraction in PLACEMENT["translation_fractions"]),
+    )
     centre = scan.vertices.mean(axis=0)
     template = cases.transform_points(placement, moved - centre) + centre
     # Anchors: farthest-point samples among the remeshed vertices over the scan's surface, paired
@@ -320,15 +335,25 @@ def build_scan(spec: ScanSpec, cache: Path | None = None) -> ScanCase:
         "template_vertices": len(template),
         "template_quads": len(quads),
         "remeshed_to_scan_mean_percent": float(np.asarray(hits.distances)[over_surface].mean() * 100.0 / diagonal),
-        "moved_to_scan_mean_percent": float(metrics.surface_distances(moved, target)[over_surface].mean()
-                                            * 100.0 / diagonal),
+        "moved_to_scan_mean_percent": float(
+            metrics.surface_distances(moved, target)[over_surface].mean() * 100.0 / diagonal
+        ),
         # Positive: the scan's triangles face outwards (as the remeshed template's quads do).
-        "target_signed_volume": float(np.einsum("ij,ij->i", target_vertices[target_triangles[:, 0]].astype(np.float64),
-                                                normals).sum() / 6.0),
+        "target_signed_volume": float(
+            np.einsum("ij,ij->i", target_vertices[target_triangles[:, 0]].astype(np.float64), normals).sum() / 6.0
+        ),
         "build_seconds": time.perf_counter() - start,
     }
-    return ScanCase(spec, template, quads, target_vertices, target_triangles, anchor_vertices.astype(np.int64),
-                    anchor_positions, info)
+    return ScanCase(
+        spec,
+        template,
+        quads,
+        target_vertices,
+        target_triangles,
+        anchor_vertices.astype(np.int64),
+        anchor_positions,
+        info,
+    )
 
 
 # ---------------------------------------------------------------- cache
@@ -344,9 +369,13 @@ def save_scan(case: ScanCase, path: Path) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     partial = path.with_name(path.name + ".partial.npz")
     np.savez_compressed(
-        partial, template_vertices=case.template_vertices, template_quads=case.template_quads,
-        target_vertices=case.target_vertices, target_triangles=case.target_triangles,
-        anchor_vertices=case.anchor_vertices, anchor_positions=case.anchor_positions,
+        partial,
+        template_vertices=case.template_vertices,
+        template_quads=case.template_quads,
+        target_vertices=case.target_vertices,
+        target_triangles=case.target_triangles,
+        anchor_vertices=case.anchor_vertices,
+        anchor_positions=case.anchor_positions,
         meta=np.array(json.dumps({"spec": asdict(case.spec), "info": case.info})),
     )
     partial.replace(path)
@@ -356,9 +385,16 @@ def load_scan(path: Path) -> ScanCase:
     """Read a scan case written by :func:`save_scan`."""
     with np.load(path) as stored:
         meta = json.loads(str(stored["meta"]))
-        return ScanCase(ScanSpec(**meta["spec"]), stored["template_vertices"], stored["template_quads"],
-                        stored["target_vertices"], stored["target_triangles"], stored["anchor_vertices"],
-                        stored["anchor_positions"], meta["info"])
+        return ScanCase(
+            ScanSpec(**meta["spec"]),
+            stored["template_vertices"],
+            stored["template_quads"],
+            stored["target_vertices"],
+            stored["target_triangles"],
+            stored["anchor_vertices"],
+            stored["anchor_positions"],
+            meta["info"],
+        )
 
 
 def get_scan(spec: ScanSpec, cache: Path | None = None) -> tuple[ScanCase, bool]:

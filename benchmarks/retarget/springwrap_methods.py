@@ -66,9 +66,14 @@ class WrapReport:
 
     def as_dict(self) -> dict:
         """The fields and the rate, for the JSON."""
-        return {"iterations": self.iterations, "converged": self.converged, "wrap_seconds": self.seconds,
-                "iterations_per_second": self.iterations_per_second, "face_points": self.face_points,
-                "space_points": self.space_points}
+        return {
+            "iterations": self.iterations,
+            "converged": self.converged,
+            "wrap_seconds": self.seconds,
+            "iterations_per_second": self.iterations_per_second,
+            "face_points": self.face_points,
+            "space_points": self.space_points,
+        }
 
 
 def parse_wrap_report(text: str) -> WrapReport:
@@ -136,8 +141,9 @@ def _add_anchors(layout, landmark_vertices: np.ndarray, anchor_positions: np.nda
     import bpy
 
     for vertex, position in zip(np.asarray(landmark_vertices).tolist(), np.asarray(anchor_positions).tolist()):
-        _call("anchor_add", bpy.ops.springwrap.anchor_add, vertex_index=int(vertex), location=position,
-              use_location=True)
+        _call(
+            "anchor_add", bpy.ops.springwrap.anchor_add, vertex_index=int(vertex), location=position, use_location=True
+        )
     anchor_count = len(layout.springwrap.anchors)
     if anchor_count != len(landmark_vertices):
         raise RuntimeError(f"{anchor_count} anchors on the layout after adding {len(landmark_vertices)}")
@@ -209,8 +215,14 @@ def wrap_layout(
         _call("snap", bpy.ops.springwrap.snap, mode="SURFACE", only_selected=False, max_distance=0.0)
     elif start == "project":
         diagonal = float(np.linalg.norm(np.ptp(np.asarray(layout_positions, dtype=np.float64), axis=0)))
-        _call("project", bpy.ops.springwrap.project, direction="NORMAL", both_directions=True,
-              max_distance=PROJECT_DISTANCE * diagonal, only_selected=False)
+        _call(
+            "project",
+            bpy.ops.springwrap.project,
+            direction="NORMAL",
+            both_directions=True,
+            max_distance=PROJECT_DISTANCE * diagonal,
+            only_selected=False,
+        )
     anchor_count = _add_anchors(layout, landmark_vertices, anchor_positions)
     wrap_properties = {} if max_iterations is None else {"max_iterations": int(max_iterations)}
     report = parse_wrap_report(_call("wrap", bpy.ops.springwrap.wrap, **wrap_properties, **(wrap_options or {})))

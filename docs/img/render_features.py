@@ -19,7 +19,7 @@ import numpy as np
 from mathutils import Vector
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import render_guide  # noqa: E402  (paint, setup_render, shrink)
+import render_guide
 
 
 def rounded_box(half=1.0, radius=0.25, cells=40, noise=0.003, seed=1):
@@ -38,8 +38,9 @@ def rounded_box(half=1.0, radius=0.25, cells=40, noise=0.003, seed=1):
             faces.append(quads + sum(p.shape[0] for p in points))
             points.append((normal + u.reshape(-1, 1) * s + v.reshape(-1, 1) * t) * half)
     points = np.concatenate(points)
-    _keys, first, inverse = np.unique(np.round(points * 1e4).astype(np.int64), axis=0, return_index=True,
-                                      return_inverse=True)
+    _keys, first, inverse = np.unique(
+        np.round(points * 1e4).astype(np.int64), axis=0, return_index=True, return_inverse=True
+    )
     on_cube = points[first]
     center = np.clip(on_cube, -inner, inner)
     outward = (on_cube - center) / np.linalg.norm(on_cube - center, axis=1, keepdims=True)

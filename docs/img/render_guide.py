@@ -40,6 +40,7 @@ from mathutils.bvhtree import BVHTree
 REPOSITORY_ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPOSITORY_ROOT / "blender_scripts"))
 import demo  # noqa: E402
+
 from headless import script_arguments  # noqa: E402
 
 RESOLUTION = (800, 600)
@@ -60,8 +61,12 @@ ANCHOR_COLOUR = (0.85, 0.05, 0.05, 1.0)
 def parse_arguments(argv: list[str]) -> argparse.Namespace:
     """The script's own arguments."""
     parser = argparse.ArgumentParser(prog="render_guide.py", description=__doc__.splitlines()[0])
-    parser.add_argument("--output-dir", type=Path, default=Path(__file__).resolve().parent,
-                        help="where the guide-*.png go (default: docs/img)")
+    parser.add_argument(
+        "--output-dir",
+        type=Path,
+        default=Path(__file__).resolve().parent,
+        help="where the guide-*.png go (default: docs/img)",
+    )
     return parser.parse_args(script_arguments(argv, __file__))
 
 
@@ -120,8 +125,7 @@ def anchor_markers(layout: bpy.types.Object, name: str) -> bpy.types.Object:
 
     bm = bmesh.new()
     for anchor in layout.springwrap.anchors:
-        bmesh.ops.create_icosphere(bm, subdivisions=2, radius=0.035,
-                                   matrix=Matrix.Translation(Vector(anchor.location)))
+        bmesh.ops.create_icosphere(bm, subdivisions=2, radius=0.035, matrix=Matrix.Translation(Vector(anchor.location)))
     mesh = bpy.data.meshes.new(name)
     bm.to_mesh(mesh)
     bm.free()
@@ -133,8 +137,9 @@ def anchor_markers(layout: bpy.types.Object, name: str) -> bpy.types.Object:
 
 def heat_colours(errors: np.ndarray) -> np.ndarray:
     """(N, 4) linear RGBA: blue at 0, through green and yellow, to red at HEAT_SCALE and beyond."""
-    stops = np.array([[0.02, 0.10, 0.60], [0.00, 0.55, 0.75], [0.10, 0.75, 0.15], [0.95, 0.85, 0.05],
-                      [0.85, 0.05, 0.02]])
+    stops = np.array(
+        [[0.02, 0.10, 0.60], [0.00, 0.55, 0.75], [0.10, 0.75, 0.15], [0.95, 0.85, 0.05], [0.85, 0.05, 0.02]]
+    )
     position = np.clip(errors / HEAT_SCALE, 0.0, 1.0) * (len(stops) - 1)
     low = np.floor(position).astype(int).clip(0, len(stops) - 2)
     fraction = (position - low)[:, None]
@@ -286,8 +291,11 @@ def run(output_dir: Path) -> None:
     snapped.springwrap.target = target
     activate(snapped)
     step(operators.detach(only_selected=False))
-    step(operators.project(direction="NORMAL", only_selected=False, both_directions=True,
-                           max_distance=demo.PROJECT_MAX_DISTANCE))
+    step(
+        operators.project(
+            direction="NORMAL", only_selected=False, both_directions=True, max_distance=demo.PROJECT_MAX_DISTANCE
+        )
+    )
     step(operators.snap(mode="SURFACE", only_selected=False, max_distance=0.0))
 
     wrapped = demo.build_layout(target, "Wrapped")
@@ -309,8 +317,10 @@ def run(output_dir: Path) -> None:
     for name, layout in (("snap", snapped), ("wrap", wrapped)):
         error = np.linalg.norm(demo.layout_world_positions(layout) - reference, axis=1)
         errors[name] = error
-        print(f"{name}: error mean {error.mean():.4f}, median {np.median(error):.4f}, max {error.max():.4f}, "
-              f"over {HEAT_SCALE:g}: {(error >= HEAT_SCALE).sum()} of {len(error)}")
+        print(
+            f"{name}: error mean {error.mean():.4f}, median {np.median(error):.4f}, max {error.max():.4f}, "
+            f"over {HEAT_SCALE:g}: {(error >= HEAT_SCALE).sum()} of {len(error)}"
+        )
 
     paint(target, TARGET_COLOUR)
     for obj in (template, snapped, wrapped):

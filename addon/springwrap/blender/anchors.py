@@ -1,8 +1,7 @@
 """The layout's anchors (``Object.springwrap.anchors``) as ``core.anchors.Anchors`` arrays, and back."""
 
-from typing import Optional
-
 import bpy
+
 import numpy as np
 
 from ..core import anchors
@@ -17,6 +16,7 @@ _ANCHOR_FIELDS = (
     ("location", np.float64, 3),
 )
 
+
 def read_anchors(layout: bpy.types.Object) -> anchors.Anchors:
     """The layout's anchors (``Object.springwrap.anchors``) as arrays, in list order."""
     items = layout.springwrap.anchors
@@ -29,6 +29,7 @@ def read_anchors(layout: bpy.types.Object) -> anchors.Anchors:
         arrays.append(values)
     return anchors.make_anchors(*arrays)
 
+
 def face_anchor_count(layout: bpy.types.Object) -> int:
     """How many of the layout's anchors are on the target surface (the kinds read at once: the list may be long)."""
     items = layout.springwrap.anchors
@@ -39,7 +40,7 @@ def face_anchor_count(layout: bpy.types.Object) -> int:
 
 
 def write_anchors(
-    layout: bpy.types.Object, anchor_list: anchors.Anchors, active_index: int = -1, signature: Optional[str] = None
+    layout: bpy.types.Object, anchor_list: anchors.Anchors, active_index: int = -1, signature: str | None = None
 ) -> None:
     """Replace the layout's anchor list; make ``active_index`` active (-1 keeps the current one, clamped).
 

@@ -6,6 +6,7 @@ A failure after the pose was set is undone with :func:`restore_pose` by the oper
 """
 
 import bpy
+
 import numpy as np
 from mathutils import Matrix
 
@@ -144,7 +145,9 @@ def pose_onto(context, template, target, match_roll, scale_mode, progress=None) 
         # (location, rotation, scale) cannot undo: matched bones take no scale from their parent.
         for name in matched:
             template.data.bones[name].inherit_scale = "NONE"
-    levels = armature_maths.depth_levels(names, [bone.parent.name if bone.parent else "" for bone in template.data.bones])
+    levels = armature_maths.depth_levels(
+        names, [bone.parent.name if bone.parent else "" for bone in template.data.bones]
+    )
     for level_index, level in enumerate(levels):
         for name in level:
             pose_bone = template.pose.bones[name]
@@ -187,7 +190,9 @@ def release_skinning(layout) -> int:
     """Remove the layout's Armature modifiers and turn an armature parent into a plain parent (world
     matrix kept), so the baked pose is not deformed a second time. Returns how many were released."""
     released = 0
-    for modifier in [modifier for modifier in layout.modifiers if modifier.type == "ARMATURE" and modifier.show_viewport]:
+    for modifier in [
+        modifier for modifier in layout.modifiers if modifier.type == "ARMATURE" and modifier.show_viewport
+    ]:
         layout.modifiers.remove(modifier)
         released += 1
     if layout.parent is not None and layout.parent_type == "ARMATURE":

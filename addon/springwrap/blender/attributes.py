@@ -7,9 +7,10 @@ carries a temporary index through bmesh. All of them move through :func:`read_po
 data only.
 """
 
-from typing import NamedTuple, Optional
+from typing import NamedTuple
 
 import bpy
+
 import numpy as np
 
 from ..core import layout_state
@@ -40,7 +41,7 @@ def point_attribute(mesh: bpy.types.Mesh, name: str, data_type: str):
     return attribute
 
 
-def read_point_attribute(mesh: bpy.types.Mesh, name: str, data_type: str) -> Optional[np.ndarray]:
+def read_point_attribute(mesh: bpy.types.Mesh, name: str, data_type: str) -> np.ndarray | None:
     """The flat values of the named POINT attribute of that type (its own length), or None when there is none."""
     attribute = point_attribute(mesh, name, data_type)
     if attribute is None:
@@ -107,7 +108,7 @@ def write_state(mesh: bpy.types.Mesh, state: LayoutState, replace: bool = True) 
         write_point_attribute(mesh, name, data_type, array, replace=replace)
 
 
-def read_rest(layout: bpy.types.Object) -> Optional[np.ndarray]:
+def read_rest(layout: bpy.types.Object) -> np.ndarray | None:
     """The layout's stored rest shape (local (N, 3) float32), or None when it has none (object mode)."""
     values = read_point_attribute(layout.data, layout_state.REST_ATTRIBUTE, "FLOAT_VECTOR")
     return None if values is None else values.reshape(-1, 3)

@@ -1,8 +1,9 @@
 """Differences between the Blender versions the add-on supports (3.4 and later)."""
 
-from typing import Callable, Optional
+from collections.abc import Callable
 
 import bpy
+
 import numpy as np
 
 
@@ -19,7 +20,7 @@ def read_vertex_normals(mesh: "bpy.types.Mesh") -> np.ndarray:
     return normals.reshape(-1, 3)
 
 
-def pointer_poll(poll: Callable) -> Optional[Callable]:
+def pointer_poll(poll: Callable) -> Callable | None:
     """The ``poll`` to give a ``PointerProperty``: ``poll`` itself, or None in the PyPI bpy 4.2 module.
 
     The bpy 4.2 module (seen with 4.2.23) crashes when the process exits once a class with a

@@ -3,6 +3,7 @@ follow read again from their sources: a curve object's one open spline, or a cha
 """
 
 import bpy
+
 import numpy as np
 
 from ..core import anchors, curves, edge_paths, transforms

@@ -6,9 +6,10 @@ feature detection's mesh or the armature-deformed layout reads it here, once, wi
 ``foreach_get``, and frees the temporary mesh at once.
 """
 
-from typing import NamedTuple, Optional
+from typing import NamedTuple
 
 import bpy
+
 import numpy as np
 
 from ..core import transforms
@@ -18,16 +19,19 @@ class EvaluatedMesh(NamedTuple):
     """An object's evaluated geometry as arrays."""
 
     vertices: np.ndarray  # (V, 3): float64 world positions, or float32 local ones (world=False)
-    triangles: Optional[np.ndarray]  # (T, 3) uint32 loop triangles, when asked for
-    triangle_polygons: Optional[np.ndarray]  # (T,) int32 the polygon of each loop triangle, with the triangles
-    edges: Optional[np.ndarray]  # (E, 2) int64 vertex pairs, when asked for
+    triangles: np.ndarray | None  # (T, 3) uint32 loop triangles, when asked for
+    triangle_polygons: np.ndarray | None  # (T,) int32 the polygon of each loop triangle, with the triangles
+    edges: np.ndarray | None  # (E, 2) int64 vertex pairs, when asked for
     matrix_world: np.ndarray  # (4, 4) float64 the evaluated object's transform
 
 
 def read_evaluated_mesh(
-    depsgraph: bpy.types.Depsgraph, obj: bpy.types.Object, triangles: bool = False, edges: bool = False,
+    depsgraph: bpy.types.Depsgraph,
+    obj: bpy.types.Object,
+    triangles: bool = False,
+    edges: bool = False,
     world: bool = True,
-) -> Optional[EvaluatedMesh]:
+) -> EvaluatedMesh | None:
     """``obj`` evaluated in ``depsgraph``; None when it gives no mesh (a curve without points).
 
     ``world``: vertices transformed by the evaluated object's ``matrix_world`` (float64); else its

@@ -6,7 +6,9 @@ import collections
 from typing import NamedTuple
 
 import bpy
+
 import numpy as np
+
 import springwrap_kernel
 
 from ..core import transforms

@@ -5,13 +5,13 @@ Object mode data unless a function says otherwise (:func:`read_world_vertex_posi
 edit-mesh). Bulk data moves through ``foreach_get`` / ``foreach_set``.
 """
 
-from typing import Optional
+import bpy
 
 import bmesh
-import bpy
 import numpy as np
-import springwrap_kernel
 from mathutils import Matrix
+
+import springwrap_kernel
 
 from ..core import layout_state, subdivision, transforms, wrap_inputs
 from ..core.errors import LayoutError
@@ -46,7 +46,7 @@ def read_layout(layout: bpy.types.Object) -> LayoutArrays:
     )
 
 
-def read_point_counts(layout: bpy.types.Object) -> Optional[tuple[int, int]]:
+def read_point_counts(layout: bpy.types.Object) -> tuple[int, int] | None:
     """(face-points, space-points) from the state attribute; None when they cannot be read from it (edit mode,
     which holds the mesh data back, or an attribute of another type or length)."""
     mesh = layout.data
@@ -79,7 +79,7 @@ def read_world_normals(layout: bpy.types.Object) -> np.ndarray:
 
 
 def write_layout(
-    layout: bpy.types.Object, positions: np.ndarray, state: LayoutState, rest: Optional[np.ndarray] = None
+    layout: bpy.types.Object, positions: np.ndarray, state: LayoutState, rest: np.ndarray | None = None
 ) -> None:
     """Write local positions and the per-vertex state into the layout mesh (object mode).
 

@@ -2,8 +2,9 @@
 and restored, faces selected. ``core.mirroring`` decides everything first.
 """
 
-import bmesh
 import bpy
+
+import bmesh
 import numpy as np
 
 from . import attributes
@@ -87,7 +88,9 @@ def select_faces(layout: bpy.types.Object, faces: np.ndarray) -> None:
     mesh.polygons.foreach_get("loop_total", totals)
     # Loops face by face: loop_start + 0 .. loop_total - 1 (loops need not be in face order).
     offsets = np.repeat(starts - np.concatenate([[0], np.cumsum(totals)[:-1]]), totals)
-    loop_faces[np.arange(int(totals.sum()), dtype=np.int64) + offsets] = np.repeat(np.arange(len(mesh.polygons)), totals)
+    loop_faces[np.arange(int(totals.sum()), dtype=np.int64) + offsets] = np.repeat(
+        np.arange(len(mesh.polygons)), totals
+    )
     vertex_flags[loop_vertices[face_flags[loop_faces]]] = True
     edge_vertices = np.empty(len(mesh.edges) * 2, dtype=np.int32)
     mesh.edges.foreach_get("vertices", edge_vertices)

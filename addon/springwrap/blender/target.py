@@ -5,7 +5,9 @@ and cached; its edges; and the weights of one of its vertex groups on the evalua
 import collections
 
 import bpy
+
 import numpy as np
+
 import springwrap_kernel
 
 from ..core import layout_state, transforms

@@ -4,10 +4,12 @@ bit). The wrap operator, the mirror and the headless scripts all run it.
 """
 
 import time
-from typing import Callable, Optional
+from collections.abc import Callable
 
 import bpy
+
 import numpy as np
+
 import springwrap_kernel
 
 from ..core import anchors, layout_state, subdivision, transforms, wrap_inputs
@@ -130,7 +132,7 @@ class WrapSession:
         self.kernel_seconds = 0.0
         self.frames = 0
         self.events = {"landed": 0, "folded": 0, "lifted": 0}
-        self._frame_end: Optional[float] = None
+        self._frame_end: float | None = None
 
     @property
     def stage_iterations(self) -> int:
@@ -176,8 +178,10 @@ class WrapSession:
 
         When the coarse stage ends, the next call starts the fine one.
         """
-        if self.stage == "coarse" and self.last_report is not None and (
-            self.last_report.converged or self.stage_iterations >= self.parameters.max_iterations
+        if (
+            self.stage == "coarse"
+            and self.last_report is not None
+            and (self.last_report.converged or self.stage_iterations >= self.parameters.max_iterations)
         ):
             self.refine()
         iterations = min(int(iterations), self.parameters.max_iterations - self.stage_iterations)
@@ -220,7 +224,7 @@ class WrapSession:
         self.frames += 1
         return report
 
-    def run(self, progress: Optional[Callable] = None, chunk: int = SYNCHRONOUS_CHUNK):
+    def run(self, progress: Callable | None = None, chunk: int = SYNCHRONOUS_CHUNK):
         """Step to the end at once (converged or the limit), writing nothing; ``progress(report)`` after each chunk."""
         while not self.done:
             report = self.step(chunk)
@@ -233,9 +237,7 @@ class WrapSession:
         count = self.vertex_count  # a fine grid numbers the layout's own vertices first
         positions = transforms.to_local(self.matrix_world, self.solver.positions()[:count])
         states, triangles, barycentrics = self.solver.states()
-        return positions, layout_state.normalized_state(
-            states[:count], triangles[:count], barycentrics[:count]
-        )
+        return positions, layout_state.normalized_state(states[:count], triangles[:count], barycentrics[:count])
 
     def write_frame(self) -> None:
         """Write the solver's current positions and state into the layout (an intermediate frame)."""

@@ -10,9 +10,10 @@ vertices (``new local = matrix_world⁻¹ @ M @ matrix_world @ local``).
 Nothing is written here; the functions check everything and return the complete result.
 """
 
-from typing import Any, NamedTuple, Optional
+from typing import Any, NamedTuple
 
 import numpy as np
+
 import springwrap_kernel
 
 from . import anchors as anchor_arrays
@@ -52,7 +53,7 @@ class AlignOutcome(NamedTuple):
     anchor_count: int  # anchors the fit used (0 without use_anchors)
     anchor_rms_before: float  # RMS distance layout vertex -> anchor target, before (world units)
     anchor_rms_after: float  # the same after the whole alignment
-    icp: Optional[Any]  # springwrap_kernel.IcpReport, None without ICP
+    icp: Any | None  # springwrap_kernel.IcpReport, None without ICP
     icp_point_count: int  # layout vertices fed to ICP
 
 
@@ -73,7 +74,9 @@ def check_parameters(parameters: AlignParameters) -> None:
             raise LayoutError(f"The ICP anchor weight must be 0 or positive, got {parameters.anchor_weight}")
 
 
-def anchor_pairs(anchor_list: anchor_arrays.Anchors, world_points: np.ndarray, method: str) -> tuple[np.ndarray, np.ndarray]:
+def anchor_pairs(
+    anchor_list: anchor_arrays.Anchors, world_points: np.ndarray, method: str
+) -> tuple[np.ndarray, np.ndarray]:
     """(source, target) world points of the anchors whose vertex exists: layout vertex -> anchor target.
 
     Raises :class:`LayoutError` when there are fewer than the method needs, or a location is not finite.
@@ -223,7 +226,9 @@ def detached_count(layout: LayoutArrays) -> int:
     return layout_state.point_counts(layout.state.states)[0]
 
 
-def summary(name: str, parameters: AlignParameters, outcome: AlignOutcome, detached: int, apply: str, milliseconds: float) -> str:
+def summary(
+    name: str, parameters: AlignParameters, outcome: AlignOutcome, detached: int, apply: str, milliseconds: float
+) -> str:
     """The report of a finished alignment."""
     parts = [f"Aligned '{name}'"]
     if outcome.anchor_count:

@@ -13,7 +13,7 @@ The functions here compute complete new anchor lists and return them with what t
 Every function returns new arrays and leaves its inputs untouched.
 """
 
-from typing import NamedTuple, Optional
+from typing import NamedTuple
 
 import numpy as np
 
@@ -149,7 +149,7 @@ def check_location(location, what: str = "The anchor location") -> np.ndarray:
     return location
 
 
-def check_anchor_locations(anchors: Anchors, mask: Optional[np.ndarray] = None) -> None:
+def check_anchor_locations(anchors: Anchors, mask: np.ndarray | None = None) -> None:
     """Raise :class:`LayoutError` naming the first anchor (in ``mask``) whose target location is not finite."""
     finite = np.all(np.isfinite(anchors.locations), axis=1)
     if mask is not None:
@@ -183,9 +183,7 @@ def pick_vertex(selection: np.ndarray, active_vertex: int) -> int:
 # ---------------------------------------------------------------- target changes
 
 
-def resolve(
-    anchors: Anchors, target: Target, stored_signature: str
-) -> tuple[Anchors, layout_state.Resolution]:
+def resolve(anchors: Anchors, target: Target, stored_signature: str) -> tuple[Anchors, layout_state.Resolution]:
     """Apply the deleted-face rule to the face anchors, then refresh every face anchor's location.
 
     When the target's topology changed since the anchors were written (``stored_signature``), or
@@ -234,8 +232,8 @@ def default_spacing(points: np.ndarray) -> float:
 def spaced_indices(
     points: np.ndarray,
     spacing: float,
-    candidates: Optional[np.ndarray] = None,
-    seeds: Optional[np.ndarray] = None,
+    candidates: np.ndarray | None = None,
+    seeds: np.ndarray | None = None,
 ) -> np.ndarray:
     """Greedy Poisson-disk choice of points: no two chosen (or seed) points closer than ``spacing``.
 
@@ -338,7 +336,7 @@ def add(
 
 def auto(
     layout: LayoutArrays,
-    world_normals: Optional[np.ndarray],
+    world_normals: np.ndarray | None,
     existing: Anchors,
     target: Target,
     stored_signature: str,

@@ -124,7 +124,11 @@ def rotation_between(source: np.ndarray, destination: np.ndarray) -> np.ndarray:
 
 
 def desired_pose_matrix(
-    target: BoneFrame, rest_matrix: np.ndarray, rest_length: float, match_roll: bool = True, scale_mode: str = SCALE_ALONG
+    target: BoneFrame,
+    rest_matrix: np.ndarray,
+    rest_length: float,
+    match_roll: bool = True,
+    scale_mode: str = SCALE_ALONG,
 ) -> np.ndarray:
     """The armature-space pose matrix that puts a template bone onto ``target`` (in the template armature's space).
 

@@ -12,7 +12,7 @@ whole chain, pair layout curves automatically, and check and flatten constraints
 returns new arrays and leaves its inputs untouched.
 """
 
-from typing import Any, NamedTuple, Optional
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -146,7 +146,7 @@ def orient_to_chain(points, chain_positions) -> np.ndarray:
 # ---------------------------------------------------------------- pairing
 
 
-def constrained_vertices(constraints, anchored: Optional[np.ndarray] = None) -> set:
+def constrained_vertices(constraints, anchored: np.ndarray | None = None) -> set:
     """The layout vertices some constraint holds, anchored vertices excepted (they may be shared)."""
     held = set()
     for constraint in constraints:
@@ -156,7 +156,7 @@ def constrained_vertices(constraints, anchored: Optional[np.ndarray] = None) -> 
     return held
 
 
-def check_free(chain, constraints, anchored: Optional[np.ndarray] = None) -> None:
+def check_free(chain, constraints, anchored: np.ndarray | None = None) -> None:
     """Raise :class:`LayoutError` when a vertex of ``chain`` (not anchored) is held by one of ``constraints``."""
     held = constrained_vertices(constraints, anchored)
     for vertex in np.asarray(chain).tolist():
@@ -179,9 +179,7 @@ def target_edge_constraint(
     start = nearest_vertex(target_positions, start_point)
     end = nearest_vertex(target_positions, end_point)
     if start == end:
-        raise LayoutError(
-            f"Both ends of the chain are nearest to target vertex {start}: the target curve is ambiguous"
-        )
+        raise LayoutError(f"Both ends of the chain are nearest to target vertex {start}: the target curve is ambiguous")
     graph = edge_graph(target_positions, target_edges)
     course = chain_course(chain_positions, start_point, end_point)
     path = following_path(target_positions, graph, course, start, end)
@@ -263,7 +261,7 @@ def skip_report(skipped: dict) -> str:
 # ---------------------------------------------------------------- the wrap
 
 
-def kernel_arrays(constraints, vertex_count: int, anchored: Optional[np.ndarray] = None):
+def kernel_arrays(constraints, vertex_count: int, anchored: np.ndarray | None = None):
     """The kernel's flat arrays ``(curve_vertices, curve_vertex_counts, curve_points, curve_point_counts)``.
 
     Raises :class:`LayoutError` naming the constraint when a chain has fewer than two vertices or

@@ -47,9 +47,7 @@ def chain_from_edges(edges) -> np.ndarray:
         previous = chain[-1]
         chain.append(following[0])
     if len(chain) != vertices.size:
-        raise LayoutError(
-            "The selected edges form more than one piece: select one connected chain"
-        )
+        raise LayoutError("The selected edges form more than one piece: select one connected chain")
     return np.asarray(chain, dtype=np.int64)
 
 

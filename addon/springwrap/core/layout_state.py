@@ -244,6 +244,4 @@ def check_finite(layout: LayoutArrays, mask: np.ndarray) -> None:
     world = transforms.world_positions(layout)
     bad = np.flatnonzero(mask & ~np.all(np.isfinite(world), axis=1))
     if bad.size:
-        raise LayoutError(
-            f"Layout vertex {int(bad[0])} has a NaN or infinite coordinate ({bad.size} such vertices)"
-        )
+        raise LayoutError(f"Layout vertex {int(bad[0])} has a NaN or infinite coordinate ({bad.size} such vertices)")

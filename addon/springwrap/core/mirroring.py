@@ -265,8 +265,14 @@ def partner_errors(positions: np.ndarray, source: np.ndarray, is_copy: np.ndarra
     return np.linalg.norm(positions[is_copy] - reflect(positions[source[is_copy]], plane), axis=1)
 
 
-def hold_inputs(inputs, pinned: np.ndarray, plane_vertices: np.ndarray, plane: Plane, slide: bool = True,
-                rest: "np.ndarray | None" = None):
+def hold_inputs(
+    inputs,
+    pinned: np.ndarray,
+    plane_vertices: np.ndarray,
+    plane: Plane,
+    slide: bool = True,
+    rest: "np.ndarray | None" = None,
+):
     """The wrap's inputs (``wrap_inputs.WrapInputs``) for the mirrored half: the surfaced half pinned, the seam on the plane.
 
     Each ``pinned`` vertex gets an anchor at itself (its own face-point, or its own position for a
@@ -287,7 +293,9 @@ def hold_inputs(inputs, pinned: np.ndarray, plane_vertices: np.ndarray, plane: P
     pin_barycentrics = np.where(on_face[:, None], np.asarray(inputs.barycentrics)[pins], 0.0)
     return inputs._replace(
         anchor_vertices=np.ascontiguousarray(np.concatenate([inputs.anchor_vertices[keep], pins]), dtype=np.uint32),
-        anchor_triangles=np.ascontiguousarray(np.concatenate([inputs.anchor_triangles[keep], pin_triangles]), dtype=np.int32),
+        anchor_triangles=np.ascontiguousarray(
+            np.concatenate([inputs.anchor_triangles[keep], pin_triangles]), dtype=np.int32
+        ),
         anchor_barycentrics=transforms.as_float32_points(
             np.concatenate([inputs.anchor_barycentrics[keep], pin_barycentrics])
         ),
@@ -326,8 +334,15 @@ class MirroredAnchors(NamedTuple):
     dropped_count: int  # anchors that were on seam vertices (the seam is held on the plane instead)
 
 
-def mirrored_anchors(anchor_list, source: np.ndarray, is_copy: np.ndarray, seam: np.ndarray, plane: Plane,
-                     target=None, mirror: bool = True) -> MirroredAnchors:
+def mirrored_anchors(
+    anchor_list,
+    source: np.ndarray,
+    is_copy: np.ndarray,
+    seam: np.ndarray,
+    plane: Plane,
+    target=None,
+    mirror: bool = True,
+) -> MirroredAnchors:
     """The anchors of the mirrored layout.
 
     Anchors on seam vertices are dropped (the plane holds the seam). With ``mirror``, each anchor
@@ -390,8 +405,9 @@ def land_copies(mirrored: MirrorLayout, edge_lengths: np.ndarray, target, reach_
     return mirrored._replace(positions=positions, state=layout_state.normalized_state(states, faces, barycentrics))
 
 
-def held_on_plane(inputs, world_positions: np.ndarray, edges: np.ndarray, plane: Plane,
-                  weld_fraction: float = DEFAULT_WELD_FRACTION):
+def held_on_plane(
+    inputs, world_positions: np.ndarray, edges: np.ndarray, plane: Plane, weld_fraction: float = DEFAULT_WELD_FRACTION
+):
     """The wrap's inputs (``wrap_inputs.WrapInputs``) with the layout's vertices on ``plane`` held on it.
 
     For a half to be mirrored: its midline (each vertex within ``weld_fraction`` of its own mean
@@ -424,3 +440,10 @@ def held_on_plane(inputs, world_positions: np.ndarray, edges: np.ndarray, plane:
         plane_normal=tuple(float(value) for value in plane.normal),
         plane_slide=True,
     )
+
+
+class MirrorOutcome:
+    """What a mirror did, for the report (and for scripts: ``SPRINGWRAP_OT_mirror.last_outcome``)."""
+
+    def __init__(self, **values):
+        self.__dict__.update(values)

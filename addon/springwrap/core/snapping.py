@@ -9,7 +9,7 @@ All geometry is in world space; the outcome's positions are back in the layout's
 and vertices that do not move keep their stored coordinates bit for bit.
 """
 
-from typing import NamedTuple, Optional
+from typing import NamedTuple
 
 import numpy as np
 
@@ -33,9 +33,7 @@ class Outcome(NamedTuple):
     topology_reattached_count: int  # face-points re-attached on the changed target
 
 
-def detach(
-    layout: LayoutArrays, target: Optional[Target], stored_signature: str, only_selected: bool
-) -> Outcome:
+def detach(layout: LayoutArrays, target: Target | None, stored_signature: str, only_selected: bool) -> Outcome:
     """Make the vertices space-points; positions are unchanged."""
     resolution = _resolve_or_keep(layout, target, stored_signature)
     mask = operation_mask(layout, only_selected)
@@ -150,9 +148,7 @@ def _max_distance_arguments(max_distance: float) -> dict:
     return {"max_distance": float(max_distance)} if max_distance > 0.0 else {}
 
 
-def _resolve_or_keep(
-    layout: LayoutArrays, target: Optional[Target], stored_signature: str
-) -> layout_state.Resolution:
+def _resolve_or_keep(layout: LayoutArrays, target: Target | None, stored_signature: str) -> layout_state.Resolution:
     if target is None:
         return layout_state.Resolution(layout.state, 0, 0)
     return resolve_topology(layout, target, stored_signature)

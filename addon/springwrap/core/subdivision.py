@@ -150,7 +150,7 @@ def subdivide(topology: LayoutTopology, resolution: int) -> FineLayout:
         fine_sizes.append(np.full(count * k * k, 4, dtype=np.int64))
     # Other polygons (and quads at resolution 1) keep their corners, with the cut edges' points.
     for start, size in zip(starts[~is_quad].tolist(), sizes[~is_quad].tolist()):
-        ring = corners[start:start + size]
+        ring = corners[start : start + size]
         following = np.roll(ring, -1)
         polygon = np.stack([along(ring, following, step) for step in range(k)], axis=1).reshape(-1)
         fine_corners.append(polygon)

@@ -22,9 +22,7 @@ class Target(NamedTuple):
     reattach_tolerance: float  # see layout_state.reattach_tolerance
 
 
-def resolve_topology(
-    layout: LayoutArrays, target: Target, stored_signature: str
-) -> layout_state.Resolution:
+def resolve_topology(layout: LayoutArrays, target: Target, stored_signature: str) -> layout_state.Resolution:
     """Re-attach or detach the face-points whose face may be gone (paper section 2.1).
 
     Applies to the whole layout, whatever the selection: when the target's topology changed

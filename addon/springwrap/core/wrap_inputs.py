@@ -2,7 +2,7 @@
 the rest shape and the fine stage of a spring resolution above 1. Numpy and the kernel, no ``bpy``.
 """
 
-from typing import Any, NamedTuple, Optional
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -12,7 +12,6 @@ from .layout_state import LayoutArrays, check_finite
 from .subdivision import MAX_RESOLUTION
 from .target import Target, resolve_topology
 from .transforms import world_positions
-
 
 COLLAPSED_EDGE = 1e-6
 """An edge shorter than this fraction of the layout's mean edge length has collapsed (a rest shape refuses it)."""
@@ -57,7 +56,9 @@ class WrapParameters(NamedTuple):
     """What the user sets for a wrap: the iteration limit, the spring resolution and the kernel's settings."""
 
     max_iterations: int = 2000
-    settings: Any = None  # springwrap_kernel.WrapSettings (weights, tolerance, rest, solver); None: the kernel's defaults
+    settings: Any = (
+        None  # springwrap_kernel.WrapSettings (weights, tolerance, rest, solver); None: the kernel's defaults
+    )
     spring_resolution: int = 1  # > 1: relax, then relax again the faces cut k x k (coarse to fine)
     stiffness_group: str = ""  # layout vertex group of per-vertex stiffness (energy solver); "": the layout's setting
     free_group: str = ""  # layout vertex group of vertices without a pull to the target; "": the layout's setting
@@ -74,18 +75,18 @@ class WrapInputs(NamedTuple):
     anchor_triangles: np.ndarray  # (A,) int32, -1 for a space anchor
     anchor_barycentrics: np.ndarray  # (A, 3) float32
     anchor_positions: np.ndarray  # (A, 3) float32 world target points
-    unreliable_triangles: Optional[np.ndarray]  # (M,) bool, or None when no group is set
-    curve_vertices: Optional[np.ndarray] = None  # (sum C,) uint32 chains one after another; None: no curves
-    curve_vertex_counts: Optional[np.ndarray] = None  # (K,) uint32 vertices per chain
-    curve_points: Optional[np.ndarray] = None  # (sum P, 3) float32 world target polylines one after another
-    curve_point_counts: Optional[np.ndarray] = None  # (K,) uint32 points per polyline
-    rest_positions: Optional[np.ndarray] = None  # (N, 3) float32 world template shape the springs rest in
-    plane_vertices: Optional[np.ndarray] = None  # (S,) uint32 vertices held on the mirror plane; None: no plane
-    plane_point: Optional[tuple] = None  # (3,) world point of the mirror plane
-    plane_normal: Optional[tuple] = None  # (3,) world normal of the mirror plane
+    unreliable_triangles: np.ndarray | None  # (M,) bool, or None when no group is set
+    curve_vertices: np.ndarray | None = None  # (sum C,) uint32 chains one after another; None: no curves
+    curve_vertex_counts: np.ndarray | None = None  # (K,) uint32 vertices per chain
+    curve_points: np.ndarray | None = None  # (sum P, 3) float32 world target polylines one after another
+    curve_point_counts: np.ndarray | None = None  # (K,) uint32 points per polyline
+    rest_positions: np.ndarray | None = None  # (N, 3) float32 world template shape the springs rest in
+    plane_vertices: np.ndarray | None = None  # (S,) uint32 vertices held on the mirror plane; None: no plane
+    plane_point: tuple | None = None  # (3,) world point of the mirror plane
+    plane_normal: tuple | None = None  # (3,) world normal of the mirror plane
     plane_slide: bool = True  # held points slide along the target's cross-section (False: only move onto it)
-    stiffness: Optional[np.ndarray] = None  # (N,) float32 per-vertex stiffness 0 … 1 (energy solver); None: neutral
-    free_vertices: Optional[np.ndarray] = None  # (N,) bool vertices without a data term (energy solver); None: none
+    stiffness: np.ndarray | None = None  # (N,) float32 per-vertex stiffness 0 … 1 (energy solver); None: neutral
+    free_vertices: np.ndarray | None = None  # (N,) bool vertices without a data term (energy solver); None: none
 
 
 def check_wrap_parameters(parameters: WrapParameters) -> None:
@@ -104,9 +105,7 @@ def check_wrap_parameters(parameters: WrapParameters) -> None:
 def check_wrappable(layout_name: str, face_count: int, edge_count: int) -> None:
     """Raise :class:`~.errors.LayoutError` when the layout has nothing for the springs to act on."""
     if face_count == 0 and edge_count == 0:
-        raise LayoutError(
-            f"Layout '{layout_name}' has no faces and no edges: there is nothing to wrap"
-        )
+        raise LayoutError(f"Layout '{layout_name}' has no faces and no edges: there is nothing to wrap")
 
 
 def unreliable_triangles(triangles: np.ndarray, vertex_weights: np.ndarray) -> np.ndarray:
@@ -193,14 +192,14 @@ def refine_wrap_inputs(inputs: WrapInputs, fine, positions: np.ndarray, states, 
     if inputs.curve_vertices is not None:
         chains, offset = [], 0
         for size in inputs.curve_vertex_counts.astype(np.int64):
-            chains.append(fine.expand_chain(inputs.curve_vertices[offset:offset + size].astype(np.int64)))
+            chains.append(fine.expand_chain(inputs.curve_vertices[offset : offset + size].astype(np.int64)))
             offset += size
         curve_arguments = {
             "curve_vertices": np.ascontiguousarray(np.concatenate(chains), dtype=np.uint32),
             "curve_vertex_counts": np.array([len(chain) for chain in chains], dtype=np.uint32),
         }
-    rest = None if inputs.rest_positions is None else transforms.as_float32_points(
-        fine.interpolate(inputs.rest_positions)
+    rest = (
+        None if inputs.rest_positions is None else transforms.as_float32_points(fine.interpolate(inputs.rest_positions))
     )
     return inputs._replace(
         states=fine_states,
@@ -217,9 +216,7 @@ def rest_world_positions(layout: LayoutArrays, rest: np.ndarray) -> np.ndarray:
     rest = np.asarray(rest, dtype=np.float64)
     vertex_count = layout.positions.shape[0]
     if rest.shape != (vertex_count, 3):
-        raise LayoutError(
-            f"The stored rest shape has {rest.shape[0]} points for a layout of {vertex_count} vertices"
-        )
+        raise LayoutError(f"The stored rest shape has {rest.shape[0]} points for a layout of {vertex_count} vertices")
     bad = np.flatnonzero(~np.isfinite(rest).all(axis=1))
     if bad.size:
         raise LayoutError(f"The stored rest shape of vertex {int(bad[0])} is not finite")
@@ -231,9 +228,9 @@ def prepare_wrap(
     target: Target,
     stored_signature: str,
     anchor_list,
-    unreliable: Optional[np.ndarray],
+    unreliable: np.ndarray | None,
     curve_constraints=(),
-    rest: Optional[np.ndarray] = None,
+    rest: np.ndarray | None = None,
 ) -> tuple[WrapInputs, layout_state.Resolution]:
     """The solver's inputs: the layout's current state (after the deleted-face rule) and positions.
 

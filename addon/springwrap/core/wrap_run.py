@@ -4,7 +4,7 @@ operator's return values out), so tests drive them directly. No ``bpy``.
 """
 
 import math
-from typing import NamedTuple, Optional
+from typing import NamedTuple
 
 CANCEL_EVENTS = frozenset({"ESC", "RIGHTMOUSE"})
 """Events (pressed) that cancel a modal wrap."""
@@ -108,7 +108,7 @@ class IterationPacer:
             raise ValueError("frame_rate must be positive")
         self.frame_seconds = 1.0 / frame_rate
         self.max_count = max_count
-        self.iteration_seconds: Optional[float] = None
+        self.iteration_seconds: float | None = None
         self.write_seconds = 0.0
         self.last_count = 1
 
@@ -147,8 +147,8 @@ class WrapLoop:
 
     def __init__(self, session):
         self.session = session
-        self.result: Optional[WrapResult] = None
-        self.error: Optional[BaseException] = None
+        self.result: WrapResult | None = None
+        self.error: BaseException | None = None
         self.state = "RUNNING_MODAL"
 
     def handle(self, event_type: str, event_value: str = "NOTHING") -> str:

@@ -4,7 +4,13 @@
 from . import align, anchors, armature, curves, features, mirror, snapping, wrap
 
 classes = (
-    snapping.classes + align.classes + anchors.classes + curves.classes + wrap.classes + armature.classes
-    + features.classes + mirror.classes
+    snapping.classes
+    + align.classes
+    + anchors.classes
+    + curves.classes
+    + wrap.classes
+    + armature.classes
+    + features.classes
+    + mirror.classes
 )
 """Every operator class, in the order they are registered."""

@@ -22,7 +22,11 @@ from .base import LayoutOperator, open_layout
 METHOD_ITEMS = (
     ("RIGID", "Rigid", "Rotation and translation (needs 3 anchors not on one line)"),
     ("SIMILARITY", "Similarity", "Rotation, translation and uniform scale (needs 3 anchors not on one line)"),
-    ("AFFINE", "Affine", "Any linear map and translation: also stretches and shears (needs 4 anchors not in one plane)"),
+    (
+        "AFFINE",
+        "Affine",
+        "Any linear map and translation: also stretches and shears (needs 4 anchors not in one plane)",
+    ),
 )
 APPLY_ITEMS = (
     ("OBJECT", "Object Transform", "Change the layout object's location, rotation and scale; the mesh stays as it is"),
@@ -103,7 +107,9 @@ class SPRINGWRAP_OT_align(LayoutOperator, bpy.types.Operator):
 
     def execute(self, context):
         layout = open_layout(
-            self, context, moves_vertices=self.apply == "BAKE",
+            self,
+            context,
+            moves_vertices=self.apply == "BAKE",
             consequence="bake needs to move its vertices: apply to the object transform",
         )
         if layout is None:
@@ -131,7 +137,9 @@ class SPRINGWRAP_OT_align(LayoutOperator, bpy.types.Operator):
                 outcome = alignment.align(arrays, anchor_list, target, parameters)
                 detached = alignment.detached_count(arrays)
                 if self.apply == "OBJECT":
-                    basis = alignment.object_basis(outcome.matrix, arrays.matrix_world, layout_data.read_parent_matrix(layout))
+                    basis = alignment.object_basis(
+                        outcome.matrix, arrays.matrix_world, layout_data.read_parent_matrix(layout)
+                    )
                     layout_data.write_layout(layout, arrays.positions, alignment.floating_state(arrays))
                     layout_data.write_object_basis(layout, basis)
                 else:

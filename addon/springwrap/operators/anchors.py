@@ -8,6 +8,7 @@ step succeeded; any problem is reported as an error and the anchors are left exa
 import time
 
 import bpy
+
 import numpy as np
 
 from ..blender import anchors as anchor_data
@@ -142,7 +143,9 @@ class SPRINGWRAP_OT_anchors_auto(_AnchorOperator, bpy.types.Operator):
         description="Remove the existing anchors first; off: keep them and anchor other vertices only",
         default=True,
     )
-    max_distance: max_distance_property("Vertices whose target point is farther than this get no anchor (0 = unlimited)")
+    max_distance: max_distance_property(
+        "Vertices whose target point is farther than this get no anchor (0 = unlimited)"
+    )
 
     def compute(self, context, layout):
         arrays = layout_data.read_layout(layout)

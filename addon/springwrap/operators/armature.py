@@ -14,6 +14,7 @@ armature's pose back exactly, so an error leaves the scene as it was.
 import time
 
 import bpy
+
 import numpy as np
 
 from ..blender import armature as armature_data
@@ -110,7 +111,9 @@ class SPRINGWRAP_OT_align_armature(bpy.types.Operator):
                 if self.bake:
                     layout_data.refuse_shape_keys(layout)
                 posed = True
-                result = armature_data.pose_onto(context, template, target, self.match_roll, self.scale_mode, progress.update)
+                result = armature_data.pose_onto(
+                    context, template, target, self.match_roll, self.scale_mode, progress.update
+                )
                 if self.bake:
                     positions = armature_data.deformed_positions(context, layout)
                     if not np.all(np.isfinite(positions)):

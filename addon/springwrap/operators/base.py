@@ -7,7 +7,6 @@ says so when it is missing), so an operator never finds it absent.
 """
 
 import contextlib
-from typing import Optional
 
 import bpy
 
@@ -16,7 +15,7 @@ from ..blender.edit_mode import object_mode
 from ..core.errors import ERRORS
 
 
-def layout_problem(context, require_target=True) -> Optional[str]:
+def layout_problem(context, require_target=True) -> str | None:
     """Why the operators cannot run on the active object, or None when they can."""
     layout = context.active_object
     if layout is None or layout.type != "MESH":
@@ -41,9 +40,12 @@ def poll_layout(cls, context, require_target=True) -> bool:
 
 
 def open_layout(
-    operator, context, require_target=True, moves_vertices=False,
+    operator,
+    context,
+    require_target=True,
+    moves_vertices=False,
     consequence: str = layout_data.SHAPE_KEYS_CONSEQUENCE,
-) -> Optional[bpy.types.Object]:
+) -> bpy.types.Object | None:
     """The common opening of a layout operator's ``execute``: :func:`layout_problem`, then (when it moves
     vertices) the refusal of shape keys. The layout, or None after an ERROR report saying why not."""
     problem = layout_problem(context, require_target)

@@ -7,6 +7,7 @@ problem is reported as an error and the constraints are left exactly as they wer
 """
 
 import bpy
+
 import numpy as np
 
 from ..blender import anchors as anchor_data
@@ -85,7 +86,8 @@ class SPRINGWRAP_OT_curve_constraint_add(_CurveOperator, bpy.types.Operator):
     def summary(self, constraints):
         new = self._new
         source = (
-            f"curve '{new.curve_object.name}'" if new.source_kind == "CURVE_OBJECT"
+            f"curve '{new.curve_object.name}'"
+            if new.source_kind == "CURVE_OBJECT"
             else f"a chain of {new.target_vertices.size - 1} target edges"
         )
         return (

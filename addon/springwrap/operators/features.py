@@ -12,37 +12,13 @@ import contextlib
 import time
 
 import bpy
+
 import numpy as np
 
 from ..blender import features as feature_data
 from ..blender.edit_mode import object_mode
 from ..core.errors import ERRORS
-
-REGION_COLORS = np.array(
-    [
-        (0.55, 0.55, 0.55, 1.0),  # flat: grey
-        (0.85, 0.25, 0.15, 1.0),  # convex: red
-        (0.15, 0.35, 0.85, 1.0),  # concave: blue
-        (0.90, 0.75, 0.15, 1.0),  # saddle: yellow
-    ],
-    dtype=np.float32,
-)
-"""RGBA per region number (the kernel's order: flat, convex, concave, saddle)."""
-
-DEFAULT_SCALE_EDGES = 3.0
-"""With ``scale = 0``, the scale is this many mean edge lengths of the target."""
-
-
-def mean_edge_length(vertices: np.ndarray, triangles: np.ndarray) -> float:
-    """Mean length of the triangles' edges (each inner edge counted twice: it does not matter for a mean)."""
-    corners = vertices[triangles.astype(np.int64)]
-    edges = corners - np.roll(corners, 1, axis=1)
-    return float(np.linalg.norm(edges, axis=2).mean())
-
-
-def region_colors(regions: np.ndarray) -> np.ndarray:
-    """(V, 4) RGBA of the region numbers."""
-    return REGION_COLORS[np.asarray(regions, dtype=np.int64)]
+from ..core.features import DEFAULT_SCALE_EDGES, mean_edge_length, region_colors
 
 
 def feature_object(context, name: str = ""):
@@ -150,7 +126,9 @@ class SPRINGWRAP_OT_detect_features(bpy.types.Operator):
             if self.write_colors and colors_fit:
                 with object_mode(source) if source == context.active_object else contextlib.nullcontext():
                     feature_data.write_feature_colors(source, region_colors(features.regions))
-            curve_objects = feature_data.write_feature_curves(context, source, features.curves) if self.write_curves else []
+            curve_objects = (
+                feature_data.write_feature_curves(context, source, features.curves) if self.write_curves else []
+            )
         except ERRORS as error:
             self.report({"ERROR"}, f"'{source.name}': {error}")
             return {"CANCELLED"}

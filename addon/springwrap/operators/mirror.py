@@ -23,6 +23,7 @@ only guesses (a wrong anchor is a hard constraint); the pinned half and the seam
 import time
 
 import bpy
+
 import numpy as np
 
 from ..blender import anchors as anchor_data
@@ -34,7 +35,7 @@ from ..blender.edit_mode import object_mode
 from ..blender.wrap_session import WrapSession
 from ..core import anchors, layout_state, mirroring, transforms, wrap_inputs
 from ..core.errors import ERRORS, LayoutError
-from ..core.mirroring import AXES, DEFAULT_WELD_FRACTION
+from ..core.mirroring import AXES, DEFAULT_WELD_FRACTION, MirrorOutcome
 from ..core.transforms import matrix_array
 from ..core.wrap_inputs import WrapParameters
 from ..properties import WRAP_DEFAULTS, WRAP_SOLVER_ITEMS, max_iterations_property, tolerance_property
@@ -45,13 +46,6 @@ LANDING_REACH = 0.25
 ON_PLANE_TOLERANCE = 1e-6
 """Without a wrap, a seam face-point moved onto the plane by more than this fraction of the layout's
 size becomes a space-point (its face no longer lies under it)."""
-
-
-class MirrorOutcome:
-    """What a mirror did, for the report (and for scripts: ``SPRINGWRAP_OT_mirror.last_outcome``)."""
-
-    def __init__(self, **values):
-        self.__dict__.update(values)
 
 
 class SPRINGWRAP_OT_mirror(bpy.types.Operator):
@@ -102,10 +96,18 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
         name="Seam",
         description="What the seam (the vertices on the plane) does during the wrap",
         items=(
-            ("SLIDE", "Slide", "Seam points slide along the target's cross-section with the plane, pulled by the "
-             "springs of both halves"),
-            ("HOLD", "Hold", "Seam points only move onto the target's cross-section, the shortest way, and stay: the "
-             "seam stays as the surfaced half has it"),
+            (
+                "SLIDE",
+                "Slide",
+                "Seam points slide along the target's cross-section with the plane, pulled by the "
+                "springs of both halves",
+            ),
+            (
+                "HOLD",
+                "Hold",
+                "Seam points only move onto the target's cross-section, the shortest way, and stay: the "
+                "seam stays as the surfaced half has it",
+            ),
         ),
         default="SLIDE",
     )
@@ -140,8 +142,11 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
                 self.report({"ERROR"}, str(error))
                 return {"CANCELLED"}
             backup = mirror_data.backup_mesh(layout)
-            anchors_before = (anchor_data.read_anchors(layout), layout.springwrap.anchors_signature,
-                              layout.springwrap.active_anchor_index)
+            anchors_before = (
+                anchor_data.read_anchors(layout),
+                layout.springwrap.anchors_signature,
+                layout.springwrap.active_anchor_index,
+            )
             window_manager = context.window_manager
             progress = not bpy.app.background
             try:
@@ -183,13 +188,24 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
         topology = layout_data.read_layout_topology(layout)
         world = transforms.world_positions(arrays)
         decided = mirroring.plan(
-            world, topology.face_corners, topology.face_sizes, topology.edges, plane, self.weld_distance,
+            world,
+            topology.face_corners,
+            topology.face_sizes,
+            topology.edges,
+            plane,
+            self.weld_distance,
             layout_name=f"layout '{layout.name}'",
         )
         rest = attributes.read_rest(layout)
         world_rest = world if rest is None else wrap_inputs.rest_world_positions(arrays, rest)
-        return {"arrays": arrays, "plane": plane, "plane_owner": plane_owner, "plan": decided, "world": world,
-                "world_rest": world_rest}
+        return {
+            "arrays": arrays,
+            "plane": plane,
+            "plane_owner": plane_owner,
+            "plan": decided,
+            "world": world,
+            "world_rest": world_rest,
+        }
 
     def parameters(self):
         """The wrap's ``wrap_inputs.WrapParameters`` (the wrap operator's defaults, this operator's limits)."""
@@ -203,11 +219,19 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
         start = time.perf_counter()
         arrays, plane, decided = prepared["arrays"], prepared["plane"], prepared["plan"]
         original_count = arrays.positions.shape[0]
-        source = mirror_data.mirror_mesh_topology(layout, decided.duplicate_faces, decided.duplicate_edges, decided.seam)
+        source = mirror_data.mirror_mesh_topology(
+            layout, decided.duplicate_faces, decided.duplicate_edges, decided.seam
+        )
         size = float(np.linalg.norm(np.ptp(prepared["world"], axis=0))) or 1.0
         mirrored = mirroring.mirrored_layout(
-            prepared["world"], arrays.state, prepared["world_rest"], source, decided.seam, plane,
-            keep_seam_face_points=self.wrap, on_plane_tolerance=ON_PLANE_TOLERANCE * size,
+            prepared["world"],
+            arrays.state,
+            prepared["world_rest"],
+            source,
+            decided.seam,
+            plane,
+            keep_seam_face_points=self.wrap,
+            on_plane_tolerance=ON_PLANE_TOLERANCE * size,
         )
         target = None
         if layout.springwrap.target is not None:
@@ -240,7 +264,9 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
                 pinned = np.zeros_like(pinned)
             seam_vertices = np.flatnonzero(mirrored.seam)
             session = WrapSession(
-                context, layout, self.parameters(),
+                context,
+                layout,
+                self.parameters(),
                 adjust_inputs=lambda inputs: mirroring.hold_inputs(
                     inputs, pinned, seam_vertices, plane, slide=self.seam == "SLIDE", rest=wrap_rest
                 ),

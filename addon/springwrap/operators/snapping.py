@@ -8,6 +8,7 @@ it was.
 import time
 
 import bpy
+
 import numpy as np
 
 from ..blender import attributes

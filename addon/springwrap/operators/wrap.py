@@ -16,8 +16,6 @@ The logic is in two plain classes that need no window or events: ``blender.wrap_
 events in, operator results out), so tests drive them directly.
 """
 
-from typing import Optional
-
 import bpy
 
 from ..blender import layout as layout_data
@@ -85,8 +83,12 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
         name="Rest Shape",
         description="What the springs consider relaxed",
         items=(
-            ("TEMPLATE", "Template", "Keep the template's own spacing and curvature (its shape before the first snap, "
-             "projection or wrap, or as set by Set Rest Shape)"),
+            (
+                "TEMPLATE",
+                "Template",
+                "Keep the template's own spacing and curvature (its shape before the first snap, "
+                "projection or wrap, or as set by Set Rest Shape)",
+            ),
             ("EVEN", "Even", "Straight, evenly spaced grid lines (Krishnamurthy & Levoy's springs)"),
         ),
         default=WRAP_DEFAULTS.rest,
@@ -157,7 +159,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
 
     # A string: typing's cache would keep Optional[WrapSession] (and through it this module) alive until
     # after Python finalizes, and the PyPI bpy 4.2 module then crashes on exit freeing the operator class.
-    def _start(self, context) -> "Optional[WrapSession]":
+    def _start(self, context) -> "WrapSession | None":
         """Check, then build the session (in object mode); None after reporting why not."""
         problem = layout_problem(context)
         if problem is not None:

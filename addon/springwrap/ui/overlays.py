@@ -12,6 +12,7 @@ re-read the mesh; the anchor list itself is a few small arrays, read on every dr
 """
 
 import bpy
+
 import gpu
 import numpy as np
 from gpu_extras.batch import batch_for_shader

@@ -96,9 +96,7 @@ class SPRINGWRAP_PT_anchors(_LayoutSubPanel, bpy.types.Panel):
         layout.label(text=_anchor_counts_text(context.active_object), icon="PINNED")
 
         row = layout.row()
-        row.template_list(
-            "SPRINGWRAP_UL_anchors", "", settings, "anchors", settings, "active_anchor_index", rows=4
-        )
+        row.template_list("SPRINGWRAP_UL_anchors", "", settings, "anchors", settings, "active_anchor_index", rows=4)
         column = row.column(align=True)
         add = column.operator("springwrap.anchor_add", icon="ADD", text="")
         add.vertex_index = -1
@@ -231,7 +229,7 @@ class SPRINGWRAP_PT_features(_LayoutSubPanel, bpy.types.Panel):
 
 
 def _anchor_counts_text(obj):
-    """"K anchors (F on the surface)", the kinds read at once (the list may be long)."""
+    """ "K anchors (F on the surface)", the kinds read at once (the list may be long)."""
     return f"{len(obj.springwrap.anchors)} anchors ({anchor_data.face_anchor_count(obj)} on the surface)"
 
 

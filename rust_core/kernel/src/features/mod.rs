@@ -1,4 +1,4 @@
-//! Feature detection on a target mesh (issue 5, item 4; the paper's section 3.2 and Figure 9):
+//! Feature detection on a target mesh (the paper's section 3.2 and Figure 9):
 //! principal curvatures fitted over a scale, concave / convex / flat regions, and ridge and valley
 //! curves (the centre-lines of blends) that can serve as curve constraints.
 

@@ -141,9 +141,7 @@ class TargetMesh(_native.TargetMesh):
     def detect_features(self, scale, **settings):
         """Curvatures, concave / convex / flat regions and ridge / valley curves (see the stubs)."""
         k1, k2, d1, d2, regions, curves = _native.detect_features(self, scale, **settings)
-        return Features(
-            Curvatures(k1, k2, d1, d2), regions, [FeatureCurve(*curve) for curve in curves]
-        )
+        return Features(Curvatures(k1, k2, d1, d2), regions, [FeatureCurve(*curve) for curve in curves])
 
     def feature_curves(self, scale, **settings):
         """The ridge and valley curves of :meth:`detect_features` alone."""
@@ -152,9 +150,7 @@ class TargetMesh(_native.TargetMesh):
     def ray_cast(self, origins, directions, *, max_distance=float("inf"), both_directions=False):
         """First hit along each ray (signed distance; backwards too with ``both_directions``)."""
         return SurfaceHits(
-            *super().ray_cast(
-                origins, directions, max_distance=max_distance, both_directions=both_directions
-            )
+            *super().ray_cast(origins, directions, max_distance=max_distance, both_directions=both_directions)
         )
 
 

@@ -112,13 +112,9 @@ class TargetMesh:
         corner ``e`` to corner ``(e + 1) % 3``), or -1 on a boundary or non-manifold edge."""
     def boundary_edges(self) -> npt.NDArray[np.uint32]:
         """(B, 2) rows of ``(triangle, edge)`` for every edge with one triangle (holes, open borders)."""
-    def closest_points(
-        self, points: npt.NDArray[np.float32], *, max_distance: float = ...
-    ) -> SurfaceHits:
+    def closest_points(self, points: npt.NDArray[np.float32], *, max_distance: float = ...) -> SurfaceHits:
         """Exact closest point on the surface (the face tree) for every query point."""
-    def nearest_vertices(
-        self, points: npt.NDArray[np.float32], *, max_distance: float = ...
-    ) -> VertexHits:
+    def nearest_vertices(self, points: npt.NDArray[np.float32], *, max_distance: float = ...) -> VertexHits:
         """Nearest mesh vertex (the fast vertex tree), as a face-point at that vertex."""
     def ray_cast(
         self,

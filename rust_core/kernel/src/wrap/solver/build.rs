@@ -1,0 +1,431 @@
+//! Building a wrap: the layout, its points and anchors, the settings, the rest shape, per-vertex
+//! stiffness, free vertices, unreliable triangles and curve constraints.
+
+use super::*;
+
+impl WrapSolver {
+    /// Prepares a wrap of the layout (`structure`, one point per vertex) onto `target`.
+    ///
+    /// # Errors
+    /// [`KernelError::LengthMismatch`] (points vs. layout vertices),
+    /// [`KernelError::TriangleIndexOutOfRange`] or [`KernelError::NonFinite`] for a bad point or
+    /// anchor target, [`KernelError::InvalidArgument`] for a layout without edges, a zero-length
+    /// edge, an anchor on a vertex that does not exist or on the same vertex twice, or a setting
+    /// out of range.
+    pub fn new(
+        target: Arc<TargetMesh>,
+        structure: LayoutStructure,
+        points: Vec<LayoutPoint>,
+        anchors: &[Anchor],
+        settings: WrapSettings,
+    ) -> Result<Self, KernelError> {
+        Self::with_rest_shape(target, structure, points, None, anchors, settings)
+    }
+
+    /// Like [`WrapSolver::new`], with the shape the springs rest in given apart from the starting
+    /// points: `rest` (one position per layout vertex, in any placement, size and orientation: only
+    /// the shape matters) is the template as the artist made it, for a layout that was snapped or
+    /// projected since. `None` rests at the starting positions.
+    ///
+    /// # Errors
+    /// As [`WrapSolver::new`]; the zero-length edge check applies to the rest shape, and a rest
+    /// shape of the wrong length or with a NaN is refused.
+    pub fn with_rest_shape(
+        target: Arc<TargetMesh>,
+        structure: LayoutStructure,
+        points: Vec<LayoutPoint>,
+        rest: Option<Vec<Vec3>>,
+        anchors: &[Anchor],
+        settings: WrapSettings,
+    ) -> Result<Self, KernelError> {
+        settings.validate()?;
+        if points.len() != structure.vertex_count {
+            return Err(KernelError::LengthMismatch {
+                what: "layout points and layout vertices",
+                first: points.len(),
+                second: structure.vertex_count,
+            });
+        }
+        if structure.neighbors.is_empty() {
+            return Err(KernelError::InvalidArgument {
+                name: "layout",
+                reason: "it has no edges: there is nothing to wrap".to_owned(),
+            });
+        }
+        let positions = resolve_positions(&target, &points)?;
+        let rest = match rest {
+            None => positions.clone(),
+            Some(rest) => {
+                if rest.len() != structure.vertex_count {
+                    return Err(KernelError::LengthMismatch {
+                        what: "rest positions and layout vertices",
+                        first: rest.len(),
+                        second: structure.vertex_count,
+                    });
+                }
+                if let Some(index) = rest.iter().position(|p| !p.is_finite()) {
+                    return Err(KernelError::NonFinite {
+                        what: "rest position",
+                        index,
+                    });
+                }
+                rest
+            }
+        };
+        for vertex in 0..structure.vertex_count as u32 {
+            for &other in structure.neighbors_of(vertex) {
+                if other > vertex && rest[vertex as usize] == rest[other as usize] {
+                    return Err(KernelError::InvalidArgument {
+                        name: "layout",
+                        reason: format!(
+                            "the edge between vertices {vertex} and {other} has zero length"
+                        ),
+                    });
+                }
+            }
+        }
+        // The landing distance is a fraction of the mean edge length where the points are now
+        // (snapping may have made a few edges zero: they do not count).
+        let mut edge_length_sum = 0.0f64;
+        let mut edge_count = 0usize;
+        for vertex in 0..structure.vertex_count as u32 {
+            for &other in structure.neighbors_of(vertex) {
+                let length = positions[vertex as usize].distance(positions[other as usize]);
+                if other > vertex && length > 0.0 {
+                    edge_length_sum += f64::from(length);
+                    edge_count += 1;
+                }
+            }
+        }
+        if edge_count == 0 {
+            return Err(KernelError::InvalidArgument {
+                name: "layout",
+                reason: "all its points are at one place".to_owned(),
+            });
+        }
+        let mean_edge_length = (edge_length_sum / edge_count as f64) as f32;
+        let mut anchor_of_vertex = vec![None; structure.vertex_count];
+        for (index, anchor) in anchors.iter().enumerate() {
+            let slot = anchor_of_vertex
+                .get_mut(anchor.vertex as usize)
+                .ok_or_else(|| KernelError::InvalidArgument {
+                    name: "anchors",
+                    reason: format!(
+                        "anchor {index} is on vertex {}, but the layout has {} vertices",
+                        anchor.vertex, structure.vertex_count
+                    ),
+                })?;
+            if slot.is_some() {
+                return Err(KernelError::InvalidArgument {
+                    name: "anchors",
+                    reason: format!("vertex {} has more than one anchor", anchor.vertex),
+                });
+            }
+            let position = match anchor.target {
+                AnchorTarget::Face(face_point) => target
+                    .face_point_position(face_point)
+                    .map_err(|error| relabel_anchor_error(error, index))?,
+                AnchorTarget::Space(position) => {
+                    if !position.is_finite() {
+                        return Err(KernelError::NonFinite {
+                            what: "anchor target",
+                            index,
+                        });
+                    }
+                    position
+                }
+            };
+            *slot = Some((anchor.target, position));
+        }
+        let (min, max) = positions
+            .iter()
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(min, max), &p| {
+                (min.min(p), max.max(p))
+            });
+        let layout_size = (max - min).length().max(f32::MIN_POSITIVE);
+        let springs = Springs::new(&structure, &rest, settings.rest);
+        let energy_rest = if settings.solver == SolverKind::Energy {
+            rest
+        } else {
+            Vec::new()
+        };
+        let mut is_corner = vec![false; structure.vertex_count];
+        for &corner in &structure.corners {
+            is_corner[corner as usize] = true;
+        }
+        let _ = target.face_normals(); // built now rather than inside the first iteration
+        let reach = {
+            let bounds = target.bounds;
+            let centre = Vec3::from((bounds.min + bounds.max) * 0.5);
+            let target_size = Vec3::from(bounds.max - bounds.min).length();
+            let start_size = positions
+                .iter()
+                .map(|position| position.distance(centre))
+                .fold(0.0f32, f32::max);
+            (centre, REACH_FACTOR * target_size.max(start_size))
+        };
+        Ok(Self {
+            orientation: 0.0,
+            target,
+            springs,
+            similarities: vec![Similarity::IDENTITY; structure.vertex_count],
+            global_scale: 1.0,
+            settings,
+            fold_tolerance: settings.fold_tolerance,
+            landing_distance: settings.landing_distance * mean_edge_length,
+            lift_counts: vec![0; structure.vertex_count],
+            no_fold_until: vec![0; structure.vertex_count],
+            layout_size,
+            velocities: vec![Vec3::ZERO; structure.vertex_count],
+            step_scales: vec![1.0; structure.vertex_count],
+            mean_moves: vec![(Vec3::ZERO, 0.0); structure.vertex_count],
+            structure,
+            points,
+            positions,
+            anchor_of_vertex,
+            is_corner,
+            unreliable: Vec::new(),
+            walk_neighbors: None,
+            curve_target_of_vertex: Vec::new(),
+            plane: None,
+            on_plane: Vec::new(),
+            plane_slide: true,
+            total_iterations: 0,
+            quiet_iterations: 0,
+            iteration: 0,
+            rest: energy_rest,
+            mean_edge_length,
+            stiffness: Vec::new(),
+            free: Vec::new(),
+            energy: None,
+            reach,
+            diverged: None,
+        })
+    }
+
+    /// Sets how firmly each vertex keeps the template's shape: 0 follows the target freely, 0.5
+    /// is the wrap's own balance, 1 keeps the template's shape (no pull toward the target; the
+    /// shape terms it owns weigh 100 times more). One value per layout vertex, in [0, 1]. Only the
+    /// energy solver ([`SolverKind::Energy`]) takes it; the spring solver refuses it at its first
+    /// step.
+    ///
+    /// # Errors
+    /// [`KernelError::LengthMismatch`] unless there is one value per layout vertex,
+    /// [`KernelError::InvalidArgument`] for a value outside [0, 1] or NaN.
+    pub fn with_vertex_stiffness(mut self, stiffness: Vec<f32>) -> Result<Self, KernelError> {
+        if stiffness.len() != self.structure.vertex_count {
+            return Err(KernelError::LengthMismatch {
+                what: "stiffness values and layout vertices",
+                first: stiffness.len(),
+                second: self.structure.vertex_count,
+            });
+        }
+        if let Some(vertex) = stiffness
+            .iter()
+            .position(|value| !(0.0..=1.0).contains(value))
+        {
+            return Err(KernelError::InvalidArgument {
+                name: "stiffness",
+                reason: format!(
+                    "vertex {vertex} has stiffness {}; it must be within 0 … 1",
+                    stiffness[vertex]
+                ),
+            });
+        }
+        self.stiffness = stiffness;
+        Ok(self)
+    }
+
+    /// Marks layout vertices as free: no pull toward the target (eye and mouth sockets, teeth,
+    /// a region the target does not have); they follow their neighbours by the template's shape
+    /// and stay space-points. One flag per layout vertex. Only the energy solver takes it.
+    ///
+    /// # Errors
+    /// [`KernelError::LengthMismatch`] unless there is one flag per layout vertex.
+    pub fn with_free_vertices(mut self, free: Vec<bool>) -> Result<Self, KernelError> {
+        if free.len() != self.structure.vertex_count {
+            return Err(KernelError::LengthMismatch {
+                what: "free vertex flags and layout vertices",
+                first: free.len(),
+                second: self.structure.vertex_count,
+            });
+        }
+        self.free = free;
+        Ok(self)
+    }
+
+    /// Marks target triangles as unreliable (noisy or untrusted data, paper 2.5): points there
+    /// behave as space-points. Face-points on them are detached now; walks that end on them lift
+    /// off; folding never lands on them. Holes need no marking.
+    ///
+    /// # Errors
+    /// [`KernelError::LengthMismatch`] unless there is one flag per target triangle.
+    pub fn with_unreliable_triangles(mut self, unreliable: Vec<bool>) -> Result<Self, KernelError> {
+        let triangle_count = self.target.triangles().len();
+        if unreliable.len() != triangle_count {
+            return Err(KernelError::LengthMismatch {
+                what: "unreliable triangle flags and target triangles",
+                first: unreliable.len(),
+                second: triangle_count,
+            });
+        }
+        for (point, &position) in self.points.iter_mut().zip(&self.positions) {
+            if let LayoutPoint::Face(face_point) = point
+                && unreliable[face_point.triangle as usize]
+            {
+                *point = LayoutPoint::Space(position);
+            }
+        }
+        let walk_neighbors = self
+            .target
+            .triangle_neighbors()
+            .iter()
+            .map(|neighbors| {
+                neighbors.map(|neighbor| {
+                    if neighbor != NO_TRIANGLE && unreliable[neighbor as usize] {
+                        NO_TRIANGLE
+                    } else {
+                        neighbor
+                    }
+                })
+            })
+            .collect();
+        self.walk_neighbors = Some(walk_neighbors);
+        self.unreliable = unreliable;
+        Ok(self)
+    }
+
+    /// Holds layout chains to target curves, matched by arc length (paper, section 2.4): each
+    /// chain vertex is pulled to the target point at the same fraction of the curve's length as it
+    /// has along the chain *now* (the template's spacing is kept; matching on the moving positions
+    /// would feed back on itself), and lands on the surface when that point lies on it. Anchored
+    /// vertices keep their anchors; constrained points do not fold.
+    ///
+    /// # Errors
+    /// [`KernelError::InvalidArgument`] for a chain shorter than 2 vertices, a vertex that does not
+    /// exist, a vertex in two constraints, or a target curve with fewer than 2 points, a NaN, or
+    /// zero length.
+    pub fn with_curve_constraints(
+        mut self,
+        constraints: &[CurveConstraint],
+    ) -> Result<Self, KernelError> {
+        let mut owner: Vec<Option<usize>> = vec![None; self.points.len()];
+        let mut targets = vec![None; self.points.len()];
+        for (index, constraint) in constraints.iter().enumerate() {
+            let invalid = |reason: String| KernelError::InvalidArgument {
+                name: "curve constraints",
+                reason: format!("curve constraint {index}: {reason}"),
+            };
+            if constraint.layout_vertices.len() < 2 {
+                return Err(invalid(format!(
+                    "the layout chain needs at least 2 vertices, it has {}",
+                    constraint.layout_vertices.len()
+                )));
+            }
+            for &vertex in &constraint.layout_vertices {
+                let slot = owner.get_mut(vertex as usize).ok_or_else(|| {
+                    invalid(format!(
+                        "vertex {vertex} does not exist (the layout has {} vertices)",
+                        self.points.len()
+                    ))
+                })?;
+                if self.anchor_of_vertex[vertex as usize].is_some() {
+                    continue;
+                }
+                if self.is_on_plane(vertex) {
+                    return Err(invalid(format!(
+                        "vertex {vertex} is also held on the plane constraint"
+                    )));
+                }
+                if let Some(other) = *slot
+                    && other != index
+                {
+                    return Err(invalid(format!(
+                        "vertex {vertex} is also in curve constraint {other}"
+                    )));
+                }
+                *slot = Some(index);
+            }
+            let curve = ArcLengthCurve::new(index, &constraint.target)?;
+            let chain = &constraint.layout_vertices;
+            for (&vertex, fraction) in chain.iter().zip(chain_fractions(&self.positions, chain)) {
+                if self.anchor_of_vertex[vertex as usize].is_none() {
+                    targets[vertex as usize] = Some(curve.point_at(fraction));
+                }
+            }
+        }
+        self.curve_target_of_vertex = targets;
+        Ok(self)
+    }
+}
+
+/// Positions of layout points; face-points are checked against the target.
+fn resolve_positions(
+    target: &TargetMesh,
+    points: &[LayoutPoint],
+) -> Result<Vec<Vec3>, KernelError> {
+    let (layout_indices, face_points): (Vec<usize>, Vec<FacePoint>) = points
+        .iter()
+        .enumerate()
+        .filter_map(|(index, point)| match point {
+            LayoutPoint::Face(face_point) => Some((index, *face_point)),
+            LayoutPoint::Space(_) => None,
+        })
+        .unzip();
+    // Errors name the layout vertex, not the position among the face-points.
+    let face_positions =
+        target
+            .face_point_positions(&face_points)
+            .map_err(|error| match error {
+                KernelError::TriangleIndexOutOfRange {
+                    index,
+                    triangle,
+                    triangle_count,
+                } => KernelError::TriangleIndexOutOfRange {
+                    index: layout_indices[index],
+                    triangle,
+                    triangle_count,
+                },
+                KernelError::NonFinite { index, .. } => KernelError::NonFinite {
+                    what: "barycentric",
+                    index: layout_indices[index],
+                },
+                other => other,
+            })?;
+    let mut positions = Vec::with_capacity(points.len());
+    let mut face_positions = face_positions.into_iter();
+    for (index, point) in points.iter().enumerate() {
+        positions.push(match point {
+            LayoutPoint::Face(_) => face_positions.next().unwrap_or(Vec3::ZERO),
+            LayoutPoint::Space(position) if position.is_finite() => *position,
+            LayoutPoint::Space(_) => {
+                return Err(KernelError::NonFinite {
+                    what: "layout point",
+                    index,
+                });
+            }
+        });
+    }
+    Ok(positions)
+}
+
+/// A face-point error about anchor targets names the anchor, not a face-point.
+fn relabel_anchor_error(error: KernelError, anchor: usize) -> KernelError {
+    match error {
+        KernelError::TriangleIndexOutOfRange {
+            triangle,
+            triangle_count,
+            ..
+        } => KernelError::InvalidArgument {
+            name: "anchors",
+            reason: format!(
+                "anchor {anchor} targets triangle {triangle}, but the target has only {triangle_count} triangles"
+            ),
+        },
+        KernelError::NonFinite { .. } => KernelError::NonFinite {
+            what: "anchor target",
+            index: anchor,
+        },
+        other => other,
+    }
+}

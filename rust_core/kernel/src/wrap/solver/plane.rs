@@ -1,0 +1,188 @@
+//! The plane constraint: layout vertices held on a plane (a mirrored layout's seam), walked onto it
+//! along the target and kept there.
+
+use super::*;
+
+impl WrapSolver {
+    /// Holds layout vertices on a plane (a mirrored layout's seam; paper, section 3): a held
+    /// face-point slides only along the target's cross-section with the plane and is walked back
+    /// onto the plane after every move; a held space-point moves within the plane and lands on
+    /// the cross-section when it comes within the landing distance of it. Anchored vertices keep
+    /// their anchors; held points do not fold.
+    ///
+    /// # Errors
+    /// [`KernelError::InvalidArgument`] for a NaN or a zero normal, a vertex that does not exist,
+    /// or a vertex also held by a curve constraint.
+    pub fn with_plane_constraint(
+        mut self,
+        constraint: &PlaneConstraint,
+    ) -> Result<Self, KernelError> {
+        let plane = Plane::new(constraint.point, constraint.normal)?;
+        let mut on_plane = vec![false; self.points.len()];
+        for &vertex in &constraint.vertices {
+            let invalid = |reason: String| KernelError::InvalidArgument {
+                name: "plane constraint",
+                reason,
+            };
+            if vertex as usize >= self.points.len() {
+                return Err(invalid(format!(
+                    "vertex {vertex} does not exist (the layout has {} vertices)",
+                    self.points.len()
+                )));
+            }
+            if self.anchor_of_vertex[vertex as usize].is_some() {
+                continue;
+            }
+            if self
+                .curve_target_of_vertex
+                .get(vertex as usize)
+                .is_some_and(Option::is_some)
+            {
+                return Err(invalid(format!(
+                    "vertex {vertex} is also held by a curve constraint"
+                )));
+            }
+            on_plane[vertex as usize] = true;
+        }
+        // Held points start on the plane: the springs' first look at the seam is where it stays.
+        for (vertex, _) in on_plane.iter().enumerate().filter(|(_, held)| **held) {
+            let (point, position) = match self.points[vertex] {
+                LayoutPoint::Face(face_point) => match self.walk_onto_plane(&plane, face_point) {
+                    Some((face_point, position)) => (LayoutPoint::Face(face_point), position),
+                    None => {
+                        let position = plane.project(self.positions[vertex]);
+                        (LayoutPoint::Space(position), position)
+                    }
+                },
+                LayoutPoint::Space(position) => {
+                    let position = plane.project(position);
+                    (LayoutPoint::Space(position), position)
+                }
+            };
+            self.points[vertex] = point;
+            self.positions[vertex] = position;
+        }
+        self.plane = Some(plane);
+        self.plane_slide = constraint.slide;
+        self.on_plane = on_plane;
+        Ok(self)
+    }
+
+    /// Whether `vertex` is held on the plane.
+    pub(super) fn is_on_plane(&self, vertex: u32) -> bool {
+        self.on_plane.get(vertex as usize).copied().unwrap_or(false)
+    }
+
+    /// Walks a face-point onto the plane along the surface (across the cross-section): `None`
+    /// when the walk leaves the surface (a hole) or the surface runs along the plane there.
+    pub(super) fn walk_onto_plane(
+        &self,
+        plane: &Plane,
+        start: FacePoint,
+    ) -> Option<(FacePoint, Vec3)> {
+        let tolerance = ON_PLANE * self.layout_size;
+        let mut face_point = start;
+        let mut position = self
+            .target
+            .interpolate(face_point.triangle, face_point.barycentric);
+        for _ in 0..PLANE_WALKS {
+            let distance = plane.distance(position);
+            if distance.abs() <= tolerance {
+                return Some((face_point, position));
+            }
+            let normal = self.target.face_normals()[face_point.triangle as usize];
+            // The steepest way across the plane on the surface; walking `across * t` changes the
+            // distance by `t |across|²`.
+            let across = plane.normal - normal * plane.normal.dot(normal);
+            let rate = across.length_squared();
+            if rate < PLANE_GRAZING {
+                return None;
+            }
+            let step = across * (-distance / rate);
+            let step = step.clamp_length_max(distance.abs() * 4.0 + self.landing_distance);
+            match self.walk(face_point, step) {
+                WalkEnd::OnSurface(moved) if !self.is_unreliable(moved.triangle) => {
+                    face_point = moved;
+                    position = self.target.interpolate(moved.triangle, moved.barycentric);
+                }
+                _ => return None,
+            }
+        }
+        (plane.distance(position).abs() <= tolerance * 100.0).then_some((face_point, position))
+    }
+
+    /// The new state of a point held on the plane, pushed by `force` (reads only the snapshot).
+    pub(super) fn update_on_plane(
+        &self,
+        plane: &Plane,
+        vertex: u32,
+        force: Vec3,
+        deviations: &[Vec3],
+    ) -> (LayoutPoint, Vec3, Event) {
+        let index = vertex as usize;
+        let here = self.positions[index];
+        let scale = if self.plane_slide {
+            self.step_scales[index]
+        } else {
+            0.0
+        };
+        match self.points[index] {
+            LayoutPoint::Face(face_point) => {
+                let normal = self.target.face_normals()[face_point.triangle as usize];
+                // Along the cross-section only: where the surface's tangent plane meets the plane.
+                let along = normal.cross(plane.normal).normalize_or_zero();
+                let slide = along * force.dot(along) * scale;
+                let walked = if slide == Vec3::ZERO {
+                    WalkEnd::OnSurface(face_point)
+                } else {
+                    self.walk(face_point, slide)
+                };
+                let moved = match walked {
+                    WalkEnd::OnSurface(moved) if !self.is_unreliable(moved.triangle) => moved,
+                    WalkEnd::OnSurface(moved) => {
+                        let position = plane
+                            .project(self.target.interpolate(moved.triangle, moved.barycentric));
+                        return (LayoutPoint::Space(position), position, Event::Lifted);
+                    }
+                    WalkEnd::Lifted { position, .. } => {
+                        let position = plane.project(position);
+                        return (LayoutPoint::Space(position), position, Event::Lifted);
+                    }
+                };
+                match self.walk_onto_plane(plane, moved) {
+                    Some((face_point, position)) => {
+                        (LayoutPoint::Face(face_point), position, Event::None)
+                    }
+                    None => {
+                        let position = plane
+                            .project(self.target.interpolate(moved.triangle, moved.barycentric));
+                        (LayoutPoint::Space(position), position, Event::Lifted)
+                    }
+                }
+            }
+            LayoutPoint::Space(_) => {
+                let push = force
+                    + thin_plate(deviations, &self.structure, vertex)
+                        * self.settings.weights.thin_plate;
+                let moved = plane.project(here + plane.in_plane(push) * scale);
+                // Sliding, the springs bring the point down to the surface; held, it only looks
+                // as far as about an edge length (a landing distance is a quarter of one).
+                let reach = if self.plane_slide {
+                    self.landing_distance
+                } else {
+                    self.landing_distance * 4.0
+                };
+                if self.iteration >= self.no_fold_until[index]
+                    && let Some(hit) = self.target.closest_point(moved, reach)
+                    && !self.is_unreliable(hit.face_point.triangle)
+                    && let Some((face_point, position)) =
+                        self.walk_onto_plane(plane, hit.face_point)
+                    && position.distance(moved) <= reach
+                {
+                    return (LayoutPoint::Face(face_point), position, Event::Landed);
+                }
+                (LayoutPoint::Space(moved), moved, Event::None)
+            }
+        }
+    }
+}

@@ -1,0 +1,211 @@
+"""The wrap through the kernel's Python binding: structure, solver, stepping, errors (no bpy)."""
+
+import numpy as np
+import pytest
+
+import springwrap_kernel as sk
+from helpers import make_solver, plane_target, quad_layout
+
+
+def test_structure_of_a_quad_grid():
+    positions, face_corners, face_sizes = quad_layout(4)
+    structure = sk.LayoutStructure(len(positions), face_corners, face_sizes)
+    assert structure.vertex_count == 25
+    assert len(structure.line_triples()) == 9 * 2 + 12
+    assert sorted(structure.corners().tolist()) == [0, 4, 20, 24]
+    assert len(structure.extraordinary()) == 0
+    sides = structure.curves()  # the border, as the patch's four sides from corner to corner
+    assert sorted((kind, len(vertices), closed) for kind, vertices, closed in sides) == [("BORDER", 5, False)] * 4
+
+
+def test_a_template_wraps_onto_a_plane_and_meets_its_anchors():
+    target = plane_target()
+    positions, face_corners, face_sizes = quad_layout()
+    structure = sk.LayoutStructure(len(positions), face_corners, face_sizes)
+    anchors = [0, 12, 156, 168, 84]
+    solver, hits = make_solver(target, positions, structure, anchors)
+    report = solver.step(5)
+    assert report.iterations == 5 and not report.converged
+    while not report.converged and report.total_iterations < 5000:
+        report = solver.step(100)
+    assert report.converged and report.space_points == 0, report
+    states, triangles, barycentrics = solver.states()
+    assert (states == 1).all() and (triangles >= 0).all()
+    wrapped = solver.positions()
+    np.testing.assert_allclose(wrapped[:, 2], 0.0, atol=1e-5)
+    np.testing.assert_allclose(wrapped[anchors], hits.positions, atol=1e-5)
+    np.testing.assert_allclose(
+        target.face_point_positions(triangles.astype(np.uint32), barycentrics), wrapped, atol=1e-5
+    )
+
+
+def test_bad_wrap_inputs_raise_named_errors():
+    target = plane_target(8, 0.2)
+    positions, face_corners, face_sizes = quad_layout(3)
+    structure = sk.LayoutStructure(len(positions), face_corners, face_sizes)
+    count = len(positions)
+    states, triangles = np.zeros(count, np.int32), np.full(count, -1, np.int32)
+    barycentrics = np.zeros((count, 3), np.float32)
+    with pytest.raises(sk.ArrayError, match="one per layout vertex"):
+        sk.WrapSolver(target, structure, states[:3], triangles, barycentrics, positions)
+    with pytest.raises(TypeError, match="fairness"):  # a setting belongs in WrapSettings
+        sk.WrapSolver(target, structure, states, triangles, barycentrics, positions, fairness=0.5)
+    with pytest.raises(TypeError, match="WrapSettings"):
+        sk.WrapSolver(target, structure, states, triangles, barycentrics, positions, settings={"fairness": 0.5})
+    collapsed = positions.copy()
+    collapsed[1] = collapsed[0]
+    with pytest.raises(sk.InvalidArgumentError, match="zero length"):
+        sk.WrapSolver(target, structure, states, triangles, barycentrics, collapsed)
+    # Points at one place are fine where the template (the rest shape) has no zero-length edge.
+    sk.WrapSolver(target, structure, states, triangles, barycentrics, collapsed, rest_positions=positions)
+    with pytest.raises(sk.InvalidArgumentError, match="rest positions and layout vertices"):
+        sk.WrapSolver(target, structure, states, triangles, barycentrics, positions, rest_positions=positions[:3])
+    with pytest.raises(sk.InvalidArgumentError, match="vertex 99"):
+        sk.WrapSolver(
+            target,
+            structure,
+            states,
+            triangles,
+            barycentrics,
+            positions,
+            anchor_vertices=np.array([99], np.uint32),
+            anchor_triangles=np.array([-1], np.int32),
+            anchor_barycentrics=np.zeros((1, 3), np.float32),
+            anchor_positions=np.zeros((1, 3), np.float32),
+        )
+    with pytest.raises(sk.ArrayError, match="all four"):
+        sk.WrapSolver(
+            target, structure, states, triangles, barycentrics, positions, anchor_vertices=np.array([0], np.uint32)
+        )
+    with pytest.raises(sk.InvalidArgumentError, match="unreliable"):
+        sk.WrapSolver(
+            target, structure, states, triangles, barycentrics, positions, unreliable_triangles=np.zeros(3, bool)
+        )
+    with pytest.raises(sk.IndexOutOfRangeError, match="layout face 0"):
+        sk.LayoutStructure(3, np.array([0, 1, 7], np.uint32), np.array([3], np.uint32))
+
+
+# ---------------------------------------------------------------- WrapSettings
+
+SETTING_NAMES = [
+    "fairness",
+    "arc_length",
+    "thin_plate",
+    "constraint",
+    "folding",
+    "tolerance",
+    "landing_distance",
+    "fold_tolerance",
+    "momentum",
+    "rest",
+    "solver",
+]
+
+
+def test_wrap_settings_hold_the_kernels_defaults_and_read_every_field():
+    settings = sk.WrapSettings()
+    assert list(settings.to_dict()) == SETTING_NAMES
+    assert settings.to_dict() == {name: getattr(settings, name) for name in SETTING_NAMES}
+    # The kernel's WrapSettings::default(), as the shortest decimal of each float32.
+    assert settings.to_dict() == {
+        "fairness": 0.5,
+        "arc_length": 0.5,
+        "thin_plate": 0.2,
+        "constraint": 0.5,
+        "folding": 0.3,
+        "tolerance": 1e-5,
+        "landing_distance": 0.25,
+        "fold_tolerance": 0.17453292,
+        "momentum": 0.9,
+        "rest": "TEMPLATE",
+        "solver": "ENERGY",
+    }
+    assert np.float32(settings.fold_tolerance) == np.float32(np.radians(10))
+    assert repr(settings) == (
+        "WrapSettings(fairness=0.5, arc_length=0.5, thin_plate=0.2, constraint=0.5, folding=0.3, tolerance=1e-05, "
+        "landing_distance=0.25, fold_tolerance=0.17453292, momentum=0.9, rest='TEMPLATE', solver='ENERGY')"
+    )
+
+
+def test_wrap_settings_take_keywords_compare_by_value_and_are_immutable():
+    settings = sk.WrapSettings(fairness=0.25, thin_plate=0.1, rest="EVEN", solver="SPRINGS")
+    assert (settings.fairness, settings.thin_plate, settings.rest, settings.solver) == (0.25, 0.1, "EVEN", "SPRINGS")
+    assert settings.arc_length == sk.WrapSettings().arc_length
+    assert settings == sk.WrapSettings(solver="SPRINGS", rest="EVEN", thin_plate=0.1, fairness=0.25)
+    with pytest.raises(sk.InvalidArgumentError, match="invalid rest: the even rest shape"):
+        sk.WrapSettings(rest="EVEN")  # the energy solver (the default) keeps the template's shape
+    assert settings != sk.WrapSettings() and sk.WrapSettings() == sk.WrapSettings()
+    assert eval(repr(settings), {"WrapSettings": sk.WrapSettings}) == settings
+    changed = settings.replace(momentum=0.5)
+    assert changed.momentum == 0.5 and changed.replace(momentum=settings.momentum) == settings
+    assert settings.momentum == sk.WrapSettings().momentum  # replace made a copy
+    with pytest.raises(AttributeError):
+        settings.fairness = 0.3
+    with pytest.raises(TypeError):
+        sk.WrapSettings(0.5)  # keywords only
+    with pytest.raises(TypeError, match="stiffness"):
+        sk.WrapSettings(stiffness=1.0)
+    with pytest.raises(TypeError):
+        settings.replace(stiffness=1.0)
+
+
+BAD_SETTINGS = {
+    "fairness": (-0.1, r"invalid fairness: the fairness weight must be within \[0, 1\], not -0.1"),
+    "arc_length": (float("nan"), r"invalid arc_length: the arc length weight must be within \[0, 1\], not NaN"),
+    "thin_plate": (0.7, r"invalid thin_plate: the thin plate weight must be within \[0, 0.5\], not 0.7"),
+    "constraint": (1.5, "invalid constraint: "),
+    "folding": (float("inf"), "invalid folding: "),
+    "tolerance": (0.0, r"invalid tolerance: the tolerance must be within \(0, 1\], not 0"),
+    "landing_distance": (-1.0, "invalid landing_distance: "),
+    "fold_tolerance": (2.0, "invalid fold_tolerance: "),
+    "momentum": (1.0, r"invalid momentum: the momentum must be within \[0, 0.99\], not 1"),
+    "rest": ("SOFT", "invalid rest: \"SOFT\" is not 'TEMPLATE' or 'EVEN'"),
+    "solver": ("FAST", "invalid solver: \"FAST\" is not 'SPRINGS' or 'ENERGY'"),
+}
+
+
+@pytest.mark.parametrize("name", list(BAD_SETTINGS))
+def test_a_bad_wrap_setting_raises_the_kernels_error_naming_it(name):
+    value, message = BAD_SETTINGS[name]
+    with pytest.raises(sk.InvalidArgumentError, match=message):
+        sk.WrapSettings(**{name: value})
+    with pytest.raises(sk.InvalidArgumentError, match=message):
+        sk.WrapSettings().replace(**{name: value})
+
+
+def test_the_solver_runs_with_the_settings_it_was_given():
+    target = plane_target(8, 0.2)
+    positions, face_corners, face_sizes = quad_layout(3)
+    structure = sk.LayoutStructure(len(positions), face_corners, face_sizes)
+    solver, _hits = make_solver(target, positions, structure, [0])
+    assert solver.settings == sk.WrapSettings()
+    settings = sk.WrapSettings(solver="ENERGY", tolerance=1e-4)
+    solver, _hits = make_solver(target, positions, structure, [0], settings=settings)
+    assert solver.settings == settings
+    assert not np.isnan(solver.step(1).energy)  # the energy solver reports its energy, the springs NaN
+
+
+def test_free_vertices_and_stiffness_reach_the_energy_solver_and_are_checked():
+    target = plane_target()
+    positions, face_corners, face_sizes = quad_layout()
+    structure = sk.LayoutStructure(len(positions), face_corners, face_sizes)
+    anchors = [0, 12, 156, 168]
+    energy = sk.WrapSettings(solver="ENERGY")
+    free = np.zeros(len(positions), bool)
+    free[[84, 85, 71]] = True
+    solver, _ = make_solver(target, positions, structure, anchors, settings=energy, free_vertices=free)
+    report = solver.step(1000)
+    assert report.converged and abs(report.energy_decrease) < 2e-3  # what the last level stopped on
+    states = solver.states()[0]
+    assert (states[free] == 0).all() and (states[~free] == 1).all()
+    stiffness = np.full(len(positions), 0.5, np.float32)
+    stiffness[5] = 1.5
+    with pytest.raises(sk.InvalidArgumentError, match="vertex 5 has stiffness 1.5"):
+        make_solver(target, positions, structure, anchors, settings=energy, stiffness=stiffness)
+    with pytest.raises(sk.ArrayError, match="stiffness must be a C-contiguous numpy array of dtype float32"):
+        make_solver(target, positions, structure, anchors, settings=energy, stiffness=np.full(len(positions), 0.5))
+    springs, _ = make_solver(
+        target, positions, structure, anchors, settings=sk.WrapSettings(solver="SPRINGS"), free_vertices=free
+    )
+    with pytest.raises(sk.InvalidArgumentError, match="need the energy solver"):
+        springs.step(1)

