@@ -106,8 +106,10 @@ def measure(
     aligned_flips = int(metrics.flipped_quads(aligned, case.true_positions, case.layout_quads).sum())
     on_surface = ~case.over_hole & ~case.in_cavity
     off = metrics.surface_distances(positions, target) * 100.0 / measured.diagonal > OFF_SURFACE_PERCENT
+    normals = smoothed_target_normals(case)
     folded, truth_folded = (
-        folded_on_surface(case, target, points, measured.diagonal) for points in (positions, case.true_positions)
+        folded_on_surface(case, target, points, measured.diagonal, normals)
+        for points in (positions, case.true_positions)
     )
     return {
         "case": case.spec.name,
@@ -127,14 +129,41 @@ def measure(
     }
 
 
-def folded_on_surface(case, target, positions: np.ndarray, diagonal: float) -> int:
-    """Quads of ``positions`` facing against the target triangle under their centre, where the centre is
-    within ``OFF_SURFACE_PERCENT`` of the target: folds an artist sees on the surface, whatever the truth
-    says (the truth itself faces against a remeshed target where the remesh merged its parts)."""
-    facing_flips, _over, distances = metrics.target_facing_flips(
-        positions, case.layout_quads, target, case.target_vertices, case.target_triangles
+def smoothed_target_normals(case, rounds: int = 16) -> np.ndarray:
+    """(V, 3) unit vertex normals of the case's target (area-weighted), averaged ``rounds`` times over each
+    vertex's triangles: a noisy target's single triangles face anywhere, its surface does not."""
+    from scipy import sparse
+
+    vertices = np.asarray(case.target_vertices, dtype=np.float64)
+    triangles = np.asarray(case.target_triangles, dtype=np.int64)
+    face_normals = np.cross(
+        vertices[triangles[:, 1]] - vertices[triangles[:, 0]], vertices[triangles[:, 2]] - vertices[triangles[:, 0]]
     )
-    return int((facing_flips & (distances <= OFF_SURFACE_PERCENT * diagonal / 100.0)).sum())
+    rows = triangles.ravel()
+    columns = np.repeat(np.arange(len(triangles)), 3)
+    incidence = sparse.csr_matrix((np.ones(len(rows)), (rows, columns)), shape=(len(vertices), len(triangles)))
+    normals = incidence @ face_normals
+    averaging = incidence @ incidence.T
+    for _ in range(rounds):
+        normals = averaging @ (normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-30))
+    return normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-30)
+
+
+def folded_on_surface(case, target, positions: np.ndarray, diagonal: float, normals: np.ndarray) -> int:
+    """Quads of ``positions`` facing against the target's smoothed normal (``normals``, per target vertex)
+    under their centre, where the centre is within ``OFF_SURFACE_PERCENT`` of the target and not on a
+    hole's rim: folds an artist sees on the surface, whatever the truth says (the truth itself faces
+    against a remeshed target where the remesh merged its parts)."""
+    positions = np.asarray(positions, dtype=np.float64)
+    quads = np.asarray(case.layout_quads, dtype=np.int64)
+    centres = positions[quads].mean(axis=1)
+    hits = target.closest_points(np.ascontiguousarray(centres, dtype=np.float32))
+    corners = np.asarray(case.target_triangles, dtype=np.int64)[hits.triangles]
+    surface_normals = (normals[corners] * np.asarray(hits.barycentrics, dtype=np.float64)[:, :, None]).sum(axis=1)
+    facing = (metrics.quad_normals(positions, quads) * surface_normals).sum(axis=1)
+    over = ~metrics.on_boundary(case.target_triangles, hits.triangles, hits.barycentrics)
+    near = np.asarray(hits.distances) <= OFF_SURFACE_PERCENT * diagonal / 100.0
+    return int((over & near & (facing < 0.0)).sum())
 
 
 def wrap(
@@ -328,7 +357,7 @@ def body_section(rows: list[dict], provenance: str = "") -> str:
         "Cholesky (see [architecture](architecture.md#the-energy-wrap)), `nricp` trimesh's `nricp_amberg`; all start",
         "from the same template aligned to the same 24 anchors. Errors in % of the truth's bounding-box diagonal;",
         "*added*: flipped quads (against the truth) beyond the aligned template's; *folded*: quads facing against",
-        f"the target triangle under their centre, the centre within {OFF_SURFACE_PERCENT} % of the diagonal of it (folds on",
+        f"the target's smoothed normal under their centre, the centre within {OFF_SURFACE_PERCENT} % of the diagonal of it (folds on",
         "the surface, whatever the truth says; in brackets the truth's own, where the remesh merged its parts); *off*:",
         "vertices farther than",
         f"{OFF_SURFACE_PERCENT} % of the diagonal from the target where it has surface; *space*: space-points at the end",
