@@ -747,6 +747,8 @@ def test_wrap_solvers_page_has_a_row_per_case_and_solver_and_its_provenance():
         "max": 1.7,
         "flipped": 7,
         "flips_added": 3,
+        "folded": 5,
+        "truth_folded": 4,
         "off_surface": 425,
         "space_points": 968,
         "iterations": 24,
@@ -754,7 +756,7 @@ def test_wrap_solvers_page_has_a_row_per_case_and_solver_and_its_provenance():
         "seconds": 1.16,
     }
     page = wrap_solvers.markdown([row, row | {"solver": "SPRINGS", "mean": 0.346}], "Run at commit `abc`.")
-    assert "| heavy | ENERGY | 0.227 | 0.900 | 1.700 | 7 | 3 | 425 | 968 | 24 | 1.16 |" in page
+    assert "| heavy | ENERGY | 0.227 | 0.900 | 1.700 | 7 | 3 | 5 (4) | 425 | 968 | 24 | 1.16 |" in page
     assert "| heavy | SPRINGS | 0.346 |" in page
     assert "Run at commit `abc`." in page and page.startswith("# The wrap's two solvers")
     assert "commit" in wrap_solvers.provenance()
@@ -946,6 +948,8 @@ def test_wrap_solvers_page_keeps_the_section_that_was_not_run():
         "max": 1.7,
         "flipped": 7,
         "flips_added": 3,
+        "folded": 5,
+        "truth_folded": 4,
         "off_surface": 425,
         "space_points": 968,
         "iterations": 24,
