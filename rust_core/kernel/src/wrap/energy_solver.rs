@@ -493,27 +493,14 @@ impl EnergySolver {
             }
         }
         let mut proposed = self.global_solve(&correspondences, level.data_weight)?;
-        // Held points slide within the plane: the step's part across it is dropped (a step
-        // shortened by the safeguard stays within it, between two points on it).
-        if let Some(plane) = self.plane {
-            for (position, &held) in proposed.iter_mut().zip(&self.on_plane) {
-                if held {
-                    *position = plane.project(*position);
-                }
-            }
-        }
+        self.keep_on_plane(&mut proposed);
         // Safeguard: no corner may turn over.
         let (accepted, held_back) = self.safeguard(&proposed);
         for ((held, accepted), proposed) in self.held_back.iter_mut().zip(&accepted).zip(&proposed)
         {
             *held = accepted != proposed;
         }
-        let (mut max_move, mut total_move) = (0.0f32, 0.0f64);
-        for (new, old) in accepted.iter().zip(&self.positions) {
-            let moved = new.distance(*old);
-            max_move = max_move.max(moved);
-            total_move += f64::from(moved);
-        }
+        let (max_move, mean_move) = moves(&accepted, &self.positions);
         let energy = self.energy_at(
             &accepted,
             &correspondences,
@@ -544,7 +531,7 @@ impl EnergySolver {
         }
         Ok(EnergyStep {
             max_move,
-            mean_move: (total_move / self.positions.len().max(1) as f64) as f32,
+            mean_move,
             energy,
             held_back,
             energy_decrease: decrease,
@@ -561,13 +548,9 @@ impl EnergySolver {
         self.smooth_scales(None);
         self.smooth_rotations(WARMUP_ROTATION_SMOOTHING);
         let none = vec![None; self.positions.len()];
-        let proposed = self.global_solve(&none, 0.0)?;
-        let (mut max_move, mut total_move) = (0.0f32, 0.0f64);
-        for (new, old) in proposed.iter().zip(&self.positions) {
-            let moved = new.distance(*old);
-            max_move = max_move.max(moved);
-            total_move += f64::from(moved);
-        }
+        let mut proposed = self.global_solve(&none, 0.0)?;
+        self.keep_on_plane(&mut proposed);
+        let (max_move, mean_move) = moves(&proposed, &self.positions);
         let energy = self.energy_at(&proposed, &none, 0.0, &self.positions);
         self.positions = proposed;
         self.iterations += 1;
@@ -579,12 +562,24 @@ impl EnergySolver {
         }
         Ok(EnergyStep {
             max_move,
-            mean_move: (total_move / self.positions.len().max(1) as f64) as f32,
+            mean_move,
             energy,
             held_back: 0,
             energy_decrease: f64::NAN,
             finished: false,
         })
+    }
+
+    /// Held points slide within the plane: a step's part across it is dropped (a step shortened
+    /// by the safeguard later stays within it, between two points on it).
+    fn keep_on_plane(&self, positions: &mut [Vec3]) {
+        if let Some(plane) = self.plane {
+            for (position, &held) in positions.iter_mut().zip(&self.on_plane) {
+                if held {
+                    *position = plane.project(*position);
+                }
+            }
+        }
     }
 
     /// Fits every vertex's similarity at the current positions (from the last fit).
@@ -1031,6 +1026,17 @@ impl EnergySolver {
         let held_back = fractions.iter().filter(|&&fraction| fraction < 1.0).count();
         (candidate, held_back)
     }
+}
+
+/// The largest and the mean distance between `new` and `old` positions.
+fn moves(new: &[Vec3], old: &[Vec3]) -> (f32, f32) {
+    let (mut largest, mut total) = (0.0f32, 0.0f64);
+    for (new, old) in new.iter().zip(old) {
+        let moved = new.distance(*old);
+        largest = largest.max(moved);
+        total += f64::from(moved);
+    }
+    (largest, (total / new.len().max(1) as f64) as f32)
 }
 
 /// Whether a corner aligned `before` with its frame has turned at `after`: beyond
