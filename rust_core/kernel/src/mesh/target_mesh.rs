@@ -8,10 +8,11 @@ use rayon::prelude::*;
 
 use super::normals::{face_normals, vertex_normals};
 use super::topology::{NO_TRIANGLE, Topology, TriangleEdge, compute_topology};
-use crate::bvh::build_bvh;
+use crate::bvh::{Bvh4, build_bvh};
 use crate::error::KernelError;
 use crate::face_point::{FacePoint, LayoutPoint};
 use crate::query::point_triangle::is_degenerate;
+use crate::query::triangle_packet::TrianglePacket;
 
 /// Face normals and vertex normals.
 #[derive(Debug, Clone)]
@@ -23,7 +24,7 @@ pub(crate) struct Normals {
 /// The fast vertex tree: a BVH over the vertices that some non-degenerate triangle uses.
 #[derive(Clone)]
 pub(crate) struct VertexTree {
-    pub(crate) tree: Bvh2,
+    pub(crate) tree: Bvh4,
     /// Vertex positions in slot order.
     pub(crate) points: Vec<Vec3A>,
     /// Vertex indices in slot order.
@@ -60,8 +61,15 @@ pub struct TargetMesh {
     /// Adjacency and boundaries, computed on first use.
     pub(crate) topology: OnceLock<Topology>,
     pub(crate) bounds: Aabb,
-    /// BVH over triangle boxes.
+    /// BVH over triangle boxes (for rays).
     pub(crate) face_tree: Bvh2,
+    /// `face_tree` collapsed to four children per node, for closest points: its leaves are
+    /// ranges of `face_packets`.
+    pub(crate) face_tree4: Bvh4,
+    /// The triangles of each leaf of `face_tree4`, four to a packet, in traversal order.
+    pub(crate) face_packets: Vec<TrianglePacket>,
+    /// The largest coordinate magnitude of the mesh (for rounding margins).
+    pub(crate) coordinate_scale: f32,
     /// Triangle corners in `face_tree` slot order (slot = index into `primitive_indices`).
     pub(crate) face_tree_corners: Vec<[Vec3A; 3]>,
     /// Whether the triangle in each `face_tree` slot is degenerate.
@@ -151,6 +159,9 @@ impl TargetMesh {
         let (face_tree, face_tree_corners, face_tree_degenerate) =
             build_face_tree(&vertices, &triangles, &degenerate);
         let bounds = face_tree.nodes[0].aabb;
+        let (face_tree4, face_packets) =
+            build_face_packets(&face_tree, &face_tree_corners, &face_tree_degenerate);
+        let coordinate_scale = bounds.min.abs().max(bounds.max.abs()).max_element();
         let mut face_tree_slots = vec![0; triangles.len()];
         for (slot, &triangle) in face_tree.primitive_indices.iter().enumerate() {
             face_tree_slots[triangle as usize] = slot as u32;
@@ -164,6 +175,9 @@ impl TargetMesh {
             topology: OnceLock::new(),
             bounds,
             face_tree,
+            face_tree4,
+            face_packets,
+            coordinate_scale,
             face_tree_corners,
             face_tree_degenerate,
             face_tree_slots,
@@ -348,6 +362,28 @@ fn build_face_tree(
     (tree, corners, slot_degenerate)
 }
 
+/// The face tree collapsed to four children per node, its leaves renumbered to ranges of
+/// packets holding their triangles four at a time.
+fn build_face_packets(
+    face_tree: &Bvh2,
+    corners: &[[Vec3A; 3]],
+    degenerate: &[bool],
+) -> (Bvh4, Vec<TrianglePacket>) {
+    let mut tree = Bvh4::from_bvh2(face_tree);
+    let mut packets = Vec::with_capacity(corners.len() / 3 + 1);
+    tree.renumber_leaves(|first, count| {
+        let first_packet = u32::try_from(packets.len()).expect("fewer than 2^32 packets");
+        let slots: Vec<(u32, [Vec3A; 3], bool)> = (first..first + count)
+            .map(|slot| (slot, corners[slot as usize], degenerate[slot as usize]))
+            .collect();
+        for chunk in slots.chunks(4) {
+            packets.push(TrianglePacket::new(chunk));
+        }
+        (first_packet, count.div_ceil(4))
+    });
+    (tree, packets)
+}
+
 /// The vertex tree over vertices used by a non-degenerate triangle, and for every vertex one such
 /// triangle and corner (so that a vertex hit can become a face-point).
 fn build_vertex_tree(vertices: &[Vec3], triangles: &[[u32; 3]], degenerate: &[bool]) -> VertexTree {
@@ -381,7 +417,7 @@ fn build_vertex_tree(vertices: &[Vec3], triangles: &[[u32; 3]], degenerate: &[bo
         .map(|&vertex| Vec3A::from(vertices[vertex as usize]))
         .collect();
     VertexTree {
-        tree,
+        tree: Bvh4::from_bvh2(&tree),
         points: slot_points,
         vertices: slot_vertices,
         vertex_triangle,
