@@ -33,6 +33,15 @@ pub(crate) struct VertexTree {
     pub(crate) vertex_triangle: Vec<(u32, u8)>,
 }
 
+/// The face tree as closest-point queries search it.
+#[derive(Clone)]
+pub(crate) struct ClosestTree {
+    /// `face_tree` collapsed to four children per node; its leaves are ranges of `packets`.
+    pub(crate) tree: Bvh4,
+    /// The triangles of each leaf of `tree`, four to a packet, in traversal order.
+    pub(crate) packets: Vec<TrianglePacket>,
+}
+
 /// Options for [`TargetMesh::new`].
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct TargetMeshOptions {
@@ -63,11 +72,8 @@ pub struct TargetMesh {
     pub(crate) bounds: Aabb,
     /// BVH over triangle boxes (for rays).
     pub(crate) face_tree: Bvh2,
-    /// `face_tree` collapsed to four children per node, for closest points: its leaves are
-    /// ranges of `face_packets`.
-    pub(crate) face_tree4: Bvh4,
-    /// The triangles of each leaf of `face_tree4`, four to a packet, in traversal order.
-    pub(crate) face_packets: Vec<TrianglePacket>,
+    /// The closest-point tree, built on first use (rays never need it).
+    pub(crate) closest_tree: OnceLock<ClosestTree>,
     /// The largest coordinate magnitude of the mesh (for rounding margins).
     pub(crate) coordinate_scale: f32,
     /// Triangle corners in `face_tree` slot order (slot = index into `primitive_indices`).
@@ -91,8 +97,8 @@ impl std::fmt::Debug for TargetMesh {
 }
 
 impl TargetMesh {
-    /// Validates the input and builds the face tree; the vertex tree, adjacency and normals are
-    /// built on first use (or all at once with [`TargetMesh::prepare_all`]).
+    /// Validates the input and builds the face tree; the closest-point tree, the vertex tree,
+    /// adjacency and normals are built on first use (or all at once with [`TargetMesh::prepare_all`]).
     ///
     /// # Errors
     /// [`KernelError::EmptyMesh`], [`KernelError::TooLarge`], [`KernelError::NonFinite`] (a vertex),
@@ -159,8 +165,6 @@ impl TargetMesh {
         let (face_tree, face_tree_corners, face_tree_degenerate) =
             build_face_tree(&vertices, &triangles, &degenerate);
         let bounds = face_tree.nodes[0].aabb;
-        let (face_tree4, face_packets) =
-            build_face_packets(&face_tree, &face_tree_corners, &face_tree_degenerate);
         let coordinate_scale = bounds.min.abs().max(bounds.max.abs()).max_element();
         let mut face_tree_slots = vec![0; triangles.len()];
         for (slot, &triangle) in face_tree.primitive_indices.iter().enumerate() {
@@ -175,8 +179,7 @@ impl TargetMesh {
             topology: OnceLock::new(),
             bounds,
             face_tree,
-            face_tree4,
-            face_packets,
+            closest_tree: OnceLock::new(),
             coordinate_scale,
             face_tree_corners,
             face_tree_degenerate,
@@ -185,13 +188,23 @@ impl TargetMesh {
         })
     }
 
-    /// Builds the parts that are otherwise built on first use (vertex tree, topology, normals),
-    /// in parallel, so that later queries pay nothing.
+    /// Builds the parts that are otherwise built on first use (closest-point tree, vertex tree,
+    /// topology, normals), in parallel, so that later queries pay nothing.
     pub fn prepare_all(&self) {
         rayon::join(
-            || self.vertex_tree(),
+            || rayon::join(|| self.closest_tree(), || self.vertex_tree()),
             || rayon::join(|| self.topology(), || self.normals()),
         );
+    }
+
+    pub(crate) fn closest_tree(&self) -> &ClosestTree {
+        self.closest_tree.get_or_init(|| {
+            build_closest_tree(
+                &self.face_tree,
+                &self.face_tree_corners,
+                &self.face_tree_degenerate,
+            )
+        })
     }
 
     pub(crate) fn normals(&self) -> &Normals {
@@ -364,24 +377,35 @@ fn build_face_tree(
 
 /// The face tree collapsed to four children per node, its leaves renumbered to ranges of
 /// packets holding their triangles four at a time.
-fn build_face_packets(
+fn build_closest_tree(
     face_tree: &Bvh2,
     corners: &[[Vec3A; 3]],
     degenerate: &[bool],
-) -> (Bvh4, Vec<TrianglePacket>) {
+) -> ClosestTree {
     let mut tree = Bvh4::from_bvh2(face_tree);
-    let mut packets = Vec::with_capacity(corners.len() / 3 + 1);
+    // Each packet's slot range, in the order the leaves are renumbered.
+    let mut ranges: Vec<(u32, u32)> = Vec::with_capacity(corners.len() / 3 + 1);
     tree.renumber_leaves(|first, count| {
-        let first_packet = u32::try_from(packets.len()).expect("fewer than 2^32 packets");
-        let slots: Vec<(u32, [Vec3A; 3], bool)> = (first..first + count)
-            .map(|slot| (slot, corners[slot as usize], degenerate[slot as usize]))
-            .collect();
-        for chunk in slots.chunks(4) {
-            packets.push(TrianglePacket::new(chunk));
-        }
+        let first_packet = u32::try_from(ranges.len()).expect("fewer than 2^32 packets");
+        ranges.extend(
+            (first..first + count)
+                .step_by(4)
+                .map(|start| (start, (start + 4).min(first + count))),
+        );
         (first_packet, count.div_ceil(4))
     });
-    (tree, packets)
+    let packets = ranges
+        .par_iter()
+        .with_min_len(1024)
+        .map(|&(start, end)| {
+            let mut lanes = [(0, [Vec3A::ZERO; 3], false); 4];
+            for (lane, slot) in (start..end).enumerate() {
+                lanes[lane] = (slot, corners[slot as usize], degenerate[slot as usize]);
+            }
+            TrianglePacket::new(&lanes[..(end - start) as usize])
+        })
+        .collect();
+    ClosestTree { tree, packets }
 }
 
 /// The vertex tree over vertices used by a non-degenerate triangle, and for every vertex one such

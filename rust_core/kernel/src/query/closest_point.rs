@@ -50,6 +50,7 @@ impl TargetMesh {
     ) -> Result<Vec<Option<SurfaceHit>>, KernelError> {
         check_finite("point", points)?;
         check_max_distance(max_distance)?;
+        self.closest_tree();
         Ok(map_in_spatial_order(
             points,
             QueryState::default,
@@ -81,6 +82,7 @@ impl TargetMesh {
                 second: near.len(),
             });
         }
+        self.closest_tree();
         Ok((0..points.len())
             .into_par_iter()
             .with_min_len(QUERIES_PER_TASK)
@@ -126,15 +128,16 @@ impl TargetMesh {
             Vec4::splat(point.y),
             Vec4::splat(point.z),
         );
+        let closest_tree = self.closest_tree();
         let (slot, distance_squared) = nearest_slot(
-            &self.face_tree4,
+            &closest_tree.tree,
             point,
             (max_distance * max_distance).next_up(),
             warm_start,
             &mut state.stack,
             |first, count, mut best_distance_squared| {
                 let mut found = None;
-                for packet in &self.face_packets[first..first + count] {
+                for packet in &closest_tree.packets[first..first + count] {
                     let estimates = packet.distances_squared(x, y, z);
                     let mut candidates = estimates
                         .cmplt(Vec4::splat(reach(best_distance_squared)))
