@@ -124,6 +124,9 @@ impl Bvh4Node {
 impl Bvh4 {
     /// Collapses a binary BVH: each node takes the up-to-four descendants found by opening,
     /// again and again, its inner child with the largest surface area.
+    ///
+    /// # Panics
+    /// With 2^32 nodes or more, or a leaf of more than 65535 primitives.
     #[must_use]
     pub fn from_bvh2(bvh2: &Bvh2) -> Self {
         let Some(root) = bvh2.nodes.first() else {

@@ -130,6 +130,8 @@ impl TrianglePacket {
     /// Estimated squared distances from the point `(x, y, z)` (each splatted) to the four
     /// triangles: within rounding of the exact distance, or below it (see the module's text);
     /// `+inf` for unused lanes.
+    // The edges are named after their corners (ab, ac, bc), names a letter apart.
+    #[allow(clippy::similar_names)]
     #[inline(always)]
     pub(crate) fn distances_squared(&self, x: Vec4, y: Vec4, z: Vec4) -> Vec4 {
         let [e0x, e0y, e0z] = self.e0;
