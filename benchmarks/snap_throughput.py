@@ -6,8 +6,9 @@ One target (a deterministic noise-displaced torus, ~1M triangles by default) and
 query points (~1M, the vertices of a second grid over the same surface, pushed off it), asked
 in two orders: *coherent* (mesh-vertex order) and *random* (the same points shuffled).
 
-- kernel: ``springwrap_kernel.TargetMesh(vertices, triangles)`` build (the face tree; the vertex
-  tree, adjacency and normals are built on first use and timed apart with ``prepare_all()``),
+- kernel: ``springwrap_kernel.TargetMesh(vertices, triangles)`` build (the face tree; the
+  closest-point tree, vertex tree, adjacency and normals are built on first use and timed apart
+  with ``prepare_all()``),
   then ``closest_points`` and ``nearest_vertices`` (best of ``--repeat`` runs).
 - Blender's Shrinkwrap modifier (``NEAREST_SURFACEPOINT``) on a vertices-only mesh holding the
   points: the timed part is the depsgraph evaluation plus reading the positions back. Its
@@ -154,13 +155,14 @@ def measure_kernel(kernel, vertices, triangles, orders: dict[str, np.ndarray], r
 
     Returns (rows, the mesh, {order: SurfaceHits}, {order: VertexHits})."""
     build_seconds, mesh = best_time(lambda: kernel.TargetMesh(vertices, triangles), repeat)
-    # The vertex tree, adjacency and normals are built on first use; time them on their own.
+    # The closest-point tree, vertex tree, adjacency and normals are built on first use;
+    # time them on their own.
     start = time.perf_counter()
     mesh.prepare_all()
     prepare_seconds = time.perf_counter() - start
     print(
         f"kernel: TargetMesh(...) {build_seconds:.3f} s (face tree); "
-        f"prepare_all() {prepare_seconds:.3f} s (vertex tree, adjacency, normals)"
+        f"prepare_all() {prepare_seconds:.3f} s (closest-point tree, vertex tree, adjacency, normals)"
     )
     mesh.closest_points(orders["coherent"][:64])  # start the thread pool outside the timing
     rows, surface_hits, vertex_hits = [], {}, {}
@@ -388,7 +390,7 @@ def print_report(machine, version_info, sizes, rows: list[Row], checks: list[Che
         "random: the same points shuffled."
     )
     print(
-        "kernel: best of the repeats; build = TargetMesh(...) (the face tree; the vertex tree is built by prepare_all(), printed above)."
+        "kernel: best of the repeats; build = TargetMesh(...) (the face tree; the closest-point and vertex trees are built by prepare_all(), printed above)."
     )
     print("Shrinkwrap: depsgraph evaluation + reading positions; build = first evaluation (Blender's target BVH).")
     print("mathutils: one find_nearest call per point in a Python loop; build = FromPolygons from Python lists.\n")

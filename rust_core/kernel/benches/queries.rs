@@ -2,7 +2,7 @@
 //! 1M triangles (`cargo bench -p springwrap-kernel`; `-- --triangles N` to resize).
 //!
 //! Query points sit a little off the surface, in mesh-vertex order ("coherent") and shuffled
-//! ("random"). Not a test: it prints a table. `make bench` runs the full comparison with Blender.
+//! ("random"). Not a test: it prints a table (or, with `--only`, one figure). `make bench` runs the full comparison with Blender.
 
 use std::time::Instant;
 
@@ -56,43 +56,229 @@ fn bumpy_sphere(n: u32, rng: &mut Rng) -> (Vec<Vec3>, Vec<[u32; 3]>) {
     (vertices, triangles)
 }
 
+fn read_data(path: &str) -> (Vec<Vec3>, Vec<[u32; 3]>, Vec<Vec3>) {
+    let bytes = std::fs::read(path).expect("readable --data file");
+    let word =
+        |index: usize| u32::from_le_bytes(bytes[index * 4..index * 4 + 4].try_into().unwrap());
+    let count = |index: usize| {
+        u64::from_le_bytes(bytes[index * 8..index * 8 + 8].try_into().unwrap()) as usize
+    };
+    let (vertex_count, triangle_count, query_count) = (count(0), count(1), count(2));
+    let points = |start: usize, count: usize| -> Vec<Vec3> {
+        (0..count)
+            .map(|index| {
+                let base = start + index * 3;
+                Vec3::new(
+                    f32::from_bits(word(base)),
+                    f32::from_bits(word(base + 1)),
+                    f32::from_bits(word(base + 2)),
+                )
+            })
+            .collect()
+    };
+    let vertices = points(6, vertex_count);
+    let triangle_start = 6 + vertex_count * 3;
+    let triangles = (0..triangle_count)
+        .map(|index| {
+            let base = triangle_start + index * 3;
+            [word(base), word(base + 1), word(base + 2)]
+        })
+        .collect();
+    let queries = points(triangle_start + triangle_count * 3, query_count);
+    (vertices, triangles, queries)
+}
+
 fn rate(count: usize, seconds: f64) -> String {
     format!("{:>8.0}k/s", count as f64 / seconds / 1e3)
 }
 
-fn main() {
-    let arguments: Vec<String> = std::env::args().collect();
-    let triangles_wanted: f64 = arguments
+fn argument<T: std::str::FromStr>(arguments: &[String], name: &str) -> Option<T> {
+    arguments
         .iter()
-        .position(|argument| argument == "--triangles")
+        .position(|argument| argument == name)
         .and_then(|index| arguments.get(index + 1))
         .and_then(|value| value.parse().ok())
-        .unwrap_or(1_000_000.0);
-    let n = (triangles_wanted / 12.0).sqrt().round() as u32;
+}
+
+/// The best of `repeat` timed runs of `run`, in seconds.
+fn best_of<T>(repeat: usize, mut run: impl FnMut() -> T) -> (f64, T) {
+    let mut best = f64::INFINITY;
+    let mut last = None;
+    for _ in 0..repeat.max(1) {
+        let start = Instant::now();
+        let result = run();
+        best = best.min(start.elapsed().as_secs_f64());
+        last = Some(result);
+    }
+    (best, last.unwrap())
+}
+
+fn main() {
+    let arguments: Vec<String> = std::env::args().collect();
+    let triangles_wanted: f64 = argument(&arguments, "--triangles").unwrap_or(1_000_000.0);
+    // `--only closest|near|vertex|build` times that query alone, `--repeat` times (the best is
+    // printed): one process per figure, for whole-process comparisons of two builds.
+    let only: Option<String> = argument(&arguments, "--only");
+    let repeat: usize = argument(&arguments, "--repeat").unwrap_or(1);
     let mut rng = Rng(42);
-    let (vertices, triangles) = bumpy_sphere(n, &mut rng);
-    let edge = 2.0 / n as f32;
-    let queries: Vec<Vec3> = vertices
-        .iter()
-        .map(|v| *v + Vec3::new(rng.signed(), rng.signed(), rng.signed()) * edge)
-        .collect();
+    // `--data FILE`: a mesh and query points from a file (three little-endian u64 counts, then
+    // f32 vertex xyz, u32 triangle corners, f32 query xyz), such as the snap benchmark's torus.
+    let (vertices, triangles, queries, edge) = match argument::<String>(&arguments, "--data") {
+        Some(path) => {
+            let (vertices, triangles, queries) = read_data(&path);
+            let area: f32 = triangles
+                .iter()
+                .map(|[a, b, c]| {
+                    let (a, b, c) = (
+                        vertices[*a as usize],
+                        vertices[*b as usize],
+                        vertices[*c as usize],
+                    );
+                    (b - a).cross(c - a).length() * 0.5
+                })
+                .sum();
+            let edge = (2.0 * area / triangles.len() as f32).sqrt();
+            (vertices, triangles, queries, edge)
+        }
+        None => {
+            let n = (triangles_wanted / 12.0).sqrt().round() as u32;
+            let (vertices, triangles) = bumpy_sphere(n, &mut rng);
+            let edge = 2.0 / n as f32;
+            let queries: Vec<Vec3> = vertices
+                .iter()
+                .map(|v| *v + Vec3::new(rng.signed(), rng.signed(), rng.signed()) * edge)
+                .collect();
+            (vertices, triangles, queries, edge)
+        }
+    };
+    // `--points N`: only the first N query points.
+    let mut queries = queries;
+    if let Some(count) = argument::<usize>(&arguments, "--points") {
+        queries.truncate(count);
+    }
     let mut shuffled = queries.clone();
     for index in (1..shuffled.len()).rev() {
         shuffled.swap(index, (rng.next() % (index as u64 + 1)) as usize);
     }
+    // The wrap solver's pattern: each point moved a little since its last answer, which is the
+    // warm start of its next query.
+    let moved: Vec<Vec3> = queries
+        .iter()
+        .map(|q| *q + Vec3::new(rng.signed(), rng.signed(), rng.signed()) * (0.2 * edge))
+        .collect();
     let triangle_count = triangles.len();
     let start = Instant::now();
     let mesh = TargetMesh::new(vertices, triangles, TargetMeshOptions::default()).unwrap();
     let build = start.elapsed().as_secs_f64();
+    if let Some(only) = only {
+        let (seconds, found) = match only.as_str() {
+            "build" | "build-snap" => {
+                // `build-snap`: the build and one closest-point query, which builds the
+                // closest-point tree on first use.
+                let vertices = mesh.vertices().to_vec();
+                let triangles = mesh.triangles().to_vec();
+                best_of(repeat, || {
+                    let mesh = TargetMesh::new(
+                        vertices.clone(),
+                        triangles.clone(),
+                        TargetMeshOptions::default(),
+                    )
+                    .unwrap();
+                    if only == "build-snap" {
+                        mesh.closest_point(Vec3::ZERO, f32::INFINITY).unwrap();
+                    }
+                    mesh.triangles().len()
+                })
+            }
+            "closest" | "closest-random" => {
+                let points = if only == "closest" {
+                    &queries
+                } else {
+                    &shuffled
+                };
+                best_of(repeat, || {
+                    mesh.closest_points(points, f32::INFINITY)
+                        .unwrap()
+                        .iter()
+                        .flatten()
+                        .count()
+                })
+            }
+            "self-near" => {
+                let near: Vec<u32> = mesh
+                    .closest_points(&queries, f32::INFINITY)
+                    .unwrap()
+                    .iter()
+                    .map(|hit| hit.unwrap().face_point.triangle)
+                    .collect();
+                best_of(repeat, || {
+                    mesh.closest_points_near(&queries, f32::INFINITY, &near)
+                        .unwrap()
+                        .iter()
+                        .flatten()
+                        .count()
+                })
+            }
+            "no-near" => {
+                let near = vec![u32::MAX; queries.len()];
+                best_of(repeat, || {
+                    mesh.closest_points_near(&queries, f32::INFINITY, &near)
+                        .unwrap()
+                        .iter()
+                        .flatten()
+                        .count()
+                })
+            }
+            "near" => {
+                let near: Vec<u32> = mesh
+                    .closest_points(&queries, f32::INFINITY)
+                    .unwrap()
+                    .iter()
+                    .map(|hit| hit.unwrap().face_point.triangle)
+                    .collect();
+                best_of(repeat, || {
+                    mesh.closest_points_near(&moved, 3.0 * edge, &near)
+                        .unwrap()
+                        .iter()
+                        .flatten()
+                        .count()
+                })
+            }
+            "vertex" | "vertex-random" => {
+                let points = if only == "vertex" {
+                    &queries
+                } else {
+                    &shuffled
+                };
+                mesh.prepare_all();
+                best_of(repeat, || {
+                    mesh.nearest_vertices(points, f32::INFINITY)
+                        .unwrap()
+                        .iter()
+                        .flatten()
+                        .count()
+                })
+            }
+            other => panic!("unknown --only {other}"),
+        };
+        println!(
+            "{only}: {seconds:.4} s (best of {repeat}), {found} found, {}",
+            rate(queries.len(), seconds)
+        );
+        return;
+    }
     let start = Instant::now();
     mesh.prepare_all();
     let prepare = start.elapsed().as_secs_f64();
+    // (prepare_all also builds the closest-point tree.)
     println!(
         "{triangle_count} triangles, {} queries, {} threads",
         queries.len(),
         rayon::current_num_threads()
     );
-    println!("build (face tree) {build:.3} s; vertex tree + topology + normals {prepare:.3} s");
+    println!(
+        "build (face tree) {build:.3} s; closest-point tree + vertex tree + topology + normals {prepare:.3} s"
+    );
     for (order, points) in [("coherent", &queries), ("random", &shuffled)] {
         let start = Instant::now();
         let hits = mesh.closest_points(points, f32::INFINITY).unwrap();

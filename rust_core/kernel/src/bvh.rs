@@ -7,7 +7,7 @@
 
 use std::time::Duration;
 
-use glam::Vec3A;
+use glam::{Vec3A, Vec4};
 use obvhs::{BvhBuildParams, aabb::Aabb, bvh2::Bvh2, bvh2::builder::build_bvh2};
 
 /// Builds a binary BVH over boxes with the preset the kernel uses everywhere.
@@ -35,28 +35,193 @@ pub fn box_distance_squared(aabb: &Aabb, point: Vec3A) -> f32 {
     outside.length_squared()
 }
 
+/// A four-wide BVH for nearest-primitive queries, collapsed from a [`Bvh2`].
+///
+/// Each node holds the boxes of up to four children as six arrays of four (structure of
+/// arrays), so that one node visit measures the distance to all four boxes at once with SIMD
+/// (`glam::Vec4`). A child is an inner node or a leaf: a range of BVH slots (the same slots as
+/// the `Bvh2`'s `primitive_indices`, so primitive data kept in slot order stays valid).
+#[derive(Clone, Debug, Default)]
+pub struct Bvh4 {
+    /// The nodes; the root is `nodes[0]`, every child comes after its parent.
+    pub nodes: Vec<Bvh4Node>,
+}
+
+/// One node of a [`Bvh4`]: four child boxes and what each child is.
+///
+/// A child with `counts[i] == 0` is the inner node `nodes[children[i]]`; with `counts[i] > 0` it
+/// is a leaf of the slots `children[i] .. children[i] + counts[i]`. Unused children have an
+/// empty box (min `+inf`, max `-inf`: infinitely far from every point).
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+pub struct Bvh4Node {
+    /// Box minimum x of each child.
+    pub min_x: [f32; 4],
+    /// Box minimum y of each child.
+    pub min_y: [f32; 4],
+    /// Box minimum z of each child.
+    pub min_z: [f32; 4],
+    /// Box maximum x of each child.
+    pub max_x: [f32; 4],
+    /// Box maximum y of each child.
+    pub max_y: [f32; 4],
+    /// Box maximum z of each child.
+    pub max_z: [f32; 4],
+    /// Inner node index, or first slot of a leaf.
+    pub children: [u32; 4],
+    /// Slot count of a leaf child, 0 for an inner node (or an unused child).
+    pub counts: [u16; 4],
+    /// Bit `i` set when child `i` is a leaf.
+    pub leaf_mask: u32,
+}
+
+impl Bvh4Node {
+    const EMPTY: Self = Self {
+        min_x: [f32::INFINITY; 4],
+        min_y: [f32::INFINITY; 4],
+        min_z: [f32::INFINITY; 4],
+        max_x: [f32::NEG_INFINITY; 4],
+        max_y: [f32::NEG_INFINITY; 4],
+        max_z: [f32::NEG_INFINITY; 4],
+        children: [u32::MAX; 4],
+        counts: [0; 4],
+        leaf_mask: 0,
+    };
+
+    fn set_leaf(&mut self, child: usize, first: u32, count: u32) {
+        assert!(count > 0, "a leaf holds at least one primitive");
+        self.children[child] = first;
+        self.counts[child] = u16::try_from(count).expect("at most 65535 primitives a leaf");
+        self.leaf_mask |= 1 << child;
+    }
+
+    fn set_box(&mut self, child: usize, aabb: &Aabb) {
+        self.min_x[child] = aabb.min.x;
+        self.min_y[child] = aabb.min.y;
+        self.min_z[child] = aabb.min.z;
+        self.max_x[child] = aabb.max.x;
+        self.max_y[child] = aabb.max.y;
+        self.max_z[child] = aabb.max.z;
+    }
+
+    /// Squared distances from `point` (splatted per axis) to the four child boxes, as
+    /// [`box_distance_squared`] computes them (`+inf` for unused children).
+    #[inline(always)]
+    fn distances_squared(&self, x: Vec4, y: Vec4, z: Vec4) -> Vec4 {
+        let dx = (Vec4::from_array(self.min_x) - x)
+            .max(x - Vec4::from_array(self.max_x))
+            .max(Vec4::ZERO);
+        let dy = (Vec4::from_array(self.min_y) - y)
+            .max(y - Vec4::from_array(self.max_y))
+            .max(Vec4::ZERO);
+        let dz = (Vec4::from_array(self.min_z) - z)
+            .max(z - Vec4::from_array(self.max_z))
+            .max(Vec4::ZERO);
+        dx * dx + dy * dy + dz * dz
+    }
+}
+
+impl Bvh4 {
+    /// Collapses a binary BVH: each node takes the up-to-four descendants found by opening,
+    /// again and again, its inner child with the largest surface area.
+    ///
+    /// # Panics
+    /// With 2^32 nodes or more, or a leaf of more than 65535 primitives.
+    #[must_use]
+    pub fn from_bvh2(bvh2: &Bvh2) -> Self {
+        let Some(root) = bvh2.nodes.first() else {
+            return Self::default();
+        };
+        let mut nodes = vec![Bvh4Node::EMPTY];
+        if root.prim_count > 0 {
+            nodes[0].set_box(0, &root.aabb);
+            nodes[0].set_leaf(0, root.first_index, root.prim_count);
+            return Self { nodes };
+        }
+        // (Bvh4 node to fill, the Bvh2 inner node it stands for).
+        let mut pending = vec![(0u32, 0u32)];
+        while let Some((target, source)) = pending.pop() {
+            let first = bvh2.nodes[source as usize].first_index;
+            let mut children = [first, first + 1, 0, 0];
+            let mut count = 2;
+            while count < 4 {
+                let widest = (0..count)
+                    .filter(|&child| bvh2.nodes[children[child] as usize].prim_count == 0)
+                    .max_by(|&a, &b| {
+                        let area =
+                            |child: usize| bvh2.nodes[children[child] as usize].aabb.half_area();
+                        area(a).total_cmp(&area(b))
+                    });
+                let Some(widest) = widest else { break };
+                let opened = bvh2.nodes[children[widest] as usize].first_index;
+                children[widest] = opened;
+                children[count] = opened + 1;
+                count += 1;
+            }
+            for (child, &source_child) in children[..count].iter().enumerate() {
+                let node = &bvh2.nodes[source_child as usize];
+                let target_node = &mut nodes[target as usize];
+                target_node.set_box(child, &node.aabb);
+                if node.prim_count > 0 {
+                    target_node.set_leaf(child, node.first_index, node.prim_count);
+                } else {
+                    let index = u32::try_from(nodes.len()).expect("fewer than 2^32 BVH nodes");
+                    nodes[target as usize].children[child] = index;
+                    nodes.push(Bvh4Node::EMPTY);
+                    pending.push((index, source_child));
+                }
+            }
+        }
+        Self { nodes }
+    }
+}
+
+impl Bvh4 {
+    /// Replaces every leaf `(first, count)` by `renumber(first, count)`, node by node in order
+    /// (so that data laid out in the order of the calls follows the traversal order).
+    pub fn renumber_leaves(&mut self, mut renumber: impl FnMut(u32, u32) -> (u32, u32)) {
+        for node in &mut self.nodes {
+            for child in 0..4 {
+                if node.leaf_mask & (1 << child) != 0 {
+                    let (first, count) =
+                        renumber(node.children[child], u32::from(node.counts[child]));
+                    node.leaf_mask &= !(1 << child);
+                    node.set_leaf(child, first, count);
+                }
+            }
+        }
+    }
+}
+
 /// Reusable traversal stack of `(node, squared distance to its box)`.
 pub type NearestStack = Vec<(u32, f32)>;
 
 /// Best-first search for the primitive nearest to `point` within `max_distance_squared`.
 ///
-/// `distance_squared(slot, best)` receives a *BVH slot* (an index into `bvh.primitive_indices`, so that
-/// callers can keep primitive data in BVH order) and returns the squared distance to that
-/// primitive (it may return anything `>= best`, the best squared distance so far, when it can
-/// tell cheaply that the primitive cannot win). `warm_start` is an optional known candidate `(slot, squared distance)`, typically
-/// the answer of the previous, nearby query: its distance bounds the search from the start, so
-/// most of the tree is pruned at once. Returns the best `(slot, squared distance)` strictly below
+/// `search_leaf(first, count, best)` searches the leaf `first .. first + count` (BVH slots, or
+/// whatever the leaves were renumbered to with [`Bvh4::renumber_leaves`]) and returns its
+/// primitive `(slot, squared distance)` nearest to `point` if that is strictly below `best`, the
+/// best squared distance so far; [`search_slots`] turns a per-slot distance into such a search.
+/// `warm_start` is an optional known candidate `(slot, squared distance)`, typically the answer
+/// of the previous, nearby query: its distance bounds the search from the start, so most of the
+/// tree is pruned at once. Returns the best `(slot, squared distance)` strictly below
 /// `max_distance_squared`, or `None`.
+///
+/// Each node visit measures its four child boxes at once; leaf children are searched at once,
+/// nearest first; the search goes on with the nearest inner child and pushes the others,
+/// farthest first, so that the nearest is popped next.
 #[inline]
-pub fn nearest_slot<F: FnMut(usize, f32) -> f32>(
-    bvh: &Bvh2,
+pub fn nearest_slot<F: FnMut(usize, usize, f32) -> Option<(usize, f32)>>(
+    bvh: &Bvh4,
     point: Vec3A,
     max_distance_squared: f32,
     warm_start: Option<(usize, f32)>,
     stack: &mut NearestStack,
-    mut distance_squared: F,
+    mut search_leaf: F,
 ) -> Option<(usize, f32)> {
-    let root = bvh.nodes.first()?;
+    if bvh.nodes.is_empty() {
+        return None;
+    }
     let mut best_distance_squared = max_distance_squared;
     let mut best_slot = None;
     if let Some((slot, slot_distance_squared)) = warm_start
@@ -65,42 +230,118 @@ pub fn nearest_slot<F: FnMut(usize, f32) -> f32>(
         best_distance_squared = slot_distance_squared;
         best_slot = Some(slot);
     }
+    let (x, y, z) = (
+        Vec4::splat(point.x),
+        Vec4::splat(point.y),
+        Vec4::splat(point.z),
+    );
     stack.clear();
-    stack.push((0, box_distance_squared(&root.aabb, point)));
-    while let Some((node_index, node_distance_squared)) = stack.pop() {
-        if node_distance_squared >= best_distance_squared {
-            continue;
-        }
+    let mut node_index = 0u32;
+    loop {
         let node = &bvh.nodes[node_index as usize];
-        if node.prim_count > 0 {
-            let first = node.first_index as usize;
-            for slot in first..first + node.prim_count as usize {
-                let candidate = distance_squared(slot, best_distance_squared);
-                if candidate < best_distance_squared {
-                    best_distance_squared = candidate;
-                    best_slot = Some(slot);
+        let distances = node.distances_squared(x, y, z);
+        let within = distances
+            .cmplt(Vec4::splat(best_distance_squared))
+            .bitmask();
+        let distances = distances.to_array();
+        // Leaf children first, nearest first: they tighten the bound for the inner ones.
+        let mut leaves = within & node.leaf_mask;
+        while leaves != 0 {
+            let child = nearest_child(leaves, &distances);
+            leaves &= !(1 << child);
+            if distances[child] < best_distance_squared
+                && let Some((slot, distance_squared)) = search_leaf(
+                    node.children[child] as usize,
+                    usize::from(node.counts[child]),
+                    best_distance_squared,
+                )
+            {
+                best_distance_squared = distance_squared;
+                best_slot = Some(slot);
+            }
+        }
+        // Then the inner children: go on with the nearest, push the others farthest first.
+        let mut inner = within & !node.leaf_mask;
+        let mut next = None;
+        if inner != 0 {
+            let nearest = nearest_child(inner, &distances);
+            inner &= !(1 << nearest);
+            while inner != 0 {
+                let farthest = farthest_child(inner, &distances);
+                inner &= !(1 << farthest);
+                if distances[farthest] < best_distance_squared {
+                    stack.push((node.children[farthest], distances[farthest]));
                 }
             }
-        } else {
-            let left = node.first_index;
-            let right = left + 1;
-            let left_distance = box_distance_squared(&bvh.nodes[left as usize].aabb, point);
-            let right_distance = box_distance_squared(&bvh.nodes[right as usize].aabb, point);
-            // Push the farther child first so that the nearer one is popped next.
-            let (near, near_distance, far, far_distance) = if left_distance <= right_distance {
-                (left, left_distance, right, right_distance)
-            } else {
-                (right, right_distance, left, left_distance)
-            };
-            if far_distance < best_distance_squared {
-                stack.push((far, far_distance));
-            }
-            if near_distance < best_distance_squared {
-                stack.push((near, near_distance));
+            if distances[nearest] < best_distance_squared {
+                next = Some(node.children[nearest]);
             }
         }
+        node_index = match next {
+            Some(index) => index,
+            None => loop {
+                match stack.pop() {
+                    None => return best_slot.map(|slot| (slot, best_distance_squared)),
+                    Some((index, distance_squared)) if distance_squared < best_distance_squared => {
+                        break index;
+                    }
+                    Some(_) => {}
+                }
+            },
+        };
     }
-    best_slot.map(|slot| (slot, best_distance_squared))
+}
+
+/// The child of `mask` (a non-empty set of child bits) with the smallest distance.
+#[inline(always)]
+fn nearest_child(mask: u32, distances: &[f32; 4]) -> usize {
+    let mut rest = mask;
+    let mut best = rest.trailing_zeros() as usize;
+    rest &= rest - 1;
+    while rest != 0 {
+        let child = rest.trailing_zeros() as usize;
+        rest &= rest - 1;
+        if distances[child] < distances[best] {
+            best = child;
+        }
+    }
+    best
+}
+
+/// The child of `mask` (a non-empty set of child bits) with the largest distance.
+#[inline(always)]
+fn farthest_child(mask: u32, distances: &[f32; 4]) -> usize {
+    let mut rest = mask;
+    let mut worst = rest.trailing_zeros() as usize;
+    rest &= rest - 1;
+    while rest != 0 {
+        let child = rest.trailing_zeros() as usize;
+        rest &= rest - 1;
+        if distances[child] > distances[worst] {
+            worst = child;
+        }
+    }
+    worst
+}
+
+/// A leaf search for [`nearest_slot`] from a per-slot distance: `distance_squared(slot, best)`
+/// returns the squared distance to the primitive in `slot` (or anything `>= best` when it can
+/// tell cheaply that the primitive cannot win).
+#[inline(always)]
+pub fn search_slots(
+    mut distance_squared: impl FnMut(usize, f32) -> f32,
+) -> impl FnMut(usize, usize, f32) -> Option<(usize, f32)> {
+    move |first, count, mut best| {
+        let mut found = None;
+        for slot in first..first + count {
+            let candidate = distance_squared(slot, best);
+            if candidate < best {
+                best = candidate;
+                found = Some((slot, candidate));
+            }
+        }
+        found
+    }
 }
 
 #[cfg(test)]
@@ -121,15 +362,22 @@ mod tests {
             .collect();
         let boxes: Vec<Aabb> = points.iter().map(|&p| Aabb::from_point(p)).collect();
         let bvh = build_bvh(&boxes);
+        let bvh4 = Bvh4::from_bvh2(&bvh);
         let mut stack = NearestStack::new();
         for query_index in 0..200 {
             let q = query_index as f32;
             let query = Vec3A::new((q * 0.9).cos() * 4.0, (q * 0.3).sin() * 3.0, q * 0.01 - 1.0);
-            let (slot, distance_squared) =
-                nearest_slot(&bvh, query, f32::INFINITY, None, &mut stack, |slot, _| {
+            let (slot, distance_squared) = nearest_slot(
+                &bvh4,
+                query,
+                f32::INFINITY,
+                None,
+                &mut stack,
+                search_slots(|slot, _| {
                     points[bvh.primitive_indices[slot] as usize].distance_squared(query)
-                })
-                .unwrap();
+                }),
+            )
+            .unwrap();
             let brute = points
                 .iter()
                 .map(|p| p.distance_squared(query))
@@ -145,11 +393,16 @@ mod tests {
     #[test]
     fn nothing_within_the_limit_gives_none() {
         let boxes = [Aabb::from_point(Vec3A::ZERO)];
-        let bvh = build_bvh(&boxes);
+        let bvh = Bvh4::from_bvh2(&build_bvh(&boxes));
         let mut stack = NearestStack::new();
-        let found = nearest_slot(&bvh, Vec3A::splat(10.0), 1.0, None, &mut stack, |_, _| {
-            300.0
-        });
+        let found = nearest_slot(
+            &bvh,
+            Vec3A::splat(10.0),
+            1.0,
+            None,
+            &mut stack,
+            search_slots(|_, _| 300.0),
+        );
         assert!(found.is_none());
     }
 }

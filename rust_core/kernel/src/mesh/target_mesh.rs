@@ -8,10 +8,11 @@ use rayon::prelude::*;
 
 use super::normals::{face_normals, vertex_normals};
 use super::topology::{NO_TRIANGLE, Topology, TriangleEdge, compute_topology};
-use crate::bvh::build_bvh;
+use crate::bvh::{Bvh4, build_bvh};
 use crate::error::KernelError;
 use crate::face_point::{FacePoint, LayoutPoint};
 use crate::query::point_triangle::is_degenerate;
+use crate::query::triangle_packet::TrianglePacket;
 
 /// Face normals and vertex normals.
 #[derive(Debug, Clone)]
@@ -23,13 +24,22 @@ pub(crate) struct Normals {
 /// The fast vertex tree: a BVH over the vertices that some non-degenerate triangle uses.
 #[derive(Clone)]
 pub(crate) struct VertexTree {
-    pub(crate) tree: Bvh2,
+    pub(crate) tree: Bvh4,
     /// Vertex positions in slot order.
     pub(crate) points: Vec<Vec3A>,
     /// Vertex indices in slot order.
     pub(crate) vertices: Vec<u32>,
     /// For each vertex, a non-degenerate triangle using it and the corner, or `NO_TRIANGLE`.
     pub(crate) vertex_triangle: Vec<(u32, u8)>,
+}
+
+/// The face tree as closest-point queries search it.
+#[derive(Clone)]
+pub(crate) struct ClosestTree {
+    /// `face_tree` collapsed to four children per node; its leaves are ranges of `packets`.
+    pub(crate) tree: Bvh4,
+    /// The triangles of each leaf of `tree`, four to a packet, in traversal order.
+    pub(crate) packets: Vec<TrianglePacket>,
 }
 
 /// Options for [`TargetMesh::new`].
@@ -60,8 +70,12 @@ pub struct TargetMesh {
     /// Adjacency and boundaries, computed on first use.
     pub(crate) topology: OnceLock<Topology>,
     pub(crate) bounds: Aabb,
-    /// BVH over triangle boxes.
+    /// BVH over triangle boxes (for rays).
     pub(crate) face_tree: Bvh2,
+    /// The closest-point tree, built on first use (rays never need it).
+    pub(crate) closest_tree: OnceLock<ClosestTree>,
+    /// The largest coordinate magnitude of the mesh (for rounding margins).
+    pub(crate) coordinate_scale: f32,
     /// Triangle corners in `face_tree` slot order (slot = index into `primitive_indices`).
     pub(crate) face_tree_corners: Vec<[Vec3A; 3]>,
     /// Whether the triangle in each `face_tree` slot is degenerate.
@@ -83,8 +97,8 @@ impl std::fmt::Debug for TargetMesh {
 }
 
 impl TargetMesh {
-    /// Validates the input and builds the face tree; the vertex tree, adjacency and normals are
-    /// built on first use (or all at once with [`TargetMesh::prepare_all`]).
+    /// Validates the input and builds the face tree; the closest-point tree, the vertex tree,
+    /// adjacency and normals are built on first use (or all at once with [`TargetMesh::prepare_all`]).
     ///
     /// # Errors
     /// [`KernelError::EmptyMesh`], [`KernelError::TooLarge`], [`KernelError::NonFinite`] (a vertex),
@@ -151,6 +165,7 @@ impl TargetMesh {
         let (face_tree, face_tree_corners, face_tree_degenerate) =
             build_face_tree(&vertices, &triangles, &degenerate);
         let bounds = face_tree.nodes[0].aabb;
+        let coordinate_scale = bounds.min.abs().max(bounds.max.abs()).max_element();
         let mut face_tree_slots = vec![0; triangles.len()];
         for (slot, &triangle) in face_tree.primitive_indices.iter().enumerate() {
             face_tree_slots[triangle as usize] = slot as u32;
@@ -164,6 +179,8 @@ impl TargetMesh {
             topology: OnceLock::new(),
             bounds,
             face_tree,
+            closest_tree: OnceLock::new(),
+            coordinate_scale,
             face_tree_corners,
             face_tree_degenerate,
             face_tree_slots,
@@ -171,13 +188,23 @@ impl TargetMesh {
         })
     }
 
-    /// Builds the parts that are otherwise built on first use (vertex tree, topology, normals),
-    /// in parallel, so that later queries pay nothing.
+    /// Builds the parts that are otherwise built on first use (closest-point tree, vertex tree,
+    /// topology, normals), in parallel, so that later queries pay nothing.
     pub fn prepare_all(&self) {
         rayon::join(
-            || self.vertex_tree(),
+            || rayon::join(|| self.closest_tree(), || self.vertex_tree()),
             || rayon::join(|| self.topology(), || self.normals()),
         );
+    }
+
+    pub(crate) fn closest_tree(&self) -> &ClosestTree {
+        self.closest_tree.get_or_init(|| {
+            build_closest_tree(
+                &self.face_tree,
+                &self.face_tree_corners,
+                &self.face_tree_degenerate,
+            )
+        })
     }
 
     pub(crate) fn normals(&self) -> &Normals {
@@ -348,6 +375,39 @@ fn build_face_tree(
     (tree, corners, slot_degenerate)
 }
 
+/// The face tree collapsed to four children per node, its leaves renumbered to ranges of
+/// packets holding their triangles four at a time.
+fn build_closest_tree(
+    face_tree: &Bvh2,
+    corners: &[[Vec3A; 3]],
+    degenerate: &[bool],
+) -> ClosestTree {
+    let mut tree = Bvh4::from_bvh2(face_tree);
+    // Each packet's slot range, in the order the leaves are renumbered.
+    let mut ranges: Vec<(u32, u32)> = Vec::with_capacity(corners.len() / 3 + 1);
+    tree.renumber_leaves(|first, count| {
+        let first_packet = u32::try_from(ranges.len()).expect("fewer than 2^32 packets");
+        ranges.extend(
+            (first..first + count)
+                .step_by(4)
+                .map(|start| (start, (start + 4).min(first + count))),
+        );
+        (first_packet, count.div_ceil(4))
+    });
+    let packets = ranges
+        .par_iter()
+        .with_min_len(1024)
+        .map(|&(start, end)| {
+            let mut lanes = [(0, [Vec3A::ZERO; 3], false); 4];
+            for (lane, slot) in (start..end).enumerate() {
+                lanes[lane] = (slot, corners[slot as usize], degenerate[slot as usize]);
+            }
+            TrianglePacket::new(&lanes[..(end - start) as usize])
+        })
+        .collect();
+    ClosestTree { tree, packets }
+}
+
 /// The vertex tree over vertices used by a non-degenerate triangle, and for every vertex one such
 /// triangle and corner (so that a vertex hit can become a face-point).
 fn build_vertex_tree(vertices: &[Vec3], triangles: &[[u32; 3]], degenerate: &[bool]) -> VertexTree {
@@ -381,7 +441,7 @@ fn build_vertex_tree(vertices: &[Vec3], triangles: &[[u32; 3]], degenerate: &[bo
         .map(|&vertex| Vec3A::from(vertices[vertex as usize]))
         .collect();
     VertexTree {
-        tree,
+        tree: Bvh4::from_bvh2(&tree),
         points: slot_points,
         vertices: slot_vertices,
         vertex_triangle,

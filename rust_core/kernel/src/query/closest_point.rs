@@ -1,14 +1,15 @@
 //! Exact closest point on the surface (the face tree).
 
-use glam::{Vec3, Vec3A};
+use glam::{Vec3, Vec3A, Vec4};
 
 use super::point_triangle::{closest_point_on_degenerate_triangle, closest_point_on_triangle};
-use super::{QueryState, check_finite, check_max_distance, map_in_spatial_order};
-use crate::bvh::{box_distance_squared, nearest_slot};
+use rayon::prelude::*;
+
+use super::{QUERIES_PER_TASK, QueryState, check_finite, check_max_distance, map_in_spatial_order};
+use crate::bvh::nearest_slot;
 use crate::error::KernelError;
 use crate::face_point::{FacePoint, SurfaceHit};
 use crate::mesh::TargetMesh;
-use obvhs::aabb::Aabb;
 
 impl TargetMesh {
     /// The surface point nearest to `point` at most `max_distance` away, or `None`.
@@ -49,11 +50,46 @@ impl TargetMesh {
     ) -> Result<Vec<Option<SurfaceHit>>, KernelError> {
         check_finite("point", points)?;
         check_max_distance(max_distance)?;
+        self.closest_tree();
         Ok(map_in_spatial_order(
             points,
             QueryState::default,
             |state, index| self.closest_point_with_state(points[index].into(), max_distance, state),
         ))
+    }
+
+    /// [`TargetMesh::closest_point`] for many points, each started from `near[i]`, a triangle
+    /// likely close to its answer (the previous answer for a point that moved a little, as in the
+    /// wrap solver): the same answers as [`TargetMesh::closest_points`], in the caller's order
+    /// (no spatial sort: a caller with warm starts already knows where to look). A `near` that is
+    /// not a triangle index (such as [`crate::NO_TRIANGLE`]) means no warm start.
+    ///
+    /// # Errors
+    /// As [`TargetMesh::closest_points`], and [`KernelError::LengthMismatch`] when `near` and
+    /// `points` differ in length.
+    pub fn closest_points_near(
+        &self,
+        points: &[Vec3],
+        max_distance: f32,
+        near: &[u32],
+    ) -> Result<Vec<Option<SurfaceHit>>, KernelError> {
+        check_finite("point", points)?;
+        check_max_distance(max_distance)?;
+        if near.len() != points.len() {
+            return Err(KernelError::LengthMismatch {
+                what: "points and near triangles",
+                first: points.len(),
+                second: near.len(),
+            });
+        }
+        self.closest_tree();
+        Ok((0..points.len())
+            .into_par_iter()
+            .with_min_len(QUERIES_PER_TASK)
+            .map_init(QueryState::default, |state, index| {
+                self.closest_point_near(points[index], max_distance, near[index], state)
+            })
+            .collect())
     }
 
     /// Closest point on the triangle in BVH slot `slot`, and its barycentric coordinates.
@@ -73,36 +109,60 @@ impl TargetMesh {
         max_distance: f32,
         state: &mut QueryState,
     ) -> Option<SurfaceHit> {
+        // The closest point and barycentric coordinates on the best triangle so far, kept so
+        // that the answer needs no second exact test.
+        let mut best_hit = (Vec3A::ZERO, Vec3A::ZERO);
         let warm_start = state.previous_slot.map(|slot| {
-            (
-                slot,
-                self.closest_point_in_slot(point, slot)
-                    .0
-                    .distance_squared(point),
-            )
+            best_hit = self.closest_point_in_slot(point, slot);
+            (slot, best_hit.0.distance_squared(point))
         });
+        // The SIMD estimates may differ from the exact test by rounding: a triangle is tested
+        // exactly when its estimate is within this margin of the best distance so far.
+        let margin = 64.0 * f32::EPSILON * (point.abs().max_element() + self.coordinate_scale);
+        let reach = |best_distance_squared: f32| {
+            let distance = best_distance_squared.sqrt() + margin;
+            distance * distance
+        };
+        let (x, y, z) = (
+            Vec4::splat(point.x),
+            Vec4::splat(point.y),
+            Vec4::splat(point.z),
+        );
+        let closest_tree = self.closest_tree();
         let (slot, distance_squared) = nearest_slot(
-            &self.face_tree,
+            &closest_tree.tree,
             point,
             (max_distance * max_distance).next_up(),
             warm_start,
             &mut state.stack,
-            |slot, best_distance_squared| {
-                // The triangle's own box is a cheap, branch-free lower bound: skip the exact
-                // test when it cannot win (a third of the tests on a 1M-triangle mesh).
-                let [a, b, c] = self.face_tree_corners[slot];
-                let lower_bound =
-                    box_distance_squared(&Aabb::new(a.min(b).min(c), a.max(b).max(c)), point);
-                if lower_bound >= best_distance_squared {
-                    return f32::INFINITY;
+            |first, count, mut best_distance_squared| {
+                let mut found = None;
+                for packet in &closest_tree.packets[first..first + count] {
+                    let estimates = packet.distances_squared(x, y, z);
+                    let mut candidates = estimates
+                        .cmplt(Vec4::splat(reach(best_distance_squared)))
+                        .bitmask();
+                    while candidates != 0 {
+                        let lane = candidates.trailing_zeros() as usize;
+                        candidates &= candidates - 1;
+                        if estimates[lane] >= reach(best_distance_squared) {
+                            continue;
+                        }
+                        let slot = packet.slots[lane] as usize;
+                        let hit = self.closest_point_in_slot(point, slot);
+                        let exact = hit.0.distance_squared(point);
+                        if exact < best_distance_squared {
+                            best_distance_squared = exact;
+                            best_hit = hit;
+                            found = Some((slot, exact));
+                        }
+                    }
                 }
-                self.closest_point_in_slot(point, slot)
-                    .0
-                    .distance_squared(point)
+                found
             },
         )?;
         state.previous_slot = Some(slot);
-        let (closest, barycentric) = self.closest_point_in_slot(point, slot);
+        let (closest, barycentric) = best_hit;
         Some(SurfaceHit {
             face_point: FacePoint {
                 triangle: self.face_tree.primitive_indices[slot],

@@ -5,6 +5,7 @@ pub mod nearest_vertex;
 pub mod point_triangle;
 pub mod ray_cast;
 pub mod ray_triangle;
+pub(crate) mod triangle_packet;
 
 use glam::Vec3;
 use rayon::prelude::*;

@@ -3,7 +3,7 @@
 use glam::{Vec3, Vec3A};
 
 use super::{QueryState, check_finite, check_max_distance, map_in_spatial_order};
-use crate::bvh::nearest_slot;
+use crate::bvh::{nearest_slot, search_slots};
 use crate::error::KernelError;
 use crate::face_point::{FacePoint, VertexHit};
 use crate::mesh::TargetMesh;
@@ -55,7 +55,7 @@ impl TargetMesh {
             (max_distance * max_distance).next_up(),
             warm_start,
             &mut state.stack,
-            |slot, _| points[slot].distance_squared(point),
+            search_slots(|slot, _| points[slot].distance_squared(point)),
         )?;
         state.previous_slot = Some(slot);
         let vertex = vertex_tree.vertices[slot];
