@@ -154,16 +154,10 @@ def folded_on_surface(case, target, positions: np.ndarray, diagonal: float, norm
     under their centre, where the centre is within ``OFF_SURFACE_PERCENT`` of the target and not on a
     hole's rim: folds an artist sees on the surface, whatever the truth says (the truth itself faces
     against a remeshed target where the remesh merged its parts)."""
-    positions = np.asarray(positions, dtype=np.float64)
-    quads = np.asarray(case.layout_quads, dtype=np.int64)
-    centres = positions[quads].mean(axis=1)
-    hits = target.closest_points(np.ascontiguousarray(centres, dtype=np.float32))
-    corners = np.asarray(case.target_triangles, dtype=np.int64)[hits.triangles]
-    surface_normals = (normals[corners] * np.asarray(hits.barycentrics, dtype=np.float64)[:, :, None]).sum(axis=1)
-    facing = (metrics.quad_normals(positions, quads) * surface_normals).sum(axis=1)
-    over = ~metrics.on_boundary(case.target_triangles, hits.triangles, hits.barycentrics)
-    near = np.asarray(hits.distances) <= OFF_SURFACE_PERCENT * diagonal / 100.0
-    return int((over & near & (facing < 0.0)).sum())
+    flipped, _over, distances = metrics.target_facing_flips(
+        positions, case.layout_quads, target, case.target_vertices, case.target_triangles, normals
+    )
+    return int((flipped & (distances <= OFF_SURFACE_PERCENT * diagonal / 100.0)).sum())
 
 
 def wrap(

@@ -342,12 +342,18 @@ class ScanMetrics:
 
 
 def target_facing_flips(
-    positions: np.ndarray, quads: np.ndarray, target, target_vertices: np.ndarray, target_triangles: np.ndarray
+    positions: np.ndarray,
+    quads: np.ndarray,
+    target,
+    target_vertices: np.ndarray,
+    target_triangles: np.ndarray,
+    vertex_normals: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(F,) bool quads facing against the target triangle under their centre's closest point, (F,)
     bool quads whose centre's closest point is over the target's surface (not on a hole's rim; flips
     are only counted there), and (F,) the distance of each centre to the target. Non-finite quads are
-    neither, at an infinite distance."""
+    neither, at an infinite distance. With ``vertex_normals`` ((V, 3), e.g. smoothed) the facing is
+    judged against them, interpolated at the closest point, instead of the triangle's own normal."""
     positions = np.asarray(positions, dtype=np.float64)
     centres = positions[np.asarray(quads, dtype=np.int64)].mean(axis=1)
     finite = np.isfinite(centres).all(axis=1)
@@ -357,7 +363,12 @@ def target_facing_flips(
     if finite.any():
         hits = target.closest_points(np.ascontiguousarray(centres[finite], dtype=np.float32))
         distances[finite] = hits.distances
-        normals = triangle_normals(target_vertices, np.asarray(target_triangles, dtype=np.int64)[hits.triangles])
+        corners = np.asarray(target_triangles, dtype=np.int64)[hits.triangles]
+        if vertex_normals is None:
+            normals = triangle_normals(target_vertices, corners)
+        else:
+            weights = np.asarray(hits.barycentrics, dtype=np.float64)[:, :, None]
+            normals = (np.asarray(vertex_normals, dtype=np.float64)[corners] * weights).sum(axis=1)
         facing = (quad_normals(positions, quads)[finite] * normals).sum(axis=1)
         over[finite] = ~on_boundary(target_triangles, hits.triangles, hits.barycentrics)
         flipped[finite] = over[finite] & (facing < 0.0)
