@@ -131,6 +131,10 @@ const REUSE_TOLERANCE: f64 = 1e-7;
 const REUSE_ITERATIONS: usize = 10;
 /// A solve that took more conjugate-gradient iterations than this is followed by a factorization.
 const REUSE_FAST: usize = 6;
+/// The most memory the global step's factorization may take, in bytes (2 GiB): about a million
+/// layout points on a grid. A larger layout is refused before anything is factored, naming the
+/// spring solver, whose memory grows only linearly with the points.
+pub(crate) const MAX_FACTOR_BYTES: usize = 2 << 30;
 /// The stiffness at which a vertex has the energy's own weights.
 pub(crate) const NEUTRAL_STIFFNESS: f32 = 0.5;
 /// The factor on the shape terms a vertex owns at stiffness 1 (and its inverse at 0).
@@ -248,7 +252,8 @@ impl EnergySolver {
     /// Sets up the energy of a layout at `positions` with the constraints of `inputs`.
     ///
     /// # Errors
-    /// [`KernelError::InvalidArgument`] when the linear system cannot be built.
+    /// [`KernelError::InvalidArgument`] when the linear system cannot be built, or when its
+    /// factorization would take more than [`MAX_FACTOR_BYTES`].
     pub(crate) fn new(inputs: &EnergyInputs<'_>) -> Result<Self, KernelError> {
         let structure = inputs.structure;
         let vertex_count = structure.vertex_count;
@@ -305,6 +310,7 @@ impl EnergySolver {
             })
             .collect();
         let system = LinearSystem::new(&stencils, vertex_count, &fixed)?;
+        check_factor_size(system.factor_bytes(), system.rows(), MAX_FACTOR_BYTES)?;
         // Constrained vertices move to their constraints in the first step, with their
         // neighbours: the safeguard then sees the whole move.
         let positions = inputs.positions.to_vec();
@@ -1029,6 +1035,23 @@ impl EnergySolver {
 }
 
 /// The largest and the mean distance between `new` and `old` positions.
+/// Refuses a factorization of `rows` rows that would take more than `limit` bytes.
+fn check_factor_size(bytes: usize, rows: usize, limit: usize) -> Result<(), KernelError> {
+    if bytes <= limit {
+        return Ok(());
+    }
+    let gib = |bytes: usize| bytes as f64 / f64::from(1u32 << 30);
+    Err(KernelError::InvalidArgument {
+        name: "layout",
+        reason: format!(
+            "the energy solver would need {:.1} GiB for its factorization of {rows} layout points \
+             (at most {:.1} GiB): use the spring solver (solver 'SPRINGS') or a lower spring resolution",
+            gib(bytes),
+            gib(limit)
+        ),
+    })
+}
+
 fn moves(new: &[Vec3], old: &[Vec3]) -> (f32, f32) {
     let (mut largest, mut total) = (0.0f32, 0.0f64);
     for (new, old) in new.iter().zip(old) {
@@ -1453,6 +1476,22 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn a_factorization_over_the_memory_limit_is_refused_naming_the_spring_solver() {
+        let (_, structure, positions) = plane_and_grid(11, 0.1, 0.0);
+        let (stencils, _, _) = build_terms(&structure, &positions);
+        let system = LinearSystem::new(&stencils, 144, &vec![None; 144]).unwrap();
+        let bytes = system.factor_bytes();
+        // At least the matrix's own lower triangle, eight bytes a value.
+        assert!(bytes >= 8 * 144, "{bytes}");
+        assert!(check_factor_size(bytes, system.rows(), bytes).is_ok());
+        let message = check_factor_size(bytes, system.rows(), bytes - 1)
+            .unwrap_err()
+            .to_string();
+        assert!(message.contains("144 layout points"), "{message}");
+        assert!(message.contains("'SPRINGS'"), "{message}");
     }
 
     #[test]

@@ -12,11 +12,16 @@
 //! iterations (the data term's per-vertex weights), so each iteration costs one numeric
 //! factorization and one solve.
 
-use faer::linalg::solvers::Solve;
-use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::cholesky::llt::factor::LltRegularization;
+use faer::sparse::linalg::cholesky::{
+    CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering,
+    factorize_symbolic_cholesky,
+};
 use faer::sparse::{SparseColMat, SparseColMatRef, Triplet};
-use faer::{Mat, Side};
+use faer::{Conj, Mat, Side, get_global_parallelism};
 use glam::DVec3;
+use std::sync::Arc;
 
 use crate::error::KernelError;
 
@@ -95,10 +100,13 @@ pub struct LinearSystem {
     matrix: SparseColMat<usize, f64>,
     /// Index of each row's diagonal entry in the matrix's values.
     diagonal: Vec<usize>,
-    symbolic: SymbolicLlt<usize>,
+    /// The factor's pattern (fill-reducing ordering, supernodes), analysed once.
+    symbolic: Arc<SymbolicCholesky<usize>>,
     /// The right-hand side's part from the fixed vertices: `-Σ weight · s_a s_b x_b` per free `a`.
     fixed_right_hand_side: Vec<DVec3>,
-    factor: Option<Llt<usize, f64>>,
+    /// The factor's values, allocated at the first factorization and reused by the next ones;
+    /// empty until then.
+    factor: Vec<f64>,
 }
 
 impl std::fmt::Debug for LinearSystem {
@@ -107,6 +115,7 @@ impl std::fmt::Debug for LinearSystem {
             .debug_struct("LinearSystem")
             .field("rows", &self.vertex_of_row.len())
             .field("nonzeros", &self.matrix.val().len())
+            .field("factor_nonzeros", &self.symbolic.len_val())
             .finish_non_exhaustive()
     }
 }
@@ -118,7 +127,7 @@ impl Clone for LinearSystem {
             vertex_of_row: self.vertex_of_row.clone(),
             matrix: self.matrix.clone(),
             diagonal: self.diagonal.clone(),
-            symbolic: self.symbolic.clone(),
+            symbolic: Arc::clone(&self.symbolic),
             fixed_right_hand_side: self.fixed_right_hand_side.clone(),
             factor: self.factor.clone(),
         }
@@ -201,17 +210,31 @@ impl LinearSystem {
                     .unwrap_or(usize::MAX)
             })
             .collect();
-        let symbolic = SymbolicLlt::try_new(matrix.symbolic(), Side::Lower)
-            .map_err(|error| solver_error(format!("{error:?}")))?;
+        let symbolic = factorize_symbolic_cholesky(
+            matrix.symbolic(),
+            Side::Lower,
+            SymmetricOrdering::Amd,
+            CholeskySymbolicParams::default(),
+        )
+        .map_err(|error| solver_error(format!("{error:?}")))?;
         Ok(Self {
             row_of_vertex,
             vertex_of_row,
             matrix,
             diagonal,
-            symbolic,
+            symbolic: Arc::new(symbolic),
             fixed_right_hand_side,
-            factor: None,
+            factor: Vec::new(),
         })
+    }
+
+    /// The memory a factorization takes, in bytes: the factor's values (known from the pattern's
+    /// analysis, before anything is factored).
+    #[must_use]
+    pub fn factor_bytes(&self) -> usize {
+        self.symbolic
+            .len_val()
+            .saturating_mul(std::mem::size_of::<f64>())
     }
 
     /// Number of free vertices (rows).
@@ -236,9 +259,54 @@ impl LinearSystem {
             values[entry] += extra;
         }
         let matrix = SparseColMatRef::new(self.matrix.symbolic(), &values);
-        let factor = Llt::try_new_with_symbolic(self.symbolic.clone(), matrix, Side::Lower)
-            .map_err(|error| solver_error(format!("{error:?}")))?;
-        self.factor = Some(factor);
+        let length = self.symbolic.len_val();
+        if self.factor.len() != length {
+            self.factor.clear();
+            self.factor
+                .try_reserve_exact(length)
+                .map_err(|_| solver_error("out of memory for the factor"))?;
+            self.factor.resize(length, 0.0);
+        }
+        let parallelism = get_global_parallelism();
+        let mut scratch = MemBuffer::try_new(
+            self.symbolic
+                .factorize_numeric_llt_scratch::<f64>(parallelism, faer::Spec::default()),
+        )
+        .map_err(|_| solver_error("out of memory for the factorization's workspace"))?;
+        let factored = self.symbolic.factorize_numeric_llt::<f64>(
+            &mut self.factor,
+            matrix,
+            Side::Lower,
+            LltRegularization::default(),
+            parallelism,
+            MemStack::new(&mut scratch),
+            faer::Spec::default(),
+        );
+        if let Err(error) = factored {
+            // A failed factorization leaves nothing to solve with.
+            self.factor.clear();
+            return Err(solver_error(format!("{error:?}")));
+        }
+        Ok(())
+    }
+
+    /// Solves with the last factorization, in place, the columns of `columns` (one per axis).
+    fn solve_with_factor(&self, columns: &mut Mat<f64>) -> Result<(), KernelError> {
+        if self.factor.is_empty() && self.rows() > 0 {
+            return Err(solver_error("solved before it was factored"));
+        }
+        let parallelism = get_global_parallelism();
+        let mut scratch = MemBuffer::try_new(
+            self.symbolic
+                .solve_in_place_scratch::<f64>(columns.ncols(), parallelism),
+        )
+        .map_err(|_| solver_error("out of memory for the solve's workspace"))?;
+        LltRef::<usize, f64>::new(&self.symbolic, &self.factor).solve_in_place_with_conj(
+            Conj::No,
+            columns.as_mut(),
+            parallelism,
+            MemStack::new(&mut scratch),
+        );
         Ok(())
     }
 
@@ -248,15 +316,11 @@ impl LinearSystem {
     /// # Errors
     /// [`KernelError::InvalidArgument`] when nothing was factored yet.
     pub fn solve(&self, right_hand_side: &[DVec3]) -> Result<Vec<DVec3>, KernelError> {
-        let factor = self
-            .factor
-            .as_ref()
-            .ok_or_else(|| solver_error("solved before it was factored"))?;
         let rows = self.rows();
         let mut columns = Mat::<f64>::from_fn(rows, 3, |row, axis| {
             (right_hand_side[row] + self.fixed_right_hand_side[row])[axis]
         });
-        factor.solve_in_place(columns.as_mut());
+        self.solve_with_factor(&mut columns)?;
         Ok((0..rows)
             .map(|row| DVec3::new(columns[(row, 0)], columns[(row, 1)], columns[(row, 2)]))
             .collect())
@@ -277,10 +341,6 @@ impl LinearSystem {
         tolerance: f64,
         max_iterations: usize,
     ) -> Result<Option<(Vec<DVec3>, usize)>, KernelError> {
-        let factor = self
-            .factor
-            .as_ref()
-            .ok_or_else(|| solver_error("solved before it was factored"))?;
         let rows = self.rows();
         let wanted: Vec<DVec3> = right_hand_side
             .iter()
@@ -295,14 +355,14 @@ impl LinearSystem {
             .zip(&product)
             .map(|(b, ax)| *b - *ax)
             .collect();
-        let precondition = |residual: &[DVec3]| -> Vec<DVec3> {
+        let precondition = |residual: &[DVec3]| -> Result<Vec<DVec3>, KernelError> {
             let mut columns = Mat::<f64>::from_fn(rows, 3, |row, axis| residual[row][axis]);
-            factor.solve_in_place(columns.as_mut());
-            (0..rows)
+            self.solve_with_factor(&mut columns)?;
+            Ok((0..rows)
                 .map(|row| DVec3::new(columns[(row, 0)], columns[(row, 1)], columns[(row, 2)]))
-                .collect()
+                .collect())
         };
-        let mut preconditioned = precondition(&residual);
+        let mut preconditioned = precondition(&residual)?;
         let mut direction = preconditioned.clone();
         let mut alignment = column_dots(&residual, &preconditioned);
         for iteration in 0..=max_iterations {
@@ -323,7 +383,7 @@ impl LinearSystem {
                 solution[row] += direction[row] * step;
                 residual[row] -= product[row] * step;
             }
-            preconditioned = precondition(&residual);
+            preconditioned = precondition(&residual)?;
             let next_alignment = column_dots(&residual, &preconditioned);
             let ratio = next_alignment / alignment;
             alignment = next_alignment;
@@ -438,5 +498,22 @@ mod tests {
             .solve_preconditioned(&vec![0.0; rows], &b, &vec![DVec3::ZERO; rows], 1e-12, 1)
             .unwrap();
         assert!(answer.is_none());
+    }
+
+    #[test]
+    fn a_failed_factorization_leaves_nothing_to_solve_with() {
+        let (stencils, fixed) = chain(30);
+        let mut system = LinearSystem::new(&stencils, 30, &fixed).unwrap();
+        let rows = system.rows();
+        let b = right_hand_side(rows);
+        assert!(system.solve(&b).is_err(), "nothing factored yet");
+        system.factor(&vec![1.0; rows]).unwrap();
+        let first = system.solve(&b).unwrap();
+        // Not positive definite: refused, and the earlier factor is not silently used.
+        assert!(system.factor(&vec![-1e6; rows]).is_err());
+        assert!(system.solve(&b).is_err());
+        // Factoring again with the first diagonal gives the first answer.
+        system.factor(&vec![1.0; rows]).unwrap();
+        assert_eq!(system.solve(&b).unwrap(), first);
     }
 }
