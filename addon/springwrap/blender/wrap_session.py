@@ -12,7 +12,7 @@ import numpy as np
 
 import springwrap_kernel
 
-from ..core import anchors, layout_state, subdivision, transforms, wrap_inputs
+from ..core import anchors, input_policy, layout_state, subdivision, transforms, wrap_inputs
 from ..core.errors import LayoutError
 from ..core.target import Target
 from ..core.wrap_run import IterationPacer, WrapResult
@@ -30,7 +30,7 @@ SYNCHRONOUS_CHUNK = 100
 
 
 def make_wrap_solver(target: Target, structure, inputs, parameters):
-    """A kernel ``WrapSolver`` for the prepared inputs (``core.wrap_inputs.WrapInputs``, world space)."""
+    """A kernel ``WrapSolver`` for the prepared inputs (``core.wrap_inputs.WrapInputs``, the kernel's frame)."""
     curve_arguments = {}
     if inputs.curve_vertices is not None:
         curve_arguments = {
@@ -47,7 +47,7 @@ def make_wrap_solver(target: Target, structure, inputs, parameters):
             "plane_slide": bool(inputs.plane_slide),
         }
     return springwrap_kernel.WrapSolver(
-        target.mesh,
+        target.mesh.kernel,
         structure,
         inputs.states,
         inputs.triangles,
@@ -107,6 +107,12 @@ class WrapSession:
         curve_constraints = curve_data.resolve_curve_constraints(
             context.evaluated_depsgraph_get(), layout, curve_data.read_curve_constraints(layout)
         )
+        # The input policy on what the solver gets (the operators check before; the mirror and the scripts
+        # come here too): the layout, the anchors and the curves as resolved on the current target.
+        extent = self.target.extent
+        input_policy.check_layout_points(layout.name, transforms.world_positions(arrays), extent)
+        input_policy.check_anchor_points(self.anchors.vertex_indices, self.anchors.locations, extent)
+        input_policy.check_curve_points(curve_constraints, extent)
         # The template's shape as made: stored at the first change of the layout, else as it is now.
         rest = attributes.read_rest(layout)
         self.rest = arrays.positions if rest is None else rest
@@ -235,7 +241,8 @@ class WrapSession:
     def current_layout(self):
         """(local positions float32 (N, 3), ``LayoutState``) of the solver now."""
         count = self.vertex_count  # a fine grid numbers the layout's own vertices first
-        positions = transforms.to_local(self.matrix_world, self.solver.positions()[:count])
+        world = wrap_inputs.from_frame(self.inputs, self.solver.positions()[:count])
+        positions = transforms.to_local(self.matrix_world, world)
         states, triangles, barycentrics = self.solver.states()
         return positions, layout_state.normalized_state(states[:count], triangles[:count], barycentrics[:count])
 

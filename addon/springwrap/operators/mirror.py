@@ -33,13 +33,13 @@ from ..blender import mirror as mirror_data
 from ..blender import target as target_data
 from ..blender.edit_mode import object_mode
 from ..blender.wrap_session import WrapSession
-from ..core import anchors, layout_state, mirroring, transforms, wrap_inputs
+from ..core import anchors, input_policy, layout_state, mirroring, transforms, wrap_inputs
 from ..core.errors import ERRORS, LayoutError
 from ..core.mirroring import AXES, DEFAULT_WELD_FRACTION, MirrorOutcome
 from ..core.transforms import matrix_array
 from ..core.wrap_inputs import WrapParameters
 from ..properties import WRAP_DEFAULTS, WRAP_SOLVER_ITEMS, max_iterations_property, tolerance_property
-from .base import open_layout, poll_layout
+from .base import check_inputs, open_layout, poll_layout
 
 LANDING_REACH = 0.25
 """Before the wrap, a copy within this fraction of its mean edge length of the target lands there at once."""
@@ -137,6 +137,7 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
         type(self).last_outcome = None
         with object_mode(layout):
             try:
+                check_inputs(context, layout, with_target=self.wrap)
                 prepared = self._prepare(context, layout)
             except ERRORS as error:
                 self.report({"ERROR"}, str(error))
@@ -167,6 +168,15 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
         return {"FINISHED"}
 
     def _plane(self, context, layout):
+        """(the mirror plane in world space, the name of the object it belongs to), checked by the input policy."""
+        plane, owner = self._find_plane(context, layout)
+        extent = None
+        if self.wrap:
+            extent = target_data.read_target(context.evaluated_depsgraph_get(), layout).extent
+        input_policy.check_plane(plane.point, plane.normal, owner, extent)
+        return plane, owner
+
+    def _find_plane(self, context, layout):
         if not self.mirror_object:
             return mirroring.plane_from_matrix(matrix_array(layout.matrix_world), self.axis), layout.name
         mirror = context.scene.objects.get(self.mirror_object) or bpy.data.objects.get(self.mirror_object)

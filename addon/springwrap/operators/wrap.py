@@ -21,13 +21,13 @@ import bpy
 from ..blender import layout as layout_data
 from ..blender.edit_mode import EditModeGuard, object_mode
 from ..blender.wrap_session import WrapSession
-from ..core import mirroring, transforms
+from ..core import input_policy, mirroring, transforms
 from ..core.errors import ERRORS
 from ..core.transforms import matrix_array
 from ..core.wrap_inputs import WrapParameters
 from ..core.wrap_run import WrapLoop, WrapResult
 from ..properties import WRAP_DEFAULTS, WRAP_SOLVER_ITEMS, max_iterations_property, tolerance_property
-from .base import LayoutOperator, layout_problem
+from .base import LayoutOperator, check_inputs, layout_problem, report_storage_precision
 
 TIMER_SECONDS = 0.01
 """Interval of the modal's timer: a frame starts as soon as the previous one is drawn."""
@@ -147,12 +147,13 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
             free_group=self.free_group,
         )
 
-    def _plane_holder(self, layout):
+    def _plane_holder(self, layout, extent):
         """``adjust_inputs`` for :class:`WrapSession` holding the midline on ``hold_plane``; None without one."""
         if self.hold_plane == "NONE":
             return None
         owner = layout.springwrap.mirror_object or layout
         plane = mirroring.plane_from_matrix(matrix_array(owner.matrix_world), self.hold_plane)
+        input_policy.check_plane(plane.point, plane.normal, owner.name, extent)
         world = transforms.world_positions(layout_data.read_layout(layout))
         edges = layout_data.read_layout_topology(layout).edges
         return lambda inputs: mirroring.held_on_plane(inputs, world, edges, plane)
@@ -167,7 +168,8 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
             return None
         try:
             layout = context.active_object
-            return WrapSession(context, layout, self.parameters(), adjust_inputs=self._plane_holder(layout))
+            extent = check_inputs(context, layout)
+            return WrapSession(context, layout, self.parameters(), adjust_inputs=self._plane_holder(layout, extent))
         except ERRORS as error:
             self.report({"ERROR"}, str(error))
             return None
@@ -188,6 +190,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
                 session.cancel()
                 self.report({"ERROR"}, f"The wrap failed: {error}")
                 return {"CANCELLED"}
+            report_storage_precision(self, layout, session.target.extent)
         self._report_result(result)
         return {"FINISHED"}
 
@@ -219,6 +222,8 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
             return {"RUNNING_MODAL"}
         if outcome == "PASS_THROUGH":
             return {"PASS_THROUGH"}
+        if outcome == "FINISHED":
+            report_storage_precision(self, self._loop.session.layout, self._loop.session.target.extent)
         self._end(context)
         if outcome == "FINISHED":
             self._report_result(self._loop.result)
