@@ -130,6 +130,13 @@ class WrapSession:
         self.stage = "coarse" if int(parameters.spring_resolution) > 1 else "fine"
         self.coarse_iterations = 0
         self.snapshot = attributes.take_snapshot(layout)
+        # What finish() writes on the object besides the mesh, to put back when it fails half-way.
+        self.settings_snapshot = (
+            settings.target_signature,
+            anchor_data.read_anchors(layout),
+            settings.active_anchor_index,
+            settings.anchors_signature,
+        )
         self.vertex_count = arrays.positions.shape[0]
         self.unreliable_count = 0 if unreliable is None else int(unreliable.sum())
         self.topology = (resolution.detached_count, resolution.reattached_count, anchor_resolution.detached_count)
@@ -290,8 +297,15 @@ class WrapSession:
         )
 
     def cancel(self) -> None:
-        """Put the layout's positions and state attributes back exactly as they were at the start."""
+        """Put the layout back exactly as it was at the start: positions, state attributes, rest shape, and
+        what :meth:`finish` writes on the object (target signature, anchors); also after a failed finish."""
         attributes.restore_snapshot(self.layout, self.snapshot)
+        target_signature, anchor_list, active_index, anchors_signature = self.settings_snapshot
+        settings = self.layout.springwrap
+        if settings.target_signature != target_signature:
+            settings.target_signature = target_signature
+        if len(settings.anchors) or anchors.anchor_count(anchor_list):
+            anchor_data.write_anchors(self.layout, anchor_list, active_index, anchors_signature)
 
     def status_text(self) -> str:
         """The progress line shown in the status bar."""

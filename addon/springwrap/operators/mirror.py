@@ -147,6 +147,7 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
                 anchor_data.read_anchors(layout),
                 layout.springwrap.anchors_signature,
                 layout.springwrap.active_anchor_index,
+                layout.springwrap.target_signature,
             )
             window_manager = context.window_manager
             progress = not bpy.app.background
@@ -157,6 +158,7 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
             except Exception as error:  # noqa: BLE001 - any failure puts the mesh back, then reports
                 mirror_data.restore_mesh(layout, backup)
                 anchor_data.write_anchors(layout, anchors_before[0], anchors_before[2], anchors_before[1])
+                layout.springwrap.target_signature = anchors_before[3]
                 self.report({"ERROR"}, f"Mirroring failed and was undone: {error}")
                 return {"CANCELLED"}
             finally:
