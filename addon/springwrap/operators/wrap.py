@@ -26,7 +26,14 @@ from ..core.errors import ERRORS
 from ..core.transforms import matrix_array
 from ..core.wrap_inputs import WrapParameters
 from ..core.wrap_run import WrapLoop, WrapResult
-from ..properties import WRAP_DEFAULTS, WRAP_SOLVER_ITEMS, max_iterations_property, tolerance_property
+from ..properties import (
+    WRAP_DEFAULTS,
+    WRAP_RANGES,
+    WRAP_SOLVER_ITEMS,
+    max_iterations_property,
+    tolerance_property,
+    wrap_weight_property,
+)
 from .base import LayoutOperator, check_inputs, layout_problem, report_storage_precision
 
 TIMER_SECONDS = 0.01
@@ -44,40 +51,20 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
     tolerance: tolerance_property(
         "Converged when no point moves more than this fraction of the layout's size in an iteration"
     )
-    fairness: bpy.props.FloatProperty(
-        name="Fairness",
-        description="Straightens the layout's grid lines (paper's alpha), 0 to 1",
-        default=WRAP_DEFAULTS.fairness,
-        soft_min=0.0,
-        soft_max=1.0,
+    fairness: wrap_weight_property(
+        "fairness", "Fairness", "Straightens the layout's grid lines (paper's alpha), 0 to 1"
     )
-    arc_length: bpy.props.FloatProperty(
-        name="Arc Length",
-        description="Evens the spacing along the grid lines (paper's beta), 0 to 1",
-        default=WRAP_DEFAULTS.arc_length,
-        soft_min=0.0,
-        soft_max=1.0,
+    arc_length: wrap_weight_property(
+        "arc_length", "Arc Length", "Evens the spacing along the grid lines (paper's beta), 0 to 1"
     )
-    thin_plate: bpy.props.FloatProperty(
-        name="Thin Plate",
-        description="Space-points continue the curvature of the surface around them (over holes), 0 to 0.5",
-        default=WRAP_DEFAULTS.thin_plate,
-        soft_min=0.0,
-        soft_max=0.5,
+    thin_plate: wrap_weight_property(
+        "thin_plate",
+        "Thin Plate",
+        "Space-points continue the curvature of the surface around them (over holes), 0 to 0.5",
     )
-    constraint: bpy.props.FloatProperty(
-        name="Constraint",
-        description="Pull of anchored points toward their targets, 0 to 1",
-        default=WRAP_DEFAULTS.constraint,
-        soft_min=0.0,
-        soft_max=1.0,
-    )
-    folding: bpy.props.FloatProperty(
-        name="Folding",
-        description="Pull of space-points next to face-points onto the surface, 0 to 1",
-        default=WRAP_DEFAULTS.folding,
-        soft_min=0.0,
-        soft_max=1.0,
+    constraint: wrap_weight_property("constraint", "Constraint", "Pull of anchored points toward their targets, 0 to 1")
+    folding: wrap_weight_property(
+        "folding", "Folding", "Pull of space-points next to face-points onto the surface, 0 to 1"
     )
     rest: bpy.props.EnumProperty(
         name="Rest Shape",
@@ -104,8 +91,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
         description="Above 1: relax the layout, then relax again with every quad cut into this many by this many "
         "springs (coarse to fine), and read the layout's vertices back",
         default=1,
-        min=1,
-        max=8,
+        **WRAP_RANGES["spring_resolution"].keywords(),
     )
     stiffness_group: bpy.props.StringProperty(
         name="Stiffness Group",
