@@ -645,15 +645,11 @@ BAD_INPUTS = {
     "NaN layout vertex": (_nan_layout_vertex, {}),
     "target without triangles": (_target_without_triangles, {}),
     "missing unreliable group": (_missing_group, {}),
-    "thin plate too strong": (None, {"thin_plate": 0.7}),
-    "negative fairness": (None, {"fairness": -0.1}),
-    "folding above one": (None, {"folding": 1.5}),
+    # Weights beyond their range are clamped by Blender to the kernel's range (tests/addon/test_ranges.py);
+    # a tolerance of 0 is the one value the properties let through and the kernel refuses.
     "zero tolerance": (None, {"tolerance": 0.0}),
 }
 _WEIGHT_MESSAGES = {
-    "thin plate too strong": r"thin plate weight must be within \[0, 0.5\], not 0.7",
-    "negative fairness": r"fairness weight must be within \[0, 1\], not -0.1",
-    "folding above one": r"folding weight must be within \[0, 1\], not 1.5",
     "zero tolerance": r"tolerance must be within \(0, 1\], not 0",
 }
 

@@ -78,6 +78,8 @@ def plane_from_matrix(matrix_world, axis: str) -> Plane:
     if axis not in AXES:
         raise LayoutError(f"The mirror axis must be one of {', '.join(AXES)}, not {axis!r}")
     matrix = np.asarray(matrix_world, dtype=np.float64).reshape(4, 4)
+    if not np.all(np.isfinite(matrix)):
+        raise LayoutError("The mirror plane's object has a NaN or infinite transform: its plane is undefined")
     if not transforms.is_invertible(matrix):
         raise LayoutError("The mirror plane's object has zero scale: its plane is undefined")
     linear = matrix[:3, :3]

@@ -196,6 +196,7 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
         arrays = layout_data.read_layout(layout)
         if not transforms.is_invertible(arrays.matrix_world):
             raise LayoutError(f"Layout '{layout.name}' has zero scale: it cannot be mirrored")
+        anchors.check_anchor_vertices(anchor_data.read_anchors(layout), arrays.positions.shape[0])
         plane, plane_owner = self._plane(context, layout)
         topology = layout_data.read_layout_topology(layout)
         world = transforms.world_positions(arrays)
