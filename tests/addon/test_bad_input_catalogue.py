@@ -386,3 +386,13 @@ def test_a_bad_mirror_plane_is_refused(value):
     with pytest.raises(RuntimeError, match="The plane of 'Mirror'|The mirror plane's object has a NaN"):
         bpy.ops.springwrap.wrap(hold_plane="X", max_iterations=30)
     assert full_snapshot(layout) == before
+
+
+def test_project_along_normals_refuses_an_infinite_vertex_instead_of_skipping_it():
+    """Issue 13: a real inf written with foreach_set was skipped by project(NORMAL) (its normal is not finite)."""
+    target, layout = catalogue_scene()
+    _layout_vertex(math.inf)(target, layout)
+    before = full_snapshot(layout)
+    with pytest.raises(RuntimeError, match="Layout vertex 7 has a NaN or infinite coordinate"):
+        bpy.ops.springwrap.project(direction="NORMAL")
+    assert full_snapshot(layout) == before
