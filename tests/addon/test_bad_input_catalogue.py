@@ -396,3 +396,13 @@ def test_project_along_normals_refuses_an_infinite_vertex_instead_of_skipping_it
     with pytest.raises(RuntimeError, match="Layout vertex 7 has a NaN or infinite coordinate"):
         bpy.ops.springwrap.project(direction="NORMAL")
     assert full_snapshot(layout) == before
+
+
+def test_set_rest_shape_does_not_need_a_usable_target():
+    """Set Rest Shape reads the target only to judge the vertices against it: a target that lost its faces is
+    not its problem (it finishes), while the wrap refuses it."""
+    target, layout = catalogue_scene()
+    _target_without_faces(target, layout)
+    assert bpy.ops.springwrap.rest_set() == {"FINISHED"}
+    with pytest.raises(RuntimeError, match="'Target' has no faces"):
+        bpy.ops.springwrap.wrap(max_iterations=30)

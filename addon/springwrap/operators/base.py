@@ -74,7 +74,7 @@ def open_layout(
 
 
 def check_inputs(
-    context, layout: bpy.types.Object, reads=READS_LAYOUT, with_target: bool = True
+    context, layout: bpy.types.Object, reads=READS_LAYOUT, with_target: bool = True, target_required: bool = True
 ) -> input_policy.Extent | None:
     """The add-on's input policy (``core.input_policy``) on what an operation reads; the target's extent.
 
@@ -82,11 +82,17 @@ def check_inputs(
     as ``reads`` says, its vertices (world space), its anchors' target points and its curve
     constraints' cached polylines; raises one of ``ERRORS`` naming the first one refused. Object mode
     data: call it inside ``object_mode(layout)``. Writes nothing. ``with_target=False``: the target is
-    not read (an operation that does not use it), only finiteness and the absolute limit apply.
+    not read (an operation that does not use it), only finiteness and the absolute limit apply; with
+    ``target_required=False`` an unusable target is not this operation's problem and is not judged
+    against either (Set Rest Shape with a target that lost its faces).
     """
     extent = None
     if with_target and layout.springwrap.target is not None:
-        extent = target_data.read_target(context.evaluated_depsgraph_get(), layout).extent
+        try:
+            extent = target_data.read_target(context.evaluated_depsgraph_get(), layout).extent
+        except ERRORS:
+            if target_required:
+                raise
     if "positions" in reads:
         arrays = layout_data.read_layout(layout)
         if not np.all(np.isfinite(arrays.matrix_world)):
@@ -167,7 +173,11 @@ class LayoutCollectionOperator:
         layout = context.active_object
         try:
             with object_mode(layout) if self.reads_layout_mesh else contextlib.nullcontext():
-                self.extent = check_inputs(context, layout, self.reads) if self.reads else None
+                self.extent = (
+                    check_inputs(context, layout, self.reads, target_required=self.requires_target)
+                    if self.reads
+                    else None
+                )
                 reports = self.run(context, layout)
         except ERRORS as error:
             self.report({"ERROR"}, str(error))
