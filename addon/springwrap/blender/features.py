@@ -11,7 +11,7 @@ import numpy as np
 
 import springwrap_kernel
 
-from ..core import transforms
+from ..core import input_policy, transforms
 from ..core.errors import LayoutError
 from . import attributes, compat
 from .evaluated_mesh import read_evaluated_mesh
@@ -42,6 +42,10 @@ def read_feature_mesh(depsgraph: bpy.types.Depsgraph, obj: bpy.types.Object) -> 
     evaluated = read_evaluated_mesh(depsgraph, obj, triangles=True)
     if evaluated.vertices.size == 0 or evaluated.triangles.size == 0:
         raise LayoutError(f"'{obj.name}' has no faces: there is no surface to detect features on")
+    vertices = evaluated.vertices
+    input_policy.check_points(  # non-finite vertices: the kernel names them
+        vertices[np.all(np.isfinite(vertices), axis=1)], lambda _row: "A vertex", fix="fix the mesh or its modifiers"
+    )
     return FeatureMesh(
         vertices=transforms.as_float32_points(evaluated.vertices),
         triangles=evaluated.triangles,

@@ -12,7 +12,7 @@ import numpy as np
 
 import springwrap_kernel
 
-from ..core import anchors, layout_state, subdivision, transforms, wrap_inputs
+from ..core import anchors, input_policy, layout_state, subdivision, transforms, wrap_inputs
 from ..core.errors import LayoutError
 from ..core.target import Target
 from ..core.wrap_run import IterationPacer, WrapResult
@@ -30,7 +30,7 @@ SYNCHRONOUS_CHUNK = 100
 
 
 def make_wrap_solver(target: Target, structure, inputs, parameters):
-    """A kernel ``WrapSolver`` for the prepared inputs (``core.wrap_inputs.WrapInputs``, world space)."""
+    """A kernel ``WrapSolver`` for the prepared inputs (``core.wrap_inputs.WrapInputs``, the kernel's frame)."""
     curve_arguments = {}
     if inputs.curve_vertices is not None:
         curve_arguments = {
@@ -47,7 +47,7 @@ def make_wrap_solver(target: Target, structure, inputs, parameters):
             "plane_slide": bool(inputs.plane_slide),
         }
     return springwrap_kernel.WrapSolver(
-        target.mesh,
+        target.mesh.kernel,
         structure,
         inputs.states,
         inputs.triangles,
@@ -107,6 +107,12 @@ class WrapSession:
         curve_constraints = curve_data.resolve_curve_constraints(
             context.evaluated_depsgraph_get(), layout, curve_data.read_curve_constraints(layout)
         )
+        # The input policy on what the solver gets (the operators check before; the mirror and the scripts
+        # come here too): the layout, the anchors and the curves as resolved on the current target.
+        extent = self.target.extent
+        input_policy.check_layout_points(layout.name, transforms.world_positions(arrays), extent)
+        input_policy.check_anchor_points(self.anchors.vertex_indices, self.anchors.locations, extent)
+        input_policy.check_curve_points(curve_constraints, extent)
         # The template's shape as made: stored at the first change of the layout, else as it is now.
         rest = attributes.read_rest(layout)
         self.rest = arrays.positions if rest is None else rest
@@ -124,6 +130,13 @@ class WrapSession:
         self.stage = "coarse" if int(parameters.spring_resolution) > 1 else "fine"
         self.coarse_iterations = 0
         self.snapshot = attributes.take_snapshot(layout)
+        # What finish() writes on the object besides the mesh, to put back when it fails half-way.
+        self.settings_snapshot = (
+            settings.target_signature,
+            anchor_data.read_anchors(layout),
+            settings.active_anchor_index,
+            settings.anchors_signature,
+        )
         self.vertex_count = arrays.positions.shape[0]
         self.unreliable_count = 0 if unreliable is None else int(unreliable.sum())
         self.topology = (resolution.detached_count, resolution.reattached_count, anchor_resolution.detached_count)
@@ -235,7 +248,8 @@ class WrapSession:
     def current_layout(self):
         """(local positions float32 (N, 3), ``LayoutState``) of the solver now."""
         count = self.vertex_count  # a fine grid numbers the layout's own vertices first
-        positions = transforms.to_local(self.matrix_world, self.solver.positions()[:count])
+        world = wrap_inputs.from_frame(self.inputs, self.solver.positions()[:count])
+        positions = transforms.to_local(self.matrix_world, world)
         states, triangles, barycentrics = self.solver.states()
         return positions, layout_state.normalized_state(states[:count], triangles[:count], barycentrics[:count])
 
@@ -283,8 +297,15 @@ class WrapSession:
         )
 
     def cancel(self) -> None:
-        """Put the layout's positions and state attributes back exactly as they were at the start."""
+        """Put the layout back exactly as it was at the start: positions, state attributes, rest shape, and
+        what :meth:`finish` writes on the object (target signature, anchors); also after a failed finish."""
         attributes.restore_snapshot(self.layout, self.snapshot)
+        target_signature, anchor_list, active_index, anchors_signature = self.settings_snapshot
+        settings = self.layout.springwrap
+        if settings.target_signature != target_signature:
+            settings.target_signature = target_signature
+        if len(settings.anchors) or anchors.anchor_count(anchor_list):
+            anchor_data.write_anchors(self.layout, anchor_list, active_index, anchors_signature)
 
     def status_text(self) -> str:
         """The progress line shown in the status bar."""

@@ -21,13 +21,20 @@ import bpy
 from ..blender import layout as layout_data
 from ..blender.edit_mode import EditModeGuard, object_mode
 from ..blender.wrap_session import WrapSession
-from ..core import mirroring, transforms
+from ..core import input_policy, mirroring, transforms
 from ..core.errors import ERRORS
 from ..core.transforms import matrix_array
 from ..core.wrap_inputs import WrapParameters
 from ..core.wrap_run import WrapLoop, WrapResult
-from ..properties import WRAP_DEFAULTS, WRAP_SOLVER_ITEMS, max_iterations_property, tolerance_property
-from .base import LayoutOperator, layout_problem
+from ..properties import (
+    WRAP_DEFAULTS,
+    WRAP_RANGES,
+    WRAP_SOLVER_ITEMS,
+    max_iterations_property,
+    tolerance_property,
+    wrap_weight_property,
+)
+from .base import LayoutOperator, check_inputs, layout_problem, report_storage_precision
 
 TIMER_SECONDS = 0.01
 """Interval of the modal's timer: a frame starts as soon as the previous one is drawn."""
@@ -44,40 +51,20 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
     tolerance: tolerance_property(
         "Converged when no point moves more than this fraction of the layout's size in an iteration"
     )
-    fairness: bpy.props.FloatProperty(
-        name="Fairness",
-        description="Straightens the layout's grid lines (paper's alpha), 0 to 1",
-        default=WRAP_DEFAULTS.fairness,
-        soft_min=0.0,
-        soft_max=1.0,
+    fairness: wrap_weight_property(
+        "fairness", "Fairness", "Straightens the layout's grid lines (paper's alpha), 0 to 1"
     )
-    arc_length: bpy.props.FloatProperty(
-        name="Arc Length",
-        description="Evens the spacing along the grid lines (paper's beta), 0 to 1",
-        default=WRAP_DEFAULTS.arc_length,
-        soft_min=0.0,
-        soft_max=1.0,
+    arc_length: wrap_weight_property(
+        "arc_length", "Arc Length", "Evens the spacing along the grid lines (paper's beta), 0 to 1"
     )
-    thin_plate: bpy.props.FloatProperty(
-        name="Thin Plate",
-        description="Space-points continue the curvature of the surface around them (over holes), 0 to 0.5",
-        default=WRAP_DEFAULTS.thin_plate,
-        soft_min=0.0,
-        soft_max=0.5,
+    thin_plate: wrap_weight_property(
+        "thin_plate",
+        "Thin Plate",
+        "Space-points continue the curvature of the surface around them (over holes), 0 to 0.5",
     )
-    constraint: bpy.props.FloatProperty(
-        name="Constraint",
-        description="Pull of anchored points toward their targets, 0 to 1",
-        default=WRAP_DEFAULTS.constraint,
-        soft_min=0.0,
-        soft_max=1.0,
-    )
-    folding: bpy.props.FloatProperty(
-        name="Folding",
-        description="Pull of space-points next to face-points onto the surface, 0 to 1",
-        default=WRAP_DEFAULTS.folding,
-        soft_min=0.0,
-        soft_max=1.0,
+    constraint: wrap_weight_property("constraint", "Constraint", "Pull of anchored points toward their targets, 0 to 1")
+    folding: wrap_weight_property(
+        "folding", "Folding", "Pull of space-points next to face-points onto the surface, 0 to 1"
     )
     rest: bpy.props.EnumProperty(
         name="Rest Shape",
@@ -104,8 +91,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
         description="Above 1: relax the layout, then relax again with every quad cut into this many by this many "
         "springs (coarse to fine), and read the layout's vertices back",
         default=1,
-        min=1,
-        max=8,
+        **WRAP_RANGES["spring_resolution"].keywords(),
     )
     stiffness_group: bpy.props.StringProperty(
         name="Stiffness Group",
@@ -147,12 +133,13 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
             free_group=self.free_group,
         )
 
-    def _plane_holder(self, layout):
+    def _plane_holder(self, layout, extent):
         """``adjust_inputs`` for :class:`WrapSession` holding the midline on ``hold_plane``; None without one."""
         if self.hold_plane == "NONE":
             return None
         owner = layout.springwrap.mirror_object or layout
         plane = mirroring.plane_from_matrix(matrix_array(owner.matrix_world), self.hold_plane)
+        input_policy.check_plane(plane.point, plane.normal, owner.name, extent)
         world = transforms.world_positions(layout_data.read_layout(layout))
         edges = layout_data.read_layout_topology(layout).edges
         return lambda inputs: mirroring.held_on_plane(inputs, world, edges, plane)
@@ -167,7 +154,8 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
             return None
         try:
             layout = context.active_object
-            return WrapSession(context, layout, self.parameters(), adjust_inputs=self._plane_holder(layout))
+            extent = check_inputs(context, layout)
+            return WrapSession(context, layout, self.parameters(), adjust_inputs=self._plane_holder(layout, extent))
         except ERRORS as error:
             self.report({"ERROR"}, str(error))
             return None
@@ -188,6 +176,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
                 session.cancel()
                 self.report({"ERROR"}, f"The wrap failed: {error}")
                 return {"CANCELLED"}
+            report_storage_precision(self, layout, session.target.extent)
         self._report_result(result)
         return {"FINISHED"}
 
@@ -219,6 +208,8 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
             return {"RUNNING_MODAL"}
         if outcome == "PASS_THROUGH":
             return {"PASS_THROUGH"}
+        if outcome == "FINISHED":
+            report_storage_precision(self, self._loop.session.layout, self._loop.session.target.extent)
         self._end(context)
         if outcome == "FINISHED":
             self._report_result(self._loop.result)
