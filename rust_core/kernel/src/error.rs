@@ -150,15 +150,6 @@ pub enum KernelError {
         /// The largest supported count.
         max: usize,
     },
-    /// A count asks for more memory than the system will give (the allocation was refused; nothing
-    /// was changed). Check the count: it is usually a mistake (a negative number seen as unsigned,
-    /// a wrong array).
-    OutOfMemory {
-        /// What was being allocated.
-        what: &'static str,
-        /// How many of them.
-        count: usize,
-    },
     /// A coordinate is finite but beyond the kernel's bound ([`crate::validate::MAX_COORDINATE`]
     /// from the origin, each component): a vertex at 3.4e38 (a float32 infinity clamped by a UI
     /// field) or 1e30 is a broken value, not a place. Fix or remove that element.
@@ -277,10 +268,6 @@ impl fmt::Display for KernelError {
             Self::TooLarge { what, count, max } => {
                 write!(f, "too many {what}: {count} (at most {max} supported)")
             }
-            Self::OutOfMemory { what, count } => write!(
-                f,
-                "cannot allocate memory for {count} {what}: the system refused (is the count right?)"
-            ),
             Self::CoordinateOutOfRange {
                 what,
                 index,

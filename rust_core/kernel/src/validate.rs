@@ -15,9 +15,9 @@
 //!   size of the target and the layout's start, about the target's centre):
 //!   [`KernelError::BeyondReach`]. An anchor `1e7` away from a target 2 units wide is absurd.
 //! - **Counts** (vertices, triangles, layout vertices) are at most [`crate::mesh::MAX_ELEMENTS`]
-//!   ([`KernelError::TooLarge`]); an allocation whose size a count drives is made with
-//!   `try_reserve`, so a count the system cannot hold is [`KernelError::OutOfMemory`], never an
-//!   abort.
+//!   ([`KernelError::TooLarge`]), and no count drives an allocation on its own: what the kernel
+//!   allocates follows the arrays it is given (a layout's vertex count does not, see
+//!   [`crate::LayoutStructure::new`]).
 //! - **Settings** (weights, tolerances, distances, iteration counts) are checked by
 //!   [`check_setting`] against the range their owner documents: the wrap's in
 //!   [`crate::WrapSettings::validate`], ICP's and feature detection's beside their settings.
@@ -246,36 +246,6 @@ pub fn check_count(what: &'static str, count: usize, max: usize) -> Result<(), K
     Ok(())
 }
 
-/// A vector of `count` copies of `value`, allocated with `try_reserve`: a count the system cannot
-/// hold is an error, not an abort.
-///
-/// # Errors
-/// [`KernelError::OutOfMemory`] naming `what` and `count`.
-pub fn try_filled<T: Clone>(
-    what: &'static str,
-    count: usize,
-    value: T,
-) -> Result<Vec<T>, KernelError> {
-    let mut values = Vec::new();
-    values
-        .try_reserve_exact(count)
-        .map_err(|_| KernelError::OutOfMemory { what, count })?;
-    values.resize(count, value);
-    Ok(values)
-}
-
-/// An empty vector with room for `count` elements, allocated with `try_reserve`.
-///
-/// # Errors
-/// [`KernelError::OutOfMemory`] naming `what` and `count`.
-pub fn try_with_capacity<T>(what: &'static str, count: usize) -> Result<Vec<T>, KernelError> {
-    let mut values = Vec::new();
-    values
-        .try_reserve_exact(count)
-        .map_err(|_| KernelError::OutOfMemory { what, count })?;
-    Ok(values)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -325,17 +295,5 @@ mod tests {
                 .to_string(),
             "invalid momentum: the momentum must be within [0, 0.99], not 1.5"
         );
-    }
-
-    #[test]
-    fn an_allocation_the_system_cannot_hold_is_an_error() {
-        assert_eq!(
-            try_filled::<u64>("layout vertices", usize::MAX / 4, 0),
-            Err(KernelError::OutOfMemory {
-                what: "layout vertices",
-                count: usize::MAX / 4
-            })
-        );
-        assert_eq!(try_filled("flags", 3, true), Ok(vec![true; 3]));
     }
 }

@@ -61,8 +61,7 @@ create_exception!(
     springwrap_kernel,
     TooLargeError,
     InvalidArgumentError,
-    "A count is larger than the kernel supports (32-bit indices), or asks for more memory than \
-     the system gives."
+    "A count is larger than the kernel supports (32-bit indices)."
 );
 create_exception!(
     springwrap_kernel,
@@ -104,9 +103,7 @@ pub(crate) fn to_python_error(error: &KernelError) -> PyErr {
         | KernelError::CollinearAnchors { .. }
         | KernelError::CoplanarAnchors { .. } => InvalidArgumentError::new_err(message),
         KernelError::InvalidScale { .. } => InvalidArgumentError::new_err(message),
-        KernelError::TooLarge { .. } | KernelError::OutOfMemory { .. } => {
-            TooLargeError::new_err(message)
-        }
+        KernelError::TooLarge { .. } => TooLargeError::new_err(message),
         KernelError::CoordinateOutOfRange { .. } | KernelError::BeyondReach { .. } => {
             CoordinateRangeError::new_err(message)
         }

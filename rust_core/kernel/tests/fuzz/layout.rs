@@ -127,7 +127,6 @@ proptest! {
             }
             Err(
                 KernelError::TooLarge { .. }
-                | KernelError::OutOfMemory { .. }
                 | KernelError::LayoutIndexOutOfRange { .. }
                 | KernelError::InvalidArgument { .. },
             ) => {}

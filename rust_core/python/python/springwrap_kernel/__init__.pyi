@@ -47,8 +47,7 @@ class InvalidArgumentError(SpringwrapError):
     """A scalar argument is out of its domain (negative distance, zero direction...)."""
 
 class TooLargeError(InvalidArgumentError):
-    """A count is above ``MAX_ELEMENTS`` (or a limit the argument states), or asks for more memory than
-    the system gives."""
+    """A count is above ``MAX_ELEMENTS`` (or a limit the argument states)."""
 
 class ArgumentTypeError(SpringwrapError, TypeError):
     """An argument has the wrong Python type (a str for a number, a float for a count...); the message
