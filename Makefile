@@ -7,7 +7,7 @@ STAMPS := $(VENV)/.stamps
 KERNEL_SOURCES := $(shell find rust_core -name "*.rs" -o -name "*.toml" -o -name "*.py" -o -name "*.pyi" | grep -v /target/) Cargo.toml
 ADDON_SOURCES := $(shell find addon -name "*.py" -o -name "*.toml")
 
-.PHONY: setup demo test test-rust test-python bench lint clean test-bpy42 test-blender34 test-all-lanes package
+.PHONY: setup demo test test-rust test-python bench lint clean test-bpy42 test-blender34 test-all-lanes package fuzz
 
 setup: $(STAMPS)/kernel $(STAMPS)/addon $(STAMPS)/ray
 
@@ -53,8 +53,17 @@ lint: $(STAMPS)/venv
 	cargo fmt --all -- --check
 	cargo clippy --workspace --all-targets -- -D warnings
 
+# The kernel's tests, with the short run of its fuzz targets (rust_core/kernel/tests/fuzz: each
+# target's base number of cases, about 5 s in all; `make fuzz` for the long run).
 test-rust:
-	cargo test --workspace --exclude springwrap-python
+	SPRINGWRAP_FUZZ_SCALE=1 cargo test --workspace --exclude springwrap-python
+
+# The long fuzz run: every kernel fuzz target with FUZZ_SCALE times its base number of cases (60:
+# about 1.2 million cases in all). A failure is shrunk and its seed saved in
+# rust_core/kernel/tests/fuzz/proptest-regressions/ (commit it: every later run replays it first).
+FUZZ_SCALE ?= 60
+fuzz:
+	SPRINGWRAP_FUZZ_SCALE=$(FUZZ_SCALE) cargo test -p springwrap-kernel --test fuzz -- --nocapture
 
 test-python: setup
 	$(PY) -m pytest -q -rs tests benchmarks/tests
