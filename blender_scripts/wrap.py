@@ -19,7 +19,17 @@ from pathlib import Path
 import bpy
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # `blender --python` does not add it
-from headless import EXIT_OK, ScriptError, addon_module, enable_addon, failed, script_arguments
+from headless import (
+    EXIT_OK,
+    ScriptError,
+    addon_module,
+    check_output_arguments,
+    check_output_paths,
+    enable_addon,
+    failed,
+    script_arguments,
+    write_atomically,
+)
 
 PROGRESS_CHUNK = 100
 """Iterations between two progress lines."""
@@ -35,6 +45,7 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("--max-iterations", type=int, default=2000, help="iteration limit (default 2000)")
     parser.add_argument("--output", type=Path, help="the .blend to save the result to")
     arguments = parser.parse_args(script_arguments(argv, __file__))
+    check_output_arguments(parser, {"--output": arguments.output}, [])
     if arguments.max_iterations < 1:
         parser.error("--max-iterations must be at least 1")
     if arguments.anchors_spacing is not None and arguments.anchors_spacing < 0:
@@ -101,6 +112,7 @@ def wrap(layout: bpy.types.Object, max_iterations: int):
 def run(arguments: argparse.Namespace) -> None:
     """Everything: prepare, anchors, wrap, report, save."""
     start = time.perf_counter()
+    check_output_paths([arguments.output])  # before any work
     layout = prepare(arguments)
     target = layout.springwrap.target
     print(
@@ -124,11 +136,12 @@ def run(arguments: argparse.Namespace) -> None:
             f"(last move {result.max_displacement:.2e} of the layout's size); the result is kept"
         )
     if arguments.output is not None:
-        output = arguments.output.resolve()
-        output.parent.mkdir(parents=True, exist_ok=True)
-        if bpy.ops.wm.save_as_mainfile(filepath=str(output), check_existing=False) != {"FINISHED"}:
-            raise ScriptError(f"could not save {output}")
-        print(f"saved {output}")
+
+        def save(path: Path) -> None:
+            if bpy.ops.wm.save_as_mainfile(filepath=str(path), check_existing=False, copy=True) != {"FINISHED"}:
+                raise ScriptError(f"{arguments.output}: could not save")
+
+        print(f"saved {write_atomically(arguments.output, save)}")
     else:
         print("not saved (no --output)")
     print(f"done in {time.perf_counter() - start:.1f} s")
