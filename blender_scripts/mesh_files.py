@@ -13,8 +13,10 @@ No ``bpy`` here: numpy only (the batch's coordinator and the tests use it withou
 
 import json
 import math
+import re
 import struct
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -112,10 +114,62 @@ def _not_text(data: bytes) -> None:
 # ---------------------------------------------------------------- OBJ
 
 
+OBJ_ELEMENTS = (b"f ", b"f\t", b"l ", b"l\t", b"p ", b"p\t")
+
+
 def _check_obj(_path: Path, data: bytes) -> None:
     """Every ``v`` line has three numbers, every face and line index names a vertex of the file."""
     _not_text(data)
-    text = data.decode("latin-1").replace("\\\r\n", " ").replace("\\\n", " ")
+    data = data.replace(b"\\\r\n", b" ").replace(b"\\\n", b" ")  # a line ending in a backslash goes on
+    if not _obj_is_clean(data):
+        _find_obj_fault(data.decode("latin-1"))
+
+
+def _obj_is_clean(data: bytes) -> bool:
+    """The whole file at numpy's speed: True when it is good; False when something is off (or unusual, such
+    as relative indices), for :func:`_find_obj_fault` to name it line by line."""
+    lines = [line.lstrip() for line in data.splitlines()]
+    vertex_text = b"\n".join(line[2:] for line in lines if line.startswith((b"v ", b"v\t")))
+    words_per_line = _words_per_line(vertex_text)
+    if not len(words_per_line) or words_per_line.min() != words_per_line.max() or words_per_line[0] < 3:
+        return False  # no vertices, too few coordinates, or lines of different lengths (x y z [w] [r g b])
+    values = _numbers(vertex_text, np.float64, int(words_per_line.sum()))
+    if values is None:
+        return False
+    points = values.reshape(len(words_per_line), -1)[:, :3]
+    if not (np.isfinite(points).all() and (np.abs(points) <= MAX_COORDINATE).all()):
+        return False
+    element_text = b"\n".join(line[2:] for line in lines if line.startswith(OBJ_ELEMENTS))
+    if b"/" in element_text:  # v/vt/vn: the vertex index is the first of each
+        element_text = re.sub(rb"/\S*", b"", element_text)
+    indices = _numbers(element_text, np.int64, int(_words_per_line(element_text).sum()))
+    if indices is None:
+        return False
+    return not len(indices) or bool(indices.min() >= 1 and indices.max() <= len(points))
+
+
+def _words_per_line(text: bytes) -> np.ndarray:
+    """How many whitespace-separated words each line of ``text`` holds (lines without any left out)."""
+    if not text:
+        return np.zeros(0, dtype=np.int64)
+    codes = np.frombuffer(text, dtype=np.uint8)
+    space = np.isin(codes, (9, 10, 11, 12, 13, 32))
+    starts = ~space & np.concatenate(([True], space[:-1]))
+    line = np.cumsum(codes == 10)
+    counts = np.bincount(line[starts], minlength=int(line[-1]) + 1)
+    return counts[counts > 0]
+
+
+def _numbers(text: bytes, dtype, expected: int) -> np.ndarray | None:
+    """The ``expected`` whitespace-separated numbers of ``text``, or None when a word is not one."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # numpy warns when it stops at a word that is not a number
+        values = np.fromstring(text, dtype=dtype, sep=" ")
+    return values if len(values) == expected else None
+
+
+def _find_obj_fault(text: str) -> None:
+    """The first fault of an OBJ file, by its line (see :func:`_obj_is_clean`); nothing when there is none."""
     coordinates: list[tuple[float, float, float]] = []
     vertex_lines: list[int] = []
     references: list[tuple[int, int]] = []  # (line, 1-based index into the file's vertices)

@@ -4,8 +4,10 @@ Runs both ways (arguments after ``--`` when present, else all of ``sys.argv[1:]`
     .venv/bin/python blender_scripts/mirror.py --layout L --target T --axis X [options]
     blender -b --python blender_scripts/mirror.py -- --layout L --target T --axis X [options]
 
-Layout and target: a mesh file (.obj, .ply, .glb / .gltf) or a .blend with ``--layout-object`` /
-``--target-object`` naming the object (without a name, the file's only mesh object). A layout from a
+Layout and target: a mesh file (.obj, .ply, .stl, .glb / .gltf) or a .blend with ``--layout-object`` /
+``--target-object`` naming the object (without a name, the file's only mesh object). Mesh files are
+checked and read in one convention as in ``retarget.py`` (``--up-axis`` / ``--forward-axis``); the
+output OBJ and the plane in the report are in that frame. A layout from a
 .blend keeps its Springwrap state (face-points, rest shape, anchors); ``--snap`` first snaps it onto
 the target (a layout read from a mesh file is all space-points otherwise). The plane is the
 layout's local ``--axis`` plane, or that plane of ``--mirror-object`` (an object of the layout's
@@ -15,7 +17,8 @@ layout's local ``--axis`` plane, or that plane of ``--mirror-object`` (an object
 
 Outputs: ``--output-blend F.blend``, ``--output-obj F.obj`` (the mirrored layout alone) and
 ``--report F.json`` (counts, the seam's distance from the plane, faces crossing the plane, the wrap,
-distances to the target, timings, warnings), each written to a temporary file and renamed.
+distances to the target, timings, warnings), checked before any work, each written to a temporary file
+and all renamed at the end.
 
 Exit codes (as ``retarget.py``): 0 done; 1 failed (one line ``mirror: FAILED: ...`` on stderr naming
 the file and the problem, e.g. a plane that misses the layout; nothing is written); 2 bad arguments.

@@ -4,24 +4,31 @@ Runs both ways (arguments after ``--`` when present, else all of ``sys.argv[1:]`
     .venv/bin/python blender_scripts/retarget.py --template T --target M [options]
     blender -b --python blender_scripts/retarget.py -- --template T --target M [options]
 
-Template and target: a mesh file (.obj, .ply, .glb / .gltf) or a .blend with ``--template-object`` /
-``--target-object`` naming the object (without a name, the file's only mesh object). Steps: the
+Template and target: a mesh file (.obj, .ply, .stl, .glb / .gltf) or a .blend with ``--template-object`` /
+``--target-object`` naming the object (without a name, the file's only mesh object). Mesh files are checked
+before Blender's importers read them (``mesh_files.py``: empty, truncated, garbage, counts the file cannot
+hold, indices out of range, NaN or absurd coordinates) and read in one convention, ``--up-axis`` /
+``--forward-axis`` (default Z up, Y forward: the coordinates as written), whatever their format; the
+anchors file and the output OBJ are in that frame too (a .blend is in Blender's own frame). Steps: the
 template is copied as the layout, aligned to the target (``--align bounds``: its bounding box's
 centre and diagonal onto the target's; ``icp``: that, then ``springwrap.align`` by ICP alone;
 ``anchors``: ``springwrap.align`` fitted to the ``--anchors`` file's pairs, then ICP;
 ``--align-method`` picks rigid, similarity or affine; ``none``, the default: as placed), detached, anchored (``--anchors FILE.json``:
 ``{"anchors": [{"vertex": 12, "target": [x, y, z]}, ...]}``, each layout vertex pulled to the target
-surface point closest to that world-space point; or ``--anchors-spacing S``, spread automatically;
+surface point closest to that point of the files' frame; or ``--anchors-spacing S``, spread automatically;
 0 = a tenth of the layout's size), then wrapped (``--max-iterations``, ``--fairness``,
 ``--arc-length``, ``--thin-plate``, ``--tolerance``).
 
 Outputs: ``--output-blend F.blend`` (template, target and the retargeted layout), ``--output-obj
-F.obj`` (the retargeted layout alone) and ``--report F.json`` (metrics, timings, warnings). Each is
-written to a temporary file and renamed: a failing run leaves none of them behind.
+F.obj`` (the retargeted layout alone) and ``--report F.json`` (metrics, timings, warnings). They are
+checked before any work (not a folder, in a folder that can be written), each written to a temporary file
+and all renamed at the end: a failing run leaves none of them behind, and the files they would replace
+as they were.
 
 Batch: ``--batch DIR --output-dir OUT [--jobs N]`` retargets the template onto every mesh file in
 DIR (sorted), writing ``OUT/<name>.blend``, ``OUT/<name>.obj``, ``OUT/<name>.json`` and
-``OUT/summary.json``. N workers (``--executor local``, the default: processes on this machine;
+``OUT/summary.json``; meshes whose names differ only by their suffix (``a.obj``, ``a.ply``) are refused
+before anything runs, and a mesh that fails loses the outputs an earlier run wrote for it. N workers (``--executor local``, the default: processes on this machine;
 ``--executor ray [--address ADDR]``: Ray actors, on a Ray instance started here or on a cluster;
 see retarget_batch.py) each import bpy and enable the add-on once, then serve many meshes with one
 task function (``retarget_task``). A mesh that fails is reported and skipped, never the whole batch;

@@ -43,6 +43,8 @@ def refused(tmp_path, name: str, data: bytes) -> str:
         ("relative.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\n"),
         ("continued.obj", b"v 0 0 \\\n 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"),
         ("with_w.obj", b"# comment\nv 0 0 0 1\nv 1 0 0 1\nv 0 1 0 1\nvt 0 0\nf 1/1 2/1 3/1\n"),
+        ("colours.obj", b"v 0 0 0 1 0 0\nv 1 0 0 0 1 0\nv 0 1 0 0 0 1\nvn 0 0 1\nf 1//1 2//1 3//1\nl 1 2\n"),
+        ("mixed.obj", b"v 0 0 0\nv 1 0 0 1\n  v 0 1 0\nf 1 2 3\n"),
     ],
 )
 def test_good_files_of_every_format_pass(tmp_path, name, data):
@@ -97,6 +99,14 @@ def test_binary_garbage_is_refused(tmp_path, name, expected):
 )
 def test_obj_faults(tmp_path, text, expected):
     assert expected in refused(tmp_path, "bad.obj", text.encode())
+    assert not mesh_files._obj_is_clean(text.encode())  # the fast pass hands it to the line-by-line one
+
+
+def test_the_fast_obj_pass_takes_the_usual_files():
+    """Large OBJ files are checked by numpy (about 1 s for 35 MiB); only unusual ones go line by line."""
+    assert mesh_files._obj_is_clean(obj_text(VERTICES, TRIANGLES).encode())
+    assert mesh_files._obj_is_clean(b"v 0 0 0 1 0 0\nv 1 0 0 0 1 0\nv 0 1 0 0 0 1\nf 1/1/1 2/2/2 3/3/3\n")
+    assert not mesh_files._obj_is_clean(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\n")  # relative: line by line
 
 
 def test_ply_counts_the_file_cannot_hold(tmp_path):
