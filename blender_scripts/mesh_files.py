@@ -142,19 +142,34 @@ def _obj_is_clean(data: bytes) -> bool:
     element_text = b"\n".join(line[2:] for line in lines if line.startswith(OBJ_ELEMENTS))
     if b"/" in element_text:  # v/vt/vn: the vertex index is the first of each
         element_text = re.sub(rb"/\S*", b"", element_text)
-    indices = _numbers(element_text, np.int64, int(_words_per_line(element_text).sum()))
+    indices = _numbers(element_text, np.int64, _word_count(element_text))
     if indices is None:
         return False
     return not len(indices) or bool(indices.min() >= 1 and indices.max() <= len(points))
+
+
+WHITESPACE = np.zeros(256, dtype=bool)
+WHITESPACE[[9, 10, 11, 12, 13, 32]] = True
+
+
+def _word_starts(text: bytes) -> tuple[np.ndarray, np.ndarray]:
+    """``text`` as bytes, and where each of its whitespace-separated words starts (True)."""
+    codes = np.frombuffer(text, dtype=np.uint8)
+    space = WHITESPACE[codes]
+    starts = ~space
+    starts[1:] &= space[:-1]
+    return codes, starts
+
+
+def _word_count(text: bytes) -> int:
+    return int(np.count_nonzero(_word_starts(text)[1])) if text else 0
 
 
 def _words_per_line(text: bytes) -> np.ndarray:
     """How many whitespace-separated words each line of ``text`` holds (lines without any left out)."""
     if not text:
         return np.zeros(0, dtype=np.int64)
-    codes = np.frombuffer(text, dtype=np.uint8)
-    space = np.isin(codes, (9, 10, 11, 12, 13, 32))
-    starts = ~space & np.concatenate(([True], space[:-1]))
+    codes, starts = _word_starts(text)
     line = np.cumsum(codes == 10)
     counts = np.bincount(line[starts], minlength=int(line[-1]) + 1)
     return counts[counts > 0]
@@ -352,8 +367,47 @@ def _walk_binary_lists(body: bytes, offset: int, element: _PlyElement, order: st
     return offset, indices
 
 
+def _ply_ascii_is_clean(body: bytes, elements: list[_PlyElement]) -> bool:
+    """The whole body at numpy's speed when its lists all have one length per element (triangles, quads): True
+    when it is good; False when something is off or unusual, for :func:`_check_ply_ascii` to name it."""
+    values = _numbers(body, np.float64, _word_count(body))
+    if values is None:
+        return False
+    position, vertex_count = 0, None
+    for element in elements:
+        if element.is_scalar():
+            width = len(element.properties)
+            if position + element.count * width > len(values):
+                return False
+            table = values[position : position + element.count * width].reshape(element.count, width)
+            position += element.count * width
+            if element.name == "vertex":
+                names = [name for name, _kind, _item in element.properties]
+                points = table[:, [names.index(axis) for axis in "xyz"]]
+                if not (np.isfinite(points).all() and (np.abs(points) <= MAX_COORDINATE).all()):
+                    return False
+                vertex_count = element.count
+            continue
+        if len(element.properties) != 1 or position >= len(values) or not element.count:
+            return False
+        first = values[position]
+        stride = 1 + int(first) if first == int(first) and first >= 0 else 0
+        if not stride or position + element.count * stride > len(values):
+            return False
+        rows = values[position : position + element.count * stride].reshape(element.count, stride)
+        position += element.count * stride
+        indices = rows[:, 1:]
+        if not (rows[:, 0] == first).all() or not (indices == np.floor(indices)).all():
+            return False
+        if vertex_count is not None and indices.size and (indices.min() < 0 or indices.max() >= vertex_count):
+            return False
+    return True
+
+
 def _check_ply_ascii(body: bytes, elements: list[_PlyElement]) -> None:
     _not_text(body)
+    if _ply_ascii_is_clean(body, elements):
+        return
     tokens = body.split()
     position, vertex_count = 0, None
     for element in elements:
