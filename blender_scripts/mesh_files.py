@@ -6,7 +6,7 @@ file goes through :func:`check_mesh_file` first, which reads it the way the impo
 with one line naming the file and the problem: an empty or truncated file, binary garbage, a header
 whose element counts the file cannot hold, an index naming a vertex that does not exist, a coordinate
 that is not a number, not finite, or beyond :data:`MAX_COORDINATE`. What the importers make of a file
-is checked again after the import (``scene_io.check_coordinates``).
+is checked again after the import (``scene_io.check_world_coordinates``).
 
 No ``bpy`` here: numpy only (the batch's coordinator and the tests use it without Blender).
 """
@@ -547,27 +547,29 @@ def _gltf_json(data: bytes) -> dict:
 
 
 def _check_gltf_document(path: Path, document: dict, binary: bytes | None) -> None:
-    """Buffers hold what they say, views lie inside their buffers, accessors inside their views."""
+    """Buffers hold what they say, views lie inside their buffers, accessors inside their views, and the
+    meshes' positions are finite and not absurd (Blender's glTF importer reads a NaN as 0)."""
     import base64
 
     try:
-        sizes = []
+        contents = []
         for index, buffer in enumerate(document.get("buffers", [])):
             uri = buffer.get("uri")
             if uri is None:
-                available = len(binary) if binary is not None else 0
+                content = binary if binary is not None else b""
             elif uri.startswith("data:"):
-                available = len(base64.b64decode(uri.partition(",")[2], validate=False))
+                content = base64.b64decode(uri.partition(",")[2], validate=False)
             else:
                 external = path.parent / uri
                 if not external.is_file():
                     raise MeshFileError(f"buffer {index}: no such file {external}")
-                available = external.stat().st_size
-            if int(buffer["byteLength"]) > available:
+                content = external.read_bytes()
+            if int(buffer["byteLength"]) > len(content):
                 raise MeshFileError(
-                    f"truncated: buffer {index} says {buffer['byteLength']} bytes, {available} are there"
+                    f"truncated: buffer {index} says {buffer['byteLength']} bytes, {len(content)} are there"
                 )
-            sizes.append(int(buffer["byteLength"]))
+            contents.append(content)
+        sizes = [int(buffer["byteLength"]) for buffer in document.get("buffers", [])]
         views = document.get("bufferViews", [])
         for index, view in enumerate(views):
             end = int(view.get("byteOffset", 0)) + int(view["byteLength"])
@@ -586,6 +588,14 @@ def _check_gltf_document(path: Path, document: dict, binary: bytes | None) -> No
             if needed > int(view["byteLength"]):
                 raise MeshFileError(f"accessor {index} needs {needed} bytes, its buffer view has {view['byteLength']}")
             if accessor["type"] == "VEC3" and int(accessor["componentType"]) == 5126:
+                start = int(view.get("byteOffset", 0)) + int(accessor.get("byteOffset", 0))
+                points = np.ndarray(
+                    (count, 3), dtype="<f4", buffer=contents[int(view["buffer"])], offset=start, strides=(stride, 4)
+                )
+                try:
+                    check_coordinates(points)
+                except MeshFileError as error:
+                    raise MeshFileError(f"accessor {index}: {error}") from None
                 for name, bound in (("min", accessor.get("min")), ("max", accessor.get("max"))):
                     if bound is not None and not all(
                         isinstance(value, (int, float)) and math.isfinite(value) and abs(value) <= MAX_COORDINATE

@@ -90,8 +90,9 @@ def stl_ascii(vertices, triangles) -> bytes:
     return ("\n".join([*lines, "endsolid test"]) + "\n").encode()
 
 
-def gltf_document(vertices, triangles, uri: str | None) -> tuple[dict, bytes]:
-    """A glTF 2.0 document with one mesh node (no transform) and its binary buffer."""
+def gltf_document(vertices, triangles, uri: str | None, bounds=None) -> tuple[dict, bytes]:
+    """A glTF 2.0 document with one mesh node (no transform) and its binary buffer; ``bounds``, the positions'
+    (min, max) it states (default: the true ones)."""
     positions = np.ascontiguousarray(vertices, dtype="<f4")
     indices = np.ascontiguousarray(np.asarray(triangles).ravel(), dtype="<u4")
     binary = positions.tobytes() + indices.tobytes()
@@ -113,8 +114,8 @@ def gltf_document(vertices, triangles, uri: str | None) -> tuple[dict, bytes]:
                 "componentType": 5126,
                 "count": len(positions),
                 "type": "VEC3",
-                "min": positions.min(axis=0).tolist(),
-                "max": positions.max(axis=0).tolist(),
+                "min": list(bounds[0]) if bounds else positions.min(axis=0).tolist(),
+                "max": list(bounds[1]) if bounds else positions.max(axis=0).tolist(),
             },
             {"bufferView": 1, "componentType": 5125, "count": len(indices), "type": "SCALAR"},
         ],
@@ -129,8 +130,8 @@ def gltf_text(vertices, triangles) -> bytes:
     return json.dumps(document).encode()
 
 
-def glb(vertices, triangles) -> bytes:
-    document, binary = gltf_document(vertices, triangles, uri=None)
+def glb(vertices, triangles, bounds=None) -> bytes:
+    document, binary = gltf_document(vertices, triangles, uri=None, bounds=bounds)
     text = json.dumps(document).encode()
     text += b" " * (-len(text) % 4)
     binary += b"\0" * (-len(binary) % 4)

@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 from helpers import REPOSITORY, TIMEOUT_SECONDS, script_command, sphere_obj
-from mesh_writers import ellipsoid, ply_binary, stl_binary
+from mesh_writers import ellipsoid, glb, ply_binary, stl_binary
 
 RETARGET = REPOSITORY / "blender_scripts" / "retarget.py"
 MIRROR = REPOSITORY / "blender_scripts" / "mirror.py"
@@ -50,6 +50,8 @@ def files(tmp_path_factory) -> dict[str, Path]:
     folder = tmp_path_factory.mktemp("catalogue")
     vertices, triangles = ellipsoid(segments=12, rings=6)
     good_ply = ply_binary(vertices, triangles)
+    broken = vertices.copy()
+    broken[7] = (0.0, float("nan"), 0.0)
     body = good_ply.index(b"end_header\n") + len(b"end_header\n")
     contents = {
         "grid.obj": GRID.encode(),
@@ -66,6 +68,8 @@ def files(tmp_path_factory) -> dict[str, Path]:
         "far.obj": b"v 0 0 0\nv 1e30 0 0\nv 0 1 0\nf 1 2 3\n",
         "bad_index.ply": ply_binary(vertices, [*triangles.tolist(), [0, 1, 999]]),
         "truncated.stl": stl_binary(vertices, triangles)[:-30],
+        # Its header states finite bounds, and Blender's importer reads the NaN as 0: its data is checked.
+        "nan.glb": glb(broken, triangles, bounds=([-2.0] * 3, [2.0] * 3)),
         "empty.blend": b"",
         "garbage.blend": b"\x00\x01\x02 not Blender" * 20,
     }
@@ -88,6 +92,7 @@ CASES = {
     "far.obj": "vertex 1 (line 2) is absurdly far from the origin (1e+30, 0, 0)",
     "bad_index.ply": "element 'face': vertex index 999 does not exist",
     "truncated.stl": "truncated binary STL",
+    "nan.glb": "accessor 0: vertex 7 has a NaN or infinite coordinate (0, nan, 0)",
     "empty.blend": "the file is empty",
     "garbage.blend": "not a .blend file",
 }

@@ -202,6 +202,11 @@ def test_gltf_faults(tmp_path):
     document["accessors"][0]["count"] = len(VERTICES)
     document["accessors"][0]["max"] = [float("nan"), 0, 0]
     assert "its max [nan, 0, 0] is not finite" in refused(tmp_path, "max.gltf", json.dumps(document).encode())
+    broken = VERTICES.copy()
+    broken[3] = (0.0, 0.0, 5e12)
+    assert refused(tmp_path, "far.glb", glb(broken, TRIANGLES, bounds=([-2.0] * 3, [2.0] * 3))) == (
+        "accessor 0: vertex 3 is absurdly far from the origin (0, 0, 5e+12): coordinates beyond 1e+09 are refused"
+    )  # the data, not only the bounds it states
     document["buffers"][0]["uri"] = "elsewhere.bin"
     assert "buffer 0: no such file" in refused(tmp_path, "external.gltf", json.dumps(document).encode())
     assert "malformed glTF" in refused(tmp_path, "shape.gltf", b'{"accessors": [{"count": "many"}]}')
