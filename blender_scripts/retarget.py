@@ -28,7 +28,8 @@ as they were.
 Batch: ``--batch DIR --output-dir OUT [--jobs N]`` retargets the template onto every mesh file in
 DIR (sorted), writing ``OUT/<name>.blend``, ``OUT/<name>.obj``, ``OUT/<name>.json`` and
 ``OUT/summary.json``; meshes whose names differ only by their suffix (``a.obj``, ``a.ply``) are refused
-before anything runs, and a mesh that fails loses the outputs an earlier run wrote for it. N workers (``--executor local``, the default: processes on this machine;
+before anything runs, and a mesh that fails loses the outputs an earlier run wrote for it. N workers
+(``--executor local``, the default: processes on this machine;
 ``--executor ray [--address ADDR]``: Ray actors, on a Ray instance started here or on a cluster;
 see retarget_batch.py) each import bpy and enable the add-on once, then serve many meshes with one
 task function (``retarget_task``). A mesh that fails is reported and skipped, never the whole batch;
