@@ -5,6 +5,7 @@ script shares and needs no ``bpy`` at its top.)"""
 
 import argparse
 import json
+import re
 import sys
 import time
 from pathlib import Path
@@ -128,9 +129,7 @@ def load_mesh(path: Path, object_name, role: str, frame: "Matrix") -> "bpy.types
         try:
             applied = _import_file(path)
         except RuntimeError as error:
-            # The importer's last line, without the "Location: .../ops.py" a Python importer's error ends with.
-            lines = [line for line in str(error).strip().splitlines() if not line.startswith("Location:")]
-            message = (lines[-1] if lines else "unknown error").removeprefix("Error: ")
+            message = importer_message(str(error))
             raise ScriptError(f"{path}: cannot read: {message}") from None
         objects = [obj for obj in bpy.data.objects if obj not in before]
         bpy.context.view_layer.update()  # world matrices of an imported hierarchy (glTF nodes)
@@ -153,6 +152,14 @@ def load_mesh(path: Path, object_name, role: str, frame: "Matrix") -> "bpy.types
     check_world_coordinates(chosen, path)
     chosen.name = role
     return chosen
+
+
+def importer_message(text: str) -> str:
+    """The line that says why an importer failed: a Python importer's exception (``AttributeError: ...``) out
+    of the traceback it reports, else its last line, without the ``Location: .../ops.py`` it ends with."""
+    lines = [line.strip() for line in text.strip().splitlines() if line.strip() and not line.startswith("Location:")]
+    exceptions = [line for line in lines if re.match(r"^[A-Za-z_.]*(Error|Exception)\b: ", line)]
+    return (exceptions[-1] if exceptions else lines[-1] if lines else "unknown error").removeprefix("Error: ")
 
 
 def check_world_coordinates(obj, path: Path) -> None:

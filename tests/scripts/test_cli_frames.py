@@ -8,6 +8,7 @@ ellipsoid off the origin with three different radii (any rotation of it is anoth
 grid above its top, so a frame mixed up anywhere puts the result elsewhere.
 """
 
+import os
 import subprocess
 from pathlib import Path
 
@@ -18,6 +19,23 @@ from helpers import REPOSITORY, TIMEOUT_SECONDS, script_command
 from mesh_writers import ellipsoid, glb, gltf_text, obj_text, on_ellipsoid, ply_ascii, ply_binary, stl_ascii, stl_binary
 
 RETARGET = REPOSITORY / "blender_scripts" / "retarget.py"
+
+
+def gltf_importer_fails_here() -> bool:
+    """Debian's blender 3.4 with Debian's numpy (1.24 to 1.26): Blender's own glTF importer calls ``np.bool``,
+    which that numpy no longer has, and fails on every file (the CLI reports it: ``cannot read: ...``)."""
+    if os.environ.get("SPRINGWRAP_TEST_LANE") != "blender":
+        return False
+    import bpy
+
+    import numpy
+
+    return bpy.app.version[:2] == (3, 4) and not hasattr(numpy, "bool")
+
+
+GLTF = pytest.mark.skipif(
+    gltf_importer_fails_here(), reason="Blender 3.4's glTF importer needs numpy's np.bool, gone from this numpy"
+)
 Y_UP = ("--up-axis", "Y", "--forward-axis", "NEGATIVE_Z")
 CENTRE = np.array((0.3, -0.2, 0.1))
 GRID_SIDE = 6
@@ -121,8 +139,8 @@ def reference(files, tmp_path_factory) -> np.ndarray:
         ("template.ply", "target.obj"),
         ("template.obj", "target.stl"),
         ("template.obj", "target_ascii.stl"),
-        ("template.obj", "target.gltf"),
-        ("template.ply", "target.glb"),
+        pytest.param("template.obj", "target.gltf", marks=GLTF),
+        pytest.param("template.ply", "target.glb", marks=GLTF),
     ],
 )
 def test_files_of_any_format_in_one_frame_land_in_that_frame(files, reference, tmp_path, template, target):
@@ -132,7 +150,12 @@ def test_files_of_any_format_in_one_frame_land_in_that_frame(files, reference, t
 
 
 @pytest.mark.parametrize(
-    "template, target", [("template.obj", "target.obj"), ("template.obj", "target.ply"), ("template.ply", "target.glb")]
+    "template, target",
+    [
+        ("template.obj", "target.obj"),
+        ("template.obj", "target.ply"),
+        pytest.param("template.ply", "target.glb", marks=GLTF),
+    ],
 )
 def test_y_up_files_are_read_and_written_back_in_their_own_frame(files, reference, tmp_path, template, target):
     points = retarget(files[f"y/{template}"], files[f"y/{target}"], tmp_path / "r.obj", *Y_UP)
@@ -140,7 +163,7 @@ def test_y_up_files_are_read_and_written_back_in_their_own_frame(files, referenc
 
 
 @pytest.mark.parametrize("frame", ["z", "y"])
-@pytest.mark.parametrize("name", ["target.obj", "target.ply", "target.gltf"])
+@pytest.mark.parametrize("name", ["target.obj", "target.ply", pytest.param("target.gltf", marks=GLTF)])
 def test_a_round_trip_gives_the_input_back(files, tmp_path, frame, name):
     """The target wrapped onto itself (every vertex already on the surface): the output OBJ is the input file's
     vertices, in its frame."""
