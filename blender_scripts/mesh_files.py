@@ -5,7 +5,8 @@ Blender's importers trust their input: a PLY header announcing 4e9 vertices abor
 file goes through :func:`check_mesh_file` first, which reads it the way the importer will and refuses,
 with one line naming the file and the problem: an empty or truncated file, binary garbage, a header
 whose element counts the file cannot hold, an index naming a vertex that does not exist, a coordinate
-that is not a number, not finite, or beyond :data:`MAX_COORDINATE`. What the importers make of a file
+that is not a number, not finite, or beyond :data:`MAX_COORDINATE`. A .blend is only recognised by its
+header (:func:`check_blend_file`); Blender reads the rest and says what is wrong with it. What the importers make of a file
 is checked again after the import (``scene_io.check_world_coordinates``).
 
 No ``bpy`` here: numpy only (the batch's coordinator and the tests use it without Blender).
@@ -78,6 +79,18 @@ def check_mesh_file(path: Path) -> None:
         check[suffix](path, data)
     except MeshFileError as error:
         raise ScriptError(f"{path}: {error}") from None
+
+
+def check_blend_file(path: Path) -> None:
+    """Refuse an empty file, or one that is not a .blend (Blender's own, or compressed), before Blender reads it."""
+    if not path.is_file():
+        raise ScriptError(f"{path}: no such file")
+    with open(path, "rb") as handle:
+        head = handle.read(12)
+    if not head:
+        raise ScriptError(f"{path}: the file is empty")
+    if not head.startswith((b"BLENDER", b"\x1f\x8b", b"\x28\xb5\x2f\xfd")):  # plain, gzip, zstd
+        raise ScriptError(f"{path}: not a .blend file (no 'BLENDER' header)")
 
 
 class MeshFileError(Exception):

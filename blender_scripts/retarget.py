@@ -74,11 +74,10 @@ from headless import (
     script_arguments,
     write_atomically,
 )
-from mesh_files import check_mesh_file
+from mesh_files import check_blend_file, check_mesh_file
 from scene_io import (
     INPUT_SUFFIXES,
     Laps,
-    check_blend_file,
     distances_to_target,
     frame_matrix,
     kernel_wrap_defaults,

@@ -15,7 +15,7 @@ import bpy
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # `blender --python` does not add it
 from headless import ScriptError, enable_addon, signed_axis, write_all_or_nothing
-from mesh_files import MESH_SUFFIXES, MeshFileError, check_coordinates, check_mesh_file
+from mesh_files import MESH_SUFFIXES, MeshFileError, check_blend_file, check_coordinates, check_mesh_file
 
 if TYPE_CHECKING:
     import numpy as np
@@ -93,18 +93,6 @@ def _only_mesh(objects: list, path: Path, object_name) -> "bpy.types.Object":
         found = ", ".join(sorted(obj.name for obj in meshes))
         raise ScriptError(f"{path}: several mesh objects ({found}): name one with --template-object / --target-object")
     return meshes[0]
-
-
-def check_blend_file(path: Path) -> None:
-    """Refuse an empty file, or one that is not a .blend (Blender's own, or compressed), before Blender reads it."""
-    if not path.is_file():
-        raise ScriptError(f"{path}: no such file")
-    with open(path, "rb") as handle:
-        head = handle.read(12)
-    if not head:
-        raise ScriptError(f"{path}: the file is empty")
-    if not head.startswith((b"BLENDER", b"\x1f\x8b", b"\x28\xb5\x2f\xfd")):  # plain, gzip, zstd
-        raise ScriptError(f"{path}: not a .blend file (no 'BLENDER' header)")
 
 
 def load_mesh(path: Path, object_name, role: str, frame: "Matrix") -> "bpy.types.Object":

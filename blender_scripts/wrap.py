@@ -30,6 +30,7 @@ from headless import (
     script_arguments,
     write_atomically,
 )
+from mesh_files import check_blend_file
 
 PROGRESS_CHUNK = 100
 """Iterations between two progress lines."""
@@ -66,9 +67,11 @@ def prepare(arguments: argparse.Namespace) -> bpy.types.Object:
     """Open the file, pick the layout and its target, make the layout active (object mode)."""
     enable_addon()
     if arguments.blend is not None:
-        if not arguments.blend.is_file():
-            raise ScriptError(f"no such file: {arguments.blend}")
-        bpy.ops.wm.open_mainfile(filepath=str(arguments.blend.resolve()))
+        check_blend_file(arguments.blend)
+        try:
+            bpy.ops.wm.open_mainfile(filepath=str(arguments.blend.resolve()))
+        except RuntimeError as error:
+            raise ScriptError(f"{arguments.blend}: cannot read: {str(error).strip().splitlines()[0]}") from None
     if arguments.layout is not None:
         layout = find_object(arguments.layout, "layout")
     else:

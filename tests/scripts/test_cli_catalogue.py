@@ -280,6 +280,14 @@ def test_mirror_refuses_hostile_files_and_folder_outputs(files, tmp_path):
     assert [path.name for path in out.iterdir()] == ["m.json"]
 
 
+@pytest.mark.parametrize("name", ["empty.blend", "garbage.blend", "missing.blend"])
+def test_wrap_refuses_a_file_that_is_not_a_blend_before_blender_reads_it(files, name):
+    path = files.get(name, files["grid.obj"].parent / name)
+    process = run(WRAP, "--blend", path, "--layout", "Layout")
+    expected = {"empty.blend": "the file is empty", "missing.blend": "no such file"}.get(name, "not a .blend file")
+    assert the_failure(process, "wrap").startswith(f"wrap: FAILED: {path}: {expected}")
+
+
 def test_wrap_refuses_a_folder_as_its_output_before_opening_the_file(tmp_path):
     (tmp_path / "taken.blend").mkdir()
     process = run(WRAP, "--blend", tmp_path / "scene.blend", "--output", tmp_path / "taken.blend")

@@ -3,6 +3,7 @@ every format pass, and every hostile one is refused with one line naming the fil
 Python, no Blender (the scripts' end-to-end runs are in ``test_cli_catalogue.py``)."""
 
 import json
+import re
 import struct
 
 import numpy as np
@@ -210,3 +211,22 @@ def test_gltf_faults(tmp_path):
     document["buffers"][0]["uri"] = "elsewhere.bin"
     assert "buffer 0: no such file" in refused(tmp_path, "external.gltf", json.dumps(document).encode())
     assert "malformed glTF" in refused(tmp_path, "shape.gltf", b'{"accessors": [{"count": "many"}]}')
+
+
+def test_blend_files_are_recognised_by_their_header(tmp_path):
+    for name, data, expected in (
+        ("empty.blend", b"", "the file is empty"),
+        ("text.blend", b"v 0 0 0\n", "not a .blend file (no 'BLENDER' header)"),
+    ):
+        (tmp_path / name).write_bytes(data)
+        with pytest.raises(ScriptError, match=re.escape(f"{tmp_path / name}: {expected}")):
+            mesh_files.check_blend_file(tmp_path / name)
+    with pytest.raises(ScriptError, match="no such file"):
+        mesh_files.check_blend_file(tmp_path / "missing.blend")
+    for name, head in (
+        ("plain.blend", b"BLENDER-v304RENDH"),
+        ("gzip.blend", b"\x1f\x8b\x08"),
+        ("zstd.blend", b"\x28\xb5\x2f\xfd"),
+    ):
+        (tmp_path / name).write_bytes(head + bytes(40))
+        mesh_files.check_blend_file(tmp_path / name)  # Blender reads the rest
