@@ -69,7 +69,8 @@ class SPRINGWRAP_OT_curve_constraint_add(_CurveOperator, bpy.types.Operator):
             curve_object = bpy.data.objects.get(self.curve_object)
             if curve_object is None or curve_object.type != "CURVE":
                 raise LayoutError(f"There is no curve object called '{self.curve_object}'")
-            points = curves.orient_to_chain(curve_data.read_curve_polyline(depsgraph, curve_object), chain_positions)
+            polyline = curve_data.read_curve_polyline(depsgraph, curve_object, near=chain_positions)
+            points = curves.orient_to_chain(polyline, chain_positions)
             new = curves.make_constraint(chain, points, curves.CURVE_OBJECT, (), curve_object)
         else:
             location_of = {
