@@ -231,9 +231,12 @@ class WrapSession:
         report = None
         while report is None or not self.done:
             now = time.perf_counter()
-            count = self.pacer.next_count(self.parameters.max_iterations - self.stage_iterations, deadline - now)
-            if report is not None and count == 0:
-                break
+            remaining = self.parameters.max_iterations - self.stage_iterations
+            count = self.pacer.next_count(remaining, deadline - now)
+            if count == 0:
+                if report is not None:
+                    break
+                count = min(remaining, 1)  # every frame runs at least one iteration (or starts the next stage)
             report = self.step(count)
             self.pacer.record_step(report.iterations, time.perf_counter() - now)
             if self.stage == "fine" and report.iterations == 0:
