@@ -729,7 +729,7 @@ def test_panel_buttons_act_on_the_selection_in_edit_mode(mode):
     if mode == "OBJECT":
         recorder = RecordingLayout([])
         draw_panels([panels.SPRINGWRAP_PT_check], recorder)
-        assert recorder.labels == ["Face-Points", "0", "Space-Points", "121"]
+        assert recorder.labels == ["On Surface", "0", "In Space", "121"]
 
 
 def test_panel_counts_face_and_space_points():
@@ -740,4 +740,4 @@ def test_panel_counts_face_and_space_points():
     bpy.ops.springwrap.snap(only_selected=True)
     recorder = RecordingLayout([])
     draw_panels([SPRINGWRAP_PT_check], recorder)
-    assert recorder.labels == ["Face-Points", "40", "Space-Points", "81"]
+    assert recorder.labels == ["On Surface", "40", "In Space", "81"]

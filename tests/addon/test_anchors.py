@@ -596,6 +596,6 @@ def test_anchor_panel_lists_anchors_and_offers_the_operators():
     item = layout.springwrap.anchors[count - 1]
     SPRINGWRAP_UL_anchors.draw_item(None, bpy.context, row_recorder, layout.springwrap, item, 0, None, "", count - 1)
     distance = float(np.linalg.norm(np.array([0.0, 0.0, 4.0]) - world_positions(layout)[1]))
-    assert row_recorder.labels[0] == "Vertex 1"
+    assert row_recorder.labels[0] == "1"
     value, unit = row_recorder.labels[1].split()  # the vertex's distance to its target, in the scene's unit
     assert unit == "m" and float(value) == pytest.approx(distance, rel=5e-3)

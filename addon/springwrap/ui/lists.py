@@ -6,7 +6,8 @@ from mathutils import Vector
 
 
 class SPRINGWRAP_UL_anchors(bpy.types.UIList):
-    """The layout's anchors: the vertex index, and how far the vertex is from its target point (its kind's icon)"""
+    """The layout's anchors: the vertex index, and how far the vertex is from its target point (its kind's icon:
+    on the surface or in space)"""
 
     bl_idname = "SPRINGWRAP_UL_anchors"
 
@@ -14,9 +15,9 @@ class SPRINGWRAP_UL_anchors(bpy.types.UIList):
         obj = data.id_data
         vertices = obj.data.vertices if obj.type == "MESH" else ()
         missing = not 0 <= item.vertex_index < len(vertices)
-        split = layout.split(factor=0.5, align=True)
+        split = layout.split(factor=0.4, align=True)
         split.alert = missing
-        split.label(text=f"Vertex {item.vertex_index}", icon="ERROR" if missing else "VERTEXSEL")
+        split.label(text=str(item.vertex_index), icon="ERROR" if missing else "VERTEXSEL")
         kind_icon = "SNAP_FACE" if item.target_kind == "FACE" else "EMPTY_AXIS"
         if missing:
             split.label(text="missing", icon=kind_icon)

@@ -213,8 +213,8 @@ class SPRINGWRAP_PT_wrap(_LayoutSubPanel, bpy.types.Panel):
 def _draw_progress(layout, session) -> None:
     """The live wrap's progress, on rows of their own (the status bar has the same, and Esc to cancel)."""
     column = layout.column(align=True)
-    limit = session.parameters.max_iterations
-    _count_row(column, "Iteration", f"{session.total_iterations} / {limit}", icon="SORTTIME")
+    _count_row(column, "Iteration", session.total_iterations)
+    _count_row(column, "Limit", session.parameters.max_iterations)
     report = session.last_report
     if report is not None:
         _count_row(column, "Last Move", f"{report.max_displacement:.2e}")
@@ -236,8 +236,8 @@ class SPRINGWRAP_PT_check(_LayoutSubPanel, bpy.types.Panel):
             column.label(text="Counts in Object Mode", icon="INFO")
         else:
             face_count, space_count = counts
-            _count_row(column, "Face-Points", face_count, icon="SNAP_FACE")
-            _count_row(column, "Space-Points", space_count, icon="EMPTY_AXIS")
+            _count_row(column, "On Surface", face_count, icon="SNAP_FACE")  # face-points
+            _count_row(column, "In Space", space_count, icon="EMPTY_AXIS")  # space-points
         result = wrap_session.last_result(obj)
         if result is None:
             return
@@ -246,8 +246,9 @@ class SPRINGWRAP_PT_check(_LayoutSubPanel, bpy.types.Panel):
         _count_row(column, "Last Wrap", f"{result.iterations} iterations", icon="MOD_SHRINKWRAP")
         _count_row(column, "", ending)
         _count_row(column, "Time", f"{result.seconds:.2f} s")
-        if result.frames:
-            _count_row(column, "Solving", f"{result.kernel_seconds:.2f} s, {result.frames} frames")
+        if result.frames:  # the live wrap: how much of that was solving, over how many redraws
+            _count_row(column, "Solving", f"{result.kernel_seconds:.2f} s")
+            _count_row(column, "Frames", result.frames)
 
 
 class SPRINGWRAP_PT_snap(_LayoutSubPanel, bpy.types.Panel):
