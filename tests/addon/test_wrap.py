@@ -434,7 +434,7 @@ def test_frame_pacer_gives_the_solver_its_share_of_the_measured_frame():
     assert pacer.solve_seconds() == pytest.approx(1 / 30)  # nothing measured: a frame at 30 per second
     pacer.record_display(0.005)  # a GPU: the rest of the 1/30 s frame
     assert pacer.solve_seconds() == pytest.approx(1 / 30 - 0.005)
-    slow = FramePacer(display_seconds=1.0)  # software OpenGL: 60 % of each frame, 1.5 s for a 1 s redraw
+    slow = FramePacer(max_solve_seconds=2.0, display_seconds=1.0)  # software OpenGL: 60 %, 1.5 s for a 1 s redraw
     assert slow.solve_seconds() == pytest.approx(1.5)
     slow.record_display(3.0)  # smoothed: (1 + 3) / 2 = 2 s of display, 3 s of solving, capped
     assert slow.display_seconds == pytest.approx(2.0) and slow.solve_seconds() == pytest.approx(2.0)

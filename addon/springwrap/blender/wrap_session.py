@@ -27,7 +27,7 @@ FRAME_RATE = 30.0
 """Redraws per second the modal wrap aims for when the display is fast (``core.wrap_run.FramePacer``)."""
 SOLVER_SHARE = 0.6
 """Share of each frame the modal wrap solves when the display is slow (its redraws cost more than a frame)."""
-MAX_SOLVE_SECONDS = 2.0
+MAX_SOLVE_SECONDS = 4.0
 """Longest a frame of the modal wrap solves before it writes the layout and lets Blender redraw (and see Esc)."""
 SYNCHRONOUS_CHUNK = 100
 """Iterations per kernel call when the wrap runs to the end at once."""

@@ -120,7 +120,7 @@ class FramePacer:
         self,
         frame_rate: float = 30.0,
         solver_share: float = 0.6,
-        max_solve_seconds: float = 2.0,
+        max_solve_seconds: float = 4.0,
         display_seconds: float | None = None,
         max_count: int = 10_000,
     ):
