@@ -16,6 +16,7 @@ so ``import springwrap.core`` works in a plain Python.
 """
 
 import sys
+import textwrap
 from pathlib import Path
 
 bl_info = {
@@ -51,32 +52,37 @@ NUMPY_FIX = "sudo apt-get install python3-numpy"
 """The fix for a Blender whose Python has no numpy (Debian's and Ubuntu's ``blender`` package)."""
 
 
+MESSAGE_WIDTH = 31
+"""Characters a line of the message may have to be read whole in the sidebar at its default width."""
+
+
 def missing_dependency_lines(error: ImportError) -> list[str]:
     """What the Preferences and the panel say when the add-on cannot start: short lines, the fix included.
 
     ``error`` is the ImportError of numpy or of the kernel (``springwrap_kernel``); any other module's
-    import error is shown as it is.
+    import error is shown as it is. The first line is a title (it gets an icon), the others are
+    wrapped to :data:`MESSAGE_WIDTH`, each paragraph on lines of its own.
     """
-    missing = getattr(error, "name", None) or ""
-    if missing.split(".")[0] == "numpy":
-        return [
-            "Springwrap needs numpy, which this",
-            "Blender's Python does not have.",
+    missing = (getattr(error, "name", None) or "").split(".")[0]
+    if missing == "numpy":
+        title = "Springwrap needs numpy,"
+        paragraphs = [
+            "which this Blender's Python does not have.",
             "Debian's and Ubuntu's Blender:",
             NUMPY_FIX,
-            "then disable and enable Springwrap",
-            "(or restart Blender).",
+            "then disable and enable Springwrap (or restart Blender).",
         ]
-    if missing.split(".")[0] == "springwrap_kernel" or "springwrap_kernel" in str(error):
-        return [
-            "The Springwrap kernel is missing:",
+    elif missing == "springwrap_kernel" or "springwrap_kernel" in str(error):
+        title = "Springwrap's kernel is missing:"
+        paragraphs = [
             str(error),
-            "Install the package built for this",
-            "Blender (the extension for 4.2+,",
-            "the legacy zip for 3.4 to 4.1);",
+            "Install the package built for this Blender (the extension for 4.2+, the legacy zip for 3.4 to 4.1);",
             "in a checkout: make setup.",
         ]
-    return ["Springwrap could not start:", str(error)]
+    else:
+        title = "Springwrap could not start:"
+        paragraphs = [str(error)]
+    return [title] + [line for paragraph in paragraphs for line in textwrap.wrap(paragraph, MESSAGE_WIDTH)]
 
 
 def register():

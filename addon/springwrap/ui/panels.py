@@ -242,9 +242,8 @@ class SPRINGWRAP_PT_check(_LayoutSubPanel, bpy.types.Panel):
         if result is None:
             return
         column = layout.column(align=True)
-        ending = "Converged" if result.converged else "Stopped at limit"
-        _count_row(column, "Last Wrap", f"{result.iterations} iterations", icon="MOD_SHRINKWRAP")
-        _count_row(column, "", ending)
+        _count_row(column, "Last Wrap", "Converged" if result.converged else "At the limit", icon="MOD_SHRINKWRAP")
+        _count_row(column, "Iterations", result.iterations)
         _count_row(column, "Time", f"{result.seconds:.2f} s")
         if result.frames:  # the live wrap: how much of that was solving, over how many redraws
             _count_row(column, "Solving", f"{result.kernel_seconds:.2f} s")
