@@ -104,6 +104,7 @@ def main() -> int:
     parser.add_argument("--blender", default=os.environ.get("BLENDER", "blender"))
     parser.add_argument("--update-docs", action="store_true", help="copy the guide's screenshots into docs/img")
     arguments = parser.parse_args()
+    arguments.output = arguments.output.resolve()  # Blender's user folders are given as absolute paths
     if shutil.which("xvfb-run") is None:
         print("run_gui_lane: xvfb-run is missing (.ci/gui-packages.sh installs it)")
         return 1
