@@ -81,6 +81,9 @@ def test_the_check_panel_reads_the_points_and_the_last_wrap():
     assert labels[4] == "Last Wrap" and labels[5] in ("Converged", "At the limit")
     assert labels[6] == "Iterations" and int(labels[7]) > 0 and labels[8] == "Time"
     assert "Solving" not in labels  # run at once (a script): no frames
+    bpy.ops.wm.read_homefile(use_empty=True)  # another file: its "Layout" is not the one wrapped
+    _target, layout, _normal = plane_scene()
+    assert "Last Wrap" not in draw(SPRINGWRAP_PT_check).labels
 
 
 def test_the_cage_shows_over_the_target_and_puts_the_users_display_back():

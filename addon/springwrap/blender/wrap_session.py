@@ -362,6 +362,12 @@ def last_result(layout: bpy.types.Object) -> WrapResult | None:
 
 
 def forget_results() -> None:
-    """Drop the remembered results and live wraps (the add-on is unregistered)."""
+    """Drop the remembered results and live wraps (the add-on is unregistered, another file is loaded)."""
     _running.clear()
     _last_results.clear()
+
+
+@bpy.app.handlers.persistent
+def forget_results_on_load(_scene, _data=None) -> None:
+    """``load_post`` handler: a result belongs to the file it was made in (layouts are found by name)."""
+    forget_results()

@@ -2,6 +2,9 @@
 anchors and curve constraints, and the frame clock that measures what a redraw costs. Only Blender's UI
 API here; data is read through ``blender``."""
 
+import bpy
+
+from ..blender import wrap_session
 from . import frame_clock, lists, overlays, panels
 
 classes = lists.classes + panels.classes
@@ -9,12 +12,17 @@ classes = lists.classes + panels.classes
 
 
 def install() -> None:
-    """Add the draw handlers (the overlay, the frame clock); ``register()`` calls it after the classes."""
+    """Add the draw handlers (the overlay, the frame clock) and forget the Check panel's last wraps when another
+    file is loaded; ``register()`` calls it after the classes."""
     overlays.install()
     frame_clock.install()
+    if wrap_session.forget_results_on_load not in bpy.app.handlers.load_post:
+        bpy.app.handlers.load_post.append(wrap_session.forget_results_on_load)
 
 
 def uninstall() -> None:
     """Remove what :func:`install` added."""
+    while wrap_session.forget_results_on_load in bpy.app.handlers.load_post:
+        bpy.app.handlers.load_post.remove(wrap_session.forget_results_on_load)
     frame_clock.uninstall()
     overlays.uninstall()
