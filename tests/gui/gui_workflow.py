@@ -91,7 +91,11 @@ class Window:
             return operator("INVOKE_DEFAULT", True, *args, **kwargs)
 
     def screenshot(self, path: Path) -> None:
+        """The window as it is now: redrawn first (a button press redraws the sidebar; a timer's call does not)."""
+        for area in self.window.screen.areas:
+            area.tag_redraw()
         with bpy.context.temp_override(window=self.window, area=self.area):
+            bpy.ops.wm.redraw_timer(type="DRAW_WIN_SWAP", iterations=1)
             bpy.ops.screen.screenshot(filepath=str(path))
 
     def simulate(self, kind: str, value: str, region=None, **modifiers) -> None:
