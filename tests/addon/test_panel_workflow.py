@@ -209,3 +209,22 @@ def test_enabling_without_numpy_registers_the_message_instead_of_failing():
     assert "RESULT True True False" in process.stdout, process.stdout + process.stderr
     assert "DISABLED False" in process.stdout
     assert "sudo apt-get install python3-numpy" in process.stdout
+
+
+def test_an_anchor_row_reads_index_and_distance_and_flags_a_missing_vertex():
+    from springwrap.ui.lists import SPRINGWRAP_UL_anchors
+
+    _target, layout, _normal = plane_scene()
+    bpy.ops.springwrap.anchor_add(vertex_index=3, location=(0.0, 0.0, 0.0), use_location=True, on_surface=False)
+    item = layout.springwrap.anchors[0]
+    row = PanelRecorder()
+    SPRINGWRAP_UL_anchors.draw_item(None, bpy.context, row, layout.springwrap, item, 0, None, "", 0)
+    distance = (layout.matrix_world @ layout.data.vertices[3].co).length
+    value, unit = row.labels[1].split()
+    assert row.labels[0] == "3" and float(value) * {"m": 1.0, "cm": 0.01, "mm": 0.001}[unit] == pytest.approx(
+        distance, rel=5e-3
+    )
+    item.vertex_index = len(layout.data.vertices) + 5  # the layout lost vertices since
+    row = PanelRecorder()
+    SPRINGWRAP_UL_anchors.draw_item(None, bpy.context, row, layout.springwrap, item, 0, None, "", 0)
+    assert row.labels == [str(len(layout.data.vertices) + 5), "missing"]

@@ -6,8 +6,8 @@ from mathutils import Vector
 
 
 class SPRINGWRAP_UL_anchors(bpy.types.UIList):
-    """The layout's anchors: the vertex index, and how far the vertex is from its target point (its kind's icon:
-    on the surface or in space)"""
+    """The layout's anchors: the vertex index (its icon: the target is on the surface or in space), and how far the
+    vertex is from its target point"""
 
     bl_idname = "SPRINGWRAP_UL_anchors"
 
@@ -17,15 +17,15 @@ class SPRINGWRAP_UL_anchors(bpy.types.UIList):
         missing = not 0 <= item.vertex_index < len(vertices)
         split = layout.split(factor=0.4, align=True)
         split.alert = missing
-        split.label(text=str(item.vertex_index), icon="ERROR" if missing else "VERTEXSEL")
         kind_icon = "SNAP_FACE" if item.target_kind == "FACE" else "EMPTY_AXIS"
+        split.label(text=str(item.vertex_index), icon="ERROR" if missing else kind_icon)
         if missing:
-            split.label(text="missing", icon=kind_icon)
+            split.label(text="missing")
             return
         # Object-mode data (in edit mode, as of the last switch): one vertex per visible row, read as drawn.
         world = obj.matrix_world @ vertices[item.vertex_index].co
         distance = (Vector(item.location) - world).length
-        split.label(text=_length_text(context, distance), icon=kind_icon)
+        split.label(text=_length_text(context, distance))
 
 
 def _length_text(context, value: float) -> str:
