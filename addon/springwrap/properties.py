@@ -377,7 +377,7 @@ class SpringwrapObjectSettings(bpy.types.PropertyGroup):
             "Blender 4+ (Edit Mode); off puts the object's and the views' display settings back"
         ),
         default=False,
-        update=_update_show_cage,
+        update=compat.property_update(_update_show_cage),
     )
     cage_saved_display: bpy.props.StringProperty(
         name="Saved Display",

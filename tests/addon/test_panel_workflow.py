@@ -86,16 +86,26 @@ def test_the_check_panel_reads_the_points_and_the_last_wrap():
     assert "Last Wrap" not in draw(SPRINGWRAP_PT_check).labels
 
 
+def set_show_cage(layout, value: bool) -> None:
+    """The panel's Show Cage checkbox. The PyPI bpy 4.2 module registers the property without its update
+    callback (``compat.property_update``: it crashes at exit otherwise), so there the update is called here."""
+    from springwrap.blender import cage_display, compat
+
+    layout.springwrap.show_cage = value
+    if compat.property_update(cage_display.update_show_cage) is None:
+        cage_display.update_show_cage(layout.springwrap, bpy.context)
+
+
 def test_the_cage_shows_over_the_target_and_puts_the_users_display_back():
     _target, layout, _normal = plane_scene()
     layout.display_type = "SOLID"
     layout.show_in_front = False
-    layout.springwrap.show_cage = True
+    set_show_cage(layout, True)
     assert layout.show_in_front and layout.display_type == "WIRE"
     saved = json.loads(layout.springwrap.cage_saved_display)
     assert saved["show_in_front"] is False and saved["display_type"] == "SOLID"
     layout.display_type = "BOUNDS"  # changed while the cage shows: the setting from before the cage wins
-    layout.springwrap.show_cage = False
+    set_show_cage(layout, False)
     assert not layout.show_in_front and layout.display_type == "SOLID"
     assert layout.springwrap.cage_saved_display == ""
 
@@ -103,13 +113,13 @@ def test_the_cage_shows_over_the_target_and_puts_the_users_display_back():
 def test_the_cage_survives_save_and_reload(tmp_path):
     _target, layout, _normal = plane_scene()
     layout.show_in_front = True
-    layout.springwrap.show_cage = True
+    set_show_cage(layout, True)
     path = tmp_path / "cage.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(path))
     bpy.ops.wm.open_mainfile(filepath=str(path))
     layout = bpy.data.objects["Layout"]
     assert layout.springwrap.show_cage and layout.display_type == "WIRE"
-    layout.springwrap.show_cage = False
+    set_show_cage(layout, False)
     assert layout.show_in_front and layout.display_type == "TEXTURED"
 
 
@@ -139,7 +149,7 @@ def test_showing_the_cage_is_undone_with_the_rest():
     _target, layout, _normal = plane_scene()
     bpy.ops.ed.undo_push(message="before the cage")
     before = snapshot(layout)
-    layout.springwrap.show_cage = True
+    set_show_cage(layout, True)
     bpy.ops.ed.undo_push(message="cage")
     bpy.ops.ed.undo()
     layout = bpy.data.objects["Layout"]
