@@ -264,6 +264,13 @@ WRAP_SOLVER_ITEMS = (
 """The wrap's algorithms (``springwrap_kernel.WrapSettings(solver=...)``)."""
 
 
+def _update_show_cage(settings, context):
+    """``show_cage``'s update (``blender.cage_display``)."""
+    from .blender import cage_display
+
+    cage_display.update_show_cage(settings, context)
+
+
 class SpringwrapObjectSettings(bpy.types.PropertyGroup):
     """Springwrap settings of a layout object."""
 
@@ -406,6 +413,22 @@ class SpringwrapObjectSettings(bpy.types.PropertyGroup):
         name="Mirror Object",
         description="Object (an empty) whose local plane the Mirror button mirrors across; none: the layout's own",
         type=bpy.types.Object,
+    )
+
+    show_cage: bpy.props.BoolProperty(
+        name="Show Cage",
+        description=(
+            "Draw the layout so it reads over its target: In Front and as Wire, and the Retopology overlay in "
+            "Blender 4+ (Edit Mode); off puts the object's and the views' display settings back"
+        ),
+        default=False,
+        update=compat.property_update(_update_show_cage),
+    )
+    cage_saved_display: bpy.props.StringProperty(
+        name="Saved Display",
+        description="The display settings Show Cage replaced (JSON), put back when it is turned off",
+        default="",
+        options={"HIDDEN"},
     )
 
 

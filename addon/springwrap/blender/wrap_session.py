@@ -15,7 +15,7 @@ import springwrap_kernel
 from ..core import anchors, input_policy, layout_state, subdivision, transforms, wrap_inputs
 from ..core.errors import LayoutError
 from ..core.target import Target
-from ..core.wrap_run import IterationPacer, WrapResult
+from ..core.wrap_run import FramePacer, WrapResult
 from ..properties import WRAP_DEFAULTS
 from . import anchors as anchor_data
 from . import attributes
@@ -24,7 +24,11 @@ from . import layout as layout_data
 from . import target as target_data
 
 FRAME_RATE = 30.0
-"""Redraws per second the modal wrap aims for."""
+"""Redraws per second the modal wrap aims for when the display is fast (``core.wrap_run.FramePacer``)."""
+SOLVER_SHARE = 0.6
+"""Share of each frame the modal wrap solves when the display is slow (its redraws cost more than a frame)."""
+MAX_SOLVE_SECONDS = 4.0
+"""Longest a frame of the modal wrap solves before it writes the layout and lets Blender redraw (and see Esc)."""
 SYNCHRONOUS_CHUNK = 100
 """Iterations per kernel call when the wrap runs to the end at once."""
 
@@ -74,9 +78,13 @@ class WrapSession:
     object mode for the whole session (the operator sees to it). ``parameters`` is an
     ``core.wrap_inputs.WrapParameters``. ``adjust_inputs`` (optional) takes the prepared
     ``core.wrap_inputs.WrapInputs`` and returns them changed (the mirror's pins and plane).
+    ``display_seconds`` (optional) is what a redraw is known to cost before the first frame (the
+    viewport's measured draw time): the first frame's solve time is paced from it.
     """
 
-    def __init__(self, context, layout: bpy.types.Object, parameters, adjust_inputs=None):
+    def __init__(
+        self, context, layout: bpy.types.Object, parameters, adjust_inputs=None, display_seconds: float | None = None
+    ):
         self.start_time = time.perf_counter()
         self.layout = layout
         self.parameters = parameters
@@ -140,7 +148,7 @@ class WrapSession:
         self.vertex_count = arrays.positions.shape[0]
         self.unreliable_count = 0 if unreliable is None else int(unreliable.sum())
         self.topology = (resolution.detached_count, resolution.reattached_count, anchor_resolution.detached_count)
-        self.pacer = IterationPacer(FRAME_RATE)
+        self.pacer = FramePacer(FRAME_RATE, SOLVER_SHARE, MAX_SOLVE_SECONDS, display_seconds=display_seconds)
         self.last_report = None
         self.kernel_seconds = 0.0
         self.frames = 0
@@ -222,18 +230,32 @@ class WrapSession:
         self.stage = "fine"
 
     def advance(self):
-        """One frame of the interactive wrap: as many iterations as the frame allows, then write them.
+        """One frame of the interactive wrap: solve for the frame's share of time, then write the layout.
 
-        Writes positions and state into the layout mesh (no undo step). Returns the ``StepReport``.
+        The time since the previous frame's write ended (Blender's redraw and event handling) is the
+        display's measured cost, from which the pacer sizes this frame's solve time; the kernel is
+        called in chunks until that time is used or the wrap is done. Writes positions and state into
+        the layout mesh (no undo step). Returns the last ``StepReport``.
         """
         begin = time.perf_counter()
-        overhead = 0.0 if self._frame_end is None else min(begin - self._frame_end, 1.0)
-        count = self.pacer.next_count(self.parameters.max_iterations - self.stage_iterations)
-        report = self.step(count)
-        stepped = time.perf_counter()
+        if self._frame_end is not None:
+            self.pacer.record_display(begin - self._frame_end)
+        deadline = begin + self.pacer.solve_seconds()
+        report = None
+        while report is None or not self.done:
+            now = time.perf_counter()
+            remaining = self.parameters.max_iterations - self.stage_iterations
+            count = self.pacer.next_count(remaining, deadline - now)
+            if count == 0:
+                if report is not None:
+                    break
+                count = min(remaining, 1)  # every frame runs at least one iteration (or starts the next stage)
+            report = self.step(count)
+            self.pacer.record_step(report.iterations, time.perf_counter() - now)
+            if self.stage == "fine" and report.iterations == 0:
+                break  # nothing left to run in this stage (the limit): done says so
         self.write_frame()
         self._frame_end = time.perf_counter()
-        self.pacer.record(report.iterations, stepped - begin, self._frame_end - stepped + overhead)
         self.frames += 1
         return report
 
@@ -320,3 +342,53 @@ class WrapSession:
             f"{report.face_points} face-points, {report.space_points} space-points, "
             f"last move {report.max_displacement:.2e}  —  Esc / right-click: cancel"
         )
+
+
+# ---------------------------------------------------------------- what the panel shows
+
+_running: list[WrapSession] = []
+_last_results: dict[str, WrapResult] = {}
+
+
+def set_running(session: WrapSession | None, running: bool = True) -> None:
+    """Mark ``session`` as the live wrap in progress (the panel shows its progress), or no longer."""
+    if session is None:
+        return
+    if running and session not in _running:
+        _running.append(session)
+    elif not running and session in _running:
+        _running.remove(session)
+
+
+def running_session(layout: bpy.types.Object) -> WrapSession | None:
+    """The live wrap in progress on ``layout``, if any."""
+    for session in _running:
+        try:
+            if session.layout == layout:
+                return session
+        except ReferenceError:  # the layout was deleted under a session that was never ended
+            _running.remove(session)
+            return None
+    return None
+
+
+def remember_result(result: WrapResult) -> None:
+    """Keep a finished wrap's result for the panel's Check section (this Blender session only, by layout name)."""
+    _last_results[result.layout_name] = result
+
+
+def last_result(layout: bpy.types.Object) -> WrapResult | None:
+    """The last wrap finished on a layout of this name in this Blender session, if any."""
+    return _last_results.get(layout.name)
+
+
+def forget_results() -> None:
+    """Drop the remembered results and live wraps (the add-on is unregistered, another file is loaded)."""
+    _running.clear()
+    _last_results.clear()
+
+
+@bpy.app.handlers.persistent
+def forget_results_on_load(_scene, _data=None) -> None:
+    """``load_post`` handler: a result belongs to the file it was made in (layouts are found by name)."""
+    forget_results()

@@ -69,7 +69,7 @@ class SPRINGWRAP_OT_curve_constraint_add(_CurveOperator, bpy.types.Operator):
             curve_object = bpy.data.objects.get(self.curve_object)
             if curve_object is None or curve_object.type != "CURVE":
                 raise LayoutError(f"There is no curve object called '{self.curve_object}'")
-            points = curve_data.read_curve_polyline(depsgraph, curve_object)
+            points = curve_data.read_curve_polyline(depsgraph, curve_object, near=chain_positions)
             input_policy.check_points(
                 points, lambda row: f"Curve '{curve_object.name}': point {row}", self.extent, "fix the curve"
             )

@@ -4,11 +4,14 @@
 positions), its anchors and the evaluated target to the kernel's ``WrapSolver`` and steps it until
 it converges or reaches the iteration limit.
 
-- Interactively (``invoke`` in a window) it is a modal operator: a timer steps the solver a few
-  iterations at a time (as many as keep about 30 redraws per second), writes every frame into the
-  layout mesh so the viewport shows it settling (paper, Figure 12), and shows its progress in the
-  status bar. Esc or right-click cancels and puts positions and state back bit for bit; finishing
-  keeps the result as one undo step.
+- Interactively (``invoke`` in a window) it is a modal operator: each frame solves for a while, writes
+  the layout mesh so the viewport shows it settling (paper, Figure 12), and shows its progress in
+  the status bar and the panel. How long a frame solves comes from what a redraw really costs
+  (``core.wrap_run.FramePacer``): the rest of a 1/30 s frame on a fast display, 60 % of each frame on
+  a slow one (software OpenGL). The first frame runs in ``invoke`` itself, paced from the viewport's
+  measured draw time (``ui.frame_clock``): a wrap that fits in it finishes there, with no redraw in
+  between. Esc or right-click cancels and puts positions and state back bit for bit; finishing keeps
+  the result as one undo step.
 - In background mode, or with ``EXEC_DEFAULT`` (scripts), it runs to the end at once and writes once.
 
 The logic is in two plain classes that need no window or events: ``blender.wrap_session.WrapSession``
@@ -19,6 +22,7 @@ events in, operator results out), so tests drive them directly.
 import bpy
 
 from ..blender import layout as layout_data
+from ..blender import wrap_session
 from ..blender.edit_mode import EditModeGuard, object_mode
 from ..blender.wrap_session import WrapSession
 from ..core import input_policy, mirroring, transforms
@@ -34,6 +38,7 @@ from ..properties import (
     tolerance_property,
     wrap_weight_property,
 )
+from ..ui import frame_clock
 from .base import LayoutOperator, check_inputs, layout_problem, report_storage_precision
 
 TIMER_SECONDS = 0.01
@@ -146,7 +151,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
 
     # A string: typing's cache would keep Optional[WrapSession] (and through it this module) alive until
     # after Python finalizes, and the PyPI bpy 4.2 module then crashes on exit freeing the operator class.
-    def _start(self, context) -> "WrapSession | None":
+    def _start(self, context, display_seconds: float | None = None) -> "WrapSession | None":
         """Check, then build the session (in object mode); None after reporting why not."""
         problem = layout_problem(context)
         if problem is not None:
@@ -155,7 +160,13 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
         try:
             layout = context.active_object
             extent = check_inputs(context, layout)
-            return WrapSession(context, layout, self.parameters(), adjust_inputs=self._plane_holder(layout, extent))
+            return WrapSession(
+                context,
+                layout,
+                self.parameters(),
+                adjust_inputs=self._plane_holder(layout, extent),
+                display_seconds=display_seconds,
+            )
         except ERRORS as error:
             self.report({"ERROR"}, str(error))
             return None
@@ -187,16 +198,21 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
         if layout is None or layout.type != "MESH":
             return self.execute(context)  # reports why
         self._mode = EditModeGuard(layout)
-        session = self._start(context)
+        session = self._start(context, display_seconds=frame_clock.display_seconds())
         if session is None:
             self._restore_mode()
             return {"CANCELLED"}
         self._loop = WrapLoop(session)
+        outcome = self._loop.handle("TIMER")  # the first frame, before any redraw: it may be the whole wrap
+        if outcome != "RUNNING_MODAL":
+            self._restore_mode()
+            return self._ended(outcome)
         self._area = context.area  # the header to write in; events may come with another area as context
         window_manager = context.window_manager
         self._timer = window_manager.event_timer_add(TIMER_SECONDS, window=context.window)
         window_manager.progress_begin(0, session.parameters.max_iterations)
         window_manager.modal_handler_add(self)
+        wrap_session.set_running(session)
         self._show_status(context)
         return {"RUNNING_MODAL"}
 
@@ -208,10 +224,13 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
             return {"RUNNING_MODAL"}
         if outcome == "PASS_THROUGH":
             return {"PASS_THROUGH"}
+        self._end(context)
+        return self._ended(outcome)
+
+    def _ended(self, outcome: str) -> set:
+        """Report how the wrap ended (``'FINISHED'`` or ``'CANCELLED'``) and return the operator's result."""
         if outcome == "FINISHED":
             report_storage_precision(self, self._loop.session.layout, self._loop.session.target.extent)
-        self._end(context)
-        if outcome == "FINISHED":
             self._report_result(self._loop.result)
             return {"FINISHED"}
         if self._loop.error is not None:
@@ -247,6 +266,11 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
     def _end(self, context) -> None:
         """Remove the timer, the status text and the progress, and go back to edit mode if the layout was in it."""
         window_manager = context.window_manager
+        loop = getattr(self, "_loop", None)
+        if loop is not None:
+            wrap_session.set_running(loop.session, running=False)
+            if loop.session.pacer.display_seconds is not None:  # the next wrap starts from the whole redraw's cost
+                frame_clock.record(loop.session.pacer.display_seconds)
         if getattr(self, "_timer", None) is not None:
             window_manager.event_timer_remove(self._timer)
             self._timer = None
@@ -264,6 +288,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
             mode.restore()
 
     def _report_result(self, result: WrapResult) -> None:
+        wrap_session.remember_result(result)
         self.report({"INFO"} if result.converged else {"WARNING"}, result.summary())
         detached, reattached = result.topology_detached_count, result.topology_reattached_count
         if detached or reattached or result.anchors_detached_count:
