@@ -204,7 +204,7 @@ def describe(result: dict) -> str:
     read = result["read"]
     lines.append(
         f"  read (numpy, tracemalloc): peak {read['peak_bytes_per_triangle']:.0f} B/triangle, "
-        f"{read['seconds_to_build']:.2f} s to the kernel's build"
+        f"{read['seconds_to_build']:.2f} s (traced) to the kernel's build"
     )
     return "\n".join(lines)
 
