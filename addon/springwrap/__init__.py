@@ -103,12 +103,14 @@ def register():
         _register_missing_dependency(error)
         return
     from . import operators, ui
+    from .blender import target_changes
 
     _registered_classes = properties.classes + operators.classes + ui.classes
     for cls in _registered_classes:
         bpy.utils.register_class(cls)
     bpy.types.Object.springwrap = bpy.props.PointerProperty(type=properties.SpringwrapObjectSettings)
     ui.install()
+    target_changes.install()
 
 
 def _register_missing_dependency(error: ImportError) -> None:
@@ -160,8 +162,9 @@ def unregister():
         return
 
     from . import ui
-    from .blender import target, wrap_session
+    from .blender import target, target_changes, wrap_session
 
+    target_changes.uninstall()
     ui.uninstall()
     del bpy.types.Object.springwrap
     for cls in reversed(_registered_classes):

@@ -58,6 +58,21 @@ def test_signature_depends_on_topology_only():
     assert ls.target_signature(triangles, 5) != signature  # a vertex added
 
 
+def test_content_hash_is_blake2b_of_shapes_dtypes_and_bytes():
+    """Hashed in place, the key is the one the ``tobytes()`` copies gave (cached targets keep their keys)."""
+    import hashlib
+
+    vertices = np.arange(12, dtype=np.float64).reshape(4, 3) * 0.1
+    triangles = np.array([[0, 1, 2], [0, 2, 3]], dtype=np.uint32)
+    digest = hashlib.blake2b(digest_size=16)
+    for array in (vertices, triangles):
+        digest.update(np.array(array.shape, dtype=np.int64).tobytes())
+        digest.update(str(array.dtype).encode())
+        digest.update(array.tobytes())
+    assert ls.content_hash(vertices, triangles) == digest.hexdigest()
+    assert ls.content_hash(np.asfortranarray(vertices), triangles) == digest.hexdigest()
+
+
 def test_content_hash_changes_with_vertex_positions():
     vertices = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], dtype=np.float32)
     triangles = np.array([[0, 1, 2]], dtype=np.uint32)

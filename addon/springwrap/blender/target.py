@@ -1,8 +1,16 @@
 """The layout's target object: checked, read evaluated in world space, built into the kernel's ``TargetMesh``
 and cached; its edges; and the weights of one of its vertex groups on the evaluated vertices.
+
+**The cache.** A built target is kept under its name and a hash of its evaluated content, so a target
+that comes back to a content it had (an undo, a modifier switched off and on) is not built again. Reading
+and hashing a large target costs time too (about 1.4 s at 5M triangles), so when
+:mod:`.target_changes` says no event could have changed the object since it was last read, and a cheap
+sanity key still matches (the object, its name, its evaluated mesh's vertex, polygon and loop counts, its
+world matrix and a few vertex positions), the entry is reused without reading the mesh at all.
 """
 
 import collections
+from typing import NamedTuple
 
 import bpy
 
@@ -13,12 +21,31 @@ import springwrap_kernel
 from ..core import input_policy, layout_state
 from ..core.errors import LayoutError
 from ..core.target import Target, make_target
+from . import target_changes
 from .evaluated_mesh import read_evaluated_mesh
 
 MAX_CACHED_TARGETS = 2
 """Number of built target meshes kept between operations."""
 
+SANITY_SAMPLES = 8
+"""Vertex positions of the evaluated mesh compared before a cached target is reused unread."""
+
 _target_cache: "collections.OrderedDict[tuple[str, str], Target]" = collections.OrderedDict()
+
+
+class _LastRead(NamedTuple):
+    """What an object looked like when it was last read in a depsgraph, and which cache entry it gave."""
+
+    moment: int  # target_changes.moment() before the read
+    sanity: tuple  # _sanity_key() then
+    content_key: tuple[str, str]  # its key in _target_cache
+
+
+_last_reads: dict[tuple[int, str, str], _LastRead] = {}
+"""(object key, scene name, view layer name) -> the object's last read there."""
+
+_reads = collections.Counter()
+"""How many reads took each path ("unread", "hashed", "built"), for tests and benchmarks."""
 
 
 def check_target(layout: bpy.types.Object) -> "bpy.types.Object":
@@ -36,10 +63,48 @@ def check_target(layout: bpy.types.Object) -> "bpy.types.Object":
 def read_target(depsgraph: bpy.types.Depsgraph, layout: bpy.types.Object) -> Target:
     """The layout's evaluated target in world space, as a kernel mesh (cached by name and content).
 
+    Unread when nothing can have changed it since its last read in this depsgraph (see the module's
+    docstring), else read and hashed, and built only when that content is not cached.
     Raises :class:`LayoutError` (no usable target, no faces) or a kernel error (non-finite
     coordinates...), with the target's name in the message.
     """
     target = check_target(layout)
+    read_key = (target_changes.object_key(target), depsgraph.scene.name, depsgraph.view_layer.name)
+    last = _last_reads.get(read_key)
+    sanity = _sanity_key(target.evaluated_get(depsgraph))
+    if (
+        last is not None
+        and last.sanity == sanity
+        and last.content_key in _target_cache
+        and target_changes.unchanged_since(target, last.moment)
+    ):
+        _target_cache.move_to_end(last.content_key)
+        _reads["unread"] += 1
+        return _target_cache[last.content_key]
+    moment = target_changes.moment()
+    entry, content_key = _read_and_build(depsgraph, target)
+    _last_reads[read_key] = _LastRead(moment, sanity, content_key)
+    return entry
+
+
+def _sanity_key(evaluated: bpy.types.Object) -> tuple:
+    """What must not differ for a cached target to be reused unread: cheap to get, without copying the mesh."""
+    mesh = evaluated.data
+    vertices = mesh.vertices
+    count = len(vertices)
+    samples = sorted({int(index) for index in np.linspace(0, count - 1, SANITY_SAMPLES)}) if count else []
+    return (
+        evaluated.name,
+        count,
+        len(mesh.polygons),
+        len(mesh.loops),
+        tuple(tuple(row) for row in evaluated.matrix_world),
+        tuple(tuple(vertices[index].co) for index in samples),
+    )
+
+
+def _read_and_build(depsgraph: bpy.types.Depsgraph, target: bpy.types.Object) -> tuple[Target, tuple[str, str]]:
+    """The target read and hashed, its cached entry or a new one built; and that entry's key."""
     evaluated = read_evaluated_mesh(depsgraph, target, triangles=True)
     vertex_count, triangles = evaluated.vertices.shape[0], evaluated.triangles
     if vertex_count == 0 or triangles.shape[0] == 0:
@@ -49,7 +114,8 @@ def read_target(depsgraph: bpy.types.Depsgraph, layout: bpy.types.Object) -> Tar
     cached = _target_cache.get(key)
     if cached is not None:
         _target_cache.move_to_end(key)
-        return cached
+        _reads["hashed"] += 1
+        return cached, key
     try:
         input_policy.check_points(
             vertices[np.all(np.isfinite(vertices), axis=1)],  # the kernel names non-finite vertices itself
@@ -62,12 +128,21 @@ def read_target(depsgraph: bpy.types.Depsgraph, layout: bpy.types.Object) -> Tar
     _target_cache[key] = entry
     while len(_target_cache) > MAX_CACHED_TARGETS:
         _target_cache.popitem(last=False)
-    return entry
+    _reads["built"] += 1
+    return entry, key
 
 
 def clear_target_cache() -> None:
     """Drop every cached target mesh (on unregister, and for tests)."""
     _target_cache.clear()
+    _last_reads.clear()
+    _reads.clear()
+
+
+def target_reads() -> dict[str, int]:
+    """How many target reads since :func:`clear_target_cache` were "unread" (the cached mesh reused without
+    reading), "hashed" (read, and its content found cached) and "built"."""
+    return {path: _reads[path] for path in ("unread", "hashed", "built")}
 
 
 def cached_target_count() -> int:

@@ -60,3 +60,74 @@ fn degenerate_triangles_have_zero_normals_and_are_counted() {
     assert_eq!(mesh.vertex_normals()[3], Vec3::ZERO);
     assert_eq!(mesh.vertex_normals()[0], Vec3::Z);
 }
+
+/// Adjacency by the definition: every undirected edge and the half-edges on it, in a map.
+fn adjacency_by_definition(triangles: &[[u32; 3]]) -> (Vec<[u32; 3]>, Vec<(u32, u8)>, usize) {
+    let mut edges: std::collections::BTreeMap<(u32, u32), Vec<u32>> =
+        std::collections::BTreeMap::new();
+    for (triangle, corners) in triangles.iter().enumerate() {
+        for edge in 0..3 {
+            let (start, end) = (corners[edge], corners[(edge + 1) % 3]);
+            if start != end {
+                edges
+                    .entry((start.min(end), start.max(end)))
+                    .or_default()
+                    .push(triangle as u32 * 3 + edge as u32);
+            }
+        }
+    }
+    let mut neighbors = vec![[NO_TRIANGLE; 3]; triangles.len()];
+    let mut boundary = Vec::new();
+    let mut non_manifold = 0;
+    for half_edges in edges.values() {
+        match half_edges[..] {
+            [only] => boundary.push((only / 3, (only % 3) as u8)),
+            [first, second] if first / 3 == second / 3 => {}
+            [first, second] => {
+                neighbors[(first / 3) as usize][(first % 3) as usize] = second / 3;
+                neighbors[(second / 3) as usize][(second % 3) as usize] = first / 3;
+            }
+            _ => non_manifold += 1,
+        }
+    }
+    boundary.sort_unstable();
+    (neighbors, boundary, non_manifold)
+}
+
+#[test]
+fn adjacency_matches_its_definition_on_messy_soups() {
+    // A grid with pseudo-random triangles added on top: repeated indices (collapsed edges), fins
+    // (three or more triangles on an edge), fans around one vertex, duplicated triangles.
+    let (vertices, mut triangles) = grid(12);
+    let vertex_count = vertices.len() as u32;
+    let mut state = 0x2545_f491_u32;
+    let mut next = |modulus: u32| {
+        state ^= state << 13;
+        state ^= state >> 17;
+        state ^= state << 5;
+        state % modulus
+    };
+    for _ in 0..400 {
+        let corners = match next(4) {
+            0 => [next(vertex_count), next(vertex_count), next(vertex_count)],
+            1 => {
+                let vertex = next(vertex_count);
+                [vertex, vertex, next(vertex_count)]
+            }
+            2 => triangles[next(triangles.len() as u32) as usize],
+            _ => [0, next(vertex_count), next(vertex_count)],
+        };
+        triangles.push(corners);
+    }
+    let (neighbors, boundary, non_manifold) = adjacency_by_definition(&triangles);
+    let mesh = TargetMesh::new(vertices, triangles, TargetMeshOptions::default()).unwrap();
+    assert_eq!(mesh.triangle_neighbors(), &neighbors[..]);
+    let found: Vec<(u32, u8)> = mesh
+        .boundary_edges()
+        .iter()
+        .map(|edge| (edge.triangle, edge.edge))
+        .collect();
+    assert_eq!(found, boundary);
+    assert_eq!(mesh.non_manifold_edge_count(), non_manifold);
+    assert!(non_manifold > 0 && !boundary.is_empty());
+}

@@ -76,8 +76,6 @@ pub struct TargetMesh {
     pub(crate) closest_tree: OnceLock<ClosestTree>,
     /// The largest coordinate magnitude of the mesh (for rounding margins).
     pub(crate) coordinate_scale: f32,
-    /// Triangle corners in `face_tree` slot order (slot = index into `primitive_indices`).
-    pub(crate) face_tree_corners: Vec<[Vec3A; 3]>,
     /// Whether the triangle in each `face_tree` slot is degenerate.
     pub(crate) face_tree_degenerate: Vec<bool>,
     /// Per triangle, its `face_tree` slot (the inverse of `primitive_indices`).
@@ -158,8 +156,7 @@ impl TargetMesh {
             return Err(KernelError::DegenerateTriangle { triangle });
         }
 
-        let (face_tree, face_tree_corners, face_tree_degenerate) =
-            build_face_tree(&vertices, &triangles, &degenerate);
+        let (face_tree, face_tree_degenerate) = build_face_tree(&vertices, &triangles, &degenerate);
         let bounds = face_tree.nodes[0].aabb;
         let coordinate_scale = bounds.min.abs().max(bounds.max.abs()).max_element();
         let mut face_tree_slots = vec![0; triangles.len()];
@@ -177,7 +174,6 @@ impl TargetMesh {
             face_tree,
             closest_tree: OnceLock::new(),
             coordinate_scale,
-            face_tree_corners,
             face_tree_degenerate,
             face_tree_slots,
             vertex_tree: OnceLock::new(),
@@ -195,11 +191,9 @@ impl TargetMesh {
 
     pub(crate) fn closest_tree(&self) -> &ClosestTree {
         self.closest_tree.get_or_init(|| {
-            build_closest_tree(
-                &self.face_tree,
-                &self.face_tree_corners,
-                &self.face_tree_degenerate,
-            )
+            build_closest_tree(&self.face_tree, &self.face_tree_degenerate, |slot| {
+                self.slot_corners(slot)
+            })
         })
     }
 
@@ -219,6 +213,14 @@ impl TargetMesh {
     pub(crate) fn vertex_tree(&self) -> &VertexTree {
         self.vertex_tree
             .get_or_init(|| build_vertex_tree(&self.vertices, &self.triangles, &self.degenerate))
+    }
+
+    /// The corners of the triangle in `face_tree` slot `slot` (read through the triangle's vertex
+    /// indices: a copy in slot order would cost 48 bytes per triangle for every query's lifetime).
+    #[inline]
+    pub(crate) fn slot_corners(&self, slot: usize) -> [Vec3A; 3] {
+        self.triangles[self.face_tree.primitive_indices[slot] as usize]
+            .map(|index| Vec3A::from(self.vertices[index as usize]))
     }
 
     /// The vertex positions.
@@ -338,12 +340,12 @@ impl TargetMesh {
     }
 }
 
-/// The face tree and the triangle data laid out in its slot order.
+/// The face tree and whether the triangle in each of its slots is degenerate.
 fn build_face_tree(
     vertices: &[Vec3],
     triangles: &[[u32; 3]],
     degenerate: &[bool],
-) -> (Bvh2, Vec<[Vec3A; 3]>, Vec<bool>) {
+) -> (Bvh2, Vec<bool>) {
     let boxes: Vec<Aabb> = triangles
         .par_iter()
         .map(|corners| {
@@ -352,31 +354,25 @@ fn build_face_tree(
         })
         .collect();
     let tree = build_bvh(&boxes);
-    let corners = tree
-        .primitive_indices
-        .par_iter()
-        .map(|&triangle| {
-            triangles[triangle as usize].map(|index| Vec3A::from(vertices[index as usize]))
-        })
-        .collect();
+    drop(boxes); // 32 bytes per triangle, not needed past the build
     let slot_degenerate = tree
         .primitive_indices
         .iter()
         .map(|&triangle| degenerate[triangle as usize])
         .collect();
-    (tree, corners, slot_degenerate)
+    (tree, slot_degenerate)
 }
 
 /// The face tree collapsed to four children per node, its leaves renumbered to ranges of
 /// packets holding their triangles four at a time.
 fn build_closest_tree(
     face_tree: &Bvh2,
-    corners: &[[Vec3A; 3]],
     degenerate: &[bool],
+    corners: impl Fn(usize) -> [Vec3A; 3] + Sync,
 ) -> ClosestTree {
     let mut tree = Bvh4::from_bvh2(face_tree);
     // Each packet's slot range, in the order the leaves are renumbered.
-    let mut ranges: Vec<(u32, u32)> = Vec::with_capacity(corners.len() / 3 + 1);
+    let mut ranges: Vec<(u32, u32)> = Vec::with_capacity(degenerate.len() / 3 + 1);
     tree.renumber_leaves(|first, count| {
         let first_packet = u32::try_from(ranges.len()).expect("fewer than 2^32 packets");
         ranges.extend(
@@ -392,7 +388,7 @@ fn build_closest_tree(
         .map(|&(start, end)| {
             let mut lanes = [(0, [Vec3A::ZERO; 3], false); 4];
             for (lane, slot) in (start..end).enumerate() {
-                lanes[lane] = (slot, corners[slot as usize], degenerate[slot as usize]);
+                lanes[lane] = (slot, corners(slot as usize), degenerate[slot as usize]);
             }
             TrianglePacket::new(&lanes[..(end - start) as usize])
         })

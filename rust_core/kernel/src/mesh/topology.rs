@@ -26,54 +26,74 @@ pub struct Topology {
     pub non_manifold_edge_count: usize,
 }
 
-/// Computes adjacency by sorting the undirected edges of every triangle.
+/// Computes adjacency by bucketing the half-edges by their lower vertex (a compressed table, 14
+/// bytes per triangle while it runs) and grouping each bucket by the other vertex.
 ///
 /// Edges whose two ends are the same vertex (triangles that repeat an index) connect nothing and
 /// are neither boundaries nor neighbors.
 #[must_use]
 pub fn compute_topology(triangles: &[[u32; 3]]) -> Topology {
-    let mut half_edges: Vec<(u64, u32)> = triangles
+    // A half-edge is `triangle * 3 + edge`: from corner `edge` to corner `(edge + 1) % 3`.
+    let ends = |half_edge: u32| {
+        let corners = triangles[(half_edge / 3) as usize];
+        let edge = (half_edge % 3) as usize;
+        let (start, end) = (corners[edge], corners[(edge + 1) % 3]);
+        (start.min(end), start.max(end))
+    };
+    let vertex_count = triangles
         .par_iter()
-        .enumerate()
-        .flat_map_iter(|(triangle, corners)| {
-            (0..3).filter_map(move |edge| {
-                let start = corners[edge];
-                let end = corners[(edge + 1) % 3];
-                (start != end).then(|| {
-                    let key = (u64::from(start.min(end)) << 32) | u64::from(start.max(end));
-                    (key, (triangle as u32) * 3 + edge as u32)
-                })
-            })
-        })
-        .collect();
-    half_edges.par_sort_unstable();
+        .flat_map_iter(|corners| corners.iter().copied())
+        .max()
+        .map_or(0, |last| last as usize + 1);
+    // offsets[v] .. offsets[v + 1]: the half-edges whose lower vertex is v (collapsed ones left out).
+    let mut offsets = vec![0u32; vertex_count + 1];
+    for corners in triangles {
+        for edge in 0..3 {
+            let (start, end) = (corners[edge], corners[(edge + 1) % 3]);
+            if start != end {
+                offsets[start.min(end) as usize + 1] += 1;
+            }
+        }
+    }
+    for vertex in 0..vertex_count {
+        offsets[vertex + 1] += offsets[vertex];
+    }
+    let mut next = offsets.clone();
+    let mut half_edges = vec![0u32; offsets[vertex_count] as usize];
+    for (triangle, corners) in triangles.iter().enumerate() {
+        for edge in 0..3 {
+            let (start, end) = (corners[edge], corners[(edge + 1) % 3]);
+            if start != end {
+                let slot = &mut next[start.min(end) as usize];
+                half_edges[*slot as usize] = (triangle as u32) * 3 + edge as u32;
+                *slot += 1;
+            }
+        }
+    }
+    drop(next);
 
     let mut neighbors = vec![[NO_TRIANGLE; 3]; triangles.len()];
     let mut boundary_edges = Vec::new();
     let mut non_manifold_edge_count = 0;
-    let mut group_start = 0;
-    while group_start < half_edges.len() {
-        let key = half_edges[group_start].0;
-        let mut group_end = group_start + 1;
-        while group_end < half_edges.len() && half_edges[group_end].0 == key {
-            group_end += 1;
-        }
-        let group = &half_edges[group_start..group_end];
-        match group {
-            [(_, only)] => boundary_edges.push(TriangleEdge {
-                triangle: only / 3,
-                edge: (only % 3) as u8,
-            }),
-            // A triangle that repeats a vertex has its two remaining edges on top of each other:
-            // it is not its own neighbor.
-            [(_, first), (_, second)] if first / 3 == second / 3 => {}
-            [(_, first), (_, second)] => {
-                neighbors[(first / 3) as usize][(first % 3) as usize] = second / 3;
-                neighbors[(second / 3) as usize][(second % 3) as usize] = first / 3;
+    for vertex in 0..vertex_count {
+        let bucket = &mut half_edges[offsets[vertex] as usize..offsets[vertex + 1] as usize];
+        bucket.sort_unstable_by_key(|&half_edge| (ends(half_edge).1, half_edge));
+        for group in bucket.chunk_by(|&first, &second| ends(first).1 == ends(second).1) {
+            match *group {
+                [only] => boundary_edges.push(TriangleEdge {
+                    triangle: only / 3,
+                    edge: (only % 3) as u8,
+                }),
+                // A triangle that repeats a vertex has its two remaining edges on top of each
+                // other: it is not its own neighbor.
+                [first, second] if first / 3 == second / 3 => {}
+                [first, second] => {
+                    neighbors[(first / 3) as usize][(first % 3) as usize] = second / 3;
+                    neighbors[(second / 3) as usize][(second % 3) as usize] = first / 3;
+                }
+                _ => non_manifold_edge_count += 1,
             }
-            _ => non_manifold_edge_count += 1,
         }
-        group_start = group_end;
     }
     boundary_edges.sort_unstable_by_key(|edge| (edge.triangle, edge.edge));
     Topology {

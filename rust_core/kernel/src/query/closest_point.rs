@@ -100,7 +100,7 @@ impl TargetMesh {
     /// Closest point on the triangle in BVH slot `slot`, and its barycentric coordinates.
     #[inline]
     fn closest_point_in_slot(&self, point: Vec3A, slot: usize) -> (Vec3A, Vec3A) {
-        let [a, b, c] = self.face_tree_corners[slot];
+        let [a, b, c] = self.slot_corners(slot);
         if self.face_tree_degenerate[slot] {
             closest_point_on_degenerate_triangle(point, a, b, c)
         } else {

@@ -42,7 +42,7 @@ impl TargetMesh {
             None
         };
         let (t, slot) = backward.or(forward)?;
-        let [a, b, c] = self.face_tree_corners[slot];
+        let [a, b, c] = self.slot_corners(slot);
         let sign = if t < 0.0 { -1.0 } else { 1.0 };
         let (_, barycentric) =
             intersect_ray_triangle(origin, direction * sign, 0.0, f32::INFINITY, a, b, c)
@@ -110,7 +110,6 @@ impl TargetMesh {
         direction: Vec3A,
         max_distance: f32,
     ) -> Option<(f32, usize)> {
-        let corners = &self.face_tree_corners;
         let degenerate = &self.face_tree_degenerate;
         let ray = Ray::new(origin, direction, 0.0, max_distance.next_up());
         let mut hit = RayHit::none();
@@ -118,7 +117,7 @@ impl TargetMesh {
             if degenerate[slot] {
                 return f32::INFINITY;
             }
-            let [a, b, c] = corners[slot];
+            let [a, b, c] = self.slot_corners(slot);
             intersect_ray_triangle(ray.origin, ray.direction, ray.tmin, ray.tmax, a, b, c)
                 .map_or(f32::INFINITY, |(t, _)| t)
         });
