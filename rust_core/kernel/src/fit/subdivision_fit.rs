@@ -1,0 +1,329 @@
+//! Fitting a subdivision cage: move the cage so that its subdivided (limit) surface lies on the
+//! target, one Gauss–Newton round at a time.
+//!
+//! A round finds, for every fine point `p_i = S_i x + o_i` (`S` the [`SubdivisionStencils`], `o`
+//! an optional offset per fine point: what the caller's exact subdivision adds to the stencils),
+//! the closest target point `c_i`, trusts it when it is within the match distance, not on a border
+//! of the target (a hole's rim) and the target's normal there faces the fine surface's, and solves
+//!
+//! `min Σ_trusted w (S_i x + o_i − c_i)² + μ Σ_v |L_v (x − x_prev)|² + ε |x − x_prev|²`
+//!
+//! with `L` the cage's umbrella Laplacian, the fixed cage vertices eliminated. The data weight
+//! `w = 4^−levels` makes each cage vertex's data about one, whatever the level. The smoothness
+//! term asks the *displacement* to be smooth: it vanishes at a fixed point, so it only steers the
+//! steps, and cage vertices with no trusted fine point near them (over holes) follow their
+//! neighbours' displacement as a thin plate would. One sparse Cholesky factorization a round
+//! ([`LinearSystem`], shared by x, y and z).
+
+use glam::{DVec3, Vec3};
+
+use crate::error::KernelError;
+use crate::fit::catmull_clark::SubdivisionStencils;
+use crate::mesh::{NO_TRIANGLE, TargetMesh};
+use crate::wrap::linear_system::{LinearSystem, Stencils};
+
+/// The fit's parameters.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SubdivisionFitSettings {
+    /// `μ`: how strongly each step's displacement is kept smooth, relative to the data (≥ 0).
+    pub smoothness: f64,
+    /// A fine point farther than this from its closest target point is not matched (world units,
+    /// > 0; infinite: no limit).
+    pub max_distance: f32,
+    /// A match is trusted only when the target's normal there and the fine surface's have at
+    /// least this cosine (−1 … 1).
+    pub min_facing: f32,
+    /// `ε`: the pull of each cage vertex towards where it was (≥ 0, relative to the data weight of
+    /// one cage vertex); keeps a cage part with no match and no fixed vertex where it is.
+    pub damping: f64,
+}
+
+impl Default for SubdivisionFitSettings {
+    fn default() -> Self {
+        Self {
+            smoothness: 0.1,
+            max_distance: f32::INFINITY,
+            min_facing: 0.5,
+            damping: 1e-6,
+        }
+    }
+}
+
+impl SubdivisionFitSettings {
+    fn check(&self) -> Result<(), KernelError> {
+        let invalid = |name, reason: &str| {
+            Err(KernelError::InvalidArgument {
+                name,
+                reason: reason.to_owned(),
+            })
+        };
+        if !(self.smoothness.is_finite() && self.smoothness >= 0.0) {
+            return invalid("smoothness", "must be a finite number >= 0");
+        }
+        if !(self.max_distance > 0.0) {
+            return invalid("max_distance", "must be > 0 (infinite for no limit)");
+        }
+        if !(-1.0..=1.0).contains(&self.min_facing) {
+            return invalid("min_facing", "must be a cosine from -1 to 1");
+        }
+        if !(self.damping.is_finite() && self.damping >= 0.0) {
+            return invalid("damping", "must be a finite number >= 0");
+        }
+        Ok(())
+    }
+}
+
+/// What a round saw before it moved the cage, and what it did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FitRound {
+    /// The new cage positions.
+    pub positions: Vec<DVec3>,
+    /// Per fine vertex, its distance to the target before the round (NaN off the surface or with
+    /// no target point within the match distance).
+    pub distances: Vec<f32>,
+    /// Fine points whose match was trusted.
+    pub trusted: usize,
+}
+
+/// A cage fit in progress: the stencils, the fixed cage vertices and the settings.
+#[derive(Debug, Clone)]
+pub struct SubdivisionFit {
+    stencils: SubdivisionStencils,
+    fixed: Vec<bool>,
+    settings: SubdivisionFitSettings,
+    /// Per cage vertex, its edge neighbours.
+    neighbors: Vec<Vec<u32>>,
+}
+
+impl SubdivisionFit {
+    /// A fit of the cage of `stencils`, `fixed[v]` holding cage vertex `v` where it is (anchors,
+    /// vertices left out). Cage vertices on no face are always held.
+    ///
+    /// # Errors
+    /// [`KernelError::LengthMismatch`] when `fixed` has not one flag per cage vertex;
+    /// [`KernelError::InvalidArgument`] for settings out of their domain.
+    pub fn new(
+        stencils: SubdivisionStencils,
+        fixed: Vec<bool>,
+        settings: SubdivisionFitSettings,
+    ) -> Result<Self, KernelError> {
+        settings.check()?;
+        let cage_vertex_count = stencils.cage_vertex_count();
+        if fixed.len() != cage_vertex_count {
+            return Err(KernelError::LengthMismatch {
+                what: "fixed flags and cage vertices",
+                first: fixed.len(),
+                second: cage_vertex_count,
+            });
+        }
+        let mut neighbors = vec![Vec::new(); cage_vertex_count];
+        for &[a, b] in stencils.cage_edges() {
+            neighbors[a as usize].push(b);
+            neighbors[b as usize].push(a);
+        }
+        let fixed = fixed
+            .iter()
+            .zip(&neighbors)
+            .map(|(&fixed, neighbors)| fixed || neighbors.is_empty())
+            .collect();
+        Ok(Self {
+            stencils,
+            fixed,
+            settings,
+            neighbors,
+        })
+    }
+
+    /// The stencils.
+    #[must_use]
+    pub fn stencils(&self) -> &SubdivisionStencils {
+        &self.stencils
+    }
+
+    /// Per cage vertex, whether the fit holds it.
+    #[must_use]
+    pub fn fixed(&self) -> &[bool] {
+        &self.fixed
+    }
+
+    fn check_inputs(&self, cage: &[DVec3], offsets: Option<&[DVec3]>) -> Result<(), KernelError> {
+        if let Some(index) = cage.iter().position(|point| !point.is_finite()) {
+            return Err(KernelError::NonFinite {
+                what: "cage position",
+                index,
+            });
+        }
+        if let Some(offsets) = offsets {
+            if offsets.len() != self.stencils.fine_vertex_count() {
+                return Err(KernelError::LengthMismatch {
+                    what: "fine offsets and fine vertices",
+                    first: offsets.len(),
+                    second: self.stencils.fine_vertex_count(),
+                });
+            }
+            if let Some(index) = offsets.iter().position(|offset| !offset.is_finite()) {
+                return Err(KernelError::NonFinite {
+                    what: "fine offset",
+                    index,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// The fine points of `cage` plus `offsets`.
+    ///
+    /// # Errors
+    /// [`KernelError::LengthMismatch`] for arrays of the wrong length, [`KernelError::NonFinite`]
+    /// for a NaN or infinite input.
+    pub fn fine_points(
+        &self,
+        cage: &[DVec3],
+        offsets: Option<&[DVec3]>,
+    ) -> Result<Vec<DVec3>, KernelError> {
+        let mut fine = self.stencils.apply(cage)?;
+        self.check_inputs(cage, offsets)?;
+        if let Some(offsets) = offsets {
+            for (point, offset) in fine.iter_mut().zip(offsets) {
+                *point += *offset;
+            }
+        }
+        Ok(fine)
+    }
+
+    /// Per fine vertex, the distance of the fine point to the target (NaN off the surface, or with
+    /// no target point within the match distance).
+    ///
+    /// # Errors
+    /// As [`SubdivisionFit::fine_points`].
+    pub fn distances(
+        &self,
+        target: &TargetMesh,
+        cage: &[DVec3],
+        offsets: Option<&[DVec3]>,
+    ) -> Result<Vec<f32>, KernelError> {
+        let fine = self.fine_points(cage, offsets)?;
+        let points: Vec<Vec3> = fine.iter().map(|point| point.as_vec3()).collect();
+        let hits = target.closest_points(&points, self.settings.max_distance)?;
+        Ok(hits
+            .iter()
+            .zip(self.stencils.on_surface())
+            .map(|(hit, &on_surface)| match hit {
+                Some(hit) if on_surface => hit.distance,
+                _ => f32::NAN,
+            })
+            .collect())
+    }
+
+    /// One Gauss–Newton round from `cage` (see the module's documentation).
+    ///
+    /// # Errors
+    /// As [`SubdivisionFit::fine_points`]; [`KernelError::InvalidArgument`] when the linear system
+    /// cannot be factored (out of memory).
+    pub fn round(
+        &self,
+        target: &TargetMesh,
+        cage: &[DVec3],
+        offsets: Option<&[DVec3]>,
+    ) -> Result<FitRound, KernelError> {
+        let fine = self.fine_points(cage, offsets)?;
+        let points: Vec<Vec3> = fine.iter().map(|point| point.as_vec3()).collect();
+        let hits = target.closest_points(&points, self.settings.max_distance)?;
+        let normals = self.stencils.fine_normals(&fine);
+        let target_normals = target.vertex_normals();
+        let triangles = target.triangles();
+        let neighbors = target.triangle_neighbors();
+        let data_weight = 0.25f64.powi(self.stencils.levels() as i32);
+        let matrix = self.stencils.stencils();
+        let mut terms = Stencils::new();
+        let mut targets: Vec<DVec3> = Vec::new();
+        let mut distances = vec![f32::NAN; fine.len()];
+        for (fine_vertex, hit) in hits.iter().enumerate() {
+            if !self.stencils.on_surface()[fine_vertex] {
+                continue;
+            }
+            let Some(hit) = hit else { continue };
+            distances[fine_vertex] = hit.distance;
+            let triangle = hit.face_point.triangle as usize;
+            let weights = hit.face_point.barycentric;
+            let on_rim = (0..3).any(|edge| {
+                neighbors[triangle][edge] == NO_TRIANGLE && weights[(edge + 2) % 3] <= 1e-6
+            });
+            if on_rim {
+                continue;
+            }
+            let corners = triangles[triangle];
+            let target_normal = (target_normals[corners[0] as usize] * weights.x
+                + target_normals[corners[1] as usize] * weights.y
+                + target_normals[corners[2] as usize] * weights.z)
+                .normalize_or_zero();
+            if target_normal.dot(normals[fine_vertex]) < self.settings.min_facing {
+                continue;
+            }
+            terms.push(matrix.entries(fine_vertex), data_weight);
+            let offset = offsets.map_or(DVec3::ZERO, |offsets| offsets[fine_vertex]);
+            targets.push(hit.position.as_dvec3() - offset);
+        }
+        let trusted = terms.len();
+        // The smoothness of the step: L_v (x − x_prev) = 0, i.e. L_v x = L_v x_prev.
+        if self.settings.smoothness > 0.0 {
+            for (vertex, around) in self.neighbors.iter().enumerate() {
+                if around.is_empty() {
+                    continue;
+                }
+                let share = 1.0 / around.len() as f64;
+                let entries = std::iter::once((vertex as u32, 1.0))
+                    .chain(around.iter().map(|&neighbor| (neighbor, -share)));
+                terms.push(entries, self.settings.smoothness);
+                let laplacian = cage[vertex]
+                    - around
+                        .iter()
+                        .map(|&neighbor| cage[neighbor as usize])
+                        .sum::<DVec3>()
+                        * share;
+                targets.push(laplacian);
+            }
+        }
+        let fixed: Vec<Option<DVec3>> = self
+            .fixed
+            .iter()
+            .zip(cage)
+            .map(|(&fixed, &position)| fixed.then_some(position))
+            .collect();
+        let mut system = LinearSystem::new(&terms, cage.len(), &fixed)?;
+        let rows = system.rows();
+        let mut right_hand_side = vec![DVec3::ZERO; rows];
+        for (term, &wanted) in targets.iter().enumerate() {
+            let weight = terms.weights[term];
+            for (vertex, coefficient) in terms.entries(term) {
+                if let Some(row) = system.row_of(vertex) {
+                    right_hand_side[row as usize] += wanted * (weight * coefficient);
+                }
+            }
+        }
+        let damping = self.settings.damping.max(1e-12);
+        for (row, &vertex) in system.vertex_of_row().iter().enumerate() {
+            right_hand_side[row] += cage[vertex as usize] * damping;
+        }
+        system.factor(&vec![damping; rows])?;
+        let solution = system.solve(&right_hand_side)?;
+        if let Some(row) = solution.iter().position(|point| !point.is_finite()) {
+            return Err(KernelError::InvalidArgument {
+                name: "subdivision fit",
+                reason: format!(
+                    "the round gave cage vertex {} a non-finite position",
+                    system.vertex_of_row()[row]
+                ),
+            });
+        }
+        let mut positions = cage.to_vec();
+        for (row, &vertex) in system.vertex_of_row().iter().enumerate() {
+            positions[vertex as usize] = solution[row];
+        }
+        Ok(FitRound {
+            positions,
+            distances,
+            trusted,
+        })
+    }
+}
