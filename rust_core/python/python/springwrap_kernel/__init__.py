@@ -23,9 +23,12 @@ from ._native import (
     LayoutStructure,
     NonFiniteError,
     SpringwrapError,
+    SubdivisionFit,
+    SubdivisionStencils,
     WrapSettings,
     __version__,
     fit_transform,
+    subdivision_fit_defaults,
 )
 
 __all__ = [
@@ -46,6 +49,8 @@ __all__ = [
     "NonFiniteError",
     "SpringwrapError",
     "StepReport",
+    "SubdivisionFit",
+    "SubdivisionStencils",
     "SurfaceHits",
     "TargetMesh",
     "VertexHits",
@@ -53,6 +58,7 @@ __all__ = [
     "WrapSolver",
     "__version__",
     "fit_transform",
+    "subdivision_fit_defaults",
 ]
 
 
