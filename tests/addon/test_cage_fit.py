@@ -124,22 +124,27 @@ def test_a_cage_over_a_hole_follows_its_neighbours_across_it():
     assert abs(radii[top].mean() - radii[np.abs(points[:, 2]) < 0.5].mean()) < 0.03
 
 
-def test_anchored_and_unselected_vertices_are_held():
+def test_unselected_vertices_are_held_and_anchors_hold_the_surface_on_their_points():
     target = sphere_target()
     layout = cube_sphere_cage(target)
     start = local_positions(layout).copy()
-    for vertex in (0, 5):
-        assert bpy.ops.springwrap.anchor_add(vertex_index=vertex) == {"FINISHED"}
     selection = np.arange(len(start)) % 3 != 0
+    selection[[1, 7]] = True
     layout.data.vertices.foreach_set("select", selection)
+    # Anchors at the target's closest point to their vertex (on the sphere: the vertex itself), one moved aside.
+    for vertex in (1, 7):
+        assert bpy.ops.springwrap.anchor_add(vertex_index=vertex) == {"FINISHED"}
+    anchor_points = np.array([anchor.location[:] for anchor in layout.springwrap.anchors])
     assert bpy.ops.springwrap.fit_subdivision(only_selected=True) == {"FINISHED"}
     end = local_positions(layout)
-    held = ~selection
-    held[[0, 5]] = True
-    assert end[held].tobytes() == start[held].tobytes()
-    assert (np.linalg.norm(end[~held] - start[~held], axis=1) > 1e-4).all()
+    assert end[~selection].tobytes() == start[~selection].tobytes()
+    assert (np.linalg.norm(end[selection] - start[selection], axis=1) > 1e-4).all()
     states, _, _ = read_state(layout)
-    assert (states[~held] == 0).all()
+    assert (states[selection] == 0).all()
+    # Blender numbers the cage's vertices first: their points of the subdivided surface are on the anchors.
+    surface = subdivided_world_points(layout)
+    assert np.linalg.norm(surface[[1, 7]] - anchor_points, axis=1).max() < 2e-3
+    assert bpy.types.SPRINGWRAP_OT_fit_subdivision.last_outcome.anchors == 2
 
 
 @pytest.mark.parametrize(

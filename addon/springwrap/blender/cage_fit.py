@@ -98,7 +98,8 @@ def fit_subdivision(
     context: bpy.types.Context, layout: bpy.types.Object, target, parameters: CageFitParameters
 ) -> cage_fit.CageFitOutcome:
     """Fit the layout (object mode data) as a subdivision cage to ``target`` (a ``core.target.Target``) and
-    write it: moved vertices become space-points. Raises one of ``core.errors.ERRORS`` before writing anything.
+    write it: moved vertices become space-points. Anchors hold their vertex's point of the subdivided surface on
+    their target point (face anchors found again on the current target; the list itself is not rewritten). Raises one of ``core.errors.ERRORS`` before writing anything.
     """
     check_no_creases(layout)
     arrays = layout_data.read_layout(layout)
@@ -108,13 +109,12 @@ def fit_subdivision(
     vertex_count = arrays.positions.shape[0]
     on_face = np.zeros(vertex_count, dtype=bool)
     on_face[np.asarray(topology.face_corners, dtype=np.int64)] = True
-    anchored = anchor_logic.anchored_mask(anchor_data.read_anchors(layout), vertex_count)
-    movable = cage_fit.movable_mask(vertex_count, on_face, anchored, arrays.selection, parameters.only_selected)
+    movable = cage_fit.movable_mask(vertex_count, on_face, arrays.selection, parameters.only_selected)
     if not movable.any():
-        raise LayoutError(
-            f"Layout '{layout.name}': no vertex to move (every vertex on a face is anchored"
-            + (" or unselected)" if parameters.only_selected else ")")
-        )
+        raise LayoutError(f"Layout '{layout.name}': no vertex to move (no selected vertex on a face)")
+    anchors, _ = anchor_logic.resolve(anchor_data.read_anchors(layout), target, layout.springwrap.anchors_signature)
+    valid = anchor_logic.valid_vertex_mask(anchors, vertex_count)
+    anchor_logic.check_anchor_locations(anchors, valid)
     world = transforms.world_positions(arrays)
     with BlenderSubdivision(context, layout, parameters.levels, parameters.boundary) as subdivision:
         outcome = cage_fit.fit_cage(
@@ -128,6 +128,8 @@ def fit_subdivision(
             boundary=parameters.boundary,
             smoothness=parameters.smoothness,
             max_distance=parameters.max_distance,
+            anchor_vertices=anchors.vertex_indices[valid],
+            anchor_points=anchors.locations[valid],
             evaluate=subdivision.evaluate,
         )
     local = transforms.to_local(arrays.matrix_world, outcome.positions)

@@ -51,6 +51,7 @@ class CageFitOutcome(NamedTuple):
     after: FitDistances
     rounds: int
     trusted: int  # fine points matched and trusted in the last round
+    anchors: int  # anchors whose vertex's limit point was held
     fine_vertex_count: int
     exact: bool  # the rounds used Blender's own subdivided points (else the stencils alone)
 
@@ -60,12 +61,9 @@ def fit_defaults() -> dict:
     return springwrap_kernel.subdivision_fit_defaults()
 
 
-def movable_mask(
-    vertex_count: int, on_face: np.ndarray, anchored: np.ndarray, selection: np.ndarray, only_selected: bool
-) -> np.ndarray:
-    """(N,) bool: the cage vertices the fit may move: on a face, not anchored, selected when asked."""
+def movable_mask(vertex_count: int, on_face: np.ndarray, selection: np.ndarray, only_selected: bool) -> np.ndarray:
+    """(N,) bool: the cage vertices the fit may move: on a face, and selected when asked."""
     movable = np.asarray(on_face, dtype=bool).copy()
-    movable &= ~np.asarray(anchored, dtype=bool)
     if only_selected:
         movable &= np.asarray(selection, dtype=bool)
     if movable.shape != (vertex_count,):
@@ -124,13 +122,16 @@ def fit_cage(
     boundary: str = "ALL",
     smoothness: float | None = None,
     max_distance: float = 0.0,
+    anchor_vertices: np.ndarray | None = None,
+    anchor_points: np.ndarray | None = None,
     evaluate: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]] | None = None,
 ) -> CageFitOutcome:
     """Fit the cage (world positions) so that its level-``levels`` subdivided surface lies on ``target_mesh``.
 
     ``evaluate(cage_world)`` returns Blender's subdivided points and triangles for a cage (world space);
     without it, or when its points cannot be paired with the stencils', the stencils' surface is fitted.
-    ``max_distance`` 0 means no limit. Raises :class:`LayoutError` or a kernel error on bad input, before
+    ``max_distance`` 0 means no limit. Anchors (cage vertex, world point) hold where the subdivided surface
+    passes at their vertex: its limit point is pulled onto the anchor's point. Raises :class:`LayoutError` or a kernel error on bad input, before
     anything is changed (nothing here writes).
     """
     if rounds < 1:
@@ -150,6 +151,9 @@ def fit_cage(
         settings["smoothness"] = float(smoothness)
     if max_distance > 0.0:
         settings["max_distance"] = float(max_distance)
+    if anchor_vertices is not None and len(anchor_vertices):
+        settings["anchor_vertices"] = np.ascontiguousarray(anchor_vertices, dtype=np.uint32)
+        settings["anchor_points"] = transforms.as_float32_points(anchor_points)
     fit = springwrap_kernel.SubdivisionFit(stencils, **settings)
     positions = transforms.as_float32_points(cage)
     on_surface = np.asarray(stencils.on_surface(), dtype=bool)
@@ -190,6 +194,7 @@ def fit_cage(
         after=after,
         rounds=rounds,
         trusted=int(trusted),
+        anchors=int(sum(1 for vertex in (anchor_vertices if anchor_vertices is not None else []) if movable[vertex])),
         fine_vertex_count=int(stencils.fine_vertex_count),
         exact=matching is not None,
     )
@@ -201,9 +206,11 @@ def summary(outcome: CageFitOutcome, levels: int, milliseconds: float) -> str:
     text = (
         f"Fitted the level-{levels} subdivision surface ({outcome.fine_vertex_count} points) in {outcome.rounds} "
         f"rounds: distance to the target mean {before.mean:.4g} -> {after.mean:.4g}, "
-        f"max {before.max:.4g} -> {after.max:.4g}; {int(outcome.moved.sum())} cage vertices free to move, "
-        f"in {milliseconds:.0f} ms"
+        f"max {before.max:.4g} -> {after.max:.4g}; {int(outcome.moved.sum())} cage vertices free to move"
     )
+    if outcome.anchors:
+        text += f", {outcome.anchors} anchors held on the surface"
+    text += f", in {milliseconds:.0f} ms"
     if not outcome.exact:
         text += " (Blender's subdivided points could not be paired with the fit's: the fit's own surface was used)"
     return text

@@ -151,6 +151,52 @@ fn fixed_vertices_stay_and_the_rest_still_fits() {
 }
 
 #[test]
+fn an_anchor_holds_its_vertex_limit_point_on_the_anchor() {
+    let target = sphere_target(1.0);
+    let (cage, corners, sizes) = cube_sphere(3, 1.0);
+    let stencils =
+        SubdivisionStencils::new(cage.len(), &corners, &sizes, 2, BoundaryRule::default()).unwrap();
+    // Two anchors on the sphere, one a little off its vertex's own direction.
+    let anchored = [0u32, 17];
+    let points = [
+        cage[0],
+        (cage[17] + DVec3::new(0.03, -0.02, 0.01)).normalize(),
+    ];
+    let fit = SubdivisionFit::new(
+        stencils,
+        vec![false; cage.len()],
+        SubdivisionFitSettings::default(),
+    )
+    .unwrap()
+    .with_anchors(&anchored, &points)
+    .unwrap();
+    let mut positions = cage.clone();
+    for _ in 0..6 {
+        positions = fit.round(&target, &positions, None).unwrap().positions;
+    }
+    let fine = fit.fine_points(&positions, None).unwrap();
+    for (&vertex, point) in anchored.iter().zip(&points) {
+        let gap = fine[vertex as usize].distance(*point);
+        assert!(gap < 2e-3, "vertex {vertex}: {gap}");
+    }
+    // The rest still fits.
+    let after = max_distance(&fit.distances(&target, &positions, None).unwrap());
+    assert!(after < 0.02, "{after}");
+    let error = SubdivisionFit::new(
+        fit.stencils().clone(),
+        vec![false; cage.len()],
+        SubdivisionFitSettings::default(),
+    )
+    .unwrap()
+    .with_anchors(&[10_000], &[DVec3::ZERO])
+    .unwrap_err();
+    assert!(
+        matches!(error, KernelError::LayoutIndexOutOfRange { .. }),
+        "{error}"
+    );
+}
+
+#[test]
 fn offsets_shift_the_fine_points_and_the_fit_makes_up_for_them() {
     let target = sphere_target(1.0);
     let (cage, corners, sizes) = cube_sphere(3, 1.0);
@@ -258,6 +304,10 @@ fn bad_inputs_are_refused_with_the_reason() {
         },
         SubdivisionFitSettings {
             damping: f64::NAN,
+            ..Default::default()
+        },
+        SubdivisionFitSettings {
+            anchor_weight: 0.0,
             ..Default::default()
         },
     ] {

@@ -119,7 +119,13 @@ impl PySubdivisionStencils {
 
     /// (Q, 4) uint32 quads of the last level over the fine vertices, wound as the cage's faces.
     fn fine_quads<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<u32>>> {
-        let flat = self.stencils.fine_quads().iter().flatten().copied().collect();
+        let flat = self
+            .stencils
+            .fine_quads()
+            .iter()
+            .flatten()
+            .copied()
+            .collect();
         rows_array(py, flat, 4)
     }
 
@@ -166,7 +172,11 @@ impl PySubdivisionFit {
         max_distance = None,
         min_facing = None,
         damping = None,
+        anchor_vertices = None,
+        anchor_points = None,
+        anchor_weight = None,
     ))]
+    #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
         stencils: &Bound<'_, PyAny>,
@@ -175,6 +185,9 @@ impl PySubdivisionFit {
         max_distance: Option<f32>,
         min_facing: Option<f32>,
         damping: Option<f64>,
+        anchor_vertices: Option<&Bound<'_, PyAny>>,
+        anchor_points: Option<&Bound<'_, PyAny>>,
+        anchor_weight: Option<f64>,
     ) -> PyResult<Self> {
         let Ok(stencils) = stencils.cast::<PySubdivisionStencils>() else {
             return Err(PyTypeError::new_err(
@@ -192,8 +205,20 @@ impl PySubdivisionFit {
             max_distance: max_distance.unwrap_or(defaults.max_distance),
             min_facing: min_facing.unwrap_or(defaults.min_facing),
             damping: damping.unwrap_or(defaults.damping),
+            anchor_weight: anchor_weight.unwrap_or(defaults.anchor_weight),
         };
-        let fit = run_kernel(py, || SubdivisionFit::new(stencils, fixed, settings))?;
+        let anchor_vertices = match anchor_vertices.filter(|array| !array.is_none()) {
+            Some(array) => read_array::<u32>("anchor_vertices", array, None)?,
+            None => Vec::new(),
+        };
+        let anchor_points = match anchor_points.filter(|array| !array.is_none()) {
+            Some(array) => read_points("anchor_points", array)?,
+            None => Vec::new(),
+        };
+        let fit = run_kernel(py, || {
+            SubdivisionFit::new(stencils, fixed, settings)?
+                .with_anchors(&anchor_vertices, &anchor_points)
+        })?;
         Ok(Self { fit: Arc::new(fit) })
     }
 
@@ -245,11 +270,7 @@ impl PySubdivisionFit {
         target: &Bound<'py, PyTargetMesh>,
         cage: &Bound<'py, PyAny>,
         offsets: Option<&Bound<'py, PyAny>>,
-    ) -> PyResult<(
-        Bound<'py, PyArray2<f32>>,
-        Bound<'py, PyArray1<f32>>,
-        usize,
-    )> {
+    ) -> PyResult<(Bound<'py, PyArray2<f32>>, Bound<'py, PyArray1<f32>>, usize)> {
         let mesh = Arc::clone(&target.get().mesh);
         let cage = read_points("cage", cage)?;
         let offsets = read_offsets(offsets)?;
@@ -263,7 +284,8 @@ impl PySubdivisionFit {
     }
 }
 
-/// The fit's default settings: {"smoothness", "max_distance", "min_facing", "damping"}.
+/// The fit's default settings: {"smoothness", "max_distance", "min_facing", "damping",
+/// "anchor_weight", "max_levels"}.
 #[pyfunction(name = "subdivision_fit_defaults")]
 fn subdivision_fit_defaults_py(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     let defaults = SubdivisionFitSettings::default();
@@ -272,6 +294,7 @@ fn subdivision_fit_defaults_py(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     dict.set_item("max_distance", defaults.max_distance)?;
     dict.set_item("min_facing", defaults.min_facing)?;
     dict.set_item("damping", defaults.damping)?;
+    dict.set_item("anchor_weight", defaults.anchor_weight)?;
     dict.set_item("max_levels", springwrap_kernel::fit::MAX_LEVELS)?;
     Ok(dict)
 }

@@ -8,7 +8,11 @@
 //!
 //! `min Σ_trusted w (S_i x + o_i − c_i)² + μ Σ_v |L_v (x − x_prev)|² + ε |x − x_prev|²`
 //!
-//! with `L` the cage's umbrella Laplacian, the fixed cage vertices eliminated. The data weight
+//! with `L` the cage's umbrella Laplacian, the fixed cage vertices eliminated. An *anchored* cage
+//! vertex `a` has its own limit point (fine vertex `a`: the cage's vertices come first) pulled to
+//! its anchor's point `t_a` by a term `w_anchor |S_a x + o_a − t_a|²` instead of its closest point:
+//! the anchor holds where the subdivided surface passes, not the cage vertex (a cage vertex held on
+//! the target would dimple the surface around it). The data weight
 //! `w = 4^−levels` makes each cage vertex's data about one, whatever the level. The smoothness
 //! term asks the *displacement* to be smooth: it vanishes at a fixed point, so it only steers the
 //! steps, and cage vertices with no trusted fine point near them (over holes) follow their
@@ -36,6 +40,9 @@ pub struct SubdivisionFitSettings {
     /// `ε`: the pull of each cage vertex towards where it was (≥ 0, relative to the data weight of
     /// one cage vertex); keeps a cage part with no match and no fixed vertex where it is.
     pub damping: f64,
+    /// `w_anchor`: the weight of an anchor's pull on its vertex's limit point, relative to the data
+    /// weight of one cage vertex (> 0).
+    pub anchor_weight: f64,
 }
 
 impl Default for SubdivisionFitSettings {
@@ -45,6 +52,7 @@ impl Default for SubdivisionFitSettings {
             max_distance: f32::INFINITY,
             min_facing: 0.5,
             damping: 1e-6,
+            anchor_weight: 100.0,
         }
     }
 }
@@ -69,6 +77,9 @@ impl SubdivisionFitSettings {
         if !(self.damping.is_finite() && self.damping >= 0.0) {
             return invalid("damping", "must be a finite number >= 0");
         }
+        if !(self.anchor_weight.is_finite() && self.anchor_weight > 0.0) {
+            return invalid("anchor_weight", "must be a finite number > 0");
+        }
         Ok(())
     }
 }
@@ -81,7 +92,7 @@ pub struct FitRound {
     /// Per fine vertex, its distance to the target before the round (NaN off the surface or with
     /// no target point within the match distance).
     pub distances: Vec<f32>,
-    /// Fine points whose match was trusted.
+    /// Fine points whose closest-point match was trusted (anchored limit points not counted).
     pub trusted: usize,
 }
 
@@ -93,6 +104,8 @@ pub struct SubdivisionFit {
     settings: SubdivisionFitSettings,
     /// Per cage vertex, its edge neighbours.
     neighbors: Vec<Vec<u32>>,
+    /// Per cage vertex, the point its limit point is pulled to, if anchored.
+    anchors: Vec<Option<DVec3>>,
 }
 
 impl SubdivisionFit {
@@ -131,7 +144,49 @@ impl SubdivisionFit {
             fixed,
             settings,
             neighbors,
+            anchors: vec![None; cage_vertex_count],
         })
+    }
+
+    /// The fit with anchors: the limit point of cage vertex `vertices[k]` pulled to `points[k]`
+    /// (replacing any earlier anchor of that vertex). Anchors of fixed vertices change nothing.
+    ///
+    /// # Errors
+    /// [`KernelError::LengthMismatch`] when the arrays differ in length,
+    /// [`KernelError::LayoutIndexOutOfRange`] for a vertex that is not a cage vertex,
+    /// [`KernelError::NonFinite`] for a NaN or infinite point.
+    pub fn with_anchors(mut self, vertices: &[u32], points: &[DVec3]) -> Result<Self, KernelError> {
+        if vertices.len() != points.len() {
+            return Err(KernelError::LengthMismatch {
+                what: "anchor vertices and anchor points",
+                first: vertices.len(),
+                second: points.len(),
+            });
+        }
+        for (index, (&vertex, point)) in vertices.iter().zip(points).enumerate() {
+            if vertex as usize >= self.anchors.len() {
+                return Err(KernelError::LayoutIndexOutOfRange {
+                    element: "anchor",
+                    index,
+                    vertex,
+                    vertex_count: self.anchors.len(),
+                });
+            }
+            if !point.is_finite() {
+                return Err(KernelError::NonFinite {
+                    what: "anchor point",
+                    index,
+                });
+            }
+            self.anchors[vertex as usize] = Some(*point);
+        }
+        Ok(self)
+    }
+
+    /// Per cage vertex, the point its limit point is pulled to, if anchored.
+    #[must_use]
+    pub fn anchors(&self) -> &[Option<DVec3>] {
+        &self.anchors
     }
 
     /// The stencils.
@@ -238,12 +293,27 @@ impl SubdivisionFit {
         let mut terms = Stencils::new();
         let mut targets: Vec<DVec3> = Vec::new();
         let mut distances = vec![f32::NAN; fine.len()];
+        let mut trusted = 0;
+        let offset_of =
+            |fine_vertex: usize| offsets.map_or(DVec3::ZERO, |offsets| offsets[fine_vertex]);
+        let anchor_weight = self.settings.anchor_weight;
+        for (vertex, anchor) in self.anchors.iter().enumerate() {
+            if let Some(point) = anchor {
+                if self.stencils.on_surface()[vertex] && !self.fixed[vertex] {
+                    terms.push(matrix.entries(vertex), anchor_weight);
+                    targets.push(*point - offset_of(vertex));
+                }
+            }
+        }
         for (fine_vertex, hit) in hits.iter().enumerate() {
             if !self.stencils.on_surface()[fine_vertex] {
                 continue;
             }
             let Some(hit) = hit else { continue };
             distances[fine_vertex] = hit.distance;
+            if fine_vertex < self.anchors.len() && self.anchors[fine_vertex].is_some() {
+                continue;
+            }
             let triangle = hit.face_point.triangle as usize;
             let weights = hit.face_point.barycentric;
             let on_rim = (0..3).any(|edge| {
@@ -261,10 +331,9 @@ impl SubdivisionFit {
                 continue;
             }
             terms.push(matrix.entries(fine_vertex), data_weight);
-            let offset = offsets.map_or(DVec3::ZERO, |offsets| offsets[fine_vertex]);
-            targets.push(hit.position.as_dvec3() - offset);
+            targets.push(hit.position.as_dvec3() - offset_of(fine_vertex));
+            trusted += 1;
         }
-        let trusted = terms.len();
         // The smoothness of the step: L_v (x − x_prev) = 0, i.e. L_v x = L_v x_prev.
         if self.settings.smoothness > 0.0 {
             for (vertex, around) in self.neighbors.iter().enumerate() {

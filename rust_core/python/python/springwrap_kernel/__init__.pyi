@@ -459,8 +459,9 @@ class SubdivisionFit:
     exact evaluation adds to the stencils) to its closest target point, trusted within ``max_distance``,
     not on a border of the target (a hole's rim) and with normals of cosine at least ``min_facing``, and
     solves ``min Σ w |S x + o − c|² + smoothness Σ |L (x − x_prev)|² + damping |x − x_prev|²`` with the
-    ``fixed`` vertices (bool per cage vertex; and those on no face) held. Defaults:
-    :func:`subdivision_fit_defaults`.
+    ``fixed`` vertices (bool per cage vertex; and those on no face) held. An anchor pulls the *limit point* of
+    its cage vertex ``anchor_vertices[k]`` to ``anchor_points[k]`` (weight ``anchor_weight``) instead of its
+    closest point. Defaults: :func:`subdivision_fit_defaults`.
     """
 
     def __init__(
@@ -472,6 +473,9 @@ class SubdivisionFit:
         max_distance: float | None = None,
         min_facing: float | None = None,
         damping: float | None = None,
+        anchor_vertices: npt.NDArray[np.uint32] | None = None,
+        anchor_points: npt.NDArray[np.float32] | None = None,
+        anchor_weight: float | None = None,
     ) -> None: ...
     def fixed(self) -> npt.NDArray[np.bool_]:
         """(N,) the cage vertices the fit holds."""
@@ -489,5 +493,5 @@ class SubdivisionFit:
         """One round: (the new cage, the fine points' distances before it, the trusted matches)."""
 
 def subdivision_fit_defaults() -> dict[str, float]:
-    """The kernel's defaults of :class:`SubdivisionFit` (smoothness, max_distance, min_facing, damping) and
-    the deepest level (max_levels)."""
+    """The kernel's defaults of :class:`SubdivisionFit` (smoothness, max_distance, min_facing, damping,
+    anchor_weight) and the deepest level (max_levels)."""
