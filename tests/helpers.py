@@ -256,7 +256,14 @@ def cube_sphere_cage(cuts: int = 3, radius: float = 1.0):
         return index_of[grid_point]
 
     # Each side: its normal axis and sign, and two tangent axes u, v with u x v along the normal.
-    for axis, sign, u_axis, v_axis in ((0, 1, 1, 2), (0, -1, 2, 1), (1, 1, 2, 0), (1, -1, 0, 2), (2, 1, 0, 1), (2, -1, 1, 0)):
+    for axis, sign, u_axis, v_axis in (
+        (0, 1, 1, 2),
+        (0, -1, 2, 1),
+        (1, 1, 2, 0),
+        (1, -1, 0, 2),
+        (2, 1, 0, 1),
+        (2, -1, 1, 0),
+    ):
         for i in range(cuts):
             for j in range(cuts):
                 for du, dv in ((0, 0), (1, 0), (1, 1), (0, 1)):

@@ -102,9 +102,13 @@ def test_bad_fit_inputs_raise_the_kernels_exceptions():
         with pytest.raises(sk.InvalidArgumentError, match=name):
             sk.SubdivisionFit(stencils, **{name: value})
     with pytest.raises(sk.IndexOutOfRangeError, match="anchor 0"):
-        sk.SubdivisionFit(stencils, anchor_vertices=np.array([99], np.uint32), anchor_points=np.zeros((1, 3), np.float32))
+        sk.SubdivisionFit(
+            stencils, anchor_vertices=np.array([99], np.uint32), anchor_points=np.zeros((1, 3), np.float32)
+        )
     with pytest.raises(sk.InvalidArgumentError, match="lengths differ"):
-        sk.SubdivisionFit(stencils, anchor_vertices=np.array([1], np.uint32), anchor_points=np.zeros((2, 3), np.float32))
+        sk.SubdivisionFit(
+            stencils, anchor_vertices=np.array([1], np.uint32), anchor_points=np.zeros((2, 3), np.float32)
+        )
     fit = sk.SubdivisionFit(stencils)
     bad = positions.copy()
     bad[2, 1] = np.nan
