@@ -20,6 +20,7 @@
 //! ([`LinearSystem`], shared by x, y and z).
 
 use glam::{DVec3, Vec3};
+use rayon::prelude::*;
 
 use crate::error::KernelError;
 use crate::fit::catmull_clark::SubdivisionStencils;
@@ -106,6 +107,9 @@ pub struct SubdivisionFit {
     neighbors: Vec<Vec<u32>>,
     /// Per cage vertex, the point its limit point is pulled to, if anchored.
     anchors: Vec<Option<DVec3>>,
+    /// The stencils' transpose: per cage vertex, the fine vertices whose stencil has it, and the
+    /// coefficient.
+    columns: Vec<Vec<(u32, f64)>>,
 }
 
 impl SubdivisionFit {
@@ -139,12 +143,20 @@ impl SubdivisionFit {
             .zip(&neighbors)
             .map(|(&fixed, neighbors)| fixed || neighbors.is_empty())
             .collect();
+        let mut columns = vec![Vec::new(); cage_vertex_count];
+        let matrix = stencils.stencils();
+        for fine_vertex in 0..matrix.len() {
+            for (vertex, coefficient) in matrix.entries(fine_vertex) {
+                columns[vertex as usize].push((fine_vertex as u32, coefficient));
+            }
+        }
         Ok(Self {
             stencils,
             fixed,
             settings,
             neighbors,
             anchors: vec![None; cage_vertex_count],
+            columns,
         })
     }
 
@@ -294,6 +306,9 @@ impl SubdivisionFit {
         let mut targets: Vec<DVec3> = Vec::new();
         let mut distances = vec![f32::NAN; fine.len()];
         let mut trusted = 0;
+        // Per fine vertex, its data weight (0: not trusted) and where it is asked to go.
+        let mut fine_weights = vec![0.0f64; fine.len()];
+        let mut fine_targets = vec![DVec3::ZERO; fine.len()];
         let offset_of =
             |fine_vertex: usize| offsets.map_or(DVec3::ZERO, |offsets| offsets[fine_vertex]);
         let anchor_weight = self.settings.anchor_weight;
@@ -330,8 +345,8 @@ impl SubdivisionFit {
             if target_normal.dot(normals[fine_vertex]) < self.settings.min_facing {
                 continue;
             }
-            terms.push(matrix.entries(fine_vertex), data_weight);
-            targets.push(hit.position.as_dvec3() - offset_of(fine_vertex));
+            fine_weights[fine_vertex] = data_weight;
+            fine_targets[fine_vertex] = hit.position.as_dvec3() - offset_of(fine_vertex);
             trusted += 1;
         }
         // The smoothness of the step: L_v (x − x_prev) = 0, i.e. L_v x = L_v x_prev.
@@ -353,15 +368,29 @@ impl SubdivisionFit {
                 targets.push(laplacian);
             }
         }
+        // The data's normal matrix Sᵀ W S, row by row, written as stencils the linear system takes
+        // as they are: (e_a + e_b) with weight A_ab per pair, e_a with the rest of the diagonal.
+        let (system_terms, data_right_hand_side) =
+            self.data_normal_equations(&fine_weights, &fine_targets);
+        let pair_count = system_terms.len();
+        let mut all_terms = system_terms;
+        for term in 0..terms.len() {
+            all_terms.push(terms.entries(term), terms.weights[term]);
+        }
         let fixed: Vec<Option<DVec3>> = self
             .fixed
             .iter()
             .zip(cage)
             .map(|(&fixed, &position)| fixed.then_some(position))
             .collect();
-        let mut system = LinearSystem::new(&terms, cage.len(), &fixed)?;
+        let mut system = LinearSystem::new(&all_terms, cage.len(), &fixed)?;
         let rows = system.rows();
-        let mut right_hand_side = vec![DVec3::ZERO; rows];
+        let mut right_hand_side: Vec<DVec3> = system
+            .vertex_of_row()
+            .iter()
+            .map(|&vertex| data_right_hand_side[vertex as usize])
+            .collect();
+        debug_assert!(pair_count + terms.len() == all_terms.len());
         for (term, &wanted) in targets.iter().enumerate() {
             let weight = terms.weights[term];
             for (vertex, coefficient) in terms.entries(term) {
@@ -394,5 +423,146 @@ impl SubdivisionFit {
             distances,
             trusted,
         })
+    }
+
+    /// `A = Sᵀ W S` over the cage (`W`: the fine vertices' data weights) as stencils whose sum of
+    /// `weight · s sᵀ` is `A` (a pair term `e_a + e_b` of weight `A_ab` for each `a < b` sharing a
+    /// fine point, a term `e_a` with what the pairs leave of `A_aa`), and `Sᵀ W t` per cage vertex.
+    /// Pairs of two fixed vertices are left out (they change nothing). Rows in parallel, each with
+    /// a dense scratch row (Gustavson's product).
+    fn data_normal_equations(
+        &self,
+        fine_weights: &[f64],
+        fine_targets: &[DVec3],
+    ) -> (Stencils, Vec<DVec3>) {
+        let cage_vertex_count = self.columns.len();
+        let matrix = self.stencils.stencils();
+        let rows: Vec<(f64, Vec<(u32, f64)>, DVec3)> = (0..cage_vertex_count)
+            .into_par_iter()
+            .map_init(
+                || (vec![0.0f64; cage_vertex_count], Vec::<u32>::new()),
+                |(scratch, touched), vertex| {
+                    let mut diagonal = 0.0;
+                    let mut right_hand_side = DVec3::ZERO;
+                    touched.clear();
+                    for &(fine_vertex, coefficient) in &self.columns[vertex] {
+                        let weight = fine_weights[fine_vertex as usize];
+                        if weight == 0.0 {
+                            continue;
+                        }
+                        let scaled = weight * coefficient;
+                        right_hand_side += fine_targets[fine_vertex as usize] * scaled;
+                        for (other, other_coefficient) in matrix.entries(fine_vertex as usize) {
+                            let other_index = other as usize;
+                            if other_index == vertex {
+                                diagonal += scaled * other_coefficient;
+                            } else if other_index > vertex
+                                && !(self.fixed[vertex] && self.fixed[other_index])
+                            {
+                                if scratch[other_index] == 0.0 {
+                                    touched.push(other);
+                                }
+                                scratch[other_index] += scaled * other_coefficient;
+                                if scratch[other_index] == 0.0 {
+                                    scratch[other_index] = f64::MIN_POSITIVE;
+                                }
+                            }
+                        }
+                    }
+                    let pairs = touched
+                        .iter()
+                        .map(|&other| (other, std::mem::take(&mut scratch[other as usize])))
+                        .collect();
+                    (diagonal, pairs, right_hand_side)
+                },
+            )
+            .collect();
+        let mut diagonal: Vec<f64> = rows.iter().map(|row| row.0).collect();
+        let mut terms = Stencils::new();
+        for (vertex, (_, pairs, _)) in rows.iter().enumerate() {
+            for &(other, value) in pairs {
+                terms.push([(vertex as u32, 1.0), (other, 1.0)], value);
+                diagonal[vertex] -= value;
+                diagonal[other as usize] -= value;
+            }
+        }
+        for (vertex, &value) in diagonal.iter().enumerate() {
+            if value != 0.0 && !self.fixed[vertex] {
+                terms.push([(vertex as u32, 1.0)], value);
+            }
+        }
+        let right_hand_side = rows.into_iter().map(|row| row.2).collect();
+        (terms, right_hand_side)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fit::catmull_clark::BoundaryRule;
+
+    /// The stencils of the data's normal equations add up to `Sᵀ W S` (pairs of two fixed vertices
+    /// aside), and the right-hand side is `Sᵀ W t`, against a dense sum over the fine points.
+    #[test]
+    fn the_normal_equations_are_the_dense_sum_over_the_fine_points() {
+        // A grid of 3 × 2 quads (4 × 3 vertices), open on every side.
+        let corners = [
+            0, 1, 5, 4, 1, 2, 6, 5, 2, 3, 7, 6, 4, 5, 9, 8, 5, 6, 10, 9, 6, 7, 11, 10,
+        ];
+        let sizes = [4; 6];
+        let stencils =
+            SubdivisionStencils::new(12, &corners, &sizes, 2, BoundaryRule::default()).unwrap();
+        let fine_count = stencils.fine_vertex_count();
+        let fixed: Vec<bool> = (0..12).map(|vertex| vertex % 5 == 0).collect();
+        let fit = SubdivisionFit::new(stencils, fixed.clone(), SubdivisionFitSettings::default())
+            .unwrap();
+        let weights: Vec<f64> = (0..fine_count)
+            .map(|i| {
+                if i % 7 == 3 {
+                    0.0
+                } else {
+                    0.5 + (i % 4) as f64
+                }
+            })
+            .collect();
+        let targets: Vec<DVec3> = (0..fine_count)
+            .map(|i| DVec3::new(i as f64, (i * i % 13) as f64, -(i as f64)))
+            .collect();
+        let (terms, right_hand_side) = fit.data_normal_equations(&weights, &targets);
+        let mut assembled = vec![vec![0.0f64; 12]; 12];
+        for term in 0..terms.len() {
+            let entries: Vec<(u32, f64)> = terms.entries(term).collect();
+            for &(a, ca) in &entries {
+                for &(b, cb) in &entries {
+                    assembled[a as usize][b as usize] += terms.weights[term] * ca * cb;
+                }
+            }
+        }
+        let matrix = fit.stencils().stencils();
+        let mut dense = vec![vec![0.0f64; 12]; 12];
+        let mut expected_right = vec![DVec3::ZERO; 12];
+        for fine_vertex in 0..fine_count {
+            let entries: Vec<(u32, f64)> = matrix.entries(fine_vertex).collect();
+            for &(a, ca) in &entries {
+                expected_right[a as usize] += targets[fine_vertex] * (weights[fine_vertex] * ca);
+                for &(b, cb) in &entries {
+                    dense[a as usize][b as usize] += weights[fine_vertex] * ca * cb;
+                }
+            }
+        }
+        for a in 0..12 {
+            assert!(right_hand_side[a].distance(expected_right[a]) < 1e-9);
+            for b in 0..12 {
+                if fixed[a] && fixed[b] {
+                    continue;
+                }
+                assert!(
+                    (assembled[a][b] - dense[a][b]).abs() < 1e-12,
+                    "({a}, {b}): {} against {}",
+                    assembled[a][b],
+                    dense[a][b]
+                );
+            }
+        }
     }
 }
