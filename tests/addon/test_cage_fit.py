@@ -276,3 +276,22 @@ def test_without_a_target_the_fit_cannot_run():
     assert not bpy.ops.springwrap.fit_subdivision.poll()
     with pytest.raises(RuntimeError, match="No target"):
         bpy.ops.springwrap.fit_subdivision()
+
+
+def test_the_operator_is_one_undo_step_and_works_from_edit_mode():
+    target = sphere_target()
+    layout = cube_sphere_cage(target)
+    operator = bpy.types.SPRINGWRAP_OT_fit_subdivision
+    assert operator.bl_options == {"REGISTER", "UNDO"} and bpy.ops.springwrap.fit_subdivision.get_rna_type().description
+    bpy.ops.ed.undo_push(message="Before the fit")
+    before = snapshot(layout)
+    bpy.ops.object.mode_set(mode="EDIT")
+    # The third positional argument asks bpy.ops to push the operator's own undo step.
+    assert bpy.ops.springwrap.fit_subdivision("EXEC_DEFAULT", True) == {"FINISHED"}
+    assert bpy.context.object.mode == "EDIT"
+    bpy.ops.object.mode_set(mode="OBJECT")
+    assert snapshot(bpy.data.objects["Layout"]) != before
+    bpy.ops.object.mode_set(mode="EDIT")
+    bpy.ops.ed.undo()
+    bpy.ops.object.mode_set(mode="OBJECT")
+    assert snapshot(bpy.data.objects["Layout"]) == before

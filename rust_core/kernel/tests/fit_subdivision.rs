@@ -28,7 +28,7 @@ fn cube_sphere(n: i32, radius: f64) -> (Vec<DVec3>, Vec<u32>, Vec<u32>) {
     ];
     let mut vertex = |grid: [i32; 3]| -> u32 {
         *index_of.entry(grid).or_insert_with(|| {
-            let point = DVec3::new(grid[0] as f64, grid[1] as f64, grid[2] as f64);
+            let point = DVec3::new(f64::from(grid[0]), f64::from(grid[1]), f64::from(grid[2]));
             positions.push(point.normalize() * radius);
             (positions.len() - 1) as u32
         })
@@ -102,7 +102,7 @@ fn a_cube_cage_on_a_sphere_shrinks_inside_it_and_the_fit_brings_its_surface_out(
         SubdivisionStencils::new(cage.len(), &corners, &sizes, 2, BoundaryRule::default()).unwrap();
     let fit = SubdivisionFit::new(
         stencils,
-        vec![false; cage.len()],
+        &vec![false; cage.len()],
         SubdivisionFitSettings::default(),
     )
     .unwrap();
@@ -134,8 +134,7 @@ fn fixed_vertices_stay_and_the_rest_still_fits() {
     let stencils =
         SubdivisionStencils::new(cage.len(), &corners, &sizes, 2, BoundaryRule::default()).unwrap();
     let fixed: Vec<bool> = (0..cage.len()).map(|vertex| vertex % 7 == 0).collect();
-    let fit =
-        SubdivisionFit::new(stencils, fixed.clone(), SubdivisionFitSettings::default()).unwrap();
+    let fit = SubdivisionFit::new(stencils, &fixed, SubdivisionFitSettings::default()).unwrap();
     let before = max_distance(&fit.distances(&target, &cage, None).unwrap());
     let mut positions = cage.clone();
     for _ in 0..6 {
@@ -164,7 +163,7 @@ fn an_anchor_holds_its_vertex_limit_point_on_the_anchor() {
     ];
     let fit = SubdivisionFit::new(
         stencils,
-        vec![false; cage.len()],
+        &vec![false; cage.len()],
         SubdivisionFitSettings::default(),
     )
     .unwrap()
@@ -184,7 +183,7 @@ fn an_anchor_holds_its_vertex_limit_point_on_the_anchor() {
     assert!(after < 0.02, "{after}");
     let error = SubdivisionFit::new(
         fit.stencils().clone(),
-        vec![false; cage.len()],
+        &vec![false; cage.len()],
         SubdivisionFitSettings::default(),
     )
     .unwrap()
@@ -205,7 +204,7 @@ fn offsets_shift_the_fine_points_and_the_fit_makes_up_for_them() {
     let count = stencils.fine_vertex_count();
     let fit = SubdivisionFit::new(
         stencils,
-        vec![false; cage.len()],
+        &vec![false; cage.len()],
         SubdivisionFitSettings::default(),
     )
     .unwrap();
@@ -239,7 +238,7 @@ fn over_a_hole_the_cage_follows_its_neighbours() {
         SubdivisionStencils::new(cage.len(), &corners, &sizes, 2, BoundaryRule::default()).unwrap();
     let fit = SubdivisionFit::new(
         stencils,
-        vec![false; cage.len()],
+        &vec![false; cage.len()],
         SubdivisionFitSettings::default(),
     )
     .unwrap();
@@ -281,7 +280,7 @@ fn bad_inputs_are_refused_with_the_reason() {
         SubdivisionStencils::new(cage.len(), &corners, &sizes, 1, BoundaryRule::default()).unwrap();
     let error = SubdivisionFit::new(
         stencils.clone(),
-        vec![false; 3],
+        &[false; 3],
         SubdivisionFitSettings::default(),
     )
     .unwrap_err();
@@ -312,7 +311,7 @@ fn bad_inputs_are_refused_with_the_reason() {
         },
     ] {
         let error =
-            SubdivisionFit::new(stencils.clone(), vec![false; cage.len()], settings).unwrap_err();
+            SubdivisionFit::new(stencils.clone(), &vec![false; cage.len()], settings).unwrap_err();
         assert!(
             matches!(error, KernelError::InvalidArgument { .. }),
             "{error}"
@@ -320,7 +319,7 @@ fn bad_inputs_are_refused_with_the_reason() {
     }
     let fit = SubdivisionFit::new(
         stencils,
-        vec![false; cage.len()],
+        &vec![false; cage.len()],
         SubdivisionFitSettings::default(),
     )
     .unwrap();

@@ -216,7 +216,7 @@ impl PySubdivisionFit {
             None => Vec::new(),
         };
         let fit = run_kernel(py, || {
-            SubdivisionFit::new(stencils, fixed, settings)?
+            SubdivisionFit::new(stencils, &fixed, settings)?
                 .with_anchors(&anchor_vertices, &anchor_points)
         })?;
         Ok(Self { fit: Arc::new(fit) })

@@ -302,10 +302,10 @@ fn refine(
         let parent = mesh.face(face);
         let size = parent.len();
         let face_point = (vertex_count + edge_count + face) as u32;
-        for index in 0..size {
+        for (index, &corner) in parent.iter().enumerate() {
             let previous = (index + size - 1) % size;
             corners.extend_from_slice(&[
-                parent[index],
+                corner,
                 edge_point(adjacency.corner_edges[start + index]),
                 face_point,
                 edge_point(adjacency.corner_edges[start + previous]),

@@ -27,6 +27,10 @@ use crate::fit::catmull_clark::SubdivisionStencils;
 use crate::mesh::{NO_TRIANGLE, TargetMesh};
 use crate::wrap::linear_system::{LinearSystem, Stencils};
 
+/// One cage vertex's row of the data's normal equations: its diagonal, its pairs with the later
+/// vertices, its right-hand side.
+type NormalRow = (f64, Vec<(u32, f64)>, DVec3);
+
 /// The fit's parameters.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SubdivisionFitSettings {
@@ -69,7 +73,7 @@ impl SubdivisionFitSettings {
         if !(self.smoothness.is_finite() && self.smoothness >= 0.0) {
             return invalid("smoothness", "must be a finite number >= 0");
         }
-        if !(self.max_distance > 0.0) {
+        if self.max_distance.is_nan() || self.max_distance <= 0.0 {
             return invalid("max_distance", "must be > 0 (infinite for no limit)");
         }
         if !(-1.0..=1.0).contains(&self.min_facing) {
@@ -121,7 +125,7 @@ impl SubdivisionFit {
     /// [`KernelError::InvalidArgument`] for settings out of their domain.
     pub fn new(
         stencils: SubdivisionStencils,
-        fixed: Vec<bool>,
+        fixed: &[bool],
         settings: SubdivisionFitSettings,
     ) -> Result<Self, KernelError> {
         settings.check()?;
@@ -312,12 +316,15 @@ impl SubdivisionFit {
         let offset_of =
             |fine_vertex: usize| offsets.map_or(DVec3::ZERO, |offsets| offsets[fine_vertex]);
         let anchor_weight = self.settings.anchor_weight;
-        for (vertex, anchor) in self.anchors.iter().enumerate() {
-            if let Some(point) = anchor {
-                if self.stencils.on_surface()[vertex] && !self.fixed[vertex] {
-                    terms.push(matrix.entries(vertex), anchor_weight);
-                    targets.push(*point - offset_of(vertex));
-                }
+        let anchored = self
+            .anchors
+            .iter()
+            .enumerate()
+            .filter_map(|(vertex, anchor)| anchor.map(|point| (vertex, point)));
+        for (vertex, point) in anchored {
+            if self.stencils.on_surface()[vertex] && !self.fixed[vertex] {
+                terms.push(matrix.entries(vertex), anchor_weight);
+                targets.push(point - offset_of(vertex));
             }
         }
         for (fine_vertex, hit) in hits.iter().enumerate() {
@@ -437,7 +444,7 @@ impl SubdivisionFit {
     ) -> (Stencils, Vec<DVec3>) {
         let cage_vertex_count = self.columns.len();
         let matrix = self.stencils.stencils();
-        let rows: Vec<(f64, Vec<(u32, f64)>, DVec3)> = (0..cage_vertex_count)
+        let rows: Vec<NormalRow> = (0..cage_vertex_count)
             .into_par_iter()
             .map_init(
                 || (vec![0.0f64; cage_vertex_count], Vec::<u32>::new()),
@@ -514,8 +521,7 @@ mod tests {
             SubdivisionStencils::new(12, &corners, &sizes, 2, BoundaryRule::default()).unwrap();
         let fine_count = stencils.fine_vertex_count();
         let fixed: Vec<bool> = (0..12).map(|vertex| vertex % 5 == 0).collect();
-        let fit = SubdivisionFit::new(stencils, fixed.clone(), SubdivisionFitSettings::default())
-            .unwrap();
+        let fit = SubdivisionFit::new(stencils, &fixed, SubdivisionFitSettings::default()).unwrap();
         let weights: Vec<f64> = (0..fine_count)
             .map(|i| {
                 if i % 7 == 3 {
