@@ -124,6 +124,33 @@ def test_a_cage_over_a_hole_follows_its_neighbours_across_it():
     assert abs(radii[top].mean() - radii[np.abs(points[:, 2]) < 0.5].mean()) < 0.03
 
 
+def test_a_curve_on_the_cage_and_a_loose_vertex_stay_and_blenders_surface_is_still_fitted():
+    """A loose edge from a face vertex (a curve) makes that vertex non-manifold for OpenSubdiv, so Blender's
+    surface differs from the stencils' around it: the points still pair up, and the fit uses Blender's."""
+    target = sphere_target()
+    layout = cube_sphere_cage(target)
+    editable = bmesh.new()
+    editable.from_mesh(layout.data)
+    editable.verts.ensure_lookup_table()
+    first = editable.verts[0]
+    tip = editable.verts.new(first.co * 1.3)
+    editable.edges.new((first, tip))
+    editable.verts.new((3.0, 3.0, 3.0))
+    editable.to_mesh(layout.data)
+    editable.free()
+    start = local_positions(layout).copy()
+    assert bpy.ops.springwrap.fit_subdivision() == {"FINISHED"}
+    end = local_positions(layout)
+    assert end[-2:].tobytes() == start[-2:].tobytes()
+    outcome = bpy.types.SPRINGWRAP_OT_fit_subdivision.last_outcome
+    assert outcome.exact
+    assert outcome.fine_vertex_count == 866  # 56 quads subdivided twice: the loose vertices are not surface
+    # The outcome's distances are Blender's surface points' (the curve's own points and the loose vertex aside).
+    assert outcome.after.max * 5.0 < outcome.before.max
+    after = distances_to(target, subdivided_world_points(layout))
+    assert np.count_nonzero(after < outcome.after.max + 1e-6) >= 866
+
+
 def test_unselected_vertices_are_held_and_anchors_hold_the_surface_on_their_points():
     target = sphere_target()
     layout = cube_sphere_cage(target)

@@ -28,9 +28,10 @@ BOUNDARY_ITEMS = (
     ("PRESERVE_CORNERS", "Keep Corners", "Keep the corners of open borders where they are"),
 )
 """Blender's Subdivision Surface *Boundary Smooth* choices: the fit must use the modifier's."""
-MATCH_TOLERANCE = 0.25
-"""Blender's subdivided points are matched to the stencils' when each lies within this fraction of the
-shortest fine edge at its stencil point."""
+MATCH_TOLERANCE = 1.0
+"""Blender's subdivided points are paired with the stencils' when the two are each other's nearest and each
+lies within this fraction of the shortest fine edge at its stencil point (they differ where Blender's patches
+approximate the limit surface, or a loose edge makes a vertex non-manifold for OpenSubdiv)."""
 
 
 class FitDistances(NamedTuple):
@@ -52,7 +53,7 @@ class CageFitOutcome(NamedTuple):
     rounds: int
     trusted: int  # fine points matched and trusted in the last round
     anchors: int  # anchors whose vertex's limit point was held
-    fine_vertex_count: int
+    fine_vertex_count: int  # points of the subdivided surface (cage vertices on no face not counted)
     exact: bool  # the rounds used Blender's own subdivided points (else the stencils alone)
 
 
@@ -81,22 +82,31 @@ def summarize(distances: np.ndarray) -> FitDistances:
 
 
 def match_fine_points(
-    stencil_points: np.ndarray, fine_quads: np.ndarray, blender_points: np.ndarray, blender_triangles: np.ndarray
+    stencil_points: np.ndarray,
+    fine_quads: np.ndarray,
+    blender_points: np.ndarray,
+    blender_triangles: np.ndarray,
+    on_surface: np.ndarray | None = None,
 ) -> np.ndarray | None:
-    """For each stencil fine point, the index of Blender's subdivided point at the same place; None when they
-    do not pair up one to one within :data:`MATCH_TOLERANCE` of the local fine edge length.
+    """For each stencil fine point on the surface (``on_surface``, default all), the index of Blender's
+    subdivided point at the same place (-1 for the others: cage vertices on no face); None when they do not
+    pair up one to one as each other's nearest, within :data:`MATCH_TOLERANCE` of the local fine edge length.
 
-    Blender numbers its subdivided vertices its own way (cage vertices first, then per edge and per face);
-    the stencils' numbering is another, so the two are paired by position once, at the start of a fit.
+    Blender numbers its subdivided vertices its own way (cage vertices first, then per edge and per face, and
+    the points of loose edges too); the stencils' numbering is another, so the two are paired by position
+    once, at the start of a fit.
     """
     stencil_points = np.asarray(stencil_points, dtype=np.float64).reshape(-1, 3)
     blender_points = np.asarray(blender_points, dtype=np.float64).reshape(-1, 3)
-    if blender_points.shape[0] < stencil_points.shape[0] or len(blender_triangles) == 0:
+    if on_surface is None:
+        on_surface = np.ones(stencil_points.shape[0], dtype=bool)
+    on_surface = np.asarray(on_surface, dtype=bool)
+    if blender_points.shape[0] < np.count_nonzero(on_surface) or len(blender_triangles) == 0:
         return None
     mesh = springwrap_kernel.TargetMesh(
         transforms.as_float32_points(blender_points), np.ascontiguousarray(blender_triangles, dtype=np.uint32)
     )
-    hits = mesh.nearest_vertices(transforms.as_float32_points(stencil_points))
+    hits = mesh.nearest_vertices(transforms.as_float32_points(stencil_points[on_surface]))
     indices = np.asarray(hits.vertices, dtype=np.int64)
     if (indices < 0).any() or np.unique(indices).size != indices.size:
         return None
@@ -105,9 +115,19 @@ def match_fine_points(
     shortest = np.full(stencil_points.shape[0], np.inf)
     np.minimum.at(shortest, quads.reshape(-1), edge_lengths.reshape(-1))
     np.minimum.at(shortest, np.roll(quads, -1, axis=1).reshape(-1), edge_lengths.reshape(-1))
-    if np.any(np.asarray(hits.distances) > MATCH_TOLERANCE * shortest):
+    if np.any(np.asarray(hits.distances) > MATCH_TOLERANCE * shortest[on_surface]):
         return None
-    return indices
+    # Each other's nearest: Blender's paired points find their stencil points back.
+    triangles = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
+    stencil_mesh = springwrap_kernel.TargetMesh(
+        transforms.as_float32_points(stencil_points), np.ascontiguousarray(triangles, dtype=np.uint32)
+    )
+    back = stencil_mesh.nearest_vertices(transforms.as_float32_points(blender_points[indices])).vertices
+    if not np.array_equal(np.asarray(back, dtype=np.int64), np.flatnonzero(on_surface)):
+        return None
+    matching = np.full(stencil_points.shape[0], -1, dtype=np.int64)
+    matching[on_surface] = indices
+    return matching
 
 
 def fit_cage(
@@ -163,7 +183,7 @@ def fit_cage(
     if evaluate is not None:
         blender_points, blender_triangles = evaluate(positions)
         matching = match_fine_points(
-            stencils.apply(positions), stencils.fine_quads(), blender_points, blender_triangles
+            stencils.apply(positions), stencils.fine_quads(), blender_points, blender_triangles, on_surface
         )
 
     def offsets_at(cage_points: np.ndarray, evaluated: np.ndarray | None = None) -> np.ndarray | None:
@@ -172,8 +192,10 @@ def fit_cage(
             return None
         if evaluated is None:
             evaluated, _ = evaluate(cage_points)
-        exact = np.asarray(evaluated, dtype=np.float64).reshape(-1, 3)[matching]
-        return transforms.as_float32_points(exact - stencils.apply(cage_points))
+        fine = stencils.apply(cage_points).astype(np.float64)
+        exact = fine.copy()
+        exact[on_surface] = np.asarray(evaluated, dtype=np.float64).reshape(-1, 3)[matching[on_surface]]
+        return transforms.as_float32_points(exact - fine)
 
     def distances_at(cage_points: np.ndarray, offsets: np.ndarray | None) -> FitDistances:
         """The subdivided surface's distances to the target, with no distance limit."""
@@ -195,7 +217,7 @@ def fit_cage(
         rounds=rounds,
         trusted=int(trusted),
         anchors=int(sum(1 for vertex in (anchor_vertices if anchor_vertices is not None else []) if movable[vertex])),
-        fine_vertex_count=int(stencils.fine_vertex_count),
+        fine_vertex_count=int(np.count_nonzero(on_surface)),
         exact=matching is not None,
     )
 
