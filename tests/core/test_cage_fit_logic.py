@@ -44,6 +44,15 @@ def test_another_numbering_of_the_same_points_is_paired_back():
     moved = points + np.random.default_rng(1).normal(scale=0.05, size=points.shape)
     assert cage_fit.match_fine_points(stencils.apply(positions), stencils.fine_quads(), moved, triangles) is None
     assert cage_fit.match_fine_points(stencils.apply(positions), stencils.fine_quads(), points[:10], triangles) is None
+    # Two points at one place (cage vertices snapped onto one target point): either pairing is right, and the
+    # nearest-point query gives both the same partner.
+    fine = stencils.apply(positions).astype(np.float64)
+    fine[5] = fine[6]
+    points, triangles, order = shuffled_subdivision(stencils, positions)
+    points[np.argsort(order)[5]] = fine[6]
+    matching = cage_fit.match_fine_points(fine, stencils.fine_quads(), points, triangles)
+    assert matching is not None and matching[5] == matching[6]
+    assert np.abs(points[matching] - fine).max() < 1e-6
 
 
 def test_a_fit_with_blenders_points_in_another_order_is_the_fit_of_the_stencils():

@@ -90,7 +90,8 @@ def match_fine_points(
 ) -> np.ndarray | None:
     """For each stencil fine point on the surface (``on_surface``, default all), the index of Blender's
     subdivided point at the same place (-1 for the others: cage vertices on no face); None when they do not
-    pair up one to one as each other's nearest, within :data:`MATCH_TOLERANCE` of the local fine edge length.
+    pair up as each other's nearest (up to coincident points), within :data:`MATCH_TOLERANCE` of the local fine
+    edge length.
 
     Blender numbers its subdivided vertices its own way (cage vertices first, then per edge and per face, and
     the points of loose edges too); the stencils' numbering is another, so the two are paired by position
@@ -108,7 +109,7 @@ def match_fine_points(
     )
     hits = mesh.nearest_vertices(transforms.as_float32_points(stencil_points[on_surface]))
     indices = np.asarray(hits.vertices, dtype=np.int64)
-    if (indices < 0).any() or np.unique(indices).size != indices.size:
+    if (indices < 0).any():
         return None
     quads = np.asarray(fine_quads, dtype=np.int64)
     edge_lengths = np.linalg.norm(stencil_points[quads] - stencil_points[np.roll(quads, -1, axis=1)], axis=2)
@@ -122,8 +123,11 @@ def match_fine_points(
     stencil_mesh = springwrap_kernel.TargetMesh(
         transforms.as_float32_points(stencil_points), np.ascontiguousarray(triangles, dtype=np.uint32)
     )
-    back = stencil_mesh.nearest_vertices(transforms.as_float32_points(blender_points[indices])).vertices
-    if not np.array_equal(np.asarray(back, dtype=np.int64), np.flatnonzero(on_surface)):
+    # Coincident points (two cage vertices snapped to one target point) may pair either way: they are one point.
+    own = np.flatnonzero(on_surface)
+    back = np.asarray(stencil_mesh.nearest_vertices(transforms.as_float32_points(blender_points[indices])).vertices)
+    apart = np.linalg.norm(stencil_points[back] - stencil_points[own], axis=1)
+    if np.any((back != own) & (apart > 1e-3 * shortest[own])):
         return None
     matching = np.full(stencil_points.shape[0], -1, dtype=np.int64)
     matching[on_surface] = indices
