@@ -7,7 +7,7 @@ STAMPS := $(VENV)/.stamps
 KERNEL_SOURCES := $(shell find rust_core -name "*.rs" -o -name "*.toml" -o -name "*.py" -o -name "*.pyi" | grep -v /target/) Cargo.toml
 ADDON_SOURCES := $(shell find addon -name "*.py" -o -name "*.toml")
 
-.PHONY: setup demo test test-rust test-python bench lint clean test-bpy42 test-blender34 test-all-lanes package
+.PHONY: setup demo test test-rust test-python bench lint clean test-bpy42 test-blender34 test-gui test-all-lanes package fuzz
 
 setup: $(STAMPS)/kernel $(STAMPS)/addon $(STAMPS)/ray
 
@@ -53,8 +53,17 @@ lint: $(STAMPS)/venv
 	cargo fmt --all -- --check
 	cargo clippy --workspace --all-targets -- -D warnings
 
+# The kernel's tests, with the short run of its fuzz targets (rust_core/kernel/tests/fuzz: each
+# target's base number of cases, about 5 s in all; `make fuzz` for the long run).
 test-rust:
-	cargo test --workspace --exclude springwrap-python
+	SPRINGWRAP_FUZZ_SCALE=1 cargo test --workspace --exclude springwrap-python
+
+# The long fuzz run: every kernel fuzz target with FUZZ_SCALE times its base number of cases (60:
+# about 1.2 million cases in all). A failure is shrunk and its seed saved in
+# rust_core/kernel/tests/fuzz/proptest-regressions/ (commit it: every later run replays it first).
+FUZZ_SCALE ?= 60
+fuzz:
+	SPRINGWRAP_FUZZ_SCALE=$(FUZZ_SCALE) cargo test -p springwrap-kernel --test fuzz -- --nocapture
 
 test-python: setup
 	$(PY) -m pytest -q -rs tests benchmarks/tests
@@ -102,7 +111,21 @@ test-blender34: $(BLENDER34_KERNEL)/.stamp
 	BLENDER_USER_SCRIPTS=$(CURDIR)/$(BLENDER34_SCRIPTS) SPRINGWRAP_KERNEL_PATH=$(CURDIR)/$(BLENDER34_KERNEL) \
 	  $(BLENDER) -b --factory-startup --python-exit-code 1 --python tests/run_in_blender.py -- -q -rs $(LANE_TESTS)
 
-test-all-lanes: test test-bpy42 test-blender34
+# ---------------------------------------------------------------- GUI lane
+# Debian's blender 3.4 *with its interface* under a virtual X server (xvfb, software OpenGL, 1920x1080,
+# --enable-event-simulate; .ci/gui-packages.sh installs what it needs): the legacy zip installed as a user
+# does, the workflow through the sidebar's operators (INVOKE_DEFAULT: the live wrap, Esc, undo and redo), the
+# add-on enabled without numpy, the console checked for Python errors; screenshots and console in out/gui/.
+# `make test-gui GUI_ARGS=--update-docs` also copies the user guide's screenshots into docs/img.
+GUI_ARGS ?=
+
+test-gui: package
+	bash .ci/gui-packages.sh
+	$(BLENDER) --version | head -1 | grep -q "^Blender 3\.4" || { echo "test-gui: $(BLENDER) is not Blender 3.4"; exit 1; }
+	$(PY) tests/gui/run_gui_lane.py --package "$$(ls -t dist/springwrap-*-legacy.zip | head -1)" --output out/gui \
+	  --blender $(BLENDER) $(GUI_ARGS)
+
+test-all-lanes: test test-bpy42 test-blender34 test-gui
 
 # The benchmark: retargeting accuracy against Shrinkwrap and nricp, the performance sweep,
 # snap throughput, the batch's throughput, then docs/benchmarks.md and docs/img/*.png.

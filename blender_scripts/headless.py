@@ -14,6 +14,7 @@ This module imports no ``bpy`` at its top (the batch's coordinator uses it witho
 import importlib
 import os
 import sys
+import tempfile
 import traceback
 from pathlib import Path
 
@@ -82,7 +83,104 @@ def failed(script: str, error: BaseException) -> int:
     return EXIT_FAILED
 
 
+# ---------------------------------------------------------------- the files' frame
+
+AXES = ("X", "Y", "Z", "NEGATIVE_X", "NEGATIVE_Y", "NEGATIVE_Z")
+"""As Blender's importers and exporters spell them; ``-Z`` is also taken (``--forward-axis=-Z``)."""
+DEFAULT_UP_AXIS = "Z"
+DEFAULT_FORWARD_AXIS = "Y"
+
+
+def axis_name(text: str) -> str:
+    """An axis as given on the command line (``y``, ``-Z``, ``NEGATIVE_Z``) in Blender's spelling."""
+    text = text.strip().upper()
+    return f"NEGATIVE_{text[1:]}" if text.startswith("-") else text
+
+
+def signed_axis(axis: str) -> str:
+    """An axis as ``bpy_extras.io_utils.axis_conversion`` spells it: ``NEGATIVE_Z`` is ``-Z``."""
+    return "-" + axis.removeprefix("NEGATIVE_") if axis.startswith("NEGATIVE_") else axis
+
+
+def add_frame_arguments(parser) -> None:
+    """``--up-axis`` and ``--forward-axis``: the one convention every mesh file is read in and every output
+    written back in (see :func:`check_frame_arguments`)."""
+    parser.add_argument(
+        "--up-axis",
+        type=axis_name,
+        choices=AXES,
+        default=DEFAULT_UP_AXIS,
+        help="the mesh files' up axis: every input file is read with it and every output file written back "
+        "with it; the anchors file is in that frame too (default %(default)s: coordinates as written, "
+        "Blender's own frame; Y-up files, e.g. Blender's OBJ export: --up-axis Y --forward-axis NEGATIVE_Z)",
+    )
+    parser.add_argument(
+        "--forward-axis",
+        type=axis_name,
+        choices=AXES,
+        default=DEFAULT_FORWARD_AXIS,
+        help="the mesh files' forward axis (default %(default)s)",
+    )
+
+
+def check_frame_arguments(parser, arguments) -> None:
+    """Up and forward must be two different axes (argparse's error, exit code 2)."""
+    if arguments.up_axis.removeprefix("NEGATIVE_") == arguments.forward_axis.removeprefix("NEGATIVE_"):
+        parser.error(f"--up-axis {arguments.up_axis} and --forward-axis {arguments.forward_axis} are the same axis")
+
+
 # ---------------------------------------------------------------- outputs
+
+
+def check_output_arguments(parser, outputs: dict, inputs: list) -> None:
+    """Outputs (``{option: path or None}``) that cannot be what was meant (argparse's error, exit code 2): a
+    wrong suffix, two outputs on one file, an output that would replace an input."""
+    suffixes = {"--output-blend": ".blend", "--output-obj": ".obj", "--output": ".blend"}
+    seen = {}
+    for option, path in outputs.items():
+        if path is None:
+            continue
+        wanted = suffixes.get(option)
+        if wanted is not None and Path(path).suffix.lower() != wanted:
+            parser.error(f"{option} {path}: the file name must end with {wanted}")
+        resolved = Path(path).resolve()
+        if resolved in seen:
+            parser.error(f"{seen[resolved]} and {option} name the same file ({path})")
+        seen[resolved] = option
+    for path in inputs:
+        if path is not None and Path(path).resolve() in seen:
+            parser.error(f"{seen[Path(path).resolve()]} {path} would replace an input")
+
+
+def check_output_folder(folder: Path) -> None:
+    """Refuse (:class:`ScriptError`) a folder that cannot be written, before any work: its nearest existing
+    ancestor must be a folder in which a file can be created (tried, then removed)."""
+    folder = Path(folder).resolve()
+    existing = folder
+    while not existing.exists():
+        existing = existing.parent
+    if not existing.is_dir():
+        raise ScriptError(f"{existing}: is a file, not a folder, so {folder} cannot be written")
+    try:
+        handle, probe = tempfile.mkstemp(prefix=".springwrap-probe-", dir=existing)
+    except OSError as error:
+        raise ScriptError(f"{existing}: cannot write there: {error.strerror or error}") from None
+    os.close(handle)
+    os.unlink(probe)
+
+
+def check_output_paths(paths) -> None:
+    """Refuse (:class:`ScriptError`) output files that cannot be written, before any work: a path that is a
+    folder, a folder that cannot be written."""
+    for path in paths:
+        if path is None:
+            continue
+        path = Path(path)
+        if path.is_dir():
+            raise ScriptError(f"{path}: is a folder; name the output file")
+        if path.exists() and not path.is_file():
+            raise ScriptError(f"{path}: exists and is not a regular file")
+        check_output_folder(path.resolve().parent)
 
 
 def partial_path(final: Path) -> Path:
@@ -90,27 +188,57 @@ def partial_path(final: Path) -> Path:
     return final.with_name(f".{final.stem}.partial{final.suffix}")
 
 
+def previous_path(final: Path) -> Path:
+    """Where an output's earlier file is kept while the new ones are renamed into place."""
+    return final.with_name(f".{final.stem}.previous{final.suffix}")
+
+
+def _remove_temporary(temporary: Path) -> None:
+    temporary.unlink(missing_ok=True)
+    temporary.with_name(temporary.name + "@").unlink(missing_ok=True)  # Blender saves to FILE@, then renames
+
+
 def write_all_or_nothing(outputs) -> list[Path]:
     """Write every output of ``outputs`` (``(final path or None, write)`` pairs; ``write(temporary path)``
-    writes one) to a temporary file beside it, then rename them all: a failure leaves none of them behind.
-    The final paths written."""
-    temporaries = []
+    writes one) to a temporary file beside it, then rename them all into place: a failure at any point,
+    also while renaming, leaves none of them behind, the files they would have replaced as they were, and
+    no folder it created. The final paths written."""
+    temporaries, created, renamed, kept = [], [], [], []
     try:
         for final, write in outputs:
             if final is None:
                 continue
             final = Path(final).resolve()
-            final.parent.mkdir(parents=True, exist_ok=True)
+            missing = [folder for folder in (final.parent, *final.parent.parents) if not folder.exists()]
+            for folder in reversed(missing):
+                folder.mkdir()
+                created.append(folder)
             temporary = partial_path(final)
             temporaries.append((temporary, final))
             write(temporary)
             if not temporary.is_file():
                 raise ScriptError(f"{final}: nothing was written")
         for temporary, final in temporaries:
+            if final.exists():
+                os.replace(final, previous_path(final))
+                kept.append(final)
             os.replace(temporary, final)
-    finally:
+            renamed.append(final)
+    except BaseException:
+        for final in renamed:
+            final.unlink(missing_ok=True)
+        for final in kept:
+            os.replace(previous_path(final), final)
         for temporary, _final in temporaries:
-            temporary.unlink(missing_ok=True)
+            _remove_temporary(temporary)
+        for folder in reversed(created):
+            try:
+                folder.rmdir()
+            except OSError:
+                pass
+        raise
+    for final in kept:
+        previous_path(final).unlink(missing_ok=True)
     return [final for _temporary, final in temporaries]
 
 

@@ -4,8 +4,10 @@ Runs both ways (arguments after ``--`` when present, else all of ``sys.argv[1:]`
     .venv/bin/python blender_scripts/mirror.py --layout L --target T --axis X [options]
     blender -b --python blender_scripts/mirror.py -- --layout L --target T --axis X [options]
 
-Layout and target: a mesh file (.obj, .ply, .glb / .gltf) or a .blend with ``--layout-object`` /
-``--target-object`` naming the object (without a name, the file's only mesh object). A layout from a
+Layout and target: a mesh file (.obj, .ply, .stl, .glb / .gltf) or a .blend with ``--layout-object`` /
+``--target-object`` naming the object (without a name, the file's only mesh object). Mesh files are
+checked and read in one convention as in ``retarget.py`` (``--up-axis`` / ``--forward-axis``); the
+output OBJ and the plane in the report are in that frame. A layout from a
 .blend keeps its Springwrap state (face-points, rest shape, anchors); ``--snap`` first snaps it onto
 the target (a layout read from a mesh file is all space-points otherwise). The plane is the
 layout's local ``--axis`` plane, or that plane of ``--mirror-object`` (an object of the layout's
@@ -15,7 +17,8 @@ layout's local ``--axis`` plane, or that plane of ``--mirror-object`` (an object
 
 Outputs: ``--output-blend F.blend``, ``--output-obj F.obj`` (the mirrored layout alone) and
 ``--report F.json`` (counts, the seam's distance from the plane, faces crossing the plane, the wrap,
-distances to the target, timings, warnings), each written to a temporary file and renamed.
+distances to the target, timings, warnings), checked before any work, each written to a temporary file
+and all renamed at the end.
 
 Exit codes (as ``retarget.py``): 0 done; 1 failed (one line ``mirror: FAILED: ...`` on stderr naming
 the file and the problem, e.g. a plane that misses the layout; nothing is written); 2 bad arguments.
@@ -29,8 +32,26 @@ from pathlib import Path
 import bpy
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # `blender --python` does not add it
-from headless import EXIT_OK, ScriptError, addon_module, failed, script_arguments
-from scene_io import Laps, distances_to_target, kernel_wrap_defaults, load_mesh, run_operator, write_outputs
+from headless import (
+    EXIT_OK,
+    ScriptError,
+    add_frame_arguments,
+    addon_module,
+    check_frame_arguments,
+    check_output_arguments,
+    check_output_paths,
+    failed,
+    script_arguments,
+)
+from scene_io import (
+    Laps,
+    distances_to_target,
+    frame_matrix,
+    kernel_wrap_defaults,
+    load_mesh,
+    run_operator,
+    write_outputs,
+)
 
 
 def parse_arguments(argv: list[str]) -> argparse.Namespace:
@@ -66,10 +87,17 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
         default=defaults.tolerance,
         help="convergence, fraction of the layout's size (default %(default)s)",
     )
+    add_frame_arguments(parser)
     parser.add_argument("--output-blend", type=Path, help="save layout, target and result here")
     parser.add_argument("--output-obj", type=Path, help="export the mirrored layout here")
     parser.add_argument("--report", type=Path, help="write the JSON report here")
     arguments = parser.parse_args(script_arguments(argv, __file__))
+    check_frame_arguments(parser, arguments)
+    check_output_arguments(
+        parser,
+        {"--output-blend": arguments.output_blend, "--output-obj": arguments.output_obj, "--report": arguments.report},
+        [arguments.layout, arguments.target],
+    )
     if arguments.max_iterations < 1:
         parser.error("--max-iterations must be at least 1")
     try:
@@ -100,13 +128,18 @@ def _load_mirror_object(path: Path, name: str) -> str:
 
 def mirror(arguments: argparse.Namespace) -> dict:
     """Load, (snap,) mirror and wrap, measure, write; the report (also written to --report)."""
+    from mathutils import Vector
+
     lap, warnings = Laps(), []
     timings = lap.timings
 
+    check_output_paths([arguments.output_blend, arguments.output_obj, arguments.report])  # before any work
     SPRINGWRAP_OT_mirror = addon_module("operators.mirror").SPRINGWRAP_OT_mirror  # noqa: N806
     bpy.ops.wm.read_homefile(use_empty=True)
-    layout = load_mesh(arguments.layout, arguments.layout_object, "Layout")
-    target = load_mesh(arguments.target, arguments.target_object, "Target") if arguments.target else None
+    frame = frame_matrix(arguments.up_axis, arguments.forward_axis)
+    to_files = frame.inverted().to_3x3()
+    layout = load_mesh(arguments.layout, arguments.layout_object, "Layout", frame)
+    target = load_mesh(arguments.target, arguments.target_object, "Target", frame) if arguments.target else None
     mirror_object = _load_mirror_object(arguments.layout, arguments.mirror_object) if arguments.mirror_object else ""
     for obj in bpy.context.view_layer.objects:
         obj.select_set(obj == layout)
@@ -158,9 +191,10 @@ def mirror(arguments: argparse.Namespace) -> dict:
         "plane": {
             "axis": arguments.axis,
             "object": outcome.plane_owner,
-            "point": outcome.plane.point.tolist(),
-            "normal": outcome.plane.normal.tolist(),
+            "point": list(to_files @ Vector(outcome.plane.point.tolist())),  # in the files' frame
+            "normal": list(to_files @ Vector(outcome.plane.normal.tolist())),
         },
+        "frame": {"up_axis": arguments.up_axis, "forward_axis": arguments.forward_axis},
         "vertices_before": outcome.original_vertices,
         "vertices": outcome.vertices,
         "new_vertices": outcome.copies,

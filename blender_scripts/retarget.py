@@ -4,24 +4,32 @@ Runs both ways (arguments after ``--`` when present, else all of ``sys.argv[1:]`
     .venv/bin/python blender_scripts/retarget.py --template T --target M [options]
     blender -b --python blender_scripts/retarget.py -- --template T --target M [options]
 
-Template and target: a mesh file (.obj, .ply, .glb / .gltf) or a .blend with ``--template-object`` /
-``--target-object`` naming the object (without a name, the file's only mesh object). Steps: the
+Template and target: a mesh file (.obj, .ply, .stl, .glb / .gltf) or a .blend with ``--template-object`` /
+``--target-object`` naming the object (without a name, the file's only mesh object). Mesh files are checked
+before Blender's importers read them (``mesh_files.py``: empty, truncated, garbage, counts the file cannot
+hold, indices out of range, NaN or absurd coordinates) and read in one convention, ``--up-axis`` /
+``--forward-axis`` (default Z up, Y forward: the coordinates as written), whatever their format; the
+anchors file and the output OBJ are in that frame too (a .blend is in Blender's own frame). Steps: the
 template is copied as the layout, aligned to the target (``--align bounds``: its bounding box's
 centre and diagonal onto the target's; ``icp``: that, then ``springwrap.align`` by ICP alone;
 ``anchors``: ``springwrap.align`` fitted to the ``--anchors`` file's pairs, then ICP;
 ``--align-method`` picks rigid, similarity or affine; ``none``, the default: as placed), detached, anchored (``--anchors FILE.json``:
 ``{"anchors": [{"vertex": 12, "target": [x, y, z]}, ...]}``, each layout vertex pulled to the target
-surface point closest to that world-space point; or ``--anchors-spacing S``, spread automatically;
+surface point closest to that point of the files' frame; or ``--anchors-spacing S``, spread automatically;
 0 = a tenth of the layout's size), then wrapped (``--max-iterations``, ``--fairness``,
 ``--arc-length``, ``--thin-plate``, ``--tolerance``).
 
 Outputs: ``--output-blend F.blend`` (template, target and the retargeted layout), ``--output-obj
-F.obj`` (the retargeted layout alone) and ``--report F.json`` (metrics, timings, warnings). Each is
-written to a temporary file and renamed: a failing run leaves none of them behind.
+F.obj`` (the retargeted layout alone) and ``--report F.json`` (metrics, timings, warnings). They are
+checked before any work (not a folder, in a folder that can be written), each written to a temporary file
+and all renamed at the end: a failing run leaves none of them behind, and the files they would replace
+as they were.
 
 Batch: ``--batch DIR --output-dir OUT [--jobs N]`` retargets the template onto every mesh file in
 DIR (sorted), writing ``OUT/<name>.blend``, ``OUT/<name>.obj``, ``OUT/<name>.json`` and
-``OUT/summary.json``. N workers (``--executor local``, the default: processes on this machine;
+``OUT/summary.json``; meshes whose names differ only by their suffix (``a.obj``, ``a.ply``) are refused
+before anything runs, and a mesh that fails loses the outputs an earlier run wrote for it. N workers
+(``--executor local``, the default: processes on this machine;
 ``--executor ray [--address ADDR]``: Ray actors, on a Ray instance started here or on a cluster;
 see retarget_batch.py) each import bpy and enable the add-on once, then serve many meshes with one
 task function (``retarget_task``). A mesh that fails is reported and skipped, never the whole batch;
@@ -54,26 +62,34 @@ from headless import (
     EXIT_INTERRUPTED,
     EXIT_OK,
     ScriptError,
+    add_frame_arguments,
     addon_module,
+    check_frame_arguments,
+    check_output_arguments,
+    check_output_folder,
+    check_output_paths,
     enable_addon,
     failed,
     partial_path,
     script_arguments,
     write_atomically,
 )
+from mesh_files import check_blend_file, check_mesh_file
 from scene_io import (
-    MESH_SUFFIXES,
+    INPUT_SUFFIXES,
     Laps,
     distances_to_target,
+    frame_matrix,
     kernel_wrap_defaults,
     load_mesh,
     run_operator,
+    to_file_frame,
     world_vertices,
     write_outputs,
 )
 
 if TYPE_CHECKING:
-    pass
+    from mathutils import Matrix
 
 OUTPUT_SUFFIXES = ("blend", "obj", "json")  # a batch's outputs per mesh: OUT/<name>.<suffix>
 WORKER_FLAG = "--batch-worker"
@@ -169,6 +185,7 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
         help="after the wrap, fit the layout as a subdivision cage: its Subdivision Surface at LEVELS (1 to 6) "
         "onto the target (the report gains the surface's distances before and after)",
     )
+    add_frame_arguments(parser)
     parser.add_argument("--output-blend", type=Path, help="save template, target and result here")
     parser.add_argument("--output-obj", type=Path, help="export the retargeted layout here")
     parser.add_argument("--report", type=Path, help="write the JSON report here")
@@ -189,6 +206,12 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
         help="batch: skip the meshes whose .blend, .obj and report are already in --output-dir",
     )
     arguments = parser.parse_args(script_arguments(argv, __file__))
+    check_frame_arguments(parser, arguments)
+    check_output_arguments(
+        parser,
+        {"--output-blend": arguments.output_blend, "--output-obj": arguments.output_obj, "--report": arguments.report},
+        [arguments.template, arguments.target, arguments.anchors],
+    )
     if arguments.max_iterations < 1:
         parser.error("--max-iterations must be at least 1")
     try:
@@ -212,6 +235,8 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
             parser.error("--batch needs --output-dir")
         if arguments.output_blend or arguments.output_obj or arguments.report:
             parser.error("--batch writes into --output-dir: no --output-blend, --output-obj or --report")
+        if arguments.output_dir.resolve() == arguments.batch.resolve():
+            parser.error("--output-dir is the --batch folder: its outputs would replace the meshes")
     elif arguments.jobs is not None or arguments.executor != "local" or arguments.resume:
         parser.error("--jobs, --executor and --resume are for --batch")
     return arguments
@@ -221,7 +246,8 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
 
 
 def read_anchors(path: Path, vertex_count: int) -> list[tuple[int, tuple[float, float, float]]]:
-    """The (layout vertex, world target point) pairs of an anchors JSON file, all checked first."""
+    """The (layout vertex, target point) pairs of an anchors JSON file, all checked first; the points are in
+    the mesh files' frame (``--up-axis``, ``--forward-axis``)."""
     if not path.is_file():
         raise ScriptError(f"{path}: no such file")
     try:
@@ -257,8 +283,9 @@ def read_anchors(path: Path, vertex_count: int) -> list[tuple[int, tuple[float, 
 # ---------------------------------------------------------------- the retarget
 
 
-def align_bounds(layout, target) -> dict:
-    """Move and scale the layout uniformly so that its bounding box's centre and diagonal are the target's."""
+def align_bounds(layout, target, frame: "Matrix") -> dict:
+    """Move and scale the layout uniformly so that its bounding box's centre and diagonal are the target's;
+    the translation in the files' frame (the frame's axes are Blender's, permuted: the box is the same)."""
     import numpy as np
     from mathutils import Matrix, Vector
 
@@ -275,11 +302,13 @@ def align_bounds(layout, target) -> dict:
         Matrix.Translation(Vector(target_centre)) @ Matrix.Scale(scale, 4) @ Matrix.Translation(-Vector(layout_centre))
     )
     layout.matrix_world = transform @ layout.matrix_world
-    return {"scale": scale, "translation": (target_centre - layout_centre * scale).tolist()}
+    translation = frame.inverted().to_3x3() @ Vector(target_centre - layout_centre * scale)
+    return {"scale": scale, "translation": list(translation)}
 
 
-def align_with_operator(layout, arguments: argparse.Namespace, blame: str) -> dict:
-    """``springwrap.align`` (anchors then ICP, or ICP alone) on the layout's object transform; what it did."""
+def align_with_operator(layout, arguments: argparse.Namespace, blame: str, frame: "Matrix") -> dict:
+    """``springwrap.align`` (anchors then ICP, or ICP alone) on the layout's object transform; what it did
+    (the matrix in the files' frame)."""
     import numpy as np
 
     before = np.array(layout.matrix_world, dtype=np.float64)
@@ -289,7 +318,12 @@ def align_with_operator(layout, arguments: argparse.Namespace, blame: str) -> di
     )
     bpy.context.view_layer.update()
     change = np.array(layout.matrix_world, dtype=np.float64) @ np.linalg.inv(before)
-    return {"method": arguments.align_method, "anchors": use_anchors, "icp": True, "matrix": change.tolist()}
+    return {
+        "method": arguments.align_method,
+        "anchors": use_anchors,
+        "icp": True,
+        "matrix": to_file_frame(frame, change.tolist()),
+    }
 
 
 def fit_subdivision_report(levels: int) -> dict:
@@ -313,14 +347,17 @@ def retarget(arguments: argparse.Namespace) -> dict:
     WrapSession = addon_module("blender.wrap_session").WrapSession  # noqa: N806 - a class of the enabled add-on
     ERRORS = addon_module("core.errors").ERRORS  # noqa: N806 - the add-on's tuple of error types
     WrapParameters = addon_module("core.wrap_inputs").WrapParameters  # noqa: N806 - a class of the enabled add-on
+    from mathutils import Vector
 
     lap, warnings = Laps(), []
     timings = lap.timings
 
+    check_output_paths([arguments.output_blend, arguments.output_obj, arguments.report])  # before any work
     enable_addon()
     bpy.ops.wm.read_homefile(use_empty=True)
-    template = load_mesh(arguments.template, arguments.template_object, "Template")
-    target = load_mesh(arguments.target, arguments.target_object, "Target")
+    frame = frame_matrix(arguments.up_axis, arguments.forward_axis)
+    template = load_mesh(arguments.template, arguments.template_object, "Template", frame)
+    target = load_mesh(arguments.target, arguments.target_object, "Target", frame)
     anchor_pairs = (
         read_anchors(arguments.anchors, len(template.data.vertices)) if arguments.anchors is not None else None
     )
@@ -336,12 +373,15 @@ def retarget(arguments: argparse.Namespace) -> dict:
     lap("load")
 
     blame = f"template {arguments.template}, target {arguments.target}"
-    alignment = align_bounds(layout, target) if arguments.align in ("bounds", "icp") else None
+    alignment = align_bounds(layout, target, frame) if arguments.align in ("bounds", "icp") else None
     if anchor_pairs is not None:
         for vertex, point in anchor_pairs:
-            run_operator(f"{arguments.anchors}", "anchor_add", vertex_index=vertex, location=point, use_location=True)
+            location = tuple(frame.to_3x3() @ Vector(point))  # the files' frame, into Blender's
+            run_operator(
+                f"{arguments.anchors}", "anchor_add", vertex_index=vertex, location=location, use_location=True
+            )
     if arguments.align in ("icp", "anchors"):
-        alignment = (alignment or {}) | align_with_operator(layout, arguments, blame)
+        alignment = (alignment or {}) | align_with_operator(layout, arguments, blame, frame)
     run_operator(blame, "detach", only_selected=False)
     lap("align and detach")
 
@@ -384,6 +424,7 @@ def retarget(arguments: argparse.Namespace) -> dict:
         "vertices": result.vertex_count,
         "faces": len(layout.data.polygons),
         "anchors": len(layout.springwrap.anchors),
+        "frame": {"up_axis": arguments.up_axis, "forward_axis": arguments.forward_axis},
         "alignment": alignment,
         "wrap": {
             "iterations": result.iterations,
@@ -431,6 +472,8 @@ def batch_task(arguments: argparse.Namespace, target: Path, output_dir: Path) ->
             "stiffness_group",
             "free_group",
             "fit_subdivision",
+            "up_axis",
+            "forward_axis",
         )
     }
     settings["template"] = str(arguments.template.resolve())
@@ -480,6 +523,13 @@ def outputs_complete(task: dict) -> bool:
     except (OSError, UnicodeDecodeError, json.JSONDecodeError):
         return False
     return isinstance(report, dict) and report.get("target") == task["target"] and "metrics" in report
+
+
+def remove_outputs(task: dict) -> None:
+    """A failed mesh's outputs, left by an earlier run (they must not sit beside a summary saying it failed)."""
+    for final in task_outputs(task).values():
+        final.unlink(missing_ok=True)
+    remove_partial_outputs(task)
 
 
 def remove_partial_outputs(task: dict) -> None:
@@ -541,22 +591,32 @@ def run_batch(arguments: argparse.Namespace) -> int:
     """Retarget onto every mesh file of --batch on --jobs workers; summary.json; exit code 0, 1, 3 or 130."""
     import retarget_batch
 
-    if not arguments.template.is_file():
-        raise ScriptError(f"{arguments.template}: no such file")
+    # Everything that would fail every mesh, refused before any worker starts.
+    if arguments.template.suffix.lower() == ".blend":
+        check_blend_file(arguments.template)
+    else:
+        check_mesh_file(arguments.template)
     if arguments.anchors is not None and not arguments.anchors.is_file():
         raise ScriptError(f"{arguments.anchors}: no such file")
     if not arguments.batch.is_dir():
         raise ScriptError(f"{arguments.batch}: no such folder")
     targets = sorted(
-        path for path in arguments.batch.iterdir() if path.is_file() and path.suffix.lower() in MESH_SUFFIXES
+        path for path in arguments.batch.iterdir() if path.is_file() and path.suffix.lower() in INPUT_SUFFIXES
     )
     if not targets:
-        raise ScriptError(f"{arguments.batch}: no mesh files ({', '.join(MESH_SUFFIXES)})")
+        raise ScriptError(f"{arguments.batch}: no mesh files ({', '.join(INPUT_SUFFIXES)})")
     stems = [path.stem for path in targets]
     shared = sorted({stem for stem in stems if stems.count(stem) > 1})
     if shared:
-        raise ScriptError(f"{arguments.batch}: several meshes would write the same outputs ({', '.join(shared)}.*)")
+        clashes = "; ".join(", ".join(path.name for path in targets if path.stem == stem) for stem in shared)
+        raise ScriptError(
+            f"{arguments.batch}: meshes that differ only by their suffix would write the same outputs "
+            f"(OUT/<name>.blend, .obj, .json): {clashes}; rename or move one of each"
+        )
     output_dir = arguments.output_dir.resolve()
+    if output_dir.exists() and not output_dir.is_dir():
+        raise ScriptError(f"{arguments.output_dir}: is a file; --output-dir names a folder")
+    check_output_folder(output_dir)
     output_dir.mkdir(parents=True, exist_ok=True)
     tasks = [batch_task(arguments, target, output_dir) for target in targets]
     resumed = [arguments.resume and outputs_complete(task) for task in tasks]
@@ -579,7 +639,9 @@ def run_batch(arguments: argparse.Namespace) -> int:
         for task, skip in zip(tasks, resumed)
     ]
     for task, entry in zip(tasks, entries):
-        if entry["status"] == "not run":
+        if entry["status"] == "failed":  # also what an earlier run wrote for it
+            remove_outputs(task)
+        elif entry["status"] == "not run":
             remove_partial_outputs(task)
     counts = {status: sum(entry["status"] == status for entry in entries) for status in ("ok", "failed", "not run")}
     summary = {

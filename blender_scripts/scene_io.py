@@ -5,6 +5,7 @@ script shares and needs no ``bpy`` at its top.)"""
 
 import argparse
 import json
+import re
 import sys
 import time
 from pathlib import Path
@@ -13,12 +14,19 @@ from typing import TYPE_CHECKING
 import bpy
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # `blender --python` does not add it
-from headless import ScriptError, enable_addon, write_all_or_nothing
+from headless import ScriptError, enable_addon, signed_axis, write_all_or_nothing
+from mesh_files import MESH_SUFFIXES, MeshFileError, check_blend_file, check_coordinates, check_mesh_file
 
 if TYPE_CHECKING:
     import numpy as np
+    from mathutils import Matrix
 
-MESH_SUFFIXES = (".obj", ".ply", ".glb", ".gltf", ".blend")
+INPUT_SUFFIXES = (*MESH_SUFFIXES, ".blend")
+"""What the scripts read: a mesh file, or an object of a .blend."""
+
+GLTF_TO_BLENDER = ((1.0, 0.0, 0.0), (0.0, 0.0, -1.0), (0.0, 1.0, 0.0))
+"""What Blender's glTF importer always does to a file's coordinates (glTF is +Y up): (x, y, z) -> (x, -z, y).
+Undone after the import, so that a glTF file is read in the same convention as every other file."""
 
 
 def kernel_wrap_defaults():
@@ -35,24 +43,43 @@ def kernel_wrap_defaults():
     return springwrap_kernel.WrapSettings()
 
 
-def _import_file(path: Path) -> None:
-    """Run the importer for ``path``'s format."""
+def frame_matrix(up_axis: str, forward_axis: str) -> "Matrix":
+    """The 4x4 rotation from the mesh files' frame (``--up-axis``, ``--forward-axis``) to Blender's (Z up,
+    Y forward): the one convention every mesh file is read in; outputs are written back with its inverse."""
+    from bpy_extras.io_utils import axis_conversion
+
+    return axis_conversion(from_forward=signed_axis(forward_axis), from_up=signed_axis(up_axis)).to_4x4()
+
+
+def _import_file(path: Path) -> "Matrix":
+    """Run the importer for ``path``'s format with no axis conversion of its own (the coordinates as written,
+    whatever the importer's default); the rotation the importer applied anyway (glTF's), to be undone."""
     import addon_utils
+    from mathutils import Matrix
 
     suffix = path.suffix.lower()
+    as_written = {"forward_axis": "Y", "up_axis": "Z"}
     if suffix == ".obj":
-        bpy.ops.wm.obj_import(filepath=str(path))
+        bpy.ops.wm.obj_import(filepath=str(path), **as_written)
     elif suffix == ".ply":
         if bpy.app.version >= (4, 0, 0):
-            bpy.ops.wm.ply_import(filepath=str(path))
-        else:
+            bpy.ops.wm.ply_import(filepath=str(path), **as_written)
+        else:  # the Python importer of Blender 3.x applies no conversion
             addon_utils.enable("io_mesh_ply", default_set=True, handle_error=None)
             bpy.ops.import_mesh.ply(filepath=str(path))
+    elif suffix == ".stl":
+        if bpy.app.version >= (4, 2, 0):
+            bpy.ops.wm.stl_import(filepath=str(path), **as_written)
+        else:
+            addon_utils.enable("io_mesh_stl", default_set=True, handle_error=None)
+            bpy.ops.import_mesh.stl(filepath=str(path), axis_forward="Y", axis_up="Z")
     elif suffix in (".glb", ".gltf"):
         addon_utils.enable("io_scene_gltf2", default_set=True, handle_error=None)
         bpy.ops.import_scene.gltf(filepath=str(path))
+        return Matrix(GLTF_TO_BLENDER).to_4x4()
     else:
-        raise ScriptError(f"{path}: not a mesh file ({', '.join(MESH_SUFFIXES)})")
+        raise ScriptError(f"{path}: not a mesh file ({', '.join(INPUT_SUFFIXES)})")
+    return Matrix.Identity(4)
 
 
 def _only_mesh(objects: list, path: Path, object_name) -> "bpy.types.Object":
@@ -68,39 +95,75 @@ def _only_mesh(objects: list, path: Path, object_name) -> "bpy.types.Object":
     return meshes[0]
 
 
-def load_mesh(path: Path, object_name, role: str) -> "bpy.types.Object":
-    """The mesh object of ``path`` (a mesh file, or a .blend's object), linked into the scene, named ``role``."""
-    if not path.is_file():
-        raise ScriptError(f"{path}: no such file")
+def load_mesh(path: Path, object_name, role: str, frame: "Matrix") -> "bpy.types.Object":
+    """The mesh object of ``path`` (a mesh file, or a .blend's object), linked into the scene, named ``role``.
+
+    A mesh file is checked before its importer sees it (``mesh_files.check_mesh_file``), read with its
+    coordinates as written and placed by ``frame`` (:func:`frame_matrix`: the files' convention into
+    Blender's), the same for every format; a .blend's object keeps its place (it is in Blender's frame).
+    Its world coordinates are then refused when not finite or absurdly large."""
     if path.suffix.lower() == ".blend":
+        check_blend_file(path)
         try:
             with bpy.data.libraries.load(str(path), link=False) as (source, loaded):
                 loaded.objects = [name for name in source.objects if object_name is None or name == object_name]
         except (OSError, RuntimeError) as error:
             raise ScriptError(f"{path}: cannot read: {str(error).strip().splitlines()[0]}") from None
         objects = [obj for obj in loaded.objects if obj is not None]
+        placement = None
     else:
+        check_mesh_file(path)
         before = set(bpy.data.objects)
         try:
-            _import_file(path)
+            applied = _import_file(path)
         except RuntimeError as error:
-            # The importer's last line, without the "Location: .../ops.py" a Python importer's error ends with.
-            lines = [line for line in str(error).strip().splitlines() if not line.startswith("Location:")]
-            message = (lines[-1] if lines else "unknown error").removeprefix("Error: ")
+            message = importer_message(str(error))
             raise ScriptError(f"{path}: cannot read: {message}") from None
         objects = [obj for obj in bpy.data.objects if obj not in before]
+        bpy.context.view_layer.update()  # world matrices of an imported hierarchy (glTF nodes)
+        placement = applied.inverted()
     chosen = _only_mesh(objects, path, object_name)
+    world = chosen.matrix_world.copy()
     for obj in objects:  # keep only the chosen mesh in the scene
         if obj is not chosen:
             bpy.data.objects.remove(obj)
     if chosen.name not in bpy.context.scene.collection.objects and not chosen.users_collection:
         bpy.context.scene.collection.objects.link(chosen)
+    if placement is not None:  # a mesh file: its coordinates as written, in the files' frame
+        chosen.parent = None
+        chosen.matrix_world = frame @ placement @ world
+        bpy.context.view_layer.update()
     if len(chosen.data.vertices) == 0:
         raise ScriptError(f"{path}: the mesh has no vertices")
     if role == "Target" and len(chosen.data.polygons) == 0:
         raise ScriptError(f"{path}: the mesh has no faces to retarget onto")
+    check_world_coordinates(chosen, path)
     chosen.name = role
     return chosen
+
+
+def importer_message(text: str) -> str:
+    """The line that says why an importer failed: a Python importer's exception (``AttributeError: ...``) out
+    of the traceback it reports, else its last line, without the ``Location: .../ops.py`` it ends with."""
+    lines = [line.strip() for line in text.strip().splitlines() if line.strip() and not line.startswith("Location:")]
+    exceptions = [line for line in lines if re.match(r"^[A-Za-z_.]*(Error|Exception)\b: ", line)]
+    return (exceptions[-1] if exceptions else lines[-1] if lines else "unknown error").removeprefix("Error: ")
+
+
+def check_world_coordinates(obj, path: Path) -> None:
+    """Refuse an object whose vertices, placed in the world, are not finite or are absurdly large (what an
+    importer made of a file, or a .blend's object); the error names the file and the vertex."""
+    import numpy as np
+
+    positions = np.empty(len(obj.data.vertices) * 3, dtype=np.float32)
+    obj.data.vertices.foreach_get("co", positions)
+    matrix = np.array(obj.matrix_world, dtype=np.float64)
+    with np.errstate(all="ignore"):
+        world = positions.reshape(-1, 3).astype(np.float64) @ matrix[:3, :3].T + matrix[:3, 3]
+    try:
+        check_coordinates(world, lambda index: f"vertex {index} (world space, as imported)")
+    except MeshFileError as error:
+        raise ScriptError(f"{path}: {error}") from None
 
 
 def world_vertices(obj) -> "np.ndarray":
@@ -166,8 +229,16 @@ def run_operator(blame: str, name: str, **properties) -> None:
         raise ScriptError(f"{blame}: springwrap.{name} returned {sorted(result)}")
 
 
+def to_file_frame(frame: "Matrix", matrix) -> list:
+    """A 4x4 transform of Blender's world (nested lists or a Matrix) as the same transform of the files' frame."""
+    from mathutils import Matrix
+
+    return [list(row) for row in frame.inverted() @ Matrix(matrix) @ frame]
+
+
 def write_outputs(arguments: argparse.Namespace, layout, report: dict) -> None:
-    """Write every requested output to temporary files, then rename them all (nothing half-written)."""
+    """Write every requested output to temporary files, then rename them all (nothing half-written); the OBJ
+    in the files' frame (``--up-axis``, ``--forward-axis``), the .blend in Blender's."""
 
     def save_blend(path: Path) -> None:
         if bpy.ops.wm.save_as_mainfile(filepath=str(path), check_existing=False, copy=True) != {"FINISHED"}:
@@ -176,7 +247,13 @@ def write_outputs(arguments: argparse.Namespace, layout, report: dict) -> None:
     def export_obj(path: Path) -> None:
         for obj in bpy.context.view_layer.objects:
             obj.select_set(obj == layout)
-        bpy.ops.wm.obj_export(filepath=str(path), export_selected_objects=True, export_materials=False)
+        bpy.ops.wm.obj_export(
+            filepath=str(path),
+            export_selected_objects=True,
+            export_materials=False,
+            forward_axis=arguments.forward_axis,
+            up_axis=arguments.up_axis,
+        )
 
     def write_report(path: Path) -> None:
         path.write_text(json.dumps(report, indent=2) + "\n")

@@ -19,7 +19,18 @@ from pathlib import Path
 import bpy
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # `blender --python` does not add it
-from headless import EXIT_OK, ScriptError, addon_module, enable_addon, failed, script_arguments
+from headless import (
+    EXIT_OK,
+    ScriptError,
+    addon_module,
+    check_output_arguments,
+    check_output_paths,
+    enable_addon,
+    failed,
+    script_arguments,
+    write_atomically,
+)
+from mesh_files import check_blend_file
 
 PROGRESS_CHUNK = 100
 """Iterations between two progress lines."""
@@ -35,6 +46,7 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("--max-iterations", type=int, default=2000, help="iteration limit (default 2000)")
     parser.add_argument("--output", type=Path, help="the .blend to save the result to")
     arguments = parser.parse_args(script_arguments(argv, __file__))
+    check_output_arguments(parser, {"--output": arguments.output}, [])
     if arguments.max_iterations < 1:
         parser.error("--max-iterations must be at least 1")
     if arguments.anchors_spacing is not None and arguments.anchors_spacing < 0:
@@ -55,9 +67,11 @@ def prepare(arguments: argparse.Namespace) -> bpy.types.Object:
     """Open the file, pick the layout and its target, make the layout active (object mode)."""
     enable_addon()
     if arguments.blend is not None:
-        if not arguments.blend.is_file():
-            raise ScriptError(f"no such file: {arguments.blend}")
-        bpy.ops.wm.open_mainfile(filepath=str(arguments.blend.resolve()))
+        check_blend_file(arguments.blend)
+        try:
+            bpy.ops.wm.open_mainfile(filepath=str(arguments.blend.resolve()))
+        except RuntimeError as error:
+            raise ScriptError(f"{arguments.blend}: cannot read: {str(error).strip().splitlines()[0]}") from None
     if arguments.layout is not None:
         layout = find_object(arguments.layout, "layout")
     else:
@@ -101,6 +115,7 @@ def wrap(layout: bpy.types.Object, max_iterations: int):
 def run(arguments: argparse.Namespace) -> None:
     """Everything: prepare, anchors, wrap, report, save."""
     start = time.perf_counter()
+    check_output_paths([arguments.output])  # before any work
     layout = prepare(arguments)
     target = layout.springwrap.target
     print(
@@ -124,11 +139,12 @@ def run(arguments: argparse.Namespace) -> None:
             f"(last move {result.max_displacement:.2e} of the layout's size); the result is kept"
         )
     if arguments.output is not None:
-        output = arguments.output.resolve()
-        output.parent.mkdir(parents=True, exist_ok=True)
-        if bpy.ops.wm.save_as_mainfile(filepath=str(output), check_existing=False) != {"FINISHED"}:
-            raise ScriptError(f"could not save {output}")
-        print(f"saved {output}")
+
+        def save(path: Path) -> None:
+            if bpy.ops.wm.save_as_mainfile(filepath=str(path), check_existing=False, copy=True) != {"FINISHED"}:
+                raise ScriptError(f"{arguments.output}: could not save")
+
+        print(f"saved {write_atomically(arguments.output, save)}")
     else:
         print("not saved (no --output)")
     print(f"done in {time.perf_counter() - start:.1f} s")

@@ -5,9 +5,12 @@ not here but in mesh attributes on the layout (see ``core.layout_state``), so th
 through edits, undo and save/reload.
 """
 
+from typing import NamedTuple
+
 import bpy
 
 from .blender import compat
+from .core.subdivision import MAX_RESOLUTION
 
 
 def _kernel_wrap_defaults():
@@ -30,6 +33,40 @@ WRAP_DEFAULTS = _kernel_wrap_defaults()
 """The kernel's default wrap settings: the defaults of the wrap's operator, panel and scripts."""
 
 
+class Range(NamedTuple):
+    """A property's range, decided once: hard limits (what Blender clamps a typed or scripted value to) are the
+    valid range (the kernel's, for its settings), soft limits the useful one (the slider's)."""
+
+    hard_min: float
+    hard_max: float
+    soft_min: float
+    soft_max: float
+
+    def keywords(self) -> dict:
+        """``min``, ``max``, ``soft_min``, ``soft_max`` for a ``bpy.props`` property."""
+        return {"min": self.hard_min, "max": self.hard_max, "soft_min": self.soft_min, "soft_max": self.soft_max}
+
+
+INT_LIMIT = 2**31 - 1
+"""The largest value of a Blender int property."""
+
+WRAP_RANGES = {
+    # The kernel's WrapSettings ranges (its docstrings; tests/addon/test_ranges.py checks the kernel accepts
+    # each hard limit and refuses what lies beyond): weights [0, 1], the thin plate [0, 0.5], the
+    # tolerance (0, 1] (0 itself passes Blender and the kernel refuses it: a hard minimum cannot be open).
+    "fairness": Range(0.0, 1.0, 0.0, 1.0),
+    "arc_length": Range(0.0, 1.0, 0.0, 1.0),
+    "thin_plate": Range(0.0, 0.5, 0.0, 0.5),
+    "constraint": Range(0.0, 1.0, 0.0, 1.0),
+    "folding": Range(0.0, 1.0, 0.0, 1.0),
+    "tolerance": Range(0.0, 1.0, 1e-7, 1e-2),
+    # The add-on's own: at least one iteration; the spring resolution up to core.subdivision.MAX_RESOLUTION.
+    "max_iterations": Range(1, INT_LIMIT, 1, 20000),
+    "spring_resolution": Range(1, MAX_RESOLUTION, 1, MAX_RESOLUTION),
+}
+"""The range of every wrap and mirror setting: one table the operators' properties are made from."""
+
+
 def max_distance_property(description: str):
     """A world-space distance limit, 0 meaning unlimited: shared by the operators and the panel defaults."""
     return bpy.props.FloatProperty(
@@ -46,7 +83,9 @@ def max_iterations_property(
     description: str = "Stop the wrap after this many iterations if it has not converged by then",
 ):
     """The wrap's iteration limit: shared by the operators that wrap (wrap, mirror)."""
-    return bpy.props.IntProperty(name="Max Iterations", description=description, default=2000, min=1, soft_max=20000)
+    return bpy.props.IntProperty(
+        name="Max Iterations", description=description, default=2000, **WRAP_RANGES["max_iterations"].keywords()
+    )
 
 
 def tolerance_property(
@@ -57,9 +96,15 @@ def tolerance_property(
         name="Tolerance",
         description=description,
         default=WRAP_DEFAULTS.tolerance,
-        soft_min=1e-7,
-        soft_max=1e-2,
         precision=7,
+        **WRAP_RANGES["tolerance"].keywords(),
+    )
+
+
+def wrap_weight_property(name: str, label: str, description: str):
+    """One of the wrap's weights (a kernel setting): the kernel's default and range."""
+    return bpy.props.FloatProperty(
+        name=label, description=description, default=getattr(WRAP_DEFAULTS, name), **WRAP_RANGES[name].keywords()
     )
 
 
@@ -219,6 +264,13 @@ WRAP_SOLVER_ITEMS = (
 """The wrap's algorithms (``springwrap_kernel.WrapSettings(solver=...)``)."""
 
 
+def _update_show_cage(settings, context):
+    """``show_cage``'s update (``blender.cage_display``)."""
+    from .blender import cage_display
+
+    cage_display.update_show_cage(settings, context)
+
+
 class SpringwrapObjectSettings(bpy.types.PropertyGroup):
     """Springwrap settings of a layout object."""
 
@@ -361,6 +413,22 @@ class SpringwrapObjectSettings(bpy.types.PropertyGroup):
         name="Mirror Object",
         description="Object (an empty) whose local plane the Mirror button mirrors across; none: the layout's own",
         type=bpy.types.Object,
+    )
+
+    show_cage: bpy.props.BoolProperty(
+        name="Show Cage",
+        description=(
+            "Draw the layout so it reads over its target: In Front and as Wire, and the Retopology overlay in "
+            "Blender 4+ (Edit Mode); off puts the object's and the views' display settings back"
+        ),
+        default=False,
+        update=compat.property_update(_update_show_cage),
+    )
+    cage_saved_display: bpy.props.StringProperty(
+        name="Saved Display",
+        description="The display settings Show Cage replaced (JSON), put back when it is turned off",
+        default="",
+        options={"HIDDEN"},
     )
 
 

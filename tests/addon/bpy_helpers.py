@@ -364,6 +364,8 @@ class RecordingLayout:
     def column(self, *args, **kwargs):
         return self
 
+    split = column
+
     def label(self, text="", **kwargs):
         self.labels.append(text)
 
@@ -399,14 +401,23 @@ def curves_layout(target, shift):
     return activate_layout(layout, target)
 
 
-def wrap_session(layout, solver="SPRINGS", **parameters):
-    """A wrap session; the spring solver unless said (its hundreds of iterations make many frames)."""
+def wrap_session(layout, solver="SPRINGS", paced=False, tolerance=None, **parameters):
+    """A wrap session; the spring solver unless said (its hundreds of iterations make many frames).
+
+    Its frames (``advance``) run one iteration each, so that tests can count them; ``paced``: the real
+    pacer, whose first frame of 1/30 s would finish these small wraps at once (a tiny ``tolerance`` keeps
+    them going).
+    """
     import springwrap_kernel
     from springwrap.blender.wrap_session import WrapSession
     from springwrap.core.wrap_inputs import WrapParameters
+    from springwrap.core.wrap_run import FramePacer
 
-    settings = springwrap_kernel.WrapSettings(solver=solver)
-    return WrapSession(bpy.context, layout, WrapParameters(settings=settings, **parameters))
+    settings = springwrap_kernel.WrapSettings(solver=solver, **({} if tolerance is None else {"tolerance": tolerance}))
+    session = WrapSession(bpy.context, layout, WrapParameters(settings=settings, **parameters))
+    if not paced:
+        session.pacer = FramePacer(frame_rate=1e6)  # a microsecond of solving: one iteration a frame
+    return session
 
 
 # ---------------------------------------------------------------- anchors
@@ -455,7 +466,7 @@ class PanelRecorder:
     def column(self, *args, **kwargs):
         return self
 
-    row = box = column
+    row = box = split = column
 
     def operator(self, idname, **kwargs):
         button = type("Button", (), {})()

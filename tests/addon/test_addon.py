@@ -634,14 +634,15 @@ def test_bad_input_is_reported_and_leaves_the_layout_untouched(case, operator):
     break_scene, message = BAD_INPUTS[case]
     break_scene(target, layout)
     before = snapshot(layout)
-    expect_failure = not (operator == "detach" and case in ("no target", "NaN layout vertex"))
+    # Detach needs no target; a NaN layout vertex is refused by every operation on the vertices (the input policy).
+    expect_failure = not (operator == "detach" and case == "no target")
     call = getattr(bpy.ops.springwrap, operator)
     if expect_failure:
         with pytest.raises(RuntimeError, match=message):
             call(**({"direction": "-Z"} if operator == "project" else {}))
         assert snapshot(layout) == before
     else:
-        # Detach needs no target and queries no position: it works and moves nothing.
+        # Detach needs no target: it works and moves nothing.
         assert call() == {"FINISHED"}
         assert snapshot(layout)["positions"] == before["positions"]
 
@@ -675,6 +676,7 @@ class RecordingLayout:
 
     def __init__(self, operators):
         self.operators = operators
+        self.texts = []
         self.labels = []
         self.use_property_split = False
         self.use_property_decorate = False
@@ -689,46 +691,54 @@ class RecordingLayout:
     def column(self, *args, **kwargs):
         return self
 
-    def row(self, *args, **kwargs):
-        return self
-
-    def box(self, *args, **kwargs):
-        return self
+    row = box = split = column
 
     def operator(self, idname, **kwargs):
         button = type("Button", (), {})()
         self.operators.append((idname, button))
+        self.texts.append((idname, kwargs))
         return button
+
+
+def draw_panels(panels, recorder):
+    """Draw the panels (classes) into the recorder, as Blender would one after the other."""
+    for panel_class in panels:
+        assert panel_class.poll(bpy.context)
+        panel_class.draw(type("Panel", (), {"layout": recorder})(), bpy.context)
 
 
 @pytest.mark.parametrize("mode", ["OBJECT", "EDIT"])
 def test_panel_buttons_act_on_the_selection_in_edit_mode(mode):
-    from springwrap.ui.panels import SPRINGWRAP_PT_layout
+    from springwrap.ui import panels
 
     target, layout = scene()
     layout.springwrap.snap_mode = "VERTEX"
     layout.springwrap.project_direction = "-Y"
     bpy.ops.object.mode_set(mode=mode)
-    assert SPRINGWRAP_PT_layout.poll(bpy.context)
     buttons = []
     recorder = RecordingLayout(buttons)
-    panel = type("Panel", (), {"layout": recorder})()
-    SPRINGWRAP_PT_layout.draw(panel, bpy.context)
+    draw_panels([panels.SPRINGWRAP_PT_snap, panels.SPRINGWRAP_PT_project, panels.SPRINGWRAP_PT_detach], recorder)
     by_name = dict(buttons)
     assert set(by_name) == {"springwrap.detach", "springwrap.snap", "springwrap.project"}
     assert all(button.only_selected == (mode == "EDIT") for button in by_name.values())
     assert by_name["springwrap.snap"].mode == "VERTEX"
     assert by_name["springwrap.project"].direction == "-Y"
+    texts = [kwargs.get("text") for _name, kwargs in recorder.texts]
+    assert texts == (
+        ["Snap Selected", "Project Selected", "Detach Selected"] if mode == "EDIT" else ["Snap", "Project", "Detach"]
+    )
     if mode == "OBJECT":
-        assert "0 face-points, 121 space-points" in recorder.labels
+        recorder = RecordingLayout([])
+        draw_panels([panels.SPRINGWRAP_PT_check], recorder)
+        assert recorder.labels == ["On Surface", "0", "In Space", "121"]
 
 
 def test_panel_counts_face_and_space_points():
-    from springwrap.ui.panels import SPRINGWRAP_PT_layout
+    from springwrap.ui.panels import SPRINGWRAP_PT_check
 
     target, layout = scene()
     set_selection(layout, np.arange(len(layout.data.vertices)) < 40)
     bpy.ops.springwrap.snap(only_selected=True)
     recorder = RecordingLayout([])
-    SPRINGWRAP_PT_layout.draw(type("Panel", (), {"layout": recorder})(), bpy.context)
-    assert "40 face-points, 81 space-points" in recorder.labels
+    draw_panels([SPRINGWRAP_PT_check], recorder)
+    assert recorder.labels == ["On Surface", "40", "In Space", "81"]

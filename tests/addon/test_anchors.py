@@ -589,10 +589,13 @@ def test_anchor_panel_lists_anchors_and_offers_the_operators():
     assert buttons["springwrap.anchors_auto"].method == "PROJECT"
     assert recorder.lists[0][:4] == ("SPRINGWRAP_UL_anchors", "", layout.springwrap, "anchors")
     count = len(layout.springwrap.anchors)
-    assert f"{count} anchors ({count - 1} on the surface)" in recorder.labels
+    assert recorder.labels[:4] == ["Anchors", str(count), "On Surface", str(count - 1)]
     assert "show_anchors" in recorder.props
 
     row_recorder = PanelRecorder()
     item = layout.springwrap.anchors[count - 1]
     SPRINGWRAP_UL_anchors.draw_item(None, bpy.context, row_recorder, layout.springwrap, item, 0, None, "", count - 1)
-    assert row_recorder.labels == ["Vertex 1", "Space (0, 0, 4)"]
+    distance = float(np.linalg.norm(np.array([0.0, 0.0, 4.0]) - world_positions(layout)[1]))
+    assert row_recorder.labels[0] == "1"
+    value, unit = row_recorder.labels[1].split()  # the vertex's distance to its target, in the scene's unit
+    assert unit == "m" and float(value) == pytest.approx(distance, rel=5e-3)

@@ -387,7 +387,7 @@ def test_operator_setting_and_panel_are_registered():
     settings = bpy.types.Object.bl_rna.properties["springwrap"].fixed_type
     assert settings.properties["target_armature"].fixed_type.identifier == "Object"
     cylinder_scene(BENT)
-    assert SPRINGWRAP_PT_armature.bl_parent_id == "SPRINGWRAP_PT_layout" and SPRINGWRAP_PT_armature.poll(bpy.context)
+    assert SPRINGWRAP_PT_armature.bl_parent_id == "SPRINGWRAP_PT_align" and SPRINGWRAP_PT_armature.poll(bpy.context)
     recorder = RecordingLayout()
     SPRINGWRAP_PT_armature.draw(type("Panel", (), {"layout": recorder})(), bpy.context)
     assert recorder.props == [("target_armature", True)] and recorder.operators == ["springwrap.align_armature"]

@@ -18,9 +18,9 @@ from bpy_helpers import local_positions, make_object, read_state, snapshot, worl
 LAYOUT_MATRIX = Matrix.LocRotScale(Vector((0.3, -0.2, 0.1)), Matrix.Rotation(0.4, 3, "Z"), Vector((1.5, 1.5, 1.5)))
 
 
-def sphere_target(radius=1.0, hole=False):
-    """A fine UV sphere about the origin (world); ``hole``: without the cap above z = 0.8 radius."""
-    bpy.ops.mesh.primitive_uv_sphere_add(segments=128, ring_count=64, radius=radius)
+def sphere_target(radius=1.0, hole=False, centre=(0.0, 0.0, 0.0)):
+    """A fine UV sphere about ``centre`` (world); ``hole``: without the cap above z = 0.8 radius."""
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=128, ring_count=64, radius=radius, location=centre)
     target = bpy.context.active_object
     target.name = "Target"
     if hole:
@@ -33,7 +33,7 @@ def sphere_target(radius=1.0, hole=False):
     return target
 
 
-def cube_sphere_cage(target, cuts=2, radius=1.0, matrix=LAYOUT_MATRIX):
+def cube_sphere_cage(target, cuts=2, radius=1.0, matrix=LAYOUT_MATRIX, centre=(0.0, 0.0, 0.0)):
     """A subdivided cube whose vertices lie on the sphere of ``radius`` (world), as the layout placed by ``matrix``
     (its mesh holds the inverse-transformed points): a cage whose subdivided surface shrinks inside the sphere."""
     bpy.ops.mesh.primitive_cube_add(size=2)
@@ -43,6 +43,7 @@ def cube_sphere_cage(target, cuts=2, radius=1.0, matrix=LAYOUT_MATRIX):
     bpy.ops.object.mode_set(mode="OBJECT")
     points = local_positions(cube).astype(np.float64)
     points *= radius / np.linalg.norm(points, axis=1)[:, None]
+    points += np.array(centre)
     inverse = np.array(matrix.inverted())
     local = points @ inverse[:3, :3].T + inverse[:3, 3]
     cube.data.vertices.foreach_set("co", local.astype(np.float32).reshape(-1))
@@ -89,9 +90,11 @@ def cage_arrays(obj):
     return np.ascontiguousarray(local_positions(obj)), corners, sizes
 
 
-def test_the_subdivided_surface_of_a_sphere_cage_comes_onto_the_sphere():
-    target = sphere_target()
-    layout = cube_sphere_cage(target)
+@pytest.mark.parametrize("centre", [(0.0, 0.0, 0.0), (40.0, -25.0, 12.5)], ids=["at-origin", "far-away"])
+def test_the_subdivided_surface_of_a_sphere_cage_comes_onto_the_sphere(centre):
+    """The issue's cage-fit test: the level-2 surface's max distance to the sphere falls at least 5 times."""
+    target = sphere_target(centre=centre)
+    layout = cube_sphere_cage(target, matrix=Matrix.Translation(centre) @ LAYOUT_MATRIX, centre=centre)
     before = distances_to(target, subdivided_world_points(layout))
     assert bpy.ops.springwrap.fit_subdivision(levels=2) == {"FINISHED"}
     after = distances_to(target, subdivided_world_points(layout))
@@ -104,7 +107,7 @@ def test_the_subdivided_surface_of_a_sphere_cage_comes_onto_the_sphere():
     assert outcome.before.max == pytest.approx(before.max(), rel=2e-2)
     assert outcome.after.max == pytest.approx(after.max(), rel=5e-2, abs=1e-4)
     # The cage moved out past the sphere; every moved vertex is a space-point now.
-    assert np.linalg.norm(world_positions(layout), axis=1).min() > 1.0
+    assert np.linalg.norm(world_positions(layout) - np.array(centre), axis=1).min() > 1.0
     states, faces, _ = read_state(layout)
     assert (states == 0).all() and (faces == -1).all()
     # Nothing temporary is left behind.

@@ -332,7 +332,7 @@ class _Recorder:
     def row(self, *args, **kwargs):
         return self
 
-    column = row
+    column = split = row
 
     def separator(self, *args, **kwargs):
         pass
@@ -359,7 +359,7 @@ def test_panel_lists_the_constraints_with_their_buttons():
     _target, layout, normal = plane_scene()
     curve, _points = bent_curve_under_row(layout, normal)
     layout.springwrap.curve_source = curve
-    assert SPRINGWRAP_PT_curve_constraints.bl_parent_id == "SPRINGWRAP_PT_layout"
+    assert SPRINGWRAP_PT_curve_constraints.bl_parent_id == "SPRINGWRAP_PT_anchors"
     assert SPRINGWRAP_PT_curve_constraints.poll(bpy.context)
     recorder = _Recorder()
     SPRINGWRAP_PT_curve_constraints.draw(type("Panel", (), {"layout": recorder})(), bpy.context)

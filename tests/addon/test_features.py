@@ -43,9 +43,9 @@ def feature_curves():
     return [] if collection is None else sorted(collection.objects, key=lambda obj: obj.name)
 
 
-def curve_points(curve):
-    """(P, 3) world points of a poly curve object (its spline points; the objects have identity transforms)."""
-    points = curve.data.splines[0].points
+def curve_points(curve, spline=0):
+    """(P, 3) world points of a spline of a poly curve object (the objects have identity transforms)."""
+    points = curve.data.splines[spline].points
     values = np.empty(len(points) * 4, dtype=np.float32)
     points.foreach_get("co", values)
     return values.reshape(-1, 4)[:, :3].astype(np.float64)
@@ -108,14 +108,14 @@ def test_rounded_box_gets_region_colours_and_twelve_ridge_curves(capfd):
     np.testing.assert_array_equal(colors[face_middle], np.broadcast_to(REGION_COLORS[0], colors[face_middle].shape))
     np.testing.assert_array_equal(colors[on_blend], np.broadcast_to(REGION_COLORS[1], colors[on_blend].shape))
 
-    curves = feature_curves()
-    assert len(curves) == 12
-    for curve in curves:
-        assert curve.type == "CURVE" and curve["springwrap_feature"] == "RIDGE"
-        assert curve.name.startswith("Box Ridge ")
-        assert len(curve.data.splines) == 1 and curve.data.splines[0].type == "POLY"
-        assert not curve.data.splines[0].use_cyclic_u
-        assert centre_line_distance(curve_points(curve) - OFFSET).max() < 0.05
+    # One object for the ridges (no valleys on a box), named after the target, a spline per ridge.
+    assert [curve.name for curve in feature_curves()] == ["Box Ridges"]
+    ridges = feature_curves()[0]
+    assert ridges.type == "CURVE" and ridges["springwrap_feature"] == "RIDGE"
+    assert len(ridges.data.splines) == 12
+    for number, spline in enumerate(ridges.data.splines):
+        assert spline.type == "POLY" and not spline.use_cyclic_u
+        assert centre_line_distance(curve_points(ridges, number) - OFFSET).max() < 0.05
 
 
 def test_a_layout_with_a_target_analyses_its_target_and_a_rerun_replaces_the_curves():
@@ -126,12 +126,15 @@ def test_a_layout_with_a_target_analyses_its_target_and_a_rerun_replaces_the_cur
     assert bpy.ops.springwrap.detect_features(scale=0.25) == {"FINISHED"}
     assert COLOR_ATTRIBUTE not in layout.data.attributes
     assert COLOR_ATTRIBUTE in box.data.attributes
-    assert len(feature_curves()) == 12
+    assert [curve.name for curve in feature_curves()] == ["Box Ridges"]
+    ridges = feature_curves()[0]
     curve_count = len(bpy.data.curves)
     assert bpy.ops.springwrap.detect_features(scale=0.25, write_colors=False) == {"FINISHED"}
-    assert len(feature_curves()) == 12
+    assert feature_curves() == [ridges] and len(ridges.data.splines) == 12  # the same object, refilled
     assert len(bpy.data.curves) == curve_count
-    assert all(curve.name.startswith("Box Ridge ") for curve in feature_curves())
+    # A coarser scale finds fewer ridges: the object keeps only the new ones.
+    assert bpy.ops.springwrap.detect_features(scale=0.25, ridge_threshold=100.0, write_colors=False) == {"FINISHED"}
+    assert feature_curves() == [] and len(bpy.data.curves) == curve_count - 1
 
 
 def test_a_plane_is_reported_and_the_scene_left_untouched():
@@ -179,13 +182,15 @@ def test_a_detected_curve_is_a_curve_constraint_the_wrap_follows():
     layout = strip_over_the_edge()
     layout.springwrap.target = box
     activate(layout)
-    # The detected ridge along the (+x, +y) edge.
-    ridge = min(feature_curves(), key=lambda curve: np.abs(curve_points(curve)[:, :2] - OFFSET[:2] - 0.927).sum())
+    # The detected ridge along the (+x, +y) edge: a spline of the one ridges object, which the constraint
+    # picks as the one nearest the chain.
+    ridges = feature_curves()[0]
+    polylines = [curve_points(ridges, number) for number in range(len(ridges.data.splines))]
+    polyline = min(polylines, key=lambda points: np.abs(points[:, :2] - OFFSET[:2] - 0.927).sum())
     chain = list(range(11, 22))
     select_edges(layout, chain_pairs(chain))
-    assert bpy.ops.springwrap.curve_constraint_add(curve_object=ridge.name) == {"FINISHED"}
+    assert bpy.ops.springwrap.curve_constraint_add(curve_object=ridges.name) == {"FINISHED"}
     bpy.ops.object.mode_set(mode="OBJECT")
-    polyline = curve_points(ridge)
     before = distance_to_polyline(world_positions(layout)[chain], polyline)
     assert before.min() > 0.1
     assert bpy.ops.springwrap.wrap() == {"FINISHED"}

@@ -10,7 +10,6 @@ import sys
 import numpy as np
 import pytest
 
-import springwrap_kernel
 from helpers import CORE, core_module
 
 an = core_module("anchors")
@@ -38,17 +37,7 @@ def grid_target(size=4.0, cells=8, height=0.0):
 
 def make_target(vertices, triangles):
     """A ``core.target.Target`` over a kernel mesh, as ``blender.target.read_target`` builds it."""
-    vertices = np.ascontiguousarray(vertices, dtype=np.float32)
-    triangles = np.ascontiguousarray(triangles, dtype=np.uint32)
-    mesh = springwrap_kernel.TargetMesh(vertices, triangles)
-    low, high = mesh.bounding_box()
-    return tg.Target(
-        name="Target",
-        mesh=mesh,
-        triangle_polygons=np.arange(len(triangles), dtype=np.int32),
-        signature=ls.target_signature(triangles, len(vertices)),
-        reattach_tolerance=ls.reattach_tolerance(low, high),
-    )
+    return tg.make_target("Target", np.asarray(vertices, dtype=np.float64), triangles)
 
 
 def layout_arrays(positions, matrix_world=None):

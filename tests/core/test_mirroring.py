@@ -117,6 +117,7 @@ def test_pins_replace_anchors_on_the_surfaced_half():
         anchor_triangles=np.array([9, -1], dtype=np.int32),
         anchor_barycentrics=np.zeros((2, 3), dtype=np.float32),
         anchor_positions=np.ones((2, 3), dtype=np.float32),
+        origin=np.array([1.0, 2.0, 3.0]),  # the kernel's frame: world minus the target's centre
     )
     inputs._replace = lambda **changes: types.SimpleNamespace(**(vars(inputs) | changes))
     plane = mirroring.Plane(np.zeros(3), np.array([1.0, 0.0, 0.0]))
@@ -125,6 +126,7 @@ def test_pins_replace_anchors_on_the_surfaced_half():
     assert held.anchor_triangles.tolist() == [-1, 5, -1]
     assert np.array_equal(held.anchor_positions[1:], inputs.positions[:2])
     assert held.plane_vertices.tolist() == [2] and held.plane_slide is False
+    assert held.plane_point == (-1.0, -2.0, -3.0)  # the world plane through the origin, in the kernel's frame
 
 
 def test_held_on_plane_holds_the_midline_and_leaves_its_anchors_out():
@@ -135,6 +137,7 @@ def test_held_on_plane_holds_the_midline_and_leaves_its_anchors_out():
         anchor_triangles=np.array([9, -1, 2], dtype=np.int32),
         anchor_barycentrics=np.zeros((3, 3), dtype=np.float32),
         anchor_positions=np.ones((3, 3), dtype=np.float32),
+        origin=np.zeros(3),
     )
     inputs._replace = lambda **changes: _namespace_with_replace(vars(inputs) | changes)
     plane = mirroring.Plane(np.zeros(3), np.array([1.0, 0.0, 0.0]))

@@ -123,22 +123,19 @@ def test_retargets_an_obj_template_onto_an_obj_target(inputs, tmp_path):
     assert len(vertices) == GRID_SIDE**2 and all(0.97 < radius <= 1.0 + 1e-4 for radius in radii)
 
 
-def blender_from_obj(point):
-    """OBJ files are Y-up (Blender's importer and exporter convert): OBJ (x, y, z) is Blender (x, -z, y)."""
-    x, y, z = point
-    return [x, -z, y]
+Y_UP = ("--up-axis", "Y", "--forward-axis", "NEGATIVE_Z")  # the frame of OBJ files from Blender's exporter
 
 
 def test_anchors_from_json_and_a_blend_template_object(inputs, tmp_path):
-    # The grid's two opposite corners (OBJ space: z = 1.5) anchored to points nearer the sphere; anchor
-    # targets are world (Blender) coordinates, each vertex is pulled to the surface point closest to its target.
+    # The .blend holds the grid as Blender's OBJ importer placed it (Y up: OBJ (x, y, z) is Blender (x, -z, y)).
+    # With the Y-up frame, the target OBJ is read the same way, and the anchors file and the output OBJ are in
+    # the OBJ files' own coordinates: the grid's two opposite corners (z = 1.5) anchored to points nearer the
+    # sphere, each vertex pulled to the surface point closest to its target.
     corner = GRID_SIDE * GRID_SIDE - 1
     wanted = {0: (-0.5, -0.5, 1.0), corner: (0.5, 0.5, 1.0)}  # OBJ space
     anchors = tmp_path / "anchors.json"
     anchors.write_text(
-        json.dumps(
-            {"anchors": [{"vertex": vertex, "target": blender_from_obj(point)} for vertex, point in wanted.items()]}
-        )
+        json.dumps({"anchors": [{"vertex": vertex, "target": point} for vertex, point in wanted.items()]})
     )
     report_path, obj_path = tmp_path / "r.json", tmp_path / "r.obj"
     process = run(
@@ -154,6 +151,7 @@ def test_anchors_from_json_and_a_blend_template_object(inputs, tmp_path):
         report_path,
         "--output-obj",
         obj_path,
+        *Y_UP,
     )
     assert process.returncode == 0, process.stderr[-3000:]
     report = json.loads(report_path.read_text())
@@ -321,8 +319,10 @@ def test_batch_retargets_every_mesh_and_skips_a_failing_one(inputs, tmp_path):
         assert report["wrap"]["face_points"] == GRID_SIDE**2
 
 
-def test_align_anchors_then_icp_recovers_the_targets_placement(inputs, tmp_path):
-    """The template is the ball; the target the same ball scaled by 1.3 and moved: ``--align anchors`` finds it."""
+@pytest.mark.parametrize("frame", [(), Y_UP], ids=["z-up", "y-up"])
+def test_align_anchors_then_icp_recovers_the_targets_placement(inputs, tmp_path, frame):
+    """The template is the ball; the target the same ball scaled by 1.3 and moved: ``--align anchors`` finds it.
+    The anchors file and the alignment in the report are in the files' frame, whichever it is."""
     scale, shift = 1.3, (0.4, -0.2, 0.1)  # OBJ space
     template_lines = inputs["target"].read_text().splitlines()
     moved = []
@@ -342,9 +342,7 @@ def test_align_anchors_then_icp_recovers_the_targets_placement(inputs, tmp_path)
                 "anchors": [
                     {
                         "vertex": vertex,
-                        "target": blender_from_obj(
-                            [scale * value + offset for value, offset in zip(points[vertex], shift)]
-                        ),
+                        "target": [scale * value + offset for value, offset in zip(points[vertex], shift)],
                     }
                     for vertex in chosen
                 ]
@@ -363,11 +361,12 @@ def test_align_anchors_then_icp_recovers_the_targets_placement(inputs, tmp_path)
         "anchors",
         "--report",
         report_path,
+        *frame,
     )
     assert process.returncode == 0, process.stderr[-3000:]
     alignment = json.loads(report_path.read_text())["alignment"]
     assert alignment["method"] == "similarity" and alignment["anchors"] and alignment["icp"]
-    expected = [[scale, 0, 0, shift[0]], [0, scale, 0, -shift[2]], [0, 0, scale, shift[1]], [0, 0, 0, 1]]
+    expected = [[scale, 0, 0, shift[0]], [0, scale, 0, shift[1]], [0, 0, scale, shift[2]], [0, 0, 0, 1]]
     for row, expected_row in zip(alignment["matrix"], expected):
         assert all(abs(value - wanted) < 1e-4 for value, wanted in zip(row, expected_row)), alignment["matrix"]
 

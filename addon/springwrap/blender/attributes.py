@@ -125,8 +125,14 @@ _ABSENT = "absent"
 _FOREIGN = "foreign"
 
 
+SNAPSHOT_ATTRIBUTES = STATE_ATTRIBUTES + ((layout_state.REST_ATTRIBUTE, "FLOAT_VECTOR"),)
+"""What a wrap may write besides positions: the state attributes and the rest shape (written by the final
+write when the layout has none yet)."""
+
+
 class LayoutSnapshot(NamedTuple):
-    """The layout's positions and state attributes as they were, to put back bit for bit (a cancelled wrap)."""
+    """The layout's positions, state attributes and rest shape as they were, to put back bit for bit (a
+    cancelled or failed wrap)."""
 
     positions: np.ndarray  # (N * 3,) float32, as read
     # attribute name -> its raw values; _ABSENT when it did not exist; _FOREIGN when an attribute of
@@ -135,10 +141,10 @@ class LayoutSnapshot(NamedTuple):
 
 
 def take_snapshot(layout: bpy.types.Object) -> LayoutSnapshot:
-    """Copy what a wrap in progress writes: positions and the state attributes (object mode)."""
+    """Copy what a wrap writes: positions, the state attributes and the rest shape (object mode)."""
     mesh = layout.data
     attributes = {}
-    for name, data_type in STATE_ATTRIBUTES:
+    for name, data_type in SNAPSHOT_ATTRIBUTES:
         values = read_point_attribute(mesh, name, data_type)
         if values is None:
             values = _ABSENT if mesh.attributes.get(name) is None else _FOREIGN
@@ -147,13 +153,13 @@ def take_snapshot(layout: bpy.types.Object) -> LayoutSnapshot:
 
 
 def restore_snapshot(layout: bpy.types.Object, snapshot: LayoutSnapshot) -> None:
-    """Put back what :func:`take_snapshot` copied: positions and state attributes, bit for bit.
+    """Put back what :func:`take_snapshot` copied: positions, state attributes and rest shape, bit for bit.
 
     An attribute that did not exist is removed again; one that existed gets its values back.
     """
     mesh = layout.data
     mesh.vertices.foreach_set("co", snapshot.positions)
-    for name, data_type in STATE_ATTRIBUTES:
+    for name, data_type in SNAPSHOT_ATTRIBUTES:
         saved = snapshot.attributes[name]
         if isinstance(saved, str):
             if saved == _ABSENT:

@@ -116,10 +116,18 @@ def fit_subdivision(
     valid = anchor_logic.valid_vertex_mask(anchors, vertex_count)
     anchor_logic.check_anchor_locations(anchors, valid)
     world = transforms.world_positions(arrays)
+    # The kernel's mesh lives in a frame centred on the target (``core.target.CentredMesh``): the fit runs in
+    # it, Blender's subdivision (affine-invariant) is evaluated in world space and brought into it.
+    frame = target.mesh
     with BlenderSubdivision(context, layout, parameters.levels, parameters.boundary) as subdivision:
+
+        def evaluate(cage_in_frame: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            points, triangles = subdivision.evaluate(frame.from_kernel(cage_in_frame))
+            return points - frame.origin, triangles
+
         outcome = cage_fit.fit_cage(
-            target.mesh,
-            world,
+            frame.kernel,
+            world - frame.origin,
             topology.face_corners,
             topology.face_sizes,
             movable,
@@ -129,9 +137,10 @@ def fit_subdivision(
             smoothness=parameters.smoothness,
             max_distance=parameters.max_distance,
             anchor_vertices=anchors.vertex_indices[valid],
-            anchor_points=anchors.locations[valid],
-            evaluate=subdivision.evaluate,
+            anchor_points=anchors.locations[valid] - frame.origin,
+            evaluate=evaluate,
         )
+    outcome = outcome._replace(positions=frame.from_kernel(outcome.positions))
     local = transforms.to_local(arrays.matrix_world, outcome.positions)
     positions = np.where(outcome.moved[:, None], local, arrays.positions)
     state = layout_state.detach_points(arrays.state, outcome.moved)

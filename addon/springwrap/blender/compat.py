@@ -33,6 +33,19 @@ def pointer_poll(poll: Callable) -> Callable | None:
     return poll
 
 
+def property_update(update: Callable) -> Callable | None:
+    """The ``update`` to give a property: ``update`` itself, or None in the PyPI bpy 4.2 module.
+
+    The same crash as :func:`pointer_poll`'s: the bpy 4.2 module (4.2.23) crashes when the process
+    exits once a property with a Python ``update`` callback was registered. The module has no user
+    interface (nothing toggles the property from a button), so a script that sets it there calls
+    the update itself (``blender.cage_display.update_show_cage``).
+    """
+    if not bpy.app.binary_path and bpy.app.version[:2] == (4, 2):
+        return None
+    return update
+
+
 # Before Blender 4.2 (seen in 3.4), foreach_get / foreach_set silently skip enum properties: set
 # leaves the items unchanged and get reads zeros. Those versions go item by item.
 _ENUM_FOREACH_WORKS = bpy.app.version >= (4, 2, 0)

@@ -1,5 +1,5 @@
 """The layout's curve constraints (``Object.springwrap.curve_constraints``), and the target polylines they
-follow read again from their sources: a curve object's one open spline, or a chain of target vertices.
+follow read again from their sources: an open spline of a curve object, or a chain of target vertices.
 """
 
 import bpy
@@ -13,10 +13,14 @@ from .layout import read_world_vertex_positions
 from .target import read_target_edges
 
 
-def read_curve_polyline(depsgraph: bpy.types.Depsgraph, curve_object: bpy.types.Object) -> np.ndarray:
-    """(P, 3) float64 world points of an evaluated curve object, in order along its one open spline.
+def read_curve_polyline(depsgraph: bpy.types.Depsgraph, curve_object: bpy.types.Object, near=None) -> np.ndarray:
+    """(P, 3) float64 world points of an evaluated curve object, in order along its open spline.
 
-    Raises :class:`LayoutError` when it is not a curve object, or not one open spline of at least two points.
+    A curve object of several splines (``springwrap.detect_features`` puts all ridges in one) gives the
+    spline nearest to ``near`` ((K, 3) world points: the chain being paired, or the polyline cached
+    when it was): the mean distance of those points to each spline's points decides.
+    Raises :class:`LayoutError` when it is not a curve object, or when the chosen spline is not open
+    or has fewer than two points, or when it has several splines and ``near`` is None.
     """
     if curve_object is None or curve_object.type != "CURVE":
         raise LayoutError("The curve constraint's curve object is missing or not a curve")
@@ -26,13 +30,28 @@ def read_curve_polyline(depsgraph: bpy.types.Depsgraph, curve_object: bpy.types.
     positions, edges = evaluated.vertices, evaluated.edges
     if positions.shape[0] < 2:
         raise LayoutError(f"Curve '{curve_object.name}' has fewer than two points")
+    world = transforms.transform_points(evaluated.matrix_world, positions)
+    pieces = edge_paths.edge_graph(positions, edges).pieces
+    starts = np.unique(pieces[np.asarray(edges, dtype=np.int64).reshape(-1)]) if len(edges) else pieces[:0]
+    if starts.size > 1:
+        if near is None:
+            raise LayoutError(f"Curve '{curve_object.name}' has several splines: a constraint follows one open spline")
+        near = np.asarray(near, dtype=np.float64).reshape(-1, 3)
+        distances = np.linalg.norm(near[:, None, :] - world[None, :, :], axis=2)
+        errors = [distances[:, pieces == start].min(axis=1).mean() for start in starts.tolist()]
+        kept = np.flatnonzero(pieces == starts[int(np.argmin(errors))])
+        renumber = np.full(positions.shape[0], -1, dtype=np.int64)
+        renumber[kept] = np.arange(kept.size)
+        edges = renumber[np.asarray(edges, dtype=np.int64).reshape(-1, 2)]
+        edges = edges[(edges >= 0).all(axis=1)]
+        world = world[kept]
     try:
         order = edge_paths.chain_from_edges(edges)
     except LayoutError as error:
         raise LayoutError(f"Curve '{curve_object.name}' is not one open spline: {error}") from error
-    if order.size != positions.shape[0]:
+    if order.size != world.shape[0]:
         raise LayoutError(f"Curve '{curve_object.name}' has several splines: a constraint follows one open spline")
-    return transforms.transform_points(evaluated.matrix_world, positions[order])
+    return world[order]
 
 
 def read_curve_constraints(layout: bpy.types.Object) -> list:
@@ -88,14 +107,14 @@ def resolve_curve_constraints(depsgraph: bpy.types.Depsgraph, layout: bpy.types.
     resolved = []
     for number, constraint in enumerate(constraints):
         if constraint.source_kind == curves.CURVE_OBJECT:
-            try:
-                points = read_curve_polyline(depsgraph, constraint.curve_object)
-            except LayoutError as error:
-                raise LayoutError(f"Curve constraint {number}: {error}") from error
             if constraint.points.shape[0] >= 2:
                 reference = constraint.points
             else:
                 reference = read_world_vertex_positions(layout, constraint.layout_vertices)
+            try:
+                points = read_curve_polyline(depsgraph, constraint.curve_object, near=reference)
+            except LayoutError as error:
+                raise LayoutError(f"Curve constraint {number}: {error}") from error
             points = curves.orient_to_chain(points, reference)
         else:
             if target_positions is None:

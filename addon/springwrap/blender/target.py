@@ -10,9 +10,9 @@ import numpy as np
 
 import springwrap_kernel
 
-from ..core import layout_state, transforms
+from ..core import input_policy, layout_state
 from ..core.errors import LayoutError
-from ..core.target import Target
+from ..core.target import Target, make_target
 from .evaluated_mesh import read_evaluated_mesh
 
 MAX_CACHED_TARGETS = 2
@@ -44,24 +44,21 @@ def read_target(depsgraph: bpy.types.Depsgraph, layout: bpy.types.Object) -> Tar
     vertex_count, triangles = evaluated.vertices.shape[0], evaluated.triangles
     if vertex_count == 0 or triangles.shape[0] == 0:
         raise LayoutError(f"Target '{target.name}' has no faces")
-    vertices = transforms.as_float32_points(evaluated.vertices)
+    vertices = np.ascontiguousarray(evaluated.vertices, dtype=np.float64)
     key = (target.name, layout_state.content_hash(vertices, triangles))
     cached = _target_cache.get(key)
     if cached is not None:
         _target_cache.move_to_end(key)
         return cached
     try:
-        kernel_mesh = springwrap_kernel.TargetMesh(vertices, triangles)
+        input_policy.check_points(
+            vertices[np.all(np.isfinite(vertices), axis=1)],  # the kernel names non-finite vertices itself
+            lambda row: f"Target '{target.name}': a vertex",
+            fix="fix the target mesh or its modifiers and transform",
+        )
+        entry = make_target(target.name, vertices, triangles, evaluated.triangle_polygons)
     except springwrap_kernel.SpringwrapError as error:
         raise LayoutError(f"Target '{target.name}': {error}") from error
-    bounding_box_min, bounding_box_max = kernel_mesh.bounding_box()
-    entry = Target(
-        name=target.name,
-        mesh=kernel_mesh,
-        triangle_polygons=evaluated.triangle_polygons,
-        signature=layout_state.target_signature(triangles, vertex_count),
-        reattach_tolerance=layout_state.reattach_tolerance(bounding_box_min, bounding_box_max),
-    )
     _target_cache[key] = entry
     while len(_target_cache) > MAX_CACHED_TARGETS:
         _target_cache.popitem(last=False)

@@ -12,10 +12,10 @@ import numpy as np
 
 import springwrap_kernel
 
-from ..core import anchors, layout_state, subdivision, transforms, wrap_inputs
+from ..core import anchors, input_policy, layout_state, subdivision, transforms, wrap_inputs
 from ..core.errors import LayoutError
 from ..core.target import Target
-from ..core.wrap_run import IterationPacer, WrapResult
+from ..core.wrap_run import FramePacer, WrapResult
 from ..properties import WRAP_DEFAULTS
 from . import anchors as anchor_data
 from . import attributes
@@ -24,13 +24,17 @@ from . import layout as layout_data
 from . import target as target_data
 
 FRAME_RATE = 30.0
-"""Redraws per second the modal wrap aims for."""
+"""Redraws per second the modal wrap aims for when the display is fast (``core.wrap_run.FramePacer``)."""
+SOLVER_SHARE = 0.6
+"""Share of each frame the modal wrap solves when the display is slow (its redraws cost more than a frame)."""
+MAX_SOLVE_SECONDS = 4.0
+"""Longest a frame of the modal wrap solves before it writes the layout and lets Blender redraw (and see Esc)."""
 SYNCHRONOUS_CHUNK = 100
 """Iterations per kernel call when the wrap runs to the end at once."""
 
 
 def make_wrap_solver(target: Target, structure, inputs, parameters):
-    """A kernel ``WrapSolver`` for the prepared inputs (``core.wrap_inputs.WrapInputs``, world space)."""
+    """A kernel ``WrapSolver`` for the prepared inputs (``core.wrap_inputs.WrapInputs``, the kernel's frame)."""
     curve_arguments = {}
     if inputs.curve_vertices is not None:
         curve_arguments = {
@@ -47,7 +51,7 @@ def make_wrap_solver(target: Target, structure, inputs, parameters):
             "plane_slide": bool(inputs.plane_slide),
         }
     return springwrap_kernel.WrapSolver(
-        target.mesh,
+        target.mesh.kernel,
         structure,
         inputs.states,
         inputs.triangles,
@@ -74,9 +78,13 @@ class WrapSession:
     object mode for the whole session (the operator sees to it). ``parameters`` is an
     ``core.wrap_inputs.WrapParameters``. ``adjust_inputs`` (optional) takes the prepared
     ``core.wrap_inputs.WrapInputs`` and returns them changed (the mirror's pins and plane).
+    ``display_seconds`` (optional) is what a redraw is known to cost before the first frame (the
+    viewport's measured draw time): the first frame's solve time is paced from it.
     """
 
-    def __init__(self, context, layout: bpy.types.Object, parameters, adjust_inputs=None):
+    def __init__(
+        self, context, layout: bpy.types.Object, parameters, adjust_inputs=None, display_seconds: float | None = None
+    ):
         self.start_time = time.perf_counter()
         self.layout = layout
         self.parameters = parameters
@@ -107,6 +115,12 @@ class WrapSession:
         curve_constraints = curve_data.resolve_curve_constraints(
             context.evaluated_depsgraph_get(), layout, curve_data.read_curve_constraints(layout)
         )
+        # The input policy on what the solver gets (the operators check before; the mirror and the scripts
+        # come here too): the layout, the anchors and the curves as resolved on the current target.
+        extent = self.target.extent
+        input_policy.check_layout_points(layout.name, transforms.world_positions(arrays), extent)
+        input_policy.check_anchor_points(self.anchors.vertex_indices, self.anchors.locations, extent)
+        input_policy.check_curve_points(curve_constraints, extent)
         # The template's shape as made: stored at the first change of the layout, else as it is now.
         rest = attributes.read_rest(layout)
         self.rest = arrays.positions if rest is None else rest
@@ -124,10 +138,17 @@ class WrapSession:
         self.stage = "coarse" if int(parameters.spring_resolution) > 1 else "fine"
         self.coarse_iterations = 0
         self.snapshot = attributes.take_snapshot(layout)
+        # What finish() writes on the object besides the mesh, to put back when it fails half-way.
+        self.settings_snapshot = (
+            settings.target_signature,
+            anchor_data.read_anchors(layout),
+            settings.active_anchor_index,
+            settings.anchors_signature,
+        )
         self.vertex_count = arrays.positions.shape[0]
         self.unreliable_count = 0 if unreliable is None else int(unreliable.sum())
         self.topology = (resolution.detached_count, resolution.reattached_count, anchor_resolution.detached_count)
-        self.pacer = IterationPacer(FRAME_RATE)
+        self.pacer = FramePacer(FRAME_RATE, SOLVER_SHARE, MAX_SOLVE_SECONDS, display_seconds=display_seconds)
         self.last_report = None
         self.kernel_seconds = 0.0
         self.frames = 0
@@ -209,18 +230,32 @@ class WrapSession:
         self.stage = "fine"
 
     def advance(self):
-        """One frame of the interactive wrap: as many iterations as the frame allows, then write them.
+        """One frame of the interactive wrap: solve for the frame's share of time, then write the layout.
 
-        Writes positions and state into the layout mesh (no undo step). Returns the ``StepReport``.
+        The time since the previous frame's write ended (Blender's redraw and event handling) is the
+        display's measured cost, from which the pacer sizes this frame's solve time; the kernel is
+        called in chunks until that time is used or the wrap is done. Writes positions and state into
+        the layout mesh (no undo step). Returns the last ``StepReport``.
         """
         begin = time.perf_counter()
-        overhead = 0.0 if self._frame_end is None else min(begin - self._frame_end, 1.0)
-        count = self.pacer.next_count(self.parameters.max_iterations - self.stage_iterations)
-        report = self.step(count)
-        stepped = time.perf_counter()
+        if self._frame_end is not None:
+            self.pacer.record_display(begin - self._frame_end)
+        deadline = begin + self.pacer.solve_seconds()
+        report = None
+        while report is None or not self.done:
+            now = time.perf_counter()
+            remaining = self.parameters.max_iterations - self.stage_iterations
+            count = self.pacer.next_count(remaining, deadline - now)
+            if count == 0:
+                if report is not None:
+                    break
+                count = min(remaining, 1)  # every frame runs at least one iteration (or starts the next stage)
+            report = self.step(count)
+            self.pacer.record_step(report.iterations, time.perf_counter() - now)
+            if self.stage == "fine" and report.iterations == 0:
+                break  # nothing left to run in this stage (the limit): done says so
         self.write_frame()
         self._frame_end = time.perf_counter()
-        self.pacer.record(report.iterations, stepped - begin, self._frame_end - stepped + overhead)
         self.frames += 1
         return report
 
@@ -235,7 +270,8 @@ class WrapSession:
     def current_layout(self):
         """(local positions float32 (N, 3), ``LayoutState``) of the solver now."""
         count = self.vertex_count  # a fine grid numbers the layout's own vertices first
-        positions = transforms.to_local(self.matrix_world, self.solver.positions()[:count])
+        world = wrap_inputs.from_frame(self.inputs, self.solver.positions()[:count])
+        positions = transforms.to_local(self.matrix_world, world)
         states, triangles, barycentrics = self.solver.states()
         return positions, layout_state.normalized_state(states[:count], triangles[:count], barycentrics[:count])
 
@@ -283,8 +319,15 @@ class WrapSession:
         )
 
     def cancel(self) -> None:
-        """Put the layout's positions and state attributes back exactly as they were at the start."""
+        """Put the layout back exactly as it was at the start: positions, state attributes, rest shape, and
+        what :meth:`finish` writes on the object (target signature, anchors); also after a failed finish."""
         attributes.restore_snapshot(self.layout, self.snapshot)
+        target_signature, anchor_list, active_index, anchors_signature = self.settings_snapshot
+        settings = self.layout.springwrap
+        if settings.target_signature != target_signature:
+            settings.target_signature = target_signature
+        if len(settings.anchors) or anchors.anchor_count(anchor_list):
+            anchor_data.write_anchors(self.layout, anchor_list, active_index, anchors_signature)
 
     def status_text(self) -> str:
         """The progress line shown in the status bar."""
@@ -299,3 +342,53 @@ class WrapSession:
             f"{report.face_points} face-points, {report.space_points} space-points, "
             f"last move {report.max_displacement:.2e}  —  Esc / right-click: cancel"
         )
+
+
+# ---------------------------------------------------------------- what the panel shows
+
+_running: list[WrapSession] = []
+_last_results: dict[str, WrapResult] = {}
+
+
+def set_running(session: WrapSession | None, running: bool = True) -> None:
+    """Mark ``session`` as the live wrap in progress (the panel shows its progress), or no longer."""
+    if session is None:
+        return
+    if running and session not in _running:
+        _running.append(session)
+    elif not running and session in _running:
+        _running.remove(session)
+
+
+def running_session(layout: bpy.types.Object) -> WrapSession | None:
+    """The live wrap in progress on ``layout``, if any."""
+    for session in _running:
+        try:
+            if session.layout == layout:
+                return session
+        except ReferenceError:  # the layout was deleted under a session that was never ended
+            _running.remove(session)
+            return None
+    return None
+
+
+def remember_result(result: WrapResult) -> None:
+    """Keep a finished wrap's result for the panel's Check section (this Blender session only, by layout name)."""
+    _last_results[result.layout_name] = result
+
+
+def last_result(layout: bpy.types.Object) -> WrapResult | None:
+    """The last wrap finished on a layout of this name in this Blender session, if any."""
+    return _last_results.get(layout.name)
+
+
+def forget_results() -> None:
+    """Drop the remembered results and live wraps (the add-on is unregistered, another file is loaded)."""
+    _running.clear()
+    _last_results.clear()
+
+
+@bpy.app.handlers.persistent
+def forget_results_on_load(_scene, _data=None) -> None:
+    """``load_post`` handler: a result belongs to the file it was made in (layouts are found by name)."""
+    forget_results()

@@ -77,24 +77,23 @@ def check_parameters(parameters: AlignParameters) -> None:
 def anchor_pairs(
     anchor_list: anchor_arrays.Anchors, world_points: np.ndarray, method: str
 ) -> tuple[np.ndarray, np.ndarray]:
-    """(source, target) world points of the anchors whose vertex exists: layout vertex -> anchor target.
+    """(source, target) world points of the anchors: layout vertex -> anchor target.
 
-    Raises :class:`LayoutError` when there are fewer than the method needs, or a location is not finite.
+    Raises :class:`LayoutError` when an anchor names a vertex the layout no longer has (as the wrap
+    does), when there are fewer than the method needs, or a location is not finite.
     """
-    valid = anchor_arrays.valid_vertex_mask(anchor_list, world_points.shape[0])
+    anchor_arrays.check_anchor_vertices(anchor_list, world_points.shape[0])
     needed = MIN_ANCHORS[method]
-    count = int(valid.sum())
+    count = anchor_arrays.anchor_count(anchor_list)
     if count < needed:
         extra = " not all in one plane" if method == "AFFINE" else " not all on one line"
-        ignored = anchor_arrays.anchor_count(anchor_list) - count
-        note = f" ({ignored} anchors name vertices the layout no longer has)" if ignored else ""
         raise LayoutError(
-            f"{method.title()} alignment needs at least {needed} anchors{extra}; the layout has {count}{note}. "
+            f"{method.title()} alignment needs at least {needed} anchors{extra}; the layout has {count}. "
             "Add anchors (Springwrap > Anchors) or align by ICP alone"
         )
-    anchor_arrays.check_anchor_locations(anchor_list, valid)
-    source = world_points[anchor_list.vertex_indices[valid]]
-    target = np.asarray(anchor_list.locations[valid], dtype=np.float64)
+    anchor_arrays.check_anchor_locations(anchor_list)
+    source = world_points[np.asarray(anchor_list.vertex_indices, dtype=np.int64)]
+    target = np.asarray(anchor_list.locations, dtype=np.float64)
     return source, target
 
 
@@ -125,13 +124,14 @@ def align(
     source = target_points = np.empty((0, 3))
     if parameters.use_anchors:
         source, target_points = anchor_pairs(anchor_list, world, parameters.method)
-        matrix = np.asarray(
-            springwrap_kernel.fit_transform(
-                transforms.as_float32_points(source),
-                transforms.as_float32_points(target_points),
-                parameters.method,
-            ),
-            dtype=np.float64,
+        # Fitted in the target's frame (float32 keeps the precision far from the origin), mapped back.
+        matrix = target.mesh.matrix_from_kernel(
+            np.asarray(
+                springwrap_kernel.fit_transform(
+                    target.mesh.to_kernel(source), target.mesh.to_kernel(target_points), parameters.method
+                ),
+                dtype=np.float64,
+            )
         )
 
     report = None
@@ -145,11 +145,11 @@ def align(
         if parameters.max_distance > 0.0:
             options["max_distance"] = float(parameters.max_distance)
         if len(source) and parameters.anchor_weight > 0.0:
-            options["anchor_source"] = transforms.as_float32_points(source)
-            options["anchor_target"] = transforms.as_float32_points(target_points)
+            options["anchor_source"] = source
+            options["anchor_target"] = target_points
             options["anchor_weight"] = float(parameters.anchor_weight)
         report = target.mesh.icp(
-            transforms.as_float32_points(world[mask]),
+            world[mask],
             np.ascontiguousarray(matrix, dtype=np.float64),
             update=ICP_UPDATE[parameters.method],
             max_iterations=int(parameters.icp_iterations),

@@ -141,6 +141,20 @@ def check_vertex_index(vertex_index: int, vertex_count: int) -> int:
     return vertex_index
 
 
+def check_anchor_vertices(anchor_list, vertex_count: int) -> None:
+    """Raise :class:`~.errors.LayoutError` naming the anchors whose vertex the layout no longer has (the wrap
+    and the alignment both refuse them: an anchor refers to a vertex index)."""
+    vertex_indices = np.asarray(anchor_list.vertex_indices, dtype=np.int64).reshape(-1)
+    missing = np.flatnonzero((vertex_indices < 0) | (vertex_indices >= vertex_count))
+    if missing.size:
+        shown = ", ".join(f"anchor {int(index)} (vertex {int(vertex_indices[index])})" for index in missing[:5])
+        more = f" and {missing.size - 5} more" if missing.size > 5 else ""
+        raise LayoutError(
+            f"{missing.size} anchors are on vertices the layout no longer has (it has {vertex_count}): "
+            f"{shown}{more}; remove them or update the anchors"
+        )
+
+
 def check_location(location, what: str = "The anchor location") -> np.ndarray:
     """``location`` as a (3,) float64 array; raises :class:`LayoutError` when it is not three finite numbers."""
     location = np.asarray(location, dtype=np.float64).reshape(-1)
@@ -312,7 +326,7 @@ def add(
     location = check_location(location)
     anchors, resolution = resolve(existing, target, stored_signature)
     if on_surface:
-        hits = target.mesh.closest_points(transforms.as_float32_points(location))
+        hits = target.mesh.closest_points(location)
         triangle = int(hits.triangles[0])
         if triangle < 0:
             raise LayoutError(f"No point of target '{target.name}' found near {tuple(location.tolist())}")
@@ -378,7 +392,7 @@ def auto(
     skipped_count = 0
     limit = {"max_distance": float(max_distance)} if max_distance > 0.0 else {}
     if method == "CLOSEST" or not chosen.size:
-        hits = target.mesh.closest_points(transforms.as_float32_points(world[chosen]), **limit)
+        hits = target.mesh.closest_points(world[chosen], **limit)
         queried = chosen
     else:
         if world_normals is None:
@@ -388,8 +402,8 @@ def auto(
         skipped_count = int(np.count_nonzero(~has_direction))
         queried = chosen[has_direction]
         hits = target.mesh.ray_cast(
-            transforms.as_float32_points(world[queried]),
-            transforms.as_float32_points(directions[has_direction]),
+            world[queried],
+            directions[has_direction],
             both_directions=True,
             **limit,
         )

@@ -261,8 +261,9 @@ def skip_report(skipped: dict) -> str:
 # ---------------------------------------------------------------- the wrap
 
 
-def kernel_arrays(constraints, vertex_count: int, anchored: np.ndarray | None = None):
-    """The kernel's flat arrays ``(curve_vertices, curve_vertex_counts, curve_points, curve_point_counts)``.
+def kernel_arrays(constraints, vertex_count: int, anchored: np.ndarray | None = None, origin=None):
+    """The kernel's flat arrays ``(curve_vertices, curve_vertex_counts, curve_points, curve_point_counts)``,
+    the points relative to ``origin`` (the kernel's frame, see ``wrap_inputs.WrapInputs``).
 
     Raises :class:`LayoutError` naming the constraint when a chain has fewer than two vertices or
     a vertex the layout does not have, a polyline fewer than two points or a non-finite one, or a
@@ -297,7 +298,10 @@ def kernel_arrays(constraints, vertex_count: int, anchored: np.ndarray | None = 
     return (
         np.ascontiguousarray(np.concatenate([c.layout_vertices for c in constraints]), dtype=np.uint32),
         np.asarray([c.layout_vertices.size for c in constraints], dtype=np.uint32),
-        np.ascontiguousarray(np.concatenate([c.points for c in constraints]), dtype=np.float32),
+        np.ascontiguousarray(
+            np.concatenate([c.points for c in constraints]) - (0.0 if origin is None else np.asarray(origin)),
+            dtype=np.float32,
+        ),
         np.asarray([c.points.shape[0] for c in constraints], dtype=np.uint32),
     )
 

@@ -78,6 +78,8 @@ def plane_from_matrix(matrix_world, axis: str) -> Plane:
     if axis not in AXES:
         raise LayoutError(f"The mirror axis must be one of {', '.join(AXES)}, not {axis!r}")
     matrix = np.asarray(matrix_world, dtype=np.float64).reshape(4, 4)
+    if not np.all(np.isfinite(matrix)):
+        raise LayoutError("The mirror plane's object has a NaN or infinite transform: its plane is undefined")
     if not transforms.is_invertible(matrix):
         raise LayoutError("The mirror plane's object has zero scale: its plane is undefined")
     linear = matrix[:3, :3]
@@ -284,7 +286,7 @@ def hold_inputs(
     (:func:`surfaced_rest`).
     """
     if rest is not None:
-        inputs = inputs._replace(rest_positions=transforms.as_float32_points(rest))
+        inputs = inputs._replace(rest_positions=transforms.as_float32_points(np.asarray(rest) - inputs.origin))
     pinned = np.asarray(pinned, dtype=bool).reshape(-1)
     keep = ~pinned[np.asarray(inputs.anchor_vertices, dtype=np.int64)]
     pins = np.flatnonzero(pinned)
@@ -303,7 +305,7 @@ def hold_inputs(
             np.concatenate([inputs.anchor_positions[keep], np.asarray(inputs.positions)[pins]])
         ),
         plane_vertices=np.ascontiguousarray(plane_vertices, dtype=np.uint32),
-        plane_point=tuple(float(value) for value in plane.point),
+        plane_point=tuple(float(value) for value in plane.point - inputs.origin),
         plane_normal=tuple(float(value) for value in plane.normal),
         plane_slide=bool(slide),
     )
@@ -370,7 +372,7 @@ def mirrored_anchors(
     triangles = np.full(count, layout_state.NO_FACE, dtype=np.int32)
     barycentrics = np.zeros((count, 3), dtype=np.float32)
     if target is not None and count:
-        hits = target.mesh.closest_points(transforms.as_float32_points(locations))
+        hits = target.mesh.closest_points(locations)
         found = hits.triangles >= 0
         kinds[found] = anchor_module.FACE_ANCHOR
         triangles[found] = hits.triangles[found]
@@ -390,7 +392,7 @@ def land_copies(mirrored: MirrorLayout, edge_lengths: np.ndarray, target, reach_
     candidates = np.flatnonzero(mirrored.is_copy)
     if candidates.size == 0:
         return mirrored
-    hits = target.mesh.closest_points(transforms.as_float32_points(mirrored.positions[candidates]))
+    hits = target.mesh.closest_points(mirrored.positions[candidates])
     reach = reach_fraction * np.asarray(edge_lengths, dtype=np.float64)[candidates]
     found = (hits.triangles >= 0) & (np.asarray(hits.distances, dtype=np.float64) <= reach)
     landed = candidates[found]
@@ -436,7 +438,7 @@ def held_on_plane(
     )
     return inputs._replace(
         plane_vertices=np.ascontiguousarray(np.flatnonzero(on_plane), dtype=np.uint32),
-        plane_point=tuple(float(value) for value in plane.point),
+        plane_point=tuple(float(value) for value in plane.point - inputs.origin),
         plane_normal=tuple(float(value) for value in plane.normal),
         plane_slide=True,
     )

@@ -71,7 +71,7 @@ def snap(
     origins = world_positions(layout)[mask]
     if not origins.shape[0]:
         return _outcome(layout, resolution, mask, _no_hits(0), origins, 0)
-    points = transforms.as_float32_points(origins)
+    points = origins  # float64 world: the target's frame keeps the precision
     limit = _max_distance_arguments(max_distance)
     if mode == "SURFACE":
         hits = target.mesh.closest_points(points, **limit)
@@ -115,8 +115,8 @@ def project(
     if not origins.shape[0]:
         return _outcome(layout, resolution, mask, _no_hits(0), origins, skipped_count)
     hits = target.mesh.ray_cast(
-        transforms.as_float32_points(origins),
-        transforms.as_float32_points(directions[mask]),
+        origins,
+        directions[mask],
         both_directions=both_directions,
         **_max_distance_arguments(max_distance),
     )

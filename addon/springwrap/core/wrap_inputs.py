@@ -6,7 +6,8 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from . import curves, layout_state, transforms
+from . import curves, input_policy, layout_state, transforms
+from .anchors import check_anchor_vertices
 from .errors import LayoutError
 from .layout_state import LayoutArrays, check_finite
 from .subdivision import MAX_RESOLUTION
@@ -65,28 +66,44 @@ class WrapParameters(NamedTuple):
 
 
 class WrapInputs(NamedTuple):
-    """Everything the kernel's ``WrapSolver`` takes besides the target and the layout structure (world space)."""
+    """Everything the kernel's ``WrapSolver`` takes besides the target and the layout structure.
+
+    Coordinates are in the kernel's frame: world minus ``origin``, the centre of the target's
+    bounding box (``target.CentredMesh``), so that float32 keeps the precision far from the world
+    origin. Add ``origin`` back (in float64) to get world coordinates.
+    """
 
     states: np.ndarray  # (N,) int32 1 face-point, 0 space-point
     triangles: np.ndarray  # (N,) int32 face-point triangle, -1 for space-points
     barycentrics: np.ndarray  # (N, 3) float32
-    positions: np.ndarray  # (N, 3) float32 world positions (used for space-points)
+    positions: np.ndarray  # (N, 3) float32 positions, kernel frame (used for space-points)
     anchor_vertices: np.ndarray  # (A,) uint32
     anchor_triangles: np.ndarray  # (A,) int32, -1 for a space anchor
     anchor_barycentrics: np.ndarray  # (A, 3) float32
-    anchor_positions: np.ndarray  # (A, 3) float32 world target points
+    anchor_positions: np.ndarray  # (A, 3) float32 target points, kernel frame
     unreliable_triangles: np.ndarray | None  # (M,) bool, or None when no group is set
     curve_vertices: np.ndarray | None = None  # (sum C,) uint32 chains one after another; None: no curves
     curve_vertex_counts: np.ndarray | None = None  # (K,) uint32 vertices per chain
-    curve_points: np.ndarray | None = None  # (sum P, 3) float32 world target polylines one after another
+    curve_points: np.ndarray | None = None  # (sum P, 3) float32 target polylines one after another, kernel frame
     curve_point_counts: np.ndarray | None = None  # (K,) uint32 points per polyline
-    rest_positions: np.ndarray | None = None  # (N, 3) float32 world template shape the springs rest in
+    rest_positions: np.ndarray | None = None  # (N, 3) float32 template shape the springs rest in, kernel frame
     plane_vertices: np.ndarray | None = None  # (S,) uint32 vertices held on the mirror plane; None: no plane
-    plane_point: tuple | None = None  # (3,) world point of the mirror plane
+    plane_point: tuple | None = None  # (3,) point of the mirror plane, kernel frame
     plane_normal: tuple | None = None  # (3,) world normal of the mirror plane
     plane_slide: bool = True  # held points slide along the target's cross-section (False: only move onto it)
     stiffness: np.ndarray | None = None  # (N,) float32 per-vertex stiffness 0 … 1 (energy solver); None: neutral
     free_vertices: np.ndarray | None = None  # (N,) bool vertices without a data term (energy solver); None: none
+    origin: np.ndarray = np.zeros(3)  # (3,) float64 world point the kernel frame is centred on
+
+
+def to_frame(inputs: WrapInputs, world_points) -> np.ndarray:
+    """(N, 3) float32 kernel-frame coordinates of world points, for ``inputs``."""
+    return transforms.as_float32_points(np.asarray(world_points, dtype=np.float64).reshape(-1, 3) - inputs.origin)
+
+
+def from_frame(inputs: WrapInputs, kernel_points) -> np.ndarray:
+    """(N, 3) float64 world coordinates of kernel-frame points of ``inputs``."""
+    return np.asarray(kernel_points, dtype=np.float64).reshape(-1, 3) + inputs.origin
 
 
 def check_wrap_parameters(parameters: WrapParameters) -> None:
@@ -119,36 +136,34 @@ def unreliable_triangles(triangles: np.ndarray, vertex_weights: np.ndarray) -> n
     return np.ascontiguousarray(heavy[triangles].all(axis=1), dtype=bool)
 
 
-def wrap_anchor_arrays(anchor_list, vertex_count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def wrap_anchor_arrays(
+    anchor_list, vertex_count: int, origin=None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The kernel's anchor arrays (vertices, triangles, barycentrics, positions) from an anchor list.
 
     ``anchor_list`` is an ``anchors.Anchors`` (resolved on the current target: face anchors have
-    valid triangles, locations are current). Raises :class:`~.errors.LayoutError` naming the
-    anchors whose vertex the layout no longer has.
+    valid triangles, locations are current); the positions are given relative to ``origin`` (the
+    kernel's frame). Raises :class:`~.errors.LayoutError` naming the anchors whose vertex the
+    layout no longer has.
     """
+    check_anchor_vertices(anchor_list, vertex_count)
     vertex_indices = np.asarray(anchor_list.vertex_indices, dtype=np.int64).reshape(-1)
-    missing = np.flatnonzero((vertex_indices < 0) | (vertex_indices >= vertex_count))
-    if missing.size:
-        shown = ", ".join(f"anchor {int(index)} (vertex {int(vertex_indices[index])})" for index in missing[:5])
-        more = f" and {missing.size - 5} more" if missing.size > 5 else ""
-        raise LayoutError(
-            f"{missing.size} anchors are on vertices the layout no longer has (it has {vertex_count}): "
-            f"{shown}{more}; remove them or update the anchors"
-        )
     is_face = np.asarray(anchor_list.kinds) == layout_state.FACE_POINT
     triangles = np.where(is_face, anchor_list.triangles, layout_state.NO_FACE).astype(np.int32)
     return (
         np.ascontiguousarray(vertex_indices, dtype=np.uint32),
         np.ascontiguousarray(triangles),
         transforms.as_float32_points(anchor_list.barycentrics),
-        transforms.as_float32_points(anchor_list.locations),
+        transforms.as_float32_points(
+            np.asarray(anchor_list.locations, dtype=np.float64).reshape(-1, 3) - (0.0 if origin is None else origin)
+        ),
     )
 
 
 def refine_wrap_inputs(inputs: WrapInputs, fine, positions: np.ndarray, states, target: Target) -> WrapInputs:
     """The solver's inputs for the fine stage of a wrap (see ``subdivision``), from where the coarse stage ended.
 
-    ``positions`` and ``states`` (states, triangles, barycentrics) are the coarse solver's. The layout's
+    ``positions`` and ``states`` (states, triangles, barycentrics) are the coarse solver's (kernel frame). The layout's
     vertices keep their state; a new point starts blended from its layout vertices and lands on the
     closest surface point when all of them are face-points and that point is within half a fine edge;
     otherwise it starts as a space-point. The rest shape is blended the same way; anchors, unreliable
@@ -179,7 +194,7 @@ def refine_wrap_inputs(inputs: WrapInputs, fine, positions: np.ndarray, states, 
         ring_next = np.where(ring_next == ends, starts, ring_next)
         lengths = np.linalg.norm(fine_positions[corners] - fine_positions[corners[ring_next]], axis=1)
         reach = 0.5 * float(np.median(lengths)) if lengths.size else 0.0
-        hits = target.mesh.closest_points(
+        hits = target.mesh.kernel.closest_points(  # kernel frame in, kernel frame out
             transforms.as_float32_points(fine_positions[candidates]), max_distance=max(reach, 1e-12)
         )
         found = hits.triangles >= 0
@@ -212,7 +227,7 @@ def refine_wrap_inputs(inputs: WrapInputs, fine, positions: np.ndarray, states, 
 
 
 def rest_world_positions(layout: LayoutArrays, rest: np.ndarray) -> np.ndarray:
-    """The stored rest shape (local, (N, 3)) in world space, checked: one finite row per layout vertex."""
+    """The stored rest shape (local, (N, 3)) in world space (float64), checked: one finite row per layout vertex."""
     rest = np.asarray(rest, dtype=np.float64)
     vertex_count = layout.positions.shape[0]
     if rest.shape != (vertex_count, 3):
@@ -220,7 +235,11 @@ def rest_world_positions(layout: LayoutArrays, rest: np.ndarray) -> np.ndarray:
     bad = np.flatnonzero(~np.isfinite(rest).all(axis=1))
     if bad.size:
         raise LayoutError(f"The stored rest shape of vertex {int(bad[0])} is not finite")
-    return transforms.as_float32_points(transforms.transform_points(layout.matrix_world, rest))
+    world = transforms.transform_points(layout.matrix_world, rest)
+    input_policy.check_points(
+        world, lambda row: f"The stored rest shape of vertex {row}", fix="press Set Rest Shape (or use Rest Shape Even)"
+    )
+    return world
 
 
 def prepare_wrap(
@@ -238,14 +257,16 @@ def prepare_wrap(
     flags of the target's triangles, or None; ``curve_constraints``: ``curves.CurveConstraint``
     with current polylines (checked by ``curves.kernel_arrays``); ``rest``: (N, 3) local template shape the
     springs rest in (None: the positions now). Every vertex must be finite in world space.
+    The inputs are in the kernel's frame, centred on the target (``target.mesh.origin``).
     Returns the inputs and the topology resolution of the layout's face-points (to report).
     """
+    origin = np.asarray(target.mesh.origin, dtype=np.float64)
     vertex_count = layout.positions.shape[0]
     check_finite(layout, np.ones(vertex_count, dtype=bool))
     resolution = resolve_topology(layout, target, stored_signature)
     state = resolution.state
     anchor_vertices, anchor_triangles, anchor_barycentrics, anchor_positions = wrap_anchor_arrays(
-        anchor_list, vertex_count
+        anchor_list, vertex_count, origin
     )
     if unreliable is not None:
         unreliable = np.ascontiguousarray(unreliable, dtype=bool).reshape(-1)
@@ -255,12 +276,12 @@ def prepare_wrap(
             )
     anchored = np.zeros(vertex_count, dtype=bool)
     anchored[anchor_vertices] = True
-    curve_arrays = curves.kernel_arrays(curve_constraints, vertex_count, anchored) or (None, None, None, None)
+    curve_arrays = curves.kernel_arrays(curve_constraints, vertex_count, anchored, origin) or (None, None, None, None)
     inputs = WrapInputs(
         states=np.ascontiguousarray(state.states, dtype=np.int32),
         triangles=np.ascontiguousarray(state.faces, dtype=np.int32),
         barycentrics=transforms.as_float32_points(state.barycentrics),
-        positions=transforms.as_float32_points(world_positions(layout)),
+        positions=transforms.as_float32_points(world_positions(layout) - origin),
         anchor_vertices=anchor_vertices,
         anchor_triangles=anchor_triangles,
         anchor_barycentrics=anchor_barycentrics,
@@ -270,6 +291,9 @@ def prepare_wrap(
         curve_vertex_counts=curve_arrays[1],
         curve_points=curve_arrays[2],
         curve_point_counts=curve_arrays[3],
-        rest_positions=None if rest is None else rest_world_positions(layout, rest),
+        rest_positions=None
+        if rest is None
+        else transforms.as_float32_points(rest_world_positions(layout, rest) - origin),
+        origin=origin,
     )
     return inputs, resolution

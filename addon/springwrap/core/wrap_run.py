@@ -1,5 +1,5 @@
-"""Running a wrap, without Blender: what it did (:class:`WrapResult`), how many iterations fit in a
-frame (:class:`IterationPacer`) and the modal's state machine (:class:`WrapLoop`: events in, the
+"""Running a wrap, without Blender: what it did (:class:`WrapResult`), how long each
+frame of the live wrap solves (:class:`FramePacer`) and the modal's state machine (:class:`WrapLoop`: events in, the
 operator's return values out), so tests drive them directly. No ``bpy``.
 """
 
@@ -89,52 +89,87 @@ class WrapResult(NamedTuple):
                 f"{self.landed} landed on anchors or curves, {self.folded} folded, {self.lifted} lifted off borders; "
                 f"fold tolerance {math.degrees(self.fold_tolerance):.1f}°"
             )
+        timing = f"{self.seconds:.2f} s"
+        if self.frames:  # the live wrap: how much of its time was solving, over how many redraws
+            timing += f" ({self.kernel_seconds:.2f} s solving, {self.frames} frame{'s' if self.frames > 1 else ''})"
         return (
-            f"Wrapped '{self.layout_name}' in {self.iterations} iterations ({ending}), {self.seconds:.2f} s: "
+            f"Wrapped '{self.layout_name}' in {self.iterations} iterations ({ending}), {timing}: "
             f"{self.face_points} face-points, {self.space_points} space-points ({details})"
         )
 
 
-class IterationPacer:
-    """How many wrap iterations to run per redraw so that the viewport keeps about ``frame_rate`` redraws/s.
+class FramePacer:
+    """How long the live wrap solves in each frame, from what the display really costs.
 
-    The cost of one iteration and of writing a frame are measured as the wrap runs (smoothed);
-    each frame gets what is left of the frame time after the write, at least one iteration, and
-    at most four times the previous count (so a fast first guess cannot overshoot by much).
+    A frame of the modal wrap is: solve for a while, write the layout, then let Blender redraw and
+    handle events until the next timer event. The redraw is not ours to shorten, so its cost is
+    measured (``record_display``: the time from the end of a frame's write to the start of the next
+    frame, or the viewport's draw time before the first frame) and the solver gets a share of each
+    frame from it: ``solver_share`` of the frame when redraws are slow (a 1 s software-OpenGL
+    redraw gets 1.5 s of solving at the default 0.6), and the rest of a ``1 / frame_rate`` frame
+    when they are fast (a 5 ms redraw on a GPU leaves 28 ms at 30 frames per second). One frame
+    never solves longer than ``max_solve_seconds``, so Esc is answered within about that plus a
+    redraw.
+
+    Within a frame the kernel is called in chunks (:meth:`next_count`) sized from the measured cost
+    of one iteration (smoothed), until the frame's solve time is used; the first chunk of a wrap is
+    one iteration, to measure it.
     """
 
-    def __init__(self, frame_rate: float = 30.0, max_count: int = 10_000):
+    def __init__(
+        self,
+        frame_rate: float = 30.0,
+        solver_share: float = 0.6,
+        max_solve_seconds: float = 4.0,
+        display_seconds: float | None = None,
+        max_count: int = 10_000,
+    ):
         if frame_rate <= 0.0:
             raise ValueError("frame_rate must be positive")
+        if not 0.0 < solver_share < 1.0:
+            raise ValueError("solver_share must be within (0, 1)")
+        if max_solve_seconds <= 0.0:
+            raise ValueError("max_solve_seconds must be positive")
         self.frame_seconds = 1.0 / frame_rate
+        self.solver_share = solver_share
+        self.max_solve_seconds = max_solve_seconds
         self.max_count = max_count
+        self.display_seconds = display_seconds if display_seconds is None else max(float(display_seconds), 0.0)
         self.iteration_seconds: float | None = None
-        self.write_seconds = 0.0
-        self.last_count = 1
 
-    def next_count(self, remaining: int) -> int:
-        """Iterations for the next frame (at most ``remaining``, at least 1 when any remain)."""
-        if remaining <= 0:
+    def solve_seconds(self) -> float:
+        """How long the next frame solves: the frame time left after the display, or the solver's share of a
+        frame with the display's measured cost, whichever is longer, at most ``max_solve_seconds``."""
+        display = self.display_seconds or 0.0
+        share = self.solver_share / (1.0 - self.solver_share) * display
+        return min(max(self.frame_seconds - display, share, 0.25 * self.frame_seconds), self.max_solve_seconds)
+
+    def next_count(self, remaining: int, seconds_left: float) -> int:
+        """Iterations for the next kernel call of a frame with ``seconds_left`` of solve time: 1 while the cost
+        of an iteration is unknown, 0 when none remain or the time is used, else what fits (at least 1)."""
+        if remaining <= 0 or (self.iteration_seconds is not None and seconds_left <= 0.0):
             return 0
         if self.iteration_seconds is None:
-            count = 1
-        else:
-            budget = max(self.frame_seconds - self.write_seconds, 0.25 * self.frame_seconds)
-            count = int(budget / max(self.iteration_seconds, 1e-7))
-            count = min(count, 4 * self.last_count)
-        count = max(1, min(count, self.max_count, remaining))
-        self.last_count = count
-        return count
+            return 1
+        count = int(seconds_left / max(self.iteration_seconds, 1e-7))
+        return max(1, min(count, self.max_count, remaining))
 
-    def record(self, iterations: int, step_seconds: float, write_seconds: float) -> None:
-        """Account for a frame: ``iterations`` took ``step_seconds``, the write ``write_seconds``."""
+    def record_step(self, iterations: int, seconds: float) -> None:
+        """Account for a kernel call: ``iterations`` took ``seconds`` (smoothed into the cost of one)."""
         if iterations > 0:
-            per_iteration = step_seconds / iterations
+            per_iteration = seconds / iterations
             if self.iteration_seconds is None:
                 self.iteration_seconds = per_iteration
             else:
                 self.iteration_seconds = 0.5 * self.iteration_seconds + 0.5 * per_iteration
-        self.write_seconds = 0.5 * self.write_seconds + 0.5 * write_seconds
+
+    def record_display(self, seconds: float) -> None:
+        """Account for the display between two frames (redraw and events), smoothed; the first one counts whole."""
+        seconds = max(float(seconds), 0.0)
+        if self.display_seconds is None:
+            self.display_seconds = seconds
+        else:
+            self.display_seconds = 0.5 * self.display_seconds + 0.5 * seconds
 
 
 class WrapLoop:

@@ -17,7 +17,7 @@ from ..blender.edit_mode import object_mode
 from ..core import alignment, anchors
 from ..core.errors import ERRORS
 from ..properties import max_distance_property
-from .base import LayoutOperator, open_layout
+from .base import READS_LAYOUT, LayoutOperator, check_inputs, open_layout
 
 METHOD_ITEMS = (
     ("RIGID", "Rigid", "Rotation and translation (needs 3 anchors not on one line)"),
@@ -127,6 +127,7 @@ class SPRINGWRAP_OT_align(LayoutOperator, bpy.types.Operator):
         start = time.perf_counter()
         try:
             with object_mode(layout):
+                check_inputs(context, layout, READS_LAYOUT if self.use_anchors else frozenset({"positions"}))
                 arrays = layout_data.read_layout(layout)
                 target = target_data.read_target(context.evaluated_depsgraph_get(), layout)
                 anchor_list = anchors.no_anchors()

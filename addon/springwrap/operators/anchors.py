@@ -14,7 +14,7 @@ import numpy as np
 from ..blender import anchors as anchor_data
 from ..blender import layout as layout_data
 from ..blender import target as target_data
-from ..core import anchors
+from ..core import anchors, input_policy
 from ..core.errors import LayoutError
 from ..properties import ANCHOR_METHOD_ITEMS, max_distance_property
 from .base import LayoutCollectionOperator
@@ -59,6 +59,8 @@ class SPRINGWRAP_OT_anchor_add(_AnchorOperator, bpy.types.Operator):
     bl_label = "Add Anchor"
     bl_options = {"REGISTER", "UNDO"}
 
+    reads = frozenset({"anchors"})
+
     vertex_index: bpy.props.IntProperty(
         name="Vertex Index",
         description="Layout vertex to anchor; -1 for the active selected vertex (or the only selected one)",
@@ -93,8 +95,8 @@ class SPRINGWRAP_OT_anchor_add(_AnchorOperator, bpy.types.Operator):
         else:
             self._vertex = anchors.check_vertex_index(self.vertex_index, selection.size)
         source = self.location if self.use_location else context.scene.cursor.location
-        self._source = anchors.check_location(
-            tuple(source), "The anchor location" if self.use_location else "The 3D cursor"
+        self._source = input_policy.check_location(
+            tuple(source), "The anchor location" if self.use_location else "The 3D cursor", self.extent
         )
         target = target_data.read_target(context.evaluated_depsgraph_get(), layout)
         outcome = anchors.add(
@@ -128,6 +130,8 @@ class SPRINGWRAP_OT_anchors_auto(_AnchorOperator, bpy.types.Operator):
     bl_idname = "springwrap.anchors_auto"
     bl_label = "Auto Anchors"
     bl_options = {"REGISTER", "UNDO"}
+
+    reads = frozenset({"positions", "anchors"})
 
     spacing: bpy.props.FloatProperty(
         name="Spacing",
@@ -189,6 +193,7 @@ class SPRINGWRAP_OT_anchors_update(_AnchorOperator, bpy.types.Operator):
 
     requires_items = True
     reads_layout_mesh = False
+    reads = frozenset({"anchors"})
 
     def compute(self, context, layout):
         target = target_data.read_target(context.evaluated_depsgraph_get(), layout)
@@ -210,6 +215,7 @@ class SPRINGWRAP_OT_anchor_remove(_AnchorOperator, bpy.types.Operator):
     requires_target = False
     requires_items = True
     reads_layout_mesh = False
+    reads = frozenset()  # the way out of a broken anchor: nothing is checked
 
     index: bpy.props.IntProperty(
         name="Index",
@@ -241,6 +247,7 @@ class SPRINGWRAP_OT_anchors_clear(_AnchorOperator, bpy.types.Operator):
     requires_target = False
     requires_items = True
     reads_layout_mesh = False
+    reads = frozenset()  # the way out of a broken anchor: nothing is checked
 
     def compute(self, context, layout):
         self._count = len(layout.springwrap.anchors)

@@ -24,6 +24,7 @@ from ..blender.edit_mode import object_mode
 from ..core import layout_state
 from ..core.armature import SCALE_ALONG, SCALE_NONE, SCALE_UNIFORM
 from ..core.errors import ERRORS, LayoutError
+from .base import check_inputs
 
 SCALE_MODE_ITEMS = (
     (
@@ -110,6 +111,7 @@ class SPRINGWRAP_OT_align_armature(bpy.types.Operator):
                     raise LayoutError("Leave the armature's edit mode first")
                 if self.bake:
                     layout_data.refuse_shape_keys(layout)
+                check_inputs(context, layout, frozenset({"positions"}), with_target=False)
                 posed = True
                 result = armature_data.pose_onto(
                     context, template, target, self.match_roll, self.scale_mode, progress.update

@@ -1,6 +1,6 @@
 """What every Springwrap operator starts with: why it cannot run (``poll`` and ``execute`` say the same), the
-layout and its target checked, a layout with shape keys refused; and the shared run of the operators that
-edit the layout's lists.
+layout and its target checked, a layout with shape keys refused, the add-on's input policy applied to what
+the operation reads (:func:`check_inputs`); and the shared run of the operators that edit the layout's lists.
 
 The kernel is imported with the add-on (``properties`` reads its defaults when the add-on is enabled, and
 says so when it is missing), so an operator never finds it absent.
@@ -10,9 +10,20 @@ import contextlib
 
 import bpy
 
+import numpy as np
+
+from ..blender import anchors as anchor_data
+from ..blender import curves as curve_data
 from ..blender import layout as layout_data
+from ..blender import target as target_data
 from ..blender.edit_mode import object_mode
-from ..core.errors import ERRORS
+from ..core import input_policy, transforms
+from ..core.errors import ERRORS, LayoutError
+
+READS_LAYOUT = frozenset({"positions", "anchors", "curves"})
+"""What an operation on the layout reads and :func:`check_inputs` checks by default: the layout's vertices,
+its anchors' target points and its curve constraints' target polylines. Only the operators that remove
+anchors or constraints (the way out of a broken one) read nothing of it."""
 
 
 def layout_problem(context, require_target=True) -> str | None:
@@ -62,10 +73,55 @@ def open_layout(
     return layout
 
 
+def check_inputs(
+    context, layout: bpy.types.Object, reads=READS_LAYOUT, with_target: bool = True, target_required: bool = True
+) -> input_policy.Extent | None:
+    """The add-on's input policy (``core.input_policy``) on what an operation reads; the target's extent.
+
+    Reads the layout's target (when it has one: the extent every coordinate is judged against) and,
+    as ``reads`` says, its vertices (world space), its anchors' target points and its curve
+    constraints' cached polylines; raises one of ``ERRORS`` naming the first one refused. Object mode
+    data: call it inside ``object_mode(layout)``. Writes nothing. ``with_target=False``: the target is
+    not read (an operation that does not use it), only finiteness and the absolute limit apply; with
+    ``target_required=False`` an unusable target is not this operation's problem and is not judged
+    against either (Set Rest Shape with a target that lost its faces).
+    """
+    extent = None
+    if with_target and layout.springwrap.target is not None:
+        try:
+            extent = target_data.read_target(context.evaluated_depsgraph_get(), layout).extent
+        except ERRORS:
+            if target_required:
+                raise
+    if "positions" in reads:
+        arrays = layout_data.read_layout(layout)
+        if not np.all(np.isfinite(arrays.matrix_world)):
+            raise LayoutError(
+                f"Layout '{layout.name}' has a NaN or infinite transform: reset its location, rotation and scale"
+            )
+        input_policy.check_layout_points(layout.name, transforms.world_positions(arrays), extent)
+    if "anchors" in reads and len(layout.springwrap.anchors):
+        anchor_list = anchor_data.read_anchors(layout)
+        input_policy.check_anchor_points(anchor_list.vertex_indices, anchor_list.locations, extent)
+    if "curves" in reads and len(layout.springwrap.curve_constraints):
+        input_policy.check_curve_points(curve_data.read_curve_constraints(layout), extent)
+    return extent
+
+
+def report_storage_precision(operator, layout: bpy.types.Object, extent: input_policy.Extent | None) -> None:
+    """A WARNING when the layout's float32 storage cannot hold the result as precisely as it was computed
+    (``input_policy.storage_precision_note``); object mode data."""
+    arrays = layout_data.read_layout(layout)
+    note = input_policy.storage_precision_note(layout.name, arrays.positions, arrays.matrix_world, extent)
+    if note is not None:
+        operator.report({"WARNING"}, note)
+
+
 class LayoutOperator:
     """Shared ``poll`` of the operators that act on the active layout (and, by default, need its target)."""
 
     requires_target = True
+    reads = READS_LAYOUT  # what check_inputs checks
 
     @classmethod
     def poll(cls, context):
@@ -89,6 +145,7 @@ class LayoutCollectionOperator:
     requires_target = True
     requires_items = False
     reads_layout_mesh = True  # leaves edit mode for the duration, so the mesh data is current
+    reads = READS_LAYOUT  # what check_inputs checks (empty for the operators that remove items)
 
     @classmethod
     def problem(cls, context):
@@ -116,6 +173,11 @@ class LayoutCollectionOperator:
         layout = context.active_object
         try:
             with object_mode(layout) if self.reads_layout_mesh else contextlib.nullcontext():
+                self.extent = (
+                    check_inputs(context, layout, self.reads, target_required=self.requires_target)
+                    if self.reads
+                    else None
+                )
                 reports = self.run(context, layout)
         except ERRORS as error:
             self.report({"ERROR"}, str(error))

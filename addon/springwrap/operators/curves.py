@@ -14,7 +14,7 @@ from ..blender import anchors as anchor_data
 from ..blender import curves as curve_data
 from ..blender import layout as layout_data
 from ..blender import target as target_data
-from ..core import anchors, curves, edge_paths
+from ..core import anchors, curves, edge_paths, input_policy
 from ..core.errors import LayoutError
 from .base import LayoutCollectionOperator
 
@@ -69,7 +69,11 @@ class SPRINGWRAP_OT_curve_constraint_add(_CurveOperator, bpy.types.Operator):
             curve_object = bpy.data.objects.get(self.curve_object)
             if curve_object is None or curve_object.type != "CURVE":
                 raise LayoutError(f"There is no curve object called '{self.curve_object}'")
-            points = curves.orient_to_chain(curve_data.read_curve_polyline(depsgraph, curve_object), chain_positions)
+            points = curve_data.read_curve_polyline(depsgraph, curve_object, near=chain_positions)
+            input_policy.check_points(
+                points, lambda row: f"Curve '{curve_object.name}': point {row}", self.extent, "fix the curve"
+            )
+            points = curves.orient_to_chain(points, chain_positions)
             new = curves.make_constraint(chain, points, curves.CURVE_OBJECT, (), curve_object)
         else:
             location_of = {
@@ -135,6 +139,7 @@ class SPRINGWRAP_OT_curve_constraint_remove(_CurveOperator, bpy.types.Operator):
     requires_target = False
     requires_items = True
     reads_layout_mesh = False
+    reads = frozenset()  # the way out of a broken constraint: nothing is checked
 
     index: bpy.props.IntProperty(
         name="Index",
@@ -165,6 +170,7 @@ class SPRINGWRAP_OT_curve_constraints_clear(_CurveOperator, bpy.types.Operator):
     requires_target = False
     requires_items = True
     reads_layout_mesh = False
+    reads = frozenset()  # the way out of a broken constraint: nothing is checked
 
     def compute(self, context, layout):
         self._count = len(layout.springwrap.curve_constraints)

@@ -2,8 +2,9 @@
 
 The kernel fits the principal curvatures over a scale, classifies each vertex as flat, convex,
 concave or saddle, and traces ridge and valley curves (the centre-lines of blends). The operator
-writes the regions as a point colour attribute and the curves as poly-curve objects, which the
-curve-constraint operators take as target curves. It computes everything first and writes only
+writes the regions as a point colour attribute and the curves as one poly-curve object per kind (``<target>
+Ridges``, ``<target> Valleys``, a spline per curve, replaced by a new run), which the curve-constraint
+operators take as target curves (the spline nearest the chain). It computes everything first and writes only
 when that succeeded: a target with no curvature (a plane) is reported and the scene is left as it
 was.
 """
@@ -86,7 +87,8 @@ class SPRINGWRAP_OT_detect_features(bpy.types.Operator):
     )
     write_curves: bpy.props.BoolProperty(
         name="Feature Curves",
-        description="Create the ridge and valley curves as poly-curve objects in the 'Springwrap Features' collection",
+        description="Write the ridge and valley curves as two curve objects, '<target> Ridges' and '<target> Valleys' "
+        "(a spline per curve, replacing the previous ones), in the 'Springwrap Features' collection",
         default=True,
     )
 
@@ -141,7 +143,7 @@ class SPRINGWRAP_OT_detect_features(bpy.types.Operator):
             {"INFO"},
             f"'{source.name}' at scale {scale:.4g}: {counts[0]} flat, {counts[1]} convex, {counts[2]} concave, "
             f"{counts[3]} saddle vertices; {kinds.count('RIDGE')} ridges and {kinds.count('VALLEY')} valleys"
-            + (f" in '{feature_data.FEATURE_COLLECTION}'" if curve_objects else "")
+            + (f" in {', '.join(repr(obj.name) for obj in curve_objects)}" if curve_objects else "")
             + f" ({time.perf_counter() - start:.2f} s)",
         )
         if self.write_colors and not colors_fit:

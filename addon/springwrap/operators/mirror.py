@@ -33,13 +33,13 @@ from ..blender import mirror as mirror_data
 from ..blender import target as target_data
 from ..blender.edit_mode import object_mode
 from ..blender.wrap_session import WrapSession
-from ..core import anchors, layout_state, mirroring, transforms, wrap_inputs
+from ..core import anchors, input_policy, layout_state, mirroring, transforms, wrap_inputs
 from ..core.errors import ERRORS, LayoutError
 from ..core.mirroring import AXES, DEFAULT_WELD_FRACTION, MirrorOutcome
 from ..core.transforms import matrix_array
 from ..core.wrap_inputs import WrapParameters
 from ..properties import WRAP_DEFAULTS, WRAP_SOLVER_ITEMS, max_iterations_property, tolerance_property
-from .base import open_layout, poll_layout
+from .base import check_inputs, open_layout, poll_layout
 
 LANDING_REACH = 0.25
 """Before the wrap, a copy within this fraction of its mean edge length of the target lands there at once."""
@@ -137,6 +137,7 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
         type(self).last_outcome = None
         with object_mode(layout):
             try:
+                check_inputs(context, layout, with_target=self.wrap)
                 prepared = self._prepare(context, layout)
             except ERRORS as error:
                 self.report({"ERROR"}, str(error))
@@ -146,6 +147,7 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
                 anchor_data.read_anchors(layout),
                 layout.springwrap.anchors_signature,
                 layout.springwrap.active_anchor_index,
+                layout.springwrap.target_signature,
             )
             window_manager = context.window_manager
             progress = not bpy.app.background
@@ -156,6 +158,7 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
             except Exception as error:  # noqa: BLE001 - any failure puts the mesh back, then reports
                 mirror_data.restore_mesh(layout, backup)
                 anchor_data.write_anchors(layout, anchors_before[0], anchors_before[2], anchors_before[1])
+                layout.springwrap.target_signature = anchors_before[3]
                 self.report({"ERROR"}, f"Mirroring failed and was undone: {error}")
                 return {"CANCELLED"}
             finally:
@@ -167,6 +170,15 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
         return {"FINISHED"}
 
     def _plane(self, context, layout):
+        """(the mirror plane in world space, the name of the object it belongs to), checked by the input policy."""
+        plane, owner = self._find_plane(context, layout)
+        extent = None
+        if self.wrap:
+            extent = target_data.read_target(context.evaluated_depsgraph_get(), layout).extent
+        input_policy.check_plane(plane.point, plane.normal, owner, extent)
+        return plane, owner
+
+    def _find_plane(self, context, layout):
         if not self.mirror_object:
             return mirroring.plane_from_matrix(matrix_array(layout.matrix_world), self.axis), layout.name
         mirror = context.scene.objects.get(self.mirror_object) or bpy.data.objects.get(self.mirror_object)
@@ -184,6 +196,7 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
         arrays = layout_data.read_layout(layout)
         if not transforms.is_invertible(arrays.matrix_world):
             raise LayoutError(f"Layout '{layout.name}' has zero scale: it cannot be mirrored")
+        anchors.check_anchor_vertices(anchor_data.read_anchors(layout), arrays.positions.shape[0])
         plane, plane_owner = self._plane(context, layout)
         topology = layout_data.read_layout_topology(layout)
         world = transforms.world_positions(arrays)

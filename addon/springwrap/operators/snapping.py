@@ -19,13 +19,14 @@ from ..core import layout_state, snapping, transforms, wrap_inputs
 from ..core.errors import ERRORS, LayoutError
 from ..core.transforms import matrix_array
 from ..properties import ORIENTATION_ITEMS, PROJECT_DIRECTION_ITEMS, SNAP_MODE_ITEMS, max_distance_property
-from .base import LayoutCollectionOperator, LayoutOperator, open_layout
+from .base import LayoutCollectionOperator, LayoutOperator, check_inputs, open_layout, report_storage_precision
 
 
 class _SnapOperator(LayoutOperator):
     """Shared run and report of detach, snap and project."""
 
     moves_vertices = True
+    reads = frozenset({"positions"})
 
     only_selected: bpy.props.BoolProperty(
         name="Only Selected",
@@ -40,6 +41,7 @@ class _SnapOperator(LayoutOperator):
         start = time.perf_counter()
         try:
             with object_mode(layout):
+                extent = check_inputs(context, layout, self.reads)
                 settings = layout.springwrap
                 arrays = layout_data.read_layout(layout)
                 target = None
@@ -49,6 +51,7 @@ class _SnapOperator(LayoutOperator):
                 layout_data.write_layout(layout, outcome.positions, outcome.state)
                 if target is not None:
                     settings.target_signature = target.signature
+                report_storage_precision(self, layout, extent)
         except ERRORS as error:
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}
@@ -196,6 +199,7 @@ class SPRINGWRAP_OT_rest_set(LayoutCollectionOperator, bpy.types.Operator):
     bl_options = {"REGISTER", "UNDO"}
 
     requires_target = False
+    reads = frozenset({"positions"})
 
     def run(self, context, layout):
         arrays = layout_data.read_layout(layout)

@@ -4,11 +4,14 @@
 positions), its anchors and the evaluated target to the kernel's ``WrapSolver`` and steps it until
 it converges or reaches the iteration limit.
 
-- Interactively (``invoke`` in a window) it is a modal operator: a timer steps the solver a few
-  iterations at a time (as many as keep about 30 redraws per second), writes every frame into the
-  layout mesh so the viewport shows it settling (paper, Figure 12), and shows its progress in the
-  status bar. Esc or right-click cancels and puts positions and state back bit for bit; finishing
-  keeps the result as one undo step.
+- Interactively (``invoke`` in a window) it is a modal operator: each frame solves for a while, writes
+  the layout mesh so the viewport shows it settling (paper, Figure 12), and shows its progress in
+  the status bar and the panel. How long a frame solves comes from what a redraw really costs
+  (``core.wrap_run.FramePacer``): the rest of a 1/30 s frame on a fast display, 60 % of each frame on
+  a slow one (software OpenGL). The first frame runs in ``invoke`` itself, paced from the viewport's
+  measured draw time (``ui.frame_clock``): a wrap that fits in it finishes there, with no redraw in
+  between. Esc or right-click cancels and puts positions and state back bit for bit; finishing keeps
+  the result as one undo step.
 - In background mode, or with ``EXEC_DEFAULT`` (scripts), it runs to the end at once and writes once.
 
 The logic is in two plain classes that need no window or events: ``blender.wrap_session.WrapSession``
@@ -19,15 +22,24 @@ events in, operator results out), so tests drive them directly.
 import bpy
 
 from ..blender import layout as layout_data
+from ..blender import wrap_session
 from ..blender.edit_mode import EditModeGuard, object_mode
 from ..blender.wrap_session import WrapSession
-from ..core import mirroring, transforms
+from ..core import input_policy, mirroring, transforms
 from ..core.errors import ERRORS
 from ..core.transforms import matrix_array
 from ..core.wrap_inputs import WrapParameters
 from ..core.wrap_run import WrapLoop, WrapResult
-from ..properties import WRAP_DEFAULTS, WRAP_SOLVER_ITEMS, max_iterations_property, tolerance_property
-from .base import LayoutOperator, layout_problem
+from ..properties import (
+    WRAP_DEFAULTS,
+    WRAP_RANGES,
+    WRAP_SOLVER_ITEMS,
+    max_iterations_property,
+    tolerance_property,
+    wrap_weight_property,
+)
+from ..ui import frame_clock
+from .base import LayoutOperator, check_inputs, layout_problem, report_storage_precision
 
 TIMER_SECONDS = 0.01
 """Interval of the modal's timer: a frame starts as soon as the previous one is drawn."""
@@ -44,40 +56,20 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
     tolerance: tolerance_property(
         "Converged when no point moves more than this fraction of the layout's size in an iteration"
     )
-    fairness: bpy.props.FloatProperty(
-        name="Fairness",
-        description="Straightens the layout's grid lines (paper's alpha), 0 to 1",
-        default=WRAP_DEFAULTS.fairness,
-        soft_min=0.0,
-        soft_max=1.0,
+    fairness: wrap_weight_property(
+        "fairness", "Fairness", "Straightens the layout's grid lines (paper's alpha), 0 to 1"
     )
-    arc_length: bpy.props.FloatProperty(
-        name="Arc Length",
-        description="Evens the spacing along the grid lines (paper's beta), 0 to 1",
-        default=WRAP_DEFAULTS.arc_length,
-        soft_min=0.0,
-        soft_max=1.0,
+    arc_length: wrap_weight_property(
+        "arc_length", "Arc Length", "Evens the spacing along the grid lines (paper's beta), 0 to 1"
     )
-    thin_plate: bpy.props.FloatProperty(
-        name="Thin Plate",
-        description="Space-points continue the curvature of the surface around them (over holes), 0 to 0.5",
-        default=WRAP_DEFAULTS.thin_plate,
-        soft_min=0.0,
-        soft_max=0.5,
+    thin_plate: wrap_weight_property(
+        "thin_plate",
+        "Thin Plate",
+        "Space-points continue the curvature of the surface around them (over holes), 0 to 0.5",
     )
-    constraint: bpy.props.FloatProperty(
-        name="Constraint",
-        description="Pull of anchored points toward their targets, 0 to 1",
-        default=WRAP_DEFAULTS.constraint,
-        soft_min=0.0,
-        soft_max=1.0,
-    )
-    folding: bpy.props.FloatProperty(
-        name="Folding",
-        description="Pull of space-points next to face-points onto the surface, 0 to 1",
-        default=WRAP_DEFAULTS.folding,
-        soft_min=0.0,
-        soft_max=1.0,
+    constraint: wrap_weight_property("constraint", "Constraint", "Pull of anchored points toward their targets, 0 to 1")
+    folding: wrap_weight_property(
+        "folding", "Folding", "Pull of space-points next to face-points onto the surface, 0 to 1"
     )
     rest: bpy.props.EnumProperty(
         name="Rest Shape",
@@ -104,8 +96,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
         description="Above 1: relax the layout, then relax again with every quad cut into this many by this many "
         "springs (coarse to fine), and read the layout's vertices back",
         default=1,
-        min=1,
-        max=8,
+        **WRAP_RANGES["spring_resolution"].keywords(),
     )
     stiffness_group: bpy.props.StringProperty(
         name="Stiffness Group",
@@ -147,19 +138,20 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
             free_group=self.free_group,
         )
 
-    def _plane_holder(self, layout):
+    def _plane_holder(self, layout, extent):
         """``adjust_inputs`` for :class:`WrapSession` holding the midline on ``hold_plane``; None without one."""
         if self.hold_plane == "NONE":
             return None
         owner = layout.springwrap.mirror_object or layout
         plane = mirroring.plane_from_matrix(matrix_array(owner.matrix_world), self.hold_plane)
+        input_policy.check_plane(plane.point, plane.normal, owner.name, extent)
         world = transforms.world_positions(layout_data.read_layout(layout))
         edges = layout_data.read_layout_topology(layout).edges
         return lambda inputs: mirroring.held_on_plane(inputs, world, edges, plane)
 
     # A string: typing's cache would keep Optional[WrapSession] (and through it this module) alive until
     # after Python finalizes, and the PyPI bpy 4.2 module then crashes on exit freeing the operator class.
-    def _start(self, context) -> "WrapSession | None":
+    def _start(self, context, display_seconds: float | None = None) -> "WrapSession | None":
         """Check, then build the session (in object mode); None after reporting why not."""
         problem = layout_problem(context)
         if problem is not None:
@@ -167,7 +159,14 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
             return None
         try:
             layout = context.active_object
-            return WrapSession(context, layout, self.parameters(), adjust_inputs=self._plane_holder(layout))
+            extent = check_inputs(context, layout)
+            return WrapSession(
+                context,
+                layout,
+                self.parameters(),
+                adjust_inputs=self._plane_holder(layout, extent),
+                display_seconds=display_seconds,
+            )
         except ERRORS as error:
             self.report({"ERROR"}, str(error))
             return None
@@ -188,6 +187,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
                 session.cancel()
                 self.report({"ERROR"}, f"The wrap failed: {error}")
                 return {"CANCELLED"}
+            report_storage_precision(self, layout, session.target.extent)
         self._report_result(result)
         return {"FINISHED"}
 
@@ -198,16 +198,21 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
         if layout is None or layout.type != "MESH":
             return self.execute(context)  # reports why
         self._mode = EditModeGuard(layout)
-        session = self._start(context)
+        session = self._start(context, display_seconds=frame_clock.display_seconds())
         if session is None:
             self._restore_mode()
             return {"CANCELLED"}
         self._loop = WrapLoop(session)
+        outcome = self._loop.handle("TIMER")  # the first frame, before any redraw: it may be the whole wrap
+        if outcome != "RUNNING_MODAL":
+            self._restore_mode()
+            return self._ended(outcome)
         self._area = context.area  # the header to write in; events may come with another area as context
         window_manager = context.window_manager
         self._timer = window_manager.event_timer_add(TIMER_SECONDS, window=context.window)
         window_manager.progress_begin(0, session.parameters.max_iterations)
         window_manager.modal_handler_add(self)
+        wrap_session.set_running(session)
         self._show_status(context)
         return {"RUNNING_MODAL"}
 
@@ -220,7 +225,12 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
         if outcome == "PASS_THROUGH":
             return {"PASS_THROUGH"}
         self._end(context)
+        return self._ended(outcome)
+
+    def _ended(self, outcome: str) -> set:
+        """Report how the wrap ended (``'FINISHED'`` or ``'CANCELLED'``) and return the operator's result."""
         if outcome == "FINISHED":
+            report_storage_precision(self, self._loop.session.layout, self._loop.session.target.extent)
             self._report_result(self._loop.result)
             return {"FINISHED"}
         if self._loop.error is not None:
@@ -256,6 +266,11 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
     def _end(self, context) -> None:
         """Remove the timer, the status text and the progress, and go back to edit mode if the layout was in it."""
         window_manager = context.window_manager
+        loop = getattr(self, "_loop", None)
+        if loop is not None:
+            wrap_session.set_running(loop.session, running=False)
+            if loop.session.pacer.display_seconds is not None:  # the next wrap starts from the whole redraw's cost
+                frame_clock.record(loop.session.pacer.display_seconds)
         if getattr(self, "_timer", None) is not None:
             window_manager.event_timer_remove(self._timer)
             self._timer = None
@@ -273,6 +288,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
             mode.restore()
 
     def _report_result(self, result: WrapResult) -> None:
+        wrap_session.remember_result(result)
         self.report({"INFO"} if result.converged else {"WARNING"}, result.summary())
         detached, reattached = result.topology_detached_count, result.topology_reattached_count
         if detached or reattached or result.anchors_detached_count:

@@ -2,22 +2,40 @@
 
 import bpy
 
+from mathutils import Vector
+
 
 class SPRINGWRAP_UL_anchors(bpy.types.UIList):
-    """The layout's anchors: vertex index, target kind and target location"""
+    """The layout's anchors: the vertex index (its icon: the target is on the surface or in space), and how far the
+    vertex is from its target point"""
 
     bl_idname = "SPRINGWRAP_UL_anchors"
 
     def draw_item(self, context, layout, data, item, icon, active_data, active_property, index=0, flt_flag=0):
-        vertex_count = len(data.id_data.data.vertices) if data.id_data.type == "MESH" else 0
-        missing = not 0 <= item.vertex_index < vertex_count
-        row = layout.row(align=True)
-        row.alert = missing
-        vertex_text = f"Vertex {item.vertex_index}" + (" (missing)" if missing else "")
-        row.label(text=vertex_text, icon="ERROR" if missing else "VERTEXSEL")
-        x, y, z = item.location
+        obj = data.id_data
+        vertices = obj.data.vertices if obj.type == "MESH" else ()
+        missing = not 0 <= item.vertex_index < len(vertices)
+        split = layout.split(factor=0.4, align=True)
+        split.alert = missing
         kind_icon = "SNAP_FACE" if item.target_kind == "FACE" else "EMPTY_AXIS"
-        row.label(text=f"{item.target_kind.title()} ({x:.3g}, {y:.3g}, {z:.3g})", icon=kind_icon)
+        split.label(text=str(item.vertex_index), icon="ERROR" if missing else kind_icon)
+        if missing:
+            split.label(text="missing")
+            return
+        # Object-mode data (in edit mode, as of the last switch): one vertex per visible row, read as drawn.
+        world = obj.matrix_world @ vertices[item.vertex_index].co
+        distance = (Vector(item.location) - world).length
+        split.label(text=_length_text(context, distance))
+
+
+def _length_text(context, value: float) -> str:
+    """A distance in the scene's units, three significant digits ("0.0312 m", "3.12 cm", "1.2 ft")."""
+    units = context.scene.unit_settings if context.scene is not None else None
+    if units is None or units.system == "NONE":
+        return f"{value:.3g}"
+    return bpy.utils.units.to_string(
+        units.system, "LENGTH", value * units.scale_length, precision=3, split_unit=units.use_separate
+    )
 
 
 class SPRINGWRAP_UL_curve_constraints(bpy.types.UIList):

@@ -1,10 +1,24 @@
-"""The Springwrap sidebar panel of the 3D view, and its Align, Armature, Anchors, Curve Constraints, Wrap and
-Features sub-panels (their lists are in ``lists``)."""
+"""The Springwrap sidebar tab of the 3D view, laid out as an artist's workflow.
+
+The steps in the order they are taken, open by default: the layout panel itself (**Target**: the target
+and the cage display), **Place** (align; its **Armature** sub-panel), **Anchors** (its **Curve
+Constraints** sub-panel), **Wrap** (the big button, its main settings, the live progress) and **Check**
+(the point counts and the last wrap). Then the point tools, each in its own sub-panel, closed by
+default: **Snap**, **Project**, **Detach**, **Mirror**, **Features**.
+
+Layouts follow Blender's own modifier panels (``properties_data_modifier``): ``use_property_split``, short
+labels (the tooltips, from the properties' descriptions, carry the detail), counts on their own rows.
+The lists are in ``lists``; data is read through ``blender``.
+"""
 
 import bpy
 
 from ..blender import anchors as anchor_data
 from ..blender import layout as layout_data
+from ..blender import wrap_session
+
+WRAP_BUTTON_SCALE = 1.6
+"""Height of the Wrap button, in rows: the step the add-on exists for."""
 
 
 class _SidebarPanel:
@@ -26,59 +40,71 @@ class _LayoutSubPanel(_SidebarPanel):
     bl_parent_id = "SPRINGWRAP_PT_layout"
 
 
+def _split(layout):
+    """``layout`` with property split on and no decorators (Blender's modifier panels)."""
+    layout.use_property_split = True
+    layout.use_property_decorate = False
+    return layout
+
+
+def _count_row(layout, label: str, value, icon: str = "NONE") -> None:
+    """A count on its own row: the label in the property column, the value beside it."""
+    split = layout.split(factor=0.4)
+    left = split.row()
+    left.alignment = "RIGHT"
+    left.label(text=label)
+    split.label(text=str(value), icon=icon)
+
+
+def _scope_text(obj, verb: str) -> str:
+    """A point tool's button text: "Snap" on the whole layout, "Snap Selected" in edit mode."""
+    return f"{verb} Selected" if obj.mode == "EDIT" else verb
+
+
 class SPRINGWRAP_PT_layout(_SidebarPanel, bpy.types.Panel):
-    """Target picker and the detach / snap / project buttons for the active layout"""
+    """The layout's target and how the layout is shown over it"""
 
     bl_label = "Springwrap"
     bl_idname = "SPRINGWRAP_PT_layout"
 
     def draw(self, context):
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
-        obj = context.active_object
-        settings = obj.springwrap
-        in_edit_mode = obj.mode == "EDIT"
-
+        layout = _split(self.layout)
+        settings = context.active_object.springwrap
         layout.prop(settings, "target")
-        _draw_point_counts(layout, obj)
-
-        column = layout.column(align=True)
-        column.label(text="Selected Vertices" if in_edit_mode else "All Vertices", icon="VERTEXSEL")
-
-        box = layout.box()
-        box.prop(settings, "snap_mode")
-        box.prop(settings, "max_distance")
-        snap = box.operator("springwrap.snap", icon="SNAP_ON")
-        snap.mode = settings.snap_mode
-        snap.max_distance = settings.max_distance
-        snap.only_selected = in_edit_mode
-
-        box = layout.box()
-        box.prop(settings, "project_direction")
-        row = box.row()
-        row.active = settings.project_direction not in ("VIEW", "NORMAL")
-        row.prop(settings, "project_orientation")
-        box.prop(settings, "project_both_directions")
-        project = box.operator("springwrap.project", icon="MOD_SHRINKWRAP")
-        project.direction = settings.project_direction
-        project.orientation = settings.project_orientation
-        project.both_directions = settings.project_both_directions
-        project.max_distance = settings.max_distance
-        project.only_selected = in_edit_mode
-
-        detach = layout.operator("springwrap.detach", icon="UNLINKED")
-        detach.only_selected = in_edit_mode
+        column = layout.column(heading="Show")
+        column.active = settings.target is not None
+        column.prop(settings, "show_cage", text="Cage")
 
 
-def _draw_point_counts(layout, obj):
-    """Face-point / space-point counts, read from the state attribute (not available in edit mode)."""
-    counts = layout_data.read_point_counts(obj)
-    if counts is None:
-        layout.label(text="Point counts shown in Object Mode", icon="INFO")
-    else:
-        face_count, space_count = counts
-        layout.label(text=f"{face_count} face-points, {space_count} space-points", icon="INFO")
+class SPRINGWRAP_PT_align(_LayoutSubPanel, bpy.types.Panel):
+    """Place the template on the target before it is attached: anchor fit and ICP"""
+
+    bl_label = "Place"
+    bl_idname = "SPRINGWRAP_PT_align"
+
+    def draw(self, context):
+        layout = self.layout
+        anchor_count = len(context.active_object.springwrap.anchors)
+        layout.label(text=f"Fit to {anchor_count} anchors, then ICP")
+        row = layout.row(align=True)
+        row.operator_menu_enum("springwrap.align", "method", text="Align", icon="ORIENTATION_GLOBAL")
+        icp_only = row.operator("springwrap.align", text="ICP Only")
+        icp_only.use_anchors = False
+        icp_only.method = "RIGID"
+
+
+class SPRINGWRAP_PT_armature(_SidebarPanel, bpy.types.Panel):
+    """Armature alignment: the target armature and the Align Armature button"""
+
+    bl_label = "Armature"
+    bl_idname = "SPRINGWRAP_PT_armature"
+    bl_parent_id = "SPRINGWRAP_PT_align"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        layout = _split(self.layout)
+        layout.prop(context.active_object.springwrap, "target_armature", text="Target")
+        layout.operator("springwrap.align_armature", icon="ARMATURE_DATA")
 
 
 class SPRINGWRAP_PT_anchors(_LayoutSubPanel, bpy.types.Panel):
@@ -92,8 +118,11 @@ class SPRINGWRAP_PT_anchors(_LayoutSubPanel, bpy.types.Panel):
 
     def draw(self, context):
         layout = self.layout
-        settings = context.active_object.springwrap
-        layout.label(text=_anchor_counts_text(context.active_object), icon="PINNED")
+        obj = context.active_object
+        settings = obj.springwrap
+        counts = layout.column(align=True)
+        _count_row(counts, "Anchors", len(settings.anchors), icon="PINNED")
+        _count_row(counts, "On Surface", anchor_data.face_anchor_count(obj), icon="SNAP_FACE")
 
         row = layout.row()
         row.template_list("SPRINGWRAP_UL_anchors", "", settings, "anchors", settings, "active_anchor_index", rows=4)
@@ -106,22 +135,22 @@ class SPRINGWRAP_PT_anchors(_LayoutSubPanel, bpy.types.Panel):
         column.operator("springwrap.anchors_update", icon="FILE_REFRESH", text="")
         column.operator("springwrap.anchors_clear", icon="X", text="")
 
-        box = layout.box()
-        box.use_property_split = True
-        box.use_property_decorate = False
-        box.prop(settings, "anchor_spacing")
-        box.prop(settings, "anchor_method")
-        auto = box.operator("springwrap.anchors_auto", icon="AUTO")
+        column = _split(layout.column())
+        column.prop(settings, "anchor_spacing")
+        column.prop(settings, "anchor_method")
+        auto = column.operator("springwrap.anchors_auto", icon="AUTO")
         auto.spacing = settings.anchor_spacing
         auto.method = settings.anchor_method
         auto.max_distance = settings.max_distance
 
 
-class SPRINGWRAP_PT_curve_constraints(_LayoutSubPanel, bpy.types.Panel):
+class SPRINGWRAP_PT_curve_constraints(_SidebarPanel, bpy.types.Panel):
     """The active layout's curve constraints: list, add / remove / clear / auto, and the viewport display toggle"""
 
     bl_label = "Curve Constraints"
     bl_idname = "SPRINGWRAP_PT_curve_constraints"
+    bl_parent_id = "SPRINGWRAP_PT_anchors"
+    bl_options = {"DEFAULT_CLOSED"}
 
     def draw_header(self, context):
         self.layout.prop(context.active_object.springwrap, "show_curve_constraints", text="")
@@ -145,73 +174,153 @@ class SPRINGWRAP_PT_curve_constraints(_LayoutSubPanel, bpy.types.Panel):
         column.operator("springwrap.curve_constraint_remove", icon="REMOVE", text="").index = -1
         column.separator()
         column.operator("springwrap.curve_constraints_clear", icon="X", text="")
-        layout.prop(settings, "curve_source")
-        layout.label(text="Add: selected edge chain (Edit Mode)", icon="INFO")
+        _split(layout.column()).prop(settings, "curve_source")
         layout.operator("springwrap.curve_constraints_auto", icon="AUTO")
 
 
-class SPRINGWRAP_PT_align(_LayoutSubPanel, bpy.types.Panel):
-    """Alignment of the template before it is attached: anchor fit and ICP"""
-
-    bl_label = "Align"
-    bl_idname = "SPRINGWRAP_PT_align"
-
-    def draw(self, context):
-        layout = self.layout
-        anchor_count = len(context.active_object.springwrap.anchors)
-        layout.label(text=f"Fit to {anchor_count} anchors, then ICP", icon="INFO")
-        row = layout.row(align=True)
-        row.operator_menu_enum("springwrap.align", "method", text="Align", icon="ORIENTATION_GLOBAL")
-        icp_only = row.operator("springwrap.align", text="ICP Only")
-        icp_only.use_anchors = False
-        icp_only.method = "RIGID"
-
-
 class SPRINGWRAP_PT_wrap(_LayoutSubPanel, bpy.types.Panel):
-    """The wrap: the target's unreliable vertex group and the Wrap button"""
+    """The wrap: the Wrap button, its solver and vertex groups, and the live progress"""
 
     bl_label = "Wrap"
     bl_idname = "SPRINGWRAP_PT_wrap"
 
     def draw(self, context):
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
-        settings = context.active_object.springwrap
+        layout = _split(self.layout)
+        obj = context.active_object
+        settings = obj.springwrap
+        session = wrap_session.running_session(obj)
+        if session is not None:
+            _draw_progress(layout, session)
+        else:
+            row = layout.row()
+            row.scale_y = WRAP_BUTTON_SCALE
+            row.operator("springwrap.wrap", icon="MOD_SHRINKWRAP").solver = settings.wrap_solver
+
+        layout.prop(settings, "wrap_solver")
         row = layout.row()
         if settings.target is not None:
             row.prop_search(settings, "unreliable_group", settings.target, "vertex_groups", icon="GROUP_VERTEX")
         else:
             row.enabled = False
             row.prop(settings, "unreliable_group")
-        layout.prop(settings, "wrap_solver")
         groups = layout.column()
         groups.active = settings.wrap_solver == "ENERGY"
-        groups.prop_search(settings, "stiffness_group", context.active_object, "vertex_groups", icon="GROUP_VERTEX")
-        groups.prop_search(settings, "free_group", context.active_object, "vertex_groups", icon="GROUP_VERTEX")
-        layout.label(text="Whole layout; Esc or right-click cancels", icon="INFO")
-        layout.operator("springwrap.wrap", icon="MOD_SHRINKWRAP").solver = settings.wrap_solver
+        groups.prop_search(settings, "stiffness_group", obj, "vertex_groups", icon="GROUP_VERTEX")
+        groups.prop_search(settings, "free_group", obj, "vertex_groups", icon="GROUP_VERTEX")
         layout.operator("springwrap.rest_set", icon="ARMATURE_DATA")
-        box = layout.box()
-        box.prop(settings, "mirror_object")
-        mirror = box.operator("springwrap.mirror", icon="MOD_MIRROR")
-        mirror.solver = settings.wrap_solver
-        mirror.mirror_object = settings.mirror_object.name if settings.mirror_object is not None else ""
 
 
-class SPRINGWRAP_PT_armature(_LayoutSubPanel, bpy.types.Panel):
-    """Armature alignment: the target armature and the Align Armature button"""
+def _draw_progress(layout, session) -> None:
+    """The live wrap's progress, on rows of their own (the status bar has the same, and Esc to cancel)."""
+    column = layout.column(align=True)
+    _count_row(column, "Iteration", session.total_iterations)
+    _count_row(column, "Limit", session.parameters.max_iterations)
+    report = session.last_report
+    if report is not None:
+        _count_row(column, "Last Move", f"{report.max_displacement:.2e}")
+    column.label(text="Esc: cancel", icon="CANCEL")
 
-    bl_label = "Armature"
-    bl_idname = "SPRINGWRAP_PT_armature"
-    bl_options = {"DEFAULT_CLOSED"}
+
+class SPRINGWRAP_PT_check(_LayoutSubPanel, bpy.types.Panel):
+    """What the layout is now: its face- and space-points, and the last wrap's result"""
+
+    bl_label = "Check"
+    bl_idname = "SPRINGWRAP_PT_check"
 
     def draw(self, context):
         layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
-        layout.prop(context.active_object.springwrap, "target_armature")
-        layout.operator("springwrap.align_armature", icon="ARMATURE_DATA")
+        obj = context.active_object
+        counts = layout_data.read_point_counts(obj)
+        column = layout.column(align=True)
+        if counts is None:
+            column.label(text="Counts in Object Mode", icon="INFO")
+        else:
+            face_count, space_count = counts
+            _count_row(column, "On Surface", face_count, icon="SNAP_FACE")  # face-points
+            _count_row(column, "In Space", space_count, icon="EMPTY_AXIS")  # space-points
+        result = wrap_session.last_result(obj)
+        if result is None:
+            return
+        column = layout.column(align=True)
+        _count_row(column, "Last Wrap", "Converged" if result.converged else "At the limit", icon="MOD_SHRINKWRAP")
+        _count_row(column, "Iterations", result.iterations)
+        _count_row(column, "Time", f"{result.seconds:.2f} s")
+        if result.frames:  # the live wrap: how much of that was solving, over how many redraws
+            _count_row(column, "Solving", f"{result.kernel_seconds:.2f} s")
+            _count_row(column, "Frames", result.frames)
+
+
+class SPRINGWRAP_PT_snap(_LayoutSubPanel, bpy.types.Panel):
+    """Snap: each vertex to the closest point of the target (it becomes a face-point)"""
+
+    bl_label = "Snap"
+    bl_idname = "SPRINGWRAP_PT_snap"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        layout = _split(self.layout)
+        obj = context.active_object
+        settings = obj.springwrap
+        layout.prop(settings, "snap_mode", text="Mode")
+        layout.prop(settings, "max_distance", text="Limit")
+        snap = layout.operator("springwrap.snap", text=_scope_text(obj, "Snap"), icon="SNAP_ON")
+        snap.mode = settings.snap_mode
+        snap.max_distance = settings.max_distance
+        snap.only_selected = obj.mode == "EDIT"
+
+
+class SPRINGWRAP_PT_project(_LayoutSubPanel, bpy.types.Panel):
+    """Project: each vertex along a direction onto the target (a hit becomes a face-point)"""
+
+    bl_label = "Project"
+    bl_idname = "SPRINGWRAP_PT_project"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        layout = _split(self.layout)
+        obj = context.active_object
+        settings = obj.springwrap
+        layout.prop(settings, "project_direction")
+        row = layout.row()
+        row.active = settings.project_direction not in ("VIEW", "NORMAL")
+        row.prop(settings, "project_orientation", text="Axes")
+        layout.prop(settings, "project_both_directions", text="Both Ways")
+        layout.prop(settings, "max_distance", text="Limit")
+        project = layout.operator("springwrap.project", text=_scope_text(obj, "Project"), icon="MOD_SHRINKWRAP")
+        project.direction = settings.project_direction
+        project.orientation = settings.project_orientation
+        project.both_directions = settings.project_both_directions
+        project.max_distance = settings.max_distance
+        project.only_selected = obj.mode == "EDIT"
+
+
+class SPRINGWRAP_PT_detach(_LayoutSubPanel, bpy.types.Panel):
+    """Detach: vertices become space-points, free in 3D (a template to place and wrap)"""
+
+    bl_label = "Detach"
+    bl_idname = "SPRINGWRAP_PT_detach"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        obj = context.active_object
+        detach = self.layout.operator("springwrap.detach", text=_scope_text(obj, "Detach"), icon="UNLINKED")
+        detach.only_selected = obj.mode == "EDIT"
+
+
+class SPRINGWRAP_PT_mirror(_LayoutSubPanel, bpy.types.Panel):
+    """Mirror: a surfaced half across the layout's (or an empty's) plane, then wrap the new half"""
+
+    bl_label = "Mirror"
+    bl_idname = "SPRINGWRAP_PT_mirror"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        layout = _split(self.layout)
+        settings = context.active_object.springwrap
+        layout.prop(settings, "mirror_object", text="Plane")
+        mirror = layout.operator("springwrap.mirror", icon="MOD_MIRROR")
+        mirror.solver = settings.wrap_solver
+        mirror.mirror_object = settings.mirror_object.name if settings.mirror_object is not None else ""
 
 
 class SPRINGWRAP_PT_features(_LayoutSubPanel, bpy.types.Panel):
@@ -228,11 +337,6 @@ class SPRINGWRAP_PT_features(_LayoutSubPanel, bpy.types.Panel):
         self.layout.operator("springwrap.detect_features", icon="CURVE_BEZCURVE")
 
 
-def _anchor_counts_text(obj):
-    """ "K anchors (F on the surface)", the kinds read at once (the list may be long)."""
-    return f"{len(obj.springwrap.anchors)} anchors ({anchor_data.face_anchor_count(obj)} on the surface)"
-
-
 classes = (
     SPRINGWRAP_PT_layout,
     SPRINGWRAP_PT_align,
@@ -240,5 +344,11 @@ classes = (
     SPRINGWRAP_PT_anchors,
     SPRINGWRAP_PT_curve_constraints,
     SPRINGWRAP_PT_wrap,
+    SPRINGWRAP_PT_check,
+    SPRINGWRAP_PT_snap,
+    SPRINGWRAP_PT_project,
+    SPRINGWRAP_PT_detach,
+    SPRINGWRAP_PT_mirror,
     SPRINGWRAP_PT_features,
 )
+"""The panels in their order in the sidebar (a parent before its sub-panels)."""

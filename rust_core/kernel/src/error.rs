@@ -150,6 +150,32 @@ pub enum KernelError {
         /// The largest supported count.
         max: usize,
     },
+    /// A coordinate is finite but beyond the kernel's bound ([`crate::validate::MAX_COORDINATE`]
+    /// from the origin, each component): a vertex at 3.4e38 (a float32 infinity clamped by a UI
+    /// field) or 1e30 is a broken value, not a place. Fix or remove that element.
+    CoordinateOutOfRange {
+        /// Which input, as in [`KernelError::NonFinite`].
+        what: &'static str,
+        /// Index of the offending element in its array.
+        index: usize,
+        /// The offending coordinate.
+        value: f32,
+        /// The bound it exceeds.
+        limit: f32,
+    },
+    /// A wrap constraint (an anchor target, a target curve point, the mirror plane) lies beyond
+    /// the region the wrap can reach: ten times the size of the target and the layout's start,
+    /// about the target's centre (see [`KernelError::Diverged`]). Move it onto or near the target.
+    BeyondReach {
+        /// `"anchor target"`, `"curve point"` or `"plane"`.
+        what: &'static str,
+        /// Index of the offending element (the anchor, the curve point; 0 for the plane).
+        index: usize,
+        /// Its distance from the target's centre.
+        distance: f32,
+        /// The radius of the region the wrap can reach.
+        reach: f32,
+    },
 }
 
 impl fmt::Display for KernelError {
@@ -242,6 +268,25 @@ impl fmt::Display for KernelError {
             Self::TooLarge { what, count, max } => {
                 write!(f, "too many {what}: {count} (at most {max} supported)")
             }
+            Self::CoordinateOutOfRange {
+                what,
+                index,
+                value,
+                limit,
+            } => write!(
+                f,
+                "{what} {index} has a coordinate of {value:e}, beyond the kernel's bound of ±{limit:e} model units"
+            ),
+            Self::BeyondReach {
+                what,
+                index,
+                distance,
+                reach,
+            } => write!(
+                f,
+                "{what} {index} is {distance:e} from the target's centre, beyond the region the wrap can reach \
+                 ({reach:e}: ten times the size of the target and the layout's start)"
+            ),
         }
     }
 }

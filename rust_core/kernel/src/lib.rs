@@ -49,6 +49,7 @@ pub mod layout;
 pub mod mesh;
 pub mod query;
 pub mod surface;
+pub mod validate;
 pub mod wrap;
 
 pub use align::{
@@ -67,6 +68,7 @@ pub use fit::{
 pub use layout::{Curve, CurveKind, LayoutStructure, LineTriple};
 pub use mesh::{NO_TRIANGLE, TargetMesh, TargetMeshOptions, TriangleEdge};
 pub use surface::{WalkEnd, WalkOutcome};
+pub use validate::{BARYCENTRIC_RANGE, MAX_COORDINATE};
 pub use wrap::{
     Anchor, AnchorTarget, CurveConstraint, PlaneConstraint, SolverKind, SpringRest, StepReport,
     WrapSettings, WrapSolver, WrapWeights,

@@ -245,14 +245,36 @@ fn bad_plane_constraints_are_refused() {
         },
         "zero length",
     );
-    refused(
-        PlaneConstraint {
+    // The input policy (validate.rs): a NaN point is NonFinite, a plane beyond the region the
+    // wrap can reach is BeyondReach.
+    let error = solver()
+        .with_plane_constraint(&PlaneConstraint {
             vertices: vec![0],
             point: Vec3::NAN,
             normal: Vec3::Y,
             slide: true,
-        },
-        "NaN",
+        })
+        .err()
+        .unwrap();
+    assert_eq!(
+        error,
+        KernelError::NonFinite {
+            what: "plane point",
+            index: 0
+        }
+    );
+    let error = solver()
+        .with_plane_constraint(&PlaneConstraint {
+            vertices: vec![0],
+            point: Vec3::new(0.0, 1e7, 0.0),
+            normal: Vec3::Y,
+            slide: true,
+        })
+        .err()
+        .unwrap();
+    assert!(
+        matches!(error, KernelError::BeyondReach { what: "plane", .. }),
+        "{error:?}"
     );
     refused(
         PlaneConstraint {

@@ -4,6 +4,7 @@ use numpy::PyArray2;
 use pyo3::prelude::*;
 use springwrap_kernel::{AlignMethod, Transform, fit_transform};
 
+use crate::arguments;
 use crate::arrays::{read_array, read_positions, rows_array};
 use crate::errors::{ArrayError, InvalidArgumentError, run_kernel};
 
@@ -47,15 +48,16 @@ pub(crate) fn transform_array<'py>(
 /// Least-squares transform taking `source[i]` to `target[i]` (float32 (N, 3) anchors), as a
 /// (4, 4) float64 matrix; `method` is `'RIGID'`, `'SIMILARITY'` or `'AFFINE'`.
 #[pyfunction(name = "fit_transform")]
-#[pyo3(signature = (source, target, method = "SIMILARITY", *, weights = None))]
+#[pyo3(signature = (source, target, method = None, *, weights = None))]
 pub(crate) fn fit_transform_py<'py>(
     py: Python<'py>,
     source: &Bound<'py, PyAny>,
     target: &Bound<'py, PyAny>,
-    method: &str,
+    method: Option<&Bound<'py, PyAny>>,
     weights: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-    let method = match method {
+    let method = arguments::text("method", method, "SIMILARITY")?;
+    let method = match method.as_str() {
         "RIGID" => AlignMethod::Rigid,
         "SIMILARITY" => AlignMethod::Similarity,
         "AFFINE" => AlignMethod::Affine,

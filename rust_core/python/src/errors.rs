@@ -59,6 +59,19 @@ create_exception!(
 );
 create_exception!(
     springwrap_kernel,
+    TooLargeError,
+    InvalidArgumentError,
+    "A count is larger than the kernel supports (32-bit indices)."
+);
+create_exception!(
+    springwrap_kernel,
+    CoordinateRangeError,
+    SpringwrapError,
+    "A coordinate is finite but beyond the kernel's bound (|x| <= 1e8), or a wrap constraint \
+     lies beyond the region the wrap can reach."
+);
+create_exception!(
+    springwrap_kernel,
     DivergedError,
     SpringwrapError,
     "The wrap diverged (a point stopped being finite or left the region it can reach); the layout \
@@ -85,12 +98,15 @@ pub(crate) fn to_python_error(error: &KernelError) -> PyErr {
         KernelError::ZeroDirection { .. }
         | KernelError::LengthMismatch { .. }
         | KernelError::InvalidArgument { .. }
-        | KernelError::TooLarge { .. }
         | KernelError::TooFewPairs { .. }
         | KernelError::CoincidentAnchors { .. }
         | KernelError::CollinearAnchors { .. }
         | KernelError::CoplanarAnchors { .. } => InvalidArgumentError::new_err(message),
         KernelError::InvalidScale { .. } => InvalidArgumentError::new_err(message),
+        KernelError::TooLarge { .. } => TooLargeError::new_err(message),
+        KernelError::CoordinateOutOfRange { .. } | KernelError::BeyondReach { .. } => {
+            CoordinateRangeError::new_err(message)
+        }
         KernelError::FlatSurface { .. } => features::FlatSurfaceError::new_err(message),
         KernelError::Diverged { .. } => DivergedError::new_err(message),
     }
@@ -137,6 +153,15 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add(
         "InvalidArgumentError",
         py.get_type::<InvalidArgumentError>(),
+    )?;
+    m.add("TooLargeError", py.get_type::<TooLargeError>())?;
+    m.add(
+        "CoordinateRangeError",
+        py.get_type::<CoordinateRangeError>(),
+    )?;
+    m.add(
+        "ArgumentTypeError",
+        crate::arguments::argument_type_error_class(py)?,
     )?;
     m.add("DivergedError", py.get_type::<DivergedError>())?;
     m.add("InternalError", py.get_type::<InternalError>())?;

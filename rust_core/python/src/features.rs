@@ -12,6 +12,7 @@ use springwrap_kernel::{
     FeatureCurveKind, FeatureSettings, PrincipalCurvatures, detect_features, principal_curvatures,
 };
 
+use crate::arguments;
 use crate::arrays::rows_array;
 use crate::errors::{SpringwrapError, run_kernel};
 use crate::target_mesh::PyTargetMesh;
@@ -49,10 +50,12 @@ fn curvature_arrays<'py>(
 #[pyfunction(name = "principal_curvatures")]
 fn principal_curvatures_py<'py>(
     py: Python<'py>,
-    mesh: &Bound<'py, PyTargetMesh>,
-    scale: f32,
+    mesh: &Bound<'py, PyAny>,
+    scale: &Bound<'py, PyAny>,
 ) -> PyResult<CurvatureArrays<'py>> {
+    let mesh = arguments::instance::<PyTargetMesh>("mesh", "TargetMesh", mesh)?;
     let mesh = Arc::clone(&mesh.get().mesh);
+    let scale = arguments::float32("scale", scale)?;
     let curvatures = run_kernel(py, || principal_curvatures(&mesh, scale))?;
     curvature_arrays(py, curvatures)
 }
@@ -64,20 +67,20 @@ fn principal_curvatures_py<'py>(
     mesh,
     scale,
     *,
-    flat_threshold = 0.1,
-    ridge_threshold = 0.25,
+    flat_threshold = None,
+    ridge_threshold = None,
     min_length = None,
     join_distance = None,
 ))]
 #[allow(clippy::type_complexity)]
 fn detect_features_py<'py>(
     py: Python<'py>,
-    mesh: &Bound<'py, PyTargetMesh>,
-    scale: f32,
-    flat_threshold: f32,
-    ridge_threshold: f32,
-    min_length: Option<f32>,
-    join_distance: Option<f32>,
+    mesh: &Bound<'py, PyAny>,
+    scale: &Bound<'py, PyAny>,
+    flat_threshold: Option<&Bound<'py, PyAny>>,
+    ridge_threshold: Option<&Bound<'py, PyAny>>,
+    min_length: Option<&Bound<'py, PyAny>>,
+    join_distance: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<(
     Bound<'py, PyArray1<f32>>,
     Bound<'py, PyArray1<f32>>,
@@ -86,13 +89,27 @@ fn detect_features_py<'py>(
     Bound<'py, PyArray1<u8>>,
     Vec<CurveTuple<'py>>,
 )> {
+    let mesh = arguments::instance::<PyTargetMesh>("mesh", "TargetMesh", mesh)?;
     let mesh = Arc::clone(&mesh.get().mesh);
+    let scale = arguments::float32("scale", scale)?;
     let defaults = FeatureSettings::with_scale(scale);
     let settings = FeatureSettings {
-        flat_threshold,
-        ridge_threshold,
-        min_length: min_length.unwrap_or(defaults.min_length),
-        join_distance: join_distance.unwrap_or(defaults.join_distance),
+        flat_threshold: arguments::float32_or(
+            "flat_threshold",
+            flat_threshold,
+            defaults.flat_threshold,
+        )?,
+        ridge_threshold: arguments::float32_or(
+            "ridge_threshold",
+            ridge_threshold,
+            defaults.ridge_threshold,
+        )?,
+        min_length: arguments::float32_or("min_length", min_length, defaults.min_length)?,
+        join_distance: arguments::float32_or(
+            "join_distance",
+            join_distance,
+            defaults.join_distance,
+        )?,
         ..defaults
     };
     let features = run_kernel(py, || detect_features(&mesh, &settings))?;

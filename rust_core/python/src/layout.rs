@@ -2,8 +2,10 @@
 
 use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
+use springwrap_kernel::mesh::MAX_ELEMENTS;
 use springwrap_kernel::{CurveKind, LayoutStructure};
 
+use crate::arguments;
 use crate::arrays::{read_array, read_pairs, rows_array};
 use crate::errors::run_kernel;
 
@@ -19,12 +21,13 @@ impl PyLayoutStructure {
     #[pyo3(signature = (vertex_count, face_corners, face_sizes, *, edges = None, seams = None))]
     fn new(
         py: Python<'_>,
-        vertex_count: usize,
+        vertex_count: &Bound<'_, PyAny>,
         face_corners: &Bound<'_, PyAny>,
         face_sizes: &Bound<'_, PyAny>,
         edges: Option<&Bound<'_, PyAny>>,
         seams: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
+        let vertex_count = arguments::count("vertex_count", vertex_count, MAX_ELEMENTS)?;
         let face_corners = read_array::<u32>("face_corners", face_corners, None)?;
         let face_sizes = read_array::<u32>("face_sizes", face_sizes, None)?;
         let edges = read_pairs("edges", edges)?;

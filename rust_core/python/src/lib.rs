@@ -5,6 +5,7 @@
 //! pure-Python package `springwrap_kernel` re-exports this module and adds named results.
 
 mod align;
+mod arguments;
 mod arrays;
 mod errors;
 mod features;
@@ -20,6 +21,8 @@ use pyo3::prelude::*;
 #[pymodule(gil_used = false)]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add("MAX_COORDINATE", springwrap_kernel::MAX_COORDINATE)?;
+    m.add("MAX_ELEMENTS", springwrap_kernel::mesh::MAX_ELEMENTS)?;
     m.add_class::<target_mesh::PyTargetMesh>()?;
     m.add_class::<layout::PyLayoutStructure>()?;
     m.add_class::<wrap_settings::PyWrapSettings>()?;

@@ -10,6 +10,7 @@ use springwrap_kernel::{
 };
 
 use crate::align::{IcpTuple, read_transform, transform_array};
+use crate::arguments;
 use crate::arrays::{read_array, read_positions, rows_array};
 use crate::errors::{InvalidArgumentError, run_kernel, to_python_error};
 
@@ -94,13 +95,14 @@ pub(crate) struct PyTargetMesh {
 #[pymethods]
 impl PyTargetMesh {
     #[new]
-    #[pyo3(signature = (vertices, triangles, *, reject_degenerate = false))]
+    #[pyo3(signature = (vertices, triangles, *, reject_degenerate = None))]
     fn new(
         py: Python<'_>,
         vertices: &Bound<'_, PyAny>,
         triangles: &Bound<'_, PyAny>,
-        reject_degenerate: bool,
+        reject_degenerate: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
+        let reject_degenerate = arguments::flag("reject_degenerate", reject_degenerate, false)?;
         let vertices = read_positions("vertices", vertices)?;
         let flat_triangles = read_array::<u32>("triangles", triangles, Some(3))?;
         let triangles = flat_triangles
@@ -234,15 +236,15 @@ impl PyTargetMesh {
         source,
         initial = None,
         *,
-        update = "RIGID",
-        max_iterations = 50,
-        trim_fraction = 0.1,
-        max_distance = f32::INFINITY,
-        tolerance = 1e-7,
-        ignore_boundary = true,
+        update = None,
+        max_iterations = None,
+        trim_fraction = None,
+        max_distance = None,
+        tolerance = None,
+        ignore_boundary = None,
         anchor_source = None,
         anchor_target = None,
-        anchor_weight = 1.0,
+        anchor_weight = None,
     ))]
     #[allow(clippy::too_many_arguments)] // keyword arguments of one Python method
     fn icp<'py>(
@@ -250,16 +252,30 @@ impl PyTargetMesh {
         py: Python<'py>,
         source: &Bound<'py, PyAny>,
         initial: Option<&Bound<'py, PyAny>>,
-        update: &str,
-        max_iterations: u32,
-        trim_fraction: f32,
-        max_distance: f32,
-        tolerance: f64,
-        ignore_boundary: bool,
+        update: Option<&Bound<'py, PyAny>>,
+        max_iterations: Option<&Bound<'py, PyAny>>,
+        trim_fraction: Option<&Bound<'py, PyAny>>,
+        max_distance: Option<&Bound<'py, PyAny>>,
+        tolerance: Option<&Bound<'py, PyAny>>,
+        ignore_boundary: Option<&Bound<'py, PyAny>>,
         anchor_source: Option<&Bound<'py, PyAny>>,
         anchor_target: Option<&Bound<'py, PyAny>>,
-        anchor_weight: f64,
+        anchor_weight: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<IcpTuple<'py>> {
+        let defaults = IcpSettings::default();
+        let update = arguments::text("update", update, "RIGID")?;
+        let max_iterations = match max_iterations.filter(|value| !value.is_none()) {
+            Some(value) => arguments::count("max_iterations", value, u32::MAX as usize)? as u32,
+            None => defaults.max_iterations,
+        };
+        let trim_fraction =
+            arguments::float32_or("trim_fraction", trim_fraction, defaults.trim_fraction)?;
+        let max_distance =
+            arguments::float32_or("max_distance", max_distance, defaults.max_distance)?;
+        let tolerance = arguments::float64_or("tolerance", tolerance, defaults.tolerance)?;
+        let ignore_boundary =
+            arguments::flag("ignore_boundary", ignore_boundary, defaults.ignore_boundary)?;
+        let anchor_weight = arguments::float64_or("anchor_weight", anchor_weight, 1.0)?;
         let source = read_positions("source", source)?;
         let (anchor_source, anchor_target) = match (anchor_source, anchor_target) {
             (Some(source), Some(target)) => (
@@ -277,7 +293,7 @@ impl PyTargetMesh {
             Some(array) => read_transform("initial", array)?,
             None => Transform::IDENTITY,
         };
-        let update = match update {
+        let update = match update.as_str() {
             "RIGID" => IcpUpdate::Rigid,
             "SIMILARITY" => IcpUpdate::Similarity,
             other => {
@@ -313,41 +329,45 @@ impl PyTargetMesh {
     }
 
     /// Exact closest surface point of each query: (triangles, barycentrics, positions, distances).
-    #[pyo3(signature = (points, *, max_distance = f32::INFINITY))]
+    #[pyo3(signature = (points, *, max_distance = None))]
     fn closest_points<'py>(
         &self,
         py: Python<'py>,
         points: &Bound<'py, PyAny>,
-        max_distance: f32,
+        max_distance: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<SurfaceArrays<'py>> {
+        let max_distance = arguments::float32_or("max_distance", max_distance, f32::INFINITY)?;
         let points = read_positions("points", points)?;
         let hits = run_kernel(py, || self.mesh.closest_points(&points, max_distance))?;
         surface_arrays(py, &hits)
     }
 
     /// Nearest vertex of each query: (vertices, triangles, barycentrics, positions, distances).
-    #[pyo3(signature = (points, *, max_distance = f32::INFINITY))]
+    #[pyo3(signature = (points, *, max_distance = None))]
     fn nearest_vertices<'py>(
         &self,
         py: Python<'py>,
         points: &Bound<'py, PyAny>,
-        max_distance: f32,
+        max_distance: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<VertexArrays<'py>> {
+        let max_distance = arguments::float32_or("max_distance", max_distance, f32::INFINITY)?;
         let points = read_positions("points", points)?;
         let hits = run_kernel(py, || self.mesh.nearest_vertices(&points, max_distance))?;
         vertex_arrays(py, &hits)
     }
 
     /// First hit along each ray: (triangles, barycentrics, positions, signed distances).
-    #[pyo3(signature = (origins, directions, *, max_distance = f32::INFINITY, both_directions = false))]
+    #[pyo3(signature = (origins, directions, *, max_distance = None, both_directions = None))]
     fn ray_cast<'py>(
         &self,
         py: Python<'py>,
         origins: &Bound<'py, PyAny>,
         directions: &Bound<'py, PyAny>,
-        max_distance: f32,
-        both_directions: bool,
+        max_distance: Option<&Bound<'py, PyAny>>,
+        both_directions: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<SurfaceArrays<'py>> {
+        let max_distance = arguments::float32_or("max_distance", max_distance, f32::INFINITY)?;
+        let both_directions = arguments::flag("both_directions", both_directions, false)?;
         let origins = read_positions("origins", origins)?;
         let directions = read_positions("directions", directions)?;
         let hits = run_kernel(py, || {

@@ -10,8 +10,9 @@ use springwrap_kernel::{
     WrapSolver,
 };
 
+use crate::arguments;
 use crate::arrays::{read_array, read_positions, rows_array};
-use crate::errors::{ArrayError, IndexOutOfRangeError, run_kernel};
+use crate::errors::{ArrayError, IndexOutOfRangeError, InvalidArgumentError, run_kernel};
 use crate::layout::PyLayoutStructure;
 use crate::target_mesh::PyTargetMesh;
 use crate::wrap_settings::PyWrapSettings;
@@ -40,13 +41,13 @@ impl PyWrapSolver {
         anchor_positions = None, unreliable_triangles = None, curve_vertices = None,
         curve_vertex_counts = None, curve_points = None, curve_point_counts = None,
         rest_positions = None, plane_vertices = None, plane_point = None, plane_normal = None,
-        plane_slide = true, settings = None, stiffness = None, free_vertices = None
+        plane_slide = None, settings = None, stiffness = None, free_vertices = None
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
-        target: &Bound<'_, PyTargetMesh>,
-        structure: &Bound<'_, PyLayoutStructure>,
+        target: &Bound<'_, PyAny>,
+        structure: &Bound<'_, PyAny>,
         states: &Bound<'_, PyAny>,
         triangles: &Bound<'_, PyAny>,
         barycentrics: &Bound<'_, PyAny>,
@@ -62,15 +63,27 @@ impl PyWrapSolver {
         curve_point_counts: Option<&Bound<'_, PyAny>>,
         rest_positions: Option<&Bound<'_, PyAny>>,
         plane_vertices: Option<&Bound<'_, PyAny>>,
-        plane_point: Option<[f32; 3]>,
-        plane_normal: Option<[f32; 3]>,
-        plane_slide: bool,
-        settings: Option<&Bound<'_, PyWrapSettings>>,
+        plane_point: Option<&Bound<'_, PyAny>>,
+        plane_normal: Option<&Bound<'_, PyAny>>,
+        plane_slide: Option<&Bound<'_, PyAny>>,
+        settings: Option<&Bound<'_, PyAny>>,
         stiffness: Option<&Bound<'_, PyAny>>,
         free_vertices: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
-        let settings =
-            settings.map_or_else(WrapSettings::default, |settings| settings.get().settings);
+        let target = arguments::instance::<PyTargetMesh>("target", "TargetMesh", target)?;
+        let structure =
+            arguments::instance::<PyLayoutStructure>("structure", "LayoutStructure", structure)?;
+        let settings = match settings.filter(|settings| !settings.is_none()) {
+            Some(settings) => {
+                arguments::instance::<PyWrapSettings>("settings", "WrapSettings", settings)?
+                    .get()
+                    .settings
+            }
+            None => WrapSettings::default(),
+        };
+        let plane_point = arguments::vector3("plane_point", plane_point)?;
+        let plane_normal = arguments::vector3("plane_normal", plane_normal)?;
+        let plane_slide = arguments::flag("plane_slide", plane_slide, true)?;
         let plane = read_plane_constraint(plane_vertices, plane_point, plane_normal, plane_slide)?;
         let states = read_array::<i32>("states", states, None)?;
         let triangles = read_array::<i32>("triangles", triangles, None)?;
@@ -153,7 +166,7 @@ impl PyWrapSolver {
     fn step(
         &mut self,
         py: Python<'_>,
-        iterations: usize,
+        iterations: &Bound<'_, PyAny>,
     ) -> PyResult<(
         (
             usize,
@@ -172,6 +185,8 @@ impl PyWrapSolver {
         usize,
         f64,
     )> {
+        let iterations =
+            arguments::count("iterations", iterations, WrapSettings::MAX_STEP_ITERATIONS)?;
         let solver = &mut self.solver;
         let report = run_kernel(py, || solver.step(iterations))?;
         Ok((
@@ -253,6 +268,11 @@ fn layout_points(
         .iter()
         .enumerate()
         .map(|(index, &state)| {
+            if state != 0 && state != 1 {
+                return Err(InvalidArgumentError::new_err(format!(
+                    "invalid states: layout vertex {index} has state {state} (0: space-point, 1: face-point)"
+                )));
+            }
             if state == 1 {
                 let triangle = u32::try_from(triangles[index]).map_err(|_| {
                     IndexOutOfRangeError::new_err(format!(
@@ -297,8 +317,13 @@ fn read_curve_constraints(
     let vertex_counts = read_array::<u32>("curve_vertex_counts", vertex_counts, None)?;
     let points = read_positions("curve_points", points)?;
     let point_counts = read_array::<u32>("curve_point_counts", point_counts, None)?;
-    let vertex_total: usize = vertex_counts.iter().map(|&count| count as usize).sum();
-    let point_total: usize = point_counts.iter().map(|&count| count as usize).sum();
+    let total = |counts: &[u32]| {
+        counts
+            .iter()
+            .try_fold(0usize, |total, &count| total.checked_add(count as usize))
+            .unwrap_or(usize::MAX)
+    };
+    let (vertex_total, point_total) = (total(&vertex_counts), total(&point_counts));
     if vertex_counts.len() != point_counts.len()
         || vertex_total != vertices.len()
         || point_total != points.len()

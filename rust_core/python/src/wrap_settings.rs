@@ -8,6 +8,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyFloat};
 use springwrap_kernel::{SolverKind, SpringRest, WrapSettings, WrapWeights};
 
+use crate::arguments;
 use crate::errors::{InvalidArgumentError, to_python_error};
 
 /// The kernel's defaults, read by the constructor's signature.
@@ -79,32 +80,53 @@ impl PyWrapSettings {
     #[new]
     #[pyo3(signature = (
         *,
-        fairness = defaults().weights.fairness,
-        arc_length = defaults().weights.arc_length,
-        thin_plate = defaults().weights.thin_plate,
-        constraint = defaults().weights.constraint,
-        folding = defaults().weights.folding,
-        tolerance = defaults().tolerance,
-        landing_distance = defaults().landing_distance,
-        fold_tolerance = defaults().fold_tolerance,
-        momentum = defaults().momentum,
-        rest = rest_name(defaults().rest),
-        solver = solver_name(defaults().solver),
+        fairness = None,
+        arc_length = None,
+        thin_plate = None,
+        constraint = None,
+        folding = None,
+        tolerance = None,
+        landing_distance = None,
+        fold_tolerance = None,
+        momentum = None,
+        rest = None,
+        solver = None,
     ))]
     #[allow(clippy::too_many_arguments)] // keyword arguments of one Python constructor
     fn new(
-        fairness: f32,
-        arc_length: f32,
-        thin_plate: f32,
-        constraint: f32,
-        folding: f32,
-        tolerance: f32,
-        landing_distance: f32,
-        fold_tolerance: f32,
-        momentum: f32,
-        rest: &str,
-        solver: &str,
+        fairness: Option<&Bound<'_, PyAny>>,
+        arc_length: Option<&Bound<'_, PyAny>>,
+        thin_plate: Option<&Bound<'_, PyAny>>,
+        constraint: Option<&Bound<'_, PyAny>>,
+        folding: Option<&Bound<'_, PyAny>>,
+        tolerance: Option<&Bound<'_, PyAny>>,
+        landing_distance: Option<&Bound<'_, PyAny>>,
+        fold_tolerance: Option<&Bound<'_, PyAny>>,
+        momentum: Option<&Bound<'_, PyAny>>,
+        rest: Option<&Bound<'_, PyAny>>,
+        solver: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
+        // Absent keywords take the kernel's defaults (`WrapSettings::default()`, never a number
+        // typed again); every value is converted by `arguments` (naming the keyword) and then
+        // checked by the kernel's `validate()`.
+        let defaults = defaults();
+        let number = |name: &str, value, default| arguments::float32_or(name, value, default);
+        let fairness = number("fairness", fairness, defaults.weights.fairness)?;
+        let arc_length = number("arc_length", arc_length, defaults.weights.arc_length)?;
+        let thin_plate = number("thin_plate", thin_plate, defaults.weights.thin_plate)?;
+        let constraint = number("constraint", constraint, defaults.weights.constraint)?;
+        let folding = number("folding", folding, defaults.weights.folding)?;
+        let tolerance = number("tolerance", tolerance, defaults.tolerance)?;
+        let landing_distance = number(
+            "landing_distance",
+            landing_distance,
+            defaults.landing_distance,
+        )?;
+        let fold_tolerance = number("fold_tolerance", fold_tolerance, defaults.fold_tolerance)?;
+        let momentum = number("momentum", momentum, defaults.momentum)?;
+        let rest = arguments::text("rest", rest, rest_name(defaults.rest))?;
+        let solver = arguments::text("solver", solver, solver_name(defaults.solver))?;
+        let (rest, solver) = (rest.as_str(), solver.as_str());
         let settings = WrapSettings {
             weights: WrapWeights {
                 fairness,

@@ -52,6 +52,7 @@ const DEGENERATE_SPREAD: f64 = 1e-6;
 /// # Errors
 /// [`KernelError::LengthMismatch`] when `source`, `target` (and `weights`) differ in length;
 /// [`KernelError::NonFinite`] for a NaN or infinite coordinate or weight;
+/// [`KernelError::CoordinateOutOfRange`] for a coordinate beyond [`crate::MAX_COORDINATE`];
 /// [`KernelError::InvalidArgument`] for a negative weight;
 /// [`KernelError::TooFewPairs`] with fewer pairs of positive weight than
 /// [`AlignMethod::minimum_pairs`]; [`KernelError::CoincidentAnchors`] when one side's anchors all
@@ -227,10 +228,7 @@ fn rows_of(matrix: &DMat3) -> [[f64; 3]; 3] {
 }
 
 fn check_finite_points(what: &'static str, points: &[Vec3]) -> Result<(), KernelError> {
-    match points.iter().position(|point| !point.is_finite()) {
-        Some(index) => Err(KernelError::NonFinite { what, index }),
-        None => Ok(()),
-    }
+    crate::validate::check_coordinates(what, points)
 }
 
 /// The weights as f64 (all 1 when absent), checked for length, finiteness and sign.

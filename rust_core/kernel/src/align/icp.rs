@@ -16,6 +16,7 @@ use super::linear_algebra::cholesky_solve;
 use super::transform::Transform;
 use crate::error::KernelError;
 use crate::mesh::{NO_TRIANGLE, TargetMesh};
+use crate::validate::{self, SettingRange, check_setting};
 
 /// Which transforms one ICP step may apply.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -43,6 +44,33 @@ pub struct IcpSettings {
     /// Ignore pairs whose closest point lies on a boundary edge (a hole or an open border): such
     /// points are usually over a hole, not near the surface they belong to.
     pub ignore_boundary: bool,
+}
+
+impl IcpSettings {
+    /// The ranges of the settings (field, what it is, range): at most 100,000 iterations; a trim
+    /// fraction in `[0, 1)`; a positive `max_distance` up to [`crate::MAX_COORDINATE`] or
+    /// infinite (no limit); a tolerance in `[0, 1]`.
+    pub const RANGES: [(&'static str, &'static str, SettingRange); 4] = [
+        (
+            "max_iterations",
+            "number of ICP iterations",
+            SettingRange::closed(0.0, 100_000.0),
+        ),
+        (
+            "trim_fraction",
+            "trim fraction",
+            SettingRange::below(0.0, 1.0),
+        ),
+        (
+            "max_distance",
+            "maximum pair distance",
+            SettingRange::above(0.0, validate::MAX_COORDINATE as f64).or_infinite(),
+        ),
+        ("tolerance", "tolerance", SettingRange::closed(0.0, 1.0)),
+    ];
+
+    /// The range of [`IcpAnchors::weight`]: 0 to a million.
+    pub const ANCHOR_WEIGHT_RANGE: SettingRange = SettingRange::closed(0.0, 1e6);
 }
 
 impl Default for IcpSettings {
@@ -130,17 +158,26 @@ pub fn icp_anchored(
 ) -> Result<IcpReport, KernelError> {
     check_settings(&settings)?;
     check_anchors(&anchors)?;
-    if let Some(index) = source.iter().position(|point| !point.is_finite()) {
-        return Err(KernelError::NonFinite {
-            what: "source point",
-            index,
-        });
-    }
+    validate::check_coordinates("source point", source)?;
     if !initial.is_finite() {
         return Err(KernelError::InvalidArgument {
             name: "initial",
             reason: "the initial transform has a NaN or infinite entry".to_owned(),
         });
+    }
+    // The source where `initial` puts it is what the queries see: it must be within bounds too.
+    for (index, point) in source.iter().enumerate() {
+        let moved = initial.apply_f64(point.as_dvec3());
+        let largest = moved.abs().max_element();
+        if largest.is_nan() || largest > f64::from(validate::MAX_COORDINATE) {
+            return Err(KernelError::InvalidArgument {
+                name: "initial",
+                reason: format!(
+                    "it moves source point {index} to {moved}, beyond the kernel's bound of ±{:e}",
+                    validate::MAX_COORDINATE
+                ),
+            });
+        }
     }
     let (low, high) = target.bounding_box();
     let diagonal = f64::from((high - low).length()).max(f64::MIN_POSITIVE);
@@ -205,21 +242,14 @@ fn check_anchors(anchors: &IcpAnchors<'_>) -> Result<(), KernelError> {
             second: anchors.target.len(),
         });
     }
-    for (what, points) in [
-        ("anchor source", anchors.source),
-        ("anchor target", anchors.target),
-    ] {
-        if let Some(index) = points.iter().position(|point| !point.is_finite()) {
-            return Err(KernelError::NonFinite { what, index });
-        }
-    }
-    if !anchors.weight.is_finite() || anchors.weight < 0.0 {
-        return Err(KernelError::InvalidArgument {
-            name: "anchor_weight",
-            reason: format!("{} is not a finite non-negative number", anchors.weight),
-        });
-    }
-    Ok(())
+    validate::check_coordinates("anchor source", anchors.source)?;
+    validate::check_coordinates("anchor target", anchors.target)?;
+    check_setting(
+        "anchor_weight",
+        "anchor weight",
+        anchors.weight,
+        IcpSettings::ANCHOR_WEIGHT_RANGE,
+    )
 }
 
 /// The weight of one anchor: all anchors together weigh `weight` times the `surface_count` pairs.
@@ -279,25 +309,16 @@ fn fit_rms(pairs: &[Pair], anchors: &IcpAnchors<'_>, transform: &Transform) -> f
 }
 
 fn check_settings(settings: &IcpSettings) -> Result<(), KernelError> {
-    if !(0.0..1.0).contains(&settings.trim_fraction) {
-        return Err(KernelError::InvalidArgument {
-            name: "trim_fraction",
-            reason: format!("{} is not in [0, 1)", settings.trim_fraction),
-        });
-    }
-    if settings.max_distance.is_nan() || settings.max_distance <= 0.0 {
-        return Err(KernelError::InvalidArgument {
-            name: "max_distance",
-            reason: format!("{} is not positive", settings.max_distance),
-        });
-    }
-    if !settings.tolerance.is_finite() || settings.tolerance < 0.0 {
-        return Err(KernelError::InvalidArgument {
-            name: "tolerance",
-            reason: format!("{} is not a finite non-negative number", settings.tolerance),
-        });
-    }
-    Ok(())
+    let [iterations, trim, distance, tolerance] = IcpSettings::RANGES;
+    check_setting(
+        iterations.0,
+        iterations.1,
+        settings.max_iterations,
+        iterations.2,
+    )?;
+    check_setting(trim.0, trim.1, settings.trim_fraction, trim.2)?;
+    check_setting(distance.0, distance.1, settings.max_distance, distance.2)?;
+    check_setting(tolerance.0, tolerance.1, settings.tolerance, tolerance.2)
 }
 
 /// The pairs to trust at `transform`: within `max_distance`, not on a boundary edge (when asked),

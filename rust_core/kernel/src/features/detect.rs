@@ -5,6 +5,7 @@ use super::regions::{FeatureRegion, classify_regions};
 use super::ridges::{CurveSettings, FeatureCurve, feature_curves};
 use crate::error::KernelError;
 use crate::mesh::TargetMesh;
+use crate::validate::{MAX_COORDINATE, SettingRange, check_setting};
 
 /// Settings of [`detect_features`]. Lengths are in model units; thresholds are dimensionless
 /// (a curvature `k` is compared as `k × scale`).
@@ -25,6 +26,32 @@ pub struct FeatureSettings {
 }
 
 impl FeatureSettings {
+    /// The ranges of the thresholds and lengths (field, what it is, range): the thresholds
+    /// (`|k| × scale`, dimensionless) from 0 to 1,000; the lengths from 0 to
+    /// [`MAX_COORDINATE`].
+    pub const RANGES: [(&'static str, &'static str, SettingRange); 4] = [
+        (
+            "flat_threshold",
+            "flat threshold",
+            SettingRange::closed(0.0, 1000.0),
+        ),
+        (
+            "ridge_threshold",
+            "ridge threshold",
+            SettingRange::closed(0.0, 1000.0),
+        ),
+        (
+            "min_length",
+            "minimum curve length",
+            SettingRange::closed(0.0, MAX_COORDINATE as f64),
+        ),
+        (
+            "join_distance",
+            "join distance",
+            SettingRange::closed(0.0, MAX_COORDINATE as f64),
+        ),
+    ];
+
     /// The defaults for a scale.
     #[must_use]
     pub fn with_scale(scale: f32) -> Self {
@@ -60,18 +87,14 @@ pub fn detect_features(
     settings: &FeatureSettings,
 ) -> Result<Features, KernelError> {
     check_scale(mesh, settings.scale)?;
-    for (name, value) in [
-        ("flat_threshold", settings.flat_threshold),
-        ("ridge_threshold", settings.ridge_threshold),
-        ("min_length", settings.min_length),
-        ("join_distance", settings.join_distance),
-    ] {
-        if !value.is_finite() || value < 0.0 {
-            return Err(KernelError::InvalidArgument {
-                name,
-                reason: format!("{value} is not a finite number >= 0"),
-            });
-        }
+    for (name, label, range) in FeatureSettings::RANGES {
+        let value = match name {
+            "flat_threshold" => settings.flat_threshold,
+            "ridge_threshold" => settings.ridge_threshold,
+            "min_length" => settings.min_length,
+            _ => settings.join_distance,
+        };
+        check_setting(name, label, value, range)?;
     }
     let curvatures = principal_curvatures(mesh, settings.scale)?;
     let largest = curvatures

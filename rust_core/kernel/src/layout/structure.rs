@@ -22,6 +22,7 @@ use std::collections::{HashMap, HashSet};
 use std::hash::{BuildHasherDefault, Hasher};
 
 use crate::error::KernelError;
+use crate::mesh::MAX_ELEMENTS;
 
 /// A layout point lies on a grid line between `previous` and `next` (its two opposite neighbours).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -61,8 +62,14 @@ pub struct Curve {
 pub struct LayoutStructure {
     /// Number of layout vertices.
     pub vertex_count: usize,
+    /// The vertices any face or edge uses, in increasing order, when they are sparse (then the
+    /// offset tables below are indexed by the position of a vertex in this list); empty when the
+    /// tables are indexed by the vertex itself.
+    pub vertex_ids: Vec<u32>,
     /// Edge neighbours of each vertex, CSR: the neighbours of `v` are
-    /// `neighbors[neighbor_offsets[v]..neighbor_offsets[v + 1]]`, sorted.
+    /// `neighbors[neighbor_offsets[v]..neighbor_offsets[v + 1]]`, sorted. It stops after the last
+    /// vertex any face or edge uses (the rest have no neighbours), and is indexed through
+    /// `vertex_ids` when that is not empty: read it through [`LayoutStructure::neighbors_of`].
     pub neighbor_offsets: Vec<u32>,
     /// See `neighbor_offsets`.
     pub neighbors: Vec<u32>,
@@ -76,8 +83,10 @@ pub struct LayoutStructure {
     pub corners: Vec<u32>,
     /// Border, seam and loose-edge chains.
     pub curves: Vec<Curve>,
-    /// For each vertex, CSR like `neighbor_offsets`: one `(previous, next)` pair per face around
-    /// it, its neighbours before and after it in that face's winding (for oriented normals).
+    /// For each vertex, CSR like `neighbor_offsets` (and, like it, stopping after the last vertex
+    /// used): one `(previous, next)` pair per face around it, its neighbours before and after it
+    /// in that face's winding (for oriented normals). Read through
+    /// [`LayoutStructure::wedge_range`].
     pub wedge_offsets: Vec<u32>,
     /// See `wedge_offsets`.
     pub wedges: Vec<(u32, u32)>,
@@ -91,7 +100,8 @@ impl LayoutStructure {
     /// loose curve edges); `seams` are the edges marked as patch boundaries.
     ///
     /// # Errors
-    /// [`KernelError::LayoutIndexOutOfRange`] for an index `>= vertex_count`,
+    /// [`KernelError::TooLarge`] for a vertex count or a number of face corners above
+    /// [`MAX_ELEMENTS`], [`KernelError::LayoutIndexOutOfRange`] for an index `>= vertex_count`,
     /// [`KernelError::InvalidArgument`] for a face with fewer
     /// than 3 corners, corner counts that do not add up, or an edge from a vertex to itself.
     pub fn new(
@@ -102,14 +112,27 @@ impl LayoutStructure {
         seams: &[[u32; 2]],
     ) -> Result<Self, KernelError> {
         validate(vertex_count, face_corners, face_sizes, edges, seams)?;
+        // Vertices past the last one a face or an edge uses have no neighbours, lines or curves:
+        // nothing is stored for them. When the vertices used are sparse (a few faces on vertices
+        // 2^31 apart), they are numbered densely first: the memory used follows the arrays
+        // given, never a count or an index alone.
+        let used = face_corners
+            .iter()
+            .chain(edges.iter().chain(seams).flatten())
+            .max()
+            .map_or(0, |&vertex| vertex as usize + 1);
+        let entries = face_corners.len() + 2 * (edges.len() + seams.len());
+        if used > 2 * entries + DENSE_SLACK {
+            return Self::new_sparse(vertex_count, face_corners, face_sizes, edges, seams);
+        }
 
         // Undirected edges with how many faces use them, and for each vertex the pairs of its
         // neighbours that are consecutive around it within one face.
         let mut face_count_of_edge: FastMap<(u32, u32), u32> =
             FastMap::with_capacity_and_hasher(face_corners.len(), Default::default());
-        let mut consecutive: Vec<Vec<(u32, u32)>> = vec![Vec::new(); vertex_count];
-        let mut only_quads = vec![true; vertex_count];
-        let mut face_count = vec![0u32; vertex_count];
+        let mut consecutive: Vec<Vec<(u32, u32)>> = vec![Vec::new(); used];
+        let mut only_quads = vec![true; used];
+        let mut face_count = vec![0u32; used];
         let mut offset = 0usize;
         for &size in face_sizes {
             let face = &face_corners[offset..offset + size as usize];
@@ -138,12 +161,12 @@ impl LayoutStructure {
             .map(|edge| edge_key(edge[0], edge[1]))
             .collect();
 
-        let mut adjacency: Vec<Vec<u32>> = vec![Vec::new(); vertex_count];
+        let mut adjacency: Vec<Vec<u32>> = vec![Vec::new(); used];
         for &(a, b) in face_count_of_edge.keys() {
             adjacency[a as usize].push(b);
             adjacency[b as usize].push(a);
         }
-        let mut neighbor_offsets = Vec::with_capacity(vertex_count + 1);
+        let mut neighbor_offsets = Vec::with_capacity(used + 1);
         let mut neighbors = Vec::new();
         neighbor_offsets.push(0);
         for list in &mut adjacency {
@@ -183,7 +206,7 @@ impl LayoutStructure {
         let mut line_triples = Vec::new();
         let mut extraordinary = Vec::new();
         let mut corners = Vec::new();
-        for vertex in 0..vertex_count as u32 {
+        for vertex in 0..used as u32 {
             let around = &adjacency[vertex as usize];
             if around.is_empty() {
                 continue;
@@ -257,12 +280,12 @@ impl LayoutStructure {
             }
         }
 
-        let mut is_corner = vec![false; vertex_count];
+        let mut is_corner = vec![false; used];
         for &corner in &corners {
             is_corner[corner as usize] = true;
         }
-        let curves = trace_curves(vertex_count, &adjacency, &kind_of, &is_corner);
-        let mut wedge_offsets = Vec::with_capacity(vertex_count + 1);
+        let curves = trace_curves(used, &adjacency, &kind_of, &is_corner);
+        let mut wedge_offsets = Vec::with_capacity(used + 1);
         let mut wedges = Vec::new();
         wedge_offsets.push(0);
         for around in &consecutive {
@@ -273,6 +296,7 @@ impl LayoutStructure {
             wedge_offsets,
             wedges,
             vertex_count,
+            vertex_ids: Vec::new(),
             neighbor_offsets,
             neighbors,
             line_triples,
@@ -282,17 +306,76 @@ impl LayoutStructure {
         })
     }
 
+    /// [`LayoutStructure::new`] for a layout whose used vertices are sparse: they are numbered
+    /// densely (in increasing order, so every list keeps its order), the structure is read on
+    /// those numbers, and the results are numbered back.
+    fn new_sparse(
+        vertex_count: usize,
+        face_corners: &[u32],
+        face_sizes: &[u32],
+        edges: &[[u32; 2]],
+        seams: &[[u32; 2]],
+    ) -> Result<Self, KernelError> {
+        let mut ids: Vec<u32> = face_corners
+            .iter()
+            .chain(edges.iter().chain(seams).flatten())
+            .copied()
+            .collect();
+        ids.sort_unstable();
+        ids.dedup();
+        let local = |vertex: u32| ids.binary_search(&vertex).unwrap_or(0) as u32;
+        let local_corners: Vec<u32> = face_corners.iter().map(|&vertex| local(vertex)).collect();
+        let local_pairs = |pairs: &[[u32; 2]]| -> Vec<[u32; 2]> {
+            pairs.iter().map(|pair| pair.map(local)).collect()
+        };
+        let mut structure = Self::new(
+            ids.len(),
+            &local_corners,
+            face_sizes,
+            &local_pairs(edges),
+            &local_pairs(seams),
+        )?;
+        let global = |vertex: &mut u32| *vertex = ids[*vertex as usize];
+        for triple in &mut structure.line_triples {
+            global(&mut triple.previous);
+            global(&mut triple.vertex);
+            global(&mut triple.next);
+        }
+        structure.extraordinary.iter_mut().for_each(global);
+        structure.corners.iter_mut().for_each(global);
+        for curve in &mut structure.curves {
+            curve.vertices.iter_mut().for_each(global);
+        }
+        structure.neighbors.iter_mut().for_each(global);
+        for (previous, next) in &mut structure.wedges {
+            global(previous);
+            global(next);
+        }
+        structure.vertex_count = vertex_count;
+        structure.vertex_ids = ids;
+        Ok(structure)
+    }
+
+    /// The position of `vertex` in the offset tables (`neighbor_offsets`, `wedge_offsets`):
+    /// itself, or its place among the used vertices of a sparse layout; `None` for a vertex of
+    /// no face or edge there.
+    fn slot(&self, vertex: u32) -> Option<usize> {
+        if self.vertex_ids.is_empty() {
+            Some(vertex as usize)
+        } else {
+            self.vertex_ids.binary_search(&vertex).ok()
+        }
+    }
+
     /// The layout's oriented normal at `vertex` for `positions` (the faces' winding, area
     /// weighted, not normalised); zero on a vertex of no face.
     #[must_use]
     pub fn normal_at(&self, positions: &[glam::Vec3], vertex: u32) -> glam::Vec3 {
-        let (Some(&start), Some(&end)) = (
-            self.wedge_offsets.get(vertex as usize),
-            self.wedge_offsets.get(vertex as usize + 1),
-        ) else {
+        let range = self.wedge_range(vertex);
+        if range.is_empty() {
             return glam::Vec3::ZERO;
-        };
-        let (start, end) = (start as usize, end as usize);
+        }
+        let (start, end) = (range.start, range.end);
         let here = positions[vertex as usize];
         self.wedges[start..end]
             .iter()
@@ -302,21 +385,42 @@ impl LayoutStructure {
             .sum()
     }
 
-    /// The positions in `wedges` of the faces around `vertex` (its corners).
+    /// The positions in `wedges` of the faces around `vertex` (its corners); empty for a vertex
+    /// of no face.
     #[must_use]
     pub fn wedge_range(&self, vertex: u32) -> std::ops::Range<usize> {
-        self.wedge_offsets[vertex as usize] as usize
-            ..self.wedge_offsets[vertex as usize + 1] as usize
+        let Some(slot) = self.slot(vertex) else {
+            return 0..0;
+        };
+        match (
+            self.wedge_offsets.get(slot),
+            self.wedge_offsets.get(slot + 1),
+        ) {
+            (Some(&start), Some(&end)) => start as usize..end as usize,
+            _ => 0..0,
+        }
     }
 
-    /// The edge neighbours of `vertex`, sorted.
+    /// The edge neighbours of `vertex`, sorted; empty for a vertex of no edge.
     #[must_use]
     pub fn neighbors_of(&self, vertex: u32) -> &[u32] {
-        let start = self.neighbor_offsets[vertex as usize] as usize;
-        let end = self.neighbor_offsets[vertex as usize + 1] as usize;
-        &self.neighbors[start..end]
+        let Some(slot) = self.slot(vertex) else {
+            return &[];
+        };
+        match (
+            self.neighbor_offsets.get(slot),
+            self.neighbor_offsets.get(slot + 1),
+        ) {
+            (Some(&start), Some(&end)) => &self.neighbors[start as usize..end as usize],
+            _ => &[],
+        }
     }
 }
+
+/// Unused vertex numbers below the last used one that a layout may have and still be read
+/// densely (indexed by vertex); past twice its face corners and edge ends plus this, it is read
+/// sparsely.
+const DENSE_SLACK: usize = 1 << 16;
 
 /// A multiply-rotate hasher (as rustc's FxHash) for the edge maps: the keys are vertex index
 /// pairs, not attacker-chosen, and SipHash made tracing curves the cost of a 4 M-point layout.
@@ -463,7 +567,12 @@ fn validate(
     edges: &[[u32; 2]],
     seams: &[[u32; 2]],
 ) -> Result<(), KernelError> {
-    let corner_total: usize = face_sizes.iter().map(|&size| size as usize).sum();
+    crate::validate::check_count("layout vertices", vertex_count, MAX_ELEMENTS)?;
+    crate::validate::check_count("layout face corners", face_corners.len(), MAX_ELEMENTS)?;
+    let corner_total = face_sizes
+        .iter()
+        .try_fold(0usize, |total, &size| total.checked_add(size as usize))
+        .unwrap_or(usize::MAX);
     if corner_total != face_corners.len() {
         return Err(KernelError::InvalidArgument {
             name: "face_sizes",

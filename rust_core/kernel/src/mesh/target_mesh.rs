@@ -101,7 +101,8 @@ impl TargetMesh {
     /// adjacency and normals are built on first use (or all at once with [`TargetMesh::prepare_all`]).
     ///
     /// # Errors
-    /// [`KernelError::EmptyMesh`], [`KernelError::TooLarge`], [`KernelError::NonFinite`] (a vertex),
+    /// [`KernelError::EmptyMesh`], [`KernelError::TooLarge`], [`KernelError::NonFinite`] or
+    /// [`KernelError::CoordinateOutOfRange`] (a vertex; see [`crate::validate`]),
     /// [`KernelError::VertexIndexOutOfRange`], [`KernelError::DegenerateTriangle`] (only with
     /// `reject_degenerate`), [`KernelError::DegenerateMesh`] (no triangle has an area).
     pub fn new(
@@ -124,12 +125,7 @@ impl TargetMesh {
                 });
             }
         }
-        if let Some(index) = vertices.iter().position(|vertex| !vertex.is_finite()) {
-            return Err(KernelError::NonFinite {
-                what: "vertex",
-                index,
-            });
-        }
+        crate::validate::check_coordinates("vertex", &vertices)?;
         let vertex_count = vertices.len();
         for (triangle, corners) in triangles.iter().enumerate() {
             for (corner, &vertex) in corners.iter().enumerate() {
@@ -299,7 +295,8 @@ impl TargetMesh {
     ///
     /// # Errors
     /// [`KernelError::TriangleIndexOutOfRange`] naming the first face-point whose triangle does
-    /// not exist; [`KernelError::NonFinite`] for a NaN or infinite barycentric coordinate.
+    /// not exist; [`KernelError::NonFinite`] for a NaN or infinite barycentric coordinate,
+    /// [`KernelError::InvalidArgument`] for one outside [`crate::BARYCENTRIC_RANGE`].
     pub fn face_point_positions(
         &self,
         face_points: &[FacePoint],
@@ -312,12 +309,7 @@ impl TargetMesh {
                     triangle_count: self.triangles.len(),
                 });
             }
-            if !face_point.barycentric.is_finite() {
-                return Err(KernelError::NonFinite {
-                    what: "barycentric",
-                    index,
-                });
-            }
+            crate::validate::check_barycentric("barycentric", index, face_point.barycentric)?;
         }
         Ok(face_points
             .par_iter()

@@ -15,9 +15,13 @@ impl TargetMesh {
     /// The surface point nearest to `point` at most `max_distance` away, or `None`.
     ///
     /// Exact: the same answer as testing every triangle (ties between equidistant triangles may
-    /// pick either). `point` must be finite.
+    /// pick either). A point [`TargetMesh::closest_points`] would refuse (NaN, infinite, beyond
+    /// [`crate::MAX_COORDINATE`]) or a NaN or negative `max_distance` finds nothing.
     #[must_use]
     pub fn closest_point(&self, point: Vec3, max_distance: f32) -> Option<SurfaceHit> {
+        if !super::is_query(point, max_distance) {
+            return None;
+        }
         self.closest_point_with_state(point.into(), max_distance, &mut QueryState::default())
     }
 
@@ -41,7 +45,8 @@ impl TargetMesh {
     /// [`TargetMesh::closest_point`] for many points, in parallel.
     ///
     /// # Errors
-    /// [`KernelError::NonFinite`] for a NaN or infinite point, [`KernelError::InvalidArgument`] for a
+    /// [`KernelError::NonFinite`] for a NaN or infinite point,
+    /// [`KernelError::CoordinateOutOfRange`] for one beyond [`crate::MAX_COORDINATE`], [`KernelError::InvalidArgument`] for a
     /// negative or NaN `max_distance`.
     pub fn closest_points(
         &self,

@@ -12,12 +12,16 @@ use rayon::prelude::*;
 
 use crate::error::KernelError;
 
-/// Checks that every query position is finite.
+/// Checks that every query position is finite and within the kernel's bound
+/// ([`crate::validate::check_coordinates`]).
 pub(crate) fn check_finite(what: &'static str, points: &[Vec3]) -> Result<(), KernelError> {
-    match points.iter().position(|point| !point.is_finite()) {
-        Some(index) => Err(KernelError::NonFinite { what, index }),
-        None => Ok(()),
-    }
+    crate::validate::check_coordinates(what, points)
+}
+
+/// Whether a single, unchecked query can run: `point` within the kernel's bound and
+/// `max_distance` zero or more (what the batched queries check and refuse).
+pub(crate) fn is_query(point: Vec3, max_distance: f32) -> bool {
+    crate::validate::check_coordinate("point", 0, point).is_ok() && max_distance >= 0.0
 }
 
 /// Checks a search radius: zero or more, or infinite; never NaN.

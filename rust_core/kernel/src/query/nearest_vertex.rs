@@ -12,14 +12,21 @@ impl TargetMesh {
     /// The vertex nearest to `point` at most `max_distance` away, among vertices used by a
     /// non-degenerate triangle, as a face-point at that vertex; or `None`.
     #[must_use]
+    ///
+    /// A point [`TargetMesh::nearest_vertices`] would refuse (NaN, infinite, beyond
+    /// [`crate::MAX_COORDINATE`]) or a NaN or negative `max_distance` finds nothing.
     pub fn nearest_vertex(&self, point: Vec3, max_distance: f32) -> Option<VertexHit> {
+        if !super::is_query(point, max_distance) {
+            return None;
+        }
         self.nearest_vertex_with_state(point.into(), max_distance, &mut QueryState::default())
     }
 
     /// [`TargetMesh::nearest_vertex`] for many points, in parallel.
     ///
     /// # Errors
-    /// [`KernelError::NonFinite`] for a NaN or infinite point, [`KernelError::InvalidArgument`] for a
+    /// [`KernelError::NonFinite`] for a NaN or infinite point,
+    /// [`KernelError::CoordinateOutOfRange`] for one beyond [`crate::MAX_COORDINATE`], [`KernelError::InvalidArgument`] for a
     /// negative or NaN `max_distance`.
     pub fn nearest_vertices(
         &self,

@@ -13,7 +13,8 @@ impl TargetMesh {
     /// The first surface point along `origin + t * direction` with `|t| <= max_distance`.
     ///
     /// `direction` is normalised first, so `t` is a distance; `direction` must be non-zero and
-    /// everything finite. With `both_directions` the ray is also cast backwards and the nearer hit
+    /// everything finite and within [`crate::MAX_COORDINATE`] (else it finds nothing). With
+    /// `both_directions` the ray is also cast backwards and the nearer hit
     /// wins (a tie goes forwards); the hit's `distance` is the signed `t`.
     #[must_use]
     pub fn ray_cast(
@@ -23,6 +24,9 @@ impl TargetMesh {
         max_distance: f32,
         both_directions: bool,
     ) -> Option<SurfaceHit> {
+        if !super::is_query(origin, max_distance) || !super::is_query(direction, 0.0) {
+            return None;
+        }
         let origin = Vec3A::from(origin);
         let direction = Vec3A::from(direction).normalize_or_zero();
         if direction == Vec3A::ZERO {
@@ -59,6 +63,7 @@ impl TargetMesh {
     /// # Errors
     /// [`KernelError::LengthMismatch`] if `origins` and `directions` differ in length,
     /// [`KernelError::NonFinite`] for a NaN or infinite origin or direction,
+    /// [`KernelError::CoordinateOutOfRange`] for a coordinate beyond [`crate::MAX_COORDINATE`],
     /// [`KernelError::ZeroDirection`] for a zero direction, [`KernelError::InvalidArgument`] for a
     /// negative or NaN `max_distance`.
     pub fn ray_casts(

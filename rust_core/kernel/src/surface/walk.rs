@@ -216,7 +216,9 @@ impl TargetMesh {
     /// # Errors
     /// [`KernelError::LengthMismatch`] if `starts` and `displacements` differ in length,
     /// [`KernelError::TriangleIndexOutOfRange`] naming the first start whose triangle does not
-    /// exist, [`KernelError::NonFinite`] for a NaN or infinite barycentric (`"barycentric"`) or
+    /// exist, [`KernelError::InvalidArgument`] for a barycentric weight outside [`crate::BARYCENTRIC_RANGE`],
+    /// [`KernelError::CoordinateOutOfRange`] for a displacement beyond [`crate::MAX_COORDINATE`],
+    /// [`KernelError::NonFinite`] for a NaN or infinite barycentric (`"barycentric"`) or
     /// displacement (`"displacement"`).
     pub fn walk_many(
         &self,
@@ -238,12 +240,7 @@ impl TargetMesh {
                     triangle_count: self.triangles.len(),
                 });
             }
-            if !start.barycentric.is_finite() {
-                return Err(KernelError::NonFinite {
-                    what: "barycentric",
-                    index,
-                });
-            }
+            crate::validate::check_barycentric("barycentric", index, start.barycentric)?;
         }
         crate::query::check_finite("displacement", displacements)?;
         // Build the adjacency once, outside the workers.

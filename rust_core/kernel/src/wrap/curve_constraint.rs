@@ -3,6 +3,7 @@
 use glam::Vec3;
 
 use crate::error::KernelError;
+use crate::validate;
 
 /// A layout curve held to a target curve, matched by arc length.
 ///
@@ -28,8 +29,15 @@ pub(crate) struct ArcLengthCurve {
 }
 
 impl ArcLengthCurve {
-    /// Checks and prepares constraint `index`'s target curve.
-    pub(crate) fn new(index: usize, points: &[Vec3]) -> Result<Self, KernelError> {
+    /// Checks and prepares constraint `index`'s target curve, whose first point is curve point
+    /// `first_point` of all the constraints' curves; every point within `reach` (the region the
+    /// wrap can reach).
+    pub(crate) fn new(
+        index: usize,
+        first_point: usize,
+        points: &[Vec3],
+        reach: (Vec3, f32),
+    ) -> Result<Self, KernelError> {
         let invalid = |reason: String| KernelError::InvalidArgument {
             name: "curve constraints",
             reason: format!("curve constraint {index}: {reason}"),
@@ -40,10 +48,9 @@ impl ArcLengthCurve {
                 points.len()
             )));
         }
-        if let Some(point) = points.iter().position(|point| !point.is_finite()) {
-            return Err(invalid(format!(
-                "target curve point {point} is NaN or infinite"
-            )));
+        for (offset, &point) in points.iter().enumerate() {
+            validate::check_coordinate("curve point", first_point + offset, point)?;
+            validate::check_within_reach("curve point", first_point + offset, point, reach)?;
         }
         let mut cumulative = Vec::with_capacity(points.len());
         let mut length = 0.0f32;
@@ -102,10 +109,18 @@ pub(crate) fn chain_fractions(positions: &[Vec3], chain: &[u32]) -> Vec<f32> {
 mod tests {
     use super::*;
 
+    /// A reach that holds every test curve.
+    const ANYWHERE: (Vec3, f32) = (Vec3::ZERO, f32::MAX);
+
     #[test]
     fn arc_length_lookup_and_chain_fractions() {
-        let curve =
-            ArcLengthCurve::new(0, &[Vec3::ZERO, Vec3::X, Vec3::new(1.0, 3.0, 0.0)]).unwrap();
+        let curve = ArcLengthCurve::new(
+            0,
+            0,
+            &[Vec3::ZERO, Vec3::X, Vec3::new(1.0, 3.0, 0.0)],
+            ANYWHERE,
+        )
+        .unwrap();
         assert_eq!(curve.point_at(0.0), Vec3::ZERO);
         assert_eq!(curve.point_at(0.25), Vec3::X);
         assert!(curve.point_at(0.5).distance(Vec3::new(1.0, 1.0, 0.0)) < 1e-6);
@@ -125,22 +140,41 @@ mod tests {
     #[test]
     fn bad_target_curves_are_refused() {
         assert!(
-            ArcLengthCurve::new(3, &[Vec3::ZERO])
+            ArcLengthCurve::new(3, 0, &[Vec3::ZERO], ANYWHERE)
                 .unwrap_err()
                 .to_string()
                 .contains("curve constraint 3")
         );
         assert!(
-            ArcLengthCurve::new(0, &[Vec3::ZERO, Vec3::ZERO])
+            ArcLengthCurve::new(0, 0, &[Vec3::ZERO, Vec3::ZERO], ANYWHERE)
                 .unwrap_err()
                 .to_string()
                 .contains("zero length")
         );
-        assert!(
-            ArcLengthCurve::new(0, &[Vec3::ZERO, Vec3::NAN])
-                .unwrap_err()
-                .to_string()
-                .contains("NaN")
+        // Points are numbered through all the curves (the binding's `curve_points` rows).
+        assert_eq!(
+            ArcLengthCurve::new(0, 5, &[Vec3::ZERO, Vec3::NAN], ANYWHERE).unwrap_err(),
+            KernelError::NonFinite {
+                what: "curve point",
+                index: 6
+            }
         );
+        assert!(matches!(
+            ArcLengthCurve::new(0, 0, &[Vec3::ZERO, Vec3::new(0.0, 3.4e38, 0.0)], ANYWHERE),
+            Err(KernelError::CoordinateOutOfRange { index: 1, .. })
+        ));
+        assert!(matches!(
+            ArcLengthCurve::new(
+                0,
+                0,
+                &[Vec3::ZERO, Vec3::new(0.0, 50.0, 0.0)],
+                (Vec3::ZERO, 10.0)
+            ),
+            Err(KernelError::BeyondReach {
+                what: "curve point",
+                index: 1,
+                ..
+            })
+        ));
     }
 }

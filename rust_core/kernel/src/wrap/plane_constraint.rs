@@ -4,6 +4,7 @@
 use glam::Vec3;
 
 use crate::error::KernelError;
+use crate::validate;
 
 /// Layout vertices held on a plane during the wrap: the seam where a mirrored layout's two halves
 /// meet.
@@ -41,9 +42,8 @@ impl Plane {
             name: "plane constraint",
             reason: reason.to_owned(),
         };
-        if !point.is_finite() || !normal.is_finite() {
-            return Err(invalid("the plane's point or normal is NaN or infinite"));
-        }
+        validate::check_coordinate("plane point", 0, point)?;
+        validate::check_coordinate("plane normal", 0, normal)?;
         let normal = normal
             .try_normalize()
             .ok_or_else(|| invalid("the plane's normal has zero length"))?;

@@ -1,6 +1,7 @@
 //! The wrap's parameters: the five force weights and the iteration controls.
 
 use crate::error::KernelError;
+use crate::validate::{SettingRange, check_setting};
 
 pub use super::forces::SpringRest;
 
@@ -84,6 +85,79 @@ impl Default for WrapSettings {
 }
 
 impl WrapSettings {
+    /// Every numeric setting: its field (the binding's keyword), what it is, and its range. The
+    /// one place these ranges are written.
+    pub const RANGES: [(&'static str, &'static str, SettingRange); 9] = [
+        (
+            "fairness",
+            "fairness weight",
+            SettingRange::closed(0.0, 1.0),
+        ),
+        (
+            "arc_length",
+            "arc length weight",
+            SettingRange::closed(0.0, 1.0),
+        ),
+        (
+            "thin_plate",
+            "thin plate weight",
+            SettingRange::closed(0.0, 0.5),
+        ),
+        (
+            "constraint",
+            "constraint weight",
+            SettingRange::closed(0.0, 1.0),
+        ),
+        ("folding", "folding weight", SettingRange::closed(0.0, 1.0)),
+        // 0 would never be met: the wrap would always run to its iteration limit.
+        ("tolerance", "tolerance", SettingRange::above(0.0, 1.0)),
+        (
+            "landing_distance",
+            "landing distance",
+            SettingRange::closed(0.0, 10.0),
+        ),
+        (
+            "fold_tolerance",
+            "fold tolerance",
+            // (the float32 right angle, so that the setting's own value is inside)
+            SettingRange::closed(0.0, std::f32::consts::FRAC_PI_2 as f64),
+        ),
+        ("momentum", "momentum", SettingRange::closed(0.0, 0.99)),
+    ];
+
+    /// The most iterations one [`crate::WrapSolver::step`] call takes (a billion: days of work
+    /// on any layout; the wrap stops when it converges anyway).
+    pub const MAX_STEP_ITERATIONS: usize = 1_000_000_000;
+
+    /// The numeric setting named `field` (one of [`WrapSettings::RANGES`]).
+    fn value_of(&self, field: &str) -> f32 {
+        let weights = &self.weights;
+        match field {
+            "fairness" => weights.fairness,
+            "arc_length" => weights.arc_length,
+            "thin_plate" => weights.thin_plate,
+            "constraint" => weights.constraint,
+            "folding" => weights.folding,
+            "tolerance" => self.tolerance,
+            "landing_distance" => self.landing_distance,
+            "fold_tolerance" => self.fold_tolerance,
+            _ => self.momentum,
+        }
+    }
+
+    /// Checks an iteration count for one step: at most [`WrapSettings::MAX_STEP_ITERATIONS`].
+    ///
+    /// # Errors
+    /// [`KernelError::InvalidArgument`] named `iterations`.
+    pub fn check_step_iterations(iterations: usize) -> Result<(), KernelError> {
+        check_setting(
+            "iterations",
+            "number of iterations of one step",
+            iterations as f64,
+            SettingRange::closed(0.0, Self::MAX_STEP_ITERATIONS as f64),
+        )
+    }
+
     /// Checks every number is finite and in its range.
     ///
     /// # Errors
@@ -91,84 +165,8 @@ impl WrapSettings {
     /// `arc_length`, ..., as this struct and [`WrapWeights`] spell it, and as the binding's
     /// keywords do) and saying its range.
     pub fn validate(&self) -> Result<(), KernelError> {
-        let weights = self.weights;
-        // (field, what it is, value, low, high, whether low itself is refused)
-        let checks: [(&'static str, &str, f32, f32, f32, bool); 9] = [
-            (
-                "fairness",
-                "fairness weight",
-                weights.fairness,
-                0.0,
-                1.0,
-                false,
-            ),
-            (
-                "arc_length",
-                "arc length weight",
-                weights.arc_length,
-                0.0,
-                1.0,
-                false,
-            ),
-            (
-                "thin_plate",
-                "thin plate weight",
-                weights.thin_plate,
-                0.0,
-                0.5,
-                false,
-            ),
-            (
-                "constraint",
-                "constraint weight",
-                weights.constraint,
-                0.0,
-                1.0,
-                false,
-            ),
-            (
-                "folding",
-                "folding weight",
-                weights.folding,
-                0.0,
-                1.0,
-                false,
-            ),
-            // 0 would never be met: the wrap would always run to its iteration limit.
-            ("tolerance", "tolerance", self.tolerance, 0.0, 1.0, true),
-            (
-                "landing_distance",
-                "landing distance",
-                self.landing_distance,
-                0.0,
-                10.0,
-                false,
-            ),
-            (
-                "fold_tolerance",
-                "fold tolerance",
-                self.fold_tolerance,
-                0.0,
-                std::f32::consts::FRAC_PI_2,
-                false,
-            ),
-            ("momentum", "momentum", self.momentum, 0.0, 0.99, false),
-        ];
-        for (field, label, value, low, high, low_refused) in checks {
-            let above_low = if low_refused {
-                value > low
-            } else {
-                value >= low
-            };
-            if !(above_low && value <= high) {
-                let opening = if low_refused { '(' } else { '[' };
-                return Err(KernelError::InvalidArgument {
-                    name: field,
-                    reason: format!(
-                        "the {label} must be within {opening}{low}, {high}], not {value}"
-                    ),
-                });
-            }
+        for (field, label, range) in Self::RANGES {
+            check_setting(field, label, self.value_of(field), range)?;
         }
         if self.solver == SolverKind::Energy && self.rest == SpringRest::Even {
             return Err(KernelError::InvalidArgument {

@@ -2,7 +2,12 @@
 
 The native module ``springwrap_kernel._native`` does the work; this package re-exports it and
 names the results. The array contract: positions float32 ``(N, 3)``, triangles uint32
-``(M, 3)``, C-contiguous; anything else raises :class:`ArrayError` saying what was wrong.
+``(M, 3)``, C-contiguous; anything else raises :class:`ArrayError` saying what was wrong. Every
+other argument is converted by the binding: a value out of its range raises
+:class:`InvalidArgumentError` (:class:`TooLargeError` for a count above what the kernel supports), a
+value of the wrong Python type :class:`ArgumentTypeError` (a ``SpringwrapError`` and a
+``TypeError``), each naming the argument. Coordinates must be finite and within ``MAX_COORDINATE``
+(1e8) of the origin (:class:`NonFiniteError`, :class:`CoordinateRangeError`).
 """
 
 from typing import NamedTuple
@@ -11,7 +16,11 @@ import numpy as np
 
 from . import _native
 from ._native import (
+    MAX_COORDINATE,
+    MAX_ELEMENTS,
+    ArgumentTypeError,
     ArrayError,
+    CoordinateRangeError,
     DegenerateMeshError,
     DegenerateTriangleError,
     DivergedError,
@@ -25,6 +34,7 @@ from ._native import (
     SpringwrapError,
     SubdivisionFit,
     SubdivisionStencils,
+    TooLargeError,
     WrapSettings,
     __version__,
     fit_transform,
@@ -32,7 +42,9 @@ from ._native import (
 )
 
 __all__ = [
+    "ArgumentTypeError",
     "ArrayError",
+    "CoordinateRangeError",
     "Curvatures",
     "DegenerateMeshError",
     "DegenerateTriangleError",
@@ -46,6 +58,8 @@ __all__ = [
     "InternalError",
     "InvalidArgumentError",
     "LayoutStructure",
+    "MAX_COORDINATE",
+    "MAX_ELEMENTS",
     "NonFiniteError",
     "SpringwrapError",
     "StepReport",
@@ -53,6 +67,7 @@ __all__ = [
     "SubdivisionStencils",
     "SurfaceHits",
     "TargetMesh",
+    "TooLargeError",
     "VertexHits",
     "WrapSettings",
     "WrapSolver",

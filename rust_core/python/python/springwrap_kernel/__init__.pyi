@@ -12,6 +12,11 @@ import numpy.typing as npt
 
 __version__: str
 
+MAX_COORDINATE: float
+"""The largest coordinate magnitude the kernel accepts (1e8 model units, each component)."""
+MAX_ELEMENTS: int
+"""The largest vertex, triangle or layout vertex count (2**31 - 1)."""
+
 # ---------------------------------------------------------------- exceptions
 class SpringwrapError(ValueError):
     """Base class of every error the kernel raises."""
@@ -25,6 +30,10 @@ class EmptyMeshError(SpringwrapError):
 class NonFiniteError(SpringwrapError):
     """A coordinate (vertex, query point, ray) is NaN or infinite."""
 
+class CoordinateRangeError(SpringwrapError):
+    """A coordinate is finite but beyond ``MAX_COORDINATE`` (a value like 3.4e38 or 1e30), or a wrap
+    constraint (anchor target, curve point, plane) lies beyond the region the wrap can reach."""
+
 class IndexOutOfRangeError(SpringwrapError):
     """A triangle refers to a vertex index >= the vertex count, or a face-point to a triangle that does not exist."""
 
@@ -36,6 +45,13 @@ class DegenerateTriangleError(SpringwrapError):
 
 class InvalidArgumentError(SpringwrapError):
     """A scalar argument is out of its domain (negative distance, zero direction...)."""
+
+class TooLargeError(InvalidArgumentError):
+    """A count is above ``MAX_ELEMENTS`` (or a limit the argument states)."""
+
+class ArgumentTypeError(SpringwrapError, TypeError):
+    """An argument has the wrong Python type (a str for a number, a float for a count...); the message
+    names it."""
 
 class FlatSurfaceError(SpringwrapError):
     """Feature detection found no curvature at the scale given (a plane): nothing to detect."""

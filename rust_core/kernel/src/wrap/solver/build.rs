@@ -8,10 +8,12 @@ impl WrapSolver {
     ///
     /// # Errors
     /// [`KernelError::LengthMismatch`] (points vs. layout vertices),
-    /// [`KernelError::TriangleIndexOutOfRange`] or [`KernelError::NonFinite`] for a bad point or
-    /// anchor target, [`KernelError::InvalidArgument`] for a layout without edges, a zero-length
-    /// edge, an anchor on a vertex that does not exist or on the same vertex twice, or a setting
-    /// out of range.
+    /// [`KernelError::TriangleIndexOutOfRange`], [`KernelError::NonFinite`] or
+    /// [`KernelError::CoordinateOutOfRange`] for a bad point or anchor target (see
+    /// [`crate::validate`]), [`KernelError::BeyondReach`] for a space anchor beyond the region the
+    /// wrap can reach, [`KernelError::InvalidArgument`] for a layout without edges, a zero-length
+    /// edge, a barycentric weight out of range, an anchor on a vertex that does not exist or on
+    /// the same vertex twice, or a setting out of range.
     pub fn new(
         target: Arc<TargetMesh>,
         structure: LayoutStructure,
@@ -63,12 +65,7 @@ impl WrapSolver {
                         second: structure.vertex_count,
                     });
                 }
-                if let Some(index) = rest.iter().position(|p| !p.is_finite()) {
-                    return Err(KernelError::NonFinite {
-                        what: "rest position",
-                        index,
-                    });
-                }
+                validate::check_coordinates("rest position", &rest)?;
                 rest
             }
         };
@@ -104,6 +101,17 @@ impl WrapSolver {
             });
         }
         let mean_edge_length = (edge_length_sum / edge_count as f64) as f32;
+        // The region the points may reach; constraints beyond it are refused now.
+        let reach = {
+            let bounds = target.bounds;
+            let centre = Vec3::from((bounds.min + bounds.max) * 0.5);
+            let target_size = Vec3::from(bounds.max - bounds.min).length();
+            let start_size = positions
+                .iter()
+                .map(|position| position.distance(centre))
+                .fold(0.0f32, f32::max);
+            (centre, REACH_FACTOR * target_size.max(start_size))
+        };
         let mut anchor_of_vertex = vec![None; structure.vertex_count];
         for (index, anchor) in anchors.iter().enumerate() {
             let slot = anchor_of_vertex
@@ -122,16 +130,19 @@ impl WrapSolver {
                 });
             }
             let position = match anchor.target {
-                AnchorTarget::Face(face_point) => target
-                    .face_point_position(face_point)
-                    .map_err(|error| relabel_anchor_error(error, index))?,
+                AnchorTarget::Face(face_point) => {
+                    validate::check_barycentric(
+                        "anchor barycentric",
+                        index,
+                        face_point.barycentric,
+                    )?;
+                    target
+                        .face_point_position(face_point)
+                        .map_err(|error| relabel_anchor_error(error, index))?
+                }
                 AnchorTarget::Space(position) => {
-                    if !position.is_finite() {
-                        return Err(KernelError::NonFinite {
-                            what: "anchor target",
-                            index,
-                        });
-                    }
+                    validate::check_coordinate("anchor target", index, position)?;
+                    validate::check_within_reach("anchor target", index, position, reach)?;
                     position
                 }
             };
@@ -154,16 +165,6 @@ impl WrapSolver {
             is_corner[corner as usize] = true;
         }
         let _ = target.face_normals(); // built now rather than inside the first iteration
-        let reach = {
-            let bounds = target.bounds;
-            let centre = Vec3::from((bounds.min + bounds.max) * 0.5);
-            let target_size = Vec3::from(bounds.max - bounds.min).length();
-            let start_size = positions
-                .iter()
-                .map(|position| position.distance(centre))
-                .fold(0.0f32, f32::max);
-            (centre, REACH_FACTOR * target_size.max(start_size))
-        };
         Ok(Self {
             orientation: 0.0,
             target,
@@ -303,14 +304,17 @@ impl WrapSolver {
     ///
     /// # Errors
     /// [`KernelError::InvalidArgument`] for a chain shorter than 2 vertices, a vertex that does not
-    /// exist, a vertex in two constraints, or a target curve with fewer than 2 points, a NaN, or
-    /// zero length.
+    /// exist, a vertex in two constraints, or a target curve with fewer than 2 points or zero
+    /// length; [`KernelError::NonFinite`], [`KernelError::CoordinateOutOfRange`] or
+    /// [`KernelError::BeyondReach`] for a curve point (numbered through all the constraints'
+    /// curves, as the binding's `curve_points` rows are).
     pub fn with_curve_constraints(
         mut self,
         constraints: &[CurveConstraint],
     ) -> Result<Self, KernelError> {
         let mut owner: Vec<Option<usize>> = vec![None; self.points.len()];
         let mut targets = vec![None; self.points.len()];
+        let mut first_point = 0;
         for (index, constraint) in constraints.iter().enumerate() {
             let invalid = |reason: String| KernelError::InvalidArgument {
                 name: "curve constraints",
@@ -346,7 +350,8 @@ impl WrapSolver {
                 }
                 *slot = Some(index);
             }
-            let curve = ArcLengthCurve::new(index, &constraint.target)?;
+            let curve = ArcLengthCurve::new(index, first_point, &constraint.target, self.reach)?;
+            first_point += constraint.target.len();
             let chain = &constraint.layout_vertices;
             for (&vertex, fraction) in chain.iter().zip(chain_fractions(&self.positions, chain)) {
                 if self.anchor_of_vertex[vertex as usize].is_none() {
@@ -364,6 +369,16 @@ fn resolve_positions(
     target: &TargetMesh,
     points: &[LayoutPoint],
 ) -> Result<Vec<Vec3>, KernelError> {
+    for (index, point) in points.iter().enumerate() {
+        match point {
+            LayoutPoint::Face(face_point) => {
+                validate::check_barycentric("barycentric", index, face_point.barycentric)?;
+            }
+            LayoutPoint::Space(position) => {
+                validate::check_coordinate("layout point", index, *position)?;
+            }
+        }
+    }
     let (layout_indices, face_points): (Vec<usize>, Vec<FacePoint>) = points
         .iter()
         .enumerate()
@@ -394,16 +409,10 @@ fn resolve_positions(
             })?;
     let mut positions = Vec::with_capacity(points.len());
     let mut face_positions = face_positions.into_iter();
-    for (index, point) in points.iter().enumerate() {
+    for point in points {
         positions.push(match point {
             LayoutPoint::Face(_) => face_positions.next().unwrap_or(Vec3::ZERO),
-            LayoutPoint::Space(position) if position.is_finite() => *position,
-            LayoutPoint::Space(_) => {
-                return Err(KernelError::NonFinite {
-                    what: "layout point",
-                    index,
-                });
-            }
+            LayoutPoint::Space(position) => *position,
         });
     }
     Ok(positions)

@@ -35,6 +35,7 @@ use crate::face_point::{FacePoint, LayoutPoint};
 use crate::layout::LayoutStructure;
 use crate::mesh::{NO_TRIANGLE, TargetMesh};
 use crate::surface::WalkEnd;
+use crate::validate;
 
 /// Bounds of the annealed folding tolerance, in radians.
 const FOLD_TOLERANCE_RANGE: (f32, f32) = (

@@ -11,13 +11,26 @@ impl WrapSolver {
     /// their anchors; held points do not fold.
     ///
     /// # Errors
-    /// [`KernelError::InvalidArgument`] for a NaN or a zero normal, a vertex that does not exist,
-    /// or a vertex also held by a curve constraint.
+    /// [`KernelError::NonFinite`] or [`KernelError::CoordinateOutOfRange`] for the plane's point
+    /// or normal, [`KernelError::BeyondReach`] for a plane that passes beyond the region the wrap
+    /// can reach, [`KernelError::InvalidArgument`] for a zero normal, a vertex that does not
+    /// exist, or a vertex also held by a curve constraint.
     pub fn with_plane_constraint(
         mut self,
         constraint: &PlaneConstraint,
     ) -> Result<Self, KernelError> {
         let plane = Plane::new(constraint.point, constraint.normal)?;
+        // A plane that passes beyond the region the wrap can reach cannot hold anything.
+        let (centre, reach) = self.reach;
+        let distance = plane.distance(centre).abs();
+        if distance > reach {
+            return Err(KernelError::BeyondReach {
+                what: "plane",
+                index: 0,
+                distance,
+                reach,
+            });
+        }
         let mut on_plane = vec![false; self.points.len()];
         for &vertex in &constraint.vertices {
             let invalid = |reason: String| KernelError::InvalidArgument {

@@ -12,8 +12,10 @@ impl WrapSolver {
     /// later call returns the same error). With [`SolverKind::Energy`]:
     /// [`KernelError::InvalidArgument`] when its linear system cannot be built or factored; with
     /// [`SolverKind::Springs`]: [`KernelError::InvalidArgument`] when vertex stiffness or free
-    /// vertices are set.
+    /// vertices are set; [`KernelError::InvalidArgument`] for more than
+    /// [`WrapSettings::MAX_STEP_ITERATIONS`] iterations.
     pub fn step(&mut self, iterations: usize) -> Result<StepReport, KernelError> {
+        WrapSettings::check_step_iterations(iterations)?;
         if let Some(error) = &self.diverged {
             return Err(error.clone());
         }
