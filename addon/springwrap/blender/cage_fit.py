@@ -112,7 +112,9 @@ def fit_subdivision(
     movable = cage_fit.movable_mask(vertex_count, on_face, arrays.selection, parameters.only_selected)
     if not movable.any():
         raise LayoutError(f"Layout '{layout.name}': no vertex to move (no selected vertex on a face)")
-    anchors, _ = anchor_logic.resolve(anchor_data.read_anchors(layout), target, layout.springwrap.anchors_signature)
+    anchors = anchor_data.read_anchors(layout)
+    anchor_logic.check_anchor_vertices(anchors, vertex_count)
+    anchors, _ = anchor_logic.resolve(anchors, target, layout.springwrap.anchors_signature)
     valid = anchor_logic.valid_vertex_mask(anchors, vertex_count)
     anchor_logic.check_anchor_locations(anchors, valid)
     world = transforms.world_positions(arrays)

@@ -15,7 +15,7 @@ from ..blender.edit_mode import object_mode
 from ..core import cage_fit
 from ..core.errors import ERRORS
 from ..properties import max_distance_property
-from .base import LayoutOperator, open_layout
+from .base import LayoutOperator, check_inputs, open_layout, report_storage_precision
 
 _DEFAULTS = cage_fit.fit_defaults()
 
@@ -81,8 +81,10 @@ class SPRINGWRAP_OT_fit_subdivision(LayoutOperator, bpy.types.Operator):
         )
         try:
             with object_mode(layout):
+                extent = check_inputs(context, layout, frozenset({"positions", "anchors"}))
                 target = target_data.read_target(context.evaluated_depsgraph_get(), layout)
                 outcome = cage_fit_data.fit_subdivision(context, layout, target, parameters)
+                report_storage_precision(self, layout, extent)
         except ERRORS as error:
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}
