@@ -6,6 +6,7 @@ Blender script on this lane. Blender-side helpers (scene builders, readers) are 
 import importlib
 import math
 import os
+import shutil
 import sys
 import types
 from pathlib import Path
@@ -192,6 +193,21 @@ def sphere_obj(radius: float, segments: int = 32, rings: int = 16) -> str:
                 f"{ring_vertex(ring + 1, segment + 1)} {ring_vertex(ring, segment + 1)}"
             )
     return "\n".join(lines) + "\n"
+
+
+def kernel_python() -> tuple[str, dict]:
+    """A Python that imports numpy and the kernel, and its environment, for tests that need a process of
+    their own (to see an abort). In the bpy lanes that is this Python; inside Debian's Blender
+    (``SPRINGWRAP_KERNEL_PATH`` set by the lane) ``sys.executable`` names the first ``python3.x`` on PATH,
+    which may lack numpy, so it is the system Python of Blender's version with the kernel's folder added."""
+    environment = dict(os.environ)
+    kernel_path = os.environ.get("SPRINGWRAP_KERNEL_PATH")
+    if not kernel_path:
+        return sys.executable, environment
+    version = f"python{sys.version_info.major}.{sys.version_info.minor}"
+    executable = shutil.which(version, path="/usr/bin") or sys.executable
+    environment["PYTHONPATH"] = os.pathsep.join(filter(None, [kernel_path, environment.get("PYTHONPATH")]))
+    return executable, environment
 
 
 def script_command(script: Path) -> list[str]:

@@ -2,8 +2,9 @@
 is seen (no bpy). The calls and their checks are in ``fuzz_calls.py``; the seed is fixed."""
 
 import subprocess
-import sys
 from pathlib import Path
+
+from helpers import kernel_python
 
 SCRIPT = Path(__file__).with_name("fuzz_calls.py")
 SEED = 20261202
@@ -11,8 +12,14 @@ CALLS = 10000
 
 
 def test_random_calls_return_or_raise_the_modules_errors_and_never_abort():
+    executable, environment = kernel_python()
     result = subprocess.run(
-        [sys.executable, str(SCRIPT), str(SEED), str(CALLS)], capture_output=True, text=True, timeout=600, check=False
+        [executable, str(SCRIPT), str(SEED), str(CALLS)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=False,
+        env=environment,
     )
     assert result.returncode == 0, f"exit status {result.returncode}\n{result.stderr[-4000:]}"
     outcomes = {}

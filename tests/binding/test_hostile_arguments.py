@@ -7,22 +7,27 @@ wrong Python type ``ArgumentTypeError`` (a ``SpringwrapError`` and a ``TypeError
 """
 
 import subprocess
-import sys
 import textwrap
 
 import numpy as np
 import pytest
 
 import springwrap_kernel as sk
-from helpers import grid, make_solver, plane_target, quad_layout
+from helpers import grid, kernel_python, make_solver, plane_target, quad_layout
 
 EMPTY = np.empty(0, np.uint32)
 
 
 def run_isolated(code: str) -> subprocess.CompletedProcess:
     """Runs ``code`` in a fresh Python: an abort (SIGABRT) there fails the test instead of killing pytest."""
+    executable, environment = kernel_python()
     return subprocess.run(
-        [sys.executable, "-c", textwrap.dedent(code)], capture_output=True, text=True, timeout=120, check=False
+        [executable, "-c", textwrap.dedent(code)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+        env=environment,
     )
 
 
