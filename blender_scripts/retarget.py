@@ -178,6 +178,13 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
         help="the template's vertex group with no pull toward the target, energy solver only "
         "(sockets, teeth: they follow their neighbours and stay off the surface)",
     )
+    parser.add_argument(
+        "--fit-subdivision",
+        type=int,
+        metavar="LEVELS",
+        help="after the wrap, fit the layout as a subdivision cage: its Subdivision Surface at LEVELS (1 to 6) "
+        "onto the target (the report gains the surface's distances before and after)",
+    )
     add_frame_arguments(parser)
     parser.add_argument("--output-blend", type=Path, help="save template, target and result here")
     parser.add_argument("--output-obj", type=Path, help="export the retargeted layout here")
@@ -213,6 +220,8 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
         parser.error(str(error))
     if arguments.anchors_spacing is not None and arguments.anchors_spacing < 0:
         parser.error("--anchors-spacing must not be negative")
+    if arguments.fit_subdivision is not None and not 1 <= arguments.fit_subdivision <= 6:
+        parser.error("--fit-subdivision LEVELS must be 1 to 6")
     if arguments.jobs is not None and arguments.jobs < 1:
         parser.error("--jobs must be at least 1")
     if arguments.address is not None and arguments.executor != "ray":
@@ -317,6 +326,22 @@ def align_with_operator(layout, arguments: argparse.Namespace, blame: str, frame
     }
 
 
+def fit_subdivision_report(levels: int) -> dict:
+    """The report's entry of the subdivision cage fit just run: its Subdivision Surface's distances to the target
+    (world units) before and after."""
+    outcome = bpy.types.SPRINGWRAP_OT_fit_subdivision.last_outcome
+    return {
+        "levels": levels,
+        "rounds": outcome.rounds,
+        "surface_points": outcome.fine_vertex_count,
+        "mean_distance_before": outcome.before.mean,
+        "max_distance_before": outcome.before.max,
+        "mean_distance_after": outcome.after.mean,
+        "max_distance_after": outcome.after.max,
+        "blender_surface": outcome.exact,
+    }
+
+
 def retarget(arguments: argparse.Namespace) -> dict:
     """Load, align, detach, anchor, wrap, measure, write; the report (also written to --report)."""
     WrapSession = addon_module("blender.wrap_session").WrapSession  # noqa: N806 - a class of the enabled add-on
@@ -387,6 +412,12 @@ def retarget(arguments: argparse.Namespace) -> dict:
         warnings.append(f"{result.space_points} of {result.vertex_count} vertices are off the surface (space-points)")
     lap("wrap")
 
+    subdivision_fit = None
+    if arguments.fit_subdivision:
+        run_operator(blame, "fit_subdivision", levels=arguments.fit_subdivision)
+        subdivision_fit = fit_subdivision_report(arguments.fit_subdivision)
+        lap("fit subdivision")
+
     report = {
         "template": str(arguments.template),
         "target": str(arguments.target),
@@ -402,6 +433,7 @@ def retarget(arguments: argparse.Namespace) -> dict:
             "space_points": result.space_points,
             "kernel_seconds": round(result.kernel_seconds, 4),
         },
+        "fit_subdivision": subdivision_fit,
         "metrics": distances_to_target(layout, target),
         "timings": timings,
         "warnings": warnings,
@@ -439,6 +471,7 @@ def batch_task(arguments: argparse.Namespace, target: Path, output_dir: Path) ->
             "solver",
             "stiffness_group",
             "free_group",
+            "fit_subdivision",
             "up_axis",
             "forward_axis",
         )

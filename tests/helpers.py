@@ -226,3 +226,70 @@ def script_command(script: Path) -> list[str]:
             "--",
         ]
     return [sys.executable, str(script)]
+
+
+# ---------------------------------------------------------------- subdivision cages
+
+
+def uv_sphere(radius: float = 1.0, rings: int = 64, segments: int = 128):
+    """A closed UV sphere about the origin, triangles wound outwards: (float32 vertices, uint32 triangles)."""
+    polar = np.pi * np.arange(1, rings) / rings
+    azimuth = 2.0 * np.pi * np.arange(segments) / segments
+    ring_points = np.stack(
+        [
+            np.outer(np.sin(polar), np.cos(azimuth)).ravel(),
+            np.outer(np.sin(polar), np.sin(azimuth)).ravel(),
+            np.repeat(np.cos(polar), segments),
+        ],
+        axis=1,
+    )
+    vertices = np.concatenate([[[0.0, 0.0, 1.0]], ring_points, [[0.0, 0.0, -1.0]]]) * radius
+    south = len(vertices) - 1
+    triangles = []
+    for segment in range(segments):
+        following = (segment + 1) % segments
+        triangles.append((0, 1 + segment, 1 + following))
+        last = 1 + (rings - 2) * segments
+        triangles.append((south, last + following, last + segment))
+        for ring in range(rings - 2):
+            a, b = 1 + ring * segments + segment, 1 + ring * segments + following
+            c, d = a + segments, b + segments
+            triangles.extend([(a, c, d), (a, d, b)])
+    return vertices.astype(np.float32), np.array(triangles, dtype=np.uint32)
+
+
+def cube_sphere_cage(cuts: int = 3, radius: float = 1.0):
+    """A cube of ``cuts`` x ``cuts`` quads a side, its vertices on the sphere of ``radius``, faces wound outwards:
+    (float32 positions, uint32 face corners, uint32 face sizes). Its subdivided surface lies inside the sphere."""
+    index_of: dict[tuple[int, int, int], int] = {}
+    positions, corners = [], []
+
+    def vertex(grid_point):
+        if grid_point not in index_of:
+            index_of[grid_point] = len(positions)
+            point = np.array(grid_point, dtype=np.float64)
+            positions.append(point / np.linalg.norm(point) * radius)
+        return index_of[grid_point]
+
+    # Each side: its normal axis and sign, and two tangent axes u, v with u x v along the normal.
+    for axis, sign, u_axis, v_axis in (
+        (0, 1, 1, 2),
+        (0, -1, 2, 1),
+        (1, 1, 2, 0),
+        (1, -1, 0, 2),
+        (2, 1, 0, 1),
+        (2, -1, 1, 0),
+    ):
+        for i in range(cuts):
+            for j in range(cuts):
+                for du, dv in ((0, 0), (1, 0), (1, 1), (0, 1)):
+                    grid_point = [0, 0, 0]
+                    grid_point[axis] = sign * cuts
+                    grid_point[u_axis] = 2 * (i + du) - cuts
+                    grid_point[v_axis] = 2 * (j + dv) - cuts
+                    corners.append(vertex(tuple(grid_point)))
+    return (
+        np.array(positions, dtype=np.float32),
+        np.array(corners, dtype=np.uint32),
+        np.full(len(corners) // 4, 4, dtype=np.uint32),
+    )

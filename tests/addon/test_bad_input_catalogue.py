@@ -275,6 +275,10 @@ OPERATORS = {
     "mirror": ({"axis": "Y", "max_iterations": 30}, ALL_LAYOUT | {"anchor vertices", "shape keys"}),
     "align_armature": ({"target_armature": "Target Rig"}, {"positions", "shape keys"}),
     "detect_features": ({"scale": 0.5, "write_curves": False}, {"target"}),
+    "fit_subdivision": (
+        {"rounds": 2},
+        {"positions", "positions far", "anchors", "anchor vertices", "target", "shape keys"},
+    ),
 }
 """Every operator, a call of it that works, and the kinds of input it reads (so refuses when broken)."""
 

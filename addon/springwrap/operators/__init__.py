@@ -1,7 +1,7 @@
 """The add-on's operators: ``poll`` says why one cannot run, ``execute`` / ``invoke`` check, call ``core`` and
 ``blender``, and report. One module per operator family; ``base`` holds their shared opening."""
 
-from . import align, anchors, armature, curves, features, mirror, snapping, wrap
+from . import align, anchors, armature, cage_fit, curves, features, mirror, snapping, wrap
 
 classes = (
     snapping.classes
@@ -12,5 +12,6 @@ classes = (
     + armature.classes
     + features.classes
     + mirror.classes
+    + cage_fit.classes
 )
 """Every operator class, in the order they are registered."""

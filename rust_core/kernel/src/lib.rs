@@ -44,6 +44,7 @@ pub mod bvh;
 pub mod error;
 pub mod face_point;
 pub mod features;
+pub mod fit;
 pub mod layout;
 pub mod mesh;
 pub mod query;
@@ -60,6 +61,9 @@ pub use face_point::{FacePoint, LayoutPoint, SurfaceHit, VertexHit};
 pub use features::{
     FeatureCurve, FeatureCurveKind, FeatureRegion, FeatureSettings, Features, PrincipalCurvatures,
     classify_regions, detect_features, principal_curvatures,
+};
+pub use fit::{
+    BoundaryRule, FitRound, SubdivisionFit, SubdivisionFitSettings, SubdivisionStencils,
 };
 pub use layout::{Curve, CurveKind, LayoutStructure, LineTriple};
 pub use mesh::{NO_TRIANGLE, TargetMesh, TargetMeshOptions, TriangleEdge};

@@ -9,6 +9,7 @@ mod arguments;
 mod arrays;
 mod errors;
 mod features;
+mod fit;
 mod layout;
 mod target_mesh;
 mod wrap;
@@ -29,5 +30,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(align::fit_transform_py, m)?)?;
     errors::register(m)?;
     features::register(m)?;
+    fit::register(m)?;
     Ok(())
 }

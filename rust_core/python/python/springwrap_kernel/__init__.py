@@ -32,10 +32,13 @@ from ._native import (
     LayoutStructure,
     NonFiniteError,
     SpringwrapError,
+    SubdivisionFit,
+    SubdivisionStencils,
     TooLargeError,
     WrapSettings,
     __version__,
     fit_transform,
+    subdivision_fit_defaults,
 )
 
 __all__ = [
@@ -60,6 +63,8 @@ __all__ = [
     "NonFiniteError",
     "SpringwrapError",
     "StepReport",
+    "SubdivisionFit",
+    "SubdivisionStencils",
     "SurfaceHits",
     "TargetMesh",
     "TooLargeError",
@@ -68,6 +73,7 @@ __all__ = [
     "WrapSolver",
     "__version__",
     "fit_transform",
+    "subdivision_fit_defaults",
 ]
 
 

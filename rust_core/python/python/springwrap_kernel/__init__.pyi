@@ -429,3 +429,85 @@ class WrapSolver:
     @property
     def settings(self) -> WrapSettings:
         """The settings the wrap runs with."""
+
+class SubdivisionStencils:
+    """The limit points of a cage subdivided ``levels`` times (Catmull–Clark with the rules of Blender's
+    Subdivision Surface modifier), as a sparse matrix over the cage's vertices, and the fine quads.
+
+    Faces are given flat as for :class:`LayoutStructure`. ``boundary`` is Blender's *Boundary Smooth*:
+    ``"ALL"`` (corners smoothed, the modifier's default) or ``"PRESERVE_CORNERS"`` (Keep Corners). Fine
+    vertices come parents first: the cage's vertices are the first ``cage_vertex_count``. Refused
+    (:class:`InvalidArgumentError`): ``levels`` outside 1..6, no faces, a face of fewer than three corners
+    or with a repeated corner, an edge of three or more faces, faces of opposite winding across an edge, a
+    vertex whose faces are not one fan.
+    """
+
+    def __init__(
+        self,
+        vertex_count: int,
+        face_corners: npt.NDArray[np.uint32],
+        face_sizes: npt.NDArray[np.uint32],
+        levels: int,
+        *,
+        boundary: Literal["ALL", "PRESERVE_CORNERS"] = "ALL",
+    ) -> None: ...
+    @property
+    def levels(self) -> int: ...
+    @property
+    def boundary(self) -> Literal["ALL", "PRESERVE_CORNERS"]: ...
+    @property
+    def cage_vertex_count(self) -> int: ...
+    @property
+    def fine_vertex_count(self) -> int: ...
+    def matrix(self) -> tuple[npt.NDArray[np.uint32], npt.NDArray[np.uint32], npt.NDArray[np.float64]]:
+        """CSR form: row offsets (F + 1), cage vertex of each entry, weight of each entry."""
+    def fine_quads(self) -> npt.NDArray[np.uint32]:
+        """(Q, 4) quads of the last level over the fine vertices, wound as the cage's faces."""
+    def on_surface(self) -> npt.NDArray[np.bool_]:
+        """(F,) whether each fine vertex lies on the surface (not a cage vertex on no face)."""
+    def apply(self, cage: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
+        """(F, 3) limit points of the cage at ``cage`` ((N, 3))."""
+
+class SubdivisionFit:
+    """Gauss–Newton rounds moving a cage so that its subdivided (limit) surface lies on a target.
+
+    Each :meth:`round` matches every fine point (stencils applied, plus ``offsets`` when given: what an
+    exact evaluation adds to the stencils) to its closest target point, trusted within ``max_distance``,
+    not on a border of the target (a hole's rim) and with normals of cosine at least ``min_facing``, and
+    solves ``min Σ w |S x + o − c|² + smoothness Σ |L (x − x_prev)|² + damping |x − x_prev|²`` with the
+    ``fixed`` vertices (bool per cage vertex; and those on no face) held. An anchor pulls the *limit point* of
+    its cage vertex ``anchor_vertices[k]`` to ``anchor_points[k]`` (weight ``anchor_weight``) instead of its
+    closest point. Defaults: :func:`subdivision_fit_defaults`.
+    """
+
+    def __init__(
+        self,
+        stencils: SubdivisionStencils,
+        *,
+        fixed: npt.NDArray[np.bool_] | None = None,
+        smoothness: float | None = None,
+        max_distance: float | None = None,
+        min_facing: float | None = None,
+        damping: float | None = None,
+        anchor_vertices: npt.NDArray[np.uint32] | None = None,
+        anchor_points: npt.NDArray[np.float32] | None = None,
+        anchor_weight: float | None = None,
+    ) -> None: ...
+    def fixed(self) -> npt.NDArray[np.bool_]:
+        """(N,) the cage vertices the fit holds."""
+    def fine_points(
+        self, cage: npt.NDArray[np.float32], offsets: npt.NDArray[np.float32] | None = None
+    ) -> npt.NDArray[np.float32]:
+        """(F, 3) fine points of ``cage`` plus ``offsets``."""
+    def distances(
+        self, target: TargetMesh, cage: npt.NDArray[np.float32], offsets: npt.NDArray[np.float32] | None = None
+    ) -> npt.NDArray[np.float32]:
+        """(F,) distance of each fine point to ``target`` (NaN off the surface or beyond ``max_distance``)."""
+    def round(
+        self, target: TargetMesh, cage: npt.NDArray[np.float32], offsets: npt.NDArray[np.float32] | None = None
+    ) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32], int]:
+        """One round: (the new cage, the fine points' distances before it, the trusted matches)."""
+
+def subdivision_fit_defaults() -> dict[str, float]:
+    """The kernel's defaults of :class:`SubdivisionFit` (smoothness, max_distance, min_facing, damping,
+    anchor_weight) and the deepest level (max_levels)."""

@@ -1,0 +1,150 @@
+"""The subdivision cage fit in Blender: the layout read as a cage, Blender's own Subdivision Surface points of
+any cage position (a temporary object with the modifier, removed again), and the fitted cage written back.
+
+``core.cage_fit`` does the fitting on arrays; this module is its only contact with Blender data.
+"""
+
+from typing import NamedTuple
+
+import bpy
+
+import numpy as np
+
+from ..core import anchors as anchor_logic
+from ..core import cage_fit, layout_state, transforms
+from ..core.errors import LayoutError
+from . import anchors as anchor_data
+from . import layout as layout_data
+from .evaluated_mesh import read_evaluated_mesh
+
+TEMPORARY_NAME = "springwrap_cage_fit"
+"""Name of the temporary object (and mesh) that evaluates Blender's Subdivision Surface during a fit."""
+
+
+class CageFitParameters(NamedTuple):
+    """What the operator, the command line and the benchmark ask of a fit."""
+
+    levels: int = cage_fit.DEFAULT_LEVELS
+    rounds: int = cage_fit.DEFAULT_ROUNDS
+    boundary: str = "ALL"  # the modifier's Boundary Smooth
+    smoothness: float | None = None  # None: the kernel's default
+    max_distance: float = 0.0  # 0: no limit
+    only_selected: bool = False
+
+
+def check_no_creases(layout: bpy.types.Object) -> None:
+    """Raise :class:`LayoutError` when the layout has creased edges or vertices: the fit models Blender's
+    subdivision without creases (the modifier's *Use Creases* would give another surface)."""
+    mesh = layout.data
+    for name, domain, items in (("crease_edge", "edges", mesh.edges), ("crease_vert", "vertices", mesh.vertices)):
+        values = np.zeros(len(items), dtype=np.float32)
+        attribute = mesh.attributes.get(name)
+        if attribute is not None and attribute.data_type == "FLOAT" and len(attribute.data) == len(items):
+            attribute.data.foreach_get("value", values)
+        elif name == "crease_edge" and "crease" in bpy.types.MeshEdge.bl_rna.properties and len(items):
+            items.foreach_get("crease", values)  # Blender before 4.0
+        if np.any(values > 0.0):
+            raise LayoutError(
+                f"Layout '{layout.name}' has creased {domain} ({int(np.count_nonzero(values > 0.0))}): the fit "
+                "models the Subdivision Surface without creases; clear them (Edge / Vertex Crease 0) first"
+            )
+
+
+class BlenderSubdivision:
+    """Blender's Subdivision Surface of the layout's cage at any positions: a temporary object (a copy of the
+    layout's mesh, identity transform, one modifier) in the scene, evaluated on demand and removed on exit.
+
+    ``evaluate(world_positions)`` gives the subdivided points (world) and their triangles.
+    """
+
+    def __init__(self, context: bpy.types.Context, layout: bpy.types.Object, levels: int, boundary: str) -> None:
+        self.context = context
+        self.layout = layout
+        self.levels = levels
+        self.boundary = boundary
+        self.mesh = None
+        self.object = None
+
+    def __enter__(self) -> "BlenderSubdivision":
+        self.mesh = self.layout.data.copy()
+        self.mesh.name = TEMPORARY_NAME
+        self.object = bpy.data.objects.new(TEMPORARY_NAME, self.mesh)
+        self.context.scene.collection.objects.link(self.object)
+        modifier = self.object.modifiers.new("Subdivision", "SUBSURF")
+        modifier.levels = self.levels
+        modifier.render_levels = self.levels
+        modifier.boundary_smooth = self.boundary
+        modifier.use_limit_surface = True
+        return self
+
+    def __exit__(self, *exception) -> None:
+        if self.object is not None:
+            bpy.data.objects.remove(self.object)
+        if self.mesh is not None:
+            bpy.data.meshes.remove(self.mesh)
+        self.object = self.mesh = None
+
+    def evaluate(self, world_positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(P, 3) float64 subdivided points and (T, 3) uint32 triangles of the cage at ``world_positions``."""
+        self.mesh.vertices.foreach_set("co", transforms.as_float32_points(world_positions).reshape(-1))
+        self.mesh.update()
+        evaluated = read_evaluated_mesh(self.context.evaluated_depsgraph_get(), self.object, triangles=True)
+        if evaluated is None:
+            raise LayoutError(f"Blender's Subdivision Surface of '{self.layout.name}' gave no mesh")
+        return evaluated.vertices, evaluated.triangles
+
+
+def fit_subdivision(
+    context: bpy.types.Context, layout: bpy.types.Object, target, parameters: CageFitParameters
+) -> cage_fit.CageFitOutcome:
+    """Fit the layout (object mode data) as a subdivision cage to ``target`` (a ``core.target.Target``) and
+    write it: moved vertices become space-points. Anchors hold their vertex's point of the subdivided surface on
+    their target point (face anchors found again on the current target; the list itself is not rewritten). Raises one of ``core.errors.ERRORS`` before writing anything.
+    """
+    check_no_creases(layout)
+    arrays = layout_data.read_layout(layout)
+    topology = layout_data.read_layout_topology(layout)
+    if topology.face_sizes.size == 0:
+        raise LayoutError(f"Layout '{layout.name}' has no faces: there is no subdivision surface to fit")
+    vertex_count = arrays.positions.shape[0]
+    on_face = np.zeros(vertex_count, dtype=bool)
+    on_face[np.asarray(topology.face_corners, dtype=np.int64)] = True
+    movable = cage_fit.movable_mask(vertex_count, on_face, arrays.selection, parameters.only_selected)
+    if not movable.any():
+        raise LayoutError(f"Layout '{layout.name}': no vertex to move (no selected vertex on a face)")
+    anchors = anchor_data.read_anchors(layout)
+    anchor_logic.check_anchor_vertices(anchors, vertex_count)
+    anchors, _ = anchor_logic.resolve(anchors, target, layout.springwrap.anchors_signature)
+    valid = anchor_logic.valid_vertex_mask(anchors, vertex_count)
+    anchor_logic.check_anchor_locations(anchors, valid)
+    world = transforms.world_positions(arrays)
+    # The kernel's mesh lives in a frame centred on the target (``core.target.CentredMesh``): the fit runs in
+    # it, Blender's subdivision (affine-invariant) is evaluated in world space and brought into it.
+    frame = target.mesh
+    with BlenderSubdivision(context, layout, parameters.levels, parameters.boundary) as subdivision:
+
+        def evaluate(cage_in_frame: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            points, triangles = subdivision.evaluate(frame.from_kernel(cage_in_frame))
+            return points - frame.origin, triangles
+
+        outcome = cage_fit.fit_cage(
+            frame.kernel,
+            world - frame.origin,
+            topology.face_corners,
+            topology.face_sizes,
+            movable,
+            levels=parameters.levels,
+            rounds=parameters.rounds,
+            boundary=parameters.boundary,
+            smoothness=parameters.smoothness,
+            max_distance=parameters.max_distance,
+            anchor_vertices=anchors.vertex_indices[valid],
+            anchor_points=anchors.locations[valid] - frame.origin,
+            evaluate=evaluate,
+        )
+    outcome = outcome._replace(positions=frame.from_kernel(outcome.positions))
+    local = transforms.to_local(arrays.matrix_world, outcome.positions)
+    positions = np.where(outcome.moved[:, None], local, arrays.positions)
+    state = layout_state.detach_points(arrays.state, outcome.moved)
+    layout_data.write_layout(layout, positions, state)
+    return outcome
