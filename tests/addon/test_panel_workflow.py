@@ -36,6 +36,7 @@ def test_the_steps_come_in_the_artists_order_and_the_point_tools_are_closed():
         ("Curve Constraints", "SPRINGWRAP_PT_anchors"),
         ("Wrap", "SPRINGWRAP_PT_layout"),
         ("Check", "SPRINGWRAP_PT_layout"),
+        ("Subdivision Fit", "SPRINGWRAP_PT_check"),
         ("Snap", "SPRINGWRAP_PT_layout"),
         ("Project", "SPRINGWRAP_PT_layout"),
         ("Detach", "SPRINGWRAP_PT_layout"),
@@ -43,7 +44,16 @@ def test_the_steps_come_in_the_artists_order_and_the_point_tools_are_closed():
         ("Features", "SPRINGWRAP_PT_layout"),
     ]
     closed = {cls.bl_label for cls in panels.classes if "DEFAULT_CLOSED" in getattr(cls, "bl_options", set())}
-    assert closed == {"Armature", "Curve Constraints", "Snap", "Project", "Detach", "Mirror", "Features"}
+    assert closed == {
+        "Armature",
+        "Curve Constraints",
+        "Subdivision Fit",
+        "Snap",
+        "Project",
+        "Detach",
+        "Mirror",
+        "Features",
+    }
 
 
 def test_the_wrap_panel_shows_the_live_progress_instead_of_the_button():
@@ -238,3 +248,11 @@ def test_an_anchor_row_reads_index_and_distance_and_flags_a_missing_vertex():
     row = PanelRecorder()
     SPRINGWRAP_UL_anchors.draw_item(None, bpy.context, row, layout.springwrap, item, 0, None, "", 0)
     assert row.labels == [str(len(layout.data.vertices) + 5), "missing"]
+
+
+def test_the_subdivision_fit_button_fits_the_whole_layout_or_the_selection():
+    from springwrap.ui.panels import SPRINGWRAP_PT_fit_subdivision
+
+    _target, layout, _normal = plane_scene()
+    recorder = draw(SPRINGWRAP_PT_fit_subdivision, RecordingLayout())
+    assert recorder.operators == ["springwrap.fit_subdivision"]

@@ -250,6 +250,23 @@ class SPRINGWRAP_PT_check(_LayoutSubPanel, bpy.types.Panel):
             _count_row(column, "Frames", result.frames)
 
 
+class SPRINGWRAP_PT_fit_subdivision(_SidebarPanel, bpy.types.Panel):
+    """Move the layout so that its Subdivision Surface at a level lies on the target (a smooth result)"""
+
+    bl_label = "Subdivision Fit"
+    bl_idname = "SPRINGWRAP_PT_fit_subdivision"
+    bl_parent_id = "SPRINGWRAP_PT_check"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        obj = context.active_object
+        fit = self.layout.operator(
+            "springwrap.fit_subdivision", text=_scope_text(obj, "Fit Subdivision"), icon="MOD_SUBSURF"
+        )
+        fit.only_selected = obj.mode == "EDIT"
+        self.layout.label(text="Level and rounds: F9")
+
+
 class SPRINGWRAP_PT_snap(_LayoutSubPanel, bpy.types.Panel):
     """Snap: each vertex to the closest point of the target (it becomes a face-point)"""
 
@@ -345,6 +362,7 @@ classes = (
     SPRINGWRAP_PT_curve_constraints,
     SPRINGWRAP_PT_wrap,
     SPRINGWRAP_PT_check,
+    SPRINGWRAP_PT_fit_subdivision,
     SPRINGWRAP_PT_snap,
     SPRINGWRAP_PT_project,
     SPRINGWRAP_PT_detach,
