@@ -147,6 +147,8 @@ bench: setup $(STAMPS)/bench-requirements
 	$(PY) benchmarks/wrap_solvers.py $(if $(QUICK),--cases sphere-ellipsoid heavy,) --scans --nricp \
 	  --json $(BENCH_OUT)/wrap_solvers.json --markdown $(BENCH_DOCS)/wrap-solvers.md
 	$(PY) benchmarks/batch_throughput.py $(BENCH_QUICK) --json $(BENCH_OUT)/batch_throughput.json
+	$(PY) benchmarks/cage_fit.py $(if $(QUICK),--cases heavy,) --json $(BENCH_OUT)/cage_fit.json
+	$(PY) benchmarks/large_target.py $(if $(QUICK),--triangles 1000000,) --json $(BENCH_OUT)/large_target.json
 	$(PY) benchmarks/figures.py $(if $(QUICK),--cases heavy,) --retarget $(BENCH_OUT)/retarget.json \
 	  --performance $(BENCH_OUT)/performance.json --positions $(BENCH_OUT)/retarget-positions --output $(BENCH_DOCS)/img
 	$(PY) benchmarks/report.py --retarget $(BENCH_OUT)/retarget.json --performance $(BENCH_OUT)/performance.json \

@@ -17,9 +17,9 @@ target object (~``--triangles``) and a quad layout over another displaced torus 
   resident set kept after each. The peak of the read alone (numpy arrays, hashing) is measured with
   ``tracemalloc`` (numpy reports its buffers to it).
 
-Prints a summary and writes ``out/bench/large_target.json``. Not part of ``make bench`` (a 5M-triangle
-target takes a few minutes and ~2 GB); to add it there, append
-``$(PY) benchmarks/large_target.py --json $(BENCH_OUT)/large_target.json`` to the ``bench`` recipe.
+Prints a summary and writes ``out/bench/large_target.json``. A step of ``make bench`` (a 5M-triangle
+target takes a few minutes and ~2 GB; ``QUICK=1``: 1M triangles); its numbers are not yet a table of
+``docs/benchmarks.md``.
 """
 
 from __future__ import annotations
