@@ -1,0 +1,281 @@
+"""The quality read-out of a layout on its target, measured without a known answer (no ``bpy``).
+
+Three numbers an artist can read after a snap, projection, wrap or mirror:
+
+- **distance** (per vertex, world units): from the vertex to the closest point of the target surface, by the
+  kernel's exact closest-point query (``core.target.CentredMesh``: the target in a frame centred on it, the
+  answer back in world space in float64);
+- **stretch** (per vertex, a ratio): the mean length of the vertex's edges now over their mean length in the
+  rest shape (the template as made, ``springwrap_rest``), both in world space. 1 = unchanged, 2 = its edges
+  are twice as long, 0.5 = half as long. A vertex without edges, or whose rest edges all have zero length,
+  reads 1 (nothing to measure);
+- **flipped** (per face): the face's normal (Newell's, so n-gons and warped quads have one) points against
+  the target's smoothed normal at the closest point to the face's centre: the kernel's angle-weighted vertex
+  normals interpolated with the closest point's barycentric weights. A degenerate face (zero normal) or one
+  over a target point with no normal is not flipped; nothing here produces NaN.
+
+:func:`summary` turns a :class:`Readout` into the numbers of the command line's report (percentiles, counts);
+:func:`problem_mask` is what ``springwrap.select_problems`` selects; :func:`outliers` is the batch summary's
+rule for a mesh whose numbers stand out from the rest of the batch.
+"""
+
+from typing import NamedTuple
+
+import numpy as np
+
+from . import transforms
+
+DISTANCE_ATTRIBUTE = "springwrap_distance"
+"""POINT FLOAT attribute: distance to the target surface, world units."""
+STRETCH_ATTRIBUTE = "springwrap_stretch"
+"""POINT FLOAT attribute: mean edge length now / at rest (1 = unchanged)."""
+FLIPPED_ATTRIBUTE = "springwrap_flipped"
+"""FACE BOOLEAN attribute: the face faces against the target's smoothed normal."""
+
+OFF_SURFACE_FRACTION = 0.001
+"""A vertex is off the surface beyond this fraction of the layout's bounding-box diagonal (0.1 %) unless a
+threshold is given."""
+STRETCH_FACTOR = 1.5
+"""A vertex is stretched when its stretch is above this factor or below its inverse unless a threshold is given."""
+
+PROBLEM_KINDS = ("FLIPPED", "STRETCHED", "OFF_SURFACE")
+"""What ``springwrap.select_problems`` selects: faces, vertices, vertices."""
+
+OUTLIER_Z = 3.5
+"""A batch mesh stands out when a metric's robust z-score passes this (Iglewicz and Hoaglin's cut-off)."""
+OUTLIER_METRICS = {
+    # metric: (worse direction, smallest scale: a count's unit, or a fraction of the batch's median)
+    "distance_p50": (1, ("relative", 0.01)),
+    "distance_p95": (1, ("relative", 0.01)),
+    "distance_max": (1, ("relative", 0.01)),
+    "stretch_p5": (-1, ("relative", 0.01)),
+    "stretch_p95": (1, ("relative", 0.01)),
+    "stretch_max": (1, ("relative", 0.01)),
+    "flipped": (1, ("absolute", 1.0)),
+    "off_surface": (1, ("absolute", 1.0)),
+}
+"""The batch metrics judged by :func:`outliers`: which way is worse, and the floor of the spread."""
+
+
+class Readout(NamedTuple):
+    """The read-out of one layout: per-vertex distances and stretch, per-face flips."""
+
+    distances: np.ndarray  # (N,) float64, world units
+    stretch: np.ndarray  # (N,) float64, 1 = unchanged
+    flipped: np.ndarray  # (F,) bool
+    diagonal: float  # the layout's world bounding-box diagonal (the default off-surface threshold's unit)
+
+
+def vertex_distances(world_points: np.ndarray, mesh) -> np.ndarray:
+    """(N,) float64 distance of each world point to the surface of ``mesh`` (a ``core.target.CentredMesh``).
+
+    Computed in float64 between the point and the kernel's exact closest point (world space); a non-finite
+    point gets ``inf``.
+    """
+    world_points = np.asarray(world_points, dtype=np.float64).reshape(-1, 3)
+    distances = np.full(world_points.shape[0], np.inf)
+    finite = np.isfinite(world_points).all(axis=1)
+    if finite.any():
+        hits = mesh.closest_points(world_points[finite])
+        distances[finite] = np.linalg.norm(world_points[finite] - hits.positions, axis=1)
+    return distances
+
+
+def vertex_stretch(world_points: np.ndarray, world_rest: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    """(N,) float64 mean incident edge length now over the same at rest (see the module's docstring)."""
+    world_points = np.asarray(world_points, dtype=np.float64).reshape(-1, 3)
+    world_rest = np.asarray(world_rest, dtype=np.float64).reshape(-1, 3)
+    count = world_points.shape[0]
+    edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    now = np.linalg.norm(world_points[edges[:, 0]] - world_points[edges[:, 1]], axis=1)
+    rest = np.linalg.norm(world_rest[edges[:, 0]] - world_rest[edges[:, 1]], axis=1)
+    usable = np.isfinite(now) & np.isfinite(rest)
+    ends = edges[usable].reshape(-1)
+    now_sum = np.bincount(ends, weights=np.repeat(now[usable], 2), minlength=count)
+    rest_sum = np.bincount(ends, weights=np.repeat(rest[usable], 2), minlength=count)
+    stretch = np.ones(count)
+    measured = rest_sum > 0.0
+    stretch[measured] = now_sum[measured] / rest_sum[measured]
+    return stretch
+
+
+def face_normals(world_points: np.ndarray, face_corners: np.ndarray, face_sizes: np.ndarray) -> np.ndarray:
+    """(F, 3) float64 Newell normals (twice the area vector; zero for a degenerate face), each face's corners
+    taken relative to its centre (precise far from the origin)."""
+    face_sizes = np.asarray(face_sizes, dtype=np.int64).reshape(-1)
+    if not face_sizes.size:
+        return np.zeros((0, 3))
+    corners = np.asarray(world_points, dtype=np.float64).reshape(-1, 3)[np.asarray(face_corners, dtype=np.int64)]
+    starts = np.concatenate([[0], np.cumsum(face_sizes)[:-1]])
+    centres = np.add.reduceat(corners, starts, axis=0) / face_sizes[:, None]
+    relative = corners - np.repeat(centres, face_sizes, axis=0)
+    following = np.arange(corners.shape[0]) + 1
+    following[starts + face_sizes - 1] = starts
+    normals = np.add.reduceat(np.cross(relative, relative[following]), starts, axis=0)
+    return np.where(np.isfinite(normals), normals, 0.0)
+
+
+def face_centres(world_points: np.ndarray, face_corners: np.ndarray, face_sizes: np.ndarray) -> np.ndarray:
+    """(F, 3) float64 mean of each face's corners."""
+    face_sizes = np.asarray(face_sizes, dtype=np.int64).reshape(-1)
+    if not face_sizes.size:
+        return np.zeros((0, 3))
+    corners = np.asarray(world_points, dtype=np.float64).reshape(-1, 3)[np.asarray(face_corners, dtype=np.int64)]
+    starts = np.concatenate([[0], np.cumsum(face_sizes)[:-1]])
+    return np.add.reduceat(corners, starts, axis=0) / face_sizes[:, None]
+
+
+def flipped_faces(world_points: np.ndarray, face_corners: np.ndarray, face_sizes: np.ndarray, mesh) -> np.ndarray:
+    """(F,) bool: the face's normal points against the target's smoothed normal at its centre's closest point."""
+    normals = face_normals(world_points, face_corners, face_sizes)
+    centres = face_centres(world_points, face_corners, face_sizes)
+    flipped = np.zeros(normals.shape[0], dtype=bool)
+    judged = np.flatnonzero(np.isfinite(centres).all(axis=1) & np.any(normals != 0.0, axis=1))
+    if not judged.size:
+        return flipped
+    hits = mesh.closest_points(centres[judged])
+    corners = np.asarray(mesh.triangles(), dtype=np.int64)[hits.triangles]
+    vertex_normals = np.asarray(mesh.kernel.vertex_normals(), dtype=np.float64)
+    smoothed = (vertex_normals[corners] * np.asarray(hits.barycentrics, dtype=np.float64)[:, :, None]).sum(axis=1)
+    facing = (normals[judged] * smoothed).sum(axis=1)
+    flipped[judged] = facing < 0.0
+    return flipped
+
+
+def bounding_diagonal(world_points: np.ndarray) -> float:
+    """The diagonal of the finite points' bounding box (0 for none)."""
+    world_points = np.asarray(world_points, dtype=np.float64).reshape(-1, 3)
+    finite = world_points[np.isfinite(world_points).all(axis=1)]
+    return float(np.linalg.norm(np.ptp(finite, axis=0))) if finite.shape[0] else 0.0
+
+
+def measure(world_points: np.ndarray, world_rest: np.ndarray | None, topology, mesh) -> Readout:
+    """The :class:`Readout` of a layout at ``world_points`` (rest shape ``world_rest``, both (N, 3) world; None:
+    no usable rest shape, the stretch reads 1) with ``topology`` (a ``core.subdivision.LayoutTopology``) on the
+    target ``mesh`` (a ``CentredMesh``)."""
+    world_points = np.asarray(world_points, dtype=np.float64).reshape(-1, 3)
+    stretch = (
+        np.ones(world_points.shape[0])
+        if world_rest is None
+        else vertex_stretch(world_points, world_rest, topology.edges)
+    )
+    return Readout(
+        distances=vertex_distances(world_points, mesh),
+        stretch=stretch,
+        flipped=flipped_faces(world_points, topology.face_corners, topology.face_sizes, mesh),
+        diagonal=bounding_diagonal(world_points),
+    )
+
+
+def off_surface_threshold(diagonal: float, threshold: float = 0.0) -> float:
+    """The off-surface distance: ``threshold`` when above 0, else :data:`OFF_SURFACE_FRACTION` of ``diagonal``."""
+    return float(threshold) if threshold > 0.0 else OFF_SURFACE_FRACTION * float(diagonal)
+
+
+def stretch_factor(threshold: float = 0.0) -> float:
+    """The stretch factor judged (at least 1): ``threshold`` when above 0 (its inverse when below 1), else
+    :data:`STRETCH_FACTOR`."""
+    if not threshold > 0.0:
+        return STRETCH_FACTOR
+    return float(threshold) if threshold >= 1.0 else 1.0 / float(threshold)
+
+
+def problem_mask(kind: str, values: np.ndarray, threshold: float, diagonal: float) -> np.ndarray:
+    """What ``springwrap.select_problems`` selects: for ``'FLIPPED'`` the faces whose flag is set (``values`` the
+    flags; no threshold), for ``'STRETCHED'`` the vertices whose stretch is above the factor or below its
+    inverse, for ``'OFF_SURFACE'`` the vertices farther from the target than the distance (see
+    :func:`off_surface_threshold`, :func:`stretch_factor`)."""
+    values = np.asarray(values)
+    if kind == "FLIPPED":
+        return values.astype(bool)
+    if kind == "STRETCHED":
+        factor = stretch_factor(threshold)
+        return (values > factor) | (values < 1.0 / factor)
+    if kind == "OFF_SURFACE":
+        return values > off_surface_threshold(diagonal, threshold)
+    raise ValueError(f"unknown problem kind {kind!r}; one of {', '.join(PROBLEM_KINDS)}")
+
+
+def summary(readout: Readout, threshold: float = 0.0) -> dict:
+    """The read-out's numbers for a report: distance mean / p50 / p95 / max, stretch p5 / p50 / p95 / max, the
+    flipped faces, the vertices off the surface (beyond :func:`off_surface_threshold`) and that threshold."""
+    distances, stretch = readout.distances, readout.stretch
+    limit = off_surface_threshold(readout.diagonal, threshold)
+
+    def percentile(values, q):
+        return float(np.percentile(values, q)) if values.size else 0.0
+
+    return {
+        "vertices": int(distances.size),
+        "faces": int(readout.flipped.size),
+        "distance_mean": float(distances.mean()) if distances.size else 0.0,
+        "distance_p50": percentile(distances, 50),
+        "distance_p95": percentile(distances, 95),
+        "distance_max": float(distances.max()) if distances.size else 0.0,
+        "stretch_p5": percentile(stretch, 5),
+        "stretch_p50": percentile(stretch, 50),
+        "stretch_p95": percentile(stretch, 95),
+        "stretch_max": float(stretch.max()) if stretch.size else 0.0,
+        "flipped": int(readout.flipped.sum()),
+        "off_surface": int((distances > limit).sum()),
+        "off_surface_threshold": limit,
+    }
+
+
+def report_line(readout: Readout) -> str:
+    """One line for an operator's report: the read-out in numbers, and where to look."""
+    numbers = summary(readout)
+    return (
+        f"Read-out: distance to the target p95 {numbers['distance_p95']:.3g}, max {numbers['distance_max']:.3g}; "
+        f"stretch {numbers['stretch_p5']:.2f} to {numbers['stretch_p95']:.2f} (p5 to p95); "
+        f"{numbers['flipped']} faces flipped, {numbers['off_surface']} vertices off the surface "
+        "(Check › Heat-Map, Select Problems)"
+    )
+
+
+def outliers(rows: dict) -> dict:
+    """The batch rule: ``rows`` maps a mesh to its :func:`summary`; the result maps each mesh that stands out to
+    ``{metric: {"value", "median", "z"}}``.
+
+    For each metric of :data:`OUTLIER_METRICS` over the meshes that have it, the robust z-score of a mesh is
+    ``(value - median) / (1.4826 * MAD)`` (MAD: the median absolute deviation from the median; 1.4826 makes it
+    a standard deviation for normal data), signed so that positive is worse; the spread is never taken below
+    the metric's floor (one element for counts, 1 % of the median for the others), so that a batch of equal
+    numbers flags nothing but a count that jumps from 0 to many. A mesh stands out when some z passes
+    :data:`OUTLIER_Z`. Fewer than three meshes flag nothing.
+    """
+    flagged: dict = {}
+    names = list(rows)
+    if len(names) < 3:
+        return flagged
+    for metric, (direction, (floor_kind, floor)) in OUTLIER_METRICS.items():
+        present = [name for name in names if isinstance(rows[name].get(metric), (int, float))]
+        values = np.array([float(rows[name][metric]) for name in present])
+        finite = np.isfinite(values)
+        if finite.sum() < 3:
+            continue
+        median = float(np.median(values[finite]))
+        spread = 1.4826 * float(np.median(np.abs(values[finite] - median)))
+        minimum = floor if floor_kind == "absolute" else floor * abs(median)
+        spread = max(spread, minimum, np.finfo(float).tiny)
+        for name, value in zip(present, values):
+            score = direction * (value - median) / spread if np.isfinite(value) else np.inf
+            if score > OUTLIER_Z:
+                flagged.setdefault(name, {})[metric] = {
+                    "value": float(value),
+                    "median": median,
+                    "z": float(score) if np.isfinite(score) else None,
+                }
+    return flagged
+
+
+def world_rest_or_none(matrix_world: np.ndarray, rest_local: np.ndarray | None, vertex_count: int):
+    """The rest shape in world space (float64), or None when it cannot be used (missing, another length, not
+    finite): the stretch then reads 1."""
+    if rest_local is None:
+        return None
+    rest = np.asarray(rest_local, dtype=np.float64).reshape(-1, 3)
+    if rest.shape[0] != vertex_count:
+        return None
+    world = transforms.transform_points(matrix_world, rest)
+    return world if np.all(np.isfinite(world)) else None

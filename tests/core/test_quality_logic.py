@@ -1,0 +1,180 @@
+"""The quality read-out on arrays (``addon/springwrap/core/quality.py``): distance, stretch and flips on known
+shapes, the selection rule, the report's numbers and the batch's outlier rule. No Blender."""
+
+import numpy as np
+import pytest
+
+from helpers import core_module, grid, quad_layout
+
+quality = core_module("quality")
+target_module = core_module("target")
+subdivision = core_module("subdivision")
+
+
+def plane_mesh(size=8, offset=(0.0, 0.0, 0.0)):
+    """A flat target in z = offset[2], from offset to offset + size in x and y (a CentredMesh)."""
+    vertices, triangles = grid(size)
+    return target_module.CentredMesh(vertices.astype(np.float64) + np.asarray(offset), triangles)
+
+
+def layout_over(mesh_offset=(0.0, 0.0, 0.0), height=0.3, n=6):
+    """An n x n quad grid over the middle of :func:`plane_mesh`, ``height`` above it: positions and topology."""
+    positions, corners, sizes = quad_layout(n=n, size=0.5, height=height)
+    positions = positions.astype(np.float64) + np.array([4.0, 4.0, 0.0]) + np.asarray(mesh_offset)
+    quads = corners.reshape(-1, 4).astype(np.int64)
+    edges = np.unique(
+        np.sort(np.concatenate([quads[:, [0, 1]], quads[:, [1, 2]], quads[:, [2, 3]], quads[:, [3, 0]]]), axis=1),
+        axis=0,
+    )
+    topology = subdivision.LayoutTopology(
+        positions.shape[0], corners, sizes, edges.astype(np.uint32), np.zeros((0, 2), np.uint32)
+    )
+    return positions, topology
+
+
+@pytest.mark.parametrize("height", [0.0, 0.3, 1.75])
+def test_a_plane_layout_at_height_h_over_a_plane_target_is_h_away(height):
+    positions, topology = layout_over(height=height)
+    readout = quality.measure(positions, positions, topology, plane_mesh())
+    assert np.allclose(readout.distances, height, atol=1e-6)
+
+
+def test_distances_are_world_units_far_from_the_origin():
+    offset = (3.0e5, -2.0e5, 1.0e5)
+    positions, topology = layout_over(mesh_offset=offset, height=0.3)
+    readout = quality.measure(positions, positions, topology, plane_mesh(offset=offset))
+    assert np.allclose(readout.distances, 0.3, atol=1e-6)
+
+
+def test_a_layout_scaled_by_two_has_stretch_two_and_unchanged_reads_one():
+    positions, topology = layout_over()
+    centre = positions.mean(axis=0)
+    doubled = centre + 2.0 * (positions - centre)
+    assert np.allclose(quality.measure(doubled, positions, topology, plane_mesh()).stretch, 2.0)
+    assert np.allclose(quality.measure(positions, positions, topology, plane_mesh()).stretch, 1.0)
+    halved = centre + 0.5 * (positions - centre)
+    assert np.allclose(quality.measure(halved, positions, topology, plane_mesh()).stretch, 0.5)
+
+
+def test_stretch_is_local_one_edge_pulled_long():
+    positions, topology = layout_over(n=4)
+    moved = positions.copy()
+    moved[12] += np.array([0.0, 0.0, 1.0])  # an inner vertex lifted: its edges and its neighbours' grow
+    stretch = quality.vertex_stretch(moved, positions, topology.edges)
+    assert stretch[12] == pytest.approx(np.hypot(0.5, 1.0) / 0.5)
+    far = [0, 4, 20, 24]  # corners, no edge to vertex 12
+    assert np.allclose(stretch[far], 1.0)
+
+
+def test_without_a_rest_shape_or_with_collapsed_rest_edges_stretch_reads_one_and_no_nan():
+    positions, topology = layout_over(n=3)
+    readout = quality.measure(positions * 3.0, None, topology, plane_mesh())
+    assert np.array_equal(readout.stretch, np.ones(positions.shape[0]))
+    collapsed = np.repeat(positions[:1], positions.shape[0], axis=0)  # every rest edge of length 0
+    stretch = quality.vertex_stretch(positions, collapsed, topology.edges)
+    assert np.array_equal(stretch, np.ones(positions.shape[0]))
+    assert quality.world_rest_or_none(np.eye(4), positions[:-1], positions.shape[0]) is None
+
+
+def test_a_face_turned_over_is_flipped_and_only_it():
+    positions, topology = layout_over(n=4)
+    corners = topology.face_corners.reshape(-1, 4).copy()
+    assert not quality.measure(positions, positions, topology, plane_mesh()).flipped.any()  # facing +z, as the plane
+    corners[5] = corners[5][::-1]  # one face turned over (its winding reversed)
+    turned = topology._replace(face_corners=corners.reshape(-1))
+    flipped = quality.measure(positions, positions, turned, plane_mesh()).flipped
+    assert np.flatnonzero(flipped).tolist() == [5]
+
+
+def test_a_fold_flips_the_faces_it_turns_over():
+    positions, topology = layout_over(n=4)
+    folded = positions.copy()
+    folded[6] = positions[18] + [0.2, 0.2, 0.0]  # an inner vertex dragged over its neighbours
+    flipped = quality.flipped_faces(folded, topology.face_corners, topology.face_sizes, plane_mesh())
+    normals = quality.face_normals(folded, topology.face_corners, topology.face_sizes)
+    assert flipped.any()
+    assert np.array_equal(flipped, normals[:, 2] < 0.0)  # the plane's normal is +z everywhere
+
+
+def test_degenerate_faces_are_not_flipped_and_give_no_nan():
+    positions, topology = layout_over(n=3)
+    collapsed = positions.copy()
+    collapsed[topology.face_corners[:4]] = collapsed[topology.face_corners[0]]  # face 0 to a point
+    readout = quality.measure(collapsed, positions, topology, plane_mesh())
+    assert not readout.flipped[0]
+    assert np.isfinite(readout.distances).all() and np.isfinite(readout.stretch).all()
+    normals = quality.face_normals(collapsed, topology.face_corners, topology.face_sizes)
+    assert np.array_equal(normals[0], [0.0, 0.0, 0.0])
+
+
+def test_newell_normals_of_triangles_and_ngons():
+    points = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0.5, 1.5, 0], [2, 0, 0], [2, 1, 0]], float)
+    corners = np.array([0, 1, 2, 4, 3, 1, 5, 6])  # a pentagon (area 1.25), a triangle (area 0.5)
+    normals = quality.face_normals(points, corners, np.array([5, 3]))
+    assert np.allclose(normals, [[0, 0, 2.5], [0, 0, 1.0]])
+
+
+def test_problem_masks():
+    stretch = np.array([1.0, 1.6, 0.6, 1.2, 0.7])
+    assert quality.problem_mask("STRETCHED", stretch, 0.0, 1.0).tolist() == [False, True, True, False, False]
+    assert quality.problem_mask("STRETCHED", stretch, 1.25, 1.0).tolist() == [False, True, True, False, True]
+    assert quality.problem_mask("STRETCHED", stretch, 0.8, 1.0).tolist() == [False, True, True, False, True]
+    distances = np.array([0.0, 0.0005, 0.002, 0.3])
+    assert quality.problem_mask("OFF_SURFACE", distances, 0.0, 1.0).tolist() == [False, False, True, True]
+    assert quality.problem_mask("OFF_SURFACE", distances, 0.1, 1.0).tolist() == [False, False, False, True]
+    assert quality.problem_mask("FLIPPED", np.array([0, 1, 0], bool), 0.0, 1.0).tolist() == [False, True, False]
+    with pytest.raises(ValueError, match="unknown problem kind"):
+        quality.problem_mask("BAD", distances, 0.0, 1.0)
+
+
+def test_summary_numbers():
+    readout = quality.Readout(
+        distances=np.arange(101, dtype=float) / 100.0,
+        stretch=np.linspace(0.5, 1.5, 101),
+        flipped=np.array([True, False, True]),
+        diagonal=100.0,
+    )
+    numbers = quality.summary(readout)
+    assert numbers["distance_mean"] == pytest.approx(0.5)
+    assert numbers["distance_p50"] == pytest.approx(0.5) and numbers["distance_p95"] == pytest.approx(0.95)
+    assert numbers["distance_max"] == pytest.approx(1.0)
+    assert numbers["stretch_p5"] == pytest.approx(0.55) and numbers["stretch_p95"] == pytest.approx(1.45)
+    assert numbers["stretch_p50"] == pytest.approx(1.0) and numbers["stretch_max"] == pytest.approx(1.5)
+    assert numbers["flipped"] == 2
+    assert numbers["off_surface_threshold"] == pytest.approx(0.1)  # 0.1 % of the diagonal
+    assert numbers["off_surface"] == 90  # 0.11 ... 1.0
+    assert quality.summary(readout, threshold=0.5)["off_surface"] == 50
+
+
+def row(distance=0.01, stretch=1.0, flipped=0, off_surface=0):
+    return {
+        "distance_p50": distance,
+        "distance_p95": 2 * distance,
+        "distance_max": 3 * distance,
+        "stretch_p5": stretch * 0.9,
+        "stretch_p95": stretch * 1.1,
+        "stretch_max": stretch * 1.2,
+        "flipped": flipped,
+        "off_surface": off_surface,
+    }
+
+
+def test_outliers_flag_the_mesh_that_stands_out_in_the_worse_direction():
+    rows = {f"m{index}": row(distance=0.010 + 0.001 * index) for index in range(5)}
+    assert quality.outliers(rows) == {}
+    rows["bad"] = row(distance=0.05, flipped=40)
+    rows["better"] = row(distance=0.001)  # closer than the rest: not a problem
+    flagged = quality.outliers(rows)
+    assert set(flagged) == {"bad"}
+    assert {"distance_p50", "distance_p95", "distance_max", "flipped"} <= set(flagged["bad"])
+    assert flagged["bad"]["flipped"]["median"] == 0.0
+
+
+def test_outliers_need_three_meshes_and_a_count_needs_more_than_one_element():
+    assert quality.outliers({"a": row(), "b": row(flipped=50)}) == {}
+    rows = {"a": row(), "b": row(), "c": row(flipped=1), "d": row()}
+    assert quality.outliers(rows) == {}  # one flipped face more than the others is within one element
+    rows["e"] = row(stretch=2.0)
+    assert set(quality.outliers(rows)) == {"e"}
+    rows["f"] = row(stretch=0.4)  # compressed: its p5 is low
+    assert "stretch_p5" in quality.outliers(rows)["f"]
