@@ -271,6 +271,21 @@ def _update_show_cage(settings, context):
     cage_display.update_show_cage(settings, context)
 
 
+PROBLEM_KIND_ITEMS = (
+    ("FLIPPED", "Flipped", "Faces facing against the target's smoothed normal"),
+    ("STRETCHED", "Stretched", "Vertices whose edges are longer or shorter than at rest by more than the threshold"),
+    ("OFF_SURFACE", "Off Surface", "Vertices farther from the target than the threshold"),
+)
+"""What ``springwrap.select_problems`` selects (``core.quality.problem_mask``)."""
+
+HEATMAP_KIND_ITEMS = (
+    ("DISTANCE", "Distance", "Distance to the target surface: blue on it, red at the scale's top"),
+    ("STRETCH", "Stretch", "Edge length against the rest shape: blue half as long, green unchanged, red twice"),
+    ("FLIPPED", "Flipped", "Faces facing against the target's smoothed normal in red, the others in blue"),
+)
+"""What the quality heat-map shows (``ui.heatmap``)."""
+
+
 class SpringwrapObjectSettings(bpy.types.PropertyGroup):
     """Springwrap settings of a layout object."""
 
@@ -429,6 +444,26 @@ class SpringwrapObjectSettings(bpy.types.PropertyGroup):
         description="The display settings Show Cage replaced (JSON), put back when it is turned off",
         default="",
         options={"HIDDEN"},
+    )
+
+    # The quality read-out's heat-map (ui.heatmap) and the Check panel's Select Problems.
+    show_heatmap: bpy.props.BoolProperty(
+        name="Heat-Map",
+        description="Draw the quality read-out (written by Snap, Project, Wrap, Mirror) over the layout in the 3D "
+        "view, with a legend",
+        default=False,
+    )
+    heatmap_kind: bpy.props.EnumProperty(
+        name="Show",
+        description="What the heat-map shows",
+        items=HEATMAP_KIND_ITEMS,
+        default="DISTANCE",
+    )
+    problem_kind: bpy.props.EnumProperty(
+        name="Problems",
+        description="What the panel's Select Problems button selects",
+        items=PROBLEM_KIND_ITEMS,
+        default="FLIPPED",
     )
 
 

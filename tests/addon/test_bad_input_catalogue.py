@@ -222,6 +222,17 @@ def _target_vertex(value):
     return breaks
 
 
+def _no_readout(target, layout):
+    for name in ("springwrap_distance", "springwrap_stretch", "springwrap_flipped"):
+        layout.data.attributes.remove(layout.data.attributes[name])
+
+
+def _foreign_readout(target, layout):
+    """A ``springwrap_distance`` of another type and domain (a user's own attribute of that name)."""
+    layout.data.attributes.remove(layout.data.attributes["springwrap_distance"])
+    layout.data.attributes.new("springwrap_distance", "INT", "FACE")
+
+
 CATALOGUE = {
     # case: (how it breaks the scene, what it breaks, what the error names)
     "layout vertex NaN": (_layout_vertex(math.nan), "positions", "Layout vertex 7 has a NaN"),
@@ -248,6 +259,8 @@ CATALOGUE = {
     "target without faces": (_target_without_faces, "target", "'Target' has no faces"),
     "target vertex NaN": (_target_vertex(math.nan), "target", "'Target'"),
     "target vertex 1e30": (_target_vertex(1e30), "target", "'Target'"),
+    "no read-out": (_no_readout, "read-out", "has no quality read-out: Snap, Project, Wrap or Mirror"),
+    "read-out of another type": (_foreign_readout, "read-out", "has no quality read-out"),
 }
 """Bad inputs: each breaks the scene one way."""
 
@@ -275,6 +288,7 @@ OPERATORS = {
     "mirror": ({"axis": "Y", "max_iterations": 30}, ALL_LAYOUT | {"anchor vertices", "shape keys"}),
     "align_armature": ({"target_armature": "Target Rig"}, {"positions", "shape keys"}),
     "detect_features": ({"scale": 0.5, "write_curves": False}, {"target"}),
+    "select_problems": ({"kind": "STRETCHED", "threshold": 1.2}, {"read-out"}),
     "fit_subdivision": (
         {"rounds": 2},
         {"positions", "positions far", "anchors", "anchor vertices", "target", "shape keys"},

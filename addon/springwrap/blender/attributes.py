@@ -1,10 +1,12 @@
-"""The one reader and writer of mesh attributes (POINT domain), and the layout's attributes built on them.
+"""The one reader and writer of mesh attributes (POINT domain, and FACE for the read-out), and the layout's
+attributes built on them.
 
 The layout keeps its face-point state in three attributes and its rest shape in a fourth
 (``core.layout_state`` names them); the feature detection writes a colour attribute; the mirror
-carries a temporary index through bmesh. All of them move through :func:`read_point_attribute` /
-:func:`write_point_attribute` (``foreach_get`` / ``foreach_set``, no per-vertex loop). Object mode
-data only.
+carries a temporary index through bmesh; the quality read-out writes two POINT attributes and a FACE one
+(``core.quality`` names them). All of them move through :func:`read_point_attribute` /
+:func:`write_point_attribute` (:func:`read_face_attribute` / :func:`write_face_attribute`) (``foreach_get`` /
+``foreach_set``, no per-vertex loop). Object mode data only.
 """
 
 from typing import NamedTuple
@@ -33,17 +35,17 @@ STATE_ATTRIBUTES = (
 """The face-point state's attributes, in the order of :class:`~..core.layout_state.LayoutState`'s fields."""
 
 
-def point_attribute(mesh: bpy.types.Mesh, name: str, data_type: str):
-    """The named POINT attribute when it exists with the given type, else None."""
+def point_attribute(mesh: bpy.types.Mesh, name: str, data_type: str, domain: str = "POINT"):
+    """The named attribute when it exists with the given type (and domain, POINT by default), else None."""
     attribute = mesh.attributes.get(name)
-    if attribute is None or attribute.domain != "POINT" or attribute.data_type != data_type:
+    if attribute is None or attribute.domain != domain or attribute.data_type != data_type:
         return None
     return attribute
 
 
-def read_point_attribute(mesh: bpy.types.Mesh, name: str, data_type: str) -> np.ndarray | None:
+def read_point_attribute(mesh: bpy.types.Mesh, name: str, data_type: str, domain: str = "POINT") -> np.ndarray | None:
     """The flat values of the named POINT attribute of that type (its own length), or None when there is none."""
-    attribute = point_attribute(mesh, name, data_type)
+    attribute = point_attribute(mesh, name, data_type, domain)
     if attribute is None:
         return None
     prop, dtype, components = _FOREACH[data_type]
@@ -52,7 +54,9 @@ def read_point_attribute(mesh: bpy.types.Mesh, name: str, data_type: str) -> np.
     return values
 
 
-def write_point_attribute(mesh: bpy.types.Mesh, name: str, data_type: str, values, replace: bool = True) -> bool:
+def write_point_attribute(
+    mesh: bpy.types.Mesh, name: str, data_type: str, values, replace: bool = True, domain: str = "POINT"
+) -> bool:
     """Write ``values`` into the named POINT attribute, creating it when missing; whether it was written.
 
     An attribute of that name with another type or domain is replaced (``replace``), or left alone
@@ -60,16 +64,26 @@ def write_point_attribute(mesh: bpy.types.Mesh, name: str, data_type: str, value
     mesh's other attributes in memory.
     """
     existing = mesh.attributes.get(name)
-    if existing is not None and point_attribute(mesh, name, data_type) is None:
+    if existing is not None and point_attribute(mesh, name, data_type, domain) is None:
         if not replace:
             return False
         mesh.attributes.remove(existing)
         existing = None
     if existing is None:
-        mesh.attributes.new(name, data_type, "POINT")
+        mesh.attributes.new(name, data_type, domain)
     prop, dtype, _components = _FOREACH[data_type]
     mesh.attributes[name].data.foreach_set(prop, np.ascontiguousarray(values, dtype=dtype).reshape(-1))
     return True
+
+
+def read_face_attribute(mesh: bpy.types.Mesh, name: str, data_type: str) -> np.ndarray | None:
+    """The flat values of the named FACE attribute of that type, or None when there is none."""
+    return read_point_attribute(mesh, name, data_type, domain="FACE")
+
+
+def write_face_attribute(mesh: bpy.types.Mesh, name: str, data_type: str, values) -> bool:
+    """Write ``values`` (one per face) into the named FACE attribute, creating or replacing it."""
+    return write_point_attribute(mesh, name, data_type, values, domain="FACE")
 
 
 def remove_attribute(mesh: bpy.types.Mesh, name: str) -> None:

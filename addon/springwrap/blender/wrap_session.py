@@ -21,6 +21,7 @@ from . import anchors as anchor_data
 from . import attributes
 from . import curves as curve_data
 from . import layout as layout_data
+from . import quality as quality_data
 from . import target as target_data
 
 FRAME_RATE = 30.0
@@ -285,7 +286,9 @@ class WrapSession:
         if self.last_report is None:
             self.step(0)
         positions, state = self.current_layout()
+        readout = quality_data.measure_layout(self.layout, self.target, positions, self.rest, self.layout_topology)
         layout_data.write_layout(self.layout, positions, state, rest=self.rest)
+        quality_data.write_readout(self.layout, readout)  # the quality read-out, in the same undo step
         settings = self.layout.springwrap
         settings.target_signature = self.target.signature
         if len(settings.anchors):
@@ -316,6 +319,7 @@ class WrapSession:
             topology_detached_count=detached,
             topology_reattached_count=reattached,
             anchors_detached_count=anchors_detached,
+            readout=readout,
         )
 
     def cancel(self) -> None:

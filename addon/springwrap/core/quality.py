@@ -269,6 +269,56 @@ def outliers(rows: dict) -> dict:
     return flagged
 
 
+# ---------------------------------------------------------------- the heat-map's colours
+
+RAMP = np.array([[0.05, 0.2, 1.0], [0.0, 0.85, 1.0], [0.1, 0.9, 0.2], [1.0, 0.9, 0.0], [1.0, 0.1, 0.05]])
+"""The heat-map's colour ramp at 0, 1/4, 1/2, 3/4 and 1: blue, cyan, green, yellow, red."""
+
+
+class HeatScale(NamedTuple):
+    """What the heat-map shows: each element's place on the ramp (0 to 1), and its legend."""
+
+    values: np.ndarray  # (N,) per vertex, or (F,) per face, in [0, 1]
+    per_face: bool
+    title: str
+    labels: tuple  # ((place on the ramp, text), ...)
+
+
+def ramp_colours(places: np.ndarray, alpha: float = 1.0) -> np.ndarray:
+    """(N, 4) float32 RGBA of places in [0, 1] on :data:`RAMP` (non-finite places read as the top)."""
+    places = np.asarray(places, dtype=np.float64).reshape(-1)
+    places = np.clip(np.where(np.isfinite(places), places, 1.0), 0.0, 1.0)
+    stops = np.linspace(0.0, 1.0, RAMP.shape[0])
+    colours = np.stack([np.interp(places, stops, RAMP[:, channel]) for channel in range(3)], axis=1)
+    return np.column_stack([colours, np.full(places.size, alpha)]).astype(np.float32)
+
+
+def heat_scale(kind: str, readout: Readout) -> HeatScale:
+    """The heat-map of ``kind`` (``'DISTANCE'``, ``'STRETCH'``, ``'FLIPPED'``) for a read-out.
+
+    Distance: 0 (blue) to the larger of the 95th percentile and the off-surface distance (red, and anything
+    beyond). Stretch: on a log scale from 0.5 (blue) through 1 (green) to 2 (red), the ends clipped.
+    Flipped: per face, red flipped, blue not.
+    """
+    if kind == "DISTANCE":
+        distances = readout.distances
+        finite = distances[np.isfinite(distances)]
+        top = max(float(np.percentile(finite, 95)) if finite.size else 0.0, off_surface_threshold(readout.diagonal))
+        top = top if top > 0.0 else 1.0
+        labels = ((0.0, "0"), (0.5, f"{top / 2:.3g}"), (1.0, f"{top:.3g}+"))
+        return HeatScale(distances / top, False, "Distance to the target", labels)
+    if kind == "STRETCH":
+        with np.errstate(divide="ignore", invalid="ignore"):
+            places = (np.log2(np.maximum(readout.stretch, 1e-12)) + 1.0) / 2.0
+        labels = ((0.0, "0.5-"), (0.25, "0.71"), (0.5, "1"), (0.75, "1.41"), (1.0, "2+"))
+        return HeatScale(places, False, "Stretch (edge length / rest)", labels)
+    if kind == "FLIPPED":
+        count = int(readout.flipped.sum())
+        labels = ((0.0, "facing the target"), (1.0, f"flipped ({count})"))
+        return HeatScale(readout.flipped.astype(np.float64), True, "Flipped faces", labels)
+    raise ValueError(f"unknown heat-map kind {kind!r}")
+
+
 def world_rest_or_none(matrix_world: np.ndarray, rest_local: np.ndarray | None, vertex_count: int):
     """The rest shape in world space (float64), or None when it cannot be used (missing, another length, not
     finite): the stretch then reads 1."""

@@ -76,6 +76,7 @@ class WrapResult(NamedTuple):
     topology_detached_count: int  # face-points whose target face was gone, made space-points
     topology_reattached_count: int
     anchors_detached_count: int  # face anchors whose target face was gone, made space anchors
+    readout: object = None  # the quality read-out written with the result (core.quality.Readout)
 
     def summary(self) -> str:
         """One line: iterations, time, face / space points and what changed state."""

@@ -1,7 +1,7 @@
 """The add-on's operators: ``poll`` says why one cannot run, ``execute`` / ``invoke`` check, call ``core`` and
 ``blender``, and report. One module per operator family; ``base`` holds their shared opening."""
 
-from . import align, anchors, armature, cage_fit, curves, features, mirror, snapping, wrap
+from . import align, anchors, armature, cage_fit, curves, features, mirror, quality, snapping, wrap
 
 classes = (
     snapping.classes
@@ -13,5 +13,6 @@ classes = (
     + features.classes
     + mirror.classes
     + cage_fit.classes
+    + quality.classes
 )
 """Every operator class, in the order they are registered."""

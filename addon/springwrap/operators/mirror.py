@@ -30,10 +30,11 @@ from ..blender import anchors as anchor_data
 from ..blender import attributes
 from ..blender import layout as layout_data
 from ..blender import mirror as mirror_data
+from ..blender import quality as quality_data
 from ..blender import target as target_data
 from ..blender.edit_mode import object_mode
 from ..blender.wrap_session import WrapSession
-from ..core import anchors, input_policy, layout_state, mirroring, transforms, wrap_inputs
+from ..core import anchors, input_policy, layout_state, mirroring, quality, transforms, wrap_inputs
 from ..core.errors import ERRORS, LayoutError
 from ..core.mirroring import AXES, DEFAULT_WELD_FRACTION, MirrorOutcome
 from ..core.transforms import matrix_array
@@ -230,6 +231,7 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
     def _run(self, context, layout, prepared, window_manager):
         """Mirror the mesh, then wrap; raises on failure (the caller restores the mesh)."""
         start = time.perf_counter()
+        self._readout = None
         arrays, plane, decided = prepared["arrays"], prepared["plane"], prepared["plan"]
         original_count = arrays.positions.shape[0]
         source = mirror_data.mirror_mesh_topology(
@@ -289,6 +291,9 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
             else:
                 session.run()
             result = session.finish()
+            self._readout = result.readout
+        elif target is not None:  # the quality read-out, as the wrap's finish writes it
+            self._readout = quality_data.update_layout(layout, target)
         if decided.crossing_faces.size:
             mirror_data.select_faces(layout, decided.crossing_faces)
         world_now = transforms.world_positions(layout_data.read_layout(layout))
@@ -332,6 +337,8 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
             text += f"; {outcome.mirrored_anchors} anchors mirrored, {outcome.dropped_anchors} on the seam dropped"
         text += f" ({outcome.seconds:.2f} s)"
         self.report({"INFO"} if outcome.wrap is None or outcome.wrap.converged else {"WARNING"}, text)
+        if getattr(self, "_readout", None) is not None:
+            self.report({"INFO"}, quality.report_line(self._readout))
         if outcome.crossing_faces.size:
             self.report(
                 {"WARNING"},

@@ -13,9 +13,10 @@ import numpy as np
 
 from ..blender import attributes
 from ..blender import layout as layout_data
+from ..blender import quality as quality_data
 from ..blender import target as target_data
 from ..blender.edit_mode import object_mode
-from ..core import layout_state, snapping, transforms, wrap_inputs
+from ..core import layout_state, quality, snapping, transforms, wrap_inputs
 from ..core.errors import ERRORS, LayoutError
 from ..core.transforms import matrix_array
 from ..properties import ORIENTATION_ITEMS, PROJECT_DIRECTION_ITEMS, SNAP_MODE_ITEMS, max_distance_property
@@ -27,6 +28,7 @@ class _SnapOperator(LayoutOperator):
 
     moves_vertices = True
     reads = frozenset({"positions"})
+    writes_readout = True  # the quality read-out (blender.quality), measured before and written with the layout
 
     only_selected: bpy.props.BoolProperty(
         name="Only Selected",
@@ -48,7 +50,12 @@ class _SnapOperator(LayoutOperator):
                 if settings.target is not None:
                     target = target_data.read_target(context.evaluated_depsgraph_get(), layout)
                 outcome = self.compute(context, layout, arrays, target)
+                readout = None
+                if target is not None and self.writes_readout:
+                    readout = quality_data.measure_layout(layout, target, outcome.positions)
                 layout_data.write_layout(layout, outcome.positions, outcome.state)
+                if readout is not None:
+                    quality_data.write_readout(layout, readout)
                 if target is not None:
                     settings.target_signature = target.signature
                 report_storage_precision(self, layout, extent)
@@ -57,6 +64,8 @@ class _SnapOperator(LayoutOperator):
             return {"CANCELLED"}
         milliseconds = (time.perf_counter() - start) * 1000.0
         self.report({"INFO"}, self.summary(outcome, milliseconds))
+        if readout is not None:
+            self.report({"INFO"}, quality.report_line(readout))
         detached, reattached = outcome.topology_detached_count, outcome.topology_reattached_count
         if detached or reattached:
             self.report(
@@ -84,6 +93,7 @@ class SPRINGWRAP_OT_detach(_SnapOperator, bpy.types.Operator):
 
     requires_target = False
     moves_vertices = False
+    writes_readout = False
 
     def compute(self, context, layout, arrays, target):
         return snapping.detach(arrays, target, layout.springwrap.target_signature, self.only_selected)

@@ -25,7 +25,7 @@ from ..blender import layout as layout_data
 from ..blender import wrap_session
 from ..blender.edit_mode import EditModeGuard, object_mode
 from ..blender.wrap_session import WrapSession
-from ..core import input_policy, mirroring, transforms
+from ..core import input_policy, mirroring, quality, transforms
 from ..core.errors import ERRORS
 from ..core.transforms import matrix_array
 from ..core.wrap_inputs import WrapParameters
@@ -290,6 +290,8 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
     def _report_result(self, result: WrapResult) -> None:
         wrap_session.remember_result(result)
         self.report({"INFO"} if result.converged else {"WARNING"}, result.summary())
+        if result.readout is not None:
+            self.report({"INFO"}, quality.report_line(result.readout))
         detached, reattached = result.topology_detached_count, result.topology_reattached_count
         if detached or reattached or result.anchors_detached_count:
             self.report(

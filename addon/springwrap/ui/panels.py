@@ -3,7 +3,7 @@
 The steps in the order they are taken, open by default: the layout panel itself (**Target**: the target
 and the cage display), **Place** (align; its **Armature** sub-panel), **Anchors** (its **Curve
 Constraints** sub-panel), **Wrap** (the big button, its main settings, the live progress) and **Check**
-(the point counts and the last wrap). Then the point tools, each in its own sub-panel, closed by
+(the point counts, the quality read-out's heat-map and Select Problems, the last wrap). Then the point tools, each in its own sub-panel, closed by
 default: **Snap**, **Project**, **Detach**, **Mirror**, **Features**.
 
 Layouts follow Blender's own modifier panels (``properties_data_modifier``): ``use_property_split``, short
@@ -238,6 +238,7 @@ class SPRINGWRAP_PT_check(_LayoutSubPanel, bpy.types.Panel):
             face_count, space_count = counts
             _count_row(column, "On Surface", face_count, icon="SNAP_FACE")  # face-points
             _count_row(column, "In Space", space_count, icon="EMPTY_AXIS")  # space-points
+        _draw_readout(layout, obj)
         result = wrap_session.last_result(obj)
         if result is None:
             return
@@ -248,6 +249,20 @@ class SPRINGWRAP_PT_check(_LayoutSubPanel, bpy.types.Panel):
         if result.frames:  # the live wrap: how much of that was solving, over how many redraws
             _count_row(column, "Solving", f"{result.kernel_seconds:.2f} s")
             _count_row(column, "Frames", result.frames)
+
+
+def _draw_readout(layout, obj) -> None:
+    """The Check section's quality read-out: the heat-map toggle and kind, Select Problems and its kind."""
+    settings = obj.springwrap
+    column = _split(layout.column(align=True))
+    column.prop(settings, "show_heatmap", icon="COLORSET_01_VEC")
+    row = column.row(align=True)
+    row.active = settings.show_heatmap
+    row.prop(settings, "heatmap_kind", text="Show")
+    row = layout.row(align=True)
+    select = row.operator("springwrap.select_problems", icon="RESTRICT_SELECT_OFF")
+    select.kind = settings.problem_kind
+    row.prop(settings, "problem_kind", text="")
 
 
 class SPRINGWRAP_PT_fit_subdivision(_SidebarPanel, bpy.types.Panel):

@@ -1,0 +1,150 @@
+"""The quality read-out on the layout object: measured (``core.quality``) from its positions, rest shape and
+faces against its target, written as three attributes, and read back (the heat-map, Select Problems).
+
+- ``springwrap_distance`` (POINT, FLOAT): distance to the target surface, world units;
+- ``springwrap_stretch`` (POINT, FLOAT): mean edge length now / at rest, 1 = unchanged;
+- ``springwrap_flipped`` (FACE, BOOLEAN): the face faces against the target's smoothed normal.
+
+Snap, project, the wrap (its one finish, ``WrapSession.finish``: the operator, the live wrap, the mirror and
+the scripts) and the mirror write them as part of their own write, so one undo step holds both. Object mode
+data only.
+"""
+
+import bpy
+
+import bmesh
+import numpy as np
+
+from ..core import quality, transforms
+from ..core.quality import Readout
+from ..core.target import Target
+from ..core.transforms import matrix_array
+from . import attributes
+from . import layout as layout_data
+
+
+def measure_layout(
+    layout: bpy.types.Object,
+    target: Target,
+    local_positions: np.ndarray | None = None,
+    rest: np.ndarray | None = None,
+    topology=None,
+) -> Readout:
+    """The read-out of ``layout`` at ``local_positions`` ((N, 3), default: as stored) on ``target``.
+
+    ``rest`` (local (N, 3)): the rest shape to measure the stretch against; default the stored one, else the
+    positions stored now (what the layout's first write keeps as its rest shape). ``topology``: the layout's
+    ``LayoutTopology`` when the caller has it. Writes nothing.
+    """
+    mesh = layout.data
+    stored = attributes.read_positions(mesh).reshape(-1, 3)
+    # As they will be stored (float32): the read-out describes the layout the artist gets.
+    local_positions = stored if local_positions is None else np.asarray(local_positions, np.float32).reshape(-1, 3)
+    if rest is None:
+        rest = attributes.read_rest(layout)
+        if rest is None:
+            rest = stored
+    if topology is None:
+        topology = layout_data.read_layout_topology(layout)
+    matrix = matrix_array(layout.matrix_world)
+    world = transforms.transform_points(matrix, np.asarray(local_positions, dtype=np.float64))
+    world_rest = quality.world_rest_or_none(matrix, rest, world.shape[0])
+    return quality.measure(world, world_rest, topology, target.mesh)
+
+
+def write_readout(layout: bpy.types.Object, readout: Readout) -> None:
+    """Write the read-out's three attributes (created, or replaced when one of those names has another type)."""
+    mesh = layout.data
+    attributes.write_point_attribute(mesh, quality.DISTANCE_ATTRIBUTE, "FLOAT", readout.distances)
+    attributes.write_point_attribute(mesh, quality.STRETCH_ATTRIBUTE, "FLOAT", readout.stretch)
+    attributes.write_face_attribute(mesh, quality.FLIPPED_ATTRIBUTE, "BOOLEAN", readout.flipped)
+    mesh.update()
+
+
+def update_layout(layout: bpy.types.Object, target: Target) -> Readout:
+    """Measure the layout as it is now and write the attributes (the command line's last step)."""
+    readout = measure_layout(layout, target)
+    write_readout(layout, readout)
+    return readout
+
+
+def read_readout(layout: bpy.types.Object) -> Readout | None:
+    """The read-out stored on the layout, or None when one of its attributes is missing or does not fit the mesh
+    (another type, or the mesh's vertex or face count changed since). The diagonal is the layout's now."""
+    mesh = layout.data
+    distances = attributes.read_point_attribute(mesh, quality.DISTANCE_ATTRIBUTE, "FLOAT")
+    stretch = attributes.read_point_attribute(mesh, quality.STRETCH_ATTRIBUTE, "FLOAT")
+    flipped = attributes.read_face_attribute(mesh, quality.FLIPPED_ATTRIBUTE, "BOOLEAN")
+    if distances is None or stretch is None or flipped is None:
+        return None
+    if distances.size != len(mesh.vertices) or flipped.size != len(mesh.polygons):
+        return None
+    world = transforms.transform_points(matrix_array(layout.matrix_world), attributes.read_positions(mesh))
+    return Readout(
+        distances=distances.astype(np.float64),
+        stretch=stretch.astype(np.float64),
+        flipped=flipped.astype(bool),
+        diagonal=quality.bounding_diagonal(world),
+    )
+
+
+MISSING_READOUT = (
+    "Layout '{name}' has no quality read-out: Snap, Project, Wrap or Mirror (with a target) writes it "
+    "(attributes springwrap_distance, springwrap_stretch, springwrap_flipped)"
+)
+"""The refusal when the read-out is needed and missing."""
+
+
+def select_vertices(layout: bpy.types.Object, mask: np.ndarray) -> None:
+    """Select exactly the vertices in ``mask`` ((N,) bool), the edges between two of them and the faces all of
+    whose corners are selected (as Blender's vertex select mode flushes); object mode."""
+    mesh = layout.data
+    vertex_flags = np.asarray(mask, dtype=bool).reshape(-1)
+    edge_vertices = np.empty(len(mesh.edges) * 2, dtype=np.int64)
+    mesh.edges.foreach_get("vertices", edge_vertices)
+    loop_vertices = np.empty(len(mesh.loops), dtype=np.int64)
+    mesh.loops.foreach_get("vertex_index", loop_vertices)
+    starts = np.empty(len(mesh.polygons), dtype=np.int64)
+    totals = np.empty(len(mesh.polygons), dtype=np.int64)
+    mesh.polygons.foreach_get("loop_start", starts)
+    mesh.polygons.foreach_get("loop_total", totals)
+    loop_faces = np.full(len(mesh.loops), -1, dtype=np.int64)
+    for offset in range(int(totals.max()) if totals.size else 0):  # corner by corner: a few passes
+        has = totals > offset
+        loop_faces[starts[has] + offset] = np.flatnonzero(has)
+    used = loop_faces >= 0
+    selected_corners = np.bincount(
+        loop_faces[used], weights=vertex_flags[loop_vertices[used]], minlength=len(mesh.polygons)
+    )
+    mesh.vertices.foreach_set("select", vertex_flags)
+    mesh.edges.foreach_set("select", vertex_flags[edge_vertices.reshape(-1, 2)].all(axis=1))
+    mesh.polygons.foreach_set("select", selected_corners == totals)
+    mesh.update()
+
+
+def read_triangles(layout: bpy.types.Object) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """The layout's triangles for the heat-map: ((3T, 3) float32 world corner positions, (3T,) their vertices,
+    (3T,) their faces), or None when there is nothing to draw.
+
+    Triangles and faces are the mesh data's (as in object mode); in edit mode the positions are the edit-mesh's
+    (they follow the artist's edits), and nothing is drawn once its vertex count differs from the mesh data's.
+    """
+    mesh = layout.data
+    if not len(mesh.polygons):
+        return None
+    if not len(mesh.loop_triangles):
+        mesh.calc_loop_triangles()
+    triangle_count = len(mesh.loop_triangles)
+    corner_vertices = np.empty(triangle_count * 3, dtype=np.int64)
+    mesh.loop_triangles.foreach_get("vertices", corner_vertices)
+    triangle_faces = np.empty(triangle_count, dtype=np.int64)
+    mesh.loop_triangles.foreach_get("polygon_index", triangle_faces)
+    if mesh.is_editmode:
+        editable = bmesh.from_edit_mesh(mesh)
+        if len(editable.verts) != len(mesh.vertices):
+            return None
+        local = np.array([vertex.co for vertex in editable.verts], dtype=np.float64).reshape(-1, 3)
+    else:
+        local = attributes.read_positions(mesh).reshape(-1, 3)
+    world = transforms.transform_points(matrix_array(layout.matrix_world), local)
+    return world[corner_vertices].astype(np.float32), corner_vertices, np.repeat(triangle_faces, 3)

@@ -1,0 +1,259 @@
+"""The quality read-out (issue "What artists expect after a wrap", item 1): the attributes every operator that
+moves the layout onto the target writes, their distances against ``mathutils``' BVH on the evaluated target,
+Select Problems, the heat-map's toggle in background mode and the Check panel."""
+
+import bpy
+
+import bmesh
+import numpy as np
+import pytest
+from mathutils import Vector
+from mathutils.bvhtree import BVHTree
+
+from bpy_helpers import (
+    PanelRecorder,
+    head_scene,
+    plane_scene,
+    set_selection,
+    snapshot,
+    world_positions,
+    wrap_session,
+)
+
+NAMES = ("springwrap_distance", "springwrap_stretch", "springwrap_flipped")
+
+
+def readout(layout):
+    """(distances, stretch, flipped) as stored, or None when an attribute is missing."""
+    mesh = layout.data
+    if any(mesh.attributes.get(name) is None for name in NAMES):
+        return None
+    distance, stretch, flipped = (mesh.attributes[name] for name in NAMES)
+    assert (distance.domain, distance.data_type) == ("POINT", "FLOAT")
+    assert (stretch.domain, stretch.data_type) == ("POINT", "FLOAT")
+    assert (flipped.domain, flipped.data_type) == ("FACE", "BOOLEAN")
+    values = []
+    for attribute, dtype in ((distance, np.float32), (stretch, np.float32), (flipped, bool)):
+        array = np.empty(len(attribute.data), dtype=dtype)
+        attribute.data.foreach_get("value", array)
+        values.append(array)
+    return tuple(values)
+
+
+def bvh_distances(layout, target):
+    """Distances of the layout's vertices (world) to the evaluated target in world space, by ``mathutils``:
+    ``BVHTree.FromObject`` (the evaluated mesh's own triangles, in the target's space), queried at the points
+    taken into that space, the nearest point taken back to world space."""
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    tree = BVHTree.FromObject(target, depsgraph)
+    matrix = target.evaluated_get(depsgraph).matrix_world
+    inverse = matrix.inverted()
+    distances = []
+    for point in world_positions(layout):
+        location = tree.find_nearest(inverse @ Vector(point))[0]
+        distances.append((matrix @ location - Vector(point)).length)
+    return np.array(distances)
+
+
+def flip_faces(layout, faces):
+    """Reverse the winding of the given faces (their normals turn over)."""
+    editable = bmesh.new()
+    editable.from_mesh(layout.data)
+    editable.faces.ensure_lookup_table()
+    bmesh.ops.reverse_faces(editable, faces=[editable.faces[index] for index in faces])
+    editable.to_mesh(layout.data)
+    editable.free()
+    layout.data.update()
+
+
+def body_like_scene():
+    """The head-like target (nose, ears, flattened top) with a Subdivision Surface and a Displace modifier (the
+    read-out must use the evaluated target) placed by a rotation and an offset, and a sphere layout around it."""
+    target, layout = head_scene(scale=1.25)
+    target.modifiers.new("Subdivision", "SUBSURF").levels = 1
+    displace = target.modifiers.new("Displace", "DISPLACE")
+    displace.strength = 0.03
+    displace.texture = bpy.data.textures.new("Clouds", "CLOUDS")
+    bpy.context.view_layer.update()
+    return target, layout
+
+
+@pytest.mark.parametrize("operation", ["snap", "project", "wrap", "mirror", "mirror without wrap"])
+def test_each_operation_onto_the_target_writes_the_readout(operation):
+    if operation.startswith("mirror"):
+        target, layout = head_scene(on_target=True)
+        assert bpy.ops.springwrap.snap() == {"FINISHED"}
+        for name in NAMES:
+            layout.data.attributes.remove(layout.data.attributes[name])
+        assert readout(layout) is None
+        arguments = {"axis": "X", "max_iterations": 200, "wrap": operation == "mirror"}
+        assert bpy.ops.springwrap.mirror(**arguments) == {"FINISHED"}
+    else:
+        target, layout, _normal = plane_scene()
+        if operation == "wrap":
+            assert bpy.ops.springwrap.anchors_auto(spacing=0.5) == {"FINISHED"}
+            assert bpy.ops.springwrap.wrap(max_iterations=300) == {"FINISHED"}
+        else:
+            arguments = {"direction": "-Z", "orientation": "LOCAL"} if operation == "project" else {}
+            assert getattr(bpy.ops.springwrap, operation)(**arguments) == {"FINISHED"}
+    distances, stretch, flipped = readout(layout)
+    assert distances.size == stretch.size == len(layout.data.vertices)
+    assert flipped.size == len(layout.data.polygons)
+    assert np.allclose(distances, bvh_distances(layout, target), atol=1e-6)
+    assert np.isfinite(stretch).all() and (stretch > 0).all()
+    if operation != "mirror without wrap":  # a layout on the target, facing as it does
+        assert distances.max() < 1e-5 and not flipped.any()
+
+
+def test_detach_does_not_write_the_readout():
+    _target, layout, _normal = plane_scene()
+    assert bpy.ops.springwrap.detach() == {"FINISHED"}
+    assert readout(layout) is None
+
+
+def test_distances_agree_with_mathutils_bvh_on_the_evaluated_body_like_target():
+    target, layout = body_like_scene()
+    set_selection(layout, np.arange(len(layout.data.vertices)) % 3 == 0)
+    # Project a third of the vertices: the rest stay up to 0.35 off, so the distances are not all zero.
+    assert bpy.ops.springwrap.project(direction="NORMAL", only_selected=True, max_distance=0.5) == {"FINISHED"}
+    distances, _stretch, _flipped = readout(layout)
+    reference = bvh_distances(layout, target)
+    assert reference.max() > 0.1 and (reference < 1e-5).sum() > 10
+    assert np.abs(distances - reference).max() < 1e-6
+    assert bpy.ops.springwrap.anchors_auto(spacing=0.3) == {"FINISHED"}
+    assert bpy.ops.springwrap.wrap(max_iterations=40) == {"FINISHED"}  # may stop before the end: still measured
+    distances, _stretch, _flipped = readout(layout)
+    assert np.abs(distances - bvh_distances(layout, target)).max() < 1e-6
+
+
+def test_stretch_is_the_edge_length_against_the_rest_shape():
+    _target, layout, _normal = plane_scene()
+    assert bpy.ops.springwrap.rest_set() == {"FINISHED"}
+    positions = np.empty(len(layout.data.vertices) * 3, dtype=np.float32)
+    layout.data.vertices.foreach_get("co", positions)
+    layout.data.vertices.foreach_set("co", positions * np.tile([1.4, 1.4, 1.0], positions.size // 3))
+    layout.data.update()  # 1.4 times as large in the plane (the grid is flat in its local z), still over the target
+    assert bpy.ops.springwrap.snap() == {"FINISHED"}
+    _distances, stretch, flipped = readout(layout)
+    assert np.allclose(stretch, 1.4, atol=1e-5) and not flipped.any()
+
+
+def test_select_problems_selects_the_flipped_faces_in_edit_mode():
+    _target, layout, _normal = plane_scene()
+    turned = [3, 40, 41, 100]
+    flip_faces(layout, turned)
+    assert bpy.ops.springwrap.snap() == {"FINISHED"}
+    _distances, _stretch, flipped = readout(layout)
+    assert np.flatnonzero(flipped).tolist() == turned
+    assert bpy.ops.springwrap.select_problems(kind="FLIPPED") == {"FINISHED"}
+    assert layout.mode == "EDIT"
+    assert tuple(bpy.context.tool_settings.mesh_select_mode) == (False, False, True)
+    editable = bmesh.from_edit_mesh(layout.data)
+    editable.faces.ensure_lookup_table()
+    assert [face.index for face in editable.faces if face.select] == turned
+    corners = {vertex.index for index in turned for vertex in editable.faces[index].verts}
+    assert {vertex.index for vertex in editable.verts if vertex.select} == corners
+
+
+@pytest.mark.parametrize("kind, threshold", [("OFF_SURFACE", 0.1), ("OFF_SURFACE", 0.0), ("STRETCHED", 1.1)])
+def test_select_problems_selects_the_vertices_past_the_threshold_and_deselects_the_rest(kind, threshold):
+    target, layout = body_like_scene()
+    set_selection(layout, np.arange(len(layout.data.vertices)) % 2 == 0)
+    assert bpy.ops.springwrap.project(direction="NORMAL", only_selected=True, max_distance=0.5) == {"FINISHED"}
+    distances, stretch, _flipped = readout(layout)
+    if kind == "OFF_SURFACE":
+        size = np.linalg.norm(np.ptp(world_positions(layout), axis=0))
+        expected = bvh_distances(layout, target) > (threshold or 0.001 * size)
+    else:
+        expected = (stretch > threshold) | (stretch < 1.0 / threshold)
+    assert 0 < expected.sum() < expected.size
+    bpy.ops.object.mode_set(mode="EDIT")  # from edit mode too: the selection is replaced
+    bpy.ops.mesh.select_all(action="SELECT")
+    assert bpy.ops.springwrap.select_problems(kind=kind, threshold=threshold) == {"FINISHED"}
+    assert layout.mode == "EDIT"
+    editable = bmesh.from_edit_mesh(layout.data)
+    selected = np.array([vertex.select for vertex in editable.verts])
+    assert np.array_equal(selected, expected)
+    for face in editable.faces:  # vertex select mode's rule: a face is selected when all its corners are
+        assert face.select == all(vertex.select for vertex in face.verts)
+
+
+def test_select_problems_refuses_without_a_readout_and_says_which_operators_write_it():
+    _target, layout, _normal = plane_scene()
+    before = snapshot(layout)
+    with pytest.raises(RuntimeError, match="no quality read-out: Snap, Project, Wrap or Mirror"):
+        bpy.ops.springwrap.select_problems(kind="STRETCHED")
+    assert layout.mode == "OBJECT" and snapshot(layout) == before
+
+
+def test_the_readout_is_undone_with_the_operation():
+    _target, layout, _normal = plane_scene()
+    bpy.ops.ed.undo_push(message="before")
+    assert bpy.ops.springwrap.snap("EXEC_DEFAULT", True) == {"FINISHED"}
+    assert readout(bpy.data.objects["Layout"]) is not None
+    bpy.ops.ed.undo()
+    assert readout(bpy.data.objects["Layout"]) is None
+
+
+def test_the_live_wrap_writes_the_readout_when_it_finishes_and_not_when_cancelled():
+    from springwrap.core.wrap_run import WrapLoop
+
+    _target, layout, _normal = plane_scene()
+    assert bpy.ops.springwrap.anchors_auto(spacing=0.5) == {"FINISHED"}
+    session = wrap_session(layout, solver="ENERGY")
+    session.advance()  # a frame written into the layout: no read-out yet
+    assert readout(layout) is None
+    session.cancel()
+    assert readout(layout) is None
+    loop = WrapLoop(wrap_session(layout, solver="ENERGY"))
+    while loop.handle("TIMER") == "RUNNING_MODAL":
+        pass
+    assert loop.state == "FINISHED" and loop.result.readout is not None
+    distances, _stretch, _flipped = readout(layout)
+    assert np.array_equal(distances, loop.result.readout.distances.astype(np.float32))
+
+
+def test_the_heatmap_in_background_mode_is_never_installed_and_toggling_it_does_nothing():
+    from springwrap.ui import heatmap
+
+    _target, layout, _normal = plane_scene()
+    assert bpy.ops.springwrap.snap() == {"FINISHED"}
+    assert bpy.app.background and not heatmap.is_installed()
+    for kind in ("DISTANCE", "STRETCH", "FLIPPED"):
+        layout.springwrap.heatmap_kind = kind
+        layout.springwrap.show_heatmap = True
+        heatmap.install()  # what register() calls: still nothing in background mode
+        heatmap.draw_heatmap()
+        heatmap.draw_legend()
+        assert not heatmap.is_installed()
+    layout.springwrap.show_heatmap = False
+
+
+def test_the_heatmap_colours_read_from_the_readout():
+    from springwrap.blender import quality as quality_data
+    from springwrap.core import quality
+
+    _target, layout, _normal = plane_scene()
+    flip_faces(layout, [7])
+    assert bpy.ops.springwrap.snap() == {"FINISHED"}
+    stored = quality_data.read_readout(layout)
+    scale = quality.heat_scale("FLIPPED", stored)
+    assert scale.per_face and np.flatnonzero(scale.values).tolist() == [7]
+    corners, corner_vertices, corner_faces = quality_data.read_triangles(layout)
+    assert corners.shape == (len(layout.data.polygons) * 2 * 3, 3)  # quads: two triangles each
+    assert np.allclose(corners, world_positions(layout)[corner_vertices], atol=1e-6)
+    colours = quality.ramp_colours(scale.values)[corner_faces]
+    assert np.allclose(colours[corner_faces == 7, :3], quality.RAMP[-1])
+    assert np.allclose(colours[corner_faces != 7, :3], quality.RAMP[0])
+
+
+def test_the_check_panel_has_the_heatmap_and_select_problems():
+    from springwrap.ui.panels import SPRINGWRAP_PT_check
+
+    _target, layout, _normal = plane_scene()
+    layout.springwrap.problem_kind = "OFF_SURFACE"
+    recorder = PanelRecorder()
+    SPRINGWRAP_PT_check.draw(type("Panel", (), {"layout": recorder})(), bpy.context)
+    assert {"show_heatmap", "heatmap_kind", "problem_kind"} <= set(recorder.props)
+    (idname, button), *_ = recorder.operators
+    assert idname == "springwrap.select_problems" and button.kind == "OFF_SURFACE"
