@@ -205,6 +205,7 @@ def mirror(arguments: argparse.Namespace) -> dict:
         "anchors_dropped": outcome.dropped_anchors,
         "wrap": wrap,
         "metrics": distances_to_target(layout, target) if target is not None else None,
+        "quality": quality_block(layout) if target is not None else None,
         "timings": timings,
         "warnings": warnings,
         "blender": bpy.app.version_string,
@@ -212,6 +213,13 @@ def mirror(arguments: argparse.Namespace) -> dict:
     lap("metrics")
     write_outputs(arguments, layout, report)
     return report
+
+
+def quality_block(layout) -> dict | None:
+    """The report's ``quality`` block: the read-out the mirror wrote (``core.quality.summary``); None without a
+    target (nothing to measure against)."""
+    readout = addon_module("blender.quality").read_readout(layout)
+    return None if readout is None else addon_module("core.quality").summary(readout)
 
 
 def main() -> int:

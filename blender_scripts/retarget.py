@@ -326,6 +326,18 @@ def align_with_operator(layout, arguments: argparse.Namespace, blame: str, frame
     }
 
 
+def quality_block(layout, refresh: bool) -> dict:
+    """The report's ``quality`` block: the layout's quality read-out (``core.quality.summary``), as the wrap's
+    finish wrote it, or measured again and rewritten (``refresh``: the cage fit moved the layout since)."""
+    quality = addon_module("core.quality")
+    quality_data = addon_module("blender.quality")
+    readout = None if refresh else quality_data.read_readout(layout)
+    if readout is None:
+        target = addon_module("blender.target").read_target(bpy.context.evaluated_depsgraph_get(), layout)
+        readout = quality_data.update_layout(layout, target)
+    return quality.summary(readout)
+
+
 def fit_subdivision_report(levels: int) -> dict:
     """The report's entry of the subdivision cage fit just run: its Subdivision Surface's distances to the target
     (world units) before and after."""
@@ -418,6 +430,7 @@ def retarget(arguments: argparse.Namespace) -> dict:
         subdivision_fit = fit_subdivision_report(arguments.fit_subdivision)
         lap("fit subdivision")
 
+    quality = quality_block(layout, refresh=bool(arguments.fit_subdivision))
     report = {
         "template": str(arguments.template),
         "target": str(arguments.target),
@@ -435,6 +448,7 @@ def retarget(arguments: argparse.Namespace) -> dict:
         },
         "fit_subdivision": subdivision_fit,
         "metrics": distances_to_target(layout, target),
+        "quality": quality,
         "timings": timings,
         "warnings": warnings,
         "blender": bpy.app.version_string,
@@ -503,11 +517,11 @@ def retarget_task(task: dict) -> dict:
     )
     entry = {"target": task["target"]}
     try:
-        retarget(arguments)
+        report = retarget(arguments)
     except ScriptError as error:
         entry |= {"status": "failed", "error": str(error)}
     else:
-        entry |= {"status": "ok", "report": str(outputs["json"])}
+        entry |= {"status": "ok", "report": str(outputs["json"]), "quality": report["quality"]}
     entry["seconds"] = round(time.perf_counter() - start, 2)
     return entry
 
@@ -633,11 +647,23 @@ def run_batch(arguments: argparse.Namespace) -> int:
             executor.close()
     ran = iter(outcome.entries)
     entries = [
-        {"target": task["target"], "status": "ok", "report": str(task_outputs(task)["json"]), "resumed": True}
+        {
+            "target": task["target"],
+            "status": "ok",
+            "report": str(task_outputs(task)["json"]),
+            "resumed": True,
+            "quality": json.loads(task_outputs(task)["json"].read_text()).get("quality"),
+        }
         if skip
         else next(ran)
         for task, skip in zip(tasks, resumed)
     ]
+    stand_out = retarget_batch.quality_outliers(
+        {entry["target"]: entry.get("quality") for entry in entries if entry["status"] == "ok"}
+    )
+    for entry in entries:
+        if entry["status"] == "ok":
+            entry["stands_out"] = stand_out.get(entry["target"], {})
     for task, entry in zip(tasks, entries):
         if entry["status"] == "failed":  # also what an earlier run wrote for it
             remove_outputs(task)
@@ -658,6 +684,8 @@ def run_batch(arguments: argparse.Namespace) -> int:
         "stopped": outcome.stopped,
         "seconds": round(time.perf_counter() - start, 2),
         "workers": outcome.workers,
+        "quality_rule": retarget_batch.OUTLIER_RULE,
+        "stand_out": sorted(stand_out),
     }
     write_atomically(output_dir / "summary.json", lambda path: path.write_text(json.dumps(summary, indent=2) + "\n"))
     not_run = f", {counts['not run']} not run" if counts["not run"] else ""
@@ -666,6 +694,12 @@ def run_batch(arguments: argparse.Namespace) -> int:
         f"{counts['failed']} failed{not_run}; summary {output_dir / 'summary.json'}",
         file=sys.stderr,
     )
+    for name in sorted(stand_out):
+        metrics = ", ".join(
+            f"{metric} {numbers['value']:.3g} (batch median {numbers['median']:.3g})"
+            for metric, numbers in stand_out[name].items()
+        )
+        print(f"retarget: stands out from the batch: {name}: {metrics}", file=sys.stderr)
     if outcome.interrupted:
         print(
             "retarget: interrupted: the meshes not run are listed in the summary (run again with --resume to go on)",

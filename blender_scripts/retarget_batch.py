@@ -14,6 +14,9 @@ mesh retried once, on the replacement; a mesh that fails so twice counts as fail
 Ctrl-C (or SIGTERM) stops the batch at the loop's next turn and every worker at once; the meshes left
 are returned as not run.
 
+The summary's quality check (``quality_outliers``) flags the meshes whose read-out numbers stand out from the
+rest of the batch (``OUTLIER_RULE``).
+
 This module does not import ``bpy``: only ``BatchWorker``, in a worker, does (through ``retarget``).
 """
 
@@ -21,10 +24,12 @@ import collections
 import concurrent.futures
 import dataclasses
 import json
+import math
 import os
 import resource
 import signal
 import socket
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -556,3 +561,58 @@ def _stop_on_signals(stop_requested: threading.Event) -> dict:
         stop_requested.set()
 
     return {number: signal.signal(number, request_stop) for number in (signal.SIGINT, signal.SIGTERM)}
+
+
+# ---------------------------------------------------------------- the batch's quality read-out
+
+OUTLIER_Z = 3.5
+"""A mesh stands out when one of its metrics' robust z-scores passes this (Iglewicz and Hoaglin's cut-off)."""
+OUTLIER_METRICS = {
+    # metric of the report's quality block: (which way is worse, the spread's floor: ("count", units) or
+    # ("relative", fraction of the batch's median))
+    "distance_p50": (1, ("relative", 0.01)),
+    "distance_p95": (1, ("relative", 0.01)),
+    "distance_max": (1, ("relative", 0.01)),
+    "stretch_p5": (-1, ("relative", 0.01)),
+    "stretch_p95": (1, ("relative", 0.01)),
+    "stretch_max": (1, ("relative", 0.01)),
+    "flipped": (1, ("count", 1.0)),
+    "off_surface": (1, ("count", 1.0)),
+}
+"""The metrics :func:`quality_outliers` judges."""
+OUTLIER_RULE = (
+    "a mesh stands out when, for one of the metrics "
+    + ", ".join(OUTLIER_METRICS)
+    + ", its robust z-score (value - batch median) / (1.4826 x median absolute deviation), signed so that "
+    "positive is worse (lower for stretch_p5, higher for the others), is above 3.5; the spread is taken at least "
+    "1 for counts and 1 % of the median for the others; batches of fewer than 3 meshes flag nothing"
+)
+"""The rule, as the summary states it."""
+
+
+def quality_outliers(rows: dict) -> dict:
+    """The batch rule (:data:`OUTLIER_RULE`): ``rows`` maps a mesh to its report's quality block; the result maps
+    each mesh that stands out to ``{metric: {"value", "median", "z"}}``.
+
+    For each metric over the meshes that have a finite value of it, a mesh's robust z-score is
+    ``(value - median) / (1.4826 * MAD)``, signed so that positive is worse; the spread is never taken below a
+    floor (one element for counts, 1 % of the median for the others), so that a batch of equal numbers flags
+    nothing but a count that jumps from a few to many.
+    """
+    flagged: dict = {}
+    for metric, (direction, (floor_kind, floor)) in OUTLIER_METRICS.items():
+        values = {
+            name: float(row[metric])
+            for name, row in rows.items()
+            if isinstance(row, dict) and isinstance(row.get(metric), (int, float)) and math.isfinite(float(row[metric]))
+        }
+        if len(values) < 3:
+            continue
+        median = statistics.median(values.values())
+        spread = 1.4826 * statistics.median(abs(value - median) for value in values.values())
+        spread = max(spread, floor if floor_kind == "count" else floor * abs(median), sys.float_info.min)
+        for name, value in values.items():
+            score = direction * (value - median) / spread
+            if score > OUTLIER_Z:
+                flagged.setdefault(name, {})[metric] = {"value": value, "median": median, "z": round(score, 2)}
+    return flagged

@@ -144,37 +144,3 @@ def test_summary_numbers():
     assert numbers["off_surface_threshold"] == pytest.approx(0.1)  # 0.1 % of the diagonal
     assert numbers["off_surface"] == 90  # 0.11 ... 1.0
     assert quality.summary(readout, threshold=0.5)["off_surface"] == 50
-
-
-def row(distance=0.01, stretch=1.0, flipped=0, off_surface=0):
-    return {
-        "distance_p50": distance,
-        "distance_p95": 2 * distance,
-        "distance_max": 3 * distance,
-        "stretch_p5": stretch * 0.9,
-        "stretch_p95": stretch * 1.1,
-        "stretch_max": stretch * 1.2,
-        "flipped": flipped,
-        "off_surface": off_surface,
-    }
-
-
-def test_outliers_flag_the_mesh_that_stands_out_in_the_worse_direction():
-    rows = {f"m{index}": row(distance=0.010 + 0.001 * index) for index in range(5)}
-    assert quality.outliers(rows) == {}
-    rows["bad"] = row(distance=0.05, flipped=40)
-    rows["better"] = row(distance=0.001)  # closer than the rest: not a problem
-    flagged = quality.outliers(rows)
-    assert set(flagged) == {"bad"}
-    assert {"distance_p50", "distance_p95", "distance_max", "flipped"} <= set(flagged["bad"])
-    assert flagged["bad"]["flipped"]["median"] == 0.0
-
-
-def test_outliers_need_three_meshes_and_a_count_needs_more_than_one_element():
-    assert quality.outliers({"a": row(), "b": row(flipped=50)}) == {}
-    rows = {"a": row(), "b": row(), "c": row(flipped=1), "d": row()}
-    assert quality.outliers(rows) == {}  # one flipped face more than the others is within one element
-    rows["e"] = row(stretch=2.0)
-    assert set(quality.outliers(rows)) == {"e"}
-    rows["f"] = row(stretch=0.4)  # compressed: its p5 is low
-    assert "stretch_p5" in quality.outliers(rows)["f"]

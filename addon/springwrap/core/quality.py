@@ -14,9 +14,9 @@ Three numbers an artist can read after a snap, projection, wrap or mirror:
   normals interpolated with the closest point's barycentric weights. A degenerate face (zero normal) or one
   over a target point with no normal is not flipped; nothing here produces NaN.
 
-:func:`summary` turns a :class:`Readout` into the numbers of the command line's report (percentiles, counts);
-:func:`problem_mask` is what ``springwrap.select_problems`` selects; :func:`outliers` is the batch summary's
-rule for a mesh whose numbers stand out from the rest of the batch.
+:func:`summary` turns a :class:`Readout` into the numbers of the command line's report (percentiles, counts;
+the batch summary judges them, ``blender_scripts/retarget_batch.py``); :func:`problem_mask` is what
+``springwrap.select_problems`` selects; :func:`heat_scale` and :func:`ramp_colours` are the heat-map's colours.
 """
 
 from typing import NamedTuple
@@ -40,21 +40,6 @@ STRETCH_FACTOR = 1.5
 
 PROBLEM_KINDS = ("FLIPPED", "STRETCHED", "OFF_SURFACE")
 """What ``springwrap.select_problems`` selects: faces, vertices, vertices."""
-
-OUTLIER_Z = 3.5
-"""A batch mesh stands out when a metric's robust z-score passes this (Iglewicz and Hoaglin's cut-off)."""
-OUTLIER_METRICS = {
-    # metric: (worse direction, smallest scale: a count's unit, or a fraction of the batch's median)
-    "distance_p50": (1, ("relative", 0.01)),
-    "distance_p95": (1, ("relative", 0.01)),
-    "distance_max": (1, ("relative", 0.01)),
-    "stretch_p5": (-1, ("relative", 0.01)),
-    "stretch_p95": (1, ("relative", 0.01)),
-    "stretch_max": (1, ("relative", 0.01)),
-    "flipped": (1, ("absolute", 1.0)),
-    "off_surface": (1, ("absolute", 1.0)),
-}
-"""The batch metrics judged by :func:`outliers`: which way is worse, and the floor of the spread."""
 
 
 class Readout(NamedTuple):
@@ -231,42 +216,6 @@ def report_line(readout: Readout) -> str:
         f"{numbers['flipped']} faces flipped, {numbers['off_surface']} vertices off the surface "
         "(Check › Heat-Map, Select Problems)"
     )
-
-
-def outliers(rows: dict) -> dict:
-    """The batch rule: ``rows`` maps a mesh to its :func:`summary`; the result maps each mesh that stands out to
-    ``{metric: {"value", "median", "z"}}``.
-
-    For each metric of :data:`OUTLIER_METRICS` over the meshes that have it, the robust z-score of a mesh is
-    ``(value - median) / (1.4826 * MAD)`` (MAD: the median absolute deviation from the median; 1.4826 makes it
-    a standard deviation for normal data), signed so that positive is worse; the spread is never taken below
-    the metric's floor (one element for counts, 1 % of the median for the others), so that a batch of equal
-    numbers flags nothing but a count that jumps from 0 to many. A mesh stands out when some z passes
-    :data:`OUTLIER_Z`. Fewer than three meshes flag nothing.
-    """
-    flagged: dict = {}
-    names = list(rows)
-    if len(names) < 3:
-        return flagged
-    for metric, (direction, (floor_kind, floor)) in OUTLIER_METRICS.items():
-        present = [name for name in names if isinstance(rows[name].get(metric), (int, float))]
-        values = np.array([float(rows[name][metric]) for name in present])
-        finite = np.isfinite(values)
-        if finite.sum() < 3:
-            continue
-        median = float(np.median(values[finite]))
-        spread = 1.4826 * float(np.median(np.abs(values[finite] - median)))
-        minimum = floor if floor_kind == "absolute" else floor * abs(median)
-        spread = max(spread, minimum, np.finfo(float).tiny)
-        for name, value in zip(present, values):
-            score = direction * (value - median) / spread if np.isfinite(value) else np.inf
-            if score > OUTLIER_Z:
-                flagged.setdefault(name, {})[metric] = {
-                    "value": float(value),
-                    "median": median,
-                    "z": float(score) if np.isfinite(score) else None,
-                }
-    return flagged
 
 
 # ---------------------------------------------------------------- the heat-map's colours
