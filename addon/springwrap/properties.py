@@ -272,7 +272,7 @@ def _update_show_cage(settings, context):
 
 
 PROBLEM_KIND_ITEMS = (
-    ("FLIPPED", "Flipped", "Faces facing against the target's smoothed normal"),
+    ("FLIPPED", "Flipped", "Faces turned over against the rest shape (folds)"),
     ("STRETCHED", "Stretched", "Vertices whose edges are longer or shorter than at rest by more than the threshold"),
     ("OFF_SURFACE", "Off Surface", "Vertices farther from the target than the threshold"),
 )
@@ -281,7 +281,7 @@ PROBLEM_KIND_ITEMS = (
 HEATMAP_KIND_ITEMS = (
     ("DISTANCE", "Distance", "Distance to the target surface: blue on it, red at the scale's top"),
     ("STRETCH", "Stretch", "Edge length against the rest shape: blue half as long, green unchanged, red twice"),
-    ("FLIPPED", "Flipped", "Faces facing against the target's smoothed normal in red, the others in blue"),
+    ("FLIPPED", "Flipped", "Faces turned over against the rest shape in red, the others in blue"),
 )
 """What the quality heat-map shows (``ui.heatmap``)."""
 

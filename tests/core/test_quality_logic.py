@@ -76,24 +76,44 @@ def test_without_a_rest_shape_or_with_collapsed_rest_edges_stretch_reads_one_and
     assert quality.world_rest_or_none(np.eye(4), positions[:-1], positions.shape[0]) is None
 
 
-def test_a_face_turned_over_is_flipped_and_only_it():
+def test_unchanged_or_reversed_everywhere_is_not_flipped():
     positions, topology = layout_over(n=4)
-    corners = topology.face_corners.reshape(-1, 4).copy()
-    assert not quality.measure(positions, positions, topology, plane_mesh()).flipped.any()  # facing +z, as the plane
-    corners[5] = corners[5][::-1]  # one face turned over (its winding reversed)
-    turned = topology._replace(face_corners=corners.reshape(-1))
-    flipped = quality.measure(positions, positions, turned, plane_mesh()).flipped
-    assert np.flatnonzero(flipped).tolist() == [5]
+    assert not quality.measure(positions, positions, topology, plane_mesh()).flipped.any()
+    reversed_faces = topology._replace(face_corners=topology.face_corners.reshape(-1, 4)[:, ::-1].reshape(-1))
+    assert not quality.measure(positions, positions, reversed_faces, plane_mesh()).flipped.any()  # rest reversed too
 
 
 def test_a_fold_flips_the_faces_it_turns_over():
     positions, topology = layout_over(n=4)
     folded = positions.copy()
     folded[6] = positions[18] + [0.2, 0.2, 0.0]  # an inner vertex dragged over its neighbours
-    flipped = quality.flipped_faces(folded, topology.face_corners, topology.face_sizes, plane_mesh())
+    flipped = quality.measure(folded, positions, topology, plane_mesh()).flipped
     normals = quality.face_normals(folded, topology.face_corners, topology.face_sizes)
     assert flipped.any()
-    assert np.array_equal(flipped, normals[:, 2] < 0.0)  # the plane's normal is +z everywhere
+    assert np.array_equal(flipped, normals[:, 2] < 0.0)  # the faces that now face down, and only they
+
+
+@pytest.mark.parametrize("angle", [90.0, 180.0])
+def test_a_rigid_turn_of_the_whole_layout_is_not_flipped(angle):
+    positions, topology = layout_over(n=4)
+    theta = np.radians(angle)
+    turn = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(theta), -np.sin(theta)], [0.0, np.sin(theta), np.cos(theta)]])
+    turned = (positions - positions.mean(axis=0)) @ turn.T + positions.mean(axis=0)
+    assert not quality.measure(turned, positions, topology, plane_mesh()).flipped.any()
+
+
+def test_a_bent_layout_is_not_flipped_a_limb_posed_by_120_degrees():
+    positions, topology = layout_over(n=8)
+    x0 = positions[:, 0].mean()
+    bent = positions.copy()
+    beyond = positions[:, 0] > x0  # the half beyond x0 turned 120 degrees about the line x = x0 (a hinge)
+    theta = np.radians(120.0)
+    offset = positions[beyond] - [x0, 0.0, positions[0, 2]]
+    bent[beyond, 0] = x0 + offset[:, 0] * np.cos(theta) - offset[:, 2] * np.sin(theta)
+    bent[beyond, 2] = positions[0, 2] + offset[:, 0] * np.sin(theta) + offset[:, 2] * np.cos(theta)
+    normals = quality.face_normals(bent, topology.face_corners, topology.face_sizes)
+    assert (normals[:, 2] < 0.0).any()  # against the layout's rest normal (+z), some faces face away now
+    assert not quality.measure(bent, positions, topology, plane_mesh()).flipped.any()
 
 
 def test_degenerate_faces_are_not_flipped_and_give_no_nan():

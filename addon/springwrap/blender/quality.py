@@ -3,7 +3,7 @@ faces against its target, written as three attributes, and read back (the heat-m
 
 - ``springwrap_distance`` (POINT, FLOAT): distance to the target surface, world units;
 - ``springwrap_stretch`` (POINT, FLOAT): mean edge length now / at rest, 1 = unchanged;
-- ``springwrap_flipped`` (FACE, BOOLEAN): the face faces against the target's smoothed normal.
+- ``springwrap_flipped`` (FACE, BOOLEAN): the face is turned over against its rest shape (a fold).
 
 Snap, project, the wrap (its one finish, ``WrapSession.finish``: the operator, the live wrap, the mirror and
 the scripts) and the mirror write them as part of their own write, so one undo step holds both. Object mode

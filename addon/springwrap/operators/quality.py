@@ -65,7 +65,7 @@ class SPRINGWRAP_OT_select_problems(LayoutOperator, bpy.types.Operator):
 
     def _what(self) -> str:
         if self.kind == "FLIPPED":
-            return "facing against the target"
+            return "turned over against the rest shape"
         if self.kind == "STRETCHED":
             factor = quality.stretch_factor(self.threshold)
             return f"stretch above {factor:.3g} or below {1.0 / factor:.3g}"
