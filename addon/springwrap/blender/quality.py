@@ -123,22 +123,30 @@ def select_vertices(layout: bpy.types.Object, mask: np.ndarray) -> None:
 
 
 def read_triangles(layout: bpy.types.Object) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-    """The layout's triangles for the heat-map: ((3T, 3) float32 world corner positions, (3T,) their vertices,
-    (3T,) their faces), or None when there is nothing to draw.
+    """The layout's faces as triangles for the heat-map: ((3T, 3) float32 world corner positions, (3T,) their
+    vertices, (3T,) their faces), or None when there is nothing to draw.
 
-    Triangles and faces are the mesh data's (as in object mode); in edit mode the positions are the edit-mesh's
-    (they follow the artist's edits), and nothing is drawn once its vertex count differs from the mesh data's.
+    Each face is cut as a fan from its first corner (read from the mesh data's loops, never from Blender's
+    loop triangles, which a draw callback must not make Blender compute). Faces are the mesh data's (as in
+    object mode); in edit mode the positions are the edit-mesh's (they follow the artist's edits), and nothing
+    is drawn once its vertex count differs from the mesh data's.
     """
     mesh = layout.data
-    if not len(mesh.polygons):
+    face_count = len(mesh.polygons)
+    if not face_count:
         return None
-    if not len(mesh.loop_triangles):
-        mesh.calc_loop_triangles()
-    triangle_count = len(mesh.loop_triangles)
-    corner_vertices = np.empty(triangle_count * 3, dtype=np.int64)
-    mesh.loop_triangles.foreach_get("vertices", corner_vertices)
-    triangle_faces = np.empty(triangle_count, dtype=np.int64)
-    mesh.loop_triangles.foreach_get("polygon_index", triangle_faces)
+    loop_vertices = np.empty(len(mesh.loops), dtype=np.int64)
+    mesh.loops.foreach_get("vertex_index", loop_vertices)
+    starts = np.empty(face_count, dtype=np.int64)
+    totals = np.empty(face_count, dtype=np.int64)
+    mesh.polygons.foreach_get("loop_start", starts)
+    mesh.polygons.foreach_get("loop_total", totals)
+    fans = np.maximum(totals - 2, 0)
+    triangle_faces = np.repeat(np.arange(face_count), fans)
+    step = np.arange(int(fans.sum())) - np.repeat(np.cumsum(fans) - fans, fans)  # 0 .. fans - 1 in each face
+    first = starts[triangle_faces]
+    corner_loops = np.stack([first, first + step + 1, first + step + 2], axis=1).reshape(-1)
+    corner_vertices = loop_vertices[corner_loops]
     if mesh.is_editmode:
         editable = bmesh.from_edit_mesh(mesh)
         if len(editable.verts) != len(mesh.vertices):
