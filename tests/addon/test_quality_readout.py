@@ -214,6 +214,33 @@ def test_the_live_wrap_writes_the_readout_when_it_finishes_and_not_when_cancelle
     assert np.array_equal(distances, loop.result.readout.distances.astype(np.float32))
 
 
+@pytest.mark.parametrize("before", ["none", "a snap's"])
+def test_a_wrap_that_fails_after_writing_the_readout_puts_the_old_one_back(before, monkeypatch):
+    from springwrap.blender import quality as quality_data
+    from springwrap.blender import wrap_session as session_module
+
+    _target, layout, _normal = plane_scene()
+    if before != "none":
+        set_selection(layout, np.arange(len(layout.data.vertices)) % 2 == 0)
+        assert bpy.ops.springwrap.snap(only_selected=True) == {"FINISHED"}
+    assert bpy.ops.springwrap.anchors_auto(spacing=0.5) == {"FINISHED"}
+    stored, state = readout(layout), snapshot(layout)
+    real_write = quality_data.write_readout
+
+    def write_then_fail(layout_object, values):
+        real_write(layout_object, values)
+        raise RuntimeError("injected failure after the read-out")
+
+    monkeypatch.setattr(session_module.quality_data, "write_readout", write_then_fail)
+    with pytest.raises(RuntimeError, match="injected failure after the read-out"):
+        bpy.ops.springwrap.wrap(max_iterations=50)
+    assert snapshot(layout) == state
+    if stored is None:
+        assert readout(layout) is None
+    else:
+        assert all(np.array_equal(now, then) for now, then in zip(readout(layout), stored))
+
+
 def test_the_heatmap_in_background_mode_is_never_installed_and_toggling_it_does_nothing():
     from springwrap.ui import heatmap
 

@@ -15,7 +15,7 @@ import bpy
 
 import numpy as np
 
-from ..core import layout_state
+from ..core import layout_state, quality
 from ..core.layout_state import LayoutState
 
 _FOREACH = {
@@ -143,10 +143,17 @@ SNAPSHOT_ATTRIBUTES = STATE_ATTRIBUTES + ((layout_state.REST_ATTRIBUTE, "FLOAT_V
 """What a wrap may write besides positions: the state attributes and the rest shape (written by the final
 write when the layout has none yet)."""
 
+READOUT_ATTRIBUTES = (
+    (quality.DISTANCE_ATTRIBUTE, "FLOAT", "POINT"),
+    (quality.STRETCH_ATTRIBUTE, "FLOAT", "POINT"),
+    (quality.FLIPPED_ATTRIBUTE, "BOOLEAN", "FACE"),
+)
+"""The quality read-out a wrap's final write adds (``blender.quality``): in the snapshot too."""
+
 
 class LayoutSnapshot(NamedTuple):
-    """The layout's positions, state attributes and rest shape as they were, to put back bit for bit (a
-    cancelled or failed wrap)."""
+    """The layout's positions, state attributes, rest shape and quality read-out as they were, to put back bit
+    for bit (a cancelled or failed wrap)."""
 
     positions: np.ndarray  # (N * 3,) float32, as read
     # attribute name -> its raw values; _ABSENT when it did not exist; _FOREIGN when an attribute of
@@ -155,15 +162,20 @@ class LayoutSnapshot(NamedTuple):
 
 
 def take_snapshot(layout: bpy.types.Object) -> LayoutSnapshot:
-    """Copy what a wrap writes: positions, the state attributes and the rest shape (object mode)."""
+    """Copy what a wrap writes: positions, the state attributes, the rest shape and the read-out (object mode)."""
     mesh = layout.data
     attributes = {}
-    for name, data_type in SNAPSHOT_ATTRIBUTES:
-        values = read_point_attribute(mesh, name, data_type)
+    for name, data_type, domain in _snapshot_entries():
+        values = read_point_attribute(mesh, name, data_type, domain)
         if values is None:
             values = _ABSENT if mesh.attributes.get(name) is None else _FOREIGN
         attributes[name] = values
     return LayoutSnapshot(read_positions(mesh), attributes)
+
+
+def _snapshot_entries():
+    """(name, data type, domain) of everything a snapshot keeps besides positions."""
+    return tuple((name, data_type, "POINT") for name, data_type in SNAPSHOT_ATTRIBUTES) + READOUT_ATTRIBUTES
 
 
 def restore_snapshot(layout: bpy.types.Object, snapshot: LayoutSnapshot) -> None:
@@ -173,13 +185,13 @@ def restore_snapshot(layout: bpy.types.Object, snapshot: LayoutSnapshot) -> None
     """
     mesh = layout.data
     mesh.vertices.foreach_set("co", snapshot.positions)
-    for name, data_type in SNAPSHOT_ATTRIBUTES:
+    for name, data_type, domain in _snapshot_entries():
         saved = snapshot.attributes[name]
         if isinstance(saved, str):
             if saved == _ABSENT:
                 remove_attribute(mesh, name)
             continue
-        write_point_attribute(mesh, name, data_type, saved)
+        write_point_attribute(mesh, name, data_type, saved, domain=domain)
     mesh.update()
 
 

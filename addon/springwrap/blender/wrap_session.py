@@ -288,11 +288,11 @@ class WrapSession:
         positions, state = self.current_layout()
         readout = quality_data.measure_layout(self.layout, self.target, positions, self.rest, self.layout_topology)
         layout_data.write_layout(self.layout, positions, state, rest=self.rest)
-        quality_data.write_readout(self.layout, readout)  # the quality read-out, in the same undo step
         settings = self.layout.springwrap
         settings.target_signature = self.target.signature
         if len(settings.anchors):
             anchor_data.write_anchors(self.layout, self.anchors, -1, self.target.signature)
+        quality_data.write_readout(self.layout, readout)  # the quality read-out, in the same undo step
         report = self.last_report
         face_points, space_points = layout_state.point_counts(state.states)
         detached, reattached, anchors_detached = self.topology
@@ -323,8 +323,8 @@ class WrapSession:
         )
 
     def cancel(self) -> None:
-        """Put the layout back exactly as it was at the start: positions, state attributes, rest shape, and
-        what :meth:`finish` writes on the object (target signature, anchors); also after a failed finish."""
+        """Put the layout back exactly as it was at the start: positions, state attributes, rest shape, read-out,
+        and what :meth:`finish` writes on the object (target signature, anchors); also after a failed finish."""
         attributes.restore_snapshot(self.layout, self.snapshot)
         target_signature, anchor_list, active_index, anchors_signature = self.settings_snapshot
         settings = self.layout.springwrap
