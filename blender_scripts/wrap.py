@@ -133,6 +133,7 @@ def run(arguments: argparse.Namespace) -> None:
         f"  kernel {result.kernel_seconds:.2f} s; {result.anchor_count} anchors, "
         f"{result.unreliable_triangles} unreliable target triangles"
     )
+    print(f"  {addon_module('core.quality').report_line(result.readout)}")  # in the saved .blend's attributes too
     if not result.converged:
         print(
             f"WARNING: did not converge within {arguments.max_iterations} iterations "

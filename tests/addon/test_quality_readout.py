@@ -279,6 +279,29 @@ def test_the_heatmap_colours_read_from_the_readout():
     assert abs(np.median(stretch.values) - 0.5) < 1e-3
 
 
+def test_in_edit_mode_the_heatmap_follows_the_edit_mesh_and_stops_when_its_vertex_count_changes():
+    from springwrap.blender import quality as quality_data
+
+    _target, layout, _normal = plane_scene()
+    fold(layout)
+    assert bpy.ops.springwrap.snap() == {"FINISHED"}
+    stored = quality_data.read_readout(layout)
+    assert stored.flipped.any() and stored.distances.max() > 0.0
+    bpy.ops.object.mode_set(mode="EDIT")
+    editable = bmesh.from_edit_mesh(layout.data)
+    editable.verts.ensure_lookup_table()
+    editable.verts[20].co.z += 0.5
+    bmesh.update_edit_mesh(layout.data)
+    corners, corner_vertices, _faces = quality_data.read_triangles(layout)
+    moved = layout.matrix_world @ editable.verts[20].co
+    assert np.allclose(corners[corner_vertices == 20], np.array(moved, dtype=np.float32), atol=1e-6)
+    in_edit_mode = quality_data.read_readout(layout)  # the values as written, from the edit-mesh's layers
+    assert all(np.allclose(now, then) for now, then in zip(in_edit_mode[:3], stored[:3]))
+    bmesh.ops.delete(editable, geom=[editable.verts[0]], context="VERTS")
+    bmesh.update_edit_mesh(layout.data)
+    assert quality_data.read_triangles(layout) is None
+
+
 def test_the_check_panel_has_the_heatmap_and_select_problems():
     from springwrap.ui.panels import SPRINGWRAP_PT_check
 

@@ -57,6 +57,8 @@ for name in ("springwrap_state", "springwrap_face", "springwrap_bary"):
     attribute.data.foreach_get("vector" if vector else "value", values)
     found["attributes"][name] = {"domain": attribute.domain, "data_type": attribute.data_type,
                                  "values": values.reshape(len(mesh.vertices), -1).tolist()}
+found["readout"] = {attribute.name: [attribute.domain, attribute.data_type] for attribute in mesh.attributes
+                    if attribute.name in ("springwrap_distance", "springwrap_stretch", "springwrap_flipped")}
 print("INSPECT" + json.dumps(found))
 """
 
@@ -168,6 +170,12 @@ def test_wrap_script_wraps_a_layout_of_a_saved_file(demo_blend, tmp_path):
     # demo's wrap left the layout; spacing 0.25 over Suzanne gives about a hundred).
     assert 90 <= found["anchor_count"] <= 115 and found["anchor_count"] != 87
     assert [row[0] for row in found["attributes"]["springwrap_state"]["values"]].count(1) >= 0.8 * 507
+    assert "Read-out: distance to the target p95" in process.stdout  # the quality read-out, saved with the layout
+    assert found["readout"] == {
+        "springwrap_distance": ["POINT", "FLOAT"],
+        "springwrap_stretch": ["POINT", "FLOAT"],
+        "springwrap_flipped": ["FACE", "BOOLEAN"],
+    }
 
 
 @pytest.mark.parametrize(

@@ -68,10 +68,20 @@ def update_layout(layout: bpy.types.Object, target: Target) -> Readout:
     return readout
 
 
+_object_mode_readouts: dict = {}
+"""Mesh pointer -> the read-out last read in object mode: Blender 3.x's bmesh has no boolean layers, so in edit
+mode the flips come from here."""
+
+
 def read_readout(layout: bpy.types.Object) -> Readout | None:
     """The read-out stored on the layout, or None when one of its attributes is missing or does not fit the mesh
-    (another type, or the mesh's vertex or face count changed since). The diagonal is the layout's now."""
+    (another type, or the mesh's vertex or face count changed since). The diagonal is the layout's now.
+
+    In edit mode (the heat-map while the artist fixes what Select Problems selected) the values are read from
+    the edit-mesh's layers."""
     mesh = layout.data
+    if mesh.is_editmode:
+        return _read_edit_readout(layout)
     distances = attributes.read_point_attribute(mesh, quality.DISTANCE_ATTRIBUTE, "FLOAT")
     stretch = attributes.read_point_attribute(mesh, quality.STRETCH_ATTRIBUTE, "FLOAT")
     flipped = attributes.read_face_attribute(mesh, quality.FLIPPED_ATTRIBUTE, "BOOLEAN")
@@ -80,10 +90,39 @@ def read_readout(layout: bpy.types.Object) -> Readout | None:
     if distances.size != len(mesh.vertices) or flipped.size != len(mesh.polygons):
         return None
     world = transforms.transform_points(matrix_array(layout.matrix_world), attributes.read_positions(mesh))
-    return Readout(
+    readout = Readout(
         distances=distances.astype(np.float64),
         stretch=stretch.astype(np.float64),
         flipped=flipped.astype(bool),
+        diagonal=quality.bounding_diagonal(world),
+    )
+    _object_mode_readouts[mesh.as_pointer()] = readout
+    return readout
+
+
+def _read_edit_readout(layout: bpy.types.Object) -> Readout | None:
+    """:func:`read_readout` from the edit-mesh (one Python loop over its elements: the heat-map reads it once
+    per change)."""
+    editable = bmesh.from_edit_mesh(layout.data)
+    distance_layer = editable.verts.layers.float.get(quality.DISTANCE_ATTRIBUTE)
+    stretch_layer = editable.verts.layers.float.get(quality.STRETCH_ATTRIBUTE)
+    if distance_layer is None or stretch_layer is None:
+        return None
+    bool_layers = getattr(editable.faces.layers, "bool", None)  # Blender 4.0+
+    flipped_layer = None if bool_layers is None else bool_layers.get(quality.FLIPPED_ATTRIBUTE)
+    if flipped_layer is not None:
+        flipped = np.array([face[flipped_layer] for face in editable.faces], dtype=bool)
+    else:
+        remembered = _object_mode_readouts.get(layout.data.as_pointer())
+        if remembered is None or remembered.flipped.size != len(editable.faces):
+            return None
+        flipped = remembered.flipped
+    local = np.array([vertex.co for vertex in editable.verts], dtype=np.float64).reshape(-1, 3)
+    world = transforms.transform_points(matrix_array(layout.matrix_world), local)
+    return Readout(
+        distances=np.array([vertex[distance_layer] for vertex in editable.verts], dtype=np.float64),
+        stretch=np.array([vertex[stretch_layer] for vertex in editable.verts], dtype=np.float64),
+        flipped=flipped,
         diagonal=quality.bounding_diagonal(world),
     )
 
@@ -156,3 +195,8 @@ def read_triangles(layout: bpy.types.Object) -> tuple[np.ndarray, np.ndarray, np
         local = attributes.read_positions(mesh).reshape(-1, 3)
     world = transforms.transform_points(matrix_array(layout.matrix_world), local)
     return world[corner_vertices].astype(np.float32), corner_vertices, np.repeat(triangle_faces, 3)
+
+
+def forget_readouts() -> None:
+    """Drop the remembered object-mode read-outs (the add-on is unregistered)."""
+    _object_mode_readouts.clear()

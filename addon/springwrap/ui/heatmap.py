@@ -58,6 +58,7 @@ def uninstall() -> None:
         bpy.app.handlers.depsgraph_update_post.remove(_on_depsgraph_update)
     _cache.update(key=None, batch=None, scale=None)
     _shaders.clear()
+    quality_data.forget_readouts()
 
 
 def is_installed() -> bool:
