@@ -444,10 +444,11 @@ def anchor_snapshot(layout):
 
 
 class PanelRecorder:
-    """Stands in for ``UILayout``: records operator buttons, labels and list templates."""
+    """Stands in for ``UILayout``: records operator buttons (and the keywords they were drawn with), labels and
+    list templates."""
 
     def __init__(self):
-        self.operators, self.labels, self.lists, self.props = [], [], [], []
+        self.operators, self.labels, self.lists, self.props, self.texts = [], [], [], [], []
         self.use_property_split = self.use_property_decorate = False
         self.active = self.alert = True
 
@@ -471,6 +472,7 @@ class PanelRecorder:
     def operator(self, idname, **kwargs):
         button = type("Button", (), {})()
         self.operators.append((idname, button))
+        self.texts.append((idname, kwargs))
         return button
 
 
@@ -628,12 +630,21 @@ def empty_target(target, layout):
     target.data.clear_geometry()
 
 
-def target_without_faces(target, layout):
+def delete_faces(obj, polygons=None):
+    """Delete the mesh's polygons of these indices (all of them by default), keeping their vertices and edges."""
+    mesh = obj.data
     editable = bmesh.new()
-    editable.from_mesh(target.data)
-    bmesh.ops.delete(editable, geom=list(editable.faces), context="FACES_ONLY")
-    editable.to_mesh(target.data)
+    editable.from_mesh(mesh)
+    editable.faces.ensure_lookup_table()
+    faces = list(editable.faces) if polygons is None else [editable.faces[int(i)] for i in polygons]
+    bmesh.ops.delete(editable, geom=faces, context="FACES_ONLY")
+    editable.to_mesh(mesh)
     editable.free()
+    mesh.update()
+
+
+def target_without_faces(target, layout):
+    delete_faces(target)
 
 
 def nan_target_vertex(target, layout):

@@ -13,12 +13,11 @@ import math
 
 import bpy
 
-import bmesh
 import numpy as np
 import pytest
 
 from benchmarks.retarget import rig_scene, rigging
-from bpy_helpers import make_grid_layout, make_target, set_selection
+from bpy_helpers import make_grid_layout, make_target, set_selection, target_without_faces
 
 FLT_MAX = float(np.finfo(np.float32).max)
 ROW = 11  # the grid layout: 11 x 11 vertices
@@ -206,14 +205,6 @@ def _layout_transform(target, layout):
     layout.location.x = math.nan
 
 
-def _target_without_faces(target, layout):
-    editable = bmesh.new()
-    editable.from_mesh(target.data)
-    bmesh.ops.delete(editable, geom=list(editable.faces), context="FACES_ONLY")
-    editable.to_mesh(target.data)
-    editable.free()
-
-
 def _target_vertex(value):
     def breaks(target, layout):
         target.data.vertices[5].co.y = value
@@ -245,7 +236,7 @@ CATALOGUE = {
     "new curve NaN": (_new_curve_point(math.nan), "new curve", "Curve 'Curve': point 4 has a NaN"),
     "new curve FLT_MAX": (_new_curve_point(FLT_MAX), "new curve", "Curve 'Curve': point 4 is at"),
     "shape keys": (_shape_keys, "shape keys", "has shape keys"),
-    "target without faces": (_target_without_faces, "target", "'Target' has no faces"),
+    "target without faces": (target_without_faces, "target", "'Target' has no faces"),
     "target vertex NaN": (_target_vertex(math.nan), "target", "'Target'"),
     "target vertex 1e30": (_target_vertex(1e30), "target", "'Target'"),
 }
@@ -306,14 +297,20 @@ def test_each_catalogue_call_finishes_on_the_healthy_scene(operator):
     assert _call(operator, arguments) == {"FINISHED"}
 
 
-@pytest.mark.parametrize("operator, case", PAIRS, ids=[f"{operator}-{case}" for operator, case in PAIRS])
-def test_bad_input_is_an_error_and_changes_nothing(operator, case):
+def _broken_scene(operator, case):
+    """The catalogue's scene for ``operator`` broken by ``case``: (the operator's arguments, the layout, the message
+    expected, the layout's full snapshot)."""
     arguments, _reads = OPERATORS[operator]
     target, layout = catalogue_scene(with_armatures=operator == "align_armature")
     breaks, _kind, message = CATALOGUE[case]
     breaks(target, layout)
     bpy.context.view_layer.update()
-    before = full_snapshot(layout)
+    return arguments, layout, message, full_snapshot(layout)
+
+
+@pytest.mark.parametrize("operator, case", PAIRS, ids=[f"{operator}-{case}" for operator, case in PAIRS])
+def test_bad_input_is_an_error_and_changes_nothing(operator, case):
+    arguments, layout, message, before = _broken_scene(operator, case)
     with pytest.raises(RuntimeError, match=message):
         _call(operator, arguments)
     assert bpy.context.active_object == layout
@@ -324,12 +321,7 @@ def test_bad_input_is_an_error_and_changes_nothing(operator, case):
 @pytest.mark.parametrize("operator, case", OTHER_PAIRS, ids=[f"{operator}-{case}" for operator, case in OTHER_PAIRS])
 def test_bad_input_an_operator_does_not_read_never_crashes_it(operator, case):
     """It finishes (the input is not its business) or refuses for a reason of its own, leaving the scene as it was."""
-    arguments, _reads = OPERATORS[operator]
-    target, layout = catalogue_scene(with_armatures=operator == "align_armature")
-    breaks, _kind, _message = CATALOGUE[case]
-    breaks(target, layout)
-    bpy.context.view_layer.update()
-    before = full_snapshot(layout)
+    arguments, layout, _message, before = _broken_scene(operator, case)
     try:
         result = _call(operator, arguments)
     except RuntimeError as error:
@@ -406,7 +398,7 @@ def test_set_rest_shape_does_not_need_a_usable_target():
     """Set Rest Shape reads the target only to judge the vertices against it: a target that lost its faces is
     not its problem (it finishes), while the wrap refuses it."""
     target, layout = catalogue_scene()
-    _target_without_faces(target, layout)
+    target_without_faces(target, layout)
     assert bpy.ops.springwrap.rest_set() == {"FINISHED"}
     with pytest.raises(RuntimeError, match="'Target' has no faces"):
         bpy.ops.springwrap.wrap(max_iterations=30)

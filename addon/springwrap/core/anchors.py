@@ -51,13 +51,13 @@ class AnchorOutcome(NamedTuple):
 
     anchors: Anchors  # the whole new list
     active_index: int  # the anchor to make active, -1 to keep the current one (clamped)
-    added_count: int  # anchors created
-    replaced_count: int  # anchors dropped because a new one took their vertex
-    missed_count: int  # vertices whose query found nothing (PROJECT, or beyond max distance)
-    skipped_count: int  # vertices not queried (PROJECT: vertex on no face, no normal)
-    spacing: float  # the spacing used by anchors_auto (world units), 0 otherwise
-    topology_detached_count: int  # face anchors whose triangle is gone, now space anchors
-    topology_reattached_count: int  # face anchors found again on the changed target
+    added_count: int = 0  # anchors created
+    replaced_count: int = 0  # anchors dropped because a new one took their vertex
+    missed_count: int = 0  # vertices whose query found nothing (PROJECT, or beyond max distance)
+    skipped_count: int = 0  # vertices not queried (PROJECT: vertex on no face, no normal)
+    spacing: float = 0.0  # the spacing used by anchors_auto (world units), 0 otherwise
+    topology_detached_count: int = 0  # face anchors whose triangle is gone, now space anchors
+    topology_reattached_count: int = 0  # face anchors found again on the changed target
 
 
 def make_anchors(vertex_indices, kinds, triangles, barycentrics, locations) -> Anchors:
@@ -340,9 +340,6 @@ def add(
         active_index=anchor_count(result) - 1,
         added_count=1,
         replaced_count=int(np.count_nonzero(~kept)),
-        missed_count=0,
-        skipped_count=0,
-        spacing=0.0,
         topology_detached_count=resolution.detached_count,
         topology_reattached_count=resolution.reattached_count,
     )
@@ -434,7 +431,12 @@ def auto(
 def update(existing: Anchors, target: Target, stored_signature: str) -> AnchorOutcome:
     """The anchors resolved on the current target and their locations refreshed; nothing added."""
     anchors, resolution = resolve(existing, target, stored_signature)
-    return AnchorOutcome(anchors, -1, 0, 0, 0, 0, 0.0, resolution.detached_count, resolution.reattached_count)
+    return AnchorOutcome(
+        anchors,
+        -1,
+        topology_detached_count=resolution.detached_count,
+        topology_reattached_count=resolution.reattached_count,
+    )
 
 
 def remove(existing: Anchors, index: int) -> Anchors:

@@ -11,19 +11,21 @@ import bpy
 
 import numpy as np
 
+from .. import property_kinds as props
 from ..blender import anchors as anchor_data
 from ..blender import layout as layout_data
 from ..blender import target as target_data
 from ..core import anchors, input_policy
 from ..core.errors import LayoutError
 from ..properties import ANCHOR_METHOD_ITEMS, max_distance_property
-from .base import LayoutCollectionOperator
+from .base import LayoutCollectionOperator, RemovesItems, RemovesOneItem, topology_change_report
 
 
 class _AnchorOperator(LayoutCollectionOperator):
     """Shared run and report of the anchor operators."""
 
     collection = "anchors"
+    active_index = "active_anchor_index"
     empty_message = "The layout has no anchors"
 
     def run(self, context, layout):
@@ -31,17 +33,8 @@ class _AnchorOperator(LayoutCollectionOperator):
         outcome, signature = self.compute(context, layout)
         anchor_data.write_anchors(layout, outcome.anchors, outcome.active_index, signature)
         milliseconds = (time.perf_counter() - start) * 1000.0
-        reports = [({"INFO"}, self.summary(anchors, outcome, milliseconds))]
-        detached, reattached = outcome.topology_detached_count, outcome.topology_reattached_count
-        if detached or reattached:
-            reports.append(
-                (
-                    {"WARNING"} if detached else {"INFO"},
-                    f"Target topology changed: {detached} face anchors lost their target face and became "
-                    f"space anchors, {reattached} re-attached",
-                )
-            )
-        return reports
+        topology = topology_change_report(outcome, "face anchors", "space anchors")
+        return [({"INFO"}, self.summary(anchors, outcome, milliseconds))] + ([topology] if topology else [])
 
     def compute(self, context, layout):
         """``(anchors.AnchorOutcome, signature or None)``; raises one of ``ERRORS`` on bad input."""
@@ -55,35 +48,22 @@ class _AnchorOperator(LayoutCollectionOperator):
 class SPRINGWRAP_OT_anchor_add(_AnchorOperator, bpy.types.Operator):
     """Anchor a layout vertex to the target point closest to the 3D cursor (or to a given location)"""
 
-    bl_idname = "springwrap.anchor_add"
     bl_label = "Add Anchor"
-    bl_options = {"REGISTER", "UNDO"}
 
     reads = frozenset({"anchors"})
 
-    vertex_index: bpy.props.IntProperty(
-        name="Vertex Index",
-        description="Layout vertex to anchor; -1 for the active selected vertex (or the only selected one)",
-        default=-1,
+    vertex_index: props.integer(
+        "Vertex Index",
+        "Layout vertex to anchor; -1 for the active selected vertex (or the only selected one)",
+        -1,
         soft_min=-1,
     )
-    location: bpy.props.FloatVectorProperty(
-        name="Location",
-        description="World-space point whose closest target point becomes the anchor's target",
-        size=3,
-        default=(0.0, 0.0, 0.0),
-        subtype="XYZ",
-        unit="LENGTH",
-    )
-    use_location: bpy.props.BoolProperty(
-        name="Use Location",
-        description="Use Location instead of the 3D cursor",
-        default=False,
-    )
-    on_surface: bpy.props.BoolProperty(
-        name="On Surface",
-        description="The target is the closest point of the target surface; off: the location itself (a space anchor)",
-        default=True,
+    location: props.point("Location", "World-space point whose closest target point becomes the anchor's target")
+    use_location: props.flag("Use Location", "Use Location instead of the 3D cursor", False)
+    on_surface: props.flag(
+        "On Surface",
+        "The target is the closest point of the target surface; off: the location itself (a space anchor)",
+        True,
     )
 
     def compute(self, context, layout):
@@ -127,25 +107,16 @@ class SPRINGWRAP_OT_anchor_add(_AnchorOperator, bpy.types.Operator):
 class SPRINGWRAP_OT_anchors_auto(_AnchorOperator, bpy.types.Operator):
     """Spread anchors evenly over the layout (no two closer than the spacing), targets by closest point or projection"""
 
-    bl_idname = "springwrap.anchors_auto"
     bl_label = "Auto Anchors"
-    bl_options = {"REGISTER", "UNDO"}
 
     reads = frozenset({"positions", "anchors"})
 
-    spacing: bpy.props.FloatProperty(
-        name="Spacing",
-        description="Smallest distance between two anchored layout vertices (0 = a tenth of the layout's size)",
-        default=0.0,
-        min=0.0,
-        subtype="DISTANCE",
-        unit="LENGTH",
+    spacing: props.distance(
+        "Spacing", "Smallest distance between two anchored layout vertices (0 = a tenth of the layout's size)"
     )
     method: bpy.props.EnumProperty(name="Method", items=ANCHOR_METHOD_ITEMS, default="CLOSEST")
-    replace: bpy.props.BoolProperty(
-        name="Replace",
-        description="Remove the existing anchors first; off: keep them and anchor other vertices only",
-        default=True,
+    replace: props.flag(
+        "Replace", "Remove the existing anchors first; off: keep them and anchor other vertices only", True
     )
     max_distance: max_distance_property(
         "Vertices whose target point is farther than this get no anchor (0 = unlimited)"
@@ -187,9 +158,7 @@ class SPRINGWRAP_OT_anchors_auto(_AnchorOperator, bpy.types.Operator):
 class SPRINGWRAP_OT_anchors_update(_AnchorOperator, bpy.types.Operator):
     """Follow the target: refresh the anchors' target points and re-find those whose target face changed"""
 
-    bl_idname = "springwrap.anchors_update"
     bl_label = "Update Anchors"
-    bl_options = {"REGISTER", "UNDO"}
 
     requires_items = True
     reads_layout_mesh = False
@@ -205,28 +174,13 @@ class SPRINGWRAP_OT_anchors_update(_AnchorOperator, bpy.types.Operator):
         return f"Updated {face_count + space_count} anchors ({face_count} on the surface, {space_count} in space)"
 
 
-class SPRINGWRAP_OT_anchor_remove(_AnchorOperator, bpy.types.Operator):
+class SPRINGWRAP_OT_anchor_remove(RemovesOneItem, _AnchorOperator, bpy.types.Operator):
     """Remove an anchor (the active one by default)"""
 
-    bl_idname = "springwrap.anchor_remove"
     bl_label = "Remove Anchor"
-    bl_options = {"REGISTER", "UNDO"}
 
-    requires_target = False
-    requires_items = True
-    reads_layout_mesh = False
-    reads = frozenset()  # the way out of a broken anchor: nothing is checked
-
-    index: bpy.props.IntProperty(
-        name="Index",
-        description="Position of the anchor in the list; -1 for the active anchor",
-        default=-1,
-        soft_min=-1,
-    )
-
-    def compute(self, context, layout):
+    def remove(self, layout, index):
         existing = anchor_data.read_anchors(layout)
-        index = layout.springwrap.active_anchor_index if self.index == -1 else self.index
         self._vertex = int(existing.vertex_indices[index]) if 0 <= index < anchors.anchor_count(existing) else -1
         remaining = anchors.remove(existing, index)
         count = anchors.anchor_count(remaining)
@@ -237,17 +191,10 @@ class SPRINGWRAP_OT_anchor_remove(_AnchorOperator, bpy.types.Operator):
         return f"Removed the anchor of vertex {self._vertex}; {anchors.anchor_count(outcome.anchors)} anchors left"
 
 
-class SPRINGWRAP_OT_anchors_clear(_AnchorOperator, bpy.types.Operator):
+class SPRINGWRAP_OT_anchors_clear(RemovesItems, _AnchorOperator, bpy.types.Operator):
     """Remove every anchor of the layout"""
 
-    bl_idname = "springwrap.anchors_clear"
     bl_label = "Clear Anchors"
-    bl_options = {"REGISTER", "UNDO"}
-
-    requires_target = False
-    requires_items = True
-    reads_layout_mesh = False
-    reads = frozenset()  # the way out of a broken anchor: nothing is checked
 
     def compute(self, context, layout):
         self._count = len(layout.springwrap.anchors)
@@ -259,7 +206,7 @@ class SPRINGWRAP_OT_anchors_clear(_AnchorOperator, bpy.types.Operator):
 
 def _list_outcome(anchors, anchor_list, active_index):
     """An :class:`anchors.AnchorOutcome` that only replaces the list (no query, no target)."""
-    return anchors.AnchorOutcome(anchor_list, active_index, 0, 0, 0, 0, 0.0, 0, 0)
+    return anchors.AnchorOutcome(anchor_list, active_index)
 
 
 classes = (
