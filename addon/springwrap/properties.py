@@ -144,6 +144,11 @@ ANCHOR_METHOD_ITEMS = (
 )
 """How ``springwrap.anchors_auto`` finds the anchors' targets."""
 
+SYMMETRY_AXIS_ITEMS = tuple(
+    (axis, axis, f"The plane {axis.lower()} = 0 of the layout (or of the symmetry object)") for axis in "XYZ"
+)
+"""The symmetric anchors' plane: perpendicular to this local axis."""
+
 
 def _is_target_candidate(settings, candidate):
     """Poll of ``target``: a mesh object other than the layout that owns the settings."""
@@ -153,6 +158,11 @@ def _is_target_candidate(settings, candidate):
 def _is_armature(_settings, candidate):
     """Poll of ``target_armature``: an armature object."""
     return candidate is not None and candidate.type == "ARMATURE"
+
+
+def _is_empty(_settings, candidate):
+    """Poll of ``anchor_symmetry_object``: an Empty."""
+    return candidate is not None and candidate.type == "EMPTY"
 
 
 class SpringwrapAnchorItem(bpy.types.PropertyGroup):
@@ -189,6 +199,12 @@ class SpringwrapAnchorItem(bpy.types.PropertyGroup):
         default=(0.0, 0.0, 0.0),
         subtype="XYZ",
         unit="LENGTH",
+    )
+    twin_vertex: bpy.props.IntProperty(
+        name="Twin",
+        description="Vertex of this anchor's symmetric twin anchor (its own vertex on the symmetry plane), -1: none",
+        default=-1,
+        min=-1,
     )
 
 
@@ -352,6 +368,25 @@ class SpringwrapObjectSettings(bpy.types.PropertyGroup):
         description="Default method of the panel's Auto Anchors button",
         items=ANCHOR_METHOD_ITEMS,
         default="CLOSEST",
+    )
+    # Symmetric anchors (operators.anchors): the panel's defaults for Add and Auto.
+    anchor_symmetric: bpy.props.BoolProperty(
+        name="Symmetric",
+        description="Add and Auto Anchors also anchor each vertex's twin across the symmetry plane, as a pair",
+        default=False,
+    )
+    anchor_symmetry_axis: bpy.props.EnumProperty(
+        name="Symmetry Axis",
+        description="The symmetry plane is perpendicular to this local axis of the layout (or of the symmetry object)",
+        items=SYMMETRY_AXIS_ITEMS,
+        default="X",
+    )
+    anchor_symmetry_object: bpy.props.PointerProperty(
+        name="Symmetry Object",
+        description="Empty whose local plane (through its origin, perpendicular to the axis) is the symmetry plane; "
+        "none: the layout's own",
+        type=bpy.types.Object,
+        poll=compat.pointer_poll(_is_empty),
     )
 
     curve_constraints: bpy.props.CollectionProperty(

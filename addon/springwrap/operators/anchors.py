@@ -14,10 +14,39 @@ import numpy as np
 from ..blender import anchors as anchor_data
 from ..blender import layout as layout_data
 from ..blender import target as target_data
-from ..core import anchors, input_policy
+from ..core import anchor_twins, anchors, input_policy, symmetry, transforms
 from ..core.errors import LayoutError
-from ..properties import ANCHOR_METHOD_ITEMS, max_distance_property
+from ..properties import ANCHOR_METHOD_ITEMS, SYMMETRY_AXIS_ITEMS, max_distance_property
 from .base import LayoutCollectionOperator
+
+
+def symmetric_property():
+    """``symmetric`` of Add and Auto Anchors."""
+    return bpy.props.BoolProperty(
+        name="Symmetric",
+        description="Also anchor each vertex's twin across the symmetry plane (by topology, else by position) to the "
+        "closest target point of the reflected target point; the two are a pair",
+        default=False,
+    )
+
+
+def symmetry_axis_property():
+    """``symmetry_axis`` of Add and Auto Anchors."""
+    return bpy.props.EnumProperty(
+        name="Symmetry Axis",
+        description="The symmetry plane is perpendicular to this local axis of the layout (or of the symmetry object)",
+        items=SYMMETRY_AXIS_ITEMS,
+        default="X",
+    )
+
+
+def symmetry_object_property():
+    """``symmetry_object`` of Add and Auto Anchors."""
+    return bpy.props.StringProperty(
+        name="Symmetry Object",
+        description="Name of an Empty whose local plane (through its origin) is the symmetry plane; empty: the layout's",
+        default="",
+    )
 
 
 class _AnchorOperator(LayoutCollectionOperator):
@@ -32,6 +61,7 @@ class _AnchorOperator(LayoutCollectionOperator):
         anchor_data.write_anchors(layout, outcome.anchors, outcome.active_index, signature)
         milliseconds = (time.perf_counter() - start) * 1000.0
         reports = [({"INFO"}, self.summary(anchors, outcome, milliseconds))]
+        reports += self.twin_reports()
         detached, reattached = outcome.topology_detached_count, outcome.topology_reattached_count
         if detached or reattached:
             reports.append(
@@ -46,6 +76,32 @@ class _AnchorOperator(LayoutCollectionOperator):
     def compute(self, context, layout):
         """``(anchors.AnchorOutcome, signature or None)``; raises one of ``ERRORS`` on bad input."""
         raise NotImplementedError
+
+    def twin_reports(self):
+        """What the symmetric half did, when the operation was symmetric (``self._twins``)."""
+        report = getattr(self, "_twins", None)
+        if report is None:
+            return []
+        lone = []
+        if report.no_vertex_count:
+            lone.append(f"{report.no_vertex_count} with no twin vertex (asymmetric layout there)")
+        if report.no_target_count:
+            lone.append(f"{report.no_target_count} with no target point near the reflection")
+        if not lone:
+            return []
+        return [
+            ({"WARNING"}, f"Symmetric anchors across the plane of '{self._plane_owner}': left alone " + ", ".join(lone))
+        ]
+
+    def read_twins(self, layout):
+        """The layout's vertex twins across the chosen symmetry plane, and the plane (object mode data)."""
+        arrays = layout_data.read_layout(layout)
+        topology = layout_data.read_layout_topology(layout)
+        plane, self._plane_owner = anchor_data.read_symmetry_plane(
+            layout, self.symmetry_axis, self.symmetry_object, self.extent
+        )
+        world = transforms.world_positions(arrays)
+        return symmetry.vertex_twins(world, topology.face_corners, topology.face_sizes, topology.edges, plane), plane
 
     def summary(self, anchors, outcome, milliseconds):
         """The report of a finished operation."""
@@ -85,6 +141,9 @@ class SPRINGWRAP_OT_anchor_add(_AnchorOperator, bpy.types.Operator):
         description="The target is the closest point of the target surface; off: the location itself (a space anchor)",
         default=True,
     )
+    symmetric: symmetric_property()
+    symmetry_axis: symmetry_axis_property()
+    symmetry_object: symmetry_object_property()
 
     def compute(self, context, layout):
         selection, active_vertex = layout_data.read_vertex_selection(layout)
@@ -99,7 +158,7 @@ class SPRINGWRAP_OT_anchor_add(_AnchorOperator, bpy.types.Operator):
             tuple(source), "The anchor location" if self.use_location else "The 3D cursor", self.extent
         )
         target = target_data.read_target(context.evaluated_depsgraph_get(), layout)
-        outcome = anchors.add(
+        arguments = (
             selection.size,
             anchor_data.read_anchors(layout),
             target,
@@ -108,11 +167,17 @@ class SPRINGWRAP_OT_anchor_add(_AnchorOperator, bpy.types.Operator):
             self._source,
             self.on_surface,
         )
+        self._twins = None
+        if not self.symmetric:
+            return anchors.add(*arguments), target.signature
+        twins, plane = self.read_twins(layout)
+        outcome, self._twins = anchor_twins.add(*arguments, twins, plane)
         return outcome, target.signature
 
     def summary(self, anchors, outcome, milliseconds):
-        location = outcome.anchors.locations[-1]
-        where = "the target surface" if outcome.anchors.kinds[-1] == anchors.FACE_ANCHOR else "a point in space"
+        own = outcome.active_index
+        location = outcome.anchors.locations[own]
+        where = "the target surface" if outcome.anchors.kinds[own] == anchors.FACE_ANCHOR else "a point in space"
         distance = float(np.linalg.norm(location - self._source))
         source = "location" if self.use_location else "3D cursor"
         text = (
@@ -120,7 +185,12 @@ class SPRINGWRAP_OT_anchor_add(_AnchorOperator, bpy.types.Operator):
             f"{location[2]:.4g}), {distance:.4g} from the {source}"
         )
         if outcome.replaced_count:
-            text += "; replaced its previous anchor"
+            text += f"; replaced {outcome.replaced_count} previous anchor(s)"
+        twins = self._twins
+        if twins is not None and twins.twin_vertex >= 0:
+            text += f"; its twin: vertex {twins.twin_vertex} ({twins.how})"
+        elif twins is not None and twins.on_plane_count:
+            text += "; it is on the symmetry plane: its own twin"
         return text
 
 
@@ -150,12 +220,15 @@ class SPRINGWRAP_OT_anchors_auto(_AnchorOperator, bpy.types.Operator):
     max_distance: max_distance_property(
         "Vertices whose target point is farther than this get no anchor (0 = unlimited)"
     )
+    symmetric: symmetric_property()
+    symmetry_axis: symmetry_axis_property()
+    symmetry_object: symmetry_object_property()
 
     def compute(self, context, layout):
         arrays = layout_data.read_layout(layout)
         target = target_data.read_target(context.evaluated_depsgraph_get(), layout)
         normals = layout_data.read_world_normals(layout) if self.method == "PROJECT" else None
-        outcome = anchors.auto(
+        arguments = (
             arrays,
             normals,
             anchor_data.read_anchors(layout),
@@ -166,6 +239,11 @@ class SPRINGWRAP_OT_anchors_auto(_AnchorOperator, bpy.types.Operator):
             self.replace,
             self.max_distance,
         )
+        self._twins = None
+        if not self.symmetric:
+            return anchors.auto(*arguments), target.signature
+        twins, plane = self.read_twins(layout)
+        outcome, self._twins, self._side = anchor_twins.auto(*arguments, twins, plane)
         return outcome, target.signature
 
     def summary(self, anchors, outcome, milliseconds):
@@ -181,6 +259,12 @@ class SPRINGWRAP_OT_anchors_auto(_AnchorOperator, bpy.types.Operator):
             text += f"; {outcome.missed_count} vertices missed the target (no anchor)"
         if outcome.skipped_count:
             text += f"; {outcome.skipped_count} on no face (no normal) skipped"
+        if self._twins is not None:
+            side = "+" if self._side > 0 else "-"
+            text += (
+                f"; symmetric across '{self._plane_owner}' ({self.symmetry_axis}): spread on the {side} side, "
+                f"{self._twins.paired_count} pairs, {self._twins.on_plane_count} on the plane"
+            )
         return text
 
 
@@ -223,18 +307,27 @@ class SPRINGWRAP_OT_anchor_remove(_AnchorOperator, bpy.types.Operator):
         default=-1,
         soft_min=-1,
     )
+    with_twin: bpy.props.BoolProperty(
+        name="With Twin",
+        description="Remove the anchor's symmetric twin too; off: only this one (its twin stays, unpaired)",
+        default=True,
+    )
 
     def compute(self, context, layout):
         existing = anchor_data.read_anchors(layout)
         index = layout.springwrap.active_anchor_index if self.index == -1 else self.index
         self._vertex = int(existing.vertex_indices[index]) if 0 <= index < anchors.anchor_count(existing) else -1
-        remaining = anchors.remove(existing, index)
+        remaining = anchors.remove(existing, index, self.with_twin)
         count = anchors.anchor_count(remaining)
+        self._removed = anchors.anchor_count(existing) - count
         active = anchors.clamp_active_index(min(index, count - 1), count)
         return _list_outcome(anchors, remaining, active), None
 
     def summary(self, anchors, outcome, milliseconds):
-        return f"Removed the anchor of vertex {self._vertex}; {anchors.anchor_count(outcome.anchors)} anchors left"
+        both = " and its twin" if self._removed == 2 else ""
+        return (
+            f"Removed the anchor of vertex {self._vertex}{both}; {anchors.anchor_count(outcome.anchors)} anchors left"
+        )
 
 
 class SPRINGWRAP_OT_anchors_clear(_AnchorOperator, bpy.types.Operator):
