@@ -14,6 +14,7 @@ from typing import NamedTuple
 import numpy as np
 
 from . import anchors as anchor_module
+from . import transforms
 from .anchors import FACE_ANCHOR, SPACE_ANCHOR, AnchorOutcome, Anchors
 from .errors import LayoutError
 from .layout_state import NO_FACE, LayoutArrays
@@ -150,8 +151,9 @@ def auto(
     """``anchors.auto`` on one side of the plane, mirrored: ``(outcome, TwinReport, side)``.
 
     The side (``+1``: the normal's side, ``-1``) is the one with more of the kept anchors (``replace`` off),
-    else ``+1``. Anchors are spread over that side's vertices that have a twin (and the plane's), each
-    vertex whose twin is not anchored yet; then every new anchor gets its twin. Vertices with no twin
+    else ``+1``. Anchors are spread over that side's vertices that have a twin, are at least half the spacing
+    from the plane (so that a vertex and its twin are the spacing apart) and whose twin is not anchored yet,
+    and over the vertices on the plane; then every new anchor gets its twin. Vertices with no twin
     (an asymmetric part), on either side, are spread over last, with no twin, keeping the spacing from
     all the others. On a layout whose vertices all have twins the anchored vertices are then exactly
     symmetric (each anchored vertex's twin is anchored, paired with it).
@@ -168,7 +170,9 @@ def auto(
     twin_anchored = np.zeros(vertex_count, dtype=bool)
     twin_anchored[has_twin] = anchored[twins.twins[has_twin]]
     itself = twins.twins == np.arange(vertex_count)
-    first_side = has_twin & ~twin_anchored & (itself | (side * twins.distances > 0.0))
+    spacing = float(spacing) if spacing > 0.0 else anchor_module.default_spacing(transforms.world_positions(layout))
+    # Half the spacing from the plane at least (or on it): a vertex and its twin are then the spacing apart.
+    first_side = has_twin & ~twin_anchored & (itself | (side * twins.distances >= 0.5 * spacing))
     first = anchor_module.auto(
         layout, world_normals, existing, target, stored_signature, spacing, method, replace, max_distance, first_side
     )

@@ -286,6 +286,8 @@ def _grow(faces: list, half_edges: dict, seed) -> dict | None:
         face_map[face] = (target_face, target_shift)
         face_map[target_face] = (face, target_shift)
         queue.append(face)
+        if target_face != face:
+            queue.append(target_face)  # its edges are walked too: a border on one side only is found from either
         return True
 
     if not assign(start, image, shift):

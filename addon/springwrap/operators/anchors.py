@@ -115,7 +115,10 @@ class SPRINGWRAP_OT_anchor_add(_AnchorOperator, bpy.types.Operator):
     bl_label = "Add Anchor"
     bl_options = {"REGISTER", "UNDO"}
 
-    reads = frozenset({"anchors"})
+    @property
+    def reads(self):
+        """A symmetric add reads the layout's vertices too (for the twins)."""
+        return frozenset({"anchors", "positions"} if self.symmetric else {"anchors"})
 
     vertex_index: bpy.props.IntProperty(
         name="Vertex Index",
@@ -184,8 +187,10 @@ class SPRINGWRAP_OT_anchor_add(_AnchorOperator, bpy.types.Operator):
             f"Anchored vertex {self._vertex} to {where} at ({location[0]:.4g}, {location[1]:.4g}, "
             f"{location[2]:.4g}), {distance:.4g} from the {source}"
         )
-        if outcome.replaced_count:
-            text += f"; replaced {outcome.replaced_count} previous anchor(s)"
+        if outcome.replaced_count and self._twins is not None:
+            text += f"; replaced {outcome.replaced_count} previous anchor(s) on the pair's vertices"
+        elif outcome.replaced_count:
+            text += "; replaced its previous anchor"
         twins = self._twins
         if twins is not None and twins.twin_vertex >= 0:
             text += f"; its twin: vertex {twins.twin_vertex} ({twins.how})"
