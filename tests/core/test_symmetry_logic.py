@@ -347,3 +347,13 @@ def test_auto_anchors_vertices_without_twins_alone():
     assert np.count_nonzero(partners < 0) == report.no_vertex_count
     unpaired = outcome.anchors.vertex_indices[partners < 0]
     assert np.all(lone.twins[unpaired] == -1)
+
+
+@pytest.mark.parametrize("shift, found", [(0.2, True), (0.6, False)])
+def test_a_midline_off_the_plane_seeds_the_match_within_a_quarter_edge(shift, found):
+    """A wrapped layout's midline is only near the plane: within a quarter of an edge it still seeds the match."""
+    grid = Grid(7, shuffle_seed=9)
+    positions = grid.positions + [shift / 3.0, 0.0, 0.0]  # columns 1/3 apart, rows 1/2: the edges around 0.4
+    twins = grid.find(positions, use_topology=True)
+    assert np.array_equal(twins.twins, grid.twins) == found
+    assert np.all(twins.how == sy.BY_TOPOLOGY) == found

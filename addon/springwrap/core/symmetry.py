@@ -4,9 +4,10 @@ The plane is the one the mirror uses (``mirroring.plane_from_matrix``: the layou
 plane, or an empty's, carried to world space). A vertex's **twin** is found:
 
 1. **By topology**: a mirror symmetry of the mesh is a map of faces onto faces that reverses their
-   winding. It is grown face by face from a *seed*: an edge lying on the plane (both ends on it, a face
-   on each side: each face maps to the other, the edge's ends to themselves), or an edge crossing the
-   plane symmetrically (its ends swap, each of its faces maps to itself). Across every edge of a mapped
+   winding. It is grown face by face from a *seed*: an edge lying on the plane (both ends within
+   :data:`POSITION_TOLERANCE` of their mean edge length of it, a face on each side: each face maps to
+   the other, the edge's ends to themselves), or an edge crossing the plane (its ends about as far on
+   either side: they swap, each of its faces maps to itself); nearest the plane first. Across every edge of a mapped
    face the neighbour's image is the face across the image edge, so the whole edge-connected piece
    follows from the seed without looking at positions. The map must be consistent (a vertex gets one
    twin, twins are mutual, faces have the same size) and must send at least
@@ -36,7 +37,7 @@ POSITION_TOLERANCE = 0.25
 """By position, a twin is the vertex nearest to the reflection within this fraction of the mean edge length."""
 MIN_SIDE_AGREEMENT = 0.9
 """A topological map is kept when at least this fraction of its vertices go to the other side (or stay on the plane)."""
-MAX_SEEDS_PER_PIECE = 4
+MAX_SEEDS_PER_PIECE = 8
 """Seeds tried per edge-connected piece before it is left to the position rule."""
 
 NO_TWIN = 0
@@ -249,16 +250,18 @@ def _seeds(half_edges: dict, distances: np.ndarray, lengths: np.ndarray):
     edge crossing the plane maps onto itself with its ends swapped (its face goes to itself).
     """
     scored = []
+    reach = POSITION_TOLERANCE  # a wrapped layout's midline is only near the plane
     for (a, b), (face, position) in half_edges.items():
         scale = max(lengths[a], lengths[b])
         if not scale > 0.0:
             continue
         da, db = distances[a], distances[b]
-        if abs(da) <= ON_PLANE_FRACTION * lengths[a] and abs(db) <= ON_PLANE_FRACTION * lengths[b]:
+        if abs(da) <= reach * lengths[a] and abs(db) <= reach * lengths[b]:
             across = half_edges.get((b, a))
             if across is not None and a < b:
                 scored.append(((abs(da) + abs(db)) / scale, face, across[0], across[1] + 1 + position))
-        elif da * db < 0.0 and abs(da + db) <= ON_PLANE_FRACTION * scale:
+        elif da * db < 0.0 and abs(da + db) <= reach * scale and abs(da - db) >= 0.5 * scale:
+            # across the plane (not along it), its ends about as far on either side
             scored.append((abs(da + db) / scale, face, face, 2 * position + 1))
     scored.sort(key=lambda entry: entry[0])
     return [(face, image, shift) for _score, face, image, shift in scored]
