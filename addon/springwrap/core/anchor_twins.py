@@ -72,7 +72,8 @@ def twin_targets(anchor_list: Anchors, plane: Plane, target: Target, limit: floa
 
 
 def add_twins(result: Anchors, new: np.ndarray, twins: Twins, plane: Plane, target: Target, limit: float):
-    """``result`` with a twin anchor for each of its anchors at positions ``new``; ``(anchors, TwinReport)``.
+    """``result`` with a twin anchor for each of its anchors at positions ``new``: ``(anchors, TwinReport, replaced)``,
+    ``replaced`` the anchors the twins took the place of.
 
     A twin replaces an anchor already on its vertex (unless that anchor is one of ``new``: then both are
     paired as they are, no anchor is replaced by its own twin's twin).
