@@ -59,6 +59,18 @@ def grid(size: int = 4):
     return vertices, triangles
 
 
+def grid_triangles(cells: int) -> np.ndarray:
+    """The triangles of a ``(cells + 1) x (cells + 1)`` grid of points stored row by row along the first axis
+    (``indexing="ij"``): two per cell, (M, 3) uint32."""
+    triangles = []
+    for i in range(cells):
+        for j in range(cells):
+            a, d = i * (cells + 1) + j, i * (cells + 1) + j + 1
+            b, c = a + cells + 1, d + cells + 1
+            triangles += [(a, b, c), (a, c, d)]
+    return np.array(triangles, dtype=np.uint32)
+
+
 # ---------------------------------------------------------------- wraps through the kernel
 
 

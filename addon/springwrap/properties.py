@@ -138,6 +138,11 @@ ANCHOR_METHOD_ITEMS = (
 )
 """How ``springwrap.anchors_auto`` finds the anchors' targets."""
 
+SYMMETRY_AXIS_ITEMS = tuple(
+    (axis, axis, f"The plane {axis.lower()} = 0 of the layout (or of the symmetry object)") for axis in "XYZ"
+)
+"""The symmetric anchors' plane: perpendicular to this local axis."""
+
 
 def _is_target_candidate(settings, candidate):
     """Poll of ``target``: a mesh object other than the layout that owns the settings."""
@@ -147,6 +152,11 @@ def _is_target_candidate(settings, candidate):
 def _is_armature(_settings, candidate):
     """Poll of ``target_armature``: an armature object."""
     return candidate is not None and candidate.type == "ARMATURE"
+
+
+def _is_empty(_settings, candidate):
+    """Poll of ``anchor_symmetry_object``: an Empty."""
+    return candidate is not None and candidate.type == "EMPTY"
 
 
 class SpringwrapAnchorItem(bpy.types.PropertyGroup):
@@ -173,6 +183,12 @@ class SpringwrapAnchorItem(bpy.types.PropertyGroup):
     )
     location: props.point(
         "Location", "World-space target point (for a face anchor, refreshed from the target by the anchor operators)"
+    )
+    twin_vertex: props.integer(
+        "Twin",
+        "Vertex of this anchor's symmetric twin anchor (its own vertex on the symmetry plane), -1: none",
+        -1,
+        min=-1,
     )
 
 
@@ -282,6 +298,22 @@ class SpringwrapObjectSettings(bpy.types.PropertyGroup):
     )
     anchor_method: props.choice(
         "Method", "Default method of the panel's Auto Anchors button", ANCHOR_METHOD_ITEMS, "CLOSEST"
+    )
+    # Symmetric anchors (operators.anchors): the panel's defaults for Add and Auto.
+    anchor_symmetric: props.flag(
+        "Symmetric", "Add and Auto Anchors also anchor each vertex's twin across the symmetry plane, as a pair", False
+    )
+    anchor_symmetry_axis: props.choice(
+        "Symmetry Axis",
+        "The symmetry plane is perpendicular to this local axis of the layout (or of the symmetry object)",
+        SYMMETRY_AXIS_ITEMS,
+        "X",
+    )
+    anchor_symmetry_object: props.object_pointer(
+        "Symmetry Object",
+        "Empty whose local plane (through its origin, perpendicular to the axis) is the symmetry plane; "
+        "none: the layout's own",
+        poll=_is_empty,
     )
 
     curve_constraints: props.items(

@@ -602,6 +602,30 @@ def head_scene(scale=1.05, on_target=False):
     return target, layout
 
 
+def symmetric_head_scene(scale=1.05, shuffle_seed=0):
+    """The symmetric head target and a whole sphere layout around it (both halves of a 12 x 8 half grid, the
+    second reflected, faces reversed), its vertices numbered in a shuffled order; both placed by PLACEMENT.
+
+    Returns (target, layout, twins): ``twins`` (N,) each layout vertex's mirror image (itself on x = 0).
+    """
+    target = make_object("Target", *symmetric_target_arrays())
+    directions, faces = half_sphere_grid(12, 8)
+    off_plane = np.flatnonzero(directions[:, 0] != 0.0)
+    partner = np.arange(len(directions))
+    partner[off_plane] = len(directions) + np.arange(off_plane.size)
+    vertices = np.vstack([directions, directions[off_plane] * [-1.0, 1.0, 1.0]]) * scale
+    faces = [list(face) for face in faces] + [list(partner[face][::-1]) for face in faces]
+    twins = np.arange(len(vertices))
+    twins[partner] = np.arange(len(directions))
+    twins[np.arange(len(directions))] = partner
+    old_of_new = np.random.default_rng(shuffle_seed).permutation(len(vertices))
+    new_of_old = np.argsort(old_of_new)
+    layout = make_object("Layout", vertices[old_of_new], [list(new_of_old[face]) for face in faces])
+    layout.springwrap.target = target
+    activate(layout)
+    return target, layout, new_of_old[twins[old_of_new]]
+
+
 def world_plane():
     """The layout's local x = 0 plane in world space: (point, unit normal)."""
     normal = np.array(PLACEMENT.to_3x3() @ Vector((1.0, 0.0, 0.0)))

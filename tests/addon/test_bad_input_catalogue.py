@@ -120,7 +120,14 @@ def full_snapshot(layout):
     positions = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
     mesh.vertices.foreach_get("co", positions)
     anchors = [
-        (item.vertex_index, item.target_kind, item.triangle, tuple(item.barycentric), tuple(item.location))
+        (
+            item.vertex_index,
+            item.target_kind,
+            item.triangle,
+            tuple(item.barycentric),
+            tuple(item.location),
+            item.twin_vertex,
+        )
         for item in settings.anchors
     ]
     constraints = [
@@ -381,6 +388,96 @@ def test_a_bad_mirror_plane_is_refused(value):
     layout.springwrap.mirror_object = mirror
     with pytest.raises(RuntimeError, match="The plane of 'Mirror'|The mirror plane's object has a NaN"):
         bpy.ops.springwrap.wrap(hold_plane="X", max_iterations=30)
+    assert full_snapshot(layout) == before
+
+
+# ---------------------------------------------------------------- symmetric anchors
+
+SYMMETRIC_CALLS = {
+    "anchor_add": {"vertex_index": 3, "location": (0.1, 0.2, 1.0), "use_location": True, "symmetric": True},
+    "anchors_auto": {"spacing": 0.7, "replace": False, "symmetric": True},
+}
+"""The symmetric anchor operators: a call that finishes on the healthy scene (its layout's own X plane)."""
+SYMMETRIC_READS = {"positions", "positions far", "anchors", "target"}
+SYMMETRIC_PAIRS = [
+    (operator, case) for operator in SYMMETRIC_CALLS for case in CATALOGUE if CATALOGUE[case][1] in SYMMETRIC_READS
+]
+
+
+def _symmetry_object(kind):
+    """A scene object 'Symmetry' that cannot give a symmetry plane: deleted, a mesh, or with a NaN transform."""
+    if kind == "not an Empty":
+        bpy.ops.mesh.primitive_cube_add(size=0.2)
+        bpy.context.active_object.name = "Symmetry"
+        return
+    empty = bpy.data.objects.new("Symmetry", None)
+    bpy.context.scene.collection.objects.link(empty)
+    if kind == "deleted":
+        bpy.data.objects.remove(empty)
+    else:
+        empty.location.x = math.nan
+
+
+SYMMETRY_OBJECTS = {
+    "deleted": "There is no object named 'Symmetry' for the symmetry plane",
+    "not an Empty": "The symmetry object 'Symmetry' is a mesh, not an Empty",
+    "NaN transform": "'Symmetry' has a NaN or infinite transform",
+}
+
+
+@pytest.mark.parametrize("operator", list(SYMMETRIC_CALLS))
+def test_symmetric_anchor_calls_finish_on_the_healthy_scene(operator):
+    catalogue_scene()
+    assert _call(operator, SYMMETRIC_CALLS[operator]) == {"FINISHED"}
+
+
+@pytest.mark.parametrize(
+    "operator, case", SYMMETRIC_PAIRS, ids=[f"{operator}-{case}" for operator, case in SYMMETRIC_PAIRS]
+)
+def test_symmetric_anchor_calls_refuse_bad_input_and_change_nothing(operator, case):
+    target, layout = catalogue_scene()
+    breaks, _kind, message = CATALOGUE[case]
+    breaks(target, layout)
+    bpy.context.view_layer.update()
+    before = full_snapshot(layout)
+    with pytest.raises(RuntimeError, match=message):
+        _call(operator, SYMMETRIC_CALLS[operator])
+    assert full_snapshot(layout) == before
+
+
+SYMMETRIC_OTHER_PAIRS = [
+    (operator, case) for operator in SYMMETRIC_CALLS for case in CATALOGUE if CATALOGUE[case][1] not in SYMMETRIC_READS
+]
+
+
+@pytest.mark.parametrize(
+    "operator, case", SYMMETRIC_OTHER_PAIRS, ids=[f"{operator}-{case}" for operator, case in SYMMETRIC_OTHER_PAIRS]
+)
+def test_symmetric_anchor_calls_never_crash_on_other_bad_input(operator, case):
+    """They finish or refuse for a reason of their own, leaving the scene as it was when they refuse."""
+    target, layout = catalogue_scene()
+    CATALOGUE[case][0](target, layout)
+    bpy.context.view_layer.update()
+    before = full_snapshot(layout)
+    try:
+        result = _call(operator, SYMMETRIC_CALLS[operator])
+    except RuntimeError as error:
+        assert str(error).startswith("Error: ") or "poll()" in str(error), error
+        assert full_snapshot(layout) == before
+    else:
+        assert result == {"FINISHED"}
+
+
+@pytest.mark.parametrize("kind", list(SYMMETRY_OBJECTS))
+@pytest.mark.parametrize("operator", list(SYMMETRIC_CALLS))
+def test_a_bad_symmetry_object_is_refused(operator, kind):
+    target, layout = catalogue_scene()
+    _symmetry_object(kind)
+    bpy.context.view_layer.objects.active = layout
+    bpy.context.view_layer.update()
+    before = full_snapshot(layout)
+    with pytest.raises(RuntimeError, match=SYMMETRY_OBJECTS[kind]):
+        _call(operator, SYMMETRIC_CALLS[operator] | {"symmetry_object": "Symmetry"})
     assert full_snapshot(layout) == before
 
 

@@ -15,10 +15,38 @@ from .. import property_kinds as props
 from ..blender import anchors as anchor_data
 from ..blender import layout as layout_data
 from ..blender import target as target_data
-from ..core import anchors, input_policy
+from ..core import anchor_twins, anchors, input_policy, symmetry, transforms
 from ..core.errors import LayoutError
-from ..properties import ANCHOR_METHOD_ITEMS, max_distance_property
+from ..properties import ANCHOR_METHOD_ITEMS, SYMMETRY_AXIS_ITEMS, max_distance_property
 from .base import LayoutCollectionOperator, RemovesItems, RemovesOneItem, topology_change_report
+
+
+def symmetric_property():
+    """``symmetric`` of Add and Auto Anchors."""
+    return props.flag(
+        "Symmetric",
+        "Also anchor each vertex's twin across the symmetry plane (by topology, else by position) to the closest "
+        "target point of the reflected target point; the two are a pair",
+        False,
+    )
+
+
+def symmetry_axis_property():
+    """``symmetry_axis`` of Add and Auto Anchors."""
+    return props.choice(
+        "Symmetry Axis",
+        "The symmetry plane is perpendicular to this local axis of the layout (or of the symmetry object)",
+        SYMMETRY_AXIS_ITEMS,
+        "X",
+    )
+
+
+def symmetry_object_property():
+    """``symmetry_object`` of Add and Auto Anchors."""
+    return props.text(
+        "Symmetry Object",
+        "Name of an Empty whose local plane (through its origin) is the symmetry plane; empty: the layout's",
+    )
 
 
 class _AnchorOperator(LayoutCollectionOperator):
@@ -34,11 +62,48 @@ class _AnchorOperator(LayoutCollectionOperator):
         anchor_data.write_anchors(layout, outcome.anchors, outcome.active_index, signature)
         milliseconds = (time.perf_counter() - start) * 1000.0
         topology = topology_change_report(outcome, "face anchors", "space anchors")
-        return [({"INFO"}, self.summary(anchors, outcome, milliseconds))] + ([topology] if topology else [])
+        reports = [({"INFO"}, self.summary(anchors, outcome, milliseconds)), *self.twin_reports()]
+        return reports + ([topology] if topology else [])
 
     def compute(self, context, layout):
         """``(anchors.AnchorOutcome, signature or None)``; raises one of ``ERRORS`` on bad input."""
         raise NotImplementedError
+
+    def twin_reports(self):
+        """What the symmetric half did, when the operation was symmetric (``self._twins``)."""
+        report = getattr(self, "_twins", None)
+        if report is None:
+            return []
+        lone = []
+        if report.no_vertex_count:
+            lone.append(f"{report.no_vertex_count} with no twin vertex (asymmetric layout there)")
+        if report.no_target_count:
+            lone.append(f"{report.no_target_count} with no target point near the reflection")
+        if not lone:
+            return []
+        return [
+            ({"WARNING"}, f"Symmetric anchors across the plane of '{self._plane_owner}': left alone " + ", ".join(lone))
+        ]
+
+    def maybe_symmetric(self, layout, plain, symmetric, *arguments):
+        """``plain(*arguments)`` (``core.anchors``), or with ``symmetric`` on the same through ``symmetric``
+        (``core.anchor_twins``) with the layout's twins; what the twins did is kept for the report."""
+        self._twins = self._side = None
+        if not self.symmetric:
+            return plain(*arguments)
+        outcome, self._twins, *side = symmetric(*self.read_twins(layout), *arguments)
+        self._side = side[0] if side else None
+        return outcome
+
+    def read_twins(self, layout):
+        """The layout's vertex twins across the chosen symmetry plane, and the plane (object mode data)."""
+        arrays = layout_data.read_layout(layout)
+        topology = layout_data.read_layout_topology(layout)
+        plane, self._plane_owner = anchor_data.read_symmetry_plane(
+            layout, self.symmetry_axis, self.symmetry_object, self.extent
+        )
+        world = transforms.world_positions(arrays)
+        return symmetry.vertex_twins(world, topology.face_corners, topology.face_sizes, topology.edges, plane), plane
 
     def summary(self, anchors, outcome, milliseconds):
         """The report of a finished operation."""
@@ -50,7 +115,10 @@ class SPRINGWRAP_OT_anchor_add(_AnchorOperator, bpy.types.Operator):
 
     bl_label = "Add Anchor"
 
-    reads = frozenset({"anchors"})
+    @property
+    def reads(self):
+        """A symmetric add reads the layout's vertices too (for the twins)."""
+        return frozenset({"anchors", "positions"} if self.symmetric else {"anchors"})
 
     vertex_index: props.integer(
         "Vertex Index",
@@ -65,6 +133,9 @@ class SPRINGWRAP_OT_anchor_add(_AnchorOperator, bpy.types.Operator):
         "The target is the closest point of the target surface; off: the location itself (a space anchor)",
         True,
     )
+    symmetric: symmetric_property()
+    symmetry_axis: symmetry_axis_property()
+    symmetry_object: symmetry_object_property()
 
     def compute(self, context, layout):
         selection, active_vertex = layout_data.read_vertex_selection(layout)
@@ -79,28 +150,29 @@ class SPRINGWRAP_OT_anchor_add(_AnchorOperator, bpy.types.Operator):
             tuple(source), "The anchor location" if self.use_location else "The 3D cursor", self.extent
         )
         target = target_data.read_target(context.evaluated_depsgraph_get(), layout)
-        outcome = anchors.add(
-            selection.size,
-            anchor_data.read_anchors(layout),
-            target,
-            layout.springwrap.anchors_signature,
-            self._vertex,
-            self._source,
-            self.on_surface,
-        )
-        return outcome, target.signature
+        existing = (selection.size, anchor_data.read_anchors(layout), target, layout.springwrap.anchors_signature)
+        anchor = (self._vertex, self._source, self.on_surface)
+        return self.maybe_symmetric(layout, anchors.add, anchor_twins.add, *existing, *anchor), target.signature
 
     def summary(self, anchors, outcome, milliseconds):
-        location = outcome.anchors.locations[-1]
-        where = "the target surface" if outcome.anchors.kinds[-1] == anchors.FACE_ANCHOR else "a point in space"
+        own = outcome.active_index
+        location = outcome.anchors.locations[own]
+        where = "the target surface" if outcome.anchors.kinds[own] == anchors.FACE_ANCHOR else "a point in space"
         distance = float(np.linalg.norm(location - self._source))
         source = "location" if self.use_location else "3D cursor"
         text = (
             f"Anchored vertex {self._vertex} to {where} at ({location[0]:.4g}, {location[1]:.4g}, "
             f"{location[2]:.4g}), {distance:.4g} from the {source}"
         )
-        if outcome.replaced_count:
+        if outcome.replaced_count and self._twins is not None:
+            text += f"; replaced {outcome.replaced_count} previous anchor(s) on the pair's vertices"
+        elif outcome.replaced_count:
             text += "; replaced its previous anchor"
+        twins = self._twins
+        if twins is not None and twins.twin_vertex >= 0:
+            text += f"; its twin: vertex {twins.twin_vertex} ({twins.how})"
+        elif twins is not None and twins.on_plane_count:
+            text += "; it is on the symmetry plane: its own twin"
         return text
 
 
@@ -121,23 +193,17 @@ class SPRINGWRAP_OT_anchors_auto(_AnchorOperator, bpy.types.Operator):
     max_distance: max_distance_property(
         "Vertices whose target point is farther than this get no anchor (0 = unlimited)"
     )
+    symmetric: symmetric_property()
+    symmetry_axis: symmetry_axis_property()
+    symmetry_object: symmetry_object_property()
 
     def compute(self, context, layout):
         arrays = layout_data.read_layout(layout)
         target = target_data.read_target(context.evaluated_depsgraph_get(), layout)
         normals = layout_data.read_world_normals(layout) if self.method == "PROJECT" else None
-        outcome = anchors.auto(
-            arrays,
-            normals,
-            anchor_data.read_anchors(layout),
-            target,
-            layout.springwrap.anchors_signature,
-            self.spacing,
-            self.method,
-            self.replace,
-            self.max_distance,
-        )
-        return outcome, target.signature
+        existing = (arrays, normals, anchor_data.read_anchors(layout), target, layout.springwrap.anchors_signature)
+        spread = (self.spacing, self.method, self.replace, self.max_distance)
+        return self.maybe_symmetric(layout, anchors.auto, anchor_twins.auto, *existing, *spread), target.signature
 
     def summary(self, anchors, outcome, milliseconds):
         text = (
@@ -152,6 +218,12 @@ class SPRINGWRAP_OT_anchors_auto(_AnchorOperator, bpy.types.Operator):
             text += f"; {outcome.missed_count} vertices missed the target (no anchor)"
         if outcome.skipped_count:
             text += f"; {outcome.skipped_count} on no face (no normal) skipped"
+        if self._twins is not None:
+            side = "+" if self._side > 0 else "-"
+            text += (
+                f"; symmetric across '{self._plane_owner}' ({self.symmetry_axis}): spread on the {side} side, "
+                f"{self._twins.paired_count} pairs, {self._twins.on_plane_count} on the plane"
+            )
         return text
 
 
@@ -179,16 +251,24 @@ class SPRINGWRAP_OT_anchor_remove(RemovesOneItem, _AnchorOperator, bpy.types.Ope
 
     bl_label = "Remove Anchor"
 
+    with_twin: props.flag(
+        "With Twin", "Remove the anchor's symmetric twin too; off: only this one (its twin stays, unpaired)", True
+    )
+
     def remove(self, layout, index):
         existing = anchor_data.read_anchors(layout)
         self._vertex = int(existing.vertex_indices[index]) if 0 <= index < anchors.anchor_count(existing) else -1
-        remaining = anchors.remove(existing, index)
+        remaining = anchors.remove(existing, index, self.with_twin)
         count = anchors.anchor_count(remaining)
+        self._removed = anchors.anchor_count(existing) - count
         active = anchors.clamp_active_index(min(index, count - 1), count)
         return _list_outcome(anchors, remaining, active), None
 
     def summary(self, anchors, outcome, milliseconds):
-        return f"Removed the anchor of vertex {self._vertex}; {anchors.anchor_count(outcome.anchors)} anchors left"
+        both = " and its twin" if self._removed == 2 else ""
+        return (
+            f"Removed the anchor of vertex {self._vertex}{both}; {anchors.anchor_count(outcome.anchors)} anchors left"
+        )
 
 
 class SPRINGWRAP_OT_anchors_clear(RemovesItems, _AnchorOperator, bpy.types.Operator):

@@ -164,6 +164,7 @@ class SPRINGWRAP_PT_anchors(_LayoutSubPanel, bpy.types.Panel):
         add = column.operator("springwrap.anchor_add", icon="ADD", text="")
         add.vertex_index = -1
         add.use_location = False
+        _symmetry_arguments(add, settings)
         column.operator("springwrap.anchor_remove", icon="REMOVE", text="").index = -1
         column.separator()
         column.operator("springwrap.anchors_update", icon="FILE_REFRESH", text="")
@@ -176,6 +177,24 @@ class SPRINGWRAP_PT_anchors(_LayoutSubPanel, bpy.types.Panel):
         auto.spacing = settings.anchor_spacing
         auto.method = settings.anchor_method
         auto.max_distance = settings.max_distance
+        _symmetry_arguments(auto, settings)
+        # Symmetric anchors: Add and Auto anchor each vertex's twin too, as a pair (Remove removes both).
+        row = layout.row(align=True)
+        row.prop(settings, "anchor_symmetric", icon="MOD_MIRROR")
+        sub = row.row(align=True)
+        sub.active = settings.anchor_symmetric
+        sub.prop(settings, "anchor_symmetry_axis", expand=True)
+        sub = layout.row()
+        sub.active = settings.anchor_symmetric
+        sub.prop(settings, "anchor_symmetry_object", text="Plane Of")
+
+
+def _symmetry_arguments(operator, settings):
+    """The panel's symmetric-anchor settings given to Add or Auto Anchors."""
+    operator.symmetric = settings.anchor_symmetric
+    operator.symmetry_axis = settings.anchor_symmetry_axis
+    symmetry_object = settings.anchor_symmetry_object
+    operator.symmetry_object = symmetry_object.name if symmetry_object is not None else ""
 
 
 class SPRINGWRAP_PT_curve_constraints(_ToolPanel, bpy.types.Panel):
