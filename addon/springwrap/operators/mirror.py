@@ -232,9 +232,11 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
         start = time.perf_counter()
         arrays, plane, decided = prepared["arrays"], prepared["plane"], prepared["plan"]
         original_count = arrays.positions.shape[0]
-        source = mirror_data.mirror_mesh_topology(
+        custom_normals = mirror_data.read_custom_normals(layout)
+        mirrored_mesh = mirror_data.mirror_mesh_topology(
             layout, decided.duplicate_faces, decided.duplicate_edges, decided.seam
         )
+        source = mirrored_mesh.vertex_source
         size = float(np.linalg.norm(np.ptp(prepared["world"], axis=0))) or 1.0
         mirrored = mirroring.mirrored_layout(
             prepared["world"],
@@ -262,6 +264,8 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
         to_local = lambda points: transforms.to_local(arrays.matrix_world, points)  # noqa: E731
         attributes.write_rest(layout, to_local(mirrored.rest))
         layout_data.write_layout(layout, to_local(mirrored.positions), mirrored.state)
+        if custom_normals is not None:
+            mirror_data.mirror_custom_normals(layout, custom_normals, mirrored_mesh.corner_source, plane)
         anchor_list = anchor_data.read_anchors(layout)
         if target is not None:
             anchor_list, _ = anchors.resolve(anchor_list, target, layout.springwrap.anchors_signature)
