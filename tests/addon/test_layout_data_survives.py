@@ -398,3 +398,45 @@ def _same(a, b):
     if a.dtype == object:
         return a.tolist() == b.tolist()
     return a.shape == b.shape and a.tobytes() == b.tobytes()
+
+
+# ---------------------------------------------------------------- the command line
+
+
+def test_the_mirror_script_keeps_the_layout_s_data(tmp_path):
+    """``blender_scripts/mirror.py`` on a .blend (its own process): the same operator, the same data."""
+    import subprocess
+
+    from helpers import REPOSITORY, TIMEOUT_SECONDS, script_command
+
+    target, layout = layout_scene()
+    mesh = layout.data
+    count, face_count = len(mesh.vertices), len(mesh.polygons)
+    before = layout_data(layout)
+    values_before = {attribute.name: attribute_values(attribute) for attribute in mesh.attributes}
+    path = tmp_path / "dressed.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    output = tmp_path / "mirrored.blend"
+    process = subprocess.run(
+        [*script_command(REPOSITORY / "blender_scripts" / "mirror.py")]
+        + ["--layout", str(path), "--layout-object", "Layout", "--no-wrap", "--output-blend", str(output)],
+        capture_output=True,
+        text=True,
+        timeout=TIMEOUT_SECONDS,
+        cwd=REPOSITORY,
+    )
+    assert process.returncode == 0, process.stderr
+    bpy.ops.wm.open_mainfile(filepath=str(output))
+    layout = bpy.data.objects["Layout"]
+    mesh = layout.data
+    assert len(mesh.vertices) > count and len(mesh.polygons) == 2 * face_count
+    after = layout_data(layout)
+    for name in ("UV maps", "vertex groups", "materials", "colour attributes", "custom normals", "modifiers"):
+        assert after[name] == before[name], name
+    for name in ("parent", "object custom properties", "mesh custom properties", CONSTRAINTS):
+        assert after[name] == before[name], name
+    sizes = {"POINT": count, "FACE": face_count}
+    for attribute in mesh.attributes:  # the original half's points and faces keep every value
+        if attribute.domain in sizes and attribute.name in values_before.keys() - NOT_COPIED:
+            values = attribute_values(attribute)[: sizes[attribute.domain]]
+            assert _same(values, values_before[attribute.name]), attribute.name

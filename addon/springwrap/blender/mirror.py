@@ -1,5 +1,6 @@
-"""The mirror's changes to the layout mesh: the mirrored half's topology added with bmesh, the mesh backed up
-and restored, faces selected. ``core.mirroring`` decides everything first.
+"""The mirror's changes to the layout mesh: the mirrored half's topology added with bmesh (each new element a copy
+of its original, with all its data), custom normals reflected, the mesh backed up and restored, faces selected.
+``core.mirroring`` decides everything first.
 """
 
 from typing import NamedTuple

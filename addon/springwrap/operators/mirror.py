@@ -6,8 +6,9 @@ or that plane of a mirror object (an empty), as in Blender's Mirror modifier. Th
 1. reads the layout and decides the seam (vertices on the plane), the faces that cross the plane
    and whether the plane meets the layout at all (``mirroring.plan``): a plane that misses it is
    an error and nothing is changed;
-2. adds the reflected copy of the layout's faces and loose edges, winding reversed, every mesh
-   attribute carried over, the seam welded (``mirror_data.mirror_mesh_topology``); writes the reflected
+2. adds the reflected copy of the layout's faces and loose edges, winding reversed, on the seam's own
+   vertices, each copy with its original's data (``mirror_data.mirror_mesh_topology``; custom normals
+   reflected by ``mirror_data.mirror_custom_normals``); writes the reflected
    positions, the rest shape reflected the same way, and the state: the surfaced half keeps its
    face-points, the copy is made of space-points (``mirroring.mirrored_layout``);
 3. unless ``wrap`` is off, wraps the copy onto the target with the surfaced half pinned (anchors at
