@@ -683,7 +683,6 @@ SPRINGWRAP_STATE = ("springwrap_state", "springwrap_face", "springwrap_bary")
 """What the operators write by design (besides positions): the face-point state."""
 UV_SELECTION = (".uv_select_vert", ".uv_select_edge", ".uv_select_face")
 """The UV editor's selection, which Blender adds (all False) whenever a mesh goes through bmesh or edit mode."""
-REST = "springwrap_rest"
 
 
 def attribute_values(attribute) -> np.ndarray:
@@ -698,7 +697,7 @@ def attribute_values(attribute) -> np.ndarray:
 
 def _random_attribute_values(data_type, count, random):
     if data_type == "STRING":
-        return [f"s{value}".encode() for value in random.integers(0, 1000, count)]
+        return [f"s{value}" for value in random.integers(0, 1000, count)]
     _field, _dtype, width = _ATTRIBUTE_FIELDS[data_type]
     if data_type == "BOOLEAN":
         return random.random(count) < 0.5
@@ -718,7 +717,10 @@ def set_attribute(mesh, name, data_type, domain, values) -> None:
     attribute = mesh.attributes.get(name) or mesh.attributes.new(name, data_type, domain)
     if data_type == "STRING":
         for item, value in zip(attribute.data, values):
-            item.value = value
+            try:
+                item.value = value
+            except TypeError:  # Blender 5.0 takes bytes, 3.4 a str
+                item.value = value.encode()
         return
     field, dtype, _width = _ATTRIBUTE_FIELDS[data_type]
     attribute.data.foreach_set(field, np.ascontiguousarray(values, dtype=dtype).ravel())

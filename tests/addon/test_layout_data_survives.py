@@ -106,6 +106,7 @@ def _select_chain_then(operator, **arguments):
         for edge in layout.data.edges:
             edge.hide = edge.hide and not set(edge.vertices) <= set(SELECTED_CHAIN)
         select_edges(layout, list(zip(SELECTED_CHAIN, SELECTED_CHAIN[1:])))  # and enters edit mode
+        bpy.ops.object.mode_set(mode="OBJECT")  # the data compared is object mode data
         return "SNAPSHOT", lambda: getattr(bpy.ops.springwrap, operator)(**arguments)
 
     return run
