@@ -794,6 +794,7 @@ def dress_layout(layout, creases=True, seed=7):
         for data_type in CUSTOM_ATTRIBUTE_TYPES:
             name = f"user_{domain.lower()}_{data_type.lower()}"
             set_attribute(mesh, name, data_type, domain, _random_attribute_values(data_type, counts[domain], random))
+    mesh.attributes.active = mesh.attributes["user_edge_float"]
     color = mesh.color_attributes.new("Paint", "BYTE_COLOR", "CORNER")
     color.data.foreach_set("color", random.integers(0, 256, counts["CORNER"] * 4) / 255.0)
     set_creases(mesh, "POINT", random.random(counts["POINT"]) * creases)
@@ -905,6 +906,7 @@ def layout_data(layout) -> dict:
         colors.keys(),
         getattr(colors, "active_color_name", colors.active_color.name if colors.active_color else None),
     )
+    data["active attribute"] = None if mesh.attributes.active is None else mesh.attributes.active.name
     data["custom normals"] = mesh.has_custom_normals
     for domain, collection in (("vertices", mesh.vertices), ("edges", mesh.edges), ("faces", mesh.polygons)):
         data[f"selected {domain}"] = _flags(collection, "select").tobytes()

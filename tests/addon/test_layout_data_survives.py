@@ -242,6 +242,10 @@ def element_sources(layout, source, count, edge_count, face_count):
     return {"POINT": source, "EDGE": edge_source, "FACE": face_source, "CORNER": corner_source}
 
 
+OBJECT_LEVEL = ("UV maps", "vertex groups", "materials", "material slots", "colour attributes", "active attribute")
+OBJECT_LEVEL += ("custom normals", "modifiers", "parent", "object custom properties", "mesh custom properties")
+OBJECT_LEVEL += ("Springwrap target",)
+"""The data of ``bpy_helpers.layout_data`` that are the object's or the whole mesh's: the mirror keeps them."""
 NOT_COPIED = {"position", "springwrap_state", "springwrap_face", "springwrap_bary", "springwrap_rest"}
 """Attributes the mirror computes for the copies instead: positions reflected, the state, the rest shape reflected."""
 COPIED_AS_STORED = {"custom_normal"}
@@ -272,9 +276,7 @@ def test_mirror_keeps_the_half_and_copies_everything_onto_the_new_half(wrap):
     sources = element_sources(layout, outcome.source, count, edge_count, face_count)
     after = layout_data(layout)
     # Object and mesh level: nothing changes.
-    for name in ("UV maps", "vertex groups", "materials", "material slots", "colour attributes", "custom normals"):
-        assert after[name] == before[name], name
-    for name in ("modifiers", "parent", "object custom properties", "mesh custom properties", "Springwrap target"):
+    for name in OBJECT_LEVEL:
         assert after[name] == before[name], name
     assert after[CONSTRAINTS] == before[CONSTRAINTS]
     names_before = {entry for entry in before["attribute names"] if not entry[0].startswith(".uv_select")}
