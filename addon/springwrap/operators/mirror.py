@@ -6,8 +6,9 @@ or that plane of a mirror object (an empty), as in Blender's Mirror modifier. Th
 1. reads the layout and decides the seam (vertices on the plane), the faces that cross the plane
    and whether the plane meets the layout at all (``mirroring.plan``): a plane that misses it is
    an error and nothing is changed;
-2. adds the reflected copy of the layout's faces and loose edges, winding reversed, every mesh
-   attribute carried over, the seam welded (``mirror_data.mirror_mesh_topology``); writes the reflected
+2. adds the reflected copy of the layout's faces and loose edges, winding reversed, on the seam's own
+   vertices, each copy with its original's data (``mirror_data.mirror_mesh_topology``; custom normals
+   reflected by ``mirror_data.mirror_custom_normals``); writes the reflected
    positions, the rest shape reflected the same way, and the state: the surfaced half keeps its
    face-points, the copy is made of space-points (``mirroring.mirrored_layout``);
 3. unless ``wrap`` is off, wraps the copy onto the target with the surfaced half pinned (anchors at
@@ -224,9 +225,11 @@ class SPRINGWRAP_OT_mirror(SpringwrapOperator, bpy.types.Operator):
         start = time.perf_counter()
         arrays, plane, decided = prepared["arrays"], prepared["plane"], prepared["plan"]
         original_count = arrays.positions.shape[0]
-        source = mirror_data.mirror_mesh_topology(
+        custom_normals = mirror_data.read_custom_normals(layout)
+        mirrored_mesh = mirror_data.mirror_mesh_topology(
             layout, decided.duplicate_faces, decided.duplicate_edges, decided.seam
         )
+        source = mirrored_mesh.vertex_source
         size = float(np.linalg.norm(np.ptp(prepared["world"], axis=0))) or 1.0
         mirrored = mirroring.mirrored_layout(
             prepared["world"],
@@ -254,6 +257,8 @@ class SPRINGWRAP_OT_mirror(SpringwrapOperator, bpy.types.Operator):
         to_local = lambda points: transforms.to_local(arrays.matrix_world, points)  # noqa: E731
         attributes.write_rest(layout, to_local(mirrored.rest))
         layout_data.write_layout(layout, to_local(mirrored.positions), mirrored.state)
+        if custom_normals is not None:
+            mirror_data.mirror_custom_normals(layout, custom_normals, mirrored_mesh.corner_source, plane)
         anchor_list = anchor_data.read_anchors(layout)
         if target is not None:
             anchor_list, _ = anchors.resolve(anchor_list, target, layout.springwrap.anchors_signature)
