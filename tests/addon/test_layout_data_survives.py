@@ -406,8 +406,10 @@ def _same(a, b):
 # ---------------------------------------------------------------- the command line
 
 
-def test_the_mirror_script_keeps_the_layout_s_data(tmp_path):
-    """``blender_scripts/mirror.py`` on a .blend (its own process): the same operator, the same data."""
+@pytest.mark.parametrize("wrap", [False, True], ids=["mirror only", "mirror and wrap"])
+def test_the_mirror_script_keeps_the_layout_s_data(tmp_path, wrap):
+    """``blender_scripts/mirror.py`` on a .blend (its own process): the same operator, the same data. With the
+    wrap, the target is the same file's Target, which the layout's pointer brought along already."""
     import subprocess
 
     from helpers import REPOSITORY, TIMEOUT_SECONDS, script_command
@@ -422,7 +424,8 @@ def test_the_mirror_script_keeps_the_layout_s_data(tmp_path):
     output = tmp_path / "mirrored.blend"
     process = subprocess.run(
         [*script_command(REPOSITORY / "blender_scripts" / "mirror.py")]
-        + ["--layout", str(path), "--layout-object", "Layout", "--no-wrap", "--output-blend", str(output)],
+        + ["--layout", str(path), "--layout-object", "Layout", "--output-blend", str(output)]
+        + (["--target", str(path), "--target-object", "Target"] if wrap else ["--no-wrap"]),
         capture_output=True,
         text=True,
         timeout=TIMEOUT_SECONDS,
