@@ -95,6 +95,35 @@ def _only_mesh(objects: list, path: Path, object_name) -> "bpy.types.Object":
     return meshes[0]
 
 
+_APPENDED: dict[tuple[str, str], "bpy.types.Object"] = {}
+"""The objects a .blend's object brought along when it was appended (a layout's target comes with the layout,
+through its pointer), by (file, their name there): the same file named again for one of them gives that object,
+not a second copy."""
+
+
+def _appended_from(path: Path, object_name) -> list:
+    """The objects of the .blend ``path`` (the one named ``object_name``, or all) appended to this file, or the one
+    an earlier append brought along."""
+    key = (str(path.resolve()), object_name)
+    earlier = _APPENDED.get(key)
+    if earlier is not None:
+        try:
+            if bpy.data.objects.get(earlier.name) == earlier:
+                return [earlier]
+        except ReferenceError:  # removed since
+            pass
+    before = set(bpy.data.objects)
+    try:
+        with bpy.data.libraries.load(str(path), link=False) as (source, loaded):
+            loaded.objects = [name for name in source.objects if object_name is None or name == object_name]
+    except (OSError, RuntimeError) as error:
+        raise ScriptError(f"{path}: cannot read: {str(error).strip().splitlines()[0]}") from None
+    requested = [obj for obj in loaded.objects if obj is not None]
+    for obj in set(bpy.data.objects) - before - set(requested):  # what they point to, by their names there
+        _APPENDED[(key[0], obj.name)] = obj
+    return requested
+
+
 def load_mesh(path: Path, object_name, role: str, frame: "Matrix") -> "bpy.types.Object":
     """The mesh object of ``path`` (a mesh file, or a .blend's object), linked into the scene, named ``role``.
 
@@ -104,12 +133,7 @@ def load_mesh(path: Path, object_name, role: str, frame: "Matrix") -> "bpy.types
     Its world coordinates are then refused when not finite or absurdly large."""
     if path.suffix.lower() == ".blend":
         check_blend_file(path)
-        try:
-            with bpy.data.libraries.load(str(path), link=False) as (source, loaded):
-                loaded.objects = [name for name in source.objects if object_name is None or name == object_name]
-        except (OSError, RuntimeError) as error:
-            raise ScriptError(f"{path}: cannot read: {str(error).strip().splitlines()[0]}") from None
-        objects = [obj for obj in loaded.objects if obj is not None]
+        objects = _appended_from(path, object_name)
         placement = None
     else:
         check_mesh_file(path)
@@ -129,6 +153,11 @@ def load_mesh(path: Path, object_name, role: str, frame: "Matrix") -> "bpy.types
             bpy.data.objects.remove(obj)
     if chosen.name not in bpy.context.scene.collection.objects and not chosen.users_collection:
         bpy.context.scene.collection.objects.link(chosen)
+    parent = chosen.parent if placement is None else None
+    while parent is not None:  # a .blend's object keeps its parents: appended with it, linked so they are saved
+        if not parent.users_collection:
+            bpy.context.scene.collection.objects.link(parent)
+        parent = parent.parent
     if placement is not None:  # a mesh file: its coordinates as written, in the files' frame
         chosen.parent = None
         chosen.matrix_world = frame @ placement @ world

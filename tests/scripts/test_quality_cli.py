@@ -8,7 +8,7 @@ import subprocess
 import numpy as np
 import pytest
 
-from helpers import REPOSITORY, TIMEOUT_SECONDS, core_module, script_command, sphere_obj
+from helpers import REPOSITORY, core_module, grid_obj, obj_text, run_script, sphere_faces, sphere_obj, sphere_points
 
 BLENDER_SCRIPTS = REPOSITORY / "blender_scripts"
 SIDE = 7  # vertices per side of the template grid
@@ -29,49 +29,32 @@ QUALITY_KEYS = {
 }
 
 
-def grid_obj(x_range=(-0.5, 0.5), columns=SIDE, height=1.5) -> str:
-    """A flat grid over the origin (``columns`` x SIDE vertices, y from -0.5 to 0.5), facing up, as OBJ text."""
-    low, high = x_range
-    lines = [
-        f"v {low + (high - low) * i / (columns - 1):.6f} {j / (SIDE - 1) - 0.5:.6f} {height}"
-        for j in range(SIDE)
-        for i in range(columns)
-    ]
-    for j in range(SIDE - 1):
-        for i in range(columns - 1):
-            a = j * columns + i + 1
-            lines.append(f"f {a} {a + 1} {a + columns + 1} {a + columns}")
-    return "\n".join(lines) + "\n"
+def half_grid_obj(columns=4, height=1.5) -> str:
+    """The x >= 0 half of :func:`grid_obj`'s grid (x from 0 to 0.5, y from -0.5 to 0.5), facing up, as OBJ text."""
+    u, v = np.meshgrid(np.linspace(0.0, 0.5, columns), np.linspace(-0.5, 0.5, SIDE))
+    points = np.stack([u.ravel(), v.ravel(), np.full(u.size, height)], axis=1)
+    corner = (np.arange(columns - 1)[None, :] + columns * np.arange(SIDE - 1)[:, None]).ravel()
+    return obj_text(points, np.stack([corner, corner + 1, corner + columns + 1, corner + columns], axis=1), digits=6)
 
 
-def holed_sphere_obj(radius=1.0, top=0.75) -> str:
-    """A UV sphere without its top cap (faces whose corners are all above ``top`` x radius): a hole under the grid."""
-    lines = sphere_obj(radius).splitlines()
-    heights = [float(line.split()[3]) for line in lines if line.startswith("v ")]
-    kept = [
-        line
-        for line in lines
-        if not line.startswith("f ") or min(heights[int(index) - 1] for index in line.split()[1:]) <= top * radius
-    ]
-    return "\n".join(kept) + "\n"
+def holed_sphere_obj(top=0.75, rings=16, segments=32) -> str:
+    """The unit UV sphere without its top cap (the faces whose corners are all above ``top``): a hole under the
+    grid."""
+    points = sphere_points(rings, segments)
+    faces = [face for face in sphere_faces(rings, segments) if points[list(face), 2].min() <= top]
+    return obj_text(points, faces, digits=6)
 
 
 def run(script: str, *arguments) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [*script_command(BLENDER_SCRIPTS / script), *map(str, arguments)],
-        capture_output=True,
-        text=True,
-        timeout=TIMEOUT_SECONDS,
-        cwd=REPOSITORY,
-    )
+    return run_script(BLENDER_SCRIPTS / script, *arguments)
 
 
 @pytest.fixture(scope="module")
 def meshes(tmp_path_factory):
     folder = tmp_path_factory.mktemp("quality_inputs")
     paths = {"template": folder / "grid.obj", "half": folder / "half.obj", "ball": folder / "ball.obj"}
-    paths["template"].write_text(grid_obj())
-    paths["half"].write_text(grid_obj(x_range=(0.0, 0.5), columns=4))
+    paths["template"].write_text(grid_obj(SIDE))
+    paths["half"].write_text(half_grid_obj())
     paths["ball"].write_text(sphere_obj(1.0))
     batch = folder / "batch"
     batch.mkdir()

@@ -57,7 +57,7 @@ def write_readout(layout: bpy.types.Object, readout: Readout) -> None:
     mesh = layout.data
     attributes.write_point_attribute(mesh, quality.DISTANCE_ATTRIBUTE, "FLOAT", readout.distances)
     attributes.write_point_attribute(mesh, quality.STRETCH_ATTRIBUTE, "FLOAT", readout.stretch)
-    attributes.write_face_attribute(mesh, quality.FLIPPED_ATTRIBUTE, "BOOLEAN", readout.flipped)
+    attributes.write_attribute(mesh, quality.FLIPPED_ATTRIBUTE, "BOOLEAN", "FACE", readout.flipped)
     mesh.update()
 
 
@@ -84,7 +84,7 @@ def read_readout(layout: bpy.types.Object) -> Readout | None:
         return _read_edit_readout(layout)
     distances = attributes.read_point_attribute(mesh, quality.DISTANCE_ATTRIBUTE, "FLOAT")
     stretch = attributes.read_point_attribute(mesh, quality.STRETCH_ATTRIBUTE, "FLOAT")
-    flipped = attributes.read_face_attribute(mesh, quality.FLIPPED_ATTRIBUTE, "BOOLEAN")
+    flipped = attributes.read_attribute(mesh, quality.FLIPPED_ATTRIBUTE, "BOOLEAN", "FACE")
     if distances is None or stretch is None or flipped is None:
         return None
     if distances.size != len(mesh.vertices) or flipped.size != len(mesh.polygons):

@@ -7,6 +7,7 @@ vertices in vertex select mode; everything else is deselected.
 
 import bpy
 
+from .. import property_kinds as props
 from ..blender import mirror as mirror_data
 from ..blender import quality as quality_data
 from ..blender.edit_mode import object_mode
@@ -19,19 +20,17 @@ from .base import LayoutOperator, open_layout
 class SPRINGWRAP_OT_select_problems(LayoutOperator, bpy.types.Operator):
     """Select the faces or vertices the quality read-out flags (flipped, stretched, off the surface) in Edit Mode"""
 
-    bl_idname = "springwrap.select_problems"
     bl_label = "Select Problems"
-    bl_options = {"REGISTER", "UNDO"}
 
     requires_target = False
 
-    kind: bpy.props.EnumProperty(name="Kind", items=PROBLEM_KIND_ITEMS, default="FLIPPED")
-    threshold: bpy.props.FloatProperty(
-        name="Threshold",
-        description="Off Surface: a distance in world units; Stretched: a factor, above it or below its inverse; "
+    kind: props.choice("Kind", "What to select", PROBLEM_KIND_ITEMS, "FLIPPED")
+    threshold: props.number(
+        "Threshold",
+        "Off Surface: a distance in world units; Stretched: a factor, above it or below its inverse; "
         f"0 = the default ({100 * quality.OFF_SURFACE_FRACTION:g} % of the layout's size; "
         f"{quality.STRETCH_FACTOR:g}); Flipped: not used",
-        default=0.0,
+        0.0,
         min=0.0,
         soft_max=10.0,
     )

@@ -18,6 +18,7 @@ from gpu_extras.batch import batch_for_shader
 
 from ..blender import quality as quality_data
 from ..core import quality
+from .overlays import builtin_shader
 
 DEPTH_BIAS = 2e-5
 """How far (normalised device depth) the heat-map is pulled toward the viewer, so it wins over coplanar faces."""
@@ -57,7 +58,6 @@ def uninstall() -> None:
     while _on_depsgraph_update in bpy.app.handlers.depsgraph_update_post:
         bpy.app.handlers.depsgraph_update_post.remove(_on_depsgraph_update)
     _cache.update(key=None, batch=None, scale=None)
-    _shaders.clear()
     quality_data.forget_readouts()
 
 
@@ -95,7 +95,9 @@ def heat_batch(layout):
             scale = quality.heat_scale(settings.heatmap_kind, readout)
             colours = quality.ramp_colours(scale.values, ALPHA)
             corner_colours = colours[corner_faces if scale.per_face else corner_vertices]
-            batch = batch_for_shader(_shader(SMOOTH_SHADERS_3D), "TRIS", {"pos": corners, "color": corner_colours})
+            batch = batch_for_shader(
+                builtin_shader(SMOOTH_SHADERS_3D)[1], "TRIS", {"pos": corners, "color": corner_colours}
+            )
         _cache.update(key=key, batch=batch, scale=scale)
     return _cache["batch"], _cache["scale"]
 
@@ -109,7 +111,7 @@ def draw_heatmap() -> None:
         batch, _scale = heat_batch(layout)
         if batch is None:
             return
-        shader = _shader(SMOOTH_SHADERS_3D)
+        shader = builtin_shader(SMOOTH_SHADERS_3D)[1]
         projection = gpu.matrix.get_projection_matrix().copy()
         projection[2] = projection[2] - DEPTH_BIAS * projection[3]  # z_ndc - bias: toward the viewer
         gpu.state.blend_set("ALPHA")
@@ -145,7 +147,7 @@ def draw_legend() -> None:
         strip = np.empty((places.size * 2, 2), dtype=np.float32)
         strip[0::2] = np.column_stack([xs, np.full(places.size, bottom)])
         strip[1::2] = np.column_stack([xs, np.full(places.size, bottom + LEGEND_HEIGHT)])
-        name, shader = _named_shader(SMOOTH_SHADERS_2D)
+        name, shader = builtin_shader(SMOOTH_SHADERS_2D)
         positions = strip if name.startswith("2D") else np.column_stack([strip, np.zeros(strip.shape[0])])
         gpu.state.blend_set("ALPHA")
         batch = batch_for_shader(
@@ -180,24 +182,3 @@ def _give_up(error: BaseException) -> None:
     global _failed
     _failed = True
     print(f"Springwrap: drawing the heat-map failed, it is no longer drawn: {error!r}")
-
-
-_shaders = {}
-
-
-def _named_shader(names):
-    """The first builtin shader of ``names`` this Blender has, as ``(name, shader)``; cached."""
-    if names not in _shaders:
-        for name in names:
-            try:
-                _shaders[names] = (name, gpu.shader.from_builtin(name))
-                break
-            except (ValueError, TypeError):
-                continue
-        else:
-            raise RuntimeError(f"none of the builtin shaders {names} exists")
-    return _shaders[names]
-
-
-def _shader(names):
-    return _named_shader(names)[1]
