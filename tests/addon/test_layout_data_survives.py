@@ -130,21 +130,32 @@ def _live_wrap(cancel):
     return run
 
 
+def _select_problems():
+    """Select Problems (it leaves the layout in edit mode, with a new selection), then back to object mode."""
+    result = bpy.ops.springwrap.select_problems(kind="STRETCHED", threshold=1.05)
+    bpy.ops.object.mode_set(mode="OBJECT")
+    return result
+
+
 def _call(operator, **arguments):
     return lambda: getattr(bpy.ops.springwrap, operator)(**arguments)
 
 
 ANCHORS, CONSTRAINTS, REST = "Springwrap anchors", "Springwrap curve constraints", "attribute springwrap_rest"
+READOUT = {"attribute springwrap_distance", "attribute springwrap_stretch", "attribute springwrap_flipped"}
+"""The quality read-out: written by snap, project, the wrap and the mirror (``blender.quality``)."""
+SELECTION = {"selected vertices", "selected edges", "selected faces"}
+SELECTION |= {"attribute .select_vert", "attribute .select_edge", "attribute .select_poly"}  # Blender 4+
 
 CASES = {
     # case: (how to run it, the data it exists to change besides positions and the face-point state)
     "detach": (_call("detach"), set()),
     "detach only selected": (_call("detach", only_selected=True), set()),
-    "snap": (_call("snap"), set()),
-    "snap VERTEX": (_call("snap", mode="VERTEX"), set()),
-    "snap from edit mode": (_edit_mode("snap", only_selected=True), set()),
-    "project NORMAL": (_call("project", direction="NORMAL"), set()),
-    "project -Z": (_call("project", direction="-Z"), set()),
+    "snap": (_call("snap"), READOUT),
+    "snap VERTEX": (_call("snap", mode="VERTEX"), READOUT),
+    "snap from edit mode": (_edit_mode("snap", only_selected=True), READOUT),
+    "project NORMAL": (_call("project", direction="NORMAL"), READOUT),
+    "project -Z": (_call("project", direction="-Z"), READOUT),
     "rest_set": (_call("rest_set"), {REST}),
     "align to the object": (_call("align", icp_iterations=5), set()),
     "align baked": (_call("align", icp_iterations=5, apply="BAKE"), set()),
@@ -158,14 +169,15 @@ CASES = {
     "curve_constraints_auto": (_call("curve_constraints_auto"), {CONSTRAINTS}),
     "curve_constraint_remove": (_call("curve_constraint_remove"), {CONSTRAINTS}),
     "curve_constraints_clear": (_call("curve_constraints_clear"), {CONSTRAINTS}),
-    "wrap": (_call("wrap", max_iterations=60), set()),
-    "wrap SPRINGS coarse to fine": (_call("wrap", solver="SPRINGS", spring_resolution=2, max_iterations=60), set()),
-    "wrap holding the X plane": (_call("wrap", hold_plane="X", max_iterations=60), set()),
-    "wrap from edit mode": (_edit_mode("wrap", max_iterations=60), set()),
-    "wrap live, finished": (_live_wrap(cancel=False), set()),
+    "wrap": (_call("wrap", max_iterations=60), READOUT),
+    "wrap SPRINGS coarse to fine": (_call("wrap", solver="SPRINGS", spring_resolution=2, max_iterations=60), READOUT),
+    "wrap holding the X plane": (_call("wrap", hold_plane="X", max_iterations=60), READOUT),
+    "wrap from edit mode": (_edit_mode("wrap", max_iterations=60), READOUT),
+    "wrap live, finished": (_live_wrap(cancel=False), READOUT),
     "wrap live, cancelled": (_live_wrap(cancel=True), set()),
     "detect_features": (_call("detect_features", scale=0.3), set()),
     "fit_subdivision": (_call("fit_subdivision", rounds=2), set()),
+    "select_problems": (_select_problems, SELECTION),
 }
 """Every operator that can change the layout, in the ways it can be run (the mirror has its own tests)."""
 
@@ -247,7 +259,9 @@ OBJECT_LEVEL += ("custom normals", "modifiers", "parent", "object custom propert
 OBJECT_LEVEL += ("Springwrap target",)
 """The data of ``bpy_helpers.layout_data`` that are the object's or the whole mesh's: the mirror keeps them."""
 NOT_COPIED = {"position", "springwrap_state", "springwrap_face", "springwrap_bary", "springwrap_rest"}
-"""Attributes the mirror computes for the copies instead: positions reflected, the state, the rest shape reflected."""
+NOT_COPIED |= {"springwrap_distance", "springwrap_stretch", "springwrap_flipped"}
+"""Attributes the mirror computes for the copies instead: positions reflected, the state, the rest shape reflected,
+the quality read-out measured again on the whole layout."""
 COPIED_AS_STORED = {"custom_normal"}
 """Stored per corner relative to the corner's own frame: the copy keeps the stored values (see the guide)."""
 

@@ -13,6 +13,7 @@ from mathutils.bvhtree import BVHTree
 from bpy_helpers import (
     PanelRecorder,
     head_scene,
+    local_positions,
     plane_scene,
     set_selection,
     snapshot,
@@ -177,6 +178,21 @@ def test_select_problems_selects_the_vertices_past_the_threshold_and_deselects_t
     assert np.array_equal(selected, expected)
     for face in editable.faces:  # vertex select mode's rule: a face is selected when all its corners are
         assert face.select == all(vertex.select for vertex in face.verts)
+
+
+def test_select_problems_leaves_hidden_vertices_unselected():
+    _target, layout, _normal = plane_scene()
+    assert bpy.ops.springwrap.rest_set() == {"FINISHED"}
+    layout.data.vertices.foreach_set("co", local_positions(layout).reshape(-1) * 1.3)  # all stretched by 1.3
+    hide = np.arange(len(layout.data.vertices)) < 13  # the first row hidden
+    layout.data.vertices.foreach_set("hide", hide)
+    layout.data.update()
+    assert bpy.ops.springwrap.snap() == {"FINISHED"}
+    assert bpy.ops.springwrap.select_problems(kind="STRETCHED", threshold=1.2) == {"FINISHED"}
+    bpy.ops.object.mode_set(mode="OBJECT")
+    selected = np.empty(len(layout.data.vertices), dtype=bool)
+    layout.data.vertices.foreach_get("select", selected)
+    assert np.array_equal(selected, ~hide)
 
 
 def test_select_problems_refuses_without_a_readout_and_says_which_operators_write_it():

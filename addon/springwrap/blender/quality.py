@@ -134,11 +134,19 @@ MISSING_READOUT = (
 """The refusal when the read-out is needed and missing."""
 
 
+def hidden(layout: bpy.types.Object, domain: str) -> np.ndarray:
+    """(N,) bool: which vertices (``'POINT'``) or faces (``'FACE'``) are hidden (object mode data)."""
+    elements = layout.data.vertices if domain == "POINT" else layout.data.polygons
+    flags = np.empty(len(elements), dtype=bool)
+    elements.foreach_get("hide", flags)
+    return flags
+
+
 def select_vertices(layout: bpy.types.Object, mask: np.ndarray) -> None:
-    """Select exactly the vertices in ``mask`` ((N,) bool), the edges between two of them and the faces all of
-    whose corners are selected (as Blender's vertex select mode flushes); object mode."""
+    """Select exactly the vertices in ``mask`` ((N,) bool, hidden ones left out), the edges between two of them and
+    the faces all of whose corners are selected (as Blender's vertex select mode flushes); object mode."""
     mesh = layout.data
-    vertex_flags = np.asarray(mask, dtype=bool).reshape(-1)
+    vertex_flags = np.asarray(mask, dtype=bool).reshape(-1) & ~hidden(layout, "POINT")
     edge_vertices = np.empty(len(mesh.edges) * 2, dtype=np.int64)
     mesh.edges.foreach_get("vertices", edge_vertices)
     loop_vertices = np.empty(len(mesh.loops), dtype=np.int64)
@@ -157,7 +165,7 @@ def select_vertices(layout: bpy.types.Object, mask: np.ndarray) -> None:
     )
     mesh.vertices.foreach_set("select", vertex_flags)
     mesh.edges.foreach_set("select", vertex_flags[edge_vertices.reshape(-1, 2)].all(axis=1))
-    mesh.polygons.foreach_set("select", selected_corners == totals)
+    mesh.polygons.foreach_set("select", (selected_corners == totals) & ~hidden(layout, "FACE"))
     mesh.update()
 
 

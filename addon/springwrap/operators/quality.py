@@ -47,6 +47,9 @@ class SPRINGWRAP_OT_select_problems(LayoutOperator, bpy.types.Operator):
                     return {"CANCELLED"}
                 values = {"FLIPPED": readout.flipped, "STRETCHED": readout.stretch, "OFF_SURFACE": readout.distances}
                 mask = quality.problem_mask(self.kind, values[self.kind], self.threshold, readout.diagonal)
+                hidden = quality_data.hidden(layout, "FACE" if self.kind == "FLIPPED" else "POINT")
+                skipped = int((mask & hidden).sum())
+                mask &= ~hidden  # hidden elements stay unselected, as Blender's own selection leaves them
                 if self.kind == "FLIPPED":
                     mirror_data.select_faces(layout, mask.nonzero()[0])
                 else:
@@ -59,7 +62,10 @@ class SPRINGWRAP_OT_select_problems(LayoutOperator, bpy.types.Operator):
         faces = self.kind == "FLIPPED"
         context.tool_settings.mesh_select_mode = (not faces, False, faces)
         count, total = int(mask.sum()), mask.size
-        self.report({"INFO"}, f"Selected {count} of {total} {'faces' if faces else 'vertices'} ({self._what()})")
+        text = f"Selected {count} of {total} {'faces' if faces else 'vertices'} ({self._what()})"
+        if skipped:
+            text += f"; {skipped} more are hidden and were left unselected (Alt+H reveals them)"
+        self.report({"INFO"}, text)
         return {"FINISHED"}
 
     def _what(self) -> str:
