@@ -263,6 +263,24 @@ WRAP_SOLVER_ITEMS = (
 )
 """The wrap's algorithms (``springwrap_kernel.WrapSettings(solver=...)``)."""
 
+SHAPE_KEYS_ITEMS = (
+    (
+        "TRANSFER",
+        "Transfer",
+        "Move the basis and carry every other shape key over onto the new shape (each key's offsets turned and "
+        "scaled with the surface under them)",
+    ),
+    ("REFUSE", "Refuse", "Refuse a layout with shape keys and change nothing"),
+)
+"""What the wrap and the mirror do with a layout's shape keys (``blender.shape_keys``)."""
+
+
+def shape_keys_property(description: str = "What to do with the layout's shape keys"):
+    """The ``shape_keys`` option of the wrap and the mirror (and the panel's default for their buttons)."""
+    return bpy.props.EnumProperty(
+        name="Shape Keys", description=description, items=SHAPE_KEYS_ITEMS, default="TRANSFER"
+    )
+
 
 def _update_show_cage(settings, context):
     """``show_cage``'s update (``blender.cage_display``)."""
@@ -292,6 +310,7 @@ class SpringwrapObjectSettings(bpy.types.PropertyGroup):
         items=WRAP_SOLVER_ITEMS,
         default=WRAP_DEFAULTS.solver,
     )
+    shape_keys: shape_keys_property("What the panel's Wrap and Mirror buttons do with the layout's shape keys")
     snap_mode: bpy.props.EnumProperty(
         name="Snap Mode",
         description="Default mode of the panel's Snap button",

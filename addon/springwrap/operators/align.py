@@ -40,6 +40,7 @@ class SPRINGWRAP_OT_align(LayoutOperator, bpy.types.Operator):
     bl_idname = "springwrap.align"
     bl_label = "Align"
     bl_options = {"REGISTER", "UNDO"}
+    carries_shape_keys = True  # a baked alignment carries the layout's shape keys over (layout.write_layout)
 
     method: bpy.props.EnumProperty(
         name="Method",
@@ -110,7 +111,6 @@ class SPRINGWRAP_OT_align(LayoutOperator, bpy.types.Operator):
             self,
             context,
             moves_vertices=self.apply == "BAKE",
-            consequence="bake needs to move its vertices: apply to the object transform",
         )
         if layout is None:
             return {"CANCELLED"}
