@@ -301,3 +301,33 @@ def test_a_failure_after_the_keys_were_written_puts_them_back(operator, monkeypa
     assert len(calls) == 2  # the failing write, then the restore
     assert len(layout.data.vertices) == count
     assert all_keys(layout) == before
+
+
+def test_the_panel_shows_shape_keys_only_with_keys_and_its_buttons_pass_it():
+    from bpy_helpers import PanelRecorder
+    from springwrap.ui import panels
+
+    class Recorder(PanelRecorder):
+        def prop_search(self, data, name, *args, **kwargs):
+            self.props.append(name)
+
+    def draw(panel_class):
+        recorder = Recorder()
+        panel_class.draw(type("Panel", (), {"layout": recorder})(), bpy.context)
+        return recorder
+
+    vertices, triangles = uv_sphere(1.0, rings=8, segments=16)
+    target = make_object("Target", vertices * 2.0, triangles, matrix=np.eye(4).tolist())
+    layout = make_object("Layout", vertices, triangles, matrix=np.eye(4).tolist())
+    layout.springwrap.target = target
+    activate(layout)
+    assert "shape_keys" not in draw(panels.SPRINGWRAP_PT_wrap).props
+    layout.shape_key_add(name="Basis")
+    layout.springwrap.shape_keys = "REFUSE"
+    wrap_panel = draw(panels.SPRINGWRAP_PT_wrap)
+    assert "shape_keys" in wrap_panel.props
+    buttons = dict(wrap_panel.operators) | dict(draw(panels.SPRINGWRAP_PT_mirror).operators)
+    assert buttons["springwrap.wrap"].shape_keys == "REFUSE"
+    assert buttons["springwrap.mirror"].shape_keys == "REFUSE"
+    with pytest.raises(RuntimeError, match="Shape Keys is set to Refuse"):
+        bpy.ops.springwrap.wrap(shape_keys=buttons["springwrap.wrap"].shape_keys)
