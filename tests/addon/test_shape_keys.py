@@ -331,3 +331,24 @@ def test_the_panel_shows_shape_keys_only_with_keys_and_its_buttons_pass_it():
     assert buttons["springwrap.mirror"].shape_keys == "REFUSE"
     with pytest.raises(RuntimeError, match="Shape Keys is set to Refuse"):
         bpy.ops.springwrap.wrap(shape_keys=buttons["springwrap.wrap"].shape_keys)
+
+
+def test_a_baked_alignment_turns_and_scales_the_keys_with_the_layout():
+    """Align with Bake moves every vertex by one similarity: each key's offsets are turned and scaled by it."""
+    from mathutils import Euler
+
+    _target, layout = sphere_layout_scene(cuts=6)
+    layout.matrix_world = (Euler((0.3, -0.2, 0.5)).to_matrix().to_4x4() * 0.8).to_4x4()
+    layout.location = (0.3, -0.2, 0.1)
+    bpy.context.view_layer.update()
+    rest = key_positions(layout, "Basis").astype(np.float64)
+    offsets = key_positions(layout, "Cap").astype(np.float64) - rest
+    assert bpy.ops.springwrap.align(method="SIMILARITY", use_anchors=False, apply="BAKE") == {"FINISHED"}
+    basis = key_positions(layout, "Basis").astype(np.float64)
+    assert np.abs(basis - rest).max() > 0.1  # it did move the vertices
+    # The similarity the alignment applied, from the basis before and after (local coordinates).
+    homogeneous = np.c_[rest, np.ones(len(rest))]
+    linear = np.linalg.lstsq(homogeneous, basis, rcond=None)[0][:3].T
+    carried = key_positions(layout, "Cap").astype(np.float64) - basis
+    np.testing.assert_allclose(carried, offsets @ linear.T, atol=1e-5)
+    assert np.all(carried[np.all(offsets == 0.0, axis=1)] == 0.0)

@@ -56,6 +56,8 @@ def test_a_similarity_turns_and_scales_every_offset_exactly():
     assert not maps.fallback.any() and maps.moved.all()
     np.testing.assert_allclose(maps.matrices, np.broadcast_to(2.5 * turn, maps.matrices.shape), atol=1e-9)
     offsets = np.random.default_rng(3).normal(size=positions.shape)
+    offsets[::2, 2] = 0.0  # a zero component is not a zero offset: it turns into the others
+    offsets[::3] = 0.0
     np.testing.assert_allclose(shape_transfer.transfer_offsets(maps, offsets), 2.5 * offsets @ turn.T, atol=1e-9)
 
 

@@ -221,7 +221,7 @@ def transfer_offsets(maps: TransferMaps, offsets) -> np.ndarray:
     result = offsets.copy()
     moved = maps.moved
     result[moved] = np.einsum("nij,nj->ni", maps.matrices[moved], offsets[moved])
-    result[offsets == 0.0] = 0.0  # -0.0 from a turned zero: the key adds nothing there, bit for bit
+    result[np.all(offsets == 0.0, axis=1)] = 0.0  # not -0.0 from a turned zero: the key adds nothing, bit for bit
     return result
 
 
