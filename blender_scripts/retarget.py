@@ -16,7 +16,8 @@ centre and diagonal onto the target's; ``icp``: that, then ``springwrap.align`` 
 ``--align-method`` picks rigid, similarity or affine; ``none``, the default: as placed), detached, anchored (``--anchors FILE.json``:
 ``{"anchors": [{"vertex": 12, "target": [x, y, z]}, ...]}``, each layout vertex pulled to the target
 surface point closest to that point of the files' frame; or ``--anchors-spacing S``, spread automatically;
-0 = a tenth of the layout's size), then wrapped (``--max-iterations``, ``--fairness``,
+0 = a tenth of the layout's size; ``--symmetric-anchors X|Y|Z``: each anchor, from the file or spread, with its
+twin across the layout's local plane of that axis, spread on one side and mirrored), then wrapped (``--max-iterations``, ``--fairness``,
 ``--arc-length``, ``--thin-plate``, ``--tolerance``). A template with shape keys (a .blend's object, or a
 glTF's morph targets) has its basis wrapped and every other key carried over onto it (``--shape-keys
 TRANSFER``, the default; ``REFUSE`` fails on such a template); ``--fit-subdivision`` refuses one.
@@ -128,6 +129,13 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     anchors = parser.add_mutually_exclusive_group()
     anchors.add_argument("--anchors", type=Path, help="JSON file of layout-vertex -> target-point pairs")
     anchors.add_argument("--anchors-spacing", type=float, help="spread anchors automatically (0: automatic spacing)")
+    parser.add_argument(
+        "--symmetric-anchors",
+        choices=("X", "Y", "Z"),
+        help="anchors in symmetric pairs across the template's local plane perpendicular to this axis (in "
+        "Blender's frame): each anchor also anchors its twin vertex (by topology, else by position) to the target "
+        "point closest to its reflected target point; automatic ones are spread on one side and mirrored",
+    )
     parser.add_argument(
         "--align",
         choices=("none", "bounds", "icp", "anchors"),
@@ -347,6 +355,26 @@ def fit_subdivision_report(levels: int) -> dict:
     }
 
 
+def symmetric_anchor_properties(arguments: argparse.Namespace) -> dict:
+    """The anchor operators' symmetric properties of ``--symmetric-anchors`` (none without it)."""
+    axis = getattr(arguments, "symmetric_anchors", None)
+    return {"symmetric": True, "symmetry_axis": axis} if axis else {}
+
+
+def symmetric_anchor_report(layout, arguments: argparse.Namespace, warnings: list) -> dict | None:
+    """``--symmetric-anchors``: the pairs made (anchors with a twin, on the plane, alone); a warning for lone ones."""
+    axis = getattr(arguments, "symmetric_anchors", None)
+    if not axis:
+        return None
+    items = layout.springwrap.anchors
+    on_plane = sum(1 for item in items if item.twin_vertex == item.vertex_index)
+    paired = sum(1 for item in items if item.twin_vertex >= 0) - on_plane
+    alone = len(items) - paired - on_plane
+    if alone:
+        warnings.append(f"{alone} anchors have no twin across the {axis} plane (no twin vertex, or no target there)")
+    return {"axis": axis, "pairs": paired // 2, "on_plane": on_plane, "alone": alone}
+
+
 def retarget(arguments: argparse.Namespace) -> dict:
     """Load, align, detach, anchor, wrap, measure, write; the report (also written to --report)."""
     WrapSession = addon_module("blender.wrap_session").WrapSession  # noqa: N806 - a class of the enabled add-on
@@ -383,7 +411,12 @@ def retarget(arguments: argparse.Namespace) -> dict:
         for vertex, point in anchor_pairs:
             location = tuple(frame.to_3x3() @ Vector(point))  # the files' frame, into Blender's
             run_operator(
-                f"{arguments.anchors}", "anchor_add", vertex_index=vertex, location=location, use_location=True
+                f"{arguments.anchors}",
+                "anchor_add",
+                vertex_index=vertex,
+                location=location,
+                use_location=True,
+                **symmetric_anchor_properties(arguments),
             )
     if arguments.align in ("icp", "anchors"):
         alignment = (alignment or {}) | align_with_operator(layout, arguments, blame, frame)
@@ -391,9 +424,16 @@ def retarget(arguments: argparse.Namespace) -> dict:
     lap("align and detach")
 
     if anchor_pairs is None:
-        run_operator(blame, "anchors_auto", spacing=arguments.anchors_spacing or 0.0, replace=True)
+        run_operator(
+            blame,
+            "anchors_auto",
+            spacing=arguments.anchors_spacing or 0.0,
+            replace=True,
+            **symmetric_anchor_properties(arguments),
+        )
     if len(layout.springwrap.anchors) == 0:
         warnings.append("no anchors: the wrap is pulled by folding alone")
+    symmetric = symmetric_anchor_report(layout, arguments, warnings)
     lap("anchors")
 
     try:
@@ -429,6 +469,7 @@ def retarget(arguments: argparse.Namespace) -> dict:
         "vertices": result.vertex_count,
         "faces": len(layout.data.polygons),
         "anchors": len(layout.springwrap.anchors),
+        "symmetric_anchors": symmetric,
         "frame": {"up_axis": arguments.up_axis, "forward_axis": arguments.forward_axis},
         "alignment": alignment,
         "wrap": {
@@ -467,6 +508,7 @@ def batch_task(arguments: argparse.Namespace, target: Path, output_dir: Path) ->
             "template_object",
             "target_object",
             "anchors_spacing",
+            "symmetric_anchors",
             "align",
             "align_method",
             "max_iterations",

@@ -129,6 +129,11 @@ def load_mesh(path: Path, object_name, role: str, frame: "Matrix") -> "bpy.types
             bpy.data.objects.remove(obj)
     if chosen.name not in bpy.context.scene.collection.objects and not chosen.users_collection:
         bpy.context.scene.collection.objects.link(chosen)
+    parent = chosen.parent if placement is None else None
+    while parent is not None:  # a .blend's object keeps its parents: appended with it, linked so they are saved
+        if not parent.users_collection:
+            bpy.context.scene.collection.objects.link(parent)
+        parent = parent.parent
     if placement is not None:  # a mesh file: its coordinates as written, in the files' frame
         chosen.parent = None
         chosen.matrix_world = frame @ placement @ world

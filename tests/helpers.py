@@ -4,9 +4,9 @@ Blender script on this lane. Blender-side helpers (scene builders, readers) are 
 """
 
 import importlib
-import math
 import os
 import shutil
+import subprocess
 import sys
 import types
 from pathlib import Path
@@ -59,6 +59,18 @@ def grid(size: int = 4):
     return vertices, triangles
 
 
+def grid_triangles(cells: int) -> np.ndarray:
+    """The triangles of a ``(cells + 1) x (cells + 1)`` grid of points stored row by row along the first axis
+    (``indexing="ij"``): two per cell, (M, 3) uint32."""
+    triangles = []
+    for i in range(cells):
+        for j in range(cells):
+            a, d = i * (cells + 1) + j, i * (cells + 1) + j + 1
+            b, c = a + cells + 1, d + cells + 1
+            triangles += [(a, b, c), (a, c, d)]
+    return np.array(triangles, dtype=np.uint32)
+
+
 # ---------------------------------------------------------------- wraps through the kernel
 
 
@@ -88,16 +100,29 @@ def quad_layout(n=12, size=0.05, height=0.25):
     return positions.astype(np.float32), face_corners, np.full(n * n, 4, np.uint32)
 
 
+def space_points(count: int):
+    """The point state of ``count`` layout vertices all in space: (states, triangles, barycentrics), as the
+    kernel's ``WrapSolver`` takes them."""
+    return np.zeros(count, np.int32), np.full(count, -1, np.int32), np.zeros((count, 3), np.float32)
+
+
+def space_anchor(vertex: int, position) -> dict:
+    """The anchor keywords of ``WrapSolver`` for one anchor pulling ``vertex`` to a point in space."""
+    return {
+        "anchor_vertices": np.array([vertex], np.uint32),
+        "anchor_triangles": np.array([-1], np.int32),
+        "anchor_barycentrics": np.zeros((1, 3), np.float32),
+        "anchor_positions": np.array([position], np.float32),
+    }
+
+
 def make_solver(target, positions, structure, anchor_vertices, **arguments):
     below = np.ascontiguousarray(positions[anchor_vertices] * [1, 1, 0], dtype=np.float32)
     hits = target.closest_points(below)
-    count = len(positions)
     return sk.WrapSolver(
         target,
         structure,
-        np.zeros(count, np.int32),
-        np.full(count, -1, np.int32),
-        np.zeros((count, 3), np.float32),
+        *space_points(len(positions)),
         positions,
         anchor_vertices=np.asarray(anchor_vertices, np.uint32),
         anchor_triangles=hits.triangles,
@@ -167,32 +192,114 @@ def centre_line_distance(points, half=1.0, radius=0.25):
 TIMEOUT_SECONDS = 180
 
 
+def sphere_faces(rings: int, columns: int, closed: bool = True) -> list[tuple[int, ...]]:
+    """The faces of a UV sphere (or of a band of meridians) whose vertices are: the north pole, ``rings - 1``
+    rings of ``columns`` vertices (``columns + 1`` when not ``closed``: the band's two edge meridians both
+    stored), the south pole. Zero-based, wound outwards (triangle fans at the poles, quads between), per
+    column: the north fan, the south fan, then the column's quads from north to south."""
+    per_ring = columns if closed else columns + 1
+    south = 1 + (rings - 1) * per_ring
+
+    def vertex(ring: int, column: int) -> int:
+        return 1 + (ring - 1) * per_ring + column % per_ring
+
+    faces: list[tuple[int, ...]] = []
+    for column in range(columns):
+        faces.append((0, vertex(1, column), vertex(1, column + 1)))
+        faces.append((south, vertex(rings - 1, column + 1), vertex(rings - 1, column)))
+        faces += [
+            (vertex(ring, column), vertex(ring + 1, column), vertex(ring + 1, column + 1), vertex(ring, column + 1))
+            for ring in range(1, rings - 1)
+        ]
+    return faces
+
+
+def sphere_points(rings: int, segments: int) -> np.ndarray:
+    """The vertices of the unit UV sphere whose faces :func:`sphere_faces` gives (float64, north pole first)."""
+    polar = np.pi * np.arange(1, rings) / rings
+    azimuth = 2.0 * np.pi * np.arange(segments) / segments
+    ring_points = np.stack(
+        [
+            np.outer(np.sin(polar), np.cos(azimuth)).ravel(),
+            np.outer(np.sin(polar), np.sin(azimuth)).ravel(),
+            np.repeat(np.cos(polar), segments),
+        ],
+        axis=1,
+    )
+    return np.concatenate([[[0.0, 0.0, 1.0]], ring_points, [[0.0, 0.0, -1.0]]])
+
+
+def triangulated(faces) -> np.ndarray:
+    """Triangles and quads as (M, 3) triangles: a quad (a, b, c, d) as (a, b, c) and (a, c, d)."""
+    triangles = []
+    for face in faces:
+        triangles += [(face[0], face[1], face[2])] + ([(face[0], face[2], face[3])] if len(face) == 4 else [])
+    return np.array(triangles, dtype=np.int64)
+
+
+def obj_text(vertices, faces, digits: int = 7) -> str:
+    """Vertices and zero-based faces as OBJ text (one-based indices)."""
+    lines = [" ".join(["v", *(f"{value:.{digits}f}" for value in vertex)]) for vertex in vertices]
+    lines += ["f " + " ".join(str(index + 1) for index in face) for face in faces]
+    return "\n".join(lines) + "\n"
+
+
 def sphere_obj(radius: float, segments: int = 32, rings: int = 16) -> str:
     """A UV sphere at the origin, as OBJ text (triangle fans at the poles, quads between)."""
-    lines = [f"v 0 0 {radius:.6f}"]
-    for ring in range(1, rings):
-        polar = math.pi * ring / rings
-        for segment in range(segments):
-            azimuth = 2 * math.pi * segment / segments
-            lines.append(
-                f"v {radius * math.sin(polar) * math.cos(azimuth):.6f} "
-                f"{radius * math.sin(polar) * math.sin(azimuth):.6f} {radius * math.cos(polar):.6f}"
-            )
-    lines.append("v 0 0 %.6f" % -radius)
-    bottom = 2 + (rings - 1) * segments
+    return obj_text(sphere_points(rings, segments) * radius, sphere_faces(rings, segments), digits=6)
 
-    def ring_vertex(ring, segment):
-        return 2 + (ring - 1) * segments + segment % segments
 
-    for segment in range(segments):
-        lines.append(f"f 1 {ring_vertex(1, segment)} {ring_vertex(1, segment + 1)}")
-        lines.append(f"f {bottom} {ring_vertex(rings - 1, segment + 1)} {ring_vertex(rings - 1, segment)}")
-        for ring in range(1, rings - 1):
-            lines.append(
-                f"f {ring_vertex(ring, segment)} {ring_vertex(ring + 1, segment)} "
-                f"{ring_vertex(ring + 1, segment + 1)} {ring_vertex(ring, segment + 1)}"
-            )
-    return "\n".join(lines) + "\n"
+def grid_obj(side: int, size: float = 1.0, height: float = 1.5, up: str = "Z") -> str:
+    """A flat square grid of side x side vertices centred over the origin at ``height`` along the ``up`` axis
+    (``"Z"``, or ``"Y"`` for the frame of OBJ files from Blender's exporter), faces facing up, as OBJ text."""
+    steps = size * (np.arange(side) / (side - 1) - 0.5)
+    u, v = np.meshgrid(steps, steps)
+    flat = np.stack([u.ravel(), v.ravel(), np.full(side * side, height)], axis=1)
+    corner = (np.arange(side - 1)[None, :] + side * np.arange(side - 1)[:, None]).ravel()
+    quads = np.stack([corner, corner + 1, corner + side + 1, corner + side], axis=1)
+    if up == "Y":  # (u, v) in x-z: the same quads reversed face +y
+        flat, quads = flat[:, [0, 2, 1]], quads[:, [0, 3, 2, 1]]
+    return obj_text(flat, quads, digits=6)
+
+
+def run_script(script: Path, *arguments, cwd=None, environment=None) -> subprocess.CompletedProcess:
+    """A Blender script run as this lane runs one (:func:`script_command`), with ``arguments`` (any type, as
+    text), in the repository unless ``cwd``; ``environment`` is added to this process's."""
+    return subprocess.run(
+        [*script_command(script), *map(str, arguments)],
+        capture_output=True,
+        text=True,
+        timeout=TIMEOUT_SECONDS,
+        cwd=cwd or REPOSITORY,
+        env=None if environment is None else os.environ | environment,
+    )
+
+
+def options(**values) -> list:
+    """Command-line options from keywords: ``output_dir=path`` is ``--output-dir path``, ``resume=True`` is
+    ``--resume`` (False and None are left out), a list repeats its option."""
+    arguments = []
+    for name, value in values.items():
+        option = "--" + name.replace("_", "-")
+        if value is True:
+            arguments.append(option)
+        elif isinstance(value, list):
+            for item in value:
+                arguments += [option, item]
+        elif value is not None and value is not False:
+            arguments += [option, value]
+    return arguments
+
+
+def outputs(folder: Path, stem: str, kinds=("blend", "obj", "report")) -> list:
+    """The options that write ``stem``'s outputs into ``folder``: ``--output-blend``, ``--output-obj`` and
+    ``--report`` (JSON) by default."""
+    suffix = {"blend": "blend", "obj": "obj", "report": "json"}
+    return [
+        argument
+        for kind in kinds
+        for argument in (f"--output-{kind}" if kind != "report" else "--report", folder / f"{stem}.{suffix[kind]}")
+    ]
 
 
 def kernel_python() -> tuple[str, dict]:
@@ -233,29 +340,8 @@ def script_command(script: Path) -> list[str]:
 
 def uv_sphere(radius: float = 1.0, rings: int = 64, segments: int = 128):
     """A closed UV sphere about the origin, triangles wound outwards: (float32 vertices, uint32 triangles)."""
-    polar = np.pi * np.arange(1, rings) / rings
-    azimuth = 2.0 * np.pi * np.arange(segments) / segments
-    ring_points = np.stack(
-        [
-            np.outer(np.sin(polar), np.cos(azimuth)).ravel(),
-            np.outer(np.sin(polar), np.sin(azimuth)).ravel(),
-            np.repeat(np.cos(polar), segments),
-        ],
-        axis=1,
-    )
-    vertices = np.concatenate([[[0.0, 0.0, 1.0]], ring_points, [[0.0, 0.0, -1.0]]]) * radius
-    south = len(vertices) - 1
-    triangles = []
-    for segment in range(segments):
-        following = (segment + 1) % segments
-        triangles.append((0, 1 + segment, 1 + following))
-        last = 1 + (rings - 2) * segments
-        triangles.append((south, last + following, last + segment))
-        for ring in range(rings - 2):
-            a, b = 1 + ring * segments + segment, 1 + ring * segments + following
-            c, d = a + segments, b + segments
-            triangles.extend([(a, c, d), (a, d, b)])
-    return vertices.astype(np.float32), np.array(triangles, dtype=np.uint32)
+    vertices = sphere_points(rings, segments) * radius
+    return vertices.astype(np.float32), triangulated(sphere_faces(rings, segments)).astype(np.uint32)
 
 
 def cube_sphere_cage(cuts: int = 3, radius: float = 1.0):

@@ -9,6 +9,7 @@ from typing import NamedTuple
 
 import bpy
 
+from . import property_kinds as props
 from .blender import compat
 from .core.subdivision import MAX_RESOLUTION
 
@@ -69,14 +70,7 @@ WRAP_RANGES = {
 
 def max_distance_property(description: str):
     """A world-space distance limit, 0 meaning unlimited: shared by the operators and the panel defaults."""
-    return bpy.props.FloatProperty(
-        name="Max Distance",
-        description=description,
-        default=0.0,
-        min=0.0,
-        subtype="DISTANCE",
-        unit="LENGTH",
-    )
+    return props.distance("Max Distance", description)
 
 
 def max_iterations_property(
@@ -144,6 +138,11 @@ ANCHOR_METHOD_ITEMS = (
 )
 """How ``springwrap.anchors_auto`` finds the anchors' targets."""
 
+SYMMETRY_AXIS_ITEMS = tuple(
+    (axis, axis, f"The plane {axis.lower()} = 0 of the layout (or of the symmetry object)") for axis in "XYZ"
+)
+"""The symmetric anchors' plane: perpendicular to this local axis."""
+
 
 def _is_target_candidate(settings, candidate):
     """Poll of ``target``: a mesh object other than the layout that owns the settings."""
@@ -155,25 +154,25 @@ def _is_armature(_settings, candidate):
     return candidate is not None and candidate.type == "ARMATURE"
 
 
+def _is_empty(_settings, candidate):
+    """Poll of ``anchor_symmetry_object``: an Empty."""
+    return candidate is not None and candidate.type == "EMPTY"
+
+
 class SpringwrapAnchorItem(bpy.types.PropertyGroup):
     """An anchor: a layout vertex and the target point it is pulled to (paper section 2.4)"""
 
-    vertex_index: bpy.props.IntProperty(
-        name="Vertex",
-        description="Index of the anchored layout vertex",
-        default=0,
-        min=0,
+    vertex_index: props.integer("Vertex", "Index of the anchored layout vertex", 0, min=0)
+    target_kind: props.choice(
+        "Target Kind",
+        "Whether the anchor's target is on the target surface or free in space",
+        ANCHOR_KIND_ITEMS,
+        "SPACE",
     )
-    target_kind: bpy.props.EnumProperty(
-        name="Target Kind",
-        description="Whether the anchor's target is on the target surface or free in space",
-        items=ANCHOR_KIND_ITEMS,
-        default="SPACE",
-    )
-    triangle: bpy.props.IntProperty(
-        name="Triangle",
-        description="Triangle of the evaluated target (loop-triangle order) of a face anchor, -1 for a space anchor",
-        default=-1,
+    triangle: props.integer(
+        "Triangle",
+        "Triangle of the evaluated target (loop-triangle order) of a face anchor, -1 for a space anchor",
+        -1,
         min=-1,
     )
     barycentric: bpy.props.FloatVectorProperty(
@@ -182,13 +181,14 @@ class SpringwrapAnchorItem(bpy.types.PropertyGroup):
         size=3,
         default=(0.0, 0.0, 0.0),
     )
-    location: bpy.props.FloatVectorProperty(
-        name="Location",
-        description="World-space target point (for a face anchor, refreshed from the target by the anchor operators)",
-        size=3,
-        default=(0.0, 0.0, 0.0),
-        subtype="XYZ",
-        unit="LENGTH",
+    location: props.point(
+        "Location", "World-space target point (for a face anchor, refreshed from the target by the anchor operators)"
+    )
+    twin_vertex: props.integer(
+        "Twin",
+        "Vertex of this anchor's symmetric twin anchor (its own vertex on the symmetry plane), -1: none",
+        -1,
+        min=-1,
     )
 
 
@@ -219,32 +219,20 @@ class SpringwrapCurvePointItem(bpy.types.PropertyGroup):
 class SpringwrapCurveConstraintItem(bpy.types.PropertyGroup):
     """A curve constraint: a layout edge chain that follows a target curve (paper section 2.4)"""
 
-    layout_vertices: bpy.props.StringProperty(
-        name="Layout Chain",
-        description="Layout vertex indices of the chain, in order, separated by spaces",
-        default="",
+    layout_vertices: props.text("Layout Chain", "Layout vertex indices of the chain, in order, separated by spaces")
+    source_kind: props.choice("Source", "Where the target curve comes from", CURVE_SOURCE_ITEMS, "TARGET_EDGES")
+    curve_object: props.object_pointer(
+        "Curve Object",
+        "Curve object of a Curve Object constraint (read evaluated, in world space, when the wrap runs)",
+        poll=_is_curve_object,
     )
-    source_kind: bpy.props.EnumProperty(
-        name="Source",
-        description="Where the target curve comes from",
-        items=CURVE_SOURCE_ITEMS,
-        default="TARGET_EDGES",
+    target_vertices: props.text(
+        "Target Chain", "Target vertex indices of a Target Edges constraint, in order, separated by spaces"
     )
-    curve_object: bpy.props.PointerProperty(
-        name="Curve Object",
-        description="Curve object of a Curve Object constraint (read evaluated, in world space, when the wrap runs)",
-        type=bpy.types.Object,
-        poll=compat.pointer_poll(_is_curve_object),
-    )
-    target_vertices: bpy.props.StringProperty(
-        name="Target Chain",
-        description="Target vertex indices of a Target Edges constraint, in order, separated by spaces",
-        default="",
-    )
-    points: bpy.props.CollectionProperty(
-        name="Points",
-        description="The target polyline in world space, as last resolved (its start at the chain's start)",
-        type=SpringwrapCurvePointItem,
+    points: props.items(
+        "Points",
+        "The target polyline in world space, as last resolved (its start at the chain's start)",
+        SpringwrapCurvePointItem,
     )
 
 
@@ -277,9 +265,7 @@ SHAPE_KEYS_ITEMS = (
 
 def shape_keys_property(description: str = "What to do with the layout's shape keys"):
     """The ``shape_keys`` option of the wrap and the mirror (and the panel's default for their buttons)."""
-    return bpy.props.EnumProperty(
-        name="Shape Keys", description=description, items=SHAPE_KEYS_ITEMS, default="TRANSFER"
-    )
+    return props.choice("Shape Keys", description, SHAPE_KEYS_ITEMS, "TRANSFER")
 
 
 def _update_show_cage(settings, context):
@@ -292,162 +278,113 @@ def _update_show_cage(settings, context):
 class SpringwrapObjectSettings(bpy.types.PropertyGroup):
     """Springwrap settings of a layout object."""
 
-    target: bpy.props.PointerProperty(
-        name="Target",
-        description="Mesh the layout is retargeted onto (its evaluated shape, modifiers included)",
-        type=bpy.types.Object,
-        poll=compat.pointer_poll(_is_target_candidate),
+    target: props.object_pointer(
+        "Target",
+        "Mesh the layout is retargeted onto (its evaluated shape, modifiers included)",
+        poll=_is_target_candidate,
     )
-    target_signature: bpy.props.StringProperty(
-        name="Target Signature",
-        description="Topology signature of the target when face-points were last written",
-        default="",
-        options={"HIDDEN"},
+    target_signature: props.hidden_text(
+        "Target Signature", "Topology signature of the target when face-points were last written"
     )
-    wrap_solver: bpy.props.EnumProperty(
-        name="Solver",
-        description="Algorithm of the panel's Wrap and Mirror buttons",
-        items=WRAP_SOLVER_ITEMS,
-        default=WRAP_DEFAULTS.solver,
+    wrap_solver: props.choice(
+        "Solver", "Algorithm of the panel's Wrap and Mirror buttons", WRAP_SOLVER_ITEMS, WRAP_DEFAULTS.solver
     )
     shape_keys: shape_keys_property("What the panel's Wrap and Mirror buttons do with the layout's shape keys")
-    snap_mode: bpy.props.EnumProperty(
-        name="Snap Mode",
-        description="Default mode of the panel's Snap button",
-        items=SNAP_MODE_ITEMS,
-        default="SURFACE",
+    snap_mode: props.choice("Snap Mode", "Default mode of the panel's Snap button", SNAP_MODE_ITEMS, "SURFACE")
+    project_direction: props.choice(
+        "Direction", "Default direction of the panel's Project button", PROJECT_DIRECTION_ITEMS, "NORMAL"
     )
-    project_direction: bpy.props.EnumProperty(
-        name="Direction",
-        description="Default direction of the panel's Project button",
-        items=PROJECT_DIRECTION_ITEMS,
-        default="NORMAL",
+    project_orientation: props.choice(
+        "Orientation", "Space of the axis directions of the panel's Project button", ORIENTATION_ITEMS, "GLOBAL"
     )
-    project_orientation: bpy.props.EnumProperty(
-        name="Orientation",
-        description="Space of the axis directions of the panel's Project button",
-        items=ORIENTATION_ITEMS,
-        default="GLOBAL",
-    )
-    project_both_directions: bpy.props.BoolProperty(
-        name="Both Directions",
-        description="Also cast each ray backwards and keep the nearer hit",
-        default=True,
-    )
+    project_both_directions: props.flag("Both Directions", "Also cast each ray backwards and keep the nearer hit", True)
     max_distance: max_distance_property("Vertices farther than this from the target are left untouched (0 = unlimited)")
 
-    anchors: bpy.props.CollectionProperty(
-        name="Anchors",
-        description="Point-to-point correspondences: a layout vertex and its target point",
-        type=SpringwrapAnchorItem,
+    anchors: props.items(
+        "Anchors", "Point-to-point correspondences: a layout vertex and its target point", SpringwrapAnchorItem
     )
-    active_anchor_index: bpy.props.IntProperty(
-        name="Active Anchor",
-        description="Index of the active anchor in the list",
-        default=0,
-        min=0,
+    active_anchor_index: props.list_position("Active Anchor", "Index of the active anchor in the list")
+    anchors_signature: props.hidden_text(
+        "Anchors Signature", "Topology signature of the target when the face anchors were last written"
     )
-    anchors_signature: bpy.props.StringProperty(
-        name="Anchors Signature",
-        description="Topology signature of the target when the face anchors were last written",
-        default="",
-        options={"HIDDEN"},
+    show_anchors: props.flag(
+        "Show Anchors", "Draw a line from each anchored layout vertex to its target point in the 3D view", True
     )
-    show_anchors: bpy.props.BoolProperty(
-        name="Show Anchors",
-        description="Draw a line from each anchored layout vertex to its target point in the 3D view",
-        default=True,
+    anchor_spacing: props.distance(
+        "Spacing", "Default spacing of the panel's Auto Anchors button (0 = a tenth of the layout's size)"
     )
-    anchor_spacing: bpy.props.FloatProperty(
-        name="Spacing",
-        description="Default spacing of the panel's Auto Anchors button (0 = a tenth of the layout's size)",
-        default=0.0,
-        min=0.0,
-        subtype="DISTANCE",
-        unit="LENGTH",
+    anchor_method: props.choice(
+        "Method", "Default method of the panel's Auto Anchors button", ANCHOR_METHOD_ITEMS, "CLOSEST"
     )
-    anchor_method: bpy.props.EnumProperty(
-        name="Method",
-        description="Default method of the panel's Auto Anchors button",
-        items=ANCHOR_METHOD_ITEMS,
-        default="CLOSEST",
+    # Symmetric anchors (operators.anchors): the panel's defaults for Add and Auto.
+    anchor_symmetric: props.flag(
+        "Symmetric", "Add and Auto Anchors also anchor each vertex's twin across the symmetry plane, as a pair", False
+    )
+    anchor_symmetry_axis: props.choice(
+        "Symmetry Axis",
+        "The symmetry plane is perpendicular to this local axis of the layout (or of the symmetry object)",
+        SYMMETRY_AXIS_ITEMS,
+        "X",
+    )
+    anchor_symmetry_object: props.object_pointer(
+        "Symmetry Object",
+        "Empty whose local plane (through its origin, perpendicular to the axis) is the symmetry plane; "
+        "none: the layout's own",
+        poll=_is_empty,
     )
 
-    curve_constraints: bpy.props.CollectionProperty(
-        name="Curve Constraints",
-        description="Layout edge chains paired with target curves",
-        type=SpringwrapCurveConstraintItem,
+    curve_constraints: props.items(
+        "Curve Constraints", "Layout edge chains paired with target curves", SpringwrapCurveConstraintItem
     )
-    active_curve_constraint_index: bpy.props.IntProperty(
-        name="Active Curve Constraint",
-        description="Index of the active curve constraint in the list",
-        default=0,
-        min=0,
+    active_curve_constraint_index: props.list_position(
+        "Active Curve Constraint", "Index of the active curve constraint in the list"
     )
-    curve_source: bpy.props.PointerProperty(
-        name="Curve",
-        description="Curve object the panel's Add button pairs the selected chain with (empty: target edges)",
-        type=bpy.types.Object,
-        poll=compat.pointer_poll(_is_curve_object),
+    curve_source: props.object_pointer(
+        "Curve",
+        "Curve object the panel's Add button pairs the selected chain with (empty: target edges)",
+        poll=_is_curve_object,
     )
-    show_curve_constraints: bpy.props.BoolProperty(
-        name="Show Curve Constraints",
-        description="Draw dashed lines between each constrained layout chain and its target curve in the 3D view",
-        default=True,
+    show_curve_constraints: props.flag(
+        "Show Curve Constraints",
+        "Draw dashed lines between each constrained layout chain and its target curve in the 3D view",
+        True,
     )
 
-    unreliable_group: bpy.props.StringProperty(
-        name="Unreliable",
-        description=(
-            "Vertex group of the target marking noisy or untrusted data: the wrap treats points on triangles "
-            "whose three corners weigh more than 0.5 as space-points (read from the evaluated target)"
-        ),
-        default="",
+    unreliable_group: props.text(
+        "Unreliable",
+        "Vertex group of the target marking noisy or untrusted data: the wrap treats points on triangles "
+        "whose three corners weigh more than 0.5 as space-points (read from the evaluated target)",
     )
-    stiffness_group: bpy.props.StringProperty(
-        name="Stiffness",
-        description=(
-            "Vertex group of the layout: how firmly its vertices keep the template's shape in the Energy wrap "
-            "(weight 0 follows the target freely, 0.5 as the others, 1 keeps the template's shape)"
-        ),
-        default="",
+    stiffness_group: props.text(
+        "Stiffness",
+        "Vertex group of the layout: how firmly its vertices keep the template's shape in the Energy wrap "
+        "(weight 0 follows the target freely, 0.5 as the others, 1 keeps the template's shape)",
     )
-    free_group: bpy.props.StringProperty(
-        name="Free",
-        description=(
-            "Vertex group of the layout with no pull toward the target in the Energy wrap (eye and mouth sockets, "
-            "teeth): its vertices follow their neighbours by the template's shape and stay off the surface"
-        ),
-        default="",
+    free_group: props.text(
+        "Free",
+        "Vertex group of the layout with no pull toward the target in the Energy wrap (eye and mouth sockets, "
+        "teeth): its vertices follow their neighbours by the template's shape and stay off the surface",
     )
     # Armature alignment (operators.armature).
-    target_armature: bpy.props.PointerProperty(
-        name="Target Armature",
-        description="Armature of the target whose bones the layout's armature is posed onto (bones matched by name)",
-        type=bpy.types.Object,
-        poll=compat.pointer_poll(_is_armature),
+    target_armature: props.object_pointer(
+        "Target Armature",
+        "Armature of the target whose bones the layout's armature is posed onto (bones matched by name)",
+        poll=_is_armature,
     )
 
-    mirror_object: bpy.props.PointerProperty(
-        name="Mirror Object",
-        description="Object (an empty) whose local plane the Mirror button mirrors across; none: the layout's own",
-        type=bpy.types.Object,
+    mirror_object: props.object_pointer(
+        "Mirror Object", "Object (an empty) whose local plane the Mirror button mirrors across; none: the layout's own"
     )
 
-    show_cage: bpy.props.BoolProperty(
-        name="Show Cage",
-        description=(
-            "Draw the layout so it reads over its target: In Front and as Wire, and the Retopology overlay in "
-            "Blender 4+ (Edit Mode); off puts the object's and the views' display settings back"
-        ),
-        default=False,
+    show_cage: props.flag(
+        "Show Cage",
+        "Draw the layout so it reads over its target: In Front and as Wire, and the Retopology overlay in "
+        "Blender 4+ (Edit Mode); off puts the object's and the views' display settings back",
+        False,
         update=compat.property_update(_update_show_cage),
     )
-    cage_saved_display: bpy.props.StringProperty(
-        name="Saved Display",
-        description="The display settings Show Cage replaced (JSON), put back when it is turned off",
-        default="",
-        options={"HIDDEN"},
+    cage_saved_display: props.hidden_text(
+        "Saved Display", "The display settings Show Cage replaced (JSON), put back when it is turned off"
     )
 
 

@@ -738,23 +738,27 @@ def test_mirror_partners_and_the_reflection_across_a_placed_plane():
     np.testing.assert_allclose(mirror_methods.reflect(placed[:40], placement), placed[40:80], atol=1e-12)
 
 
+HEAVY_ENERGY_ROW = {
+    "case": "heavy",
+    "solver": "ENERGY",
+    "mean": 0.2271,
+    "p95": 0.9,
+    "max": 1.7,
+    "flipped": 7,
+    "flips_added": 3,
+    "folded": 5,
+    "truth_folded": 4,
+    "off_surface": 425,
+    "space_points": 968,
+    "iterations": 24,
+    "converged": True,
+    "seconds": 1.16,
+}
+"""A wrap-solver benchmark row: the energy wrap on the heavy body."""
+
+
 def test_wrap_solvers_page_has_a_row_per_case_and_solver_and_its_provenance():
-    row = {
-        "case": "heavy",
-        "solver": "ENERGY",
-        "mean": 0.2271,
-        "p95": 0.9,
-        "max": 1.7,
-        "flipped": 7,
-        "flips_added": 3,
-        "folded": 5,
-        "truth_folded": 4,
-        "off_surface": 425,
-        "space_points": 968,
-        "iterations": 24,
-        "converged": True,
-        "seconds": 1.16,
-    }
+    row = dict(HEAVY_ENERGY_ROW)
     page = wrap_solvers.markdown([row, row | {"solver": "SPRINGS", "mean": 0.346}], "Run at commit `abc`.")
     assert "| heavy | ENERGY | 0.227 | 0.900 | 1.700 | 7 | 3 | 5 (4) | 425 | 968 | 24 | 1.16 |" in page
     assert "| heavy | SPRINGS | 0.346 |" in page
@@ -940,22 +944,7 @@ def made_up_scan_row(solver: str, mean: float) -> dict:
 
 
 def test_wrap_solvers_page_keeps_the_section_that_was_not_run():
-    body = {
-        "case": "heavy",
-        "solver": "ENERGY",
-        "mean": 0.2271,
-        "p95": 0.9,
-        "max": 1.7,
-        "flipped": 7,
-        "flips_added": 3,
-        "folded": 5,
-        "truth_folded": 4,
-        "off_surface": 425,
-        "space_points": 968,
-        "iterations": 24,
-        "converged": True,
-        "seconds": 1.16,
-    }
+    body = dict(HEAVY_ENERGY_ROW)
     both = wrap_solvers.markdown(
         [body],
         "Bodies at `abc`.",

@@ -444,10 +444,11 @@ def anchor_snapshot(layout):
 
 
 class PanelRecorder:
-    """Stands in for ``UILayout``: records operator buttons, labels and list templates."""
+    """Stands in for ``UILayout``: records operator buttons (and the keywords they were drawn with), labels and
+    list templates."""
 
     def __init__(self):
-        self.operators, self.labels, self.lists, self.props = [], [], [], []
+        self.operators, self.labels, self.lists, self.props, self.texts = [], [], [], [], []
         self.use_property_split = self.use_property_decorate = False
         self.active = self.alert = True
 
@@ -471,6 +472,7 @@ class PanelRecorder:
     def operator(self, idname, **kwargs):
         button = type("Button", (), {})()
         self.operators.append((idname, button))
+        self.texts.append((idname, kwargs))
         return button
 
 
@@ -600,6 +602,30 @@ def head_scene(scale=1.05, on_target=False):
     return target, layout
 
 
+def symmetric_head_scene(scale=1.05, shuffle_seed=0):
+    """The symmetric head target and a whole sphere layout around it (both halves of a 12 x 8 half grid, the
+    second reflected, faces reversed), its vertices numbered in a shuffled order; both placed by PLACEMENT.
+
+    Returns (target, layout, twins): ``twins`` (N,) each layout vertex's mirror image (itself on x = 0).
+    """
+    target = make_object("Target", *symmetric_target_arrays())
+    directions, faces = half_sphere_grid(12, 8)
+    off_plane = np.flatnonzero(directions[:, 0] != 0.0)
+    partner = np.arange(len(directions))
+    partner[off_plane] = len(directions) + np.arange(off_plane.size)
+    vertices = np.vstack([directions, directions[off_plane] * [-1.0, 1.0, 1.0]]) * scale
+    faces = [list(face) for face in faces] + [list(partner[face][::-1]) for face in faces]
+    twins = np.arange(len(vertices))
+    twins[partner] = np.arange(len(directions))
+    twins[np.arange(len(directions))] = partner
+    old_of_new = np.random.default_rng(shuffle_seed).permutation(len(vertices))
+    new_of_old = np.argsort(old_of_new)
+    layout = make_object("Layout", vertices[old_of_new], [list(new_of_old[face]) for face in faces])
+    layout.springwrap.target = target
+    activate(layout)
+    return target, layout, new_of_old[twins[old_of_new]]
+
+
 def world_plane():
     """The layout's local x = 0 plane in world space: (point, unit normal)."""
     normal = np.array(PLACEMENT.to_3x3() @ Vector((1.0, 0.0, 0.0)))
@@ -628,12 +654,21 @@ def empty_target(target, layout):
     target.data.clear_geometry()
 
 
-def target_without_faces(target, layout):
+def delete_faces(obj, polygons=None):
+    """Delete the mesh's polygons of these indices (all of them by default), keeping their vertices and edges."""
+    mesh = obj.data
     editable = bmesh.new()
-    editable.from_mesh(target.data)
-    bmesh.ops.delete(editable, geom=list(editable.faces), context="FACES_ONLY")
-    editable.to_mesh(target.data)
+    editable.from_mesh(mesh)
+    editable.faces.ensure_lookup_table()
+    faces = list(editable.faces) if polygons is None else [editable.faces[int(i)] for i in polygons]
+    bmesh.ops.delete(editable, geom=faces, context="FACES_ONLY")
+    editable.to_mesh(mesh)
     editable.free()
+    mesh.update()
+
+
+def target_without_faces(target, layout):
+    delete_faces(target)
 
 
 def nan_target_vertex(target, layout):
@@ -644,3 +679,319 @@ def nan_target_vertex(target, layout):
 def nan_layout_vertex(target, layout):
     layout.data.vertices[7].co.z = math.nan
     layout.data.update()
+
+
+# ---------------------------------------------------------------- everything else on a layout (what must survive)
+
+_ATTRIBUTE_FIELDS = {
+    # data type: (foreach property, numpy dtype, components)
+    "FLOAT": ("value", np.float32, 1),
+    "INT": ("value", np.int32, 1),
+    "INT8": ("value", np.int32, 1),
+    "BOOLEAN": ("value", bool, 1),
+    "FLOAT_VECTOR": ("vector", np.float32, 3),
+    "FLOAT2": ("vector", np.float32, 2),
+    "FLOAT_COLOR": ("color", np.float32, 4),
+    "BYTE_COLOR": ("color", np.float32, 4),
+    "INT32_2D": ("value", np.int32, 2),
+    "INT16_2D": ("value", np.int32, 2),
+    "QUATERNION": ("value", np.float32, 4),
+    "FLOAT4X4": ("value", np.float32, 16),
+}
+"""How each attribute type is read and written with foreach_get / foreach_set (STRING goes item by item)."""
+
+CUSTOM_ATTRIBUTE_TYPES = tuple(
+    data_type
+    for data_type in ("FLOAT", "INT", "INT8", "BOOLEAN", "FLOAT_VECTOR", "FLOAT2", "FLOAT_COLOR", "BYTE_COLOR")
+    + ("INT32_2D", "INT16_2D", "QUATERNION", "FLOAT4X4", "STRING")
+    if data_type in bpy.types.Attribute.bl_rna.properties["data_type"].enum_items.keys()
+)
+"""The attribute types of this Blender that a user can add (3.4 has the first eight and STRING)."""
+
+ATTRIBUTE_DOMAINS = ("POINT", "EDGE", "FACE", "CORNER")
+
+VERTEX_GROUPS = ("Arm.L", "Arm.R", "Spine", "hand_L", "hand_R", "Eye.L")
+"""The dressed layout's vertex groups: two mirror pairs in Blender's two naming conventions, one central group
+and one whose mirror partner does not exist (Blender's Mirror modifier then keeps the weights in it)."""
+
+SPRINGWRAP_STATE = ("springwrap_state", "springwrap_face", "springwrap_bary")
+"""What the operators write by design (besides positions): the face-point state."""
+UV_SELECTION = (".uv_select_vert", ".uv_select_edge", ".uv_select_face")
+"""The UV editor's selection, which Blender adds (all False) whenever a mesh goes through bmesh or edit mode."""
+
+
+def attribute_values(attribute) -> np.ndarray:
+    """The raw values of an attribute (any domain and type) as a numpy array (STRING: an object array)."""
+    if attribute.data_type == "STRING":
+        return np.array([item.value for item in attribute.data], dtype=object)
+    field, dtype, width = _ATTRIBUTE_FIELDS[attribute.data_type]
+    values = np.empty(len(attribute.data) * width, dtype=dtype)
+    attribute.data.foreach_get(field, values)
+    return values.reshape(len(attribute.data), width)
+
+
+def _random_attribute_values(data_type, count, random):
+    if data_type == "STRING":
+        return [f"s{value}" for value in random.integers(0, 1000, count)]
+    _field, _dtype, width = _ATTRIBUTE_FIELDS[data_type]
+    if data_type == "BOOLEAN":
+        return random.random(count) < 0.5
+    if data_type == "INT8":
+        return random.integers(-128, 128, count)
+    if data_type == "INT16_2D":
+        return random.integers(-32768, 32768, count * width)
+    if data_type in ("INT", "INT32_2D"):
+        return random.integers(-(2**31), 2**31, count * width)
+    if data_type == "BYTE_COLOR":
+        return random.integers(0, 256, count * width) / 255.0  # exactly representable in a byte
+    return random.normal(size=count * width) * 10.0 ** random.integers(-3, 4, count * width)
+
+
+def set_attribute(mesh, name, data_type, domain, values) -> None:
+    """Create (or fill) an attribute with ``values`` (flat, or a list of strings)."""
+    attribute = mesh.attributes.get(name) or mesh.attributes.new(name, data_type, domain)
+    if data_type == "STRING":
+        for item, value in zip(attribute.data, values):
+            try:
+                item.value = value
+            except TypeError:  # Blender 5.0 takes bytes, 3.4 a str
+                item.value = value.encode()
+        return
+    field, dtype, _width = _ATTRIBUTE_FIELDS[data_type]
+    attribute.data.foreach_set(field, np.ascontiguousarray(values, dtype=dtype).ravel())
+
+
+def read_creases(mesh, domain: str) -> np.ndarray | None:
+    """Vertex (``POINT``) or edge (``EDGE``) creases, None when the mesh has no such layer (any supported Blender)."""
+    from springwrap.blender import compat
+
+    return compat.read_creases(mesh, domain)
+
+
+def set_creases(mesh, domain: str, values) -> None:
+    """Write vertex (``POINT``) or edge (``EDGE``) creases: attributes ``crease_vert`` / ``crease_edge`` since
+    Blender 4.0; before, the edges' ``crease`` and a bmesh vertex crease layer (3.4 offers no other way)."""
+    values = np.ascontiguousarray(values, dtype=np.float32)
+    if bpy.app.version >= (4, 0, 0):
+        set_attribute(mesh, "crease_vert" if domain == "POINT" else "crease_edge", "FLOAT", domain, values)
+    elif domain == "EDGE":
+        mesh.edges.foreach_set("crease", values)
+    else:
+        editable = bmesh.new()
+        editable.from_mesh(mesh)
+        layer = editable.verts.layers.crease.verify()
+        for vertex, value in zip(editable.verts, values.tolist()):
+            vertex[layer] = value
+        editable.to_mesh(mesh)
+        editable.free()
+    mesh.update()
+
+
+def _flags(collection, name, dtype=bool):
+    values = np.empty(len(collection), dtype=dtype)
+    collection.foreach_get(name, values)
+    return values
+
+
+def repair_edge_selection(mesh) -> None:
+    """Remove a ``.select_edge`` attribute that is not BOOLEAN: bpy 5.0.1's ``from_pydata`` makes it INT32_2D, and
+    setting edge selection then crashes (Blender recreates it right on the next selection change)."""
+    broken = mesh.attributes.get(".select_edge")
+    if broken is not None and broken.data_type != "BOOLEAN":
+        mesh.attributes.remove(broken)
+
+
+def dress_layout(layout, creases=True, seed=7):
+    """Give the layout everything an artist's layout carries besides its shape (no shape keys): two UV maps,
+    weighted vertex groups, an attribute of every type on every domain, vertex and edge creases (zero when
+    ``creases`` is off: the subdivision fit refuses creased layouts), seams, sharp edges, flat and smooth faces,
+    three materials, a vertex colour layer, custom split normals, a Subdivision Surface and a Mirror modifier, a
+    parent, custom properties, a selection and hidden faces. Returns the parent empty."""
+    random = np.random.default_rng(seed)
+    mesh = layout.data
+    counts = {
+        "POINT": len(mesh.vertices),
+        "EDGE": len(mesh.edges),
+        "FACE": len(mesh.polygons),
+        "CORNER": len(mesh.loops),
+    }
+    for name in ("UVMap", "Detail"):
+        mesh.uv_layers.new(name=name)
+        mesh.uv_layers[name].data.foreach_set("uv", random.random(counts["CORNER"] * 2).astype(np.float32))
+    mesh.uv_layers.active_index = 1
+    for name in VERTEX_GROUPS:
+        group = layout.vertex_groups.new(name=name)
+        for vertex in np.flatnonzero(random.random(counts["POINT"]) < 0.4).tolist():
+            group.add([vertex], float(random.random()), "REPLACE")
+    layout.vertex_groups["Spine"].lock_weight = True
+    layout.vertex_groups.active_index = 2
+    for domain in ATTRIBUTE_DOMAINS:
+        for data_type in CUSTOM_ATTRIBUTE_TYPES:
+            name = f"user_{domain.lower()}_{data_type.lower()}"
+            set_attribute(mesh, name, data_type, domain, _random_attribute_values(data_type, counts[domain], random))
+    mesh.attributes.active = mesh.attributes["user_edge_float"]
+    color = mesh.color_attributes.new("Paint", "BYTE_COLOR", "CORNER")
+    color.data.foreach_set("color", random.integers(0, 256, counts["CORNER"] * 4) / 255.0)
+    set_creases(mesh, "POINT", random.random(counts["POINT"]) * creases)
+    set_creases(mesh, "EDGE", random.random(counts["EDGE"]) * creases)
+    mesh.edges.foreach_set("use_seam", random.random(counts["EDGE"]) < 0.3)
+    mesh.edges.foreach_set("use_edge_sharp", random.random(counts["EDGE"]) < 0.3)
+    mesh.polygons.foreach_set("use_smooth", random.random(counts["FACE"]) < 0.7)
+    for name in ("Skin", "Cloth", "Metal"):
+        mesh.materials.append(bpy.data.materials.new(name))
+    mesh.polygons.foreach_set("material_index", random.integers(0, 3, counts["FACE"]).astype(np.int32))
+    if hasattr(mesh, "use_auto_smooth"):
+        mesh.use_auto_smooth = True  # custom normals need it before Blender 4.1
+    normals = random.normal(size=(counts["CORNER"], 3))
+    mesh.normals_split_custom_set((normals / np.linalg.norm(normals, axis=1)[:, None]).tolist())
+    # Selection and hiding as Blender keeps them (flushed): an edge or face is selected when all its vertices
+    # are, hidden when one of them is; nothing hidden is selected.
+    hidden = random.random(counts["POINT"]) < 0.1
+    selected = (random.random(counts["POINT"]) < 0.6) & ~hidden
+    edge_vertices = np.empty(counts["EDGE"] * 2, dtype=np.int64)
+    mesh.edges.foreach_get("vertices", edge_vertices)
+    corner_vertices = np.empty(counts["CORNER"], dtype=np.int64)
+    mesh.loops.foreach_get("vertex_index", corner_vertices)
+    corner_faces = np.repeat(np.arange(counts["FACE"]), _flags(mesh.polygons, "loop_total", np.int64))
+    repair_edge_selection(mesh)
+    for collection, flags in (("select", selected), ("hide", hidden)):
+        reduce = np.logical_and if collection == "select" else np.logical_or
+        face_flags = np.full(counts["FACE"], collection == "select")
+        reduce.at(face_flags, corner_faces, flags[corner_vertices])
+        mesh.vertices.foreach_set(collection, flags)
+        mesh.edges.foreach_set(collection, reduce.reduce(flags[edge_vertices.reshape(-1, 2)], axis=1))
+        mesh.polygons.foreach_set(collection, face_flags)
+    mesh.update()
+    subdivision = layout.modifiers.new("Subdivision", "SUBSURF")
+    subdivision.levels = 1
+    mirror = layout.modifiers.new("Mirror", "MIRROR")
+    mirror.use_axis = (False, True, False)
+    mirror.use_clip = True
+    parent = bpy.data.objects.new("Layout Parent", None)
+    bpy.context.scene.collection.objects.link(parent)
+    parent.location = (0.05, -0.1, 0.02)
+    parent.rotation_euler = (0.02, 0.0, 0.1)
+    bpy.context.view_layer.update()
+    world = layout.matrix_world.copy()
+    layout.parent = parent
+    layout.matrix_world = world
+    layout["artist_note"] = "retopo v3"
+    layout["lod"] = 2
+    mesh["scan_id"] = 1234
+    mesh["tags"] = [1.5, 2.5]
+    bpy.context.view_layer.update()
+    return parent
+
+
+def layout_data(layout) -> dict:
+    """Everything on the layout besides its vertex positions and Springwrap's face-point state, datum by datum,
+    as values that compare equal exactly when the data are bit-identical (``repr`` or raw bytes)."""
+    mesh = layout.data
+    data = {}
+    loop_starts = _flags(mesh.polygons, "loop_start", np.int64)
+    loop_totals = _flags(mesh.polygons, "loop_total", np.int64)
+    edge_vertices = np.empty(len(mesh.edges) * 2, dtype=np.int64)
+    mesh.edges.foreach_get("vertices", edge_vertices)
+    data["topology"] = (
+        len(mesh.vertices),
+        edge_vertices.tobytes(),
+        _flags(mesh.loops, "vertex_index", np.int64).tobytes(),
+        _flags(mesh.loops, "edge_index", np.int64).tobytes(),
+        loop_starts.tobytes(),
+        loop_totals.tobytes(),
+    )
+    for uv_layer in mesh.uv_layers:
+        uvs = np.empty(len(uv_layer.data) * 2, dtype=np.float32)
+        uv_layer.data.foreach_get("uv", uvs)
+        data[f"UV map {uv_layer.name}"] = uvs.tobytes()
+    data["UV maps"] = (mesh.uv_layers.keys(), mesh.uv_layers.active_index, [uv.active_render for uv in mesh.uv_layers])
+    data["vertex groups"] = repr(
+        (
+            [(group.name, group.index, group.lock_weight) for group in layout.vertex_groups],
+            layout.vertex_groups.active_index,
+        )
+    )
+    data["vertex group weights"] = repr(
+        [[(item.group, item.weight) for item in vertex.groups] for vertex in mesh.vertices]
+    )
+    for attribute in mesh.attributes:
+        if attribute.name in ("position",) + SPRINGWRAP_STATE + UV_SELECTION:
+            continue
+        values = attribute_values(attribute)
+        data[f"attribute {attribute.name}"] = (
+            attribute.domain,
+            attribute.data_type,
+            repr(values.tolist()) if values.dtype == object else values.tobytes(),
+        )
+    data["attribute names"] = sorted(
+        (attribute.name, attribute.domain, attribute.data_type)
+        for attribute in mesh.attributes
+        if attribute.name not in SPRINGWRAP_STATE + UV_SELECTION
+    )
+    data["vertex creases"] = None if read_creases(mesh, "POINT") is None else read_creases(mesh, "POINT").tobytes()
+    data["edge creases"] = None if read_creases(mesh, "EDGE") is None else read_creases(mesh, "EDGE").tobytes()
+    data["seams"] = _flags(mesh.edges, "use_seam").tobytes()
+    data["sharp edges"] = _flags(mesh.edges, "use_edge_sharp").tobytes()
+    data["smooth faces"] = _flags(mesh.polygons, "use_smooth").tobytes()
+    data["material indices"] = _flags(mesh.polygons, "material_index", np.int32).tobytes()
+    data["materials"] = [material.name for material in mesh.materials]
+    data["material slots"] = [(slot.link, slot.name) for slot in layout.material_slots]
+    colors = mesh.color_attributes
+    data["colour attributes"] = (
+        colors.keys(),
+        getattr(colors, "active_color_name", colors.active_color.name if colors.active_color else None),
+    )
+    data["active attribute"] = None if mesh.attributes.active is None else mesh.attributes.active.name
+    data["custom normals"] = mesh.has_custom_normals
+    for domain, collection in (("vertices", mesh.vertices), ("edges", mesh.edges), ("faces", mesh.polygons)):
+        data[f"selected {domain}"] = _flags(collection, "select").tobytes()
+        data[f"hidden {domain}"] = _flags(collection, "hide").tobytes()
+    data["modifiers"] = repr(
+        [
+            (modifier.name, modifier.type, modifier.show_viewport, modifier.show_render)
+            + ((modifier.levels, modifier.render_levels) if modifier.type == "SUBSURF" else ())
+            + ((tuple(modifier.use_axis), modifier.use_clip) if modifier.type == "MIRROR" else ())
+            for modifier in layout.modifiers
+        ]
+    )
+    data["parent"] = (
+        None if layout.parent is None else layout.parent.name,
+        layout.parent_type,
+        repr([tuple(row) for row in layout.matrix_parent_inverse]),
+    )
+    data["object custom properties"] = repr({key: layout[key] for key in layout.keys() if key != "springwrap"})
+    data["mesh custom properties"] = repr(
+        {key: mesh[key] if not hasattr(mesh[key], "to_list") else mesh[key].to_list() for key in mesh.keys()}
+    )
+    data["object selected, hidden, active"] = (
+        layout.select_get(),
+        layout.hide_get(),
+        bpy.context.view_layer.objects.active == layout,
+    )
+    settings = layout.springwrap
+    data["Springwrap target"] = None if settings.target is None else settings.target.name
+    # A face anchor's location is a cache of its triangle and barycentric on the target, which the wrap and
+    # Update Anchors refresh: on an unchanged target it may differ from the stored one in the last float bit.
+    data["Springwrap anchors"] = repr(
+        [
+            (item.vertex_index, item.target_kind, item.triangle, tuple(item.barycentric))
+            + (
+                (tuple(item.location),)
+                if item.target_kind != "FACE"
+                else tuple(round(value, 5) for value in item.location)
+            )
+            for item in settings.anchors
+        ]
+    )
+    data["Springwrap curve constraints"] = repr(
+        [
+            (
+                item.layout_vertices,
+                item.source_kind,
+                item.target_vertices,
+                tuple(tuple(point.co) for point in item.points),
+            )
+            for item in settings.curve_constraints
+        ]
+    )
+    return data

@@ -23,10 +23,12 @@ from bpy_helpers import (
     STATE_ATTRIBUTE,
     STATE_NAMES,
     TOLERANCE,
+    PanelRecorder,
     Reference,
     addon_module,
     as_layout,
     assert_face_points_consistent,
+    delete_faces,
     empty_target,
     local_positions,
     make_grid_layout,
@@ -50,6 +52,13 @@ AXES = {"X": (1, 0, 0), "Y": (0, 1, 0), "Z": (0, 0, 1), "-X": (-1, 0, 0), "-Y": 
 
 
 # ---------------------------------------------------------------- readers
+
+
+def assert_reported(capfd, *parts):
+    """The operator's report (printed in background mode) says each of ``parts``."""
+    output = capfd.readouterr().out
+    for part in parts:
+        assert part in output, output
 
 
 def assert_closest_points(reference, queries, results):
@@ -184,9 +193,7 @@ def test_snap_max_distance_leaves_far_vertices_untouched(capfd):
     assert np.all(states[~near] == SPACE_POINT) and np.all(faces[~near] == -1)
     assert np.all(states[near] == FACE_POINT)
     assert_closest_points(reference, before[near], world_positions(layout)[near])
-    output = capfd.readouterr().out
-    assert f"Snapped {near.sum()} vertices" in output
-    assert f"{(~near).sum()} beyond max distance left untouched" in output
+    assert_reported(capfd, f"Snapped {near.sum()} vertices", f"{(~near).sum()} beyond max distance left untouched")
 
 
 def test_snap_only_selected_touches_only_selected_vertices():
@@ -275,9 +282,7 @@ def test_project_along_an_axis_hits_what_ray_cast_hits(direction, orientation, b
     assert local_positions(layout)[~hit].tobytes() == before_local[~hit].tobytes()
     assert np.all(states[hit] == 1) and np.all(states[~hit] == 0)
     assert_face_points_consistent(layout, reference)
-    output = capfd.readouterr().out
-    assert f"Projected {hit.sum()} vertices" in output
-    assert f"{(~hit).sum()} missed the target" in output
+    assert_reported(capfd, f"Projected {hit.sum()} vertices", f"{(~hit).sum()} missed the target")
 
 
 def test_project_away_from_the_target_misses_everything():
@@ -432,14 +437,7 @@ def test_deleting_target_faces_detaches_the_face_points_on_them(capfd):
     side = world[:, 0] > np.median(world[:, 0])
     deleted_polygons = np.unique(reference.polygons[faces_before[side]])
     on_deleted = np.isin(reference.polygons[faces_before], deleted_polygons)
-    mesh = target.data
-    editable = bmesh.new()
-    editable.from_mesh(mesh)
-    editable.faces.ensure_lookup_table()
-    bmesh.ops.delete(editable, geom=[editable.faces[int(i)] for i in deleted_polygons], context="FACES_ONLY")
-    editable.to_mesh(mesh)
-    editable.free()
-    mesh.update()
+    delete_faces(target, deleted_polygons)
     capfd.readouterr()
 
     # The next operation, whatever it acts on (here: nothing selected), resolves the whole layout.
@@ -673,35 +671,6 @@ def test_layout_with_shape_keys_is_refused_where_they_cannot_be_carried_over():
 # ---------------------------------------------------------------- panel
 
 
-class RecordingLayout:
-    """Stands in for ``UILayout``: records the operator buttons and their properties."""
-
-    def __init__(self, operators):
-        self.operators = operators
-        self.texts = []
-        self.labels = []
-        self.use_property_split = False
-        self.use_property_decorate = False
-        self.active = True
-
-    def prop(self, *args, **kwargs):
-        pass
-
-    def label(self, text="", **kwargs):
-        self.labels.append(text)
-
-    def column(self, *args, **kwargs):
-        return self
-
-    row = box = split = column
-
-    def operator(self, idname, **kwargs):
-        button = type("Button", (), {})()
-        self.operators.append((idname, button))
-        self.texts.append((idname, kwargs))
-        return button
-
-
 def draw_panels(panels, recorder):
     """Draw the panels (classes) into the recorder, as Blender would one after the other."""
     for panel_class in panels:
@@ -717,10 +686,9 @@ def test_panel_buttons_act_on_the_selection_in_edit_mode(mode):
     layout.springwrap.snap_mode = "VERTEX"
     layout.springwrap.project_direction = "-Y"
     bpy.ops.object.mode_set(mode=mode)
-    buttons = []
-    recorder = RecordingLayout(buttons)
+    recorder = PanelRecorder()
     draw_panels([panels.SPRINGWRAP_PT_snap, panels.SPRINGWRAP_PT_project, panels.SPRINGWRAP_PT_detach], recorder)
-    by_name = dict(buttons)
+    by_name = dict(recorder.operators)
     assert set(by_name) == {"springwrap.detach", "springwrap.snap", "springwrap.project"}
     assert all(button.only_selected == (mode == "EDIT") for button in by_name.values())
     assert by_name["springwrap.snap"].mode == "VERTEX"
@@ -730,7 +698,7 @@ def test_panel_buttons_act_on_the_selection_in_edit_mode(mode):
         ["Snap Selected", "Project Selected", "Detach Selected"] if mode == "EDIT" else ["Snap", "Project", "Detach"]
     )
     if mode == "OBJECT":
-        recorder = RecordingLayout([])
+        recorder = PanelRecorder()
         draw_panels([panels.SPRINGWRAP_PT_check], recorder)
         assert recorder.labels == ["On Surface", "0", "In Space", "121"]
 
@@ -741,6 +709,6 @@ def test_panel_counts_face_and_space_points():
     target, layout = scene()
     set_selection(layout, np.arange(len(layout.data.vertices)) < 40)
     bpy.ops.springwrap.snap(only_selected=True)
-    recorder = RecordingLayout([])
+    recorder = PanelRecorder()
     draw_panels([SPRINGWRAP_PT_check], recorder)
     assert recorder.labels == ["On Surface", "40", "In Space", "81"]

@@ -20,6 +20,7 @@ from bpy_helpers import (
     Reference,
     anchor_rows,
     anchor_snapshot,
+    delete_faces,
     empty_target,
     nan_layout_vertex,
     nan_target_vertex,
@@ -336,17 +337,6 @@ def test_update_follows_a_target_that_moves():
 # ---------------------------------------------------------------- target topology changes (paper 2.1)
 
 
-def _delete_target_polygons(target, polygons):
-    mesh = target.data
-    editable = bmesh.new()
-    editable.from_mesh(mesh)
-    editable.faces.ensure_lookup_table()
-    bmesh.ops.delete(editable, geom=[editable.faces[int(i)] for i in polygons], context="FACES_ONLY")
-    editable.to_mesh(mesh)
-    editable.free()
-    mesh.update()
-
-
 @pytest.mark.parametrize("operator", ["anchors_update", "anchor_add", "anchors_auto_keep"])
 def test_deleted_target_faces_turn_their_anchors_into_space_anchors(operator, capfd):
     target, layout = scene()
@@ -358,7 +348,7 @@ def test_deleted_target_faces_turn_their_anchors_into_space_anchors(operator, ca
     side = locations[:, 0] > np.median(locations[:, 0])
     deleted_polygons = np.unique(reference.polygons[triangles[side]])
     on_deleted = np.isin(reference.polygons[triangles], deleted_polygons)
-    _delete_target_polygons(target, deleted_polygons)
+    delete_faces(target, deleted_polygons)
     capfd.readouterr()
 
     if operator == "anchors_update":
@@ -393,7 +383,7 @@ def test_layout_operations_do_not_hide_a_topology_change_from_the_anchors():
     target, layout = scene()
     bpy.ops.springwrap.anchors_auto(spacing=0.5)
     reference = Reference(target)
-    _delete_target_polygons(target, np.arange(0, len(target.data.polygons), 2))
+    delete_faces(target, np.arange(0, len(target.data.polygons), 2))
     bpy.ops.springwrap.snap()  # writes the layout's own target signature
     assert layout.springwrap.target_signature != reference.signature()
     assert layout.springwrap.anchors_signature == reference.signature()  # the anchors' is separate

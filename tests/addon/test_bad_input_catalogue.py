@@ -13,12 +13,11 @@ import math
 
 import bpy
 
-import bmesh
 import numpy as np
 import pytest
 
 from benchmarks.retarget import rig_scene, rigging
-from bpy_helpers import make_grid_layout, make_target, set_selection
+from bpy_helpers import make_grid_layout, make_target, set_selection, target_without_faces
 
 FLT_MAX = float(np.finfo(np.float32).max)
 ROW = 11  # the grid layout: 11 x 11 vertices
@@ -127,7 +126,14 @@ def full_snapshot(layout):
     positions = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
     mesh.vertices.foreach_get("co", positions)
     anchors = [
-        (item.vertex_index, item.target_kind, item.triangle, tuple(item.barycentric), tuple(item.location))
+        (
+            item.vertex_index,
+            item.target_kind,
+            item.triangle,
+            tuple(item.barycentric),
+            tuple(item.location),
+            item.twin_vertex,
+        )
         for item in settings.anchors
     ]
     constraints = [
@@ -218,14 +224,6 @@ def _layout_transform(target, layout):
     layout.location.x = math.nan
 
 
-def _target_without_faces(target, layout):
-    editable = bmesh.new()
-    editable.from_mesh(target.data)
-    bmesh.ops.delete(editable, geom=list(editable.faces), context="FACES_ONLY")
-    editable.to_mesh(target.data)
-    editable.free()
-
-
 def _target_vertex(value):
     def breaks(target, layout):
         target.data.vertices[5].co.y = value
@@ -262,7 +260,7 @@ CATALOGUE = {
         "shape key data",
         "shape key 'Smile' has a NaN or infinite coordinate at vertex 7",
     ),
-    "target without faces": (_target_without_faces, "target", "'Target' has no faces"),
+    "target without faces": (target_without_faces, "target", "'Target' has no faces"),
     "target vertex NaN": (_target_vertex(math.nan), "target", "'Target'"),
     "target vertex 1e30": (_target_vertex(1e30), "target", "'Target'"),
 }
@@ -323,14 +321,20 @@ def test_each_catalogue_call_finishes_on_the_healthy_scene(operator):
     assert _call(operator, arguments) == {"FINISHED"}
 
 
-@pytest.mark.parametrize("operator, case", PAIRS, ids=[f"{operator}-{case}" for operator, case in PAIRS])
-def test_bad_input_is_an_error_and_changes_nothing(operator, case):
+def _broken_scene(operator, case):
+    """The catalogue's scene for ``operator`` broken by ``case``: (the operator's arguments, the layout, the message
+    expected, the layout's full snapshot)."""
     arguments, _reads = OPERATORS[operator]
     target, layout = catalogue_scene(with_armatures=operator == "align_armature")
     breaks, _kind, message = CATALOGUE[case]
     breaks(target, layout)
     bpy.context.view_layer.update()
-    before = full_snapshot(layout)
+    return arguments, layout, message, full_snapshot(layout)
+
+
+@pytest.mark.parametrize("operator, case", PAIRS, ids=[f"{operator}-{case}" for operator, case in PAIRS])
+def test_bad_input_is_an_error_and_changes_nothing(operator, case):
+    arguments, layout, message, before = _broken_scene(operator, case)
     with pytest.raises(RuntimeError, match=message):
         _call(operator, arguments)
     assert bpy.context.active_object == layout
@@ -341,12 +345,7 @@ def test_bad_input_is_an_error_and_changes_nothing(operator, case):
 @pytest.mark.parametrize("operator, case", OTHER_PAIRS, ids=[f"{operator}-{case}" for operator, case in OTHER_PAIRS])
 def test_bad_input_an_operator_does_not_read_never_crashes_it(operator, case):
     """It finishes (the input is not its business) or refuses for a reason of its own, leaving the scene as it was."""
-    arguments, _reads = OPERATORS[operator]
-    target, layout = catalogue_scene(with_armatures=operator == "align_armature")
-    breaks, _kind, _message = CATALOGUE[case]
-    breaks(target, layout)
-    bpy.context.view_layer.update()
-    before = full_snapshot(layout)
+    arguments, layout, _message, before = _broken_scene(operator, case)
     try:
         result = _call(operator, arguments)
     except RuntimeError as error:
@@ -409,6 +408,96 @@ def test_a_bad_mirror_plane_is_refused(value):
     assert full_snapshot(layout) == before
 
 
+# ---------------------------------------------------------------- symmetric anchors
+
+SYMMETRIC_CALLS = {
+    "anchor_add": {"vertex_index": 3, "location": (0.1, 0.2, 1.0), "use_location": True, "symmetric": True},
+    "anchors_auto": {"spacing": 0.7, "replace": False, "symmetric": True},
+}
+"""The symmetric anchor operators: a call that finishes on the healthy scene (its layout's own X plane)."""
+SYMMETRIC_READS = {"positions", "positions far", "anchors", "target"}
+SYMMETRIC_PAIRS = [
+    (operator, case) for operator in SYMMETRIC_CALLS for case in CATALOGUE if CATALOGUE[case][1] in SYMMETRIC_READS
+]
+
+
+def _symmetry_object(kind):
+    """A scene object 'Symmetry' that cannot give a symmetry plane: deleted, a mesh, or with a NaN transform."""
+    if kind == "not an Empty":
+        bpy.ops.mesh.primitive_cube_add(size=0.2)
+        bpy.context.active_object.name = "Symmetry"
+        return
+    empty = bpy.data.objects.new("Symmetry", None)
+    bpy.context.scene.collection.objects.link(empty)
+    if kind == "deleted":
+        bpy.data.objects.remove(empty)
+    else:
+        empty.location.x = math.nan
+
+
+SYMMETRY_OBJECTS = {
+    "deleted": "There is no object named 'Symmetry' for the symmetry plane",
+    "not an Empty": "The symmetry object 'Symmetry' is a mesh, not an Empty",
+    "NaN transform": "'Symmetry' has a NaN or infinite transform",
+}
+
+
+@pytest.mark.parametrize("operator", list(SYMMETRIC_CALLS))
+def test_symmetric_anchor_calls_finish_on_the_healthy_scene(operator):
+    catalogue_scene()
+    assert _call(operator, SYMMETRIC_CALLS[operator]) == {"FINISHED"}
+
+
+@pytest.mark.parametrize(
+    "operator, case", SYMMETRIC_PAIRS, ids=[f"{operator}-{case}" for operator, case in SYMMETRIC_PAIRS]
+)
+def test_symmetric_anchor_calls_refuse_bad_input_and_change_nothing(operator, case):
+    target, layout = catalogue_scene()
+    breaks, _kind, message = CATALOGUE[case]
+    breaks(target, layout)
+    bpy.context.view_layer.update()
+    before = full_snapshot(layout)
+    with pytest.raises(RuntimeError, match=message):
+        _call(operator, SYMMETRIC_CALLS[operator])
+    assert full_snapshot(layout) == before
+
+
+SYMMETRIC_OTHER_PAIRS = [
+    (operator, case) for operator in SYMMETRIC_CALLS for case in CATALOGUE if CATALOGUE[case][1] not in SYMMETRIC_READS
+]
+
+
+@pytest.mark.parametrize(
+    "operator, case", SYMMETRIC_OTHER_PAIRS, ids=[f"{operator}-{case}" for operator, case in SYMMETRIC_OTHER_PAIRS]
+)
+def test_symmetric_anchor_calls_never_crash_on_other_bad_input(operator, case):
+    """They finish or refuse for a reason of their own, leaving the scene as it was when they refuse."""
+    target, layout = catalogue_scene()
+    CATALOGUE[case][0](target, layout)
+    bpy.context.view_layer.update()
+    before = full_snapshot(layout)
+    try:
+        result = _call(operator, SYMMETRIC_CALLS[operator])
+    except RuntimeError as error:
+        assert str(error).startswith("Error: ") or "poll()" in str(error), error
+        assert full_snapshot(layout) == before
+    else:
+        assert result == {"FINISHED"}
+
+
+@pytest.mark.parametrize("kind", list(SYMMETRY_OBJECTS))
+@pytest.mark.parametrize("operator", list(SYMMETRIC_CALLS))
+def test_a_bad_symmetry_object_is_refused(operator, kind):
+    target, layout = catalogue_scene()
+    _symmetry_object(kind)
+    bpy.context.view_layer.objects.active = layout
+    bpy.context.view_layer.update()
+    before = full_snapshot(layout)
+    with pytest.raises(RuntimeError, match=SYMMETRY_OBJECTS[kind]):
+        _call(operator, SYMMETRIC_CALLS[operator] | {"symmetry_object": "Symmetry"})
+    assert full_snapshot(layout) == before
+
+
 def test_project_along_normals_refuses_an_infinite_vertex_instead_of_skipping_it():
     """Issue 13: a real inf written with foreach_set was skipped by project(NORMAL) (its normal is not finite)."""
     target, layout = catalogue_scene()
@@ -423,7 +512,7 @@ def test_set_rest_shape_does_not_need_a_usable_target():
     """Set Rest Shape reads the target only to judge the vertices against it: a target that lost its faces is
     not its problem (it finishes), while the wrap refuses it."""
     target, layout = catalogue_scene()
-    _target_without_faces(target, layout)
+    target_without_faces(target, layout)
     assert bpy.ops.springwrap.rest_set() == {"FINISHED"}
     with pytest.raises(RuntimeError, match="'Target' has no faces"):
         bpy.ops.springwrap.wrap(max_iterations=30)

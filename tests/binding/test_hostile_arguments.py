@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import springwrap_kernel as sk
-from helpers import grid, kernel_python, make_solver, plane_target, quad_layout
+from helpers import grid, kernel_python, make_solver, plane_target, quad_layout, space_anchor, space_points
 
 EMPTY = np.empty(0, np.uint32)
 
@@ -205,19 +205,13 @@ def test_an_absurd_space_anchor_is_refused_before_the_wrap(anchor, error, messag
     target = plane_target(cells=8, size=0.25)
     positions, face_corners, face_sizes = quad_layout(n=3, size=0.2)
     structure = sk.LayoutStructure(len(positions), face_corners, face_sizes)
-    count = len(positions)
     with pytest.raises(error, match=message):
         sk.WrapSolver(
             target,
             structure,
-            np.zeros(count, np.int32),
-            np.full(count, -1, np.int32),
-            np.zeros((count, 3), np.float32),
+            *space_points(len(positions)),
             positions,
-            anchor_vertices=np.array([3], np.uint32),
-            anchor_triangles=np.array([-1], np.int32),
-            anchor_barycentrics=np.zeros((1, 3), np.float32),
-            anchor_positions=np.array([anchor], np.float32),
+            **space_anchor(3, anchor),
         )
 
 

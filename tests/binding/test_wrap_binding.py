@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import springwrap_kernel as sk
-from helpers import make_solver, plane_target, quad_layout
+from helpers import make_solver, plane_target, quad_layout, space_anchor
 
 
 def test_structure_of_a_quad_grid():
@@ -68,10 +68,7 @@ def test_bad_wrap_inputs_raise_named_errors():
             triangles,
             barycentrics,
             positions,
-            anchor_vertices=np.array([99], np.uint32),
-            anchor_triangles=np.array([-1], np.int32),
-            anchor_barycentrics=np.zeros((1, 3), np.float32),
-            anchor_positions=np.zeros((1, 3), np.float32),
+            **space_anchor(99, (0.0, 0.0, 0.0)),
         )
     with pytest.raises(sk.ArrayError, match="all four"):
         sk.WrapSolver(

@@ -10,7 +10,7 @@ import sys
 import numpy as np
 import pytest
 
-from helpers import CORE, core_module
+from helpers import CORE, core_module, grid_triangles
 
 an = core_module("anchors")
 ls = sys.modules[an.__name__.rpartition(".")[0] + ".layout_state"]
@@ -26,13 +26,7 @@ def grid_target(size=4.0, cells=8, height=0.0):
     coordinates = np.linspace(-size / 2, size / 2, cells + 1)
     x, y = np.meshgrid(coordinates, coordinates, indexing="ij")
     vertices = np.stack([x.ravel(), y.ravel(), np.full(x.size, height)], axis=1).astype(np.float32)
-    triangles = []
-    for i in range(cells):
-        for j in range(cells):
-            a, d = i * (cells + 1) + j, i * (cells + 1) + j + 1
-            b, c = a + cells + 1, d + cells + 1
-            triangles += [(a, b, c), (a, c, d)]
-    return make_target(vertices, np.array(triangles, dtype=np.uint32))
+    return make_target(vertices, grid_triangles(cells))
 
 
 def make_target(vertices, triangles):

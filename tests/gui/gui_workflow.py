@@ -167,6 +167,20 @@ def point_counts(layout) -> tuple[int, int]:
 # ---------------------------------------------------------------- the steps
 
 
+def wrap_timings(outcome: set, wrapped, seconds_until_seen: float) -> dict:
+    """What a step records of a live wrap: how it returned, its iterations and frames, its seconds and how
+    much of them were solving, and the seconds until its end was seen."""
+    return {
+        "outcome": sorted(outcome),
+        "iterations": wrapped.iterations,
+        "frames": wrapped.frames,
+        "wrap_seconds": round(wrapped.seconds, 4),
+        "solver_seconds": round(wrapped.kernel_seconds, 4),
+        "solver_share": round(wrapped.kernel_seconds / wrapped.seconds, 3),
+        "seconds_until_seen": round(seconds_until_seen, 3),
+    }
+
+
 class Workflow:
     """The steps, run one per timer call; each returns the seconds until the next one, or None when done."""
 
@@ -315,13 +329,7 @@ class Workflow:
         share = wrapped.kernel_seconds / wrapped.seconds
         self.step(
             "wrap",
-            outcome=sorted(outcome),
-            iterations=wrapped.iterations,
-            frames=wrapped.frames,
-            wrap_seconds=round(wrapped.seconds, 4),
-            solver_seconds=round(wrapped.kernel_seconds, 4),
-            solver_share=round(share, 3),
-            seconds_until_seen=round(wall, 3),
+            **wrap_timings(outcome, wrapped, wall),
             invoke_seconds=round(returned, 3),
             face_points=wrapped.face_points,
         )
@@ -356,16 +364,7 @@ class Workflow:
         several = wrap_session.last_result(layout)
         self.check(several is not None and several is not wrapped, "the wrap of several frames left no result")
         self.check(several.frames > 1, f"the wrap of several frames ran in {several.frames}")
-        self.step(
-            "live_wrap",
-            outcome=sorted(outcome),
-            iterations=several.iterations,
-            frames=several.frames,
-            wrap_seconds=round(several.seconds, 3),
-            solver_seconds=round(several.kernel_seconds, 3),
-            solver_share=round(several.kernel_seconds / several.seconds, 3),
-            seconds_until_seen=round(time.perf_counter() - start, 3),
-        )
+        self.step("live_wrap", **wrap_timings(outcome, several, time.perf_counter() - start))
         yield STEP_SECONDS
 
         # A long live wrap, cancelled with Esc after it has written a few frames.

@@ -3,10 +3,11 @@ glTF and .glb), so that a test states exactly what the importers get, good or ho
 
 import base64
 import json
-import math
 import struct
 
 import numpy as np
+
+from helpers import sphere_faces, sphere_points, triangulated
 
 
 def ellipsoid(
@@ -14,37 +15,14 @@ def ellipsoid(
 ) -> tuple[np.ndarray, np.ndarray]:
     """A UV ellipsoid, off the origin and of three different radii (any rotation of it is another shape), as
     (N, 3) float64 vertices and (M, 3) triangles winding outwards."""
-    points = [(0.0, 0.0, 1.0)]
-    for ring in range(1, rings):
-        polar = math.pi * ring / rings
-        for segment in range(segments):
-            azimuth = 2 * math.pi * segment / segments
-            points.append((math.sin(polar) * math.cos(azimuth), math.sin(polar) * math.sin(azimuth), math.cos(polar)))
-    points.append((0.0, 0.0, -1.0))
-    bottom = len(points) - 1
-    triangles = []
-    for segment in range(segments):
-        following = (segment + 1) % segments
-        triangles.append((0, 1 + segment, 1 + following))
-        last = 1 + (rings - 2) * segments
-        triangles.append((bottom, last + following, last + segment))
-        for ring in range(rings - 2):
-            a, b = 1 + ring * segments + segment, 1 + ring * segments + following
-            triangles += [(a, a + segments, b + segments), (a, b + segments, b)]
-    vertices = np.array(points) * np.array(radii) + np.array(centre)
-    return vertices, np.array(triangles, dtype=np.int64)
+    vertices = sphere_points(rings, segments) * np.array(radii) + np.array(centre)
+    return vertices, triangulated(sphere_faces(rings, segments))
 
 
 def on_ellipsoid(points, centre=(0.3, -0.2, 0.1), radii=(1.0, 1.2, 0.8)) -> np.ndarray:
     """The ellipsoid's implicit value at ``points``: 1 on the smooth surface (the faceted one is a little inside)."""
     scaled = (np.asarray(points, dtype=np.float64) - np.array(centre)) / np.array(radii)
     return np.sqrt((scaled**2).sum(axis=1))
-
-
-def obj_text(vertices, faces) -> str:
-    lines = [f"v {x:.7f} {y:.7f} {z:.7f}" for x, y, z in vertices]
-    lines += ["f " + " ".join(str(index + 1) for index in face) for face in faces]
-    return "\n".join(lines) + "\n"
 
 
 def ply_header(form: str, vertex_count, face_count, index_type: str = "int") -> bytes:

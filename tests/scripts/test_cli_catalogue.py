@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from helpers import REPOSITORY, TIMEOUT_SECONDS, script_command, sphere_obj
+from helpers import REPOSITORY, options, outputs, run_script, sphere_obj
 from mesh_writers import ellipsoid, glb, ply_binary, stl_binary
 
 RETARGET = REPOSITORY / "blender_scripts" / "retarget.py"
@@ -24,16 +24,6 @@ WRAP = REPOSITORY / "blender_scripts" / "wrap.py"
 GRID = "".join(f"v {i / 4 - 0.5:.3f} {j / 4 - 0.5:.3f} 1.5\n" for j in range(5) for i in range(5)) + "".join(
     f"f {j * 5 + i + 1} {j * 5 + i + 2} {j * 5 + i + 7} {j * 5 + i + 6}\n" for j in range(4) for i in range(4)
 )
-
-
-def run(script: Path, *arguments) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [*script_command(script), *map(str, arguments)],
-        capture_output=True,
-        text=True,
-        timeout=TIMEOUT_SECONDS,
-        cwd=REPOSITORY,
-    )
 
 
 def the_failure(process: subprocess.CompletedProcess, script: str = "retarget") -> str:
@@ -102,19 +92,7 @@ CASES = {
 def test_a_hostile_target_is_one_line_and_leaves_nothing(files, tmp_path, name):
     target = files.get(name, files["grid.obj"].parent / name)
     out = tmp_path / "out"
-    process = run(
-        RETARGET,
-        "--template",
-        files["grid.obj"],
-        "--target",
-        target,
-        "--output-blend",
-        out / "r.blend",
-        "--output-obj",
-        out / "r.obj",
-        "--report",
-        out / "r.json",
-    )
+    process = run_script(RETARGET, *options(template=files["grid.obj"], target=target), *outputs(out, "r"))
     failure = the_failure(process)
     assert failure.startswith(f"retarget: FAILED: {target}: ") and CASES[name] in failure, failure
     assert not out.exists()  # not even the folder
@@ -122,8 +100,8 @@ def test_a_hostile_target_is_one_line_and_leaves_nothing(files, tmp_path, name):
 
 @pytest.mark.parametrize("name", ["nan.obj", "huge.ply"])
 def test_a_hostile_template_is_refused_the_same_way(files, tmp_path, name):
-    process = run(
-        RETARGET, "--template", files[name], "--target", files["ball.obj"], "--output-obj", tmp_path / "r.obj"
+    process = run_script(
+        RETARGET, *options(template=files[name], target=files["ball.obj"], output_obj=tmp_path / "r.obj")
     )
     failure = the_failure(process)
     assert failure.startswith(f"retarget: FAILED: {files[name]}: ") and CASES[name] in failure, failure
@@ -133,16 +111,11 @@ def test_a_hostile_template_is_refused_the_same_way(files, tmp_path, name):
 def test_a_folder_as_an_output_is_refused_before_any_work(files, tmp_path):
     out = tmp_path / "out"
     (out / "r.obj").mkdir(parents=True)
-    process = run(
+    process = run_script(
         RETARGET,
-        "--template",
-        files["grid.obj"],
-        "--target",
-        files["ball.obj"],
-        "--output-blend",
-        out / "r.blend",
-        "--output-obj",
-        out / "r.obj",
+        *options(
+            template=files["grid.obj"], target=files["ball.obj"], output_blend=out / "r.blend", output_obj=out / "r.obj"
+        ),
     )
     assert the_failure(process) == f"retarget: FAILED: {out / 'r.obj'}: is a folder; name the output file"
     assert [path.name for path in out.iterdir()] == ["r.obj"] and list((out / "r.obj").iterdir()) == []
@@ -152,21 +125,15 @@ def test_a_folder_as_an_output_is_refused_before_any_work(files, tmp_path):
 def test_an_output_folder_that_cannot_be_written_is_refused_before_any_work(files, tmp_path):
     blocked = tmp_path / "a_file"
     blocked.write_text("not a folder")
-    process = run(
-        RETARGET, "--template", files["grid.obj"], "--target", files["ball.obj"], "--report", blocked / "out" / "r.json"
+    process = run_script(
+        RETARGET, *options(template=files["grid.obj"], target=files["ball.obj"], report=blocked / "out" / "r.json")
     )
     assert (
         the_failure(process)
         == f"retarget: FAILED: {blocked}: is a file, not a folder, so {blocked / 'out'} cannot be written"
     )
-    process = run(
-        RETARGET,
-        "--template",
-        files["grid.obj"],
-        "--target",
-        files["ball.obj"],
-        "--output-obj",
-        "/proc/springwrap/r.obj",
+    process = run_script(
+        RETARGET, *options(template=files["grid.obj"], target=files["ball.obj"], output_obj="/proc/springwrap/r.obj")
     )
     assert "retarget: FAILED: /proc: cannot write there" in the_failure(process)
 
@@ -185,7 +152,7 @@ def test_outputs_that_cannot_be_meant_are_bad_arguments(files, tmp_path, argumen
     arguments = [
         str(files["ball.obj"]) if word == "TARGET" else word.replace("OUT", str(tmp_path / "out")) for word in arguments
     ]
-    process = run(RETARGET, "--template", files["grid.obj"], "--target", files["ball.obj"], *arguments)
+    process = run_script(RETARGET, "--template", files["grid.obj"], "--target", files["ball.obj"], *arguments)
     assert process.returncode == 2, process.stderr[-3000:]
     assert message.replace("OUT", str(tmp_path / "out")) in process.stderr
     assert not (tmp_path / "out").exists()
@@ -195,17 +162,8 @@ def test_outputs_that_cannot_be_meant_are_bad_arguments(files, tmp_path, argumen
 
 
 def batch(files, folder: Path, out: Path, *extra) -> subprocess.CompletedProcess:
-    return run(
-        RETARGET,
-        "--template",
-        files["grid.obj"],
-        "--batch",
-        folder,
-        "--output-dir",
-        out,
-        "--anchors-spacing",
-        0,
-        *extra,
+    return run_script(
+        RETARGET, *options(template=files["grid.obj"], batch=folder, output_dir=out, anchors_spacing=0), *extra
     )
 
 
@@ -233,8 +191,8 @@ def test_batch_output_folder_problems(files, tmp_path):
     )
     same = batch(files, folder, folder)
     assert same.returncode == 2 and "--output-dir is the --batch folder" in same.stderr
-    bad_template = run(
-        RETARGET, "--template", files["nan.obj"], "--batch", folder, "--output-dir", tmp_path / "out"
+    bad_template = run_script(
+        RETARGET, *options(template=files["nan.obj"], batch=folder, output_dir=tmp_path / "out")
     )  # refused once, before any worker starts: not once per mesh
     assert the_failure(bad_template).startswith(f"retarget: FAILED: {files['nan.obj']}: {CASES['nan.obj']}")
     assert not (tmp_path / "out").exists() and sorted(path.name for path in folder.iterdir()) == ["a.obj"]
@@ -265,16 +223,18 @@ def test_a_mesh_that_now_fails_loses_the_outputs_of_an_earlier_run(files, tmp_pa
 
 def test_mirror_refuses_hostile_files_and_folder_outputs(files, tmp_path):
     out = tmp_path / "out"
-    process = run(MIRROR, "--layout", files["nan.obj"], "--no-wrap", "--output-obj", out / "m.obj")
+    process = run_script(MIRROR, "--layout", files["nan.obj"], "--no-wrap", "--output-obj", out / "m.obj")
     assert the_failure(process, "mirror").startswith(f"mirror: FAILED: {files['nan.obj']}: {CASES['nan.obj']}")
-    process = run(MIRROR, "--layout", files["grid.obj"], "--target", files["huge.ply"], "--output-obj", out / "m.obj")
+    process = run_script(
+        MIRROR, "--layout", files["grid.obj"], "--target", files["huge.ply"], "--output-obj", out / "m.obj"
+    )
     failure = the_failure(process, "mirror")
     assert failure.startswith(f"mirror: FAILED: {files['huge.ply']}: ") and CASES["huge.ply"] in failure
     assert not out.exists()
     out.mkdir()
     (out / "m.json").mkdir()
-    process = run(
-        MIRROR, "--layout", files["grid.obj"], "--no-wrap", "--output-obj", out / "m.obj", "--report", out / "m.json"
+    process = run_script(
+        MIRROR, *options(layout=files["grid.obj"], no_wrap=True, output_obj=out / "m.obj", report=out / "m.json")
     )
     assert the_failure(process, "mirror") == f"mirror: FAILED: {out / 'm.json'}: is a folder; name the output file"
     assert [path.name for path in out.iterdir()] == ["m.json"]
@@ -283,18 +243,18 @@ def test_mirror_refuses_hostile_files_and_folder_outputs(files, tmp_path):
 @pytest.mark.parametrize("name", ["empty.blend", "garbage.blend", "missing.blend"])
 def test_wrap_refuses_a_file_that_is_not_a_blend_before_blender_reads_it(files, name):
     path = files.get(name, files["grid.obj"].parent / name)
-    process = run(WRAP, "--blend", path, "--layout", "Layout")
+    process = run_script(WRAP, "--blend", path, "--layout", "Layout")
     expected = {"empty.blend": "the file is empty", "missing.blend": "no such file"}.get(name, "not a .blend file")
     assert the_failure(process, "wrap").startswith(f"wrap: FAILED: {path}: {expected}")
 
 
 def test_wrap_refuses_a_folder_as_its_output_before_opening_the_file(tmp_path):
     (tmp_path / "taken.blend").mkdir()
-    process = run(WRAP, "--blend", tmp_path / "scene.blend", "--output", tmp_path / "taken.blend")
+    process = run_script(WRAP, "--blend", tmp_path / "scene.blend", "--output", tmp_path / "taken.blend")
     assert (
         the_failure(process, "wrap") == f"wrap: FAILED: {tmp_path / 'taken.blend'}: is a folder; name the output file"
     )
-    wrong = run(WRAP, "--blend", tmp_path / "scene.blend", "--output", tmp_path / "scene.obj")
+    wrong = run_script(WRAP, "--blend", tmp_path / "scene.blend", "--output", tmp_path / "scene.obj")
     assert wrong.returncode == 2 and "--output" in wrong.stderr and "must end with .blend" in wrong.stderr
 
 

@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from helpers import REPOSITORY, TIMEOUT_SECONDS, script_command
-from mesh_writers import ellipsoid, glb, gltf_text, obj_text, on_ellipsoid, ply_ascii, ply_binary, stl_ascii, stl_binary
+from helpers import REPOSITORY, TIMEOUT_SECONDS, obj_text, script_command
+from mesh_writers import ellipsoid, glb, gltf_text, on_ellipsoid, ply_ascii, ply_binary, stl_ascii, stl_binary
 
 RETARGET = REPOSITORY / "blender_scripts" / "retarget.py"
 

@@ -11,7 +11,8 @@ import pytest
 
 import mesh_files
 from headless import ScriptError
-from mesh_writers import ellipsoid, glb, gltf_text, obj_text, ply_ascii, ply_binary, stl_ascii, stl_binary
+from helpers import obj_text
+from mesh_writers import ellipsoid, glb, gltf_text, ply_ascii, ply_binary, stl_ascii, stl_binary
 
 VERTICES, TRIANGLES = ellipsoid(segments=8, rings=4)
 QUADS_AND_TRIANGLES = [[0, 1, 2], [1, 2, 3, 4], [2, 3, 4]]  # faces of different lengths

@@ -6,15 +6,16 @@ is ``sys.executable mirror.py ...`` or, inside the blender binary, ``blender -b 
 -- ...`` (see ``test_retarget_cli.script_command``).
 """
 
+import functools
 import json
 import math
-import subprocess
 
 import pytest
 
-from helpers import REPOSITORY, TIMEOUT_SECONDS, script_command, sphere_obj
+from helpers import REPOSITORY, options, outputs, run_script, sphere_obj
 
 MIRROR = REPOSITORY / "blender_scripts" / "mirror.py"
+run = functools.partial(run_script, MIRROR)
 RINGS, COLUMNS = 8, 6  # of the half-sphere layout: 7 rings between the poles, 7 meridians from -90 to +90 degrees
 
 
@@ -56,33 +57,9 @@ def inputs(tmp_path_factory) -> dict:
     return paths
 
 
-def run(*arguments) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [*script_command(MIRROR), *map(str, arguments)],
-        capture_output=True,
-        text=True,
-        timeout=TIMEOUT_SECONDS,
-        cwd=REPOSITORY,
-    )
-
-
 def test_mirrors_and_wraps_an_obj_half_onto_an_obj_target(inputs, tmp_path):
     out = tmp_path / "out"
-    process = run(
-        "--layout",
-        inputs["half"],
-        "--target",
-        inputs["target"],
-        "--axis",
-        "X",
-        "--snap",
-        "--output-blend",
-        out / "m.blend",
-        "--output-obj",
-        out / "m.obj",
-        "--report",
-        out / "m.json",
-    )
+    process = run(*options(layout=inputs["half"], target=inputs["target"], axis="X", snap=True), *outputs(out, "m"))
     assert process.returncode == 0, process.stderr[-3000:]
     report = json.loads((out / "m.json").read_text())
     half_vertices = 2 + (RINGS - 1) * (COLUMNS + 1)
@@ -112,16 +89,9 @@ def test_mirror_only_needs_no_target(inputs, tmp_path):
 def test_a_plane_that_misses_the_layout_fails_in_one_line_and_writes_nothing(inputs, tmp_path):
     out = tmp_path / "out"
     process = run(
-        "--layout",
-        inputs["far"],
-        "--target",
-        inputs["target"],
-        "--axis",
-        "X",
-        "--output-obj",
-        out / "m.obj",
-        "--report",
-        out / "m.json",
+        *options(
+            layout=inputs["far"], target=inputs["target"], axis="X", output_obj=out / "m.obj", report=out / "m.json"
+        )
     )
     assert process.returncode == 1, process.stderr[-3000:]
     failures = [line for line in process.stderr.splitlines() if line.startswith("mirror: FAILED: ")]

@@ -12,6 +12,7 @@ deaths are made by ``SPRINGWRAP_BATCH_ABORT`` (the worker aborts on the named me
 """
 
 import fcntl
+import functools
 import json
 import math
 import os
@@ -27,24 +28,11 @@ from pathlib import Path
 
 import pytest
 
-from helpers import REPOSITORY, TIMEOUT_SECONDS, script_command, sphere_obj
+from helpers import REPOSITORY, TIMEOUT_SECONDS, grid_obj, options, outputs, run_script, script_command, sphere_obj
 
 RETARGET = REPOSITORY / "blender_scripts" / "retarget.py"
+run = functools.partial(run_script, RETARGET)
 GRID_SIDE = 7  # vertices per side of the template grid
-
-
-def grid_obj(side: int = GRID_SIDE, size: float = 1.0, height: float = 1.5) -> str:
-    """A flat square grid of side x side vertices above the origin, as OBJ text."""
-    lines = [
-        f"v {size * (i / (side - 1) - 0.5):.6f} {size * (j / (side - 1) - 0.5):.6f} {height}"
-        for j in range(side)
-        for i in range(side)
-    ]
-    for j in range(side - 1):
-        for i in range(side - 1):
-            a = j * side + i + 1
-            lines.append(f"f {a} {a + 1} {a + side + 1} {a + side}")
-    return "\n".join(lines) + "\n"
 
 
 MAKE_BLEND = """
@@ -66,7 +54,7 @@ bpy.ops.wm.save_as_mainfile(filepath=output)
 def inputs(tmp_path_factory) -> dict:
     folder = tmp_path_factory.mktemp("retarget_inputs")
     paths = {"template": folder / "grid.obj", "target": folder / "ball.obj", "big": folder / "big_ball.obj"}
-    paths["template"].write_text(grid_obj())
+    paths["template"].write_text(grid_obj(GRID_SIDE))
     paths["target"].write_text(sphere_obj(1.0))
     paths["big"].write_text(sphere_obj(1.3, segments=24, rings=12))
     paths["blend"] = folder / "both.blend"
@@ -82,33 +70,9 @@ def inputs(tmp_path_factory) -> dict:
     return paths
 
 
-def run(*arguments, cwd=None, environment=None) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [*script_command(RETARGET), *map(str, arguments)],
-        capture_output=True,
-        text=True,
-        timeout=TIMEOUT_SECONDS,
-        cwd=cwd or REPOSITORY,
-        env=None if environment is None else os.environ | environment,
-    )
-
-
 def test_retargets_an_obj_template_onto_an_obj_target(inputs, tmp_path):
     out = tmp_path / "out"
-    process = run(
-        "--template",
-        inputs["template"],
-        "--target",
-        inputs["target"],
-        "--anchors-spacing",
-        0,
-        "--output-blend",
-        out / "r.blend",
-        "--output-obj",
-        out / "r.obj",
-        "--report",
-        out / "r.json",
-    )
+    process = run(*options(template=inputs["template"], target=inputs["target"], anchors_spacing=0), *outputs(out, "r"))
     assert process.returncode == 0, process.stderr[-3000:]
     assert sorted(path.name for path in out.iterdir()) == ["r.blend", "r.json", "r.obj"]  # no partial files left
     report = json.loads((out / "r.json").read_text())
@@ -139,18 +103,14 @@ def test_anchors_from_json_and_a_blend_template_object(inputs, tmp_path):
     )
     report_path, obj_path = tmp_path / "r.json", tmp_path / "r.obj"
     process = run(
-        "--template",
-        inputs["blend"],
-        "--template-object",
-        "Grid",
-        "--target",
-        inputs["big"],
-        "--anchors",
-        anchors,
-        "--report",
-        report_path,
-        "--output-obj",
-        obj_path,
+        *options(
+            template=inputs["blend"],
+            template_object="Grid",
+            target=inputs["big"],
+            anchors=anchors,
+            report=report_path,
+            output_obj=obj_path,
+        ),
         *Y_UP,
     )
     assert process.returncode == 0, process.stderr[-3000:]
@@ -237,19 +197,7 @@ def test_bad_input_is_one_line_naming_the_file_and_leaves_nothing(inputs, tmp_pa
             }[case]
         )
         extra = ["--anchors", anchors]
-    process = run(
-        "--template",
-        template,
-        "--target",
-        target,
-        *extra,
-        "--output-blend",
-        out / "r.blend",
-        "--output-obj",
-        out / "r.obj",
-        "--report",
-        out / "r.json",
-    )
+    process = run(*options(template=template, target=target), *extra, *outputs(out, "r"))
     assert process.returncode == 1, process.stderr[-3000:]
     failures = [line for line in process.stderr.splitlines() if line.startswith("retarget: FAILED: ")]
     assert len(failures) == 1 and str(blamed) in failures[0], process.stderr[-3000:]
@@ -270,14 +218,7 @@ def test_bad_arguments_exit_with_code_2(inputs):
     )
     assert (
         run(
-            "--template",
-            inputs["template"],
-            "--batch",
-            folder,
-            "--output-dir",
-            folder / "o",
-            "--address",
-            "127.0.0.1:6379",
+            *options(template=inputs["template"], batch=folder, output_dir=folder / "o", address="127.0.0.1:6379")
         ).returncode
         == 2
     )  # --address without --executor ray
@@ -292,9 +233,7 @@ def test_batch_retargets_every_mesh_and_skips_a_failing_one(inputs, tmp_path):
     (folder / "flat.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n")  # no faces: fails
     (folder / "notes.txt").write_text("not a mesh")
     out = tmp_path / "out"
-    process = run(
-        "--template", inputs["template"], "--batch", folder, "--output-dir", out, "--jobs", 2, "--anchors-spacing", 0.3
-    )
+    process = run(*options(template=inputs["template"], batch=folder, output_dir=out, jobs=2, anchors_spacing=0.3))
     assert process.returncode == 3, process.stderr[-3000:]
     progress = [line for line in process.stderr.splitlines() if line.startswith("[")]
     assert len(progress) == 3 and sum("FAILED" in line for line in progress) == 1
@@ -351,17 +290,7 @@ def test_align_anchors_then_icp_recovers_the_targets_placement(inputs, tmp_path,
     )
     report_path = tmp_path / "r.json"
     process = run(
-        "--template",
-        inputs["target"],
-        "--target",
-        target,
-        "--anchors",
-        anchors,
-        "--align",
-        "anchors",
-        "--report",
-        report_path,
-        *frame,
+        *options(template=inputs["target"], target=target, anchors=anchors, align="anchors", report=report_path), *frame
     )
     assert process.returncode == 0, process.stderr[-3000:]
     alignment = json.loads(report_path.read_text())["alignment"]
@@ -375,7 +304,7 @@ def test_align_arguments_that_cannot_work_exit_with_code_2(inputs):
     assert run("--template", inputs["template"], "--target", inputs["target"], "--align", "anchors").returncode == 2
     assert (
         run(
-            "--template", inputs["template"], "--target", inputs["target"], "--align", "icp", "--align-method", "affine"
+            *options(template=inputs["template"], target=inputs["target"], align="icp", align_method="affine")
         ).returncode
         == 2
     )
@@ -407,16 +336,7 @@ def batch_folder(tmp_path_factory) -> Path:
 def run_batch(inputs, folder: Path, out: Path, *extra, environment=None) -> tuple[subprocess.CompletedProcess, dict]:
     """retarget.py --batch on ``folder`` (2 workers, automatic anchors); the process and its summary."""
     process = run(
-        "--template",
-        inputs["template"],
-        "--batch",
-        folder,
-        "--output-dir",
-        out,
-        "--jobs",
-        2,
-        "--anchors-spacing",
-        0.3,
+        *options(template=inputs["template"], batch=folder, output_dir=out, jobs=2, anchors_spacing=0.3),
         *extra,
         environment=environment,
     )
@@ -538,18 +458,14 @@ def ray_head(tmp_path):
 def test_ray_batch_on_a_running_cluster_by_its_address(inputs, batch_folder, tmp_path, ray_head):
     local, local_summary = run_batch(inputs, batch_folder, tmp_path / "local")
     process = run(
-        "--template",
-        inputs["template"],
-        "--batch",
-        batch_folder,
-        "--output-dir",
-        tmp_path / "ray",
-        "--anchors-spacing",
-        0.3,
-        "--executor",
-        "ray",
-        "--address",
-        ray_head,
+        *options(
+            template=inputs["template"],
+            batch=batch_folder,
+            output_dir=tmp_path / "ray",
+            anchors_spacing=0.3,
+            executor="ray",
+            address=ray_head,
+        ),
         environment={"RAY_AUTH_MODE": "disabled"},
     )
     assert process.returncode == 3, process.stderr[-3000:]
@@ -568,16 +484,13 @@ def test_an_address_where_no_ray_head_answers_is_one_line(inputs, batch_folder, 
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
     process = run(
-        "--template",
-        inputs["template"],
-        "--batch",
-        batch_folder,
-        "--output-dir",
-        tmp_path / "out",
-        "--executor",
-        "ray",
-        "--address",
-        f"127.0.0.1:{port}",
+        *options(
+            template=inputs["template"],
+            batch=batch_folder,
+            output_dir=tmp_path / "out",
+            executor="ray",
+            address=f"127.0.0.1:{port}",
+        )
     )
     assert process.returncode == 1, process.stderr[-3000:]
     assert f"retarget: FAILED: Ray cannot start or connect (127.0.0.1:{port}): no Ray head answers" in process.stderr
@@ -589,14 +502,12 @@ def test_a_long_lived_worker_gives_what_a_single_run_gives(inputs, batch_folder,
     name = sorted(BATCH_SPHERES)[-1]  # the last mesh of the sorted folder: the worker served four before it
     assert [worker["meshes"] for worker in summary["workers"]] == [6]
     single = run(
-        "--template",
-        inputs["template"],
-        "--target",
-        batch_folder / f"{name}.obj",
-        "--anchors-spacing",
-        0.3,
-        "--output-obj",
-        tmp_path / "single.obj",
+        *options(
+            template=inputs["template"],
+            target=batch_folder / f"{name}.obj",
+            anchors_spacing=0.3,
+            output_obj=tmp_path / "single.obj",
+        )
     )
     assert single.returncode == 0, single.stderr[-3000:]
     assert obj_vertex_lines(tmp_path / "batch" / f"{name}.obj") == obj_vertex_lines(tmp_path / "single.obj")
@@ -614,8 +525,7 @@ def test_a_worker_that_dies_is_replaced_and_its_mesh_retried_once_on_a_fresh_wor
         inputs,
         batch_folder,
         tmp_path / "out",
-        "--executor",
-        executor,
+        *options(executor=executor),
         environment={"SPRINGWRAP_BATCH_ABORT": f"ball_a.obj:{marker},ball_c.obj"},
     )
     assert process.returncode == 3, process.stderr[-3000:]
@@ -676,18 +586,8 @@ def test_ctrl_c_stops_the_batch_and_the_summary_lists_the_meshes_not_run(inputs,
     process = subprocess.Popen(
         [
             *script_command(RETARGET),
-            "--template",
-            str(inputs["template"]),
-            "--batch",
-            str(folder),
-            "--output-dir",
-            str(out),
-            "--jobs",
-            "2",
-            "--anchors-spacing",
-            "0.3",
-            "--executor",
-            executor,
+            *map(str, options(template=inputs["template"], batch=folder, output_dir=out, jobs=2, anchors_spacing=0.3)),
+            *("--executor", executor),
         ],
         stderr=subprocess.PIPE,
         text=True,
@@ -724,14 +624,8 @@ def test_progress_is_a_bar_with_an_eta_in_a_terminal(inputs, batch_folder, tmp_p
     process = subprocess.Popen(
         [
             *script_command(RETARGET),
-            "--template",
-            str(inputs["template"]),
-            "--batch",
-            str(batch_folder),
-            "--output-dir",
-            str(tmp_path / "out"),
-            "--anchors-spacing",
-            "0.3",
+            *map(str, options(template=inputs["template"], batch=batch_folder, output_dir=tmp_path / "out")),
+            *("--anchors-spacing", "0.3"),
         ],
         stderr=follower,
         stdout=subprocess.DEVNULL,
@@ -760,14 +654,7 @@ def test_ray_executor_without_ray_says_how_to_install_it(inputs, batch_folder, t
     (shadow / "ray.py").write_text("raise ImportError(\"No module named 'ray'\")\n")
     path = os.pathsep.join(filter(None, [str(shadow), os.environ.get("PYTHONPATH")]))
     process = run(
-        "--template",
-        inputs["template"],
-        "--batch",
-        batch_folder,
-        "--output-dir",
-        tmp_path / "out",
-        "--executor",
-        "ray",
+        *options(template=inputs["template"], batch=batch_folder, output_dir=tmp_path / "out", executor="ray"),
         environment={"PYTHONPATH": path},
     )
     assert process.returncode == 1, process.stderr[-3000:]

@@ -1,62 +1,36 @@
 """``retarget.py --fit-subdivision LEVELS``: after the wrap, the layout is fitted as a subdivision cage, and the
 JSON report carries its Subdivision Surface's distances to the target before and after (own processes)."""
 
+import functools
 import json
-import subprocess
 
 import pytest
 
-from helpers import REPOSITORY, TIMEOUT_SECONDS, script_command, sphere_obj
+from helpers import REPOSITORY, grid_obj, options, run_script, sphere_obj
 
 RETARGET = REPOSITORY / "blender_scripts" / "retarget.py"
-
-
-def cap_grid_obj(side: int = 6, size: float = 1.2, height: float = 1.5) -> str:
-    """A square grid of side x side vertices above the origin, as OBJ text (Y up: the grid lies in x-z)."""
-    lines = [
-        f"v {size * (i / (side - 1) - 0.5):.6f} {height} {size * (j / (side - 1) - 0.5):.6f}"
-        for j in range(side)
-        for i in range(side)
-    ]
-    for j in range(side - 1):
-        for i in range(side - 1):
-            a = j * side + i + 1
-            lines.append(f"f {a} {a + side} {a + side + 1} {a + 1}")
-    return "\n".join(lines) + "\n"
+run = functools.partial(run_script, RETARGET)
 
 
 @pytest.fixture(scope="module")
 def inputs(tmp_path_factory) -> dict:
     folder = tmp_path_factory.mktemp("fit_inputs")
     paths = {"template": folder / "grid.obj", "target": folder / "ball.obj"}
-    paths["template"].write_text(cap_grid_obj())
+    paths["template"].write_text(grid_obj(6, size=1.2, height=1.5, up="Y"))
     paths["target"].write_text(sphere_obj(1.0, segments=64, rings=32))
     return paths
-
-
-def run(*arguments) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [*script_command(RETARGET), *map(str, arguments)],
-        capture_output=True,
-        text=True,
-        timeout=TIMEOUT_SECONDS,
-        cwd=REPOSITORY,
-    )
 
 
 def test_the_report_gives_the_subdivided_surfaces_distances_before_and_after(inputs, tmp_path):
     report_path = tmp_path / "r.json"
     process = run(
-        "--template",
-        inputs["template"],
-        "--target",
-        inputs["target"],
-        "--anchors-spacing",
-        0,
-        "--fit-subdivision",
-        2,
-        "--report",
-        report_path,
+        *options(
+            template=inputs["template"],
+            target=inputs["target"],
+            anchors_spacing=0,
+            fit_subdivision=2,
+            report=report_path,
+        )
     )
     assert process.returncode == 0, process.stderr[-3000:]
     report = json.loads(report_path.read_text())

@@ -4,7 +4,9 @@ import bpy
 
 import numpy as np
 
-from ..core import anchors
+from ..core import anchors, input_policy, mirroring
+from ..core.errors import LayoutError
+from ..core.transforms import matrix_array
 from . import compat
 
 _ANCHOR_FIELDS = (
@@ -14,6 +16,7 @@ _ANCHOR_FIELDS = (
     ("triangle", np.int32, 1),
     ("barycentric", np.float32, 3),
     ("location", np.float64, 3),
+    ("twin_vertex", np.int32, 1),  # -1 (no pair) in files saved before symmetric anchors
 )
 
 
@@ -48,6 +51,7 @@ def write_anchors(
     """
     settings = layout.springwrap
     items = settings.anchors
+    anchor_list = anchors.unpair_broken(anchor_list)  # a pair whose other half is gone is no pair
     count = anchors.anchor_count(anchor_list)
     if len(items) != count:
         items.clear()
@@ -60,3 +64,32 @@ def write_anchors(
     settings.active_anchor_index = max(anchors.clamp_active_index(chosen, count), 0)
     if signature is not None:
         settings.anchors_signature = signature
+
+
+def read_symmetry_plane(
+    layout: bpy.types.Object, axis: str, object_name: str = "", extent: input_policy.Extent | None = None
+) -> tuple[mirroring.Plane, str]:
+    """The symmetry plane of symmetric anchors in world space, and the name of the object it belongs to.
+
+    The plane through the origin of the layout, or of the Empty ``object_name``, perpendicular to that
+    object's local ``axis`` (its local plane ``axis = 0``, as the mirror's). Raises :class:`LayoutError` when
+    the object is missing or not an Empty, or its transform gives no plane (NaN, zero scale, out of range).
+    """
+    owner = layout
+    if object_name:
+        owner = bpy.data.objects.get(object_name)
+        if owner is None:
+            raise LayoutError(
+                f"There is no object named '{object_name}' for the symmetry plane (deleted?): pick an Empty or none"
+            )
+        if owner.type != "EMPTY":
+            raise LayoutError(
+                f"The symmetry object '{object_name}' is a {owner.type.lower()}, not an Empty: its plane is the "
+                "Empty's local plane (pick an Empty, or none for the layout's own)"
+            )
+    matrix = matrix_array(owner.matrix_world)
+    if not np.all(np.isfinite(matrix)):
+        raise LayoutError(f"'{owner.name}' has a NaN or infinite transform: the symmetry plane is undefined")
+    plane = mirroring.plane_from_matrix(matrix, axis)
+    input_policy.check_plane(plane.point, plane.normal, owner.name, extent)
+    return plane, owner.name

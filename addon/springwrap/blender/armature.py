@@ -64,33 +64,35 @@ def _world_frames(armature) -> dict:
     return frames
 
 
+POSE_CHANNELS = ("rotation_mode", "location", "rotation_quaternion", "rotation_euler", "rotation_axis_angle", "scale")
+"""A pose bone's own transform: what the user set, kept by :func:`pose_snapshot`."""
+
+
 def pose_snapshot(armature) -> list:
-    """Every pose bone's own transform (the pose as the user set it), to put back on failure."""
+    """Every pose bone's own transform (the pose as the user set it) and its bone's scale inheritance, to put back
+    on failure: ``(name, inherit_scale, {channel: value})`` per pose bone."""
     return [
         (
             pose_bone.name,
-            pose_bone.rotation_mode,
-            tuple(pose_bone.location),
-            tuple(pose_bone.rotation_quaternion),
-            tuple(pose_bone.rotation_euler),
-            tuple(pose_bone.rotation_axis_angle),
-            tuple(pose_bone.scale),
             pose_bone.bone.inherit_scale,
+            {channel: _copied(getattr(pose_bone, channel)) for channel in POSE_CHANNELS},
         )
         for pose_bone in armature.pose.bones
     ]
 
 
+def _copied(value):
+    """A channel's value detached from Blender's data (a vector or quaternion as a tuple, a mode as it is)."""
+    return value if isinstance(value, str) else tuple(value)
+
+
 def restore_pose(armature, snapshot) -> None:
-    for name, mode, location, quaternion, euler, axis_angle, scale, inherit_scale in snapshot:
+    """Put back the pose :func:`pose_snapshot` kept."""
+    for name, inherit_scale, channels in snapshot:
         pose_bone = armature.pose.bones[name]
         pose_bone.bone.inherit_scale = inherit_scale
-        pose_bone.rotation_mode = mode
-        pose_bone.location = location
-        pose_bone.rotation_quaternion = quaternion
-        pose_bone.rotation_euler = euler
-        pose_bone.rotation_axis_angle = axis_angle
-        pose_bone.scale = scale
+        for channel, value in channels.items():
+            setattr(pose_bone, channel, value)
 
 
 def _clear_pose_bone(pose_bone) -> None:

@@ -1,4 +1,4 @@
-"""The one reader and writer of mesh attributes (POINT domain), and the layout's attributes built on them.
+"""The one reader and writer of mesh attributes, and the layout's attributes built on them.
 
 The layout keeps its face-point state in three attributes and its rest shape in a fourth
 (``core.layout_state`` names them); the feature detection writes a colour attribute; the mirror
@@ -23,6 +23,8 @@ _FOREACH = {
     "BOOLEAN": ("value", bool, 1),
     "FLOAT_VECTOR": ("vector", np.float32, 3),
     "FLOAT_COLOR": ("color", np.float32, 4),
+    "FLOAT4X4": ("value", np.float32, 16),
+    "INT16_2D": ("value", np.int32, 2),
 }
 
 STATE_ATTRIBUTES = (
@@ -33,17 +35,27 @@ STATE_ATTRIBUTES = (
 """The face-point state's attributes, in the order of :class:`~..core.layout_state.LayoutState`'s fields."""
 
 
-def point_attribute(mesh: bpy.types.Mesh, name: str, data_type: str):
-    """The named POINT attribute when it exists with the given type, else None."""
+def domain_size(mesh: bpy.types.Mesh, domain: str) -> int:
+    """How many elements the mesh has in ``domain`` (``POINT``, ``EDGE``, ``FACE`` or ``CORNER``)."""
+    return len({"POINT": mesh.vertices, "EDGE": mesh.edges, "FACE": mesh.polygons, "CORNER": mesh.loops}[domain])
+
+
+def find_attribute(mesh: bpy.types.Mesh, name: str, data_type: str, domain: str = "POINT"):
+    """The named attribute when it exists with the given type and domain, else None."""
     attribute = mesh.attributes.get(name)
-    if attribute is None or attribute.domain != "POINT" or attribute.data_type != data_type:
+    if attribute is None or attribute.domain != domain or attribute.data_type != data_type:
         return None
     return attribute
 
 
-def read_point_attribute(mesh: bpy.types.Mesh, name: str, data_type: str) -> np.ndarray | None:
-    """The flat values of the named POINT attribute of that type (its own length), or None when there is none."""
-    attribute = point_attribute(mesh, name, data_type)
+def point_attribute(mesh: bpy.types.Mesh, name: str, data_type: str):
+    """The named POINT attribute when it exists with the given type, else None."""
+    return find_attribute(mesh, name, data_type)
+
+
+def read_attribute(mesh: bpy.types.Mesh, name: str, data_type: str, domain: str = "POINT") -> np.ndarray | None:
+    """The flat values of the named attribute of that type and domain (its own length), or None when there is none."""
+    attribute = find_attribute(mesh, name, data_type, domain)
     if attribute is None:
         return None
     prop, dtype, components = _FOREACH[data_type]
@@ -52,24 +64,56 @@ def read_point_attribute(mesh: bpy.types.Mesh, name: str, data_type: str) -> np.
     return values
 
 
-def write_point_attribute(mesh: bpy.types.Mesh, name: str, data_type: str, values, replace: bool = True) -> bool:
-    """Write ``values`` into the named POINT attribute, creating it when missing; whether it was written.
+def read_point_attribute(mesh: bpy.types.Mesh, name: str, data_type: str) -> np.ndarray | None:
+    """The flat values of the named POINT attribute of that type (its own length), or None when there is none."""
+    return read_attribute(mesh, name, data_type)
+
+
+def write_attribute(mesh: bpy.types.Mesh, name: str, data_type: str, domain: str, values, replace: bool = True) -> bool:
+    """Write ``values`` into the named attribute of ``domain``, creating it when missing; whether it was written.
 
     An attribute of that name with another type or domain is replaced (``replace``), or left alone
     and nothing is written. The attribute is looked up again after a creation, which may move the
     mesh's other attributes in memory.
     """
     existing = mesh.attributes.get(name)
-    if existing is not None and point_attribute(mesh, name, data_type) is None:
+    if existing is not None and find_attribute(mesh, name, data_type, domain) is None:
         if not replace:
             return False
         mesh.attributes.remove(existing)
         existing = None
     if existing is None:
-        mesh.attributes.new(name, data_type, "POINT")
+        mesh.attributes.new(name, data_type, domain)
     prop, dtype, _components = _FOREACH[data_type]
     mesh.attributes[name].data.foreach_set(prop, np.ascontiguousarray(values, dtype=dtype).reshape(-1))
     return True
+
+
+def write_point_attribute(mesh: bpy.types.Mesh, name: str, data_type: str, values, replace: bool = True) -> bool:
+    """Write ``values`` into the named POINT attribute (see :func:`write_attribute`)."""
+    return write_attribute(mesh, name, data_type, "POINT", values, replace)
+
+
+def lift_attributes(mesh: bpy.types.Mesh, data_types) -> list:
+    """Remove the mesh's attributes of the given types; what :func:`put_back_attributes` needs to restore them
+    (name, domain, type, (count, components) values, in the mesh's order)."""
+    lifted = []
+    for attribute in list(mesh.attributes):
+        if attribute.data_type in data_types:
+            name, domain, data_type = attribute.name, attribute.domain, attribute.data_type
+            components = _FOREACH[data_type][2]
+            values = read_attribute(mesh, name, data_type, domain).reshape(-1, components)
+            lifted.append((name, domain, data_type, values))
+    for name, *_rest in lifted:
+        remove_attribute(mesh, name)
+    return lifted
+
+
+def put_back_attributes(mesh: bpy.types.Mesh, lifted: list, sources: dict) -> None:
+    """Recreate attributes lifted by :func:`lift_attributes`, each element taking the values of its source
+    (``sources``: domain -> (count,) index of each element's original, as the mesh is now)."""
+    for name, domain, data_type, values in lifted:
+        write_attribute(mesh, name, data_type, domain, values[np.asarray(sources[domain], dtype=np.int64)])
 
 
 def remove_attribute(mesh: bpy.types.Mesh, name: str) -> None:

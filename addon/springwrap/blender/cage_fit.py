@@ -14,6 +14,7 @@ from ..core import anchors as anchor_logic
 from ..core import cage_fit, layout_state, transforms
 from ..core.errors import LayoutError
 from . import anchors as anchor_data
+from . import compat
 from . import layout as layout_data
 from .evaluated_mesh import read_evaluated_mesh
 
@@ -35,17 +36,11 @@ class CageFitParameters(NamedTuple):
 def check_no_creases(layout: bpy.types.Object) -> None:
     """Raise :class:`LayoutError` when the layout has creased edges or vertices: the fit models Blender's
     subdivision without creases (the modifier's *Use Creases* would give another surface)."""
-    mesh = layout.data
-    for name, domain, items in (("crease_edge", "edges", mesh.edges), ("crease_vert", "vertices", mesh.vertices)):
-        values = np.zeros(len(items), dtype=np.float32)
-        attribute = mesh.attributes.get(name)
-        if attribute is not None and attribute.data_type == "FLOAT" and len(attribute.data) == len(items):
-            attribute.data.foreach_get("value", values)
-        elif name == "crease_edge" and "crease" in bpy.types.MeshEdge.bl_rna.properties and len(items):
-            items.foreach_get("crease", values)  # Blender before 4.0
-        if np.any(values > 0.0):
+    for domain, name in (("EDGE", "edges"), ("POINT", "vertices")):
+        values = compat.read_creases(layout.data, domain)
+        if values is not None and np.any(values > 0.0):
             raise LayoutError(
-                f"Layout '{layout.name}' has creased {domain} ({int(np.count_nonzero(values > 0.0))}): the fit "
+                f"Layout '{layout.name}' has creased {name} ({int(np.count_nonzero(values > 0.0))}): the fit "
                 "models the Subdivision Surface without creases; clear them (Edge / Vertex Crease 0) first"
             )
 

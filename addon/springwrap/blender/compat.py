@@ -86,3 +86,45 @@ def set_active_color(mesh: "bpy.types.Mesh", name: str) -> None:
     colors.active_color = colors[name]
     if hasattr(colors, "render_color_index"):
         colors.render_color_index = colors.find(name)
+
+
+_CREASE_ATTRIBUTES = {"POINT": "crease_vert", "EDGE": "crease_edge"}
+
+
+def read_creases(mesh: "bpy.types.Mesh", domain: str) -> np.ndarray | None:
+    """(N,) float32 vertex (``domain='POINT'``) or edge (``'EDGE'``) creases, None when the mesh has none.
+
+    Blender 4.0 keeps them in the FLOAT attributes ``crease_vert`` / ``crease_edge``; before, vertex
+    creases were a layer of ``Mesh.vertex_creases`` and edge creases the edges' ``crease``.
+    """
+    items = mesh.vertices if domain == "POINT" else mesh.edges
+    values = np.zeros(len(items), dtype=np.float32)
+    attribute = mesh.attributes.get(_CREASE_ATTRIBUTES[domain])
+    if attribute is not None and attribute.data_type == "FLOAT" and len(attribute.data) == len(items):
+        attribute.data.foreach_get("value", values)
+        return values
+    if bpy.app.version >= (4, 0, 0):
+        return None
+    if domain == "EDGE" and len(items):
+        items.foreach_get("crease", values)
+        return values
+    layers = getattr(mesh, "vertex_creases", None)
+    if domain == "POINT" and layers is not None and len(layers) and len(layers[0].data) == len(items):
+        layers[0].data.foreach_get("value", values)
+        return values
+    return None
+
+
+def read_corner_normals(mesh: "bpy.types.Mesh") -> np.ndarray:
+    """(C, 3) float32 normals of the mesh's face corners (custom split normals included), local space.
+
+    Blender 4.1 computes them on demand (``Mesh.corner_normals``); before, ``calc_normals_split`` filled
+    the loops' ``normal``.
+    """
+    normals = np.empty(len(mesh.loops) * 3, dtype=np.float32)
+    if hasattr(mesh, "corner_normals"):
+        mesh.corner_normals.foreach_get("vector", normals)
+    else:
+        mesh.calc_normals_split()
+        mesh.loops.foreach_get("normal", normals)
+    return normals.reshape(-1, 3)

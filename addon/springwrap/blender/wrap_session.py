@@ -34,18 +34,26 @@ SYNCHRONOUS_CHUNK = 100
 """Iterations per kernel call when the wrap runs to the end at once."""
 
 
+_SOLVER_KEYWORDS = (
+    "anchor_vertices",
+    "anchor_triangles",
+    "anchor_barycentrics",
+    "anchor_positions",
+    "unreliable_triangles",
+    "rest_positions",
+)
+"""The ``WrapInputs`` fields the kernel's ``WrapSolver`` takes as keywords of the same names."""
+_CURVE_KEYWORDS = ("curve_vertices", "curve_vertex_counts", "curve_points", "curve_point_counts")
+"""The ``WrapInputs`` fields of the curve constraints, passed to ``WrapSolver`` when there are any."""
+
+
 def make_wrap_solver(target: Target, structure, inputs, parameters):
     """A kernel ``WrapSolver`` for the prepared inputs (``core.wrap_inputs.WrapInputs``, the kernel's frame)."""
-    curve_arguments = {}
+    keywords = {name: getattr(inputs, name) for name in _SOLVER_KEYWORDS}
     if inputs.curve_vertices is not None:
-        curve_arguments = {
-            "curve_vertices": inputs.curve_vertices,
-            "curve_vertex_counts": inputs.curve_vertex_counts,
-            "curve_points": inputs.curve_points,
-            "curve_point_counts": inputs.curve_point_counts,
-        }
+        keywords |= {name: getattr(inputs, name) for name in _CURVE_KEYWORDS}
     if getattr(inputs, "plane_vertices", None) is not None:
-        curve_arguments |= {
+        keywords |= {
             "plane_vertices": inputs.plane_vertices,
             "plane_point": tuple(float(value) for value in inputs.plane_point),
             "plane_normal": tuple(float(value) for value in inputs.plane_normal),
@@ -58,16 +66,10 @@ def make_wrap_solver(target: Target, structure, inputs, parameters):
         inputs.triangles,
         inputs.barycentrics,
         inputs.positions,
-        anchor_vertices=inputs.anchor_vertices,
-        anchor_triangles=inputs.anchor_triangles,
-        anchor_barycentrics=inputs.anchor_barycentrics,
-        anchor_positions=inputs.anchor_positions,
-        unreliable_triangles=inputs.unreliable_triangles,
-        rest_positions=inputs.rest_positions,
         settings=parameters.settings,
         stiffness=getattr(inputs, "stiffness", None),
         free_vertices=getattr(inputs, "free_vertices", None),
-        **curve_arguments,
+        **keywords,
     )
 
 

@@ -44,6 +44,7 @@ class Anchors(NamedTuple):
     triangles: np.ndarray  # (K,) int32 target triangle of a face anchor, NO_FACE for a space anchor
     barycentrics: np.ndarray  # (K, 3) float32 weights of the triangle's corners, zero for a space anchor
     locations: np.ndarray  # (K, 3) float64 world-space target point
+    twins: np.ndarray  # (K,) int32 the vertex of the paired (symmetric) anchor, its own vertex on the plane, -1 none
 
 
 class AnchorOutcome(NamedTuple):
@@ -51,20 +52,20 @@ class AnchorOutcome(NamedTuple):
 
     anchors: Anchors  # the whole new list
     active_index: int  # the anchor to make active, -1 to keep the current one (clamped)
-    added_count: int  # anchors created
-    replaced_count: int  # anchors dropped because a new one took their vertex
-    missed_count: int  # vertices whose query found nothing (PROJECT, or beyond max distance)
-    skipped_count: int  # vertices not queried (PROJECT: vertex on no face, no normal)
-    spacing: float  # the spacing used by anchors_auto (world units), 0 otherwise
-    topology_detached_count: int  # face anchors whose triangle is gone, now space anchors
-    topology_reattached_count: int  # face anchors found again on the changed target
+    added_count: int = 0  # anchors created
+    replaced_count: int = 0  # anchors dropped because a new one took their vertex
+    missed_count: int = 0  # vertices whose query found nothing (PROJECT, or beyond max distance)
+    skipped_count: int = 0  # vertices not queried (PROJECT: vertex on no face, no normal)
+    spacing: float = 0.0  # the spacing used by anchors_auto (world units), 0 otherwise
+    topology_detached_count: int = 0  # face anchors whose triangle is gone, now space anchors
+    topology_reattached_count: int = 0  # face anchors found again on the changed target
 
 
-def make_anchors(vertex_indices, kinds, triangles, barycentrics, locations) -> Anchors:
+def make_anchors(vertex_indices, kinds, triangles, barycentrics, locations, twins=None) -> Anchors:
     """:class:`Anchors` with the right dtypes and shapes, space anchors written canonically.
 
     Anything that is not :data:`FACE_ANCHOR` is a space anchor (triangle -1, weights 0), so a
-    hand-edited list cannot produce a half-attached anchor.
+    hand-edited list cannot produce a half-attached anchor. ``twins`` defaults to none (-1).
     """
     vertex_indices = np.asarray(vertex_indices).reshape(-1).astype(np.int32)
     count = vertex_indices.shape[0]
@@ -79,6 +80,9 @@ def make_anchors(vertex_indices, kinds, triangles, barycentrics, locations) -> A
         triangles=state.faces,
         barycentrics=state.barycentrics,
         locations=np.asarray(locations, dtype=np.float64).reshape(count, 3).copy(),
+        twins=np.full(count, -1, dtype=np.int32)
+        if twins is None
+        else np.asarray(twins).reshape(count).astype(np.int32),
     )
 
 
@@ -109,7 +113,27 @@ def as_state(anchors: Anchors) -> LayoutState:
 
 def with_state(anchors: Anchors, state: LayoutState) -> Anchors:
     """The anchors with their kinds, triangles and barycentrics taken from ``state``."""
-    return make_anchors(anchors.vertex_indices, state.states, state.faces, state.barycentrics, anchors.locations)
+    return make_anchors(
+        anchors.vertex_indices, state.states, state.faces, state.barycentrics, anchors.locations, anchors.twins
+    )
+
+
+def partner_indices(anchors: Anchors) -> np.ndarray:
+    """(K,) int64 the list position of each anchor's twin anchor (itself on the plane), -1 when it has none.
+
+    A pair counts only when both anchors name each other's vertex; anything else is no pair.
+    """
+    vertices, twins = anchors.vertex_indices.astype(np.int64), anchors.twins.astype(np.int64)
+    order = np.argsort(vertices, kind="stable")
+    candidates = order[np.clip(np.searchsorted(vertices[order], twins), 0, max(vertices.size - 1, 0))]
+    mutual = (twins >= 0) & (vertices[candidates] == twins) & (twins[candidates] == vertices)
+    return np.where(mutual, candidates, -1)
+
+
+def unpair_broken(anchors: Anchors) -> Anchors:
+    """The anchors with the twin cleared (-1) where the pair is not mutual any more (one half removed or replaced)."""
+    twins = np.where(partner_indices(anchors) >= 0, anchors.twins, -1).astype(np.int32)
+    return anchors._replace(twins=twins)
 
 
 def kind_counts(anchors: Anchors) -> tuple[int, int]:
@@ -334,15 +358,12 @@ def add(
     else:
         new = make_anchors([vertex_index], [SPACE_ANCHOR], [NO_FACE], np.zeros((1, 3)), location)
     kept = anchors.vertex_indices != vertex_index
-    result = concatenate(take(anchors, kept), new)
+    result = unpair_broken(concatenate(take(anchors, kept), new))
     return AnchorOutcome(
         anchors=result,
         active_index=anchor_count(result) - 1,
         added_count=1,
         replaced_count=int(np.count_nonzero(~kept)),
-        missed_count=0,
-        skipped_count=0,
-        spacing=0.0,
         topology_detached_count=resolution.detached_count,
         topology_reattached_count=resolution.reattached_count,
     )
@@ -358,8 +379,10 @@ def auto(
     method: str,
     replace: bool,
     max_distance: float = 0.0,
+    candidates: np.ndarray | None = None,
 ) -> AnchorOutcome:
-    """Anchors spread evenly over the layout: no two closer than ``spacing`` (world units).
+    """Anchors spread evenly over the layout: no two closer than ``spacing`` (world units), on the vertices
+    ``candidates`` (N,) bool allows (default all).
 
     ``spacing`` 0 means :func:`default_spacing` of the layout. Vertices are chosen by
     :func:`spaced_indices` in index order; their targets are the closest surface points
@@ -380,7 +403,7 @@ def auto(
     else:
         kept, resolution = resolve(existing, target, stored_signature)
     spacing = float(spacing) if spacing > 0.0 else default_spacing(world)
-    candidates = ~anchored_mask(kept, vertex_count)
+    candidates = ~anchored_mask(kept, vertex_count) & (True if candidates is None else np.asarray(candidates, bool))
     layout_state.check_finite(layout, candidates)
     seeds = world[kept.vertex_indices[valid_vertex_mask(kept, vertex_count)]]
     chosen = spaced_indices(world, spacing, candidates, seeds)
@@ -434,17 +457,25 @@ def auto(
 def update(existing: Anchors, target: Target, stored_signature: str) -> AnchorOutcome:
     """The anchors resolved on the current target and their locations refreshed; nothing added."""
     anchors, resolution = resolve(existing, target, stored_signature)
-    return AnchorOutcome(anchors, -1, 0, 0, 0, 0, 0.0, resolution.detached_count, resolution.reattached_count)
+    return AnchorOutcome(
+        anchors,
+        -1,
+        topology_detached_count=resolution.detached_count,
+        topology_reattached_count=resolution.reattached_count,
+    )
 
 
-def remove(existing: Anchors, index: int) -> Anchors:
-    """The list without the anchor at ``index``; raises :class:`LayoutError` when there is none."""
+def remove(existing: Anchors, index: int, with_twin: bool = False) -> Anchors:
+    """The list without the anchor at ``index`` (and its twin anchor, ``with_twin``); raises :class:`LayoutError`
+    when there is none. A twin left alone is unpaired."""
     count = anchor_count(existing)
     if not 0 <= index < count:
         raise LayoutError(f"There is no anchor {index}: the layout has {count} anchors")
     keep = np.ones(count, dtype=bool)
     keep[index] = False
-    return take(existing, keep)
+    if with_twin and partner_indices(existing)[index] >= 0:
+        keep[partner_indices(existing)[index]] = False
+    return unpair_broken(take(existing, keep))
 
 
 def clamp_active_index(active_index: int, count: int) -> int:

@@ -101,6 +101,20 @@ def reflect(points: np.ndarray, plane: Plane) -> np.ndarray:
     return points - 2.0 * np.outer(signed_distances(points, plane), plane.normal)
 
 
+def reflect_local_normals(normals: np.ndarray, matrix_world: np.ndarray, plane: Plane) -> np.ndarray:
+    """(K, 3) unit normals of an object's local space reflected across a world ``plane``, in local space.
+
+    Normals go to world space by the inverse transpose of the object's matrix and come back by its
+    transpose, so a scaled or sheared object's normals are reflected right.
+    """
+    linear = np.asarray(matrix_world, dtype=np.float64)[:3, :3]
+    reflection = np.eye(3) - 2.0 * np.outer(plane.normal, plane.normal)
+    mapping = linear.T @ reflection @ np.linalg.inv(linear).T
+    reflected = np.asarray(normals, dtype=np.float64).reshape(-1, 3) @ mapping.T
+    lengths = np.linalg.norm(reflected, axis=1, keepdims=True)
+    return np.divide(reflected, lengths, out=np.zeros_like(reflected), where=lengths > 0.0)
+
+
 def project(points: np.ndarray, plane: Plane) -> np.ndarray:
     """(N, 3) float64 ``points`` moved straight onto ``plane``."""
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)

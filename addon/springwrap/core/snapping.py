@@ -26,11 +26,11 @@ class Outcome(NamedTuple):
     positions: np.ndarray  # (N, 3) float32 new local coordinates (all vertices)
     state: LayoutState  # new state (all vertices)
     changed_count: int  # vertices snapped, projected or detached
-    missed_count: int  # vertices whose query found nothing (within max distance); untouched
-    skipped_count: int  # vertices not queried (NORMAL projection: vertex on no face)
-    moved_distance: float  # largest distance a vertex moved, world units
-    topology_detached_count: int  # face-points whose target face is gone, now space-points
-    topology_reattached_count: int  # face-points re-attached on the changed target
+    missed_count: int = 0  # vertices whose query found nothing (within max distance); untouched
+    skipped_count: int = 0  # vertices not queried (NORMAL projection: vertex on no face)
+    moved_distance: float = 0.0  # largest distance a vertex moved, world units
+    topology_detached_count: int = 0  # face-points whose target face is gone, now space-points
+    topology_reattached_count: int = 0  # face-points re-attached on the changed target
 
 
 def detach(layout: LayoutArrays, target: Target | None, stored_signature: str, only_selected: bool) -> Outcome:
@@ -42,9 +42,6 @@ def detach(layout: LayoutArrays, target: Target | None, stored_signature: str, o
         positions=layout.positions,
         state=state,
         changed_count=int(np.count_nonzero(mask)),
-        missed_count=0,
-        skipped_count=0,
-        moved_distance=0.0,
         topology_detached_count=resolution.detached_count,
         topology_reattached_count=resolution.reattached_count,
     )

@@ -10,6 +10,7 @@ import time
 
 import bpy
 
+from .. import property_kinds as props
 from ..blender import anchors as anchor_data
 from ..blender import layout as layout_data
 from ..blender import target as target_data
@@ -17,7 +18,7 @@ from ..blender.edit_mode import object_mode
 from ..core import alignment, anchors
 from ..core.errors import ERRORS
 from ..properties import max_distance_property
-from .base import READS_LAYOUT, LayoutOperator, check_inputs, open_layout
+from .base import READS_LAYOUT, LayoutOperator, check_inputs, open_layout, operator_values
 
 METHOD_ITEMS = (
     ("RIGID", "Rigid", "Rotation and translation (needs 3 anchors not on one line)"),
@@ -37,62 +38,43 @@ APPLY_ITEMS = (
 class SPRINGWRAP_OT_align(LayoutOperator, bpy.types.Operator):
     """Align the layout to its target: fit a transform to the anchors, then refine it by ICP"""
 
-    bl_idname = "springwrap.align"
     bl_label = "Align"
-    bl_options = {"REGISTER", "UNDO"}
     carries_shape_keys = True  # a baked alignment carries the layout's shape keys over (layout.write_layout)
 
-    method: bpy.props.EnumProperty(
-        name="Method",
-        description="Transform fitted to the anchors (least squares); ICP refines rigid fits rigidly, the others by similarity steps",
-        items=METHOD_ITEMS,
-        default="SIMILARITY",
+    method: props.choice(
+        "Method",
+        "Transform fitted to the anchors (least squares); ICP refines rigid fits rigidly, the others by similarity steps",
+        METHOD_ITEMS,
+        "SIMILARITY",
     )
-    use_anchors: bpy.props.BoolProperty(
-        name="Fit Anchors",
-        description="Fit the transform to the anchors; off: ICP alone, from the current placement",
-        default=True,
+    use_anchors: props.flag(
+        "Fit Anchors", "Fit the transform to the anchors; off: ICP alone, from the current placement", True
     )
-    use_icp: bpy.props.BoolProperty(
-        name="ICP",
-        description="Refine by iterative closest points against the target (point-to-plane, trimmed)",
-        default=True,
-    )
-    icp_iterations: bpy.props.IntProperty(
-        name="ICP Iterations",
-        description="Most ICP iterations to run",
-        default=50,
-        min=1,
-        max=10_000,
-    )
-    trim_fraction: bpy.props.FloatProperty(
-        name="Trim",
-        description="Fraction of the farthest pairs ICP ignores each iteration (outliers, parts the target lacks)",
-        default=0.1,
+    use_icp: props.flag("ICP", "Refine by iterative closest points against the target (point-to-plane, trimmed)", True)
+    icp_iterations: props.integer("ICP Iterations", "Most ICP iterations to run", 50, min=1, max=10_000)
+    trim_fraction: props.number(
+        "Trim",
+        "Fraction of the farthest pairs ICP ignores each iteration (outliers, parts the target lacks)",
+        0.1,
         min=0.0,
         max=0.95,
         subtype="FACTOR",
     )
     max_distance: max_distance_property("ICP ignores layout vertices farther than this from the target (0 = unlimited)")
-    anchor_weight: bpy.props.FloatProperty(
-        name="Anchor Weight",
-        description="How firmly ICP keeps the anchors where the fit put them: all anchors together weigh this "
+    anchor_weight: props.number(
+        "Anchor Weight",
+        "How firmly ICP keeps the anchors where the fit put them: all anchors together weigh this "
         "much against the whole surface (0: ICP follows the surface alone)",
-        default=0.3,
+        0.3,
         min=0.0,
         soft_max=10.0,
     )
-    only_selected: bpy.props.BoolProperty(
-        name="Only Selected",
-        description="ICP uses the selected layout vertices only (the transform still moves the whole layout)",
-        default=False,
+    only_selected: props.flag(
+        "Only Selected",
+        "ICP uses the selected layout vertices only (the transform still moves the whole layout)",
+        False,
     )
-    apply: bpy.props.EnumProperty(
-        name="Apply",
-        description="Where the alignment goes",
-        items=APPLY_ITEMS,
-        default="OBJECT",
-    )
+    apply: props.choice("Apply", "Where the alignment goes", APPLY_ITEMS, "OBJECT")
 
     def draw(self, context):
         layout = self.layout
@@ -114,16 +96,7 @@ class SPRINGWRAP_OT_align(LayoutOperator, bpy.types.Operator):
         )
         if layout is None:
             return {"CANCELLED"}
-        parameters = alignment.AlignParameters(
-            method=self.method,
-            use_anchors=self.use_anchors,
-            use_icp=self.use_icp,
-            icp_iterations=self.icp_iterations,
-            trim_fraction=self.trim_fraction,
-            max_distance=self.max_distance,
-            only_selected=self.only_selected,
-            anchor_weight=self.anchor_weight,
-        )
+        parameters = operator_values(self, alignment.AlignParameters)
         start = time.perf_counter()
         try:
             with object_mode(layout):

@@ -17,6 +17,7 @@ import bpy
 
 import numpy as np
 
+from .. import property_kinds as props
 from ..blender import armature as armature_data
 from ..blender import attributes
 from ..blender import layout as layout_data
@@ -24,7 +25,7 @@ from ..blender.edit_mode import object_mode
 from ..core import layout_state
 from ..core.armature import SCALE_ALONG, SCALE_NONE, SCALE_UNIFORM
 from ..core.errors import ERRORS, LayoutError
-from .base import check_inputs
+from .base import SpringwrapOperator, check_inputs
 
 SCALE_MODE_ITEMS = (
     (
@@ -38,41 +39,28 @@ SCALE_MODE_ITEMS = (
 """Values of ``scale_mode``: how a template bone takes the length of its target bone."""
 
 
-class SPRINGWRAP_OT_align_armature(bpy.types.Operator):
+class SPRINGWRAP_OT_align_armature(SpringwrapOperator, bpy.types.Operator):
     """Pose the layout's armature onto the target armature (bones of the same name), deform the layout with it and bake the result"""
 
-    bl_idname = "springwrap.align_armature"
     bl_label = "Align Armature"
-    bl_options = {"REGISTER", "UNDO"}
 
-    target_armature: bpy.props.StringProperty(
-        name="Target Armature",
-        description="Name of the target armature (empty: the panel's Target Armature, else a selected armature)",
-        default="",
+    target_armature: props.text(
+        "Target Armature", "Name of the target armature (empty: the panel's Target Armature, else a selected armature)"
     )
-    match_roll: bpy.props.BoolProperty(
-        name="Match Roll",
-        description="Turn each bone about itself as the target's bone is turned (off: only its direction)",
-        default=True,
+    match_roll: props.flag(
+        "Match Roll", "Turn each bone about itself as the target's bone is turned (off: only its direction)", True
     )
-    scale_mode: bpy.props.EnumProperty(
-        name="Scale",
-        description="How a template bone takes the length of its target bone",
-        items=SCALE_MODE_ITEMS,
-        default=SCALE_ALONG,
+    scale_mode: props.choice(
+        "Scale", "How a template bone takes the length of its target bone", SCALE_MODE_ITEMS, SCALE_ALONG
     )
-    bake: bpy.props.BoolProperty(
-        name="Bake",
-        description=(
-            "Write the deformed shape into the layout's vertices (space-points) and remove its armature "
-            "deformation; off: only pose the armature and keep the modifier live"
-        ),
-        default=True,
+    bake: props.flag(
+        "Bake",
+        "Write the deformed shape into the layout's vertices (space-points) and remove its armature "
+        "deformation; off: only pose the armature and keep the modifier live",
+        True,
     )
-    update_rest: bpy.props.BoolProperty(
-        name="Update Rest Shape",
-        description="Take the aligned shape as the template's rest shape, which the wrap's springs keep",
-        default=True,
+    update_rest: props.flag(
+        "Update Rest Shape", "Take the aligned shape as the template's rest shape, which the wrap's springs keep", True
     )
 
     @classmethod

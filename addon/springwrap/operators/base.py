@@ -124,7 +124,20 @@ def report_storage_precision(operator, layout: bpy.types.Object, extent: input_p
         operator.report({"WARNING"}, note)
 
 
-class LayoutOperator:
+class SpringwrapOperator:
+    """What every Springwrap operator is: registered with a redo panel (F9) and one undo step, and called by the
+    name its class has by Blender's convention (``SPRINGWRAP_OT_snap`` is ``bpy.ops.springwrap.snap``)."""
+
+    bl_options = {"REGISTER", "UNDO"}
+
+    def __init_subclass__(cls, **keywords):
+        super().__init_subclass__(**keywords)
+        prefix, separator, name = cls.__name__.partition("_OT_")
+        if separator:
+            cls.bl_idname = f"{prefix.lower()}.{name}"
+
+
+class LayoutOperator(SpringwrapOperator):
     """Shared ``poll`` of the operators that act on the active layout (and, by default, need its target)."""
 
     requires_target = True
@@ -135,7 +148,7 @@ class LayoutOperator:
         return poll_layout(cls, context, cls.requires_target)
 
 
-class LayoutCollectionOperator:
+class LayoutCollectionOperator(SpringwrapOperator):
     """Shared poll, guard and report of the operators that edit what the layout keeps besides its
     positions: its lists (anchors, curve constraints) and its rest shape.
 
@@ -147,6 +160,8 @@ class LayoutCollectionOperator:
 
     collection = ""
     """Name of the collection property on ``object.springwrap``."""
+    active_index = ""
+    """Name of the property on ``object.springwrap`` with the position of the collection's active item."""
     empty_message = ""
     """The poll message when the collection is needed but empty."""
     requires_target = True
@@ -198,3 +213,55 @@ class LayoutCollectionOperator:
 
         Raises one of ``core.errors.ERRORS`` on bad input, before writing anything."""
         raise NotImplementedError
+
+
+class RemovesItems:
+    """Mixed into the operators that remove items of a layout's list (anchors, curve constraints): the way out of
+    a broken item, so they need no target, leave the mesh alone and check nothing; they run while the list has
+    items. Put it first among the bases."""
+
+    requires_target = False
+    requires_items = True
+    reads_layout_mesh = False
+    reads = frozenset()
+
+    def chosen_index(self, layout) -> int:
+        """The position of the item to remove: the ``index`` property, or the list's active item for -1."""
+        return getattr(layout.springwrap, self.active_index) if self.index == -1 else self.index
+
+
+class RemovesOneItem(RemovesItems):
+    """Mixed into the operators that remove one item of a layout's list (put it first among the bases): which one
+    (``index``), and :meth:`remove` it."""
+
+    index: bpy.props.IntProperty(
+        name="Index", description="Position of the item in the list; -1 for the active one", default=-1, soft_min=-1
+    )
+
+    def compute(self, context, layout):
+        return self.remove(layout, self.chosen_index(layout))
+
+    def remove(self, layout, index: int):
+        """What ``compute`` returns, the list without the item at ``index``; raises ``LayoutError`` when there is
+        no such item."""
+        raise NotImplementedError
+
+
+def operator_values(operator, parameters_type, **renamed):
+    """``parameters_type`` (a ``NamedTuple`` of an operation's parameters) filled from the operator's properties of
+    the same names; ``renamed``: field = property name, where they differ."""
+    return parameters_type(**{field: getattr(operator, renamed.get(field, field)) for field in parameters_type._fields})
+
+
+def topology_change_report(outcome, on_faces: str, in_space: str) -> tuple[set, str] | None:
+    """The report of an operation that found the target's topology changed, or None when it had not: how many
+    of the points ``on_faces`` ("face anchors") lost their target face and became points ``in_space`` ("space
+    anchors"), how many re-attached (``outcome``'s ``topology_detached_count``, ``topology_reattached_count``)."""
+    detached, reattached = outcome.topology_detached_count, outcome.topology_reattached_count
+    if not (detached or reattached):
+        return None
+    return (
+        {"WARNING"} if detached else {"INFO"},
+        f"Target topology changed: {detached} {on_faces} lost their target face and became {in_space}, "
+        f"{reattached} re-attached",
+    )

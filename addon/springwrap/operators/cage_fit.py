@@ -9,13 +9,14 @@ import time
 
 import bpy
 
+from .. import property_kinds as props
 from ..blender import cage_fit as cage_fit_data
 from ..blender import target as target_data
 from ..blender.edit_mode import object_mode
 from ..core import cage_fit
 from ..core.errors import ERRORS
 from ..properties import max_distance_property
-from .base import LayoutOperator, check_inputs, open_layout, report_storage_precision
+from .base import LayoutOperator, check_inputs, open_layout, operator_values, report_storage_precision
 
 _DEFAULTS = cage_fit.fit_defaults()
 
@@ -23,47 +24,43 @@ _DEFAULTS = cage_fit.fit_defaults()
 class SPRINGWRAP_OT_fit_subdivision(LayoutOperator, bpy.types.Operator):
     """Move the layout (the cage) so that its subdivided surface, as the Subdivision Surface modifier computes it, lies on the target instead of shrinking inside it"""
 
-    bl_idname = "springwrap.fit_subdivision"
     bl_label = "Fit Subdivision Surface"
-    bl_options = {"REGISTER", "UNDO"}
 
     last_outcome = None
     """The last successful fit's ``core.cage_fit.CageFitOutcome`` (for scripts: the distances before and after)."""
 
-    levels: bpy.props.IntProperty(
-        name="Levels",
-        description="Subdivision level whose surface is fitted (use the same on the Subdivision Surface modifier)",
-        default=cage_fit.DEFAULT_LEVELS,
+    levels: props.integer(
+        "Levels",
+        "Subdivision level whose surface is fitted (use the same on the Subdivision Surface modifier)",
+        cage_fit.DEFAULT_LEVELS,
         min=1,
         max=int(_DEFAULTS["max_levels"]),
     )
-    rounds: bpy.props.IntProperty(
-        name="Rounds",
-        description="Gauss-Newton rounds: each matches the subdivided surface to the target and solves for the cage",
-        default=cage_fit.DEFAULT_ROUNDS,
+    rounds: props.integer(
+        "Rounds",
+        "Gauss-Newton rounds: each matches the subdivided surface to the target and solves for the cage",
+        cage_fit.DEFAULT_ROUNDS,
         min=1,
         max=50,
     )
-    boundary_smooth: bpy.props.EnumProperty(
-        name="Boundary Smooth",
-        description="The modifier's Boundary Smooth: how the corners of open borders are subdivided",
-        items=cage_fit.BOUNDARY_ITEMS,
-        default="ALL",
+    boundary_smooth: props.choice(
+        "Boundary Smooth",
+        "The modifier's Boundary Smooth: how the corners of open borders are subdivided",
+        cage_fit.BOUNDARY_ITEMS,
+        "ALL",
     )
-    smoothness: bpy.props.FloatProperty(
-        name="Smoothness",
-        description="How strongly each round's move of the cage is kept smooth (it also carries the fit over holes)",
-        default=float(_DEFAULTS["smoothness"]),
+    smoothness: props.number(
+        "Smoothness",
+        "How strongly each round's move of the cage is kept smooth (it also carries the fit over holes)",
+        float(_DEFAULTS["smoothness"]),
         min=0.0,
         soft_max=10.0,
     )
     max_distance: max_distance_property(
         "Subdivided points farther than this from the target are not pulled to it (0 = unlimited)"
     )
-    only_selected: bpy.props.BoolProperty(
-        name="Only Selected",
-        description="Move the selected vertices only (the others are held, as anchored vertices always are)",
-        default=False,
+    only_selected: props.flag(
+        "Only Selected", "Move the selected vertices only (the others are held, as anchored vertices always are)", False
     )
 
     def execute(self, context):
@@ -71,14 +68,7 @@ class SPRINGWRAP_OT_fit_subdivision(LayoutOperator, bpy.types.Operator):
         if layout is None:
             return {"CANCELLED"}
         start = time.perf_counter()
-        parameters = cage_fit_data.CageFitParameters(
-            levels=self.levels,
-            rounds=self.rounds,
-            boundary=self.boundary_smooth,
-            smoothness=self.smoothness,
-            max_distance=self.max_distance,
-            only_selected=self.only_selected,
-        )
+        parameters = operator_values(self, cage_fit_data.CageFitParameters, boundary="boundary_smooth")
         try:
             with object_mode(layout):
                 extent = check_inputs(context, layout, frozenset({"positions", "anchors"}))

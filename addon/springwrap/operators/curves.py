@@ -10,19 +10,21 @@ import bpy
 
 import numpy as np
 
+from .. import property_kinds as props
 from ..blender import anchors as anchor_data
 from ..blender import curves as curve_data
 from ..blender import layout as layout_data
 from ..blender import target as target_data
 from ..core import anchors, curves, edge_paths, input_policy
 from ..core.errors import LayoutError
-from .base import LayoutCollectionOperator
+from .base import LayoutCollectionOperator, RemovesItems, RemovesOneItem
 
 
 class _CurveOperator(LayoutCollectionOperator):
     """Shared run and report of the curve-constraint operators."""
 
     collection = "curve_constraints"
+    active_index = "active_curve_constraint_index"
     empty_message = "The layout has no curve constraints"
 
     def run(self, context, layout):
@@ -42,18 +44,13 @@ class _CurveOperator(LayoutCollectionOperator):
 class SPRINGWRAP_OT_curve_constraint_add(_CurveOperator, bpy.types.Operator):
     """Pair the selected layout edge chain with a target curve: a curve object, or the target edges between its ends' anchors"""
 
-    bl_idname = "springwrap.curve_constraint_add"
     bl_label = "Add Curve Constraint"
-    bl_options = {"REGISTER", "UNDO"}
 
-    curve_object: bpy.props.StringProperty(
-        name="Curve Object",
-        description=(
-            "Name of the curve object the chain follows; empty: the chain of target edges along the layout chain's "
-            "course between the target vertices nearest to its end anchors (or to its end vertices where they have "
-            "none)"
-        ),
-        default="",
+    curve_object: props.text(
+        "Curve Object",
+        "Name of the curve object the chain follows; empty: the chain of target edges along the layout chain's "
+        "course between the target vertices nearest to its end anchors (or to its end vertices where they have "
+        "none)",
     )
 
     def compute(self, context, layout):
@@ -103,9 +100,7 @@ class SPRINGWRAP_OT_curve_constraint_add(_CurveOperator, bpy.types.Operator):
 class SPRINGWRAP_OT_curve_constraints_auto(_CurveOperator, bpy.types.Operator):
     """Pair every layout curve (border, seam, loose chain) whose two ends are anchored with the target edges along it between the anchors"""
 
-    bl_idname = "springwrap.curve_constraints_auto"
     bl_label = "Auto Curve Constraints"
-    bl_options = {"REGISTER", "UNDO"}
 
     def compute(self, context, layout):
         existing = curve_data.read_curve_constraints(layout)
@@ -129,28 +124,13 @@ class SPRINGWRAP_OT_curve_constraints_auto(_CurveOperator, bpy.types.Operator):
         return f"{text}; {skipped}" if skipped else text
 
 
-class SPRINGWRAP_OT_curve_constraint_remove(_CurveOperator, bpy.types.Operator):
+class SPRINGWRAP_OT_curve_constraint_remove(RemovesOneItem, _CurveOperator, bpy.types.Operator):
     """Remove a curve constraint (the active one by default)"""
 
-    bl_idname = "springwrap.curve_constraint_remove"
     bl_label = "Remove Curve Constraint"
-    bl_options = {"REGISTER", "UNDO"}
 
-    requires_target = False
-    requires_items = True
-    reads_layout_mesh = False
-    reads = frozenset()  # the way out of a broken constraint: nothing is checked
-
-    index: bpy.props.IntProperty(
-        name="Index",
-        description="Position of the constraint in the list; -1 for the active one",
-        default=-1,
-        soft_min=-1,
-    )
-
-    def compute(self, context, layout):
+    def remove(self, layout, index):
         existing = curve_data.read_curve_constraints(layout)
-        index = layout.springwrap.active_curve_constraint_index if self.index == -1 else self.index
         if not 0 <= index < len(existing):
             raise LayoutError(f"There is no curve constraint {index}: the layout has {len(existing)}")
         remaining = existing[:index] + existing[index + 1 :]
@@ -160,17 +140,10 @@ class SPRINGWRAP_OT_curve_constraint_remove(_CurveOperator, bpy.types.Operator):
         return f"Removed a curve constraint; {len(constraints)} left"
 
 
-class SPRINGWRAP_OT_curve_constraints_clear(_CurveOperator, bpy.types.Operator):
+class SPRINGWRAP_OT_curve_constraints_clear(RemovesItems, _CurveOperator, bpy.types.Operator):
     """Remove every curve constraint of the layout"""
 
-    bl_idname = "springwrap.curve_constraints_clear"
     bl_label = "Clear Curve Constraints"
-    bl_options = {"REGISTER", "UNDO"}
-
-    requires_target = False
-    requires_items = True
-    reads_layout_mesh = False
-    reads = frozenset()  # the way out of a broken constraint: nothing is checked
 
     def compute(self, context, layout):
         self._count = len(layout.springwrap.curve_constraints)

@@ -16,10 +16,12 @@ import bpy
 
 import numpy as np
 
+from .. import property_kinds as props
 from ..blender import features as feature_data
 from ..blender.edit_mode import object_mode
 from ..core.errors import ERRORS
 from ..core.features import DEFAULT_SCALE_EDGES, mean_edge_length, region_colors
+from .base import SpringwrapOperator
 
 
 def feature_object(context, name: str = ""):
@@ -34,62 +36,37 @@ def feature_object(context, name: str = ""):
     return obj if obj is not None and obj.type == "MESH" else None
 
 
-class SPRINGWRAP_OT_detect_features(bpy.types.Operator):
+class SPRINGWRAP_OT_detect_features(SpringwrapOperator, bpy.types.Operator):
     """Colour the target's concave, convex and flat regions and trace its ridge and valley curves (blend centre-lines) for curve constraints"""
 
-    bl_idname = "springwrap.detect_features"
     bl_label = "Detect Features"
-    bl_options = {"REGISTER", "UNDO"}
 
-    object_name: bpy.props.StringProperty(
-        name="Object",
-        description="Mesh object to analyse; empty: the active object's Springwrap target, or the active mesh",
-        default="",
+    object_name: props.text(
+        "Object", "Mesh object to analyse; empty: the active object's Springwrap target, or the active mesh"
     )
-    scale: bpy.props.FloatProperty(
-        name="Scale",
-        description=(
-            "Radius over which the surface is fitted: bumps and noise smaller than this are ignored; for blend "
-            f"centre-lines about the blend radius (0 = {DEFAULT_SCALE_EDGES:g} mean edge lengths)"
-        ),
-        default=0.0,
-        min=0.0,
-        subtype="DISTANCE",
-        unit="LENGTH",
+    scale: props.distance(
+        "Scale",
+        "Radius over which the surface is fitted: bumps and noise smaller than this are ignored; for blend "
+        f"centre-lines about the blend radius (0 = {DEFAULT_SCALE_EDGES:g} mean edge lengths)",
     )
-    flat_threshold: bpy.props.FloatProperty(
-        name="Flat Threshold",
-        description="A curvature k counts as flat while |k| x scale is below this",
-        default=0.1,
-        min=0.0,
-        soft_max=1.0,
+    flat_threshold: props.number(
+        "Flat Threshold", "A curvature k counts as flat while |k| x scale is below this", 0.1, min=0.0, soft_max=1.0
     )
-    ridge_threshold: bpy.props.FloatProperty(
-        name="Ridge Threshold",
-        description="k x scale a ridge or valley must reach to be traced",
-        default=0.25,
-        min=0.0,
-        soft_max=2.0,
+    ridge_threshold: props.number(
+        "Ridge Threshold", "k x scale a ridge or valley must reach to be traced", 0.25, min=0.0, soft_max=2.0
     )
-    min_length: bpy.props.FloatProperty(
-        name="Min Length",
-        description="Curves shorter than this are dropped (0 = twice the scale)",
-        default=0.0,
-        min=0.0,
-        subtype="DISTANCE",
-        unit="LENGTH",
-    )
-    write_colors: bpy.props.BoolProperty(
-        name="Region Colours",
-        description="Write the regions as the colour attribute 'springwrap_curvature' (grey flat, red convex, "
+    min_length: props.distance("Min Length", "Curves shorter than this are dropped (0 = twice the scale)")
+    write_colors: props.flag(
+        "Region Colours",
+        "Write the regions as the colour attribute 'springwrap_curvature' (grey flat, red convex, "
         "blue concave, yellow saddle) and make it the active colour (Solid shading > Color > Attribute)",
-        default=True,
+        True,
     )
-    write_curves: bpy.props.BoolProperty(
-        name="Feature Curves",
-        description="Write the ridge and valley curves as two curve objects, '<target> Ridges' and '<target> Valleys' "
+    write_curves: props.flag(
+        "Feature Curves",
+        "Write the ridge and valley curves as two curve objects, '<target> Ridges' and '<target> Valleys' "
         "(a spline per curve, replacing the previous ones), in the 'Springwrap Features' collection",
-        default=True,
+        True,
     )
 
     @classmethod

@@ -6,8 +6,9 @@ or that plane of a mirror object (an empty), as in Blender's Mirror modifier. Th
 1. reads the layout and decides the seam (vertices on the plane), the faces that cross the plane
    and whether the plane meets the layout at all (``mirroring.plan``): a plane that misses it is
    an error and nothing is changed;
-2. adds the reflected copy of the layout's faces and loose edges, winding reversed, every mesh
-   attribute carried over, the seam welded (``mirror_data.mirror_mesh_topology``); writes the reflected
+2. adds the reflected copy of the layout's faces and loose edges, winding reversed, on the seam's own
+   vertices, each copy with its original's data (``mirror_data.mirror_mesh_topology``; custom normals
+   reflected by ``mirror_data.mirror_custom_normals``); writes the reflected
    positions, the rest shape reflected the same way, and the state: the surfaced half keeps its
    face-points, the copy is made of space-points (``mirroring.mirrored_layout``);
 3. unless ``wrap`` is off, wraps the copy onto the target with the surfaced half pinned (anchors at
@@ -26,6 +27,7 @@ import bpy
 
 import numpy as np
 
+from .. import property_kinds as props
 from ..blender import anchors as anchor_data
 from ..blender import attributes
 from ..blender import layout as layout_data
@@ -46,7 +48,7 @@ from ..properties import (
     shape_keys_property,
     tolerance_property,
 )
-from .base import check_inputs, open_layout, poll_layout
+from .base import SpringwrapOperator, check_inputs, open_layout, poll_layout
 
 LANDING_REACH = 0.25
 """Before the wrap, a copy within this fraction of its mean edge length of the target lands there at once."""
@@ -55,54 +57,50 @@ ON_PLANE_TOLERANCE = 1e-6
 size becomes a space-point (its face no longer lies under it)."""
 
 
-class SPRINGWRAP_OT_mirror(bpy.types.Operator):
+class SPRINGWRAP_OT_mirror(SpringwrapOperator, bpy.types.Operator):
     """Mirror the layout across its local X, Y or Z plane (or a mirror object's), weld the seam, and wrap the new half onto the target's other half"""
 
-    bl_idname = "springwrap.mirror"
     bl_label = "Mirror"
-    bl_options = {"REGISTER", "UNDO"}
 
     last_outcome = None  # the last run's MirrorOutcome (class attribute: scripts and tests read it)
 
-    axis: bpy.props.EnumProperty(
-        name="Axis",
-        description="The mirror plane is perpendicular to this axis of the layout object (or of the mirror object)",
-        items=tuple((axis, axis, f"Mirror across the plane {axis.lower()} = 0") for axis in AXES),
-        default="X",
+    axis: props.choice(
+        "Axis",
+        "The mirror plane is perpendicular to this axis of the layout object (or of the mirror object)",
+        tuple((axis, axis, f"Mirror across the plane {axis.lower()} = 0") for axis in AXES),
+        "X",
     )
-    mirror_object: bpy.props.StringProperty(
-        name="Mirror Object",
-        description="Name of an object (an empty) whose local plane is the mirror plane; empty: the layout's own",
-        default="",
+    mirror_object: props.text(
+        "Mirror Object", "Name of an object (an empty) whose local plane is the mirror plane; empty: the layout's own"
     )
-    weld_distance: bpy.props.FloatProperty(
-        name="Weld Distance",
-        description="Vertices this close to the plane, as a fraction of the mean length of their edges, are "
+    weld_distance: props.number(
+        "Weld Distance",
+        "Vertices this close to the plane, as a fraction of the mean length of their edges, are "
         "snapped onto it and shared by both halves (the seam)",
-        default=DEFAULT_WELD_FRACTION,
+        DEFAULT_WELD_FRACTION,
         min=1e-6,
         soft_max=0.5,
         precision=3,
     )
-    wrap: bpy.props.BoolProperty(
-        name="Wrap",
-        description="Wrap the new half onto the target's other half (surfaced half pinned, seam held on the plane); "
+    wrap: props.flag(
+        "Wrap",
+        "Wrap the new half onto the target's other half (surfaced half pinned, seam held on the plane); "
         "off: only mirror",
-        default=True,
+        True,
     )
-    surfaced_half: bpy.props.EnumProperty(
-        name="Surfaced Half",
-        description="What the half that was there before does during the wrap",
-        items=(
+    surfaced_half: props.choice(
+        "Surfaced Half",
+        "What the half that was there before does during the wrap",
+        (
             ("PIN", "Pin", "It is done: it does not move, only the new half is wrapped"),
             ("FREE", "Free", "Both halves are wrapped together, the seam held on the plane"),
         ),
-        default="PIN",
+        "PIN",
     )
-    seam: bpy.props.EnumProperty(
-        name="Seam",
-        description="What the seam (the vertices on the plane) does during the wrap",
-        items=(
+    seam: props.choice(
+        "Seam",
+        "What the seam (the vertices on the plane) does during the wrap",
+        (
             (
                 "SLIDE",
                 "Slide",
@@ -116,20 +114,15 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
                 "seam stays as the surfaced half has it",
             ),
         ),
-        default="SLIDE",
+        "SLIDE",
     )
-    mirror_anchors: bpy.props.BoolProperty(
-        name="Mirror Anchors",
-        description="Give the new half the mirror images of the surfaced half's anchors, put on the closest target "
+    mirror_anchors: props.flag(
+        "Mirror Anchors",
+        "Give the new half the mirror images of the surfaced half's anchors, put on the closest target "
         "point (a guess as good as the target's symmetry); anchors on the seam are dropped either way",
-        default=True,
+        True,
     )
-    solver: bpy.props.EnumProperty(
-        name="Solver",
-        description="The new half's wrap algorithm",
-        items=WRAP_SOLVER_ITEMS,
-        default=WRAP_DEFAULTS.solver,
-    )
+    solver: props.choice("Solver", "The new half's wrap algorithm", WRAP_SOLVER_ITEMS, WRAP_DEFAULTS.solver)
     max_iterations: max_iterations_property()
     tolerance: tolerance_property()
     shape_keys: shape_keys_property(
@@ -244,9 +237,11 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
         start = time.perf_counter()
         arrays, plane, decided = prepared["arrays"], prepared["plane"], prepared["plan"]
         original_count = arrays.positions.shape[0]
-        source = mirror_data.mirror_mesh_topology(
+        custom_normals = mirror_data.read_custom_normals(layout)
+        mirrored_mesh = mirror_data.mirror_mesh_topology(
             layout, decided.duplicate_faces, decided.duplicate_edges, decided.seam
         )
+        source = mirrored_mesh.vertex_source
         if prepared["shape_keys"] is not None:  # each copy's keys: its source's, reflected
             matrix = arrays.matrix_world
             shape_key_data.write_mirrored(
@@ -285,6 +280,8 @@ class SPRINGWRAP_OT_mirror(bpy.types.Operator):
         to_local = lambda points: transforms.to_local(arrays.matrix_world, points)  # noqa: E731
         attributes.write_rest(layout, to_local(mirrored.rest))
         layout_data.write_layout(layout, to_local(mirrored.positions), mirrored.state)
+        if custom_normals is not None:
+            mirror_data.mirror_custom_normals(layout, custom_normals, mirrored_mesh.corner_source, plane)
         anchor_list = anchor_data.read_anchors(layout)
         if target is not None:
             anchor_list, _ = anchors.resolve(anchor_list, target, layout.springwrap.anchors_signature)

@@ -11,6 +11,7 @@ import bpy
 
 import numpy as np
 
+from .. import property_kinds as props
 from ..blender import attributes
 from ..blender import layout as layout_data
 from ..blender import target as target_data
@@ -19,7 +20,14 @@ from ..core import layout_state, snapping, transforms, wrap_inputs
 from ..core.errors import ERRORS, LayoutError
 from ..core.transforms import matrix_array
 from ..properties import ORIENTATION_ITEMS, PROJECT_DIRECTION_ITEMS, SNAP_MODE_ITEMS, max_distance_property
-from .base import LayoutCollectionOperator, LayoutOperator, check_inputs, open_layout, report_storage_precision
+from .base import (
+    LayoutCollectionOperator,
+    LayoutOperator,
+    check_inputs,
+    open_layout,
+    report_storage_precision,
+    topology_change_report,
+)
 
 
 class _SnapOperator(LayoutOperator):
@@ -29,10 +37,10 @@ class _SnapOperator(LayoutOperator):
     carries_shape_keys = True  # layout.write_layout carries a layout's shape keys over onto the new basis
     reads = frozenset({"positions"})
 
-    only_selected: bpy.props.BoolProperty(
-        name="Only Selected",
-        description="Act on the selected vertices only (face-points whose target face is gone are still resolved everywhere)",
-        default=False,
+    only_selected: props.flag(
+        "Only Selected",
+        "Act on the selected vertices only (face-points whose target face is gone are still resolved everywhere)",
+        False,
     )
 
     def execute(self, context):
@@ -58,13 +66,9 @@ class _SnapOperator(LayoutOperator):
             return {"CANCELLED"}
         milliseconds = (time.perf_counter() - start) * 1000.0
         self.report({"INFO"}, self.summary(outcome, milliseconds))
-        detached, reattached = outcome.topology_detached_count, outcome.topology_reattached_count
-        if detached or reattached:
-            self.report(
-                {"WARNING"} if detached else {"INFO"},
-                f"Target topology changed: {detached} face-points lost their target face and became "
-                f"space-points, {reattached} re-attached",
-            )
+        topology = topology_change_report(outcome, "face-points", "space-points")
+        if topology:
+            self.report(*topology)
         return {"FINISHED"}
 
     def compute(self, context, layout, arrays, target):
@@ -79,9 +83,7 @@ class _SnapOperator(LayoutOperator):
 class SPRINGWRAP_OT_detach(_SnapOperator, bpy.types.Operator):
     """Detach vertices from the target: they become space-points and keep their positions"""
 
-    bl_idname = "springwrap.detach"
     bl_label = "Detach"
-    bl_options = {"REGISTER", "UNDO"}
 
     requires_target = False
     moves_vertices = False
@@ -96,9 +98,7 @@ class SPRINGWRAP_OT_detach(_SnapOperator, bpy.types.Operator):
 class SPRINGWRAP_OT_snap(_SnapOperator, bpy.types.Operator):
     """Snap vertices onto the target (closest surface point or nearest vertex); they become face-points"""
 
-    bl_idname = "springwrap.snap"
     bl_label = "Snap"
-    bl_options = {"REGISTER", "UNDO"}
 
     mode: bpy.props.EnumProperty(name="Mode", items=SNAP_MODE_ITEMS, default="SURFACE")
     max_distance: max_distance_property("Vertices farther than this from the target are left untouched (0 = unlimited)")
@@ -121,22 +121,13 @@ class SPRINGWRAP_OT_snap(_SnapOperator, bpy.types.Operator):
 class SPRINGWRAP_OT_project(_SnapOperator, bpy.types.Operator):
     """Project vertices onto the target along a direction (ray cast); hits become face-points"""
 
-    bl_idname = "springwrap.project"
     bl_label = "Project"
-    bl_options = {"REGISTER", "UNDO"}
 
     direction: bpy.props.EnumProperty(name="Direction", items=PROJECT_DIRECTION_ITEMS, default="NORMAL")
-    orientation: bpy.props.EnumProperty(
-        name="Orientation",
-        description="Space of the axis directions (View and Normal ignore it)",
-        items=ORIENTATION_ITEMS,
-        default="GLOBAL",
+    orientation: props.choice(
+        "Orientation", "Space of the axis directions (View and Normal ignore it)", ORIENTATION_ITEMS, "GLOBAL"
     )
-    both_directions: bpy.props.BoolProperty(
-        name="Both Directions",
-        description="Also cast each ray backwards and keep the nearer hit",
-        default=True,
-    )
+    both_directions: props.flag("Both Directions", "Also cast each ray backwards and keep the nearer hit", True)
     max_distance: max_distance_property("Hits farther than this along the ray are ignored (0 = unlimited)")
 
     def compute(self, context, layout, arrays, target):
@@ -195,9 +186,7 @@ def _view_region(context):
 class SPRINGWRAP_OT_rest_set(LayoutCollectionOperator, bpy.types.Operator):
     """Take the layout's current shape as the template's rest shape: the shape the wrap's springs keep"""
 
-    bl_idname = "springwrap.rest_set"
     bl_label = "Set Rest Shape"
-    bl_options = {"REGISTER", "UNDO"}
 
     requires_target = False
     reads = frozenset({"positions"})

@@ -21,6 +21,7 @@ events in, operator results out), so tests drive them directly.
 
 import bpy
 
+from .. import property_kinds as props
 from ..blender import layout as layout_data
 from ..blender import wrap_session
 from ..blender.edit_mode import EditModeGuard, object_mode
@@ -49,9 +50,7 @@ TIMER_SECONDS = 0.01
 class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
     """Wrap the layout onto the target: springs with anchors pull it on like a rubber sheet (Esc cancels)"""
 
-    bl_idname = "springwrap.wrap"
     bl_label = "Wrap"
-    bl_options = {"REGISTER", "UNDO"}
 
     max_iterations: max_iterations_property("Stop after this many iterations if it has not converged by then")
     tolerance: tolerance_property(
@@ -72,10 +71,10 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
     folding: wrap_weight_property(
         "folding", "Folding", "Pull of space-points next to face-points onto the surface, 0 to 1"
     )
-    rest: bpy.props.EnumProperty(
-        name="Rest Shape",
-        description="What the springs consider relaxed",
-        items=(
+    rest: props.choice(
+        "Rest Shape",
+        "What the springs consider relaxed",
+        (
             (
                 "TEMPLATE",
                 "Template",
@@ -84,14 +83,9 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
             ),
             ("EVEN", "Even", "Straight, evenly spaced grid lines (Krishnamurthy & Levoy's springs)"),
         ),
-        default=WRAP_DEFAULTS.rest,
+        WRAP_DEFAULTS.rest,
     )
-    solver: bpy.props.EnumProperty(
-        name="Solver",
-        description="The wrap's algorithm",
-        items=WRAP_SOLVER_ITEMS,
-        default=WRAP_DEFAULTS.solver,
-    )
+    solver: props.choice("Solver", "The wrap's algorithm", WRAP_SOLVER_ITEMS, WRAP_DEFAULTS.solver)
     spring_resolution: bpy.props.IntProperty(
         name="Spring Resolution",
         description="Above 1: relax the layout, then relax again with every quad cut into this many by this many "
@@ -99,29 +93,27 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
         default=1,
         **WRAP_RANGES["spring_resolution"].keywords(),
     )
-    stiffness_group: bpy.props.StringProperty(
-        name="Stiffness Group",
-        description="Layout vertex group of per-vertex stiffness (Energy solver: weight 0 follows the target freely, "
+    stiffness_group: props.text(
+        "Stiffness Group",
+        "Layout vertex group of per-vertex stiffness (Energy solver: weight 0 follows the target freely, "
         "0.5 as the others, 1 keeps the template's shape); empty: the layout's Stiffness setting",
-        default="",
     )
-    free_group: bpy.props.StringProperty(
-        name="Free Group",
-        description="Layout vertex group without a pull toward the target (Energy solver: sockets, teeth); empty: the "
+    free_group: props.text(
+        "Free Group",
+        "Layout vertex group without a pull toward the target (Energy solver: sockets, teeth); empty: the "
         "layout's Free setting",
-        default="",
     )
-    hold_plane: bpy.props.EnumProperty(
-        name="Hold on Plane",
-        description="Keep the vertices that lie on this plane of the layout (or of the panel's Mirror Object) on it "
+    hold_plane: props.choice(
+        "Hold on Plane",
+        "Keep the vertices that lie on this plane of the layout (or of the panel's Mirror Object) on it "
         "during the wrap: surface one half of a symmetric model with its midline on the plane, then Mirror",
-        items=(
+        (
             ("NONE", "None", "No plane: every vertex is free"),
             ("X", "X", "The plane x = 0 of the layout (or of the Mirror Object)"),
             ("Y", "Y", "The plane y = 0 of the layout (or of the Mirror Object)"),
             ("Z", "Z", "The plane z = 0 of the layout (or of the Mirror Object)"),
         ),
-        default="NONE",
+        "NONE",
     )
     shape_keys: shape_keys_property(
         "A layout with shape keys: wrap its basis and carry the other keys over onto the wrapped shape, or refuse it"

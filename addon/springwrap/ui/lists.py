@@ -6,8 +6,8 @@ from mathutils import Vector
 
 
 class SPRINGWRAP_UL_anchors(bpy.types.UIList):
-    """The layout's anchors: the vertex index (its icon: the target is on the surface or in space), and how far the
-    vertex is from its target point"""
+    """The layout's anchors: the vertex index (its icon: the target is on the surface or in space), its symmetric
+    twin's vertex (a mirror icon and its index, or "mid" on the plane), and how far the vertex is from its target point"""
 
     bl_idname = "SPRINGWRAP_UL_anchors"
 
@@ -19,6 +19,9 @@ class SPRINGWRAP_UL_anchors(bpy.types.UIList):
         split.alert = missing
         kind_icon = "SNAP_FACE" if item.target_kind == "FACE" else "EMPTY_AXIS"
         split.label(text=str(item.vertex_index), icon="ERROR" if missing else kind_icon)
+        if item.twin_vertex >= 0:  # a pair is written mutual (blender.anchors.write_anchors)
+            mid = item.twin_vertex == item.vertex_index
+            split.label(text="mid" if mid else str(item.twin_vertex), icon="MOD_MIRROR")
         if missing:
             split.label(text="missing")
             return

@@ -85,24 +85,27 @@ def _on_depsgraph_update(_scene, _depsgraph):
     _generation += 1
 
 
+_NO_SEGMENTS = (np.zeros((0, 3), dtype=np.float32), np.zeros((0, 3), dtype=np.float32))
+"""Nothing to draw: no starts, no ends."""
+
+
+def _cache_key(layout, what) -> tuple:
+    """When the positions cached for ``what`` (the items drawn) are still current: nothing changed since (the
+    depsgraph generation), the same layout and mesh, the same mode."""
+    return (_generation, layout.as_pointer(), layout.data.as_pointer(), layout.data.is_editmode, what)
+
+
 def anchor_segments(layout) -> tuple[np.ndarray, np.ndarray]:
     """The lines to draw for ``layout``: (K, 3) float32 world starts (layout vertices) and ends (targets).
 
     Empty when the layout has no anchors or hides them. Anchors whose vertex no longer exists are
     left out.
     """
-    empty = np.zeros((0, 3), dtype=np.float32)
     settings = layout.springwrap
     if not settings.show_anchors or not len(settings.anchors):
-        return empty, empty
+        return _NO_SEGMENTS
     anchor_list = anchor_data.read_anchors(layout)
-    key = (
-        _generation,
-        layout.as_pointer(),
-        layout.data.as_pointer(),
-        layout.data.is_editmode,
-        anchor_list.vertex_indices.tobytes(),
-    )
+    key = _cache_key(layout, anchor_list.vertex_indices.tobytes())
     if _position_cache["key"] != key:
         positions = layout_data.read_world_vertex_positions(layout, anchor_list.vertex_indices)
         _position_cache.update(key=key, positions=positions)
@@ -115,18 +118,11 @@ def curve_segments(layout) -> tuple[np.ndarray, np.ndarray]:
     Each chain vertex is joined to the point of its target polyline (as last resolved) at the same
     fraction of arc length, by a dashed line. Empty when there are none or they are hidden.
     """
-    empty = np.zeros((0, 3), dtype=np.float32)
     settings = layout.springwrap
     if not settings.show_curve_constraints or not len(settings.curve_constraints):
-        return empty, empty
+        return _NO_SEGMENTS
     constraints = curve_data.read_curve_constraints(layout)
-    key = (
-        _generation,
-        layout.as_pointer(),
-        layout.data.as_pointer(),
-        layout.data.is_editmode,
-        tuple((c.layout_vertices.tobytes(), c.points.tobytes()) for c in constraints),
-    )
+    key = _cache_key(layout, tuple((c.layout_vertices.tobytes(), c.points.tobytes()) for c in constraints))
     if _curve_cache["key"] != key:
         starts, ends = [], []
         for constraint in constraints:

@@ -22,7 +22,8 @@ WRAP_BUTTON_SCALE = 1.6
 
 
 class _SidebarPanel:
-    """Where every Springwrap panel lives (the 3D view's sidebar tab) and when it shows (a mesh is active)."""
+    """Where every Springwrap panel lives (the 3D view's sidebar tab) and when it shows (a mesh is active). A
+    panel's id is its class name (``bl_idname`` left out, as Blender allows), which ``bl_parent_id`` names."""
 
     bl_space_type = "VIEW_3D"
     bl_region_type = "UI"
@@ -36,6 +37,18 @@ class _SidebarPanel:
 
 class _LayoutSubPanel(_SidebarPanel):
     """A sub-panel of the layout panel."""
+
+    bl_parent_id = "SPRINGWRAP_PT_layout"
+
+
+class _ToolPanel(_SidebarPanel):
+    """A tool beside the workflow's steps: a sub-panel closed by default (the steps themselves stay open)."""
+
+    bl_options = {"DEFAULT_CLOSED"}
+
+
+class _LayoutToolPanel(_ToolPanel):
+    """A tool's sub-panel of the layout panel, closed by default."""
 
     bl_parent_id = "SPRINGWRAP_PT_layout"
 
@@ -56,16 +69,41 @@ def _count_row(layout, label: str, value, icon: str = "NONE") -> None:
     split.label(text=str(value), icon=icon)
 
 
-def _scope_text(obj, verb: str) -> str:
-    """A point tool's button text: "Snap" on the whole layout, "Snap Selected" in edit mode."""
-    return f"{verb} Selected" if obj.mode == "EDIT" else verb
+def _point_tool_button(layout, context, idname: str, verb: str, icon: str, settings=()):
+    """A point tool's button: on the whole layout ("Snap"), or on the selected vertices in edit mode ("Snap
+    Selected"). ``settings``: ``(operator property, panel setting, ...)``, the panel's settings it runs with."""
+    obj = context.active_object
+    editing = obj.mode == "EDIT"
+    button = layout.operator(idname, text=f"{verb} Selected" if editing else verb, icon=icon)
+    for name, setting, *_label in settings:
+        setattr(button, name, getattr(obj.springwrap, setting))
+    button.only_selected = editing
+    return button
+
+
+def _point_tool(layout, context, idname: str, verb: str, icon: str, settings=()):
+    """A point tool's sub-panel: its settings (``(operator property, panel setting, label)``), then its button."""
+    layout = _split(layout)
+    for _name, setting, label in settings:
+        layout.prop(context.active_object.springwrap, setting, text=label)
+    _point_tool_button(layout, context, idname, verb, icon, settings)
+
+
+SNAP_SETTINGS = (("mode", "snap_mode", "Mode"), ("max_distance", "max_distance", "Limit"))
+"""The Snap button's properties, the panel settings they are taken from and their labels."""
+PROJECT_SETTINGS = (
+    ("direction", "project_direction"),
+    ("orientation", "project_orientation"),
+    ("both_directions", "project_both_directions"),
+    ("max_distance", "max_distance"),
+)
+"""The Project button's properties and the panel settings they are taken from."""
 
 
 class SPRINGWRAP_PT_layout(_SidebarPanel, bpy.types.Panel):
     """The layout's target and how the layout is shown over it"""
 
     bl_label = "Springwrap"
-    bl_idname = "SPRINGWRAP_PT_layout"
 
     def draw(self, context):
         layout = _split(self.layout)
@@ -80,7 +118,6 @@ class SPRINGWRAP_PT_align(_LayoutSubPanel, bpy.types.Panel):
     """Place the template on the target before it is attached: anchor fit and ICP"""
 
     bl_label = "Place"
-    bl_idname = "SPRINGWRAP_PT_align"
 
     def draw(self, context):
         layout = self.layout
@@ -93,13 +130,11 @@ class SPRINGWRAP_PT_align(_LayoutSubPanel, bpy.types.Panel):
         icp_only.method = "RIGID"
 
 
-class SPRINGWRAP_PT_armature(_SidebarPanel, bpy.types.Panel):
+class SPRINGWRAP_PT_armature(_ToolPanel, bpy.types.Panel):
     """Armature alignment: the target armature and the Align Armature button"""
 
     bl_label = "Armature"
-    bl_idname = "SPRINGWRAP_PT_armature"
     bl_parent_id = "SPRINGWRAP_PT_align"
-    bl_options = {"DEFAULT_CLOSED"}
 
     def draw(self, context):
         layout = _split(self.layout)
@@ -111,7 +146,6 @@ class SPRINGWRAP_PT_anchors(_LayoutSubPanel, bpy.types.Panel):
     """The active layout's anchors: list, add / remove / clear / auto, and the viewport display toggle"""
 
     bl_label = "Anchors"
-    bl_idname = "SPRINGWRAP_PT_anchors"
 
     def draw_header(self, context):
         self.layout.prop(context.active_object.springwrap, "show_anchors", text="")
@@ -130,6 +164,7 @@ class SPRINGWRAP_PT_anchors(_LayoutSubPanel, bpy.types.Panel):
         add = column.operator("springwrap.anchor_add", icon="ADD", text="")
         add.vertex_index = -1
         add.use_location = False
+        _symmetry_arguments(add, settings)
         column.operator("springwrap.anchor_remove", icon="REMOVE", text="").index = -1
         column.separator()
         column.operator("springwrap.anchors_update", icon="FILE_REFRESH", text="")
@@ -142,15 +177,31 @@ class SPRINGWRAP_PT_anchors(_LayoutSubPanel, bpy.types.Panel):
         auto.spacing = settings.anchor_spacing
         auto.method = settings.anchor_method
         auto.max_distance = settings.max_distance
+        _symmetry_arguments(auto, settings)
+        # Symmetric anchors: Add and Auto anchor each vertex's twin too, as a pair (Remove removes both).
+        row = layout.row(align=True)
+        row.prop(settings, "anchor_symmetric", icon="MOD_MIRROR")
+        sub = row.row(align=True)
+        sub.active = settings.anchor_symmetric
+        sub.prop(settings, "anchor_symmetry_axis", expand=True)
+        sub = layout.row()
+        sub.active = settings.anchor_symmetric
+        sub.prop(settings, "anchor_symmetry_object", text="Plane Of")
 
 
-class SPRINGWRAP_PT_curve_constraints(_SidebarPanel, bpy.types.Panel):
+def _symmetry_arguments(operator, settings):
+    """The panel's symmetric-anchor settings given to Add or Auto Anchors."""
+    operator.symmetric = settings.anchor_symmetric
+    operator.symmetry_axis = settings.anchor_symmetry_axis
+    symmetry_object = settings.anchor_symmetry_object
+    operator.symmetry_object = symmetry_object.name if symmetry_object is not None else ""
+
+
+class SPRINGWRAP_PT_curve_constraints(_ToolPanel, bpy.types.Panel):
     """The active layout's curve constraints: list, add / remove / clear / auto, and the viewport display toggle"""
 
     bl_label = "Curve Constraints"
-    bl_idname = "SPRINGWRAP_PT_curve_constraints"
     bl_parent_id = "SPRINGWRAP_PT_anchors"
-    bl_options = {"DEFAULT_CLOSED"}
 
     def draw_header(self, context):
         self.layout.prop(context.active_object.springwrap, "show_curve_constraints", text="")
@@ -182,7 +233,6 @@ class SPRINGWRAP_PT_wrap(_LayoutSubPanel, bpy.types.Panel):
     """The wrap: the Wrap button, its solver and vertex groups, and the live progress"""
 
     bl_label = "Wrap"
-    bl_idname = "SPRINGWRAP_PT_wrap"
 
     def draw(self, context):
         layout = _split(self.layout)
@@ -228,7 +278,6 @@ class SPRINGWRAP_PT_check(_LayoutSubPanel, bpy.types.Panel):
     """What the layout is now: its face- and space-points, and the last wrap's result"""
 
     bl_label = "Check"
-    bl_idname = "SPRINGWRAP_PT_check"
 
     def draw(self, context):
         layout = self.layout
@@ -253,86 +302,56 @@ class SPRINGWRAP_PT_check(_LayoutSubPanel, bpy.types.Panel):
             _count_row(column, "Frames", result.frames)
 
 
-class SPRINGWRAP_PT_fit_subdivision(_SidebarPanel, bpy.types.Panel):
+class SPRINGWRAP_PT_fit_subdivision(_ToolPanel, bpy.types.Panel):
     """Move the layout so that its Subdivision Surface at a level lies on the target (a smooth result)"""
 
     bl_label = "Subdivision Fit"
-    bl_idname = "SPRINGWRAP_PT_fit_subdivision"
     bl_parent_id = "SPRINGWRAP_PT_check"
-    bl_options = {"DEFAULT_CLOSED"}
 
     def draw(self, context):
-        obj = context.active_object
-        fit = self.layout.operator(
-            "springwrap.fit_subdivision", text=_scope_text(obj, "Fit Subdivision"), icon="MOD_SUBSURF"
-        )
-        fit.only_selected = obj.mode == "EDIT"
+        _point_tool_button(self.layout, context, "springwrap.fit_subdivision", "Fit Subdivision", "MOD_SUBSURF")
         self.layout.label(text="Level and rounds: F9")
 
 
-class SPRINGWRAP_PT_snap(_LayoutSubPanel, bpy.types.Panel):
+class SPRINGWRAP_PT_snap(_LayoutToolPanel, bpy.types.Panel):
     """Snap: each vertex to the closest point of the target (it becomes a face-point)"""
 
     bl_label = "Snap"
-    bl_idname = "SPRINGWRAP_PT_snap"
-    bl_options = {"DEFAULT_CLOSED"}
 
     def draw(self, context):
-        layout = _split(self.layout)
-        obj = context.active_object
-        settings = obj.springwrap
-        layout.prop(settings, "snap_mode", text="Mode")
-        layout.prop(settings, "max_distance", text="Limit")
-        snap = layout.operator("springwrap.snap", text=_scope_text(obj, "Snap"), icon="SNAP_ON")
-        snap.mode = settings.snap_mode
-        snap.max_distance = settings.max_distance
-        snap.only_selected = obj.mode == "EDIT"
+        _point_tool(self.layout, context, "springwrap.snap", "Snap", "SNAP_ON", SNAP_SETTINGS)
 
 
-class SPRINGWRAP_PT_project(_LayoutSubPanel, bpy.types.Panel):
+class SPRINGWRAP_PT_project(_LayoutToolPanel, bpy.types.Panel):
     """Project: each vertex along a direction onto the target (a hit becomes a face-point)"""
 
     bl_label = "Project"
-    bl_idname = "SPRINGWRAP_PT_project"
-    bl_options = {"DEFAULT_CLOSED"}
 
     def draw(self, context):
+        settings = context.active_object.springwrap
         layout = _split(self.layout)
-        obj = context.active_object
-        settings = obj.springwrap
         layout.prop(settings, "project_direction")
         row = layout.row()
         row.active = settings.project_direction not in ("VIEW", "NORMAL")
         row.prop(settings, "project_orientation", text="Axes")
         layout.prop(settings, "project_both_directions", text="Both Ways")
         layout.prop(settings, "max_distance", text="Limit")
-        project = layout.operator("springwrap.project", text=_scope_text(obj, "Project"), icon="MOD_SHRINKWRAP")
-        project.direction = settings.project_direction
-        project.orientation = settings.project_orientation
-        project.both_directions = settings.project_both_directions
-        project.max_distance = settings.max_distance
-        project.only_selected = obj.mode == "EDIT"
+        _point_tool_button(layout, context, "springwrap.project", "Project", "MOD_SHRINKWRAP", PROJECT_SETTINGS)
 
 
-class SPRINGWRAP_PT_detach(_LayoutSubPanel, bpy.types.Panel):
+class SPRINGWRAP_PT_detach(_LayoutToolPanel, bpy.types.Panel):
     """Detach: vertices become space-points, free in 3D (a template to place and wrap)"""
 
     bl_label = "Detach"
-    bl_idname = "SPRINGWRAP_PT_detach"
-    bl_options = {"DEFAULT_CLOSED"}
 
     def draw(self, context):
-        obj = context.active_object
-        detach = self.layout.operator("springwrap.detach", text=_scope_text(obj, "Detach"), icon="UNLINKED")
-        detach.only_selected = obj.mode == "EDIT"
+        _point_tool(self.layout, context, "springwrap.detach", "Detach", "UNLINKED")
 
 
-class SPRINGWRAP_PT_mirror(_LayoutSubPanel, bpy.types.Panel):
+class SPRINGWRAP_PT_mirror(_LayoutToolPanel, bpy.types.Panel):
     """Mirror: a surfaced half across the layout's (or an empty's) plane, then wrap the new half"""
 
     bl_label = "Mirror"
-    bl_idname = "SPRINGWRAP_PT_mirror"
-    bl_options = {"DEFAULT_CLOSED"}
 
     def draw(self, context):
         layout = _split(self.layout)
@@ -343,12 +362,10 @@ class SPRINGWRAP_PT_mirror(_LayoutSubPanel, bpy.types.Panel):
         mirror.mirror_object = settings.mirror_object.name if settings.mirror_object is not None else ""
 
 
-class SPRINGWRAP_PT_features(_LayoutSubPanel, bpy.types.Panel):
+class SPRINGWRAP_PT_features(_LayoutToolPanel, bpy.types.Panel):
     """Feature detection on the target: region colours and ridge / valley curves for curve constraints"""
 
     bl_label = "Features"
-    bl_idname = "SPRINGWRAP_PT_features"
-    bl_options = {"DEFAULT_CLOSED"}
 
     def draw(self, context):
         obj = context.active_object
