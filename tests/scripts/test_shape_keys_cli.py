@@ -9,11 +9,10 @@ cap's faces (the root of their area ratio, the scale the transfer promises).
 """
 
 import json
-import subprocess
 
 import pytest
 
-from helpers import REPOSITORY, TIMEOUT_SECONDS, script_command
+from helpers import REPOSITORY, run_script
 
 SCRIPTS = REPOSITORY / "blender_scripts"
 
@@ -90,16 +89,6 @@ print(json.dumps({
     "radius_error": float(np.abs(np.linalg.norm(basis / np.array([2.2, 2.0, 1.8]), axis=1) - 1.0).max()),
 }))
 """
-
-
-def run_script(script, *arguments) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [*script_command(script), *map(str, arguments)],
-        capture_output=True,
-        text=True,
-        timeout=TIMEOUT_SECONDS,
-        cwd=REPOSITORY,
-    )
 
 
 @pytest.fixture(scope="module")
