@@ -123,6 +123,26 @@ def add_frame_arguments(parser) -> None:
     )
 
 
+def add_shape_keys_argument(parser) -> None:
+    """``--shape-keys TRANSFER|REFUSE``: the wrap's and the mirror's ``shape_keys`` option."""
+    parser.add_argument(
+        "--shape-keys",
+        type=str.upper,
+        choices=("TRANSFER", "REFUSE"),
+        default="TRANSFER",
+        help="a layout with shape keys: wrap its basis and carry the other keys over onto the result, or refuse "
+        "it (default %(default)s)",
+    )
+
+
+def shape_keys_report(layout, mode: str) -> dict | None:
+    """The report's entry on the layout's shape keys (None without any): the option and the keys' names."""
+    keys = layout.data.shape_keys
+    if keys is None:
+        return None
+    return {"mode": mode, "keys": [block.name for block in keys.key_blocks]}
+
+
 def check_frame_arguments(parser, arguments) -> None:
     """Up and forward must be two different axes (argparse's error, exit code 2)."""
     if arguments.up_axis.removeprefix("NEGATIVE_") == arguments.forward_axis.removeprefix("NEGATIVE_"):

@@ -13,7 +13,9 @@ the target (a layout read from a mesh file is all space-points otherwise). The p
 layout's local ``--axis`` plane, or that plane of ``--mirror-object`` (an object of the layout's
 .blend, e.g. an empty: its local YZ plane for X). Then ``springwrap.mirror`` runs with
 ``--weld-distance``, ``--seam SLIDE|HOLD``, ``--surfaced-half PIN|FREE``, ``--no-mirror-anchors``,
-``--max-iterations``, ``--tolerance``; ``--no-wrap`` only mirrors (no target needed).
+``--max-iterations``, ``--tolerance``, ``--shape-keys TRANSFER|REFUSE`` (a layout's shape keys mirrored onto
+the new half and carried over the wrap, the default, or refused); ``--no-wrap`` only mirrors (no target
+needed).
 
 Outputs: ``--output-blend F.blend``, ``--output-obj F.obj`` (the mirrored layout alone) and
 ``--report F.json`` (counts, the seam's distance from the plane, faces crossing the plane, the wrap,
@@ -36,12 +38,14 @@ from headless import (
     EXIT_OK,
     ScriptError,
     add_frame_arguments,
+    add_shape_keys_argument,
     addon_module,
     check_frame_arguments,
     check_output_arguments,
     check_output_paths,
     failed,
     script_arguments,
+    shape_keys_report,
 )
 from scene_io import (
     Laps,
@@ -87,6 +91,7 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
         default=defaults.tolerance,
         help="convergence, fraction of the layout's size (default %(default)s)",
     )
+    add_shape_keys_argument(parser)
     add_frame_arguments(parser)
     parser.add_argument("--output-blend", type=Path, help="save layout, target and result here")
     parser.add_argument("--output-obj", type=Path, help="export the mirrored layout here")
@@ -162,6 +167,7 @@ def mirror(arguments: argparse.Namespace) -> dict:
         mirror_anchors=not arguments.no_mirror_anchors,
         max_iterations=arguments.max_iterations,
         tolerance=arguments.tolerance,
+        shape_keys=arguments.shape_keys,
     )
     outcome = SPRINGWRAP_OT_mirror.last_outcome
     lap("mirror and wrap")
@@ -204,6 +210,7 @@ def mirror(arguments: argparse.Namespace) -> dict:
         "anchors_mirrored": outcome.mirrored_anchors,
         "anchors_dropped": outcome.dropped_anchors,
         "wrap": wrap,
+        "shape_keys": shape_keys_report(layout, arguments.shape_keys),
         "metrics": distances_to_target(layout, target) if target is not None else None,
         "quality": quality_block(layout) if target is not None else None,
         "timings": timings,

@@ -18,7 +18,9 @@ centre and diagonal onto the target's; ``icp``: that, then ``springwrap.align`` 
 surface point closest to that point of the files' frame; or ``--anchors-spacing S``, spread automatically;
 0 = a tenth of the layout's size; ``--symmetric-anchors X|Y|Z``: each anchor, from the file or spread, with its
 twin across the layout's local plane of that axis, spread on one side and mirrored), then wrapped (``--max-iterations``, ``--fairness``,
-``--arc-length``, ``--thin-plate``, ``--tolerance``).
+``--arc-length``, ``--thin-plate``, ``--tolerance``). A template with shape keys (a .blend's object, or a
+glTF's morph targets) has its basis wrapped and every other key carried over onto it (``--shape-keys
+TRANSFER``, the default; ``REFUSE`` fails on such a template); ``--fit-subdivision`` refuses one.
 
 Outputs: ``--output-blend F.blend`` (template, target and the retargeted layout), ``--output-obj
 F.obj`` (the retargeted layout alone) and ``--report F.json`` (metrics, timings, warnings). They are
@@ -64,6 +66,7 @@ from headless import (
     EXIT_OK,
     ScriptError,
     add_frame_arguments,
+    add_shape_keys_argument,
     addon_module,
     check_frame_arguments,
     check_output_arguments,
@@ -73,6 +76,7 @@ from headless import (
     failed,
     partial_path,
     script_arguments,
+    shape_keys_report,
     write_atomically,
 )
 from mesh_files import check_blend_file, check_mesh_file
@@ -193,6 +197,7 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
         help="after the wrap, fit the layout as a subdivision cage: its Subdivision Surface at LEVELS (1 to 6) "
         "onto the target (the report gains the surface's distances before and after)",
     )
+    add_shape_keys_argument(parser)
     add_frame_arguments(parser)
     parser.add_argument("--output-blend", type=Path, help="save template, target and result here")
     parser.add_argument("--output-obj", type=Path, help="export the retargeted layout here")
@@ -450,7 +455,7 @@ def retarget(arguments: argparse.Namespace) -> dict:
             stiffness_group=arguments.stiffness_group,
             free_group=arguments.free_group,
         )
-        session = WrapSession(bpy.context, layout, parameters)
+        session = WrapSession(bpy.context, layout, parameters, shape_keys=arguments.shape_keys)
     except ERRORS as error:
         raise ScriptError(f"{blame}: cannot wrap: {error}") from None
     session.run()
@@ -488,6 +493,7 @@ def retarget(arguments: argparse.Namespace) -> dict:
             "kernel_seconds": round(result.kernel_seconds, 4),
         },
         "fit_subdivision": subdivision_fit,
+        "shape_keys": shape_keys_report(layout, arguments.shape_keys),
         "metrics": distances_to_target(layout, target),
         "quality": quality,
         "timings": timings,
@@ -528,6 +534,7 @@ def batch_task(arguments: argparse.Namespace, target: Path, output_dir: Path) ->
             "stiffness_group",
             "free_group",
             "fit_subdivision",
+            "shape_keys",
             "up_axis",
             "forward_axis",
         )

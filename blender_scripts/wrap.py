@@ -6,7 +6,9 @@ Runs both ways (arguments after ``--`` when present, else all of ``sys.argv[1:]`
 
 Options: ``--target NAME`` (default: the layout's own target), ``--anchors-spacing S`` (run
 ``springwrap.anchors_auto`` first, replacing the anchors; 0 = a tenth of the layout's size),
-``--max-iterations N`` (default 2000), ``--output FILE.blend`` (default: nothing is saved).
+``--max-iterations N`` (default 2000), ``--shape-keys TRANSFER|REFUSE`` (a layout with shape keys: its
+basis wrapped and the other keys carried over, the default, or refused), ``--output FILE.blend``
+(default: nothing is saved).
 Prints the wrap's progress and a summary; exits non-zero on any failure (a wrap that stops at
 the iteration limit is not a failure: it is kept and reported).
 """
@@ -22,6 +24,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))  # `blender --python` d
 from headless import (
     EXIT_OK,
     ScriptError,
+    add_shape_keys_argument,
     addon_module,
     check_output_arguments,
     check_output_paths,
@@ -44,6 +47,7 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("--target", help="the target object (default: the layout's own target)")
     parser.add_argument("--anchors-spacing", type=float, help="spread anchors with this spacing first (0: automatic)")
     parser.add_argument("--max-iterations", type=int, default=2000, help="iteration limit (default 2000)")
+    add_shape_keys_argument(parser)
     parser.add_argument("--output", type=Path, help="the .blend to save the result to")
     arguments = parser.parse_args(script_arguments(argv, __file__))
     check_output_arguments(parser, {"--output": arguments.output}, [])
@@ -91,7 +95,7 @@ def prepare(arguments: argparse.Namespace) -> bpy.types.Object:
     return layout
 
 
-def wrap(layout: bpy.types.Object, max_iterations: int):
+def wrap(layout: bpy.types.Object, max_iterations: int, shape_keys: str = "TRANSFER"):
     """Run the wrap to the end with progress lines, then write it; returns the ``WrapResult``."""
     WrapSession = addon_module("blender.wrap_session").WrapSession  # noqa: N806
     ERRORS = addon_module("core.errors").ERRORS  # noqa: N806
@@ -105,7 +109,7 @@ def wrap(layout: bpy.types.Object, max_iterations: int):
         )
 
     try:
-        session = WrapSession(bpy.context, layout, WrapParameters(max_iterations=max_iterations))
+        session = WrapSession(bpy.context, layout, WrapParameters(max_iterations=max_iterations), shape_keys=shape_keys)
     except ERRORS as error:
         raise ScriptError(f"cannot wrap '{layout.name}': {error}") from error
     session.run(progress=progress, chunk=PROGRESS_CHUNK)
@@ -127,8 +131,11 @@ def run(arguments: argparse.Namespace) -> None:
         if result != {"FINISHED"}:
             raise ScriptError(f"anchors_auto returned {result}")
     print(f"anchors: {len(layout.springwrap.anchors)}")
-    result = wrap(layout, arguments.max_iterations)
+    result = wrap(layout, arguments.max_iterations, arguments.shape_keys)
     print(result.summary())
+    if layout.data.shape_keys is not None:
+        names = ", ".join(block.name for block in layout.data.shape_keys.key_blocks)
+        print(f"shape keys carried over onto the wrapped basis: {names}")
     print(
         f"  kernel {result.kernel_seconds:.2f} s; {result.anchor_count} anchors, "
         f"{result.unreliable_triangles} unreliable target triangles"

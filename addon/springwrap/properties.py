@@ -251,6 +251,22 @@ WRAP_SOLVER_ITEMS = (
 )
 """The wrap's algorithms (``springwrap_kernel.WrapSettings(solver=...)``)."""
 
+SHAPE_KEYS_ITEMS = (
+    (
+        "TRANSFER",
+        "Transfer",
+        "Move the basis and carry every other shape key over onto the new shape (each key's offsets turned and "
+        "scaled with the surface under them)",
+    ),
+    ("REFUSE", "Refuse", "Refuse a layout with shape keys and change nothing"),
+)
+"""What the wrap and the mirror do with a layout's shape keys (``blender.shape_keys``)."""
+
+
+def shape_keys_property(description: str = "What to do with the layout's shape keys"):
+    """The ``shape_keys`` option of the wrap and the mirror (and the panel's default for their buttons)."""
+    return props.choice("Shape Keys", description, SHAPE_KEYS_ITEMS, "TRANSFER")
+
 
 def _update_show_cage(settings, context):
     """``show_cage``'s update (``blender.cage_display``)."""
@@ -288,6 +304,7 @@ class SpringwrapObjectSettings(bpy.types.PropertyGroup):
     wrap_solver: props.choice(
         "Solver", "Algorithm of the panel's Wrap and Mirror buttons", WRAP_SOLVER_ITEMS, WRAP_DEFAULTS.solver
     )
+    shape_keys: shape_keys_property("What the panel's Wrap and Mirror buttons do with the layout's shape keys")
     snap_mode: props.choice("Snap Mode", "Default mode of the panel's Snap button", SNAP_MODE_ITEMS, "SURFACE")
     project_direction: props.choice(
         "Direction", "Default direction of the panel's Project button", PROJECT_DIRECTION_ITEMS, "NORMAL"

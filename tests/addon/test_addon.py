@@ -656,14 +656,16 @@ def test_layout_without_vertices_is_reported():
     assert len(layout.data.attributes) == 0 or read_state(layout) is None
 
 
-def test_layout_with_shape_keys_is_refused_for_moves():
+def test_layout_with_shape_keys_is_refused_where_they_cannot_be_carried_over():
+    """Snap carries shape keys over (tests/addon/test_shape_keys.py); Fit Subdivision refuses them, saying why."""
     target, layout = scene()
     layout.shape_key_add(name="Basis")
     before = local_positions(layout).copy()
-    with pytest.raises(RuntimeError, match="shape keys"):
-        bpy.ops.springwrap.snap()
+    with pytest.raises(RuntimeError, match="shape keys; Fit Subdivision and Align Armature evaluate the layout"):
+        bpy.ops.springwrap.fit_subdivision()
     assert local_positions(layout).tobytes() == before.tobytes()
     assert bpy.ops.springwrap.detach() == {"FINISHED"}
+    assert bpy.ops.springwrap.snap() == {"FINISHED"}
 
 
 # ---------------------------------------------------------------- panel

@@ -113,6 +113,12 @@ def _attribute_bytes(mesh):
     return result
 
 
+def _key_bytes(block):
+    values = np.empty(len(block.data) * 3, dtype=np.float32)
+    block.data.foreach_get("co", values)
+    return (block.name, block.relative_key.name, block.value, block.slider_min, block.slider_max, values.tobytes())
+
+
 def full_snapshot(layout):
     """Everything an operator may write on the layout, as comparable values (NaN compares as itself)."""
     settings = layout.springwrap
@@ -144,7 +150,7 @@ def full_snapshot(layout):
         "target signature": settings.target_signature,
         "matrix": repr([tuple(row) for row in layout.matrix_world]),
         "modifiers": [modifier.name for modifier in layout.modifiers],
-        "shape keys": None if mesh.shape_keys is None else len(mesh.shape_keys.key_blocks),
+        "shape keys": None if mesh.shape_keys is None else [_key_bytes(block) for block in mesh.shape_keys.key_blocks],
     }
 
 
@@ -208,6 +214,12 @@ def _shape_keys(target, layout):
     layout.shape_key_add(name="Basis")
 
 
+def _shape_key_nan(target, layout):
+    layout.shape_key_add(name="Basis")
+    smile = layout.shape_key_add(name="Smile", from_mix=False)
+    smile.data[7].co.y = math.nan
+
+
 def _layout_transform(target, layout):
     layout.location.x = math.nan
 
@@ -253,7 +265,12 @@ CATALOGUE = {
     "curve point 1e30": (_curve_point(1e30), "curves", "Curve constraint 0's target point 3 is at"),
     "new curve NaN": (_new_curve_point(math.nan), "new curve", "Curve 'Curve': point 4 has a NaN"),
     "new curve FLT_MAX": (_new_curve_point(FLT_MAX), "new curve", "Curve 'Curve': point 4 is at"),
-    "shape keys": (_shape_keys, "shape keys", "has shape keys"),
+    "shape keys": (_shape_keys, "shape keys", "has shape keys; Fit Subdivision and Align Armature evaluate"),
+    "shape key NaN": (
+        _shape_key_nan,
+        "shape key data",
+        "shape key 'Smile' has a NaN or infinite coordinate at vertex 7",
+    ),
     "target without faces": (target_without_faces, "target", "'Target' has no faces"),
     "target vertex NaN": (_target_vertex(math.nan), "target", "'Target'"),
     "target vertex 1e30": (_target_vertex(1e30), "target", "'Target'"),
@@ -269,8 +286,8 @@ ALL_LAYOUT = {"positions", "positions far", "anchors", "curves", "target"}
 OPERATORS = {
     # operator: (keyword arguments of a call that finishes on the healthy scene, what it reads and refuses)
     "detach": ({}, {"positions", "positions far", "target"}),
-    "snap": ({}, {"positions", "positions far", "target", "shape keys"}),
-    "project": ({"direction": "-Z"}, {"positions", "positions far", "target", "shape keys"}),
+    "snap": ({}, {"positions", "positions far", "target", "shape key data"}),
+    "project": ({"direction": "-Z"}, {"positions", "positions far", "target", "shape key data"}),
     "rest_set": ({}, {"positions", "positions far"}),
     "align": ({"icp_iterations": 5}, {"positions", "positions far", "anchors", "anchor vertices", "target"}),
     "anchor_add": ({"vertex_index": 3, "location": (0.1, 0.2, 1.0), "use_location": True}, {"anchors", "target"}),
@@ -282,8 +299,8 @@ OPERATORS = {
     "curve_constraints_auto": ({}, ALL_LAYOUT),
     "curve_constraint_remove": ({}, set()),
     "curve_constraints_clear": ({}, set()),
-    "wrap": ({"max_iterations": 30}, ALL_LAYOUT | {"anchor vertices", "shape keys"}),
-    "mirror": ({"axis": "Y", "max_iterations": 30}, ALL_LAYOUT | {"anchor vertices", "shape keys"}),
+    "wrap": ({"max_iterations": 30}, ALL_LAYOUT | {"anchor vertices", "shape key data"}),
+    "mirror": ({"axis": "Y", "max_iterations": 30}, ALL_LAYOUT | {"anchor vertices", "shape key data"}),
     "align_armature": ({"target_armature": "Target Rig"}, {"positions", "shape keys"}),
     "detect_features": ({"scale": 0.5, "write_curves": False}, {"target"}),
     "select_problems": ({"kind": "STRETCHED", "threshold": 1.2}, {"read-out"}),

@@ -5,49 +5,26 @@ Inputs are generated: a square grid template symmetric across x = 0 (and y = 0) 
 the origin (symmetric across both too), as OBJ text.
 """
 
+import functools
 import json
-import subprocess
 
 import numpy as np
 import pytest
 
-from helpers import REPOSITORY, TIMEOUT_SECONDS, script_command, sphere_obj
+from helpers import REPOSITORY, grid_obj, run_script, sphere_obj
 
 RETARGET = REPOSITORY / "blender_scripts" / "retarget.py"
+run = functools.partial(run_script, RETARGET)
 SIDE = 9  # vertices per side of the template grid
-
-
-def grid_obj(side: int = SIDE, size: float = 1.0, height: float = 1.5) -> str:
-    """A flat square grid of side x side vertices centred above the origin, as OBJ text."""
-    lines = [
-        f"v {size * (i / (side - 1) - 0.5):.6f} {size * (j / (side - 1) - 0.5):.6f} {height}"
-        for j in range(side)
-        for i in range(side)
-    ]
-    for j in range(side - 1):
-        for i in range(side - 1):
-            a = j * side + i + 1
-            lines.append(f"f {a} {a + 1} {a + side + 1} {a + side}")
-    return "\n".join(lines) + "\n"
 
 
 @pytest.fixture(scope="module")
 def inputs(tmp_path_factory) -> dict:
     folder = tmp_path_factory.mktemp("symmetric_inputs")
     paths = {"template": folder / "grid.obj", "target": folder / "ball.obj"}
-    paths["template"].write_text(grid_obj())
+    paths["template"].write_text(grid_obj(SIDE))
     paths["target"].write_text(sphere_obj(1.0))
     return paths
-
-
-def run(*arguments) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [*script_command(RETARGET), *map(str, arguments)],
-        capture_output=True,
-        text=True,
-        timeout=TIMEOUT_SECONDS,
-        cwd=REPOSITORY,
-    )
 
 
 def obj_vertices(path) -> np.ndarray:

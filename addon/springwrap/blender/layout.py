@@ -1,5 +1,6 @@
 """The layout object's own data as arrays: positions, selection and state, normals, topology, vertex groups,
-its object transform; and the refusal of a layout whose vertices cannot be moved (shape keys).
+its object transform. With shape keys the positions are the reference key's, and writing them carries the
+other keys over (``blender.shape_keys``); the operators that cannot do that refuse a layout with shape keys.
 
 Object mode data unless a function says otherwise (:func:`read_world_vertex_positions` also reads the
 edit-mesh). Bulk data moves through ``foreach_get`` / ``foreach_set``.
@@ -17,17 +18,25 @@ from ..core import layout_state, subdivision, transforms, wrap_inputs
 from ..core.errors import LayoutError
 from ..core.layout_state import LayoutArrays, LayoutState
 from ..core.transforms import matrix_array
-from . import attributes, compat
+from . import attributes, compat, shape_keys
 
-SHAPE_KEYS_CONSEQUENCE = "Springwrap cannot move its vertices"
+SHAPE_KEYS_CONSEQUENCE = (
+    "Fit Subdivision and Align Armature evaluate the layout through a Blender modifier, which would mix the keys "
+    "in: apply or remove them first (Wrap, Mirror, Snap, Project and Align carry shape keys over)"
+)
 """What the refusal of a layout with shape keys says by default."""
 
 
 def refuse_shape_keys(layout: bpy.types.Object, consequence: str = SHAPE_KEYS_CONSEQUENCE) -> None:
-    """Raise :class:`LayoutError` when the layout mesh has shape keys (its positions then live in the keys,
-    not the vertices, so nothing Springwrap writes would show)."""
-    if layout.data.shape_keys is not None:
-        raise LayoutError(f"Layout '{layout.name}' has shape keys; {consequence}")
+    """Raise :class:`LayoutError` when the layout mesh has shape keys (an operation that cannot carry them over:
+    its positions live in the keys, so what it wrote would not show, or it evaluates the keys' mix)."""
+    shape_keys.refuse(layout, "REFUSE", consequence)
+
+
+def read_positions(layout: bpy.types.Object) -> np.ndarray:
+    """(N * 3,) float32 local positions: the reference key's when the layout has shape keys, else the vertices'."""
+    basis = shape_keys.read_basis(layout.data)
+    return attributes.read_positions(layout.data) if basis is None else basis
 
 
 def read_layout(layout: bpy.types.Object) -> LayoutArrays:
@@ -39,7 +48,7 @@ def read_layout(layout: bpy.types.Object) -> LayoutArrays:
     selection = np.empty(vertex_count, dtype=bool)
     mesh.vertices.foreach_get("select", selection)
     return LayoutArrays(
-        positions=attributes.read_positions(mesh).reshape(-1, 3),
+        positions=read_positions(layout).reshape(-1, 3),
         matrix_world=matrix_array(layout.matrix_world),
         selection=selection,
         state=attributes.read_state(mesh),
@@ -85,15 +94,24 @@ def write_layout(
 
     The state attributes are created when missing (or replaced when one with the same name has
     another type or domain). A layout without a rest shape gets one first: ``rest`` when given,
-    else its positions before this write (the template as made, before Springwrap moved it).
+    else its positions before this write (the template as made, before Springwrap moved it). With shape keys
+    the positions become the reference key's too and every other key is carried over onto them
+    (``shape_keys.carried``, computed before anything is written).
     """
     mesh = layout.data
     vertex_count = len(mesh.vertices)
     positions = np.ascontiguousarray(positions, dtype=np.float32).reshape(vertex_count, 3)
-    current = attributes.read_positions(mesh)
+    current = read_positions(layout)
+    unmoved = np.array_equal(current.view(np.uint32), positions.reshape(-1).view(np.uint32))
+    keys = None
+    if shape_keys.has_shape_keys(layout) and not unmoved:
+        topology = read_layout_topology(layout) if len(mesh.polygons) or len(mesh.edges) else None
+        keys = shape_keys.carried(layout, positions, topology)
     if attributes.read_rest(layout) is None:
         attributes.write_rest(layout, current if rest is None else rest)
-    if not np.array_equal(current.view(np.uint32), positions.reshape(-1).view(np.uint32)):
+    if keys is not None:
+        shape_keys.write(layout, *keys)
+    elif not unmoved:
         mesh.vertices.foreach_set("co", positions.reshape(-1))
     attributes.write_state(mesh, state)
     mesh.update()
@@ -141,7 +159,7 @@ def read_world_vertex_positions(layout: bpy.types.Object, vertex_indices: np.nda
         vertex_count = len(mesh.vertices)
         valid = (vertex_indices >= 0) & (vertex_indices < vertex_count)
         if valid.any():
-            local[valid] = attributes.read_positions(mesh).reshape(-1, 3)[vertex_indices[valid]]
+            local[valid] = read_positions(layout).reshape(-1, 3)[vertex_indices[valid]]
     return transforms.transform_points(matrix_array(layout.matrix_world), local)
 
 

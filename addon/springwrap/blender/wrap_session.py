@@ -22,6 +22,7 @@ from . import attributes
 from . import curves as curve_data
 from . import layout as layout_data
 from . import quality as quality_data
+from . import shape_keys as shape_key_data
 from . import target as target_data
 
 FRAME_RATE = 30.0
@@ -82,17 +83,26 @@ class WrapSession:
     ``core.wrap_inputs.WrapParameters``. ``adjust_inputs`` (optional) takes the prepared
     ``core.wrap_inputs.WrapInputs`` and returns them changed (the mirror's pins and plane).
     ``display_seconds`` (optional) is what a redraw is known to cost before the first frame (the
-    viewport's measured draw time): the first frame's solve time is paced from it.
+    viewport's measured draw time): the first frame's solve time is paced from it. ``shape_keys``:
+    ``'TRANSFER'`` wraps the basis (the reference key) and carries the other keys over when it finishes
+    (frames move them along), ``'REFUSE'`` refuses a layout with shape keys.
     """
 
     def __init__(
-        self, context, layout: bpy.types.Object, parameters, adjust_inputs=None, display_seconds: float | None = None
+        self,
+        context,
+        layout: bpy.types.Object,
+        parameters,
+        adjust_inputs=None,
+        display_seconds: float | None = None,
+        shape_keys: str = "TRANSFER",
     ):
         self.start_time = time.perf_counter()
         self.layout = layout
         self.parameters = parameters
         wrap_inputs.check_wrap_parameters(parameters)
-        layout_data.refuse_shape_keys(layout)
+        shape_key_data.refuse(layout, shape_keys, shape_key_data.REFUSED)
+        self.shape_keys = shape_key_data.read(layout)  # as they were: frames follow them, finish carries them
         settings = layout.springwrap
         arrays = layout_data.read_layout(layout)
         if not transforms.is_invertible(arrays.matrix_world):
@@ -282,6 +292,7 @@ class WrapSession:
         """Write the solver's current positions and state into the layout (an intermediate frame)."""
         positions, state = self.current_layout()
         attributes.write_wrap_frame(self.layout, positions, state)
+        shape_key_data.follow(self.layout, self.shape_keys, positions)
 
     def finish(self) -> WrapResult:
         """Write the result for good: positions, state, the target signature and the resolved anchors."""
@@ -289,6 +300,7 @@ class WrapSession:
             self.step(0)
         positions, state = self.current_layout()
         readout = quality_data.measure_layout(self.layout, self.target, positions, self.rest, self.layout_topology)
+        shape_key_data.restore(self.layout, self.shape_keys)  # carried from the keys as they were, not a frame
         layout_data.write_layout(self.layout, positions, state, rest=self.rest)
         settings = self.layout.springwrap
         settings.target_signature = self.target.signature
@@ -326,7 +338,9 @@ class WrapSession:
 
     def cancel(self) -> None:
         """Put the layout back exactly as it was at the start: positions, state attributes, rest shape, read-out,
-        and what :meth:`finish` writes on the object (target signature, anchors); also after a failed finish."""
+        and what :meth:`finish` writes on the object (target signature, anchors), the shape keys; also after a
+        failed finish."""
+        shape_key_data.restore(self.layout, self.shape_keys)
         attributes.restore_snapshot(self.layout, self.snapshot)
         target_signature, anchor_list, active_index, anchors_signature = self.settings_snapshot
         settings = self.layout.springwrap

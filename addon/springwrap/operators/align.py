@@ -39,6 +39,7 @@ class SPRINGWRAP_OT_align(LayoutOperator, bpy.types.Operator):
     """Align the layout to its target: fit a transform to the anchors, then refine it by ICP"""
 
     bl_label = "Align"
+    carries_shape_keys = True  # a baked alignment carries the layout's shape keys over (layout.write_layout)
 
     method: props.choice(
         "Method",
@@ -92,7 +93,6 @@ class SPRINGWRAP_OT_align(LayoutOperator, bpy.types.Operator):
             self,
             context,
             moves_vertices=self.apply == "BAKE",
-            consequence="bake needs to move its vertices: apply to the object transform",
         )
         if layout is None:
             return {"CANCELLED"}

@@ -1,5 +1,5 @@
 """What every Springwrap operator starts with: why it cannot run (``poll`` and ``execute`` say the same), the
-layout and its target checked, a layout with shape keys refused, the add-on's input policy applied to what
+layout and its target checked, a layout with shape keys refused where they cannot be carried over, the add-on's input policy applied to what
 the operation reads (:func:`check_inputs`); and the shared run of the operators that edit the layout's lists.
 
 The kernel is imported with the add-on (``properties`` reads its defaults when the add-on is enabled, and
@@ -15,6 +15,7 @@ import numpy as np
 from ..blender import anchors as anchor_data
 from ..blender import curves as curve_data
 from ..blender import layout as layout_data
+from ..blender import shape_keys as shape_key_data
 from ..blender import target as target_data
 from ..blender.edit_mode import object_mode
 from ..core import input_policy, transforms
@@ -58,7 +59,9 @@ def open_layout(
     consequence: str = layout_data.SHAPE_KEYS_CONSEQUENCE,
 ) -> bpy.types.Object | None:
     """The common opening of a layout operator's ``execute``: :func:`layout_problem`, then (when it moves
-    vertices) the refusal of shape keys. The layout, or None after an ERROR report saying why not."""
+    vertices) shape keys: refused when the operator's ``shape_keys`` option says ``'REFUSE'``, carried over
+    (by ``layout.write_layout``) when it says ``'TRANSFER'`` or the operator ``carries_shape_keys``,
+    refused with ``consequence`` otherwise. The layout, or None after an ERROR report saying why not."""
     problem = layout_problem(context, require_target)
     if problem is not None:
         operator.report({"ERROR"}, problem)
@@ -66,7 +69,11 @@ def open_layout(
     layout = context.active_object
     if moves_vertices:
         try:
-            layout_data.refuse_shape_keys(layout, consequence)
+            chosen = getattr(operator, "shape_keys", None)  # the wrap's and the mirror's option
+            if chosen is not None:
+                shape_key_data.refuse(layout, chosen, shape_key_data.REFUSED)
+            elif not getattr(operator, "carries_shape_keys", False):
+                layout_data.refuse_shape_keys(layout, consequence)
         except ERRORS as error:
             operator.report({"ERROR"}, str(error))
             return None

@@ -33,6 +33,7 @@ from ..blender import attributes
 from ..blender import layout as layout_data
 from ..blender import mirror as mirror_data
 from ..blender import quality as quality_data
+from ..blender import shape_keys as shape_key_data
 from ..blender import target as target_data
 from ..blender.edit_mode import object_mode
 from ..blender.wrap_session import WrapSession
@@ -41,7 +42,13 @@ from ..core.errors import ERRORS, LayoutError
 from ..core.mirroring import AXES, DEFAULT_WELD_FRACTION, MirrorOutcome
 from ..core.transforms import matrix_array
 from ..core.wrap_inputs import WrapParameters
-from ..properties import WRAP_DEFAULTS, WRAP_SOLVER_ITEMS, max_iterations_property, tolerance_property
+from ..properties import (
+    WRAP_DEFAULTS,
+    WRAP_SOLVER_ITEMS,
+    max_iterations_property,
+    shape_keys_property,
+    tolerance_property,
+)
 from .base import SpringwrapOperator, check_inputs, open_layout, poll_layout
 
 LANDING_REACH = 0.25
@@ -119,6 +126,9 @@ class SPRINGWRAP_OT_mirror(SpringwrapOperator, bpy.types.Operator):
     solver: props.choice("Solver", "The new half's wrap algorithm", WRAP_SOLVER_ITEMS, WRAP_DEFAULTS.solver)
     max_iterations: max_iterations_property()
     tolerance: tolerance_property()
+    shape_keys: shape_keys_property(
+        "A layout with shape keys: mirror every key onto the new half and carry the keys over the wrap, or refuse it"
+    )
 
     @classmethod
     def poll(cls, context):
@@ -151,6 +161,7 @@ class SPRINGWRAP_OT_mirror(SpringwrapOperator, bpy.types.Operator):
                 outcome = self._run(context, layout, prepared, window_manager if progress else None)
             except Exception as error:  # noqa: BLE001 - any failure puts the mesh back, then reports
                 mirror_data.restore_mesh(layout, backup)
+                shape_key_data.restore(layout, prepared["shape_keys"])
                 anchor_data.write_anchors(layout, anchors_before[0], anchors_before[2], anchors_before[1])
                 layout.springwrap.target_signature = anchors_before[3]
                 self.report({"ERROR"}, f"Mirroring failed and was undone: {error}")
@@ -207,6 +218,7 @@ class SPRINGWRAP_OT_mirror(SpringwrapOperator, bpy.types.Operator):
         world_rest = world if rest is None else wrap_inputs.rest_world_positions(arrays, rest)
         return {
             "arrays": arrays,
+            "shape_keys": shape_key_data.read(layout),
             "plane": plane,
             "plane_owner": plane_owner,
             "plan": decided,
@@ -232,6 +244,17 @@ class SPRINGWRAP_OT_mirror(SpringwrapOperator, bpy.types.Operator):
             layout, decided.duplicate_faces, decided.duplicate_edges, decided.seam
         )
         source = mirrored_mesh.vertex_source
+        if prepared["shape_keys"] is not None:  # each copy's keys: its source's, reflected
+            matrix = arrays.matrix_world
+            shape_key_data.write_mirrored(
+                layout,
+                prepared["shape_keys"],
+                source,
+                original_count,
+                lambda local: transforms.to_local(
+                    matrix, mirroring.reflect(transforms.transform_points(matrix, local), plane)
+                ),
+            )
         size = float(np.linalg.norm(np.ptp(prepared["world"], axis=0))) or 1.0
         mirrored = mirroring.mirrored_layout(
             prepared["world"],
@@ -279,6 +302,7 @@ class SPRINGWRAP_OT_mirror(SpringwrapOperator, bpy.types.Operator):
                 context,
                 layout,
                 self.parameters(),
+                shape_keys=self.shape_keys,
                 adjust_inputs=lambda inputs: mirroring.hold_inputs(
                     inputs, pinned, seam_vertices, plane, slide=self.seam == "SLIDE", rest=wrap_rest
                 ),

@@ -35,6 +35,7 @@ class _SnapOperator(LayoutOperator):
     """Shared run and report of detach, snap and project."""
 
     moves_vertices = True
+    carries_shape_keys = True  # layout.write_layout carries a layout's shape keys over onto the new basis
     reads = frozenset({"positions"})
     writes_readout = True  # the quality read-out (blender.quality), measured before and written with the layout
 

@@ -36,6 +36,7 @@ from ..properties import (
     WRAP_RANGES,
     WRAP_SOLVER_ITEMS,
     max_iterations_property,
+    shape_keys_property,
     tolerance_property,
     wrap_weight_property,
 )
@@ -114,6 +115,9 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
         ),
         "NONE",
     )
+    shape_keys: shape_keys_property(
+        "A layout with shape keys: wrap its basis and carry the other keys over onto the wrapped shape, or refuse it"
+    )
 
     def parameters(self):
         """The operator's properties as ``wrap_inputs.WrapParameters``.
@@ -158,6 +162,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
                 self.parameters(),
                 adjust_inputs=self._plane_holder(layout, extent),
                 display_seconds=display_seconds,
+                shape_keys=self.shape_keys,
             )
         except ERRORS as error:
             self.report({"ERROR"}, str(error))

@@ -244,9 +244,12 @@ class SPRINGWRAP_PT_wrap(_LayoutSubPanel, bpy.types.Panel):
         else:
             row = layout.row()
             row.scale_y = WRAP_BUTTON_SCALE
-            row.operator("springwrap.wrap", icon="MOD_SHRINKWRAP").solver = settings.wrap_solver
+            wrap = row.operator("springwrap.wrap", icon="MOD_SHRINKWRAP")
+            wrap.solver, wrap.shape_keys = settings.wrap_solver, settings.shape_keys
 
         layout.prop(settings, "wrap_solver")
+        if obj.data.shape_keys is not None:  # shape keys: transferred or refused (Wrap and Mirror)
+            layout.prop(settings, "shape_keys")
         row = layout.row()
         if settings.target is not None:
             row.prop_search(settings, "unreliable_group", settings.target, "vertex_groups", icon="GROUP_VERTEX")
@@ -370,7 +373,7 @@ class SPRINGWRAP_PT_mirror(_LayoutToolPanel, bpy.types.Panel):
         settings = context.active_object.springwrap
         layout.prop(settings, "mirror_object", text="Plane")
         mirror = layout.operator("springwrap.mirror", icon="MOD_MIRROR")
-        mirror.solver = settings.wrap_solver
+        mirror.solver, mirror.shape_keys = settings.wrap_solver, settings.shape_keys
         mirror.mirror_object = settings.mirror_object.name if settings.mirror_object is not None else ""
 
 
