@@ -11,6 +11,7 @@ import bpy
 
 from . import property_kinds as props
 from .blender import compat
+from .core import quality
 from .core.subdivision import MAX_RESOLUTION
 
 
@@ -275,18 +276,9 @@ def _update_show_cage(settings, context):
     cage_display.update_show_cage(settings, context)
 
 
-PROBLEM_KIND_ITEMS = (
-    ("FLIPPED", "Flipped", "Faces turned over against the rest shape (folds)"),
-    ("STRETCHED", "Stretched", "Vertices whose edges are longer or shorter than at rest by more than the threshold"),
-    ("OFF_SURFACE", "Off Surface", "Vertices farther from the target than the threshold"),
-)
+PROBLEM_KIND_ITEMS = tuple((kind, *words) for kind, words in quality.PROBLEM_KINDS.items())
 """What ``springwrap.select_problems`` selects (``core.quality.problem_mask``)."""
-
-HEATMAP_KIND_ITEMS = (
-    ("DISTANCE", "Distance", "Distance to the target surface: blue on it, red at the scale's top"),
-    ("STRETCH", "Stretch", "Edge length against the rest shape: blue half as long, green unchanged, red twice"),
-    ("FLIPPED", "Flipped", "Faces turned over against the rest shape in red, the others in blue"),
-)
+HEATMAP_KIND_ITEMS = tuple((kind, *words) for kind, words in quality.HEATMAP_KINDS.items())
 """What the quality heat-map shows (``ui.heatmap``)."""
 
 

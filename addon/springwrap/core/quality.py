@@ -41,8 +41,18 @@ threshold is given."""
 STRETCH_FACTOR = 1.5
 """A vertex is stretched when its stretch is above this factor or below its inverse unless a threshold is given."""
 
-PROBLEM_KINDS = ("FLIPPED", "STRETCHED", "OFF_SURFACE")
-"""What ``springwrap.select_problems`` selects: faces, vertices, vertices."""
+PROBLEM_KINDS = {
+    "FLIPPED": ("Flipped", "Faces turned over against the rest shape (folds)"),
+    "STRETCHED": ("Stretched", "Vertices whose edges are longer or shorter than at rest by more than the threshold"),
+    "OFF_SURFACE": ("Off Surface", "Vertices farther from the target than the threshold"),
+}
+"""What ``springwrap.select_problems`` selects (faces, vertices, vertices): label and description of each kind."""
+HEATMAP_KINDS = {
+    "DISTANCE": ("Distance", "Distance to the target surface: blue on it, red at the scale's top"),
+    "STRETCH": ("Stretch", "Edge length against the rest shape: blue half as long, green unchanged, red twice"),
+    "FLIPPED": ("Flipped", "Faces turned over against the rest shape in red, the others in blue"),
+}
+"""What the quality heat-map can show: label and description of each kind."""
 
 
 class Readout(NamedTuple):

@@ -102,68 +102,71 @@ def heat_batch(layout):
     return _cache["batch"], _cache["scale"]
 
 
-def draw_heatmap() -> None:
+def _handler(draw):
+    """A draw handler around ``draw(layout, batch, scale)``: the shown layout's cached batch and scale, nothing
+    without a shown layout, and given up for good (said once) when drawing raises; blending off afterwards."""
+
+    def handler() -> None:
+        layout = _shown_layout()
+        if layout is None:
+            return
+        try:
+            draw(layout, *heat_batch(layout))
+        except Exception as error:  # noqa: BLE001  (a draw callback must not raise on every redraw)
+            _give_up(error)
+        finally:
+            gpu.state.depth_test_set("NONE")
+            gpu.state.blend_set("NONE")
+
+    handler.__name__, handler.__doc__ = draw.__name__, draw.__doc__
+    return handler
+
+
+@_handler
+def draw_heatmap(layout, batch, _scale) -> None:
     """The ``POST_VIEW`` handler: the active layout's triangles in the heat-map's colours."""
-    layout = _shown_layout()
-    if layout is None:
+    if batch is None:
         return
-    try:
-        batch, _scale = heat_batch(layout)
-        if batch is None:
-            return
-        shader = builtin_shader(SMOOTH_SHADERS_3D)[1]
-        projection = gpu.matrix.get_projection_matrix().copy()
-        projection[2] = projection[2] - DEPTH_BIAS * projection[3]  # z_ndc - bias: toward the viewer
-        gpu.state.blend_set("ALPHA")
-        gpu.state.depth_test_set("LESS_EQUAL")
-        with gpu.matrix.push_pop_projection():
-            gpu.matrix.load_projection_matrix(projection)
-            shader.bind()
-            batch.draw(shader)
-    except Exception as error:  # noqa: BLE001  (a draw callback must not raise on every redraw)
-        _give_up(error)
-    finally:
-        gpu.state.depth_test_set("NONE")
-        gpu.state.blend_set("NONE")
-
-
-def draw_legend() -> None:
-    """The ``POST_PIXEL`` handler: the ramp, its numbers and the title in the bottom-left corner."""
-    layout = _shown_layout()
-    if layout is None:
-        return
-    try:
-        _batch, scale = heat_batch(layout)
-        if scale is None:
-            _text(LEGEND_MARGIN, LEGEND_MARGIN, "Springwrap heat-map: no read-out (Snap, Project, Wrap or Mirror)")
-            return
-        left, bottom = LEGEND_MARGIN, LEGEND_MARGIN + TEXT_SIZE + 6
-        if scale.per_face:  # two flat boxes: blue and red
-            places, colours = np.array([0.0, 0.48, 0.52, 1.0]), quality.ramp_colours([0.0, 0.0, 1.0, 1.0])
-        else:
-            places = np.linspace(0.0, 1.0, 33)
-            colours = quality.ramp_colours(places)
-        xs = left + places * LEGEND_WIDTH
-        strip = np.empty((places.size * 2, 2), dtype=np.float32)
-        strip[0::2] = np.column_stack([xs, np.full(places.size, bottom)])
-        strip[1::2] = np.column_stack([xs, np.full(places.size, bottom + LEGEND_HEIGHT)])
-        name, shader = builtin_shader(SMOOTH_SHADERS_2D)
-        positions = strip if name.startswith("2D") else np.column_stack([strip, np.zeros(strip.shape[0])])
-        gpu.state.blend_set("ALPHA")
-        batch = batch_for_shader(
-            shader, "TRI_STRIP", {"pos": positions.astype(np.float32), "color": np.repeat(colours, 2, axis=0)}
-        )
+    shader = builtin_shader(SMOOTH_SHADERS_3D)[1]
+    projection = gpu.matrix.get_projection_matrix().copy()
+    projection[2] = projection[2] - DEPTH_BIAS * projection[3]  # z_ndc - bias: toward the viewer
+    gpu.state.blend_set("ALPHA")
+    gpu.state.depth_test_set("LESS_EQUAL")
+    with gpu.matrix.push_pop_projection():
+        gpu.matrix.load_projection_matrix(projection)
         shader.bind()
         batch.draw(shader)
-        for place, label in scale.labels:
-            width = blf.dimensions(0, label)[0]
-            x = left + place * LEGEND_WIDTH - width * place
-            _text(x, LEGEND_MARGIN, label)
-        _text(left, bottom + LEGEND_HEIGHT + 6, f"{scale.title}  ·  {layout.name}")
-    except Exception as error:  # noqa: BLE001
-        _give_up(error)
-    finally:
-        gpu.state.blend_set("NONE")
+
+
+@_handler
+def draw_legend(layout, _batch, scale) -> None:
+    """The ``POST_PIXEL`` handler: the ramp, its numbers and the title in the bottom-left corner."""
+    if scale is None:
+        _text(LEGEND_MARGIN, LEGEND_MARGIN, "Springwrap heat-map: no read-out (Snap, Project, Wrap or Mirror)")
+        return
+    left, bottom = LEGEND_MARGIN, LEGEND_MARGIN + TEXT_SIZE + 6
+    if scale.per_face:  # two flat boxes: blue and red
+        places, colours = np.array([0.0, 0.48, 0.52, 1.0]), quality.ramp_colours([0.0, 0.0, 1.0, 1.0])
+    else:
+        places = np.linspace(0.0, 1.0, 33)
+        colours = quality.ramp_colours(places)
+    xs = left + places * LEGEND_WIDTH
+    strip = np.empty((places.size * 2, 2), dtype=np.float32)
+    strip[0::2] = np.column_stack([xs, np.full(places.size, bottom)])
+    strip[1::2] = np.column_stack([xs, np.full(places.size, bottom + LEGEND_HEIGHT)])
+    name, shader = builtin_shader(SMOOTH_SHADERS_2D)
+    positions = strip if name.startswith("2D") else np.column_stack([strip, np.zeros(strip.shape[0])])
+    gpu.state.blend_set("ALPHA")
+    batch = batch_for_shader(
+        shader, "TRI_STRIP", {"pos": positions.astype(np.float32), "color": np.repeat(colours, 2, axis=0)}
+    )
+    shader.bind()
+    batch.draw(shader)
+    for place, label in scale.labels:
+        width = blf.dimensions(0, label)[0]
+        x = left + place * LEGEND_WIDTH - width * place
+        _text(x, LEGEND_MARGIN, label)
+    _text(left, bottom + LEGEND_HEIGHT + 6, f"{scale.title}  ·  {layout.name}")
 
 
 def _text(x: float, y: float, text: str) -> None:
