@@ -63,15 +63,7 @@ def demo() -> dict:
     bpy.ops.wm.read_homefile(use_empty=True)
     target, _hole, _cut = demo_scene.build_target()
     layout = demo_scene.build_layout(target, "Wrapped")
-    layout.springwrap.target = target
-    for obj in bpy.context.view_layer.objects:
-        obj.select_set(obj == layout)
-    bpy.context.view_layer.objects.active = layout
-    bpy.ops.springwrap.detach(only_selected=False)
-    bpy.ops.springwrap.anchors_auto(spacing=demo_scene.WRAP_ANCHOR_SPACING, method="CLOSEST", replace=True)
-    start = time.perf_counter()
-    assert bpy.ops.springwrap.wrap(max_iterations=demo_scene.WRAP_MAX_ITERATIONS) == {"FINISHED"}
-    wrap_seconds = time.perf_counter() - start
+    wrap_seconds = demo_scene.wrap_with_auto_anchors(layout, target)
     return {
         "layout_vertices": len(layout.data.vertices),
         "layout_faces": len(layout.data.polygons),

@@ -128,6 +128,32 @@ def build_layout(target: bpy.types.Object, name: str = "Layout") -> bpy.types.Ob
     return layout
 
 
+def attach_and_activate(layout: bpy.types.Object, target: bpy.types.Object) -> None:
+    """Give ``layout`` its Springwrap target and make it the only selected, active object (what the operators
+    act on)."""
+    layout.springwrap.target = target
+    for obj in bpy.context.view_layer.objects:
+        obj.select_set(obj == layout)
+    bpy.context.view_layer.objects.active = layout
+
+
+def wrap_with_auto_anchors(layout: bpy.types.Object, target: bpy.types.Object, *execution) -> float:
+    """The demo's wrap of a template: :func:`attach_and_activate`, then through the operators detach, automatic
+    anchors (WRAP_ANCHOR_SPACING) and the wrap (WRAP_MAX_ITERATIONS; ``execution``: the wrap's execution
+    context, e.g. ``"EXEC_DEFAULT"``). The wrap's seconds; raises when an operator does not finish."""
+    attach_and_activate(layout, target)
+    for operator, properties in (
+        (bpy.ops.springwrap.detach, {"only_selected": False}),
+        (bpy.ops.springwrap.anchors_auto, {"spacing": WRAP_ANCHOR_SPACING, "method": "CLOSEST", "replace": True}),
+    ):
+        if operator(**properties) != {"FINISHED"}:
+            raise RuntimeError(f"{operator.idname_py()} did not finish")
+    start = time.perf_counter()
+    if bpy.ops.springwrap.wrap(*execution, max_iterations=WRAP_MAX_ITERATIONS) != {"FINISHED"}:
+        raise RuntimeError("springwrap.wrap did not finish")
+    return time.perf_counter() - start
+
+
 # ---------------------------------------------------------------- measuring
 
 
@@ -344,10 +370,7 @@ def run(output: Path) -> None:
     enable_addon()
     target, hole_centroid, cut_faces = build_target()
     layout = build_layout(target)
-    layout.springwrap.target = target
-    for selected in bpy.context.view_layer.objects:
-        selected.select_set(selected == layout)
-    bpy.context.view_layer.objects.active = layout
+    attach_and_activate(layout, target)
     probe = probe_target(target, hole_centroid)
     vertex_count = len(layout.data.vertices)
     print(
@@ -382,10 +405,7 @@ def run(output: Path) -> None:
 
     # The wrap, on a second copy of the template.
     wrapped = build_layout(target, "Wrapped")
-    wrapped.springwrap.target = target
-    for selected in bpy.context.view_layer.objects:
-        selected.select_set(selected == wrapped)
-    bpy.context.view_layer.objects.active = wrapped
+    attach_and_activate(wrapped, target)
     reports.append(measure("copy of the template", None, wrapped, probe))
     reports.append(run_step("detach (copy)", operators.detach, wrapped, probe, only_selected=False))
     reports.append(

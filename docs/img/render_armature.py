@@ -16,7 +16,6 @@ Pictures (800 x 600):
                                (blue 0 to red >= HEAT_SCALE metres), the target hidden
 """
 
-import argparse
 import sys
 from pathlib import Path
 
@@ -33,17 +32,10 @@ sys.path.insert(0, str(REPOSITORY_ROOT))
 import render_guide  # noqa: E402
 
 from benchmarks.retarget import rig_scene  # noqa: E402
-from headless import script_arguments  # noqa: E402  (render_guide put blender_scripts on the path)
 
 HEAT_SCALE = 0.03
 """Metres shown as full red in the error picture (the body's bounding-box diagonal is about 2.2 m)."""
 TEMPLATE_COLOUR = (0.95, 0.42, 0.05, 1.0)
-
-
-def parse_arguments(argv: list[str]) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(prog="render_armature.py", description=__doc__.splitlines()[0])
-    parser.add_argument("--output-dir", type=Path, default=HERE, help="where the pictures go (default: docs/img)")
-    return parser.parse_args(script_arguments(argv, __file__))
 
 
 def place_camera(scene: bpy.types.Scene) -> None:
@@ -88,9 +80,7 @@ def run(output_dir: Path) -> None:
 
 
 def main() -> int:
-    arguments = parse_arguments(sys.argv)
-    run(arguments.output_dir.resolve())
-    return 0
+    return render_guide.picture_main(lambda arguments: run(arguments.output_dir), __file__, __doc__.splitlines()[0])
 
 
 if __name__ == "__main__":

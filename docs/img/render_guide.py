@@ -58,19 +58,34 @@ DARK_WIRE_COLOUR = (0.05, 0.07, 0.12, 1.0)
 ANCHOR_COLOUR = (0.85, 0.05, 0.05, 1.0)
 
 
-def parse_arguments(argv: list[str]) -> argparse.Namespace:
-    """The script's own arguments."""
-    parser = argparse.ArgumentParser(prog="render_guide.py", description=__doc__.splitlines()[0])
+def output_dir_parser(script: str, description: str) -> argparse.ArgumentParser:
+    """The arguments every picture script takes: ``--output-dir`` (default: docs/img)."""
+    parser = argparse.ArgumentParser(prog=Path(script).name, description=description)
     parser.add_argument(
         "--output-dir",
         type=Path,
         default=Path(__file__).resolve().parent,
-        help="where the guide-*.png go (default: docs/img)",
+        help="where the pictures go (default: docs/img)",
     )
-    return parser.parse_args(script_arguments(argv, __file__))
+    return parser
 
 
-# ---------------------------------------------------------------- colours and helper objects
+def picture_main(run, script: str, description: str, parser: argparse.ArgumentParser | None = None) -> int:
+    """A picture script's ``main``: its arguments (after ``--`` under ``blender -b``; ``parser``, else
+    :func:`output_dir_parser`), then ``run(arguments)``; any failure is printed and becomes exit code 1 (also
+    under ``blender -b``, which would otherwise exit 0)."""
+    parser = parser or output_dir_parser(script, description)
+    arguments = parser.parse_args(script_arguments(sys.argv, script))
+    arguments.output_dir = arguments.output_dir.resolve()
+    try:
+        run(arguments)
+    except Exception:  # noqa: BLE001 - any failure must become a non-zero exit code, also under `blender -b`
+        import traceback
+
+        traceback.print_exc()
+        print(f"{Path(script).stem}: FAILED", file=sys.stderr)
+        return 1
+    return 0
 
 
 def paint(obj: bpy.types.Object, colours: np.ndarray | tuple) -> None:
@@ -274,11 +289,6 @@ def run(output_dir: Path) -> None:
     target, hole_centroid, _cut = demo.build_target()
     operators = bpy.ops.springwrap
 
-    def activate(obj):
-        for other in bpy.context.view_layer.objects:
-            other.select_set(other == obj)
-        bpy.context.view_layer.objects.active = obj
-
     def step(result):
         if result != {"FINISHED"}:
             raise RuntimeError(f"an operator returned {result}")
@@ -288,8 +298,7 @@ def run(output_dir: Path) -> None:
     reference = reference_points(target, template.data)
 
     snapped = demo.build_layout(target, "Snapped")
-    snapped.springwrap.target = target
-    activate(snapped)
+    demo.attach_and_activate(snapped, target)
     step(operators.detach(only_selected=False))
     step(
         operators.project(
@@ -299,8 +308,7 @@ def run(output_dir: Path) -> None:
     step(operators.snap(mode="SURFACE", only_selected=False, max_distance=0.0))
 
     wrapped = demo.build_layout(target, "Wrapped")
-    wrapped.springwrap.target = target
-    activate(wrapped)
+    demo.attach_and_activate(wrapped, target)
     step(operators.detach(only_selected=False))
     step(operators.anchors_auto(spacing=demo.WRAP_ANCHOR_SPACING, method="CLOSEST", replace=True))
     markers = anchor_markers(wrapped, "AnchorMarkers")
@@ -346,16 +354,7 @@ def run(output_dir: Path) -> None:
 
 
 def main() -> int:
-    arguments = parse_arguments(sys.argv)
-    try:
-        run(arguments.output_dir.resolve())
-    except Exception:  # noqa: BLE001 - any failure must become a non-zero exit code, also under `blender -b`
-        import traceback
-
-        traceback.print_exc()
-        print("render_guide: FAILED", file=sys.stderr)
-        return 1
-    return 0
+    return picture_main(lambda arguments: run(arguments.output_dir), __file__, __doc__.splitlines()[0])
 
 
 if __name__ == "__main__":

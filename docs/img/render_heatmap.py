@@ -53,13 +53,7 @@ def _scene():
         bpy.data.objects.remove(obj)
     target, _hole, _cut = demo.build_target()
     layout = demo.build_layout(target)
-    layout.springwrap.target = target
-    for obj in bpy.context.view_layer.objects:
-        obj.select_set(obj == layout)
-    bpy.context.view_layer.objects.active = layout
-    bpy.ops.springwrap.detach(only_selected=False)
-    bpy.ops.springwrap.anchors_auto(spacing=demo.WRAP_ANCHOR_SPACING, method="CLOSEST", replace=True)
-    bpy.ops.springwrap.wrap("EXEC_DEFAULT", max_iterations=demo.WRAP_MAX_ITERATIONS)
+    demo.wrap_with_auto_anchors(layout, target, "EXEC_DEFAULT")
     print("render_heatmap: read-out", quality.summary(quality_data.read_readout(layout)))
     layout.springwrap.show_anchors = False
     target.hide_set(True)  # the layout alone: its own faces, coloured

@@ -12,7 +12,6 @@ map (Workbench, texture colour), the template on the left, the wrapped layout on
 the UV map came through the wrap bit for bit.
 """
 
-import argparse
 import sys
 import time
 from pathlib import Path
@@ -28,16 +27,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import demo  # noqa: E402
 import render_guide  # noqa: E402
 
-from headless import script_arguments  # noqa: E402
-
 PANEL_SIZE = (480, 420)
 """Each panel's render, width x height."""
-
-
-def parse_arguments(argv: list[str]) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(prog="render_layout_data.py", description=__doc__.splitlines()[0])
-    parser.add_argument("--output-dir", type=Path, default=REPOSITORY_ROOT / "docs" / "img")
-    return parser.parse_args(script_arguments(argv, __file__))
 
 
 def uv_grid_material() -> bpy.types.Material:
@@ -75,17 +66,7 @@ def run(output_dir: Path) -> None:
     for obj in (template, wrapped):
         obj.data.materials.append(material)
 
-    wrapped.springwrap.target = target
-    for other in bpy.context.view_layer.objects:
-        other.select_set(other == wrapped)
-    bpy.context.view_layer.objects.active = wrapped
-    for result in (
-        bpy.ops.springwrap.detach(only_selected=False),
-        bpy.ops.springwrap.anchors_auto(spacing=demo.WRAP_ANCHOR_SPACING, method="CLOSEST", replace=True),
-        bpy.ops.springwrap.wrap(max_iterations=demo.WRAP_MAX_ITERATIONS),
-    ):
-        if result != {"FINISHED"}:
-            raise RuntimeError(f"an operator returned {result}")
+    demo.wrap_with_auto_anchors(wrapped, target)
     same = uv_coordinates(wrapped).tobytes() == uvs_before.tobytes()
     print(f"UV map after the wrap: {'bit for bit the same' if same else 'CHANGED'} ({len(uvs_before) // 2} corners)")
 
@@ -122,8 +103,7 @@ def run(output_dir: Path) -> None:
 
 
 def main() -> int:
-    run(parse_arguments(sys.argv).output_dir)
-    return 0
+    return render_guide.picture_main(lambda arguments: run(arguments.output_dir), __file__, __doc__.splitlines()[0])
 
 
 if __name__ == "__main__":

@@ -22,7 +22,6 @@ Panels (Workbench, flat colours, front view), side by side in one PNG with a cap
 It prints the numbers the README quotes. About 10 s once the case is cached (the first run builds it).
 """
 
-import argparse
 import sys
 import time
 from pathlib import Path
@@ -36,9 +35,12 @@ from mathutils import Matrix
 REPOSITORY_ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPOSITORY_ROOT))
 sys.path.insert(0, str(REPOSITORY_ROOT / "blender_scripts"))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import render_guide  # noqa: E402
+
 from benchmarks.figures import placement_inverse  # noqa: E402
 from benchmarks.retarget import baselines, cases, landmarks, springwrap_methods  # noqa: E402
-from headless import enable_addon, script_arguments  # noqa: E402
+from headless import enable_addon  # noqa: E402
 
 PANEL_SIZE = (320, 640)
 """Each panel's render, width x height (a standing body)."""
@@ -53,13 +55,6 @@ TARGET_COLOUR = (0.62, 0.62, 0.60, 1.0)
 TEMPLATE_WIRE_COLOUR = (0.80, 0.30, 0.02, 1.0)
 TEMPLATE_FACE_COLOUR = (0.98, 0.80, 0.62, 1.0)
 DARK_WIRE_COLOUR = (0.05, 0.07, 0.12, 1.0)
-
-
-def parse_arguments(argv: list[str]) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(prog="render_readme.py", description=__doc__.splitlines()[0])
-    parser.add_argument("--output-dir", type=Path, default=REPOSITORY_ROOT / "docs" / "img")
-    parser.add_argument("--case", default="heavy", help="the benchmark case (default heavy)")
-    return parser.parse_args(script_arguments(argv, __file__))
 
 
 def paint(obj, colours) -> None:
@@ -260,9 +255,9 @@ def face_values(obj, name: str) -> np.ndarray:
 
 
 def main() -> int:
-    arguments = parse_arguments(sys.argv)
-    run(arguments.output_dir, arguments.case)
-    return 0
+    parser = render_guide.output_dir_parser(__file__, __doc__.splitlines()[0])
+    parser.add_argument("--case", default="heavy", help="the benchmark case (default heavy)")
+    return render_guide.picture_main(lambda arguments: run(arguments.output_dir, arguments.case), __file__, "", parser)
 
 
 if __name__ == "__main__":

@@ -10,7 +10,6 @@ coloured by the key's offset (white none, red the largest of each). Workbench en
 ``render_guide.py``. Prints the bump's height on both.
 """
 
-import argparse
 import sys
 from pathlib import Path
 
@@ -111,11 +110,7 @@ def run(output_dir: Path) -> None:
 
 
 def main() -> int:
-    argv = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else sys.argv[1:]
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--output-dir", type=Path, default=Path(__file__).resolve().parent)
-    run(parser.parse_args(argv).output_dir)
-    return 0
+    return render_guide.picture_main(lambda arguments: run(arguments.output_dir), __file__, __doc__.splitlines()[0])
 
 
 if __name__ == "__main__":

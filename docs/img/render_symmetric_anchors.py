@@ -11,7 +11,6 @@ alone. The template's wires in orange. Workbench engine, the camera of ``render_
 the operator reported and how far each twin target is from the reflection of its partner's.
 """
 
-import argparse
 import sys
 from pathlib import Path
 
@@ -110,11 +109,7 @@ def run(output_dir: Path) -> None:
 
 
 def main() -> int:
-    argv = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else sys.argv[1:]
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--output-dir", type=Path, default=Path(__file__).resolve().parent)
-    run(parser.parse_args(argv).output_dir)
-    return 0
+    return render_guide.picture_main(lambda arguments: run(arguments.output_dir), __file__, __doc__.splitlines()[0])
 
 
 if __name__ == "__main__":

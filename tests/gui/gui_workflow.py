@@ -292,10 +292,7 @@ class Workflow:
             bpy.data.objects.remove(obj)
         target, _hole, _cut = demo.build_target()
         layout = demo.build_layout(target)
-        layout.springwrap.target = target
-        for obj in bpy.context.view_layer.objects:
-            obj.select_set(obj == layout)
-        bpy.context.view_layer.objects.active = layout
+        demo.attach_and_activate(layout, target)
         with bpy.context.temp_override(window=self.ui.window, area=self.ui.area, region=self.ui.region("WINDOW")):
             bpy.ops.view3d.view_selected()
         yield from self.open_tab()

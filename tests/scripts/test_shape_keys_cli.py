@@ -108,7 +108,9 @@ def measure(scene_blend, result, name):
     path, reader = scene_blend
     measured = run_script(reader, path, result, name)
     assert measured.returncode == 0, measured.stderr[-2000:]
-    return json.loads(measured.stdout.strip().splitlines()[-1])
+    # The reader prints one JSON line; the blender binary prints "Blender quit" after it.
+    [line] = [line for line in measured.stdout.splitlines() if line.startswith("{")]
+    return json.loads(line)
 
 
 def assert_carried(measured):
