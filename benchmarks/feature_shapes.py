@@ -136,20 +136,38 @@ def resample(points, closed: bool, step: float) -> np.ndarray:
     return np.concatenate(out)
 
 
-def curve_measures(curves, segments, kinds, tolerance: float, step: float = 0.002) -> dict:
+def l_part_sharp_edges(radius: float = 0.04, spacing: float = 0.002) -> np.ndarray:
+    """(P, 3) points about ``spacing`` apart along the caps' sharp edges (the profile at z = 0 and at the depth):
+    real creases too, the limit of a blend whose radius goes to 0."""
+    profile = l_profile(radius, spacing)
+    return np.concatenate([np.column_stack([profile, np.full(len(profile), z)]) for z in (0.0, DEPTH)])
+
+
+def _nearest_distances(points, cloud, chunk: int = 2048) -> np.ndarray:
+    """(P,) distance of each point to the nearest point of ``cloud``."""
+    points = np.asarray(points, dtype=np.float64)
+    result = np.empty(points.shape[0])
+    for start in range(0, points.shape[0], chunk):
+        block = points[start : start + chunk]
+        result[start : start + chunk] = np.linalg.norm(block[:, None, :] - cloud[None], axis=2).min(1)
+    return result
+
+
+def curve_measures(curves, segments, kinds, tolerance: float, sharp_edges=None, step: float = 0.002) -> dict:
     """Coverage of each known centre-line by the curves of its kind (the fraction of the line, sampled every
     ``step``, within ``tolerance`` of such a curve), the offset (mean distance of the points of the curves that
     follow a centre-line, i.e. whose median point is within ``tolerance`` of one of their kind, to it), and the
-    curve counts (``on_lines``: those that follow a line; ``other``: the rest, e.g. the caps' sharp edges)."""
-    coverage, offsets, on_lines, others = [], [], 0, 0
-    for index, (segment, kind) in enumerate(zip(segments, kinds, strict=True)):
+    curve counts: ``curves_on_lines`` follow a centre-line, ``curves_on_edges`` follow a sharp edge (points
+    ``sharp_edges``, when given), ``other_curves`` are the rest."""
+    coverage, offsets, on_lines, on_edges, others = [], [], 0, 0, 0
+    for segment, kind in zip(segments, kinds, strict=True):
         samples = resample(segment, False, step)
         near = np.zeros(len(samples), dtype=bool)
         for curve in curves:
             if curve.kind != kind:
                 continue
             dense = resample(curve.points, curve.closed, step)
-            near |= np.linalg.norm(samples[:, None, :] - dense[None], axis=2).min(1) <= tolerance
+            near |= _nearest_distances(samples, dense) <= tolerance
         coverage.append(float(near.mean()))
     for curve in curves:
         distances = segment_distances(curve.points, segments)
@@ -159,10 +177,18 @@ def curve_measures(curves, segments, kinds, tolerance: float, step: float = 0.00
         if np.median(distances[:, line]) <= tolerance:
             on_lines += 1
             offsets.append(distances[:, line])
+        elif sharp_edges is not None and np.median(_nearest_distances(curve.points, sharp_edges)) <= tolerance:
+            on_edges += 1
         else:
             others += 1
     offset = float(np.concatenate(offsets).mean()) if offsets else float("nan")
-    return {"coverage": coverage, "offset": offset, "curves_on_lines": on_lines, "other_curves": others}
+    return {
+        "coverage": coverage,
+        "offset": offset,
+        "curves_on_lines": on_lines,
+        "curves_on_edges": on_edges,
+        "other_curves": others,
+    }
 
 
 def end_reach(curves, segments, kinds, tolerance: float) -> list:
