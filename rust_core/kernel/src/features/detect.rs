@@ -8,8 +8,9 @@ use crate::error::KernelError;
 use crate::mesh::TargetMesh;
 use crate::validate::{MAX_COORDINATE, SettingRange, check_setting};
 
-/// Curves shorter than this many scales are dropped by default.
-pub const MIN_LENGTH_SCALES: f32 = 2.0;
+/// Curves shorter than this many scales are dropped by default: a layout edge chain following a
+/// curve has edges of about a scale, and a chain of fewer than three edges hardly constrains.
+pub const MIN_LENGTH_SCALES: f32 = 3.0;
 
 /// Curve ends closer than this many scales that continue each other are joined by default.
 pub const JOIN_DISTANCE_SCALES: f32 = 1.0;
@@ -33,7 +34,7 @@ pub struct FeatureSettings {
     /// its ends are extended along the crease (default 0.5; 1: no hysteresis, no extension
     /// beyond the full threshold).
     pub hysteresis: f32,
-    /// Curves shorter than this are dropped (`None`, the default: twice the scale).
+    /// Curves shorter than this are dropped (`None`, the default: three times the scale).
     pub min_length: Option<f32>,
     /// Curve pieces whose ends are closer than this and continue each other are joined (`None`,
     /// the default: the scale).

@@ -36,6 +36,10 @@ const EDGE_FRACTION: f32 = 0.05;
 /// the walk goes straight on.
 const FOLLOW_COSINE: f32 = 0.82;
 
+/// An extension never turns by more than this angle's cosine (60°) from the curve's own direction
+/// at its end.
+const MAX_TURN_COSINE: f32 = 0.5;
+
 /// The most steps taken straight on without a crest across (one scale): beyond, the crease has
 /// ended.
 const UNCENTRED_STEPS: usize = 4;
@@ -113,6 +117,7 @@ pub(super) fn extend_end(
         return added;
     }
     let (mut position, mut heading) = (end, heading);
+    let initial = heading;
     // Steps taken straight on where no crest was found across, not yet confirmed.
     let mut pending: Vec<Vec3> = Vec::new();
     for _ in 0..MAX_STEPS {
@@ -161,7 +166,9 @@ pub(super) fn extend_end(
             heading
         };
         let turned = (turned - normal * turned.dot(normal)).normalize_or_zero();
-        if turned != Vec3::ZERO {
+        // Turning further than that from the curve's own direction would follow another feature
+        // (a sharp edge where the crease ends), not this crease: then the walk keeps its heading.
+        if turned != Vec3::ZERO && turned.dot(initial) >= MAX_TURN_COSINE {
             heading = turned;
         }
         position = centred.position;

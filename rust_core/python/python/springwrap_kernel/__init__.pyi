@@ -198,7 +198,7 @@ class TargetMesh:
         ends are extended along the crease while it stays a crest at that low threshold, up to an
         edge of the surface. Pieces whose ends are within ``join_distance`` (default ``scale``)
         and continue each other are joined; curves shorter than ``min_length`` (default
-        ``2 * scale``) are dropped. For the centre-lines of blends, ``scale`` about the blend
+        ``3 * scale``) are dropped. For the centre-lines of blends, ``scale`` about the blend
         radius. Raises :class:`FlatSurfaceError` when no vertex bends beyond ``flat_threshold``
         (a plane)."""
     def feature_curves(
