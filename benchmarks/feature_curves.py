@@ -33,7 +33,6 @@ REPOSITORY = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPOSITORY))
 
 import springwrap_kernel as sk  # noqa: E402
-
 from benchmarks._machine import cpu_model  # noqa: E402
 from benchmarks.feature_shapes import (  # noqa: E402
     curve_measures,
