@@ -196,7 +196,8 @@ fn edge_point(mesh: &TargetMesh, position: Vec3, heading: Vec3, step: f32) -> Op
 }
 
 /// Moves a crease point across the crease onto the peak of the strength (the vertex of the
-/// parabola through samples a quarter of the scale either side, at most half that far); `None`
+/// parabola through samples a quarter of the scale either side, at most a quarter that far, so
+/// that a neighbouring feature cannot pull the walk aside); `None`
 /// when the parabola does not bend down by [`CREST_DROP`] of the strength (no crest).
 fn recentre(
     mesh: &TargetMesh,
@@ -219,6 +220,6 @@ fn recentre(
     if bend > -CREST_DROP * centre.abs() {
         return None;
     }
-    let shift = (0.5 * delta * (left - right) / bend).clamp(-0.5 * delta, 0.5 * delta);
+    let shift = (0.5 * delta * (left - right) / bend).clamp(-0.25 * delta, 0.25 * delta);
     surface(mesh, hit.position + across * shift, 2.0 * delta)
 }
