@@ -128,7 +128,8 @@ test-gui: package
 test-all-lanes: test test-bpy42 test-blender34 test-gui
 
 # The benchmark: retargeting accuracy against Shrinkwrap and nricp, the performance sweep,
-# snap throughput, the batch's throughput, then docs/benchmarks.md and docs/img/*.png.
+# snap throughput, the batch's throughput, feature curves against known blend centre-lines, then
+# docs/benchmarks.md and docs/img/*.png.
 # `make bench QUICK=1`: the ~5-minute subset.
 # BENCH_OUT (the JSON) and BENCH_DOCS (benchmarks.md and img/) may point elsewhere for a trial run.
 BENCH_QUICK := $(if $(QUICK),--quick,)
@@ -149,11 +150,13 @@ bench: setup $(STAMPS)/bench-requirements
 	$(PY) benchmarks/batch_throughput.py $(BENCH_QUICK) --json $(BENCH_OUT)/batch_throughput.json
 	$(PY) benchmarks/cage_fit.py $(if $(QUICK),--cases heavy,) --json $(BENCH_OUT)/cage_fit.json
 	$(PY) benchmarks/large_target.py $(if $(QUICK),--triangles 1000000,) --json $(BENCH_OUT)/large_target.json
+	$(PY) benchmarks/feature_curves.py $(BENCH_QUICK) --json $(BENCH_OUT)/feature_curves.json
 	$(PY) benchmarks/figures.py $(if $(QUICK),--cases heavy,) --retarget $(BENCH_OUT)/retarget.json \
 	  --performance $(BENCH_OUT)/performance.json --positions $(BENCH_OUT)/retarget-positions --output $(BENCH_DOCS)/img
 	$(PY) benchmarks/report.py --retarget $(BENCH_OUT)/retarget.json --performance $(BENCH_OUT)/performance.json \
 	  --snap $(BENCH_OUT)/snap_throughput.json --speed $(BENCH_OUT)/wrap_speed.json \
-	  --batch $(BENCH_OUT)/batch_throughput.json --output $(BENCH_DOCS)/benchmarks.md
+	  --batch $(BENCH_OUT)/batch_throughput.json --features $(BENCH_OUT)/feature_curves.json \
+	  --output $(BENCH_DOCS)/benchmarks.md
 
 clean:
 	rm -rf $(VENV) $(VENV_BPY42) target out dist .cache

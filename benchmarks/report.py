@@ -807,6 +807,7 @@ def build_document(
     image_prefix: str = "img",
     speed: dict | None = None,
     batch: dict | None = None,
+    features: dict | None = None,
 ) -> str:
     """The whole of ``docs/benchmarks.md``."""
     lines = [
@@ -832,6 +833,7 @@ def build_document(
         ".venv/bin/python benchmarks/wrap_speed.py [--large] --json out/bench/wrap_speed.json",
         ".venv/bin/python benchmarks/wrap_solvers.py --scans --nricp --json out/bench/wrap_solvers.json "
         "--markdown docs/wrap-solvers.md",
+        ".venv/bin/python benchmarks/feature_curves.py [--quick] --json out/bench/feature_curves.json",
         ".venv/bin/python benchmarks/figures.py && .venv/bin/python benchmarks/report.py",
         "```",
         "",
@@ -867,6 +869,11 @@ def build_document(
         lines += ["Not run: no performance JSON.", ""]
     if batch is not None:
         lines += batch_section(batch)
+    if features is not None:  # benchmarks/feature_curves.py
+        sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+        from benchmarks.feature_curves import markdown_lines
+
+        lines += markdown_lines(features)
     return "\n".join(lines).rstrip() + "\n"
 
 
@@ -881,6 +888,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--snap", type=Path, default=OUT / "snap_throughput.json")
     parser.add_argument("--speed", type=Path, default=OUT / "wrap_speed.json")
     parser.add_argument("--batch", type=Path, default=OUT / "batch_throughput.json")
+    parser.add_argument("--features", type=Path, default=OUT / "feature_curves.json")
     parser.add_argument("--output", type=Path, default=DOCS / "benchmarks.md")
     arguments = parser.parse_args(sys.argv[1:] if argv is None else argv)
     inputs = {name: load(getattr(arguments, name)) for name in ("retarget", "performance", "snap")}
@@ -899,6 +907,7 @@ def main(argv: list[str] | None = None) -> int:
             "img",
             load(arguments.speed),
             load(arguments.batch),
+            load(arguments.features),
         )
     )
     print(f"wrote {arguments.output}")

@@ -22,7 +22,7 @@ import bpy  # first: the PyPI bpy module
 
 REPOSITORY_ROOT = Path(__file__).resolve().parent.parent
 GUIDE = REPOSITORY_ROOT / "docs" / "user-guide.md"
-CLI_SCRIPTS = ("retarget.py", "wrap.py", "mirror.py")
+CLI_SCRIPTS = ("retarget.py", "wrap.py", "mirror.py", "detect_features.py")
 SKIPPED_PROPERTIES = {"rna_type"}
 
 

@@ -170,9 +170,13 @@ def rounded_box(half: float = 1.0, radius: float = 0.25, cells: int = 40):
 
 
 def centre_line_distance(points, half=1.0, radius=0.25):
-    """(P,) distance of each point to the nearest of the rounded box's 12 blend centre-lines."""
+    """(P,) distance of each point to the nearest of the rounded box's 12 blend centre-lines, each continued
+    into the spherical corners at its ends (where the crest runs on round the corner, in the plane of the line
+    and its outward direction, until it meets the other two blends' crests on the corner's diagonal)."""
+    points = np.asarray(points, dtype=np.float64)
     inner = half - radius
     along = np.clip(points, -inner, inner)  # the nearest point of the inner box's edges, per axis
+    limit = np.arctan(1.0 / np.sqrt(2.0))
     best = np.full(points.shape[0], np.inf)
     for axis in range(3):
         for sp in (1.0, -1.0):
@@ -183,6 +187,16 @@ def centre_line_distance(points, half=1.0, radius=0.25):
                 line[:, p] = sp * (inner + radius / np.sqrt(2))
                 line[:, q] = sq * (inner + radius / np.sqrt(2))
                 best = np.minimum(best, np.linalg.norm(points - line, axis=1))
+                out = np.zeros(3)
+                out[p], out[q] = sp / np.sqrt(2), sq / np.sqrt(2)
+                for end in (1.0, -1.0):
+                    onward = np.zeros(3)
+                    onward[axis] = end
+                    corner = out * np.sqrt(2) * inner + onward * inner
+                    offset = points - corner
+                    angle = np.clip(np.arctan2(offset @ onward, offset @ out), 0.0, limit)
+                    arc = corner + (np.cos(angle)[:, None] * out + np.sin(angle)[:, None] * onward) * radius
+                    best = np.minimum(best, np.linalg.norm(points - arc, axis=1))
     return best
 
 

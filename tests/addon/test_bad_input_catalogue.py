@@ -530,3 +530,32 @@ def test_set_rest_shape_does_not_need_a_usable_target():
     assert bpy.ops.springwrap.rest_set() == {"FINISHED"}
     with pytest.raises(RuntimeError, match="'Target' has no faces"):
         bpy.ops.springwrap.wrap(max_iterations=30)
+
+
+LAYOUT_CASES = ("layout vertex NaN", "layout vertex 1e30", "layout transform NaN", "empty layout")
+
+
+@pytest.mark.parametrize("case", LAYOUT_CASES)
+def test_detect_features_at_the_automatic_scale_survives_a_broken_layout(case, capfd):
+    """Run from the layout at the automatic scale, Detect Features reads the layout's edge lengths: a broken
+    layout never crashes it and is never changed; what cannot be measured (no finite edge) leaves the scale to
+    the target alone."""
+    target, layout = catalogue_scene()
+    breaks, _kind, _message = CATALOGUE[case]
+    breaks(target, layout)
+    bpy.context.view_layer.update()
+    before = full_snapshot(layout)
+    capfd.readouterr()
+    assert bpy.ops.springwrap.detect_features(write_curves=False) == {"FINISHED"}
+    output = capfd.readouterr().out
+    assert "at scale " in output and "nan" not in output.lower(), output
+    assert full_snapshot(layout) == before
+
+
+@pytest.mark.parametrize("name", ["Nowhere", "Curve"])  # missing; a curve object
+def test_detect_features_refuses_a_layout_that_is_not_a_mesh(name):
+    target, layout = catalogue_scene()
+    before = full_snapshot(layout)
+    with pytest.raises(RuntimeError, match=f"No mesh object called '{name}'"):
+        bpy.ops.springwrap.detect_features(layout_name=name, write_curves=False)
+    assert full_snapshot(layout) == before

@@ -118,6 +118,46 @@ def test_rounded_box_gets_region_colours_and_twelve_ridge_curves(capfd):
         assert centre_line_distance(curve_points(ridges, number) - OFFSET).max() < 0.05
 
 
+def test_the_default_scale_is_automatic_from_the_target(capfd):
+    box = box_target()
+    assert bpy.ops.springwrap.detect_features.get_rna_type().properties["scale"].default == 0.0
+    assert bpy.ops.springwrap.detect_features() == {"FINISHED"}
+    output = capfd.readouterr().out
+    # A tenth of the box's diagonal (2 * sqrt(3) = 3.46): 0.346, above the blend radius, still 12 ridges.
+    assert "at scale 0.3464 (automatic, from the target)" in output, output
+    assert "12 ridges and 0 valleys" in output, output
+    assert len(feature_curves()[0].data.splines) == 12
+    assert box.data.attributes.get(COLOR_ATTRIBUTE) is not None
+
+
+def test_run_from_a_layout_the_scale_is_the_layouts_median_edge(capfd):
+    box = box_target()
+    # A 4 x 4 grid of size 1 scaled by 1.25 in object mode: edges 0.3125 in world space.
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=4, y_subdivisions=4, size=1, location=(0, 0, 3))
+    layout = bpy.context.active_object
+    layout.scale = (1.25, 1.25, 1.25)
+    layout.springwrap.target = box
+    bpy.context.view_layer.update()
+    assert bpy.ops.springwrap.detect_features() == {"FINISHED"}
+    output = capfd.readouterr().out
+    assert "at scale 0.3125 (automatic, from the edges of 'Grid' (median 0.3125))" in output, output
+    assert "12 ridges" in output, output
+    # A scale given wins over the layout; a layout named explicitly is used from anywhere.
+    assert bpy.ops.springwrap.detect_features(scale=0.25) == {"FINISHED"}
+    assert "at scale 0.25 (given)" in capfd.readouterr().out
+    activate(box)
+    assert bpy.ops.springwrap.detect_features(layout_name="Grid") == {"FINISHED"}
+    assert "from the edges of 'Grid'" in capfd.readouterr().out
+
+
+def test_a_missing_layout_is_reported_and_the_scene_left_untouched():
+    box_target()
+    before = scene_rows()
+    with pytest.raises(RuntimeError, match="No mesh object called 'Nowhere'"):
+        bpy.ops.springwrap.detect_features(layout_name="Nowhere")
+    assert scene_rows() == before
+
+
 def test_a_layout_with_a_target_analyses_its_target_and_a_rerun_replaces_the_curves():
     box = box_target()
     bpy.ops.mesh.primitive_grid_add(size=1, location=(0, 0, 3))

@@ -64,3 +64,53 @@ def test_a_negative_threshold_is_refused():
     vertices, triangles = rounded_box(1.0, 1.0, 6)
     with pytest.raises(sk.InvalidArgumentError, match="ridge_threshold"):
         sk.TargetMesh(vertices, triangles).detect_features(0.3, ridge_threshold=-1.0)
+
+
+def test_the_default_scale_is_automatic_and_finds_the_l_parts_six_blends():
+    """The machined L part of ``benchmarks/feature_shapes.py`` (blend radius 0.04): with no scale given the
+    kernel picks a tenth of the diagonal (about the blend radius), says so in ``scale``, and every blend
+    centre-line is covered over at least 90 % of its length within a quarter of the radius, reaching both caps."""
+    from benchmarks.feature_shapes import DEPTH, curve_measures, end_reach, l_part, l_part_centre_lines
+
+    vertices, triangles = l_part()
+    mesh = sk.TargetMesh(vertices, triangles)
+    diagonal = float(np.linalg.norm(vertices.max(0) - vertices.min(0)))
+    assert mesh.automatic_feature_scale() == pytest.approx(0.1 * diagonal, rel=1e-5)
+    features = mesh.detect_features()
+    assert features.scale == pytest.approx(0.1 * diagonal, rel=1e-5)
+    segments, kinds = l_part_centre_lines()
+    measures = curve_measures(features.curves, segments, kinds, tolerance=0.01)
+    assert min(measures["coverage"]) >= 0.9, measures
+    assert measures["offset"] < 0.003, measures
+    reach = np.array(end_reach(features.curves, segments, kinds, tolerance=0.01))
+    assert reach[:, :2].max() < 0.01 * DEPTH, reach  # within 2 mm of both caps
+
+
+def test_a_layout_edge_length_sets_the_scale_within_the_targets_edges():
+    vertices, triangles = rounded_box()  # edges of 0.05 (mean 0.057 with the diagonals)
+    mesh = sk.TargetMesh(vertices, triangles)
+    assert mesh.automatic_feature_scale(0.3) == pytest.approx(0.3)
+    assert mesh.detect_features(layout_edge_length=0.25).scale == pytest.approx(0.25)
+    assert len(mesh.detect_features(0.0, layout_edge_length=0.25).curves) == 12
+    # Below 3 mean edges or above 30: held there; a given scale wins over the layout.
+    mean_edge = float(np.linalg.norm(vertices[triangles] - np.roll(vertices[triangles], 1, axis=1), axis=2).mean())
+    assert mesh.automatic_feature_scale(1e-4) == pytest.approx(3 * mean_edge, rel=1e-4)
+    assert mesh.detect_features(0.3, layout_edge_length=0.01).scale == pytest.approx(0.3)
+
+
+def test_feature_defaults_come_from_the_kernel():
+    defaults = sk.feature_defaults()
+    assert defaults["scale"] == 0.0
+    assert defaults["flat_threshold"] == pytest.approx(0.1)
+    assert defaults["ridge_threshold"] == pytest.approx(0.25)
+    assert 0.0 < defaults["hysteresis"] < 1.0
+    assert defaults["scale_min_edges"] < defaults["scale_max_edges"]
+
+
+@pytest.mark.parametrize(
+    ("keyword", "value"), [("layout_edge_length", -1.0), ("layout_edge_length", float("nan")), ("hysteresis", 2.0)]
+)
+def test_bad_layout_edge_lengths_and_hysteresis_are_refused(keyword, value):
+    vertices, triangles = rounded_box(1.0, 0.25, 8)
+    with pytest.raises(sk.InvalidArgumentError, match=keyword):
+        sk.TargetMesh(vertices, triangles).detect_features(**{keyword: value})

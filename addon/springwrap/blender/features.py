@@ -14,6 +14,7 @@ import springwrap_kernel
 
 from ..core import input_policy, transforms
 from ..core.errors import LayoutError
+from ..core.features import median_edge_length
 from . import attributes, compat
 from .evaluated_mesh import read_evaluated_mesh
 
@@ -55,9 +56,21 @@ def read_feature_mesh(depsgraph: bpy.types.Depsgraph, obj: bpy.types.Object) -> 
 
 
 def detect_features(feature_mesh: FeatureMesh, scale: float, **settings):
-    """``springwrap_kernel.TargetMesh.detect_features`` on the mesh (raises one of :data:`ERRORS`)."""
+    """``springwrap_kernel.TargetMesh.detect_features`` on the mesh (raises one of :data:`ERRORS`); ``scale``
+    0 is the automatic one (the result's ``scale`` says which was used)."""
     mesh = springwrap_kernel.TargetMesh(feature_mesh.vertices, feature_mesh.triangles)
     return mesh.detect_features(scale, **settings)
+
+
+def layout_edge_length(layout: bpy.types.Object) -> float:
+    """The median length of the edges of ``layout``'s own mesh in world space (0 for a mesh without edges)."""
+    mesh = layout.data
+    positions = np.empty(len(mesh.vertices) * 3, dtype=np.float64)
+    mesh.vertices.foreach_get("co", positions)
+    positions = transforms.transform_points(transforms.matrix_array(layout.matrix_world), positions.reshape(-1, 3))
+    edges = np.empty(len(mesh.edges) * 2, dtype=np.int64)
+    mesh.edges.foreach_get("vertices", edges)
+    return median_edge_length(positions, edges.reshape(-1, 2))
 
 
 def write_feature_colors(obj: bpy.types.Object, colors: np.ndarray) -> None:

@@ -1,7 +1,9 @@
-"""Feature detection's numbers on arrays (no ``bpy``): the colours of the kernel's regions, and the scale a
-detection uses when none is given (a few mean edge lengths of the target)."""
+"""Feature detection's numbers on arrays (no ``bpy``): the colours of the kernel's regions, the kernel's
+defaults, and the layout edge length the automatic scale is chosen from."""
 
 import numpy as np
+
+import springwrap_kernel
 
 REGION_COLORS = np.array(
     [
@@ -14,15 +16,23 @@ REGION_COLORS = np.array(
 )
 """RGBA per region number (the kernel's order: flat, convex, concave, saddle)."""
 
-DEFAULT_SCALE_EDGES = 3.0
-"""With ``scale = 0``, the scale is this many mean edge lengths of the target."""
+
+def feature_defaults() -> dict:
+    """The kernel's defaults of feature detection (scale 0 = automatic, flat_threshold, ridge_threshold,
+    hysteresis, ...; see ``springwrap_kernel.feature_defaults``)."""
+    return springwrap_kernel.feature_defaults()
 
 
-def mean_edge_length(vertices: np.ndarray, triangles: np.ndarray) -> float:
-    """Mean length of the triangles' edges (each inner edge counted twice: it does not matter for a mean)."""
-    corners = vertices[triangles.astype(np.int64)]
-    edges = corners - np.roll(corners, 1, axis=1)
-    return float(np.linalg.norm(edges, axis=2).mean())
+def median_edge_length(positions: np.ndarray, edges: np.ndarray) -> float:
+    """Median length of a layout's edges ((E, 2) vertex pairs); 0 when it has none (then the automatic scale
+    comes from the target alone)."""
+    edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    if edges.shape[0] == 0:
+        return 0.0
+    positions = np.asarray(positions, dtype=np.float64)
+    lengths = np.linalg.norm(positions[edges[:, 0]] - positions[edges[:, 1]], axis=1)
+    lengths = lengths[np.isfinite(lengths) & (lengths > 0.0)]
+    return float(np.median(lengths)) if lengths.size else 0.0
 
 
 def region_colors(regions: np.ndarray) -> np.ndarray:

@@ -60,7 +60,7 @@ pub use error::KernelError;
 pub use face_point::{FacePoint, LayoutPoint, SurfaceHit, VertexHit};
 pub use features::{
     FeatureCurve, FeatureCurveKind, FeatureRegion, FeatureSettings, Features, PrincipalCurvatures,
-    classify_regions, detect_features, principal_curvatures,
+    automatic_scale, classify_regions, detect_features, mean_edge_length, principal_curvatures,
 };
 pub use fit::{
     BoundaryRule, FitRound, SubdivisionFit, SubdivisionFitSettings, SubdivisionStencils,

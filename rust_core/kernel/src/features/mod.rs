@@ -4,11 +4,15 @@
 
 pub mod curvature;
 pub mod detect;
+mod extend;
+pub mod join;
 pub mod neighborhood;
 pub mod regions;
 pub mod ridges;
+pub mod scale;
 
 pub use curvature::{PrincipalCurvatures, principal_curvatures};
 pub use detect::{FeatureSettings, Features, detect_features};
 pub use regions::{FeatureRegion, classify_regions};
 pub use ridges::{CurveSettings, FeatureCurve, FeatureCurveKind, feature_curves};
+pub use scale::{automatic_scale, mean_edge_length};

@@ -27,6 +27,8 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::curvature::PrincipalCurvatures;
+use super::extend::{CreaseField, extend_end};
+use super::join::{end_tangent, join_chains, polyline_length};
 use super::neighborhood::{Scratch, VertexAdjacency, gather};
 use crate::mesh::TargetMesh;
 
@@ -61,8 +63,11 @@ impl FeatureCurve {
 /// Settings of the curve extraction (the scale is that of the curvatures).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CurveSettings {
-    /// `k × scale` a crest must reach (see the module docs).
+    /// `k × scale` a crest must reach somewhere on a curve (see the module docs).
     pub ridge_threshold: f32,
+    /// The fraction of `ridge_threshold` a curve keeps along the rest of its length, and while its
+    /// ends are extended along the crease (hysteresis; 1 = none).
+    pub hysteresis: f32,
     /// Curves shorter than this are dropped (model units).
     pub min_length: f32,
     /// Chain ends closer than this that continue each other are joined (model units).
@@ -70,6 +75,12 @@ pub struct CurveSettings {
 }
 
 /// Ridge and valley curves of `mesh` from its curvatures (computed over `curvatures.scale`).
+///
+/// Hysteresis, as Canny's edge detector has it: crest segments are traced wherever the crest test
+/// passes at the low threshold (`hysteresis × ridge_threshold`), and a chain of them is kept when
+/// at least one of its segments passes at the full threshold. Chains that continue each other are
+/// joined, their open ends are walked on along the crease while it stays a crest at the low
+/// threshold ([`super::extend`]), ends that now meet are joined again, short curves are dropped.
 #[must_use]
 pub fn feature_curves(
     mesh: &TargetMesh,
@@ -79,11 +90,41 @@ pub fn feature_curves(
     let adjacency = VertexAdjacency::new(mesh.vertices().len(), mesh.triangles());
     let mut curves = Vec::new();
     for kind in [FeatureCurveKind::Ridge, FeatureCurveKind::Valley] {
-        let field = CrestField::new(mesh, curvatures, &adjacency, kind, settings.ridge_threshold);
+        let field = CrestField::new(
+            mesh,
+            curvatures,
+            &adjacency,
+            kind,
+            settings.ridge_threshold,
+            settings.hysteresis,
+        );
         let segments = crest_segments(mesh, &field);
-        let chains = chain_segments(&segments);
+        let chains = chain_segments(&segments)
+            .into_iter()
+            .filter(|chain| chain.2)
+            .map(|(points, closed, _)| (points, closed))
+            .collect();
         let joined = join_chains(chains, settings.join_distance);
-        for (mut points, closed) in joined {
+        let crease = CreaseField {
+            strength: &field.strength,
+            other: &field.other,
+            along: &field.along,
+            low: settings.hysteresis * settings.ridge_threshold / curvatures.scale,
+            scale: curvatures.scale,
+        };
+        let extended: Vec<(Vec<Vec3>, bool)> = joined
+            .into_par_iter()
+            .map(|(points, closed)| {
+                // Only curves at least a scale long are extended: a crumb near a junction (a
+                // box's corner) has no direction to extend along.
+                if closed || polyline_length(&points, false) < curvatures.scale {
+                    (points, closed)
+                } else {
+                    (extend_both_ends(mesh, &crease, points), false)
+                }
+            })
+            .collect();
+        for (mut points, closed) in join_chains(extended, settings.join_distance) {
             smooth(&mut points, closed, 2);
             if polyline_length(&points, closed) >= settings.min_length {
                 curves.push(FeatureCurve {
@@ -97,11 +138,36 @@ pub fn feature_curves(
     curves
 }
 
-/// The crest test's inputs per vertex for one kind: eligibility, extremality and direction.
+/// An open chain with both its ends walked on along the crease.
+fn extend_both_ends(mesh: &TargetMesh, crease: &CreaseField<'_>, points: Vec<Vec3>) -> Vec<Vec3> {
+    if points.len() < 2 {
+        return points;
+    }
+    let reach = crease.scale.min(0.5 * polyline_length(&points, false));
+    let before = extend_end(mesh, crease, points[0], end_tangent(&points, true, reach));
+    let after = extend_end(
+        mesh,
+        crease,
+        points[points.len() - 1],
+        end_tangent(&points, false, reach),
+    );
+    let mut result = Vec::with_capacity(before.len() + points.len() + after.len());
+    result.extend(before.into_iter().rev());
+    result.extend(points);
+    result.extend(after);
+    result
+}
+
+/// The crest test's inputs per vertex for one kind: eligibility at the low and the full
+/// threshold, extremality, the direction across the crest and along it, and the curvatures.
 struct CrestField {
     eligible: Vec<bool>,
+    strong: Vec<bool>,
     extremality: Vec<f32>,
     direction: Vec<Vec3>,
+    along: Vec<Vec3>,
+    strength: Vec<f32>,
+    other: Vec<f32>,
 }
 
 impl CrestField {
@@ -111,41 +177,70 @@ impl CrestField {
         adjacency: &VertexAdjacency,
         kind: FeatureCurveKind,
         ridge_threshold: f32,
+        hysteresis: f32,
     ) -> Self {
-        let (strength, other, direction): (Vec<f32>, Vec<f32>, &[Vec3]) = match kind {
-            FeatureCurveKind::Ridge => {
-                (curvatures.k1.clone(), curvatures.k2.clone(), &curvatures.d1)
-            }
+        let (strength, other, direction, along): (Vec<f32>, Vec<f32>, &[Vec3], &[Vec3]) = match kind
+        {
+            FeatureCurveKind::Ridge => (
+                curvatures.k1.clone(),
+                curvatures.k2.clone(),
+                &curvatures.d1,
+                &curvatures.d2,
+            ),
             FeatureCurveKind::Valley => (
                 curvatures.k2.iter().map(|k| -k).collect(),
                 curvatures.k1.iter().map(|k| -k).collect(),
                 &curvatures.d2,
+                &curvatures.d1,
             ),
         };
+        let passes = |vertex: usize, threshold: f32| {
+            let (k, other) = (strength[vertex], other[vertex]);
+            direction[vertex] != Vec3::ZERO
+                && k >= threshold
+                && k > other.abs()
+                && k - other >= threshold
+        };
         let threshold = ridge_threshold / curvatures.scale;
-        let eligible: Vec<bool> = (0..strength.len())
-            .map(|vertex| {
-                let (k, other) = (strength[vertex], other[vertex]);
-                direction[vertex] != Vec3::ZERO
-                    && k >= threshold
-                    && k > other.abs()
-                    && k - other >= threshold
-            })
-            .collect();
+        let low = hysteresis * threshold;
+        let eligible: Vec<bool> = (0..strength.len()).map(|v| passes(v, low)).collect();
+        let strong: Vec<bool> = (0..strength.len()).map(|v| passes(v, threshold)).collect();
         let positions = mesh.vertices();
         let normals = &curvatures.normals;
         // The gradient is fitted over half the scale: over the one-ring alone, noise of the
         // order of the edges would scatter the zero crossings.
         let radius = 0.5 * curvatures.scale;
-        let extremality = (0..strength.len() as u32)
+        // Per vertex: the extremality, and whether the surface really bends the crest's way.
+        let tested: Vec<(f32, bool)> = (0..strength.len() as u32)
             .into_par_iter()
             .with_min_len(512)
             .map_init(
                 || (Scratch::new(positions.len()), Vec::new()),
                 |(scratch, neighborhood), vertex| {
                     if !eligible[vertex as usize] {
-                        return 0.0;
+                        return (0.0, false);
                     }
+                    gather(
+                        positions,
+                        adjacency,
+                        vertex,
+                        curvatures.scale,
+                        7,
+                        scratch,
+                        neighborhood,
+                    );
+                    let height = mean_height(
+                        positions,
+                        normals[vertex as usize],
+                        neighborhood,
+                        vertex as usize,
+                        curvatures.scale,
+                    );
+                    // Convex: the neighbourhood lies below the tangent plane on average.
+                    let bends = match kind {
+                        FeatureCurveKind::Ridge => height < 0.0,
+                        FeatureCurveKind::Valley => height > 0.0,
+                    };
                     gather(
                         positions,
                         adjacency,
@@ -163,14 +258,25 @@ impl CrestField {
                         vertex as usize,
                         radius,
                     );
-                    gradient.dot(direction[vertex as usize])
+                    (gradient.dot(direction[vertex as usize]), bends)
                 },
             )
             .collect();
+        let extremality = tested.iter().map(|&(value, _)| value).collect();
+        let eligible: Vec<bool> = tested.iter().map(|&(_, bends)| bends).collect();
+        let strong = strong
+            .iter()
+            .zip(&eligible)
+            .map(|(&strong, &eligible)| strong && eligible)
+            .collect();
         Self {
             eligible,
+            strong,
             extremality,
             direction: direction.to_vec(),
+            along: along.to_vec(),
+            strength,
+            other,
         }
     }
 
@@ -196,6 +302,29 @@ impl CrestField {
         let t = ei / (ei - ej);
         Some(positions[i].lerp(positions[j], t))
     }
+}
+
+/// The weighted mean height of the neighbourhood over the tangent plane at `vertex` (along
+/// `normal`; weights fall to zero at `radius`): negative where the surface bends away from its
+/// normal (convex) over that radius. The fitted quadric alone can say "concave" beside a sharp
+/// convex edge (the fit rings there); this says which way the surface really goes.
+fn mean_height(
+    positions: &[Vec3],
+    normal: Vec3,
+    neighbors: &[u32],
+    vertex: usize,
+    radius: f32,
+) -> f32 {
+    let origin = positions[vertex];
+    let (mut sum, mut total) = (0.0f32, 0.0f32);
+    for &neighbor in neighbors {
+        let offset = positions[neighbor as usize] - origin;
+        let t = (offset.length() / radius).min(1.0);
+        let weight = (1.0 - t * t) * (1.0 - t * t);
+        sum += weight * offset.dot(normal);
+        total += weight;
+    }
+    if total > 0.0 { sum / total } else { 0.0 }
 }
 
 /// Weighted least-squares gradient of `field` at `vertex` in the plane normal to `normal`, from
@@ -240,7 +369,9 @@ fn edge_key(first: u32, second: u32) -> u64 {
 /// A crest segment across one triangle: its two end points, each keyed by the edge it lies on.
 type Segment = [(u64, Vec3); 2];
 
-fn crest_segments(mesh: &TargetMesh, field: &CrestField) -> Vec<Segment> {
+/// The crest segments of every triangle, each with whether its triangle's corners all pass the
+/// full threshold.
+fn crest_segments(mesh: &TargetMesh, field: &CrestField) -> Vec<(Segment, bool)> {
     let positions = mesh.vertices();
     mesh.triangles()
         .par_iter()
@@ -259,13 +390,16 @@ fn crest_segments(mesh: &TargetMesh, field: &CrestField) -> Vec<Segment> {
                     count += 1;
                 }
             }
-            (count == 2).then_some([found[0], found[1]])
+            let strong = corners.iter().all(|&v| field.strong[v as usize]);
+            (count == 2).then_some(([found[0], found[1]], strong))
         })
         .collect()
 }
 
-/// Chains of segments joined at their shared edge points: `(points, closed)`.
-fn chain_segments(segments: &[Segment]) -> Vec<(Vec<Vec3>, bool)> {
+/// Chains of segments joined at their shared edge points: `(points, closed, strong)`, `strong`
+/// when one of its segments is.
+fn chain_segments(flagged: &[(Segment, bool)]) -> Vec<(Vec<Vec3>, bool, bool)> {
+    let segments: Vec<Segment> = flagged.iter().map(|(segment, _)| *segment).collect();
     let mut at_point: HashMap<u64, Vec<usize>> = HashMap::new();
     for (index, segment) in segments.iter().enumerate() {
         for (key, _) in segment {
@@ -279,14 +413,16 @@ fn chain_segments(segments: &[Segment]) -> Vec<(Vec<Vec3>, bool)> {
         let mut points = vec![point_of(&segments[first], start)];
         let mut key = start;
         let mut segment = first;
+        let mut strong = false;
         loop {
             used[segment] = true;
+            strong |= flagged[segment].1;
             let next = other_end(&segments[segment], key);
             points.push(next.1);
             key = next.0;
             let here = &at_point[&key];
             if here.len() != 2 {
-                return (points, false);
+                return (points, false, strong);
             }
             let following = if here[0] == segment { here[1] } else { here[0] };
             if used[following] {
@@ -294,7 +430,7 @@ fn chain_segments(segments: &[Segment]) -> Vec<(Vec<Vec3>, bool)> {
                 if closed {
                     points.pop();
                 }
-                return (points, closed);
+                return (points, closed, strong);
             }
             segment = following;
         }
@@ -333,145 +469,6 @@ fn other_end(segment: &Segment, key: u64) -> (u64, Vec3) {
     } else {
         segment[0]
     }
-}
-
-fn polyline_length(points: &[Vec3], closed: bool) -> f32 {
-    let open: f32 = points
-        .windows(2)
-        .map(|pair| pair[0].distance(pair[1]))
-        .sum();
-    match (closed, points.first(), points.last()) {
-        (true, Some(first), Some(last)) => open + first.distance(*last),
-        _ => open,
-    }
-}
-
-/// The outward direction at one end of a polyline, over up to `reach` of its length.
-fn end_tangent(points: &[Vec3], at_start: bool, reach: f32) -> Vec3 {
-    let count = points.len();
-    let point = |index: usize| {
-        if at_start {
-            points[index]
-        } else {
-            points[count - 1 - index]
-        }
-    };
-    let end = point(0);
-    let mut inner = end;
-    let mut travelled = 0.0;
-    for index in 1..count {
-        travelled += point(index - 1).distance(point(index));
-        inner = point(index);
-        if travelled >= reach {
-            break;
-        }
-    }
-    (end - inner).normalize_or_zero()
-}
-
-/// Joins open chains whose ends are within `distance` and continue each other (the two end
-/// directions within 30° of straight on, and each within 45° of the gap between them); closes a
-/// chain whose own ends so meet. Closest pairs first. Ends meeting at an angle, such as the
-/// edges of a box at a corner, stay apart.
-fn join_chains(chains: Vec<(Vec<Vec3>, bool)>, distance: f32) -> Vec<(Vec<Vec3>, bool)> {
-    let straight_limit = 0.866;
-    let gap_limit = std::f32::consts::FRAC_1_SQRT_2;
-    let mut result: Vec<(Vec<Vec3>, bool)> = Vec::new();
-    let mut open: Vec<Vec<Vec3>> = Vec::new();
-    for (points, closed) in chains {
-        if closed || points.len() < 2 {
-            if points.len() >= 2 {
-                result.push((points, closed));
-            }
-        } else {
-            open.push(points);
-        }
-    }
-    // End `2c` is the start of chain c, `2c + 1` its end.
-    let ends: Vec<(Vec3, Vec3)> = open
-        .iter()
-        .flat_map(|points| {
-            let reach = distance.max(polyline_length(points, false) * 0.25);
-            let reach = reach.min(polyline_length(points, false) * 0.5);
-            [
-                (points[0], end_tangent(points, true, reach)),
-                (points[points.len() - 1], end_tangent(points, false, reach)),
-            ]
-        })
-        .collect();
-    let mut candidates: Vec<(f32, usize, usize)> = Vec::new();
-    for a in 0..ends.len() {
-        for b in a + 1..ends.len() {
-            let gap = ends[b].0 - ends[a].0;
-            let length = gap.length();
-            if length > distance {
-                continue;
-            }
-            let straight = ends[a].1.dot(-ends[b].1) >= straight_limit;
-            let compatible = if length <= distance * 0.05 {
-                straight
-            } else {
-                let direction = gap / length;
-                straight
-                    && ends[a].1.dot(direction) >= gap_limit
-                    && ends[b].1.dot(-direction) >= gap_limit
-            };
-            let same_chain = a / 2 == b / 2;
-            let long_enough = !same_chain || polyline_length(&open[a / 2], false) > 3.0 * distance;
-            if compatible && long_enough {
-                candidates.push((length, a, b));
-            }
-        }
-    }
-    candidates.sort_by(|x, y| x.0.total_cmp(&y.0));
-    let mut partner = vec![usize::MAX; ends.len()];
-    for (_, a, b) in candidates {
-        if partner[a] == usize::MAX && partner[b] == usize::MAX {
-            partner[a] = b;
-            partner[b] = a;
-        }
-    }
-    // Walk the chains through their linked ends.
-    let mut visited = vec![false; open.len()];
-    let walk_from = |chain: usize, enter_end: usize, visited: &mut Vec<bool>| {
-        let mut points: Vec<Vec3> = Vec::new();
-        let (mut chain, mut enter_end) = (chain, enter_end);
-        loop {
-            visited[chain] = true;
-            let piece = &open[chain];
-            if enter_end == 2 * chain {
-                points.extend(piece.iter().copied());
-            } else {
-                points.extend(piece.iter().rev().copied());
-            }
-            let exit_end = enter_end ^ 1;
-            let next = partner[exit_end];
-            if next == usize::MAX {
-                return (points, false);
-            }
-            if visited[next / 2] {
-                return (points, true);
-            }
-            chain = next / 2;
-            enter_end = next;
-        }
-    };
-    for chain in 0..open.len() {
-        if visited[chain] {
-            continue;
-        }
-        for end in [2 * chain, 2 * chain + 1] {
-            if partner[end] == usize::MAX && !visited[chain] {
-                result.push(walk_from(chain, end, &mut visited));
-            }
-        }
-    }
-    for chain in 0..open.len() {
-        if !visited[chain] {
-            result.push(walk_from(chain, 2 * chain, &mut visited));
-        }
-    }
-    result
 }
 
 /// `passes` rounds of moving each inner point halfway to the mean of its two neighbours.

@@ -14,19 +14,23 @@ proptest! {
             3 => target(),
             2 => random_target(),
         ],
-        scale in prop_oneof![4 => 0.05f32..1.5, 1 => distance()],
+        scale in prop_oneof![4 => 0.05f32..1.5, 1 => Just(0.0f32), 1 => distance()],
         thresholds in (distance(), distance(), distance(), distance()),
+        hysteresis in prop_oneof![3 => 0.0f32..1.0, 1 => distance()],
+        layout_edge_length in prop_oneof![2 => Just(0.0f32), 2 => 0.05f32..1.0, 1 => distance()],
         defaults in any::<bool>(),
     ) {
         let settings = if defaults {
-            FeatureSettings::with_scale(scale)
+            FeatureSettings { layout_edge_length, ..FeatureSettings::with_scale(scale) }
         } else {
             FeatureSettings {
                 scale,
+                layout_edge_length,
                 flat_threshold: thresholds.0,
                 ridge_threshold: thresholds.1,
-                min_length: thresholds.2,
-                join_distance: thresholds.3,
+                hysteresis,
+                min_length: Some(thresholds.2),
+                join_distance: Some(thresholds.3),
             }
         };
         match detect_features(&mesh, &settings) {
@@ -35,6 +39,7 @@ proptest! {
                 prop_assert!(curvatures.k1.iter().chain(&curvatures.k2).all(|k| k.is_finite()));
                 prop_assert!(curvatures.d1.iter().chain(&curvatures.d2).all(|d| d.is_finite()));
                 prop_assert_eq!(features.regions.len(), mesh.vertices().len());
+                prop_assert!(features.scale.is_finite() && features.scale > 0.0);
                 for curve in &features.curves {
                     prop_assert!(curve.points.iter().all(|p| p.is_finite()));
                 }

@@ -37,6 +37,7 @@ from ._native import (
     TooLargeError,
     WrapSettings,
     __version__,
+    feature_defaults,
     fit_transform,
     subdivision_fit_defaults,
 )
@@ -72,6 +73,7 @@ __all__ = [
     "WrapSettings",
     "WrapSolver",
     "__version__",
+    "feature_defaults",
     "fit_transform",
     "subdivision_fit_defaults",
 ]
@@ -132,6 +134,8 @@ class Features(NamedTuple):
     regions: np.ndarray
     """(N,) uint8: 0 flat, 1 convex, 2 concave, 3 saddle."""
     curves: list
+    scale: float
+    """The scale used: the one given, or the automatic one."""
 
 
 class TargetMesh(_native.TargetMesh):
@@ -159,14 +163,18 @@ class TargetMesh(_native.TargetMesh):
         """Principal curvatures and directions of every vertex, fitted over ``scale`` (see the stubs)."""
         return Curvatures(*_native.principal_curvatures(self, scale))
 
-    def detect_features(self, scale, **settings):
+    def detect_features(self, scale=None, **settings):
         """Curvatures, concave / convex / flat regions and ridge / valley curves (see the stubs)."""
-        k1, k2, d1, d2, regions, curves = _native.detect_features(self, scale, **settings)
-        return Features(Curvatures(k1, k2, d1, d2), regions, [FeatureCurve(*curve) for curve in curves])
+        used, k1, k2, d1, d2, regions, curves = _native.detect_features(self, scale, **settings)
+        return Features(Curvatures(k1, k2, d1, d2), regions, [FeatureCurve(*curve) for curve in curves], used)
 
-    def feature_curves(self, scale, **settings):
+    def feature_curves(self, scale=None, **settings):
         """The ridge and valley curves of :meth:`detect_features` alone."""
         return self.detect_features(scale, **settings).curves
+
+    def automatic_feature_scale(self, layout_edge_length=None):
+        """The scale :meth:`detect_features` uses when none is given (see the stubs)."""
+        return _native.automatic_feature_scale(self, layout_edge_length)
 
     def ray_cast(self, origins, directions, *, max_distance=float("inf"), both_directions=False):
         """First hit along each ray (signed distance; backwards too with ``both_directions``)."""

@@ -180,30 +180,43 @@ class TargetMesh:
         mesh's bounding-box diagonal."""
     def detect_features(
         self,
-        scale: float,
+        scale: float | None = None,
         *,
+        layout_edge_length: float | None = None,
         flat_threshold: float = 0.1,
         ridge_threshold: float = 0.25,
+        hysteresis: float = 0.5,
         min_length: float | None = None,
         join_distance: float | None = None,
     ) -> Features:
-        """Curvatures, regions and ridge / valley curves. A direction is flat while
-        ``|k| * scale < flat_threshold``; a ridge (valley) is where the largest (most negative)
-        curvature is extremal across itself, with ``k * scale >= ridge_threshold``; curves
-        shorter than ``min_length`` (default ``2 * scale``) are dropped, pieces whose ends are
-        within ``join_distance`` (default ``scale``) and continue each other are joined. For the
-        centre-lines of blends, ``scale`` about the blend radius. Raises
-        :class:`FlatSurfaceError` when no vertex bends beyond ``flat_threshold`` (a plane)."""
+        """Curvatures, regions and ridge / valley curves. ``scale`` ``None`` or 0: automatic
+        (:meth:`automatic_feature_scale`, with ``layout_edge_length`` the median edge length of the
+        layout the curves are for); the result's ``scale`` says which was used. A direction is flat
+        while ``|k| * scale < flat_threshold``; a ridge (valley) is where the largest (most
+        negative) curvature is extremal across itself, with ``k * scale >= ridge_threshold``
+        somewhere along the curve and ``hysteresis * ridge_threshold`` along the rest of it; open
+        ends are extended along the crease while it stays a crest at that low threshold, up to an
+        edge of the surface. Pieces whose ends are within ``join_distance`` (default ``scale``)
+        and continue each other are joined; curves shorter than ``min_length`` (default
+        ``3 * scale``) are dropped. For the centre-lines of blends, ``scale`` about the blend
+        radius. Raises :class:`FlatSurfaceError` when no vertex bends beyond ``flat_threshold``
+        (a plane)."""
     def feature_curves(
         self,
-        scale: float,
+        scale: float | None = None,
         *,
+        layout_edge_length: float | None = None,
         flat_threshold: float = 0.1,
         ridge_threshold: float = 0.25,
+        hysteresis: float = 0.5,
         min_length: float | None = None,
         join_distance: float | None = None,
     ) -> list[FeatureCurve]:
         """The curves of :meth:`detect_features` alone."""
+    def automatic_feature_scale(self, layout_edge_length: float | None = None) -> float:
+        """The feature scale used when none is given: ``layout_edge_length`` (a layout's median
+        edge length) when given and > 0, else a tenth of the bounding-box diagonal; kept within 3
+        and 30 mean edge lengths of this mesh and at most its diagonal."""
 
 # ---------------------------------------------------------------- features
 class Curvatures(NamedTuple):
@@ -227,6 +240,7 @@ class Features(NamedTuple):
     curvatures: Curvatures
     regions: npt.NDArray[np.uint8]  # (N,) 0 flat, 1 convex, 2 concave, 3 saddle
     curves: list[FeatureCurve]
+    scale: float  # the scale used: the one given, or the automatic one
 
 # ---------------------------------------------------------------- alignment
 class IcpReport(NamedTuple):
@@ -507,6 +521,11 @@ class SubdivisionFit:
         self, target: TargetMesh, cage: npt.NDArray[np.float32], offsets: npt.NDArray[np.float32] | None = None
     ) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32], int]:
         """One round: (the new cage, the fine points' distances before it, the trusted matches)."""
+
+def feature_defaults() -> dict[str, float]:
+    """The kernel's defaults of :meth:`TargetMesh.detect_features` (scale 0 = automatic, flat_threshold,
+    ridge_threshold, hysteresis, min_length_scales, join_distance_scales) and of the automatic scale
+    (scale_diagonal_fraction, scale_min_edges, scale_max_edges)."""
 
 def subdivision_fit_defaults() -> dict[str, float]:
     """The kernel's defaults of :class:`SubdivisionFit` (smoothness, max_distance, min_facing, damping,
