@@ -128,6 +128,13 @@ def build_layout(target: bpy.types.Object, name: str = "Layout") -> bpy.types.Ob
     return layout
 
 
+def new_scene() -> tuple[bpy.types.Object, Vector, int]:
+    """An empty file with the add-on enabled and the demo's target in it (:func:`build_target`'s result)."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    enable_addon()
+    return build_target()
+
+
 def attach_and_activate(layout: bpy.types.Object, target: bpy.types.Object) -> None:
     """Give ``layout`` its Springwrap target and make it the only selected, active object (what the operators
     act on)."""
@@ -366,9 +373,7 @@ def check_wrap(wrapped: bpy.types.Object, probe: TargetProbe, vertex_count: int)
 def run(output: Path) -> None:
     """Build the scene, retarget the layout step by step, print the table and save ``output``."""
     start = time.perf_counter()
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    enable_addon()
-    target, hole_centroid, cut_faces = build_target()
+    target, hole_centroid, cut_faces = new_scene()
     layout = build_layout(target)
     attach_and_activate(layout, target)
     probe = probe_target(target, hole_centroid)

@@ -188,10 +188,10 @@ def reference_points(target: bpy.types.Object, template_mesh: bpy.types.Mesh) ->
 # ---------------------------------------------------------------- scene, camera, render
 
 
-def setup_render(scene: bpy.types.Scene, target: bpy.types.Object) -> None:
-    """Workbench, flat studio light, colour attributes, white background, a camera in front of the target."""
+def workbench(scene: bpy.types.Scene, resolution: tuple[int, int] = RESOLUTION) -> None:
+    """The pictures' renderer: Workbench at ``resolution``, studio light, colour attributes, white background."""
     scene.render.engine = "BLENDER_WORKBENCH"
-    scene.render.resolution_x, scene.render.resolution_y = RESOLUTION
+    scene.render.resolution_x, scene.render.resolution_y = resolution
     scene.render.resolution_percentage = 100
     scene.render.image_settings.file_format = "PNG"
     scene.render.image_settings.color_mode = "RGB"
@@ -210,6 +210,10 @@ def setup_render(scene: bpy.types.Scene, target: bpy.types.Object) -> None:
     world.color = (1.0, 1.0, 1.0)
     scene.world = world
 
+
+def setup_render(scene: bpy.types.Scene, target: bpy.types.Object) -> None:
+    """:func:`workbench`, and a camera in front of the target."""
+    workbench(scene)
     camera_data = bpy.data.cameras.new("GuideCamera")
     camera_data.lens = 50.0
     camera = bpy.data.objects.new("GuideCamera", camera_data)
@@ -283,10 +287,8 @@ def draw_colour_bar(image) -> list[tuple[int, int, int]]:
 
 def run(output_dir: Path) -> None:
     start = time.perf_counter()
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    demo.enable_addon()
+    target, hole_centroid, _cut = demo.new_scene()
     scene = bpy.context.scene
-    target, hole_centroid, _cut = demo.build_target()
     operators = bpy.ops.springwrap
 
     def step(result):

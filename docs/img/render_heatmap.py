@@ -102,17 +102,13 @@ def _crop(path: Path, rectangle, output: Path) -> None:
 
 
 def palette(path: Path) -> None:
-    """Re-save ``path`` with a 256-colour palette when Pillow is importable (Blender 3.4's Python may lack it:
+    """``render_guide.shrink``: a 256-colour palette when Pillow is importable (Blender 3.4's Python may lack it:
     then ``.venv/bin/python -c "import runpy; runpy.run_path('docs/img/render_heatmap.py', run_name='palette')"``
     does it for the pictures in docs/img)."""
-    try:
-        from PIL import Image
-    except ImportError:
-        print(f"render_heatmap: Pillow is not installed here: {path.name} stays a full-colour PNG")
-        return
-    with Image.open(path) as image:
-        image = image.convert("RGB")
-    image.quantize(colors=256, method=Image.Quantize.MEDIANCUT).save(path, optimize=True)
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import render_guide
+
+    render_guide.shrink(path)
 
 
 def _steps(arguments):

@@ -55,10 +55,8 @@ def run(output_dir: Path) -> None:
     from PIL import Image, ImageDraw
 
     start = time.perf_counter()
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    demo.enable_addon()
+    target, _hole_centroid, _cut = demo.new_scene()
     scene = bpy.context.scene
-    target, _hole_centroid, _cut = demo.build_target()
     template = demo.build_layout(target, "Template")
     wrapped = demo.build_layout(target, "Wrapped")
     uvs_before = uv_coordinates(wrapped)

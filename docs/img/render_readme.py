@@ -113,22 +113,10 @@ def point_values(obj, name: str) -> np.ndarray:
 
 
 def setup_render(scene, points: np.ndarray):
-    """Workbench, flat light, colour attributes, white background; an orthographic camera on +Z framing
-    ``points`` (already in the front frame: +Y up)."""
-    scene.render.engine = "BLENDER_WORKBENCH"
-    scene.render.resolution_x, scene.render.resolution_y = PANEL_SIZE
-    scene.render.resolution_percentage = 100
-    scene.render.image_settings.file_format = "PNG"
-    scene.render.image_settings.color_mode = "RGB"
-    scene.render.film_transparent = False
-    scene.view_settings.view_transform = "Standard"
-    shading = scene.display.shading
-    shading.light = "FLAT"
-    shading.color_type = "VERTEX"
-    shading.show_specular_highlight = False
-    world = bpy.data.worlds.new("White")
-    world.color = (1.0, 1.0, 1.0)
-    scene.world = world
+    """``render_guide.workbench`` at PANEL_SIZE; an orthographic camera on +Z framing ``points`` (already in the
+    front frame: +Y up)."""
+    render_guide.workbench(scene, PANEL_SIZE)
+    scene.display.shading.show_object_outline = False
     minimum, maximum = points.min(axis=0), points.max(axis=0)
     centre = (minimum + maximum) / 2.0
     camera_data = bpy.data.cameras.new("Camera")
