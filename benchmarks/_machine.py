@@ -1,7 +1,8 @@
-"""What machine a benchmark ran on: shared by every benchmark script's machine description."""
+"""What machine a benchmark ran on, and how its results are written: shared by the benchmark scripts."""
 
 from __future__ import annotations
 
+import json
 import platform
 from pathlib import Path
 
@@ -15,3 +16,10 @@ def cpu_model() -> str:
     except OSError:
         pass
     return platform.processor() or platform.machine()
+
+
+def write_json(path: Path, results) -> None:
+    """Write a benchmark's results (JSON, indented) to ``path``, its folder made, and say so."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(results, indent=2) + "\n")
+    print(f"wrote {path}")

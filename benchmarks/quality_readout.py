@@ -25,6 +25,8 @@ REPOSITORY = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPOSITORY))
 sys.path.insert(0, str(REPOSITORY / "blender_scripts"))
 
+from benchmarks._machine import write_json  # noqa: E402 - after the path is set
+
 ANCHORS = 24
 REPEATS = 5
 
@@ -127,9 +129,7 @@ def main() -> int:
     for name in arguments.cases:
         results[name] = body(name)
         print(json.dumps(results[name], indent=1), flush=True)
-    arguments.json.parent.mkdir(parents=True, exist_ok=True)
-    arguments.json.write_text(json.dumps(results, indent=2))
-    print(f"wrote {arguments.json}")
+    write_json(arguments.json, results)
     return 0
 
 

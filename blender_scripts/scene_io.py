@@ -124,6 +124,28 @@ def _appended_from(path: Path, object_name) -> list:
     return requested
 
 
+def open_blend(path: Path | None) -> None:
+    """The add-on enabled and, given a ``path``, that .blend opened (checked before Blender reads it)."""
+    enable_addon()
+    if path is None:
+        return
+    check_blend_file(path)
+    try:
+        bpy.ops.wm.open_mainfile(filepath=str(path.resolve()))
+    except RuntimeError as error:
+        raise ScriptError(f"{path}: cannot read: {str(error).strip().splitlines()[0]}") from None
+
+
+def find_mesh(name: str, what: str) -> "bpy.types.Object":
+    """The mesh object called ``name`` (the ``what`` of the script's run); raises naming the mesh objects there
+    are."""
+    obj = bpy.data.objects.get(name)
+    if obj is None or obj.type != "MESH":
+        meshes = ", ".join(sorted(o.name for o in bpy.data.objects if o.type == "MESH")) or "none"
+        raise ScriptError(f"no mesh object '{name}' for the {what} (mesh objects: {meshes})")
+    return obj
+
+
 def load_mesh(path: Path, object_name, role: str, frame: "Matrix") -> "bpy.types.Object":
     """The mesh object of ``path`` (a mesh file, or a .blend's object), linked into the scene, named ``role``.
 

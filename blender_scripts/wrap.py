@@ -22,18 +22,16 @@ import bpy
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # `blender --python` does not add it
 from headless import (
-    EXIT_OK,
     ScriptError,
     add_shape_keys_argument,
     addon_module,
     check_output_arguments,
     check_output_paths,
-    enable_addon,
-    failed,
     script_arguments,
+    script_main,
     write_atomically,
 )
-from mesh_files import check_blend_file
+from scene_io import find_mesh, open_blend
 
 PROGRESS_CHUNK = 100
 """Iterations between two progress lines."""
@@ -58,26 +56,11 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     return arguments
 
 
-def find_object(name: str, what: str) -> bpy.types.Object:
-    """The mesh object called ``name``; raises naming the mesh objects there are."""
-    obj = bpy.data.objects.get(name)
-    if obj is None or obj.type != "MESH":
-        meshes = ", ".join(sorted(o.name for o in bpy.data.objects if o.type == "MESH")) or "none"
-        raise ScriptError(f"no mesh object '{name}' for the {what} (mesh objects: {meshes})")
-    return obj
-
-
 def prepare(arguments: argparse.Namespace) -> bpy.types.Object:
     """Open the file, pick the layout and its target, make the layout active (object mode)."""
-    enable_addon()
-    if arguments.blend is not None:
-        check_blend_file(arguments.blend)
-        try:
-            bpy.ops.wm.open_mainfile(filepath=str(arguments.blend.resolve()))
-        except RuntimeError as error:
-            raise ScriptError(f"{arguments.blend}: cannot read: {str(error).strip().splitlines()[0]}") from None
+    open_blend(arguments.blend)
     if arguments.layout is not None:
-        layout = find_object(arguments.layout, "layout")
+        layout = find_mesh(arguments.layout, "layout")
     else:
         layout = bpy.context.view_layer.objects.active
         if layout is None or layout.type != "MESH":
@@ -86,7 +69,7 @@ def prepare(arguments: argparse.Namespace) -> bpy.types.Object:
         bpy.context.view_layer.objects.active = layout
         bpy.ops.object.mode_set(mode="OBJECT")
     if arguments.target is not None:
-        layout.springwrap.target = find_object(arguments.target, "target")
+        layout.springwrap.target = find_mesh(arguments.target, "target")
     if layout.springwrap.target is None:
         raise ScriptError(f"layout '{layout.name}' has no target: give --target")
     for obj in bpy.context.view_layer.objects:
@@ -159,12 +142,7 @@ def run(arguments: argparse.Namespace) -> None:
 
 
 def main() -> int:
-    arguments = parse_arguments(sys.argv)
-    try:
-        run(arguments)
-    except Exception as error:  # noqa: BLE001 - any failure must become a non-zero exit code, also under `blender -b`
-        return failed("wrap", error)
-    return EXIT_OK
+    return script_main("wrap", parse_arguments, run)
 
 
 if __name__ == "__main__":
