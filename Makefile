@@ -149,6 +149,7 @@ bench: setup $(STAMPS)/bench-requirements
 	  --json $(BENCH_OUT)/wrap_solvers.json --markdown $(BENCH_DOCS)/wrap-solvers.md
 	$(PY) benchmarks/batch_throughput.py $(BENCH_QUICK) --json $(BENCH_OUT)/batch_throughput.json
 	$(PY) benchmarks/cage_fit.py $(if $(QUICK),--cases heavy,) --json $(BENCH_OUT)/cage_fit.json
+	$(PY) benchmarks/quality_readout.py $(if $(QUICK),--cases heavy,) --json $(BENCH_OUT)/quality_readout.json
 	$(PY) benchmarks/large_target.py $(if $(QUICK),--triangles 1000000,) --json $(BENCH_OUT)/large_target.json
 	$(PY) benchmarks/feature_curves.py $(BENCH_QUICK) --json $(BENCH_OUT)/feature_curves.json
 	$(PY) benchmarks/figures.py $(if $(QUICK),--cases heavy,) --retarget $(BENCH_OUT)/retarget.json \
@@ -156,6 +157,8 @@ bench: setup $(STAMPS)/bench-requirements
 	$(PY) benchmarks/report.py --retarget $(BENCH_OUT)/retarget.json --performance $(BENCH_OUT)/performance.json \
 	  --snap $(BENCH_OUT)/snap_throughput.json --speed $(BENCH_OUT)/wrap_speed.json \
 	  --batch $(BENCH_OUT)/batch_throughput.json --features $(BENCH_OUT)/feature_curves.json \
+	  --quality $(BENCH_OUT)/quality_readout.json --cage-fit $(BENCH_OUT)/cage_fit.json \
+	  --large-target $(BENCH_OUT)/large_target.json \
 	  --output $(BENCH_DOCS)/benchmarks.md
 
 clean:

@@ -12,8 +12,8 @@ and after, and the fit's seconds (one run, the operator's wall time, 2 shared co
 
     .venv/bin/python benchmarks/cage_fit.py [--cases heavy heavy-holes] [--levels 2] [--json out/bench/cage_fit.json]
 
-A step of ``make bench`` (``out/bench/cage_fit.json``; ``QUICK=1``: the heavy case only); its numbers are not
-yet a table of ``docs/benchmarks.md``.
+A step of ``make bench`` (``out/bench/cage_fit.json``; ``QUICK=1``: the heavy case only); ``benchmarks/report.py``
+makes its table in ``docs/benchmarks.md`` (*After the wrap*).
 """
 
 from __future__ import annotations

@@ -18,8 +18,8 @@ target object (~``--triangles``) and a quad layout over another displaced torus 
   ``tracemalloc`` (numpy reports its buffers to it).
 
 Prints a summary and writes ``out/bench/large_target.json``. A step of ``make bench`` (a 5M-triangle
-target takes a few minutes and ~2 GB; ``QUICK=1``: 1M triangles); its numbers are not yet a table of
-``docs/benchmarks.md``.
+target takes a few minutes and ~2 GB; ``QUICK=1``: 1M triangles); ``benchmarks/report.py`` makes its table in
+``docs/benchmarks.md`` (*Large targets*).
 """
 
 from __future__ import annotations

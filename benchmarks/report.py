@@ -782,6 +782,136 @@ def batch_section(batch: dict) -> list[str]:
 # ---------------------------------------------------------------- the document
 
 
+# ---------------------------------------------------------------- after the wrap
+
+
+def cage_fit_section(rows: list[dict]) -> list[str]:
+    """The subdivision cage fit (``benchmarks/cage_fit.py --json``): the level-L surface's distance to the
+    target before and after ``springwrap.fit_subdivision``, and its time."""
+    lines = [
+        "### Subdivision cage fit",
+        "",
+        "`springwrap.fit_subdivision` on MakeHuman's quads snapped onto the body (the cage a perfect wrap "
+        "leaves): the distance of Blender's Subdivision Surface of the cage to the target before and after "
+        "the fit, in % of the body's bounding-box diagonal (`.venv/bin/python benchmarks/cage_fit.py`).",
+        "",
+    ]
+    body = []
+    for row in rows:
+        before, after = row["before"], row["after"]
+        body.append(
+            [
+                row["case"],
+                str(row["levels"]),
+                str(row["anchors"]),
+                f"{row['cage_vertices']:,}",
+                f"{row['surface_points']:,}",
+                f"{number(before['mean_percent'], 3)} / {number(before['p95_percent'], 3)} / "
+                f"{number(before['max_percent'], 3)}",
+                f"{number(after['mean_percent'], 3)} / {number(after['p95_percent'], 3)} / "
+                f"{number(after['max_percent'], 3)}",
+                number(before["max"] / after["max"], 1) if after["max"] > 0 else "inf",
+                number(row["seconds"], 2),
+            ]
+        )
+    header = ["case", "level", "anchors", "cage vertices", "surface points"]
+    header += ["before: mean / p95 / max %", "after: mean / p95 / max %", "max falls ×", "seconds"]
+    return lines + table(header, body, "lrrrrrrrr") + [""]
+
+
+def quality_section(results: dict) -> list[str]:
+    """The quality read-out (``benchmarks/quality_readout.py --json``): what it costs and what it says."""
+    lines = [
+        "### Quality read-out",
+        "",
+        "What the read-out (written by snap, project, the wrap and the mirror) costs and what it says after a "
+        "wrap, without a known answer: on the demo, and on the MakeHuman body wrapped onto the benchmark's "
+        "bodies from 24 landmark anchors (`.venv/bin/python benchmarks/quality_readout.py`). Distances are in "
+        "world units (metres on the body); *off surface* counts the vertices farther than the threshold "
+        "(0.1 % of the layout's size); on the body the truth is known, so the faces the read-out finds turned "
+        "over are set against those turned over against the true layout.",
+        "",
+    ]
+    body = []
+    for name, result in results.items():
+        if not isinstance(result, dict) or "quality" not in result:
+            continue
+        quality = result["quality"]
+        truth = result.get("flipped_against_truth")
+        body.append(
+            [
+                name,
+                f"{quality['vertices']:,}",
+                number(result.get("wrap_seconds"), 2),
+                number(1000 * result["measure_seconds"], 0) if "measure_seconds" in result else "-",
+                f"{quality['distance_p50']:.2g} / {quality['distance_p95']:.2g} / {quality['distance_max']:.2g}",
+                f"{number(quality['stretch_p5'], 2)} / {number(quality['stretch_p50'], 2)} / "
+                f"{number(quality['stretch_p95'], 2)}",
+                str(quality["flipped"]) + ("" if truth is None else f" ({truth} against the truth)"),
+                f"{quality['off_surface']:,}",
+            ]
+        )
+    header = ["case", "vertices", "wrap s", "read-out ms", "distance p50 / p95 / max"]
+    header += ["stretch p5 / p50 / p95", "faces flipped", "off surface"]
+    return lines + table(header, body, "lrrrrrrr") + [""]
+
+
+def large_target_section(result: dict) -> list[str]:
+    """Large targets (``benchmarks/large_target.py --json``): how soon an operation starts on a large target,
+    the target cache, and the memory of a wrap on it."""
+    triangles = result["triangles"]
+    lines = [
+        "### Large targets",
+        "",
+        f"A {triangles:,}-triangle target (a noise-displaced torus) and a {result['layout_vertices']:,}-vertex "
+        "layout, in a fresh process (`.venv/bin/python benchmarks/large_target.py`): `springwrap.snap` three "
+        "times (the first reads the target and builds its face tree; the later ones find it unchanged in the "
+        "cache), then a wrap. *Starts after* is the time from the operator's call to its first query into the "
+        "kernel; memory is per target triangle, above the scene's own.",
+        "",
+    ]
+    rows = []
+    for snap in result["snaps"]:
+        reads = ", ".join(f"{path} {count}" for path, count in snap["reads"].items() if count) or "none"
+        rows.append(
+            [
+                f"snap {snap['run']}",
+                number(snap["start_seconds"], 3),
+                number(snap["seconds"], 2),
+                reads,
+                number(snap["peak_bytes_per_triangle"], 0),
+                number(snap["kept_bytes_per_triangle"], 0),
+            ]
+        )
+    wrap = result["wrap"]
+    rows.append(
+        [
+            f"wrap ({wrap['iterations']} iterations)",
+            "-",
+            number(wrap["seconds"], 2),
+            "-",
+            number(wrap["peak_bytes_per_triangle"], 0),
+            number(wrap["kept_bytes_per_triangle"], 0),
+        ]
+    )
+    header = ["operation", "starts after s", "seconds", "target reads", "peak B/triangle", "kept B/triangle"]
+    read = result["read"]
+    return (
+        lines
+        + table(header, rows, "lrrlrr")
+        + [
+            "",
+            f"The target's read alone (numpy, traced): peak {number(read['peak_bytes_per_triangle'], 0)} B per "
+            f"triangle, {number(read['seconds_to_build'], 2)} s to the kernel's build; the scene itself "
+            f"{number(result['scene_megabytes'], 0)} MB.",
+            "",
+        ]
+    )
+
+
+# ---------------------------------------------------------------- the document
+
+
 def machine_lines(name: str, run: dict) -> list[str]:
     machine = dict(run.get("machine", {}))
     machine.update(run.get("versions", {}))  # snap_throughput.py keeps the versions apart
@@ -808,6 +938,7 @@ def build_document(
     speed: dict | None = None,
     batch: dict | None = None,
     features: dict | None = None,
+    after_wrap: dict | None = None,
 ) -> str:
     """The whole of ``docs/benchmarks.md``."""
     lines = [
@@ -869,6 +1000,15 @@ def build_document(
         lines += ["Not run: no performance JSON.", ""]
     if batch is not None:
         lines += batch_section(batch)
+    after_wrap = after_wrap or {}
+    if any(value is not None for value in after_wrap.values()):
+        lines += ["## After the wrap", ""]
+        if after_wrap.get("quality") is not None:
+            lines += quality_section(after_wrap["quality"])
+        if after_wrap.get("cage_fit") is not None:
+            lines += cage_fit_section(after_wrap["cage_fit"])
+    if after_wrap.get("large_target") is not None:
+        lines += ["## Large targets", ""] + large_target_section(after_wrap["large_target"])[2:]
     if features is not None:  # benchmarks/feature_curves.py
         sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
         from benchmarks.feature_curves import markdown_lines
@@ -889,6 +1029,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--speed", type=Path, default=OUT / "wrap_speed.json")
     parser.add_argument("--batch", type=Path, default=OUT / "batch_throughput.json")
     parser.add_argument("--features", type=Path, default=OUT / "feature_curves.json")
+    parser.add_argument("--quality", type=Path, default=OUT / "quality_readout.json")
+    parser.add_argument("--cage-fit", type=Path, default=OUT / "cage_fit.json")
+    parser.add_argument("--large-target", type=Path, default=OUT / "large_target.json")
     parser.add_argument("--output", type=Path, default=DOCS / "benchmarks.md")
     arguments = parser.parse_args(sys.argv[1:] if argv is None else argv)
     inputs = {name: load(getattr(arguments, name)) for name in ("retarget", "performance", "snap")}
@@ -908,6 +1051,7 @@ def main(argv: list[str] | None = None) -> int:
             load(arguments.speed),
             load(arguments.batch),
             load(arguments.features),
+            {name: load(getattr(arguments, name)) for name in ("quality", "cage_fit", "large_target")},
         )
     )
     print(f"wrote {arguments.output}")

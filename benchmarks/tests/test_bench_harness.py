@@ -973,3 +973,73 @@ def test_wrap_solvers_page_keeps_the_section_that_was_not_run():
     assert merged.count(wrap_solvers.GENERATED) == 1 and merged.startswith(wrap_solvers.PAGE_TITLE)
     # The bodies alone, no page before: no scans' section.
     assert "Scanned" not in wrap_solvers.markdown([body], "")
+
+
+# ---------------------------------------------------------------- report: after the wrap, large targets
+
+
+def _quality(flipped: int, off_surface: int) -> dict:
+    return {
+        "vertices": 13380,
+        "faces": 13378,
+        "distance_mean": 7e-4,
+        "distance_p50": 7e-9,
+        "distance_p95": 2e-3,
+        "distance_max": 0.063,
+        "stretch_p5": 0.873,
+        "stretch_p50": 0.982,
+        "stretch_p95": 1.219,
+        "stretch_max": 2.5,
+        "flipped": flipped,
+        "off_surface": off_surface,
+        "off_surface_threshold": 1.8e-3,
+    }
+
+
+def test_quality_section_has_a_row_per_case_and_the_flips_against_the_truth():
+    results = {
+        "demo": {"wrap_seconds": 0.16, "measure_seconds": 0.012, "quality": _quality(1, 62)},
+        "heavy": {
+            "wrap_seconds": 2.8,
+            "measure_seconds": 0.17,
+            "quality": _quality(0, 666),
+            "flipped_against_truth": 3,
+        },
+    }
+    lines = report.quality_section(results)
+    assert lines[0] == "### Quality read-out"
+    rows = [line for line in lines if line.startswith("| demo") or line.startswith("| heavy")]
+    assert rows[0] == "| demo | 13,380 | 0.16 | 12 | 7e-09 / 0.002 / 0.063 | 0.87 / 0.98 / 1.22 | 1 | 62 |"
+    assert "| 0 (3 against the truth) | 666 |" in rows[1]
+
+
+def test_cage_fit_section_gives_the_distances_before_and_after_and_how_much_the_max_falls():
+    statistics = {"mean": 6e-4, "p95": 2e-3, "max": 0.056, "mean_percent": 0.028, "p95_percent": 0.095}
+    row = {
+        "case": "heavy",
+        "levels": 2,
+        "anchors": 12,
+        "cage_vertices": 13380,
+        "surface_points": 214050,
+        "before": statistics | {"max_percent": 2.66},
+        "after": statistics | {"max": 0.014, "max_percent": 0.66},
+        "seconds": 2.78,
+    }
+    lines = report.cage_fit_section([row])
+    assert "| heavy | 2 | 12 | 13,380 | 214,050 | 0.028 / 0.095 / 2.660 | 0.028 / 0.095 / 0.660 | 4.0 | 2.78 |" in lines
+
+
+def test_large_target_section_has_the_snaps_and_the_wrap():
+    snap = {"start_seconds": 0.002, "seconds": 0.4, "peak_bytes_per_triangle": 10.0, "kept_bytes_per_triangle": 2.0}
+    result = {
+        "triangles": 5_000_000,
+        "layout_vertices": 4000,
+        "snaps": [snap | {"run": 1, "reads": {"built": 1, "reused": 0}}, snap | {"run": 2, "reads": {"reused": 1}}],
+        "wrap": {"iterations": 20, "seconds": 3.5, "peak_bytes_per_triangle": 225.0, "kept_bytes_per_triangle": 90.0},
+        "read": {"peak_bytes_per_triangle": 120.0, "seconds_to_build": 1.2},
+        "scene_megabytes": 900.0,
+    }
+    lines = report.large_target_section(result)
+    assert "| snap 1 | 0.002 | 0.40 | built 1 | 10 | 2 |" in lines
+    assert "| wrap (20 iterations) | - | 3.50 | - | 225 | 90 |" in lines
+    assert any("5,000,000-triangle target" in line for line in lines)
