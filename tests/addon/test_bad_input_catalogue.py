@@ -1,4 +1,4 @@
-"""The bad-input catalogue thrown at every operator of ``bpy.ops.springwrap`` (issue 13).
+"""The bad-input catalogue thrown at every operator of ``bpy.ops.springwrap``.
 
 One scene holds everything an operator may read: a target, a hybrid layout (face- and space-points, a rest
 shape), anchors, a curve constraint, a curve object, and (for ``align_armature``) two armatures. Each case of
@@ -513,7 +513,7 @@ def test_a_bad_symmetry_object_is_refused(operator, kind):
 
 
 def test_project_along_normals_refuses_an_infinite_vertex_instead_of_skipping_it():
-    """Issue 13: a real inf written with foreach_set was skipped by project(NORMAL) (its normal is not finite)."""
+    """A real inf written with foreach_set was skipped by project(NORMAL) (its normal is not finite)."""
     target, layout = catalogue_scene()
     _layout_vertex(math.inf)(target, layout)
     before = full_snapshot(layout)

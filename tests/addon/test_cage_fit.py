@@ -92,7 +92,7 @@ def cage_arrays(obj):
 
 @pytest.mark.parametrize("centre", [(0.0, 0.0, 0.0), (40.0, -25.0, 12.5)], ids=["at-origin", "far-away"])
 def test_the_subdivided_surface_of_a_sphere_cage_comes_onto_the_sphere(centre):
-    """The issue's cage-fit test: the level-2 surface's max distance to the sphere falls at least 5 times."""
+    """The cage fit's acceptance test: the level-2 surface's max distance to the sphere falls at least 5 times."""
     target = sphere_target(centre=centre)
     layout = cube_sphere_cage(target, matrix=Matrix.Translation(centre) @ LAYOUT_MATRIX, centre=centre)
     before = distances_to(target, subdivided_world_points(layout))

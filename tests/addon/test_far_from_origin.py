@@ -2,7 +2,7 @@
 
 The kernel works in float32; the add-on hands it coordinates relative to the target's (rounded) bounding-box
 centre, so a unit sphere 1e6 from the origin is snapped and wrapped exactly as at the origin. Before, the
-snap there was off by 0.042 and the wrap by 3.2 % of the object's size (issue 13, item 3).
+snap there was off by 0.042 and the wrap by 3.2 % of the object's size.
 """
 
 import bpy

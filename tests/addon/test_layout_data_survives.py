@@ -1,4 +1,4 @@
-"""Everything else on a layout survives every operator (issue "What artists expect after a wrap", item 5).
+"""Everything else on a layout survives every operator.
 
 The layout is the half head of ``test_mirror`` (101 vertices, 96 faces) snapped onto its symmetric target, with
 anchors and a curve constraint, and dressed by ``bpy_helpers.dress_layout`` with what an artist's layout

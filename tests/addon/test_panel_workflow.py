@@ -1,4 +1,4 @@
-"""The sidebar as a workflow (issue 14): the panels' order and which are closed, the live progress and the
+"""The sidebar as a workflow: the panels' order and which are closed, the live progress and the
 last wrap in the panel, the cage display and its undoing, and the message when numpy is missing.
 
 How it looks at the default sidebar width is checked on screenshots of a real Blender (``make test-gui``).

@@ -1,4 +1,4 @@
-"""The quality read-out (issue "What artists expect after a wrap", item 1): the attributes every operator that
+"""The quality read-out: the attributes every operator that
 moves the layout onto the target writes, their distances against ``mathutils``' BVH on the evaluated target,
 Select Problems, the heat-map's toggle in background mode and the Check panel."""
 

@@ -1,6 +1,6 @@
 """The wrap's and the mirror's ranges are decided once (``properties.WRAP_RANGES``): the properties' hard limits
 are the valid range (the kernel's, for its settings) and Blender clamps a value beyond them, from the panel and
-from scripts alike; the guide says so (issue 13, item 5)."""
+from scripts alike; the guide says so."""
 
 import bpy
 

@@ -1,7 +1,6 @@
-"""Shape keys carried over by the wrap, the mirror, snap and the live wrap (issue "What artists expect after a
-wrap", item 2), through the operators.
+"""Shape keys carried over by the wrap, the mirror, snap and the live wrap, through the operators.
 
-The issue's test: a quad sphere layout (radius 1) whose key "Cap" pushes a cap out by 0.1 along the normal,
+The test the feature is accepted by: a quad sphere layout (radius 1) whose key "Cap" pushes a cap out by 0.1 along the normal,
 wrapped onto an ellipsoid twice its size (semi-axes 2.2, 2.0, 1.8: the mean radius of a sphere of radius
 2); the transferred key pushes along the ellipsoid's normal by 0.2 within 5 %.
 """

@@ -1,4 +1,4 @@
-"""The target cache (issue 13, item 10): a target nothing changed is reused without being read again, and
+"""The target cache: a target nothing changed is reused without being read again, and
 every change of its evaluated mesh is seen: edit mode, modifiers, shape keys, an armature's pose, an
 animated frame, undo, another object of the same name, handlers removed or installed late.
 

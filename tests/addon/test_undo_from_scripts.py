@@ -1,4 +1,4 @@
-"""Undo from scripts, as the guide's *Scripting* section says (issue 13, item 9).
+"""Undo from scripts, as the guide's *Scripting* section says.
 
 Blender pushes an undo step for an operator called from Python only when the call asks for it: the positional
 ``undo`` argument after the execution context (``bpy.ops.springwrap.snap('EXEC_DEFAULT', True, ...)``). A plain

@@ -336,7 +336,7 @@ def _rest_bytes(layout):
 @pytest.mark.parametrize("start", ["fresh", "snapped, stale signature"])
 def test_a_failure_inside_finish_leaves_rest_signature_anchors_and_layout_as_they_were(start, monkeypatch):
     """finish() writes the layout (positions, state, the rest shape when there is none), the target signature,
-    then the anchors: a failure at its last write must put every one of them back (issue 13, item 11)."""
+    then the anchors: a failure at its last write must put every one of them back."""
     from springwrap.blender import anchors as anchor_data
     from springwrap.blender import wrap_session as session_module
 

@@ -33,7 +33,7 @@ def run_isolated(code: str) -> subprocess.CompletedProcess:
 
 @pytest.mark.parametrize("count", ["2**31", "2**40", "2**64", "2**200"])
 def test_a_huge_layout_vertex_count_raises_instead_of_aborting(count):
-    # The issue: LayoutStructure(2**31, empty, empty) printed "memory allocation of 51539607552 bytes
+    # The bug: LayoutStructure(2**31, empty, empty) printed "memory allocation of 51539607552 bytes
     # failed" and died with SIGABRT.
     result = run_isolated(f"""
         import numpy as np, springwrap_kernel as sk
@@ -200,7 +200,7 @@ def test_coordinates_beyond_the_bound_are_refused_naming_the_array_row_and_value
     ],
 )
 def test_an_absurd_space_anchor_is_refused_before_the_wrap(anchor, error, message):
-    # The issue: an anchor at 3.4e38 (an infinity clamped by Blender's property) or 1e30 was accepted and the
+    # The bug: an anchor at 3.4e38 (an infinity clamped by Blender's property) or 1e30 was accepted and the
     # wrap then took 27 s instead of 0.02 s.
     target = plane_target(cells=8, size=0.25)
     positions, face_corners, face_sizes = quad_layout(n=3, size=0.2)

@@ -73,7 +73,7 @@ def test_the_in_plane_turn_does_not_depend_on_the_starting_tangent():
 
 @pytest.mark.parametrize("axis_index", [0, 1, 2])
 def test_a_cap_pushed_out_on_the_sphere_is_pushed_out_along_the_ellipsoid_normal(axis_index):
-    """The issue's numbers on an exact map: the unit sphere stretched to semi-axes (2.2, 2.0, 1.8). At a
+    """The acceptance test's numbers on an exact map: the unit sphere stretched to semi-axes (2.2, 2.0, 1.8). At a
     pole the push grows by the root of the two tangential stretches (the local area ratio) and stays
     along the ellipsoid's normal."""
     semi_axes = np.array([2.2, 2.0, 1.8])

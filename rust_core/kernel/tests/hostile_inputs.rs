@@ -1,5 +1,5 @@
 //! The input policy (`validate.rs`) at every entry point, and a regression test for each crash
-//! the fuzz targets (`tests/fuzz`) or the issue found: finite-but-absurd values are refused with
+//! the fuzz targets (`tests/fuzz`) or the bug reports found: finite-but-absurd values are refused with
 //! the array, the row and the value; counts never drive an allocation the arrays do not back;
 //! the single, unchecked queries find nothing instead of panicking.
 
@@ -26,7 +26,7 @@ fn unit_triangle() -> TargetMesh {
 
 #[test]
 fn a_layout_vertex_count_past_32_bit_indices_is_refused_without_allocating() {
-    // The issue: `LayoutStructure(2**31, empty, empty)` aborted on a 51 GB allocation.
+    // The bug: `LayoutStructure(2**31, empty, empty)` aborted on a 51 GB allocation.
     for count in [1usize << 31, 1 << 40, usize::MAX] {
         let error = LayoutStructure::new(count, &[], &[], &[], &[]).unwrap_err();
         assert_eq!(
@@ -75,7 +75,7 @@ fn a_face_on_vertices_near_2_pow_31_is_read_sparsely_not_allocated_densely() {
 
 #[test]
 fn a_mesh_at_3e38_is_out_of_range_not_degenerate() {
-    // The issue: a kernel mesh with 3e38 coordinates was called "degenerate (zero area)".
+    // The bug: a kernel mesh with 3e38 coordinates was called "degenerate (zero area)".
     let error = TargetMesh::new(
         vec![Vec3::ZERO, Vec3::X * 3e38, Vec3::Y * 3e38],
         vec![[0, 1, 2]],
@@ -106,7 +106,7 @@ fn a_mesh_at_3e38_is_out_of_range_not_degenerate() {
 
 #[test]
 fn a_query_point_at_float_max_is_refused_not_beyond_max_distance() {
-    // The issue: a layout vertex at FLT_MAX made snap report "beyond max distance".
+    // The bug: a layout vertex at FLT_MAX made snap report "beyond max distance".
     let mesh = unit_triangle();
     let points = [Vec3::ZERO, Vec3::new(f32::MAX, 0.0, 0.0)];
     assert_eq!(
@@ -211,7 +211,7 @@ fn wrap_with_anchor(at: Vec3) -> Result<WrapSolver, KernelError> {
 
 #[test]
 fn an_anchor_at_a_clamped_infinity_or_far_away_is_refused() {
-    // The issue: an anchor at (inf, 0, 0) set through Blender's property is stored as 3.4e38 and
+    // The bug: an anchor at (inf, 0, 0) set through Blender's property is stored as 3.4e38 and
     // was accepted (1e30 too): a 98-vertex wrap then took 27 s instead of 0.02 s.
     for value in [3.4e38, 1e30, -1e9] {
         assert_eq!(
