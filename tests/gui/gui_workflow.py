@@ -90,12 +90,17 @@ class Window:
         with self.override():
             return operator("INVOKE_DEFAULT", True, *args, **kwargs)
 
-    def screenshot(self, path: Path) -> None:
-        """The window as it is now: redrawn first (a button press redraws the sidebar; a timer's call does not)."""
+    def redraw(self) -> None:
+        """Draw the window now, every area (a button press redraws the sidebar; a timer's call does not)."""
         for area in self.window.screen.areas:
             area.tag_redraw()
         with bpy.context.temp_override(window=self.window, area=self.area):
             bpy.ops.wm.redraw_timer(type="DRAW_WIN_SWAP", iterations=1)
+
+    def screenshot(self, path: Path) -> None:
+        """The window as it is now, redrawn first."""
+        self.redraw()
+        with bpy.context.temp_override(window=self.window, area=self.area):
             bpy.ops.screen.screenshot(filepath=str(path))
 
     def simulate(self, kind: str, value: str, region=None, **modifiers) -> None:
@@ -393,6 +398,28 @@ class Workflow:
         )
         yield STEP_SECONDS
 
+        # The quality read-out's heat-map, drawn by the add-on's overlay in this 3D view for each kind: the draw
+        # callback fills the heat-map's cache (proof it ran) and never gives up.
+        heatmap = sys.modules["springwrap.ui.heatmap"]
+        self.check(heatmap.is_installed(), "the heat-map's draw handlers are not installed")
+        self.check("springwrap_distance" in layout.data.attributes, "the wrap wrote no quality read-out")
+        drawn = {}
+        for kind in ("DISTANCE", "STRETCH", "FLIPPED"):
+            layout.springwrap.heatmap_kind = kind
+            layout.springwrap.show_heatmap = True
+            heatmap._cache.update(key=None, batch=None, scale=None)
+            self.ui.redraw()
+            yield STEP_SECONDS
+            self.check(not heatmap._failed, f"the heat-map gave up drawing {kind} (see the console)")
+            key, scale = heatmap._cache["key"], heatmap._cache["scale"]
+            self.check(key is not None and key[-1] == kind and scale is not None, f"the heat-map did not draw {kind}")
+            drawn[kind] = scale.title
+            if kind == "STRETCH":
+                self.shot("05-heatmap", view=True)
+        layout.springwrap.show_heatmap = False
+        self.step("heatmap", drawn=drawn)
+        yield STEP_SECONDS
+
         # Features: one curve object per kind, named after the target; a second run replaces them.
         bpy.context.view_layer.objects.active = layout
         for _ in range(2):
@@ -404,7 +431,7 @@ class Workflow:
         self.step("features", objects=names, splines=[len(obj.data.splines) for obj in features])
         bpy.context.view_layer.objects.active = layout
         yield STEP_SECONDS
-        self.shot("05-check")
+        self.shot("06-check")
 
         layout.springwrap.show_cage = False
         self.check(not layout.show_in_front and layout.display_type == "TEXTURED", "the cage: display not restored")

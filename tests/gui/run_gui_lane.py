@@ -37,7 +37,18 @@ DOC_PICTURES = {
 }
 """Screenshots the user guide shows: ``--update-docs`` copies them into docs/img after a passing run."""
 EXPECTED_STEPS = {
-    "workflow": ["install", "open_tab", "anchors", "wrap", "undo_redo", "live_wrap", "escape", "features", "cage_off"],
+    "workflow": [
+        "install",
+        "open_tab",
+        "anchors",
+        "wrap",
+        "undo_redo",
+        "live_wrap",
+        "escape",
+        "heatmap",
+        "features",
+        "cage_off",
+    ],
     "missing-numpy": ["install", "missing_numpy", "open_tab"],
 }
 

@@ -1,6 +1,6 @@
 """The quality read-out's heat-map in the 3D view: the active layout's faces coloured by distance, stretch or
 flips (``object.springwrap.show_heatmap`` and ``heatmap_kind``, the Check panel), and a legend with the numbers
-in the view's bottom-left corner.
+in the view's top-left corner.
 
 Two ``SpaceView3D`` draw handlers: ``POST_VIEW`` draws the triangles with per-corner colours (per vertex for
 distance and stretch, flat per face for flips), depth-tested and pulled a little toward the viewer so that a
@@ -25,7 +25,11 @@ DEPTH_BIAS = 2e-5
 ALPHA = 0.85
 """Opacity of the heat-map's colours."""
 LEGEND_MARGIN, LEGEND_WIDTH, LEGEND_HEIGHT = 20, 220, 12
-"""The legend's place and size in pixels (bottom-left corner of the view)."""
+"""The legend's margin and size in pixels."""
+LEGEND_BELOW_TOP = 150
+"""How far below the view's top edge the legend's numbers sit (pixels): under the view's name and collection
+text, in the top-left corner, where Blender's redo panel (bottom left) and the navigation gizmo (top right) are
+not."""
 TEXT_SIZE = 12
 
 SMOOTH_SHADERS_3D = ("SMOOTH_COLOR", "3D_SMOOTH_COLOR")
@@ -140,11 +144,15 @@ def draw_heatmap(layout, batch, _scale) -> None:
 
 @_handler
 def draw_legend(layout, _batch, scale) -> None:
-    """The ``POST_PIXEL`` handler: the ramp, its numbers and the title in the bottom-left corner."""
+    """The ``POST_PIXEL`` handler: the ramp, its numbers and the title in the top-left corner."""
+    region, area = bpy.context.region, bpy.context.area
+    base = max((region.height if region is not None else 0) - LEGEND_BELOW_TOP, LEGEND_MARGIN)
+    tools = next((other for other in area.regions if other.type == "TOOLS"), None) if area is not None else None
+    left = LEGEND_MARGIN + (tools.width if tools is not None and tools.width > 1 else 0)  # clear of the toolbar
     if scale is None:
-        _text(LEGEND_MARGIN, LEGEND_MARGIN, "Springwrap heat-map: no read-out (Snap, Project, Wrap or Mirror)")
+        _text(left, base, "Springwrap heat-map: no read-out (Snap, Project, Wrap or Mirror)")
         return
-    left, bottom = LEGEND_MARGIN, LEGEND_MARGIN + TEXT_SIZE + 6
+    bottom = base + TEXT_SIZE + 6
     if scale.per_face:  # two flat boxes: blue and red
         places, colours = np.array([0.0, 0.48, 0.52, 1.0]), quality.ramp_colours([0.0, 0.0, 1.0, 1.0])
     else:
@@ -165,7 +173,7 @@ def draw_legend(layout, _batch, scale) -> None:
     for place, label in scale.labels:
         width = blf.dimensions(0, label)[0]
         x = left + place * LEGEND_WIDTH - width * place
-        _text(x, LEGEND_MARGIN, label)
+        _text(x, base, label)
     _text(left, bottom + LEGEND_HEIGHT + 6, f"{scale.title}  ·  {layout.name}")
 
 
