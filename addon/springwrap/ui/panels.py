@@ -173,20 +173,17 @@ class SPRINGWRAP_PT_anchors(_LayoutSubPanel, bpy.types.Panel):
         column = _split(layout.column())
         column.prop(settings, "anchor_spacing")
         column.prop(settings, "anchor_method")
+        # Symmetric anchors: Add and Auto anchor each vertex's twin too, as a pair (Remove removes both).
+        column.prop(settings, "anchor_symmetric")
+        symmetry = column.column()
+        symmetry.active = settings.anchor_symmetric
+        symmetry.row(align=True).prop(settings, "anchor_symmetry_axis", text="Axis", expand=True)
+        symmetry.prop(settings, "anchor_symmetry_object", text="Plane Of")
         auto = column.operator("springwrap.anchors_auto", icon="AUTO")
         auto.spacing = settings.anchor_spacing
         auto.method = settings.anchor_method
         auto.max_distance = settings.max_distance
         _symmetry_arguments(auto, settings)
-        # Symmetric anchors: Add and Auto anchor each vertex's twin too, as a pair (Remove removes both).
-        row = layout.row(align=True)
-        row.prop(settings, "anchor_symmetric", icon="MOD_MIRROR")
-        sub = row.row(align=True)
-        sub.active = settings.anchor_symmetric
-        sub.prop(settings, "anchor_symmetry_axis", expand=True)
-        sub = layout.row()
-        sub.active = settings.anchor_symmetric
-        sub.prop(settings, "anchor_symmetry_object", text="Plane Of")
 
 
 def _symmetry_arguments(operator, settings):
@@ -311,10 +308,9 @@ def _draw_readout(layout, obj) -> None:
     row = column.row(align=True)
     row.active = settings.show_heatmap
     row.prop(settings, "heatmap_kind", text="Show")
-    row = layout.row(align=True)
-    select = row.operator("springwrap.select_problems", icon="RESTRICT_SELECT_OFF")
+    column.prop(settings, "problem_kind")
+    select = column.operator("springwrap.select_problems", icon="RESTRICT_SELECT_OFF")
     select.kind = settings.problem_kind
-    row.prop(settings, "problem_kind", text="")
 
 
 class SPRINGWRAP_PT_fit_subdivision(_ToolPanel, bpy.types.Panel):
