@@ -38,42 +38,13 @@ SEED = 1
 LAYOUT_SEED = 2
 
 
-def _status_kilobytes(field_name: str) -> int:
-    with open("/proc/self/status") as status:
-        for line in status:
-            if line.startswith(field_name + ":"):
-                return int(line.split()[1])
-    raise RuntimeError(f"/proc/self/status has no {field_name}")
-
-
-def _reset_peak() -> None:
-    with open("/proc/self/clear_refs", "w") as clear_refs:
-        clear_refs.write("5")
-
-
-def _mesh_object(bpy, name, vertices, polygons):
-    import numpy as np
-
-    mesh = bpy.data.meshes.new(name)
-    mesh.vertices.add(len(vertices))
-    mesh.vertices.foreach_set("co", np.ascontiguousarray(vertices, dtype=np.float32).ravel())
-    polygons = np.ascontiguousarray(polygons, dtype=np.int32)
-    mesh.loops.add(polygons.size)
-    mesh.loops.foreach_set("vertex_index", polygons.ravel())
-    mesh.polygons.add(len(polygons))
-    mesh.polygons.foreach_set("loop_start", np.arange(0, polygons.size, polygons.shape[1], dtype=np.int32))
-    mesh.update(calc_edges=True)
-    obj = bpy.data.objects.new(name, mesh)
-    bpy.context.scene.collection.objects.link(obj)
-    return obj
-
-
 def worker(triangles: int, quads: int, iterations: int) -> dict:
     """In the worker process: the scene, three snaps (start times), then a wrap (memory)."""
     import bpy  # noqa: I001 - bpy first, then the add-on
     import addon_utils
 
     sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import _worker
     from _noisy_torus import noisy_torus, torus_layout
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
@@ -84,8 +55,8 @@ def worker(triangles: int, quads: int, iterations: int) -> dict:
 
     vertices, faces = noisy_torus(triangles, seed=SEED)
     layout_vertices, layout_quads = torus_layout(quads, seed=LAYOUT_SEED)
-    target = _mesh_object(bpy, "Target", vertices, faces)
-    layout = _mesh_object(bpy, "Layout", layout_vertices, layout_quads)
+    target = _worker.mesh_object(bpy, "Target", vertices, faces)
+    layout = _worker.mesh_object(bpy, "Layout", layout_vertices, layout_quads)
     triangle_count = len(faces)
     del vertices, faces
     layout.springwrap.target = target
@@ -105,7 +76,7 @@ def worker(triangles: int, quads: int, iterations: int) -> dict:
         return closest_points(self, points, **options)
 
     core_target.CentredMesh.closest_points = timed_closest_points
-    scene_kilobytes = _status_kilobytes("VmRSS")
+    scene_kilobytes = _worker.status_kilobytes("VmRSS")
     result = {"triangles": triangle_count, "layout_vertices": len(layout_vertices), "snaps": []}
 
     def per_triangle(kilobytes: float) -> float:
@@ -113,7 +84,7 @@ def worker(triangles: int, quads: int, iterations: int) -> dict:
 
     target_reads = getattr(target_data, "target_reads", dict)  # absent before the cache counted its reads
     for run in range(3):
-        _reset_peak()
+        _worker.reset_peak()
         reads_before = target_reads()
         first_query.clear()
         start = time.perf_counter()
@@ -127,19 +98,19 @@ def worker(triangles: int, quads: int, iterations: int) -> dict:
                 "start_seconds": first_query[0] - start,
                 "seconds": seconds,
                 "reads": {path: reads_after[path] - reads_before[path] for path in reads_after},
-                "peak_bytes_per_triangle": per_triangle(_status_kilobytes("VmHWM") - scene_kilobytes),
-                "kept_bytes_per_triangle": per_triangle(_status_kilobytes("VmRSS") - scene_kilobytes),
+                "peak_bytes_per_triangle": per_triangle(_worker.status_kilobytes("VmHWM") - scene_kilobytes),
+                "kept_bytes_per_triangle": per_triangle(_worker.status_kilobytes("VmRSS") - scene_kilobytes),
             }
         )
-    _reset_peak()
+    _worker.reset_peak()
     start = time.perf_counter()
     if bpy.ops.springwrap.wrap(max_iterations=iterations, tolerance=1e-12) != {"FINISHED"}:
         raise RuntimeError("springwrap.wrap failed")
     result["wrap"] = {
         "iterations": iterations,
         "seconds": time.perf_counter() - start,
-        "peak_bytes_per_triangle": per_triangle(_status_kilobytes("VmHWM") - scene_kilobytes),
-        "kept_bytes_per_triangle": per_triangle(_status_kilobytes("VmRSS") - scene_kilobytes),
+        "peak_bytes_per_triangle": per_triangle(_worker.status_kilobytes("VmHWM") - scene_kilobytes),
+        "kept_bytes_per_triangle": per_triangle(_worker.status_kilobytes("VmRSS") - scene_kilobytes),
     }
     result["read"] = _python_read_peak(bpy, target_data, layout, triangle_count)
     result["scene_megabytes"] = scene_kilobytes / 1024.0

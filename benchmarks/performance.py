@@ -43,6 +43,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import _machine
+import _worker
 
 REPOSITORY_ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_JSON = REPOSITORY_ROOT / "out" / "bench" / "performance.json"
@@ -70,19 +71,6 @@ QUICK = {
 # ---------------------------------------------------------------- in the worker
 
 
-def _status_kilobytes(field_name: str) -> int:
-    with open("/proc/self/status") as status:
-        for line in status:
-            if line.startswith(field_name + ":"):
-                return int(line.split()[1])
-    raise RuntimeError(f"/proc/self/status has no {field_name}")
-
-
-def _reset_peak() -> None:
-    with open("/proc/self/clear_refs", "w") as clear_refs:
-        clear_refs.write("5")
-
-
 def _best(function, repeat: int):
     best, result = float("inf"), None
     for _ in range(repeat):
@@ -108,17 +96,17 @@ def worker_target(triangles: int) -> dict:
 
     vertices, faces = noisy_torus(triangles, seed=SEED)
     queries = _random_queries(QUERY_POINTS)
-    rss_before = _status_kilobytes("VmRSS")
-    _reset_peak()
+    rss_before = _worker.status_kilobytes("VmRSS")
+    _worker.reset_peak()
     start = time.perf_counter()
     mesh = springwrap_kernel.TargetMesh(vertices, faces)
     build_seconds = time.perf_counter() - start
-    peak_build = _status_kilobytes("VmHWM")
-    rss_built = _status_kilobytes("VmRSS")
+    peak_build = _worker.status_kilobytes("VmHWM")
+    rss_built = _worker.status_kilobytes("VmRSS")
     start = time.perf_counter()
     mesh.prepare_all()
     prepare_seconds = time.perf_counter() - start
-    rss_prepared = _status_kilobytes("VmRSS")
+    rss_prepared = _worker.status_kilobytes("VmRSS")
     mesh.closest_points(queries[:64])  # the thread pool starts outside the timing
     query_seconds, hits = _best(lambda mesh=mesh: mesh.closest_points(queries), 3)
     if (hits.triangles < 0).any():
@@ -142,24 +130,6 @@ def worker_target(triangles: int) -> dict:
     return result
 
 
-def _mesh_object(bpy, name, vertices, polygons=None):
-    import numpy as np
-
-    mesh = bpy.data.meshes.new(name)
-    mesh.vertices.add(len(vertices))
-    mesh.vertices.foreach_set("co", np.ascontiguousarray(vertices, dtype=np.float32).ravel())
-    if polygons is not None:
-        polygons = np.ascontiguousarray(polygons, dtype=np.int32)
-        mesh.loops.add(polygons.size)
-        mesh.loops.foreach_set("vertex_index", polygons.ravel())
-        mesh.polygons.add(len(polygons))
-        mesh.polygons.foreach_set("loop_start", np.arange(0, polygons.size, polygons.shape[1], dtype=np.int32))
-    mesh.update(calc_edges=polygons is not None)
-    obj = bpy.data.objects.new(name, mesh)
-    bpy.context.scene.collection.objects.link(obj)
-    return obj
-
-
 def _shrinkwrap_first_evaluation(vertices, faces, queries) -> dict:
     """Blender's Shrinkwrap (NEAREST_SURFACEPOINT) on the query points: first evaluation (BVH build + queries)."""
     import bpy
@@ -167,8 +137,8 @@ def _shrinkwrap_first_evaluation(vertices, faces, queries) -> dict:
     import numpy as np
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    target = _mesh_object(bpy, "Target", vertices, faces)
-    cloud = _mesh_object(bpy, "Points", queries)
+    target = _worker.mesh_object(bpy, "Target", vertices, faces)
+    cloud = _worker.mesh_object(bpy, "Points", queries)
     modifier = cloud.modifiers.new("Shrinkwrap", "SHRINKWRAP")
     modifier.wrap_method = "NEAREST_SURFACEPOINT"
     modifier.target = target
@@ -222,8 +192,8 @@ def worker_wrap(quads: int) -> dict:
         raise RuntimeError("addon_utils.enable('springwrap') failed: run `make setup` first")
     vertices, faces = noisy_torus(WRAP_TARGET_TRIANGLES, seed=SEED)
     layout_vertices, layout_quads = torus_layout(quads, seed=LAYOUT_SEED)
-    target = _mesh_object(bpy, "Target", vertices, faces)
-    layout = _mesh_object(bpy, "Layout", layout_vertices, layout_quads)
+    target = _worker.mesh_object(bpy, "Target", vertices, faces)
+    layout = _worker.mesh_object(bpy, "Layout", layout_vertices, layout_quads)
     layout.springwrap.target = target
     bpy.context.view_layer.update()
     for obj in bpy.context.view_layer.objects:
@@ -263,7 +233,7 @@ def run_worker(kind: str, size: int) -> dict:
     """In the worker process: measure, then add the process's peak resident set."""
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     result = WORKERS[kind](size)
-    result["process_peak_megabytes"] = _status_kilobytes("VmHWM") / 1024.0
+    result["process_peak_megabytes"] = _worker.status_kilobytes("VmHWM") / 1024.0
     return result
 
 

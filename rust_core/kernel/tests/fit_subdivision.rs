@@ -51,6 +51,22 @@ fn cube_sphere(n: i32, radius: f64) -> (Vec<DVec3>, Vec<u32>, Vec<u32>) {
     (positions, corners, vec![4; faces])
 }
 
+/// The cube cage of `cube_sphere(3, 1.0)` and its level-2 fit (default boundary rule and settings), with
+/// `fixed` vertices held (none by default).
+fn cube_cage_fit(fixed: Option<&[bool]>) -> (Vec<DVec3>, SubdivisionFit) {
+    let (cage, corners, sizes) = cube_sphere(3, 1.0);
+    let stencils =
+        SubdivisionStencils::new(cage.len(), &corners, &sizes, 2, BoundaryRule::default()).unwrap();
+    let free = vec![false; cage.len()];
+    let fit = SubdivisionFit::new(
+        stencils,
+        fixed.unwrap_or(&free),
+        SubdivisionFitSettings::default(),
+    )
+    .unwrap();
+    (cage, fit)
+}
+
 fn sphere_target(radius: f32) -> TargetMesh {
     let (vertices, triangles) = common::uv_sphere(radius, 96, 192);
     TargetMesh::new(vertices, triangles, TargetMeshOptions::default()).unwrap()
@@ -97,15 +113,7 @@ fn the_limit_of_a_fine_vertex_does_not_depend_on_the_level() {
 #[test]
 fn a_cube_cage_on_a_sphere_shrinks_inside_it_and_the_fit_brings_its_surface_out() {
     let target = sphere_target(1.0);
-    let (cage, corners, sizes) = cube_sphere(3, 1.0);
-    let stencils =
-        SubdivisionStencils::new(cage.len(), &corners, &sizes, 2, BoundaryRule::default()).unwrap();
-    let fit = SubdivisionFit::new(
-        stencils,
-        &vec![false; cage.len()],
-        SubdivisionFitSettings::default(),
-    )
-    .unwrap();
+    let (cage, fit) = cube_cage_fit(None);
     let before = fit.distances(&target, &cage, None).unwrap();
     // The subdivided surface of a cage on the sphere lies inside it.
     let fine = fit.fine_points(&cage, None).unwrap();
@@ -130,11 +138,10 @@ fn a_cube_cage_on_a_sphere_shrinks_inside_it_and_the_fit_brings_its_surface_out(
 #[test]
 fn fixed_vertices_stay_and_the_rest_still_fits() {
     let target = sphere_target(1.0);
-    let (cage, corners, sizes) = cube_sphere(3, 1.0);
-    let stencils =
-        SubdivisionStencils::new(cage.len(), &corners, &sizes, 2, BoundaryRule::default()).unwrap();
-    let fixed: Vec<bool> = (0..cage.len()).map(|vertex| vertex % 7 == 0).collect();
-    let fit = SubdivisionFit::new(stencils, &fixed, SubdivisionFitSettings::default()).unwrap();
+    let fixed: Vec<bool> = (0..cube_sphere(3, 1.0).0.len())
+        .map(|vertex| vertex % 7 == 0)
+        .collect();
+    let (cage, fit) = cube_cage_fit(Some(&fixed));
     let before = max_distance(&fit.distances(&target, &cage, None).unwrap());
     let mut positions = cage.clone();
     for _ in 0..6 {
@@ -152,23 +159,14 @@ fn fixed_vertices_stay_and_the_rest_still_fits() {
 #[test]
 fn an_anchor_holds_its_vertex_limit_point_on_the_anchor() {
     let target = sphere_target(1.0);
-    let (cage, corners, sizes) = cube_sphere(3, 1.0);
-    let stencils =
-        SubdivisionStencils::new(cage.len(), &corners, &sizes, 2, BoundaryRule::default()).unwrap();
+    let (cage, fit) = cube_cage_fit(None);
     // Two anchors on the sphere, one a little off its vertex's own direction.
     let anchored = [0u32, 17];
     let points = [
         cage[0],
         (cage[17] + DVec3::new(0.03, -0.02, 0.01)).normalize(),
     ];
-    let fit = SubdivisionFit::new(
-        stencils,
-        &vec![false; cage.len()],
-        SubdivisionFitSettings::default(),
-    )
-    .unwrap()
-    .with_anchors(&anchored, &points)
-    .unwrap();
+    let fit = fit.with_anchors(&anchored, &points).unwrap();
     let mut positions = cage.clone();
     for _ in 0..6 {
         positions = fit.round(&target, &positions, None).unwrap().positions;
@@ -198,16 +196,8 @@ fn an_anchor_holds_its_vertex_limit_point_on_the_anchor() {
 #[test]
 fn offsets_shift_the_fine_points_and_the_fit_makes_up_for_them() {
     let target = sphere_target(1.0);
-    let (cage, corners, sizes) = cube_sphere(3, 1.0);
-    let stencils =
-        SubdivisionStencils::new(cage.len(), &corners, &sizes, 2, BoundaryRule::default()).unwrap();
-    let count = stencils.fine_vertex_count();
-    let fit = SubdivisionFit::new(
-        stencils,
-        &vec![false; cage.len()],
-        SubdivisionFitSettings::default(),
-    )
-    .unwrap();
+    let (cage, fit) = cube_cage_fit(None);
+    let count = fit.stencils().fine_vertex_count();
     let offsets = vec![DVec3::new(0.0, 0.0, 0.01); count];
     let plain = fit.fine_points(&cage, None).unwrap();
     let shifted = fit.fine_points(&cage, Some(&offsets)).unwrap();
@@ -233,15 +223,7 @@ fn over_a_hole_the_cage_follows_its_neighbours() {
         .filter(|triangle| triangle.iter().any(|&v| vertices[v as usize].z < 0.75))
         .collect();
     let target = TargetMesh::new(vertices, triangles, TargetMeshOptions::default()).unwrap();
-    let (cage, corners, sizes) = cube_sphere(3, 1.0);
-    let stencils =
-        SubdivisionStencils::new(cage.len(), &corners, &sizes, 2, BoundaryRule::default()).unwrap();
-    let fit = SubdivisionFit::new(
-        stencils,
-        &vec![false; cage.len()],
-        SubdivisionFitSettings::default(),
-    )
-    .unwrap();
+    let (cage, fit) = cube_cage_fit(None);
     let first = fit.round(&target, &cage, None).unwrap();
     assert!(first.trusted < fit.stencils().fine_vertex_count());
     let mut positions = first.positions;
