@@ -276,6 +276,13 @@ def _update_show_cage(settings, context):
     cage_display.update_show_cage(settings, context)
 
 
+def _update_active_anchor(settings, context):
+    """``active_anchor_index``'s update (``blender.anchor_view``)."""
+    from .blender import anchor_view
+
+    anchor_view.active_anchor_changed(settings, context)
+
+
 PROBLEM_KIND_ITEMS = tuple((kind, *words) for kind, words in quality.PROBLEM_KINDS.items())
 """What ``springwrap.select_problems`` selects (``core.quality.problem_mask``)."""
 HEATMAP_KIND_ITEMS = tuple((kind, *words) for kind, words in quality.HEATMAP_KINDS.items())
@@ -310,7 +317,11 @@ class SpringwrapObjectSettings(bpy.types.PropertyGroup):
     anchors: props.items(
         "Anchors", "Point-to-point correspondences: a layout vertex and its target point", SpringwrapAnchorItem
     )
-    active_anchor_index: props.list_position("Active Anchor", "Index of the active anchor in the list")
+    active_anchor_index: props.list_position(
+        "Active Anchor",
+        "Index of the active anchor in the list (a click on a row selects its vertex and centres the 3D view on it)",
+        update=compat.property_update(_update_active_anchor),
+    )
     anchors_signature: props.hidden_text(
         "Anchors Signature", "Topology signature of the target when the face anchors were last written"
     )
@@ -322,6 +333,12 @@ class SpringwrapObjectSettings(bpy.types.PropertyGroup):
     )
     anchor_method: props.choice(
         "Method", "Default method of the panel's Auto Anchors button", ANCHOR_METHOD_ITEMS, "CLOSEST"
+    )
+    anchor_keep: props.flag(
+        "Keep Existing",
+        "The panel's Auto Anchors keeps the existing anchors (those placed by hand) and spreads new ones around "
+        "them; off: it replaces them",
+        True,
     )
     # Symmetric anchors (operators.anchors): the panel's defaults for Add and Auto.
     anchor_symmetric: props.flag(

@@ -55,9 +55,9 @@ def hidden_text(name: str, description: str):
     return bpy.props.StringProperty(name=name, description=description, default="", options={"HIDDEN"})
 
 
-def list_position(name: str, description: str):
-    """The position of the active item of a list (``template_list``'s active index)."""
-    return bpy.props.IntProperty(name=name, description=description, default=0, min=0)
+def list_position(name: str, description: str, **options):
+    """The position of the active item of a list (``template_list``'s active index); ``options``: ``update``."""
+    return bpy.props.IntProperty(name=name, description=description, default=0, min=0, **options)
 
 
 def object_pointer(name: str, description: str, poll=None):

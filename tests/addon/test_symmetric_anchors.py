@@ -223,11 +223,13 @@ def test_the_panel_offers_symmetric_anchors_and_the_list_shows_pairs():
         bpy.ops.springwrap.anchor_add(
             vertex_index=chosen, location=tuple(world[chosen]), use_location=True, symmetric=True
         )
-    labels = {}
+    labels, numbers = {}, {}
     for index, item in enumerate(settings.anchors):
         row = PanelRecorder()
         SPRINGWRAP_UL_anchors.draw_item(None, bpy.context, row, settings, item, 0, None, "", index)
-        labels[item.vertex_index] = row.labels
-    assert labels[vertex][:2] == [str(vertex), str(twins[vertex])]
-    assert labels[int(twins[vertex])][:2] == [str(twins[vertex]), str(vertex)]
-    assert labels[middle][:2] == [str(middle), "mid"]
+        labels[item.vertex_index], numbers[item.vertex_index] = row.labels, str(index + 1)
+    twin = int(twins[vertex])
+    # The pair number, the vertex, the twin anchor's pair number (as the viewport numbers them).
+    assert labels[vertex][:3] == [numbers[vertex], f"v{vertex}", numbers[twin]]
+    assert labels[twin][:3] == [numbers[twin], f"v{twin}", numbers[vertex]]
+    assert labels[middle][:3] == [numbers[middle], f"v{middle}", "mid"]

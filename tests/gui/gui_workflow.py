@@ -30,6 +30,7 @@ from pathlib import Path
 import bpy
 
 import addon_utils
+from mathutils import Vector
 
 REPOSITORY = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPOSITORY / "blender_scripts"))
@@ -45,6 +46,10 @@ SEVERAL_FRAMES_WRAP = {"solver": "SPRINGS", "spring_resolution": 2, "tolerance":
 (the iteration limit): its share of solving is reported."""
 LONG_WRAP = {"solver": "SPRINGS", "spring_resolution": 3, "tolerance": 1e-9, "max_iterations": 50_000}
 """A live wrap long enough to be cancelled mid-way on any machine (many frames of up to 4 s)."""
+LIST_GRID = 400
+"""Subdivisions of the anchor list step's grid layout (a little more than 100 000 vertices)."""
+ANCHOR_LIST_CROP = 620
+"""Top of the sidebar kept in the anchor list's screenshots (the Springwrap, Place and Anchors panels)."""
 TAB_TRIES = 8
 """Mouse-wheel steps over the sidebar's tabs before giving up finding the Springwrap tab."""
 
@@ -437,6 +442,71 @@ class Workflow:
         self.check(not layout.show_in_front and layout.display_type == "TEXTURED", "the cage: display not restored")
         self.step("cage_off")
         yield STEP_SECONDS
+
+        yield from self.anchor_list_steps(target)
+
+    def anchor_list_steps(self, target):
+        """The anchor list on a layout of more than 100 000 vertices at the sidebar's default width: 5- and
+        6-digit vertices, symmetric pairs, a vertex on the plane, a missing vertex; then a click on a row (the
+        active anchor set from the sidebar, as the list's row does) selects the vertex and centres the view on it,
+        in Object and Edit Mode, and an anchor operator's new active anchor moves nothing."""
+        import numpy as np
+
+        in_view = {"window": self.ui.window, "area": self.ui.area, "region": self.ui.region("WINDOW")}
+        with bpy.context.temp_override(**in_view):
+            bpy.ops.mesh.primitive_grid_add(x_subdivisions=LIST_GRID, y_subdivisions=LIST_GRID, size=2.0)
+        big = bpy.context.active_object
+        big.name = "Big Layout"
+        big.location = target.location
+        count = len(big.data.vertices)
+        self.check(count > 100_000, f"the big layout has {count} vertices")
+        big.springwrap.target = target
+        rows = [(123456, 123789), (123789, 123456), (52960, 52960), (5296, -1), (count - 1, -1), (count + 7, -1)]
+        bpy.context.view_layer.update()
+        for vertex, twin in rows:
+            item = big.springwrap.anchors.add()
+            item.vertex_index, item.twin_vertex, item.target_kind = vertex, twin, "SPACE"
+            if vertex < count:
+                item.location = big.matrix_world @ big.data.vertices[vertex].co + Vector((0.0, 0.0, 0.0312))
+        big.springwrap.anchors.move(len(rows) - 1, 0)  # the missing vertex first: all kinds in view
+        yield STEP_SECONDS
+        self.shot("07-anchor-list", sidebar_height=ANCHOR_LIST_CROP)
+
+        anchor_focus = sys.modules["springwrap.ui.anchor_focus"]
+        anchor_focus.set_hovered_anchor(big, 2)  # the pair tool's mouse over pair 3: the other rows dimmed
+        yield STEP_SECONDS
+        self.shot("08-anchor-list-hovered", sidebar_height=ANCHOR_LIST_CROP)
+        anchor_focus.set_hovered_anchor(big, anchor_focus.NO_ANCHOR)
+
+        region_3d = self.ui.space.region_3d
+        clicked = {}
+        for mode, index in (("OBJECT", 1), ("EDIT", 4)):
+            if mode == "EDIT":
+                with bpy.context.temp_override(**in_view):
+                    bpy.ops.object.mode_set(mode="EDIT")
+            with self.ui.override():
+                big.springwrap.active_anchor_index = index  # what a click on the row does
+            yield STEP_SECONDS
+            vertex = big.springwrap.anchors[index].vertex_index
+            world = big.matrix_world @ big.data.vertices[vertex].co
+            centred = (Vector(region_3d.view_location) - world).length
+            self.check(centred < 1e-5, f"{mode}: the view is not centred on vertex {vertex} ({centred})")
+            if mode == "EDIT":
+                with bpy.context.temp_override(**in_view):
+                    bpy.ops.object.mode_set(mode="OBJECT")  # the selection is written into the mesh
+            selection = np.empty(count, dtype=bool)
+            big.data.vertices.foreach_get("select", selection)
+            selected = np.flatnonzero(selection).tolist()
+            self.check(selected == [vertex], f"{mode}: row {index} selected {selected[:5]}, not [{vertex}]")
+            clicked[mode] = vertex
+        view = Vector(region_3d.view_location)
+        with self.ui.override():
+            big.springwrap.active_anchor_index = 0
+            added = bpy.ops.springwrap.anchor_add(vertex_index=7, location=(0.0, 0.0, 0.0), use_location=True)
+        self.check(added == {"FINISHED"}, f"anchor_add: {added}")
+        yield STEP_SECONDS
+        self.check(Vector(region_3d.view_location) == view, "the view moved on an anchor operator")
+        self.step("anchor_list", vertices=count, clicked=clicked, sidebar_width=self.ui.region("UI").width)
 
     def missing_numpy_steps(self):
         sys.modules.pop("numpy", None)

@@ -48,6 +48,7 @@ EXPECTED_STEPS = {
         "heatmap",
         "features",
         "cage_off",
+        "anchor_list",
     ],
     "missing-numpy": ["install", "missing_numpy", "open_tab"],
 }

@@ -7,7 +7,7 @@ import numpy as np
 from ..core import anchors, input_policy, mirroring
 from ..core.errors import LayoutError
 from ..core.transforms import matrix_array
-from . import compat
+from . import anchor_view, compat
 
 _ANCHOR_FIELDS = (
     # AnchorItem property, numpy dtype, components (the order of anchors.make_anchors' arguments)
@@ -61,7 +61,8 @@ def write_anchors(
         for (name, dtype, _components), array in zip(_ANCHOR_FIELDS, anchor_list):
             compat.foreach_set(items, name, np.ascontiguousarray(array, dtype=dtype).reshape(-1))
     chosen = active_index if active_index >= 0 else settings.active_anchor_index
-    settings.active_anchor_index = max(anchors.clamp_active_index(chosen, count), 0)
+    with anchor_view.quietly():  # an operation's new active anchor: no selection change, no framing
+        settings.active_anchor_index = max(anchors.clamp_active_index(chosen, count), 0)
     if signature is not None:
         settings.anchors_signature = signature
 

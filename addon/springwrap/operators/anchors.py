@@ -49,6 +49,12 @@ def symmetry_object_property():
     )
 
 
+ANCHOR_ADD_HOW = (
+    "Enter Edit Mode and select the layout vertex to anchor (the 3D cursor on its target point), or use the Pair tool"
+)
+"""What **+** says outside Edit Mode when the selection picks no vertex."""
+
+
 class _AnchorOperator(LayoutCollectionOperator):
     """Shared run and report of the anchor operators."""
 
@@ -142,7 +148,7 @@ class SPRINGWRAP_OT_anchor_add(_AnchorOperator, bpy.types.Operator):
         if not selection.size:
             raise LayoutError(f"Layout '{layout.name}' has no vertices")
         if self.vertex_index == -1:
-            self._vertex = anchors.pick_vertex(selection, active_vertex)
+            self._vertex = self.pick_vertex(layout, selection, active_vertex)
         else:
             self._vertex = anchors.check_vertex_index(self.vertex_index, selection.size)
         source = self.location if self.use_location else context.scene.cursor.location
@@ -153,6 +159,21 @@ class SPRINGWRAP_OT_anchor_add(_AnchorOperator, bpy.types.Operator):
         existing = (selection.size, anchor_data.read_anchors(layout), target, layout.springwrap.anchors_signature)
         anchor = (self._vertex, self._source, self.on_surface)
         return self.maybe_symmetric(layout, anchors.add, anchor_twins.add, *existing, *anchor), target.signature
+
+    def execute(self, context):
+        obj = context.active_object
+        self._editing = obj is not None and obj.mode == "EDIT"  # the operation runs out of edit mode
+        return super().execute(context)
+
+    def pick_vertex(self, layout, selection, active_vertex):
+        """The vertex to anchor when none is given: the active (or only) selected one. Outside Edit Mode a
+        selection that picks none is no hint of a mistake (every vertex may be selected there): say how to pick."""
+        try:
+            return anchors.pick_vertex(selection, active_vertex)
+        except LayoutError:
+            if self._editing:
+                raise
+            raise LayoutError(ANCHOR_ADD_HOW) from None
 
     def summary(self, anchors, outcome, milliseconds):
         own = outcome.active_index
@@ -188,7 +209,10 @@ class SPRINGWRAP_OT_anchors_auto(_AnchorOperator, bpy.types.Operator):
     )
     method: bpy.props.EnumProperty(name="Method", items=ANCHOR_METHOD_ITEMS, default="CLOSEST")
     replace: props.flag(
-        "Replace", "Remove the existing anchors first; off: keep them and anchor other vertices only", True
+        "Replace",
+        "Remove the existing anchors first; off (the default): keep them (anchors placed by hand) and anchor other "
+        "vertices around them",
+        False,
     )
     max_distance: max_distance_property(
         "Vertices whose target point is farther than this get no anchor (0 = unlimited)"
@@ -203,17 +227,18 @@ class SPRINGWRAP_OT_anchors_auto(_AnchorOperator, bpy.types.Operator):
         normals = layout_data.read_world_normals(layout) if self.method == "PROJECT" else None
         existing = (arrays, normals, anchor_data.read_anchors(layout), target, layout.springwrap.anchors_signature)
         spread = (self.spacing, self.method, self.replace, self.max_distance)
+
         return self.maybe_symmetric(layout, anchors.auto, anchor_twins.auto, *existing, *spread), target.signature
 
     def summary(self, anchors, outcome, milliseconds):
-        text = (
-            f"Added {outcome.added_count} anchors (spacing {outcome.spacing:.4g}, {self.method}) "
-            f"in {milliseconds:.1f} ms"
-        )
-        if self.replace and outcome.replaced_count:
-            text += f"; replaced {outcome.replaced_count} existing anchors"
-        elif not self.replace:
-            text += f"; kept {anchors.anchor_count(outcome.anchors) - outcome.added_count} existing anchors"
+        added = f"{outcome.added_count} anchors (spacing {outcome.spacing:.4g}, {self.method}) in {milliseconds:.1f} ms"
+        kept = anchors.anchor_count(outcome.anchors) - outcome.added_count
+        if kept:
+            text = f"Kept {kept} existing anchors and added {added}"
+        elif outcome.replaced_count:
+            text = f"Replaced the {outcome.replaced_count} existing anchors with {added}"
+        else:
+            text = f"Added {added}"
         if outcome.missed_count:
             text += f"; {outcome.missed_count} vertices missed the target (no anchor)"
         if outcome.skipped_count:

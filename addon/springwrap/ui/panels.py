@@ -173,6 +173,7 @@ class SPRINGWRAP_PT_anchors(_LayoutSubPanel, bpy.types.Panel):
         column = _split(layout.column())
         column.prop(settings, "anchor_spacing")
         column.prop(settings, "anchor_method")
+        column.prop(settings, "anchor_keep")
         # Symmetric anchors: Add and Auto anchor each vertex's twin too, as a pair (Remove removes both).
         column.prop(settings, "anchor_symmetric")
         symmetry = column.column()
@@ -182,6 +183,7 @@ class SPRINGWRAP_PT_anchors(_LayoutSubPanel, bpy.types.Panel):
         auto = column.operator("springwrap.anchors_auto", icon="AUTO")
         auto.spacing = settings.anchor_spacing
         auto.method = settings.anchor_method
+        auto.replace = not settings.anchor_keep
         auto.max_distance = settings.max_distance
         _symmetry_arguments(auto, settings)
 
