@@ -230,6 +230,6 @@ def test_the_panel_offers_symmetric_anchors_and_the_list_shows_pairs():
         labels[item.vertex_index], numbers[item.vertex_index] = row.labels, str(index + 1)
     twin = int(twins[vertex])
     # The pair number, the vertex, the twin anchor's pair number (as the viewport numbers them).
-    assert labels[vertex][:3] == [numbers[vertex], f"v{vertex}", numbers[twin]]
-    assert labels[twin][:3] == [numbers[twin], f"v{twin}", numbers[vertex]]
-    assert labels[middle][:3] == [numbers[middle], f"v{middle}", "mid"]
+    assert labels[vertex][:3] == [numbers[vertex], f"v{vertex}", f"\u2194{numbers[twin]}"]
+    assert labels[twin][:3] == [numbers[twin], f"v{twin}", f"\u2194{numbers[vertex]}"]
+    assert labels[middle][:3] == [numbers[middle], f"v{middle}", "\u2194mid"]

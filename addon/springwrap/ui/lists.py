@@ -18,105 +18,135 @@ class Cell(NamedTuple):
 
 
 class AnchorRow(NamedTuple):
-    """What a row of the anchor list can show, most important first: the pair number (as in the viewport), how
-    far the vertex is from its target point ("missing" when the vertex is gone), its symmetric twin (the twin
-    anchor's pair number, or "mid" on the plane), the layout vertex."""
+    """What a row of the anchor list shows, in its order: the pair number (as the viewport numbers the pairs), the
+    layout vertex, the symmetric twin (``None``: no twin) and how far the vertex is from its target point
+    ("missing" when the layout has no such vertex)."""
 
     number: Cell
-    distance: Cell
-    twin: Cell | None
     vertex: Cell
-    missing: bool
+    twin: Cell | None
+    distance: Cell
+
+    @property
+    def missing(self) -> bool:
+        return self.distance.icon == "ERROR"
 
 
-def anchor_row(
-    index: int, vertex: int, twin_vertex: int, twin_index: int, distance: str | None, kind: str
-) -> AnchorRow:
-    """The row of the anchor at ``index`` of the list: on layout vertex ``vertex``, paired with the anchor at
-    ``twin_index`` on ``twin_vertex`` (-1: no twin; ``twin_vertex == vertex``: on the symmetry plane; ``twin_index``
-    -1 with a twin vertex: the twin's vertex is shown), ``distance`` the text of its vertex's distance to its target
-    point (None: the vertex is gone), ``kind`` ``'FACE'`` or ``'SPACE'`` (the distance's icon)."""
-    missing = distance is None
+TWIN_MARK = "\u2194"
+"""Before a twin's pair number: the two anchors of a symmetric pair ("↔12")."""
+MISSING = Cell("missing", "ERROR")
+"""The distance cell of an anchor whose vertex the layout does not have (any more)."""
+WIDEST_DISTANCE = "12.3 cm"
+"""As wide as a distance's text gets (three significant digits and a unit: ``_length_text``)."""
+
+
+def anchor_row(index: int, vertex: int, twin_vertex: int, twin_index: int, distance: str | None) -> AnchorRow:
+    """The row of the anchor at ``index`` of the list, on layout vertex ``vertex``; ``twin_vertex``: its symmetric
+    twin's vertex (-1: none; ``vertex`` itself: on the symmetry plane, "mid"), the twin anchor at ``twin_index``
+    (shown by its pair number; -1: not in the list, the twin's vertex is shown); ``distance``: the text of the
+    vertex's distance to its target point (None: the layout has no such vertex)."""
     if twin_vertex < 0:
         twin = None
     elif twin_vertex == vertex:
-        twin = Cell("mid", "MOD_MIRROR")
+        twin = Cell(f"{TWIN_MARK}mid")
     elif twin_index >= 0:
-        twin = Cell(str(anchor_focus.pair_number(twin_index)), "MOD_MIRROR")
+        twin = Cell(f"{TWIN_MARK}{anchor_focus.pair_number(twin_index)}")
     else:
-        twin = Cell(f"v{twin_vertex}", "MOD_MIRROR")
-    return AnchorRow(
-        number=Cell(str(anchor_focus.pair_number(index))),
-        distance=Cell("missing", "ERROR")
-        if missing
-        else Cell(distance, "SNAP_FACE" if kind == "FACE" else "EMPTY_AXIS"),
-        twin=twin,
-        vertex=Cell(f"v{vertex}"),
-        missing=missing,
-    )
+        twin = Cell(f"{TWIN_MARK}v{twin_vertex}")
+    distance_cell = MISSING if distance is None else Cell(distance)
+    return AnchorRow(Cell(str(anchor_focus.pair_number(index))), Cell(f"v{vertex}"), twin, distance_cell)
+
+
+def widest_row(count: int, vertex_count: int, largest_vertex: int, any_twin: bool, any_missing: bool) -> AnchorRow:
+    """A row as wide as any of a list of ``count`` anchors can be (the largest pair number and vertex, a twin when
+    ``any_twin``, the missing mark when ``any_missing``): every row is laid out in its columns."""
+    last = max(count - 1, 0)
+    vertex = max(largest_vertex, vertex_count - 1, 0)
+    row = anchor_row(last, vertex, vertex + 1 if any_twin else -1, last, None if any_missing else WIDEST_DISTANCE)
+    if row.twin is not None and len(row.twin.text) < len(f"{TWIN_MARK}mid"):
+        row = row._replace(twin=Cell(f"{TWIN_MARK}mid"))
+    return row
 
 
 CHARACTER_WIDTH = 7.0
-"""Width of a digit of Blender's interface font at UI scale 1, in pixels (rounded up: letters are narrower)."""
-ICON_WIDTH = 20.0
-"""Width of a label's icon, with its padding, at UI scale 1."""
-LABEL_PADDING = 10.0
-"""Space a row gives each label beyond its text and icon, at UI scale 1."""
-ROW_OVERHEAD = 110.0
-"""The sidebar's width less the width of the anchor list's rows' text, at UI scale 1: the tabs, the margins, the
-row's own padding, the list's scroll bar and the column of buttons beside it (measured in the GUI lane)."""
+"""Width of a character of Blender's interface font at UI scale 1, in pixels (a digit's, rounded up; most letters
+are narrower)."""
+ICON_WIDTH = 22.0
+"""Width of a label's icon and the gap after it, at UI scale 1."""
+LABEL_PADDING = 8.0
+"""Width a label takes beyond its text and icon, at UI scale 1."""
+ROW_OVERHEAD = 118.0
+"""The sidebar's width less the width of a row of the anchor list, at UI scale 1: the tabs, the margins, the
+list's scroll bar and the column of buttons beside it (measured in the GUI lane: 229 px, 115 px rows)."""
 
 
-def cell_width(cell: Cell) -> float:
-    """The width ``cell`` needs in a row, at UI scale 1 (an estimate on the large side)."""
+def cell_width(cell: Cell | None) -> float:
+    """The width ``cell`` needs in a row (0 for ``None``), at UI scale 1 (an estimate on the large side)."""
+    if cell is None:
+        return 0.0
     return len(cell.text) * CHARACTER_WIDTH + (ICON_WIDTH if cell.icon != "NONE" else 0.0) + LABEL_PADDING
 
 
-def row_cells(row: AnchorRow, width: float | None, widest: AnchorRow | None = None) -> list[Cell]:
-    """The cells of ``row`` in their order (number, vertex, twin, distance) that fit ``width`` (pixels at UI scale 1;
-    None: unlimited) whole, never cut: the vertex goes first, then the twin, when they do not all fit. The choice
-    is made on ``widest`` (the list's widest row; default ``row``) so that every row shows the same columns."""
-    widest = widest or row
-    optional = [("vertex", widest.vertex), ("twin", widest.twin)]
-    shown = {"vertex", "twin"}
-    needed = cell_width(widest.number) + cell_width(widest.distance)
-    needed += sum(cell_width(cell) for _name, cell in optional if cell is not None)
-    for name, cell in optional:
-        if width is None or needed <= width:
-            break
-        shown.discard(name)
-        needed -= cell_width(cell) if cell is not None else 0.0
-    cells = [row.number]
-    cells += [row.vertex] if "vertex" in shown else []
-    cells += [row.twin] if "twin" in shown and row.twin is not None else []
-    return cells + [row.distance]
+def columns(widest: AnchorRow, width: float | None) -> list[tuple[str, float]]:
+    """The columns of the list's rows and their widths (UI scale 1): those of ``widest`` that fit ``width`` whole
+    (None: unlimited), never a cut one. The number and the distance always; the twin and then the vertex as room
+    allows."""
+    chosen = [("number", cell_width(widest.number)), ("distance", cell_width(widest.distance))]
+    for name in ("twin", "vertex"):
+        cell = getattr(widest, name)
+        if cell is None:
+            continue
+        if width is None or sum(size for _name, size in chosen) + cell_width(cell) <= width:
+            chosen.append((name, cell_width(cell)))
+    order = ("number", "vertex", "twin", "distance")
+    return sorted(chosen, key=lambda column: order.index(column[0]))
+
+
+def row_cells(row: AnchorRow, shown: list[tuple[str, float]]) -> list[tuple[Cell, float]]:
+    """The cells of ``row`` in the columns ``shown`` (an empty cell where the row has no twin), with their widths."""
+    return [(getattr(row, name) or Cell(""), size) for name, size in shown]
 
 
 class SPRINGWRAP_UL_anchors(bpy.types.UIList):
-    """The layout's anchors: the pair number (as the viewport shows it), the layout vertex, the symmetric twin's
-        pair number ("mid" on the plane) and how far the vertex is from its target point (its icon: on the surface or
-        in space), the columns that fit the sidebar's width whole. While the pair tool's mouse is over an anchor, the
-    other rows are dimmed."""
+    """The layout's anchors: the pair number (as the viewport numbers the pairs), the layout vertex, the symmetric
+    twin's pair number ("↔mid" on the plane) and how far the vertex is from its target point: the columns that fit
+    the sidebar's width whole, the vertex and then the twin left out when the sidebar is narrow. While the pair
+    tool's mouse is over an anchor, the other rows are dimmed."""
 
     bl_idname = "SPRINGWRAP_UL_anchors"
 
     def draw_item(self, context, layout, data, item, icon, active_data, active_property, index=0, flt_flag=0):
         obj = data.id_data
-        vertex_count = len(obj.data.vertices) if obj.type == "MESH" else 0
-        rows = _anchor_rows(context, obj, data.anchors, vertex_count, index)
+        row, widest = _anchor_rows(context, obj, data.anchors, index)
         region = getattr(context, "region", None)
-        width = None if region is None else region.width / max(context.preferences.system.ui_scale, 1e-3)
-        row = layout.row(align=True)
-        row.alert = rows[0].missing
-        hovered = anchor_focus.hovered_anchor(obj)
-        row.active = hovered in (anchor_focus.NO_ANCHOR, index)  # the pair tool's mouse is over another anchor
-        for cell in row_cells(rows[0], None if width is None else width - ROW_OVERHEAD, rows[1]):
-            row.label(text=cell.text, icon=cell.icon)
+        shown = columns(widest, None if region is None else region.width / _ui_scale(context) - ROW_OVERHEAD)
+        line = layout.row(align=True)
+        line.alert = row.missing
+        line.active = anchor_focus.hovered_anchor(obj) in (anchor_focus.NO_ANCHOR, index)
+        cells = row_cells(row, shown)
+        for number, (cell, size) in enumerate(cells):
+            box = line.row(align=True)
+            if number < len(cells) - 1:  # fixed widths: the columns line up; the last takes the rest
+                box.ui_units_x = size / UI_UNIT
+            else:
+                box.alignment = "RIGHT"
+            box.label(text=cell.text, icon=cell.icon)
 
 
-def _anchor_rows(context, obj, items, vertex_count: int, index: int) -> tuple[AnchorRow, AnchorRow]:
-    """The row of the anchor at ``index`` and the widest row the list can have (the largest pair number, vertex
-    and distance text, a twin when any anchor has one)."""
+def _ui_scale(context) -> float:
+    """Pixels per pixel at UI scale 1: the interface's effective scale (the Resolution Scale preference without a
+    window, as in background mode)."""
+    preferences = context.preferences
+    return preferences.system.ui_scale if preferences.system.ui_scale > 0.0 else max(preferences.view.ui_scale, 0.25)
+
+
+UI_UNIT = 20.0
+"""Pixels of one of Blender's UI units at UI scale 1 (``ui_units_x``)."""
+
+
+def _anchor_rows(context, obj, items, index: int) -> tuple[AnchorRow, AnchorRow]:
+    """The row of the anchor at ``index`` and the widest row of the list."""
+    vertex_count = len(obj.data.vertices) if obj.type == "MESH" else 0
     vertices, twins = np.empty(len(items), dtype=np.int32), np.empty(len(items), dtype=np.int32)
     items.foreach_get("vertex_index", vertices)
     items.foreach_get("twin_vertex", twins)
@@ -130,12 +160,10 @@ def _anchor_rows(context, obj, items, vertex_count: int, index: int) -> tuple[An
         # Object-mode data (in edit mode, as of the last switch): one vertex per visible row, read as drawn.
         world = obj.matrix_world @ obj.data.vertices[item.vertex_index].co
         distance = _length_text(context, (Vector(item.location) - world).length)
-    row = anchor_row(index, item.vertex_index, item.twin_vertex, twin_index, distance, item.target_kind)
-    last = len(items) - 1
-    widest_vertex = max(int(vertices.max(initial=0)), vertex_count - 1, 0)
-    has_twin = bool((twins >= 0).any())
-    widest = anchor_row(last, widest_vertex, widest_vertex + 1 if has_twin else -1, last, WIDEST_DISTANCE, "FACE")
-    return row, widest
+    row = anchor_row(index, item.vertex_index, item.twin_vertex, twin_index, distance)
+    largest = int(vertices.max(initial=0))
+    missing = bool(((vertices < 0) | (vertices >= vertex_count)).any())
+    return row, widest_row(len(items), vertex_count, largest, bool((twins >= 0).any()), missing)
 
 
 def _length_text(context, value: float) -> str:
@@ -146,10 +174,6 @@ def _length_text(context, value: float) -> str:
     return bpy.utils.units.to_string(
         units.system, "LENGTH", value * units.scale_length, precision=3, split_unit=units.use_separate
     )
-
-
-WIDEST_DISTANCE = "0.000 mm"
-"""As wide as a distance's text gets (three significant digits and a unit)."""
 
 
 class SPRINGWRAP_UL_curve_constraints(bpy.types.UIList):
