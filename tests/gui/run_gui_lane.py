@@ -33,6 +33,7 @@ DOC_PICTURES = {
     "01-target-sidebar.png": "gui-panel.png",
     "03-wrapped-view.png": "gui-cage.png",
     "04-live-wrap-sidebar.png": "gui-live-wrap.png",
+    "07-anchor-list-sidebar.png": "gui-anchor-list.png",
     "missing-numpy/06-missing-numpy-sidebar.png": "gui-missing-numpy.png",
 }
 """Screenshots the user guide shows: ``--update-docs`` copies them into docs/img after a passing run."""
