@@ -510,7 +510,15 @@ class Workflow:
         self.check(added == {"FINISHED"}, f"anchor_add: {added}")
         yield STEP_SECONDS
         self.check(Vector(region_3d.view_location) == view, "the view moved on an anchor operator")
-        self.step("anchor_list", vertices=count, clicked=clicked, sidebar_width=self.ui.region("UI").width)
+        system = bpy.context.preferences.system
+        self.step(
+            "anchor_list",
+            vertices=count,
+            clicked=clicked,
+            sidebar_width=self.ui.region("UI").width,
+            ui_scale=round(system.ui_scale, 3),
+            pixel_size=system.pixel_size,
+        )
 
     def missing_numpy_steps(self):
         sys.modules.pop("numpy", None)

@@ -20,6 +20,25 @@ def read_vertex_normals(mesh: "bpy.types.Mesh") -> np.ndarray:
     return normals.reshape(-1, 3)
 
 
+_SELECTION_ATTRIBUTES = (("vertices", ".select_vert"), ("edges", ".select_edge"), ("polygons", ".select_poly"))
+"""Where a mesh keeps the selection of each domain since Blender 3.5 (no attribute: nothing selected)."""
+
+
+def deselect_all(mesh: "bpy.types.Mesh") -> None:
+    """Deselect every vertex, edge and face of a mesh (object mode data).
+
+    Since Blender 3.5 the selection is in boolean attributes: written as attributes at once (setting
+    ``select`` through the vertices costs seconds on 100 000 of them); before, in the items' flags.
+    """
+    for domain, name in _SELECTION_ATTRIBUTES:
+        attribute = mesh.attributes.get(name)
+        if attribute is not None:
+            attribute.data.foreach_set("value", np.zeros(len(attribute.data), dtype=bool))
+        elif bpy.app.version < (3, 5, 0):
+            items = getattr(mesh, domain)
+            items.foreach_set("select", np.zeros(len(items), dtype=bool))
+
+
 def pointer_poll(poll: Callable) -> Callable | None:
     """The ``poll`` to give a ``PointerProperty``: ``poll`` itself, or None in the PyPI bpy 4.2 module.
 
