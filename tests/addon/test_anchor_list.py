@@ -123,7 +123,8 @@ def test_the_columns_fit_the_sidebar_and_no_row_is_cut(sidebar):
         anchor_row(3, 5296, -1, -1, "1.02 mm"),
         anchor_row(4, 160_800, -1, -1, "4.56 m"),
     ]
-    widest = widest_row(len(rows), 160_801, 160_800, any_twin=True, any_missing=False)
+    twins = [row.twin for row in rows if row.twin is not None]
+    widest = widest_row(len(rows), 160_800, twins, [row.distance for row in rows])
     shown = columns(widest, width)
     names = [name for name, _size in shown]
     assert names[0] == "number" and names[-1] == "distance"  # always, in that order
@@ -137,11 +138,24 @@ def test_the_columns_fit_the_sidebar_and_no_row_is_cut(sidebar):
 
 
 def test_a_missing_vertex_widens_the_distance_column():
-    from springwrap.ui.lists import MISSING, cell_width, columns, widest_row
+    from springwrap.ui.lists import MISSING, Cell, cell_width, columns, widest_row
 
-    widest = widest_row(6, 160_801, 160_808, any_twin=True, any_missing=True)
-    assert widest.distance == MISSING
+    widest = widest_row(6, 160_808, [], [Cell("3.12 cm"), MISSING])
+    assert widest.distance == MISSING and widest.twin is None
     assert dict(columns(widest, None))["distance"] == cell_width(MISSING)
+
+
+def test_the_distance_samples_hold_the_widest_distance_text():
+    from springwrap.ui.lists import Cell, _length_text, cell_width, distance_samples
+
+    random = np.random.default_rng(5)
+    distances = 10.0 ** random.uniform(-6, 3, 3000)
+    samples = distance_samples(distances)
+    assert samples.size <= 10 and set(samples) <= set(distances)
+    for system in ("METRIC", "IMPERIAL", "NONE"):
+        bpy.context.scene.unit_settings.system = system
+        widest = max(cell_width(Cell(_length_text(bpy.context, value))) for value in distances)
+        assert max(cell_width(Cell(_length_text(bpy.context, value))) for value in samples) == widest, system
 
 
 def big_layout(target, anchors):

@@ -36,8 +36,6 @@ TWIN_MARK = "\u2194"
 """Before a twin's pair number: the two anchors of a symmetric pair ("↔12")."""
 MISSING = Cell("missing", "ERROR")
 """The distance cell of an anchor whose vertex the layout does not have (any more)."""
-WIDEST_DISTANCE = "12.3 cm"
-"""As wide as a distance's text gets (three significant digits and a unit: ``_length_text``)."""
 
 
 def anchor_row(index: int, vertex: int, twin_vertex: int, twin_index: int, distance: str | None) -> AnchorRow:
@@ -57,34 +55,53 @@ def anchor_row(index: int, vertex: int, twin_vertex: int, twin_index: int, dista
     return AnchorRow(Cell(str(anchor_focus.pair_number(index))), Cell(f"v{vertex}"), twin, distance_cell)
 
 
-def widest_row(count: int, vertex_count: int, largest_vertex: int, any_twin: bool, any_missing: bool) -> AnchorRow:
-    """A row as wide as any of a list of ``count`` anchors can be (the largest pair number and vertex, a twin when
-    ``any_twin``, the missing mark when ``any_missing``): every row is laid out in its columns."""
-    last = max(count - 1, 0)
-    vertex = max(largest_vertex, vertex_count - 1, 0)
-    row = anchor_row(last, vertex, vertex + 1 if any_twin else -1, last, None if any_missing else WIDEST_DISTANCE)
-    if row.twin is not None and len(row.twin.text) < len(f"{TWIN_MARK}mid"):
-        row = row._replace(twin=Cell(f"{TWIN_MARK}mid"))
-    return row
+def widest_row(count: int, largest_vertex: int, twins: list[Cell], distances: list[Cell]) -> AnchorRow:
+    """A row as wide as any of a list of ``count`` anchors: the largest pair number and vertex, the widest of the
+    ``twins`` and ``distances`` cells the list has (no twin cell: no anchor has a twin)."""
+    number, vertex = Cell(str(anchor_focus.pair_number(max(count - 1, 0)))), Cell(f"v{max(largest_vertex, 0)}")
+    twin = max(twins, key=cell_width, default=None)
+    return AnchorRow(number, vertex, twin, max(distances, key=cell_width, default=Cell("0 m")))
 
 
+def distance_samples(distances: np.ndarray) -> np.ndarray:
+    """The distances whose texts are the widest of ``distances`` (three significant digits and a unit): the largest
+    of each power of ten present (a handful, whatever the list's length)."""
+    distances = np.asarray(distances, dtype=np.float64)
+    distances = distances[np.isfinite(distances)]
+    if not distances.size:
+        return distances
+    decades = np.floor(np.log10(np.maximum(distances, 1e-30)))
+    order = np.lexsort((distances, decades))
+    last_of_decade = np.append(decades[order][1:] != decades[order][:-1], True)
+    return distances[order][last_of_decade]
+
+
+CHARACTER_WIDTHS = {
+    **dict.fromkeys(" .,'", 3.5),
+    **dict.fromkeys('ilfjt"', 4.3),
+    **dict.fromkeys("cs", 6.2),
+    **dict.fromkeys("mM\u2194", 10.7),
+}
+"""Widths of the narrow and wide characters of Blender's interface font at UI scale 1, in pixels (DejaVu Sans of
+Blender 3.x, a little wider than the Inter of 4.x)."""
 CHARACTER_WIDTH = 7.0
-"""Width of a character of Blender's interface font at UI scale 1, in pixels (a digit's, rounded up; most letters
-are narrower)."""
+"""Width of any other character (a digit's)."""
 ICON_WIDTH = 22.0
 """Width of a label's icon and the gap after it, at UI scale 1."""
-LABEL_PADDING = 8.0
+LABEL_PADDING = 6.0
 """Width a label takes beyond its text and icon, at UI scale 1."""
-ROW_OVERHEAD = 118.0
+ROW_OVERHEAD = 110.0
 """The sidebar's width less the width of a row of the anchor list, at UI scale 1: the tabs, the margins, the
-list's scroll bar and the column of buttons beside it (measured in the GUI lane: 229 px, 115 px rows)."""
+list's scroll bar and the column of buttons beside it (measured in the GUI lane: a 229 px sidebar at UI scale 1.042
+has rows of 115 px)."""
 
 
 def cell_width(cell: Cell | None) -> float:
     """The width ``cell`` needs in a row (0 for ``None``), at UI scale 1 (an estimate on the large side)."""
     if cell is None:
         return 0.0
-    return len(cell.text) * CHARACTER_WIDTH + (ICON_WIDTH if cell.icon != "NONE" else 0.0) + LABEL_PADDING
+    characters = sum(CHARACTER_WIDTHS.get(character, CHARACTER_WIDTH) for character in cell.text)
+    return characters + (ICON_WIDTH if cell.icon != "NONE" else 0.0) + LABEL_PADDING
 
 
 def columns(widest: AnchorRow, width: float | None) -> list[tuple[str, float]]:
@@ -115,9 +132,17 @@ class SPRINGWRAP_UL_anchors(bpy.types.UIList):
 
     bl_idname = "SPRINGWRAP_UL_anchors"
 
+    def filter_items(self, context, data, propname):
+        """No filtering nor sorting; measures the list's widest row, once per redraw, for :meth:`draw_item`."""
+        items = getattr(data, propname)
+        _widest_rows.clear()
+        _widest_rows[data.id_data.name_full, len(items)] = _widest_row(context, data.id_data, items)
+        return [], []
+
     def draw_item(self, context, layout, data, item, icon, active_data, active_property, index=0, flt_flag=0):
         obj = data.id_data
-        row, widest = _anchor_rows(context, obj, data.anchors, index)
+        row = _anchor_row(context, obj, data.anchors, index)
+        widest = _widest_rows.get((obj.name_full, len(data.anchors))) or _widest_row(context, obj, data.anchors)
         region = getattr(context, "region", None)
         shown = columns(widest, None if region is None else region.width / _ui_scale(context) - ROW_OVERHEAD)
         line = layout.row(align=True)
@@ -144,15 +169,14 @@ UI_UNIT = 20.0
 """Pixels of one of Blender's UI units at UI scale 1 (``ui_units_x``)."""
 
 
-def _anchor_rows(context, obj, items, index: int) -> tuple[AnchorRow, AnchorRow]:
-    """The row of the anchor at ``index`` and the widest row of the list."""
+def _anchor_row(context, obj, items, index: int) -> AnchorRow:
+    """The row of the anchor at ``index`` of ``items`` (the list of ``obj``)."""
     vertex_count = len(obj.data.vertices) if obj.type == "MESH" else 0
-    vertices, twins = np.empty(len(items), dtype=np.int32), np.empty(len(items), dtype=np.int32)
-    items.foreach_get("vertex_index", vertices)
-    items.foreach_get("twin_vertex", twins)
     item = items[index]
     twin_index = -1
     if item.twin_vertex >= 0 and item.twin_vertex != item.vertex_index:
+        vertices = np.empty(len(items), dtype=np.int32)
+        items.foreach_get("vertex_index", vertices)
         found = np.flatnonzero(vertices == item.twin_vertex)
         twin_index = int(found[0]) if found.size else -1
     distance = None
@@ -160,10 +184,41 @@ def _anchor_rows(context, obj, items, index: int) -> tuple[AnchorRow, AnchorRow]
         # Object-mode data (in edit mode, as of the last switch): one vertex per visible row, read as drawn.
         world = obj.matrix_world @ obj.data.vertices[item.vertex_index].co
         distance = _length_text(context, (Vector(item.location) - world).length)
-    row = anchor_row(index, item.vertex_index, item.twin_vertex, twin_index, distance)
-    largest = int(vertices.max(initial=0))
-    missing = bool(((vertices < 0) | (vertices >= vertex_count)).any())
-    return row, widest_row(len(items), vertex_count, largest, bool((twins >= 0).any()), missing)
+    return anchor_row(index, item.vertex_index, item.twin_vertex, twin_index, distance)
+
+
+def _widest_row(context, obj, items) -> AnchorRow:
+    """The widest row of the list ``items`` of ``obj``: its pair numbers, vertices, twins and distances (those of
+    every anchor, read at once; the distance texts of a handful of samples)."""
+    count = len(items)
+    vertex_count = len(obj.data.vertices) if obj.type == "MESH" else 0
+    vertices, twins = np.empty(count, dtype=np.int64), np.empty(count, dtype=np.int64)
+    locations = np.empty(count * 3, dtype=np.float64)
+    if count:
+        items.foreach_get("vertex_index", vertices)
+        items.foreach_get("twin_vertex", twins)
+        items.foreach_get("location", locations)
+    twin_cells = [Cell(f"{TWIN_MARK}mid")] if np.any((twins >= 0) & (twins == vertices)) else []
+    other = twins[(twins >= 0) & (twins != vertices)]
+    in_list = np.isin(other, vertices)
+    if in_list.any():
+        twin_cells.append(Cell(f"{TWIN_MARK}{anchor_focus.pair_number(count - 1)}"))
+    if not in_list.all():
+        twin_cells.append(Cell(f"{TWIN_MARK}v{int(other[~in_list].max())}"))
+    present = (vertices >= 0) & (vertices < vertex_count)
+    distance_cells = [] if present.all() else [MISSING]
+    if present.any():
+        positions = np.empty(vertex_count * 3, dtype=np.float32)
+        obj.data.vertices.foreach_get("co", positions)
+        matrix = np.array(obj.matrix_world, dtype=np.float64)
+        world = positions.reshape(-1, 3)[vertices[present]] @ matrix[:3, :3].T + matrix[:3, 3]
+        distances = np.linalg.norm(locations.reshape(-1, 3)[present] - world, axis=1)
+        distance_cells += [Cell(_length_text(context, float(value))) for value in distance_samples(distances)]
+    return widest_row(count, int(vertices.max(initial=0)), twin_cells, distance_cells)
+
+
+_widest_rows: dict[tuple[str, int], AnchorRow] = {}
+"""The widest row of each layout's list (by name and length), found by ``filter_items`` once per redraw."""
 
 
 def _length_text(context, value: float) -> str:
