@@ -108,6 +108,22 @@ def test_a_row_shows_six_digit_vertices_twins_mid_plane_and_missing_vertices_who
     assert gone.missing and gone.distance == MISSING and gone.vertex.text == "v250000"
 
 
+def test_under_the_list_the_active_anchors_vertex_numbers_read_whole():
+    from springwrap.ui.lists import TWIN_MARK, vertex_text
+    from springwrap.ui.panels import SPRINGWRAP_PT_anchors
+
+    assert vertex_text(123456, 123789, 160_801) == f"123456 {TWIN_MARK} 123789"
+    assert vertex_text(52960, 52960, 160_801) == f"52960 {TWIN_MARK} mid"
+    assert vertex_text(5296, -1, 160_801) == "5296"
+    assert vertex_text(250_000, -1, 160_801) == "250000 missing"
+    target, layout = scene()
+    place_hand_anchors()
+    layout.springwrap.active_anchor_index = 1
+    recorder = PanelRecorder()
+    SPRINGWRAP_PT_anchors.draw(type("Panel", (), {"layout": recorder})(), bpy.context)
+    assert recorder.labels[recorder.labels.index("Vertex") + 1] == str(HAND_ANCHORS[1][0])
+
+
 WIDTHS = {"default sidebar": 229.0, "wide sidebar": 400.0, "very narrow": 150.0}
 
 

@@ -227,7 +227,6 @@ class SPRINGWRAP_OT_anchors_auto(_AnchorOperator, bpy.types.Operator):
         normals = layout_data.read_world_normals(layout) if self.method == "PROJECT" else None
         existing = (arrays, normals, anchor_data.read_anchors(layout), target, layout.springwrap.anchors_signature)
         spread = (self.spacing, self.method, self.replace, self.max_distance)
-
         return self.maybe_symmetric(layout, anchors.auto, anchor_twins.auto, *existing, *spread), target.signature
 
     def summary(self, anchors, outcome, milliseconds):

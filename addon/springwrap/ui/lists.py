@@ -55,6 +55,15 @@ def anchor_row(index: int, vertex: int, twin_vertex: int, twin_index: int, dista
     return AnchorRow(Cell(str(anchor_focus.pair_number(index))), Cell(f"v{vertex}"), twin, distance_cell)
 
 
+def vertex_text(vertex: int, twin_vertex: int, vertex_count: int) -> str:
+    """The active anchor's vertex under the list, with its twin's ("123456 ↔ 123789", "52960 ↔ mid"), or that it is
+    missing: the vertex numbers whole, whatever the sidebar's width leaves for the list's columns."""
+    text = str(vertex) if 0 <= vertex < vertex_count else f"{vertex} missing"
+    if twin_vertex < 0:
+        return text
+    return f"{text} {TWIN_MARK} {'mid' if twin_vertex == vertex else twin_vertex}"
+
+
 def widest_row(count: int, largest_vertex: int, twins: list[Cell], distances: list[Cell]) -> AnchorRow:
     """A row as wide as any of a list of ``count`` anchors: the largest pair number and vertex, the widest of the
     ``twins`` and ``distances`` cells the list has (no twin cell: no anchor has a twin)."""

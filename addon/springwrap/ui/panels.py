@@ -16,6 +16,7 @@ import bpy
 from ..blender import anchors as anchor_data
 from ..blender import layout as layout_data
 from ..blender import wrap_session
+from . import lists
 
 WRAP_BUTTON_SCALE = 1.6
 """Height of the Wrap button, in rows: the step the add-on exists for."""
@@ -169,6 +170,10 @@ class SPRINGWRAP_PT_anchors(_LayoutSubPanel, bpy.types.Panel):
         column.separator()
         column.operator("springwrap.anchors_update", icon="FILE_REFRESH", text="")
         column.operator("springwrap.anchors_clear", icon="X", text="")
+        if len(settings.anchors):  # the active anchor's vertex numbers, whole (the list may have no room for them)
+            active = settings.anchors[min(settings.active_anchor_index, len(settings.anchors) - 1)]
+            text = lists.vertex_text(active.vertex_index, active.twin_vertex, len(obj.data.vertices))
+            _count_row(layout, "Vertex", text, icon="VERTEXSEL")
 
         column = _split(layout.column())
         column.prop(settings, "anchor_spacing")
