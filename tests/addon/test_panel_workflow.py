@@ -231,7 +231,7 @@ def test_enabling_without_numpy_registers_the_message_instead_of_failing():
     assert "sudo apt-get install python3-numpy" in process.stdout
 
 
-def test_an_anchor_row_reads_index_and_distance_and_flags_a_missing_vertex():
+def test_an_anchor_row_reads_pair_vertex_and_distance_and_flags_a_missing_vertex():
     from springwrap.ui.lists import SPRINGWRAP_UL_anchors
 
     _target, layout, _normal = plane_scene()
@@ -240,14 +240,15 @@ def test_an_anchor_row_reads_index_and_distance_and_flags_a_missing_vertex():
     row = PanelRecorder()
     SPRINGWRAP_UL_anchors.draw_item(None, bpy.context, row, layout.springwrap, item, 0, None, "", 0)
     distance = (layout.matrix_world @ layout.data.vertices[3].co).length
-    value, unit = row.labels[1].split()
-    assert row.labels[0] == "3" and float(value) * {"m": 1.0, "cm": 0.01, "mm": 0.001}[unit] == pytest.approx(
+    value, unit = row.labels[2].split()
+    assert row.labels[:2] == ["1", "v3"] and float(value) * {"m": 1.0, "cm": 0.01, "mm": 0.001}[unit] == pytest.approx(
         distance, rel=5e-3
     )
     item.vertex_index = len(layout.data.vertices) + 5  # the layout lost vertices since
     row = PanelRecorder()
     SPRINGWRAP_UL_anchors.draw_item(None, bpy.context, row, layout.springwrap, item, 0, None, "", 0)
-    assert row.labels == [str(len(layout.data.vertices) + 5), "missing"]
+    assert row.labels == ["1", f"v{len(layout.data.vertices) + 5}", "missing"]
+    assert row.alert
 
 
 def test_the_subdivision_fit_button_fits_the_whole_layout_or_the_selection():

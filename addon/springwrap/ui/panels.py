@@ -173,7 +173,7 @@ class SPRINGWRAP_PT_anchors(_LayoutSubPanel, bpy.types.Panel):
         if len(settings.anchors):  # the active anchor's vertex numbers, whole (the list may have no room for them)
             active = settings.anchors[min(settings.active_anchor_index, len(settings.anchors) - 1)]
             text = lists.vertex_text(active.vertex_index, active.twin_vertex, len(obj.data.vertices))
-            _count_row(layout, "Vertex", text, icon="VERTEXSEL")
+            layout.label(text=f"Vertex {text}", icon="VERTEXSEL")  # the whole width: 7 digits each fit
 
         column = _split(layout.column())
         column.prop(settings, "anchor_spacing")
