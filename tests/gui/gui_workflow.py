@@ -454,6 +454,7 @@ class Workflow:
         in Object and Edit Mode, and an anchor operator's new active anchor moves nothing."""
         import numpy as np
 
+        started = time.perf_counter()
         in_view = {"window": self.ui.window, "area": self.ui.area, "region": self.ui.region("WINDOW")}
         with bpy.context.temp_override(**in_view):
             bpy.ops.mesh.primitive_grid_add(x_subdivisions=LIST_GRID, y_subdivisions=LIST_GRID, size=2.0)
@@ -518,6 +519,7 @@ class Workflow:
             sidebar_width=self.ui.region("UI").width,
             ui_scale=round(system.ui_scale, 3),
             pixel_size=system.pixel_size,
+            seconds=round(time.perf_counter() - started, 1),
         )
 
     def missing_numpy_steps(self):

@@ -23,7 +23,7 @@ from pathlib import Path
 REPOSITORY = Path(__file__).resolve().parents[2]
 SCRIPT = REPOSITORY / "tests" / "gui" / "gui_workflow.py"
 SCREEN = "-screen 0 1920x1080x24"
-TIMEOUT_SECONDS = 240
+TIMEOUT_SECONDS = 300
 CONSOLE_ERRORS = re.compile(
     r"Traceback \(most recent call last\)|Error: Python|Exception ignored|drawing anchors failed|"
     r"Error in (a )?draw|ModuleNotFoundError|Segmentation fault|Error: Not freed memory"
