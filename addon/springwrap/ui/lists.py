@@ -1,4 +1,9 @@
-"""The lists of the sidebar's sub-panels: the layout's anchors and its curve constraints."""
+"""The lists of the sidebar's sub-panels: the layout's anchors and its curve constraints.
+
+An anchor row is built by pure helpers (:func:`anchor_row`, :func:`widest_row`, :func:`columns`): the pair number,
+the vertex, the twin and the distance, in columns as wide as the list's widest row needs, those that do not fit the
+sidebar left out rather than cut (text widths estimated per character on the large side, calibrated in the GUI lane).
+"""
 
 from typing import NamedTuple
 
