@@ -54,6 +54,7 @@ from scene_io import (
     kernel_wrap_defaults,
     load_mesh,
     run_operator,
+    warn_energy_ignored,
     write_outputs,
 )
 
@@ -191,6 +192,7 @@ def mirror(arguments: argparse.Namespace) -> dict:
             )
         if outcome.wrap.space_points:
             warnings.append(f"{outcome.wrap.space_points} of {outcome.vertices} vertices are off the surface")
+        warn_energy_ignored(kernel_wrap_defaults().replace(tolerance=arguments.tolerance), warnings)
     report = {
         "layout": str(arguments.layout),
         "target": str(arguments.target) if arguments.target else None,

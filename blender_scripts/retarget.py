@@ -89,6 +89,7 @@ from scene_io import (
     load_mesh,
     run_operator,
     to_file_frame,
+    warn_energy_ignored,
     world_vertices,
     write_outputs,
 )
@@ -448,6 +449,7 @@ def retarget(arguments: argparse.Namespace) -> dict:
     symmetric = symmetric_anchor_report(layout, arguments, warnings)
     lap("anchors")
 
+    warn_energy_ignored(wrap_settings(arguments), warnings)
     try:
         parameters = WrapParameters(
             max_iterations=arguments.max_iterations,

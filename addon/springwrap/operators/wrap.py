@@ -41,7 +41,7 @@ from ..properties import (
     wrap_weight_property,
 )
 from ..ui import frame_clock
-from .base import LayoutOperator, check_inputs, layout_problem, report_storage_precision
+from .base import LayoutOperator, check_inputs, layout_problem, report_energy_ignored, report_storage_precision
 
 TIMER_SECONDS = 0.01
 """Interval of the modal's timer: a frame starts as soon as the previous one is drawn."""
@@ -296,6 +296,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
                 f"Target topology changed: {detached} face-points and {result.anchors_detached_count} face anchors "
                 f"lost their target face and became space-points, {reattached} face-points re-attached",
             )
+        report_energy_ignored(self, self.parameters().settings)
 
 
 classes = (SPRINGWRAP_OT_wrap,)
