@@ -90,7 +90,8 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
         "--tolerance",
         type=float,
         default=defaults.tolerance,
-        help="convergence, fraction of the layout's size (default %(default)s)",
+        help="the spring solver's convergence, fraction of the layout's size (default %(default)s); the mirror's "
+        "wrap uses the energy solver, which ignores it",
     )
     add_shape_keys_argument(parser)
     add_frame_arguments(parser)

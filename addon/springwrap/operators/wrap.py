@@ -54,22 +54,25 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
 
     max_iterations: max_iterations_property("Stop after this many iterations if it has not converged by then")
     tolerance: tolerance_property(
-        "Converged when no point moves more than this fraction of the layout's size in an iteration"
+        "Springs solver only: converged when no point moves more than this fraction of the layout's size in an "
+        "iteration (the Energy solver stops by its own test)"
     )
     fairness: wrap_weight_property(
-        "fairness", "Fairness", "Straightens the layout's grid lines (paper's alpha), 0 to 1"
+        "fairness", "Fairness", "Springs solver only: straightens the layout's grid lines (paper's alpha), 0 to 1"
     )
     arc_length: wrap_weight_property(
-        "arc_length", "Arc Length", "Evens the spacing along the grid lines (paper's beta), 0 to 1"
+        "arc_length", "Arc Length", "Springs solver only: evens the spacing along the grid lines (paper's beta), 0 to 1"
     )
     thin_plate: wrap_weight_property(
         "thin_plate",
         "Thin Plate",
-        "Space-points continue the curvature of the surface around them (over holes), 0 to 0.5",
+        "Springs solver only: space-points continue the curvature of the surface around them (over holes), 0 to 0.5",
     )
-    constraint: wrap_weight_property("constraint", "Constraint", "Pull of anchored points toward their targets, 0 to 1")
+    constraint: wrap_weight_property(
+        "constraint", "Constraint", "Springs solver only: pull of anchored points toward their targets, 0 to 1"
+    )
     folding: wrap_weight_property(
-        "folding", "Folding", "Pull of space-points next to face-points onto the surface, 0 to 1"
+        "folding", "Folding", "Springs solver only: pull of space-points next to face-points onto the surface, 0 to 1"
     )
     rest: props.choice(
         "Rest Shape",
