@@ -83,9 +83,9 @@ package: $(STAMPS)/kernel
 # The same add-on tests on bpy 4.2 LTS (a second venv) and on Debian's blender 3.4 (its own Python,
 # with python3-pytest and python3-numpy from .ci/blender-packages.sh). Both use the one abi3 kernel
 # wheel built by $(STAMPS)/kernel. Left out: the benchmark harness's tests (benchmarks/tests: they do not
-# touch Blender) and tests/packaging (the default lane already installs the packages into bpy 5.0 and
-# blender 3.4).
-LANE_TESTS := tests --ignore=tests/packaging
+# touch Blender), tests/packaging (the default lane already installs the packages into bpy 5.0 and
+# blender 3.4) and the docs' blocks (tests/docs/test_doc_blocks.py: they name .venv's Python, the default lane's).
+LANE_TESTS := tests --ignore=tests/packaging --ignore=tests/docs/test_doc_blocks.py
 VENV_BPY42 := .venv-bpy42
 BLENDER ?= blender
 BLENDER34_KERNEL := .cache/blender34/kernel
