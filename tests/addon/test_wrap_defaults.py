@@ -197,3 +197,13 @@ def test_the_command_line_warns_about_options_the_energy_solver_ignores(script, 
             f"The Energy solver ignores {warned}: only the Springs solver reads "
             f"{'them' if ',' in warned else 'it'} (the result is what the default would give)"
         ]
+
+
+def test_the_mirror_warns_about_a_tolerance_its_energy_wrap_ignores(capfd):
+    from bpy_helpers import head_scene
+
+    head_scene()
+    assert bpy.ops.springwrap.snap() == {"FINISHED"}
+    capfd.readouterr()
+    assert bpy.ops.springwrap.mirror(axis="X", tolerance=1e-3) == {"FINISHED"}
+    assert "The Energy solver ignores Tolerance: only the Springs solver reads it" in capfd.readouterr().out
