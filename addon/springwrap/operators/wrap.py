@@ -188,7 +188,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
                 self.report({"ERROR"}, f"The wrap failed: {error}")
                 return {"CANCELLED"}
             report_storage_precision(self, layout, session.target.extent)
-        self._report_result(result)
+        self._report_result(result, session.parameters.settings)
         return {"FINISHED"}
 
     def invoke(self, context, event):
@@ -231,7 +231,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
         """Report how the wrap ended (``'FINISHED'`` or ``'CANCELLED'``) and return the operator's result."""
         if outcome == "FINISHED":
             report_storage_precision(self, self._loop.session.layout, self._loop.session.target.extent)
-            self._report_result(self._loop.result)
+            self._report_result(self._loop.result, self._loop.session.parameters.settings)
             return {"FINISHED"}
         if self._loop.error is not None:
             self.report({"ERROR"}, f"The wrap failed and was undone: {self._loop.error}")
@@ -287,7 +287,8 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
         if mode is not None:
             mode.restore()
 
-    def _report_result(self, result: WrapResult) -> None:
+    def _report_result(self, result: WrapResult, settings) -> None:
+        """Report ``result``; warn about what in ``settings`` (the wrap's ``WrapSettings``) its solver ignored."""
         wrap_session.remember_result(result)
         self.report({"INFO"} if result.converged else {"WARNING"}, result.summary())
         if result.readout is not None:
@@ -299,7 +300,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
                 f"Target topology changed: {detached} face-points and {result.anchors_detached_count} face anchors "
                 f"lost their target face and became space-points, {reattached} face-points re-attached",
             )
-        report_energy_ignored(self, self.parameters().settings)
+        report_energy_ignored(self, settings)
 
 
 classes = (SPRINGWRAP_OT_wrap,)
