@@ -69,18 +69,23 @@ test-python: setup
 	$(PY) -m pytest -q -rs tests benchmarks/tests
 
 # ---------------------------------------------------------------- packages
-# dist/springwrap-<version>-extension.zip (Blender 4.2+: manifest, add-on, kernel wheel) and
-# dist/springwrap-<version>-legacy.zip (Blender 3.4-4.1: springwrap/ with the kernel in _vendor).
+# For each platform whose kernel wheel is in WHEELS: dist/springwrap-<version>-extension-<platform>.zip
+# (Blender 4.2+: manifest, add-on, kernel wheel) and dist/springwrap-<version>-legacy-<platform>.zip
+# (Blender 3.4-4.1: springwrap/ with the kernel in _vendor). WHEELS defaults to target/wheels (the
+# Linux wheel built here); `make package WHEELS=DIR` packages a folder of wheels for several platforms
+# (the release workflow's, .github/workflows/release.yml).
+WHEELS ?= target/wheels
+
 package: $(STAMPS)/kernel
-	$(PY) packaging/build_packages.py --wheel-dir target/wheels --output dist
+	$(PY) packaging/build_packages.py --wheel-dir $(WHEELS) --output dist
 
 # ---------------------------------------------------------------- compatibility lanes
 # The same add-on tests on bpy 4.2 LTS (a second venv) and on Debian's blender 3.4 (its own Python,
 # with python3-pytest and python3-numpy from .ci/blender-packages.sh). Both use the one abi3 kernel
 # wheel built by $(STAMPS)/kernel. Left out: the benchmark harness's tests (benchmarks/tests: they do not
-# touch Blender) and tests/packaging (the default lane already installs the packages into bpy 5.0 and
-# blender 3.4).
-LANE_TESTS := tests --ignore=tests/packaging
+# touch Blender), tests/packaging (the default lane already installs the packages into bpy 5.0 and
+# blender 3.4) and the docs' blocks (tests/docs/test_doc_blocks.py: they name .venv's Python, the default lane's).
+LANE_TESTS := tests --ignore=tests/packaging --ignore=tests/docs/test_doc_blocks.py
 VENV_BPY42 := .venv-bpy42
 BLENDER ?= blender
 BLENDER34_KERNEL := .cache/blender34/kernel
@@ -122,7 +127,7 @@ GUI_ARGS ?=
 test-gui: package
 	bash .ci/gui-packages.sh
 	$(BLENDER) --version | head -1 | grep -q "^Blender 3\.4" || { echo "test-gui: $(BLENDER) is not Blender 3.4"; exit 1; }
-	$(PY) tests/gui/run_gui_lane.py --package "$$(ls -t dist/springwrap-*-legacy.zip | head -1)" --output out/gui \
+	$(PY) tests/gui/run_gui_lane.py --package "$$(ls -t dist/springwrap-*-legacy-linux_x64.zip | head -1)" --output out/gui \
 	  --blender $(BLENDER) $(GUI_ARGS)
 
 test-all-lanes: test test-bpy42 test-blender34 test-gui

@@ -46,7 +46,10 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("--flat-threshold", type=float, help="|k| x scale below which a direction is flat")
     parser.add_argument("--ridge-threshold", type=float, help="k x scale a ridge or valley must reach")
     parser.add_argument("--hysteresis", type=float, help="fraction of the ridge threshold kept along a curve")
-    parser.add_argument("--min-length", type=float, help="shorter curves are dropped (default: twice the scale)")
+    scales = addon_module("core.features").feature_defaults()["min_length_scales"]  # the kernel's
+    parser.add_argument(
+        "--min-length", type=float, help=f"shorter curves are dropped (default: {scales:g} times the scale)"
+    )
     parser.add_argument("--no-colors", action="store_true", help="do not write the region colours")
     parser.add_argument("--output", type=Path, help="the .blend to save the result to")
     parser.add_argument("--json", type=Path, help="the report to write (JSON)")

@@ -54,6 +54,7 @@ from scene_io import (
     kernel_wrap_defaults,
     load_mesh,
     run_operator,
+    warn_energy_ignored,
     write_outputs,
 )
 
@@ -89,7 +90,8 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
         "--tolerance",
         type=float,
         default=defaults.tolerance,
-        help="convergence, fraction of the layout's size (default %(default)s)",
+        help="the spring solver's convergence, fraction of the layout's size (default %(default)s); the mirror's "
+        "wrap uses the energy solver, which ignores it",
     )
     add_shape_keys_argument(parser)
     add_frame_arguments(parser)
@@ -191,6 +193,7 @@ def mirror(arguments: argparse.Namespace) -> dict:
             )
         if outcome.wrap.space_points:
             warnings.append(f"{outcome.wrap.space_points} of {outcome.vertices} vertices are off the surface")
+        warn_energy_ignored(kernel_wrap_defaults().replace(tolerance=arguments.tolerance), warnings)
     report = {
         "layout": str(arguments.layout),
         "target": str(arguments.target) if arguments.target else None,

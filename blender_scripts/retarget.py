@@ -89,6 +89,7 @@ from scene_io import (
     load_mesh,
     run_operator,
     to_file_frame,
+    warn_energy_ignored,
     world_vertices,
     write_outputs,
 )
@@ -155,22 +156,25 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
         "--tolerance",
         type=float,
         default=defaults.tolerance,
-        help="convergence, fraction of the layout's size (default %(default)s)",
+        help="spring solver only: convergence, fraction of the layout's size (default %(default)s)",
     )
     parser.add_argument(
-        "--fairness", type=float, default=defaults.fairness, help="straight grid lines, 0 to 1 (default %(default)s)"
+        "--fairness",
+        type=float,
+        default=defaults.fairness,
+        help="spring solver only: straight grid lines, 0 to 1 (default %(default)s)",
     )
     parser.add_argument(
         "--arc-length",
         type=float,
         default=defaults.arc_length,
-        help="even spacing along grid lines, 0 to 1 (default %(default)s)",
+        help="spring solver only: even spacing along grid lines, 0 to 1 (default %(default)s)",
     )
     parser.add_argument(
         "--thin-plate",
         type=float,
         default=defaults.thin_plate,
-        help="curvature over holes, 0 to 0.5 (default %(default)s)",
+        help="spring solver only: curvature over holes, 0 to 0.5 (default %(default)s)",
     )
     parser.add_argument(
         "--solver",
@@ -448,6 +452,7 @@ def retarget(arguments: argparse.Namespace) -> dict:
     symmetric = symmetric_anchor_report(layout, arguments, warnings)
     lap("anchors")
 
+    warn_energy_ignored(wrap_settings(arguments), warnings)
     try:
         parameters = WrapParameters(
             max_iterations=arguments.max_iterations,

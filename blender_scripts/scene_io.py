@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 import bpy
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # `blender --python` does not add it
-from headless import ScriptError, enable_addon, signed_axis, write_all_or_nothing
+from headless import ScriptError, addon_module, enable_addon, signed_axis, write_all_or_nothing
 from mesh_files import MESH_SUFFIXES, MeshFileError, check_blend_file, check_coordinates, check_mesh_file
 
 if TYPE_CHECKING:
@@ -278,6 +278,15 @@ def run_operator(blame: str, name: str, **properties) -> None:
         raise ScriptError(f"{blame}: springwrap.{name}: {message}") from None
     if result != {"FINISHED"}:
         raise ScriptError(f"{blame}: springwrap.{name} returned {sorted(result)}")
+
+
+def warn_energy_ignored(settings, warnings: list) -> None:
+    """Append to ``warnings`` that the energy solver ignores the options ``settings`` (the wrap's
+    ``springwrap_kernel.WrapSettings``) set away from their defaults (``core.wrap_inputs.energy_ignored``)."""
+    wrap_inputs = addon_module("core.wrap_inputs")
+    names = wrap_inputs.energy_ignored(settings, kernel_wrap_defaults())
+    if names:
+        warnings.append(wrap_inputs.energy_ignored_warning(names, lambda name: "--" + name.replace("_", "-")))
 
 
 def to_file_frame(frame: "Matrix", matrix) -> list:

@@ -84,7 +84,8 @@ def max_iterations_property(
 
 
 def tolerance_property(
-    description: str = "The wrap has converged when no point moves more than this fraction of the layout's size",
+    description: str = "Springs solver only: the wrap has converged when no point moves more than this fraction of the "
+    "layout's size (the Energy solver stops by its own test)",
 ):
     """The wrap's convergence tolerance: shared by the operators that wrap (wrap, mirror)."""
     return bpy.props.FloatProperty(

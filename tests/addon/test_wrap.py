@@ -640,7 +640,11 @@ def _anchor_on_a_missing_vertex(target, layout):
     layout.springwrap.anchors[-1].location = (0.0, 0.0, 0.0)
     # The last anchor: how many anchors_auto spread before it depends on the Blender version's grid.
     last = len(layout.springwrap.anchors) - 1
-    return rf"1 anchors are on vertices the layout no longer has \(it has 169\): anchor {last} \(vertex 9999\)"
+    return (
+        rf"1 anchors are on vertices the layout no longer has \(it has 169\): anchor {last} \(vertex 9999\): the "
+        r"layout lost vertices after they were anchored. Remove those anchors \(or Clear Anchors\) and anchor again; "
+        r"Update Anchors re-reads target points only"
+    )
 
 
 def _nan_layout_vertex(target, layout):

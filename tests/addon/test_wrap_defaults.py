@@ -132,3 +132,78 @@ def test_a_bad_setting_on_the_command_line_is_a_usage_error_naming_it(script, op
         parse_arguments(["--", *options])
     assert exit_info.value.code == 2
     assert message in capsys.readouterr().err
+
+
+def test_the_energy_solver_reads_none_of_the_spring_settings():
+    """What the warning below says: with the energy solver, the spring solver's weights and tolerance change
+    nothing (the same positions bit for bit), while the same change does move the spring solver's result."""
+    from springwrap.core.wrap_inputs import ENERGY_IGNORED
+
+    changed = {"fairness": 0.9, "arc_length": 0.1, "thin_plate": 0.45, "constraint": 0.9, "folding": 0.9}
+    changed["tolerance"] = 1e-3
+    assert set(changed) == set(ENERGY_IGNORED)
+    results = {}
+    for solver in ("ENERGY", "SPRINGS"):
+        for label, settings in (("default", {}), ("changed", changed)):
+            _target, layout, _normal = plane_scene(hole=True)
+            bpy.ops.springwrap.anchors_auto(spacing=0.5)
+            assert bpy.ops.springwrap.wrap(solver=solver, max_iterations=300, **settings) == {"FINISHED"}
+            results[solver, label] = np.array([vertex.co[:] for vertex in layout.data.vertices])
+            for obj in list(bpy.data.objects):
+                bpy.data.objects.remove(obj)
+    assert np.array_equal(results["ENERGY", "default"], results["ENERGY", "changed"])
+    assert not np.allclose(results["SPRINGS", "default"], results["SPRINGS", "changed"])
+
+
+def test_a_setting_the_energy_solver_ignores_is_warned_about(capfd):
+    plane_scene()
+    bpy.ops.springwrap.anchors_auto(spacing=0.5)
+    capfd.readouterr()
+    assert bpy.ops.springwrap.wrap(fairness=0.8, tolerance=1e-3) == {"FINISHED"}
+    output = capfd.readouterr().out
+    assert (
+        "The Energy solver ignores Fairness, Tolerance: only the Springs solver reads them "
+        "(the result is what the default would give)" in output
+    )
+    bpy.ops.springwrap.wrap()  # the defaults: nothing to warn about
+    assert "ignores" not in capfd.readouterr().out
+    bpy.ops.springwrap.wrap(solver="SPRINGS", fairness=0.8, max_iterations=50)
+    assert "ignores" not in capfd.readouterr().out
+
+
+@pytest.mark.parametrize(
+    "script, options, warned",
+    [
+        ("retarget.py", ["--template", "t.obj", "--target", "m.obj", "--fairness", "0.8"], "--fairness"),
+        (
+            "retarget.py",
+            ["--template", "t.obj", "--target", "m.obj", "--thin-plate", "0.3", "--tolerance", "1e-3"],
+            "--thin-plate, --tolerance",
+        ),
+        ("retarget.py", ["--template", "t.obj", "--target", "m.obj", "--fairness", "0.8", "--solver", "springs"], None),
+        ("retarget.py", ["--template", "t.obj", "--target", "m.obj"], None),
+    ],
+)
+def test_the_command_line_warns_about_options_the_energy_solver_ignores(script, options, warned):
+    """retarget.py's report (and its printed warnings) carry the warning; mirror.py's does the same for --tolerance."""
+    retarget = _script(script)
+    arguments = retarget["parse_arguments"](["--", *options])
+    warnings = []
+    retarget["warn_energy_ignored"](retarget["wrap_settings"](arguments), warnings)
+    if warned is None:
+        assert warnings == []
+    else:
+        assert warnings == [
+            f"The Energy solver ignores {warned}: only the Springs solver reads "
+            f"{'them' if ',' in warned else 'it'} (the result is what the default would give)"
+        ]
+
+
+def test_the_mirror_warns_about_a_tolerance_its_energy_wrap_ignores(capfd):
+    from bpy_helpers import head_scene
+
+    head_scene()
+    assert bpy.ops.springwrap.snap() == {"FINISHED"}
+    capfd.readouterr()
+    assert bpy.ops.springwrap.mirror(axis="X", tolerance=1e-3) == {"FINISHED"}
+    assert "The Energy solver ignores Tolerance: only the Springs solver reads it" in capfd.readouterr().out

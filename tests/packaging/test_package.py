@@ -6,6 +6,10 @@ compile. The extension is validated by Blender's own extension checker and insta
 bpy module (5.0) with Blender's extension installer; the legacy zip is installed with "Install
 Add-on" into Debian's blender 3.4. Each install runs in a fresh process with its own user folders,
 and the venv's copy of the kernel hidden, so the kernel must come from the package.
+
+The other platforms' wheels (windows-x64, macos-arm64, macos-x64) are built by the release workflow
+on hosted runners, not here: their packaging is checked with stand-in wheels named for them (the
+real Linux wheel's Python files, a placeholder native library), through Blender's own validator.
 """
 
 import ast
@@ -79,11 +83,55 @@ print("RESULT" + json.dumps({
 '''
 
 
+STAND_IN_TAGS = {"windows-x64": "win_amd64", "macos-arm64": "macosx_11_0_arm64", "macos-x64": "macosx_10_12_x86_64"}
+NATIVE_NAMES = {"windows-x64": "_native.pyd", "macos-arm64": "_native.abi3.so", "macos-x64": "_native.abi3.so"}
+
+
 @pytest.fixture(scope="session")
 def packages(tmp_path_factory) -> tuple[Path, Path]:
-    """(extension zip, legacy zip), built from target/wheels into a temporary folder."""
+    """(extension zip, legacy zip) of linux-x64, built from target/wheels into a temporary folder."""
     output = tmp_path_factory.mktemp("dist")
-    return build_packages.build(REPOSITORY / "target" / "wheels", output)
+    [(platform, extension, legacy)] = build_packages.build(REPOSITORY / "target" / "wheels", output)
+    assert platform == "linux-x64"
+    assert extension.name == f"springwrap-{extension_version()}-extension-linux_x64.zip"
+    assert legacy.name == f"springwrap-{extension_version()}-legacy-linux_x64.zip"
+    return extension, legacy
+
+
+def extension_version() -> str:
+    return tomllib.loads(build_packages.MANIFEST.read_text())["version"]
+
+
+def linux_wheel() -> Path:
+    [wheel] = sorted((REPOSITORY / "target" / "wheels").glob("springwrap_kernel-*.whl"))
+    return wheel
+
+
+def stand_in_wheel(folder: Path, platform: str) -> Path:
+    """A wheel named for ``platform``: the Linux wheel's files, its native library replaced by a placeholder."""
+    source = linux_wheel()
+    name = source.name.replace("manylinux_2_28_x86_64", STAND_IN_TAGS[platform])
+    wheel = folder / name
+    with zipfile.ZipFile(source) as original, zipfile.ZipFile(wheel, "w") as copy:
+        for entry in original.namelist():
+            data = original.read(entry)
+            if entry.endswith("_native.abi3.so"):
+                entry, data = f"springwrap_kernel/{NATIVE_NAMES[platform]}", f"stand-in for {platform}".encode()
+            elif entry.endswith(".dist-info/WHEEL"):
+                data = data.replace(b"manylinux_2_28_x86_64", STAND_IN_TAGS[platform].encode())
+            copy.writestr(entry, data)
+    return wheel
+
+
+@pytest.fixture(scope="session")
+def every_platform(tmp_path_factory) -> tuple[list, dict[str, Path]]:
+    """build() on a folder of four wheels (the Linux one and stand-ins); (its result, wheel by platform)."""
+    wheels = tmp_path_factory.mktemp("wheels")
+    by_platform = {"linux-x64": wheels / linux_wheel().name}
+    shutil.copy(linux_wheel(), by_platform["linux-x64"])
+    for platform in STAND_IN_TAGS:
+        by_platform[platform] = stand_in_wheel(wheels, platform)
+    return build_packages.build(wheels, tmp_path_factory.mktemp("dist")), by_platform
 
 
 def names_in(archive_path: Path) -> list[str]:
@@ -117,6 +165,7 @@ def test_extension_holds_the_manifest_the_addon_and_the_kernel_wheel(packages, t
     assert manifest["license"] == ["SPDX:GPL-3.0-or-later"]
     assert manifest["platforms"] == ["linux-x64"]
     assert manifest["wheels"] == [f"./{wheel_name}"]
+    assert wheel_name.endswith("-manylinux_2_28_x86_64.whl")
     assert WHEEL_NAME.match(wheel.name).group("version") == manifest["version"]
     for source in addon_sources():  # at the root, beside the manifest
         assert source in names
@@ -150,14 +199,74 @@ def test_wheel_check_refuses_a_tag_older_than_what_the_library_needs(packages, t
     assert "newer than its tag's 2.17" in problem
 
 
-def test_build_refuses_a_manifest_naming_another_wheel(tmp_path, monkeypatch):
+def test_build_refuses_a_manifest_with_its_own_wheels_or_another_version(tmp_path):
     manifest = tomllib.loads(build_packages.MANIFEST.read_text())
     manifest["wheels"] = ["./wheels/springwrap_kernel-0.1.0-cp311-abi3-manylinux_2_17_x86_64.whl"]
-    with pytest.raises(build_packages.PackageError, match="but the kernel wheel is"):
+    with pytest.raises(build_packages.PackageError, match="wheels is written per platform"):
         build_packages.check_inputs(manifest, REPOSITORY / "target" / "wheels")
+    del manifest["wheels"]
     manifest["version"] = "9.9.9"
     with pytest.raises(build_packages.PackageError, match="is not bl_info's"):
         build_packages.check_inputs(manifest, REPOSITORY / "target" / "wheels")
+
+
+def test_wheel_tags_are_read_as_blenders_platforms():
+    read = build_packages.blender_platforms
+    assert read("manylinux_2_28_x86_64") == ["linux-x64"]
+    assert read("win_amd64") == ["windows-x64"]
+    assert read("macosx_11_0_arm64") == ["macos-arm64"]
+    assert read("macosx_10_12_x86_64") == ["macos-x64"]
+    assert read("macosx_10_12_universal2") == ["macos-x64", "macos-arm64"]
+    assert read("manylinux2014_aarch64") == ["linux-arm64"]
+
+
+def test_build_writes_one_extension_and_one_legacy_zip_per_platform(every_platform, tmp_path):
+    built, wheels = every_platform
+    version = extension_version()
+    assert [platform for platform, _extension, _legacy in built] == list(build_packages.PLATFORMS)
+    for platform, extension, legacy in built:
+        suffix = platform.replace("-", "_")
+        assert extension.name == f"springwrap-{version}-extension-{suffix}.zip"
+        assert legacy.name == f"springwrap-{version}-legacy-{suffix}.zip"
+        with zipfile.ZipFile(extension) as archive:
+            manifest = tomllib.loads(archive.read("blender_manifest.toml").decode())
+            shipped = [name for name in archive.namelist() if name.startswith("wheels/")]
+            assert archive.read(shipped[0]) == wheels[platform].read_bytes()  # the wheel unmodified
+        assert manifest["platforms"] == [platform]
+        assert shipped == [f"wheels/{wheels[platform].name}"]
+        assert manifest["wheels"] == [f"./{shipped[0]}"]
+        native = {"windows-x64": "_native.pyd"}.get(platform, "_native.abi3.so")
+        legacy_names = names_in(legacy)
+        assert f"springwrap/_vendor/springwrap_kernel/{native}" in legacy_names
+        assert len([name for name in legacy_names if "/_native." in name]) == 1  # only its own platform's
+
+
+def test_build_refuses_two_wheels_for_one_platform_and_unknown_platforms(tmp_path):
+    shutil.copy(linux_wheel(), tmp_path / linux_wheel().name)
+    shutil.copy(linux_wheel(), tmp_path / linux_wheel().name.replace("manylinux_2_28", "manylinux_2_17"))
+    with pytest.raises(build_packages.PackageError, match="two wheels for linux-x64"):
+        build_packages.build(tmp_path, tmp_path / "dist")
+    other = tmp_path / "other"
+    other.mkdir()
+    shutil.copy(linux_wheel(), other / linux_wheel().name.replace("manylinux_2_28_x86_64", "win32"))
+    with pytest.raises(build_packages.PackageError, match="platform win32 is not one of"):
+        build_packages.build(other, tmp_path / "dist")
+    assert not (tmp_path / "dist").exists()  # nothing written
+
+
+def test_every_platforms_extension_passes_blenders_own_validation(every_platform):
+    checker = blender_extension_checker()
+    if checker is None:
+        pytest.skip("this bpy module has no extension tool (Blender < 4.2)")
+    built, _wheels = every_platform
+    for platform, extension, _legacy in built:
+        process = subprocess.run(
+            [sys.executable, str(checker), "validate", str(extension)],
+            capture_output=True,
+            text=True,
+            timeout=TIMEOUT_SECONDS,
+        )
+        assert process.returncode == 0 and "Success" in process.stdout, (platform, process.stdout + process.stderr)
 
 
 def test_legacy_zip_holds_the_addon_folder_and_the_vendored_kernel(packages):
@@ -194,21 +303,6 @@ def blender_extension_checker() -> Path | None:
         return None
     found = sorted(Path(spec.submodule_search_locations[0]).glob("*/scripts/addons_core/bl_pkg/cli/blender_ext.py"))
     return found[-1] if found else None
-
-
-def test_extension_passes_blenders_own_validation(packages):
-    checker = blender_extension_checker()
-    if checker is None:
-        pytest.skip("this bpy module has no extension tool (Blender < 4.2)")
-    extension, _legacy = packages
-    process = subprocess.run(
-        [sys.executable, str(checker), "validate", str(extension)],
-        capture_output=True,
-        text=True,
-        timeout=TIMEOUT_SECONDS,
-    )
-    assert process.returncode == 0, process.stdout + process.stderr
-    assert "Success" in process.stdout
 
 
 def install_and_run(command: list[str], form: str, package: Path, home: Path, environment: dict) -> dict:
@@ -270,3 +364,41 @@ def test_legacy_zip_installs_and_runs_in_debian_blender_3_4(packages, tmp_path):
     )
     assert found["operators"] == [["FINISHED"], ["FINISHED"]]
     assert found["face_points"] == found["vertices"] == 49
+
+
+def test_release_workflow_builds_a_wheel_for_every_platform_and_packages_that_folder():
+    """.github/workflows/release.yml (run on GitHub's hosted runners, not here): one wheel job per
+    platform build_packages.py packages, then build_packages.py on the folder of their wheels."""
+    yaml = pytest.importorskip("yaml")
+    workflow = yaml.safe_load((REPOSITORY / ".github" / "workflows" / "release.yml").read_text())
+    matrix = workflow["jobs"]["wheels"]["strategy"]["matrix"]["include"]
+    assert sorted(entry["platform"] for entry in matrix) == sorted(build_packages.PLATFORMS)
+    build = next(step for step in workflow["jobs"]["wheels"]["steps"] if "maturin-action" in step.get("uses", ""))
+    assert "-m rust_core/python/Cargo.toml" in build["with"]["args"]
+    assert {entry["platform"]: entry["manylinux"] for entry in matrix}["linux-x64"] == "2_28"  # the tag we check
+    commands = " ".join(step.get("run", "") for step in workflow["jobs"]["packages"]["steps"])
+    assert "packaging/build_packages.py --wheel-dir wheels" in commands
+
+
+def test_blender_refuses_the_extension_of_another_platform(every_platform, tmp_path):
+    """The windows-x64 zip on this Linux machine: Blender's installer names the platforms and installs nothing."""
+    if blender_extension_checker() is None:
+        pytest.skip("this bpy module has no extension system (Blender < 4.2)")
+    built, _wheels = every_platform
+    [windows] = [extension for platform, extension, _legacy in built if platform == "windows-x64"]
+    script = tmp_path / "install.py"
+    script.write_text(
+        "import bpy, sys\n"
+        "bpy.ops.extensions.package_install_files(filepath=sys.argv[-1], repo='user_default', enable_on_install=True)\n"
+    )
+    user = tmp_path / "user"
+    process = subprocess.run(
+        [sys.executable, str(script), str(windows)],
+        capture_output=True,
+        text=True,
+        timeout=TIMEOUT_SECONDS,
+        cwd=tmp_path,
+        env={**os.environ, "BLENDER_USER_RESOURCES": str(user)},
+    )
+    assert "This platform (linux-x64) isn't one of (windows-x64)" in process.stdout + process.stderr
+    assert not (user / "extensions" / "user_default" / "springwrap").exists()

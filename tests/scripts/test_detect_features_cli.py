@@ -112,3 +112,13 @@ def test_bad_input_exits_non_zero_and_writes_nothing(scene, tmp_path, arguments,
     assert process.returncode == code, process.stdout[-2000:] + process.stderr[-2000:]
     assert message in process.stderr, process.stderr[-3000:]
     assert not report_path.exists() and not output.exists()
+
+
+def test_the_help_gives_the_kernels_minimum_curve_length():
+    import springwrap_kernel
+
+    scales = springwrap_kernel.feature_defaults()["min_length_scales"]
+    assert scales == 3.0
+    shown = run("--help")
+    assert shown.returncode == 0, shown.stderr
+    assert "shorter curves are dropped (default: 3 times the scale)" in " ".join(shown.stdout.split())

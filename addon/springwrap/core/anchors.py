@@ -175,7 +175,8 @@ def check_anchor_vertices(anchor_list, vertex_count: int) -> None:
         more = f" and {missing.size - 5} more" if missing.size > 5 else ""
         raise LayoutError(
             f"{missing.size} anchors are on vertices the layout no longer has (it has {vertex_count}): "
-            f"{shown}{more}; remove them or update the anchors"
+            f"{shown}{more}: the layout lost vertices after they were anchored. Remove those anchors (or Clear "
+            "Anchors) and anchor again; Update Anchors re-reads target points only and keeps them on missing vertices"
         )
 
 

@@ -65,6 +65,30 @@ class WrapParameters(NamedTuple):
     free_group: str = ""  # layout vertex group of vertices without a pull to the target; "": the layout's setting
 
 
+ENERGY_IGNORED = ("fairness", "arc_length", "thin_plate", "constraint", "folding", "tolerance")
+"""Settings only the spring solver reads: its force weights and its convergence test. The energy solver
+(the default) keeps the template's shape, pulls onto the target and holds the anchors by its own fixed
+weights, and stops by its own test."""
+
+
+def energy_ignored(settings, defaults) -> list[str]:
+    """The names of :data:`ENERGY_IGNORED` that ``settings`` (a ``springwrap_kernel.WrapSettings``) sets to
+    other than ``defaults``' value while its solver is the energy solver, which does not read them; else []."""
+    if settings is None or settings.solver != "ENERGY":
+        return []
+    return [name for name in ENERGY_IGNORED if getattr(settings, name) != getattr(defaults, name)]
+
+
+def energy_ignored_warning(names: list[str], spell) -> str:
+    """The warning for :func:`energy_ignored`'s ``names``, each written by ``spell`` (a label, an option)."""
+    listed = ", ".join(spell(name) for name in names)
+    pronoun = "it" if len(names) == 1 else "them"
+    return (
+        f"The Energy solver ignores {listed}: only the Springs solver reads {pronoun} "
+        "(the result is what the default would give)"
+    )
+
+
 class WrapInputs(NamedTuple):
     """Everything the kernel's ``WrapSolver`` takes besides the target and the layout structure.
 

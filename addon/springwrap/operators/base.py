@@ -18,8 +18,9 @@ from ..blender import layout as layout_data
 from ..blender import shape_keys as shape_key_data
 from ..blender import target as target_data
 from ..blender.edit_mode import object_mode
-from ..core import input_policy, transforms
+from ..core import input_policy, transforms, wrap_inputs
 from ..core.errors import ERRORS, LayoutError
+from ..properties import WRAP_DEFAULTS
 
 READS_LAYOUT = frozenset({"positions", "anchors", "curves"})
 """What an operation on the layout reads and :func:`check_inputs` checks by default: the layout's vertices,
@@ -265,3 +266,15 @@ def topology_change_report(outcome, on_faces: str, in_space: str) -> tuple[set, 
         f"Target topology changed: {detached} {on_faces} lost their target face and became {in_space}, "
         f"{reattached} re-attached",
     )
+
+
+def report_energy_ignored(operator, settings) -> None:
+    """Warn when ``settings`` (the wrap's ``springwrap_kernel.WrapSettings``) give the energy solver a setting it
+    does not read (``wrap_inputs.energy_ignored``), each named by the operator's label for it."""
+    names = wrap_inputs.energy_ignored(settings, WRAP_DEFAULTS)
+    if names:
+
+        def label(name: str) -> str:  # as the redo panel shows it
+            return operator.properties.bl_rna.properties[name].name
+
+        operator.report({"WARNING"}, wrap_inputs.energy_ignored_warning(names, label))

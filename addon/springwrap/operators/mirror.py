@@ -49,7 +49,7 @@ from ..properties import (
     shape_keys_property,
     tolerance_property,
 )
-from .base import SpringwrapOperator, check_inputs, open_layout, poll_layout
+from .base import SpringwrapOperator, check_inputs, open_layout, poll_layout, report_energy_ignored
 
 LANDING_REACH = 0.25
 """Before the wrap, a copy within this fraction of its mean edge length of the target lands there at once."""
@@ -366,6 +366,8 @@ class SPRINGWRAP_OT_mirror(SpringwrapOperator, bpy.types.Operator):
                 f"{outcome.crossing_faces.size} faces of the layout cross the mirror plane (corners clearly on both "
                 "sides): their mirror overlaps them. They are selected; cut them at the plane or move them to one side",
             )
+        if outcome.wrap is not None:
+            report_energy_ignored(self, self.parameters().settings)
 
 
 classes = (SPRINGWRAP_OT_mirror,)

@@ -41,7 +41,7 @@ from ..properties import (
     wrap_weight_property,
 )
 from ..ui import frame_clock
-from .base import LayoutOperator, check_inputs, layout_problem, report_storage_precision
+from .base import LayoutOperator, check_inputs, layout_problem, report_energy_ignored, report_storage_precision
 
 TIMER_SECONDS = 0.01
 """Interval of the modal's timer: a frame starts as soon as the previous one is drawn."""
@@ -54,22 +54,25 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
 
     max_iterations: max_iterations_property("Stop after this many iterations if it has not converged by then")
     tolerance: tolerance_property(
-        "Converged when no point moves more than this fraction of the layout's size in an iteration"
+        "Springs solver only: converged when no point moves more than this fraction of the layout's size in an "
+        "iteration (the Energy solver stops by its own test)"
     )
     fairness: wrap_weight_property(
-        "fairness", "Fairness", "Straightens the layout's grid lines (paper's alpha), 0 to 1"
+        "fairness", "Fairness", "Springs solver only: straightens the layout's grid lines (paper's alpha), 0 to 1"
     )
     arc_length: wrap_weight_property(
-        "arc_length", "Arc Length", "Evens the spacing along the grid lines (paper's beta), 0 to 1"
+        "arc_length", "Arc Length", "Springs solver only: evens the spacing along the grid lines (paper's beta), 0 to 1"
     )
     thin_plate: wrap_weight_property(
         "thin_plate",
         "Thin Plate",
-        "Space-points continue the curvature of the surface around them (over holes), 0 to 0.5",
+        "Springs solver only: space-points continue the curvature of the surface around them (over holes), 0 to 0.5",
     )
-    constraint: wrap_weight_property("constraint", "Constraint", "Pull of anchored points toward their targets, 0 to 1")
+    constraint: wrap_weight_property(
+        "constraint", "Constraint", "Springs solver only: pull of anchored points toward their targets, 0 to 1"
+    )
     folding: wrap_weight_property(
-        "folding", "Folding", "Pull of space-points next to face-points onto the surface, 0 to 1"
+        "folding", "Folding", "Springs solver only: pull of space-points next to face-points onto the surface, 0 to 1"
     )
     rest: props.choice(
         "Rest Shape",
@@ -185,7 +188,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
                 self.report({"ERROR"}, f"The wrap failed: {error}")
                 return {"CANCELLED"}
             report_storage_precision(self, layout, session.target.extent)
-        self._report_result(result)
+        self._report_result(result, session.parameters.settings)
         return {"FINISHED"}
 
     def invoke(self, context, event):
@@ -228,7 +231,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
         """Report how the wrap ended (``'FINISHED'`` or ``'CANCELLED'``) and return the operator's result."""
         if outcome == "FINISHED":
             report_storage_precision(self, self._loop.session.layout, self._loop.session.target.extent)
-            self._report_result(self._loop.result)
+            self._report_result(self._loop.result, self._loop.session.parameters.settings)
             return {"FINISHED"}
         if self._loop.error is not None:
             self.report({"ERROR"}, f"The wrap failed and was undone: {self._loop.error}")
@@ -284,7 +287,8 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
         if mode is not None:
             mode.restore()
 
-    def _report_result(self, result: WrapResult) -> None:
+    def _report_result(self, result: WrapResult, settings) -> None:
+        """Report ``result``; warn about what in ``settings`` (the wrap's ``WrapSettings``) its solver ignored."""
         wrap_session.remember_result(result)
         self.report({"INFO"} if result.converged else {"WARNING"}, result.summary())
         if result.readout is not None:
@@ -296,6 +300,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
                 f"Target topology changed: {detached} face-points and {result.anchors_detached_count} face anchors "
                 f"lost their target face and became space-points, {reattached} face-points re-attached",
             )
+        report_energy_ignored(self, settings)
 
 
 classes = (SPRINGWRAP_OT_wrap,)
