@@ -166,17 +166,17 @@ def read_world_vertex_positions(layout: bpy.types.Object, vertex_indices: np.nda
 # ---------------------------------------------------------------- topology
 
 
-def read_layout_topology(layout: bpy.types.Object):
+def read_layout_topology(layout: bpy.types.Object, seams: bool = True):
     """The layout mesh's faces, edges and seams (object mode data), as a ``subdivision.LayoutTopology``.
 
     Every edge is listed (those on no face are loose curves), and the seam-marked ones as patch
-    boundaries. Raises :class:`LayoutError` for a layout with neither faces nor edges.
+    boundaries (``seams=False``: none read, for a reader that does not use them). Raises
+    :class:`LayoutError` for a layout with neither faces nor edges.
     """
     mesh = layout.data
     face_count, edge_count = len(mesh.polygons), len(mesh.edges)
     wrap_inputs.check_wrappable(layout.name, face_count, edge_count)
-    loop_vertices = np.empty(len(mesh.loops), dtype=np.uint32)
-    mesh.loops.foreach_get("vertex_index", loop_vertices)
+    loop_vertices = compat.read_corner_vertices(mesh)
     loop_starts = np.empty(face_count, dtype=np.int64)
     mesh.polygons.foreach_get("loop_start", loop_starts)
     face_sizes = np.empty(face_count, dtype=np.uint32)
@@ -187,8 +187,9 @@ def read_layout_topology(layout: bpy.types.Object):
     edges = np.empty(edge_count * 2, dtype=np.uint32)
     mesh.edges.foreach_get("vertices", edges)
     edges = edges.reshape(-1, 2)
-    seam_flags = np.empty(edge_count, dtype=bool)
-    mesh.edges.foreach_get("use_seam", seam_flags)
+    seam_flags = np.zeros(edge_count, dtype=bool)
+    if seams:
+        mesh.edges.foreach_get("use_seam", seam_flags)
     return subdivision.LayoutTopology(
         len(mesh.vertices),
         np.ascontiguousarray(face_corners, dtype=np.uint32),
