@@ -14,7 +14,7 @@ from mathutils import Matrix
 
 import springwrap_kernel
 
-from ..core import layout_state, subdivision, transforms, wrap_inputs
+from ..core import input_policy, layout_state, subdivision, transforms, wrap_inputs
 from ..core.errors import LayoutError
 from ..core.layout_state import LayoutArrays, LayoutState
 from ..core.transforms import matrix_array
@@ -236,7 +236,8 @@ def read_selected_edges(layout: bpy.types.Object) -> np.ndarray:
 
 def read_layout_group(layout: bpy.types.Object, group_name: str) -> tuple[np.ndarray, np.ndarray]:
     """((N,) float32 weights, (N,) bool membership) of the layout's vertex group ``group_name`` on its own
-    (base) mesh. Raises :class:`LayoutError` when the layout has no such group."""
+    (base) mesh. Raises :class:`LayoutError` naming the group when the layout has no such group or a weight in
+    it is not a finite number (the add-on's input policy: ``core.input_policy.setting_problem``)."""
     group = layout.vertex_groups.get(group_name)
     if group is None:
         raise LayoutError(f"Layout '{layout.name}' has no vertex group '{group_name}'")
@@ -249,6 +250,13 @@ def read_layout_group(layout: bpy.types.Object, group_name: str) -> tuple[np.nda
             if element.group == index:
                 weights[vertex.index] = element.weight
                 member[vertex.index] = True
+    bad = np.flatnonzero(~np.isfinite(weights))
+    if bad.size:
+        problem = input_policy.setting_problem(f"vertex {int(bad[0])}'s weight", weights[bad[0]])
+        raise LayoutError(
+            f"Layout '{layout.name}': vertex group '{group_name}': {problem} ({bad.size} such): set those weights "
+            "(Weight Paint, or Vertex Group › Assign)"
+        )
     return weights, member
 
 
