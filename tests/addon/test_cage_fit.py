@@ -344,7 +344,9 @@ def test_a_fit_that_will_not_fit_in_memory_is_refused_saying_which_level_would(m
     layout = cube_sphere_cage(target)  # 54 quads: level 4 has 13,824 points (26 MB a round), level 3 3,456 (6.6 MB)
     monkeypatch.setattr(cage_fit, "available_memory", lambda: 10_000_000)
     before = snapshot(layout)
-    with pytest.raises(RuntimeError, match=r"Level 4 of this cage has 13,824 subdivided points: .* level 3 \(3,456 points"):
+    with pytest.raises(
+        RuntimeError, match=r"Level 4 of this cage has 13,824 subdivided points: .* level 3 \(3,456 points"
+    ):
         bpy.ops.springwrap.fit_subdivision(levels=4)
     assert snapshot(layout) == before
     assert sorted(obj.name for obj in bpy.data.objects) == ["Layout", "Target"]
