@@ -405,7 +405,7 @@ def test_anchor_add_refuses_a_bad_location_or_cursor(value, source):
     arguments = {"vertex_index": 3}
     if source == "location":
         arguments |= {"location": (value, 0.0, 0.0), "use_location": True}
-        message = "The anchor location"
+        message = "Location must be a finite number" if math.isnan(value) else "The anchor location"  # inf: 3.4e38
     else:
         bpy.context.scene.cursor.location.x = value
         message = "The 3D cursor"
