@@ -309,3 +309,28 @@ def topology_change_report(outcome, on_faces: str, in_space: str) -> tuple[set, 
         f"Target topology changed: {detached} {on_faces} lost their target face and became {in_space}, "
         f"{reattached} re-attached",
     )
+
+
+def show_modal_status(operator, context, text: str, progress: float) -> None:
+    """A modal operator's progress: ``text`` in the status bar and in the header of its area (``operator._area``),
+    ``progress`` on the window manager's progress indicator."""
+    if context.workspace is not None:
+        context.workspace.status_text_set(text)
+    if getattr(operator, "_area", None) is not None:
+        operator._area.header_text_set(text)
+    context.window_manager.progress_update(progress)
+
+
+def end_modal_display(operator, context) -> None:
+    """Remove what a modal operator showed: its timer (``operator._timer``), the progress, the status bar's text and
+    its area's header text."""
+    window_manager = context.window_manager
+    if getattr(operator, "_timer", None) is not None:
+        window_manager.event_timer_remove(operator._timer)
+        operator._timer = None
+    window_manager.progress_end()
+    if context.workspace is not None:
+        context.workspace.status_text_set(None)
+    if getattr(operator, "_area", None) is not None:
+        operator._area.header_text_set(None)
+        operator._area = None

@@ -17,7 +17,15 @@ from ..blender.edit_mode import EditModeGuard, object_mode
 from ..core import cage_fit
 from ..core.errors import ERRORS
 from ..properties import max_distance_property
-from .base import LayoutOperator, check_inputs, open_layout, operator_values, report_storage_precision
+from .base import (
+    LayoutOperator,
+    check_inputs,
+    end_modal_display,
+    open_layout,
+    operator_values,
+    report_storage_precision,
+    show_modal_status,
+)
 
 _DEFAULTS = cage_fit.fit_defaults()
 
@@ -155,24 +163,10 @@ class SPRINGWRAP_OT_fit_subdivision(LayoutOperator, bpy.types.Operator):
             self._end(context)
 
     def _show_status(self, context) -> None:
-        text = self._fit.status_text()
-        if context.workspace is not None:
-            context.workspace.status_text_set(text)
-        if self._area is not None:
-            self._area.header_text_set(text)
-        context.window_manager.progress_update(self._fit.run.round)
+        show_modal_status(self, context, self._fit.status_text(), self._fit.run.round)
 
     def _end(self, context) -> None:
-        window_manager = context.window_manager
-        if getattr(self, "_timer", None) is not None:
-            window_manager.event_timer_remove(self._timer)
-            self._timer = None
-        window_manager.progress_end()
-        if context.workspace is not None:
-            context.workspace.status_text_set(None)
-        if getattr(self, "_area", None) is not None:
-            self._area.header_text_set(None)
-            self._area = None
+        end_modal_display(self, context)
         self._mode.restore()
 
 
