@@ -270,26 +270,15 @@ fn fast_horn_rotation(cross: &[[f64; 3]; 3]) -> glam::DQuat {
         [szx - sxz, sxy + syx, -sxx + syy - szz, syz + szy],
         [sxy - syx, szx + sxz, syz + szy, -sxx - syy + szz],
     ];
-    let determinant3 = |m: [[f64; 3]; 3]| {
-        m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
-            - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
-            + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
-    };
     // det(K - λI) = λ⁴ + c2 λ² + c1 λ + c0.
     let c2 = -2.0 * squared;
-    let c1 = -8.0 * determinant3(*cross);
-    let minor = |matrix: &[[f64; 4]; 4], row: usize, column: usize| {
-        let rows: [usize; 3] = std::array::from_fn(|k| if k < row { k } else { k + 1 });
-        let columns: [usize; 3] = std::array::from_fn(|k| if k < column { k } else { k + 1 });
-        determinant3(std::array::from_fn(|r| {
-            std::array::from_fn(|c| matrix[rows[r]][columns[c]])
-        }))
-    };
-    let c0 = (0..4)
-        .map(|column| {
-            let sign = if column % 2 == 0 { 1.0 } else { -1.0 };
-            sign * horn[0][column] * minor(&horn, 0, column)
-        })
+    let c1 = -8.0
+        * (sxx * (syy * szz - syz * szy) - sxy * (syx * szz - syz * szx)
+            + sxz * (syx * szy - syy * szx));
+    let c0 = cofactors(&horn, 0)
+        .iter()
+        .zip(&horn[0])
+        .map(|(cofactor, entry)| cofactor * entry)
         .sum::<f64>();
     // λ_max ≤ σ1 + σ2 + σ3 ≤ √3 ‖S‖: start there.
     let mut lambda = (3.0 * squared).sqrt();
@@ -310,29 +299,41 @@ fn fast_horn_rotation(cross: &[[f64; 3]; 3]) -> glam::DQuat {
     for (index, row) in shifted.iter_mut().enumerate() {
         row[index] -= lambda;
     }
-    // The adjugate's columns are multiples of the eigenvector: the first one long enough to be precise,
-    // else the longest.
-    let scale = squared.sqrt();
-    let cubed = scale * scale * scale;
-    let mut best = ([0.0f64; 4], 0.0f64);
-    for column in 0..4 {
-        let vector: [f64; 4] = std::array::from_fn(|row| {
-            let sign = if (row + column) % 2 == 0 { 1.0 } else { -1.0 };
-            sign * minor(&shifted, column, row)
-        });
-        let length = vector.iter().map(|value| value * value).sum::<f64>();
-        if length > best.1 {
-            best = (vector, length);
-        }
-        if best.1 > 1e-4 * cubed * cubed {
-            break;
+    // A row of the adjugate of K - λI is a multiple of the eigenvector: row 0's, else row 1's when row 0's is
+    // too short to be precise.
+    let cubed = squared * squared.sqrt();
+    let length = |vector: &[f64; 4]| vector.iter().map(|value| value * value).sum::<f64>().sqrt();
+    let mut vector = cofactors(&shifted, 0);
+    if length(&vector) <= 1e-2 * cubed {
+        let other = cofactors(&shifted, 1);
+        if length(&other) > length(&vector) {
+            vector = other;
         }
     }
-    if !(best.1.sqrt() > 1e-6 * cubed) {
+    let precise = length(&vector) > 1e-6 * cubed; // false for NaN too
+    if !precise {
         return horn_rotation(cross);
     }
-    let [w, x, y, z] = best.0;
+    let [w, x, y, z] = vector;
     glam::DQuat::from_xyzw(x, y, z, w).normalize()
+}
+
+/// The cofactors of row `row` (0 or 1) of a 4x4 matrix, from the 2x2 minors of its rows 2 and 3.
+fn cofactors(matrix: &[[f64; 4]; 4], row: usize) -> [f64; 4] {
+    let [third, fourth] = [matrix[2], matrix[3]];
+    let minor = |a: usize, b: usize| third[a] * fourth[b] - third[b] * fourth[a];
+    let other = matrix[1 - row];
+    // det of the other row and rows 2, 3 over columns (p, q, r).
+    let determinant = |p: usize, q: usize, r: usize| {
+        other[p] * minor(q, r) - other[q] * minor(p, r) + other[r] * minor(p, q)
+    };
+    let sign = if row == 0 { 1.0 } else { -1.0 };
+    [
+        sign * determinant(1, 2, 3),
+        -sign * determinant(0, 2, 3),
+        sign * determinant(0, 1, 3),
+        -sign * determinant(0, 1, 2),
+    ]
 }
 
 /// Whether each face is turned over against its rest shape (see the module's documentation).
