@@ -399,6 +399,16 @@ def snap_section(snap: dict) -> list[str]:
             ]
         )
     lines += table(["method", "order", "queries", "seconds", "queries/s", "build s", "note"], rows, "llrrrrl")
+    operator = snap.get("operator")
+    if operator:
+        lines += [
+            "",
+            f"Through the operator: `springwrap.snap` on a {operator['layout_vertices']:,}-vertex quad layout takes "
+            f"{number(operator['seconds'])} s, of which the quality read-out (distance, stretch, flipped faces; "
+            f"measured and written) {number(operator['readout_seconds'])} s "
+            f"({100.0 * operator['readout_share']:.0f} %); Shrinkwrap on the same layout "
+            f"{number(operator['shrinkwrap_seconds'])} s.",
+        ]
     failed = [check["name"] for check in snap.get("checks", []) if not check.get("passed")]
     lines += [
         "",

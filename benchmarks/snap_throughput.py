@@ -14,6 +14,8 @@ in two orders: *coherent* (mesh-vertex order) and *random* (the same points shuf
   points: the timed part is the depsgraph evaluation plus reading the positions back. Its
   "build" is a first evaluation with a few points, which builds and caches Blender's BVH of the
   target.
+- the operator: ``springwrap.snap`` on a quad layout of about as many vertices over the target, its quality
+  read-out included (its share timed apart), against Shrinkwrap on the same layout (``_snap_operator.py``).
 - ``mathutils.bvhtree.BVHTree``: ``FromPolygons`` build, then ``find_nearest`` once per point in
   a Python loop, on the first ``--mathutils-points`` (200k) points of each order; the time for
   all points is extrapolated from it and the table says so.
@@ -393,7 +395,11 @@ def print_report(machine, version_info, sizes, rows: list[Row], checks: list[Che
         "kernel: best of the repeats; build = TargetMesh(...) (the face tree; the closest-point and vertex trees are built by prepare_all(), printed above)."
     )
     print("Shrinkwrap: depsgraph evaluation + reading positions; build = first evaluation (Blender's target BVH).")
-    print("mathutils: one find_nearest call per point in a Python loop; build = FromPolygons from Python lists.\n")
+    print("mathutils: one find_nearest call per point in a Python loop; build = FromPolygons from Python lists.")
+    print(
+        "layout: a quad layout over another displaced torus, snapped by the operator (detach, snap, the quality "
+        "read-out measured and written) and by Shrinkwrap on the same vertices; best of the repeats.\n"
+    )
     print("checks:")
     for check in checks:
         status = "ok" if check.passed else "MISMATCH"
@@ -432,7 +438,16 @@ def main() -> int:
     mathutils_rows, vertex_list, mathutils_distances = measure_mathutils(
         vertices, triangles, orders, arguments.mathutils_points
     )
+    import _snap_operator
+
+    operator = _snap_operator.measure(bpy, vertices, triangles, arguments.points, arguments.repeat)
     rows = kernel_rows + shrinkwrap_rows + mathutils_rows
+    count = operator["layout_vertices"]
+    rows += [
+        Row("springwrap.snap operator (read-out incl.)", "layout", count, count, operator["seconds"], 0.0),
+        Row("  of which the read-out", "layout", count, count, operator["readout_seconds"], 0.0),
+        Row("Shrinkwrap modifier, same layout", "layout", count, count, operator["shrinkwrap_seconds"], 0.0),
+    ]
     checks = run_checks(
         orders,
         permutation,
@@ -458,6 +473,7 @@ def main() -> int:
                 for row in rows
             ],
             "checks": [asdict(check) | {"passed": check.passed} for check in checks],
+            "operator": operator,
         }
         arguments.json.parent.mkdir(parents=True, exist_ok=True)
         arguments.json.write_text(json.dumps(report, indent=2) + "\n")

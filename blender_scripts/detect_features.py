@@ -29,6 +29,7 @@ from headless import (
     addon_module,
     check_output_arguments,
     check_output_paths,
+    finite_number,
     script_arguments,
     script_main,
     write_all_or_nothing,
@@ -42,13 +43,13 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("--blend", type=Path, help="the .blend to open (not needed under `blender -b FILE.blend`)")
     parser.add_argument("--object", help="the mesh to analyse (default: the active object's target, or itself)")
     parser.add_argument("--layout", help="the layout whose median edge length sets the automatic scale")
-    parser.add_argument("--scale", type=float, default=0.0, help="fitting radius (default 0: automatic)")
-    parser.add_argument("--flat-threshold", type=float, help="|k| x scale below which a direction is flat")
-    parser.add_argument("--ridge-threshold", type=float, help="k x scale a ridge or valley must reach")
-    parser.add_argument("--hysteresis", type=float, help="fraction of the ridge threshold kept along a curve")
+    parser.add_argument("--scale", type=finite_number, default=0.0, help="fitting radius (default 0: automatic)")
+    parser.add_argument("--flat-threshold", type=finite_number, help="|k| x scale below which a direction is flat")
+    parser.add_argument("--ridge-threshold", type=finite_number, help="k x scale a ridge or valley must reach")
+    parser.add_argument("--hysteresis", type=finite_number, help="fraction of the ridge threshold kept along a curve")
     scales = addon_module("core.features").feature_defaults()["min_length_scales"]  # the kernel's
     parser.add_argument(
-        "--min-length", type=float, help=f"shorter curves are dropped (default: {scales:g} times the scale)"
+        "--min-length", type=finite_number, help=f"shorter curves are dropped (default: {scales:g} times the scale)"
     )
     parser.add_argument("--no-colors", action="store_true", help="do not write the region colours")
     parser.add_argument("--output", type=Path, help="the .blend to save the result to")

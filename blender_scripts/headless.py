@@ -101,6 +101,21 @@ def script_main(name: str, parse_arguments, run) -> int:
     return EXIT_OK
 
 
+def finite_number(text: str) -> float:
+    """An argparse ``type`` for a number option: a finite float (the add-on's input policy for a number the user
+    sets, ``core.input_policy.setting_problem``: NaN is never "automatic" nor "unlimited", and neither is inf)."""
+    import argparse
+    import math
+
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number, not {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"must be a finite number, not {text}")
+    return value
+
+
 def axis_name(text: str) -> str:
     """An axis as given on the command line (``y``, ``-Z``, ``NEGATIVE_Z``) in Blender's spelling."""
     text = text.strip().upper()

@@ -44,6 +44,7 @@ from headless import (
     check_output_arguments,
     check_output_paths,
     failed,
+    finite_number,
     script_arguments,
     shape_keys_report,
 )
@@ -71,7 +72,7 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("--mirror-object", help="an object of the layout's .blend whose local plane is the mirror")
     parser.add_argument(
         "--weld-distance",
-        type=float,
+        type=finite_number,
         default=0.1,
         help="seam: vertices this close to the plane, fraction of their edge length (default 0.1)",
     )
@@ -88,7 +89,7 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("--max-iterations", type=int, default=2000, help="wrap iteration limit (default 2000)")
     parser.add_argument(
         "--tolerance",
-        type=float,
+        type=finite_number,
         default=defaults.tolerance,
         help="the spring solver's convergence, fraction of the layout's size (default %(default)s); the mirror's "
         "wrap uses the energy solver, which ignores it",

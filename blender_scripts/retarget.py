@@ -74,6 +74,7 @@ from headless import (
     check_output_paths,
     enable_addon,
     failed,
+    finite_number,
     partial_path,
     script_arguments,
     shape_keys_report,
@@ -129,7 +130,9 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("--target-object", help="the target's object in a .blend")
     anchors = parser.add_mutually_exclusive_group()
     anchors.add_argument("--anchors", type=Path, help="JSON file of layout-vertex -> target-point pairs")
-    anchors.add_argument("--anchors-spacing", type=float, help="spread anchors automatically (0: automatic spacing)")
+    anchors.add_argument(
+        "--anchors-spacing", type=finite_number, help="spread anchors automatically (0: automatic spacing)"
+    )
     parser.add_argument(
         "--symmetric-anchors",
         choices=("X", "Y", "Z"),
@@ -154,25 +157,25 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     # The wrap's settings: their defaults are the kernel's.
     parser.add_argument(
         "--tolerance",
-        type=float,
+        type=finite_number,
         default=defaults.tolerance,
         help="spring solver only: convergence, fraction of the layout's size (default %(default)s)",
     )
     parser.add_argument(
         "--fairness",
-        type=float,
+        type=finite_number,
         default=defaults.fairness,
         help="spring solver only: straight grid lines, 0 to 1 (default %(default)s)",
     )
     parser.add_argument(
         "--arc-length",
-        type=float,
+        type=finite_number,
         default=defaults.arc_length,
         help="spring solver only: even spacing along grid lines, 0 to 1 (default %(default)s)",
     )
     parser.add_argument(
         "--thin-plate",
-        type=float,
+        type=finite_number,
         default=defaults.thin_plate,
         help="spring solver only: curvature over holes, 0 to 0.5 (default %(default)s)",
     )

@@ -27,6 +27,7 @@ from headless import (
     addon_module,
     check_output_arguments,
     check_output_paths,
+    finite_number,
     script_arguments,
     script_main,
     write_atomically,
@@ -43,7 +44,9 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("--blend", type=Path, help="the .blend to open (not needed under `blender -b FILE.blend`)")
     parser.add_argument("--layout", help="the layout object (default: the active object)")
     parser.add_argument("--target", help="the target object (default: the layout's own target)")
-    parser.add_argument("--anchors-spacing", type=float, help="spread anchors with this spacing first (0: automatic)")
+    parser.add_argument(
+        "--anchors-spacing", type=finite_number, help="spread anchors with this spacing first (0: automatic)"
+    )
     parser.add_argument("--max-iterations", type=int, default=2000, help="iteration limit (default 2000)")
     add_shape_keys_argument(parser)
     parser.add_argument("--output", type=Path, help="the .blend to save the result to")

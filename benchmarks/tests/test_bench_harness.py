@@ -1043,3 +1043,34 @@ def test_large_target_section_has_the_snaps_and_the_wrap():
     assert "| snap 1 | 0.002 | 0.40 | built 1 | 10 | 2 |" in lines
     assert "| wrap (20 iterations) | - | 3.50 | - | 225 | 90 |" in lines
     assert any("5,000,000-triangle target" in line for line in lines)
+
+
+def test_snap_section_sets_the_operators_read_out_against_its_time_and_shrinkwraps():
+    snap = {
+        "sizes": {"target_triangles": 1_000_008, "points": 504_144, "query_offset": 0.02},
+        "machine": {"load_average": 1.0},
+        "results": [
+            {
+                "method": "Shrinkwrap modifier, same layout",
+                "order": "layout",
+                "queries": 504_144,
+                "measured_queries": 504_144,
+                "seconds": 1.9,
+                "queries_per_second": 265_339.0,
+                "build_seconds": 0.0,
+            }
+        ],
+        "checks": [],
+        "operator": {
+            "layout_vertices": 504_144,
+            "seconds": 1.2,
+            "readout_seconds": 0.18,
+            "readout_share": 0.15,
+            "shrinkwrap_seconds": 1.9,
+        },
+    }
+    text = "\n".join(report.snap_section(snap))
+    assert "`springwrap.snap` on a 504,144-vertex quad layout takes 1.200 s" in text
+    assert "the quality read-out (distance, stretch, flipped faces; measured and written) 0.180 s (15 %)" in text
+    assert "Shrinkwrap on the same layout 1.900 s" in text
+    assert "| Shrinkwrap modifier, same layout | layout |" in text

@@ -460,7 +460,7 @@ BAD_INPUTS = {
         _nothing,
         "anchor_add",
         {"vertex_index": 1, "location": (math.nan, 0, 0), "use_location": True},
-        "anchor location has a NaN",
+        "Location must be a finite number, not nan",
     ),
     "NaN cursor": (_nan_cursor, "anchor_add", {"vertex_index": 1}, "3D cursor has a NaN"),
     "no target (add)": (no_target, "anchor_add", {"vertex_index": 1}, "No target set"),

@@ -220,6 +220,12 @@ def _shape_key_nan(target, layout):
     smile.data[7].co.y = math.nan
 
 
+def _shape_key_far(target, layout):
+    layout.shape_key_add(name="Basis")
+    smile = layout.shape_key_add(name="Smile", from_mix=False)
+    smile.data[7].co.y = FLT_MAX  # an inf typed into the key's field
+
+
 def _layout_transform(target, layout):
     layout.location.x = math.nan
 
@@ -270,6 +276,11 @@ CATALOGUE = {
         _shape_key_nan,
         "shape key data",
         "shape key 'Smile' has a NaN or infinite coordinate at vertex 7",
+    ),
+    "shape key FLT_MAX": (
+        _shape_key_far,
+        "shape key data",
+        r"shape key 'Smile' has a coordinate beyond 1e\+09 at vertex 7",
     ),
     "target without faces": (target_without_faces, "target", "'Target' has no faces"),
     "target vertex NaN": (_target_vertex(math.nan), "target", "'Target'"),
@@ -394,7 +405,7 @@ def test_anchor_add_refuses_a_bad_location_or_cursor(value, source):
     arguments = {"vertex_index": 3}
     if source == "location":
         arguments |= {"location": (value, 0.0, 0.0), "use_location": True}
-        message = "The anchor location"
+        message = "Location must be a finite number" if math.isnan(value) else "The anchor location"  # inf: 3.4e38
     else:
         bpy.context.scene.cursor.location.x = value
         message = "The 3D cursor"
@@ -558,4 +569,54 @@ def test_detect_features_refuses_a_layout_that_is_not_a_mesh(name):
     before = full_snapshot(layout)
     with pytest.raises(RuntimeError, match=f"No mesh object called '{name}'"):
         bpy.ops.springwrap.detect_features(layout_name=name, write_curves=False)
+    assert full_snapshot(layout) == before
+
+
+def _float_settings(operator):
+    """The operator's float settings: (identifier, a non-finite value of its shape)."""
+    properties = getattr(bpy.ops.springwrap, operator).get_rna_type().properties
+    return [
+        (prop.identifier, (math.nan,) * prop.array_length if prop.is_array else math.nan)
+        for prop in properties
+        if prop.type == "FLOAT"
+    ]
+
+
+@pytest.mark.parametrize("operator", list(OPERATORS))
+def test_every_float_setting_of_every_operator_refuses_nan_and_changes_nothing(operator):
+    """One policy for the numbers a user sets: NaN is never "unlimited", "automatic" or "not free" (Auto Anchors'
+    spacing, the max distance of snap, project and the subdivision fit, Detect Features' minimum length, ...)."""
+    arguments, _reads = OPERATORS[operator]
+    target, layout = catalogue_scene(with_armatures=operator == "align_armature")
+    before = full_snapshot(layout)
+    anchors = len(layout.springwrap.anchors)
+    for name, value in _float_settings(operator):
+        with pytest.raises(RuntimeError, match="must be a finite number, not nan"):
+            _call(operator, arguments | {name: value})
+        assert full_snapshot(layout) == before, name
+        assert len(layout.springwrap.anchors) == anchors, name
+
+
+def test_the_operators_named_for_nan_have_the_settings_checked():
+    """The settings found taking NaN as a value are among those checked."""
+    for operator, name in [
+        ("anchors_auto", "spacing"),
+        ("snap", "max_distance"),
+        ("project", "max_distance"),
+        ("fit_subdivision", "max_distance"),
+        ("detect_features", "min_length"),
+    ]:
+        assert name in dict(_float_settings(operator)), (operator, name)
+
+
+@pytest.mark.parametrize("group", ["Free", "Stiffness"])
+def test_a_nan_weight_in_the_free_or_stiffness_group_is_refused_naming_the_group(group):
+    target, layout = catalogue_scene()
+    vertex_group = layout.vertex_groups.new(name=group)
+    vertex_group.add([3, 4], 0.5, "REPLACE")
+    vertex_group.add([5], math.nan, "REPLACE")
+    before = full_snapshot(layout)
+    keyword = {"Free": "free_group", "Stiffness": "stiffness_group"}[group]
+    with pytest.raises(RuntimeError, match=f"vertex group '{group}': vertex 5's weight must be a finite number"):
+        bpy.ops.springwrap.wrap(max_iterations=30, solver="ENERGY", **{keyword: group})
     assert full_snapshot(layout) == before

@@ -325,3 +325,50 @@ def test_the_operator_is_one_undo_step_and_works_from_edit_mode():
     bpy.ops.ed.undo()
     bpy.ops.object.mode_set(mode="OBJECT")
     assert snapshot(bpy.data.objects["Layout"]) == before
+
+
+@pytest.mark.parametrize("levels", [0, 7, 99])
+def test_a_level_out_of_range_from_a_script_is_refused_naming_the_range(levels):
+    target = sphere_target()
+    layout = cube_sphere_cage(target)
+    before = snapshot(layout)
+    with pytest.raises(RuntimeError, match=f"Levels must be 1 to 6, not {levels}"):
+        bpy.ops.springwrap.fit_subdivision(levels=levels)
+    assert snapshot(layout) == before
+
+
+def test_a_fit_that_will_not_fit_in_memory_is_refused_saying_which_level_would(monkeypatch):
+    from springwrap.core import cage_fit
+
+    target = sphere_target()
+    layout = cube_sphere_cage(target)  # 54 quads: level 4 has 13,824 points (26 MB a round), level 3 3,456 (6.6 MB)
+    monkeypatch.setattr(cage_fit, "available_memory", lambda: 10_000_000)
+    before = snapshot(layout)
+    with pytest.raises(
+        RuntimeError, match=r"Level 4 of this cage has 13,824 subdivided points: .* level 3 \(3,456 points"
+    ):
+        bpy.ops.springwrap.fit_subdivision(levels=4)
+    assert snapshot(layout) == before
+    assert sorted(obj.name for obj in bpy.data.objects) == ["Layout", "Target"]
+    assert bpy.ops.springwrap.fit_subdivision(levels=3) == {"FINISHED"}
+
+
+def test_a_fit_stopped_between_rounds_leaves_the_layout_as_it_was_and_reports_its_progress():
+    """What Esc does to the modal fit: the session's rounds run one by one, its cancel writes nothing."""
+    from springwrap.blender import cage_fit as cage_fit_data
+    from springwrap.blender import target as target_data
+
+    target = sphere_target()
+    layout = cube_sphere_cage(target)
+    before = snapshot(layout)
+    parameters = cage_fit_data.CageFitParameters(levels=2, rounds=3)
+    fit_target = target_data.read_target(bpy.context.evaluated_depsgraph_get(), layout)
+    session = cage_fit_data.CageFitSession(bpy.context, layout, fit_target, parameters).start()
+    assert "round 1 of 3, level 2" in session.status_text() and "Esc" in session.status_text()
+    session.step()
+    assert "round 2 of 3" in session.status_text() and not session.done
+    session.cancel()
+    assert snapshot(layout) == before
+    assert sorted(obj.name for obj in bpy.data.objects) == ["Layout", "Target"]
+    assert bpy.ops.springwrap.fit_subdivision("INVOKE_DEFAULT", levels=2) == {"FINISHED"}  # headless: at once
+    assert snapshot(layout) != before

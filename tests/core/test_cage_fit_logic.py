@@ -124,5 +124,60 @@ def test_refusals_name_the_problem():
     bad[1, 0] = np.inf
     with pytest.raises(errors.LayoutError, match="NaN or infinite"):
         cage_fit.fit_cage(target, bad, corners, sizes, movable)
-    with pytest.raises(sk.InvalidArgumentError, match="levels"):
-        cage_fit.fit_cage(target, positions, corners, sizes, movable, levels=7)
+    for levels in (0, 7, 99):  # never clamped to the range: refused, naming it
+        with pytest.raises(errors.LayoutError, match=f"Levels must be 1 to 6, not {levels}"):
+            cage_fit.fit_cage(target, positions, corners, sizes, movable, levels=levels)
+
+
+def test_the_size_of_a_fit_is_estimated_and_what_will_not_fit_is_refused_naming_a_level_that_does():
+    sizes = np.full(1350, 4, dtype=np.uint32)  # the body's 1,352-vertex cage: 1,350 quads
+    size = cage_fit.fit_size(sizes, 6)
+    assert size.points == 1350 * 4**6 and 9e9 < size.bytes < 12e9  # 5.5M points, about 10 GB measured
+    assert cage_fit.fit_size(np.array([5, 3]), 1).points == 8  # an n-gon makes n quads
+    assert cage_fit.check_fit_size(sizes, 6, None) == size  # memory unknown: not judged
+    with pytest.raises(errors.LayoutError, match=r"Level 6 of this cage has 5,529,600 .* level 5 \(1,382,400 points"):
+        cage_fit.check_fit_size(sizes, 6, 8_000_000_000)
+    with pytest.raises(errors.LayoutError, match="no level fits: use a smaller cage"):
+        cage_fit.check_fit_size(sizes, 2, 1_000_000)
+    assert cage_fit.check_fit_size(sizes, 4, 8_000_000_000).levels == 4
+
+
+class WorseningFit:
+    """The kernel's fit, whose round ``bad_round`` moves the cage off the target (a round that makes it worse)."""
+
+    def __init__(self, fit, bad_round):
+        self.fit, self.bad_round, self.rounds = fit, bad_round, 0
+
+    def __getattr__(self, name):
+        return getattr(self.fit, name)
+
+    def round(self, target, positions, offsets):
+        self.rounds += 1
+        cage, distances, trusted = self.fit.round(target, positions, offsets)
+        if self.rounds == self.bad_round:
+            cage = (cage * 1.3).astype(np.float32)
+        return cage, distances, trusted
+
+
+def test_a_round_that_makes_the_fit_worse_is_not_kept():
+    target = sk.TargetMesh(*uv_sphere())
+    positions, corners, sizes = cube_sphere_cage(3)
+    run = cage_fit.CageFitRun(target, positions, corners, sizes, np.ones(len(positions), dtype=bool), rounds=3)
+    run.fit = WorseningFit(run.fit, bad_round=3)
+    distances = []
+    while not run.done:
+        run.step()
+        distances.append(run._distances_at(run.positions, run.offsets).max)
+    outcome = run.outcome()
+    assert distances[2] > 1.1 * distances[1]  # the last round made it worse ...
+    assert outcome.kept_round == 2 and outcome.after.max == pytest.approx(distances[1])  # ... and is not the result
+    assert outcome.rounds == 3
+    assert "kept round 2's cage (the later rounds made the fit worse)" in cage_fit.summary(outcome, 2, 10.0)
+
+
+def test_a_smaller_mean_is_better_unless_the_max_grows_by_more_than_a_tenth():
+    before = cage_fit.FitDistances(0.08, 0.60, 10, 10)
+    assert cage_fit._better(cage_fit.FitDistances(0.02, 0.61, 10, 10), before)  # over a hole: the max creeps
+    assert not cage_fit._better(cage_fit.FitDistances(0.07, 0.70, 10, 10), before)  # 0.60 -> 0.70: worse
+    assert not cage_fit._better(cage_fit.FitDistances(0.09, 0.50, 10, 10), before)
+    assert not cage_fit._better(cage_fit.FitDistances(float("nan"), float("nan"), 0, 10), before)

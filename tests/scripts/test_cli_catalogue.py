@@ -270,3 +270,26 @@ def test_the_ply_header_that_aborted_blender_now_fails_cleanly_in_a_batch(files,
     assert entries["huge.ply"]["status"] == "failed" and entries["huge.ply"]["attempts"] == 1
     assert CASES["huge.ply"] in entries["huge.ply"]["error"] and entries["ball.obj"]["status"] == "ok"
     assert not [name for name in os.listdir(out) if name.startswith("huge")]
+
+
+DETECT_FEATURES = REPOSITORY / "blender_scripts" / "detect_features.py"
+
+
+@pytest.mark.parametrize(
+    "script, arguments",
+    [
+        (RETARGET, ["--template", "GRID", "--target", "BALL", "--anchors-spacing", "nan"]),
+        (RETARGET, ["--template", "GRID", "--target", "BALL", "--tolerance", "nan"]),
+        (WRAP, ["--blend", "GRID", "--layout", "Layout", "--anchors-spacing", "nan"]),
+        (MIRROR, ["--layout", "GRID", "--tolerance", "inf"]),
+        (DETECT_FEATURES, ["--blend", "GRID", "--min-length", "nan"]),
+    ],
+    ids=["retarget --anchors-spacing", "retarget --tolerance", "wrap --anchors-spacing", "mirror", "detect_features"],
+)
+def test_a_number_option_that_is_not_finite_is_a_bad_argument(files, script, arguments):
+    """Every number the command line takes follows the add-on's policy: NaN and infinity are refused as arguments
+    (exit code 2, naming the option), never taken as "automatic" or "unlimited"."""
+    names = {"GRID": str(files["grid.obj"]), "BALL": str(files["ball.obj"])}
+    process = run_script(script, *[names.get(word, word) for word in arguments])
+    assert process.returncode == 2, process.stderr[-3000:]
+    assert f"{arguments[-2]}: must be a finite number, not {arguments[-1]}" in process.stderr

@@ -227,9 +227,19 @@ def test_benchmark_tiny_run_prints_table_and_json(tmp_path):
     assert "extrapolated from 5,000" in process.stdout
     assert "MISMATCH" not in process.stdout
     report = json.loads(report_path.read_text())
+    operator_rows = {
+        ("springwrap.snap operator (read-out incl.)", "layout"),
+        ("  of which the read-out", "layout"),
+        ("Shrinkwrap modifier, same layout", "layout"),
+    }
     assert {(row["method"], row["order"]) for row in report["results"]} == {
         (method, order) for method in METHODS for order in ("coherent", "random")
-    }
-    assert all(row["queries"] == 20000 and row["seconds"] > 0 for row in report["results"])
+    } | operator_rows
+    queries = [row for row in report["results"] if row["order"] != "layout"]
+    assert all(row["queries"] == 20000 and row["seconds"] > 0 for row in queries)
+    operator = report["operator"]  # the snap through the operator, its read-out within it, and Shrinkwrap's
+    assert operator["layout_vertices"] == pytest.approx(20000, rel=0.05)
+    assert 0.0 < operator["readout_seconds"] < operator["seconds"] and operator["shrinkwrap_seconds"] > 0.0
+    assert operator["flipped"] == 0 and operator["distance_max"] < 1e-4
     assert all(check["passed"] for check in report["checks"])
     assert report["sizes"]["target_triangles"] == pytest.approx(20000, rel=0.02)

@@ -89,57 +89,119 @@ class BlenderSubdivision:
         return evaluated.vertices, evaluated.triangles
 
 
-def fit_subdivision(
-    context: bpy.types.Context, layout: bpy.types.Object, target, parameters: CageFitParameters
-) -> cage_fit.CageFitOutcome:
-    """Fit the layout (object mode data) as a subdivision cage to ``target`` (a ``core.target.Target``) and
-    write it: moved vertices become space-points. Anchors hold their vertex's point of the subdivided surface on
-    their target point (face anchors found again on the current target; the list itself is not rewritten). Raises one of ``core.errors.ERRORS`` before writing anything.
+class CageFitSession:
+    """A fit of the layout (object mode data) as a subdivision cage to ``target`` (a ``core.target.Target``),
+    round by round: :meth:`start` checks and reads everything, refuses a fit that will not fit in memory
+    (``core.cage_fit.check_fit_size``) and builds the run (Blender's subdivision on a temporary object);
+    :meth:`step` runs a round; :meth:`finish` writes the best cage (moved vertices become space-points) and
+    :meth:`cancel` writes nothing. Either removes the temporary object. Anchors hold their vertex's point of the
+    subdivided surface on their target point (face anchors found again on the current target; the list itself
+    is not rewritten). Every problem raises one of ``core.errors.ERRORS`` before anything is written.
     """
-    check_no_creases(layout)
-    arrays = layout_data.read_layout(layout)
-    topology = layout_data.read_layout_topology(layout)
-    if topology.face_sizes.size == 0:
-        raise LayoutError(f"Layout '{layout.name}' has no faces: there is no subdivision surface to fit")
-    vertex_count = arrays.positions.shape[0]
-    on_face = np.zeros(vertex_count, dtype=bool)
-    on_face[np.asarray(topology.face_corners, dtype=np.int64)] = True
-    movable = cage_fit.movable_mask(vertex_count, on_face, arrays.selection, parameters.only_selected)
-    if not movable.any():
-        raise LayoutError(f"Layout '{layout.name}': no vertex to move (no selected vertex on a face)")
-    anchors = anchor_data.read_anchors(layout)
-    anchor_logic.check_anchor_vertices(anchors, vertex_count)
-    anchors, _ = anchor_logic.resolve(anchors, target, layout.springwrap.anchors_signature)
-    valid = anchor_logic.valid_vertex_mask(anchors, vertex_count)
-    anchor_logic.check_anchor_locations(anchors, valid)
-    world = transforms.world_positions(arrays)
-    # The kernel's mesh lives in a frame centred on the target (``core.target.CentredMesh``): the fit runs in
-    # it, Blender's subdivision (affine-invariant) is evaluated in world space and brought into it.
-    frame = target.mesh
-    with BlenderSubdivision(context, layout, parameters.levels, parameters.boundary) as subdivision:
+
+    def __init__(self, context: bpy.types.Context, layout: bpy.types.Object, target, parameters: CageFitParameters):
+        self.context = context
+        self.layout = layout
+        self.target = target
+        self.parameters = parameters
+        self.run = None
+        self.size = None
+        self._subdivision = None
+
+    def start(self) -> "CageFitSession":
+        layout, parameters = self.layout, self.parameters
+        cage_fit.check_levels(parameters.levels, cage_fit.fit_defaults()["max_levels"])
+        check_no_creases(layout)
+        self.arrays = arrays = layout_data.read_layout(layout)
+        topology = layout_data.read_layout_topology(layout)
+        if topology.face_sizes.size == 0:
+            raise LayoutError(f"Layout '{layout.name}' has no faces: there is no subdivision surface to fit")
+        self.size = cage_fit.check_fit_size(topology.face_sizes, parameters.levels, cage_fit.available_memory())
+        vertex_count = arrays.positions.shape[0]
+        on_face = np.zeros(vertex_count, dtype=bool)
+        on_face[np.asarray(topology.face_corners, dtype=np.int64)] = True
+        movable = cage_fit.movable_mask(vertex_count, on_face, arrays.selection, parameters.only_selected)
+        if not movable.any():
+            raise LayoutError(f"Layout '{layout.name}': no vertex to move (no selected vertex on a face)")
+        anchors = anchor_data.read_anchors(layout)
+        anchor_logic.check_anchor_vertices(anchors, vertex_count)
+        anchors, _ = anchor_logic.resolve(anchors, self.target, layout.springwrap.anchors_signature)
+        valid = anchor_logic.valid_vertex_mask(anchors, vertex_count)
+        anchor_logic.check_anchor_locations(anchors, valid)
+        world = transforms.world_positions(arrays)
+        # The kernel's mesh lives in a frame centred on the target (``core.target.CentredMesh``): the fit runs in
+        # it, Blender's subdivision (affine-invariant) is evaluated in world space and brought into it.
+        frame = self.target.mesh
+        self._subdivision = BlenderSubdivision(self.context, layout, parameters.levels, parameters.boundary)
+        subdivision = self._subdivision.__enter__()
 
         def evaluate(cage_in_frame: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             points, triangles = subdivision.evaluate(frame.from_kernel(cage_in_frame))
             return points - frame.origin, triangles
 
-        outcome = cage_fit.fit_cage(
-            frame.kernel,
-            world - frame.origin,
-            topology.face_corners,
-            topology.face_sizes,
-            movable,
-            levels=parameters.levels,
-            rounds=parameters.rounds,
-            boundary=parameters.boundary,
-            smoothness=parameters.smoothness,
-            max_distance=parameters.max_distance,
-            anchor_vertices=anchors.vertex_indices[valid],
-            anchor_points=anchors.locations[valid] - frame.origin,
-            evaluate=evaluate,
+        try:
+            self.run = cage_fit.CageFitRun(
+                frame.kernel,
+                world - frame.origin,
+                topology.face_corners,
+                topology.face_sizes,
+                movable,
+                levels=parameters.levels,
+                rounds=parameters.rounds,
+                boundary=parameters.boundary,
+                smoothness=parameters.smoothness,
+                max_distance=parameters.max_distance,
+                anchor_vertices=anchors.vertex_indices[valid],
+                anchor_points=anchors.locations[valid] - frame.origin,
+                evaluate=evaluate,
+            )
+        except BaseException:
+            self.cancel()
+            raise
+        return self
+
+    @property
+    def done(self) -> bool:
+        return self.run.done
+
+    def step(self) -> None:
+        """One round (the temporary object removed if it fails)."""
+        try:
+            self.run.step()
+        except BaseException:
+            self.cancel()
+            raise
+
+    def status_text(self) -> str:
+        """The interface's progress line."""
+        return (
+            f"Fit Subdivision: round {self.run.round + 1} of {self.run.rounds}, level {self.parameters.levels} "
+            f"({self.size.points:,} points, about {self.size.seconds:.0f} s a round); Esc stops (nothing written)"
         )
-    outcome = outcome._replace(positions=frame.from_kernel(outcome.positions))
-    local = transforms.to_local(arrays.matrix_world, outcome.positions)
-    positions = np.where(outcome.moved[:, None], local, arrays.positions)
-    state = layout_state.detach_points(arrays.state, outcome.moved)
-    layout_data.write_layout(layout, positions, state)
-    return outcome
+
+    def finish(self) -> cage_fit.CageFitOutcome:
+        """Write the best cage and remove the temporary object."""
+        self.cancel()
+        outcome = self.run.outcome()
+        outcome = outcome._replace(positions=self.target.mesh.from_kernel(outcome.positions))
+        local = transforms.to_local(self.arrays.matrix_world, outcome.positions)
+        positions = np.where(outcome.moved[:, None], local, self.arrays.positions)
+        state = layout_state.detach_points(self.arrays.state, outcome.moved)
+        layout_data.write_layout(self.layout, positions, state)
+        return outcome
+
+    def cancel(self) -> None:
+        """Remove the temporary object; the layout is left as it was."""
+        if self._subdivision is not None:
+            self._subdivision.__exit__(None, None, None)
+            self._subdivision = None
+
+
+def fit_subdivision(
+    context: bpy.types.Context, layout: bpy.types.Object, target, parameters: CageFitParameters
+) -> cage_fit.CageFitOutcome:
+    """The whole fit at once (:class:`CageFitSession`: the command line, scripts, the operator without a window)."""
+    session = CageFitSession(context, layout, target, parameters).start()
+    while not session.done:
+        session.step()
+    return session.finish()

@@ -147,3 +147,15 @@ def read_corner_normals(mesh: "bpy.types.Mesh") -> np.ndarray:
         mesh.calc_normals_split()
         mesh.loops.foreach_get("normal", normals)
     return normals.reshape(-1, 3)
+
+
+def read_corner_vertices(mesh: "bpy.types.Mesh") -> np.ndarray:
+    """(L,) uint32 vertex of each face corner: the ``.corner_vert`` attribute where Blender has it (4.0+: one
+    copy, ~50 times faster than the loops' ``vertex_index`` on a large mesh), else the loops."""
+    values = np.empty(len(mesh.loops), dtype=np.int32)
+    attribute = mesh.attributes.get(".corner_vert")
+    if attribute is not None and attribute.domain == "CORNER" and attribute.data_type == "INT":
+        attribute.data.foreach_get("value", values)
+    else:
+        mesh.loops.foreach_get("vertex_index", values)
+    return values.astype(np.uint32)

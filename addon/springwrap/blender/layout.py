@@ -14,7 +14,7 @@ from mathutils import Matrix
 
 import springwrap_kernel
 
-from ..core import layout_state, subdivision, transforms, wrap_inputs
+from ..core import input_policy, layout_state, subdivision, transforms, wrap_inputs
 from ..core.errors import LayoutError
 from ..core.layout_state import LayoutArrays, LayoutState
 from ..core.transforms import matrix_array
@@ -166,17 +166,17 @@ def read_world_vertex_positions(layout: bpy.types.Object, vertex_indices: np.nda
 # ---------------------------------------------------------------- topology
 
 
-def read_layout_topology(layout: bpy.types.Object):
+def read_layout_topology(layout: bpy.types.Object, seams: bool = True):
     """The layout mesh's faces, edges and seams (object mode data), as a ``subdivision.LayoutTopology``.
 
     Every edge is listed (those on no face are loose curves), and the seam-marked ones as patch
-    boundaries. Raises :class:`LayoutError` for a layout with neither faces nor edges.
+    boundaries (``seams=False``: none read, for a reader that does not use them). Raises
+    :class:`LayoutError` for a layout with neither faces nor edges.
     """
     mesh = layout.data
     face_count, edge_count = len(mesh.polygons), len(mesh.edges)
     wrap_inputs.check_wrappable(layout.name, face_count, edge_count)
-    loop_vertices = np.empty(len(mesh.loops), dtype=np.uint32)
-    mesh.loops.foreach_get("vertex_index", loop_vertices)
+    loop_vertices = compat.read_corner_vertices(mesh)
     loop_starts = np.empty(face_count, dtype=np.int64)
     mesh.polygons.foreach_get("loop_start", loop_starts)
     face_sizes = np.empty(face_count, dtype=np.uint32)
@@ -187,8 +187,9 @@ def read_layout_topology(layout: bpy.types.Object):
     edges = np.empty(edge_count * 2, dtype=np.uint32)
     mesh.edges.foreach_get("vertices", edges)
     edges = edges.reshape(-1, 2)
-    seam_flags = np.empty(edge_count, dtype=bool)
-    mesh.edges.foreach_get("use_seam", seam_flags)
+    seam_flags = np.zeros(edge_count, dtype=bool)
+    if seams:
+        mesh.edges.foreach_get("use_seam", seam_flags)
     return subdivision.LayoutTopology(
         len(mesh.vertices),
         np.ascontiguousarray(face_corners, dtype=np.uint32),
@@ -235,7 +236,8 @@ def read_selected_edges(layout: bpy.types.Object) -> np.ndarray:
 
 def read_layout_group(layout: bpy.types.Object, group_name: str) -> tuple[np.ndarray, np.ndarray]:
     """((N,) float32 weights, (N,) bool membership) of the layout's vertex group ``group_name`` on its own
-    (base) mesh. Raises :class:`LayoutError` when the layout has no such group."""
+    (base) mesh. Raises :class:`LayoutError` naming the group when the layout has no such group or a weight in
+    it is not a finite number (the add-on's input policy: ``core.input_policy.setting_problem``)."""
     group = layout.vertex_groups.get(group_name)
     if group is None:
         raise LayoutError(f"Layout '{layout.name}' has no vertex group '{group_name}'")
@@ -248,6 +250,13 @@ def read_layout_group(layout: bpy.types.Object, group_name: str) -> tuple[np.nda
             if element.group == index:
                 weights[vertex.index] = element.weight
                 member[vertex.index] = True
+    bad = np.flatnonzero(~np.isfinite(weights))
+    if bad.size:
+        problem = input_policy.setting_problem(f"vertex {int(bad[0])}'s weight", weights[bad[0]])
+        raise LayoutError(
+            f"Layout '{layout.name}': vertex group '{group_name}': {problem} ({bad.size} such): set those weights "
+            "(Weight Paint, or Vertex Group › Assign)"
+        )
     return weights, member
 
 

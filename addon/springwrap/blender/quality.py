@@ -29,27 +29,31 @@ def measure_layout(
     local_positions: np.ndarray | None = None,
     rest: np.ndarray | None = None,
     topology=None,
+    state=None,
 ) -> Readout:
     """The read-out of ``layout`` at ``local_positions`` ((N, 3), default: as stored) on ``target``.
 
     ``rest`` (local (N, 3)): the rest shape to measure the stretch against; default the stored one, else the
     positions stored now (what the layout's first write keeps as its rest shape). ``topology``: the layout's
-    ``LayoutTopology`` when the caller has it. Writes nothing.
+    ``LayoutTopology`` when the caller has it. ``state``: the face-points at those positions (default: the
+    stored ones when the positions are), where the distances' searches start. Writes nothing.
     """
     mesh = layout.data
-    stored = attributes.read_positions(mesh).reshape(-1, 3)
+    stored = None if local_positions is not None else attributes.read_positions(mesh).reshape(-1, 3)
     # As they will be stored (float32): the read-out describes the layout the artist gets.
     local_positions = stored if local_positions is None else np.asarray(local_positions, np.float32).reshape(-1, 3)
     if rest is None:
         rest = attributes.read_rest(layout)
         if rest is None:
-            rest = stored
+            rest = attributes.read_positions(mesh).reshape(-1, 3) if stored is None else stored
     if topology is None:
-        topology = layout_data.read_layout_topology(layout)
+        topology = layout_data.read_layout_topology(layout, seams=False)
     matrix = matrix_array(layout.matrix_world)
     world = transforms.transform_points(matrix, np.asarray(local_positions, dtype=np.float64))
     world_rest = quality.world_rest_or_none(matrix, rest, world.shape[0])
-    return quality.measure(world, world_rest, topology, target.mesh)
+    if state is None and local_positions is stored:
+        state = attributes.read_state(mesh)  # the stored face-points, where the stored positions are
+    return quality.measure(world, world_rest, topology, target.mesh, state)
 
 
 def write_readout(layout: bpy.types.Object, readout: Readout) -> None:

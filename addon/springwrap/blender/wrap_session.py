@@ -299,7 +299,9 @@ class WrapSession:
         if self.last_report is None:
             self.step(0)
         positions, state = self.current_layout()
-        readout = quality_data.measure_layout(self.layout, self.target, positions, self.rest, self.layout_topology)
+        readout = quality_data.measure_layout(
+            self.layout, self.target, positions, self.rest, self.layout_topology, state
+        )
         shape_key_data.restore(self.layout, self.shape_keys)  # carried from the keys as they were, not a frame
         layout_data.write_layout(self.layout, positions, state, rest=self.rest)
         settings = self.layout.springwrap

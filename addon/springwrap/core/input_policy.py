@@ -14,6 +14,11 @@ and reports the first problem as an error. A coordinate is refused when it is
   take minutes instead of milliseconds.
 
 The messages name the item (vertex, anchor, curve constraint point, plane) and say what to do.
+
+Numbers the user sets (every float setting of every operator, checked by ``operators.base`` before the
+operator runs; the command line's numbers, by ``blender_scripts/headless.finite_number``) must be finite:
+:func:`setting_problem`. Vertex-group weights and shape-key coordinates a wrap reads follow the same rules
+(``blender.layout.read_layout_group``, ``core.shape_transfer.check_keys``).
 """
 
 from typing import NamedTuple
@@ -139,6 +144,25 @@ def check_plane(point, normal, owner: str, extent: Extent | None = None) -> None
     normal = np.asarray(normal, dtype=np.float64).reshape(-1)
     if normal.shape != (3,) or not np.all(np.isfinite(normal)) or not np.any(normal):
         raise LayoutError(f"The plane of '{owner}' has no direction (its transform is not finite or has zero scale)")
+
+
+def setting_problem(label: str, value) -> str | None:
+    """Why a number the user set (an operator's setting: a distance, a spacing, a length, a weight; each value
+    of a vector) is refused, or None: it must be finite. NaN is never "unlimited" or "automatic"; the settings
+    that have such a value say which (0), and an infinity typed into a field is stored as 3.4e38 (finite)."""
+    values = np.asarray(value, dtype=np.float64).reshape(-1)
+    if np.all(np.isfinite(values)):
+        return None
+    shown = ", ".join(f"{float(item):g}" for item in values)
+    return f"{label} must be a finite number, not {shown}"
+
+
+def check_settings(settings: dict) -> None:
+    """Raise :class:`LayoutError` for the first of ``settings`` (label: value) :func:`setting_problem` refuses."""
+    for label, value in settings.items():
+        problem = setting_problem(label, value)
+        if problem is not None:
+            raise LayoutError(problem)
 
 
 STORAGE_TOLERANCE = 1e-5

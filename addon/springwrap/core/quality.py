@@ -4,29 +4,33 @@ Three numbers an artist can read after a snap, projection, wrap or mirror:
 
 - **distance** (per vertex, world units): from the vertex to the closest point of the target surface, by the
   kernel's exact closest-point query (``core.target.CentredMesh``: the target in a frame centred on it, the
-  answer back in world space in float64);
+  distance in float64; a face-point's search starts from its own triangle);
 - **stretch** (per vertex, a ratio): the mean length of the vertex's edges now over their mean length in the
   rest shape (the template as made, ``springwrap_rest``), both in world space. 1 = unchanged, 2 = its edges
   are twice as long, 0.5 = half as long. A vertex without edges, or whose rest edges all have zero length,
   reads 1 (nothing to measure);
 - **flipped** (per face): the face is turned over against its rest shape. Its normal (Newell's, so n-gons and
   warped quads have one) points against its rest normal carried by the best rotation of its neighbourhood (its
-  corners and their edge neighbours) from the rest shape to now (Kabsch). The rotation is fitted locally, so a
-  posed limb or a template turned round is not flipped; a face folded over its neighbours is. A degenerate face
-  (zero normal, now or at rest) is not flipped; nothing here produces NaN. (Judging the face against the target's
+  corners and their edge neighbours) from the rest shape to now (Horn's, always proper). The rotation is fitted
+  locally, so a posed limb or a template turned round is not flipped; a face folded over its neighbours is. A
+  degenerate face (zero normal, now or at rest) is not flipped; nothing here produces NaN. (Judging the face against the target's
   smoothed normal instead was measured and rejected: on the benchmark's MakeHuman body it flags 433 faces of the
   *true* layout, in the mouth and eye cavities and wherever the closest target point belongs to another part.)
 
 :func:`summary` turns a :class:`Readout` into the numbers of the command line's report (percentiles, counts;
 the batch summary judges them, ``blender_scripts/retarget_batch.py``); :func:`problem_mask` is what
 ``springwrap.select_problems`` selects; :func:`heat_scale` and :func:`ramp_colours` are the heat-map's colours.
+The three measures run in the kernel (``springwrap_kernel.vertex_stretch``, ``flipped_faces``,
+``TargetMesh.surface_distances``: Rust, in parallel); this module prepares their arrays and reads the results.
 """
 
 from typing import NamedTuple
 
 import numpy as np
 
-from . import transforms
+import springwrap_kernel
+
+from . import layout_state, transforms
 
 DISTANCE_ATTRIBUTE = "springwrap_distance"
 """POINT FLOAT attribute: distance to the target surface, world units."""
@@ -38,6 +42,9 @@ FLIPPED_ATTRIBUTE = "springwrap_flipped"
 OFF_SURFACE_FRACTION = 0.001
 """A vertex is off the surface beyond this fraction of the layout's bounding-box diagonal (0.1 %) unless a
 threshold is given."""
+ON_SURFACE_FRACTION = 1e-6
+"""A face-point this close to its own triangle (a fraction of the target's bounding-box diagonal: about ten times
+float32's rounding of its coordinates) is on the surface: its distance is read from that triangle."""
 STRETCH_FACTOR = 1.5
 """A vertex is stretched when its stretch is above this factor or below its inverse unless a threshold is given."""
 
@@ -64,139 +71,70 @@ class Readout(NamedTuple):
     diagonal: float  # the layout's world bounding-box diagonal (the default off-surface threshold's unit)
 
 
-def vertex_distances(world_points: np.ndarray, mesh) -> np.ndarray:
+def vertex_distances(world_points: np.ndarray, mesh, state=None) -> np.ndarray:
     """(N,) float64 distance of each world point to the surface of ``mesh`` (a ``core.target.CentredMesh``).
 
-    Computed in float64 between the point and the kernel's exact closest point (world space); a non-finite
-    point gets ``inf``.
+    The kernel's exact closest point, the distance in float64 between the point and it; a non-finite point
+    reads ``inf``. ``state`` (the layout's ``LayoutState``, optional): a face-point within
+    :data:`ON_SURFACE_FRACTION` of the target's size of its own triangle reads its distance to that triangle
+    (the closest point is no farther, and the two differ by less than that rounding-sized tolerance), without
+    a search; the others' searches start from their triangle.
     """
-    world_points = np.asarray(world_points, dtype=np.float64).reshape(-1, 3)
-    distances = np.full(world_points.shape[0], np.inf)
-    finite = np.isfinite(world_points).all(axis=1)
-    if finite.any():
-        hits = mesh.closest_points(world_points[finite])
-        distances[finite] = np.linalg.norm(world_points[finite] - hits.positions, axis=1)
-    return distances
+    near = None
+    if state is not None:
+        faces = np.asarray(state.faces).reshape(-1)
+        on_face = (np.asarray(state.states).reshape(-1) == layout_state.FACE_POINT) & (faces >= 0)
+        near = np.where(on_face, faces, -1).astype(np.int64).astype(np.uint32)  # -1: no start (0xFFFFFFFF)
+    low, high = mesh.bounding_box()
+    on_surface = ON_SURFACE_FRACTION * float(np.linalg.norm(high - low))
+    return mesh.surface_distances(world_points, near=near, on_surface=on_surface)
 
 
 def vertex_stretch(world_points: np.ndarray, world_rest: np.ndarray, edges: np.ndarray) -> np.ndarray:
     """(N,) float64 mean incident edge length now over the same at rest (see the module's docstring)."""
-    world_points = np.asarray(world_points, dtype=np.float64).reshape(-1, 3)
-    world_rest = np.asarray(world_rest, dtype=np.float64).reshape(-1, 3)
-    count = world_points.shape[0]
-    edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
-    now = np.linalg.norm(world_points[edges[:, 0]] - world_points[edges[:, 1]], axis=1)
-    rest = np.linalg.norm(world_rest[edges[:, 0]] - world_rest[edges[:, 1]], axis=1)
-    usable = np.isfinite(now) & np.isfinite(rest)
-    ends = edges[usable].reshape(-1)
-    now_sum = np.bincount(ends, weights=np.repeat(now[usable], 2), minlength=count)
-    rest_sum = np.bincount(ends, weights=np.repeat(rest[usable], 2), minlength=count)
-    stretch = np.ones(count)
-    measured = rest_sum > 0.0
-    stretch[measured] = now_sum[measured] / rest_sum[measured]
-    return stretch
+    return springwrap_kernel.vertex_stretch(_points64(world_points), _points64(world_rest), _pairs(edges))
 
 
 def face_normals(world_points: np.ndarray, face_corners: np.ndarray, face_sizes: np.ndarray) -> np.ndarray:
     """(F, 3) float64 Newell normals (twice the area vector; zero for a degenerate face), each face's corners
     taken relative to its centre (precise far from the origin)."""
-    face_sizes = np.asarray(face_sizes, dtype=np.int64).reshape(-1)
-    if not face_sizes.size:
-        return np.zeros((0, 3))
-    corners = np.asarray(world_points, dtype=np.float64).reshape(-1, 3)[np.asarray(face_corners, dtype=np.int64)]
-    starts = np.concatenate([[0], np.cumsum(face_sizes)[:-1]])
-    centres = np.add.reduceat(corners, starts, axis=0) / face_sizes[:, None]
-    relative = corners - np.repeat(centres, face_sizes, axis=0)
-    following = np.arange(corners.shape[0]) + 1
-    following[starts + face_sizes - 1] = starts
-    normals = np.add.reduceat(np.cross(relative, relative[following]), starts, axis=0)
-    return np.where(np.isfinite(normals), normals, 0.0)
-
-
-def face_centres(world_points: np.ndarray, face_corners: np.ndarray, face_sizes: np.ndarray) -> np.ndarray:
-    """(F, 3) float64 mean of each face's corners."""
-    face_sizes = np.asarray(face_sizes, dtype=np.int64).reshape(-1)
-    if not face_sizes.size:
-        return np.zeros((0, 3))
-    corners = np.asarray(world_points, dtype=np.float64).reshape(-1, 3)[np.asarray(face_corners, dtype=np.int64)]
-    starts = np.concatenate([[0], np.cumsum(face_sizes)[:-1]])
-    return np.add.reduceat(corners, starts, axis=0) / face_sizes[:, None]
-
-
-def neighbourhoods(face_corners: np.ndarray, face_sizes: np.ndarray, edges: np.ndarray, vertex_count: int):
-    """(faces, vertices) pairs: each face with its corners and its corners' edge neighbours (a vertex may come
-    more than once: it then weighs more in the fit)."""
-    face_corners = np.asarray(face_corners, dtype=np.int64).reshape(-1)
-    face_sizes = np.asarray(face_sizes, dtype=np.int64).reshape(-1)
-    edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
-    ends = np.concatenate([edges[:, 0], edges[:, 1]])
-    others = np.concatenate([edges[:, 1], edges[:, 0]])
-    order = np.argsort(ends, kind="stable")
-    others = others[order]
-    degree = np.bincount(ends, minlength=vertex_count)
-    first = np.concatenate([[0], np.cumsum(degree)[:-1]])
-    corner_faces = np.repeat(np.arange(face_sizes.size), face_sizes)
-    counts = degree[face_corners]
-    within = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
-    neighbours = others[np.repeat(first[face_corners], counts) + within]
-    return (
-        np.concatenate([corner_faces, np.repeat(corner_faces, counts)]),
-        np.concatenate([face_corners, neighbours]),
-    )
-
-
-def best_rotations(rest: np.ndarray, now: np.ndarray, groups: np.ndarray, group_count: int) -> np.ndarray:
-    """(G, 3, 3) the proper rotation that best takes each group's rest points onto its points now (Kabsch, about
-    the groups' centroids); identity for a group with nothing to fit."""
-    count = np.maximum(np.bincount(groups, minlength=group_count), 1)
-    centred = []
-    for points in (rest, now):
-        centre = np.stack([np.bincount(groups, points[:, axis], group_count) for axis in range(3)], axis=1)
-        centred.append(points - (centre / count[:, None])[groups])
-    rest_centred, now_centred = centred
-    covariance = np.empty((group_count, 3, 3))
-    for a in range(3):
-        for b in range(3):
-            covariance[:, a, b] = np.bincount(groups, rest_centred[:, a] * now_centred[:, b], group_count)
-    covariance = np.where(np.isfinite(covariance), covariance, 0.0)
-    left, _values, right = np.linalg.svd(covariance)
-    turn = np.einsum("gji,gkj->gik", right, left)  # V U^T
-    sign = np.sign(np.linalg.det(turn))
-    right[:, 2, :] *= np.where(sign == 0.0, 1.0, sign)[:, None]
-    return np.einsum("gji,gkj->gik", right, left)
+    return springwrap_kernel.face_normals(_points64(world_points), _indices(face_corners), _indices(face_sizes))
 
 
 def flipped_faces(
     world_points: np.ndarray, world_rest: np.ndarray, face_corners: np.ndarray, face_sizes: np.ndarray, edges
 ) -> np.ndarray:
-    """(F,) bool: the face's normal points against its rest normal carried by its neighbourhood's best rotation."""
-    world_points = np.asarray(world_points, dtype=np.float64).reshape(-1, 3)
-    world_rest = np.asarray(world_rest, dtype=np.float64).reshape(-1, 3)
-    face_count = np.asarray(face_sizes).size
-    normals = face_normals(world_points, face_corners, face_sizes)
-    rest_normals = face_normals(world_rest, face_corners, face_sizes)
-    if not face_count:
-        return np.zeros(0, dtype=bool)
-    groups, vertices = neighbourhoods(face_corners, face_sizes, edges, world_points.shape[0])
-    usable = np.isfinite(world_points[vertices]).all(axis=1) & np.isfinite(world_rest[vertices]).all(axis=1)
-    rotations = best_rotations(world_rest[vertices[usable]], world_points[vertices[usable]], groups[usable], face_count)
-    carried = np.einsum("fij,fj->fi", rotations, rest_normals)
-    facing = (carried * normals).sum(axis=1)
-    judged = np.any(normals != 0.0, axis=1) & np.any(rest_normals != 0.0, axis=1) & np.isfinite(facing)
-    return judged & (facing < 0.0)
+    """(F,) bool: the face's normal points against its rest normal carried by its neighbourhood's best rotation
+    (the kernel's, in parallel)."""
+    return springwrap_kernel.flipped_faces(
+        _points64(world_points), _points64(world_rest), _indices(face_corners), _indices(face_sizes), _pairs(edges)
+    )
+
+
+def _points64(points) -> np.ndarray:
+    return np.ascontiguousarray(np.asarray(points, dtype=np.float64).reshape(-1, 3))
+
+
+def _indices(values) -> np.ndarray:
+    return np.ascontiguousarray(np.asarray(values).reshape(-1), dtype=np.uint32)
+
+
+def _pairs(edges) -> np.ndarray:
+    return np.ascontiguousarray(np.asarray(edges).reshape(-1, 2), dtype=np.uint32)
 
 
 def bounding_diagonal(world_points: np.ndarray) -> float:
     """The diagonal of the finite points' bounding box (0 for none)."""
     world_points = np.asarray(world_points, dtype=np.float64).reshape(-1, 3)
-    finite = world_points[np.isfinite(world_points).all(axis=1)]
-    return float(np.linalg.norm(np.ptp(finite, axis=0))) if finite.shape[0] else 0.0
+    finite = world_points if np.isfinite(world_points).all() else world_points[np.isfinite(world_points).all(axis=1)]
+    return float(np.linalg.norm(finite.max(axis=0) - finite.min(axis=0))) if finite.shape[0] else 0.0
 
 
-def measure(world_points: np.ndarray, world_rest: np.ndarray | None, topology, mesh) -> Readout:
+def measure(world_points: np.ndarray, world_rest: np.ndarray | None, topology, mesh, state=None) -> Readout:
     """The :class:`Readout` of a layout at ``world_points`` (rest shape ``world_rest``, both (N, 3) world; None:
-    no usable rest shape, the stretch reads 1 and no face is flipped) with ``topology`` (a ``core.subdivision.LayoutTopology``) on the
-    target ``mesh`` (a ``CentredMesh``)."""
+    no usable rest shape, the stretch reads 1 and no face is flipped) with ``topology`` (a
+    ``core.subdivision.LayoutTopology``) on the target ``mesh`` (a ``CentredMesh``). ``state``: the layout's
+    face-points at those positions, where the distances' searches start (see :func:`vertex_distances`)."""
     world_points = np.asarray(world_points, dtype=np.float64).reshape(-1, 3)
     if world_rest is None:
         stretch = np.ones(world_points.shape[0])
@@ -205,7 +143,7 @@ def measure(world_points: np.ndarray, world_rest: np.ndarray | None, topology, m
         stretch = vertex_stretch(world_points, world_rest, topology.edges)
         flipped = flipped_faces(world_points, world_rest, topology.face_corners, topology.face_sizes, topology.edges)
     return Readout(
-        distances=vertex_distances(world_points, mesh),
+        distances=vertex_distances(world_points, mesh, state),
         stretch=stretch,
         flipped=flipped,
         diagonal=bounding_diagonal(world_points),

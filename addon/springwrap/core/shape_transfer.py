@@ -29,6 +29,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from . import input_policy
 from .errors import LayoutError
 
 AREA_EPSILON = 1e-12
@@ -235,15 +236,24 @@ class ShapeKeys(NamedTuple):
 
 
 def check_keys(keys: ShapeKeys, layout_name: str) -> None:
-    """Raise :class:`LayoutError` naming the first key and vertex with a NaN or infinite coordinate."""
+    """Raise :class:`LayoutError` naming the first key and vertex with a coordinate the add-on's input policy
+    refuses on a vertex (``core.input_policy``): NaN or infinite, or beyond its absolute limit (an infinity
+    typed into a field is stored as 3.4e38)."""
     finite = np.isfinite(keys.positions).all(axis=2)
-    if finite.all():
-        return
-    key, vertex = (int(value) for value in np.argwhere(~finite)[0])
-    raise LayoutError(
-        f"Layout '{layout_name}': shape key '{keys.names[key]}' has a NaN or infinite coordinate at vertex {vertex}: "
-        "fix or remove that key (its offsets cannot be carried over)"
-    )
+    if not finite.all():
+        key, vertex = (int(value) for value in np.argwhere(~finite)[0])
+        raise LayoutError(
+            f"Layout '{layout_name}': shape key '{keys.names[key]}' has a NaN or infinite coordinate at vertex "
+            f"{vertex}: fix or remove that key (its offsets cannot be carried over)"
+        )
+    far = np.abs(keys.positions).max(axis=2) > input_policy.ABSOLUTE_LIMIT
+    if far.any():
+        key, vertex = (int(value) for value in np.argwhere(far)[0])
+        raise LayoutError(
+            f"Layout '{layout_name}': shape key '{keys.names[key]}' has a coordinate beyond "
+            f"{input_policy.ABSOLUTE_LIMIT:g} at vertex {vertex} (an infinity typed into a Blender field is stored "
+            "as 3.4e38): fix or remove that key (its offsets cannot be carried over)"
+        )
 
 
 def key_order(keys: ShapeKeys) -> list[tuple[int, int]]:

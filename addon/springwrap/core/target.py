@@ -99,6 +99,12 @@ class CentredMesh:
         hits = self.kernel.closest_points(self.to_kernel(points), **options)
         return hits._replace(positions=self.from_kernel(hits.positions))
 
+    def surface_distances(self, points, near=None, on_surface: float = 0.0) -> np.ndarray:
+        """(N,) float64 distance of each world point to the surface (the kernel's ``surface_distances``: the
+        point taken in float64 in the kernel's frame); ``near``: the triangle each point lies on, if known."""
+        kernel_points = np.ascontiguousarray(np.asarray(points, dtype=np.float64).reshape(-1, 3) - self.origin)
+        return self.kernel.surface_distances(kernel_points, near=near, on_surface=on_surface)
+
     def nearest_vertices(self, points, **options):
         """The kernel's ``nearest_vertices`` at world points; positions in world space."""
         hits = self.kernel.nearest_vertices(self.to_kernel(points), **options)

@@ -7,6 +7,7 @@ says so when it is missing), so an operator never finds it absent.
 """
 
 import contextlib
+import functools
 
 import bpy
 
@@ -136,6 +137,49 @@ class SpringwrapOperator:
         prefix, separator, name = cls.__name__.partition("_OT_")
         if separator:
             cls.bl_idname = f"{prefix.lower()}.{name}"
+        for method in ("execute", "invoke"):
+            if method in cls.__dict__:
+                setattr(cls, method, _refusing_non_finite_settings(cls.__dict__[method]))
+
+
+def non_finite_setting(operator) -> str | None:
+    """Why one of the operator's float settings is refused (``core.input_policy.setting_problem``), or None."""
+    properties = operator.properties
+    for prop in properties.bl_rna.properties:
+        if prop.type == "FLOAT":
+            value = getattr(properties, prop.identifier)
+            problem = input_policy.setting_problem(
+                prop.name or prop.identifier, tuple(value) if prop.is_array else value
+            )
+            if problem is not None:
+                return problem
+    return None
+
+
+def _refusing_non_finite_settings(method):
+    """``method`` (an operator's execute or invoke) run only when every float setting is finite: otherwise the
+    operator reports why and cancels, having read and written nothing. (Blender counts the arguments of
+    ``execute`` and ``invoke``: each wrapper has the method's own.)"""
+
+    def refused(operator) -> bool:
+        problem = non_finite_setting(operator)
+        if problem is not None:
+            operator.report({"ERROR"}, problem)
+        return problem is not None
+
+    if method.__code__.co_argcount == 3:
+
+        @functools.wraps(method)
+        def checked_invoke(self, context, event):
+            return {"CANCELLED"} if refused(self) else method(self, context, event)
+
+        return checked_invoke
+
+    @functools.wraps(method)
+    def checked(self, context):
+        return {"CANCELLED"} if refused(self) else method(self, context)
+
+    return checked
 
 
 class LayoutOperator(SpringwrapOperator):
@@ -278,3 +322,28 @@ def report_energy_ignored(operator, settings) -> None:
             return operator.properties.bl_rna.properties[name].name
 
         operator.report({"WARNING"}, wrap_inputs.energy_ignored_warning(names, label))
+
+
+def show_modal_status(operator, context, text: str, progress: float) -> None:
+    """A modal operator's progress: ``text`` in the status bar and in the header of its area (``operator._area``),
+    ``progress`` on the window manager's progress indicator."""
+    if context.workspace is not None:
+        context.workspace.status_text_set(text)
+    if getattr(operator, "_area", None) is not None:
+        operator._area.header_text_set(text)
+    context.window_manager.progress_update(progress)
+
+
+def end_modal_display(operator, context) -> None:
+    """Remove what a modal operator showed: its timer (``operator._timer``), the progress, the status bar's text and
+    its area's header text."""
+    window_manager = context.window_manager
+    if getattr(operator, "_timer", None) is not None:
+        window_manager.event_timer_remove(operator._timer)
+        operator._timer = None
+    window_manager.progress_end()
+    if context.workspace is not None:
+        context.workspace.status_text_set(None)
+    if getattr(operator, "_area", None) is not None:
+        operator._area.header_text_set(None)
+        operator._area = None

@@ -11,12 +11,21 @@ import bpy
 
 from .. import property_kinds as props
 from ..blender import cage_fit as cage_fit_data
+from ..blender import layout as layout_data
 from ..blender import target as target_data
-from ..blender.edit_mode import object_mode
+from ..blender.edit_mode import EditModeGuard, object_mode
 from ..core import cage_fit
 from ..core.errors import ERRORS
 from ..properties import max_distance_property
-from .base import LayoutOperator, check_inputs, open_layout, operator_values, report_storage_precision
+from .base import (
+    LayoutOperator,
+    check_inputs,
+    end_modal_display,
+    open_layout,
+    operator_values,
+    report_storage_precision,
+    show_modal_status,
+)
 
 _DEFAULTS = cage_fit.fit_defaults()
 
@@ -33,9 +42,9 @@ class SPRINGWRAP_OT_fit_subdivision(LayoutOperator, bpy.types.Operator):
         "Levels",
         "Subdivision level whose surface is fitted (use the same on the Subdivision Surface modifier)",
         cage_fit.DEFAULT_LEVELS,
-        min=1,
-        max=int(_DEFAULTS["max_levels"]),
-    )
+        soft_min=1,
+        soft_max=int(_DEFAULTS["max_levels"]),
+    )  # no hard range: Blender would clamp a script's levels=99 silently; the fit refuses it naming the range
     rounds: props.integer(
         "Rounds",
         "Gauss-Newton rounds: each matches the subdivided surface to the target and solves for the cage",
@@ -68,20 +77,97 @@ class SPRINGWRAP_OT_fit_subdivision(LayoutOperator, bpy.types.Operator):
         if layout is None:
             return {"CANCELLED"}
         start = time.perf_counter()
-        parameters = operator_values(self, cage_fit_data.CageFitParameters, boundary="boundary_smooth")
         try:
             with object_mode(layout):
                 extent = check_inputs(context, layout, frozenset({"positions", "anchors"}))
-                target = target_data.read_target(context.evaluated_depsgraph_get(), layout)
-                outcome = cage_fit_data.fit_subdivision(context, layout, target, parameters)
+                session = self._session(context, layout).start()
+                while not session.done:
+                    session.step()
+                outcome = session.finish()
                 report_storage_precision(self, layout, extent)
         except ERRORS as error:
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}
-        milliseconds = (time.perf_counter() - start) * 1000.0
+        return self._finished(outcome, start)
+
+    def _session(self, context, layout):
+        parameters = operator_values(self, cage_fit_data.CageFitParameters, boundary="boundary_smooth")
+        target = target_data.read_target(context.evaluated_depsgraph_get(), layout)
+        return cage_fit_data.CageFitSession(context, layout, target, parameters)
+
+    def _finished(self, outcome, start: float) -> set:
         type(self).last_outcome = outcome
+        milliseconds = (time.perf_counter() - start) * 1000.0
         self.report({"INFO"}, cage_fit.summary(outcome, self.levels, milliseconds))
         return {"FINISHED"}
+
+    def invoke(self, context, event):
+        """In the interface a fit estimated longer than ``core.cage_fit.MODAL_SECONDS`` runs round by round: the
+        progress in the header and the status bar, Esc stops it between rounds with the layout as it was."""
+        if bpy.app.background or context.window is None:
+            return self.execute(context)
+        layout = open_layout(self, context, moves_vertices=True)
+        if layout is None:
+            return {"CANCELLED"}
+        self._start_time = time.perf_counter()
+        self._mode = EditModeGuard(layout)
+        try:
+            self._extent = check_inputs(context, layout, frozenset({"positions", "anchors"}))
+            self._fit = self._session(context, layout)
+            estimate = cage_fit.fit_size(
+                layout_data.read_layout_topology(layout).face_sizes, self.levels
+            ).seconds * max(int(self.rounds), 1)
+            if estimate <= cage_fit.MODAL_SECONDS:
+                self._mode.restore()
+                return self.execute(context)
+            self._fit.start()
+        except ERRORS as error:
+            self._mode.restore()
+            self.report({"ERROR"}, str(error))
+            return {"CANCELLED"}
+        self._area = context.area
+        window_manager = context.window_manager
+        self._timer = window_manager.event_timer_add(0.01, window=context.window)
+        window_manager.progress_begin(0, self._fit.run.rounds)
+        window_manager.modal_handler_add(self)
+        self._show_status(context)
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context, event):
+        if event.type == "ESC":
+            self._fit.cancel()
+            self._end(context)
+            self.report({"INFO"}, "Fit Subdivision stopped: the layout is as it was")
+            return {"CANCELLED"}
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"}
+        try:
+            self._fit.step()
+            if not self._fit.done:
+                self._show_status(context)
+                return {"RUNNING_MODAL"}
+            outcome = self._fit.finish()
+            report_storage_precision(self, self._fit.layout, self._extent)
+        except ERRORS as error:
+            self._end(context)
+            self.report({"ERROR"}, str(error))
+            return {"CANCELLED"}
+        self._end(context)
+        return self._finished(outcome, self._start_time)
+
+    def cancel(self, context):
+        """Blender ends the modal fit from outside (window closed, file loaded): nothing is written."""
+        fit = getattr(self, "_fit", None)
+        if fit is not None:
+            fit.cancel()
+            self._end(context)
+
+    def _show_status(self, context) -> None:
+        show_modal_status(self, context, self._fit.status_text(), self._fit.run.round)
+
+    def _end(self, context) -> None:
+        end_modal_display(self, context)
+        self._mode.restore()
 
 
 classes = (SPRINGWRAP_OT_fit_subdivision,)

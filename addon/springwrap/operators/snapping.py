@@ -61,7 +61,7 @@ class _SnapOperator(LayoutOperator):
                 outcome = self.compute(context, layout, arrays, target)
                 readout = None
                 if target is not None and self.writes_readout:
-                    readout = quality_data.measure_layout(layout, target, outcome.positions)
+                    readout = quality_data.measure_layout(layout, target, outcome.positions, state=outcome.state)
                 layout_data.write_layout(layout, outcome.positions, outcome.state)
                 if readout is not None:
                     quality_data.write_readout(layout, readout)

@@ -41,7 +41,15 @@ from ..properties import (
     wrap_weight_property,
 )
 from ..ui import frame_clock
-from .base import LayoutOperator, check_inputs, layout_problem, report_energy_ignored, report_storage_precision
+from .base import (
+    LayoutOperator,
+    check_inputs,
+    end_modal_display,
+    layout_problem,
+    report_energy_ignored,
+    report_storage_precision,
+    show_modal_status,
+)
 
 TIMER_SECONDS = 0.01
 """Interval of the modal's timer: a frame starts as soon as the previous one is drawn."""
@@ -251,12 +259,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
 
     def _show_status(self, context) -> None:
         session = self._loop.session
-        text = session.status_text()
-        if context.workspace is not None:
-            context.workspace.status_text_set(text)
-        if self._area is not None:
-            self._area.header_text_set(text)
-        context.window_manager.progress_update(session.total_iterations)
+        show_modal_status(self, context, session.status_text(), session.total_iterations)
         screen = context.screen
         if screen is not None:
             for area in screen.areas:
@@ -265,21 +268,12 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
 
     def _end(self, context) -> None:
         """Remove the timer, the status text and the progress, and go back to edit mode if the layout was in it."""
-        window_manager = context.window_manager
         loop = getattr(self, "_loop", None)
         if loop is not None:
             wrap_session.set_running(loop.session, running=False)
             if loop.session.pacer.display_seconds is not None:  # the next wrap starts from the whole redraw's cost
                 frame_clock.record(loop.session.pacer.display_seconds)
-        if getattr(self, "_timer", None) is not None:
-            window_manager.event_timer_remove(self._timer)
-            self._timer = None
-        window_manager.progress_end()
-        if context.workspace is not None:
-            context.workspace.status_text_set(None)
-        if getattr(self, "_area", None) is not None:
-            self._area.header_text_set(None)
-            self._area = None
+        end_modal_display(self, context)
         self._restore_mode()
 
     def _restore_mode(self) -> None:

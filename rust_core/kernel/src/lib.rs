@@ -47,6 +47,7 @@ pub mod features;
 pub mod fit;
 pub mod layout;
 pub mod mesh;
+pub mod quality;
 pub mod query;
 pub mod surface;
 pub mod validate;
@@ -67,6 +68,7 @@ pub use fit::{
 };
 pub use layout::{Curve, CurveKind, LayoutStructure, LineTriple};
 pub use mesh::{NO_TRIANGLE, TargetMesh, TargetMeshOptions, TriangleEdge};
+pub use quality::{LayoutFaces, face_normals, flipped_faces, vertex_stretch};
 pub use surface::{WalkEnd, WalkOutcome};
 pub use validate::{BARYCENTRIC_RANGE, MAX_COORDINATE};
 pub use wrap::{

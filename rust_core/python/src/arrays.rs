@@ -1,6 +1,6 @@
 //! numpy arrays in and out: the array contract checked (dtype, shape, C order) and copied.
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use numpy::{
     Element, PyArray1, PyArray2, PyArrayDescrMethods, PyArrayMethods, PyUntypedArray,
     PyUntypedArrayMethods,
@@ -88,5 +88,14 @@ pub(crate) fn read_pairs(name: &str, array: Option<&Bound<'_, PyAny>>) -> PyResu
     Ok(flat
         .chunks_exact(2)
         .map(|pair| [pair[0], pair[1]])
+        .collect())
+}
+
+/// (N, 3) float64 rows as f64 points (the quality read-out's world positions).
+pub(crate) fn read_points64(name: &str, array: &Bound<'_, PyAny>) -> PyResult<Vec<DVec3>> {
+    let flat = read_array::<f64>(name, array, Some(3))?;
+    Ok(flat
+        .chunks_exact(3)
+        .map(|row| DVec3::new(row[0], row[1], row[2]))
         .collect())
 }

@@ -11,6 +11,7 @@ mod errors;
 mod features;
 mod fit;
 mod layout;
+mod quality;
 mod target_mesh;
 mod wrap;
 mod wrap_settings;
@@ -31,5 +32,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     errors::register(m)?;
     features::register(m)?;
     fit::register(m)?;
+    quality::register(m)?;
     Ok(())
 }

@@ -11,7 +11,7 @@ use springwrap_kernel::{
 
 use crate::align::{IcpTuple, read_transform, transform_array};
 use crate::arguments;
-use crate::arrays::{read_array, read_positions, rows_array};
+use crate::arrays::{read_array, read_points64, read_positions, rows_array};
 use crate::errors::{InvalidArgumentError, run_kernel, to_python_error};
 
 type SurfaceArrays<'py> = (
@@ -375,6 +375,35 @@ impl PyTargetMesh {
                 .ray_casts(&origins, &directions, max_distance, both_directions)
         })?;
         surface_arrays(py, &hits)
+    }
+
+    /// (N,) float64 distance of each point (float64, in the mesh's coordinates) to the closest
+    /// surface point; ``near`` (N,) uint32: the triangle each point lies on (a face-point's,
+    /// 0xFFFFFFFF for none): within ``on_surface`` of it, the distance to it, else the search
+    /// starts there. A non-finite point's distance is infinite.
+    #[pyo3(signature = (points, *, near = None, on_surface = None))]
+    fn surface_distances<'py>(
+        &self,
+        py: Python<'py>,
+        points: &Bound<'py, PyAny>,
+        near: Option<&Bound<'py, PyAny>>,
+        on_surface: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let on_surface = arguments::float64_or("on_surface", on_surface, 0.0)?;
+        if !(on_surface >= 0.0 && on_surface.is_finite()) {
+            return Err(InvalidArgumentError::new_err(format!(
+                "on_surface must be a finite distance of zero or more, not {on_surface}"
+            )));
+        }
+        let points = read_points64("points", points)?;
+        let near = near
+            .map(|near| read_array::<u32>("near", near, None))
+            .transpose()?;
+        let distances = run_kernel(py, || {
+            self.mesh
+                .surface_distances(&points, near.as_deref(), on_surface)
+        })?;
+        Ok(PyArray1::from_vec(py, distances))
     }
 
     /// (K, 3) float32 positions of face-points given as triangles (K,) uint32 and barycentrics (K, 3).

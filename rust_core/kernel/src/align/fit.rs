@@ -208,7 +208,7 @@ fn weighted_outer_sum(
 
 /// The proper rotation `R` maximising `Σ w (q - q̄)·R (p - p̄)`, from `cross` (see
 /// [`weighted_outer_sum`]): the eigenvector of the largest eigenvalue of Horn's symmetric 4x4.
-fn horn_rotation(cross: &[[f64; 3]; 3]) -> DQuat {
+pub(crate) fn horn_rotation(cross: &[[f64; 3]; 3]) -> DQuat {
     let [[sxx, sxy, sxz], [syx, syy, syz], [szx, szy, szz]] = *cross;
     let horn = [
         [sxx + syy + szz, syz - szy, szx - sxz, sxy - syx],

@@ -37,9 +37,12 @@ from ._native import (
     TooLargeError,
     WrapSettings,
     __version__,
+    face_normals,
     feature_defaults,
     fit_transform,
+    flipped_faces,
     subdivision_fit_defaults,
+    vertex_stretch,
 )
 
 __all__ = [
@@ -73,9 +76,12 @@ __all__ = [
     "WrapSettings",
     "WrapSolver",
     "__version__",
+    "face_normals",
     "feature_defaults",
     "fit_transform",
+    "flipped_faces",
     "subdivision_fit_defaults",
+    "vertex_stretch",
 ]
 
 

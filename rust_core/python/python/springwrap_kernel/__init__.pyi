@@ -147,6 +147,16 @@ class TargetMesh:
         self, triangles: npt.NDArray[np.uint32], barycentrics: npt.NDArray[np.float32]
     ) -> npt.NDArray[np.float32]:
         """Positions of face-points ``(triangle, barycentric)`` on this mesh."""
+    def surface_distances(
+        self,
+        points: npt.NDArray[np.float64],
+        *,
+        near: npt.NDArray[np.uint32] | None = None,
+        on_surface: float = 0.0,
+    ) -> npt.NDArray[np.float64]:
+        """Distance of each point (float64, this mesh's coordinates) to the closest surface point, in float64.
+        ``near``: the triangle each point lies on (0xFFFFFFFF: none): within ``on_surface`` of it, the distance to
+        it, else the search starts there. Non-finite points read ``inf``."""
     def icp(
         self,
         source: npt.NDArray[np.float32],
@@ -530,3 +540,23 @@ def feature_defaults() -> dict[str, float]:
 def subdivision_fit_defaults() -> dict[str, float]:
     """The kernel's defaults of :class:`SubdivisionFit` (smoothness, max_distance, min_facing, damping,
     anchor_weight) and the deepest level (max_levels)."""
+
+def vertex_stretch(
+    points: npt.NDArray[np.float64], rest: npt.NDArray[np.float64], edges: npt.NDArray[np.uint32]
+) -> npt.NDArray[np.float64]:
+    """(N,) mean incident edge length now over the same at rest (1 where nothing can be measured)."""
+
+def face_normals(
+    points: npt.NDArray[np.float64], face_corners: npt.NDArray[np.uint32], face_sizes: npt.NDArray[np.uint32]
+) -> npt.NDArray[np.float64]:
+    """(F, 3) Newell normals (twice the area vector; zero for a degenerate face)."""
+
+def flipped_faces(
+    points: npt.NDArray[np.float64],
+    rest: npt.NDArray[np.float64],
+    face_corners: npt.NDArray[np.uint32],
+    face_sizes: npt.NDArray[np.uint32],
+    edges: npt.NDArray[np.uint32],
+) -> npt.NDArray[np.bool_]:
+    """(F,) each face turned over against its rest shape: its normal against its rest normal carried by the best
+    rotation of its neighbourhood (its corners and their edge neighbours)."""

@@ -1,0 +1,97 @@
+"""The snap as an artist runs it, for ``snap_throughput.py``: ``springwrap.snap`` through the operator on a quad
+layout over the target, its quality read-out included (measured, and written with the layout), and Blender's
+Shrinkwrap modifier (``NEAREST_SURFACEPOINT``) on the same layout, in the same run.
+
+The read-out's share is timed inside the operator (``blender.quality.measure_layout`` and ``write_readout``);
+each figure is the best of ``repeat`` snaps, each from the layout detached again. Shrinkwrap's time is its
+depsgraph evaluation plus reading the positions back, after a first evaluation that built Blender's BVH.
+"""
+
+from __future__ import annotations
+
+import time
+
+import _worker
+import numpy as np
+from _noisy_torus import torus_layout
+
+LAYOUT_SEED = 2
+
+
+def _timed(module, name: str, spent: dict) -> None:
+    """Wrap ``module.name`` so that its time adds up in ``spent['readout']``."""
+    original = getattr(module, name)
+
+    def timed(*arguments, **options):
+        start = time.perf_counter()
+        try:
+            return original(*arguments, **options)
+        finally:
+            spent["readout"] += time.perf_counter() - start
+
+    setattr(module, name, timed)
+
+
+def measure(bpy, vertices, triangles, quads: int, repeat: int) -> dict:
+    """Snap a ~``quads``-quad layout onto the target through the operator and with Shrinkwrap: the seconds of
+    each (best of ``repeat``), the read-out's seconds within the operator's, and the layout's size."""
+    import addon_utils
+
+    if addon_utils.enable("springwrap", default_set=True, handle_error=None) is None:
+        raise RuntimeError("addon_utils.enable('springwrap') failed: run `make setup` first")
+    from springwrap.blender import quality as quality_data
+
+    layout_vertices, layout_quads = torus_layout(quads, seed=LAYOUT_SEED)
+    target = _worker.mesh_object(bpy, "OperatorTarget", vertices, triangles)
+    layout = _worker.mesh_object(bpy, "OperatorLayout", layout_vertices, layout_quads)
+    layout.springwrap.target = target
+    for obj in bpy.context.view_layer.objects:
+        obj.select_set(obj == layout)
+    bpy.context.view_layer.objects.active = layout
+    spent = {"readout": 0.0}
+    measure_layout, write_readout = quality_data.measure_layout, quality_data.write_readout
+    _timed(quality_data, "measure_layout", spent)
+    _timed(quality_data, "write_readout", spent)
+    try:
+        if bpy.ops.springwrap.snap(mode="SURFACE") != {"FINISHED"}:  # the target read and cached once
+            raise RuntimeError("springwrap.snap failed")
+        runs = []
+        for _ in range(repeat):
+            bpy.ops.springwrap.detach()
+            spent["readout"] = 0.0
+            start = time.perf_counter()
+            if bpy.ops.springwrap.snap(mode="SURFACE") != {"FINISHED"}:
+                raise RuntimeError("springwrap.snap failed")
+            runs.append((time.perf_counter() - start, spent["readout"]))
+    finally:
+        quality_data.measure_layout, quality_data.write_readout = measure_layout, write_readout
+    seconds, readout_seconds = min(runs)
+    readout = quality_data.read_readout(layout)
+
+    shrinkwrapped = _worker.mesh_object(bpy, "OperatorShrinkwrap", layout_vertices, layout_quads)
+    modifier = shrinkwrapped.modifiers.new("Shrinkwrap", "SHRINKWRAP")
+    modifier.wrap_method = "NEAREST_SURFACEPOINT"
+    modifier.target = target
+    positions = np.empty(len(layout_vertices) * 3, dtype=np.float32)
+
+    def evaluate() -> None:
+        shrinkwrapped.data.update()  # the modifier runs again on the next evaluation
+        evaluated = shrinkwrapped.evaluated_get(bpy.context.evaluated_depsgraph_get())
+        evaluated.data.vertices.foreach_get("co", positions)
+
+    evaluate()  # builds Blender's BVH of the target
+    shrinkwrap_seconds = float("inf")
+    for _ in range(repeat):
+        start = time.perf_counter()
+        evaluate()
+        shrinkwrap_seconds = min(shrinkwrap_seconds, time.perf_counter() - start)
+    return {
+        "layout_vertices": len(layout_vertices),
+        "layout_faces": len(layout_quads),
+        "seconds": seconds,
+        "readout_seconds": readout_seconds,
+        "readout_share": readout_seconds / seconds,
+        "shrinkwrap_seconds": shrinkwrap_seconds,
+        "flipped": int(readout.flipped.sum()),
+        "distance_max": float(readout.distances.max()),
+    }
