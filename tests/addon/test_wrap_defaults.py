@@ -29,6 +29,7 @@ WRAP_OPERATOR_SETTINGS = (
     "folding",
     "rest",
     "solver",
+    "schedule",
 )
 """The kernel settings ``springwrap.wrap`` has a property for."""
 

@@ -1,0 +1,104 @@
+//! The energy wrap's stiffness schedules (`WrapSchedule`) on a large change of shape with few
+//! anchors, where the answer is known.
+
+mod common;
+
+use std::sync::Arc;
+
+use glam::Vec3;
+use springwrap_kernel::{
+    Anchor, AnchorTarget, LayoutPoint, LayoutStructure, TargetMesh, TargetMeshOptions,
+    WrapSchedule, WrapSettings, WrapSolver,
+};
+
+/// A band of quads around the z axis (polar angles 30° to 150°) of the unit sphere, `rings` x
+/// `segments`, and per vertex its unit direction.
+fn sphere_band(rings: u32, segments: u32) -> (LayoutStructure, Vec<Vec3>) {
+    let mut positions = Vec::new();
+    for ring in 0..=rings {
+        let polar = (30.0 + 120.0 * ring as f32 / rings as f32).to_radians();
+        for segment in 0..segments {
+            let azimuth = std::f32::consts::TAU * segment as f32 / segments as f32;
+            positions.push(Vec3::new(
+                polar.sin() * azimuth.cos(),
+                polar.sin() * azimuth.sin(),
+                polar.cos(),
+            ));
+        }
+    }
+    let mut corners = Vec::new();
+    for ring in 0..rings {
+        for segment in 0..segments {
+            let a = ring * segments + segment;
+            let b = ring * segments + (segment + 1) % segments;
+            corners.extend([a, a + segments, b + segments, b]);
+        }
+    }
+    let faces = vec![4; (rings * segments) as usize];
+    let structure = LayoutStructure::new(positions.len(), &corners, &faces, &[], &[]).unwrap();
+    (structure, positions)
+}
+
+/// The mean distance of the wrapped band to the truth (each unit direction scaled by `axes`), with
+/// four anchors on the equator at their true places, and whether every quad still faces out.
+fn wrap_band(schedule: WrapSchedule, axes: Vec3) -> (f32, bool) {
+    let (rings, segments) = (12, 48);
+    let (vertices, triangles) = common::uv_sphere(1.0, 64, 128);
+    let vertices = vertices.into_iter().map(|v| v * axes).collect();
+    let target =
+        Arc::new(TargetMesh::new(vertices, triangles, TargetMeshOptions::default()).unwrap());
+    let (structure, directions) = sphere_band(rings, segments);
+    let truth: Vec<Vec3> = directions.iter().map(|&d| d * axes).collect();
+    let equator = rings / 2 * segments;
+    let anchors: Vec<Anchor> = (0..4)
+        .map(|quarter| {
+            let vertex = equator + quarter * segments / 4;
+            let hit = target
+                .closest_point(truth[vertex as usize], f32::INFINITY)
+                .unwrap();
+            Anchor {
+                vertex,
+                target: AnchorTarget::Face(hit.face_point),
+            }
+        })
+        .collect();
+    let points = directions.iter().map(|&p| LayoutPoint::Space(p)).collect();
+    let settings = WrapSettings {
+        schedule,
+        ..WrapSettings::default()
+    };
+    let mut solver =
+        WrapSolver::new(target, structure.clone(), points, &anchors, settings).unwrap();
+    let report = solver.step(1000).unwrap();
+    assert!(report.converged, "{report:?}");
+    let positions = solver.positions();
+    let error = positions
+        .iter()
+        .zip(&truth)
+        .map(|(p, t)| p.distance(*t))
+        .sum::<f32>()
+        / truth.len() as f32;
+    let outwards = (0..rings * segments).all(|quad| {
+        let (ring, segment) = (quad / segments, quad % segments);
+        let a = (ring * segments + segment) as usize;
+        let b = (ring * segments + (segment + 1) % segments) as usize;
+        let (c, d) = (b + segments as usize, a + segments as usize);
+        let centre = (positions[a] + positions[b] + positions[c] + positions[d]) * 0.25;
+        let normal = (positions[c] - positions[a]).cross(positions[b] - positions[d]);
+        normal.dot(centre) > 0.0
+    });
+    (error, outwards)
+}
+
+#[test]
+fn four_anchors_on_a_stretched_sphere_find_its_affine_fit_with_the_global_to_local_schedule() {
+    let axes = Vec3::new(2.2, 1.0, 0.6);
+    let (local, local_outwards) = wrap_band(WrapSchedule::Local, axes);
+    let (global, global_outwards) = wrap_band(WrapSchedule::GlobalToLocal, axes);
+    eprintln!("mean error: local {local}, global to local {global}");
+    assert!(local_outwards && global_outwards);
+    assert!(
+        global < local * 0.5,
+        "local {local}, global to local {global}"
+    );
+}
