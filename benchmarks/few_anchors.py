@@ -70,17 +70,20 @@ def run(arguments: argparse.Namespace) -> int:
         retarget = json.loads(path.read_text())
         rows += rows_of(retarget, anchors)
         runs.append({key: retarget.get(key) for key in ("machine", "finished_utc", "load_average_end", "seconds")})
-    result = {
-        "benchmark": "few_anchors",
-        "cases": arguments.cases,
-        "anchors": arguments.anchors,
-        "methods": list(METHODS),
-        "runs": runs,
-        "seconds": time.perf_counter() - started,
-        "rows": rows,
-    }
-    arguments.json.parent.mkdir(parents=True, exist_ok=True)
-    arguments.json.write_text(json.dumps(result, indent=1))
+        # Written after every anchor count, so that an interrupted run keeps what it measured.
+        result = {
+            "benchmark": "few_anchors",
+            "cases": arguments.cases,
+            "anchors": [
+                run_anchors for run_anchors in arguments.anchors if any(r["anchors"] == run_anchors for r in rows)
+            ],
+            "methods": list(METHODS),
+            "runs": runs,
+            "seconds": time.perf_counter() - started,
+            "rows": rows,
+        }
+        arguments.json.parent.mkdir(parents=True, exist_ok=True)
+        arguments.json.write_text(json.dumps(result, indent=1))
     print(f"wrote {arguments.json}")
     return 0
 
@@ -100,7 +103,7 @@ def markdown(result: dict) -> list[str]:
     lines = [
         "## Few anchors",
         "",
-        f"The body cases with the first {', '.join(str(n) for n in result['anchors'])} landmarks as anchors, the "
+        f"The body cases with the first {', '.join(str(n) for n in sorted(result['anchors']))} landmarks as anchors, the "
         "same anchors to every method (`benchmarks/few_anchors.py`, one run per anchor count). `Springwrap wrap` "
         "is the energy wrap with its default, local schedule; `Springwrap wrap global` the global-to-local "
         "schedule (`schedule='GLOBAL_TO_LOCAL'`). Errors in % of the diagonal; flipped quads against the true "
@@ -110,7 +113,7 @@ def markdown(result: dict) -> list[str]:
     header = ["case", "anchors", "method", "mean %", "p95 %", "flipped", "time s", "× nricp mean (p95)"]
     table_rows = []
     for case in result["cases"]:
-        for anchors in result["anchors"]:
+        for anchors in sorted(result["anchors"]):
             reference = lookup.get((case, anchors, REFERENCE))
             for method in methods:
                 row = lookup.get((case, anchors, method))

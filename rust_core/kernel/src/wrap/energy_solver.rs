@@ -42,10 +42,7 @@ use rayon::prelude::*;
 
 use super::anchor::AnchorTarget;
 use super::forces::{Similarity, SpringRest, Springs};
-use super::global_phase::{
-    GLOBAL_TO_LOCAL_LEVELS, Stretches, experiment_levels, experiment_linear_levels,
-    experiment_reciprocal_levels, keep_reciprocal,
-};
+use super::global_phase::{GLOBAL_TO_LOCAL_LEVELS, RECIPROCAL_LEVELS, Stretches, keep_reciprocal};
 use super::linear_system::{LinearSystem, Stencils};
 use super::plane_constraint::Plane;
 use super::settings::WrapSchedule;
@@ -363,9 +360,7 @@ impl EnergySolver {
             landing_distance: inputs.landing_distance,
             levels: match inputs.schedule {
                 WrapSchedule::Local => &LEVELS,
-                WrapSchedule::GlobalToLocal => {
-                    experiment_levels().unwrap_or(&GLOBAL_TO_LOCAL_LEVELS)
-                }
+                WrapSchedule::GlobalToLocal => &GLOBAL_TO_LOCAL_LEVELS,
             },
             stretches: (inputs.schedule == WrapSchedule::GlobalToLocal)
                 .then(|| Stretches::new(structure, inputs.rest)),
@@ -512,7 +507,7 @@ impl EnergySolver {
         let normals = self.layout_normals(&self.positions);
         let width = level.welsch_width * self.mean_edge_length;
         let mut correspondences = self.correspondences(&normals, width);
-        if self.stretches.is_some() && self.level < experiment_reciprocal_levels() {
+        if self.stretches.is_some() && self.level < RECIPROCAL_LEVELS {
             keep_reciprocal(&self.positions, &mut correspondences, self.mean_edge_length);
         }
         // A point the safeguard held back last time has no data term now: the shape terms
@@ -672,9 +667,7 @@ impl EnergySolver {
     /// Fits the stretches (global-to-local schedule) or smooths the scales, `rounds` as
     /// [`Self::smooth_scales`] takes them.
     fn fit_scales(&mut self, rounds: Option<usize>) {
-        let linear = !self.warming_up && self.level < experiment_linear_levels();
         if let Some(stretches) = self.stretches.as_mut() {
-            stretches.linear = linear && rounds.is_some();
             stretches.fit(&self.structure, &self.positions, &self.similarities, rounds);
         } else {
             self.smooth_scales(rounds);
@@ -734,9 +727,6 @@ impl EnergySolver {
         let owner = self.term_owner[term] as usize;
         let fit = self.similarities[owner];
         if let Some(stretches) = &self.stretches {
-            if stretches.linear {
-                return stretches.stretches[owner].as_dmat3() * self.term_rest[term];
-            }
             let stretched = stretches.stretches[owner].as_dmat3() * self.term_rest[term];
             return fit.rotation.as_dquat() * stretched;
         }
