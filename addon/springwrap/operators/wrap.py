@@ -129,7 +129,17 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
         The kernel checks the settings here: a value out of its range raises
         ``springwrap_kernel.InvalidArgumentError`` naming it.
         """
-        names = ("tolerance", "fairness", "arc_length", "thin_plate", "constraint", "folding", "rest", "solver", "schedule")
+        names = (
+            "tolerance",
+            "fairness",
+            "arc_length",
+            "thin_plate",
+            "constraint",
+            "folding",
+            "rest",
+            "solver",
+            "schedule",
+        )
         return WrapParameters(
             max_iterations=self.max_iterations,
             settings=WRAP_DEFAULTS.replace(**{name: getattr(self, name) for name in names}),
