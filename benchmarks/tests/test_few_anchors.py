@@ -5,7 +5,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from benchmarks import few_anchors, report  # noqa: E402
+from benchmarks import few_anchors, report
 
 
 def retarget_run(wrap_mean: float) -> dict:
