@@ -7,37 +7,9 @@ use std::sync::Arc;
 
 use glam::Vec3;
 use springwrap_kernel::{
-    Anchor, AnchorTarget, LayoutPoint, LayoutStructure, SolverKind, TargetMesh, TargetMeshOptions,
-    WrapSchedule, WrapSettings, WrapSolver,
+    Anchor, AnchorTarget, LayoutPoint, SolverKind, TargetMesh, TargetMeshOptions, WrapSchedule,
+    WrapSettings, WrapSolver,
 };
-
-/// A band of quads around the z axis (polar angles 30° to 150°) of the unit sphere, `rings` x
-/// `segments`, and per vertex its unit direction.
-fn sphere_band(rings: u32, segments: u32) -> (LayoutStructure, Vec<Vec3>) {
-    let mut positions = Vec::new();
-    for ring in 0..=rings {
-        let polar = (30.0 + 120.0 * ring as f32 / rings as f32).to_radians();
-        for segment in 0..segments {
-            let azimuth = std::f32::consts::TAU * segment as f32 / segments as f32;
-            positions.push(Vec3::new(
-                polar.sin() * azimuth.cos(),
-                polar.sin() * azimuth.sin(),
-                polar.cos(),
-            ));
-        }
-    }
-    let mut corners = Vec::new();
-    for ring in 0..rings {
-        for segment in 0..segments {
-            let a = ring * segments + segment;
-            let b = ring * segments + (segment + 1) % segments;
-            corners.extend([a, a + segments, b + segments, b]);
-        }
-    }
-    let faces = vec![4; (rings * segments) as usize];
-    let structure = LayoutStructure::new(positions.len(), &corners, &faces, &[], &[]).unwrap();
-    (structure, positions)
-}
 
 /// The mean distance of the wrapped band to the truth (each unit direction scaled by `axes`), with
 /// four anchors on the equator at their true places, and whether every quad still faces out.
@@ -47,7 +19,7 @@ fn wrap_band(schedule: WrapSchedule, axes: Vec3) -> (f32, bool) {
     let vertices = vertices.into_iter().map(|v| v * axes).collect();
     let target =
         Arc::new(TargetMesh::new(vertices, triangles, TargetMeshOptions::default()).unwrap());
-    let (structure, directions) = sphere_band(rings, segments);
+    let (structure, directions) = common::band_layout(Vec3::ONE, rings, segments);
     let truth: Vec<Vec3> = directions.iter().map(|&d| d * axes).collect();
     let equator = rings / 2 * segments;
     let anchors: Vec<Anchor> = (0..4)

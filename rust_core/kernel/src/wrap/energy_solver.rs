@@ -61,7 +61,7 @@ const LINE_WEIGHT: f64 = 1.0;
 const PROXIMAL_WEIGHT: f64 = 1e-6;
 /// A point is taken as touching its correspondence's tangent plane... the data term's Welsch
 /// width, per level, in mean edge lengths, and other per-level settings.
-#[derive(Debug)]
+#[derive(Debug, Clone, Copy)]
 pub(crate) struct Level {
     /// λ: the data term's weight, relative to the edge weight.
     pub(crate) data_weight: f64,
@@ -78,7 +78,7 @@ pub(crate) struct Level {
 
 /// The stiffness schedule: the data term tightens, the scale and the rotations loosen level by
 /// level (at the first, rotations averaged over about 8 rings move each region as one piece).
-const LEVELS: [Level; 4] = [
+pub(crate) const LEVELS: [Level; 4] = [
     Level {
         data_weight: 0.1,
         welsch_width: 3.0,
@@ -727,7 +727,7 @@ impl EnergySolver {
         let owner = self.term_owner[term] as usize;
         let fit = self.similarities[owner];
         if let Some(stretches) = &self.stretches {
-            let stretched = stretches.stretches[owner].as_dmat3() * self.term_rest[term];
+            let stretched = stretches.values[owner].as_dmat3() * self.term_rest[term];
             return fit.rotation.as_dquat() * stretched;
         }
         let turned = fit.rotation.as_dquat() * self.term_rest[term];

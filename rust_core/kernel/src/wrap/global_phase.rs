@@ -14,7 +14,7 @@
 use glam::{Mat3, Vec3};
 use rayon::prelude::*;
 
-use super::energy_solver::Level;
+use super::energy_solver::{LEVELS, Level};
 use super::forces::Similarity;
 use crate::layout::LayoutStructure;
 
@@ -23,6 +23,16 @@ use crate::layout::LayoutStructure;
 /// term (σ = 10, 6, 3 mean edges), then the default schedule's local levels. Chosen by measurement
 /// on the benchmark bodies with 4 and 6 anchors (stiffer and longer was better at every step tried).
 pub(crate) const GLOBAL_TO_LOCAL_LEVELS: [Level; 6] = [
+    STIFF_LEVELS[0],
+    STIFF_LEVELS[1],
+    STIFF_LEVELS[2],
+    LEVELS[1],
+    LEVELS[2],
+    LEVELS[3],
+];
+
+/// The stiff levels of [`GLOBAL_TO_LOCAL_LEVELS`].
+const STIFF_LEVELS: [Level; 3] = [
     Level {
         data_weight: 0.01,
         welsch_width: 10.0,
@@ -43,27 +53,6 @@ pub(crate) const GLOBAL_TO_LOCAL_LEVELS: [Level; 6] = [
         scale_smoothing: Some(64),
         rotation_smoothing: 16,
         max_iterations: 8,
-    },
-    Level {
-        data_weight: 1.0,
-        welsch_width: 2.0,
-        scale_smoothing: Some(32),
-        rotation_smoothing: 0,
-        max_iterations: 5,
-    },
-    Level {
-        data_weight: 10.0,
-        welsch_width: 1.0,
-        scale_smoothing: Some(8),
-        rotation_smoothing: 0,
-        max_iterations: 3,
-    },
-    Level {
-        data_weight: 100.0,
-        welsch_width: 1.0,
-        scale_smoothing: Some(2),
-        rotation_smoothing: 0,
-        max_iterations: 4,
     },
 ];
 
@@ -89,7 +78,7 @@ pub(crate) struct Stretches {
     rest: Vec<Vec3>,
     rest_normals: Vec<Vec3>,
     /// Per vertex, `S_i` (the shape terms ask `R_i S_i` of its rest vectors).
-    pub(crate) stretches: Vec<Mat3>,
+    pub(crate) values: Vec<Mat3>,
 }
 
 impl Stretches {
@@ -103,7 +92,7 @@ impl Stretches {
         Self {
             rest: rest.to_vec(),
             rest_normals,
-            stretches: vec![Mat3::IDENTITY; rest.len()],
+            values: vec![Mat3::IDENTITY; rest.len()],
         }
     }
 
@@ -128,7 +117,7 @@ impl Stretches {
         let middle = scales.len() / 2;
         let median = *scales.select_nth_unstable_by(middle, f32::total_cmp).1;
         let Some(rounds) = rounds else {
-            self.stretches = vec![Mat3::from_diagonal(Vec3::splat(median)); positions.len()];
+            self.values = vec![Mat3::from_diagonal(Vec3::splat(median)); positions.len()];
             return;
         };
         let bound = |stretch: Mat3| bounded(stretch, median);
@@ -156,7 +145,7 @@ impl Stretches {
                 })
                 .collect();
         }
-        self.stretches = stretches.into_iter().map(bound).collect();
+        self.values = stretches.into_iter().map(bound).collect();
     }
 
     /// The symmetric stretch `S` with `R S` the least-squares linear map of `vertex`'s rest edges
@@ -274,7 +263,7 @@ fn outer(a: Vec3, b: Vec3) -> Mat3 {
 fn bounded(stretch: Mat3, median: f32) -> Mat3 {
     let mean = (stretch.x_axis.x + stretch.y_axis.y + stretch.z_axis.z) / 3.0;
     let clamped = mean.clamp(median / STRETCH_RANGE, median * STRETCH_RANGE);
-    if !(mean > 0.0) || stretch.determinant() < MIN_STRETCH_VOLUME * mean.powi(3) {
+    if mean.is_nan() || mean <= 0.0 || stretch.determinant() < MIN_STRETCH_VOLUME * mean.powi(3) {
         return Mat3::from_diagonal(Vec3::splat(clamped));
     }
     stretch * (clamped / mean)
@@ -327,7 +316,7 @@ mod tests {
         // The normal's stretch is the edges' mean length ratio, not 1: only the in-plane part
         // is the deformation's own. Averaging equal in-plane stretches keeps them.
         let in_plane = |stretches: &Stretches| {
-            for fitted in &stretches.stretches {
+            for fitted in &stretches.values {
                 for (row, column) in [(0, 0), (0, 1), (1, 1)] {
                     let (got, wanted) = (fitted.col(column)[row], stretch.col(column)[row]);
                     assert!((got - wanted).abs() < 1e-4, "{fitted} against {stretch}");
@@ -340,9 +329,9 @@ mod tests {
         // The median replaces them by one scale.
         stretches.fit(&structure, &positions, &similarities, None);
         assert!(
-            stretches.stretches[12].abs_diff_eq(Mat3::IDENTITY, 1e-6),
+            stretches.values[12].abs_diff_eq(Mat3::IDENTITY, 1e-6),
             "{}",
-            stretches.stretches[12]
+            stretches.values[12]
         );
     }
 
