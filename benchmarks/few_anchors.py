@@ -142,9 +142,38 @@ def markdown(result: dict) -> list[str]:
                 )
     lines += ["| " + " | ".join(header) + " |", "|" + "|".join([":---"] * 3 + ["---:"] * 5) + "|"]
     lines += ["| " + " | ".join(cells) + " |" for cells in table_rows]
-    loads = [run.get("load_average_end") for run in result.get("runs", [])]
-    lines += ["", f"Load average at the end of each run: {', '.join(str(load) for load in loads)}.", ""]
+    lines += aims(lookup, result["cases"], 6)
+    loads = [run.get("load_average_end") or [] for run in result.get("runs", [])]
+    if loads:
+        text = "; ".join(", ".join(f"{load:.1f}" for load in triple) for triple in loads)
+        lines += ["", f"Load averages (1, 5, 15 minutes) at the end of each run: {text} (2 cores, shared)."]
+    lines.append("")
     return lines
+
+
+def aims(lookup: dict, case_names: list[str], anchors: int) -> list[str]:
+    """Per case with ``anchors`` anchors, each wrap against nricp: mean and p95 ratios, quads flipped beyond the
+    aligned template's, and how many times faster."""
+    lines = []
+    for case in case_names:
+        reference = lookup.get((case, anchors, REFERENCE))
+        aligned = lookup.get((case, anchors, "aligned template"))
+        if not reference or not aligned or reference["status"] != "ok":
+            continue
+        parts = []
+        for method in ("Springwrap wrap", "Springwrap wrap global"):
+            row = lookup.get((case, anchors, method))
+            if not row or row["status"] != "ok":
+                continue
+            parts.append(
+                f"{method}: mean {row['error_percent_mean'] / reference['error_percent_mean']:.2f}×, "
+                f"p95 {row['error_percent_p95'] / reference['error_percent_p95']:.2f}× nricp's, "
+                f"{row['flipped_quads'] - aligned['flipped_quads']:+d} flipped quads against the aligned template, "
+                f"{reference['seconds'] / row['seconds']:.1f}× faster"
+            )
+        if parts:
+            lines.append(f"- {case}, {anchors} anchors: " + "; ".join(parts) + ".")
+    return [""] + lines if lines else []
 
 
 def main(argv: list[str] | None = None) -> int:
