@@ -101,6 +101,14 @@ def test_the_retarget_command_lines_defaults_are_the_kernels():
     assert arguments.solver.upper() == KERNEL.solver
 
 
+def test_the_retarget_command_line_takes_the_schedule():
+    retarget = _script("retarget.py")
+    arguments = retarget["parse_arguments"](
+        ["--", "--template", "t.obj", "--target", "t.obj", "--schedule", "global-to-local"]
+    )
+    assert retarget["wrap_settings"](arguments) == KERNEL.replace(schedule="GLOBAL_TO_LOCAL")
+
+
 def test_the_mirror_command_lines_tolerance_is_the_kernels():
     mirror = _script("mirror.py")
     arguments = mirror["parse_arguments"](["--", "--layout", "layout.obj", "--target", "target.obj"])
