@@ -26,6 +26,7 @@ DOCS = REPOSITORY_ROOT / "docs"
 SPRINGWRAP_METHODS = (
     "Springwrap snap",
     "Springwrap wrap",
+    "Springwrap wrap global",
     "Springwrap snap+wrap",
     "Springwrap project+wrap",
     "Springwrap align",
@@ -949,6 +950,7 @@ def build_document(
     batch: dict | None = None,
     features: dict | None = None,
     after_wrap: dict | None = None,
+    few_anchors: dict | None = None,
 ) -> str:
     """The whole of ``docs/benchmarks.md``."""
     lines = [
@@ -975,6 +977,7 @@ def build_document(
         ".venv/bin/python benchmarks/wrap_solvers.py --scans --nricp --json out/bench/wrap_solvers.json "
         "--markdown docs/wrap-solvers.md",
         ".venv/bin/python benchmarks/feature_curves.py [--quick] --json out/bench/feature_curves.json",
+        ".venv/bin/python benchmarks/few_anchors.py [--cases NAME ...] [--anchors N ...] --json out/bench/few_anchors.json",
         ".venv/bin/python benchmarks/figures.py && .venv/bin/python benchmarks/report.py",
         "```",
         "",
@@ -995,7 +998,12 @@ def build_document(
     if retarget is not None:
         lines += ["## Headline", ""] + headline(retarget) + [""]
         lines += retarget_section(retarget, image_folder, image_prefix)
-    else:
+    if few_anchors is not None:  # benchmarks/few_anchors.py
+        sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+        from benchmarks.few_anchors import markdown
+
+        lines += markdown(few_anchors)
+    if retarget is None:
         lines += ["## Accuracy", "", "Not run: no `out/bench/retarget.json`.", ""]
     lines += ["## Performance", ""]
     if snap is not None:
@@ -1042,6 +1050,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--quality", type=Path, default=OUT / "quality_readout.json")
     parser.add_argument("--cage-fit", type=Path, default=OUT / "cage_fit.json")
     parser.add_argument("--large-target", type=Path, default=OUT / "large_target.json")
+    parser.add_argument("--few-anchors", type=Path, default=OUT / "few_anchors.json")
     parser.add_argument("--output", type=Path, default=DOCS / "benchmarks.md")
     arguments = parser.parse_args(sys.argv[1:] if argv is None else argv)
     inputs = {name: load(getattr(arguments, name)) for name in ("retarget", "performance", "snap")}
@@ -1062,6 +1071,7 @@ def main(argv: list[str] | None = None) -> int:
             load(arguments.batch),
             load(arguments.features),
             {name: load(getattr(arguments, name)) for name in ("quality", "cage_fit", "large_target")},
+            load(arguments.few_anchors),
         )
     )
     print(f"wrote {arguments.output}")

@@ -105,8 +105,8 @@ LAYOUT_NAME = "Retargeted"
 
 
 def wrap_settings(arguments: argparse.Namespace):
-    """The ``springwrap_kernel.WrapSettings`` of --tolerance, --fairness, --arc-length, --thin-plate and --solver
-    (checked by the kernel: ``springwrap_kernel.InvalidArgumentError`` names a value out of its range)."""
+    """The ``springwrap_kernel.WrapSettings`` of --tolerance, --fairness, --arc-length, --thin-plate, --solver and
+    --schedule (checked by the kernel: ``springwrap_kernel.InvalidArgumentError`` names a value out of its range)."""
     import springwrap_kernel
 
     return springwrap_kernel.WrapSettings(
@@ -115,6 +115,7 @@ def wrap_settings(arguments: argparse.Namespace):
         arc_length=arguments.arc_length,
         thin_plate=arguments.thin_plate,
         solver=arguments.solver.upper(),
+        schedule=arguments.schedule.upper().replace("-", "_"),
     )
 
 
@@ -184,6 +185,13 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
         choices=("springs", "energy"),
         default=defaults.solver.lower(),
         help="the wrap's algorithm: the paper's force iteration, or one energy by a global solve (default %(default)s)",
+    )
+    parser.add_argument(
+        "--schedule",
+        choices=("local", "global-to-local"),
+        default=defaults.schedule.lower().replace("_", "-"),
+        help="the energy solver's stiffness schedule: local, or stiff nearly affine levels first, for a few anchors "
+        "on a large change of shape (default %(default)s)",
     )
     parser.add_argument(
         "--stiffness-group",
@@ -539,6 +547,7 @@ def batch_task(arguments: argparse.Namespace, target: Path, output_dir: Path) ->
             "arc_length",
             "thin_plate",
             "solver",
+            "schedule",
             "stiffness_group",
             "free_group",
             "fit_subdivision",

@@ -253,6 +253,22 @@ WRAP_SOLVER_ITEMS = (
 )
 """The wrap's algorithms (``springwrap_kernel.WrapSettings(solver=...)``)."""
 
+WRAP_SCHEDULE_ITEMS = (
+    (
+        "LOCAL",
+        "Local",
+        "Energy solver: one scale for the whole layout at first, then local scales; quick, and right when the "
+        "layout starts near its place (many anchors, or a small change of shape)",
+    ),
+    (
+        "GLOBAL_TO_LOCAL",
+        "Global to Local",
+        "Energy solver: stiff, nearly affine levels first (each region stretched and sheared as one piece), "
+        "then the local fit; for a few anchors on a large change of shape",
+    ),
+)
+"""The energy wrap's stiffness schedules (``springwrap_kernel.WrapSettings(schedule=...)``)."""
+
 SHAPE_KEYS_ITEMS = (
     (
         "TRANSFER",
@@ -303,6 +319,12 @@ class SpringwrapObjectSettings(bpy.types.PropertyGroup):
     )
     wrap_solver: props.choice(
         "Solver", "Algorithm of the panel's Wrap and Mirror buttons", WRAP_SOLVER_ITEMS, WRAP_DEFAULTS.solver
+    )
+    wrap_schedule: props.choice(
+        "Schedule",
+        "Stiffness schedule of the panel's Wrap button (Energy solver)",
+        WRAP_SCHEDULE_ITEMS,
+        WRAP_DEFAULTS.schedule,
     )
     shape_keys: shape_keys_property("What the panel's Wrap and Mirror buttons do with the layout's shape keys")
     snap_mode: props.choice("Snap Mode", "Default mode of the panel's Snap button", SNAP_MODE_ITEMS, "SURFACE")

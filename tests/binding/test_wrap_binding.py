@@ -96,6 +96,7 @@ SETTING_NAMES = [
     "momentum",
     "rest",
     "solver",
+    "schedule",
 ]
 
 
@@ -116,11 +117,13 @@ def test_wrap_settings_hold_the_kernels_defaults_and_read_every_field():
         "momentum": 0.9,
         "rest": "TEMPLATE",
         "solver": "ENERGY",
+        "schedule": "LOCAL",
     }
     assert np.float32(settings.fold_tolerance) == np.float32(np.radians(10))
     assert repr(settings) == (
         "WrapSettings(fairness=0.5, arc_length=0.5, thin_plate=0.2, constraint=0.5, folding=0.3, tolerance=1e-05, "
-        "landing_distance=0.25, fold_tolerance=0.17453292, momentum=0.9, rest='TEMPLATE', solver='ENERGY')"
+        "landing_distance=0.25, fold_tolerance=0.17453292, momentum=0.9, rest='TEMPLATE', solver='ENERGY', "
+        "schedule='LOCAL')"
     )
 
 
@@ -158,7 +161,16 @@ BAD_SETTINGS = {
     "momentum": (1.0, r"invalid momentum: the momentum must be within \[0, 0.99\], not 1"),
     "rest": ("SOFT", "invalid rest: \"SOFT\" is not 'TEMPLATE' or 'EVEN'"),
     "solver": ("FAST", "invalid solver: \"FAST\" is not 'SPRINGS' or 'ENERGY'"),
+    "schedule": ("FAST", "invalid schedule: \"FAST\" is not 'LOCAL' or 'GLOBAL_TO_LOCAL'"),
 }
+
+
+def test_the_global_to_local_schedule_needs_the_energy_solver():
+    settings = sk.WrapSettings(schedule="GLOBAL_TO_LOCAL")
+    assert settings.schedule == "GLOBAL_TO_LOCAL" and settings != sk.WrapSettings()
+    assert eval(repr(settings), {"WrapSettings": sk.WrapSettings}) == settings
+    with pytest.raises(sk.InvalidArgumentError, match="invalid schedule: the global-to-local schedule needs"):
+        settings.replace(solver="SPRINGS")
 
 
 @pytest.mark.parametrize("name", list(BAD_SETTINGS))

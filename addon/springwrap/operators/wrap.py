@@ -34,6 +34,7 @@ from ..core.wrap_run import WrapLoop, WrapResult
 from ..properties import (
     WRAP_DEFAULTS,
     WRAP_RANGES,
+    WRAP_SCHEDULE_ITEMS,
     WRAP_SOLVER_ITEMS,
     max_iterations_property,
     shape_keys_property,
@@ -97,6 +98,9 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
         WRAP_DEFAULTS.rest,
     )
     solver: props.choice("Solver", "The wrap's algorithm", WRAP_SOLVER_ITEMS, WRAP_DEFAULTS.solver)
+    schedule: props.choice(
+        "Schedule", "How the energy solver's stiffness relaxes", WRAP_SCHEDULE_ITEMS, WRAP_DEFAULTS.schedule
+    )
     spring_resolution: bpy.props.IntProperty(
         name="Spring Resolution",
         description="Above 1: relax the layout, then relax again with every quad cut into this many by this many "
@@ -136,7 +140,17 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
         The kernel checks the settings here: a value out of its range raises
         ``springwrap_kernel.InvalidArgumentError`` naming it.
         """
-        names = ("tolerance", "fairness", "arc_length", "thin_plate", "constraint", "folding", "rest", "solver")
+        names = (
+            "tolerance",
+            "fairness",
+            "arc_length",
+            "thin_plate",
+            "constraint",
+            "folding",
+            "rest",
+            "solver",
+            "schedule",
+        )
         return WrapParameters(
             max_iterations=self.max_iterations,
             settings=WRAP_DEFAULTS.replace(**{name: getattr(self, name) for name in names}),

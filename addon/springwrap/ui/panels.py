@@ -250,8 +250,13 @@ class SPRINGWRAP_PT_wrap(_LayoutSubPanel, bpy.types.Panel):
             row.scale_y = WRAP_BUTTON_SCALE
             wrap = row.operator("springwrap.wrap", icon="MOD_SHRINKWRAP")
             wrap.solver, wrap.shape_keys = settings.wrap_solver, settings.shape_keys
+            # The schedule is the energy solver's: the spring solver refuses any but the default.
+            wrap.schedule = settings.wrap_schedule if settings.wrap_solver == "ENERGY" else "LOCAL"
 
         layout.prop(settings, "wrap_solver")
+        schedule = layout.row()
+        schedule.active = settings.wrap_solver == "ENERGY"
+        schedule.prop(settings, "wrap_schedule")
         if obj.data.shape_keys is not None:  # shape keys: transferred or refused (Wrap and Mirror)
             layout.prop(settings, "shape_keys")
         row = layout.row()

@@ -73,5 +73,5 @@ pub use surface::{WalkEnd, WalkOutcome};
 pub use validate::{BARYCENTRIC_RANGE, MAX_COORDINATE};
 pub use wrap::{
     Anchor, AnchorTarget, CurveConstraint, PlaneConstraint, SolverKind, SpringRest, StepReport,
-    WrapSettings, WrapSolver, WrapWeights,
+    WrapSchedule, WrapSettings, WrapSolver, WrapWeights,
 };

@@ -116,36 +116,6 @@ fn points_over_a_hole_float_on_the_continued_surface() {
     assert!(report.space_points > 0, "{report:?}");
 }
 
-/// A band of quads around the z axis (polar angles 30° to 150°), `rings` x `segments`, on an
-/// ellipsoid with the given semi-axes.
-fn band_layout(axes: Vec3, rings: u32, segments: u32) -> (LayoutStructure, Vec<Vec3>) {
-    let mut positions = Vec::new();
-    for ring in 0..=rings {
-        let polar = (30.0 + 120.0 * ring as f32 / rings as f32).to_radians();
-        for segment in 0..segments {
-            let azimuth = std::f32::consts::TAU * segment as f32 / segments as f32;
-            let unit = Vec3::new(
-                polar.sin() * azimuth.cos(),
-                polar.sin() * azimuth.sin(),
-                polar.cos(),
-            );
-            positions.push(unit * axes);
-        }
-    }
-    let mut corners = Vec::new();
-    for ring in 0..rings {
-        for segment in 0..segments {
-            let a = ring * segments + segment;
-            let b = ring * segments + (segment + 1) % segments;
-            // Counter-clockwise seen from outside: the normals point outwards.
-            corners.extend([a, a + segments, b + segments, b]);
-        }
-    }
-    let faces = vec![4; (rings * segments) as usize];
-    let structure = LayoutStructure::new(positions.len(), &corners, &faces, &[], &[]).unwrap();
-    (structure, positions)
-}
-
 fn band_quad_normals(structure_rings: u32, segments: u32, positions: &[Vec3]) -> Vec<(Vec3, Vec3)> {
     let mut normals = Vec::new();
     for ring in 0..structure_rings {
@@ -168,7 +138,7 @@ fn a_band_wraps_onto_a_sphere_on_the_surface_with_every_face_outwards() {
     let (vertices, triangles) = common::uv_sphere(1.0, 48, 96);
     let target =
         Arc::new(TargetMesh::new(vertices, triangles, TargetMeshOptions::default()).unwrap());
-    let (structure, positions) = band_layout(Vec3::new(1.3, 1.1, 0.9), 12, 32);
+    let (structure, positions) = common::band_layout(Vec3::new(1.3, 1.1, 0.9), 12, 32);
     for (normal, centre) in band_quad_normals(12, 32, &positions) {
         assert!(normal.dot(centre) > 0.0, "the test's band faces outwards");
     }

@@ -6,7 +6,7 @@
 
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyFloat};
-use springwrap_kernel::{SolverKind, SpringRest, WrapSettings, WrapWeights};
+use springwrap_kernel::{SolverKind, SpringRest, WrapSchedule, WrapSettings, WrapWeights};
 
 use crate::arguments;
 use crate::errors::{InvalidArgumentError, to_python_error};
@@ -30,6 +30,25 @@ fn solver_name(solver: SolverKind) -> &'static str {
         SolverKind::Springs => "SPRINGS",
         SolverKind::Energy => "ENERGY",
     }
+}
+
+/// The binding's name of a stiffness schedule.
+fn schedule_name(schedule: WrapSchedule) -> &'static str {
+    match schedule {
+        WrapSchedule::Local => "LOCAL",
+        WrapSchedule::GlobalToLocal => "GLOBAL_TO_LOCAL",
+    }
+}
+
+fn parse_schedule(name: &str) -> PyResult<WrapSchedule> {
+    [WrapSchedule::Local, WrapSchedule::GlobalToLocal]
+        .into_iter()
+        .find(|&schedule| schedule_name(schedule) == name)
+        .ok_or_else(|| {
+            InvalidArgumentError::new_err(format!(
+                "invalid schedule: {name:?} is not 'LOCAL' or 'GLOBAL_TO_LOCAL'"
+            ))
+        })
 }
 
 fn parse_rest(name: &str) -> PyResult<SpringRest> {
@@ -91,6 +110,7 @@ impl PyWrapSettings {
         momentum = None,
         rest = None,
         solver = None,
+        schedule = None,
     ))]
     #[allow(clippy::too_many_arguments)] // keyword arguments of one Python constructor
     fn new(
@@ -105,6 +125,7 @@ impl PyWrapSettings {
         momentum: Option<&Bound<'_, PyAny>>,
         rest: Option<&Bound<'_, PyAny>>,
         solver: Option<&Bound<'_, PyAny>>,
+        schedule: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         // Absent keywords take the kernel's defaults (`WrapSettings::default()`, never a number
         // typed again); every value is converted by `arguments` (naming the keyword) and then
@@ -126,6 +147,7 @@ impl PyWrapSettings {
         let momentum = number("momentum", momentum, defaults.momentum)?;
         let rest = arguments::text("rest", rest, rest_name(defaults.rest))?;
         let solver = arguments::text("solver", solver, solver_name(defaults.solver))?;
+        let schedule = arguments::text("schedule", schedule, schedule_name(defaults.schedule))?;
         let (rest, solver) = (rest.as_str(), solver.as_str());
         let settings = WrapSettings {
             weights: WrapWeights {
@@ -141,6 +163,7 @@ impl PyWrapSettings {
             momentum,
             rest: parse_rest(rest)?,
             solver: parse_solver(solver)?,
+            schedule: parse_schedule(&schedule)?,
         };
         settings
             .validate()
@@ -215,6 +238,13 @@ impl PyWrapSettings {
         solver_name(self.settings.solver)
     }
 
+    /// The energy solver's stiffness schedule: `'LOCAL'` or `'GLOBAL_TO_LOCAL'` (stiff, nearly
+    /// affine levels first: for few anchors on a large change of shape).
+    #[getter]
+    fn schedule(&self) -> &'static str {
+        schedule_name(self.settings.schedule)
+    }
+
     /// Every setting by its keyword, in the constructor's order.
     fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let dict = PyDict::new(py);
@@ -223,6 +253,7 @@ impl PyWrapSettings {
         }
         dict.set_item("rest", self.rest())?;
         dict.set_item("solver", self.solver())?;
+        dict.set_item("schedule", self.schedule())?;
         Ok(dict)
     }
 
@@ -246,10 +277,11 @@ impl PyWrapSettings {
             parts.push(format!("{name}={value}"));
         }
         Ok(format!(
-            "WrapSettings({}, rest='{}', solver='{}')",
+            "WrapSettings({}, rest='{}', solver='{}', schedule='{}')",
             parts.join(", "),
             self.rest(),
-            self.solver()
+            self.solver(),
+            self.schedule()
         ))
     }
 }

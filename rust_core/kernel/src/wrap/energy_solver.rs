@@ -42,8 +42,10 @@ use rayon::prelude::*;
 
 use super::anchor::AnchorTarget;
 use super::forces::{Similarity, SpringRest, Springs};
+use super::global_phase::{GLOBAL_TO_LOCAL_LEVELS, RECIPROCAL_LEVELS, Stretches, keep_reciprocal};
 use super::linear_system::{LinearSystem, Stencils};
 use super::plane_constraint::Plane;
+use super::settings::WrapSchedule;
 use crate::error::KernelError;
 use crate::face_point::{FacePoint, LayoutPoint, SurfaceHit};
 use crate::layout::LayoutStructure;
@@ -59,22 +61,24 @@ const LINE_WEIGHT: f64 = 1.0;
 const PROXIMAL_WEIGHT: f64 = 1e-6;
 /// A point is taken as touching its correspondence's tangent plane... the data term's Welsch
 /// width, per level, in mean edge lengths, and other per-level settings.
-struct Level {
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Level {
     /// λ: the data term's weight, relative to the edge weight.
-    data_weight: f64,
+    pub(crate) data_weight: f64,
     /// σ of the Welsch weight, in mean edge lengths; correspondences farther than 3σ are ignored.
-    welsch_width: f32,
-    /// Rounds of averaging of the log scales over edge neighbours; `None`: one scale for all.
-    scale_smoothing: Option<usize>,
+    pub(crate) welsch_width: f32,
+    /// Rounds of averaging of the log scales (or of the stretches, in the global-to-local
+    /// schedule) over edge neighbours; `None`: one scale for all.
+    pub(crate) scale_smoothing: Option<usize>,
     /// Rounds of averaging of the fitted rotations over edge neighbours (0: each vertex its own).
-    rotation_smoothing: usize,
+    pub(crate) rotation_smoothing: usize,
     /// The most iterations at this level.
-    max_iterations: usize,
+    pub(crate) max_iterations: usize,
 }
 
 /// The stiffness schedule: the data term tightens, the scale and the rotations loosen level by
 /// level (at the first, rotations averaged over about 8 rings move each region as one piece).
-const LEVELS: [Level; 4] = [
+pub(crate) const LEVELS: [Level; 4] = [
     Level {
         data_weight: 0.1,
         welsch_width: 3.0,
@@ -175,6 +179,8 @@ pub(crate) struct EnergyInputs<'a> {
     pub plane_slide: bool,
     pub mean_edge_length: f32,
     pub landing_distance: f32,
+    /// Which stiffness schedule the wrap follows.
+    pub schedule: WrapSchedule,
 }
 
 /// One iteration's outcome.
@@ -239,6 +245,10 @@ pub(crate) struct EnergySolver {
     orientation: f32,
     mean_edge_length: f32,
     landing_distance: f32,
+    /// The stiffness schedule's levels.
+    levels: &'static [Level],
+    /// The per-vertex stretches of the global-to-local schedule (`None`: similarities alone).
+    stretches: Option<Stretches>,
     /// Whether the anchors-only warm-up is still running.
     warming_up: bool,
     level: usize,
@@ -348,6 +358,12 @@ impl EnergySolver {
             orientation: 1.0,
             mean_edge_length: inputs.mean_edge_length,
             landing_distance: inputs.landing_distance,
+            levels: match inputs.schedule {
+                WrapSchedule::Local => &LEVELS,
+                WrapSchedule::GlobalToLocal => &GLOBAL_TO_LOCAL_LEVELS,
+            },
+            stretches: (inputs.schedule == WrapSchedule::GlobalToLocal)
+                .then(|| Stretches::new(structure, inputs.rest)),
             warming_up: true,
             level: 0,
             level_iterations: 0,
@@ -481,16 +497,19 @@ impl EnergySolver {
         if self.warming_up {
             return self.warm_up();
         }
-        let level = &LEVELS[self.level];
+        let level = &self.levels[self.level];
         // Local step: similarities and correspondences at the current positions.
         if self.iterations > 0 {
             self.fit_similarities(false);
         }
-        self.smooth_scales(level.scale_smoothing);
         self.smooth_rotations(level.rotation_smoothing);
+        self.fit_scales(level.scale_smoothing);
         let normals = self.layout_normals(&self.positions);
         let width = level.welsch_width * self.mean_edge_length;
         let mut correspondences = self.correspondences(&normals, width);
+        if self.stretches.is_some() && self.level < RECIPROCAL_LEVELS {
+            keep_reciprocal(&self.positions, &mut correspondences, self.mean_edge_length);
+        }
         // A point the safeguard held back last time has no data term now: the shape terms
         // alone move it, away from the fold the data pulled it into.
         for (correspondence, held) in correspondences.iter_mut().zip(&self.held_back) {
@@ -530,8 +549,8 @@ impl EnergySolver {
             self.level += 1;
             self.level_iterations = 0;
             self.last_energy = f64::INFINITY;
-            if self.level == LEVELS.len() {
-                self.level = LEVELS.len() - 1;
+            if self.level == self.levels.len() {
+                self.level = self.levels.len() - 1;
                 self.finished = true;
             }
         }
@@ -551,8 +570,8 @@ impl EnergySolver {
         if self.iterations > 0 {
             self.fit_similarities(false);
         }
-        self.smooth_scales(None);
         self.smooth_rotations(WARMUP_ROTATION_SMOOTHING);
+        self.fit_scales(None);
         let none = vec![None; self.positions.len()];
         let mut proposed = self.global_solve(&none, 0.0)?;
         self.keep_on_plane(&mut proposed);
@@ -645,6 +664,16 @@ impl EnergySolver {
         mean
     }
 
+    /// Fits the stretches (global-to-local schedule) or smooths the scales, `rounds` as
+    /// [`Self::smooth_scales`] takes them.
+    fn fit_scales(&mut self, rounds: Option<usize>) {
+        if let Some(stretches) = self.stretches.as_mut() {
+            stretches.fit(&self.structure, &self.positions, &self.similarities, rounds);
+        } else {
+            self.smooth_scales(rounds);
+        }
+    }
+
     /// Replaces the fitted scales by their median (`None`) or by their log averaged over edge
     /// neighbours `rounds` times, within [`SCALE_RANGE`] of the median.
     fn smooth_scales(&mut self, rounds: Option<usize>) {
@@ -695,7 +724,12 @@ impl EnergySolver {
 
     /// What term `term` asks of its stencil now: its rest vector under its owner's similarity.
     fn term_target(&self, term: usize) -> DVec3 {
-        let fit = self.similarities[self.term_owner[term] as usize];
+        let owner = self.term_owner[term] as usize;
+        let fit = self.similarities[owner];
+        if let Some(stretches) = &self.stretches {
+            let stretched = stretches.values[owner].as_dmat3() * self.term_rest[term];
+            return fit.rotation.as_dquat() * stretched;
+        }
         let turned = fit.rotation.as_dquat() * self.term_rest[term];
         turned * f64::from(fit.scale)
     }
@@ -1319,6 +1353,7 @@ mod tests {
             plane_slide: true,
             mean_edge_length: 0.1,
             landing_distance: 0.025,
+            schedule: WrapSchedule::Local,
         })
         .unwrap()
     }

@@ -46,6 +46,19 @@ pub enum SolverKind {
     Energy,
 }
 
+/// How the energy wrap's stiffness relaxes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum WrapSchedule {
+    /// Rotations and one scale for all at first, then local scales: quick, and right when the
+    /// layout starts near its place (many anchors, or a small change of shape).
+    #[default]
+    Local,
+    /// Stiff, nearly affine levels first (per-vertex stretches and rotations averaged over many
+    /// rings, a weak wide data term), then the local levels: for a few anchors on a large
+    /// change of shape, where the local schedule settles into a wrong fit.
+    GlobalToLocal,
+}
+
 /// Everything that controls a wrap besides the layout, the target and the anchors.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct WrapSettings {
@@ -68,6 +81,8 @@ pub struct WrapSettings {
     pub rest: SpringRest,
     /// The algorithm.
     pub solver: SolverKind,
+    /// The energy solver's stiffness schedule.
+    pub schedule: WrapSchedule,
 }
 
 impl Default for WrapSettings {
@@ -80,6 +95,7 @@ impl Default for WrapSettings {
             momentum: 0.9,
             rest: SpringRest::Template,
             solver: SolverKind::default(),
+            schedule: WrapSchedule::default(),
         }
     }
 }
@@ -175,6 +191,14 @@ impl WrapSettings {
                     "the even rest shape (straight, evenly spaced grid lines) needs the spring \
                          solver; the energy solver keeps the template's shape"
                         .to_owned(),
+            });
+        }
+        if self.solver == SolverKind::Springs && self.schedule != WrapSchedule::Local {
+            return Err(KernelError::InvalidArgument {
+                name: "schedule",
+                reason: "the global-to-local schedule needs the energy solver; the spring \
+                         solver anneals by itself"
+                    .to_owned(),
             });
         }
         Ok(())

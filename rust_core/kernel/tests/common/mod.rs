@@ -224,3 +224,33 @@ pub fn anchors_below(target: &TargetMesh, positions: &[Vec3], vertices: &[u32]) 
         })
         .collect()
 }
+
+/// A band of quads around the z axis (polar angles 30° to 150°), `rings` x `segments`, on an
+/// ellipsoid with the given semi-axes.
+pub fn band_layout(axes: Vec3, rings: u32, segments: u32) -> (LayoutStructure, Vec<Vec3>) {
+    let mut positions = Vec::new();
+    for ring in 0..=rings {
+        let polar = (30.0 + 120.0 * ring as f32 / rings as f32).to_radians();
+        for segment in 0..segments {
+            let azimuth = std::f32::consts::TAU * segment as f32 / segments as f32;
+            let unit = Vec3::new(
+                polar.sin() * azimuth.cos(),
+                polar.sin() * azimuth.sin(),
+                polar.cos(),
+            );
+            positions.push(unit * axes);
+        }
+    }
+    let mut corners = Vec::new();
+    for ring in 0..rings {
+        for segment in 0..segments {
+            let a = ring * segments + segment;
+            let b = ring * segments + (segment + 1) % segments;
+            // Counter-clockwise seen from outside: the normals point outwards.
+            corners.extend([a, a + segments, b + segments, b]);
+        }
+    }
+    let faces = vec![4; (rings * segments) as usize];
+    let structure = LayoutStructure::new(positions.len(), &corners, &faces, &[], &[]).unwrap();
+    (structure, positions)
+}

@@ -353,6 +353,7 @@ class WrapSettings:
         momentum: float = 0.9,
         rest: Literal["TEMPLATE", "EVEN"] = "TEMPLATE",
         solver: Literal["SPRINGS", "ENERGY"] = "ENERGY",
+        schedule: Literal["LOCAL", "GLOBAL_TO_LOCAL"] = "LOCAL",
     ) -> None: ...
     @property
     def fairness(self) -> float:
@@ -387,6 +388,10 @@ class WrapSettings:
     @property
     def solver(self) -> Literal["SPRINGS", "ENERGY"]:
         """The algorithm: the paper's force iteration, or one energy minimised by global solves."""
+    @property
+    def schedule(self) -> Literal["LOCAL", "GLOBAL_TO_LOCAL"]:
+        """The energy solver's stiffness schedule: local, or stiff nearly affine levels first (for few anchors on
+        a large change of shape); the spring solver refuses all but the local one."""
     def to_dict(self) -> dict[str, float | str]:
         """Every setting by its keyword, in the constructor's order."""
     def replace(self, **changes: float | str) -> WrapSettings:

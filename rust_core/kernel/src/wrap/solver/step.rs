@@ -75,6 +75,7 @@ impl WrapSolver {
                 plane_slide: self.plane_slide,
                 mean_edge_length: self.mean_edge_length,
                 landing_distance: self.landing_distance,
+                schedule: self.settings.schedule,
             };
             self.energy = Some(Box::new(EnergySolver::new(&inputs)?));
         }

@@ -1,0 +1,346 @@
+//! The energy wrap's global-to-local schedule: stiff, nearly affine levels before the local fit.
+//!
+//! With few anchors on a large change of shape, the default schedule's first level already pulls
+//! the layout onto the nearest surface with one scale for all: a heavier body's girth cannot be
+//! expressed, and the data term drags the layout sideways into a wrong fit (an arm onto the
+//! torso). This schedule gives every vertex a **stretch** `S_i` (a symmetric 3×3 in the rest
+//! frame) besides its rotation, so that the shape terms ask `x_j − x_i ≈ R_i S_i (r_j − r_i)`:
+//! local scale and shear are free, as in non-rigid ICP's per-vertex affine transforms (Amberg et
+//! al. 2007). Stiffness is the averaging of the stretches and rotations over many rings, relaxed
+//! level by level (a near-affine deformation of whole regions first, local at the end), while the
+//! data term tightens from weak and wide to strong and narrow; then the default schedule's local
+//! levels follow, with the stretches kept.
+
+use glam::{Mat3, Vec3};
+use rayon::prelude::*;
+
+use super::energy_solver::{LEVELS, Level};
+use super::forces::Similarity;
+use crate::layout::LayoutStructure;
+
+/// The global-to-local schedule: three stiff levels whose stretches are averaged over about 32,
+/// 16 and 8 rings (rounds ≈ rings²) and rotations over about 16, 8 and 4, with a weak and wide data
+/// term (σ = 10, 6, 3 mean edges), then the default schedule's local levels. Chosen by measurement
+/// on the benchmark bodies with 4 and 6 anchors (stiffer and longer was better at every step tried).
+pub(crate) const GLOBAL_TO_LOCAL_LEVELS: [Level; 6] = [
+    STIFF_LEVELS[0],
+    STIFF_LEVELS[1],
+    STIFF_LEVELS[2],
+    LEVELS[1],
+    LEVELS[2],
+    LEVELS[3],
+];
+
+/// The stiff levels of [`GLOBAL_TO_LOCAL_LEVELS`].
+const STIFF_LEVELS: [Level; 3] = [
+    Level {
+        data_weight: 0.01,
+        welsch_width: 10.0,
+        scale_smoothing: Some(1024),
+        rotation_smoothing: 256,
+        max_iterations: 20,
+    },
+    Level {
+        data_weight: 0.05,
+        welsch_width: 6.0,
+        scale_smoothing: Some(256),
+        rotation_smoothing: 64,
+        max_iterations: 12,
+    },
+    Level {
+        data_weight: 0.3,
+        welsch_width: 3.0,
+        scale_smoothing: Some(64),
+        rotation_smoothing: 16,
+        max_iterations: 8,
+    },
+];
+
+/// In the stiff levels (the first [`RECIPROCAL_LEVELS`]), a correspondence farther than
+/// [`RECIPROCAL_NEAR`] mean edges is kept only when no layout point outside its own
+/// neighbourhood ([`RECIPROCAL_NEAR`] edges) lies nearer to the point it is pulled to than
+/// [`RECIPROCAL_RATIO`] times its own distance: an arm is not pulled onto a torso that has its own
+/// layout right there. (Measured with the first stiff levels tried: a ratio of 1 hurt with 4
+/// anchors; no reciprocity at all hurt the heavy body with 6.)
+pub(crate) const RECIPROCAL_LEVELS: usize = 3;
+const RECIPROCAL_NEAR: f32 = 2.0;
+const RECIPROCAL_RATIO: f32 = 0.5;
+
+/// A stretch's determinant may not fall below this fraction of its mean scale cubed (a region
+/// squashed flat or turned inside out by averaging); such a stretch becomes its mean scale.
+const MIN_STRETCH_VOLUME: f32 = 0.05;
+/// Per-vertex stretches stay within this factor of the median scale.
+const STRETCH_RANGE: f32 = 3.0;
+
+/// The stretches of the global-to-local schedule, and what fitting them needs.
+#[derive(Debug, Clone)]
+pub(crate) struct Stretches {
+    /// Per vertex, its rest position and unit rest normal.
+    rest: Vec<Vec3>,
+    rest_normals: Vec<Vec3>,
+    /// Per vertex, `S_i` (the shape terms ask `R_i S_i` of its rest vectors).
+    pub(crate) values: Vec<Mat3>,
+}
+
+impl Stretches {
+    /// Isotropic unit stretches for a layout resting at `rest`.
+    pub(crate) fn new(structure: &LayoutStructure, rest: &[Vec3]) -> Self {
+        let rest_normals = (0..rest.len() as u32)
+            .into_par_iter()
+            .with_min_len(2048)
+            .map(|vertex| structure.normal_at(rest, vertex).normalize_or_zero())
+            .collect();
+        Self {
+            rest: rest.to_vec(),
+            rest_normals,
+            values: vec![Mat3::IDENTITY; rest.len()],
+        }
+    }
+
+    /// Fits every vertex's stretch at `positions` given its rotation in `similarities`, then
+    /// averages them over edge neighbours `rounds` times, or (`None`) replaces them by the median
+    /// scale.
+    pub(crate) fn fit(
+        &mut self,
+        structure: &LayoutStructure,
+        positions: &[Vec3],
+        similarities: &[Similarity],
+        rounds: Option<usize>,
+    ) {
+        let mut scales: Vec<f32> = similarities
+            .iter()
+            .map(|fit| fit.scale)
+            .filter(|scale| *scale > 0.0 && scale.is_finite())
+            .collect();
+        if scales.is_empty() {
+            return;
+        }
+        let middle = scales.len() / 2;
+        let median = *scales.select_nth_unstable_by(middle, f32::total_cmp).1;
+        let Some(rounds) = rounds else {
+            self.values = vec![Mat3::from_diagonal(Vec3::splat(median)); positions.len()];
+            return;
+        };
+        let bound = |stretch: Mat3| bounded(stretch, median);
+        let mut stretches: Vec<Mat3> = (0..positions.len() as u32)
+            .into_par_iter()
+            .with_min_len(1024)
+            .map(|vertex| {
+                let fit = similarities[vertex as usize];
+                self.fit_one(structure, positions, vertex, fit)
+                    .map_or_else(|| Mat3::from_quat(fit.rotation) * median, bound)
+            })
+            .collect();
+        for _ in 0..rounds {
+            stretches = (0..stretches.len() as u32)
+                .into_par_iter()
+                .with_min_len(2048)
+                .map(|vertex| {
+                    let neighbors = structure.neighbors_of(vertex);
+                    let sum = neighbors
+                        .iter()
+                        .fold(stretches[vertex as usize], |sum, &other| {
+                            sum + stretches[other as usize]
+                        });
+                    sum * (1.0 / (1 + neighbors.len()) as f32)
+                })
+                .collect();
+        }
+        self.values = stretches.into_iter().map(bound).collect();
+    }
+
+    /// The symmetric stretch `S` with `R S` the least-squares linear map of `vertex`'s rest edges
+    /// (and its rest normal, as long as its edges) onto its current ones, `R` its fitted
+    /// rotation; `None` when its neighbourhood is degenerate.
+    fn fit_one(
+        &self,
+        structure: &LayoutStructure,
+        positions: &[Vec3],
+        vertex: u32,
+        fit: Similarity,
+    ) -> Option<Mat3> {
+        let index = vertex as usize;
+        let (here, rest_here) = (positions[index], self.rest[index]);
+        let neighbors = structure.neighbors_of(vertex);
+        if neighbors.is_empty() {
+            return None;
+        }
+        let mut now_rest = Mat3::ZERO;
+        let mut rest_rest = Mat3::ZERO;
+        let (mut now_length, mut rest_length) = (0.0f32, 0.0f32);
+        for &other in neighbors {
+            let now = positions[other as usize] - here;
+            let rest = self.rest[other as usize] - rest_here;
+            now_rest += outer(now, rest);
+            rest_rest += outer(rest, rest);
+            now_length += now.length_squared();
+            rest_length += rest.length_squared();
+        }
+        let count = neighbors.len() as f32;
+        let (now_length, rest_length) = ((now_length / count).sqrt(), (rest_length / count).sqrt());
+        let now_normal = structure.normal_at(positions, vertex).normalize_or_zero() * now_length;
+        let rest_normal = self.rest_normals[index] * rest_length;
+        now_rest += outer(now_normal, rest_normal);
+        rest_rest += outer(rest_normal, rest_normal);
+        if rest_rest.determinant().abs() <= f32::EPSILON * rest_length.powi(6) {
+            return None;
+        }
+        let linear = now_rest * rest_rest.inverse();
+        let unturned = glam::Mat3::from_quat(fit.rotation).transpose() * linear;
+        let stretch = (unturned + unturned.transpose()) * 0.5;
+        stretch.is_finite().then_some(stretch)
+    }
+}
+
+/// The correspondences (Welsch weight, point pulled to) with those dropped whose point has another
+/// part of the layout nearer to it (see [`RECIPROCAL_RATIO`]).
+pub(crate) fn keep_reciprocal<T: Copy + Send + Sync>(
+    positions: &[Vec3],
+    correspondences: &mut [Option<(T, Vec3)>],
+    mean_edge_length: f32,
+) {
+    if mean_edge_length <= 0.0 {
+        return;
+    }
+    let (ratio, near) = (RECIPROCAL_RATIO, RECIPROCAL_NEAR * mean_edge_length);
+    let cell = mean_edge_length * 4.0;
+    let key = |point: Vec3| (point / cell).floor().as_ivec3();
+    let mut grid: std::collections::HashMap<glam::IVec3, Vec<u32>> =
+        std::collections::HashMap::new();
+    for (vertex, &position) in positions.iter().enumerate() {
+        if position.is_finite() {
+            grid.entry(key(position)).or_default().push(vertex as u32);
+        }
+    }
+    let rejected: Vec<bool> = correspondences
+        .par_iter()
+        .enumerate()
+        .with_min_len(256)
+        .map(|(vertex, correspondence)| {
+            let Some((_, point)) = *correspondence else {
+                return false;
+            };
+            let here = positions[vertex];
+            let distance = here.distance(point);
+            if distance <= near {
+                return false;
+            }
+            let radius = distance * ratio;
+            let reach = (radius / cell).ceil() as i32;
+            let centre = key(point);
+            for dz in -reach..=reach {
+                for dy in -reach..=reach {
+                    for dx in -reach..=reach {
+                        let Some(vertices) = grid.get(&(centre + glam::IVec3::new(dx, dy, dz)))
+                        else {
+                            continue;
+                        };
+                        for &other in vertices {
+                            let there = positions[other as usize];
+                            if there.distance(point) < radius && there.distance(here) > near {
+                                return true;
+                            }
+                        }
+                    }
+                }
+            }
+            false
+        })
+        .collect();
+    for (correspondence, rejected) in correspondences.iter_mut().zip(rejected) {
+        if rejected {
+            *correspondence = None;
+        }
+    }
+}
+
+/// `a bᵀ`.
+fn outer(a: Vec3, b: Vec3) -> Mat3 {
+    Mat3::from_cols(a * b.x, a * b.y, a * b.z)
+}
+
+/// `stretch` with its mean scale within [`STRETCH_RANGE`] of `median`, or that mean scale alone
+/// when it is nearly flat or inverted.
+fn bounded(stretch: Mat3, median: f32) -> Mat3 {
+    let mean = (stretch.x_axis.x + stretch.y_axis.y + stretch.z_axis.z) / 3.0;
+    let clamped = mean.clamp(median / STRETCH_RANGE, median * STRETCH_RANGE);
+    if mean.is_nan() || mean <= 0.0 || stretch.determinant() < MIN_STRETCH_VOLUME * mean.powi(3) {
+        return Mat3::from_diagonal(Vec3::splat(clamped));
+    }
+    stretch * (clamped / mean)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Quat;
+
+    /// A 4 x 4 grid of unit cells in the xy plane and its structure.
+    fn grid() -> (LayoutStructure, Vec<Vec3>) {
+        let row = 5u32;
+        let rest: Vec<Vec3> = (0..row * row)
+            .map(|index| Vec3::new((index % row) as f32, (index / row) as f32, 0.0))
+            .collect();
+        let mut corners = Vec::new();
+        for y in 0..4 {
+            for x in 0..4 {
+                let a = y * row + x;
+                corners.extend([a, a + 1, a + row + 1, a + row]);
+            }
+        }
+        let structure = LayoutStructure::new(rest.len(), &corners, &[4; 16], &[], &[]).unwrap();
+        (structure, rest)
+    }
+
+    #[test]
+    fn an_affine_deformation_is_fitted_as_its_rotation_and_stretch() {
+        let (structure, rest) = grid();
+        let stretch = Mat3::from_cols(
+            Vec3::new(2.0, 0.3, 0.0),
+            Vec3::new(0.3, 0.5, 0.0),
+            Vec3::new(0.0, 0.0, 1.0),
+        );
+        let rotation = Quat::from_rotation_z(0.4);
+        let positions: Vec<Vec3> = rest
+            .iter()
+            .map(|&p| rotation * (stretch * p) + Vec3::new(3.0, -1.0, 2.0))
+            .collect();
+        let similarities = vec![
+            Similarity {
+                rotation,
+                scale: 1.0,
+            };
+            rest.len()
+        ];
+        let mut stretches = Stretches::new(&structure, &rest);
+        stretches.fit(&structure, &positions, &similarities, Some(0));
+        // The normal's stretch is the edges' mean length ratio, not 1: only the in-plane part
+        // is the deformation's own. Averaging equal in-plane stretches keeps them.
+        let in_plane = |stretches: &Stretches| {
+            for fitted in &stretches.values {
+                for (row, column) in [(0, 0), (0, 1), (1, 1)] {
+                    let (got, wanted) = (fitted.col(column)[row], stretch.col(column)[row]);
+                    assert!((got - wanted).abs() < 1e-4, "{fitted} against {stretch}");
+                }
+            }
+        };
+        in_plane(&stretches);
+        stretches.fit(&structure, &positions, &similarities, Some(8));
+        in_plane(&stretches);
+        // The median replaces them by one scale.
+        stretches.fit(&structure, &positions, &similarities, None);
+        assert!(
+            stretches.values[12].abs_diff_eq(Mat3::IDENTITY, 1e-6),
+            "{}",
+            stretches.values[12]
+        );
+    }
+
+    #[test]
+    fn an_inverted_or_extreme_stretch_is_bounded() {
+        let flat = Mat3::from_diagonal(Vec3::new(1.0, 1.0, -0.5));
+        assert_eq!(bounded(flat, 1.0), Mat3::from_diagonal(Vec3::splat(0.5)));
+        let huge = Mat3::from_diagonal(Vec3::splat(10.0));
+        assert_eq!(bounded(huge, 1.0), Mat3::from_diagonal(Vec3::splat(3.0)));
+    }
+}

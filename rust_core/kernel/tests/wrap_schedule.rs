@@ -1,0 +1,91 @@
+//! The energy wrap's stiffness schedules (`WrapSchedule`) on a large change of shape with few
+//! anchors, where the answer is known.
+
+mod common;
+
+use std::sync::Arc;
+
+use glam::Vec3;
+use springwrap_kernel::{
+    Anchor, AnchorTarget, LayoutPoint, SolverKind, TargetMesh, TargetMeshOptions, WrapSchedule,
+    WrapSettings, WrapSolver,
+};
+
+/// The mean distance of the wrapped band to the truth (each unit direction scaled by `axes`), with
+/// four anchors on the equator at their true places, and whether every quad still faces out.
+fn wrap_band(schedule: WrapSchedule, axes: Vec3) -> (f32, bool) {
+    let (rings, segments) = (12, 48);
+    let (vertices, triangles) = common::uv_sphere(1.0, 64, 128);
+    let vertices = vertices.into_iter().map(|v| v * axes).collect();
+    let target =
+        Arc::new(TargetMesh::new(vertices, triangles, TargetMeshOptions::default()).unwrap());
+    let (structure, directions) = common::band_layout(Vec3::ONE, rings, segments);
+    let truth: Vec<Vec3> = directions.iter().map(|&d| d * axes).collect();
+    let equator = rings / 2 * segments;
+    let anchors: Vec<Anchor> = (0..4)
+        .map(|quarter| {
+            let vertex = equator + quarter * segments / 4;
+            let hit = target
+                .closest_point(truth[vertex as usize], f32::INFINITY)
+                .unwrap();
+            Anchor {
+                vertex,
+                target: AnchorTarget::Face(hit.face_point),
+            }
+        })
+        .collect();
+    let points = directions.iter().map(|&p| LayoutPoint::Space(p)).collect();
+    let settings = WrapSettings {
+        schedule,
+        ..WrapSettings::default()
+    };
+    let mut solver =
+        WrapSolver::new(target, structure.clone(), points, &anchors, settings).unwrap();
+    let report = solver.step(1000).unwrap();
+    assert!(report.converged, "{report:?}");
+    let positions = solver.positions();
+    let error = positions
+        .iter()
+        .zip(&truth)
+        .map(|(p, t)| p.distance(*t))
+        .sum::<f32>()
+        / truth.len() as f32;
+    let outwards = (0..rings * segments).all(|quad| {
+        let (ring, segment) = (quad / segments, quad % segments);
+        let a = (ring * segments + segment) as usize;
+        let b = (ring * segments + (segment + 1) % segments) as usize;
+        let (c, d) = (b + segments as usize, a + segments as usize);
+        let centre = (positions[a] + positions[b] + positions[c] + positions[d]) * 0.25;
+        let normal = (positions[c] - positions[a]).cross(positions[b] - positions[d]);
+        normal.dot(centre) > 0.0
+    });
+    (error, outwards)
+}
+
+#[test]
+fn four_anchors_on_a_stretched_sphere_land_nearer_the_truth_with_the_global_to_local_schedule() {
+    // The layout is the unit sphere's band, the target the sphere stretched by `axes` (the truth:
+    // each point scaled), four anchors on the equator. The local schedule's first levels give the
+    // whole layout one scale and pull it onto the nearest surface; the global-to-local schedule
+    // stretches regions first. Measured: 0.253 against 0.162, and 0.136 against 0.091.
+    for axes in [Vec3::new(2.2, 1.0, 0.6), Vec3::new(1.6, 1.0, 0.8)] {
+        let (local, local_outwards) = wrap_band(WrapSchedule::Local, axes);
+        let (global, global_outwards) = wrap_band(WrapSchedule::GlobalToLocal, axes);
+        assert!(local_outwards && global_outwards, "a quad turned over");
+        assert!(
+            global < local * 0.75,
+            "{axes}: mean error {local} (local), {global} (global to local)"
+        );
+    }
+}
+
+#[test]
+fn the_global_to_local_schedule_needs_the_energy_solver() {
+    let settings = WrapSettings {
+        solver: SolverKind::Springs,
+        schedule: WrapSchedule::GlobalToLocal,
+        ..WrapSettings::default()
+    };
+    let message = settings.validate().unwrap_err().to_string();
+    assert!(message.starts_with("invalid schedule: "), "{message}");
+}
