@@ -15,10 +15,13 @@ Everything here is plain numpy on world-space arrays: the operator (``operators.
   it stays right for a non-uniformly scaled layout object.
 - A vertex is on the **seam** when its distance from the plane is at most ``weld_fraction``
   times the mean length of its own edges (a local measure: a body's layout is dense on the face
-  and sparse on the back).
-- A **crossing** face has corners clearly on both sides (beyond their weld distance): the
-  surfaced half spills over the plane there, and its mirror overlaps it. It is reported.
-- A plane that **misses** the layout (no vertex within its weld distance) is refused.
+  and sparse on the back), or when it is on the layout's open border at the plane wherever a wrap
+  left it (``mirror_seam.border_seam``). Seam vertices are brought back onto the plane.
+- A **crossing** face has corners off the seam clearly on both sides (beyond their weld distance):
+  the surfaced half spills over the plane there, and its mirror overlaps it. It is reported.
+- A plane that **misses** the layout (no vertex within its weld distance) is refused; so is a layout
+  that already covers both sides of it, and one whose open border at the plane drifted too far from it
+  to be welded (``mirror_seam``).
 """
 
 from typing import NamedTuple
@@ -26,7 +29,7 @@ from typing import NamedTuple
 import numpy as np
 
 from . import anchors as anchor_module
-from . import layout_state, transforms
+from . import layout_state, mirror_seam, transforms
 from .errors import LayoutError
 from .layout_state import LayoutState
 from .wrap_inputs import check_rest_edges
@@ -55,6 +58,7 @@ class MirrorPlan(NamedTuple):
     duplicate_edges: np.ndarray  # (E,) bool: loose edges that get a mirrored copy
     crossing_faces: np.ndarray  # (K,) int64 faces with corners clearly on both sides
     in_plane_faces: int  # faces lying in the plane (not copied: they would be their own mirror)
+    drifted: np.ndarray  # (N,) bool: seam vertices beyond their weld distance (an open border a wrap moved off it)
 
 
 class MirrorLayout(NamedTuple):
@@ -149,13 +153,15 @@ def plan(
     plane: Plane,
     weld_fraction: float = DEFAULT_WELD_FRACTION,
     layout_name: str = "the layout",
+    axis: str = "X",
 ) -> MirrorPlan:
     """Decide the seam, which faces and loose edges are copied, and which faces cross the plane.
 
     ``face_corners`` / ``face_sizes``: the faces' vertices one face after another; ``edges``: all
     edges (those on no face are loose curves and are copied too). Raises :class:`LayoutError`
-    when the weld fraction is not positive or the plane misses the layout (no vertex within its
-    weld distance of it).
+    when the weld fraction is not positive, the plane misses the layout (no vertex within its
+    weld distance of it), the layout already covers both sides of it, or its open border at the
+    plane lies too far from it to be welded (``axis`` names the plane in that message's advice).
     """
     weld_fraction = float(weld_fraction)
     if not (np.isfinite(weld_fraction) and weld_fraction > 0.0):
@@ -167,9 +173,10 @@ def plan(
     corners = np.asarray(face_corners, dtype=np.int64).reshape(-1)
     sizes = np.asarray(face_sizes, dtype=np.int64).reshape(-1)
     distances = signed_distances(positions, plane)
-    weld = weld_fraction * vertex_edge_lengths(positions, edges)
-    seam = np.abs(distances) <= weld
-    if not seam.any():
+    edge_lengths = vertex_edge_lengths(positions, edges)
+    weld = weld_fraction * edge_lengths
+    near = np.abs(distances) <= weld
+    if not near.any():
         nearest = float(np.abs(distances).min()) if distances.size else float("inf")
         sides = "on both sides of it" if (distances > 0).any() and (distances < 0).any() else "all on one side"
         raise LayoutError(
@@ -177,10 +184,19 @@ def plan(
             f"length; the nearest is {nearest:.4g} away, the vertices are {sides}). Pick the axis or the mirror "
             "object whose plane runs along the layout's open side"
         )
+    side = mirror_seam.surfaced_side(distances, weld)
+    open_edges = mirror_seam.border_edges(_face_edges(corners, sizes))
+    on_border, left_out = mirror_seam.border_seam(
+        positions, edges, open_edges, distances, edge_lengths, plane.normal, side
+    )
+    seam = near | on_border
+    mirror_seam.check_one_side(distances, edge_lengths, seam, side, layout_name)
+    mirror_seam.check_drifted_border(left_out, distances, layout_name, axis)
     faces = face_ids(sizes)
     face_count = sizes.size
-    above = np.bincount(faces, weights=(distances[corners] > weld[corners]), minlength=face_count) > 0
-    below = np.bincount(faces, weights=(distances[corners] < -weld[corners]), minlength=face_count) > 0
+    clear = ~seam[corners]
+    above = np.bincount(faces, weights=clear & (distances[corners] > weld[corners]), minlength=face_count) > 0
+    below = np.bincount(faces, weights=clear & (distances[corners] < -weld[corners]), minlength=face_count) > 0
     off_seam = np.bincount(faces, weights=~seam[corners], minlength=face_count) > 0
     on_face = np.zeros(positions.shape[0], dtype=bool)
     on_face[corners] = True
@@ -195,6 +211,7 @@ def plan(
         duplicate_edges=duplicate_edges,
         crossing_faces=np.flatnonzero(above & below),
         in_plane_faces=int(face_count - off_seam.sum()),
+        drifted=seam & ~near,
     )
 
 
@@ -463,3 +480,24 @@ class MirrorOutcome:
 
     def __init__(self, **values):
         self.__dict__.update(values)
+
+
+def midline_plane(world_positions, face_corners, face_sizes, edges, matrix_world, weld_fraction=DEFAULT_WELD_FRACTION):
+    """``(axis, plane, vertices)`` of the first of the X, Y, Z planes of ``matrix_world`` (the layout's or its
+    Mirror Object's) that the layout's open border lies on (``mirror_seam.border_on_plane``: a half's midline),
+    ``vertices`` those border vertices; None when it lies on none of them."""
+    positions = np.asarray(world_positions, dtype=np.float64).reshape(-1, 3)
+    open_edges = mirror_seam.border_edges(
+        _face_edges(np.asarray(face_corners, dtype=np.int64), np.asarray(face_sizes, dtype=np.int64))
+    )
+    if open_edges.size == 0 or not transforms.is_invertible(np.asarray(matrix_world, dtype=np.float64)):
+        return None
+    edge_lengths = vertex_edge_lengths(positions, edges)
+    for axis in AXES:
+        plane = plane_from_matrix(matrix_world, axis)
+        vertices = mirror_seam.border_on_plane(
+            positions, open_edges, edge_lengths, signed_distances(positions, plane), weld_fraction
+        )
+        if vertices.size:
+            return axis, plane, vertices
+    return None

@@ -134,6 +134,33 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
             free_group=self.free_group,
         )
 
+    def _find_midline(self, layout) -> None:
+        """Without Hold on Plane, remember the plane of the layout (or its Mirror Object) its open border lies on, if
+        any (a half's midline), to say after the wrap what Hold on Plane is for."""
+        self._midline = None
+        if self.hold_plane != "NONE" or len(layout.data.polygons) == 0:
+            return
+        owner = layout.springwrap.mirror_object or layout
+        topology = layout_data.read_layout_topology(layout)
+        world = transforms.world_positions(layout_data.read_layout(layout))
+        self._midline = mirroring.midline_plane(
+            world, topology.face_corners, topology.face_sizes, topology.edges, matrix_array(owner.matrix_world)
+        )
+
+    def _report_midline(self, layout) -> None:
+        """Say how far the wrap moved a half's midline off its plane and what Hold on Plane is for."""
+        if getattr(self, "_midline", None) is None:
+            return
+        axis, plane, vertices = self._midline
+        world = transforms.world_positions(layout_data.read_layout(layout))
+        drift = float(abs(mirroring.signed_distances(world[vertices], plane)).max())
+        self.report(
+            {"INFO"},
+            f"The layout's open border lies on its {axis} plane ({vertices.size} vertices: a half's midline?); the wrap "
+            f"moved it up to {drift:.3g} off the plane. To mirror this half, wrap it with Hold on Plane {axis}: the "
+            "midline then stays on the plane (Mirror also brings it back onto the plane and re-settles the border)",
+        )
+
     def _plane_holder(self, layout, extent):
         """``adjust_inputs`` for :class:`WrapSession` holding the midline on ``hold_plane``; None without one."""
         if self.hold_plane == "NONE":
@@ -156,6 +183,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
         try:
             layout = context.active_object
             extent = check_inputs(context, layout)
+            self._find_midline(layout)
             return WrapSession(
                 context,
                 layout,
@@ -186,6 +214,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
                 return {"CANCELLED"}
             report_storage_precision(self, layout, session.target.extent)
         self._report_result(result)
+        self._report_midline(layout)
         return {"FINISHED"}
 
     def invoke(self, context, event):
@@ -229,6 +258,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
         if outcome == "FINISHED":
             report_storage_precision(self, self._loop.session.layout, self._loop.session.target.extent)
             self._report_result(self._loop.result)
+            self._report_midline(self._loop.session.layout)
             return {"FINISHED"}
         if self._loop.error is not None:
             self.report({"ERROR"}, f"The wrap failed and was undone: {self._loop.error}")
