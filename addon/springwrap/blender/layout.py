@@ -18,7 +18,7 @@ from ..core import layout_state, subdivision, transforms, wrap_inputs
 from ..core.errors import LayoutError
 from ..core.layout_state import LayoutArrays, LayoutState
 from ..core.transforms import matrix_array
-from . import attributes, compat, shape_keys
+from . import attributes, compat, last_run, shape_keys
 
 SHAPE_KEYS_CONSEQUENCE = (
     "Fit Subdivision and Align Armature evaluate the layout through a Blender modifier, which would mix the keys "
@@ -96,8 +96,10 @@ def write_layout(
     another type or domain). A layout without a rest shape gets one first: ``rest`` when given,
     else its positions before this write (the template as made, before Springwrap moved it). With shape keys
     the positions become the reference key's too and every other key is carried over onto them
-    (``shape_keys.carried``, computed before anything is written).
+    (``shape_keys.carried``, computed before anything is written). The layout's last wrap, mirror or fit is
+    forgotten (``last_run``): the operation that writes says what it did.
     """
+    last_run.forget(layout.name)
     mesh = layout.data
     vertex_count = len(mesh.vertices)
     positions = np.ascontiguousarray(positions, dtype=np.float32).reshape(vertex_count, 3)

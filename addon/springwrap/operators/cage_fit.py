@@ -11,6 +11,7 @@ import bpy
 
 from .. import property_kinds as props
 from ..blender import cage_fit as cage_fit_data
+from ..blender import last_run
 from ..blender import target as target_data
 from ..blender.edit_mode import object_mode
 from ..core import cage_fit
@@ -80,6 +81,7 @@ class SPRINGWRAP_OT_fit_subdivision(LayoutOperator, bpy.types.Operator):
             return {"CANCELLED"}
         milliseconds = (time.perf_counter() - start) * 1000.0
         type(self).last_outcome = outcome
+        last_run.remember_fit(layout.name, self.levels, outcome)
         self.report({"INFO"}, cage_fit.summary(outcome, self.levels, milliseconds))
         return {"FINISHED"}
 

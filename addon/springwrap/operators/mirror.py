@@ -29,7 +29,7 @@ import numpy as np
 
 from .. import property_kinds as props
 from ..blender import anchors as anchor_data
-from ..blender import attributes
+from ..blender import attributes, last_run, wrap_session
 from ..blender import layout as layout_data
 from ..blender import mirror as mirror_data
 from ..blender import quality as quality_data
@@ -171,6 +171,10 @@ class SPRINGWRAP_OT_mirror(SpringwrapOperator, bpy.types.Operator):
                 if progress:
                     window_manager.progress_end()
         type(self).last_outcome = outcome
+        if outcome.wrap is not None:
+            wrap_session.remember_result(outcome.wrap, "Mirror")
+        else:
+            last_run.remember_mirror(layout.name, outcome.copies, outcome.seam_vertices)
         self._report(outcome)
         return {"FINISHED"}
 

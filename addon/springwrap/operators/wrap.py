@@ -147,20 +147,6 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
             world, topology.face_corners, topology.face_sizes, topology.edges, matrix_array(owner.matrix_world)
         )
 
-    def _report_midline(self, layout) -> None:
-        """Say how far the wrap moved a half's midline off its plane and what Hold on Plane is for."""
-        if getattr(self, "_midline", None) is None:
-            return
-        axis, plane, vertices = self._midline
-        world = transforms.world_positions(layout_data.read_layout(layout))
-        drift = float(abs(mirroring.signed_distances(world[vertices], plane)).max())
-        self.report(
-            {"INFO"},
-            f"The layout's open border lies on its {axis} plane ({vertices.size} vertices: a half's midline?); the wrap "
-            f"moved it up to {drift:.3g} off the plane. To mirror this half, wrap it with Hold on Plane {axis}: the "
-            "midline then stays on the plane (Mirror also brings it back onto the plane and re-settles the border)",
-        )
-
     def _plane_holder(self, layout, extent):
         """``adjust_inputs`` for :class:`WrapSession` holding the midline on ``hold_plane``; None without one."""
         if self.hold_plane == "NONE":
@@ -214,7 +200,6 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
                 return {"CANCELLED"}
             report_storage_precision(self, layout, session.target.extent)
         self._report_result(result)
-        self._report_midline(layout)
         return {"FINISHED"}
 
     def invoke(self, context, event):
@@ -258,7 +243,6 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
         if outcome == "FINISHED":
             report_storage_precision(self, self._loop.session.layout, self._loop.session.target.extent)
             self._report_result(self._loop.result)
-            self._report_midline(self._loop.session.layout)
             return {"FINISHED"}
         if self._loop.error is not None:
             self.report({"ERROR"}, f"The wrap failed and was undone: {self._loop.error}")
@@ -316,6 +300,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
 
     def _report_result(self, result: WrapResult) -> None:
         wrap_session.remember_result(result)
+        report_midline(self, bpy.data.objects.get(result.layout_name))
         self.report({"INFO"} if result.converged else {"WARNING"}, result.summary())
         if result.readout is not None:
             self.report({"INFO"}, quality.report_line(result.readout))
@@ -326,6 +311,23 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
                 f"Target topology changed: {detached} face-points and {result.anchors_detached_count} face anchors "
                 f"lost their target face and became space-points, {reattached} face-points re-attached",
             )
+
+
+def report_midline(operator, layout) -> None:
+    """Say how far the wrap moved a half's midline off its plane (``operator._midline``, found before the wrap) and
+    what Hold on Plane is for."""
+    midline = getattr(operator, "_midline", None)
+    if midline is None or layout is None:
+        return
+    axis, plane, vertices = midline
+    world = transforms.world_positions(layout_data.read_layout(layout))
+    drift = float(abs(mirroring.signed_distances(world[vertices], plane)).max())
+    operator.report(
+        {"INFO"},
+        f"The layout's open border lies on its {axis} plane ({vertices.size} vertices: a half's midline?); the wrap "
+        f"moved it up to {drift:.3g} off the plane. To mirror this half, wrap it with Hold on Plane {axis}: the "
+        "midline then stays on the plane (Mirror also brings it back onto the plane and re-settles the border)",
+    )
 
 
 classes = (SPRINGWRAP_OT_wrap,)
