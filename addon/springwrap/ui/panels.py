@@ -203,6 +203,10 @@ class SPRINGWRAP_PT_curve_constraints(_ToolPanel, bpy.types.Panel):
     def draw_header(self, context):
         self.layout.prop(context.active_object.springwrap, "show_curve_constraints", text="")
 
+    def draw_header_preset(self, context):
+        """How many constraints the layout has, on the right of the header: seen with the sub-panel closed."""
+        self.layout.label(text=str(len(context.active_object.springwrap.curve_constraints)))
+
     def draw(self, context):
         layout = self.layout
         settings = context.active_object.springwrap
