@@ -216,6 +216,19 @@ def read_layout_structure(layout: bpy.types.Object):
     return make_layout_structure(read_layout_topology(layout))
 
 
+def read_open_edges(layout: bpy.types.Object) -> tuple[np.ndarray, np.ndarray]:
+    """((B, 2) the edges of exactly one face: the layout's open borders, (E, 2) all its edges), int64 vertex pairs
+    (object mode data; counted from the face corners' edges, no sorting)."""
+    mesh = layout.data
+    edges = np.empty(len(mesh.edges) * 2, dtype=np.int64)
+    mesh.edges.foreach_get("vertices", edges)
+    edges = edges.reshape(-1, 2)
+    corner_edges = np.empty(len(mesh.loops), dtype=np.int64)
+    mesh.loops.foreach_get("edge_index", corner_edges)
+    faces_per_edge = np.bincount(corner_edges, minlength=edges.shape[0])
+    return edges[faces_per_edge == 1], edges
+
+
 def read_layout_curves(layout: bpy.types.Object) -> list:
     """The layout's curves as the kernel finds them: (kind, vertices in order, closed) per curve (object mode)."""
     return [

@@ -482,22 +482,27 @@ class MirrorOutcome:
         self.__dict__.update(values)
 
 
-def midline_plane(world_positions, face_corners, face_sizes, edges, matrix_world, weld_fraction=DEFAULT_WELD_FRACTION):
+def midline_plane(world_positions, open_edges, edges, matrix_world, weld_fraction=DEFAULT_WELD_FRACTION):
     """``(axis, plane, vertices)`` of the first of the X, Y, Z planes of ``matrix_world`` (the layout's or its
-    Mirror Object's) that the layout's open border lies on (``mirror_seam.border_on_plane``: a half's midline),
-    ``vertices`` those border vertices; None when it lies on none of them."""
+    Mirror Object's) that the layout's open border (``open_edges``, (B, 2): edges of one face) lies on
+    (``mirror_seam.border_on_plane``: a half's midline), ``vertices`` those border vertices; None when it lies on
+    none of them, or when the layout lies in that plane altogether (a flat sheet)."""
     positions = np.asarray(world_positions, dtype=np.float64).reshape(-1, 3)
-    open_edges = mirror_seam.border_edges(
-        _face_edges(np.asarray(face_corners, dtype=np.int64), np.asarray(face_sizes, dtype=np.int64))
-    )
+    open_edges = np.asarray(open_edges, dtype=np.int64).reshape(-1, 2)
     if open_edges.size == 0 or not transforms.is_invertible(np.asarray(matrix_world, dtype=np.float64)):
         return None
-    edge_lengths = vertex_edge_lengths(positions, edges)
+    edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    border = np.zeros(positions.shape[0], dtype=bool)
+    border[open_edges.ravel()] = True
+    near_border = edges[border[edges].any(axis=1)]  # the edge lengths are needed on the border only
+    edge_lengths = vertex_edge_lengths(positions, near_border)
+    typical = float(np.median(edge_lengths[border]))
     for axis in AXES:
         plane = plane_from_matrix(matrix_world, axis)
-        vertices = mirror_seam.border_on_plane(
-            positions, open_edges, edge_lengths, signed_distances(positions, plane), weld_fraction
-        )
+        distances = signed_distances(positions, plane)
+        if np.mean(np.abs(distances) <= weld_fraction * typical) > 0.5:
+            continue  # the layout lies in this plane: its border is no midline
+        vertices = mirror_seam.border_on_plane(positions, open_edges, edge_lengths, distances, weld_fraction)
         if vertices.size:
             return axis, plane, vertices
     return None

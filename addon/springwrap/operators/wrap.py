@@ -141,11 +141,11 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
         if self.hold_plane != "NONE" or len(layout.data.polygons) == 0:
             return
         owner = layout.springwrap.mirror_object or layout
-        topology = layout_data.read_layout_topology(layout)
+        open_edges, edges = layout_data.read_open_edges(layout)
+        if open_edges.size == 0:
+            return
         world = transforms.world_positions(layout_data.read_layout(layout))
-        self._midline = mirroring.midline_plane(
-            world, topology.face_corners, topology.face_sizes, topology.edges, matrix_array(owner.matrix_world)
-        )
+        self._midline = mirroring.midline_plane(world, open_edges, edges, matrix_array(owner.matrix_world))
 
     def _plane_holder(self, layout, extent):
         """``adjust_inputs`` for :class:`WrapSession` holding the midline on ``hold_plane``; None without one."""
