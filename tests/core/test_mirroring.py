@@ -191,12 +191,13 @@ def test_the_midline_plane_is_the_one_a_half_s_open_border_lies_on_and_not_a_she
     positions[:, 2] = 0.3 * positions[:, 0] ** 2  # bent away from the plane x = 0 along which its border runs
     positions[[4, 9, 14, 19, 24, 29], 2] += 0.05  # the far column bent too: the border is not all on a plane
     open_edges = seam.border_edges(mirroring._face_edges(corners, sizes))
-    found = mirroring.midline_plane(positions, open_edges, edges, np.eye(4))
+    planes = [(axis, mirroring.plane_from_matrix(np.eye(4), axis)) for axis in mirroring.AXES]
+    found = seam.midline_plane(positions, open_edges, edges, planes, 0.1)
     assert found is None  # the column x = 0 is less than half of the open border
     # A half whose only open border is its midline (the other sides closed by the rest of the half).
     open_column = open_edges[(positions[open_edges][:, :, 0] == 0.0).all(axis=1)]
-    axis, _plane, vertices = mirroring.midline_plane(positions, open_column, edges, np.eye(4))
+    axis, _plane, vertices = seam.midline_plane(positions, open_column, edges, planes, 0.1)
     assert axis == "X" and sorted(vertices.tolist()) == [0, 5, 10, 15, 20, 25]
     flat = positions.copy()
     flat[:, 2] = 0.0  # a flat sheet in the plane z = 0: its border lies in that plane, but so does everything
-    assert mirroring.midline_plane(flat, open_edges, edges, np.eye(4)) is None
+    assert seam.midline_plane(flat, open_edges, edges, planes, 0.1) is None

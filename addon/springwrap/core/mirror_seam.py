@@ -28,6 +28,20 @@ RESETTLE_RINGS = 2
 """Rings of the surfaced half around seam vertices brought back onto the plane that the mirror's wrap re-settles."""
 
 
+def vertex_edge_lengths(positions: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    """(N,) float64 mean length of each vertex's edges; vertices on no edge get the overall mean."""
+    positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+    edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    count = positions.shape[0]
+    if edges.shape[0] == 0:
+        return np.zeros(count)
+    lengths = np.linalg.norm(positions[edges[:, 0]] - positions[edges[:, 1]], axis=1)
+    totals = np.bincount(edges.ravel(), weights=np.repeat(lengths, 2), minlength=count)
+    degrees = np.bincount(edges.ravel(), minlength=count)
+    mean = float(lengths.mean())
+    return np.where(degrees > 0, totals / np.maximum(degrees, 1), mean)
+
+
 def border_edges(face_edges: np.ndarray) -> np.ndarray:
     """(B, 2) the edges used by exactly one face (the open borders), from every face's edges (``_face_edges``)."""
     face_edges = np.sort(np.asarray(face_edges, dtype=np.int64).reshape(-1, 2), axis=1)
@@ -131,3 +145,27 @@ def resettled(edges: np.ndarray, moved: np.ndarray, rings: int = RESETTLE_RINGS)
         grown[edges[reached[edges[:, 1]], 0]] = True
         reached = grown
     return reached
+
+
+def midline_plane(world_positions, open_edges, edges, planes, weld_fraction: float):
+    """``(axis, plane, vertices)`` of the first of ``planes`` (``(axis, mirroring.Plane)`` pairs: the layout's or its
+    Mirror Object's X, Y and Z planes) that the layout's open border (``open_edges``, (B, 2): edges of one face)
+    lies on (:func:`border_on_plane`: a half's midline), ``vertices`` those border vertices; None when it lies on
+    none of them, or when the layout lies in that plane altogether (a flat sheet)."""
+    positions = np.asarray(world_positions, dtype=np.float64).reshape(-1, 3)
+    open_edges = np.asarray(open_edges, dtype=np.int64).reshape(-1, 2)
+    if open_edges.size == 0:
+        return None
+    edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    border = np.zeros(positions.shape[0], dtype=bool)
+    border[open_edges.ravel()] = True
+    edge_lengths = vertex_edge_lengths(positions, edges[border[edges].any(axis=1)])  # needed on the border only
+    typical = float(np.median(edge_lengths[border]))
+    for axis, plane in planes:
+        distances = (positions - plane.point) @ plane.normal
+        if np.mean(np.abs(distances) <= weld_fraction * typical) > 0.5:
+            continue  # the layout lies in this plane: its border is no midline
+        vertices = border_on_plane(positions, open_edges, edge_lengths, distances, weld_fraction)
+        if vertices.size:
+            return axis, plane, vertices
+    return None

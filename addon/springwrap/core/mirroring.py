@@ -32,6 +32,7 @@ from . import anchors as anchor_module
 from . import layout_state, mirror_seam, transforms
 from .errors import LayoutError
 from .layout_state import LayoutState
+from .mirror_seam import vertex_edge_lengths
 from .wrap_inputs import check_rest_edges
 
 AXES = ("X", "Y", "Z")
@@ -125,20 +126,6 @@ def project(points: np.ndarray, plane: Plane) -> np.ndarray:
     return points - np.outer(signed_distances(points, plane), plane.normal)
 
 
-def vertex_edge_lengths(positions: np.ndarray, edges: np.ndarray) -> np.ndarray:
-    """(N,) float64 mean length of each vertex's edges; vertices on no edge get the overall mean."""
-    positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
-    edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
-    count = positions.shape[0]
-    if edges.shape[0] == 0:
-        return np.zeros(count)
-    lengths = np.linalg.norm(positions[edges[:, 0]] - positions[edges[:, 1]], axis=1)
-    totals = np.bincount(edges.ravel(), weights=np.repeat(lengths, 2), minlength=count)
-    degrees = np.bincount(edges.ravel(), minlength=count)
-    mean = float(lengths.mean())
-    return np.where(degrees > 0, totals / np.maximum(degrees, 1), mean)
-
-
 def face_ids(face_sizes: np.ndarray) -> np.ndarray:
     """(C,) the face of each corner, for corners listed face by face."""
     sizes = np.asarray(face_sizes, dtype=np.int64).reshape(-1)
@@ -198,8 +185,6 @@ def plan(
     above = np.bincount(faces, weights=clear & (distances[corners] > weld[corners]), minlength=face_count) > 0
     below = np.bincount(faces, weights=clear & (distances[corners] < -weld[corners]), minlength=face_count) > 0
     off_seam = np.bincount(faces, weights=~seam[corners], minlength=face_count) > 0
-    on_face = np.zeros(positions.shape[0], dtype=bool)
-    on_face[corners] = True
     face_edge_keys = _edge_keys(_face_edges(corners, sizes))
     loose = ~np.isin(_edge_keys(edges), face_edge_keys)
     duplicate_edges = loose & ~(seam[edges[:, 0]] & seam[edges[:, 1]]) if edges.size else np.zeros(0, dtype=bool)
@@ -480,29 +465,3 @@ class MirrorOutcome:
 
     def __init__(self, **values):
         self.__dict__.update(values)
-
-
-def midline_plane(world_positions, open_edges, edges, matrix_world, weld_fraction=DEFAULT_WELD_FRACTION):
-    """``(axis, plane, vertices)`` of the first of the X, Y, Z planes of ``matrix_world`` (the layout's or its
-    Mirror Object's) that the layout's open border (``open_edges``, (B, 2): edges of one face) lies on
-    (``mirror_seam.border_on_plane``: a half's midline), ``vertices`` those border vertices; None when it lies on
-    none of them, or when the layout lies in that plane altogether (a flat sheet)."""
-    positions = np.asarray(world_positions, dtype=np.float64).reshape(-1, 3)
-    open_edges = np.asarray(open_edges, dtype=np.int64).reshape(-1, 2)
-    if open_edges.size == 0 or not transforms.is_invertible(np.asarray(matrix_world, dtype=np.float64)):
-        return None
-    edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
-    border = np.zeros(positions.shape[0], dtype=bool)
-    border[open_edges.ravel()] = True
-    near_border = edges[border[edges].any(axis=1)]  # the edge lengths are needed on the border only
-    edge_lengths = vertex_edge_lengths(positions, near_border)
-    typical = float(np.median(edge_lengths[border]))
-    for axis in AXES:
-        plane = plane_from_matrix(matrix_world, axis)
-        distances = signed_distances(positions, plane)
-        if np.mean(np.abs(distances) <= weld_fraction * typical) > 0.5:
-            continue  # the layout lies in this plane: its border is no midline
-        vertices = mirror_seam.border_on_plane(positions, open_edges, edge_lengths, distances, weld_fraction)
-        if vertices.size:
-            return axis, plane, vertices
-    return None

@@ -26,7 +26,7 @@ from ..blender import layout as layout_data
 from ..blender import wrap_session
 from ..blender.edit_mode import EditModeGuard, object_mode
 from ..blender.wrap_session import WrapSession
-from ..core import input_policy, mirroring, quality, transforms
+from ..core import input_policy, mirror_seam, mirroring, quality, transforms
 from ..core.errors import ERRORS
 from ..core.transforms import matrix_array
 from ..core.wrap_inputs import WrapParameters
@@ -144,8 +144,12 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
         open_edges, edges = layout_data.read_open_edges(layout)
         if open_edges.size == 0:
             return
+        matrix = matrix_array(owner.matrix_world)
+        if not transforms.is_invertible(matrix):
+            return
         world = transforms.world_positions(layout_data.read_layout(layout))
-        self._midline = mirroring.midline_plane(world, open_edges, edges, matrix_array(owner.matrix_world))
+        planes = [(axis, mirroring.plane_from_matrix(matrix, axis)) for axis in mirroring.AXES]
+        self._midline = mirror_seam.midline_plane(world, open_edges, edges, planes, mirroring.DEFAULT_WELD_FRACTION)
 
     def _plane_holder(self, layout, extent):
         """``adjust_inputs`` for :class:`WrapSession` holding the midline on ``hold_plane``; None without one."""
