@@ -11,6 +11,7 @@ This module imports no ``bpy`` at its top (the batch's coordinator uses it witho
 ``addon_utils`` is imported when the add-on is enabled.
 """
 
+import errno
 import importlib
 import os
 import sys
@@ -209,7 +210,10 @@ def check_output_folder(folder: Path) -> None:
     try:
         handle, probe = tempfile.mkstemp(prefix=".springwrap-probe-", dir=existing)
     except OSError as error:
-        raise ScriptError(f"{existing}: cannot write there: {error.strerror or error}") from None
+        # The system's reason, except where it misleads: a folder that exists but takes no new files (/proc, a
+        # virtual file system) answers "No such file or directory".
+        reason = "" if error.errno == errno.ENOENT else f" ({error.strerror or error})"
+        raise ScriptError(f"{existing}: not writable: no file can be created in this folder{reason}") from None
     os.close(handle)
     os.unlink(probe)
 

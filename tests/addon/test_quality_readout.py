@@ -195,6 +195,68 @@ def test_select_problems_leaves_hidden_vertices_unselected():
     assert np.array_equal(selected, ~hide)
 
 
+def test_select_problems_selects_and_reports_the_vertices_without_a_number_and_refuses_when_none_has_one(capfd):
+    _target, layout, _normal = plane_scene()
+    assert bpy.ops.springwrap.rest_set() == {"FINISHED"}
+    assert bpy.ops.springwrap.snap() == {"FINISHED"}
+    stretch = np.ones(len(layout.data.vertices), dtype=np.float32)
+    stretch[[3, 7]] = np.nan  # edited by hand
+    layout.data.attributes["springwrap_stretch"].data.foreach_set("value", stretch)
+    capfd.readouterr()
+    assert bpy.ops.springwrap.select_problems(kind="STRETCHED") == {"FINISHED"}
+    bpy.ops.object.mode_set(mode="OBJECT")
+    selected = np.empty(len(layout.data.vertices), dtype=bool)
+    layout.data.vertices.foreach_get("select", selected)
+    assert np.flatnonzero(selected).tolist() == [3, 7]
+    assert "2 vertices of 'Layout' have no stretch in the read-out (not a number" in capfd.readouterr().out
+    layout.data.attributes["springwrap_stretch"].data.foreach_set("value", np.full_like(stretch, np.nan))
+    with pytest.raises(RuntimeError, match="The read-out's stretch of 'Layout' is not a number anywhere"):
+        bpy.ops.springwrap.select_problems(kind="STRETCHED")
+
+
+def test_select_problems_frames_what_it_selected_in_the_3d_view(capfd):
+    _target, layout, _normal = plane_scene()
+    views = [area.spaces.active.region_3d for area in bpy.context.screen.areas if area.type == "VIEW_3D"]
+    if not views:
+        pytest.skip("this Blender has no 3D view in background mode")
+    assert bpy.ops.springwrap.rest_set() == {"FINISHED"}
+    positions = local_positions(layout).astype(np.float64)
+    corner = np.flatnonzero((positions[:, 0] > 0.5) & (positions[:, 1] > 0.5))  # one corner stretched
+    positions[corner] *= 1.4
+    layout.data.vertices.foreach_set("co", positions.astype(np.float32).reshape(-1))
+    layout.data.update()
+    assert bpy.ops.springwrap.snap() == {"FINISHED"}
+    views[0].view_location = (50.0, 50.0, 50.0)
+    capfd.readouterr()
+    assert bpy.ops.springwrap.select_problems(kind="STRETCHED", threshold=1.2) == {"FINISHED"}
+    assert "framed in the 3D view" in capfd.readouterr().out
+    bpy.ops.object.mode_set(mode="OBJECT")
+    selected = np.empty(len(layout.data.vertices), dtype=bool)
+    layout.data.vertices.foreach_get("select", selected)
+    centre = world_positions(layout)[selected].mean(axis=0)
+    assert np.linalg.norm(np.array(views[0].view_location) - centre) < 0.5  # the view moved to the selection
+
+
+def test_a_layout_of_points_alone_is_snapped_and_select_problems_says_why_it_has_no_readout():
+    target, layout, normal = plane_scene()
+    mesh = bpy.data.meshes.new("Points")
+    mesh.from_pydata([(0.1, 0.2, 0.5), (-0.3, 0.1, 0.8), (0.2, -0.2, -0.4)], [], [])
+    points = bpy.data.objects.new("Points", mesh)
+    bpy.context.scene.collection.objects.link(points)
+    points.matrix_world = layout.matrix_world
+    points.springwrap.target = target
+    for obj in bpy.context.view_layer.objects:
+        obj.select_set(obj == points)
+    bpy.context.view_layer.objects.active = points
+    assert bpy.ops.springwrap.snap() == {"FINISHED"}
+    on_plane = world_positions(target)[0]
+    assert np.abs((world_positions(points) - on_plane) @ np.asarray(normal)).max() < 1e-5
+    with pytest.raises(RuntimeError, match="'Points' has no faces and no edges: wrapping"):
+        bpy.ops.springwrap.select_problems(kind="STRETCHED")
+    with pytest.raises(RuntimeError, match="Snap, Project and Detach move points alone"):
+        bpy.ops.springwrap.wrap()
+
+
 def test_select_problems_refuses_without_a_readout_and_says_which_operators_write_it():
     _target, layout, _normal = plane_scene()
     before = snapshot(layout)
@@ -326,5 +388,7 @@ def test_the_check_panel_has_the_heatmap_and_select_problems():
     recorder = PanelRecorder()
     SPRINGWRAP_PT_check.draw(type("Panel", (), {"layout": recorder})(), bpy.context)
     assert {"show_heatmap", "heatmap_kind", "problem_kind"} <= set(recorder.props)
+    # The toggle is a checkbox that says what it does, not a wide swatch without text.
+    assert recorder.prop_options["show_heatmap"] == {"text": "Show Heat-Map"}
     (idname, button), *_ = recorder.operators
     assert idname == "springwrap.select_problems" and button.kind == "OFF_SURFACE"

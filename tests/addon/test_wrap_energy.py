@@ -193,6 +193,18 @@ def test_the_groups_need_the_energy_solver_and_leave_the_layout_as_it_was():
     assert snapshot(layout) == before
 
 
+def test_a_free_group_holding_every_vertex_is_refused_saying_why():
+    """Every vertex free: nothing would pull the layout onto the target and the wrap would "converge" where it
+    started. It is refused, naming the group, and the layout is left as it was."""
+    target, layout, _normal = plane_scene()
+    _group(layout, "Sockets", range(len(layout.data.vertices)))
+    bpy.ops.springwrap.anchors_auto(spacing=0.5)
+    before = snapshot(layout)
+    with pytest.raises(RuntimeError, match="Every vertex of layout 'Layout' is in the Free group 'Sockets'"):
+        bpy.ops.springwrap.wrap(solver="ENERGY", free_group="Sockets")
+    assert snapshot(layout) == before
+
+
 # ---------------------------------------------------------------- spring resolution (coarse to fine)
 # The layout relaxed, then its faces cut k x k and relaxed again.
 

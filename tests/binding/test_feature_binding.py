@@ -89,12 +89,12 @@ def test_the_default_scale_is_automatic_and_finds_the_l_parts_six_blends():
 def test_a_layout_edge_length_sets_the_scale_within_the_targets_edges():
     vertices, triangles = rounded_box()  # edges of 0.05 (mean 0.057 with the diagonals)
     mesh = sk.TargetMesh(vertices, triangles)
-    assert mesh.automatic_feature_scale(0.3) == pytest.approx(0.3)
-    assert mesh.detect_features(layout_edge_length=0.25).scale == pytest.approx(0.25)
-    assert len(mesh.detect_features(0.0, layout_edge_length=0.25).curves) == 12
-    # Below 3 mean edges or above 30: held there; a given scale wins over the layout.
+    assert mesh.automatic_feature_scale(0.4) == pytest.approx(0.4)
+    assert mesh.detect_features(layout_edge_length=0.35).scale == pytest.approx(0.35)
+    assert len(mesh.detect_features(0.0, layout_edge_length=0.35).curves) == 12
+    # Below 6 mean edges or above 30: held there; a given scale wins over the layout.
     mean_edge = float(np.linalg.norm(vertices[triangles] - np.roll(vertices[triangles], 1, axis=1), axis=2).mean())
-    assert mesh.automatic_feature_scale(1e-4) == pytest.approx(3 * mean_edge, rel=1e-4)
+    assert mesh.automatic_feature_scale(1e-4) == pytest.approx(6 * mean_edge, rel=1e-4)
     assert mesh.detect_features(0.3, layout_edge_length=0.01).scale == pytest.approx(0.3)
 
 

@@ -49,21 +49,50 @@ def test_planes_of_an_object_are_its_local_planes_in_world_space():
 
 
 def test_the_seam_uses_each_vertex_own_edge_length():
-    positions, corners, sizes, edges = grid()
     plane = mirroring.Plane(np.zeros(3), np.array([1.0, 0.0, 0.0]))
-    positions[0, 0] = 0.009  # within 0.1 x 0.1
-    positions[4, 0] = 0.011  # beyond
+    for offset, on_seam in ((0.009, True), (0.013, False)):  # vertex 5 (inside the grid): 0.1 x its edges' ~0.117
+        positions, corners, sizes, edges = grid()
+        positions[5, 0] = offset
+        decided = mirroring.plan(positions, corners, sizes, edges, plane, 0.1)
+        assert bool(decided.seam[5]) == on_seam
+        assert decided.seam[[0, 4, 8]].all() and not decided.drifted[[0, 4, 8]].any()
+
+
+def test_an_open_border_a_wrap_moved_off_the_plane_is_still_the_seam():
+    """A half's open border at the plane is its seam wherever a wrap left it (within 2.5 of its edge lengths, to
+    either side); the faces beside it do not cross the plane, the border rows running away from it are no seam."""
+    positions, corners, sizes, edges = grid(columns=5, rows=6)
+    plane = mirroring.Plane(np.zeros(3), np.array([1.0, 0.0, 0.0]))
+    border_column = np.arange(6) * 5
+    positions[border_column, 0] = [0.0, 0.03, 0.06, 0.04, -0.02, -0.05]
     decided = mirroring.plan(positions, corners, sizes, edges, plane, 0.1)
-    assert np.flatnonzero(decided.seam).tolist() == [0, 8]
+    assert np.flatnonzero(decided.seam).tolist() == border_column.tolist()
+    assert np.flatnonzero(decided.drifted).tolist() == border_column[1:].tolist()
     assert decided.crossing_faces.size == 0 and decided.duplicate_faces.all()
+
+
+def test_a_border_drifted_too_far_from_the_plane_is_refused_with_what_to_do():
+    positions, corners, sizes, edges = grid(columns=5, rows=6)
+    plane = mirroring.Plane(np.zeros(3), np.array([1.0, 0.0, 0.0]))
+    positions[15:, 0] += 0.35  # the border's upper half pushed 3.5 edge lengths off the plane with its rows
+    with pytest.raises(layout_state.LayoutError, match="drifted too far.*Hold on Plane Y"):
+        mirroring.plan(positions, corners, sizes, edges, plane, 0.1, layout_name="the grid", axis="Y")
+
+
+def test_a_layout_on_both_sides_of_the_plane_is_refused_with_what_to_do():
+    positions, corners, sizes, edges = grid(columns=11, rows=3)
+    positions[:, 0] -= 0.5  # x from -0.5 to 0.5: both halves are there
+    plane = mirroring.Plane(np.zeros(3), np.array([1.0, 0.0, 0.0]))
+    with pytest.raises(layout_state.LayoutError, match="already covers both sides.*9 vertices.*Delete the other half"):
+        mirroring.plan(positions, corners, sizes, edges, plane, 0.1, layout_name="the grid")
 
 
 def test_faces_across_the_plane_are_crossing_and_a_missing_plane_is_refused():
     positions, corners, sizes, edges = grid()
     plane = mirroring.Plane(np.zeros(3), np.array([1.0, 0.0, 0.0]))
-    positions[4, 0] = -0.05  # a midline vertex pulled across: the faces of it reach both sides
+    positions[5, 0] = -0.05  # a vertex next to the midline pulled across: its faces reach both sides
     decided = mirroring.plan(positions, corners, sizes, edges, plane, 0.1)
-    assert sorted(decided.crossing_faces.tolist()) == [0, 3]
+    assert sorted(decided.crossing_faces.tolist()) == [0, 1, 3, 4]
     far = mirroring.Plane(np.array([5.0, 0.0, 0.0]), np.array([1.0, 0.0, 0.0]))
     with pytest.raises(layout_state.LayoutError, match="misses the grid.*all on one side"):
         mirroring.plan(positions, corners, sizes, edges, far, 0.1, layout_name="the grid")
@@ -154,3 +183,21 @@ def _namespace_with_replace(values):
     namespace = types.SimpleNamespace(**values)
     namespace._replace = lambda **changes: _namespace_with_replace(vars(namespace) | changes)
     return namespace
+
+
+def test_the_midline_plane_is_the_one_a_half_s_open_border_lies_on_and_not_a_sheet_s_own():
+    seam = core_module("mirror_seam")
+    positions, corners, sizes, edges = grid(columns=5, rows=6)
+    positions[:, 2] = 0.3 * positions[:, 0] ** 2  # bent away from the plane x = 0 along which its border runs
+    positions[[4, 9, 14, 19, 24, 29], 2] += 0.05  # the far column bent too: the border is not all on a plane
+    open_edges = seam.border_edges(mirroring._face_edges(corners, sizes))
+    planes = [(axis, mirroring.plane_from_matrix(np.eye(4), axis)) for axis in mirroring.AXES]
+    found = seam.midline_plane(positions, open_edges, edges, planes, 0.1)
+    assert found is None  # the column x = 0 is less than half of the open border
+    # A half whose only open border is its midline (the other sides closed by the rest of the half).
+    open_column = open_edges[(positions[open_edges][:, :, 0] == 0.0).all(axis=1)]
+    axis, _plane, vertices = seam.midline_plane(positions, open_column, edges, planes, 0.1)
+    assert axis == "X" and sorted(vertices.tolist()) == [0, 5, 10, 15, 20, 25]
+    flat = positions.copy()
+    flat[:, 2] = 0.0  # a flat sheet in the plane z = 0: its border lies in that plane, but so does everything
+    assert seam.midline_plane(flat, open_edges, edges, planes, 0.1) is None

@@ -1,8 +1,8 @@
 """The headless feature-detection CLI (blender_scripts/detect_features.py), end to end, in its own processes.
 
 The input is a .blend (built by a small script run the same way) holding the rounded box of ``helpers.rounded_box``
-(half-size 1, blend radius 0.25: 12 ridges on known centre-lines) as ``Box``, a 4 x 4 grid ``Grid`` scaled by 1.25
-(world edges 0.3125) whose Springwrap target is the box, and a flat grid ``Plane``.
+(half-size 1, blend radius 0.25: 12 ridges on known centre-lines) as ``Box``, a 4 x 4 grid ``Grid`` scaled by 1.5
+(world edges 0.375) whose Springwrap target is the box, and a flat grid ``Plane``.
 """
 
 import json
@@ -32,7 +32,7 @@ bpy.context.scene.collection.objects.link(box)
 bpy.ops.mesh.primitive_grid_add(x_subdivisions=4, y_subdivisions=4, size=1, location=(0, 0, 3))
 grid = bpy.context.active_object
 grid.name = "Grid"
-grid.scale = (1.25, 1.25, 1.25)
+grid.scale = (1.5, 1.5, 1.5)
 grid.springwrap.target = box
 bpy.ops.mesh.primitive_grid_add(x_subdivisions=10, y_subdivisions=10, size=2, location=(5, 0, 0))
 bpy.context.active_object.name = "Plane"
@@ -86,8 +86,8 @@ def test_a_layout_sets_the_scale_and_a_given_scale_wins(scene, tmp_path):
     process = run("--blend", scene, "--object", "Box", "--layout", "Grid", "--json", report_path)
     assert process.returncode == 0, process.stderr[-3000:]
     report = json.loads(report_path.read_text())
-    assert report["scale"] == pytest.approx(0.3125, rel=1e-5) and report["layout"] == "Grid"
-    assert report["layout_edge_length"] == pytest.approx(0.3125, rel=1e-5)
+    assert report["scale"] == pytest.approx(0.375, rel=1e-5) and report["layout"] == "Grid"
+    assert report["layout_edge_length"] == pytest.approx(0.375, rel=1e-5)
     assert report["ridges"] == 12
     process = run("--blend", scene, "--object", "Box", "--layout", "Grid", "--scale", 0.25, "--json", report_path)
     assert process.returncode == 0, process.stderr[-3000:]

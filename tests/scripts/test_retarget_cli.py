@@ -573,6 +573,32 @@ def test_resume_skips_the_meshes_already_done(inputs, batch_folder, tmp_path):
     assert summary["workers"] == [] and (summary["resumed"], summary["ok"]) == (5, 5)
 
 
+def test_resume_makes_again_what_another_template_or_other_settings_made(inputs, tmp_path):
+    """Outputs made from another template (same path, other contents) or with other settings are not "already
+    done": a resume makes them again and the summary counts them as redone; the same run resumed keeps them."""
+    folder, out = tmp_path / "meshes", tmp_path / "out"
+    folder.mkdir()
+    for name in ("ball_a", "ball_b"):
+        (folder / f"{name}.obj").write_text(sphere_obj(*BATCH_SPHERES[name]))
+    template = tmp_path / "template.obj"
+    template.write_text(grid_obj(GRID_SIDE))
+    changed = dict(inputs, template=template)
+    first, _summary = run_batch(changed, folder, out)
+    assert first.returncode == 0, first.stderr[-3000:]
+    template.write_text(grid_obj(GRID_SIDE + 4))  # another template at the same path
+    process, summary = run_batch(changed, folder, out, "--resume")
+    assert process.returncode == 0, process.stderr[-3000:]
+    assert (summary["resumed"], summary["redone"], summary["ok"]) == (0, 2, 2)
+    assert all(entry.get("redone") and not entry.get("resumed") for entry in summary["meshes"])
+    assert "2 made again" in process.stderr
+    for name in ("ball_a", "ball_b"):
+        assert json.loads((out / f"{name}.json").read_text())["vertices"] == (GRID_SIDE + 4) ** 2
+    process, summary = run_batch(changed, folder, out, "--resume", "--max-iterations", "500")  # another setting
+    assert (summary["resumed"], summary["redone"]) == (0, 2), process.stderr[-3000:]
+    process, summary = run_batch(changed, folder, out, "--resume", "--max-iterations", "500")  # the same run
+    assert (summary["resumed"], summary["redone"], summary["workers"]) == (2, 0, []), process.stderr[-3000:]
+
+
 @pytest.mark.parametrize("executor", ["local", "ray"])
 def test_ctrl_c_stops_the_batch_and_the_summary_lists_the_meshes_not_run(inputs, tmp_path, executor):
     if executor == "ray":

@@ -18,7 +18,7 @@ from ..core import input_policy, layout_state, subdivision, transforms, wrap_inp
 from ..core.errors import LayoutError
 from ..core.layout_state import LayoutArrays, LayoutState
 from ..core.transforms import matrix_array
-from . import attributes, compat, shape_keys
+from . import attributes, compat, last_run, shape_keys
 
 SHAPE_KEYS_CONSEQUENCE = (
     "Fit Subdivision and Align Armature evaluate the layout through a Blender modifier, which would mix the keys "
@@ -96,8 +96,10 @@ def write_layout(
     another type or domain). A layout without a rest shape gets one first: ``rest`` when given,
     else its positions before this write (the template as made, before Springwrap moved it). With shape keys
     the positions become the reference key's too and every other key is carried over onto them
-    (``shape_keys.carried``, computed before anything is written).
+    (``shape_keys.carried``, computed before anything is written). The layout's last wrap, mirror or fit is
+    forgotten (``last_run``): the operation that writes says what it did.
     """
+    last_run.forget(layout.name)
     mesh = layout.data
     vertex_count = len(mesh.vertices)
     positions = np.ascontiguousarray(positions, dtype=np.float32).reshape(vertex_count, 3)
@@ -213,6 +215,19 @@ def make_layout_structure(topology):
 def read_layout_structure(layout: bpy.types.Object):
     """The layout mesh's faces, edges and seams as a kernel ``LayoutStructure`` (object mode data)."""
     return make_layout_structure(read_layout_topology(layout))
+
+
+def read_open_edges(layout: bpy.types.Object) -> tuple[np.ndarray, np.ndarray]:
+    """((B, 2) the edges of exactly one face: the layout's open borders, (E, 2) all its edges), int64 vertex pairs
+    (object mode data; counted from the face corners' edges, no sorting)."""
+    mesh = layout.data
+    edges = np.empty(len(mesh.edges) * 2, dtype=np.int64)
+    mesh.edges.foreach_get("vertices", edges)
+    edges = edges.reshape(-1, 2)
+    corner_edges = np.empty(len(mesh.loops), dtype=np.int64)
+    mesh.loops.foreach_get("edge_index", corner_edges)
+    faces_per_edge = np.bincount(corner_edges, minlength=edges.shape[0])
+    return edges[faces_per_edge == 1], edges
 
 
 def read_layout_curves(layout: bpy.types.Object) -> list:

@@ -18,7 +18,7 @@ from ..core.target import Target
 from ..core.wrap_run import FramePacer, WrapResult
 from ..properties import WRAP_DEFAULTS
 from . import anchors as anchor_data
-from . import attributes
+from . import attributes, last_run
 from . import curves as curve_data
 from . import layout as layout_data
 from . import quality as quality_data
@@ -141,6 +141,9 @@ class WrapSession:
             arrays, self.target, settings.target_signature, self.anchors, unreliable, curve_constraints, self.rest
         )
         inputs = self._vertex_groups(inputs, layout, parameters)
+        wrap_inputs.check_something_pulled(
+            layout.name, inputs.free_vertices, getattr(parameters, "free_group", "") or settings.free_group
+        )
         if adjust_inputs is not None:
             inputs = adjust_inputs(inputs)
         self.solver = make_wrap_solver(self.target, structure, inputs, parameters)
@@ -369,7 +372,6 @@ class WrapSession:
 # ---------------------------------------------------------------- what the panel shows
 
 _running: list[WrapSession] = []
-_last_results: dict[str, WrapResult] = {}
 
 
 def set_running(session: WrapSession | None, running: bool = True) -> None:
@@ -394,20 +396,30 @@ def running_session(layout: bpy.types.Object) -> WrapSession | None:
     return None
 
 
-def remember_result(result: WrapResult) -> None:
-    """Keep a finished wrap's result for the panel's Check section (this Blender session only, by layout name)."""
-    _last_results[result.layout_name] = result
+def remember_result(result: WrapResult, operation: str = "Wrap") -> None:
+    """Keep a finished wrap's result (or the wrap of a mirror's, ``operation="Mirror"``) for the panel's Check
+    section (``blender.last_run``: this Blender session only, by layout name)."""
+    rows = (
+        (f"Last {operation}", "Converged" if result.converged else "At the limit"),
+        ("Iterations", str(result.iterations)),
+        ("Time", f"{result.seconds:.2f} s"),
+    )
+    if result.frames:  # the live wrap: how much of that was solving, over how many redraws
+        rows += (("Solving", f"{result.kernel_seconds:.2f} s"), ("Frames", str(result.frames)))
+    last_run.remember(result.layout_name, last_run.LastRun(operation, result, rows))
 
 
 def last_result(layout: bpy.types.Object) -> WrapResult | None:
-    """The last wrap finished on a layout of this name in this Blender session, if any."""
-    return _last_results.get(layout.name)
+    """The result of the last wrap (or mirror) on a layout of this name in this Blender session, if that is still
+    what last changed the layout."""
+    run = last_run.last(layout.name)
+    return None if run is None else run.result
 
 
 def forget_results() -> None:
     """Drop the remembered results and live wraps (the add-on is unregistered, another file is loaded)."""
     _running.clear()
-    _last_results.clear()
+    last_run.forget_all()
 
 
 @bpy.app.handlers.persistent

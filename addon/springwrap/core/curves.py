@@ -250,6 +250,36 @@ def auto_pairs(
     return AutoOutcome(found, skipped)
 
 
+SKIP_ADVICE = {
+    "closed": "a closed curve (a loop) is paired only in part: mark a seam along the part to follow, or select "
+    "that edge chain and add it by hand (+)",
+    "unanchored": "anchor both ends of each curve to pair (an anchor on each end vertex)",
+    "ambiguous": "move one of the two anchors so that they find different target vertices",
+    "constrained": "remove the constraint already on those vertices first",
+    "unreachable": "the target has no chain of edges between those anchors: pair the curve with a curve object "
+    "instead (select the chain, Curve Object, +)",
+}
+"""What to do about the commonest reason when nothing was paired."""
+
+
+def auto_pairs_report(curve_count: int, outcome: AutoOutcome) -> tuple[str, str]:
+    """``(report level, text)`` of ``auto_pairs`` on a layout with ``curve_count`` curves: what was paired, what
+    was skipped and why, and when nothing was paired, the reason and what to do (a WARNING)."""
+    paired = len(outcome.constraints)
+    text = f"Paired {paired} layout curve{'' if paired == 1 else 's'} with target edge chains"
+    if curve_count == 0:
+        return "WARNING", (
+            f"{text}: the layout has no curve to pair (no open border, no edge marked as seam, no loose edge "
+            "chain; a closed body has none). Mark Seam along the edges to follow and anchor both ends, or select "
+            "an edge chain and add a constraint by hand (+)"
+        )
+    skipped = skip_report(outcome.skipped)
+    if paired:
+        return "INFO", f"{text}; {skipped}" if skipped else text
+    commonest = max(outcome.skipped, key=outcome.skipped.get)
+    return "WARNING", f"{text} of its {curve_count}: {skipped}. {SKIP_ADVICE[commonest].capitalize()}"
+
+
 def skip_report(skipped: dict) -> str:
     """``"2 skipped: 1 the layout curve is closed, 1 ..."``, or ``""`` when nothing was skipped."""
     parts = [f"{count} {SKIP_REASONS[key]}" for key, count in skipped.items() if count]

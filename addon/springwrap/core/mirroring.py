@@ -15,10 +15,13 @@ Everything here is plain numpy on world-space arrays: the operator (``operators.
   it stays right for a non-uniformly scaled layout object.
 - A vertex is on the **seam** when its distance from the plane is at most ``weld_fraction``
   times the mean length of its own edges (a local measure: a body's layout is dense on the face
-  and sparse on the back).
-- A **crossing** face has corners clearly on both sides (beyond their weld distance): the
-  surfaced half spills over the plane there, and its mirror overlaps it. It is reported.
-- A plane that **misses** the layout (no vertex within its weld distance) is refused.
+  and sparse on the back), or when it is on the layout's open border at the plane wherever a wrap
+  left it (``mirror_seam.border_seam``). Seam vertices are brought back onto the plane.
+- A **crossing** face has corners off the seam clearly on both sides (beyond their weld distance):
+  the surfaced half spills over the plane there, and its mirror overlaps it. It is reported.
+- A plane that **misses** the layout (no vertex within its weld distance) is refused; so is a layout
+  that already covers both sides of it, and one whose open border at the plane drifted too far from it
+  to be welded (``mirror_seam``).
 """
 
 from typing import NamedTuple
@@ -26,9 +29,10 @@ from typing import NamedTuple
 import numpy as np
 
 from . import anchors as anchor_module
-from . import layout_state, transforms
+from . import layout_state, mirror_seam, transforms
 from .errors import LayoutError
 from .layout_state import LayoutState
+from .mirror_seam import vertex_edge_lengths
 from .wrap_inputs import check_rest_edges
 
 AXES = ("X", "Y", "Z")
@@ -55,6 +59,7 @@ class MirrorPlan(NamedTuple):
     duplicate_edges: np.ndarray  # (E,) bool: loose edges that get a mirrored copy
     crossing_faces: np.ndarray  # (K,) int64 faces with corners clearly on both sides
     in_plane_faces: int  # faces lying in the plane (not copied: they would be their own mirror)
+    drifted: np.ndarray  # (N,) bool: seam vertices beyond their weld distance (an open border a wrap moved off it)
 
 
 class MirrorLayout(NamedTuple):
@@ -121,20 +126,6 @@ def project(points: np.ndarray, plane: Plane) -> np.ndarray:
     return points - np.outer(signed_distances(points, plane), plane.normal)
 
 
-def vertex_edge_lengths(positions: np.ndarray, edges: np.ndarray) -> np.ndarray:
-    """(N,) float64 mean length of each vertex's edges; vertices on no edge get the overall mean."""
-    positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
-    edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
-    count = positions.shape[0]
-    if edges.shape[0] == 0:
-        return np.zeros(count)
-    lengths = np.linalg.norm(positions[edges[:, 0]] - positions[edges[:, 1]], axis=1)
-    totals = np.bincount(edges.ravel(), weights=np.repeat(lengths, 2), minlength=count)
-    degrees = np.bincount(edges.ravel(), minlength=count)
-    mean = float(lengths.mean())
-    return np.where(degrees > 0, totals / np.maximum(degrees, 1), mean)
-
-
 def face_ids(face_sizes: np.ndarray) -> np.ndarray:
     """(C,) the face of each corner, for corners listed face by face."""
     sizes = np.asarray(face_sizes, dtype=np.int64).reshape(-1)
@@ -149,13 +140,15 @@ def plan(
     plane: Plane,
     weld_fraction: float = DEFAULT_WELD_FRACTION,
     layout_name: str = "the layout",
+    axis: str = "X",
 ) -> MirrorPlan:
     """Decide the seam, which faces and loose edges are copied, and which faces cross the plane.
 
     ``face_corners`` / ``face_sizes``: the faces' vertices one face after another; ``edges``: all
     edges (those on no face are loose curves and are copied too). Raises :class:`LayoutError`
-    when the weld fraction is not positive or the plane misses the layout (no vertex within its
-    weld distance of it).
+    when the weld fraction is not positive, the plane misses the layout (no vertex within its
+    weld distance of it), the layout already covers both sides of it, or its open border at the
+    plane lies too far from it to be welded (``axis`` names the plane in that message's advice).
     """
     weld_fraction = float(weld_fraction)
     if not (np.isfinite(weld_fraction) and weld_fraction > 0.0):
@@ -167,9 +160,10 @@ def plan(
     corners = np.asarray(face_corners, dtype=np.int64).reshape(-1)
     sizes = np.asarray(face_sizes, dtype=np.int64).reshape(-1)
     distances = signed_distances(positions, plane)
-    weld = weld_fraction * vertex_edge_lengths(positions, edges)
-    seam = np.abs(distances) <= weld
-    if not seam.any():
+    edge_lengths = vertex_edge_lengths(positions, edges)
+    weld = weld_fraction * edge_lengths
+    near = np.abs(distances) <= weld
+    if not near.any():
         nearest = float(np.abs(distances).min()) if distances.size else float("inf")
         sides = "on both sides of it" if (distances > 0).any() and (distances < 0).any() else "all on one side"
         raise LayoutError(
@@ -177,13 +171,20 @@ def plan(
             f"length; the nearest is {nearest:.4g} away, the vertices are {sides}). Pick the axis or the mirror "
             "object whose plane runs along the layout's open side"
         )
+    side = mirror_seam.surfaced_side(distances, weld)
+    open_edges = mirror_seam.border_edges(_face_edges(corners, sizes))
+    on_border, left_out = mirror_seam.border_seam(
+        positions, edges, open_edges, distances, edge_lengths, plane.normal, side
+    )
+    seam = near | on_border
+    mirror_seam.check_one_side(distances, edge_lengths, seam, side, layout_name)
+    mirror_seam.check_drifted_border(left_out, distances, layout_name, axis)
     faces = face_ids(sizes)
     face_count = sizes.size
-    above = np.bincount(faces, weights=(distances[corners] > weld[corners]), minlength=face_count) > 0
-    below = np.bincount(faces, weights=(distances[corners] < -weld[corners]), minlength=face_count) > 0
+    clear = ~seam[corners]
+    above = np.bincount(faces, weights=clear & (distances[corners] > weld[corners]), minlength=face_count) > 0
+    below = np.bincount(faces, weights=clear & (distances[corners] < -weld[corners]), minlength=face_count) > 0
     off_seam = np.bincount(faces, weights=~seam[corners], minlength=face_count) > 0
-    on_face = np.zeros(positions.shape[0], dtype=bool)
-    on_face[corners] = True
     face_edge_keys = _edge_keys(_face_edges(corners, sizes))
     loose = ~np.isin(_edge_keys(edges), face_edge_keys)
     duplicate_edges = loose & ~(seam[edges[:, 0]] & seam[edges[:, 1]]) if edges.size else np.zeros(0, dtype=bool)
@@ -195,6 +196,7 @@ def plan(
         duplicate_edges=duplicate_edges,
         crossing_faces=np.flatnonzero(above & below),
         in_plane_faces=int(face_count - off_seam.sum()),
+        drifted=seam & ~near,
     )
 
 

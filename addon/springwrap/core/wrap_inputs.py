@@ -144,9 +144,28 @@ def check_wrap_parameters(parameters: WrapParameters) -> None:
 
 
 def check_wrappable(layout_name: str, face_count: int, edge_count: int) -> None:
-    """Raise :class:`~.errors.LayoutError` when the layout has nothing for the springs to act on."""
+    """Raise :class:`~.errors.LayoutError` when the layout is points alone: nothing for the springs (or the mirror,
+    the fit, the read-out) to act on."""
     if face_count == 0 and edge_count == 0:
-        raise LayoutError(f"Layout '{layout_name}' has no faces and no edges: there is nothing to wrap")
+        raise LayoutError(f"Layout '{layout_name}' has no faces and no edges, only points: {POINTS_ONLY}")
+
+
+def check_something_pulled(layout_name: str, free_vertices: "np.ndarray | None", free_group: str) -> None:
+    """Refuse a wrap in which every vertex is in the Free group: none would be pulled onto the target, and the
+    wrap would "converge" with the layout where it was."""
+    if free_vertices is not None and np.asarray(free_vertices).size and np.asarray(free_vertices).all():
+        raise LayoutError(
+            f"Every vertex of layout '{layout_name}' is in the Free group '{free_group}' (weight above 0): none "
+            "would be pulled onto the target, so the wrap would leave the layout where it is. Keep in the group "
+            "only what should stay off the surface (sockets, teeth), or clear Free Group"
+        )
+
+
+POINTS_ONLY = (
+    "wrapping, mirroring, fitting a subdivision, spreading anchors and the quality read-out need faces or edges "
+    "(Snap, Project and Detach move points alone)"
+)
+"""What a layout of points alone can and cannot be given to."""
 
 
 def unreliable_triangles(triangles: np.ndarray, vertex_weights: np.ndarray) -> np.ndarray:

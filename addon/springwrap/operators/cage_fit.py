@@ -11,6 +11,7 @@ import bpy
 
 from .. import property_kinds as props
 from ..blender import cage_fit as cage_fit_data
+from ..blender import last_run
 from ..blender import layout as layout_data
 from ..blender import target as target_data
 from ..blender.edit_mode import EditModeGuard, object_mode
@@ -88,16 +89,17 @@ class SPRINGWRAP_OT_fit_subdivision(LayoutOperator, bpy.types.Operator):
         except ERRORS as error:
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}
-        return self._finished(outcome, start)
+        return self._finished(layout, outcome, start)
 
     def _session(self, context, layout):
         parameters = operator_values(self, cage_fit_data.CageFitParameters, boundary="boundary_smooth")
         target = target_data.read_target(context.evaluated_depsgraph_get(), layout)
         return cage_fit_data.CageFitSession(context, layout, target, parameters)
 
-    def _finished(self, outcome, start: float) -> set:
+    def _finished(self, layout, outcome, start: float) -> set:
         type(self).last_outcome = outcome
         milliseconds = (time.perf_counter() - start) * 1000.0
+        last_run.remember_fit(layout.name, self.levels, outcome)
         self.report({"INFO"}, cage_fit.summary(outcome, self.levels, milliseconds))
         return {"FINISHED"}
 
@@ -153,7 +155,7 @@ class SPRINGWRAP_OT_fit_subdivision(LayoutOperator, bpy.types.Operator):
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}
         self._end(context)
-        return self._finished(outcome, self._start_time)
+        return self._finished(self._fit.layout, outcome, self._start_time)
 
     def cancel(self, context):
         """Blender ends the modal fit from outside (window closed, file loaded): nothing is written."""

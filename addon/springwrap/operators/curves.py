@@ -102,12 +102,20 @@ class SPRINGWRAP_OT_curve_constraints_auto(_CurveOperator, bpy.types.Operator):
 
     bl_label = "Auto Curve Constraints"
 
+    def run(self, context, layout):
+        constraints, active_index = self.compute(context, layout)
+        curve_data.write_curve_constraints(layout, constraints, active_index)
+        level, text = curves.auto_pairs_report(self._curve_count, self._outcome)
+        return [({level}, text)]
+
     def compute(self, context, layout):
         existing = curve_data.read_curve_constraints(layout)
         anchor_list = anchor_data.read_anchors(layout)
         target_positions, target_edges = target_data.read_target_edges(context.evaluated_depsgraph_get(), layout)
+        layout_curves = layout_data.read_layout_curves(layout)
+        self._curve_count = len(layout_curves)
         outcome = curves.auto_pairs(
-            layout_data.read_layout_curves(layout),
+            layout_curves,
             anchor_list.vertex_indices,
             anchor_list.locations,
             existing,
@@ -117,11 +125,6 @@ class SPRINGWRAP_OT_curve_constraints_auto(_CurveOperator, bpy.types.Operator):
         )
         self._outcome = outcome
         return existing + outcome.constraints, -1
-
-    def summary(self, constraints):
-        text = f"Paired {len(self._outcome.constraints)} layout curves with target edge chains"
-        skipped = curves.skip_report(self._outcome.skipped)
-        return f"{text}; {skipped}" if skipped else text
 
 
 class SPRINGWRAP_OT_curve_constraint_remove(RemovesOneItem, _CurveOperator, bpy.types.Operator):

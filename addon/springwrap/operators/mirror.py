@@ -29,7 +29,7 @@ import numpy as np
 
 from .. import property_kinds as props
 from ..blender import anchors as anchor_data
-from ..blender import attributes
+from ..blender import attributes, last_run, wrap_session
 from ..blender import layout as layout_data
 from ..blender import mirror as mirror_data
 from ..blender import quality as quality_data
@@ -37,7 +37,7 @@ from ..blender import shape_keys as shape_key_data
 from ..blender import target as target_data
 from ..blender.edit_mode import object_mode
 from ..blender.wrap_session import WrapSession
-from ..core import anchors, input_policy, layout_state, mirroring, quality, transforms, wrap_inputs
+from ..core import anchors, input_policy, layout_state, mirror_seam, mirroring, quality, transforms, wrap_inputs
 from ..core.errors import ERRORS, LayoutError
 from ..core.mirroring import AXES, DEFAULT_WELD_FRACTION, MirrorOutcome
 from ..core.transforms import matrix_array
@@ -171,6 +171,10 @@ class SPRINGWRAP_OT_mirror(SpringwrapOperator, bpy.types.Operator):
                 if progress:
                     window_manager.progress_end()
         type(self).last_outcome = outcome
+        if outcome.wrap is not None:
+            wrap_session.remember_result(outcome.wrap, "Mirror")
+        else:
+            last_run.remember_mirror(layout.name, outcome.copies, outcome.seam_vertices)
         self._report(outcome)
         return {"FINISHED"}
 
@@ -213,6 +217,7 @@ class SPRINGWRAP_OT_mirror(SpringwrapOperator, bpy.types.Operator):
             plane,
             self.weld_distance,
             layout_name=f"layout '{layout.name}'",
+            axis=self.axis,
         )
         rest = attributes.read_rest(layout)
         world_rest = world if rest is None else wrap_inputs.rest_world_positions(arrays, rest)
@@ -294,7 +299,10 @@ class SPRINGWRAP_OT_mirror(SpringwrapOperator, bpy.types.Operator):
         mirror_seconds = time.perf_counter() - start
         result = None
         if self.wrap:
-            pinned = ~mirrored.is_copy & ~mirrored.seam
+            # Seam vertices brought back onto the plane pull their neighbours along: those re-settle too.
+            drifted = np.zeros(source.shape[0], dtype=bool)
+            drifted[:original_count] = decided.drifted
+            pinned = ~mirrored.is_copy & ~mirrored.seam & ~mirror_seam.resettled(mirrored_edges, drifted)
             if self.surfaced_half == "FREE":
                 pinned = np.zeros_like(pinned)
             seam_vertices = np.flatnonzero(mirrored.seam)
@@ -327,6 +335,8 @@ class SPRINGWRAP_OT_mirror(SpringwrapOperator, bpy.types.Operator):
             vertices=int(source.shape[0]),
             copies=int(mirrored.is_copy.sum()),
             seam_vertices=int(mirrored.seam.sum()),
+            drifted_seam=int(decided.drifted.sum()),
+            seam_drift=float(np.abs(decided.distances[decided.seam]).max()),
             crossing_faces=decided.crossing_faces.copy(),
             in_plane_faces=decided.in_plane_faces,
             source=source,
@@ -353,6 +363,11 @@ class SPRINGWRAP_OT_mirror(SpringwrapOperator, bpy.types.Operator):
             text += (
                 f"; the new half wrapped in {outcome.wrap.iterations} iterations ({ending}), "
                 f"{outcome.wrap.face_points} face-points, {outcome.wrap.space_points} space-points"
+            )
+        if outcome.drifted_seam:
+            text += (
+                f"; {outcome.drifted_seam} of them (the half's open border, up to {outcome.seam_drift:.3g} off the "
+                "plane) brought back onto it" + (" and the border re-settled" if outcome.wrap is not None else "")
             )
         if outcome.mirrored_anchors or outcome.dropped_anchors:
             text += f"; {outcome.mirrored_anchors} anchors mirrored, {outcome.dropped_anchors} on the seam dropped"

@@ -60,7 +60,8 @@ class _SnapOperator(LayoutOperator):
                     target = target_data.read_target(context.evaluated_depsgraph_get(), layout)
                 outcome = self.compute(context, layout, arrays, target)
                 readout = None
-                if target is not None and self.writes_readout:
+                # Points alone (no faces, no edges) are snapped too; the read-out measures faces and edges.
+                if target is not None and self.writes_readout and (layout.data.polygons or layout.data.edges):
                     readout = quality_data.measure_layout(layout, target, outcome.positions, state=outcome.state)
                 layout_data.write_layout(layout, outcome.positions, outcome.state)
                 if readout is not None:

@@ -26,7 +26,7 @@ from ..blender import layout as layout_data
 from ..blender import wrap_session
 from ..blender.edit_mode import EditModeGuard, object_mode
 from ..blender.wrap_session import WrapSession
-from ..core import input_policy, mirroring, quality, transforms
+from ..core import input_policy, mirror_seam, mirroring, quality, transforms
 from ..core.errors import ERRORS
 from ..core.transforms import matrix_array
 from ..core.wrap_inputs import WrapParameters
@@ -159,6 +159,23 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
             free_group=self.free_group,
         )
 
+    def _find_midline(self, layout) -> None:
+        """Without Hold on Plane, remember the plane of the layout (or its Mirror Object) its open border lies on, if
+        any (a half's midline), to say after the wrap what Hold on Plane is for."""
+        self._midline = None
+        if self.hold_plane != "NONE" or len(layout.data.polygons) == 0:
+            return
+        owner = layout.springwrap.mirror_object or layout
+        open_edges, edges = layout_data.read_open_edges(layout)
+        if open_edges.size == 0:
+            return
+        matrix = matrix_array(owner.matrix_world)
+        if not transforms.is_invertible(matrix):
+            return
+        world = transforms.world_positions(layout_data.read_layout(layout))
+        planes = [(axis, mirroring.plane_from_matrix(matrix, axis)) for axis in mirroring.AXES]
+        self._midline = mirror_seam.midline_plane(world, open_edges, edges, planes, mirroring.DEFAULT_WELD_FRACTION)
+
     def _plane_holder(self, layout, extent):
         """``adjust_inputs`` for :class:`WrapSession` holding the midline on ``hold_plane``; None without one."""
         if self.hold_plane == "NONE":
@@ -181,6 +198,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
         try:
             layout = context.active_object
             extent = check_inputs(context, layout)
+            self._find_midline(layout)
             return WrapSession(
                 context,
                 layout,
@@ -298,6 +316,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
     def _report_result(self, result: WrapResult, settings) -> None:
         """Report ``result``; warn about what in ``settings`` (the wrap's ``WrapSettings``) its solver ignored."""
         wrap_session.remember_result(result)
+        report_midline(self, bpy.data.objects.get(result.layout_name))
         self.report({"INFO"} if result.converged else {"WARNING"}, result.summary())
         if result.readout is not None:
             self.report({"INFO"}, quality.report_line(result.readout))
@@ -309,6 +328,23 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
                 f"lost their target face and became space-points, {reattached} face-points re-attached",
             )
         report_energy_ignored(self, settings)
+
+
+def report_midline(operator, layout) -> None:
+    """Say how far the wrap moved a half's midline off its plane (``operator._midline``, found before the wrap) and
+    what Hold on Plane is for."""
+    midline = getattr(operator, "_midline", None)
+    if midline is None or layout is None:
+        return
+    axis, plane, vertices = midline
+    world = transforms.world_positions(layout_data.read_layout(layout))
+    drift = float(abs(mirroring.signed_distances(world[vertices], plane)).max())
+    operator.report(
+        {"INFO"},
+        f"The layout's open border lies on its {axis} plane ({vertices.size} vertices: a half's midline?); the wrap "
+        f"moved it up to {drift:.3g} off the plane. To mirror this half, wrap it with Hold on Plane {axis}: the "
+        "midline then stays on the plane (Mirror also brings it back onto the plane and re-settles the border)",
+    )
 
 
 classes = (SPRINGWRAP_OT_wrap,)

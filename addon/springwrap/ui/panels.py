@@ -14,8 +14,8 @@ The lists are in ``lists``; data is read through ``blender``.
 import bpy
 
 from ..blender import anchors as anchor_data
+from ..blender import last_run, wrap_session
 from ..blender import layout as layout_data
-from ..blender import wrap_session
 from . import lists
 
 WRAP_BUTTON_SCALE = 1.6
@@ -123,7 +123,7 @@ class SPRINGWRAP_PT_align(_LayoutSubPanel, bpy.types.Panel):
     def draw(self, context):
         layout = self.layout
         anchor_count = len(context.active_object.springwrap.anchors)
-        layout.label(text=f"Fit to {anchor_count} anchors, then ICP")
+        layout.label(text=f"Fit to {anchor_count} anchor{'' if anchor_count == 1 else 's'}, then ICP")
         row = layout.row(align=True)
         row.operator_menu_enum("springwrap.align", "method", text="Align", icon="ORIENTATION_GLOBAL")
         icp_only = row.operator("springwrap.align", text="ICP Only")
@@ -210,6 +210,10 @@ class SPRINGWRAP_PT_curve_constraints(_ToolPanel, bpy.types.Panel):
     def draw_header(self, context):
         self.layout.prop(context.active_object.springwrap, "show_curve_constraints", text="")
 
+    def draw_header_preset(self, context):
+        """How many constraints the layout has, on the right of the header: seen with the sub-panel closed."""
+        self.layout.label(text=str(len(context.active_object.springwrap.curve_constraints)))
+
     def draw(self, context):
         layout = self.layout
         settings = context.active_object.springwrap
@@ -291,32 +295,32 @@ class SPRINGWRAP_PT_check(_LayoutSubPanel, bpy.types.Panel):
     def draw(self, context):
         layout = self.layout
         obj = context.active_object
+        run = last_run.last(obj.name)
         counts = layout_data.read_point_counts(obj)
         column = layout.column(align=True)
         if counts is None:
             column.label(text="Counts in Object Mode", icon="INFO")
+        elif run is not None and run.operation == "Fit Subdivision":  # a cage: off the surface by design
+            _count_row(column, "Cage Points", sum(counts), icon="MOD_SUBSURF")
+            column.label(text="Its subdivided surface is on the target")
         else:
             face_count, space_count = counts
             _count_row(column, "On Surface", face_count, icon="SNAP_FACE")  # face-points
             _count_row(column, "In Space", space_count, icon="EMPTY_AXIS")  # space-points
         _draw_readout(layout, obj)
-        result = wrap_session.last_result(obj)
-        if result is None:
+        if run is None:
             return
         column = layout.column(align=True)
-        _count_row(column, "Last Wrap", "Converged" if result.converged else "At the limit", icon="MOD_SHRINKWRAP")
-        _count_row(column, "Iterations", result.iterations)
-        _count_row(column, "Time", f"{result.seconds:.2f} s")
-        if result.frames:  # the live wrap: how much of that was solving, over how many redraws
-            _count_row(column, "Solving", f"{result.kernel_seconds:.2f} s")
-            _count_row(column, "Frames", result.frames)
+        icons = {"Wrap": "MOD_SHRINKWRAP", "Mirror": "MOD_MIRROR", "Fit Subdivision": "MOD_SUBSURF"}
+        for index, (label, value) in enumerate(run.rows):
+            _count_row(column, label, value, icon=icons.get(run.operation, "NONE") if index == 0 else "NONE")
 
 
 def _draw_readout(layout, obj) -> None:
     """The Check section's quality read-out: the heat-map toggle and kind, Select Problems and its kind."""
     settings = obj.springwrap
     column = _split(layout.column(align=True))
-    column.prop(settings, "show_heatmap", icon="COLORSET_01_VEC")
+    column.prop(settings, "show_heatmap", text="Show Heat-Map")
     row = column.row(align=True)
     row.active = settings.show_heatmap
     row.prop(settings, "heatmap_kind", text="Show")

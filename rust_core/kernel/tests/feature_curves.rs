@@ -7,6 +7,7 @@ mod common;
 use common::Rng;
 use glam::{Vec2, Vec3};
 use springwrap_kernel::features::join::join_chains;
+use springwrap_kernel::features::scale::{AUTOMATIC_SCALE_MAX_EDGES, AUTOMATIC_SCALE_MIN_EDGES};
 use springwrap_kernel::{
     FeatureCurve, FeatureCurveKind, FeatureSettings, KernelError, TargetMesh, TargetMeshOptions,
     automatic_scale, detect_features, mean_edge_length,
@@ -319,8 +320,12 @@ fn the_automatic_scale_is_bounded_by_the_edges() {
     let diagonal = Vec3::new(ARM_X, ARM_Y, DEPTH).length();
     assert!((automatic_scale(&part, 0.0).unwrap() - 0.1 * diagonal).abs() < 1e-4);
     assert!((automatic_scale(&part, 0.05).unwrap() - 0.05).abs() < 1e-6);
-    // A layout edge below 3 mesh edges or above 30: held at those.
-    assert!((automatic_scale(&part, 1e-4).unwrap() - 3.0 * edge).abs() < 1e-6);
+    // A layout edge below 6 mesh edges or above 30: held at those.
+    assert_eq!(
+        (AUTOMATIC_SCALE_MIN_EDGES, AUTOMATIC_SCALE_MAX_EDGES),
+        (6.0, 30.0)
+    );
+    assert!((automatic_scale(&part, 1e-4).unwrap() - 6.0 * edge).abs() < 1e-6);
     assert!((automatic_scale(&part, 10.0).unwrap() - 30.0 * edge).abs() < 1e-5);
     for bad in [-1.0, f32::NAN, f32::INFINITY] {
         assert!(

@@ -12,8 +12,9 @@ use crate::validate::{MAX_COORDINATE, SettingRange, check_setting};
 /// curve has edges of about a scale, and a chain of fewer than three edges hardly constrains.
 pub const MIN_LENGTH_SCALES: f32 = 3.0;
 
-/// Curve ends closer than this many scales that continue each other are joined by default.
-pub const JOIN_DISTANCE_SCALES: f32 = 1.0;
+/// Curve ends closer than this many scales that continue each other are joined by default (two: a
+/// crease that noise breaks into pieces is one curve again).
+pub const JOIN_DISTANCE_SCALES: f32 = 2.0;
 
 /// Settings of [`detect_features`]. Lengths are in model units; thresholds are dimensionless
 /// (a curvature `k` is compared as `k × scale`).

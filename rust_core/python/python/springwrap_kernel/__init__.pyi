@@ -206,7 +206,7 @@ class TargetMesh:
         negative) curvature is extremal across itself, with ``k * scale >= ridge_threshold``
         somewhere along the curve and ``hysteresis * ridge_threshold`` along the rest of it; open
         ends are extended along the crease while it stays a crest at that low threshold, up to an
-        edge of the surface. Pieces whose ends are within ``join_distance`` (default ``scale``)
+        edge of the surface. Pieces whose ends are within ``join_distance`` (default ``2 * scale``)
         and continue each other are joined; curves shorter than ``min_length`` (default
         ``3 * scale``) are dropped. For the centre-lines of blends, ``scale`` about the blend
         radius. Raises :class:`FlatSurfaceError` when no vertex bends beyond ``flat_threshold``
@@ -225,7 +225,7 @@ class TargetMesh:
         """The curves of :meth:`detect_features` alone."""
     def automatic_feature_scale(self, layout_edge_length: float | None = None) -> float:
         """The feature scale used when none is given: ``layout_edge_length`` (a layout's median
-        edge length) when given and > 0, else a tenth of the bounding-box diagonal; kept within 3
+        edge length) when given and > 0, else a tenth of the bounding-box diagonal; kept within 6
         and 30 mean edge lengths of this mesh and at most its diagonal."""
 
 # ---------------------------------------------------------------- features
