@@ -15,10 +15,13 @@ from .errors import LayoutError
 
 
 def in_list_order(before: Anchors, after: Anchors, renamed: dict[int, int] | None = None) -> Anchors:
-    """``after`` ordered as ``before``: the anchors whose vertex (or, through ``renamed``, whose former vertex)
-    had an anchor in ``before`` at that anchor's place, the others after them in their own order."""
+    """``after`` ordered as ``before``: the anchors whose vertex (or, through ``renamed`` (old vertex: new vertex),
+    whose former vertex) had an anchor in ``before`` at that anchor's place, the others after them in their own
+    order."""
     renamed = renamed or {}
-    place = {renamed.get(int(vertex), int(vertex)): row for row, vertex in enumerate(before.vertex_indices.tolist())}
+    vertices = before.vertex_indices.tolist()
+    place = {int(vertex): row for row, vertex in enumerate(vertices)}
+    place |= {renamed[vertex]: row for row, vertex in enumerate(vertices) if vertex in renamed}  # the moved ones win
     count = anchors.anchor_count(before)
     keys = [place.get(int(vertex), count + row) for row, vertex in enumerate(after.vertex_indices.tolist())]
     return anchors.take(after, np.argsort(np.asarray(keys, dtype=np.int64), kind="stable"))

@@ -58,6 +58,10 @@ class SPRINGWRAP_OT_pair_tool(LayoutOperator, bpy.types.Operator):
 
     # ---------------------------------------------------------------- start and end
 
+    def execute(self, context):
+        self.report({"ERROR"}, "The pair tool works in a 3D view (scripts: Add Anchor and Remove Anchor)")
+        return {"CANCELLED"}
+
     def invoke(self, context, event):
         if _running:
             return {"PASS_THROUGH"}
