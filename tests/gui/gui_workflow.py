@@ -9,7 +9,7 @@ sidebar's Springwrap tab, and runs the workflow through the panel's operators wi
 the 3D view (undo steps pushed as the buttons do): detach, the cage display, automatic anchors, the
 live wrap (its wall time against its solver time measured), undo and redo (the layout compared bit
 for bit), a long live wrap cancelled with a simulated Esc (the layout must be back exactly),
-feature detection (one curve object per kind). Each step is a ``bpy.app.timers`` callback, so that
+feature detection (one curve object per kind), then the pair tool on the body (``gui_pair_tool.py``). Each step is a ``bpy.app.timers`` callback, so that
 Blender redraws in between as it does for a user; a screenshot of each step goes to the output folder.
 
 With ``--hide-numpy`` it plays Debian's Blender without python3-numpy instead: numpy cannot be imported,
@@ -33,6 +33,7 @@ import addon_utils
 
 REPOSITORY = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPOSITORY / "blender_scripts"))
+sys.path.insert(0, str(REPOSITORY / "tests" / "gui"))
 
 STEP_SECONDS = 0.3
 """Pause between steps (the interface redraws in between)."""
@@ -55,6 +56,7 @@ def parse_arguments() -> argparse.Namespace:
     parser.add_argument("--package", type=Path, required=True, help="the legacy add-on zip to install")
     parser.add_argument("--output", type=Path, required=True, help="folder of result.json and the screenshots")
     parser.add_argument("--hide-numpy", action="store_true", help="play a Blender without numpy")
+    parser.add_argument("--body", type=Path, help="the body and scan for the pair tool's steps (body.npz)")
     return parser.parse_args(argv)
 
 
@@ -193,6 +195,7 @@ class Workflow:
         self.output = arguments.output
         self.package = arguments.package
         self.hide_numpy = arguments.hide_numpy
+        self.body = arguments.body
         self.result = {"steps": [], "failures": [], "screenshots": [], "blender": bpy.app.version_string}
         self.ui = Window()
         self.tab_drawn = 0.0
@@ -437,6 +440,11 @@ class Workflow:
         self.check(not layout.show_in_front and layout.display_type == "TEXTURED", "the cage: display not restored")
         self.step("cage_off")
         yield STEP_SECONDS
+
+        import gui_pair_tool
+
+        self.check(self.body is not None and self.body.is_file(), f"no body for the pair tool at {self.body}")
+        yield from gui_pair_tool.PairToolSteps(self, self.body).steps()
 
     def missing_numpy_steps(self):
         sys.modules.pop("numpy", None)
