@@ -50,8 +50,7 @@ def running() -> bool:
 
 
 class SPRINGWRAP_OT_pair_tool(LayoutOperator, bpy.types.Operator):
-    """Make and edit anchor pairs in the 3D view: click a layout vertex and a target point, drag a pair's ends,
-    X removes the pair under the mouse, Ctrl+click puts the target end in space; Esc leaves"""
+    """Anchor pairs with the mouse: click a layout vertex and a target point, drag an end, X removes, Esc leaves"""
 
     bl_label = "Pair Tool"
     bl_options = set()  # every edit pushes its own undo step
