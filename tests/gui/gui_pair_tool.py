@@ -43,7 +43,7 @@ def mesh_object(name: str, vertices, polygons):
     mesh.loops.foreach_set("vertex_index", polygons.ravel())
     mesh.polygons.add(len(polygons))
     mesh.polygons.foreach_set("loop_start", np.arange(0, polygons.size, polygons.shape[1], dtype=np.int32))
-    if not mesh.polygons.bl_rna.properties["loop_total"].is_readonly:  # Blender before 4.0
+    if not bpy.types.MeshPolygon.bl_rna.properties["loop_total"].is_readonly:  # Blender before 4.0
         mesh.polygons.foreach_set("loop_total", np.full(len(polygons), polygons.shape[1], dtype=np.int32))
     mesh.update(calc_edges=True)
     obj = bpy.data.objects.new(name, mesh)
@@ -105,6 +105,10 @@ class PairToolSteps:
             view3d_utils.region_2d_to_vector_3d(region, region_3d, pixel),
         )
 
+    def snapped(self, pixel) -> Vector:
+        """``pixel`` on the whole pixel an event there reports (events have integer window coordinates)."""
+        return Vector((round(self.region.x + pixel[0]) - self.region.x, round(self.region.y + pixel[1]) - self.region.y))
+
     def event(self, kind: str, value: str, pixel, **modifiers) -> None:
         x, y = int(round(self.region.x + pixel[0])), int(round(self.region.y + pixel[1]))
         self.ui.window.event_simulate(type=kind, value=value, x=x, y=y, **modifiers)
@@ -120,13 +124,13 @@ class PairToolSteps:
         self.clicks += 1
         yield MOVE
 
-    def drag(self, start, steps, step=(10.0, -6.0), pause=MOVE):
+    def drag(self, start, steps, step=(4.0, -3.0), pause=MOVE):
         yield from self.move(start)
         self.event("LEFTMOUSE", "PRESS", start)
         yield MOVE
         pixel = Vector(start)
         for _ in range(steps):
-            pixel = pixel + Vector(step)
+            pixel = self.snapped(pixel + Vector(step))
             yield from self.move_by(pixel, pause)
         self.event("LEFTMOUSE", "RELEASE", pixel)
         yield MOVE
@@ -157,8 +161,10 @@ class PairToolSteps:
         target = mesh_object("Scan", body["target_vertices"], body["target_triangles"])
         layout = mesh_object("Body", body["layout_vertices"], body["layout_quads"])
         layout.springwrap.target = target
+        bpy.context.view_layer.update()
         for obj in bpy.context.view_layer.objects:
-            obj.select_set(obj == layout)
+            if obj is not None:
+                obj.select_set(obj == layout)
         bpy.context.view_layer.objects.active = layout
         check(self.ui.call(bpy.ops.springwrap.detach) == {"FINISHED"}, "detach the body")
         for vertex, location in zip(body["anchor_vertices"][:ANCHORS].tolist(), body["anchor_positions"].tolist()):
@@ -203,7 +209,7 @@ class PairToolSteps:
         count = len(layout.springwrap.anchors)
         self.clicks = 0
         yield from self.click(vertex_pixel)
-        target_pixel = vertex_pixel + Vector(TARGET_OFFSET)
+        target_pixel = self.snapped(vertex_pixel + Vector(TARGET_OFFSET))
         yield from self.move(target_pixel)
         hovered_target = overlays.tool_points(layout)[1]
         yield from self.click(target_pixel)
@@ -216,10 +222,11 @@ class PairToolSteps:
         check(items[pair].vertex_index == vertex, f"the pair is on vertex {items[pair].vertex_index}, not {vertex}")
         check(
             expected is not None and np.linalg.norm(location - expected) < SURFACE_PRECISION,
-            f"the pair's target {location} is not the clicked surface point {expected}",
+            f"the pair's target {location} (at pixel {tuple(self.pixel(location))}) is not the clicked surface point "
+            f"{expected} (at pixel {tuple(target_pixel)})",
         )
         check(
-            hovered_target is not None and np.linalg.norm(np.asarray(hovered_target) - location) < 1e-9,
+            hovered_target is not None and np.linalg.norm(np.asarray(hovered_target) - location) < SURFACE_PRECISION,
             "the hovered target point is not the one the click took",
         )
         self.check_on_surface(layout, pair, target_data)

@@ -57,6 +57,7 @@ def parse_arguments() -> argparse.Namespace:
     parser.add_argument("--output", type=Path, required=True, help="folder of result.json and the screenshots")
     parser.add_argument("--hide-numpy", action="store_true", help="play a Blender without numpy")
     parser.add_argument("--body", type=Path, help="the body and scan for the pair tool's steps (body.npz)")
+    parser.add_argument("--pair-tool-only", action="store_true", help="only the pair tool's steps (to work on them)")
     return parser.parse_args(argv)
 
 
@@ -196,6 +197,7 @@ class Workflow:
         self.package = arguments.package
         self.hide_numpy = arguments.hide_numpy
         self.body = arguments.body
+        self.pair_tool_only = arguments.pair_tool_only
         self.result = {"steps": [], "failures": [], "screenshots": [], "blender": bpy.app.version_string}
         self.ui = Window()
         self.tab_drawn = 0.0
@@ -295,6 +297,10 @@ class Workflow:
         import demo
 
         self.install()
+        if self.pair_tool_only:
+            yield from self.open_tab()
+            yield from self.pair_tool_steps()
+            return
         wrap_session = sys.modules["springwrap.blender.wrap_session"]
         for obj in list(bpy.data.objects):
             bpy.data.objects.remove(obj)
@@ -441,6 +447,9 @@ class Workflow:
         self.step("cage_off")
         yield STEP_SECONDS
 
+        yield from self.pair_tool_steps()
+
+    def pair_tool_steps(self):
         import gui_pair_tool
 
         self.check(self.body is not None and self.body.is_file(), f"no body for the pair tool at {self.body}")

@@ -149,7 +149,7 @@ class SPRINGWRAP_OT_pair_tool(LayoutOperator, bpy.types.Operator):
             self._end(context, leave_tool=False)
             return {"FINISHED"}
         mouse = (event.mouse_x - self._region.x, event.mouse_y - self._region.y)
-        inside = 0 <= mouse[0] < self._region.width and 0 <= mouse[1] < self._region.height
+        inside = self._over_view(event.mouse_x, event.mouse_y)
         if event.type == "ESC" and event.value == "PRESS":
             if self._settle is not None:
                 self._cancel_settle(context)
@@ -187,6 +187,16 @@ class SPRINGWRAP_OT_pair_tool(LayoutOperator, bpy.types.Operator):
             self._hover(context, mouse)
             return {"RUNNING_MODAL"}
         return {"PASS_THROUGH"}
+
+    def _over_view(self, x: int, y: int) -> bool:
+        """Whether the window pixel ``(x, y)`` is over the view itself: in the 3D view's main region and not over
+        the toolbar, the sidebar or a header drawn over it."""
+        for region in self._area.regions:
+            within = region.x <= x < region.x + region.width and region.y <= y < region.y + region.height
+            if region.type != "WINDOW" and region.width > 1 and region.height > 1 and within:
+                return False
+        region = self._region
+        return region.x <= x < region.x + region.width and region.y <= y < region.y + region.height
 
     def _view(self) -> pair_pick.View:
         return pair_data.read_view(self._region, self._region_3d)
