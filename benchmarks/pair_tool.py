@@ -138,7 +138,7 @@ def settle_row(context, layout, vertex: int, edit: int) -> dict:
     built = time.perf_counter()
     frames = []
     while not session.done:
-        session.advance()
+        pair_tool.advance_settle(session)
         frames.append((time.perf_counter() - begin, np.array(layout.matrix_world @ layout.data.vertices[vertex].co)))
     session.finish()
     written = time.perf_counter()

@@ -23,6 +23,9 @@ from . import layout as layout_data
 from . import target as target_data
 from .wrap_session import WrapSession
 
+LIVE_FIRST_FRAME_SECONDS = 0.3
+"""A Live re-settle's first frame solves at most this long, so the layout shows an edit's effect soon after it."""
+
 
 class Picking(NamedTuple):
     """The layout as the mouse sees it: its vertices in world space and its surface (what hides a vertex)."""
@@ -150,8 +153,21 @@ def remove_pair(layout: bpy.types.Object, index: int):
     return outcome
 
 
-def start_settle(context, layout: bpy.types.Object) -> WrapSession:
+def start_settle(context, layout: bpy.types.Object, display_seconds: float | None = None) -> WrapSession:
     """A Live re-settle: a wrap with the wrap's default settings started from the layout as it is now (its
-    positions and face-points: a warm start), with the anchors as just edited. Nothing is written yet."""
+    positions and face-points: a warm start), with the anchors as just edited. Nothing is written yet.
+    ``display_seconds``: what a redraw is known to cost (the frames are paced from it, as the modal wrap's)."""
     parameters = WrapParameters(settings=WRAP_DEFAULTS)
-    return WrapSession(context, layout, parameters)
+    return WrapSession(context, layout, parameters, display_seconds=display_seconds)
+
+
+def advance_settle(session: WrapSession) -> None:
+    """One frame of a Live re-settle, written: the first solves at most :data:`LIVE_FIRST_FRAME_SECONDS`, the
+    others as long as the modal wrap's frames."""
+    limit = session.pacer.max_solve_seconds
+    if session.frames == 0:
+        session.pacer.max_solve_seconds = min(limit, LIVE_FIRST_FRAME_SECONDS)
+    try:
+        session.advance()
+    finally:
+        session.pacer.max_solve_seconds = limit

@@ -25,7 +25,7 @@ from ..blender import wrap_session
 from ..blender.edit_mode import EditModeGuard
 from ..core import anchors, pair_pick
 from ..core.errors import ERRORS
-from ..ui import anchor_focus, overlays
+from ..ui import anchor_focus, frame_clock, overlays
 from ..ui.pair_tool import OBJECT_TOOL
 from .base import LayoutOperator
 
@@ -367,7 +367,7 @@ class SPRINGWRAP_OT_pair_tool(LayoutOperator, bpy.types.Operator):
         layout = self._layout()
         if layout is not None and layout.springwrap.pair_live:
             try:
-                self._settle = pair_data.start_settle(context, layout)
+                self._settle = pair_data.start_settle(context, layout, frame_clock.display_seconds())
             except ERRORS as error:
                 self.report({"ERROR"}, f"Live: {error}")
                 return
@@ -380,7 +380,7 @@ class SPRINGWRAP_OT_pair_tool(LayoutOperator, bpy.types.Operator):
     def _advance_settle(self, context) -> None:
         if self._settle is None:
             return
-        self._settle.advance()
+        pair_data.advance_settle(self._settle)
         if self._settle.done:
             self._finish_settle(context)
         self._area.tag_redraw()
