@@ -86,12 +86,18 @@ def test_two_clicks_make_a_pair_exactly_on_the_surface_and_one_undo_step(plane):
     assert anchors_state(bpy.data.objects["Layout"]) == before
 
 
-def test_a_pair_on_an_anchored_vertex_replaces_it_and_keeps_its_number(plane):
-    target, layout, normal, view = plane
+def place_pairs(layout, normal, vertices):
+    """Pairs on ``vertices``, each to the target point 0.3 under it."""
     tool = addon_module("blender.pair_tool")
     world = world_positions(layout)
-    for vertex in (10, 40, 70):
+    for vertex in vertices:
         tool.place_pair(bpy.context, layout, vertex, world[vertex] - 0.3 * normal)
+    return tool, world
+
+
+def test_a_pair_on_an_anchored_vertex_replaces_it_and_keeps_its_number(plane):
+    target, layout, normal, view = plane
+    tool, world = place_pairs(layout, normal, (10, 40, 70))
     dragged = []
     for shift in np.linspace(0.0, 60.0, 7):  # a drag of the target end: a ray cast at every mouse move
         mouse = pixel_of(view, world[40]) + (shift, -0.5 * shift)
@@ -107,10 +113,7 @@ def test_a_pair_on_an_anchored_vertex_replaces_it_and_keeps_its_number(plane):
 
 def test_dragging_the_layout_end_moves_the_pair_to_another_vertex(plane):
     target, layout, normal, view = plane
-    tool = addon_module("blender.pair_tool")
-    world = world_positions(layout)
-    for vertex in (10, 40):
-        tool.place_pair(bpy.context, layout, vertex, world[vertex] - 0.3 * normal)
+    tool, world = place_pairs(layout, normal, (10, 40))
     location = np.array(layout.springwrap.anchors[0].location)
     tool.repick_pair(bpy.context, layout, 0, tool.vertex_under_mouse(layout, view, pixel_of(view, world[12])))
     assert [item.vertex_index for item in layout.springwrap.anchors] == [12, 40]
@@ -119,10 +122,7 @@ def test_dragging_the_layout_end_moves_the_pair_to_another_vertex(plane):
 
 def test_remove_takes_the_pair_away_and_needs_no_target(plane):
     target, layout, normal, view = plane
-    tool = addon_module("blender.pair_tool")
-    world = world_positions(layout)
-    for vertex in (10, 40, 70):
-        tool.place_pair(bpy.context, layout, vertex, world[vertex] - 0.3 * normal)
+    tool, world = place_pairs(layout, normal, (10, 40, 70))
     layout.springwrap.target = None
     tool.remove_pair(layout, 1)
     assert [item.vertex_index for item in layout.springwrap.anchors] == [10, 70]

@@ -21,6 +21,8 @@ from bpy_extras import view3d_utils
 from mathutils import Vector
 from mathutils.bvhtree import BVHTree
 
+from benchmarks.retarget.baselines import mesh_object  # the repository is on the path (gui_workflow.py)
+
 STEP = 0.3
 """Seconds between steps."""
 MOVE = 0.05
@@ -35,24 +37,6 @@ SURFACE_PRECISION = 1e-5
 HIT_PRECISION = 1e-4
 """Metres: how far a pair's target point may be from Blender's own hit along the mouse ray (two float32 ray casts
 from a few metres away; where the ray meets the surface at a slant, their depths differ most)."""
-
-
-def mesh_object(name: str, vertices, polygons):
-    """A new object of ``vertices`` and equal-size ``polygons``, linked to the scene (Blender 3.4 to 5.0)."""
-    polygons = np.ascontiguousarray(polygons, dtype=np.int32)
-    mesh = bpy.data.meshes.new(name)
-    mesh.vertices.add(len(vertices))
-    mesh.vertices.foreach_set("co", np.ascontiguousarray(vertices, dtype=np.float32).ravel())
-    mesh.loops.add(polygons.size)
-    mesh.loops.foreach_set("vertex_index", polygons.ravel())
-    mesh.polygons.add(len(polygons))
-    mesh.polygons.foreach_set("loop_start", np.arange(0, polygons.size, polygons.shape[1], dtype=np.int32))
-    if not bpy.types.MeshPolygon.bl_rna.properties["loop_total"].is_readonly:  # Blender before 4.0
-        mesh.polygons.foreach_set("loop_total", np.full(len(polygons), polygons.shape[1], dtype=np.int32))
-    mesh.update(calc_edges=True)
-    obj = bpy.data.objects.new(name, mesh)
-    bpy.context.scene.collection.objects.link(obj)
-    return obj
 
 
 def world_of(obj) -> np.ndarray:

@@ -33,6 +33,7 @@ import addon_utils
 
 REPOSITORY = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPOSITORY / "blender_scripts"))
+sys.path.insert(0, str(REPOSITORY))
 sys.path.insert(0, str(REPOSITORY / "tests" / "gui"))
 
 STEP_SECONDS = 0.3
