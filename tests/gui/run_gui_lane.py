@@ -23,7 +23,7 @@ from pathlib import Path
 REPOSITORY = Path(__file__).resolve().parents[2]
 SCRIPT = REPOSITORY / "tests" / "gui" / "gui_workflow.py"
 SCREEN = "-screen 0 1920x1080x24"
-TIMEOUT_SECONDS = 900
+TIMEOUT_SECONDS = 2400
 BODY_TRIANGLES = 60_000
 """About this many triangles of the pair tool's scan-like target (the ``heavy`` body voxel-remeshed)."""
 PAIR_ANCHORS = 6
