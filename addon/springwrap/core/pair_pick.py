@@ -61,17 +61,27 @@ def project(view: View, points) -> tuple[np.ndarray, np.ndarray]:
     return pixels, in_front
 
 
-def mouse_ray(view: View, mouse) -> tuple[np.ndarray, np.ndarray]:
-    """``(origin (3,), direction (3,) unit)``: the world ray under the region pixel ``mouse``, from the view's near
-    plane into the scene."""
-    x, y = (float(value) for value in mouse)
-    ndc_x, ndc_y = 2.0 * x / view.width - 1.0, 2.0 * y / view.height - 1.0
+def mouse_rays(view: View, pixels) -> tuple[np.ndarray, np.ndarray]:
+    """``(origins (N, 3), directions (N, 3) unit)``: the world rays under region ``pixels`` (N, 2), from the view's
+    near plane into the scene."""
+    pixels = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
+    clip = np.ones((pixels.shape[0], 4))
+    clip[:, 0] = 2.0 * pixels[:, 0] / view.width - 1.0
+    clip[:, 1] = 2.0 * pixels[:, 1] / view.height - 1.0
     inverse = np.linalg.inv(view.perspective_matrix)
-    near = inverse @ np.array([ndc_x, ndc_y, -1.0, 1.0])
-    far = inverse @ np.array([ndc_x, ndc_y, 1.0, 1.0])
-    origin, end = near[:3] / near[3], far[:3] / far[3]
-    direction = end - origin
-    return origin, direction / np.linalg.norm(direction)
+    ends = []
+    for depth in (-1.0, 1.0):
+        clip[:, 2] = depth
+        points = clip @ inverse.T
+        ends.append(points[:, :3] / points[:, 3:4])
+    directions = ends[1] - ends[0]
+    return ends[0], directions / np.linalg.norm(directions, axis=1)[:, None]
+
+
+def mouse_ray(view: View, mouse) -> tuple[np.ndarray, np.ndarray]:
+    """``(origin (3,), direction (3,) unit)``: the world ray under the region pixel ``mouse``."""
+    origins, directions = mouse_rays(view, mouse)
+    return origins[0], directions[0]
 
 
 def view_forward(view: View) -> np.ndarray:
@@ -94,10 +104,7 @@ def visible(view: View, points: np.ndarray, occluder, tolerance: float) -> np.nd
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     if occluder is None or not points.shape[0]:
         return np.ones(points.shape[0], dtype=bool)
-    pixels, _in_front = project(view, points)
-    origins = np.empty_like(points)
-    for row, pixel in enumerate(pixels):
-        origins[row] = mouse_ray(view, pixel)[0]
+    origins, _directions = mouse_rays(view, project(view, points)[0])
     directions = points - origins
     lengths = np.linalg.norm(directions, axis=1)
     directions /= np.where(lengths > 0.0, lengths, 1.0)[:, None]
