@@ -403,7 +403,10 @@ class SPRINGWRAP_OT_pair_tool(LayoutOperator, bpy.types.Operator):
         if settle is None:
             return
         wrap_session.set_running(settle, running=False)
-        settle.cancel()
+        try:
+            settle.cancel()
+        except ReferenceError:  # the layout was deleted under the re-settle: nothing to put back
+            pass
         self._stop_timer(context)
         self._status(context)
 
