@@ -162,7 +162,12 @@ class PairToolSteps:
                 bpy.ops.springwrap.anchor_add, vertex_index=vertex, location=location, use_location=True
             )
             check(result == {"FINISHED"}, f"anchor_add: {result}")
-        outcome = self.ui.call(bpy.ops.springwrap.wrap)
+        # The Wrap button's defaults: Blender remembers the properties of the workflow's earlier wraps.
+        properties = bpy.ops.springwrap.wrap.get_rna_type().properties
+        defaults = {
+            name: properties[name].default for name in ("solver", "spring_resolution", "tolerance", "max_iterations")
+        }
+        outcome = self.ui.call(bpy.ops.springwrap.wrap, **defaults)
         check(outcome in ({"FINISHED"}, {"RUNNING_MODAL"}), f"wrap the body: {outcome}")
         while wrap_session.running_session(layout) is not None:
             yield 0.1
