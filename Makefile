@@ -150,6 +150,7 @@ bench: setup $(STAMPS)/bench-requirements
 	$(PY) benchmarks/performance.py $(BENCH_QUICK) --json $(BENCH_OUT)/performance.json
 	$(PY) benchmarks/snap_throughput.py $(BENCH_QUICK) --json $(BENCH_OUT)/snap_throughput.json
 	$(PY) benchmarks/wrap_speed.py $(if $(QUICK),,--large) --json $(BENCH_OUT)/wrap_speed.json
+	$(PY) benchmarks/pair_tool.py $(if $(QUICK),--edits 3 --moves 20,) --json $(BENCH_OUT)/pair_tool.json
 	$(PY) benchmarks/wrap_solvers.py $(if $(QUICK),--cases sphere-ellipsoid heavy,) --scans --nricp \
 	  --json $(BENCH_OUT)/wrap_solvers.json --markdown $(BENCH_DOCS)/wrap-solvers.md
 	$(PY) benchmarks/batch_throughput.py $(BENCH_QUICK) --json $(BENCH_OUT)/batch_throughput.json

@@ -379,6 +379,12 @@ class SpringwrapObjectSettings(bpy.types.PropertyGroup):
         "none: the layout's own",
         poll=_is_empty,
     )
+    pair_live: props.flag(
+        "Live",
+        "The pair tool re-settles the layout (a wrap from where it is) after every pair edit; off: it only edits "
+        "the pairs",
+        False,
+    )
 
     curve_constraints: props.items(
         "Curve Constraints", "Layout edge chains paired with target curves", SpringwrapCurveConstraintItem

@@ -582,7 +582,9 @@ def test_anchor_panel_lists_anchors_and_offers_the_operators():
         "springwrap.anchors_clear",
         "springwrap.anchors_auto",
         "springwrap.anchors_update",
+        "springwrap.pair_tool",
     }
+    assert "pair_live" in recorder.props
     assert buttons["springwrap.anchor_add"].vertex_index == -1
     assert buttons["springwrap.anchors_auto"].spacing == pytest.approx(0.4)
     assert buttons["springwrap.anchors_auto"].method == "PROJECT"

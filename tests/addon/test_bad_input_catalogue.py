@@ -334,9 +334,14 @@ def _call(operator, arguments):
     return getattr(bpy.ops.springwrap, operator)(**arguments)
 
 
+INTERACTIVE = {"pair_tool"}
+"""Operators that run only in a 3D view (called from a script they refuse, saying so); their bad input is checked
+on the functions they call (``test_pair_tool.py``)."""
+
+
 def test_every_operator_is_in_the_catalogue():
     registered = {name for name in dir(bpy.ops.springwrap) if not name.startswith("_")}
-    assert registered == set(OPERATORS)
+    assert registered - INTERACTIVE == set(OPERATORS)
 
 
 @pytest.mark.parametrize("operator", list(OPERATORS))

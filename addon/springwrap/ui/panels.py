@@ -159,6 +159,10 @@ class SPRINGWRAP_PT_anchors(_LayoutSubPanel, bpy.types.Panel):
         _count_row(counts, "Anchors", len(settings.anchors), icon="PINNED")
         _count_row(counts, "On Surface", anchor_data.face_anchor_count(obj), icon="SNAP_FACE")
 
+        pairs = layout.row(align=True)  # the pair tool: pairs made and dragged in the 3D view
+        pairs.operator("springwrap.pair_tool", text="Pair Tool", icon="MOUSE_LMB")
+        pairs.prop(settings, "pair_live", text="Live", toggle=True)
+
         row = layout.row()
         row.template_list("SPRINGWRAP_UL_anchors", "", settings, "anchors", settings, "active_anchor_index", rows=4)
         column = row.column(align=True)
