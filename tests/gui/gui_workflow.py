@@ -533,7 +533,6 @@ class Workflow:
             seconds=round(time.perf_counter() - started, 1),
         )
 
-
     def pair_tool_steps(self):
         import gui_pair_tool
 
