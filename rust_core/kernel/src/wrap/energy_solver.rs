@@ -677,17 +677,9 @@ impl EnergySolver {
     /// Replaces the fitted scales by their median (`None`) or by their log averaged over edge
     /// neighbours `rounds` times, within [`SCALE_RANGE`] of the median.
     fn smooth_scales(&mut self, rounds: Option<usize>) {
-        let mut scales: Vec<f32> = self
-            .similarities
-            .iter()
-            .map(|fit| fit.scale)
-            .filter(|scale| *scale > 0.0 && scale.is_finite())
-            .collect();
-        if scales.is_empty() {
+        let Some(median) = Similarity::median_scale(&self.similarities) else {
             return;
-        }
-        let middle = scales.len() / 2;
-        let median = *scales.select_nth_unstable_by(middle, f32::total_cmp).1;
+        };
         let Some(rounds) = rounds else {
             for fit in &mut self.similarities {
                 fit.scale = median;

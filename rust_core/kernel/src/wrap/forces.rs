@@ -50,6 +50,21 @@ impl Similarity {
     fn apply(self, vector: Vec3) -> Vec3 {
         self.rotation * vector * self.scale
     }
+
+    /// The median of the positive, finite scales of `fits`; `None` when there is none.
+    #[must_use]
+    pub fn median_scale(fits: &[Self]) -> Option<f32> {
+        let mut scales: Vec<f32> = fits
+            .iter()
+            .map(|fit| fit.scale)
+            .filter(|scale| *scale > 0.0 && scale.is_finite())
+            .collect();
+        if scales.is_empty() {
+            return None;
+        }
+        let middle = scales.len() / 2;
+        Some(*scales.select_nth_unstable_by(middle, f32::total_cmp).1)
+    }
 }
 
 /// Rotation-fit refinements per iteration, warm-started from the last fit (Müller et al. 2016,

@@ -107,16 +107,9 @@ impl Stretches {
         similarities: &[Similarity],
         rounds: Option<usize>,
     ) {
-        let mut scales: Vec<f32> = similarities
-            .iter()
-            .map(|fit| fit.scale)
-            .filter(|scale| *scale > 0.0 && scale.is_finite())
-            .collect();
-        if scales.is_empty() {
+        let Some(median) = Similarity::median_scale(similarities) else {
             return;
-        }
-        let middle = scales.len() / 2;
-        let median = *scales.select_nth_unstable_by(middle, f32::total_cmp).1;
+        };
         let Some(rounds) = rounds else {
             self.values = vec![Mat3::from_diagonal(Vec3::splat(median)); positions.len()];
             return;
