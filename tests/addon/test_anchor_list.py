@@ -281,6 +281,10 @@ def test_a_click_on_a_row_frames_its_vertex_in_the_3d_view():
     ]
     if not views:
         pytest.skip("no 3D view without Blender's interface: the GUI lane (make test-gui) checks the framing")
+    from springwrap.blender import compat
+
+    if compat.property_update(print) is None:
+        pytest.skip("the PyPI bpy 4.2 module registers properties without their update (compat.property_update)")
     window, area = views[0]
     target, layout = scene()
     place_hand_anchors()
