@@ -477,6 +477,8 @@ def voxel_remesh(vertices: np.ndarray, quads: np.ndarray, voxel_size: float) -> 
     mesh.loops.foreach_set("vertex_index", np.ascontiguousarray(quads, dtype=np.int32).ravel())
     mesh.polygons.add(len(quads))
     mesh.polygons.foreach_set("loop_start", np.arange(0, quads.size, 4, dtype=np.int32))
+    if bpy.app.version < (4, 0, 0):  # before 4.0 a face's corner count is not derived from the starts
+        mesh.polygons.foreach_set("loop_total", np.full(len(quads), 4, dtype=np.int32))
     mesh.update(calc_edges=True)
     with voxel_remeshed(mesh, voxel_size) as result:
         result.calc_loop_triangles()
