@@ -19,7 +19,11 @@ fn layout_pieces_py<'py>(
     vertex_count: &Bound<'py, PyAny>,
     edges: &Bound<'py, PyAny>,
 ) -> PyResult<Bound<'py, PyArray1<u32>>> {
-    let vertex_count = count("vertex_count", vertex_count, springwrap_kernel::mesh::MAX_ELEMENTS)?;
+    let vertex_count = count(
+        "vertex_count",
+        vertex_count,
+        springwrap_kernel::mesh::MAX_ELEMENTS,
+    )?;
     let edges = read_pairs("edges", Some(edges))?;
     let pieces = run_kernel(py, || connected_pieces(vertex_count, &edges))?;
     Ok(PyArray1::from_vec(py, pieces))
@@ -47,7 +51,9 @@ impl PySurfaceFollower {
     ) -> PyResult<Self> {
         let defaults = FollowSettings::default();
         let settings = FollowSettings {
-            neighbours: neighbours.map_or(Ok(defaults.neighbours), |value| count("neighbours", value, 1 << 20))?,
+            neighbours: neighbours.map_or(Ok(defaults.neighbours), |value| {
+                count("neighbours", value, 1 << 20)
+            })?,
             scale: flag("scale", scale, defaults.scale)?,
         };
         let surface_rest = read_points64("surface_rest", surface_rest)?;
@@ -77,7 +83,11 @@ impl PySurfaceFollower {
         let surface_now = read_points64("surface_now", surface_now)?;
         let follower = Arc::clone(&self.follower);
         let moved = run_kernel(py, || follower.apply(&surface_now))?;
-        rows_array(py, moved.iter().flat_map(|point| point.to_array()).collect(), 3)
+        rows_array(
+            py,
+            moved.iter().flat_map(|point| point.to_array()).collect(),
+            3,
+        )
     }
 }
 

@@ -16,15 +16,16 @@ pub struct FollowSettings {
     /// further and average the surface's motion over a wider region.
     pub neighbours: usize,
     /// Whether the parts also take the surface's uniform scale around them (else rotation and
-    /// translation alone).
+    /// translation alone: after an alignment has scaled the template, a part keeps its size, as an
+    /// eyeball does when the face around it gains weight).
     pub scale: bool,
 }
 
 impl Default for FollowSettings {
     fn default() -> Self {
         Self {
-            neighbours: 16,
-            scale: true,
+            neighbours: 64,
+            scale: false,
         }
     }
 }
@@ -82,8 +83,9 @@ impl SurfaceFollower {
         if surface_rest.is_empty() {
             return Err(KernelError::InvalidArgument {
                 name: "surface",
-                reason: "there is no surface vertex for the parts to follow (every vertex is a part)"
-                    .to_owned(),
+                reason:
+                    "there is no surface vertex for the parts to follow (every vertex is a part)"
+                        .to_owned(),
             });
         }
         if pieces.len() != part_rest.len() {
@@ -93,7 +95,10 @@ impl SurfaceFollower {
                 second: pieces.len(),
             });
         }
-        if let Some(vertex) = pieces.iter().position(|&piece| piece as usize >= rigid.len()) {
+        if let Some(vertex) = pieces
+            .iter()
+            .position(|&piece| piece as usize >= rigid.len())
+        {
             return Err(KernelError::InvalidArgument {
                 name: "pieces",
                 reason: format!(
@@ -171,15 +176,28 @@ impl SurfaceFollower {
         }
         check_points("surface vertex", surface_now)?;
         let motion = |binding: &Binding| {
-            Motion::fit(binding, &self.surface_rest, surface_now, self.settings.scale)
+            Motion::fit(
+                binding,
+                &self.surface_rest,
+                surface_now,
+                self.settings.scale,
+            )
         };
         let mut moved: Vec<DVec3> = self
             .soft
             .par_iter()
             .zip(&self.part_rest)
-            .map(|(binding, &point)| binding.as_ref().map_or(point, |binding| motion(binding).apply(point)))
+            .map(|(binding, &point)| {
+                binding
+                    .as_ref()
+                    .map_or(point, |binding| motion(binding).apply(point))
+            })
             .collect();
-        let rigid_motions: Vec<Motion> = self.rigid.par_iter().map(|(_, binding)| motion(binding)).collect();
+        let rigid_motions: Vec<Motion> = self
+            .rigid
+            .par_iter()
+            .map(|(_, binding)| motion(binding))
+            .collect();
         for ((members, _), motion) in self.rigid.iter().zip(rigid_motions) {
             for &vertex in members {
                 moved[vertex as usize] = motion.apply(self.part_rest[vertex as usize]);
@@ -204,7 +222,9 @@ fn check_points(what: &'static str, points: &[DVec3]) -> Result<(), KernelError>
 fn bind(nearest: &[(u32, f64)]) -> Binding {
     let first = nearest.first().map_or(0.0, |&(_, distance)| distance);
     let last = nearest.last().map_or(0.0, |&(_, distance)| distance);
-    let soften = (first * first).max(last * last * 1e-6).max(f64::MIN_POSITIVE);
+    let soften = (first * first)
+        .max(last * last * 1e-6)
+        .max(f64::MIN_POSITIVE);
     let reach = 1.5 * last.max(f64::MIN_POSITIVE);
     let mut binding: Binding = nearest
         .iter()
@@ -215,7 +235,11 @@ fn bind(nearest: &[(u32, f64)]) -> Binding {
         .collect();
     let total: f64 = binding.iter().map(|&(_, weight)| weight).sum();
     for entry in &mut binding {
-        entry.1 = if total > 0.0 { entry.1 / total } else { 1.0 / nearest.len() as f64 };
+        entry.1 = if total > 0.0 {
+            entry.1 / total
+        } else {
+            1.0 / nearest.len() as f64
+        };
     }
     binding
 }

@@ -6,7 +6,7 @@
 //! - [`SurfaceFollower`]: made once from the surface and the parts at rest (where the wrap starts),
 //!   it moves the parts by the surface's motion: each part vertex is bound to its nearest surface
 //!   vertices (compactly supported inverse-distance weights); a **rigid** piece moves by the best
-//!   similarity (rotation, translation and, by default, a uniform scale; Horn's rotation) of the
+//!   similarity (rotation and translation, and a uniform scale when asked; Horn's rotation) of the
 //!   weighted motion of the surface around the whole piece, so it keeps its shape (an eyeball
 //!   stays a sphere); a **soft** vertex moves by the best similarity of its own neighbourhood's
 //!   motion (moving least squares), so a soft piece bends with its surface (lashes with their lid).

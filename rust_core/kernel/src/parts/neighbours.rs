@@ -42,7 +42,10 @@ impl PointGrid {
             starts: Vec::new(),
             items: Vec::new(),
         };
-        let cell_of: Vec<usize> = points.iter().map(|&point| grid.index(grid.cell_of(point))).collect();
+        let cell_of: Vec<usize> = points
+            .iter()
+            .map(|&point| grid.index(grid.cell_of(point)))
+            .collect();
         let mut counts = vec![0u32; dims[0] * dims[1] * dims[2] + 1];
         for &cell in &cell_of {
             counts[cell + 1] += 1;
@@ -94,11 +97,14 @@ impl PointGrid {
                             centre[1] as isize + dy,
                             centre[2] as isize + dz,
                         ];
-                        if (0..3).any(|axis| cell[axis] < 0 || cell[axis] >= self.dims[axis] as isize) {
+                        if (0..3)
+                            .any(|axis| cell[axis] < 0 || cell[axis] >= self.dims[axis] as isize)
+                        {
                             continue;
                         }
                         let index = self.index(cell.map(|value| value as usize));
-                        let (start, end) = (self.starts[index] as usize, self.starts[index + 1] as usize);
+                        let (start, end) =
+                            (self.starts[index] as usize, self.starts[index + 1] as usize);
                         for &item in &self.items[start..end] {
                             let distance = points[item as usize].distance(query);
                             if best.len() < count || distance < best[best.len() - 1].1 {
@@ -129,11 +135,19 @@ mod tests {
         let points: Vec<DVec3> = (0..500)
             .map(|i| {
                 let t = f64::from(i);
-                DVec3::new((t * 0.37).sin() * 3.0, (t * 0.11).cos(), (t * 0.05).sin() * 0.2)
+                DVec3::new(
+                    (t * 0.37).sin() * 3.0,
+                    (t * 0.11).cos(),
+                    (t * 0.05).sin() * 0.2,
+                )
             })
             .collect();
         let grid = PointGrid::new(&points, 8);
-        for query in [DVec3::ZERO, DVec3::new(2.0, 0.5, 0.1), DVec3::new(40.0, -9.0, 3.0)] {
+        for query in [
+            DVec3::ZERO,
+            DVec3::new(2.0, 0.5, 0.1),
+            DVec3::new(40.0, -9.0, 3.0),
+        ] {
             let found = grid.nearest(&points, query, 12);
             let mut brute: Vec<f64> = points.iter().map(|point| point.distance(query)).collect();
             brute.sort_by(f64::total_cmp);

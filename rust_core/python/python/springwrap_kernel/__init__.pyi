@@ -583,8 +583,8 @@ class SurfaceFollower:
         pieces: npt.NDArray[np.uint32],
         rigid: npt.NDArray[np.bool_],
         *,
-        neighbours: int = 16,
-        scale: bool = True,
+        neighbours: int = 64,
+        scale: bool = False,
     ) -> None: ...
     @property
     def part_count(self) -> int:
