@@ -1,0 +1,146 @@
+"""Parts that follow the surface in a real scene: a ball inside a sphere layout whose target is a deformed
+sphere. Found without a group, it is left out of the pull and moved with the surface (rigidly: it keeps its
+shape); Find Parts off, or the Surface group, wrap it like the body; Follow Soft bends it; bad groups are refused
+and change nothing; Select Problems does not judge a part's distance."""
+
+import bpy
+
+import bmesh
+import numpy as np
+from mathutils import Matrix
+
+from bpy_helpers import make_target, read_state, snapshot, world_positions
+
+OUTER = 642  # an ico sphere of 3 subdivisions
+INNER_CENTRE = np.array([0.35, -0.15, 0.1])
+
+
+def parts_scene(inner_radius=0.35):
+    """A target (a deformed UV sphere, radius 1.5) and a layout: an ico sphere of radius 1.2 (vertices 0 … 641)
+    with a ball inside it (the vertices after), both about the target's centre."""
+    target = make_target()
+    centre = np.array(target.matrix_world.translation)
+    editable = bmesh.new()
+    bmesh.ops.create_icosphere(editable, subdivisions=3, radius=1.2, matrix=Matrix.Translation(centre))
+    bmesh.ops.create_icosphere(editable, subdivisions=2, radius=inner_radius, matrix=Matrix.Translation(centre + INNER_CENTRE))
+    mesh = bpy.data.meshes.new("Layout")
+    editable.to_mesh(mesh)
+    editable.free()
+    layout = bpy.data.objects.new("Layout", mesh)
+    bpy.context.scene.collection.objects.link(layout)
+    layout.springwrap.target = target
+    for obj in bpy.context.view_layer.objects:
+        obj.select_set(obj == layout)
+    bpy.context.view_layer.objects.active = layout
+    assert bpy.ops.springwrap.anchors_auto(spacing=0.6) == {"FINISHED"}
+    assert all(anchor.vertex_index < OUTER for anchor in layout.springwrap.anchors)
+    return target, layout
+
+
+def group(layout, name, vertices):
+    made = layout.vertex_groups.new(name=name)
+    made.add([int(vertex) for vertex in vertices], 1.0, "REPLACE")
+    return name
+
+
+def ratios(before, after):
+    """Each ball vertex's distance to the ball's centre now over before."""
+    return np.linalg.norm(after - after.mean(axis=0), axis=1) / np.linalg.norm(before - before.mean(axis=0), axis=1)
+
+
+def part_codes(layout):
+    attribute = layout.data.attributes.get("springwrap_part")
+    if attribute is None:
+        return None
+    codes = np.empty(len(layout.data.vertices), dtype=np.int32)
+    attribute.data.foreach_get("value", codes)
+    return codes
+
+
+def test_a_ball_inside_is_found_and_follows_the_sphere_keeping_its_shape(capfd):
+    _target, layout = parts_scene()
+    before = world_positions(layout)
+    assert bpy.ops.springwrap.wrap() == {"FINISHED"}
+    after = world_positions(layout)
+    inner = ratios(before[OUTER:], after[OUTER:])
+    assert np.ptp(inner) < 1e-4 and abs(inner.mean() - 1.0) < 1e-4  # rigid, and its size kept
+    # It moved as the sphere's surface around it did (not left where it was, not pulled onto the target).
+    outer_motion = np.linalg.norm((after[:OUTER] - before[:OUTER]).mean(axis=0))
+    inner_motion = np.linalg.norm((after[OUTER:] - before[OUTER:]).mean(axis=0))
+    assert inner_motion > 0.3 * outer_motion > 0.0
+    states, _faces, _barycentrics = read_state(layout)
+    assert np.all(states[OUTER:] == 0) and np.all(states[:OUTER] == 1)
+    assert np.all(part_codes(layout)[OUTER:] == 2) and np.all(part_codes(layout)[:OUTER] == 0)
+    output = capfd.readouterr().out
+    assert f"Parts: 1 pieces ({len(before) - OUTER} vertices) followed the surface" in output
+    assert "rigid, found" in output
+
+
+def test_find_parts_off_and_the_surface_group_wrap_the_ball_like_the_body():
+    results = []
+    for setting in ("find_parts", "surface_group"):
+        _target, layout = parts_scene()
+        if setting == "find_parts":
+            layout.springwrap.find_parts = False
+        else:
+            layout.springwrap.surface_group = group(layout, "Surface", range(OUTER, len(layout.data.vertices)))
+        assert bpy.ops.springwrap.wrap() == {"FINISHED"}
+        assert part_codes(layout) is None
+        states, _faces, _barycentrics = read_state(layout)
+        assert states[OUTER:].mean() > 0.5  # pulled onto the target: face-points
+        results.append(world_positions(layout))
+        bpy.data.objects.remove(layout)
+        bpy.data.objects.remove(bpy.data.objects["Target"])
+    _target, layout = parts_scene()
+    assert bpy.ops.springwrap.wrap() == {"FINISHED"}
+    found = world_positions(layout)
+    for pulled in results:
+        assert np.abs(pulled[OUTER:] - found[OUTER:]).max() > 0.1
+
+
+def test_follow_soft_bends_the_ball_and_follow_works_without_find_parts():
+    _target, layout = parts_scene()
+    before = world_positions(layout)
+    layout.springwrap.follow_soft_group = group(layout, "Soft", range(OUTER, len(before)))
+    assert bpy.ops.springwrap.wrap() == {"FINISHED"}
+    assert np.all(part_codes(layout)[OUTER:] == 1)
+    assert np.ptp(ratios(before[OUTER:], world_positions(layout)[OUTER:])) > 1e-3  # not rigid
+    _target, layout = parts_scene()
+    layout.springwrap.find_parts = False
+    layout.springwrap.follow_group = group(layout, "Follow", range(OUTER, len(before)))
+    assert bpy.ops.springwrap.wrap() == {"FINISHED"}
+    assert np.all(part_codes(layout)[OUTER:] == 2)
+    assert np.ptp(ratios(before[OUTER:], world_positions(layout)[OUTER:])) < 1e-4
+
+
+def test_bad_groups_are_refused_and_change_nothing():
+    _target, layout = parts_scene()
+    count = len(layout.data.vertices)
+    cases = {
+        "has no vertex": ("follow_group", group(layout, "Empty", [])),
+        "Every vertex of layout": ("follow_group", group(layout, "All", range(count))),
+        "holds an anchor": ("follow_group", group(layout, "Anchored", [layout.springwrap.anchors[0].vertex_index])),
+        "has no vertex group": ("follow_soft_group", "Missing"),
+    }
+    before = snapshot(layout)
+    for message, (setting, name) in cases.items():
+        setattr(layout.springwrap, setting, name)
+        try:
+            bpy.ops.springwrap.wrap()
+        except RuntimeError as error:
+            assert message in str(error), str(error)
+        else:
+            raise AssertionError(f"the wrap ran with {setting} = {name!r}")
+        assert snapshot(layout) == before
+        setattr(layout.springwrap, setting, "")
+
+
+def test_select_problems_leaves_the_parts_out(capfd):
+    _target, layout = parts_scene()
+    assert bpy.ops.springwrap.wrap() == {"FINISHED"}
+    assert bpy.ops.springwrap.select_problems(kind="OFF_SURFACE") == {"FINISHED"}
+    bpy.ops.object.mode_set(mode="OBJECT")
+    selected = np.empty(len(layout.data.vertices), dtype=bool)
+    layout.data.vertices.foreach_get("select", selected)
+    assert not selected[OUTER:].any()
+    assert "part vertices are off the target by design" in capfd.readouterr().out
