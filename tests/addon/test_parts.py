@@ -22,7 +22,9 @@ def parts_scene(inner_radius=0.35):
     centre = np.array(target.matrix_world.translation)
     editable = bmesh.new()
     bmesh.ops.create_icosphere(editable, subdivisions=3, radius=1.2, matrix=Matrix.Translation(centre))
-    bmesh.ops.create_icosphere(editable, subdivisions=2, radius=inner_radius, matrix=Matrix.Translation(centre + INNER_CENTRE))
+    bmesh.ops.create_icosphere(
+        editable, subdivisions=2, radius=inner_radius, matrix=Matrix.Translation(centre + INNER_CENTRE)
+    )
     mesh = bpy.data.meshes.new("Layout")
     editable.to_mesh(mesh)
     editable.free()

@@ -247,9 +247,7 @@ def report_text(plan: PartPlan) -> str:
     """One line saying which pieces followed the surface and how, or "" when none did."""
     if not plan.rows:
         return ""
-    described = ", ".join(
-        f"piece {row.piece} ({row.vertices} vertices, {row.mode}, {row.reason})" for row in plan.rows
-    )
+    described = ", ".join(f"piece {row.piece} ({row.vertices} vertices, {row.mode}, {row.reason})" for row in plan.rows)
     total = int(plan.parts.sum())
     return f"Parts: {len(plan.rows)} pieces ({total} vertices) followed the surface, not the target: {described}"
 

@@ -86,7 +86,9 @@ class SPRINGWRAP_OT_select_problems(LayoutOperator, bpy.types.Operator):
         if skipped:
             text += f"; {skipped} more are hidden and were left unselected (Alt+H reveals them)"
         if parts_left:
-            text += f"; {parts_left} part vertices are off the target by design (they follow the surface) and not judged"
+            text += (
+                f"; {parts_left} part vertices are off the target by design (they follow the surface) and not judged"
+            )
         if count and frame_selected(context):
             text += "; framed in the 3D view"
         self.report({"INFO"}, text)
