@@ -9,7 +9,8 @@ Which vertices are parts (:func:`plan_parts`), per separate piece of the layout 
 - the **Follow** and **Follow Soft** groups' vertices are parts (soft: each vertex follows its own
   neighbourhood; else each connected piece of them moves rigidly), whatever the guess;
 - with **Find Parts** on, every other piece that the target's surface does not need (:func:`guess_parts`:
-  the target points closest to most of its vertices are nearer to the layout's largest piece than to it:
+  the target points closest to most of its vertices are not clearly nearer to it than to the layout's largest
+  piece:
   eyeballs behind the lids, teeth inside the lips, lashes in front of them, anything away from the target)
   is a part: rigid, or soft when it is an open strip (lashes, :func:`soft_guess`). Pieces without faces
   (loose edge chains), and pieces holding an anchor or a curve constraint, are never guessed.
@@ -30,8 +31,13 @@ PART_ATTRIBUTE = "springwrap_part"
 """POINT INT attribute the wrap writes: 2 a rigid part's vertex, 1 a soft part's, 0 the surface (the read-out
 does not judge a part's distance to the target)."""
 CLAIMED_SHARE = 0.5
-"""A piece is needed by the target's surface when more than this share of its vertices are nearer to their closest
-target point than the layout's largest piece is."""
+"""A piece is needed by the target's surface when more than this share of its vertices claim their closest target
+point (see :data:`MAIN_TOLERANCE`)."""
+MAIN_TOLERANCE = 2.0
+"""A piece's vertex claims its closest target point when it is nearer to it than the largest piece is by more than
+this many times the largest piece's median distance to the target (how far the alignment left it)."""
+MAIN_SAMPLE = 4000
+"""Vertices of the largest piece measured for that median, at most (evenly spread through its numbering)."""
 STRIP_RATIO = 0.5
 """An open piece whose second principal extent is below this share of its first is a strip (lashes): soft."""
 
@@ -117,7 +123,12 @@ def guess_parts(world_positions: np.ndarray, topology, pieces: np.ndarray, targe
     own = np.linalg.norm(target_points - world_positions[chosen], axis=1)
     main_hits = main_mesh.closest_points(np.ascontiguousarray(target_points - origin, dtype=np.float32))
     main_distance = np.asarray(main_hits.distances, dtype=np.float64)
-    claimed = own < main_distance
+    # The largest piece's own distance from the target (how well it is aligned) is the tolerance: a vertex claims
+    # its target point only when it is clearly nearer to it than the largest piece is.
+    main_vertices = np.flatnonzero(pieces == main)
+    sample = main_vertices[:: max(1, main_vertices.size // MAIN_SAMPLE)]
+    tolerance = MAIN_TOLERANCE * float(np.median(target_mesh.closest_points(world_positions[sample]).distances))
+    claimed = own + tolerance < main_distance
     guessed = set()
     for piece in candidates:
         members = pieces[chosen] == piece
