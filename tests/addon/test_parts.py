@@ -15,15 +15,15 @@ OUTER = 642  # the vertices of an ico sphere of 4 subdivisions (bmesh counts the
 INNER_CENTRE = np.array([0.35, -0.15, 0.1])
 
 
-def parts_scene(inner_radius=0.35):
+def parts_scene(inner_radius=0.35, inner_centre=INNER_CENTRE, centre=None):
     """A target (a deformed UV sphere, radius 1.5) and a layout: an ico sphere of radius 1.2 (vertices 0 … 641)
     with a ball inside it (the vertices after), both about the target's centre."""
     target = make_target()
-    centre = np.array(target.matrix_world.translation)
+    centre = np.array(target.matrix_world.translation) if centre is None else np.asarray(centre)
     editable = bmesh.new()
     bmesh.ops.create_icosphere(editable, subdivisions=4, radius=1.2, matrix=Matrix.Translation(centre))
     bmesh.ops.create_icosphere(
-        editable, subdivisions=3, radius=inner_radius, matrix=Matrix.Translation(centre + INNER_CENTRE)
+        editable, subdivisions=3, radius=inner_radius, matrix=Matrix.Translation(centre + inner_centre)
     )
     mesh = bpy.data.meshes.new("Layout")
     editable.to_mesh(mesh)
@@ -150,3 +150,15 @@ def test_select_problems_leaves_the_parts_out(capfd):
     layout.data.vertices.foreach_get("select", selected)
     assert not selected[OUTER:].any()
     assert "part vertices are off the target by design" in capfd.readouterr().out
+
+
+def test_a_part_on_the_hold_plane_keeps_its_seam_on_it():
+    _target, layout = parts_scene(inner_centre=np.array([0.0, -0.15, 0.1]), centre=(0.0, -0.2, 0.1))
+    before = world_positions(layout)
+    on_plane = np.flatnonzero(np.abs(before[OUTER:, 0]) < 1e-6) + OUTER
+    assert on_plane.size >= 4
+    assert bpy.ops.springwrap.wrap(hold_plane="X") == {"FINISHED"}
+    after = world_positions(layout)
+    assert np.all(part_codes(layout)[OUTER:] == 2)
+    assert np.abs(after[on_plane, 0]).max() < 1e-5
+    assert np.abs(after[on_plane] - before[on_plane]).max() > 1e-3  # it did move with the surface

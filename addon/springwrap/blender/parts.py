@@ -101,3 +101,21 @@ def read_parts(layout: bpy.types.Object) -> np.ndarray | None:
     if codes is None or codes.size != len(mesh.vertices):
         return None
     return np.asarray(codes).reshape(-1) > 0
+
+
+def hold_on_plane(world: np.ndarray, plan: parts.PartPlan, inputs) -> np.ndarray:
+    """``world`` ((N, 3) float64) with the part vertices the mirror holds on its plane (``inputs.plane_vertices``)
+    put back onto it: a part cut by the mirror plane keeps its seam there, as the surface's does."""
+    held = getattr(inputs, "plane_vertices", None)
+    if held is None or not plan.any:
+        return world
+    held = np.asarray(held, dtype=np.int64)
+    held = held[(held < plan.parts.size) & plan.parts[np.minimum(held, plan.parts.size - 1)]]
+    if held.size == 0:
+        return world
+    normal = np.asarray(inputs.plane_normal, dtype=np.float64)
+    normal = normal / np.linalg.norm(normal)
+    point = np.asarray(inputs.plane_point, dtype=np.float64) + np.asarray(inputs.origin, dtype=np.float64)
+    world = np.array(world, dtype=np.float64)
+    world[held] -= np.outer((world[held] - point) @ normal, normal)
+    return world

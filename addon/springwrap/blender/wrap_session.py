@@ -295,7 +295,7 @@ class WrapSession:
         world = wrap_inputs.from_frame(self.inputs, self.solver.positions()[:count])
         states, triangles, barycentrics = (np.array(array[:count]) for array in self.solver.states())
         if self.follower is not None:  # the parts: moved by the surface, off the target (space-points)
-            world = parts.follow(self.follower, self.parts, world)
+            world = part_data.hold_on_plane(parts.follow(self.follower, self.parts, world), self.parts, self.inputs)
             states[self.parts.parts], triangles[self.parts.parts] = layout_state.SPACE_POINT, layout_state.NO_FACE
         positions = transforms.to_local(self.matrix_world, world)
         return positions, layout_state.normalized_state(states, triangles, barycentrics)

@@ -127,14 +127,8 @@ fn a_sphere_inside_a_deformed_sphere_moves_with_it_and_keeps_its_radius() {
 fn without_scale_a_rigid_part_keeps_its_size() {
     let surface = sphere(300, 1.0, DVec3::ZERO);
     let eye = sphere(50, 0.2, DVec3::ZERO);
-    let follower = SurfaceFollower::new(
-        &surface,
-        &eye,
-        &vec![0; 50],
-        &[true],
-        FollowSettings::default(),
-    )
-    .unwrap();
+    let follower =
+        SurfaceFollower::new(&surface, &eye, &[0; 50], &[true], FollowSettings::default()).unwrap();
     let doubled: Vec<DVec3> = surface.iter().map(|&p| 2.0 * p).collect();
     let size = |points: &[DVec3]| points[0].distance(points[25]);
     let moved = follower.apply(&doubled).unwrap();
@@ -143,7 +137,7 @@ fn without_scale_a_rigid_part_keeps_its_size() {
         scale: true,
         ..FollowSettings::default()
     };
-    let scaled = SurfaceFollower::new(&surface, &eye, &vec![0; 50], &[true], settings).unwrap();
+    let scaled = SurfaceFollower::new(&surface, &eye, &[0; 50], &[true], settings).unwrap();
     assert!((size(&scaled.apply(&doubled).unwrap()) - 2.0 * size(&eye)).abs() < 1e-9);
 }
 
