@@ -153,8 +153,10 @@ def run_case(name: str, layout: dict) -> dict:
     for method in METHODS:
         start = time.perf_counter()
         alone = method == "wrap, body alone"
-        positions, quads = (aligned[:body], layout["quads"][: len(case.layout_quads)]) if alone else (aligned, None)
-        layout_object = mesh_object(method, moved if aligned is None else positions, quads or layout["quads"])
+        positions, quads = (
+            (aligned[:body], layout["quads"][: len(case.layout_quads)]) if alone else (aligned, layout["quads"])
+        )
+        layout_object = mesh_object(method, moved if aligned is None else positions, quads)
         layout_object.springwrap.target = target
         _select_only(layout_object)
         _add_anchors(layout_object, marks.vertices, case.true_positions[marks.vertices])
@@ -281,10 +283,15 @@ def aims(result: dict) -> list[str]:
             ("body ≤ body alone", entry["body_mean"], alone["body_mean"]),
         ]
         described = "; ".join(
-            f"{label}: {value:.3f} against {limit:.3f} ({'met' if value <= limit + 1e-9 else f'missed by {value - limit:.3f}'})"
+            f"{label}: {value:.3f} against {limit:.3f} "
+            f"({'met' if round(value, 3) <= round(limit, 3) else f'missed by {round(value, 3) - round(limit, 3):.3f}'})"
             for label, value, limit in checks
         )
-        lines.append(f"- {record['case']}: {described}.")
+        worst = max(entry["pieces"], key=lambda group: entry["pieces"][group]["mean"])
+        lines.append(
+            f"- {record['case']}: {described}; the farthest piece: {worst.removeprefix('helper-')} "
+            f"({entry['pieces'][worst]['mean']:.3f} mean, {entry['pieces'][worst]['max']:.3f} max)."
+        )
     return lines
 
 
