@@ -3,6 +3,7 @@ against numpy references, and bad arguments raising the module's exceptions by n
 
 import numpy as np
 import pytest
+
 import springwrap_kernel as sk
 
 
