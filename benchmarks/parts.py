@@ -30,7 +30,6 @@ of ``docs/benchmarks.md`` (``benchmarks/report.py --parts``).
 from __future__ import annotations
 
 import argparse
-import json
 import re
 import sys
 import time
@@ -196,7 +195,7 @@ def run_case(name: str, layout: dict) -> dict:
 def run(arguments: argparse.Namespace) -> int:
     import bpy  # noqa: F401  (first, before the add-on)
 
-    from benchmarks._machine import cpu_model
+    from benchmarks._machine import cpu_model, write_json
     from benchmarks.retarget.run import enable_addon
 
     enable_addon()
@@ -214,9 +213,7 @@ def run(arguments: argparse.Namespace) -> int:
         "seconds": time.perf_counter() - started,
         "cases": records,
     }
-    arguments.json.parent.mkdir(parents=True, exist_ok=True)
-    arguments.json.write_text(json.dumps(result, indent=1))
-    print(f"wrote {arguments.json}")
+    write_json(arguments.json, result)
     return 0
 
 

@@ -1,6 +1,7 @@
 //! The layout's separate pieces: connected components of its edges (union–find).
 
 use crate::error::KernelError;
+use crate::quality::check_edges;
 use crate::validate::check_count;
 
 /// One piece number per layout vertex: the connected components of `edges` over `vertex_count`
@@ -12,16 +13,7 @@ use crate::validate::check_count;
 /// [`KernelError::LayoutIndexOutOfRange`] for an edge naming a vertex beyond `vertex_count`.
 pub fn connected_pieces(vertex_count: usize, edges: &[[u32; 2]]) -> Result<Vec<u32>, KernelError> {
     check_count("layout vertices", vertex_count, crate::mesh::MAX_ELEMENTS)?;
-    for (index, edge) in edges.iter().enumerate() {
-        if let Some(&vertex) = edge.iter().find(|&&vertex| vertex as usize >= vertex_count) {
-            return Err(KernelError::LayoutIndexOutOfRange {
-                element: "edge",
-                index,
-                vertex,
-                vertex_count,
-            });
-        }
-    }
+    check_edges(edges, vertex_count)?;
     let mut parent: Vec<u32> = (0..vertex_count as u32).collect();
     for &[a, b] in edges {
         let (root_a, root_b) = (find(&mut parent, a), find(&mut parent, b));
