@@ -162,3 +162,20 @@ def test_a_part_on_the_hold_plane_keeps_its_seam_on_it():
     assert np.all(part_codes(layout)[OUTER:] == 2)
     assert np.abs(after[on_plane, 0]).max() < 1e-5
     assert np.abs(after[on_plane] - before[on_plane]).max() > 1e-3  # it did move with the surface
+
+
+def test_a_parts_shape_key_rides_along_with_it():
+    _target, layout = parts_scene()
+    count = len(layout.data.vertices)
+    layout.shape_key_add(name="Basis")
+    key = layout.shape_key_add(name="Look")
+    offset = np.array([0.0, 0.05, 0.0])
+    for index in range(OUTER, count):
+        key.data[index].co = layout.data.vertices[index].co + type(key.data[index].co)(offset)
+    assert bpy.ops.springwrap.wrap() == {"FINISHED"}
+    basis = np.array([tuple(point.co) for point in layout.data.shape_keys.key_blocks["Basis"].data])
+    look = np.array([tuple(point.co) for point in layout.data.shape_keys.key_blocks["Look"].data])
+    offsets = look[OUTER:] - basis[OUTER:]
+    assert np.all(part_codes(layout)[OUTER:] == 2)
+    assert np.allclose(np.linalg.norm(offsets, axis=1), 0.05, rtol=0.05)  # carried with the part, not lost
+    assert np.abs(look[:OUTER] - basis[:OUTER]).max() < 1e-6
