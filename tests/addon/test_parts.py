@@ -125,9 +125,9 @@ def test_bad_groups_are_refused_and_change_nothing():
     cases = {
         "has no vertex": ("follow_group", group(layout, "Empty", [])),
         "Every vertex of layout": ("follow_group", group(layout, "All", range(count))),
-        "holds an anchor": ("follow_group", group(layout, "Anchored", [layout.springwrap.anchors[0].vertex_index])),
         "has no vertex group": ("follow_soft_group", "Missing"),
     }
+    layout.springwrap.anchors.clear()  # an anchored vertex is never a part: with none, every vertex can be
     before = snapshot(layout)
     for message, (setting, name) in cases.items():
         setattr(layout.springwrap, setting, name)
@@ -179,3 +179,14 @@ def test_a_parts_shape_key_rides_along_with_it():
     assert np.all(part_codes(layout)[OUTER:] == 2)
     assert np.allclose(np.linalg.norm(offsets, axis=1), 0.05, rtol=0.05)  # carried with the part, not lost
     assert np.abs(look[:OUTER] - basis[:OUTER]).max() < 1e-6
+
+
+def test_an_anchored_vertex_in_the_follow_group_stays_on_its_anchor():
+    _target, layout = parts_scene()
+    anchored = layout.springwrap.anchors[0].vertex_index
+    layout.springwrap.follow_group = group(layout, "Follow", [anchored, *range(OUTER, len(layout.data.vertices))])
+    assert bpy.ops.springwrap.wrap() == {"FINISHED"}
+    codes = part_codes(layout)
+    assert codes[anchored] == 0 and np.all(codes[OUTER:] == 2)
+    states, _faces, _barycentrics = read_state(layout)
+    assert states[anchored] == 1

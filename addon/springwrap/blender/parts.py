@@ -40,8 +40,8 @@ def read_part_groups(layout: bpy.types.Object) -> parts.PartGroups:
 
 def plan_wrap_parts(layout, arrays, topology, target, anchor_list, curve_constraints):
     """The wrap's :class:`core.parts.PartPlan` and, when there are parts, the kernel's ``SurfaceFollower`` bound to
-    the layout as it is now (world space); else None. Raises :class:`LayoutError` for a bad group, an anchored or
-    curve-constrained vertex in a Follow group, or every vertex a part."""
+    the layout as it is now (world space); else None. An anchored or curve-constrained vertex is never a part.
+    Raises :class:`LayoutError` for a bad group or every vertex a part."""
     settings = layout.springwrap
     groups = read_part_groups(layout)
     count = int(topology.vertex_count)
@@ -51,13 +51,6 @@ def plan_wrap_parts(layout, arrays, topology, target, anchor_list, curve_constra
         pinned[np.asarray(constraint.layout_vertices, dtype=np.int64)] = True
     world = transforms.world_positions(arrays)
     plan = parts.plan_parts(layout.name, world, topology, groups, bool(settings.find_parts), target.mesh, pinned)
-    clash = np.flatnonzero(plan.parts & pinned)
-    if clash.size:
-        raise LayoutError(
-            f"Layout vertex {int(clash[0])} holds an anchor or a curve constraint but is in a Follow group "
-            f"({clash.size} such): a part follows the surface and is never pulled to the target. Remove the anchor "
-            "or take the vertex out of the group"
-        )
     if not plan.any:
         return plan, None
     return plan, parts.make_follower(plan, world)

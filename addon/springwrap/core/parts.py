@@ -7,7 +7,8 @@ Which vertices are parts (:func:`plan_parts`), per separate piece of the layout 
 
 - the **Surface** group's pieces are wrapped like the body, whatever the guess;
 - the **Follow** and **Follow Soft** groups' vertices are parts (soft: each vertex follows its own
-  neighbourhood; else each connected piece of them moves rigidly), whatever the guess;
+  neighbourhood; else each connected piece of them moves rigidly), whatever the guess, except the vertices
+  holding an anchor or a curve constraint (those are wrapped onto their targets);
 - with **Find Parts** on, every other piece that the target's surface does not need (:func:`guess_parts`:
   the target points closest to most of its vertices are not clearly nearer to it than to the layout's largest
   piece:
@@ -199,6 +200,7 @@ def plan_parts(
             chosen |= np.asarray(flags, dtype=bool)
     if groups.surface is not None:
         chosen &= ~np.isin(pieces, sorted(surface_pieces))
+    chosen &= ~pinned  # an anchor or a curve constraint holds its vertex: it is wrapped
     parts |= chosen
     if groups.soft is not None:
         soft[chosen] = np.asarray(groups.soft, dtype=bool)[chosen]
