@@ -190,3 +190,16 @@ def test_an_anchored_vertex_in_the_follow_group_stays_on_its_anchor():
     assert codes[anchored] == 0 and np.all(codes[OUTER:] == 2)
     states, _faces, _barycentrics = read_state(layout)
     assert states[anchored] == 1
+
+
+def test_parts_follow_with_the_springs_solver_and_a_finer_spring_resolution():
+    for options in ({"solver": "SPRINGS"}, {"spring_resolution": 2}):
+        target, layout = parts_scene()
+        before = world_positions(layout)
+        assert bpy.ops.springwrap.wrap(**options) == {"FINISHED"}, options
+        after = world_positions(layout)
+        assert np.all(part_codes(layout)[OUTER:] == 2), options
+        assert np.ptp(ratios(before[OUTER:], after[OUTER:])) < 1e-4, options
+        assert np.abs(after[OUTER:] - before[OUTER:]).max() > 1e-3, options
+        bpy.data.objects.remove(layout)
+        bpy.data.objects.remove(target)

@@ -145,7 +145,8 @@ class WrapSession:
         self.parts, self.follower = part_data.plan_wrap_parts(
             layout, arrays, self.layout_topology, self.target, self.anchors, curve_constraints
         )
-        inputs = part_data.free_parts(inputs, self.parts)
+        solver = WRAP_DEFAULTS.solver if parameters.settings is None else parameters.settings.solver
+        inputs = part_data.free_parts(inputs, self.parts, solver)
         wrap_inputs.check_something_pulled(
             layout.name, inputs.free_vertices, getattr(parameters, "free_group", "") or settings.free_group
         )
