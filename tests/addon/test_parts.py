@@ -203,3 +203,43 @@ def test_parts_follow_with_the_springs_solver_and_a_finer_spring_resolution():
         assert np.abs(after[OUTER:] - before[OUTER:]).max() > 1e-3, options
         bpy.data.objects.remove(layout)
         bpy.data.objects.remove(target)
+
+
+def test_the_mirror_wraps_a_half_with_its_half_ball_and_the_ball_comes_out_whole_and_symmetric(capfd):
+    from bpy_helpers import (
+        PLACEMENT,
+        activate,
+        half_sphere_grid,
+        make_object,
+        mirror_outcome,
+        symmetric_target_arrays,
+        world_plane,
+    )
+    from springwrap.core import mirroring
+
+    target = make_object("Target", *symmetric_target_arrays())
+    head, head_faces = half_sphere_grid(12, 8)
+    ball, ball_faces = half_sphere_grid(6, 4)
+    vertices = np.vstack([head * 1.05, ball * 0.2 + np.array([0.0, 0.0, 0.3])])
+    faces = head_faces + [[corner + len(head) for corner in face] for face in ball_faces]
+    layout = make_object("Layout", vertices, faces, PLACEMENT)
+    layout.springwrap.target = target
+    activate(layout)
+    assert bpy.ops.springwrap.mirror(axis="X", surfaced_half="FREE") == {"FINISHED"}
+    outcome = mirror_outcome()
+    assert outcome.wrap is not None and "Parts: 1 pieces" in outcome.wrap.parts
+    assert "followed the surface" in capfd.readouterr().out
+    codes = part_codes(layout)
+    positions = world_positions(layout)
+    point, normal = world_plane()
+    plane = mirroring.Plane(point, normal)
+    ball_vertices = np.flatnonzero(codes == 2)
+    assert ball_vertices.size > len(ball)  # both halves of the ball, welded into one piece
+    partners = mirroring.partner_errors(positions, outcome.source, outcome.is_copy, plane)
+    in_ball = np.isin(np.flatnonzero(outcome.is_copy), ball_vertices)
+    # Within the mirror's own tolerance for a Free wrap of both halves (test_mirror's FREE_SYMMETRY_TOLERANCE);
+    # measured 1.0e-3 on this layout 2.1 across, the surface itself 1.8e-4: the nearest-vertex binding of the
+    # ball's two halves is not exactly mirror-symmetric where neighbours are equally far.
+    assert partners[in_ball].max() < 2e-3
+    seam = np.intersect1d(np.flatnonzero(outcome.seam), ball_vertices)
+    assert seam.size and np.abs(mirroring.signed_distances(positions[seam], plane)).max() < 1e-5
