@@ -381,15 +381,12 @@ def quality_block(layout, refresh: bool) -> dict:
     """The report's ``quality`` block: the layout's quality read-out (``core.quality.summary``), as the wrap's
     finish wrote it, or measured again and rewritten (``refresh``: the cage fit moved the layout since); of its
     surface alone when the wrap moved parts (their count is ``part_vertices``)."""
-    quality = addon_module("core.quality")
     quality_data = addon_module("blender.quality")
     readout = None if refresh else quality_data.read_readout(layout)
     if readout is None:
         target = addon_module("blender.target").read_target(bpy.context.evaluated_depsgraph_get(), layout)
         readout = quality_data.update_layout(layout, target)
-    followed = addon_module("blender.parts").read_parts(layout)
-    block = quality.summary(addon_module("core.parts").surface_readout(readout, followed))
-    return block | {"part_vertices": 0 if followed is None else int(followed.sum())}
+    return addon_module("blender.parts").readout_summary(layout, readout)
 
 
 def fit_subdivision_report(levels: int) -> dict:

@@ -114,3 +114,13 @@ def hold_on_plane(world: np.ndarray, plan: parts.PartPlan, inputs) -> np.ndarray
     world = np.array(world, dtype=np.float64)
     world[held] -= np.outer((world[held] - point) @ normal, normal)
     return world
+
+
+def readout_summary(layout: bpy.types.Object, readout) -> dict:
+    """The read-out's numbers for a report (``core.quality.summary``) of the layout's surface alone when its last wrap
+    moved parts, with ``part_vertices``, how many vertices followed the surface (0 without parts)."""
+    from ..core import quality
+
+    followed = read_parts(layout)
+    summary = quality.summary(parts.surface_readout(readout, followed))
+    return summary | {"part_vertices": 0 if followed is None else int(followed.sum())}
