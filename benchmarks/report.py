@@ -951,6 +951,7 @@ def build_document(
     features: dict | None = None,
     after_wrap: dict | None = None,
     few_anchors: dict | None = None,
+    parts: dict | None = None,
 ) -> str:
     """The whole of ``docs/benchmarks.md``."""
     lines = [
@@ -978,6 +979,7 @@ def build_document(
         "--markdown docs/wrap-solvers.md",
         ".venv/bin/python benchmarks/feature_curves.py [--quick] --json out/bench/feature_curves.json",
         ".venv/bin/python benchmarks/few_anchors.py [--cases NAME ...] [--anchors N ...] --json out/bench/few_anchors.json",
+        ".venv/bin/python benchmarks/parts.py [--cases NAME ...] --json out/bench/parts.json",
         ".venv/bin/python benchmarks/figures.py && .venv/bin/python benchmarks/report.py",
         "```",
         "",
@@ -1003,6 +1005,8 @@ def build_document(
         from benchmarks.few_anchors import markdown
 
         lines += markdown(few_anchors)
+    if parts is not None:  # benchmarks/parts.py
+        lines += parts_section(parts)
     if retarget is None:
         lines += ["## Accuracy", "", "Not run: no `out/bench/retarget.json`.", ""]
     lines += ["## Performance", ""]
@@ -1035,6 +1039,29 @@ def build_document(
     return "\n".join(lines).rstrip() + "\n"
 
 
+def parts_section(parts: dict) -> list[str]:
+    """The parts section (``benchmarks/parts.py``'s own Markdown)."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from benchmarks.parts import markdown
+
+    return markdown(parts)
+
+
+def splice_section(document: str, section: list[str], before: str = "## Performance") -> str:
+    """``document`` with the section whose heading is ``section[0]`` replaced by ``section`` (up to the next
+    ``## `` heading), or inserted before the ``before`` heading (at the end without one)."""
+    lines = document.rstrip("\n").split("\n")
+    heading = section[0]
+    if heading in lines:
+        start = lines.index(heading)
+        end = next((i for i in range(start + 1, len(lines)) if lines[i].startswith("## ")), len(lines))
+        lines[start:end] = section
+    else:
+        at = lines.index(before) if before in lines else len(lines)
+        lines[at:at] = section
+    return "\n".join(lines).rstrip() + "\n"
+
+
 def load(path: Path) -> dict | None:
     return json.loads(path.read_text()) if path.exists() else None
 
@@ -1051,8 +1078,22 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--cage-fit", type=Path, default=OUT / "cage_fit.json")
     parser.add_argument("--large-target", type=Path, default=OUT / "large_target.json")
     parser.add_argument("--few-anchors", type=Path, default=OUT / "few_anchors.json")
+    parser.add_argument("--parts", type=Path, default=OUT / "parts.json")
+    parser.add_argument(
+        "--only-parts",
+        action="store_true",
+        help="only put the parts section (from --parts) into the existing --output, leaving the rest as it is",
+    )
     parser.add_argument("--output", type=Path, default=DOCS / "benchmarks.md")
     arguments = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    if arguments.only_parts:
+        parts = load(arguments.parts)
+        if parts is None:
+            print(f"report.py: no {arguments.parts}", file=sys.stderr)
+            return 1
+        arguments.output.write_text(splice_section(arguments.output.read_text(), parts_section(parts)))
+        print(f"wrote the parts section into {arguments.output}")
+        return 0
     inputs = {name: load(getattr(arguments, name)) for name in ("retarget", "performance", "snap")}
     for name, value in inputs.items():
         if value is None:
@@ -1072,6 +1113,7 @@ def main(argv: list[str] | None = None) -> int:
             load(arguments.features),
             {name: load(getattr(arguments, name)) for name in ("quality", "cage_fit", "large_target")},
             load(arguments.few_anchors),
+            load(arguments.parts),
         )
     )
     print(f"wrote {arguments.output}")

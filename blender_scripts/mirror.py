@@ -230,7 +230,7 @@ def quality_block(layout) -> dict | None:
     """The report's ``quality`` block: the read-out the mirror wrote (``core.quality.summary``); None without a
     target (nothing to measure against)."""
     readout = addon_module("blender.quality").read_readout(layout)
-    return None if readout is None else addon_module("core.quality").summary(readout)
+    return None if readout is None else addon_module("blender.parts").readout_summary(layout, readout)
 
 
 def main() -> int:

@@ -207,6 +207,27 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
         "(sockets, teeth: they follow their neighbours and stay off the surface)",
     )
     parser.add_argument(
+        "--follow-group",
+        default="",
+        help="the template's vertex group of parts (eyeballs, teeth): never pulled onto the target, each piece moved "
+        "rigidly with the surface around it",
+    )
+    parser.add_argument(
+        "--follow-soft-group",
+        default="",
+        help="the template's vertex group of soft parts (lashes): each vertex follows the surface around it",
+    )
+    parser.add_argument(
+        "--surface-group",
+        default="",
+        help="the template's vertex group whose pieces are wrapped like the body, whatever the parts' guess",
+    )
+    parser.add_argument(
+        "--no-find-parts",
+        action="store_true",
+        help="do not guess which separate pieces the target lacks (only the Follow groups' vertices are parts)",
+    )
+    parser.add_argument(
         "--fit-subdivision",
         type=int,
         metavar="LEVELS",
@@ -358,14 +379,14 @@ def align_with_operator(layout, arguments: argparse.Namespace, blame: str, frame
 
 def quality_block(layout, refresh: bool) -> dict:
     """The report's ``quality`` block: the layout's quality read-out (``core.quality.summary``), as the wrap's
-    finish wrote it, or measured again and rewritten (``refresh``: the cage fit moved the layout since)."""
-    quality = addon_module("core.quality")
+    finish wrote it, or measured again and rewritten (``refresh``: the cage fit moved the layout since); of its
+    surface alone when the wrap moved parts (their count is ``part_vertices``)."""
     quality_data = addon_module("blender.quality")
     readout = None if refresh else quality_data.read_readout(layout)
     if readout is None:
         target = addon_module("blender.target").read_target(bpy.context.evaluated_depsgraph_get(), layout)
         readout = quality_data.update_layout(layout, target)
-    return quality.summary(readout)
+    return addon_module("blender.parts").readout_summary(layout, readout)
 
 
 def fit_subdivision_report(levels: int) -> dict:
@@ -466,6 +487,10 @@ def retarget(arguments: argparse.Namespace) -> dict:
     lap("anchors")
 
     warn_energy_ignored(wrap_settings(arguments), warnings)
+    layout.springwrap.find_parts = not arguments.no_find_parts
+    layout.springwrap.follow_group = arguments.follow_group
+    layout.springwrap.follow_soft_group = arguments.follow_soft_group
+    layout.springwrap.surface_group = arguments.surface_group
     try:
         parameters = WrapParameters(
             max_iterations=arguments.max_iterations,
@@ -483,8 +508,12 @@ def retarget(arguments: argparse.Namespace) -> dict:
             f"did not converge within {arguments.max_iterations} iterations "
             f"(last move {result.max_displacement:.2e} of the layout's size); the result is kept"
         )
-    if result.space_points:
-        warnings.append(f"{result.space_points} of {result.vertex_count} vertices are off the surface (space-points)")
+    part_count = int(session.parts.parts.sum())
+    if result.space_points > part_count:
+        warnings.append(
+            f"{result.space_points - part_count} of {result.vertex_count - part_count} surface vertices are off the "
+            "surface (space-points)"
+        )
     lap("wrap")
 
     subdivision_fit = None
@@ -509,6 +538,7 @@ def retarget(arguments: argparse.Namespace) -> dict:
             "face_points": result.face_points,
             "space_points": result.space_points,
             "kernel_seconds": round(result.kernel_seconds, 4),
+            "parts": result.parts,
         },
         "fit_subdivision": subdivision_fit,
         "shape_keys": shape_keys_report(layout, arguments.shape_keys),
@@ -557,6 +587,10 @@ def batch_task(arguments: argparse.Namespace, target: Path, output_dir: Path, sh
             "schedule",
             "stiffness_group",
             "free_group",
+            "follow_group",
+            "follow_soft_group",
+            "surface_group",
+            "no_find_parts",
             "fit_subdivision",
             "shape_keys",
             "up_axis",

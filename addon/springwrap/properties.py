@@ -418,6 +418,28 @@ class SpringwrapObjectSettings(bpy.types.PropertyGroup):
         "Vertex group of the layout with no pull toward the target in the Energy wrap (eye and mouth sockets, "
         "teeth): its vertices follow their neighbours by the template's shape and stay off the surface",
     )
+    # Parts that follow the surface (core.parts).
+    find_parts: props.flag(
+        "Find Parts",
+        "The wrap finds the separate pieces the target's surface does not need (eyeballs behind the lids, teeth "
+        "inside the lips, lashes) and moves them with the surface around them instead of pulling them onto it",
+        True,
+    )
+    follow_group: props.text(
+        "Follow",
+        "Vertex group of the layout whose vertices are parts: never pulled onto the target, each connected piece "
+        "of them moved rigidly with the surface around it (an eyeball stays a sphere)",
+    )
+    follow_soft_group: props.text(
+        "Follow Soft",
+        "Vertex group of the layout whose vertices are soft parts: each follows the surface around it on its own, "
+        "so the piece bends with its surface (lashes with their lid, a tongue)",
+    )
+    surface_group: props.text(
+        "Surface",
+        "Vertex group of the layout whose pieces are wrapped onto the target like the body, whatever Find Parts "
+        "guesses",
+    )
     # Armature alignment (operators.armature).
     target_armature: props.object_pointer(
         "Target Armature",

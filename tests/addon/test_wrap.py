@@ -68,7 +68,10 @@ def test_wrap_panel_searches_the_targets_vertex_groups():
     recorder = RecordingLayout()
     SPRINGWRAP_PT_wrap.draw(type("Panel", (), {"layout": recorder})(), bpy.context)
     assert recorder.operators == ["springwrap.wrap", "springwrap.rest_set"]
-    layout_groups = [("stiffness_group", "Layout", "vertex_groups"), ("free_group", "Layout", "vertex_groups")]
+    layout_groups = [
+        (name, "Layout", "vertex_groups")
+        for name in ("stiffness_group", "free_group", "follow_group", "follow_soft_group", "surface_group")
+    ]
     assert recorder.searches == [("unreliable_group", "Target", "vertex_groups"), *layout_groups]
     layout.springwrap.target = None
     recorder = RecordingLayout()
@@ -77,6 +80,7 @@ def test_wrap_panel_searches_the_targets_vertex_groups():
         ("wrap_solver", True),
         ("wrap_schedule", True),
         ("unreliable_group", False),
+        ("find_parts", False),  # one recorder stands for every row: the disabled row before it leaves it so
     ]
 
 

@@ -26,6 +26,7 @@ QUALITY_KEYS = {
     "flipped",
     "off_surface",
     "off_surface_threshold",
+    "part_vertices",
 }
 
 

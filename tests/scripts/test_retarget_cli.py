@@ -154,6 +154,20 @@ def test_a_free_group_floats_with_the_energy_solver_and_is_refused_with_springs(
     assert missing.returncode == 1 and "no vertex group 'Nowhere'" in missing.stderr
 
 
+def test_a_follow_group_follows_the_surface_and_the_report_says_so(inputs, tmp_path):
+    common = ("--template", inputs["blend"], "--template-object", "Grid", "--target", inputs["target"])
+    common += ("--anchors-spacing", 0.6)
+    report_path = tmp_path / "r.json"
+    process = run(*common, "--follow-group", "Centre", "--report", report_path)
+    assert process.returncode == 0, process.stderr[-3000:]
+    report = json.loads(report_path.read_text())
+    assert "followed the surface" in report["wrap"]["parts"] and "Follow group" in report["wrap"]["parts"]
+    assert report["quality"]["part_vertices"] >= 1
+    assert report["quality"]["vertices"] == GRID_SIDE * GRID_SIDE - report["quality"]["part_vertices"]
+    missing = run(*common, "--follow-soft-group", "Nowhere")
+    assert missing.returncode == 1 and "no vertex group 'Nowhere'" in missing.stderr
+
+
 @pytest.mark.parametrize(
     "case",
     [

@@ -13,7 +13,7 @@ import bpy
 
 import numpy as np
 
-from ..core import layout_state, quality
+from ..core import layout_state, parts, quality
 from ..core.layout_state import LayoutState
 
 _FOREACH = {
@@ -169,9 +169,9 @@ _ABSENT = "absent"
 _FOREIGN = "foreign"
 
 
-SNAPSHOT_ATTRIBUTES = STATE_ATTRIBUTES + ((layout_state.REST_ATTRIBUTE, "FLOAT_VECTOR"),)
-"""What a wrap may write besides positions: the state attributes and the rest shape (written by the final
-write when the layout has none yet)."""
+SNAPSHOT_ATTRIBUTES = STATE_ATTRIBUTES + ((layout_state.REST_ATTRIBUTE, "FLOAT_VECTOR"), (parts.PART_ATTRIBUTE, "INT"))
+"""What a wrap may write besides positions: the state attributes, the rest shape (written by the final
+write when the layout has none yet) and which vertices followed the surface as parts."""
 
 READOUT_ATTRIBUTES = (
     (quality.DISTANCE_ATTRIBUTE, "FLOAT", "POINT"),

@@ -12,7 +12,7 @@ import numpy as np
 
 import springwrap_kernel
 
-from ..core import anchors, input_policy, layout_state, subdivision, transforms, wrap_inputs
+from ..core import anchors, input_policy, layout_state, parts, subdivision, transforms, wrap_inputs
 from ..core.errors import LayoutError
 from ..core.target import Target
 from ..core.wrap_run import FramePacer, WrapResult
@@ -21,6 +21,7 @@ from . import anchors as anchor_data
 from . import attributes, last_run
 from . import curves as curve_data
 from . import layout as layout_data
+from . import parts as part_data
 from . import quality as quality_data
 from . import shape_keys as shape_key_data
 from . import target as target_data
@@ -141,6 +142,11 @@ class WrapSession:
             arrays, self.target, settings.target_signature, self.anchors, unreliable, curve_constraints, self.rest
         )
         inputs = self._vertex_groups(inputs, layout, parameters)
+        self.parts, self.follower = part_data.plan_wrap_parts(
+            layout, arrays, self.layout_topology, self.target, self.anchors, curve_constraints
+        )
+        solver = WRAP_DEFAULTS.solver if parameters.settings is None else parameters.settings.solver
+        inputs = part_data.free_parts(inputs, self.parts, solver)
         wrap_inputs.check_something_pulled(
             layout.name, inputs.free_vertices, getattr(parameters, "free_group", "") or settings.free_group
         )
@@ -238,6 +244,7 @@ class WrapSession:
             self.inputs, fine, self.solver.positions(), self.solver.states(), self.target
         )
         structure = layout_data.make_layout_structure(fine.topology)
+        inputs = part_data.refine_free(inputs, fine, self.vertex_count)
         self.solver = make_wrap_solver(self.target, structure, inputs, self.parameters)
         self.kernel_seconds += time.perf_counter() - start
         self.coarse_iterations = self.stage_iterations
@@ -287,9 +294,12 @@ class WrapSession:
         """(local positions float32 (N, 3), ``LayoutState``) of the solver now."""
         count = self.vertex_count  # a fine grid numbers the layout's own vertices first
         world = wrap_inputs.from_frame(self.inputs, self.solver.positions()[:count])
+        states, triangles, barycentrics = (np.array(array[:count]) for array in self.solver.states())
+        if self.follower is not None:  # the parts: moved by the surface, off the target (space-points)
+            world = part_data.hold_on_plane(parts.follow(self.follower, self.parts, world), self.parts, self.inputs)
+            states[self.parts.parts], triangles[self.parts.parts] = layout_state.SPACE_POINT, layout_state.NO_FACE
         positions = transforms.to_local(self.matrix_world, world)
-        states, triangles, barycentrics = self.solver.states()
-        return positions, layout_state.normalized_state(states[:count], triangles[:count], barycentrics[:count])
+        return positions, layout_state.normalized_state(states, triangles, barycentrics)
 
     def write_frame(self) -> None:
         """Write the solver's current positions and state into the layout (an intermediate frame)."""
@@ -312,6 +322,7 @@ class WrapSession:
         if len(settings.anchors):
             anchor_data.write_anchors(self.layout, self.anchors, -1, self.target.signature)
         quality_data.write_readout(self.layout, readout)  # the quality read-out, in the same undo step
+        part_data.write_parts(self.layout, self.parts)
         report = self.last_report
         face_points, space_points = layout_state.point_counts(state.states)
         detached, reattached, anchors_detached = self.topology
@@ -338,7 +349,8 @@ class WrapSession:
             topology_detached_count=detached,
             topology_reattached_count=reattached,
             anchors_detached_count=anchors_detached,
-            readout=readout,
+            readout=parts.surface_readout(readout, self.parts.parts),
+            parts=parts.report_text(self.parts),
         )
 
     def cancel(self) -> None:

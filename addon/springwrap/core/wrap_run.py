@@ -77,6 +77,7 @@ class WrapResult(NamedTuple):
     topology_reattached_count: int
     anchors_detached_count: int  # face anchors whose target face was gone, made space anchors
     readout: object = None  # the quality read-out written with the result (core.quality.Readout)
+    parts: str = ""  # which pieces followed the surface as parts, and how (core.parts.report_text); "" none
 
     def summary(self) -> str:
         """One line: iterations, time, face / space points and what changed state."""

@@ -375,6 +375,8 @@ class SPRINGWRAP_OT_mirror(SpringwrapOperator, bpy.types.Operator):
         self.report({"INFO"} if outcome.wrap is None or outcome.wrap.converged else {"WARNING"}, text)
         if getattr(self, "_readout", None) is not None:
             self.report({"INFO"}, quality.report_line(self._readout))
+        if outcome.wrap is not None and outcome.wrap.parts:
+            self.report({"INFO"}, outcome.wrap.parts)
         if outcome.crossing_faces.size:
             self.report(
                 {"WARNING"},

@@ -13,6 +13,7 @@ import numpy as np
 
 from .. import property_kinds as props
 from ..blender import mirror as mirror_data
+from ..blender import parts as part_data
 from ..blender import quality as quality_data
 from ..blender.edit_mode import object_mode
 from ..core import quality
@@ -62,6 +63,10 @@ class SPRINGWRAP_OT_select_problems(LayoutOperator, bpy.types.Operator):
                 with np.errstate(invalid="ignore"):
                     mask = quality.problem_mask(self.kind, values, self.threshold, readout.diagonal)
                 mask = mask | unmeasured
+                followed = part_data.read_parts(layout) if self.kind == "OFF_SURFACE" else None
+                parts_left = 0 if followed is None else int((mask & followed).sum())
+                if followed is not None:
+                    mask &= ~followed  # a part is off the target by design (it follows the surface)
                 hidden = quality_data.hidden(layout, "FACE" if self.kind == "FLIPPED" else "POINT")
                 skipped = int((mask & hidden).sum())
                 mask &= ~hidden  # hidden elements stay unselected, as Blender's own selection leaves them
@@ -80,6 +85,10 @@ class SPRINGWRAP_OT_select_problems(LayoutOperator, bpy.types.Operator):
         text = f"Selected {count} of {total} {'faces' if faces else 'vertices'} ({self._what()})"
         if skipped:
             text += f"; {skipped} more are hidden and were left unselected (Alt+H reveals them)"
+        if parts_left:
+            text += (
+                f"; {parts_left} part vertices are off the target by design (they follow the surface) and not judged"
+            )
         if count and frame_selected(context):
             text += "; framed in the 3D view"
         self.report({"INFO"}, text)

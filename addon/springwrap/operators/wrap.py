@@ -320,6 +320,8 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
         self.report({"INFO"} if result.converged else {"WARNING"}, result.summary())
         if result.readout is not None:
             self.report({"INFO"}, quality.report_line(result.readout))
+        if result.parts:
+            self.report({"INFO"}, result.parts)
         detached, reattached = result.topology_detached_count, result.topology_reattached_count
         if detached or reattached or result.anchors_detached_count:
             self.report(

@@ -277,7 +277,16 @@ class SPRINGWRAP_PT_wrap(_LayoutSubPanel, bpy.types.Panel):
         groups.active = settings.wrap_solver == "ENERGY"
         groups.prop_search(settings, "stiffness_group", obj, "vertex_groups", icon="GROUP_VERTEX")
         groups.prop_search(settings, "free_group", obj, "vertex_groups", icon="GROUP_VERTEX")
+        _draw_parts(layout, settings, obj)
         layout.operator("springwrap.rest_set", icon="ARMATURE_DATA")
+
+
+def _draw_parts(layout, settings, obj) -> None:
+    """Parts that follow the surface: Find Parts, and the groups that override its guess."""
+    column = layout.column()
+    column.prop(settings, "find_parts")
+    for name in ("follow_group", "follow_soft_group", "surface_group"):
+        column.prop_search(settings, name, obj, "vertex_groups", icon="GROUP_VERTEX")
 
 
 def _draw_progress(layout, session) -> None:

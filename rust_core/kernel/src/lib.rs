@@ -47,6 +47,7 @@ pub mod features;
 pub mod fit;
 pub mod layout;
 pub mod mesh;
+pub mod parts;
 pub mod quality;
 pub mod query;
 pub mod surface;
@@ -68,6 +69,7 @@ pub use fit::{
 };
 pub use layout::{Curve, CurveKind, LayoutStructure, LineTriple};
 pub use mesh::{NO_TRIANGLE, TargetMesh, TargetMeshOptions, TriangleEdge};
+pub use parts::{FollowSettings, SurfaceFollower, connected_pieces};
 pub use quality::{LayoutFaces, face_normals, flipped_faces, vertex_stretch};
 pub use surface::{WalkEnd, WalkOutcome};
 pub use validate::{BARYCENTRIC_RANGE, MAX_COORDINATE};

@@ -86,7 +86,7 @@ fn check_lengths(points: &[DVec3], rest: &[DVec3]) -> Result<(), KernelError> {
     }
 }
 
-fn check_edges(edges: &[[u32; 2]], vertex_count: usize) -> Result<(), KernelError> {
+pub(crate) fn check_edges(edges: &[[u32; 2]], vertex_count: usize) -> Result<(), KernelError> {
     for (index, edge) in edges.iter().enumerate() {
         if let Some(&vertex) = edge.iter().find(|&&vertex| vertex as usize >= vertex_count) {
             return Err(KernelError::LayoutIndexOutOfRange {

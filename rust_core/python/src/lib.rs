@@ -11,6 +11,7 @@ mod errors;
 mod features;
 mod fit;
 mod layout;
+mod parts;
 mod quality;
 mod target_mesh;
 mod wrap;
@@ -33,5 +34,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     features::register(m)?;
     fit::register(m)?;
     quality::register(m)?;
+    parts::register(m)?;
     Ok(())
 }

@@ -34,6 +34,7 @@ from ._native import (
     SpringwrapError,
     SubdivisionFit,
     SubdivisionStencils,
+    SurfaceFollower,
     TooLargeError,
     WrapSettings,
     __version__,
@@ -41,6 +42,7 @@ from ._native import (
     feature_defaults,
     fit_transform,
     flipped_faces,
+    layout_pieces,
     subdivision_fit_defaults,
     vertex_stretch,
 )
@@ -69,6 +71,7 @@ __all__ = [
     "StepReport",
     "SubdivisionFit",
     "SubdivisionStencils",
+    "SurfaceFollower",
     "SurfaceHits",
     "TargetMesh",
     "TooLargeError",
@@ -80,6 +83,7 @@ __all__ = [
     "feature_defaults",
     "fit_transform",
     "flipped_faces",
+    "layout_pieces",
     "subdivision_fit_defaults",
     "vertex_stretch",
 ]

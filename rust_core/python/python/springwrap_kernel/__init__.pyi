@@ -565,3 +565,30 @@ def flipped_faces(
 ) -> npt.NDArray[np.bool_]:
     """(F,) each face turned over against its rest shape: its normal against its rest normal carried by the best
     rotation of its neighbourhood (its corners and their edge neighbours)."""
+
+def layout_pieces(vertex_count: int, edges: npt.NDArray[np.uint32]) -> npt.NDArray[np.uint32]:
+    """(N,) piece number of each layout vertex: the connected components of ``edges`` ((E, 2)), numbered in the
+    order of each piece's lowest vertex (a vertex on no edge is a piece of its own)."""
+
+class SurfaceFollower:
+    """Parts bound to the layout's surface at rest, moved by the surface's motion: each part vertex bound to its
+    ``neighbours`` nearest surface vertices; a rigid piece moves by the best similarity (rotation, translation and,
+    with ``scale``, a uniform scale) of the surface around all its vertices, a soft vertex by its own
+    neighbourhood's."""
+
+    def __init__(
+        self,
+        surface_rest: npt.NDArray[np.float64],
+        part_rest: npt.NDArray[np.float64],
+        pieces: npt.NDArray[np.uint32],
+        rigid: npt.NDArray[np.bool_],
+        *,
+        neighbours: int = 64,
+        scale: bool = False,
+    ) -> None: ...
+    @property
+    def part_count(self) -> int:
+        """Number of part vertices."""
+
+    def apply(self, surface_now: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+        """(P, 3) part positions for the surface at ``surface_now`` ((S, 3), in the order given at rest)."""

@@ -1,0 +1,275 @@
+"""Parts: pieces of a layout the target does not have (eyeballs, teeth, tongue, lashes), which follow the
+deformation of the layout's surface around them and are never pulled onto the target. Numpy and the kernel,
+no ``bpy``.
+
+Which vertices are parts (:func:`plan_parts`), per separate piece of the layout (its connected components,
+``springwrap_kernel.layout_pieces``):
+
+- the **Surface** group's pieces are wrapped like the body, whatever the guess;
+- the **Follow** and **Follow Soft** groups' vertices are parts (soft: each vertex follows its own
+  neighbourhood; else each connected piece of them moves rigidly), whatever the guess, except the vertices
+  holding an anchor or a curve constraint (those are wrapped onto their targets);
+- with **Find Parts** on, every other piece that the target's surface does not need (:func:`guess_parts`:
+  the target points closest to most of its vertices are not clearly nearer to it than to the layout's largest
+  piece:
+  eyeballs behind the lids, teeth inside the lips, lashes in front of them, anything away from the target)
+  is a part: rigid, or soft when it is an open strip (lashes, :func:`soft_guess`). Pieces without faces
+  (loose edge chains), and pieces holding an anchor or a curve constraint, are never guessed.
+
+The wrap leaves the parts out of the target's pull (the solver's free vertices) and moves them by the
+surface's motion from the wrap's start (``springwrap_kernel.SurfaceFollower``).
+"""
+
+from typing import NamedTuple
+
+import numpy as np
+
+import springwrap_kernel
+
+from .errors import LayoutError
+
+PART_ATTRIBUTE = "springwrap_part"
+"""POINT INT attribute the wrap writes: 2 a rigid part's vertex, 1 a soft part's, 0 the surface (the read-out
+does not judge a part's distance to the target)."""
+CLAIMED_SHARE = 0.5
+"""A piece is needed by the target's surface when more than this share of its vertices claim their closest target
+point (see :data:`MAIN_TOLERANCE`)."""
+MAIN_TOLERANCE = 2.0
+"""A piece's vertex claims its closest target point when it is nearer to it than the largest piece is by more than
+this many times the largest piece's median distance to the target (how far the alignment left it)."""
+MAIN_SAMPLE = 4000
+"""Vertices of the largest piece measured for that median, at most (evenly spread through its numbering)."""
+STRIP_RATIO = 0.5
+"""An open piece whose second principal extent is below this share of its first is a strip (lashes): soft."""
+
+
+class PartPlan(NamedTuple):
+    """Which layout vertices are parts and how each piece of them follows the surface."""
+
+    parts: np.ndarray  # (N,) bool: the vertex follows the surface (no pull to the target)
+    soft: np.ndarray  # (N,) bool: a part vertex that follows its own neighbourhood (else its piece moves rigidly)
+    pieces: np.ndarray  # (N,) int64 piece number of each vertex (the layout's connected components)
+    rows: tuple  # (PieceRow, ...): the pieces treated as parts, for the report
+
+    @property
+    def any(self) -> bool:
+        return bool(self.parts.any())
+
+
+class PieceRow(NamedTuple):
+    """One piece treated as a part: its number, vertex count, how it follows and why."""
+
+    piece: int
+    vertices: int
+    mode: str  # "rigid", "soft" or "mixed"
+    reason: str  # "found", "Follow group"
+
+
+def layout_pieces(topology) -> np.ndarray:
+    """(N,) int64 piece number of each layout vertex (``topology``: a ``core.subdivision.LayoutTopology``)."""
+    edges = np.ascontiguousarray(np.asarray(topology.edges).reshape(-1, 2), dtype=np.uint32)
+    return springwrap_kernel.layout_pieces(int(topology.vertex_count), edges).astype(np.int64)
+
+
+def fan_triangles(face_corners: np.ndarray, face_sizes: np.ndarray, keep_face: np.ndarray) -> np.ndarray:
+    """(T, 3) int64 triangles of the kept faces, each cut as a fan from its first corner."""
+    corners = np.asarray(face_corners, dtype=np.int64).reshape(-1)
+    sizes = np.asarray(face_sizes, dtype=np.int64).reshape(-1)
+    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
+    fans = np.where(np.asarray(keep_face, dtype=bool), np.maximum(sizes - 2, 0), 0)
+    faces = np.repeat(np.arange(sizes.size), fans)
+    step = np.arange(int(fans.sum())) - np.repeat(np.cumsum(fans) - fans, fans)
+    first = starts[faces]
+    return np.stack([corners[first], corners[first + step + 1], corners[first + step + 2]], axis=1)
+
+
+def face_pieces(topology, pieces: np.ndarray) -> np.ndarray:
+    """(F,) int64 piece of each face (its first corner's)."""
+    sizes = np.asarray(topology.face_sizes, dtype=np.int64).reshape(-1)
+    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
+    corners = np.asarray(topology.face_corners, dtype=np.int64).reshape(-1)
+    return pieces[corners[starts]] if sizes.size else np.zeros(0, dtype=np.int64)
+
+
+def guess_parts(world_positions: np.ndarray, topology, pieces: np.ndarray, target_mesh, pinned: np.ndarray) -> set:
+    """The pieces the target's surface does not need (see the module's docstring): a set of piece numbers.
+
+    ``target_mesh`` is a ``core.target.CentredMesh``; ``pinned`` (N,) bool marks vertices holding an anchor or a
+    curve constraint (their pieces are never guessed)."""
+    world_positions = np.asarray(world_positions, dtype=np.float64).reshape(-1, 3)
+    counts = np.bincount(pieces)
+    if counts.size < 2:
+        return set()
+    faced = np.zeros(counts.size, dtype=bool)
+    faced[face_pieces(topology, pieces)] = True
+    main = int(np.argmax(np.where(faced, counts, -1)))
+    keep = face_pieces(topology, pieces) == main
+    triangles = fan_triangles(topology.face_corners, topology.face_sizes, keep)
+    candidates = [piece for piece in range(counts.size) if piece != main and faced[piece]]
+    pinned_pieces = set(np.unique(pieces[np.asarray(pinned, dtype=bool)]).tolist())
+    candidates = [piece for piece in candidates if piece not in pinned_pieces]
+    if not candidates or triangles.size == 0:
+        return set()
+    origin = np.asarray(target_mesh.origin, dtype=np.float64)
+    try:
+        main_mesh = springwrap_kernel.TargetMesh(
+            np.ascontiguousarray(world_positions - origin, dtype=np.float32),
+            np.ascontiguousarray(triangles, dtype=np.uint32),
+        )
+    except springwrap_kernel.SpringwrapError:
+        return set()  # the largest piece has no surface to compare with (every face degenerate)
+    chosen = np.flatnonzero(np.isin(pieces, candidates))
+    closest = target_mesh.closest_points(world_positions[chosen])
+    target_points = np.asarray(closest.positions, dtype=np.float64)
+    own = np.linalg.norm(target_points - world_positions[chosen], axis=1)
+    main_hits = main_mesh.closest_points(np.ascontiguousarray(target_points - origin, dtype=np.float32))
+    main_distance = np.asarray(main_hits.distances, dtype=np.float64)
+    # The largest piece's own distance from the target (how well it is aligned) is the tolerance: a vertex claims
+    # its target point only when it is clearly nearer to it than the largest piece is.
+    main_vertices = np.flatnonzero(pieces == main)
+    sample = main_vertices[:: max(1, main_vertices.size // MAIN_SAMPLE)]
+    tolerance = MAIN_TOLERANCE * float(np.median(target_mesh.closest_points(world_positions[sample]).distances))
+    claimed = own + tolerance < main_distance
+    guessed = set()
+    for piece in candidates:
+        members = pieces[chosen] == piece
+        if claimed[members].mean() <= CLAIMED_SHARE:
+            guessed.add(piece)
+    return guessed
+
+
+def soft_guess(world_positions: np.ndarray, topology, members: np.ndarray) -> bool:
+    """Whether a guessed piece (``members``: its vertex numbers) follows softly: an open strip (it has border
+    edges, and its second principal extent is below :data:`STRIP_RATIO` of its first), as lashes are."""
+    points = np.asarray(world_positions, dtype=np.float64)[members]
+    if points.shape[0] < 3:
+        return False
+    spread = np.linalg.svd(points - points.mean(axis=0), compute_uv=False)
+    if not spread[0] > 0.0 or spread[1] >= STRIP_RATIO * spread[0]:
+        return False
+    member = np.zeros(np.asarray(world_positions).shape[0], dtype=bool)
+    member[members] = True
+    corners = np.asarray(topology.face_corners, dtype=np.int64).reshape(-1)
+    sizes = np.asarray(topology.face_sizes, dtype=np.int64).reshape(-1)
+    following = np.arange(corners.size) + 1
+    ends = np.cumsum(sizes)
+    following[ends - 1] = ends - sizes  # each face's last corner goes round to its first
+    a, b = corners, corners[following]
+    inside = member[a] & member[b]
+    keys = np.minimum(a, b)[inside] * (corners.max() + 1) + np.maximum(a, b)[inside]
+    _unique, uses = np.unique(keys, return_counts=True)
+    return bool((uses == 1).any())
+
+
+class PartGroups(NamedTuple):
+    """The artist's choices, each (N,) bool or None when not set: Follow, Follow Soft, Surface."""
+
+    follow: np.ndarray | None = None
+    soft: np.ndarray | None = None
+    surface: np.ndarray | None = None
+
+
+def plan_parts(
+    layout_name: str,
+    world_positions: np.ndarray,
+    topology,
+    groups: PartGroups,
+    find: bool,
+    target_mesh=None,
+    pinned: np.ndarray | None = None,
+) -> PartPlan:
+    """Which vertices are parts (see the module's docstring). ``find``: guess the pieces the target does not
+    need (``target_mesh``, a ``CentredMesh``, is then required). Raises :class:`LayoutError` when every vertex
+    would be a part (nothing left to wrap and follow)."""
+    count = int(topology.vertex_count)
+    pieces = layout_pieces(topology)
+    pinned = np.zeros(count, dtype=bool) if pinned is None else np.asarray(pinned, dtype=bool)
+    parts = np.zeros(count, dtype=bool)
+    soft = np.zeros(count, dtype=bool)
+    reasons: dict[int, str] = {}
+    surface_pieces = set() if groups.surface is None else set(np.unique(pieces[groups.surface]).tolist())
+    if find and target_mesh is not None:
+        for piece in sorted(guess_parts(world_positions, topology, pieces, target_mesh, pinned) - surface_pieces):
+            members = np.flatnonzero(pieces == piece)
+            parts[members] = True
+            soft[members] = soft_guess(world_positions, topology, members)
+            reasons[piece] = "found"
+    chosen = np.zeros(count, dtype=bool)
+    for flags in (groups.follow, groups.soft):
+        if flags is not None:
+            chosen |= np.asarray(flags, dtype=bool)
+    if groups.surface is not None:
+        chosen &= ~np.isin(pieces, sorted(surface_pieces))
+    chosen &= ~pinned  # an anchor or a curve constraint holds its vertex: it is wrapped
+    parts |= chosen
+    if groups.soft is not None:
+        soft[chosen] = np.asarray(groups.soft, dtype=bool)[chosen]
+    if groups.follow is not None:
+        soft[chosen & np.asarray(groups.follow, dtype=bool) & ~soft] = False
+    for piece in np.unique(pieces[chosen]).tolist():
+        reasons[piece] = "Follow group"
+    soft &= parts
+    if count and parts.all():
+        raise LayoutError(
+            f"Every vertex of layout '{layout_name}' would follow the surface as a part: nothing is left to wrap "
+            "onto the target for them to follow. Take the body out of the Follow groups (or put it in the "
+            "Surface group)"
+        )
+    rows = []
+    for piece in sorted(reasons):
+        members = (pieces == piece) & parts
+        softness = soft[members]
+        mode = "soft" if softness.all() else "rigid" if not softness.any() else "mixed"
+        rows.append(PieceRow(int(piece), int(members.sum()), mode, reasons[piece]))
+    return PartPlan(parts, soft, pieces, tuple(rows))
+
+
+def make_follower(plan: PartPlan, positions: np.ndarray, neighbours: int | None = None):
+    """A ``springwrap_kernel.SurfaceFollower`` binding the plan's parts to the rest of the layout at ``positions``
+    ((N, 3), any frame: :func:`follow` must be given the same frame). Each connected piece of rigid part vertices
+    moves as one; soft vertices each on their own."""
+    positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+    part_vertices = np.flatnonzero(plan.parts)
+    rigid_pieces = np.where(plan.soft[part_vertices], -1, plan.pieces[part_vertices])
+    # Soft vertices share one piece number (its flag soft); each rigid piece has its own.
+    numbers, renumbered = np.unique(rigid_pieces, return_inverse=True)
+    rigid = numbers >= 0
+    keywords = {} if neighbours is None else {"neighbours": int(neighbours)}
+    return springwrap_kernel.SurfaceFollower(
+        np.ascontiguousarray(positions[~plan.parts]),
+        np.ascontiguousarray(positions[part_vertices]),
+        np.ascontiguousarray(renumbered, dtype=np.uint32),
+        np.ascontiguousarray(rigid),
+        **keywords,
+    )
+
+
+def follow(follower, plan: PartPlan, positions: np.ndarray) -> np.ndarray:
+    """``positions`` ((N, 3), the frame the follower was made in) with the parts moved by the surface's motion."""
+    positions = np.array(positions, dtype=np.float64).reshape(-1, 3)
+    positions[plan.parts] = follower.apply(np.ascontiguousarray(positions[~plan.parts]))
+    return positions
+
+
+def part_codes(plan: PartPlan) -> np.ndarray:
+    """(N,) int32 values of :data:`PART_ATTRIBUTE`: 2 rigid part, 1 soft part, 0 surface."""
+    return np.where(plan.parts, np.where(plan.soft, 1, 2), 0).astype(np.int32)
+
+
+def report_text(plan: PartPlan) -> str:
+    """One line saying which pieces followed the surface and how, or "" when none did."""
+    if not plan.rows:
+        return ""
+    described = ", ".join(f"piece {row.piece} ({row.vertices} vertices, {row.mode}, {row.reason})" for row in plan.rows)
+    total = int(plan.parts.sum())
+    return f"Parts: {len(plan.rows)} pieces ({total} vertices) followed the surface, not the target: {described}"
+
+
+def surface_readout(readout, part_flags: np.ndarray | None):
+    """The quality read-out (``core.quality.Readout``) of the surface alone: the parts' distances and stretch left
+    out (a part is off the target by design), the flips and the diagonal as they are. ``part_flags`` None or
+    without a part: ``readout`` itself."""
+    if readout is None or part_flags is None or not np.asarray(part_flags).any():
+        return readout
+    kept = ~np.asarray(part_flags, dtype=bool)
+    return readout._replace(distances=readout.distances[kept], stretch=readout.stretch[kept])

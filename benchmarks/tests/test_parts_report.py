@@ -1,0 +1,54 @@
+"""The parts benchmark's Markdown (``benchmarks/parts.py``) and its place in ``docs/benchmarks.md``
+(``benchmarks/report.py --only-parts``), on made-up results: fast, no Blender."""
+
+from benchmarks import parts, report
+
+
+def entry(body, near, mean, largest, eye=0.0):
+    pieces = {group: {"mean": mean, "max": largest} for group in parts.PART_GROUPS}
+    return {
+        "body_mean": body,
+        "near_parts_mean": near,
+        "parts_mean": mean,
+        "parts_max": largest,
+        "eye_shape_change": eye,
+        "pieces": pieces,
+        "notes": "Parts: 9 pieces",
+    }
+
+
+RESULT = {
+    "part_vertices": 756,
+    "template_move": parts.TEMPLATE_MOVE,
+    "anchors": 24,
+    "near_parts": 0.05,
+    "cases": [
+        {
+            "case": "heavy",
+            "methods": {
+                "wrap, body alone": {"body_mean": 0.2, "near_parts_mean": 0.05},
+                "wrap, parts pulled": entry(0.2, 0.05, 0.7, 2.3, 30.0),
+                "wrap (defaults)": entry(0.2, 0.05, 0.06, 0.9),
+            },
+        }
+    ],
+}
+
+
+def test_the_section_has_every_method_and_says_which_aims_are_missed():
+    text = "\n".join(parts.markdown(RESULT))
+    assert "| heavy | wrap, body alone | 0.200 | 0.050 | - | - | - |" in text
+    assert "| heavy | wrap, parts pulled | 0.200 | 0.050 | 0.700 | 2.300 | 30.00 |" in text
+    assert "parts mean ≤ near mean: 0.060 against 0.050 (missed by 0.010)" in text
+    assert "parts max ≤ 0.6 %: 0.900 against 0.600 (missed by 0.300)" in text
+    assert "body ≤ body alone: 0.200 against 0.200 (met)" in text
+    assert "- heavy: Parts: 9 pieces" in text
+
+
+def test_the_section_is_put_in_place_or_replaced():
+    document = "# Benchmarks\n\n## Few anchors\n\nx\n\n## Performance\n\ny\n"
+    section = parts.markdown(RESULT)
+    once = report.splice_section(document, section)
+    assert once.index("## Parts that follow the surface") < once.index("## Performance")
+    assert "## Few anchors\n\nx" in once and once.endswith("y\n")
+    assert report.splice_section(once, section) == once

@@ -1,0 +1,134 @@
+"""Parts on arrays (``addon/springwrap/core/parts.py``): pieces, the guess of which pieces the target's surface does
+not need, rigid or soft, the groups' overrides, the follower, the read-out of the surface alone. No Blender."""
+
+import numpy as np
+import pytest
+
+from helpers import core_module
+
+parts = core_module("parts")
+target_module = core_module("target")
+subdivision = core_module("subdivision")
+errors = core_module("errors")
+
+
+def cube_sphere(n, radius, centre=(0.0, 0.0, 0.0)):
+    """A closed quad sphere (each cube face n x n), (V, 3) float64 and (F, 4) quads."""
+    steps = np.linspace(-1.0, 1.0, n + 1)
+    points, quads = [], []
+    for axis in range(3):
+        for sign in (1.0, -1.0):
+            u, v = np.meshgrid(steps, steps, indexing="ij")
+            face = np.zeros((n + 1, n + 1, 3))
+            face[..., axis], face[..., (axis + 1) % 3], face[..., (axis + 2) % 3] = sign, u, v * sign
+            base = sum(len(block) for block in points)
+            points.append(face.reshape(-1, 3))
+            index = base + np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
+            quads.append(np.stack([index[:-1, :-1], index[1:, :-1], index[1:, 1:], index[:-1, 1:]], -1).reshape(-1, 4))
+    vertices, faces = np.concatenate(points), np.concatenate(quads)
+    _unique, first, inverse = np.unique(np.round(vertices * n * 4), axis=0, return_index=True, return_inverse=True)
+    vertices, faces = vertices[first], inverse.reshape(-1)[faces]
+    vertices = vertices / np.linalg.norm(vertices, axis=1, keepdims=True) * radius + np.asarray(centre)
+    return vertices, faces
+
+
+def topology_of(pieces):
+    """(positions, LayoutTopology) of quad pieces ((V, 3), (F, 4)) put one after another."""
+    positions, quads, offset = [], [], 0
+    for vertices, faces in pieces:
+        positions.append(vertices)
+        quads.append(faces + offset)
+        offset += len(vertices)
+    quads = np.concatenate(quads)
+    edges = np.unique(np.sort(np.concatenate([quads[:, [i, (i + 1) % 4]] for i in range(4)]), axis=1), axis=0)
+    topology = subdivision.LayoutTopology(
+        offset,
+        quads.reshape(-1).astype(np.uint32),
+        np.full(len(quads), 4, np.uint32),
+        edges.astype(np.uint32),
+        np.zeros((0, 2), np.uint32),
+    )
+    return np.concatenate(positions), topology
+
+
+def target_sphere(radius=1.5):
+    vertices, faces = cube_sphere(24, radius)
+    triangles = np.concatenate([faces[:, [0, 1, 2]], faces[:, [0, 2, 3]]])
+    return target_module.CentredMesh(vertices, np.ascontiguousarray(triangles, dtype=np.uint32))
+
+
+def strip(length=0.4, width=0.05, centre=(0.0, 0.0, 1.6)):
+    """An open strip of 8 x 1 quads (lashes), in front of the sphere's top."""
+    xs = np.linspace(-length / 2, length / 2, 9)
+    vertices = np.concatenate([np.stack([xs, np.full(9, y), np.zeros(9)], 1) for y in (0.0, width)])
+    vertices += np.asarray(centre)
+    faces = np.array([[i, i + 1, i + 10, i + 9] for i in range(8)])
+    return vertices, faces
+
+
+def test_pieces_inside_and_in_front_are_guessed_and_a_second_skin_is_not():
+    body = cube_sphere(8, 1.5)  # on the target
+    ball = cube_sphere(3, 0.3, (0.4, 0.0, 0.3))
+    lashes = strip()
+    other_side = cube_sphere(3, 0.5, (0.0, 0.0, -4.0))  # a piece with its own part of the target
+    target = target_sphere()
+    island, island_faces = cube_sphere(6, 0.6, (0.0, 0.0, -4.0))
+    island_triangles = np.concatenate([island_faces[:, [0, 1, 2]], island_faces[:, [0, 2, 3]]])
+    far_target = target_module.CentredMesh(
+        np.concatenate([target.vertices(), island]),
+        np.concatenate([target.triangles(), len(target.vertices()) + island_triangles]).astype(np.uint32),
+    )
+    positions, topology = topology_of([body, ball, lashes, other_side])
+    plan = parts.plan_parts("Layout", positions, topology, parts.PartGroups(), True, far_target)
+    sizes = [len(piece[0]) for piece in (body, ball, lashes, other_side)]
+    bounds = np.cumsum([0, *sizes])
+    assert not plan.parts[: bounds[1]].any()
+    assert plan.parts[bounds[1] : bounds[3]].all()
+    assert not plan.parts[bounds[3] :].any()
+    assert not plan.soft[bounds[1] : bounds[2]].any() and plan.soft[bounds[2] : bounds[3]].all()
+    assert [(row.mode, row.reason) for row in plan.rows] == [("rigid", "found"), ("soft", "found")]
+    assert "Parts: 2 pieces" in parts.report_text(plan)
+    # Find Parts off: nothing; the Surface group keeps a piece wrapped; Follow Soft makes the ball soft.
+    assert not parts.plan_parts("Layout", positions, topology, parts.PartGroups(), False, far_target).any
+    surface = np.zeros(len(positions), bool)
+    surface[bounds[1]] = True
+    kept = parts.plan_parts("Layout", positions, topology, parts.PartGroups(surface=surface), True, far_target)
+    assert not kept.parts[bounds[1] : bounds[2]].any() and kept.parts[bounds[2] : bounds[3]].all()
+    soft = np.zeros(len(positions), bool)
+    soft[bounds[1] : bounds[2]] = True
+    bent = parts.plan_parts("Layout", positions, topology, parts.PartGroups(soft=soft), False)
+    assert bent.soft[bounds[1] : bounds[2]].all() and bent.rows[0].reason == "Follow group"
+    # A pinned piece (an anchor on it) is never guessed.
+    pinned = np.zeros(len(positions), bool)
+    pinned[bounds[1]] = True
+    anchored = parts.plan_parts("Layout", positions, topology, parts.PartGroups(), True, far_target, pinned)
+    assert not anchored.parts[bounds[1] : bounds[2]].any()
+
+
+def test_every_vertex_a_part_is_refused():
+    positions, topology = topology_of([cube_sphere(3, 1.0)])
+    with pytest.raises(errors.LayoutError, match="Every vertex of layout 'Layout' would follow"):
+        parts.plan_parts("Layout", positions, topology, parts.PartGroups(follow=np.ones(len(positions), bool)), True)
+
+
+def test_the_follower_moves_the_ball_with_the_body_and_the_readout_leaves_it_out():
+    body, ball = cube_sphere(8, 1.4), cube_sphere(3, 0.3, (0.4, 0.0, 0.3))
+    positions, topology = topology_of([body, ball])
+    follow = np.zeros(len(positions), bool)
+    follow[len(body[0]) :] = True
+    plan = parts.plan_parts("Layout", positions, topology, parts.PartGroups(follow=follow), False)
+    follower = parts.make_follower(plan, positions)
+    moved = positions.copy()
+    moved[: len(body[0])] = moved[: len(body[0])] * 1.1 + np.array([0.5, 0.0, 0.0])  # the body grows and moves
+    result = parts.follow(follower, plan, moved)
+    assert np.allclose(result[: len(body[0])], moved[: len(body[0])])
+    shift = result[len(body[0]) :].mean(axis=0) - positions[len(body[0]) :].mean(axis=0)
+    assert shift[0] > 0.5
+    sizes = np.linalg.norm(result[len(body[0]) :] - result[len(body[0]) :].mean(axis=0), axis=1)
+    assert np.allclose(sizes, np.linalg.norm(ball[0] - ball[0].mean(axis=0), axis=1))  # rigid, its size kept
+    assert list(np.unique(parts.part_codes(plan))) == [0, 2]
+    quality = core_module("quality")
+    readout = quality.Readout(np.arange(len(positions), dtype=float), np.ones(len(positions)), np.zeros(3, bool), 2.0)
+    surface = parts.surface_readout(readout, plan.parts)
+    assert surface.distances.size == len(body[0]) and surface.distances.max() == len(body[0]) - 1
+    assert parts.surface_readout(readout, None) is readout
