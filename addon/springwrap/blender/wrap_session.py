@@ -85,7 +85,8 @@ class WrapSession:
     ``display_seconds`` (optional) is what a redraw is known to cost before the first frame (the
     viewport's measured draw time): the first frame's solve time is paced from it. ``shape_keys``:
     ``'TRANSFER'`` wraps the basis (the reference key) and carries the other keys over when it finishes
-    (frames move them along), ``'REFUSE'`` refuses a layout with shape keys.
+    (frames move them along), ``'REFUSE'`` refuses a layout with shape keys. ``target`` (optional): the
+    target already read (a sequence's frame object); None reads the layout's target.
     """
 
     def __init__(
@@ -96,6 +97,7 @@ class WrapSession:
         adjust_inputs=None,
         display_seconds: float | None = None,
         shape_keys: str = "TRANSFER",
+        target: Target | None = None,
     ):
         self.start_time = time.perf_counter()
         self.layout = layout
@@ -110,7 +112,9 @@ class WrapSession:
                 f"Layout '{layout.name}' has zero scale: the wrap's world positions cannot be written back"
             )
         self.matrix_world = arrays.matrix_world
-        self.target = target_data.read_target(context.evaluated_depsgraph_get(), layout)
+        self.target = (
+            target if target is not None else target_data.read_target(context.evaluated_depsgraph_get(), layout)
+        )
         self.layout_topology = layout_data.read_layout_topology(layout)
         structure = layout_data.make_layout_structure(self.layout_topology)
         self.anchors, anchor_resolution = anchors.resolve(
