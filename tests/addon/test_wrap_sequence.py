@@ -8,35 +8,21 @@ import bpy
 import numpy as np
 import pytest
 
-from bpy_helpers import Reference, addon_module, as_layout, snapshot, surface_distances
+from bpy_helpers import (
+    SEQUENCE_FRAMES as FRAMES,
+)
+from bpy_helpers import (
+    Reference,
+    addon_module,
+    animated_target,
+    snapshot,
+    surface_distances,
+)
+from bpy_helpers import (
+    make_sphere_layout as make_inner_layout,
+)
 
-FRAMES = (1, 2, 3)
 ON_SURFACE = 1e-4
-
-
-def animated_target(name="Target"):
-    """A UV sphere whose shape key stretches it along x over frames 1 .. 3 (value 0, 0.5, 1)."""
-    bpy.ops.mesh.primitive_uv_sphere_add(segments=32, ring_count=16, radius=1.5)
-    target = bpy.context.active_object
-    target.name = name
-    target.shape_key_add(name="Basis", from_mix=False)
-    stretch = target.shape_key_add(name="Stretch", from_mix=False)
-    points = np.empty(len(stretch.data) * 3, dtype=np.float32)
-    stretch.data.foreach_get("co", points)
-    points = points.reshape(-1, 3)
-    points[:, 0] *= 1.4
-    points[:, 2] *= 0.85
-    stretch.data.foreach_set("co", points.reshape(-1))
-    for frame, value in zip(FRAMES, (0.0, 0.5, 1.0)):
-        stretch.value = value
-        stretch.keyframe_insert("value", frame=frame)
-    return target
-
-
-def make_inner_layout(target, name="Layout"):
-    """An ico sphere just inside the target sphere: one wrap lands every vertex."""
-    bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=3, radius=1.3, location=(0.05, -0.02, 0.03))
-    return as_layout(bpy.context.active_object, name, target)
 
 
 def sequence_scene():

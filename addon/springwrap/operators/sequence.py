@@ -12,20 +12,22 @@ runs to the end at once. Either way the whole sequence is one undo step. The wor
 import bpy
 
 from .. import property_kinds as props
+from ..blender import follow
 from ..blender.edit_mode import EditModeGuard, object_mode
 from ..blender.wrap_sequence import SequenceRun
 from ..core import sequence
 from ..core.errors import ERRORS, LayoutError
 from ..core.sequence import SequenceLoop
 from ..core.wrap_inputs import WrapParameters
-from ..properties import WRAP_DEFAULTS, WRAP_SCHEDULE_ITEMS, WRAP_SOLVER_ITEMS, max_iterations_property
+from ..properties import (
+    SEQUENCE_SOURCE_ITEMS,
+    WRAP_DEFAULTS,
+    WRAP_SCHEDULE_ITEMS,
+    WRAP_SOLVER_ITEMS,
+    max_iterations_property,
+)
 from .base import LayoutOperator, check_inputs, end_modal_display, layout_problem, show_modal_status
 from .wrap import TIMER_SECONDS
-
-SOURCE_ITEMS = (
-    ("TARGET", "Target", "The layout's target as evaluated at each frame (armature, shape keys, modifiers, caches)"),
-    ("COLLECTION", "Collection", "One mesh object per frame: the i-th frame's target is the collection's i-th by name"),
-)
 
 
 class SPRINGWRAP_OT_wrap_sequence(LayoutOperator, bpy.types.Operator):
@@ -37,7 +39,7 @@ class SPRINGWRAP_OT_wrap_sequence(LayoutOperator, bpy.types.Operator):
     use_scene_range: props.flag("Scene Range", "Wrap the scene's frame range (off: Start and End)", True)
     frame_start: props.integer("Start", "First frame to wrap (with Scene Range off)", 1, min=-1_048_574)
     frame_end: props.integer("End", "Last frame to wrap (with Scene Range off)", 250, min=-1_048_574)
-    source: props.choice("Source", "Where each frame's target comes from", SOURCE_ITEMS, "TARGET")
+    source: props.choice("Source", "Where each frame's target comes from", SEQUENCE_SOURCE_ITEMS, "TARGET")
     collection: props.text("Collection", "Collection of one mesh object per frame (Source: Collection)")
     warm_rest: props.choice(
         "Later Frames",
@@ -99,7 +101,7 @@ class SPRINGWRAP_OT_wrap_sequence(LayoutOperator, bpy.types.Operator):
         if layout is None or layout.type != "MESH":
             self.report({"ERROR"}, layout_problem(context) or "No active mesh object (the layout)")
             return {"CANCELLED"}
-        with object_mode(layout):
+        with object_mode(layout), follow.paused():
             run = self._start(context)
             if run is None or not self._first_frame(run):
                 return {"CANCELLED"}
@@ -121,6 +123,7 @@ class SPRINGWRAP_OT_wrap_sequence(LayoutOperator, bpy.types.Operator):
             self._mode.restore()
             return {"CANCELLED"}
         self._loop = SequenceLoop(run)
+        follow.pause()
         self._area = context.area
         window_manager = context.window_manager
         window_manager.progress_begin(0, len(run.frames))
@@ -160,6 +163,7 @@ class SPRINGWRAP_OT_wrap_sequence(LayoutOperator, bpy.types.Operator):
                 pass
 
     def _end(self, context) -> None:
+        follow.resume()
         end_modal_display(self, context)
         mode = getattr(self, "_mode", None)
         if mode is not None:
