@@ -87,6 +87,7 @@ class SequenceRun:
         self.shapes: dict[int, np.ndarray] = {}
         self.outcomes: list[FrameOutcome] = []
         self.first_snapshot = None
+        self.first_result = None  # the first frame's WrapResult
         self.current: WrapSession | None = None
 
     @property
@@ -137,6 +138,7 @@ class SequenceRun:
         finally:
             self.current = None
         if index == 0:
+            self.first_result = result
             self._clear_old_keys()
             self.first_snapshot = (attributes.take_snapshot(self.layout), _settings_snapshot(self.layout))
         self.outcomes.append(outcome)
