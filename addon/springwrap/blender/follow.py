@@ -19,7 +19,7 @@ import bpy
 
 import numpy as np
 
-from ..core import follow, layout_state, transforms
+from ..core import follow, transforms
 from ..core.errors import ERRORS
 from ..core.quality import DISTANCE_ATTRIBUTE
 from ..core.wrap_inputs import WrapParameters
@@ -116,16 +116,12 @@ def settle_pending(context) -> int:
     return written
 
 
-def _surface_distances(target, world: np.ndarray) -> np.ndarray:
-    return np.asarray(target.mesh.closest_points(world).distances, dtype=np.float64)
-
-
 def measure(context, layout) -> None:
     """Remember where ``layout``'s vertices are from its target now (Follow turned on, after a re-settle)."""
     moment = target_changes.moment()
     target = target_data.read_target(context.evaluated_depsgraph_get(), layout)
     world = transforms.world_positions(layout_data.read_layout(layout))
-    _measured[layout.name] = (moment, _surface_distances(target, world))
+    _measured[layout.name] = (moment, follow.surface_distances(target, world))
 
 
 def _distances_before(layout, count: int) -> np.ndarray:
@@ -145,30 +141,13 @@ def settle(context, layout) -> int:
     target = target_data.read_target(context.evaluated_depsgraph_get(), layout)
     arrays = layout_data.read_layout(layout)
     world = transforms.world_positions(arrays)
-    count = world.shape[0]
-    after = _surface_distances(target, world)
-    before = _distances_before(layout, count)
-    moved = np.zeros(count)
-    state = arrays.state
     same_topology = layout.springwrap.target_signature == target.signature
-    on_face = (state.states == layout_state.FACE_POINT) & (state.faces >= 0)
-    if same_topology and on_face.any():
-        on_face &= state.faces < target.mesh.triangle_count
-        surface = target.mesh.face_point_positions(
-            np.ascontiguousarray(state.faces[on_face], dtype=np.uint32),
-            np.ascontiguousarray(state.barycentrics[on_face], dtype=np.float32),
-        )
-        moved[on_face] = np.linalg.norm(surface - world[on_face], axis=1)
-    before = np.where(np.isnan(before) & on_face, 0.0, before)  # unknown: a face-point lay on the surface
-    before = np.where(np.isnan(before), after, before)  # unknown space-points: not taken as changed
-    low, high = target.mesh.bounding_box()
-    tolerance = follow.CHANGE_FRACTION * float(np.linalg.norm(high - low))
-    changed = follow.changed_vertices(before, after, moved, tolerance)
-    if not changed.any():
+    edges = layout_data.read_layout_topology(layout).edges
+    before = _distances_before(layout, world.shape[0])
+    region, after = follow.changed_region(target, world, arrays.state, same_topology, before, edges)
+    if not region.any():
         _measured[layout.name] = (moment, after)
         return 0
-    edges = layout_data.read_layout_topology(layout).edges
-    region = follow.grow(changed, edges)
     settings = layout.springwrap
     parameters = WrapParameters(max_iterations=MAX_ITERATIONS, settings=_settings(settings))
     session = WrapSession(

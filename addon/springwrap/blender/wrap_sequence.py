@@ -8,7 +8,8 @@ anchors and target signature are what the next frame starts from: a face-point o
 triangle and weights and so follows its point on the moved surface, and where the target's topology changed
 it is found again by the deleted-face rule). The first frame is an ordinary wrap; later frames keep the
 previous frame's shape as the springs' rest shape (``warm_rest='PREVIOUS'``: they only settle onto the
-changed surface), or the template's (``'TEMPLATE'``). A frame that fails is put back (the layout keeps the
+changed surface, and only where the target changed: the rest is held and written back bit for bit), or the
+template's (``'TEMPLATE'``: every frame a whole wrap). A frame that fails is put back (the layout keeps the
 previous frame's shape) and reported. :meth:`SequenceRun.finish` puts the layout back as the first frame left
 it and writes the keys and keyframes; the scene's frame is set back.
 """
@@ -17,7 +18,7 @@ import time
 
 import numpy as np
 
-from ..core import sequence
+from ..core import follow, sequence, transforms
 from ..core.errors import ERRORS, LayoutError
 from ..core.sequence import FrameOutcome, SequenceResult
 from . import anchors as anchor_data
@@ -88,7 +89,8 @@ class SequenceRun:
         self.outcomes: list[FrameOutcome] = []
         self.first_snapshot = None
         self.first_result = None  # the first frame's WrapResult
-        self.current: WrapSession | None = None
+        self.distances = None  # (N,) the layout's distances to the last frame's target, as written
+        self.edges = layout_data.read_layout_topology(layout).edges
 
     @property
     def done(self) -> bool:
@@ -98,47 +100,71 @@ class SequenceRun:
     def next_frame(self) -> int | None:
         return None if self.done else self.frames[len(self.outcomes)]
 
-    def _warm(self, inputs):
-        """A later frame's inputs: the springs rest in the previous frame's shape (where the wrap starts)."""
-        return inputs._replace(rest_positions=inputs.positions)
-
-    def _session(self, index: int) -> WrapSession:
-        frame = self.frames[index]
-        self.scene.frame_set(frame)
-        target = None
+    def _frame_target(self, index: int):
+        """The target of the ``index``-th frame, the scene set to that frame."""
+        self.scene.frame_set(self.frames[index])
+        depsgraph = self.context.evaluated_depsgraph_get()
         if self.objects is not None:
-            target = target_data.read_object_target(self.context.evaluated_depsgraph_get(), self.objects[index])
-        warm = index > 0 and self.warm_rest == "PREVIOUS"
-        return WrapSession(
-            self.context, self.layout, self.parameters, adjust_inputs=self._warm if warm else None, target=target
-        )
+            return target_data.read_object_target(depsgraph, self.objects[index])
+        return target_data.read_target(depsgraph, self.layout)
+
+    def _frame(self, index: int, start: float) -> FrameOutcome:
+        """Wrap the ``index``-th frame and write it; its outcome. Raises what went wrong (nothing is written then).
+
+        A later frame with ``warm_rest='PREVIOUS'`` re-settles only where the target changed since the previous
+        frame (``core.follow``: its surface distance changed, or its face-point moved), the rest held and written
+        back bit for bit; a frame in which nothing changed keeps the previous frame's shape unwrapped."""
+        frame = self.frames[index]
+        target = self._frame_target(index)
+        region = None
+        before = None
+        if index > 0 and self.warm_rest == "PREVIOUS":
+            before = layout_data.read_layout(self.layout)
+            world = transforms.world_positions(before)
+            same_topology = self.layout.springwrap.target_signature == target.signature
+            region, after = follow.changed_region(
+                target, world, before.state, same_topology, self.distances, self.edges
+            )
+            if not region.any():
+                self.distances = after
+                return FrameOutcome(frame, True, time.perf_counter() - start, 0, "")
+        adjust = None if region is None else (lambda inputs: follow.held(inputs, region))
+        session = WrapSession(self.context, self.layout, self.parameters, adjust_inputs=adjust, target=target)
+        try:
+            session.run()
+            result = session.finish()
+            if region is not None:
+                positions = follow.merged(layout_data.read_layout(self.layout).positions, before.positions, region)
+                self.layout.data.vertices.foreach_set("co", positions.reshape(-1))
+                self.layout.data.update()
+        except Exception:
+            session.cancel()
+            raise
+        world = transforms.world_positions(layout_data.read_layout(self.layout))
+        if region is None:
+            self.distances = follow.surface_distances(target, world)
+        else:
+            self.distances = after
+            self.distances[region] = follow.surface_distances(target, world[region])
+        if index == 0:
+            self.first_result = result
+        return FrameOutcome(frame, True, time.perf_counter() - start, result.iterations, "")
 
     def advance(self) -> FrameOutcome:
         """Wrap the next frame and write it into the layout (its basis, as a wrap does). The first frame's failure is
         raised after putting everything back; a later frame's is kept in its outcome, the layout as it was."""
         index = len(self.outcomes)
-        frame = self.frames[index]
         start = time.perf_counter()
-        session = None
         try:
-            session = self._session(index)
-            self.current = session
-            session.run()
-            result = session.finish()
+            outcome = self._frame(index, start)
         except Exception as error:  # a frame's failure is reported (the first frame's raised), never half-written
-            if session is not None:
-                session.cancel()
             if index == 0:
                 self._restore_frame()
                 raise
-            outcome = FrameOutcome(frame, False, time.perf_counter() - start, 0, _message(error))
-        else:
-            self.shapes[frame] = layout_data.read_layout(self.layout).positions.copy()
-            outcome = FrameOutcome(frame, True, time.perf_counter() - start, result.iterations, "")
-        finally:
-            self.current = None
+            outcome = FrameOutcome(self.frames[index], False, time.perf_counter() - start, 0, _message(error))
+        if outcome.ok:
+            self.shapes[outcome.frame] = layout_data.read_layout(self.layout).positions.copy()
         if index == 0:
-            self.first_result = result
             self._clear_old_keys()
             self.first_snapshot = (attributes.take_snapshot(self.layout), _settings_snapshot(self.layout))
         self.outcomes.append(outcome)

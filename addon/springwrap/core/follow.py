@@ -41,6 +41,40 @@ def grow(mask: np.ndarray, edges: np.ndarray, rings: int = RINGS) -> np.ndarray:
     return grown
 
 
+def surface_distances(target, world: np.ndarray) -> np.ndarray:
+    """(N,) float64 distance of each world point to the target's surface (``core.target.Target``)."""
+    return np.asarray(target.mesh.closest_points(world).distances, dtype=np.float64)
+
+
+def changed_region(target, world, state, same_topology: bool, before, edges, rings: int = RINGS):
+    """(region, after): the layout vertices a change of the target concerns, grown by ``rings`` rings of
+    ``edges``, and (N,) every vertex's surface distance now.
+
+    ``world``: (N, 3) the layout's world positions; ``state``: its ``LayoutState``; ``same_topology``: the
+    target has the topology the face-points were written against (then a face-point whose point on the surface
+    moved is concerned too); ``before``: (N,) the distances when last measured (NaN: unknown: a face-point lay
+    on the surface, a space-point is not taken as changed)."""
+    world = np.asarray(world, dtype=np.float64)
+    count = world.shape[0]
+    after = surface_distances(target, world)
+    moved = np.zeros(count)
+    on_face = (state.states == layout_state.FACE_POINT) & (state.faces >= 0)
+    if same_topology and on_face.any():
+        on_face &= state.faces < target.mesh.triangle_count
+        surface = target.mesh.face_point_positions(
+            np.ascontiguousarray(state.faces[on_face], dtype=np.uint32),
+            np.ascontiguousarray(state.barycentrics[on_face], dtype=np.float32),
+        )
+        moved[on_face] = np.linalg.norm(surface - world[on_face], axis=1)
+    before = np.asarray(before, dtype=np.float64)
+    before = np.where(np.isnan(before) & on_face, 0.0, before)
+    before = np.where(np.isnan(before), after, before)
+    low, high = target.mesh.bounding_box()
+    tolerance = CHANGE_FRACTION * float(np.linalg.norm(high - low))
+    changed = changed_vertices(before, after, moved, tolerance)
+    return grow(changed, edges, rings) if changed.any() else changed, after
+
+
 def held(inputs: WrapInputs, region: np.ndarray) -> WrapInputs:
     """``inputs`` with every vertex outside ``region`` held where it starts (the layout's own anchors kept):
     a face anchor on its face for a face-point, a space anchor at its position for a space-point; and the
