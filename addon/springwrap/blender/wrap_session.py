@@ -12,7 +12,7 @@ import numpy as np
 
 import springwrap_kernel
 
-from ..core import anchors, input_policy, layout_state, subdivision, transforms, wrap_inputs
+from ..core import anchors, follow, input_policy, layout_state, subdivision, transforms, wrap_inputs
 from ..core.errors import LayoutError
 from ..core.target import Target
 from ..core.wrap_run import FramePacer, WrapResult
@@ -86,7 +86,9 @@ class WrapSession:
     viewport's measured draw time): the first frame's solve time is paced from it. ``shape_keys``:
     ``'TRANSFER'`` wraps the basis (the reference key) and carries the other keys over when it finishes
     (frames move them along), ``'REFUSE'`` refuses a layout with shape keys. ``target`` (optional): the
-    target already read (a sequence's frame object); None reads the layout's target.
+    target already read (a sequence's frame object); None reads the layout's target. ``region`` (optional, (N,)
+    bool): re-settle only these vertices, every other one held where it is and written back as it was
+    (``core.follow``: the solver then works on the faces around the region alone).
     """
 
     def __init__(
@@ -98,6 +100,7 @@ class WrapSession:
         display_seconds: float | None = None,
         shape_keys: str = "TRANSFER",
         target: Target | None = None,
+        region: np.ndarray | None = None,
     ):
         self.start_time = time.perf_counter()
         self.layout = layout
@@ -150,6 +153,13 @@ class WrapSession:
         )
         if adjust_inputs is not None:
             inputs = adjust_inputs(inputs)
+        self.restriction = None
+        if region is not None:
+            inputs = follow.held(inputs, region)
+            cut = follow.restrict(self.layout_topology, inputs, region, arrays.positions)
+            if cut is not None and int(parameters.spring_resolution) == 1:
+                self.restriction, inputs = cut
+                structure = layout_data.make_layout_structure(self.restriction.topology)
         self.solver = make_wrap_solver(self.target, structure, inputs, parameters)
         self.inputs = inputs
         # Coarse to fine: with a spring resolution above 1 the layout is relaxed first, then a grid
@@ -290,10 +300,15 @@ class WrapSession:
     def current_layout(self):
         """(local positions float32 (N, 3), ``LayoutState``) of the solver now."""
         count = self.vertex_count  # a fine grid numbers the layout's own vertices first
+        if self.restriction is not None:
+            count = self.restriction.kept.size
         world = wrap_inputs.from_frame(self.inputs, self.solver.positions()[:count])
         positions = transforms.to_local(self.matrix_world, world)
         states, triangles, barycentrics = self.solver.states()
-        return positions, layout_state.normalized_state(states[:count], triangles[:count], barycentrics[:count])
+        state = layout_state.normalized_state(states[:count], triangles[:count], barycentrics[:count])
+        if self.restriction is not None:
+            return follow.scatter(self.restriction, positions, state)
+        return positions, state
 
     def write_frame(self) -> None:
         """Write the solver's current positions and state into the layout (an intermediate frame)."""

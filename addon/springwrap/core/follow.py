@@ -8,9 +8,12 @@ is held by an anchor where it is (a face anchor on its face when it is a face-po
 as it was.
 """
 
+from typing import NamedTuple
+
 import numpy as np
 
 from . import layout_state, transforms
+from .subdivision import LayoutTopology
 from .wrap_inputs import WrapInputs
 
 CHANGE_FRACTION = 1e-5
@@ -103,3 +106,81 @@ def merged(settled: np.ndarray, before: np.ndarray, region: np.ndarray) -> np.nd
     region = np.asarray(region, dtype=bool)
     result[region] = np.asarray(settled, dtype=np.float32)[region]
     return result
+
+
+class Restriction(NamedTuple):
+    """A wrap restricted to part of the layout: the layout vertices it keeps (in their order, the solver's
+    numbering), the part's topology, and the layout as it was (every vertex outside keeps it)."""
+
+    kept: np.ndarray  # (K,) int64 layout vertices of the part
+    region: np.ndarray  # (N,) bool the vertices re-settled (the part's others are held)
+    topology: LayoutTopology  # the part's faces, edges and seams, numbered 0 .. K - 1
+    positions: np.ndarray  # (N, 3) float32 local positions of the whole layout before
+    state: layout_state.LayoutState  # the whole layout's state before (as resolved on the current target)
+
+
+def restrict(topology: LayoutTopology, inputs: WrapInputs, region: np.ndarray, positions: np.ndarray):
+    """(``Restriction``, the part's inputs): the layout's faces and edges that touch ``region`` and their vertices
+    (those outside ``region`` held where they are, ``inputs`` made by :func:`held`), so that the solver works on
+    the part alone; None when the inputs have what a part cannot be cut from (curve constraints, a plane)."""
+    if inputs.curve_vertices is not None or inputs.plane_vertices is not None:
+        return None
+    region = np.asarray(region, dtype=bool)
+    sizes = topology.face_sizes.astype(np.int64)
+    corners = topology.face_corners.astype(np.int64)
+    face_of_corner = np.repeat(np.arange(sizes.size), sizes)
+    touching = np.zeros(sizes.size, dtype=bool)
+    np.logical_or.at(touching, face_of_corner, region[corners])
+    edges = topology.edges.astype(np.int64).reshape(-1, 2)
+    edge_kept = region[edges].any(axis=1)
+    member = region.copy()
+    member[corners[touching[face_of_corner]]] = True
+    member[edges[edge_kept].reshape(-1)] = True
+    kept = np.flatnonzero(member)
+    number = np.full(region.size, -1, dtype=np.int64)
+    number[kept] = np.arange(kept.size)
+    seams = topology.seams.astype(np.int64).reshape(-1, 2)
+    seams = seams[member[seams].all(axis=1)]
+    part = LayoutTopology(
+        int(kept.size),
+        np.ascontiguousarray(number[corners[touching[face_of_corner]]], dtype=np.uint32),
+        np.ascontiguousarray(sizes[touching], dtype=np.uint32),
+        np.ascontiguousarray(number[edges[edge_kept]], dtype=np.uint32).reshape(-1, 2),
+        np.ascontiguousarray(number[seams], dtype=np.uint32).reshape(-1, 2),
+    )
+    anchor_vertices = inputs.anchor_vertices.astype(np.int64)
+    anchor_kept = member[anchor_vertices]
+
+    def rows(array):
+        return None if array is None else np.ascontiguousarray(np.asarray(array)[kept])
+
+    part_inputs = inputs._replace(
+        states=rows(inputs.states),
+        triangles=rows(inputs.triangles),
+        barycentrics=rows(inputs.barycentrics),
+        positions=rows(inputs.positions),
+        rest_positions=rows(inputs.rest_positions),
+        stiffness=rows(inputs.stiffness),
+        free_vertices=rows(inputs.free_vertices),
+        anchor_vertices=np.ascontiguousarray(number[anchor_vertices[anchor_kept]], dtype=np.uint32),
+        anchor_triangles=np.ascontiguousarray(inputs.anchor_triangles[anchor_kept]),
+        anchor_barycentrics=np.ascontiguousarray(inputs.anchor_barycentrics[anchor_kept]),
+        anchor_positions=np.ascontiguousarray(inputs.anchor_positions[anchor_kept]),
+    )
+    state = layout_state.normalized_state(inputs.states, inputs.triangles, inputs.barycentrics)
+    return Restriction(kept, region, part, np.asarray(positions, dtype=np.float32), state), part_inputs
+
+
+def scatter(restriction: Restriction, positions: np.ndarray, state: layout_state.LayoutState):
+    """The whole layout's (positions, state) from the part's: the part's vertices in ``region`` as solved, every
+    other vertex as it was (its position bit for bit, its state as resolved on the current target)."""
+    solved = restriction.region[restriction.kept]
+    vertices = restriction.kept[solved]
+    whole_positions = restriction.positions.copy()
+    whole_positions[vertices] = np.asarray(positions)[solved]
+    whole = restriction.state
+    states, faces, barycentrics = whole.states.copy(), whole.faces.copy(), whole.barycentrics.copy()
+    states[vertices] = state.states[solved]
+    faces[vertices] = state.faces[solved]
+    barycentrics[vertices] = state.barycentrics[solved]
+    return whole_positions, layout_state.LayoutState(states, faces, barycentrics)
