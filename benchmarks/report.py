@@ -951,6 +951,7 @@ def build_document(
     features: dict | None = None,
     after_wrap: dict | None = None,
     few_anchors: dict | None = None,
+    sequence: dict | None = None,
 ) -> str:
     """The whole of ``docs/benchmarks.md``."""
     lines = [
@@ -978,6 +979,7 @@ def build_document(
         "--markdown docs/wrap-solvers.md",
         ".venv/bin/python benchmarks/feature_curves.py [--quick] --json out/bench/feature_curves.json",
         ".venv/bin/python benchmarks/few_anchors.py [--cases NAME ...] [--anchors N ...] --json out/bench/few_anchors.json",
+        ".venv/bin/python benchmarks/sequence.py [--frames N] --json out/bench/sequence.json",
         ".venv/bin/python benchmarks/figures.py && .venv/bin/python benchmarks/report.py",
         "```",
         "",
@@ -1032,6 +1034,11 @@ def build_document(
         from benchmarks.feature_curves import markdown_lines
 
         lines += markdown_lines(features)
+    if sequence is not None:  # benchmarks/sequence.py
+        sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+        from benchmarks.sequence import markdown as sequence_markdown
+
+        lines += sequence_markdown(sequence)
     return "\n".join(lines).rstrip() + "\n"
 
 
@@ -1051,6 +1058,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--cage-fit", type=Path, default=OUT / "cage_fit.json")
     parser.add_argument("--large-target", type=Path, default=OUT / "large_target.json")
     parser.add_argument("--few-anchors", type=Path, default=OUT / "few_anchors.json")
+    parser.add_argument("--sequence", type=Path, default=OUT / "sequence.json")
     parser.add_argument("--output", type=Path, default=DOCS / "benchmarks.md")
     arguments = parser.parse_args(sys.argv[1:] if argv is None else argv)
     inputs = {name: load(getattr(arguments, name)) for name in ("retarget", "performance", "snap")}
@@ -1072,6 +1080,7 @@ def main(argv: list[str] | None = None) -> int:
             load(arguments.features),
             {name: load(getattr(arguments, name)) for name in ("quality", "cage_fit", "large_target")},
             load(arguments.few_anchors),
+            load(arguments.sequence),
         )
     )
     print(f"wrote {arguments.output}")
