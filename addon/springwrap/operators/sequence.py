@@ -31,8 +31,7 @@ from .wrap import TIMER_SECONDS
 
 
 class SPRINGWRAP_OT_wrap_sequence(LayoutOperator, bpy.types.Operator):
-    """Wrap the layout at every frame of a range, each frame from the last, as one shape key per frame (Esc stops
-    and keeps the frames done)"""
+    """Wrap the layout at each frame of a range, each from the last, one shape key a frame (Esc keeps the frames done)"""
 
     bl_label = "Wrap Sequence"
 
