@@ -455,6 +455,7 @@ class Workflow:
         self.step("cage_off")
         yield STEP_SECONDS
 
+        yield from self.follow_steps(layout, target)
         yield from self.anchor_list_steps(target)
         yield from self.pair_tool_steps()
 
@@ -532,6 +533,62 @@ class Workflow:
             pixel_size=system.pixel_size,
             seconds=round(time.perf_counter() - started, 1),
         )
+
+    def follow_steps(self, layout, target):
+        """Follow on, then part of the target moved as an edit would: the layout re-settles by itself (the add-on's
+        timer), there and nowhere else; Follow shows in the 3D view's header."""
+        import numpy as np
+
+        indicator = sys.modules["springwrap.ui.follow_indicator"]
+        self.check(indicator.draw_header in bpy.types.VIEW3D_HT_header._dyn_ui_initialize(), "no Follow in the header")
+        bpy.context.view_layer.objects.active = layout
+        layout.springwrap.follow = True  # the panel's Follow toggle (its update measures the layout)
+        self.ui.redraw()
+        yield STEP_SECONDS
+        self.shot("07-follow", view=True)
+
+        def world(obj):
+            points = np.empty(len(obj.data.vertices) * 3)
+            obj.data.vertices.foreach_get("co", points)
+            matrix = np.array(obj.matrix_world)
+            return points.reshape(-1, 3) @ matrix[:3, :3].T + matrix[:3, 3]
+
+        before = world(layout)
+        mesh = target.data
+        rest = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+        mesh.vertices.foreach_get("co", rest)
+        points = world(target)
+        low, high = points.min(axis=0), points.max(axis=0)
+        size = float(np.linalg.norm(high - low))
+        cap = points[:, 2] > high[2] - 0.15 * (high[2] - low[2])  # the top of the target, pushed up
+        moved = rest.reshape(-1, 3).copy()
+        moved[cap, 2] += 0.03 * size / max(target.scale[2], 1e-9)
+        mesh.vertices.foreach_set("co", moved.ravel())
+        mesh.update()
+        started = time.perf_counter()
+        while np.array_equal(world(layout), before):
+            self.check(time.perf_counter() - started < 30.0, "the layout did not follow the edit within 30 s")
+            yield 0.1
+        yield STEP_SECONDS
+        after = world(layout)
+        shift = np.linalg.norm(after - before, axis=1)
+        changed = points[cap]
+        near = np.min(np.linalg.norm(before[:, None, :] - changed[None, ::7, :], axis=2), axis=1)
+        far = near > 0.25 * size
+        self.check(far.sum() > 10, f"only {far.sum()} layout vertices far from the edit")
+        self.check(float(shift[far].max()) < 1e-6, f"vertices far from the edit moved {shift[far].max():.3g}")
+        self.check(float(shift.max()) > 0.005 * size, "the layout did not re-settle where the target moved")
+        self.step(
+            "follow",
+            moved=int((shift > 1e-6).sum()),
+            far=int(far.sum()),
+            far_max=float(shift[far].max()),
+            seconds=round(time.perf_counter() - started, 3),
+        )
+        layout.springwrap.follow = False
+        mesh.vertices.foreach_set("co", rest)  # put the target back (Follow is off: the layout stays)
+        mesh.update()
+        yield STEP_SECONDS
 
     def pair_tool_steps(self):
         import gui_pair_tool
