@@ -7,26 +7,16 @@ from helpers import REPOSITORY, run_script
 
 RETARGET = REPOSITORY / "blender_scripts" / "retarget.py"
 
-MAKE_BLEND = """
-import sys, bpy, numpy as np
-output = (sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:])[0]
+MAKE_BLEND = f"""
+import sys
+sys.path.insert(0, {str(REPOSITORY / "tests" / "addon")!r})
+import bpy
+from bpy_helpers import animated_target
 bpy.ops.wm.read_homefile(use_empty=True)
-bpy.ops.mesh.primitive_uv_sphere_add(segments=32, ring_count=16, radius=1.5)
-target = bpy.context.active_object
-target.name = "Target"
-target.shape_key_add(name="Basis", from_mix=False)
-stretch = target.shape_key_add(name="Stretch", from_mix=False)
-points = np.empty(len(stretch.data) * 3, dtype=np.float32)
-stretch.data.foreach_get("co", points)
-points = points.reshape(-1, 3)
-points[:, 0] *= 1.4
-stretch.data.foreach_set("co", points.ravel())
-for frame, value in ((1, 0.0), (2, 0.5), (3, 1.0)):
-    stretch.value = value
-    stretch.keyframe_insert("value", frame=frame)
+animated_target()  # a sphere stretched along x by its shape key over frames 1 .. 3
 bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=3, radius=1.3)
 bpy.context.active_object.name = "Template"
-bpy.ops.wm.save_as_mainfile(filepath=output)
+bpy.ops.wm.save_as_mainfile(filepath=sys.argv[sys.argv.index("--") + 1] if "--" in sys.argv else sys.argv[1])
 """
 
 READ_KEYS = """

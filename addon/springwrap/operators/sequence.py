@@ -111,16 +111,15 @@ class SPRINGWRAP_OT_wrap_sequence(LayoutOperator, bpy.types.Operator):
         return {"FINISHED"}
 
     def invoke(self, context, event):
-        if bpy.app.background or context.window is None:
-            return self.execute(context)
         layout = context.active_object
-        if layout is None or layout.type != "MESH":
-            return self.execute(context)  # reports why
-        self._mode = EditModeGuard(layout)
+        if bpy.app.background or context.window is None or layout is None or layout.type != "MESH":
+            return self.execute(context)  # at once (scripts, background mode), or it reports why not
+        mode = EditModeGuard(layout)
         run = self._start(context)
         if run is None:
-            self._mode.restore()
+            mode.restore()
             return {"CANCELLED"}
+        self._mode = mode
         self._loop = SequenceLoop(run)
         follow.pause()
         self._area = context.area
