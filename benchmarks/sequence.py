@@ -278,10 +278,19 @@ def markdown(result: dict) -> list[str]:
         )
     lines += ["| " + " | ".join(header) + " |", "|:---" + "|---:" * (len(header) - 1) + "|"]
     lines += ["| " + " | ".join(row) + " |" for row in rows]
+    warm_p95 = np.array([row["p95_mm"] for row in result["sequence"]["errors"]])
+    cold_p95 = np.array([row["p95_mm"] for row in result["cold"]["errors"]])
+    warm_mean = np.array([row["mean_mm"] for row in result["sequence"]["errors"]])
+    cold_mean = np.array([row["mean_mm"] for row in result["cold"]["errors"]])
+    load = result.get("machine", {}).get("load_average")
     lines += [
         "",
-        f"A later frame of the sequence takes {numbers['speedup']:.2f}× less time than a cold wrap of that frame."
-        + (f" Frames that failed: {result['failed_frames']}." if result["failed_frames"] else " No frame failed."),
+        f"A later frame of the sequence takes {numbers['speedup']:.2f}× less time than a cold wrap of that frame. "
+        f"Frame by frame, the sequence's mean error is above the cold wrap's on {int((warm_mean > cold_mean).sum())} "
+        f"of {len(warm_mean)} frames (by at most {float((warm_mean - cold_mean).max()):.2f} mm), its p95 on "
+        f"{int((warm_p95 > cold_p95).sum())} (by at most {float((warm_p95 - cold_p95).max()):.2f} mm)."
+        + (f" Frames that failed: {result['failed_frames']}." if result["failed_frames"] else " No frame failed.")
+        + (f" Load average while it ran: {load[0]:.1f} on {result['machine'].get('cpu', '?')}." if load else ""),
         "",
     ]
     return lines
