@@ -110,3 +110,26 @@ def test_no_re_settle_while_paused():
         push_cap(target)
         assert settle() == 0
     assert np.array_equal(local_positions(layout), before)
+
+
+def test_the_panel_shows_follow_on_and_passes_its_settings_to_wrap_sequence():
+    from bpy_helpers import PanelRecorder
+    from springwrap.ui import follow_indicator, panels
+
+    _target, layout = wrapped_scene(plain_target())
+    recorder = PanelRecorder()
+    panels.SPRINGWRAP_PT_over_time.draw(type("Panel", (), {"layout": recorder})(), bpy.context)
+    assert "follow" in recorder.props and recorder.prop_options["follow"]["icon"] == "UNLINKED"
+    ((idname, button),) = [entry for entry in recorder.operators if entry[0] == "springwrap.wrap_sequence"]
+    assert button.source == "TARGET" and button.solver == layout.springwrap.wrap_solver
+    layout.springwrap.follow = True
+    recorder = PanelRecorder()
+    panels.SPRINGWRAP_PT_over_time.draw(type("Panel", (), {"layout": recorder})(), bpy.context)
+    assert recorder.prop_options["follow"]["icon"] == "LINKED" and recorder.labels  # visibly on
+    header = PanelRecorder()
+    follow_indicator.draw_header(type("Header", (), {"layout": header})(), bpy.context)
+    assert header.props == ["follow"]  # the 3D view's header shows it too
+    layout.springwrap.follow = False
+    header = PanelRecorder()
+    follow_indicator.draw_header(type("Header", (), {"layout": header})(), bpy.context)
+    assert header.props == []
