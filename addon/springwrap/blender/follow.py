@@ -91,9 +91,18 @@ def _schedule() -> None:
 def _on_timer():
     global _timer_registered
     _timer_registered = False
-    if settle_pending(bpy.context) and bpy.ops.ed.undo_push.poll():
-        bpy.ops.ed.undo_push(message="Follow")
+    if settle_pending(bpy.context):
+        _undo_step("Follow")
     return None
+
+
+def _undo_step(message: str) -> None:
+    """An undo step for what was just written, in the first window (a timer runs without one)."""
+    windows = bpy.context.window_manager.windows
+    if not windows:
+        return
+    with contextlib.suppress(RuntimeError), bpy.context.temp_override(window=windows[0]):
+        bpy.ops.ed.undo_push(message=message)
 
 
 def settle_pending(context) -> int:
