@@ -510,13 +510,14 @@ def retarget(arguments: argparse.Namespace) -> dict:
             stiffness_group=arguments.stiffness_group,
             free_group=arguments.free_group,
         )
-        if arguments.sequence is not None:
-            result, sequence = wrap_sequence(layout, parameters, arguments.sequence)
+        frames = getattr(arguments, "sequence", None)  # a batch's mesh has none (--batch refuses --sequence)
+        if frames is not None:
+            result, sequence = wrap_sequence(layout, parameters, frames)
         else:
             session = WrapSession(bpy.context, layout, parameters, shape_keys=arguments.shape_keys)
     except ERRORS as error:
         raise ScriptError(f"{blame}: cannot wrap: {error}") from None
-    if arguments.sequence is None:
+    if frames is None:
         session.run()
         result = session.finish()
         sequence = None
