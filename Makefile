@@ -160,6 +160,7 @@ bench: setup $(STAMPS)/bench-requirements
 	$(PY) benchmarks/feature_curves.py $(BENCH_QUICK) --json $(BENCH_OUT)/feature_curves.json
 	$(PY) benchmarks/few_anchors.py $(if $(QUICK),--cases heavy --anchors 6 24,) --json $(BENCH_OUT)/few_anchors.json
 	$(PY) benchmarks/parts.py $(if $(QUICK),--cases heavy,) --json $(BENCH_OUT)/parts.json
+	$(PY) benchmarks/sequence.py $(if $(QUICK),--frames 8,) --json $(BENCH_OUT)/sequence.json
 	$(PY) benchmarks/figures.py $(if $(QUICK),--cases heavy,) --retarget $(BENCH_OUT)/retarget.json \
 	  --performance $(BENCH_OUT)/performance.json --positions $(BENCH_OUT)/retarget-positions --output $(BENCH_DOCS)/img
 	$(PY) benchmarks/report.py --retarget $(BENCH_OUT)/retarget.json --performance $(BENCH_OUT)/performance.json \
@@ -167,7 +168,8 @@ bench: setup $(STAMPS)/bench-requirements
 	  --batch $(BENCH_OUT)/batch_throughput.json --features $(BENCH_OUT)/feature_curves.json \
 	  --quality $(BENCH_OUT)/quality_readout.json --cage-fit $(BENCH_OUT)/cage_fit.json \
 	  --large-target $(BENCH_OUT)/large_target.json --few-anchors $(BENCH_OUT)/few_anchors.json \
-	  --parts $(BENCH_OUT)/parts.json --output $(BENCH_DOCS)/benchmarks.md
+	  --parts $(BENCH_OUT)/parts.json \
+	  --sequence $(BENCH_OUT)/sequence.json --output $(BENCH_DOCS)/benchmarks.md
 
 clean:
 	rm -rf $(VENV) $(VENV_BPY42) target out dist .cache

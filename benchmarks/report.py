@@ -952,6 +952,7 @@ def build_document(
     after_wrap: dict | None = None,
     few_anchors: dict | None = None,
     parts: dict | None = None,
+    sequence: dict | None = None,
 ) -> str:
     """The whole of ``docs/benchmarks.md``."""
     lines = [
@@ -980,6 +981,7 @@ def build_document(
         ".venv/bin/python benchmarks/feature_curves.py [--quick] --json out/bench/feature_curves.json",
         ".venv/bin/python benchmarks/few_anchors.py [--cases NAME ...] [--anchors N ...] --json out/bench/few_anchors.json",
         ".venv/bin/python benchmarks/parts.py [--cases NAME ...] --json out/bench/parts.json",
+        ".venv/bin/python benchmarks/sequence.py [--frames N] --json out/bench/sequence.json",
         ".venv/bin/python benchmarks/figures.py && .venv/bin/python benchmarks/report.py",
         "```",
         "",
@@ -1036,6 +1038,11 @@ def build_document(
         from benchmarks.feature_curves import markdown_lines
 
         lines += markdown_lines(features)
+    if sequence is not None:  # benchmarks/sequence.py
+        sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+        from benchmarks.sequence import markdown as sequence_markdown
+
+        lines += sequence_markdown(sequence)
     return "\n".join(lines).rstrip() + "\n"
 
 
@@ -1084,6 +1091,7 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="only put the parts section (from --parts) into the existing --output, leaving the rest as it is",
     )
+    parser.add_argument("--sequence", type=Path, default=OUT / "sequence.json")
     parser.add_argument("--output", type=Path, default=DOCS / "benchmarks.md")
     arguments = parser.parse_args(sys.argv[1:] if argv is None else argv)
     if arguments.only_parts:
@@ -1114,6 +1122,7 @@ def main(argv: list[str] | None = None) -> int:
             {name: load(getattr(arguments, name)) for name in ("quality", "cage_fit", "large_target")},
             load(arguments.few_anchors),
             load(arguments.parts),
+            load(arguments.sequence),
         )
     )
     print(f"wrote {arguments.output}")

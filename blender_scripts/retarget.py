@@ -21,6 +21,9 @@ twin across the layout's local plane of that axis, spread on one side and mirror
 ``--arc-length``, ``--thin-plate``, ``--tolerance``). A template with shape keys (a .blend's object, or a
 glTF's morph targets) has its basis wrapped and every other key carried over onto it (``--shape-keys
 TRANSFER``, the default; ``REFUSE`` fails on such a template); ``--fit-subdivision`` refuses one.
+``--sequence START END`` wraps at every frame of the target's animation instead (a .blend target: armature,
+shape keys, modifiers, a Mesh Sequence Cache), each frame from the previous one's result, as one keyed shape key
+per frame on the layout; the report's ``sequence`` block lists each frame's time and any frame that failed.
 
 Outputs: ``--output-blend F.blend`` (template, target and the retargeted layout), ``--output-obj
 F.obj`` (the retargeted layout alone) and ``--report F.json`` (metrics, timings, warnings). They are
@@ -235,6 +238,15 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
         "onto the target (the report gains the surface's distances before and after)",
     )
     add_shape_keys_argument(parser)
+    parser.add_argument(
+        "--sequence",
+        nargs=2,
+        type=int,
+        metavar=("START", "END"),
+        help="wrap at every frame START..END of the target's animation (a .blend target: armature, shape keys, "
+        "modifiers, a Mesh Sequence Cache), each frame from the previous one's result, one shape key per frame on "
+        "the layout, keyed (--output-blend keeps them; the OBJ and the metrics are the first frame's)",
+    )
     add_frame_arguments(parser)
     parser.add_argument("--output-blend", type=Path, help="save template, target and result here")
     parser.add_argument("--output-obj", type=Path, help="export the retargeted layout here")
@@ -273,6 +285,11 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
         parser.error("--anchors-spacing must not be negative")
     if arguments.fit_subdivision is not None and not 1 <= arguments.fit_subdivision <= 6:
         parser.error("--fit-subdivision LEVELS must be 1 to 6")
+    if arguments.sequence is not None:
+        if arguments.sequence[1] < arguments.sequence[0]:
+            parser.error("--sequence START END: END must not come before START")
+        if arguments.batch is not None or arguments.fit_subdivision is not None:
+            parser.error("--sequence wraps one target over time: not with --batch or --fit-subdivision")
     if arguments.jobs is not None and arguments.jobs < 1:
         parser.error("--jobs must be at least 1")
     if arguments.address is not None and arguments.executor != "ray":
@@ -425,6 +442,26 @@ def symmetric_anchor_report(layout, arguments: argparse.Namespace, warnings: lis
     return {"axis": axis, "pairs": paired // 2, "on_plane": on_plane, "alone": alone}
 
 
+def wrap_sequence(layout, parameters, frames: list[int]) -> tuple:
+    """Wrap ``layout`` over the frames START..END of its target's animation (``springwrap.wrap_sequence``'s
+    run); the first frame's wrap result and the sequence's report block. Raises the add-on's errors when the
+    first frame cannot be wrapped (nothing is written then)."""
+    SequenceRun = addon_module("blender.wrap_sequence").SequenceRun  # noqa: N806 - a class of the enabled add-on
+    frame_range = addon_module("core.sequence").frame_range
+    run = SequenceRun(bpy.context, layout, parameters, frame_range(*frames))
+    while not run.done:
+        run.advance()
+    outcome = run.finish()
+    later = [frame.seconds for frame in outcome.outcomes[1:] if frame.ok]
+    block = {
+        "frames": [frame._asdict() for frame in outcome.outcomes],
+        "failed": [frame.frame for frame in outcome.failed],
+        "first_frame_seconds": round(outcome.outcomes[0].seconds, 4),
+        "later_frame_seconds_mean": round(sum(later) / len(later), 4) if later else None,
+    }
+    return run.first_result, block
+
+
 def retarget(arguments: argparse.Namespace) -> dict:
     """Load, align, detach, anchor, wrap, measure, write; the report (also written to --report)."""
     WrapSession = addon_module("blender.wrap_session").WrapSession  # noqa: N806 - a class of the enabled add-on
@@ -498,11 +535,19 @@ def retarget(arguments: argparse.Namespace) -> dict:
             stiffness_group=arguments.stiffness_group,
             free_group=arguments.free_group,
         )
-        session = WrapSession(bpy.context, layout, parameters, shape_keys=arguments.shape_keys)
+        frames = getattr(arguments, "sequence", None)  # a batch's mesh has none (--batch refuses --sequence)
+        if frames is not None:
+            result, sequence = wrap_sequence(layout, parameters, frames)
+        else:
+            session = WrapSession(bpy.context, layout, parameters, shape_keys=arguments.shape_keys)
     except ERRORS as error:
         raise ScriptError(f"{blame}: cannot wrap: {error}") from None
-    session.run()
-    result = session.finish()
+    if frames is None:
+        session.run()
+        result = session.finish()
+        sequence = None
+    elif sequence["failed"]:
+        warnings.append(f"{len(sequence['failed'])} frames failed and keep the previous frame's shape")
     if not result.converged:
         warnings.append(
             f"did not converge within {arguments.max_iterations} iterations "
@@ -541,6 +586,7 @@ def retarget(arguments: argparse.Namespace) -> dict:
             "parts": result.parts,
         },
         "fit_subdivision": subdivision_fit,
+        "sequence": sequence,
         "shape_keys": shape_keys_report(layout, arguments.shape_keys),
         "metrics": distances_to_target(layout, target),
         "quality": quality,

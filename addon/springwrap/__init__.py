@@ -103,7 +103,7 @@ def register():
         _register_missing_dependency(error)
         return
     from . import operators, ui
-    from .blender import target_changes
+    from .blender import follow, target_changes
 
     _registered_classes = properties.classes + operators.classes + ui.classes
     for cls in _registered_classes:
@@ -111,6 +111,7 @@ def register():
     bpy.types.Object.springwrap = bpy.props.PointerProperty(type=properties.SpringwrapObjectSettings)
     ui.install()
     target_changes.install()
+    follow.install()  # after target_changes: its handlers see the change counted
 
 
 def _register_missing_dependency(error: ImportError) -> None:
@@ -162,8 +163,9 @@ def unregister():
         return
 
     from . import ui
-    from .blender import target, target_changes, wrap_session
+    from .blender import follow, target, target_changes, wrap_session
 
+    follow.uninstall()
     target_changes.uninstall()
     ui.uninstall()
     del bpy.types.Object.springwrap

@@ -293,6 +293,13 @@ def _update_show_cage(settings, context):
     cage_display.update_show_cage(settings, context)
 
 
+def _update_follow(settings, context):
+    """``follow``'s update (``blender.follow``)."""
+    from .blender import follow
+
+    follow.follow_changed(settings, context)
+
+
 def _update_active_anchor(settings, context):
     """``active_anchor_index``'s update (``blender.anchor_view``)."""
     from .blender import anchor_view
@@ -304,6 +311,13 @@ PROBLEM_KIND_ITEMS = tuple((kind, *words) for kind, words in quality.PROBLEM_KIN
 """What ``springwrap.select_problems`` selects (``core.quality.problem_mask``)."""
 HEATMAP_KIND_ITEMS = tuple((kind, *words) for kind, words in quality.HEATMAP_KINDS.items())
 """What the quality heat-map shows (``ui.heatmap``)."""
+
+
+SEQUENCE_SOURCE_ITEMS = (
+    ("TARGET", "Target", "The layout's target as evaluated at each frame (armature, shape keys, modifiers, caches)"),
+    ("COLLECTION", "Collection", "One mesh object per frame: the i-th frame's target is the collection's i-th by name"),
+)
+"""Where Wrap Sequence finds each frame's target."""
 
 
 class SpringwrapObjectSettings(bpy.types.PropertyGroup):
@@ -472,6 +486,23 @@ class SpringwrapObjectSettings(bpy.types.PropertyGroup):
     heatmap_kind: props.choice("Show", "What the heat-map shows", HEATMAP_KIND_ITEMS, "DISTANCE")
     problem_kind: props.choice(
         "Problems", "What the panel's Select Problems button selects", PROBLEM_KIND_ITEMS, "FLIPPED"
+    )
+
+    # Over time (operators.sequence, blender.follow).
+    follow: props.flag(
+        "Follow",
+        "Re-settle the layout by itself whenever its target changes (an edit, a sculpt stroke, a modifier, a frame "
+        "change), only where the change concerns it",
+        False,
+        update=compat.property_update(_update_follow),
+    )
+    sequence_source: props.choice(
+        "Source", "Where the panel's Wrap Sequence finds each frame's target", SEQUENCE_SOURCE_ITEMS, "TARGET"
+    )
+    sequence_collection: bpy.props.PointerProperty(
+        name="Frames",
+        description="Collection of one mesh object per frame (Source: Collection)",
+        type=bpy.types.Collection,
     )
 
 

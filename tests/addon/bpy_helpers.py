@@ -1000,3 +1000,33 @@ def layout_data(layout) -> dict:
         ]
     )
     return data
+
+
+# ---------------------------------------------------------------- a target that changes over time
+
+SEQUENCE_FRAMES = (1, 2, 3)
+
+
+def animated_target(name="Target"):
+    """A UV sphere whose shape key stretches it along x over frames 1 .. 3 (value 0, 0.5, 1)."""
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=32, ring_count=16, radius=1.5)
+    target = bpy.context.active_object
+    target.name = name
+    target.shape_key_add(name="Basis", from_mix=False)
+    stretch = target.shape_key_add(name="Stretch", from_mix=False)
+    points = np.empty(len(stretch.data) * 3, dtype=np.float32)
+    stretch.data.foreach_get("co", points)
+    points = points.reshape(-1, 3)
+    points[:, 0] *= 1.4
+    points[:, 2] *= 0.85
+    stretch.data.foreach_set("co", points.reshape(-1))
+    for frame, value in zip(SEQUENCE_FRAMES, (0.0, 0.5, 1.0)):
+        stretch.value = value
+        stretch.keyframe_insert("value", frame=frame)
+    return target
+
+
+def make_sphere_layout(target, name="Layout"):
+    """An ico sphere just inside the target sphere: one wrap lands every vertex."""
+    bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=3, radius=1.3, location=(0.05, -0.02, 0.03))
+    return as_layout(bpy.context.active_object, name, target)

@@ -312,6 +312,10 @@ OPERATORS = {
     "curve_constraints_clear": ({}, set()),
     "wrap": ({"max_iterations": 30}, ALL_LAYOUT | {"anchor vertices", "shape key data"}),
     "mirror": ({"axis": "Y", "max_iterations": 30}, ALL_LAYOUT | {"anchor vertices", "shape key data"}),
+    "wrap_sequence": (
+        {"use_scene_range": False, "frame_start": 1, "frame_end": 2, "max_iterations": 30},
+        ALL_LAYOUT | {"anchor vertices"},
+    ),
     "align_armature": ({"target_armature": "Target Rig"}, {"positions", "shape keys"}),
     "detect_features": ({"scale": 0.5, "write_curves": False}, {"target"}),
     "select_problems": ({"kind": "STRETCHED", "threshold": 1.2}, {"read-out"}),

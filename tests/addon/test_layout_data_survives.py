@@ -175,6 +175,7 @@ CASES = {
     "wrap from edit mode": (_edit_mode("wrap", max_iterations=60), READOUT),
     "wrap live, finished": (_live_wrap(cancel=False), READOUT),
     "wrap live, cancelled": (_live_wrap(cancel=True), set()),
+    "wrap_sequence": (_call("wrap_sequence", use_scene_range=False, frame_start=1, frame_end=2), READOUT),
     "detect_features": (_call("detect_features", scale=0.3), set()),
     "fit_subdivision": (_call("fit_subdivision", rounds=2), set()),
     "select_problems": (_select_problems, SELECTION),

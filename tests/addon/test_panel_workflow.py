@@ -35,6 +35,7 @@ def test_the_steps_come_in_the_artists_order_and_the_point_tools_are_closed():
         ("Anchors", "SPRINGWRAP_PT_layout"),
         ("Curve Constraints", "SPRINGWRAP_PT_anchors"),
         ("Wrap", "SPRINGWRAP_PT_layout"),
+        ("Over Time", "SPRINGWRAP_PT_layout"),
         ("Check", "SPRINGWRAP_PT_layout"),
         ("Subdivision Fit", "SPRINGWRAP_PT_check"),
         ("Snap", "SPRINGWRAP_PT_layout"),

@@ -455,6 +455,7 @@ class Workflow:
         self.step("cage_off")
         yield STEP_SECONDS
 
+        yield from self.follow_steps(layout, target)
         yield from self.anchor_list_steps(target)
         yield from self.pair_tool_steps()
 
@@ -532,6 +533,70 @@ class Workflow:
             pixel_size=system.pixel_size,
             seconds=round(time.perf_counter() - started, 1),
         )
+
+    def follow_steps(self, layout, target):
+        """Follow on, then part of the target moved as an edit would: the layout re-settles by itself (the add-on's
+        timer), there and nowhere else; Follow shows in the 3D view's header."""
+        import numpy as np
+
+        indicator = sys.modules["springwrap.ui.follow_indicator"]
+        self.check(indicator.draw_header in bpy.types.VIEW3D_HT_header._dyn_ui_initialize(), "no Follow in the header")
+        bpy.context.view_layer.objects.active = layout
+        layout.springwrap.follow = True  # the panel's Follow toggle (its update measures the layout)
+        self.ui.redraw()
+        yield STEP_SECONDS
+        self.shot("07-follow", view=True)
+
+        def world(obj, evaluated=False):
+            """World positions of ``obj``'s vertices (``evaluated``: its modifiers applied)."""
+            source = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()) if evaluated else obj
+            data = source.to_mesh() if evaluated else obj.data
+            points = np.empty(len(data.vertices) * 3)
+            data.vertices.foreach_get("co", points)
+            if evaluated:
+                source.to_mesh_clear()
+            matrix = np.array(obj.matrix_world)
+            return points.reshape(-1, 3) @ matrix[:3, :3].T + matrix[:3, 3]
+
+        before = world(layout)
+        mesh = target.data
+        rest = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+        mesh.vertices.foreach_get("co", rest)
+        local = rest.reshape(-1, 3)
+        low, high = local.min(axis=0), local.max(axis=0)
+        cap = local[:, 2] > high[2] - 0.15 * (high[2] - low[2])  # the top of the target (its own z), pushed up
+        moved = local.copy()
+        moved[cap, 2] += 0.05 * (high[2] - low[2])
+        target_before = world(target, evaluated=True)  # the surface the layout follows: modifiers applied
+        mesh.vertices.foreach_set("co", moved.ravel())
+        mesh.update()
+        target_after = world(target, evaluated=True)
+        size = float(np.linalg.norm(target_after.max(axis=0) - target_after.min(axis=0)))
+        started = time.perf_counter()
+        while np.array_equal(world(layout), before):
+            self.check(time.perf_counter() - started < 30.0, "the layout did not follow the edit within 30 s")
+            yield 0.1
+        yield STEP_SECONDS
+        after = world(layout)
+        shift = np.linalg.norm(after - before, axis=1)
+        where = np.linalg.norm(target_after - target_before, axis=1) > 1e-6  # where the surface moved
+        changed = np.concatenate([target_before[where], target_after[where]])[::5]
+        near = np.array([np.linalg.norm(changed - point, axis=1).min() for point in before])
+        far = near > 0.2 * size  # beyond the change and the rings the layout eases in by
+        self.check(far.sum() > 10, f"only {far.sum()} layout vertices far from the edit")
+        self.check(float(shift[far].max()) < 1e-6, f"vertices far from the edit moved {shift[far].max():.3g}")
+        self.check(float(shift.max()) > 0.005 * size, "the layout did not re-settle where the target moved")
+        self.step(
+            "follow",
+            moved=int((shift > 1e-6).sum()),
+            far=int(far.sum()),
+            far_max=float(shift[far].max()),
+            seconds=round(time.perf_counter() - started, 3),
+        )
+        layout.springwrap.follow = False
+        mesh.vertices.foreach_set("co", rest)  # put the target back (Follow is off: the layout stays)
+        mesh.update()
+        yield STEP_SECONDS
 
     def pair_tool_steps(self):
         import gui_pair_tool

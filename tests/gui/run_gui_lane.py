@@ -53,6 +53,7 @@ EXPECTED_STEPS = {
         "heatmap",
         "features",
         "cage_off",
+        "follow",
         "anchor_list",
         "pair_tool_scene",
         "pair_click",

@@ -87,6 +87,14 @@ def read_target(depsgraph: bpy.types.Depsgraph, layout: bpy.types.Object) -> Tar
     return entry
 
 
+def read_object_target(depsgraph: bpy.types.Depsgraph, obj: bpy.types.Object) -> Target:
+    """Any mesh object evaluated in ``depsgraph`` as a target (a sequence's object of a frame): read, hashed and
+    built or found cached as :func:`read_target` does, never reused unread. Raises :class:`LayoutError` naming it."""
+    if obj.type != "MESH":
+        raise LayoutError(f"'{obj.name}' is not a mesh object")
+    return _read_and_build(depsgraph, obj)[0]
+
+
 def _sanity_key(evaluated: bpy.types.Object) -> tuple:
     """What must not differ for a cached target to be reused unread: cheap to get, without copying the mesh."""
     mesh = evaluated.data

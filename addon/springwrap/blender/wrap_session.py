@@ -12,7 +12,7 @@ import numpy as np
 
 import springwrap_kernel
 
-from ..core import anchors, input_policy, layout_state, parts, subdivision, transforms, wrap_inputs
+from ..core import anchors, follow, input_policy, layout_state, parts, subdivision, transforms, wrap_inputs
 from ..core.errors import LayoutError
 from ..core.target import Target
 from ..core.wrap_run import FramePacer, WrapResult
@@ -86,7 +86,10 @@ class WrapSession:
     ``display_seconds`` (optional) is what a redraw is known to cost before the first frame (the
     viewport's measured draw time): the first frame's solve time is paced from it. ``shape_keys``:
     ``'TRANSFER'`` wraps the basis (the reference key) and carries the other keys over when it finishes
-    (frames move them along), ``'REFUSE'`` refuses a layout with shape keys.
+    (frames move them along), ``'REFUSE'`` refuses a layout with shape keys. ``target`` (optional): the
+    target already read (a sequence's frame object); None reads the layout's target. ``region`` (optional, (N,)
+    bool): re-settle only these vertices, every other one held where it is and written back as it was
+    (``core.follow``: the solver then works on the faces around the region alone).
     """
 
     def __init__(
@@ -97,6 +100,8 @@ class WrapSession:
         adjust_inputs=None,
         display_seconds: float | None = None,
         shape_keys: str = "TRANSFER",
+        target: Target | None = None,
+        region: np.ndarray | None = None,
     ):
         self.start_time = time.perf_counter()
         self.layout = layout
@@ -111,7 +116,9 @@ class WrapSession:
                 f"Layout '{layout.name}' has zero scale: the wrap's world positions cannot be written back"
             )
         self.matrix_world = arrays.matrix_world
-        self.target = target_data.read_target(context.evaluated_depsgraph_get(), layout)
+        self.target = (
+            target if target is not None else target_data.read_target(context.evaluated_depsgraph_get(), layout)
+        )
         self.layout_topology = layout_data.read_layout_topology(layout)
         structure = layout_data.make_layout_structure(self.layout_topology)
         self.anchors, anchor_resolution = anchors.resolve(
@@ -152,6 +159,13 @@ class WrapSession:
         )
         if adjust_inputs is not None:
             inputs = adjust_inputs(inputs)
+        self.restriction = None
+        if region is not None:
+            inputs = follow.held(inputs, region)
+            cut = follow.restrict(self.layout_topology, inputs, region, arrays.positions)
+            if cut is not None and int(parameters.spring_resolution) == 1:
+                self.restriction, inputs = cut
+                structure = layout_data.make_layout_structure(self.restriction.topology)
         self.solver = make_wrap_solver(self.target, structure, inputs, parameters)
         self.inputs = inputs
         # Coarse to fine: with a spring resolution above 1 the layout is relaxed first, then a grid
@@ -293,13 +307,24 @@ class WrapSession:
     def current_layout(self):
         """(local positions float32 (N, 3), ``LayoutState``) of the solver now."""
         count = self.vertex_count  # a fine grid numbers the layout's own vertices first
+        if self.restriction is not None:
+            count = self.restriction.kept.size
         world = wrap_inputs.from_frame(self.inputs, self.solver.positions()[:count])
         states, triangles, barycentrics = (np.array(array[:count]) for array in self.solver.states())
-        if self.follower is not None:  # the parts: moved by the surface, off the target (space-points)
+        if self.follower is not None and self.restriction is None:  # the parts: moved by the surface, off the target
             world = part_data.hold_on_plane(parts.follow(self.follower, self.parts, world), self.parts, self.inputs)
             states[self.parts.parts], triangles[self.parts.parts] = layout_state.SPACE_POINT, layout_state.NO_FACE
         positions = transforms.to_local(self.matrix_world, world)
-        return positions, layout_state.normalized_state(states, triangles, barycentrics)
+        state = layout_state.normalized_state(states, triangles, barycentrics)
+        if self.restriction is None:
+            return positions, state
+        positions, state = follow.scatter(self.restriction, positions, state)
+        if self.follower is not None:  # the parts follow the whole surface, in the layout's own numbering
+            world = parts.follow(self.follower, self.parts, transforms.transform_points(self.matrix_world, positions))
+            positions = transforms.to_local(self.matrix_world, world)
+            state.states[self.parts.parts] = layout_state.SPACE_POINT
+            state.faces[self.parts.parts] = layout_state.NO_FACE
+        return positions, state
 
     def write_frame(self) -> None:
         """Write the solver's current positions and state into the layout (an intermediate frame)."""

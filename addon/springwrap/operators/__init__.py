@@ -1,7 +1,7 @@
 """The add-on's operators: ``poll`` says why one cannot run, ``execute`` / ``invoke`` check, call ``core`` and
 ``blender``, and report. One module per operator family; ``base`` holds their shared opening."""
 
-from . import align, anchors, armature, cage_fit, curves, features, mirror, pair_tool, quality, snapping, wrap
+from . import align, anchors, armature, cage_fit, curves, features, mirror, pair_tool, quality, sequence, snapping, wrap
 
 classes = (
     snapping.classes
@@ -10,6 +10,7 @@ classes = (
     + pair_tool.classes
     + curves.classes
     + wrap.classes
+    + sequence.classes
     + armature.classes
     + features.classes
     + mirror.classes

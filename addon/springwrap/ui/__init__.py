@@ -5,7 +5,7 @@ API here; data is read through ``blender``."""
 import bpy
 
 from ..blender import wrap_session
-from . import frame_clock, heatmap, lists, overlays, pair_tool, panels
+from . import follow_indicator, frame_clock, heatmap, lists, overlays, pair_tool, panels
 
 classes = lists.classes + panels.classes
 """Every UI class, lists before the panels that show them (panels in their order in the sidebar)."""
@@ -18,6 +18,7 @@ def install() -> None:
     heatmap.install()  # nothing in background mode
     frame_clock.install()
     pair_tool.install()  # nothing in background mode
+    follow_indicator.install()
     if wrap_session.forget_results_on_load not in bpy.app.handlers.load_post:
         bpy.app.handlers.load_post.append(wrap_session.forget_results_on_load)
 
@@ -26,6 +27,7 @@ def uninstall() -> None:
     """Remove what :func:`install` added."""
     while wrap_session.forget_results_on_load in bpy.app.handlers.load_post:
         bpy.app.handlers.load_post.remove(wrap_session.forget_results_on_load)
+    follow_indicator.uninstall()
     pair_tool.uninstall()
     frame_clock.uninstall()
     heatmap.uninstall()

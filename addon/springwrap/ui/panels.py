@@ -289,6 +289,40 @@ def _draw_parts(layout, settings, obj) -> None:
         column.prop_search(settings, name, obj, "vertex_groups", icon="GROUP_VERTEX")
 
 
+class SPRINGWRAP_PT_over_time(_LayoutSubPanel, bpy.types.Panel):
+    """Over time: Follow (the layout re-settles when the target changes) and Wrap Sequence (a frame range)"""
+
+    bl_label = "Over Time"
+
+    def draw_header(self, context):
+        settings = context.active_object.springwrap
+        self.layout.label(icon="LINKED" if settings.follow else "TIME")
+
+    def draw(self, context):
+        layout = _split(self.layout)
+        settings = context.active_object.springwrap
+        row = layout.row()
+        row.alert = settings.follow  # visibly on
+        row.prop(settings, "follow", toggle=True, icon="LINKED" if settings.follow else "UNLINKED")
+        if settings.follow:
+            layout.label(text="Re-settles when the target changes", icon="INFO")
+        layout.separator()
+        layout.prop(settings, "sequence_source")
+        collection = layout.row()
+        collection.active = settings.sequence_source == "COLLECTION"
+        collection.prop(settings, "sequence_collection")
+        scene = context.scene
+        button = layout.operator(
+            "springwrap.wrap_sequence",
+            text=f"Wrap Frames {scene.frame_start}-{scene.frame_end}",
+            icon="RENDER_ANIMATION",
+        )
+        button.source = settings.sequence_source
+        button.collection = settings.sequence_collection.name if settings.sequence_collection else ""
+        button.solver = settings.wrap_solver
+        button.schedule = settings.wrap_schedule if settings.wrap_solver == "ENERGY" else "LOCAL"
+
+
 def _draw_progress(layout, session) -> None:
     """The live wrap's progress, on rows of their own (the status bar has the same, and Esc to cancel)."""
     column = layout.column(align=True)
@@ -421,6 +455,7 @@ classes = (
     SPRINGWRAP_PT_anchors,
     SPRINGWRAP_PT_curve_constraints,
     SPRINGWRAP_PT_wrap,
+    SPRINGWRAP_PT_over_time,
     SPRINGWRAP_PT_check,
     SPRINGWRAP_PT_fit_subdivision,
     SPRINGWRAP_PT_snap,

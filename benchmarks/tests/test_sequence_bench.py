@@ -1,0 +1,49 @@
+"""benchmarks/sequence.py's own arithmetic on made-up inputs (no Blender, no data): the expression weights, the
+errors and jitter, the summary and its Markdown."""
+
+import numpy as np
+
+from benchmarks import sequence
+
+
+def test_the_expressions_start_neutral_and_stay_within_their_peaks():
+    weights = sequence.weights(20)
+    assert weights.shape == (20, len(sequence.EXPRESSIONS))
+    assert np.all(weights[0] == 0.0)
+    peaks = np.array([peak for _unit, peak, *_rest in sequence.EXPRESSIONS])
+    assert np.all(weights <= peaks + 1e-12) and np.all(weights.max(axis=0) > 0.5 * peaks)
+
+
+def test_errors_and_jitter():
+    truths = np.zeros((3, 4, 3))
+    truths[:, :, 0] = np.arange(3)[:, None]  # every vertex moves 1 along x per frame
+    results = truths.copy()
+    results[1, 0, 1] = 0.002  # vertex 0 is 2 mm off on frame 1 only
+    valid = np.ones((3, 4), dtype=bool)
+    rows = sequence.errors(results, truths, valid)
+    assert rows[0] == {"mean_mm": 0.0, "p95_mm": 0.0}
+    assert np.isclose(rows[1]["mean_mm"], 0.5) and np.isclose(rows[1]["jitter_mean_mm"], 0.5)
+    assert np.isclose(rows[2]["mean_mm"], 0.0) and np.isclose(rows[2]["jitter_mean_mm"], 0.5)
+
+
+def made_up_result():
+    rows = [{"mean_mm": 1.0, "p95_mm": 2.0}] + [
+        {"mean_mm": 1.0, "p95_mm": 2.0, "jitter_mean_mm": 0.5, "jitter_p95_mm": 1.0}
+    ] * 2
+    return {
+        "frames": 3,
+        "voxel_size": 0.004,
+        "layout_vertices": 13380,
+        "target_triangles": [280000, 281000, 282000],
+        "expressions": [list(entry) for entry in sequence.EXPRESSIONS],
+        "failed_frames": [],
+        "sequence": {"seconds": [4.0, 1.0, 1.0], "iterations": [19, 19, 0], "errors": rows},
+        "cold": {"seconds": [4.0, 4.0, 4.0], "iterations": [19, 19, 19], "errors": rows},
+    }
+
+
+def test_summary_and_markdown():
+    numbers = sequence.summary(made_up_result())
+    assert numbers["speedup"] == 4.0 and numbers["sequence"]["later_seconds"] == 1.0
+    text = "\n".join(sequence.markdown(made_up_result()))
+    assert "## Over time" in text and "4.00× less time" in text and "| Wrap Sequence | 4.00 | 1.00 |" in text

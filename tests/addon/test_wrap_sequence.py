@@ -1,0 +1,250 @@
+"""Wrap Sequence: the layout wrapped at every frame of a range onto the target as it is at that frame (shape-key
+animation, a Mesh Sequence Cache, one object per frame from a collection), one shape key per frame keyed so that
+playback shows the layout following; Esc keeps the frames done, a failing frame keeps the previous frame's shape,
+the whole sequence is one undo step."""
+
+import bpy
+
+import numpy as np
+import pytest
+
+from bpy_helpers import (
+    SEQUENCE_FRAMES as FRAMES,
+)
+from bpy_helpers import (
+    Reference,
+    addon_module,
+    animated_target,
+    snapshot,
+    surface_distances,
+)
+from bpy_helpers import (
+    make_sphere_layout as make_inner_layout,
+)
+
+ON_SURFACE = 1e-4
+
+
+def sequence_scene():
+    target = animated_target()
+    layout = make_inner_layout(target)
+    bpy.context.scene.frame_set(1)
+    return target, layout
+
+
+def run_sequence(**properties):
+    options = {"use_scene_range": False, "frame_start": FRAMES[0], "frame_end": FRAMES[-1]} | properties
+    return bpy.ops.springwrap.wrap_sequence("EXEC_DEFAULT", True, **options)
+
+
+def key_names(layout):
+    keys = layout.data.shape_keys
+    return [] if keys is None else [block.name for block in keys.key_blocks]
+
+
+def key_positions(layout, name):
+    block = layout.data.shape_keys.key_blocks[name]
+    points = np.empty(len(block.data) * 3, dtype=np.float32)
+    block.data.foreach_get("co", points)
+    return points.reshape(-1, 3)
+
+
+def shown_positions(layout, frame):
+    """World positions of the layout as playback shows it at ``frame`` (its shape keys mixed)."""
+    bpy.context.scene.frame_set(frame)
+    evaluated = layout.evaluated_get(bpy.context.evaluated_depsgraph_get())
+    points = np.array([tuple(vertex.co) for vertex in evaluated.data.vertices], dtype=np.float64)
+    matrix = np.array(layout.matrix_world, dtype=np.float64)
+    return points @ matrix[:3, :3].T + matrix[:3, 3]
+
+
+def assert_follows(layout, target_at_frame):
+    """At each frame the layout playback shows lies on the target as it is at that frame."""
+    for frame in FRAMES:
+        shown = shown_positions(layout, frame)
+        reference = Reference(target_at_frame(frame))
+        assert surface_distances(reference, shown).max() < ON_SURFACE * reference.diagonal, frame
+
+
+def test_a_shape_key_animation_is_followed_frame_by_frame():
+    target, layout = sequence_scene()
+    assert run_sequence() == {"FINISHED"}
+    assert key_names(layout) == ["Basis", "Wrap 0001", "Wrap 0002", "Wrap 0003"]
+    assert_follows(layout, lambda frame: target)
+    first, last = key_positions(layout, "Wrap 0001"), key_positions(layout, "Wrap 0003")
+    assert np.ptp(last[:, 0]) > 1.3 * np.ptp(first[:, 0])  # the layout stretched with the target
+    assert np.array_equal(key_positions(layout, "Basis"), first)  # the first frame is the layout's own wrap
+    assert bpy.context.scene.frame_current == FRAMES[-1]  # set by the check above; the run set it back
+    assert layout.springwrap.target_signature
+
+
+def test_the_scene_frame_is_set_back():
+    _target, _layout = sequence_scene()
+    bpy.context.scene.frame_set(2)
+    run_sequence()
+    assert bpy.context.scene.frame_current == 2
+
+
+def has_alembic() -> bool:
+    """Whether this Blender was built with Alembic (its exporter is registered)."""
+    try:
+        bpy.ops.wm.alembic_export.get_rna_type()
+    except (KeyError, AttributeError):
+        return False
+    return True
+
+
+@pytest.mark.skipif(not has_alembic(), reason="this Blender was built without Alembic")
+def test_a_mesh_sequence_cache_is_followed(tmp_path):
+    source, _ = sequence_scene()
+    path = str(tmp_path / "target.abc")
+    bpy.ops.object.select_all(action="DESELECT")
+    source.select_set(True)
+    assert bpy.ops.wm.alembic_export(filepath=path, start=FRAMES[0], end=FRAMES[-1], selected=True) == {"FINISHED"}
+    bpy.data.objects.remove(source)
+    before = set(bpy.data.objects)
+    assert bpy.ops.wm.alembic_import(filepath=path) == {"FINISHED"}
+    (cached,) = [obj for obj in set(bpy.data.objects) - before if obj.type == "MESH"]
+    assert any(modifier.type == "MESH_SEQUENCE_CACHE" for modifier in cached.modifiers)
+    assert not cached.data.shape_keys  # the motion comes from the cache alone
+    layout = bpy.data.objects["Layout"]
+    layout.springwrap.target = cached
+    bpy.context.view_layer.objects.active = layout
+    assert run_sequence() == {"FINISHED"}
+    assert_follows(layout, lambda frame: cached)
+
+
+def frame_collection(empty=None):
+    """A collection of one sphere per frame, each larger along x, the third of another resolution (a new
+    topology); the one at index ``empty`` without faces (a frame that fails)."""
+    collection = bpy.data.collections.new("Frames")
+    bpy.context.scene.collection.children.link(collection)
+    objects = []
+    for index, (segments, rings) in enumerate(((32, 16), (32, 16), (24, 12))):
+        bpy.ops.mesh.primitive_uv_sphere_add(segments=segments, ring_count=rings, radius=1.5)
+        obj = bpy.context.active_object
+        obj.name = f"Frame {index + 1}"
+        obj.scale = (1.0 + 0.15 * index, 1.0, 1.0)
+        for owner in obj.users_collection:
+            owner.objects.unlink(obj)
+        collection.objects.link(obj)
+        objects.append(obj)
+    if empty is not None:
+        import bmesh
+
+        mesh = bmesh.new()
+        mesh.from_mesh(objects[empty].data)
+        bmesh.ops.delete(mesh, geom=list(mesh.faces), context="FACES_ONLY")
+        mesh.to_mesh(objects[empty].data)
+        mesh.free()
+    return objects
+
+
+def test_one_object_per_frame_even_when_the_topology_changes():
+    objects = frame_collection()
+    layout = make_inner_layout(objects[0])
+    assert run_sequence(source="COLLECTION", collection="Frames") == {"FINISHED"}
+    assert key_names(layout) == ["Basis", "Wrap 0001", "Wrap 0002", "Wrap 0003"]
+    assert_follows(layout, lambda frame: objects[frame - 1])
+
+
+def test_a_failing_frame_keeps_the_previous_shape_and_says_so():
+    objects = frame_collection(empty=1)
+    layout = make_inner_layout(objects[0])
+    sequence = addon_module("blender.wrap_sequence")
+    run = sequence.SequenceRun(bpy.context, layout, _parameters(), list(FRAMES), bpy.data.collections["Frames"])
+    while not run.done:
+        run.advance()
+    result = run.finish()
+    assert [outcome.ok for outcome in result.outcomes] == [True, False, True]
+    assert "no faces" in result.outcomes[1].message
+    assert "1 failed" in result.summary()
+    assert np.array_equal(key_positions(layout, "Wrap 0002"), key_positions(layout, "Wrap 0001"))
+    reference = Reference(objects[2])
+    bpy.context.scene.frame_set(3)
+    assert surface_distances(reference, shown_positions(layout, 3)).max() < ON_SURFACE * reference.diagonal
+
+
+def _parameters(**settings):
+    import springwrap_kernel
+
+    return addon_module("core.wrap_inputs").WrapParameters(settings=springwrap_kernel.WrapSettings(**settings))
+
+
+def test_esc_keeps_the_frames_done_and_nothing_half_written():
+    _target, layout = sequence_scene()
+    sequence = addon_module("blender.wrap_sequence")
+    loop = addon_module("core.sequence").SequenceLoop(
+        sequence.SequenceRun(bpy.context, layout, _parameters(), list(FRAMES))
+    )
+    assert loop.handle("TIMER") == "RUNNING_MODAL"  # frame 1
+    assert loop.handle("MOUSEMOVE") == "PASS_THROUGH"
+    assert loop.handle("TIMER") == "RUNNING_MODAL"  # frame 2
+    assert loop.handle("ESC", "PRESS") == "FINISHED"
+    assert loop.result.stopped and len(loop.result.outcomes) == 2
+    assert key_names(layout) == ["Basis", "Wrap 0001", "Wrap 0002"]
+    assert np.array_equal(key_positions(layout, "Basis"), key_positions(layout, "Wrap 0001"))
+    assert bpy.context.scene.frame_current == 1
+
+
+def test_the_sequence_is_one_undo_step():
+    _target, layout = sequence_scene()
+    bpy.ops.ed.undo_push(message="The scene")
+    before = snapshot(layout)
+    run_sequence()
+    assert key_names(bpy.data.objects["Layout"])
+    bpy.ops.ed.undo()
+    layout = bpy.data.objects["Layout"]
+    assert key_names(layout) == []
+    assert snapshot(layout) == before
+
+
+def test_a_second_run_replaces_the_keys_of_the_first():
+    _target, layout = sequence_scene()
+    run_sequence()
+    assert run_sequence(frame_end=2) == {"FINISHED"}
+    assert key_names(layout) == ["Basis", "Wrap 0001", "Wrap 0002"]
+
+
+def test_later_frames_rest_in_the_previous_frame_or_the_template():
+    target, layout = sequence_scene()
+    run_sequence(warm_rest="PREVIOUS")
+    previous = key_positions(layout, "Wrap 0003")
+    bpy.data.objects.remove(layout)
+    layout = make_inner_layout(target)
+    run_sequence(warm_rest="TEMPLATE")
+    assert not np.allclose(key_positions(layout, "Wrap 0003"), previous, atol=1e-6)
+    assert_follows(layout, lambda frame: target)
+
+
+@pytest.mark.parametrize(
+    ("properties", "message"),
+    [
+        ({"frame_end": 0}, "empty"),
+        ({"source": "COLLECTION", "collection": "Missing"}, "No collection"),
+    ],
+)
+def test_bad_input_is_refused_and_nothing_written(properties, message):
+    _target, layout = sequence_scene()
+    before = snapshot(layout)
+    with pytest.raises(RuntimeError, match=message):
+        run_sequence(**properties)
+    assert snapshot(layout) == before and key_names(layout) == []
+
+
+def test_shape_keys_of_the_layout_s_own_are_refused():
+    _target, layout = sequence_scene()
+    layout.shape_key_add(name="Basis")
+    layout.shape_key_add(name="Smile")
+    with pytest.raises(RuntimeError, match="shape keys of its own"):
+        run_sequence()
+    assert key_names(layout) == ["Basis", "Smile"]
+
+
+def test_a_first_frame_that_fails_writes_nothing():
+    objects = frame_collection(empty=0)
+    layout = make_inner_layout(objects[1])
+    before = snapshot(layout)
+    with pytest.raises(RuntimeError, match="first frame"):
+        run_sequence(source="COLLECTION", collection="Frames")
+    assert snapshot(layout) == before and key_names(layout) == []
