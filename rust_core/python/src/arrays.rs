@@ -99,3 +99,15 @@ pub(crate) fn read_points64(name: &str, array: &Bound<'_, PyAny>) -> PyResult<Ve
         .map(|row| DVec3::new(row[0], row[1], row[2]))
         .collect())
 }
+
+/// A layout's faces, flat: `face_corners` (every face's vertices, face after face) and `face_sizes`
+/// (each face's corner count), both 1-D uint32.
+pub(crate) fn read_faces(
+    face_corners: &Bound<'_, PyAny>,
+    face_sizes: &Bound<'_, PyAny>,
+) -> PyResult<(Vec<u32>, Vec<u32>)> {
+    Ok((
+        read_array::<u32>("face_corners", face_corners, None)?,
+        read_array::<u32>("face_sizes", face_sizes, None)?,
+    ))
+}

@@ -13,7 +13,7 @@ use springwrap_kernel::fit::{
     BoundaryRule, SubdivisionFit, SubdivisionFitSettings, SubdivisionStencils,
 };
 
-use crate::arrays::{read_array, read_positions, rows_array};
+use crate::arrays::{read_array, read_faces, read_positions, rows_array};
 use crate::errors::{InvalidArgumentError, run_kernel};
 use crate::target_mesh::PyTargetMesh;
 
@@ -61,8 +61,7 @@ impl PySubdivisionStencils {
         levels: u32,
         boundary: &str,
     ) -> PyResult<Self> {
-        let face_corners = read_array::<u32>("face_corners", face_corners, None)?;
-        let face_sizes = read_array::<u32>("face_sizes", face_sizes, None)?;
+        let (face_corners, face_sizes) = read_faces(face_corners, face_sizes)?;
         let rule = boundary_rule(boundary)?;
         let stencils = run_kernel(py, || {
             SubdivisionStencils::new(vertex_count, &face_corners, &face_sizes, levels, rule)

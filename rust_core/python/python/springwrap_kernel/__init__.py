@@ -41,6 +41,7 @@ from ._native import (
     feature_defaults,
     fit_transform,
     flipped_faces,
+    layout_readout,
     subdivision_fit_defaults,
     vertex_stretch,
 )
@@ -80,6 +81,7 @@ __all__ = [
     "feature_defaults",
     "fit_transform",
     "flipped_faces",
+    "layout_readout",
     "subdivision_fit_defaults",
     "vertex_stretch",
 ]

@@ -565,3 +565,14 @@ def flipped_faces(
 ) -> npt.NDArray[np.bool_]:
     """(F,) each face turned over against its rest shape: its normal against its rest normal carried by the best
     rotation of its neighbourhood (its corners and their edge neighbours)."""
+
+def layout_readout(
+    points: npt.NDArray[np.float64],
+    rest: npt.NDArray[np.float64] | None,
+    face_corners: npt.NDArray[np.uint32],
+    face_sizes: npt.NDArray[np.uint32],
+    edges: npt.NDArray[np.uint32],
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.bool_], float]:
+    """(stretch (N,), flipped (F,), diagonal): :func:`vertex_stretch`, :func:`flipped_faces` and the finite points'
+    bounding-box diagonal in one pass; ``rest`` None: no usable rest shape (the stretch reads 1, no face is
+    flipped)."""
