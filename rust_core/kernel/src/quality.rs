@@ -179,13 +179,15 @@ pub fn face_normals(points: &[DVec3], faces: LayoutFaces<'_>) -> Result<Vec<DVec
 /// Each vertex's edge neighbours, in compressed rows: the neighbours of `v` are
 /// `neighbours[offsets[v]..offsets[v + 1]]`.
 struct Neighbours {
-    offsets: Vec<usize>,
+    offsets: Vec<u32>,
     neighbours: Vec<u32>,
 }
 
 impl Neighbours {
     fn new(edges: &[[u32; 2]], vertex_count: usize) -> Self {
-        let mut offsets = vec![0usize; vertex_count + 1];
+        // Counts at index v + 1, then their sums: offsets[v + 1] is where v's row ends, and, while
+        // the rows fill, offsets[v] where the next of v's neighbours goes (it ends at v's start).
+        let mut offsets = vec![0u32; vertex_count + 1];
         for &[a, b] in edges {
             offsets[a as usize + 1] += 1;
             offsets[b as usize + 1] += 1;
@@ -193,14 +195,18 @@ impl Neighbours {
         for index in 0..vertex_count {
             offsets[index + 1] += offsets[index];
         }
-        let mut next = offsets.clone();
-        let mut neighbours = vec![0u32; offsets[vertex_count]];
+        let mut neighbours = vec![0u32; offsets[vertex_count] as usize];
         for &[a, b] in edges {
             for (from, to) in [(a, b), (b, a)] {
-                neighbours[next[from as usize]] = to;
-                next[from as usize] += 1;
+                neighbours[offsets[from as usize] as usize] = to;
+                offsets[from as usize] += 1;
             }
         }
+        // Each start moved to the next row's: shift back.
+        for index in (1..=vertex_count).rev() {
+            offsets[index] = offsets[index - 1];
+        }
+        offsets[0] = 0;
         Self {
             offsets,
             neighbours,
@@ -208,7 +214,8 @@ impl Neighbours {
     }
 
     fn of(&self, vertex: u32) -> &[u32] {
-        &self.neighbours[self.offsets[vertex as usize]..self.offsets[vertex as usize + 1]]
+        &self.neighbours
+            [self.offsets[vertex as usize] as usize..self.offsets[vertex as usize + 1] as usize]
     }
 }
 
@@ -486,7 +493,8 @@ pub fn layout_readout(
     };
     check_lengths(points, rest)?;
     let neighbours = Neighbours::new(edges, points.len());
-    let (stretch, rings): (Vec<f64>, Vec<Moments>) = (0..points.len() as u32)
+    let (mut stretch, mut rings) = (Vec::new(), Vec::new());
+    (0..points.len() as u32)
         .into_par_iter()
         .with_min_len(VERTICES_PER_TASK)
         .map(|vertex| {
@@ -497,7 +505,7 @@ pub fn layout_readout(
                 Moments::of(points, rest, ring),
             )
         })
-        .unzip();
+        .unzip_into_vecs(&mut stretch, &mut rings);
     let flipped = flips(points, rest, faces, &starts, &rings);
     Ok(LayoutReadout {
         stretch,
