@@ -59,21 +59,20 @@ impl LayoutFaces<'_> {
                 second: next,
             });
         }
-        for (face, &start) in starts.iter().enumerate() {
-            let end = start + self.sizes[face] as usize;
-            if let Some(&vertex) = self.corners[start..end]
-                .iter()
-                .find(|&&vertex| vertex as usize >= vertex_count)
-            {
-                return Err(KernelError::LayoutIndexOutOfRange {
-                    element: "face",
-                    index: face,
-                    vertex,
-                    vertex_count,
-                });
-            }
-        }
-        Ok(starts)
+        // Checked in parallel; the face is looked for only when a corner is out of range.
+        let Some(corner) = self
+            .corners
+            .par_iter()
+            .position_first(|&vertex| vertex as usize >= vertex_count)
+        else {
+            return Ok(starts);
+        };
+        Err(KernelError::LayoutIndexOutOfRange {
+            element: "face",
+            index: starts.partition_point(|&start| start <= corner) - 1,
+            vertex: self.corners[corner],
+            vertex_count,
+        })
     }
 }
 
@@ -90,17 +89,19 @@ fn check_lengths(points: &[DVec3], rest: &[DVec3]) -> Result<(), KernelError> {
 }
 
 fn check_edges(edges: &[[u32; 2]], vertex_count: usize) -> Result<(), KernelError> {
-    for (index, edge) in edges.iter().enumerate() {
-        if let Some(&vertex) = edge.iter().find(|&&vertex| vertex as usize >= vertex_count) {
-            return Err(KernelError::LayoutIndexOutOfRange {
-                element: "edge",
-                index,
-                vertex,
-                vertex_count,
-            });
-        }
+    let outside = |vertex: &u32| *vertex as usize >= vertex_count;
+    match edges
+        .par_iter()
+        .position_first(|edge| edge.iter().any(outside))
+    {
+        None => Ok(()),
+        Some(index) => Err(KernelError::LayoutIndexOutOfRange {
+            element: "edge",
+            index,
+            vertex: *edges[index].iter().find(|vertex| outside(vertex)).unwrap_or(&0),
+            vertex_count,
+        }),
     }
-    Ok(())
 }
 
 /// Each vertex's mean incident edge length now over the same at rest (1 where nothing can be
