@@ -166,6 +166,7 @@ bench: setup $(STAMPS)/bench-requirements
 	  --batch $(BENCH_OUT)/batch_throughput.json --features $(BENCH_OUT)/feature_curves.json \
 	  --quality $(BENCH_OUT)/quality_readout.json --cage-fit $(BENCH_OUT)/cage_fit.json \
 	  --large-target $(BENCH_OUT)/large_target.json --few-anchors $(BENCH_OUT)/few_anchors.json \
+	  --pair-tool $(BENCH_OUT)/pair_tool.json \
 	  --output $(BENCH_DOCS)/benchmarks.md
 
 clean:

@@ -420,6 +420,52 @@ def snap_section(snap: dict) -> list[str]:
     return lines
 
 
+def pair_tool_section(pair: dict) -> list[str]:
+    """The pair tool on the body (``benchmarks/pair_tool.py --json``): a drag's and a hover's mouse moves per second,
+    and the Live re-settle after each edit (the session's build, its first frame, the edited vertex half way,
+    convergence, the solving alone), edit by edit and their medians."""
+    load = pair.get("load_average")
+    load_text = ", ".join(number(value, 2) for value in load) if isinstance(load, list) else number(load, 2)
+    end = pair.get("load_average_end")
+    end_text = ", ".join(number(value, 2) for value in end) if isinstance(end, list) else number(end, 2)
+    drag, hover = pair["drag"], pair["hover"]
+    lines = [
+        "### Pair tool",
+        "",
+        f"The MakeHuman body ({pair['layout_vertices']:,} vertices) over a {pair['target_triangles']:,}-triangle "
+        "voxel-remeshed body, wrapped once, then edited as the pair tool edits it, without a window "
+        "(`.venv/bin/python benchmarks/pair_tool.py`): a pair's target end dragged in "
+        f"{drag['moves']} mouse moves (a ray cast and the anchor written each: {number(drag['moves_per_second'], 0)} "
+        f"moves/s, {drag['placed']} placed), hovering the same path ({number(hover['moves_per_second'], 0)} moves/s), "
+        "and after each edit the Live re-settle from the layout as it is (seconds from the edit; *solving*: the "
+        "kernel's share). Load average at the start "
+        f"{load_text}, at the end {end_text}. Redraws per second while dragging need a window: the GUI lane "
+        "(`make test-gui`) reports them.",
+        "",
+    ]
+    rows = [
+        [
+            str(row["edit"] + 1),
+            number(row["vertex_moved_m"] * 1000.0, 1),
+            number(row["build_seconds"]),
+            number(row["first_frame_seconds"]),
+            number(row["half_way_seconds"]),
+            number(row["total_seconds"]),
+            number(row["solve_seconds"]),
+            str(row["iterations"]),
+            "yes" if row["converged"] else "no",
+        ]
+        for row in pair["settle"]
+    ]
+    rows.append(["median", "", *(number(pair[f"settle_median_{name}"]) for name in SETTLE_COLUMNS), "", ""])
+    header = ["edit", "vertex moved mm", "build s", "first frame s", "half way s", "converged s", "solving s"]
+    return lines + table(header + ["iterations", "converged"], rows, "lrrrrrrrl") + [""]
+
+
+SETTLE_COLUMNS = ("build_seconds", "first_frame_seconds", "half_way_seconds", "total_seconds", "solve_seconds")
+"""The Live re-settle's times, in the pair tool table's order."""
+
+
 def performance_section(performance: dict, image_folder: Path, image_prefix: str) -> list[str]:
     """Scaling with target and layout size, wrap speed, memory per triangle, threads."""
     results = performance["results"]
@@ -951,6 +997,7 @@ def build_document(
     features: dict | None = None,
     after_wrap: dict | None = None,
     few_anchors: dict | None = None,
+    pair_tool: dict | None = None,
 ) -> str:
     """The whole of ``docs/benchmarks.md``."""
     lines = [
@@ -978,6 +1025,7 @@ def build_document(
         "--markdown docs/wrap-solvers.md",
         ".venv/bin/python benchmarks/feature_curves.py [--quick] --json out/bench/feature_curves.json",
         ".venv/bin/python benchmarks/few_anchors.py [--cases NAME ...] [--anchors N ...] --json out/bench/few_anchors.json",
+        ".venv/bin/python benchmarks/pair_tool.py --json out/bench/pair_tool.json",
         ".venv/bin/python benchmarks/figures.py && .venv/bin/python benchmarks/report.py",
         "```",
         "",
@@ -1010,6 +1058,8 @@ def build_document(
         lines += snap_section(snap)
     if speed is not None:
         lines += wrap_aims_section(speed)
+    if pair_tool is not None:
+        lines += pair_tool_section(pair_tool)
     if retarget is not None:
         lines += wrap_speed_lines(retarget)
     if performance is not None:
@@ -1051,6 +1101,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--cage-fit", type=Path, default=OUT / "cage_fit.json")
     parser.add_argument("--large-target", type=Path, default=OUT / "large_target.json")
     parser.add_argument("--few-anchors", type=Path, default=OUT / "few_anchors.json")
+    parser.add_argument("--pair-tool", type=Path, default=OUT / "pair_tool.json")
     parser.add_argument("--output", type=Path, default=DOCS / "benchmarks.md")
     arguments = parser.parse_args(sys.argv[1:] if argv is None else argv)
     inputs = {name: load(getattr(arguments, name)) for name in ("retarget", "performance", "snap")}
@@ -1072,6 +1123,7 @@ def main(argv: list[str] | None = None) -> int:
             load(arguments.features),
             {name: load(getattr(arguments, name)) for name in ("quality", "cage_fit", "large_target")},
             load(arguments.few_anchors),
+            load(arguments.pair_tool),
         )
     )
     print(f"wrote {arguments.output}")

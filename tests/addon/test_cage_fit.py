@@ -378,7 +378,6 @@ def test_a_round_asked_to_stop_raises_cancelled_and_an_unset_flag_changes_nothin
     """The kernel's round asks its cancellation flag inside its loops: set, it raises; unset, the round is the
     plain round."""
     import springwrap_kernel as sk
-
     from springwrap.blender import cage_fit as cage_fit_data
     from springwrap.blender import target as target_data
 

@@ -369,7 +369,7 @@ class RoundWorker:
     def _solve(self, run: CageFitRun) -> None:
         try:
             self._outcome = run.solve(self.cancel_flag)
-        except BaseException as error:  # handed to the main thread by outcome()
+        except BaseException as error:  # noqa: BLE001  (handed to the main thread, raised there by outcome())
             self._error = error
 
     @property

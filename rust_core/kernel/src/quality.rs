@@ -98,7 +98,10 @@ fn check_edges(edges: &[[u32; 2]], vertex_count: usize) -> Result<(), KernelErro
         Some(index) => Err(KernelError::LayoutIndexOutOfRange {
             element: "edge",
             index,
-            vertex: *edges[index].iter().find(|vertex| outside(vertex)).unwrap_or(&0),
+            vertex: *edges[index]
+                .iter()
+                .find(|vertex| outside(vertex))
+                .unwrap_or(&0),
             vertex_count,
         }),
     }
@@ -819,7 +822,12 @@ mod tests {
             assert_eq!(merged.count, direct.count);
             assert!(merged.mean_now.distance(direct.mean_now) < 1e-9);
             assert!(merged.mean_rest.distance(direct.mean_rest) < 1e-9);
-            for (a, b) in merged.cross.iter().flatten().zip(direct.cross.iter().flatten()) {
+            for (a, b) in merged
+                .cross
+                .iter()
+                .flatten()
+                .zip(direct.cross.iter().flatten())
+            {
                 assert!((a - b).abs() < 1e-8 * (1.0 + b.abs()), "{a} against {b}");
             }
         }
@@ -840,10 +848,11 @@ mod tests {
         let flipped = flipped_faces(&points, &rest, faces, &edges).unwrap();
         assert_eq!(readout.flipped, flipped);
         assert!(flipped.contains(&true) && flipped.contains(&false));
-        let (low, high) = points.iter().fold(
-            (DVec3::INFINITY, DVec3::NEG_INFINITY),
-            |(low, high), p| (low.min(*p), high.max(*p)),
-        );
+        let (low, high) = points
+            .iter()
+            .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(low, high), p| {
+                (low.min(*p), high.max(*p))
+            });
         assert!((readout.diagonal - low.distance(high)).abs() < 1e-9);
         let unmeasured = layout_readout(&points, None, faces, &edges).unwrap();
         assert!(unmeasured.stretch.iter().all(|&s| s == 1.0));
@@ -859,9 +868,17 @@ mod tests {
             Err(KernelError::LengthMismatch { .. })
         ));
         assert_eq!(
-            layout_readout(&[], None, LayoutFaces { corners: &[], sizes: &[] }, &[])
-                .unwrap()
-                .diagonal,
+            layout_readout(
+                &[],
+                None,
+                LayoutFaces {
+                    corners: &[],
+                    sizes: &[]
+                },
+                &[]
+            )
+            .unwrap()
+            .diagonal,
             0.0
         );
     }
@@ -896,4 +913,3 @@ mod tests {
         assert!((found[0] - mesh.surface_distances(&on, None, 0.0).unwrap()[0]).abs() < 1e-9);
     }
 }
-

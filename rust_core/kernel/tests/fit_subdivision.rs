@@ -332,7 +332,8 @@ fn bad_inputs_are_refused_with_the_reason() {
 }
 
 #[test]
-fn a_round_asked_to_stop_inside_its_loops_returns_cancelled_and_an_unasked_one_is_the_plain_round() {
+fn a_round_asked_to_stop_inside_its_loops_returns_cancelled_and_an_unasked_one_is_the_plain_round()
+{
     let target = sphere_target(1.0);
     let (cage, fit) = cube_cage_fit(None);
     let plain = fit.round(&target, &cage, None).unwrap();

@@ -95,7 +95,9 @@ pub(crate) fn read_pairs(name: &str, array: Option<&Bound<'_, PyAny>>) -> PyResu
         return Ok(Vec::new());
     };
     read_with(name, array, Some(2), |flat: &[u32]| {
-        flat.chunks_exact(2).map(|pair| [pair[0], pair[1]]).collect()
+        flat.chunks_exact(2)
+            .map(|pair| [pair[0], pair[1]])
+            .collect()
     })
 }
 

@@ -4,9 +4,7 @@
 
 use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
-use springwrap_kernel::{
-    LayoutFaces, face_normals, flipped_faces, layout_readout, vertex_stretch,
-};
+use springwrap_kernel::{LayoutFaces, face_normals, flipped_faces, layout_readout, vertex_stretch};
 
 use crate::arrays::{read_faces, read_pairs, read_points64, rows_array};
 use crate::errors::run_kernel;
