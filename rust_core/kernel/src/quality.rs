@@ -785,8 +785,11 @@ mod tests {
         ));
     }
 
+    /// Positions now and at rest, face corners, face sizes, edges.
+    type Warped = (Vec<DVec3>, Vec<DVec3>, Vec<u32>, Vec<u32>, Vec<[u32; 2]>);
+
     /// A grid of `n` x `n` quads warped and folded at random.
-    fn warped(n: u32, seed: u64) -> (Vec<DVec3>, Vec<DVec3>, Vec<u32>, Vec<u32>, Vec<[u32; 2]>) {
+    fn warped(n: u32, seed: u64) -> Warped {
         let (rest, corners, sizes, edges) = grid(n);
         let mut state = seed;
         let mut random = move || {
