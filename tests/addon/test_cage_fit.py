@@ -353,16 +353,21 @@ def test_a_fit_that_will_not_fit_in_memory_is_refused_saying_which_level_would(m
     assert bpy.ops.springwrap.fit_subdivision(levels=3) == {"FINISHED"}
 
 
-def test_a_fit_stopped_between_rounds_leaves_the_layout_as_it_was_and_reports_its_progress():
-    """What Esc does to the modal fit: the session's rounds run one by one, its cancel writes nothing."""
+def cube_fit_scene(rounds: int):
+    """The cube-sphere cage over the sphere: (layout, its snapshot, level-2 fit parameters, the fit's target)."""
     from springwrap.blender import cage_fit as cage_fit_data
     from springwrap.blender import target as target_data
 
-    target = sphere_target()
-    layout = cube_sphere_cage(target)
-    before = snapshot(layout)
-    parameters = cage_fit_data.CageFitParameters(levels=2, rounds=3)
-    fit_target = target_data.read_target(bpy.context.evaluated_depsgraph_get(), layout)
+    layout = cube_sphere_cage(sphere_target())
+    parameters = cage_fit_data.CageFitParameters(levels=2, rounds=rounds)
+    return layout, snapshot(layout), parameters, target_data.read_target(bpy.context.evaluated_depsgraph_get(), layout)
+
+
+def test_a_fit_stopped_between_rounds_leaves_the_layout_as_it_was_and_reports_its_progress():
+    """What Esc does to the modal fit: the session's rounds run one by one, its cancel writes nothing."""
+    from springwrap.blender import cage_fit as cage_fit_data
+
+    layout, before, parameters, fit_target = cube_fit_scene(rounds=3)
     session = cage_fit_data.CageFitSession(bpy.context, layout, fit_target, parameters).start()
     assert "round 1 of 3, level 2" in session.status_text() and "Esc" in session.status_text()
     session.step()
@@ -377,16 +382,11 @@ def test_a_fit_stopped_between_rounds_leaves_the_layout_as_it_was_and_reports_it
 def test_a_round_asked_to_stop_raises_cancelled_and_an_unset_flag_changes_nothing():
     """The kernel's round asks its cancellation flag inside its loops: set, it raises; unset, the round is the
     plain round."""
-    import springwrap_kernel as sk
     from springwrap.blender import cage_fit as cage_fit_data
-    from springwrap.blender import target as target_data
 
-    target = sphere_target()
-    layout = cube_sphere_cage(target)
-    fit_target = target_data.read_target(bpy.context.evaluated_depsgraph_get(), layout)
-    session = cage_fit_data.CageFitSession(
-        bpy.context, layout, fit_target, cage_fit_data.CageFitParameters(levels=2, rounds=2)
-    ).start()
+    sk = springwrap_kernel
+    layout, _before, parameters, fit_target = cube_fit_scene(rounds=2)
+    session = cage_fit_data.CageFitSession(bpy.context, layout, fit_target, parameters).start()
     try:
         run = session.run
         plain = run.solve()
@@ -406,13 +406,8 @@ def test_the_modal_fit_runs_its_rounds_in_a_worker_and_a_stop_inside_a_round_lea
     """The modal operator's tick: each round's kernel part in a worker thread (the same rounds as one by one);
     cancel while a round runs stops it through its flag, removes the temporary object, writes nothing."""
     from springwrap.blender import cage_fit as cage_fit_data
-    from springwrap.blender import target as target_data
 
-    target = sphere_target()
-    layout = cube_sphere_cage(target)
-    before = snapshot(layout)
-    parameters = cage_fit_data.CageFitParameters(levels=2, rounds=2)
-    fit_target = target_data.read_target(bpy.context.evaluated_depsgraph_get(), layout)
+    layout, before, parameters, fit_target = cube_fit_scene(rounds=2)
 
     stepped = cage_fit_data.CageFitSession(bpy.context, layout, fit_target, parameters).start()
     while not stepped.done:
