@@ -169,7 +169,9 @@ bench: setup $(STAMPS)/bench-requirements
 	  --quality $(BENCH_OUT)/quality_readout.json --cage-fit $(BENCH_OUT)/cage_fit.json \
 	  --large-target $(BENCH_OUT)/large_target.json --few-anchors $(BENCH_OUT)/few_anchors.json \
 	  --parts $(BENCH_OUT)/parts.json \
-	  --sequence $(BENCH_OUT)/sequence.json --output $(BENCH_DOCS)/benchmarks.md
+	  --sequence $(BENCH_OUT)/sequence.json \
+	  --pair-tool $(BENCH_OUT)/pair_tool.json \
+	  --output $(BENCH_DOCS)/benchmarks.md
 
 clean:
 	rm -rf $(VENV) $(VENV_BPY42) target out dist .cache

@@ -182,8 +182,10 @@ def main(argv: list[str] | None = None) -> int:
     if addon_utils.enable("springwrap", default_set=True, handle_error=None) is None:
         print("pair_tool: the springwrap add-on does not enable: run `make setup`", file=sys.stderr)
         return 1
+    load_average = os.getloadavg()
     case, vertices, triangles, _voxel = body_case()
     results = measure(case, vertices, triangles, arguments.edits, arguments.moves)
+    results["load_average"] = load_average
     results["load_average_end"] = os.getloadavg()
     print(
         f"pair tool on the body ({results['layout_vertices']} vertices, {results['target_triangles']} triangles): "

@@ -420,6 +420,52 @@ def snap_section(snap: dict) -> list[str]:
     return lines
 
 
+def pair_tool_section(pair: dict) -> list[str]:
+    """The pair tool on the body (``benchmarks/pair_tool.py --json``): a drag's and a hover's mouse moves per second,
+    and the Live re-settle after each edit (the session's build, its first frame, the edited vertex half way,
+    convergence, the solving alone), edit by edit and their medians."""
+    load = pair.get("load_average")
+    load_text = ", ".join(number(value, 2) for value in load) if isinstance(load, list) else number(load, 2)
+    end = pair.get("load_average_end")
+    end_text = ", ".join(number(value, 2) for value in end) if isinstance(end, list) else number(end, 2)
+    drag, hover = pair["drag"], pair["hover"]
+    lines = [
+        "### Pair tool",
+        "",
+        f"The MakeHuman body ({pair['layout_vertices']:,} vertices) over a {pair['target_triangles']:,}-triangle "
+        "voxel-remeshed body, wrapped once, then edited as the pair tool edits it, without a window "
+        "(`.venv/bin/python benchmarks/pair_tool.py`): a pair's target end dragged in "
+        f"{drag['moves']} mouse moves (a ray cast and the anchor written each: {number(drag['moves_per_second'], 0)} "
+        f"moves/s, {drag['placed']} placed), hovering the same path ({number(hover['moves_per_second'], 0)} moves/s), "
+        "and after each edit the Live re-settle from the layout as it is (seconds from the edit; *solving*: the "
+        "kernel's share). Load average at the start "
+        f"{load_text}, at the end {end_text}. Redraws per second while dragging need a window: the GUI lane "
+        "(`make test-gui`) reports them.",
+        "",
+    ]
+    rows = [
+        [
+            str(row["edit"] + 1),
+            number(row["vertex_moved_m"] * 1000.0, 1),
+            number(row["build_seconds"]),
+            number(row["first_frame_seconds"]),
+            number(row["half_way_seconds"]),
+            number(row["total_seconds"]),
+            number(row["solve_seconds"]),
+            str(row["iterations"]),
+            "yes" if row["converged"] else "no",
+        ]
+        for row in pair["settle"]
+    ]
+    rows.append(["median", "", *(number(pair[f"settle_median_{name}"]) for name in SETTLE_COLUMNS), "", ""])
+    header = ["edit", "vertex moved mm", "build s", "first frame s", "half way s", "converged s", "solving s"]
+    return lines + table(header + ["iterations", "converged"], rows, "lrrrrrrrl") + [""]
+
+
+SETTLE_COLUMNS = ("build_seconds", "first_frame_seconds", "half_way_seconds", "total_seconds", "solve_seconds")
+"""The Live re-settle's times, in the pair tool table's order."""
+
+
 def performance_section(performance: dict, image_folder: Path, image_prefix: str) -> list[str]:
     """Scaling with target and layout size, wrap speed, memory per triangle, threads."""
     results = performance["results"]
@@ -953,6 +999,7 @@ def build_document(
     few_anchors: dict | None = None,
     parts: dict | None = None,
     sequence: dict | None = None,
+    pair_tool: dict | None = None,
 ) -> str:
     """The whole of ``docs/benchmarks.md``."""
     lines = [
@@ -982,6 +1029,7 @@ def build_document(
         ".venv/bin/python benchmarks/few_anchors.py [--cases NAME ...] [--anchors N ...] --json out/bench/few_anchors.json",
         ".venv/bin/python benchmarks/parts.py [--cases NAME ...] --json out/bench/parts.json",
         ".venv/bin/python benchmarks/sequence.py [--frames N] --json out/bench/sequence.json",
+        ".venv/bin/python benchmarks/pair_tool.py --json out/bench/pair_tool.json",
         ".venv/bin/python benchmarks/figures.py && .venv/bin/python benchmarks/report.py",
         "```",
         "",
@@ -1016,6 +1064,8 @@ def build_document(
         lines += snap_section(snap)
     if speed is not None:
         lines += wrap_aims_section(speed)
+    if pair_tool is not None:
+        lines += pair_tool_section(pair_tool)
     if retarget is not None:
         lines += wrap_speed_lines(retarget)
     if performance is not None:
@@ -1092,6 +1142,7 @@ def main(argv: list[str] | None = None) -> int:
         help="only put the parts section (from --parts) into the existing --output, leaving the rest as it is",
     )
     parser.add_argument("--sequence", type=Path, default=OUT / "sequence.json")
+    parser.add_argument("--pair-tool", type=Path, default=OUT / "pair_tool.json")
     parser.add_argument("--output", type=Path, default=DOCS / "benchmarks.md")
     arguments = parser.parse_args(sys.argv[1:] if argv is None else argv)
     if arguments.only_parts:
@@ -1123,6 +1174,7 @@ def main(argv: list[str] | None = None) -> int:
             load(arguments.few_anchors),
             load(arguments.parts),
             load(arguments.sequence),
+            load(arguments.pair_tool),
         )
     )
     print(f"wrote {arguments.output}")

@@ -1074,3 +1074,58 @@ def test_snap_section_sets_the_operators_read_out_against_its_time_and_shrinkwra
     assert "the quality read-out (distance, stretch, flipped faces; measured and written) 0.180 s (15 %)" in text
     assert "Shrinkwrap on the same layout 1.900 s" in text
     assert "| Shrinkwrap modifier, same layout | layout |" in text
+
+
+def test_the_pair_tool_section_tabulates_each_edit_and_the_medians_from_the_json():
+    settle = [
+        {
+            "edit": edit,
+            "iterations": 20 + edit,
+            "frames": 4,
+            "converged": edit != 1,
+            "vertex_moved_m": 0.012,
+            "build_seconds": 0.05,
+            "first_frame_seconds": 0.3 + edit / 100,
+            "half_way_seconds": 0.6,
+            "solve_seconds": 1.9,
+            "total_seconds": 2.8,
+        }
+        for edit in range(3)
+    ]
+    pair = {
+        "layout_vertices": 13380,
+        "target_triangles": 198792,
+        "drag": {"moves": 40, "placed": 39, "moves_per_second": 412.4},
+        "hover": {"moves": 40, "moves_per_second": 101.6},
+        "settle": settle,
+        "load_average": [7.5, 8.0, 9.0],
+        "load_average_end": [9.5, 9.0, 9.0],
+        **{f"settle_median_{name}": 0.25 if name == "first_frame_seconds" else 1.0 for name in report.SETTLE_COLUMNS},
+    }
+    lines = "\n".join(report.pair_tool_section(pair))
+    assert "13,380 vertices" in lines and "198,792-triangle" in lines
+    assert "412 moves/s, 39 placed" in lines and "(102 moves/s)" in lines
+    assert "| 2 | 12.0 | 0.050 | 0.310 | 0.600 | 2.800 | 1.900 | 21 | no |" in lines
+    assert "| median |  | 1.000 | 0.250 | 1.000 | 1.000 | 1.000 |  |  |" in lines
+    assert "Load average at the start 7.50, 8.00, 9.00, at the end 9.50, 9.00, 9.00" in lines
+    document = report.build_document(None, None, None, pair_tool=pair)
+    assert "### Pair tool" in document
+    assert "### Pair tool" not in report.build_document(None, None, None)
+
+
+def test_the_snap_section_gives_the_read_out_share_of_the_operator():
+    snap = {
+        "sizes": {"target_triangles": 1000, "points": 1000, "query_offset": 0.01},
+        "machine": {"load_average": 1.0},
+        "results": [],
+        "checks": [],
+        "operator": {
+            "layout_vertices": 500004,
+            "seconds": 4.0,
+            "readout_seconds": 0.8,
+            "readout_share": 0.2,
+            "shrinkwrap_seconds": 3.9,
+        },
+    }
+    lines = "\n".join(report.snap_section(snap))
+    assert "500,004-vertex quad layout takes 4.000 s" in lines and "0.800 s (20 %)" in lines

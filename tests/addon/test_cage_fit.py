@@ -353,16 +353,21 @@ def test_a_fit_that_will_not_fit_in_memory_is_refused_saying_which_level_would(m
     assert bpy.ops.springwrap.fit_subdivision(levels=3) == {"FINISHED"}
 
 
-def test_a_fit_stopped_between_rounds_leaves_the_layout_as_it_was_and_reports_its_progress():
-    """What Esc does to the modal fit: the session's rounds run one by one, its cancel writes nothing."""
+def cube_fit_scene(rounds: int):
+    """The cube-sphere cage over the sphere: (layout, its snapshot, level-2 fit parameters, the fit's target)."""
     from springwrap.blender import cage_fit as cage_fit_data
     from springwrap.blender import target as target_data
 
-    target = sphere_target()
-    layout = cube_sphere_cage(target)
-    before = snapshot(layout)
-    parameters = cage_fit_data.CageFitParameters(levels=2, rounds=3)
-    fit_target = target_data.read_target(bpy.context.evaluated_depsgraph_get(), layout)
+    layout = cube_sphere_cage(sphere_target())
+    parameters = cage_fit_data.CageFitParameters(levels=2, rounds=rounds)
+    return layout, snapshot(layout), parameters, target_data.read_target(bpy.context.evaluated_depsgraph_get(), layout)
+
+
+def test_a_fit_stopped_between_rounds_leaves_the_layout_as_it_was_and_reports_its_progress():
+    """What Esc does to the modal fit: the session's rounds run one by one, its cancel writes nothing."""
+    from springwrap.blender import cage_fit as cage_fit_data
+
+    layout, before, parameters, fit_target = cube_fit_scene(rounds=3)
     session = cage_fit_data.CageFitSession(bpy.context, layout, fit_target, parameters).start()
     assert "round 1 of 3, level 2" in session.status_text() and "Esc" in session.status_text()
     session.step()
@@ -372,3 +377,61 @@ def test_a_fit_stopped_between_rounds_leaves_the_layout_as_it_was_and_reports_it
     assert sorted(obj.name for obj in bpy.data.objects) == ["Layout", "Target"]
     assert bpy.ops.springwrap.fit_subdivision("INVOKE_DEFAULT", levels=2) == {"FINISHED"}  # headless: at once
     assert snapshot(layout) != before
+
+
+def test_a_round_asked_to_stop_raises_cancelled_and_an_unset_flag_changes_nothing():
+    """The kernel's round asks its cancellation flag inside its loops: set, it raises; unset, the round is the
+    plain round."""
+    from springwrap.blender import cage_fit as cage_fit_data
+
+    sk = springwrap_kernel
+    layout, _before, parameters, fit_target = cube_fit_scene(rounds=2)
+    session = cage_fit_data.CageFitSession(bpy.context, layout, fit_target, parameters).start()
+    try:
+        run = session.run
+        plain = run.solve()
+        unset = run.solve(sk.CancelFlag())
+        np.testing.assert_array_equal(plain[0], unset[0])
+        flag = sk.CancelFlag()
+        flag.cancel()
+        assert flag.cancelled
+        with pytest.raises(sk.CancelledError, match="subdivision fit round cancelled"):
+            run.solve(flag)
+        assert issubclass(sk.CancelledError, sk.SpringwrapError)
+    finally:
+        session.cancel()
+
+
+def test_the_modal_fit_runs_its_rounds_in_a_worker_and_a_stop_inside_a_round_leaves_the_layout_as_it_was():
+    """The modal operator's tick: each round's kernel part in a worker thread (the same rounds as one by one);
+    cancel while a round runs stops it through its flag, removes the temporary object, writes nothing."""
+    from springwrap.blender import cage_fit as cage_fit_data
+
+    layout, before, parameters, fit_target = cube_fit_scene(rounds=2)
+
+    stepped = cage_fit_data.CageFitSession(bpy.context, layout, fit_target, parameters).start()
+    while not stepped.done:
+        stepped.step()
+    stepped_positions = stepped.run.outcome().positions
+    stepped.cancel()
+
+    ticked = cage_fit_data.CageFitSession(bpy.context, layout, fit_target, parameters).start()
+    ticks = 0
+    while not ticked.done:
+        ticked.tick()
+        ticks += 1
+        if ticked._worker is not None:
+            ticked._worker.outcome()  # wait for the worker (the modal's timer would come back later)
+    np.testing.assert_array_equal(ticked.run.outcome().positions, stepped_positions)
+    assert ticks == 2 * parameters.rounds
+    ticked.cancel()
+
+    stopped = cage_fit_data.CageFitSession(bpy.context, layout, fit_target, parameters).start()
+    stopped.tick()  # a round starts in the worker
+    worker = stopped._worker
+    assert worker is not None
+    stopped.cancel()  # Esc: the flag set, the worker joined
+    assert worker.cancel_flag.cancelled and not worker.running and stopped._worker is None
+    assert stopped.run.round == 0
+    assert snapshot(layout) == before
+    assert sorted(obj.name for obj in bpy.data.objects) == ["Layout", "Target"]

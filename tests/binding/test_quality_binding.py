@@ -111,7 +111,13 @@ def test_kernel_readout_agrees_with_the_numpy_reference(offset, seed):
         reference = np.array([reference_normal(shape, face) for face in reference_faces(corners, sizes)])
         assert np.allclose(normals, reference, atol=1e-9 * max(1.0, offset))
         judged += int(expected.sum())
+        stretch, together, diagonal = sk.layout_readout(shape, points, corners, sizes, edges)
+        assert np.array_equal(together, expected), name  # the read-out's one call judges as the reference
+        assert np.allclose(stretch, reference_stretch(shape, points, edges))
+        assert diagonal == pytest.approx(float(np.linalg.norm(shape.max(axis=0) - shape.min(axis=0))))
     assert judged > 0  # the fold and the crumpling turned faces over: the comparison judged both answers
+    stretch, flipped, _ = sk.layout_readout(points, None, corners, sizes, edges)
+    assert (stretch == 1.0).all() and not flipped.any()  # no rest shape: nothing measured against it
 
 
 def test_non_finite_and_degenerate_inputs_read_as_the_reference_does():

@@ -151,9 +151,9 @@ class WorseningFit:
     def __getattr__(self, name):
         return getattr(self.fit, name)
 
-    def round(self, target, positions, offsets):
+    def round(self, target, positions, offsets, cancel=None):
         self.rounds += 1
-        cage, distances, trusted = self.fit.round(target, positions, offsets)
+        cage, distances, trusted = self.fit.round(target, positions, offsets, cancel=cancel)
         if self.rounds == self.bad_round:
             cage = (cage * 1.3).astype(np.float32)
         return cage, distances, trusted

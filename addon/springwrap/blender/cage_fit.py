@@ -94,7 +94,9 @@ class CageFitSession:
     round by round: :meth:`start` checks and reads everything, refuses a fit that will not fit in memory
     (``core.cage_fit.check_fit_size``) and builds the run (Blender's subdivision on a temporary object);
     :meth:`step` runs a round; :meth:`finish` writes the best cage (moved vertices become space-points) and
-    :meth:`cancel` writes nothing. Either removes the temporary object. Anchors hold their vertex's point of the
+    :meth:`cancel` writes nothing. Either removes the temporary object. The modal operator drives it by
+    :meth:`tick` instead of :meth:`step`: the kernel's part of each round runs in a worker thread
+    (``core.cage_fit.RoundWorker``) and :meth:`cancel` stops it inside the round. Anchors hold their vertex's point of the
     subdivided surface on their target point (face anchors found again on the current target; the list itself
     is not rewritten). Every problem raises one of ``core.errors.ERRORS`` before anything is written.
     """
@@ -107,6 +109,7 @@ class CageFitSession:
         self.run = None
         self.size = None
         self._subdivision = None
+        self._worker = None
 
     def start(self) -> "CageFitSession":
         layout, parameters = self.layout, self.parameters
@@ -172,6 +175,22 @@ class CageFitSession:
             self.cancel()
             raise
 
+    def tick(self) -> None:
+        """Drive the fit from a timer: start the next round's kernel part in a worker thread when none runs, take
+        a finished one (Blender's subdivision and the distances, here in the main thread). Raises what the
+        round raised (the temporary object removed)."""
+        if self._worker is None:
+            self._worker = cage_fit.RoundWorker(self.run)
+            return
+        if self._worker.running:
+            return
+        worker, self._worker = self._worker, None
+        try:
+            self.run.advance(worker.outcome())
+        except BaseException:
+            self.cancel()
+            raise
+
     def status_text(self) -> str:
         """The interface's progress line."""
         return (
@@ -191,7 +210,11 @@ class CageFitSession:
         return outcome
 
     def cancel(self) -> None:
-        """Remove the temporary object; the layout is left as it was."""
+        """Stop a round running in the worker (inside the round) and remove the temporary object; the layout is
+        left as it was before the fit."""
+        if self._worker is not None:
+            self._worker.stop()
+            self._worker = None
         if self._subdivision is not None:
             self._subdivision.__exit__(None, None, None)
             self._subdivision = None

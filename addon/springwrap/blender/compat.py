@@ -159,3 +159,23 @@ def read_corner_vertices(mesh: "bpy.types.Mesh") -> np.ndarray:
     else:
         mesh.loops.foreach_get("vertex_index", values)
     return values.astype(np.uint32)
+
+
+def read_face_corners(mesh: "bpy.types.Mesh") -> tuple[np.ndarray, np.ndarray]:
+    """((sum of sizes,) uint32 corners face by face, (F,) uint32 corner count of each face). Blender 4.0+ stores
+    faces as offsets into corners kept in face order, so the corners are ``.corner_vert`` as it is and the sizes
+    the offsets' steps (one read); older versions may hold corners in any order: ``loop_start`` and
+    ``loop_total`` place them."""
+    face_count = len(mesh.polygons)
+    loop_vertices = read_corner_vertices(mesh)
+    loop_starts = np.empty(face_count, dtype=np.int32)
+    mesh.polygons.foreach_get("loop_start", loop_starts)
+    if bpy.app.version >= (4, 0, 0):
+        sizes = np.diff(loop_starts, append=np.int32(loop_vertices.size)).astype(np.uint32)
+        return loop_vertices, sizes
+    sizes = np.empty(face_count, dtype=np.uint32)
+    mesh.polygons.foreach_get("loop_total", sizes)
+    starts = loop_starts.astype(np.int64)
+    # Corners face by face: loop_start + 0 .. loop_total - 1.
+    offsets = np.repeat(starts - np.concatenate([[0], np.cumsum(sizes, dtype=np.int64)[:-1]]), sizes)
+    return loop_vertices[np.arange(int(sizes.sum()), dtype=np.int64) + offsets], sizes

@@ -178,14 +178,7 @@ def read_layout_topology(layout: bpy.types.Object, seams: bool = True):
     mesh = layout.data
     face_count, edge_count = len(mesh.polygons), len(mesh.edges)
     wrap_inputs.check_wrappable(layout.name, face_count, edge_count)
-    loop_vertices = compat.read_corner_vertices(mesh)
-    loop_starts = np.empty(face_count, dtype=np.int64)
-    mesh.polygons.foreach_get("loop_start", loop_starts)
-    face_sizes = np.empty(face_count, dtype=np.uint32)
-    mesh.polygons.foreach_get("loop_total", face_sizes)
-    # Corners face by face: loop_start + 0 .. loop_total - 1 (loops need not be in face order).
-    offsets = np.repeat(loop_starts - np.concatenate([[0], np.cumsum(face_sizes, dtype=np.int64)[:-1]]), face_sizes)
-    face_corners = loop_vertices[np.arange(int(face_sizes.sum()), dtype=np.int64) + offsets]
+    face_corners, face_sizes = compat.read_face_corners(mesh)
     edges = np.empty(edge_count * 2, dtype=np.uint32)
     mesh.edges.foreach_get("vertices", edges)
     edges = edges.reshape(-1, 2)

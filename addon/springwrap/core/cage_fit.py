@@ -10,6 +10,7 @@ to the kernel as offsets, and lets the kernel solve with ``S`` as the Jacobian.
 """
 
 import os
+import threading
 from collections.abc import Callable
 from typing import NamedTuple
 
@@ -318,7 +319,18 @@ class CageFitRun:
 
     def step(self) -> None:
         """One round from the last cage; the best cage so far is kept."""
-        self.positions, _, self.trusted = self.fit.round(self.target_mesh, self.positions, self.offsets)
+        self.advance(self.solve())
+
+    def solve(self, cancel=None) -> tuple:
+        """The kernel's part of the next round (reads no Blender data, so it may run in a worker thread: the
+        kernel frees the GIL). ``cancel``: a ``springwrap_kernel.CancelFlag`` the round asks inside its long
+        loops; once set, the round raises ``springwrap_kernel.CancelledError`` and nothing here changed."""
+        return self.fit.round(self.target_mesh, self.positions, self.offsets, cancel=cancel)
+
+    def advance(self, solved: tuple) -> None:
+        """Take a round :meth:`solve` made: Blender's subdivision at its cage (``evaluate``), its distances, the
+        best cage so far kept."""
+        self.positions, _, self.trusted = solved
         self.offsets = self._offsets_at(self.positions)
         self.round += 1
         distances = self._distances_at(self.positions, self.offsets)
@@ -340,6 +352,41 @@ class CageFitRun:
             exact=self.matching is not None,
             kept_round=kept,
         )
+
+
+class RoundWorker:
+    """The kernel's part of one round (:meth:`CageFitRun.solve`) in a worker thread, so that the interface keeps
+    handling events (Esc) while it runs: :meth:`stop` sets its cancellation flag, which the kernel asks inside
+    its loops, and waits for the thread; :meth:`outcome` is the solved round (or raises what the round raised)."""
+
+    def __init__(self, run: CageFitRun) -> None:
+        self.cancel_flag = springwrap_kernel.CancelFlag()
+        self._outcome = None
+        self._error = None
+        self._thread = threading.Thread(target=self._solve, args=(run,), name="springwrap fit round", daemon=True)
+        self._thread.start()
+
+    def _solve(self, run: CageFitRun) -> None:
+        try:
+            self._outcome = run.solve(self.cancel_flag)
+        except BaseException as error:  # noqa: BLE001  (handed to the main thread, raised there by outcome())
+            self._error = error
+
+    @property
+    def running(self) -> bool:
+        return self._thread.is_alive()
+
+    def outcome(self) -> tuple:
+        """The solved round (waits for it); raises the round's exception."""
+        self._thread.join()
+        if self._error is not None:
+            raise self._error
+        return self._outcome
+
+    def stop(self) -> None:
+        """Ask the round to stop and wait for the thread (the kernel answers within milliseconds)."""
+        self.cancel_flag.cancel()
+        self._thread.join()
 
 
 def fit_cage(target_mesh, cage_world: np.ndarray, face_corners, face_sizes, movable, **options) -> CageFitOutcome:

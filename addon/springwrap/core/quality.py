@@ -20,7 +20,7 @@ Three numbers an artist can read after a snap, projection, wrap or mirror:
 :func:`summary` turns a :class:`Readout` into the numbers of the command line's report (percentiles, counts;
 the batch summary judges them, ``blender_scripts/retarget_batch.py``); :func:`problem_mask` is what
 ``springwrap.select_problems`` selects; :func:`heat_scale` and :func:`ramp_colours` are the heat-map's colours.
-The three measures run in the kernel (``springwrap_kernel.vertex_stretch``, ``flipped_faces``,
+The three measures run in the kernel (``springwrap_kernel.layout_readout`` for the stretch and the flips,
 ``TargetMesh.surface_distances``: Rust, in parallel); this module prepares their arrays and reads the results.
 """
 
@@ -134,19 +134,23 @@ def measure(world_points: np.ndarray, world_rest: np.ndarray | None, topology, m
     """The :class:`Readout` of a layout at ``world_points`` (rest shape ``world_rest``, both (N, 3) world; None:
     no usable rest shape, the stretch reads 1 and no face is flipped) with ``topology`` (a
     ``core.subdivision.LayoutTopology``) on the target ``mesh`` (a ``CentredMesh``). ``state``: the layout's
-    face-points at those positions, where the distances' searches start (see :func:`vertex_distances`)."""
-    world_points = np.asarray(world_points, dtype=np.float64).reshape(-1, 3)
-    if world_rest is None:
-        stretch = np.ones(world_points.shape[0])
-        flipped = np.zeros(np.asarray(topology.face_sizes).size, dtype=bool)
-    else:
-        stretch = vertex_stretch(world_points, world_rest, topology.edges)
-        flipped = flipped_faces(world_points, world_rest, topology.face_corners, topology.face_sizes, topology.edges)
+    face-points at those positions, where the distances' searches start (see :func:`vertex_distances`).
+
+    The stretch, the flips and the layout's size come from one kernel call (``springwrap_kernel.layout_readout``:
+    the faces and edges checked once, each vertex's ring measured once), the distances from the target's."""
+    world_points = _points64(world_points)
+    stretch, flipped, diagonal = springwrap_kernel.layout_readout(
+        world_points,
+        None if world_rest is None else _points64(world_rest),
+        _indices(topology.face_corners),
+        _indices(topology.face_sizes),
+        _pairs(topology.edges),
+    )
     return Readout(
         distances=vertex_distances(world_points, mesh, state),
         stretch=stretch,
         flipped=flipped,
-        diagonal=bounding_diagonal(world_points),
+        diagonal=diagonal,
     )
 
 

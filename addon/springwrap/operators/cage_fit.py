@@ -105,7 +105,8 @@ class SPRINGWRAP_OT_fit_subdivision(LayoutOperator, bpy.types.Operator):
 
     def invoke(self, context, event):
         """In the interface a fit estimated longer than ``core.cage_fit.MODAL_SECONDS`` runs round by round: the
-        progress in the header and the status bar, Esc stops it between rounds with the layout as it was."""
+        progress in the header and the status bar; Esc stops it, inside a round too, with the layout as it was
+        before the fit."""
         if bpy.app.background or context.window is None:
             return self.execute(context)
         layout = open_layout(self, context, moves_vertices=True)
@@ -144,7 +145,7 @@ class SPRINGWRAP_OT_fit_subdivision(LayoutOperator, bpy.types.Operator):
         if event.type != "TIMER":
             return {"PASS_THROUGH"}
         try:
-            self._fit.step()
+            self._fit.tick()  # the round's kernel part runs in a worker thread: Esc stops it inside the round
             if not self._fit.done:
                 self._show_status(context)
                 return {"RUNNING_MODAL"}

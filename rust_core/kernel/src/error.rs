@@ -176,6 +176,12 @@ pub enum KernelError {
         /// The radius of the region the wrap can reach.
         reach: f32,
     },
+    /// The caller asked a long computation to stop (its cancellation check said so); nothing it
+    /// would have returned was made.
+    Cancelled {
+        /// What was stopped, e.g. `"subdivision fit round"`.
+        what: &'static str,
+    },
 }
 
 impl fmt::Display for KernelError {
@@ -265,6 +271,7 @@ impl fmt::Display for KernelError {
                  (ten times the target's size); the layout was rolled back to before that step \
                  (lower the thin plate weight, or use the energy solver)"
             ),
+            Self::Cancelled { what } => write!(f, "{what} cancelled"),
             Self::TooLarge { what, count, max } => {
                 write!(f, "too many {what}: {count} (at most {max} supported)")
             }

@@ -70,7 +70,9 @@ pub use fit::{
 pub use layout::{Curve, CurveKind, LayoutStructure, LineTriple};
 pub use mesh::{NO_TRIANGLE, TargetMesh, TargetMeshOptions, TriangleEdge};
 pub use parts::{FollowSettings, SurfaceFollower, connected_pieces};
-pub use quality::{LayoutFaces, face_normals, flipped_faces, vertex_stretch};
+pub use quality::{
+    LayoutFaces, LayoutReadout, face_normals, flipped_faces, layout_readout, vertex_stretch,
+};
 pub use surface::{WalkEnd, WalkOutcome};
 pub use validate::{BARYCENTRIC_RANGE, MAX_COORDINATE};
 pub use wrap::{

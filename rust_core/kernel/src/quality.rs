@@ -29,6 +29,9 @@ use crate::query::point_triangle::closest_point_on_triangle;
 /// Faces per rayon task when judging flips: a few microseconds each.
 const FACES_PER_TASK: usize = 256;
 
+/// Vertices per rayon task when measuring rings: a microsecond or less each.
+const VERTICES_PER_TASK: usize = 1024;
+
 /// A layout's faces: `corners` lists each face's vertices in order, face after face; `sizes` says
 /// how many corners each face has (their sum is `corners.len()`).
 #[derive(Debug, Clone, Copy)]
@@ -56,21 +59,20 @@ impl LayoutFaces<'_> {
                 second: next,
             });
         }
-        for (face, &start) in starts.iter().enumerate() {
-            let end = start + self.sizes[face] as usize;
-            if let Some(&vertex) = self.corners[start..end]
-                .iter()
-                .find(|&&vertex| vertex as usize >= vertex_count)
-            {
-                return Err(KernelError::LayoutIndexOutOfRange {
-                    element: "face",
-                    index: face,
-                    vertex,
-                    vertex_count,
-                });
-            }
-        }
-        Ok(starts)
+        // Checked in parallel; the face is looked for only when a corner is out of range.
+        let Some(corner) = self
+            .corners
+            .par_iter()
+            .position_first(|&vertex| vertex as usize >= vertex_count)
+        else {
+            return Ok(starts);
+        };
+        Err(KernelError::LayoutIndexOutOfRange {
+            element: "face",
+            index: starts.partition_point(|&start| start <= corner) - 1,
+            vertex: self.corners[corner],
+            vertex_count,
+        })
     }
 }
 
@@ -87,17 +89,22 @@ fn check_lengths(points: &[DVec3], rest: &[DVec3]) -> Result<(), KernelError> {
 }
 
 pub(crate) fn check_edges(edges: &[[u32; 2]], vertex_count: usize) -> Result<(), KernelError> {
-    for (index, edge) in edges.iter().enumerate() {
-        if let Some(&vertex) = edge.iter().find(|&&vertex| vertex as usize >= vertex_count) {
-            return Err(KernelError::LayoutIndexOutOfRange {
-                element: "edge",
-                index,
-                vertex,
-                vertex_count,
-            });
-        }
+    let outside = |vertex: &u32| *vertex as usize >= vertex_count;
+    match edges
+        .par_iter()
+        .position_first(|edge| edge.iter().any(outside))
+    {
+        None => Ok(()),
+        Some(index) => Err(KernelError::LayoutIndexOutOfRange {
+            element: "edge",
+            index,
+            vertex: *edges[index]
+                .iter()
+                .find(|vertex| outside(vertex))
+                .unwrap_or(&0),
+            vertex_count,
+        }),
     }
-    Ok(())
 }
 
 /// Each vertex's mean incident edge length now over the same at rest (1 where nothing can be
@@ -176,13 +183,15 @@ pub fn face_normals(points: &[DVec3], faces: LayoutFaces<'_>) -> Result<Vec<DVec
 /// Each vertex's edge neighbours, in compressed rows: the neighbours of `v` are
 /// `neighbours[offsets[v]..offsets[v + 1]]`.
 struct Neighbours {
-    offsets: Vec<usize>,
+    offsets: Vec<u32>,
     neighbours: Vec<u32>,
 }
 
 impl Neighbours {
     fn new(edges: &[[u32; 2]], vertex_count: usize) -> Self {
-        let mut offsets = vec![0usize; vertex_count + 1];
+        // Counts at index v + 1, then their sums: offsets[v + 1] is where v's row ends, and, while
+        // the rows fill, offsets[v] where the next of v's neighbours goes (it ends at v's start).
+        let mut offsets = vec![0u32; vertex_count + 1];
         for &[a, b] in edges {
             offsets[a as usize + 1] += 1;
             offsets[b as usize + 1] += 1;
@@ -190,14 +199,18 @@ impl Neighbours {
         for index in 0..vertex_count {
             offsets[index + 1] += offsets[index];
         }
-        let mut next = offsets.clone();
-        let mut neighbours = vec![0u32; offsets[vertex_count]];
+        let mut neighbours = vec![0u32; offsets[vertex_count] as usize];
         for &[a, b] in edges {
             for (from, to) in [(a, b), (b, a)] {
-                neighbours[next[from as usize]] = to;
-                next[from as usize] += 1;
+                neighbours[offsets[from as usize] as usize] = to;
+                offsets[from as usize] += 1;
             }
         }
+        // Each start moved to the next row's: shift back.
+        for index in (1..=vertex_count).rev() {
+            offsets[index] = offsets[index - 1];
+        }
+        offsets[0] = 0;
         Self {
             offsets,
             neighbours,
@@ -205,52 +218,102 @@ impl Neighbours {
     }
 
     fn of(&self, vertex: u32) -> &[u32] {
-        &self.neighbours[self.offsets[vertex as usize]..self.offsets[vertex as usize + 1]]
+        &self.neighbours
+            [self.offsets[vertex as usize] as usize..self.offsets[vertex as usize + 1] as usize]
     }
 }
 
-/// The proper rotation that best takes the rest points of `group` onto their points now (about
-/// their centroids); the identity when nothing can be fitted. Vertices not finite in both shapes
-/// are left out.
-fn best_rotation(
-    points: &[DVec3],
-    rest: &[DVec3],
-    group: impl Iterator<Item = u32> + Clone,
-) -> glam::DQuat {
-    // Sums relative to the group's first usable vertex, then centred: one pass, precise far from
-    // the origin.
-    let usable =
-        |vertex: &u32| points[*vertex as usize].is_finite() && rest[*vertex as usize].is_finite();
-    let Some(first) = group.clone().find(usable) else {
-        return glam::DQuat::IDENTITY;
-    };
-    let (origin_now, origin_rest) = (points[first as usize], rest[first as usize]);
-    let mut count = 0.0f64;
-    let (mut sum_now, mut sum_rest) = (DVec3::ZERO, DVec3::ZERO);
-    let mut cross = [[0.0f64; 3]; 3];
-    for vertex in group.filter(usable) {
-        let now = points[vertex as usize] - origin_now;
-        let before = rest[vertex as usize] - origin_rest;
-        count += 1.0;
-        sum_now += now;
-        sum_rest += before;
-        let (now, before) = (now.to_array(), before.to_array());
-        for (row, out) in cross.iter_mut().enumerate() {
-            for (column, value) in out.iter_mut().enumerate() {
-                *value += before[row] * now[column];
+/// The first and second moments of a group of vertices in both shapes: how many, their centroids
+/// at rest and now, and their centred cross-covariance `Σ (rest − rest centroid)(now − now
+/// centroid)ᵀ` (rows at rest, columns now). Groups merge exactly (Chan's pairwise update), so a
+/// face's neighbourhood is the merge of its corners' closed rings, each computed once.
+#[derive(Debug, Clone, Copy, Default)]
+struct Moments {
+    count: f64,
+    mean_rest: DVec3,
+    mean_now: DVec3,
+    cross: [[f64; 3]; 3],
+}
+
+impl Moments {
+    /// The moments of `group`'s vertices finite in both shapes (sums relative to the first of them,
+    /// then centred: one pass, precise far from the origin).
+    fn of(points: &[DVec3], rest: &[DVec3], group: impl Iterator<Item = u32>) -> Self {
+        let mut usable = group
+            .map(|vertex| (points[vertex as usize], rest[vertex as usize]))
+            .filter(|(now, before)| now.is_finite() && before.is_finite())
+            .peekable();
+        let Some(&(origin_now, origin_rest)) = usable.peek() else {
+            return Self::default();
+        };
+        let mut count = 0.0f64;
+        let (mut sum_now, mut sum_rest) = (DVec3::ZERO, DVec3::ZERO);
+        let mut cross = [[0.0f64; 3]; 3];
+        for (now, before) in usable {
+            let (now, before) = (now - origin_now, before - origin_rest);
+            count += 1.0;
+            sum_now += now;
+            sum_rest += before;
+            let (now, before) = (now.to_array(), before.to_array());
+            for (row, out) in cross.iter_mut().enumerate() {
+                for (column, value) in out.iter_mut().enumerate() {
+                    *value += before[row] * now[column];
+                }
             }
         }
+        let (mean_now, mean_rest) = (sum_now / count, sum_rest / count);
+        let (now, before) = (mean_now.to_array(), mean_rest.to_array());
+        for (row, out) in cross.iter_mut().enumerate() {
+            for (column, value) in out.iter_mut().enumerate() {
+                *value -= count * before[row] * now[column];
+            }
+        }
+        Self {
+            count,
+            mean_rest: origin_rest + mean_rest,
+            mean_now: origin_now + mean_now,
+            cross,
+        }
     }
-    let (mean_now, mean_rest) = ((sum_now / count).to_array(), (sum_rest / count).to_array());
-    for (row, out) in cross.iter_mut().enumerate() {
-        for (column, value) in out.iter_mut().enumerate() {
-            *value -= count * mean_rest[row] * mean_now[column];
+
+    /// The moments of both groups together.
+    fn merge(&mut self, other: &Self) {
+        if other.count == 0.0 {
+            return;
+        }
+        if self.count == 0.0 {
+            *self = *other;
+            return;
+        }
+        let count = self.count + other.count;
+        let share = other.count / count;
+        let (apart_rest, apart_now) = (
+            other.mean_rest - self.mean_rest,
+            other.mean_now - self.mean_now,
+        );
+        let weight = self.count * share;
+        let (rest, now) = (apart_rest.to_array(), apart_now.to_array());
+        for (row, out) in self.cross.iter_mut().enumerate() {
+            for (column, value) in out.iter_mut().enumerate() {
+                *value += other.cross[row][column] + weight * rest[row] * now[column];
+            }
+        }
+        self.count = count;
+        self.mean_rest += share * apart_rest;
+        self.mean_now += share * apart_now;
+    }
+
+    /// The proper rotation that best takes the group's rest points onto their points now (about
+    /// their centroids); the identity when nothing can be fitted.
+    fn best_rotation(&self) -> glam::DQuat {
+        let mut cross = self.cross;
+        for value in cross.iter_mut().flatten() {
             if !value.is_finite() {
                 *value = 0.0;
             }
         }
+        fast_horn_rotation(&cross)
     }
-    fast_horn_rotation(&cross)
 }
 
 /// [`horn_rotation`] without the eigen-solver's sweeps, as Theobald's QCP finds it: the largest
@@ -352,7 +415,32 @@ pub fn flipped_faces(
     let starts = faces.starts(points.len())?;
     check_edges(edges, points.len())?;
     let neighbours = Neighbours::new(edges, points.len());
-    Ok(starts
+    let rings = ring_moments(points, rest, &neighbours);
+    Ok(flips(points, rest, faces, &starts, &rings))
+}
+
+/// Each vertex's closed ring (itself and its edge neighbours, as often as each is reached).
+fn ring_moments(points: &[DVec3], rest: &[DVec3], neighbours: &Neighbours) -> Vec<Moments> {
+    (0..points.len() as u32)
+        .into_par_iter()
+        .with_min_len(VERTICES_PER_TASK)
+        .map(|vertex| {
+            let ring = std::iter::once(vertex).chain(neighbours.of(vertex).iter().copied());
+            Moments::of(points, rest, ring)
+        })
+        .collect()
+}
+
+/// Whether each face is turned over (see the module's documentation), its neighbourhood the merge
+/// of its corners' closed rings.
+fn flips(
+    points: &[DVec3],
+    rest: &[DVec3],
+    faces: LayoutFaces<'_>,
+    starts: &[usize],
+    rings: &[Moments],
+) -> Vec<bool> {
+    starts
         .par_iter()
         .zip(faces.sizes)
         .with_min_len(FACES_PER_TASK)
@@ -363,15 +451,111 @@ pub fn flipped_faces(
             if normal == DVec3::ZERO || rest_normal == DVec3::ZERO {
                 return false;
             }
-            let group = corners.iter().copied().chain(
-                corners
-                    .iter()
-                    .flat_map(|&corner| neighbours.of(corner).iter().copied()),
-            );
-            let facing = (best_rotation(points, rest, group) * rest_normal).dot(normal);
+            let mut group = Moments::default();
+            for &corner in corners {
+                group.merge(&rings[corner as usize]);
+            }
+            let facing = (group.best_rotation() * rest_normal).dot(normal);
             facing.is_finite() && facing < 0.0
         })
-        .collect())
+        .collect()
+}
+
+/// The read-out's layout measures in one pass (see [`layout_readout`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LayoutReadout {
+    /// Per vertex, as [`vertex_stretch`] (all 1 without a rest shape).
+    pub stretch: Vec<f64>,
+    /// Per face, as [`flipped_faces`] (none without a rest shape).
+    pub flipped: Vec<bool>,
+    /// The diagonal of the finite points' bounding box (0 for none).
+    pub diagonal: f64,
+}
+
+/// The stretch, the flips and the layout's size at once: the faces, edges and neighbourhoods are
+/// checked and built once, each vertex's edges are measured once for the stretch and the ring it
+/// adds to its faces' neighbourhoods. `rest` `None`: no usable rest shape (the stretch reads 1,
+/// no face is flipped).
+///
+/// # Errors
+/// As [`flipped_faces`].
+pub fn layout_readout(
+    points: &[DVec3],
+    rest: Option<&[DVec3]>,
+    faces: LayoutFaces<'_>,
+    edges: &[[u32; 2]],
+) -> Result<LayoutReadout, KernelError> {
+    let starts = faces.starts(points.len())?;
+    check_edges(edges, points.len())?;
+    let diagonal = finite_diagonal(points);
+    let Some(rest) = rest else {
+        return Ok(LayoutReadout {
+            stretch: vec![1.0; points.len()],
+            flipped: vec![false; starts.len()],
+            diagonal,
+        });
+    };
+    check_lengths(points, rest)?;
+    let neighbours = Neighbours::new(edges, points.len());
+    let (mut stretch, mut rings) = (Vec::new(), Vec::new());
+    (0..points.len() as u32)
+        .into_par_iter()
+        .with_min_len(VERTICES_PER_TASK)
+        .map(|vertex| {
+            let around = neighbours.of(vertex);
+            let ring = std::iter::once(vertex).chain(around.iter().copied());
+            (
+                ring_stretch(points, rest, vertex, around),
+                Moments::of(points, rest, ring),
+            )
+        })
+        .unzip_into_vecs(&mut stretch, &mut rings);
+    let flipped = flips(points, rest, faces, &starts, &rings);
+    Ok(LayoutReadout {
+        stretch,
+        flipped,
+        diagonal,
+    })
+}
+
+/// One vertex's stretch from its edges (as [`vertex_stretch`] sums them edge by edge).
+fn ring_stretch(points: &[DVec3], rest: &[DVec3], vertex: u32, around: &[u32]) -> f64 {
+    let (mut now_sum, mut rest_sum) = (0.0f64, 0.0f64);
+    let (here, here_before) = (points[vertex as usize], rest[vertex as usize]);
+    for &other in around {
+        let now = here.distance(points[other as usize]);
+        let before = here_before.distance(rest[other as usize]);
+        if now.is_finite() && before.is_finite() {
+            now_sum += now;
+            rest_sum += before;
+        }
+    }
+    if rest_sum > 0.0 {
+        now_sum / rest_sum
+    } else {
+        1.0
+    }
+}
+
+/// The diagonal of the finite points' bounding box (0 for none).
+fn finite_diagonal(points: &[DVec3]) -> f64 {
+    let (low, high) = points
+        .par_iter()
+        .with_min_len(VERTICES_PER_TASK)
+        .filter(|point| point.is_finite())
+        .fold(
+            || (DVec3::INFINITY, DVec3::NEG_INFINITY),
+            |(low, high), point| (low.min(*point), high.max(*point)),
+        )
+        .reduce(
+            || (DVec3::INFINITY, DVec3::NEG_INFINITY),
+            |(a, b), (c, d)| (a.min(c), b.max(d)),
+        );
+    if low.x <= high.x {
+        low.distance(high)
+    } else {
+        0.0
+    }
 }
 
 impl TargetMesh {
@@ -599,6 +783,107 @@ mod tests {
             vertex_stretch(&points, &points[1..], &edges),
             Err(KernelError::LengthMismatch { .. })
         ));
+    }
+
+    /// Positions now and at rest, face corners, face sizes, edges.
+    type Warped = (Vec<DVec3>, Vec<DVec3>, Vec<u32>, Vec<u32>, Vec<[u32; 2]>);
+
+    /// A grid of `n` x `n` quads warped and folded at random.
+    fn warped(n: u32, seed: u64) -> Warped {
+        let (rest, corners, sizes, edges) = grid(n);
+        let mut state = seed;
+        let mut random = move || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let points = rest
+            .iter()
+            .map(|p| {
+                let bent = DVec3::new(p.x, p.y * p.y.cos(), p.y.sin() * 3.0);
+                bent + 1.5 * DVec3::new(random(), random(), random()) + DVec3::splat(1e4)
+            })
+            .collect();
+        (points, rest, corners, sizes, edges)
+    }
+
+    #[test]
+    fn a_neighbourhood_merged_from_rings_has_the_groups_moments() {
+        let (points, rest, corners, sizes, edges) = warped(6, 3);
+        let neighbours = Neighbours::new(&edges, points.len());
+        let rings = ring_moments(&points, &rest, &neighbours);
+        for face in corners.chunks_exact(sizes[0] as usize) {
+            let group = face.iter().flat_map(|&corner| {
+                std::iter::once(corner).chain(neighbours.of(corner).iter().copied())
+            });
+            let direct = Moments::of(&points, &rest, group);
+            let mut merged = Moments::default();
+            for &corner in face {
+                merged.merge(&rings[corner as usize]);
+            }
+            assert_eq!(merged.count, direct.count);
+            assert!(merged.mean_now.distance(direct.mean_now) < 1e-9);
+            assert!(merged.mean_rest.distance(direct.mean_rest) < 1e-9);
+            for (a, b) in merged
+                .cross
+                .iter()
+                .flatten()
+                .zip(direct.cross.iter().flatten())
+            {
+                assert!((a - b).abs() < 1e-8 * (1.0 + b.abs()), "{a} against {b}");
+            }
+        }
+    }
+
+    #[test]
+    fn the_one_pass_readout_is_the_stretch_flips_and_size() {
+        let (points, rest, corners, sizes, edges) = warped(12, 5);
+        let faces = LayoutFaces {
+            corners: &corners,
+            sizes: &sizes,
+        };
+        let readout = layout_readout(&points, Some(&rest), faces, &edges).unwrap();
+        let stretch = vertex_stretch(&points, &rest, &edges).unwrap();
+        for (a, b) in readout.stretch.iter().zip(&stretch) {
+            assert!((a - b).abs() < 1e-12 * b.abs().max(1.0));
+        }
+        let flipped = flipped_faces(&points, &rest, faces, &edges).unwrap();
+        assert_eq!(readout.flipped, flipped);
+        assert!(flipped.contains(&true) && flipped.contains(&false));
+        let (low, high) = points
+            .iter()
+            .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(low, high), p| {
+                (low.min(*p), high.max(*p))
+            });
+        assert!((readout.diagonal - low.distance(high)).abs() < 1e-9);
+        let unmeasured = layout_readout(&points, None, faces, &edges).unwrap();
+        assert!(unmeasured.stretch.iter().all(|&s| s == 1.0));
+        assert!(!unmeasured.flipped.contains(&true));
+        assert_eq!(unmeasured.diagonal, readout.diagonal);
+        let mut broken = points.clone();
+        broken[0] = DVec3::NAN;
+        let partial = layout_readout(&broken, Some(&rest), faces, &edges).unwrap();
+        assert!(partial.diagonal > 0.0 && partial.diagonal <= readout.diagonal);
+        assert!(partial.flipped.len() == flipped.len() && partial.stretch[0] == 1.0);
+        assert!(matches!(
+            layout_readout(&points, Some(&rest[1..]), faces, &edges),
+            Err(KernelError::LengthMismatch { .. })
+        ));
+        assert_eq!(
+            layout_readout(
+                &[],
+                None,
+                LayoutFaces {
+                    corners: &[],
+                    sizes: &[]
+                },
+                &[]
+            )
+            .unwrap()
+            .diagonal,
+            0.0
+        );
     }
 
     #[test]

@@ -4,6 +4,7 @@
 mod common;
 
 use std::collections::HashMap;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 use glam::DVec3;
 use springwrap_kernel::fit::{
@@ -328,4 +329,34 @@ fn bad_inputs_are_refused_with_the_reason() {
         matches!(error, KernelError::LengthMismatch { .. }),
         "{error}"
     );
+}
+
+#[test]
+fn a_round_asked_to_stop_inside_its_loops_returns_cancelled_and_an_unasked_one_is_the_plain_round()
+{
+    let target = sphere_target(1.0);
+    let (cage, fit) = cube_cage_fit(None);
+    let plain = fit.round(&target, &cage, None).unwrap();
+    let never = fit.round_until(&target, &cage, None, &|| false).unwrap();
+    assert_eq!(plain, never);
+    // A stop that says yes at its n-th question: the round asks it past its start, inside its loops.
+    for after in [1usize, 2, 3, 5] {
+        let asked = AtomicUsize::new(0);
+        let stop = || asked.fetch_add(1, Ordering::SeqCst) + 1 >= after;
+        let outcome = fit.round_until(&target, &cage, None, &stop);
+        assert!(
+            matches!(outcome, Err(KernelError::Cancelled { .. })),
+            "stopped at question {after}: {outcome:?}"
+        );
+    }
+    // Every question answered no: the round asks more than a few times (its loops ask, not only its start).
+    let asked = AtomicUsize::new(0);
+    let counted = fit
+        .round_until(&target, &cage, None, &|| {
+            asked.fetch_add(1, Ordering::SeqCst);
+            false
+        })
+        .unwrap();
+    assert_eq!(counted, plain);
+    assert!(asked.load(Ordering::SeqCst) > cage.len(), "{asked:?}");
 }

@@ -16,6 +16,17 @@ pub(crate) fn read_array<T: Element + Copy>(
     array: &Bound<'_, PyAny>,
     columns: Option<usize>,
 ) -> PyResult<Vec<T>> {
+    read_with(name, array, columns, <[T]>::to_vec)
+}
+
+/// As [`read_array`], handing the checked array's values to `read` instead of copying them (one
+/// copy fewer for a caller that converts them anyway).
+pub(crate) fn read_with<T: Element + Copy, R>(
+    name: &str,
+    array: &Bound<'_, PyAny>,
+    columns: Option<usize>,
+    read: impl FnOnce(&[T]) -> R,
+) -> PyResult<R> {
     let py = array.py();
     let expected_dtype = numpy::dtype::<T>(py);
     let expected_shape = match columns {
@@ -52,22 +63,21 @@ pub(crate) fn read_array<T: Element + Copy>(
             "{expectation}, got a non-contiguous array (use numpy.ascontiguousarray)"
         )));
     }
-    let values: Vec<T> = if columns.is_some() {
+    if columns.is_some() {
         let typed = untyped.cast::<PyArray2<T>>()?.readonly();
-        typed.as_slice()?.to_vec()
+        Ok(read(typed.as_slice()?))
     } else {
         let typed = untyped.cast::<PyArray1<T>>()?.readonly();
-        typed.as_slice()?.to_vec()
-    };
-    Ok(values)
+        Ok(read(typed.as_slice()?))
+    }
 }
 
 pub(crate) fn read_positions(name: &str, array: &Bound<'_, PyAny>) -> PyResult<Vec<Vec3>> {
-    let flat = read_array::<f32>(name, array, Some(3))?;
-    Ok(flat
-        .chunks_exact(3)
-        .map(|row| Vec3::new(row[0], row[1], row[2]))
-        .collect())
+    read_with(name, array, Some(3), |flat: &[f32]| {
+        flat.chunks_exact(3)
+            .map(|row| Vec3::new(row[0], row[1], row[2]))
+            .collect()
+    })
 }
 
 pub(crate) fn rows_array<'py, T: Element>(
@@ -84,18 +94,30 @@ pub(crate) fn read_pairs(name: &str, array: Option<&Bound<'_, PyAny>>) -> PyResu
     let Some(array) = array else {
         return Ok(Vec::new());
     };
-    let flat = read_array::<u32>(name, array, Some(2))?;
-    Ok(flat
-        .chunks_exact(2)
-        .map(|pair| [pair[0], pair[1]])
-        .collect())
+    read_with(name, array, Some(2), |flat: &[u32]| {
+        flat.chunks_exact(2)
+            .map(|pair| [pair[0], pair[1]])
+            .collect()
+    })
 }
 
 /// (N, 3) float64 rows as f64 points (the quality read-out's world positions).
 pub(crate) fn read_points64(name: &str, array: &Bound<'_, PyAny>) -> PyResult<Vec<DVec3>> {
-    let flat = read_array::<f64>(name, array, Some(3))?;
-    Ok(flat
-        .chunks_exact(3)
-        .map(|row| DVec3::new(row[0], row[1], row[2]))
-        .collect())
+    read_with(name, array, Some(3), |flat: &[f64]| {
+        flat.chunks_exact(3)
+            .map(|row| DVec3::new(row[0], row[1], row[2]))
+            .collect()
+    })
+}
+
+/// A layout's faces, flat: `face_corners` (every face's vertices, face after face) and `face_sizes`
+/// (each face's corner count), both 1-D uint32.
+pub(crate) fn read_faces(
+    face_corners: &Bound<'_, PyAny>,
+    face_sizes: &Bound<'_, PyAny>,
+) -> PyResult<(Vec<u32>, Vec<u32>)> {
+    Ok((
+        read_array::<u32>("face_corners", face_corners, None)?,
+        read_array::<u32>("face_sizes", face_sizes, None)?,
+    ))
 }

@@ -79,6 +79,12 @@ create_exception!(
 );
 create_exception!(
     springwrap_kernel,
+    CancelledError,
+    SpringwrapError,
+    "A long computation stopped because its cancellation flag was set (``CancelFlag.cancel()``)."
+);
+create_exception!(
+    springwrap_kernel,
     InternalError,
     SpringwrapError,
     "A bug in the kernel (a caught Rust panic). Please report it."
@@ -109,6 +115,7 @@ pub(crate) fn to_python_error(error: &KernelError) -> PyErr {
         }
         KernelError::FlatSurface { .. } => features::FlatSurfaceError::new_err(message),
         KernelError::Diverged { .. } => DivergedError::new_err(message),
+        KernelError::Cancelled { .. } => CancelledError::new_err(message),
     }
 }
 
@@ -155,6 +162,7 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
         py.get_type::<InvalidArgumentError>(),
     )?;
     m.add("TooLargeError", py.get_type::<TooLargeError>())?;
+    m.add("CancelledError", py.get_type::<CancelledError>())?;
     m.add(
         "CoordinateRangeError",
         py.get_type::<CoordinateRangeError>(),

@@ -3,6 +3,7 @@
 //! Positions cross as float32 (the array contract); the kernel works in float64 inside.
 
 use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use glam::DVec3;
 use numpy::{PyArray1, PyArray2};
@@ -13,7 +14,7 @@ use springwrap_kernel::fit::{
     BoundaryRule, SubdivisionFit, SubdivisionFitSettings, SubdivisionStencils,
 };
 
-use crate::arrays::{read_array, read_positions, rows_array};
+use crate::arrays::{read_array, read_faces, read_positions, rows_array};
 use crate::errors::{InvalidArgumentError, run_kernel};
 use crate::target_mesh::PyTargetMesh;
 
@@ -61,8 +62,7 @@ impl PySubdivisionStencils {
         levels: u32,
         boundary: &str,
     ) -> PyResult<Self> {
-        let face_corners = read_array::<u32>("face_corners", face_corners, None)?;
-        let face_sizes = read_array::<u32>("face_sizes", face_sizes, None)?;
+        let (face_corners, face_sizes) = read_faces(face_corners, face_sizes)?;
         let rule = boundary_rule(boundary)?;
         let stencils = run_kernel(py, || {
             SubdivisionStencils::new(vertex_count, &face_corners, &face_sizes, levels, rule)
@@ -261,8 +261,9 @@ impl PySubdivisionFit {
     }
 
     /// One Gauss–Newton round: ((N, 3) float32 new cage, (F,) float32 distances before it,
-    /// trusted matches).
-    #[pyo3(signature = (target, cage, offsets = None))]
+    /// trusted matches). `cancel` (a `CancelFlag`): the round asks it inside its long loops and
+    /// raises `CancelledError` soon after another thread set it (the GIL is free while it runs).
+    #[pyo3(signature = (target, cage, offsets = None, *, cancel = None))]
     #[allow(clippy::type_complexity)]
     fn round<'py>(
         &self,
@@ -270,17 +271,54 @@ impl PySubdivisionFit {
         target: &Bound<'py, PyTargetMesh>,
         cage: &Bound<'py, PyAny>,
         offsets: Option<&Bound<'py, PyAny>>,
+        cancel: Option<&Bound<'py, PyCancelFlag>>,
     ) -> PyResult<(Bound<'py, PyArray2<f32>>, Bound<'py, PyArray1<f32>>, usize)> {
         let mesh = Arc::clone(&target.get().mesh);
         let cage = read_points("cage", cage)?;
         let offsets = read_offsets(offsets)?;
         let fit = Arc::clone(&self.fit);
-        let round = run_kernel(py, || fit.round(&mesh, &cage, offsets.as_deref()))?;
+        let flag = cancel.map_or_else(
+            || Arc::new(AtomicBool::new(false)),
+            |cancel| Arc::clone(&cancel.get().flag),
+        );
+        let round = run_kernel(py, || {
+            fit.round_until(&mesh, &cage, offsets.as_deref(), &|| {
+                flag.load(Ordering::Relaxed)
+            })
+        })?;
         Ok((
             points_array(py, &round.positions)?,
             PyArray1::from_vec(py, round.distances),
             round.trusted,
         ))
+    }
+}
+
+/// A flag another thread sets to stop a long kernel computation (`SubdivisionFit.round(...,
+/// cancel=flag)`): the computation asks it inside its loops and raises `CancelledError`.
+#[pyclass(name = "CancelFlag", module = "springwrap_kernel", frozen)]
+pub(crate) struct PyCancelFlag {
+    flag: Arc<AtomicBool>,
+}
+
+#[pymethods]
+impl PyCancelFlag {
+    #[new]
+    fn new() -> Self {
+        Self {
+            flag: Arc::new(AtomicBool::new(false)),
+        }
+    }
+
+    /// Ask every computation holding this flag to stop.
+    fn cancel(&self) {
+        self.flag.store(true, Ordering::Relaxed);
+    }
+
+    /// Whether `cancel()` was called.
+    #[getter]
+    fn cancelled(&self) -> bool {
+        self.flag.load(Ordering::Relaxed)
     }
 }
 
@@ -303,6 +341,7 @@ fn subdivision_fit_defaults_py(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PySubdivisionStencils>()?;
     m.add_class::<PySubdivisionFit>()?;
+    m.add_class::<PyCancelFlag>()?;
     m.add_function(wrap_pyfunction!(subdivision_fit_defaults_py, m)?)?;
     Ok(())
 }

@@ -6,7 +6,7 @@ use springwrap_kernel::mesh::MAX_ELEMENTS;
 use springwrap_kernel::{CurveKind, LayoutStructure};
 
 use crate::arguments;
-use crate::arrays::{read_array, read_pairs, rows_array};
+use crate::arrays::{read_faces, read_pairs, rows_array};
 use crate::errors::run_kernel;
 
 /// The structure of a layout mesh for the wrap: grid lines, corners, extraordinary vertices, curves.
@@ -28,8 +28,7 @@ impl PyLayoutStructure {
         seams: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let vertex_count = arguments::count("vertex_count", vertex_count, MAX_ELEMENTS)?;
-        let face_corners = read_array::<u32>("face_corners", face_corners, None)?;
-        let face_sizes = read_array::<u32>("face_sizes", face_sizes, None)?;
+        let (face_corners, face_sizes) = read_faces(face_corners, face_sizes)?;
         let edges = read_pairs("edges", edges)?;
         let seams = read_pairs("seams", seams)?;
         let structure = run_kernel(py, || {

@@ -5,4 +5,4 @@ pub mod catmull_clark;
 pub mod subdivision_fit;
 
 pub use catmull_clark::{BoundaryRule, MAX_LEVELS, SubdivisionStencils};
-pub use subdivision_fit::{FitRound, SubdivisionFit, SubdivisionFitSettings};
+pub use subdivision_fit::{FitRound, POINTS_PER_CHECK, SubdivisionFit, SubdivisionFitSettings};

@@ -27,6 +27,10 @@ use crate::fit::catmull_clark::SubdivisionStencils;
 use crate::mesh::{NO_TRIANGLE, TargetMesh};
 use crate::wrap::linear_system::{LinearSystem, Stencils};
 
+/// Closest-point queries between two cancellation checks of [`SubdivisionFit::round_until`]: a
+/// few milliseconds.
+pub const POINTS_PER_CHECK: usize = 1 << 16;
+
 /// One cage vertex's row of the data's normal equations: its diagonal, its pairs with the later
 /// vertices, its right-hand side.
 type NormalRow = (f64, Vec<(u32, f64)>, DVec3);
@@ -297,9 +301,41 @@ impl SubdivisionFit {
         cage: &[DVec3],
         offsets: Option<&[DVec3]>,
     ) -> Result<FitRound, KernelError> {
+        self.round_until(target, cage, offsets, &|| false)
+    }
+
+    /// [`SubdivisionFit::round`], asking `stop` (from any thread) between pieces of its long loops
+    /// (every [`POINTS_PER_CHECK`] closest points, every cage vertex's normal-equation row, before
+    /// the factorization): once it says true the round ends with [`KernelError::Cancelled`]
+    /// within about a piece's time, and returns nothing.
+    ///
+    /// # Errors
+    /// As [`SubdivisionFit::round`]; [`KernelError::Cancelled`] when `stop` said true.
+    pub fn round_until(
+        &self,
+        target: &TargetMesh,
+        cage: &[DVec3],
+        offsets: Option<&[DVec3]>,
+        stop: &(dyn Fn() -> bool + Sync),
+    ) -> Result<FitRound, KernelError> {
+        let cancelled = || {
+            if stop() {
+                Err(KernelError::Cancelled {
+                    what: "subdivision fit round",
+                })
+            } else {
+                Ok(())
+            }
+        };
+        cancelled()?;
         let fine = self.fine_points(cage, offsets)?;
         let points: Vec<Vec3> = fine.iter().map(|point| point.as_vec3()).collect();
-        let hits = target.closest_points(&points, self.settings.max_distance)?;
+        let mut hits = Vec::with_capacity(points.len());
+        for piece in points.chunks(POINTS_PER_CHECK) {
+            cancelled()?;
+            hits.extend(target.closest_points(piece, self.settings.max_distance)?);
+        }
+        cancelled()?;
         let normals = self.stencils.fine_normals(&fine);
         let target_normals = target.vertex_normals();
         let triangles = target.triangles();
@@ -377,8 +413,10 @@ impl SubdivisionFit {
         }
         // The data's normal matrix Sᵀ W S, row by row, written as stencils the linear system takes
         // as they are: (e_a + e_b) with weight A_ab per pair, e_a with the rest of the diagonal.
+        cancelled()?;
         let (system_terms, data_right_hand_side) =
-            self.data_normal_equations(&fine_weights, &fine_targets);
+            self.data_normal_equations(&fine_weights, &fine_targets, stop);
+        cancelled()?;
         let pair_count = system_terms.len();
         let mut all_terms = system_terms;
         for term in 0..terms.len() {
@@ -410,6 +448,7 @@ impl SubdivisionFit {
         for (row, &vertex) in system.vertex_of_row().iter().enumerate() {
             right_hand_side[row] += cage[vertex as usize] * damping;
         }
+        cancelled()?;
         system.factor(&vec![damping; rows])?;
         let solution = system.solve(&right_hand_side)?;
         if let Some(row) = solution.iter().position(|point| !point.is_finite()) {
@@ -441,6 +480,7 @@ impl SubdivisionFit {
         &self,
         fine_weights: &[f64],
         fine_targets: &[DVec3],
+        stop: &(dyn Fn() -> bool + Sync),
     ) -> (Stencils, Vec<DVec3>) {
         let cage_vertex_count = self.columns.len();
         let matrix = self.stencils.stencils();
@@ -452,6 +492,9 @@ impl SubdivisionFit {
                     let mut diagonal = 0.0;
                     let mut right_hand_side = DVec3::ZERO;
                     touched.clear();
+                    if stop() {
+                        return (diagonal, Vec::new(), right_hand_side); // the caller sees the stop
+                    }
                     for &(fine_vertex, coefficient) in &self.columns[vertex] {
                         let weight = fine_weights[fine_vertex as usize];
                         if weight == 0.0 {
@@ -534,7 +577,7 @@ mod tests {
         let targets: Vec<DVec3> = (0..fine_count)
             .map(|i| DVec3::new(i as f64, (i * i % 13) as f64, -(i as f64)))
             .collect();
-        let (terms, right_hand_side) = fit.data_normal_equations(&weights, &targets);
+        let (terms, right_hand_side) = fit.data_normal_equations(&weights, &targets, &|| false);
         let mut assembled = vec![vec![0.0f64; 12]; 12];
         for term in 0..terms.len() {
             let entries: Vec<(u32, f64)> = terms.entries(term).collect();

@@ -20,6 +20,8 @@ from ._native import (
     MAX_ELEMENTS,
     ArgumentTypeError,
     ArrayError,
+    CancelFlag,
+    CancelledError,
     CoordinateRangeError,
     DegenerateMeshError,
     DegenerateTriangleError,
@@ -43,6 +45,7 @@ from ._native import (
     fit_transform,
     flipped_faces,
     layout_pieces,
+    layout_readout,
     subdivision_fit_defaults,
     vertex_stretch,
 )
@@ -54,6 +57,8 @@ __all__ = [
     "Curvatures",
     "DegenerateMeshError",
     "DegenerateTriangleError",
+    "CancelFlag",
+    "CancelledError",
     "DivergedError",
     "EmptyMeshError",
     "FeatureCurve",
@@ -84,6 +89,7 @@ __all__ = [
     "fit_transform",
     "flipped_faces",
     "layout_pieces",
+    "layout_readout",
     "subdivision_fit_defaults",
     "vertex_stretch",
 ]

@@ -60,6 +60,9 @@ class DivergedError(SpringwrapError):
     """The wrap diverged (a point stopped being finite or left the region it can reach); the layout
     was rolled back to before the failing step."""
 
+class CancelledError(SpringwrapError):
+    """A long computation stopped because its cancellation flag was set (:meth:`CancelFlag.cancel`)."""
+
 class InternalError(SpringwrapError):
     """A bug in the kernel (a caught Rust panic). Please report it."""
 
@@ -533,9 +536,25 @@ class SubdivisionFit:
     ) -> npt.NDArray[np.float32]:
         """(F,) distance of each fine point to ``target`` (NaN off the surface or beyond ``max_distance``)."""
     def round(
-        self, target: TargetMesh, cage: npt.NDArray[np.float32], offsets: npt.NDArray[np.float32] | None = None
+        self,
+        target: TargetMesh,
+        cage: npt.NDArray[np.float32],
+        offsets: npt.NDArray[np.float32] | None = None,
+        *,
+        cancel: CancelFlag | None = None,
     ) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32], int]:
-        """One round: (the new cage, the fine points' distances before it, the trusted matches)."""
+        """One round: (the new cage, the fine points' distances before it, the trusted matches). ``cancel``: asked
+        inside the round's long loops; once another thread sets it the round raises :class:`CancelledError`."""
+
+class CancelFlag:
+    """A flag another thread sets to stop a long kernel computation (``SubdivisionFit.round(..., cancel=flag)``)."""
+
+    def __init__(self) -> None: ...
+    def cancel(self) -> None:
+        """Ask every computation holding this flag to stop."""
+    @property
+    def cancelled(self) -> bool:
+        """Whether :meth:`cancel` was called."""
 
 def feature_defaults() -> dict[str, float]:
     """The kernel's defaults of :meth:`TargetMesh.detect_features` (scale 0 = automatic, flat_threshold,
@@ -592,3 +611,14 @@ class SurfaceFollower:
 
     def apply(self, surface_now: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
         """(P, 3) part positions for the surface at ``surface_now`` ((S, 3), in the order given at rest)."""
+
+def layout_readout(
+    points: npt.NDArray[np.float64],
+    rest: npt.NDArray[np.float64] | None,
+    face_corners: npt.NDArray[np.uint32],
+    face_sizes: npt.NDArray[np.uint32],
+    edges: npt.NDArray[np.uint32],
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.bool_], float]:
+    """(stretch (N,), flipped (F,), diagonal): :func:`vertex_stretch`, :func:`flipped_faces` and the finite points'
+    bounding-box diagonal in one pass; ``rest`` None: no usable rest shape (the stretch reads 1, no face is
+    flipped)."""
