@@ -363,7 +363,8 @@ impl EnergySolver {
                 WrapSchedule::GlobalToLocal => &GLOBAL_TO_LOCAL_LEVELS,
             },
             stretches: (inputs.schedule == WrapSchedule::GlobalToLocal)
-                .then(|| Stretches::new(structure, inputs.rest)),
+                .then(|| Stretches::new(structure, inputs.rest))
+                .transpose()?,
             warming_up: true,
             level: 0,
             level_iterations: 0,
@@ -502,8 +503,8 @@ impl EnergySolver {
         if self.iterations > 0 {
             self.fit_similarities(false);
         }
-        self.smooth_rotations(level.rotation_smoothing);
-        self.fit_scales(level.scale_smoothing);
+        self.smooth_rotations(level.rotation_smoothing)?;
+        self.fit_scales(level.scale_smoothing)?;
         let normals = self.layout_normals(&self.positions);
         let width = level.welsch_width * self.mean_edge_length;
         let mut correspondences = self.correspondences(&normals, width);
@@ -570,8 +571,8 @@ impl EnergySolver {
         if self.iterations > 0 {
             self.fit_similarities(false);
         }
-        self.smooth_rotations(WARMUP_ROTATION_SMOOTHING);
-        self.fit_scales(None);
+        self.smooth_rotations(WARMUP_ROTATION_SMOOTHING)?;
+        self.fit_scales(None)?;
         let none = vec![None; self.positions.len()];
         let mut proposed = self.global_solve(&none, 0.0)?;
         self.keep_on_plane(&mut proposed);
@@ -618,9 +619,12 @@ impl EnergySolver {
     /// Replaces each fitted rotation by its average over edge neighbours, `rounds` times (as
     /// quaternions, each neighbour's sign matched to the vertex's own): the shape terms then
     /// keep regions about `√rounds` rings wide rigid.
-    fn smooth_rotations(&mut self, rounds: usize) {
+    fn smooth_rotations(&mut self, rounds: usize) -> Result<(), KernelError> {
+        if let Some(stretches) = self.stretches.as_mut() {
+            return stretches.smooth_rotations(&mut self.similarities, rounds, self.frame);
+        }
         if rounds == 0 {
-            return;
+            return Ok(());
         }
         let mut rotations: Vec<Quat> = self.similarities.iter().map(|fit| fit.rotation).collect();
         for _ in 0..rounds {
@@ -643,6 +647,7 @@ impl EnergySolver {
         for (fit, rotation) in self.similarities.iter_mut().zip(rotations) {
             fit.rotation = rotation;
         }
+        Ok(())
     }
 
     /// The mean of the fitted rotations (as quaternions, each one's sign matched to the mean's).
@@ -666,12 +671,12 @@ impl EnergySolver {
 
     /// Fits the stretches (global-to-local schedule) or smooths the scales, `rounds` as
     /// [`Self::smooth_scales`] takes them.
-    fn fit_scales(&mut self, rounds: Option<usize>) {
+    fn fit_scales(&mut self, rounds: Option<usize>) -> Result<(), KernelError> {
         if let Some(stretches) = self.stretches.as_mut() {
-            stretches.fit(&self.structure, &self.positions, &self.similarities, rounds);
-        } else {
-            self.smooth_scales(rounds);
+            return stretches.fit(&self.structure, &self.positions, &self.similarities, rounds);
         }
+        self.smooth_scales(rounds);
+        Ok(())
     }
 
     /// Replaces the fitted scales by their median (`None`) or by their log averaged over edge
