@@ -42,7 +42,9 @@ use rayon::prelude::*;
 
 use super::anchor::AnchorTarget;
 use super::forces::{Similarity, SpringRest, Springs};
-use super::global_phase::{GLOBAL_TO_LOCAL_LEVELS, RECIPROCAL_LEVELS, Stretches, keep_reciprocal};
+use super::global_phase::{
+    GLOBAL_TO_LOCAL_LEVELS, RECIPROCAL_LEVELS, Stretches, choose_schedule, keep_reciprocal,
+};
 use super::linear_system::{LinearSystem, Stencils};
 use super::plane_constraint::Plane;
 use super::settings::WrapSchedule;
@@ -267,6 +269,7 @@ impl EnergySolver {
     pub(crate) fn new(inputs: &EnergyInputs<'_>) -> Result<Self, KernelError> {
         let structure = inputs.structure;
         let vertex_count = structure.vertex_count;
+        let schedule = choose_schedule(inputs.schedule, inputs.rest, inputs.anchor_of_vertex);
         let mut fixed = vec![None; vertex_count];
         let mut fixed_points = vec![None; vertex_count];
         for vertex in 0..vertex_count {
@@ -358,11 +361,11 @@ impl EnergySolver {
             orientation: 1.0,
             mean_edge_length: inputs.mean_edge_length,
             landing_distance: inputs.landing_distance,
-            levels: match inputs.schedule {
-                WrapSchedule::Local => &LEVELS,
+            levels: match schedule {
                 WrapSchedule::GlobalToLocal => &GLOBAL_TO_LOCAL_LEVELS,
+                WrapSchedule::Local | WrapSchedule::Auto => &LEVELS,
             },
-            stretches: (inputs.schedule == WrapSchedule::GlobalToLocal)
+            stretches: (schedule == WrapSchedule::GlobalToLocal)
                 .then(|| Stretches::new(structure, inputs.rest))
                 .transpose()?,
             warming_up: true,
