@@ -257,8 +257,8 @@ WRAP_SCHEDULE_ITEMS = (
     (
         "AUTO",
         "Automatic",
-        "Energy solver: Global to Local for 3 to 11 anchors, or for more that no similarity of the template "
-        "explains (a large change of shape); Local otherwise",
+        "Energy solver: Global to Local for 3 to 11 anchors, or for more whose places no similarity of the template "
+        "explains (a large change of shape for their number); Local otherwise",
     ),
     (
         "LOCAL",
