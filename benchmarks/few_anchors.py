@@ -5,7 +5,8 @@
 
 Runs ``benchmarks.retarget.run`` once per anchor count (the same landmarks, the first N, given to every
 method) with the aligned template, trimesh's ``nricp_amberg`` and the wrap with each stiffness schedule
-(``Springwrap wrap``: the local schedule, ``Springwrap wrap global``: global to local), and gathers the
+(``Springwrap wrap``: the default, automatic choice; ``Springwrap wrap local``: the local schedule;
+``Springwrap wrap global``: global to local), and gathers the
 per-case mean error, p95, flipped quads and time into one JSON. :func:`markdown` turns it into the
 section of ``docs/benchmarks.md`` (``benchmarks/report.py --few-anchors``). No ``bpy`` here: the runs are
 subprocesses.
@@ -25,7 +26,13 @@ REPOSITORY_ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_JSON = REPOSITORY_ROOT / "out" / "bench" / "few_anchors.json"
 DEFAULT_CASES = ("heavy", "heavy-old", "old-male", "young-female")
 DEFAULT_ANCHORS = (4, 6, 12, 24)
-METHODS = ("aligned template", "trimesh nricp_amberg", "Springwrap wrap", "Springwrap wrap global")
+METHODS = (
+    "aligned template",
+    "trimesh nricp_amberg",
+    "Springwrap wrap",
+    "Springwrap wrap local",
+    "Springwrap wrap global",
+)
 """The methods compared, in the table's order."""
 REFERENCE = "trimesh nricp_amberg"
 """The method the wraps are measured against."""
@@ -49,6 +56,7 @@ def rows_of(retarget: dict, anchors: int) -> list[dict]:
             row = {"case": record["case"], "anchors": anchors, "method": method, "status": entry["status"]}
             row.update({field: metrics.get(field) for field in FIELDS})
             row["seconds"] = entry.get("seconds")
+            row["wrap_seconds"] = (entry.get("details") or {}).get("wrap_seconds")
             rows.append(row)
     return rows
 
@@ -94,6 +102,12 @@ def _number(value, digits: int = 3) -> str:
     return f"{value:.{digits}f}"
 
 
+def _seconds(row: dict) -> str:
+    """The method's time, and the wrap's own in brackets when it reported one."""
+    wrap = row.get("wrap_seconds")
+    return _number(row["seconds"], 1) + (f" ({wrap:.1f})" if wrap is not None else "")
+
+
 def markdown(result: dict) -> list[str]:
     """The few-anchors section: per case and anchor count, each method's mean, p95, flipped quads and time,
     and the wraps' mean and p95 over nricp's."""
@@ -105,9 +119,11 @@ def markdown(result: dict) -> list[str]:
         "",
         f"The body cases with the first {', '.join(str(n) for n in sorted(result['anchors']))} landmarks as anchors, the "
         "same anchors to every method (`benchmarks/few_anchors.py`, one run per anchor count). `Springwrap wrap` "
-        "is the energy wrap with its default, local schedule; `Springwrap wrap global` the global-to-local "
-        "schedule (`schedule='GLOBAL_TO_LOCAL'`). Errors in % of the diagonal; flipped quads against the true "
-        "quads; × nricp: the wrap's mean (p95) over nricp's with the same anchors.",
+        "is the energy wrap with its default schedule (`'AUTO'`: global to local for 3 to 11 anchors or a large "
+        "change of shape, else local); `Springwrap wrap local` the local schedule (`schedule='LOCAL'`); "
+        "`Springwrap wrap global` the global-to-local schedule (`schedule='GLOBAL_TO_LOCAL'`). Errors in % of "
+        "the diagonal; flipped quads against the true quads; time: every operator call of the method (the "
+        "wrap's own time in brackets); × nricp: the wrap's mean (p95) over nricp's with the same anchors.",
         "",
     ]
     header = ["case", "anchors", "method", "mean %", "p95 %", "flipped", "time s", "× nricp mean (p95)"]
@@ -136,7 +152,7 @@ def markdown(result: dict) -> list[str]:
                         _number(row["error_percent_mean"]),
                         _number(row["error_percent_p95"]),
                         str(row["flipped_quads"]),
-                        _number(row["seconds"], 1),
+                        _seconds(row),
                         ratio,
                     ]
                 )
@@ -161,7 +177,7 @@ def aims(lookup: dict, case_names: list[str], anchors: int) -> list[str]:
         if not reference or not aligned or reference["status"] != "ok":
             continue
         parts = []
-        for method in ("Springwrap wrap", "Springwrap wrap global"):
+        for method in ("Springwrap wrap", "Springwrap wrap local", "Springwrap wrap global"):
             row = lookup.get((case, anchors, method))
             if not row or row["status"] != "ok":
                 continue
@@ -170,6 +186,11 @@ def aims(lookup: dict, case_names: list[str], anchors: int) -> list[str]:
                 f"p95 {row['error_percent_p95'] / reference['error_percent_p95']:.2f}× nricp's, "
                 f"{row['flipped_quads'] - aligned['flipped_quads']:+d} flipped quads against the aligned template, "
                 f"{reference['seconds'] / row['seconds']:.1f}× faster"
+                + (
+                    f" ({reference['seconds'] / row['wrap_seconds']:.1f}× by the wrap's own time)"
+                    if row.get("wrap_seconds")
+                    else ""
+                )
             )
         if parts:
             lines.append(f"- {case}, {anchors} anchors: " + "; ".join(parts) + ".")

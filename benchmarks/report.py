@@ -26,6 +26,7 @@ DOCS = REPOSITORY_ROOT / "docs"
 SPRINGWRAP_METHODS = (
     "Springwrap snap",
     "Springwrap wrap",
+    "Springwrap wrap local",
     "Springwrap wrap global",
     "Springwrap snap+wrap",
     "Springwrap project+wrap",

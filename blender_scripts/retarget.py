@@ -192,10 +192,10 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     )
     parser.add_argument(
         "--schedule",
-        choices=("local", "global-to-local"),
+        choices=("auto", "local", "global-to-local"),
         default=defaults.schedule.lower().replace("_", "-"),
         help="the energy solver's stiffness schedule: local, or stiff nearly affine levels first, for a few anchors "
-        "on a large change of shape (default %(default)s)",
+        "on a large change of shape; auto chooses from the anchors (default %(default)s)",
     )
     parser.add_argument(
         "--stiffness-group",

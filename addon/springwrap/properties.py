@@ -255,6 +255,12 @@ WRAP_SOLVER_ITEMS = (
 
 WRAP_SCHEDULE_ITEMS = (
     (
+        "AUTO",
+        "Automatic",
+        "Energy solver: Global to Local for 3 to 11 anchors, or for more whose places no similarity of the template "
+        "explains (a large change of shape for their number); Local otherwise",
+    ),
+    (
         "LOCAL",
         "Local",
         "Energy solver: one scale for the whole layout at first, then local scales; quick, and right when the "

@@ -255,6 +255,7 @@ METHODS = (
     "trimesh nricp_amberg",
     "Springwrap snap",
     "Springwrap wrap",
+    "Springwrap wrap local",
     "Springwrap wrap global",
     "Springwrap snap+wrap",
     "Springwrap project+wrap",

@@ -38,6 +38,7 @@ SHORT_NAMES = {
     "trimesh nricp_amberg": "nricp",
     "Springwrap snap": "snap",
     "Springwrap wrap": "wrap",
+    "Springwrap wrap local": "wrap-local",
     "Springwrap wrap global": "wrap-g2l",
     "Springwrap snap+wrap": "snap+wrap",
     "Springwrap project+wrap": "proj+wrap",

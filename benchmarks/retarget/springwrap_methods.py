@@ -5,6 +5,8 @@
   landmark (``p`` its true position on the target; the operator's default ``on_surface=True``
   anchors it to the closest target point, as a click on the target does), then
   ``springwrap.wrap()`` with the operator's default parameters (synchronous in background mode);
+- ``Springwrap wrap local``: the same with ``springwrap.wrap(schedule='LOCAL')`` (the default ``'AUTO'``
+  chooses a schedule from the anchors);
 - ``Springwrap wrap global``: the same with ``springwrap.wrap(schedule='GLOBAL_TO_LOCAL')``: stiff,
   nearly affine levels before the local fit;
 - ``Springwrap snap+wrap``: the same, with ``springwrap.snap(mode='SURFACE')`` after the detach,
@@ -40,12 +42,16 @@ from benchmarks.retarget.baselines import MethodRefused, mesh_object, read_posit
 
 WRAP_METHODS = {
     "Springwrap wrap": "detach",
+    "Springwrap wrap local": "detach",
     "Springwrap wrap global": "detach",
     "Springwrap snap+wrap": "snap",
     "Springwrap project+wrap": "project",
 }
 """The wrap methods and how each starts (:func:`springwrap_wrap`'s ``start``)."""
-WRAP_OPTIONS = {"Springwrap wrap global": {"schedule": "GLOBAL_TO_LOCAL"}}
+WRAP_OPTIONS = {
+    "Springwrap wrap local": {"schedule": "LOCAL"},
+    "Springwrap wrap global": {"schedule": "GLOBAL_TO_LOCAL"},
+}
 """The wrap methods' ``springwrap.wrap`` properties besides the defaults."""
 ALIGN_METHODS = ("Springwrap align", "Springwrap align+wrap")
 """The methods that start from the template as given and align it with ``springwrap.align``."""

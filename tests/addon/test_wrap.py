@@ -315,6 +315,26 @@ def test_the_schedule_changes_the_wrap_and_the_spring_solver_refuses_it():
     assert snapshot(layout) == before
 
 
+def test_the_automatic_schedule_follows_the_anchors():
+    """Automatic wraps as Global to Local with a few anchors and as Local with many on a small change of
+    shape (anchors straight below a grid over a plane: a similarity of the template places them)."""
+    for spacing, count_ok, chosen in (
+        (1.2, lambda count: 3 <= count < 12, "GLOBAL_TO_LOCAL"),
+        (0.3, lambda count: count >= 12, "LOCAL"),
+    ):
+        results = {}
+        for schedule in ("AUTO", "LOCAL", "GLOBAL_TO_LOCAL"):
+            bpy.ops.wm.read_homefile(use_empty=True)
+            plane_scene()
+            bpy.ops.springwrap.anchors_auto(spacing=spacing)
+            count = len(bpy.data.objects["Layout"].springwrap.anchors)
+            assert count_ok(count), count
+            assert bpy.ops.springwrap.wrap(schedule=schedule) == {"FINISHED"}
+            results[schedule] = snapshot(bpy.data.objects["Layout"])
+        assert results["LOCAL"] != results["GLOBAL_TO_LOCAL"], spacing
+        assert results["AUTO"] == results[chosen], spacing
+
+
 def test_an_error_mid_way_restores_the_layout():
     from springwrap.core.wrap_run import WrapLoop
 

@@ -107,6 +107,7 @@ def test_the_retarget_command_line_takes_the_schedule():
         ["--", "--template", "t.obj", "--target", "t.obj", "--schedule", "global-to-local"]
     )
     assert retarget["wrap_settings"](arguments) == KERNEL.replace(schedule="GLOBAL_TO_LOCAL")
+    assert arguments.schedule == "global-to-local" and KERNEL.schedule == "AUTO"
 
 
 def test_the_mirror_command_lines_tolerance_is_the_kernels():

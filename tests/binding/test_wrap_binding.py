@@ -117,13 +117,13 @@ def test_wrap_settings_hold_the_kernels_defaults_and_read_every_field():
         "momentum": 0.9,
         "rest": "TEMPLATE",
         "solver": "ENERGY",
-        "schedule": "LOCAL",
+        "schedule": "AUTO",
     }
     assert np.float32(settings.fold_tolerance) == np.float32(np.radians(10))
     assert repr(settings) == (
         "WrapSettings(fairness=0.5, arc_length=0.5, thin_plate=0.2, constraint=0.5, folding=0.3, tolerance=1e-05, "
         "landing_distance=0.25, fold_tolerance=0.17453292, momentum=0.9, rest='TEMPLATE', solver='ENERGY', "
-        "schedule='LOCAL')"
+        "schedule='AUTO')"
     )
 
 
@@ -161,7 +161,7 @@ BAD_SETTINGS = {
     "momentum": (1.0, r"invalid momentum: the momentum must be within \[0, 0.99\], not 1"),
     "rest": ("SOFT", "invalid rest: \"SOFT\" is not 'TEMPLATE' or 'EVEN'"),
     "solver": ("FAST", "invalid solver: \"FAST\" is not 'SPRINGS' or 'ENERGY'"),
-    "schedule": ("FAST", "invalid schedule: \"FAST\" is not 'LOCAL' or 'GLOBAL_TO_LOCAL'"),
+    "schedule": ("FAST", "invalid schedule: \"FAST\" is not 'AUTO', 'LOCAL' or 'GLOBAL_TO_LOCAL'"),
 }
 
 

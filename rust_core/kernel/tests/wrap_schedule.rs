@@ -89,3 +89,24 @@ fn the_global_to_local_schedule_needs_the_energy_solver() {
     let message = settings.validate().unwrap_err().to_string();
     assert!(message.starts_with("invalid schedule: "), "{message}");
 }
+
+#[test]
+fn the_automatic_schedule_wraps_four_anchors_as_global_to_local() {
+    // Four anchors are few: `Auto` follows the global-to-local schedule, to the same positions.
+    let axes = Vec3::new(1.6, 1.0, 0.8);
+    let (auto, _) = wrap_band(WrapSchedule::Auto, axes);
+    let (global, _) = wrap_band(WrapSchedule::GlobalToLocal, axes);
+    let (local, _) = wrap_band(WrapSchedule::Local, axes);
+    assert_eq!(auto, global);
+    assert_ne!(auto, local);
+}
+
+#[test]
+fn the_automatic_schedule_is_the_default_and_the_spring_solver_takes_it() {
+    let settings = WrapSettings {
+        solver: SolverKind::Springs,
+        ..WrapSettings::default()
+    };
+    assert_eq!(settings.schedule, WrapSchedule::Auto);
+    assert_eq!(settings.validate(), Ok(()));
+}

@@ -35,20 +35,25 @@ fn solver_name(solver: SolverKind) -> &'static str {
 /// The binding's name of a stiffness schedule.
 fn schedule_name(schedule: WrapSchedule) -> &'static str {
     match schedule {
+        WrapSchedule::Auto => "AUTO",
         WrapSchedule::Local => "LOCAL",
         WrapSchedule::GlobalToLocal => "GLOBAL_TO_LOCAL",
     }
 }
 
 fn parse_schedule(name: &str) -> PyResult<WrapSchedule> {
-    [WrapSchedule::Local, WrapSchedule::GlobalToLocal]
-        .into_iter()
-        .find(|&schedule| schedule_name(schedule) == name)
-        .ok_or_else(|| {
-            InvalidArgumentError::new_err(format!(
-                "invalid schedule: {name:?} is not 'LOCAL' or 'GLOBAL_TO_LOCAL'"
-            ))
-        })
+    [
+        WrapSchedule::Auto,
+        WrapSchedule::Local,
+        WrapSchedule::GlobalToLocal,
+    ]
+    .into_iter()
+    .find(|&schedule| schedule_name(schedule) == name)
+    .ok_or_else(|| {
+        InvalidArgumentError::new_err(format!(
+            "invalid schedule: {name:?} is not 'AUTO', 'LOCAL' or 'GLOBAL_TO_LOCAL'"
+        ))
+    })
 }
 
 fn parse_rest(name: &str) -> PyResult<SpringRest> {
@@ -238,8 +243,10 @@ impl PyWrapSettings {
         solver_name(self.settings.solver)
     }
 
-    /// The energy solver's stiffness schedule: `'LOCAL'` or `'GLOBAL_TO_LOCAL'` (stiff, nearly
-    /// affine levels first: for few anchors on a large change of shape).
+    /// The energy solver's stiffness schedule: `'AUTO'` (chosen from the anchors when the wrap
+    /// starts: global to local for 3 to 11 anchors, or more on a large change of shape),
+    /// `'LOCAL'` or `'GLOBAL_TO_LOCAL'` (stiff, nearly affine levels first: for few anchors on a
+    /// large change of shape).
     #[getter]
     fn schedule(&self) -> &'static str {
         schedule_name(self.settings.schedule)

@@ -42,7 +42,9 @@ use rayon::prelude::*;
 
 use super::anchor::AnchorTarget;
 use super::forces::{Similarity, SpringRest, Springs};
-use super::global_phase::{GLOBAL_TO_LOCAL_LEVELS, RECIPROCAL_LEVELS, Stretches, keep_reciprocal};
+use super::global_phase::{
+    GLOBAL_TO_LOCAL_LEVELS, RECIPROCAL_LEVELS, Stretches, choose_schedule, keep_reciprocal,
+};
 use super::linear_system::{LinearSystem, Stencils};
 use super::plane_constraint::Plane;
 use super::settings::WrapSchedule;
@@ -267,6 +269,7 @@ impl EnergySolver {
     pub(crate) fn new(inputs: &EnergyInputs<'_>) -> Result<Self, KernelError> {
         let structure = inputs.structure;
         let vertex_count = structure.vertex_count;
+        let schedule = choose_schedule(inputs.schedule, inputs.rest, inputs.anchor_of_vertex);
         let mut fixed = vec![None; vertex_count];
         let mut fixed_points = vec![None; vertex_count];
         for vertex in 0..vertex_count {
@@ -358,12 +361,13 @@ impl EnergySolver {
             orientation: 1.0,
             mean_edge_length: inputs.mean_edge_length,
             landing_distance: inputs.landing_distance,
-            levels: match inputs.schedule {
-                WrapSchedule::Local => &LEVELS,
+            levels: match schedule {
                 WrapSchedule::GlobalToLocal => &GLOBAL_TO_LOCAL_LEVELS,
+                WrapSchedule::Local | WrapSchedule::Auto => &LEVELS,
             },
-            stretches: (inputs.schedule == WrapSchedule::GlobalToLocal)
-                .then(|| Stretches::new(structure, inputs.rest)),
+            stretches: (schedule == WrapSchedule::GlobalToLocal)
+                .then(|| Stretches::new(structure, inputs.rest))
+                .transpose()?,
             warming_up: true,
             level: 0,
             level_iterations: 0,
@@ -502,8 +506,8 @@ impl EnergySolver {
         if self.iterations > 0 {
             self.fit_similarities(false);
         }
-        self.smooth_rotations(level.rotation_smoothing);
-        self.fit_scales(level.scale_smoothing);
+        self.smooth_rotations(level.rotation_smoothing)?;
+        self.fit_scales(level.scale_smoothing)?;
         let normals = self.layout_normals(&self.positions);
         let width = level.welsch_width * self.mean_edge_length;
         let mut correspondences = self.correspondences(&normals, width);
@@ -570,8 +574,8 @@ impl EnergySolver {
         if self.iterations > 0 {
             self.fit_similarities(false);
         }
-        self.smooth_rotations(WARMUP_ROTATION_SMOOTHING);
-        self.fit_scales(None);
+        self.smooth_rotations(WARMUP_ROTATION_SMOOTHING)?;
+        self.fit_scales(None)?;
         let none = vec![None; self.positions.len()];
         let mut proposed = self.global_solve(&none, 0.0)?;
         self.keep_on_plane(&mut proposed);
@@ -618,9 +622,12 @@ impl EnergySolver {
     /// Replaces each fitted rotation by its average over edge neighbours, `rounds` times (as
     /// quaternions, each neighbour's sign matched to the vertex's own): the shape terms then
     /// keep regions about `√rounds` rings wide rigid.
-    fn smooth_rotations(&mut self, rounds: usize) {
+    fn smooth_rotations(&mut self, rounds: usize) -> Result<(), KernelError> {
+        if let Some(stretches) = self.stretches.as_mut() {
+            return stretches.smooth_rotations(&mut self.similarities, rounds, self.frame);
+        }
         if rounds == 0 {
-            return;
+            return Ok(());
         }
         let mut rotations: Vec<Quat> = self.similarities.iter().map(|fit| fit.rotation).collect();
         for _ in 0..rounds {
@@ -643,6 +650,7 @@ impl EnergySolver {
         for (fit, rotation) in self.similarities.iter_mut().zip(rotations) {
             fit.rotation = rotation;
         }
+        Ok(())
     }
 
     /// The mean of the fitted rotations (as quaternions, each one's sign matched to the mean's).
@@ -666,12 +674,12 @@ impl EnergySolver {
 
     /// Fits the stretches (global-to-local schedule) or smooths the scales, `rounds` as
     /// [`Self::smooth_scales`] takes them.
-    fn fit_scales(&mut self, rounds: Option<usize>) {
+    fn fit_scales(&mut self, rounds: Option<usize>) -> Result<(), KernelError> {
         if let Some(stretches) = self.stretches.as_mut() {
-            stretches.fit(&self.structure, &self.positions, &self.similarities, rounds);
-        } else {
-            self.smooth_scales(rounds);
+            return stretches.fit(&self.structure, &self.positions, &self.similarities, rounds);
         }
+        self.smooth_scales(rounds);
+        Ok(())
     }
 
     /// Replaces the fitted scales by their median (`None`) or by their log averaged over edge

@@ -49,9 +49,14 @@ pub enum SolverKind {
 /// How the energy wrap's stiffness relaxes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum WrapSchedule {
+    /// Chosen from the anchors when the wrap starts: [`WrapSchedule::GlobalToLocal`] for a few
+    /// anchors (3 to 11), or for more whose positions no similarity of the template explains (a
+    /// large change of shape); [`WrapSchedule::Local`] otherwise (see
+    /// `wrap::global_phase::choose_schedule`).
+    #[default]
+    Auto,
     /// Rotations and one scale for all at first, then local scales: quick, and right when the
     /// layout starts near its place (many anchors, or a small change of shape).
-    #[default]
     Local,
     /// Stiff, nearly affine levels first (per-vertex stretches and rotations averaged over many
     /// rings, a weak wide data term), then the local levels: for a few anchors on a large
@@ -193,7 +198,7 @@ impl WrapSettings {
                         .to_owned(),
             });
         }
-        if self.solver == SolverKind::Springs && self.schedule != WrapSchedule::Local {
+        if self.solver == SolverKind::Springs && self.schedule == WrapSchedule::GlobalToLocal {
             return Err(KernelError::InvalidArgument {
                 name: "schedule",
                 reason: "the global-to-local schedule needs the energy solver; the spring \

@@ -356,7 +356,7 @@ class WrapSettings:
         momentum: float = 0.9,
         rest: Literal["TEMPLATE", "EVEN"] = "TEMPLATE",
         solver: Literal["SPRINGS", "ENERGY"] = "ENERGY",
-        schedule: Literal["LOCAL", "GLOBAL_TO_LOCAL"] = "LOCAL",
+        schedule: Literal["AUTO", "LOCAL", "GLOBAL_TO_LOCAL"] = "AUTO",
     ) -> None: ...
     @property
     def fairness(self) -> float:
@@ -392,9 +392,10 @@ class WrapSettings:
     def solver(self) -> Literal["SPRINGS", "ENERGY"]:
         """The algorithm: the paper's force iteration, or one energy minimised by global solves."""
     @property
-    def schedule(self) -> Literal["LOCAL", "GLOBAL_TO_LOCAL"]:
-        """The energy solver's stiffness schedule: local, or stiff nearly affine levels first (for few anchors on
-        a large change of shape); the spring solver refuses all but the local one."""
+    def schedule(self) -> Literal["AUTO", "LOCAL", "GLOBAL_TO_LOCAL"]:
+        """The energy solver's stiffness schedule: automatic (chosen from the anchors when the wrap starts: global
+        to local for 3 to 11 anchors, or more on a large change of shape), local, or stiff nearly affine levels
+        first (for few anchors on a large change of shape); the spring solver refuses the global-to-local one."""
     def to_dict(self) -> dict[str, float | str]:
         """Every setting by its keyword, in the constructor's order."""
     def replace(self, **changes: float | str) -> WrapSettings:

@@ -6,22 +6,34 @@
 //! torso). This schedule gives every vertex a **stretch** `S_i` (a symmetric 3×3 in the rest
 //! frame) besides its rotation, so that the shape terms ask `x_j − x_i ≈ R_i S_i (r_j − r_i)`:
 //! local scale and shear are free, as in non-rigid ICP's per-vertex affine transforms (Amberg et
-//! al. 2007). Stiffness is the averaging of the stretches and rotations over many rings, relaxed
-//! level by level (a near-affine deformation of whole regions first, local at the end), while the
+//! al. 2007). Stiffness is the smoothing of the stretches and rotations over many rings (one
+//! factored solve each, `smoothing`), relaxed level by level (a near-affine deformation of whole regions first, local at the end), while the
 //! data term tightens from weak and wide to strong and narrow; then the default schedule's local
 //! levels follow, with the stretches kept.
 
-use glam::{Mat3, Vec3};
+mod choice;
+mod smoothing;
+
+use glam::{DVec3, Mat3, Quat, Vec3, Vec4};
 use rayon::prelude::*;
 
 use super::energy_solver::{LEVELS, Level};
 use super::forces::Similarity;
+use crate::error::KernelError;
 use crate::layout::LayoutStructure;
+pub(crate) use choice::choose_schedule;
+use smoothing::Smoother;
 
-/// The global-to-local schedule: three stiff levels whose stretches are averaged over about 32,
-/// 16 and 8 rings (rounds ≈ rings²) and rotations over about 16, 8 and 4, with a weak and wide data
-/// term (σ = 10, 6, 3 mean edges), then the default schedule's local levels. Chosen by measurement
-/// on the benchmark bodies with 4 and 6 anchors (stiffer and longer was better at every step tried).
+/// The global-to-local schedule: three stiff levels whose stretches are smoothed as 16,384, 4,096
+/// and 1,024 rounds of neighbour averaging would (about 128, 64 and 32 rings: rounds ≈ rings²) and
+/// rotations as 4,096, 1,024 and 256, with a weak and wide data term (λ = 0.03, 0.1, 0.5; σ = 10,
+/// 6, 3 mean edges), then the default schedule's local levels. Chosen by measurement on the
+/// benchmark bodies with 6 anchors (`benchmarks/few_anchors.py`'s cases through the kernel alone):
+/// 16 times stiffer than rounds of averaging could afford (1,024, 256, 64) with a three times
+/// stronger data term lowered the mean error from 0.275 %, 0.489 %, 0.461 % of the diagonal (the
+/// heavy, heavy-old and old-male bodies) to 0.244 %, 0.476 %, 0.438 % and the flipped quads from
+/// 11, 21, 16 to 9, 14, 5; 64 times stiffer was better on one body and worse on another, a ten times stronger data
+/// term worse, a fourth stiff level or fewer iterations worse.
 pub(crate) const GLOBAL_TO_LOCAL_LEVELS: [Level; 6] = [
     STIFF_LEVELS[0],
     STIFF_LEVELS[1],
@@ -34,24 +46,24 @@ pub(crate) const GLOBAL_TO_LOCAL_LEVELS: [Level; 6] = [
 /// The stiff levels of [`GLOBAL_TO_LOCAL_LEVELS`].
 const STIFF_LEVELS: [Level; 3] = [
     Level {
-        data_weight: 0.01,
+        data_weight: 0.03,
         welsch_width: 10.0,
-        scale_smoothing: Some(1024),
-        rotation_smoothing: 256,
+        scale_smoothing: Some(16_384),
+        rotation_smoothing: 4096,
         max_iterations: 20,
     },
     Level {
-        data_weight: 0.05,
+        data_weight: 0.1,
         welsch_width: 6.0,
-        scale_smoothing: Some(256),
-        rotation_smoothing: 64,
+        scale_smoothing: Some(4096),
+        rotation_smoothing: 1024,
         max_iterations: 12,
     },
     Level {
-        data_weight: 0.3,
+        data_weight: 0.5,
         welsch_width: 3.0,
-        scale_smoothing: Some(64),
-        rotation_smoothing: 16,
+        scale_smoothing: Some(1024),
+        rotation_smoothing: 256,
         max_iterations: 8,
     },
 ];
@@ -80,42 +92,103 @@ pub(crate) struct Stretches {
     rest_normals: Vec<Vec3>,
     /// Per vertex, `S_i` (the shape terms ask `R_i S_i` of its rest vectors).
     pub(crate) values: Vec<Mat3>,
+    /// Smooths the stretches and the rotations (one factored solve each instead of rounds of
+    /// averaging).
+    stretch_smoother: Smoother,
+    rotation_smoother: Smoother,
 }
 
 impl Stretches {
     /// Isotropic unit stretches for a layout resting at `rest`.
-    pub(crate) fn new(structure: &LayoutStructure, rest: &[Vec3]) -> Self {
+    ///
+    /// # Errors
+    /// [`KernelError::InvalidArgument`] when the smoothing's system cannot be built.
+    pub(crate) fn new(structure: &LayoutStructure, rest: &[Vec3]) -> Result<Self, KernelError> {
         let rest_normals = (0..rest.len() as u32)
             .into_par_iter()
             .with_min_len(2048)
             .map(|vertex| structure.normal_at(rest, vertex).normalize_or_zero())
             .collect();
-        Self {
+        let stretch_smoother = Smoother::new(structure)?;
+        Ok(Self {
             rest: rest.to_vec(),
             rest_normals,
             values: vec![Mat3::IDENTITY; rest.len()],
+            rotation_smoother: stretch_smoother.clone(),
+            stretch_smoother,
+        })
+    }
+
+    /// Replaces each rotation of `similarities` by its average over about `√rounds` rings (as
+    /// quaternions, signs matched to `reference`, smoothed as `rounds` rounds of neighbour
+    /// averaging would, then normalised; a vertex whose average vanishes keeps its own).
+    ///
+    /// # Errors
+    /// [`KernelError::InvalidArgument`] when the smoothing's solve fails.
+    pub(crate) fn smooth_rotations(
+        &mut self,
+        similarities: &mut [Similarity],
+        rounds: usize,
+        reference: Quat,
+    ) -> Result<(), KernelError> {
+        if rounds == 0 {
+            return Ok(());
         }
+        let matched: Vec<Vec4> = similarities
+            .iter()
+            .map(|fit| {
+                let rotation = Vec4::from(fit.rotation);
+                if rotation.dot(Vec4::from(reference)) < 0.0 {
+                    -rotation
+                } else {
+                    rotation
+                }
+            })
+            .collect();
+        let mut columns = vec![
+            matched
+                .iter()
+                .map(|q| DVec3::new(q.x.into(), q.y.into(), q.z.into()))
+                .collect(),
+            matched
+                .iter()
+                .map(|q| DVec3::new(q.w.into(), 0.0, 0.0))
+                .collect(),
+        ];
+        self.rotation_smoother.smooth(rounds, &mut columns)?;
+        for (vertex, fit) in similarities.iter_mut().enumerate() {
+            let (xyz, w) = (columns[0][vertex], columns[1][vertex].x);
+            let sum = Vec4::new(xyz.x as f32, xyz.y as f32, xyz.z as f32, w as f32);
+            let length = sum.length();
+            if length > 1e-6 && length.is_finite() {
+                fit.rotation = Quat::from_vec4(sum / length);
+            }
+        }
+        Ok(())
     }
 
     /// Fits every vertex's stretch at `positions` given its rotation in `similarities`, then
-    /// averages them over edge neighbours `rounds` times, or (`None`) replaces them by the median
-    /// scale.
+    /// smooths them as `rounds` rounds of averaging over edge neighbours would (one factored
+    /// solve, see [`Smoother`]), or (`None`) replaces them by the median scale.
+    ///
+    /// # Errors
+    /// [`KernelError::InvalidArgument`] when the smoothing's solve fails.
     pub(crate) fn fit(
         &mut self,
         structure: &LayoutStructure,
         positions: &[Vec3],
         similarities: &[Similarity],
         rounds: Option<usize>,
-    ) {
+    ) -> Result<(), KernelError> {
         let Some(median) = Similarity::median_scale(similarities) else {
-            return;
+            return Ok(());
         };
         let Some(rounds) = rounds else {
             self.values = vec![Mat3::from_diagonal(Vec3::splat(median)); positions.len()];
-            return;
+            return Ok(());
         };
         let bound = |stretch: Mat3| bounded(stretch, median);
-        let mut stretches: Vec<Mat3> = (0..positions.len() as u32)
+        let stretches: Vec<Mat3> = (0..positions.len() as u32)
             .into_par_iter()
             .with_min_len(1024)
             .map(|vertex| {
@@ -124,22 +197,17 @@ impl Stretches {
                     .map_or_else(|| Mat3::from_quat(fit.rotation) * median, bound)
             })
             .collect();
-        for _ in 0..rounds {
-            stretches = (0..stretches.len() as u32)
-                .into_par_iter()
-                .with_min_len(2048)
-                .map(|vertex| {
-                    let neighbors = structure.neighbors_of(vertex);
-                    let sum = neighbors
-                        .iter()
-                        .fold(stretches[vertex as usize], |sum, &other| {
-                            sum + stretches[other as usize]
-                        });
-                    sum * (1.0 / (1 + neighbors.len()) as f32)
-                })
-                .collect();
-        }
-        self.values = stretches.into_iter().map(bound).collect();
+        let mut columns: Vec<Vec<DVec3>> = (0..3)
+            .map(|axis| stretches.iter().map(|s| s.col(axis).as_dvec3()).collect())
+            .collect();
+        self.stretch_smoother.smooth(rounds, &mut columns)?;
+        self.values = (0..stretches.len())
+            .map(|vertex| {
+                let column = |axis: usize| columns[axis][vertex].as_vec3();
+                bound(Mat3::from_cols(column(0), column(1), column(2)))
+            })
+            .collect();
+        Ok(())
     }
 
     /// The symmetric stretch `S` with `R S` the least-squares linear map of `vertex`'s rest edges
@@ -305,8 +373,10 @@ mod tests {
             };
             rest.len()
         ];
-        let mut stretches = Stretches::new(&structure, &rest);
-        stretches.fit(&structure, &positions, &similarities, Some(0));
+        let mut stretches = Stretches::new(&structure, &rest).unwrap();
+        stretches
+            .fit(&structure, &positions, &similarities, Some(0))
+            .unwrap();
         // The normal's stretch is the edges' mean length ratio, not 1: only the in-plane part
         // is the deformation's own. Averaging equal in-plane stretches keeps them.
         let in_plane = |stretches: &Stretches| {
@@ -318,10 +388,14 @@ mod tests {
             }
         };
         in_plane(&stretches);
-        stretches.fit(&structure, &positions, &similarities, Some(8));
+        stretches
+            .fit(&structure, &positions, &similarities, Some(8))
+            .unwrap();
         in_plane(&stretches);
         // The median replaces them by one scale.
-        stretches.fit(&structure, &positions, &similarities, None);
+        stretches
+            .fit(&structure, &positions, &similarities, None)
+            .unwrap();
         assert!(
             stretches.values[12].abs_diff_eq(Mat3::IDENTITY, 1e-6),
             "{}",
