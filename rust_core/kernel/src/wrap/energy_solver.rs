@@ -130,6 +130,8 @@ const LANDING_FACING: f32 = 0.26;
 const MEAN_ROTATION_ROUNDS: usize = 3;
 /// A corner may turn from its frame until this cosine; beyond it, only back toward it.
 const MIN_ALIGNMENT: f32 = 0.0;
+/// A global step is solved until its remaining correction is about this fraction of a mean edge.
+const SOLVE_PRECISION: f64 = 1e-4;
 /// The most memory the global step's factorization may take, in bytes (2 GiB): about a million
 /// layout points on a grid. A larger layout is solved without a factor (conjugate gradients
 /// preconditioned by the diagonal), in memory that grows only linearly with the points.
@@ -745,9 +747,12 @@ impl EnergySolver {
             .iter()
             .map(|&vertex| self.positions[vertex as usize].as_dvec3())
             .collect();
-        let solution = self
-            .system
-            .solve_reusing(&diagonal, &right_hand_side, &start)?;
+        let solution = self.system.solve_reusing(
+            &diagonal,
+            &right_hand_side,
+            &start,
+            SOLVE_PRECISION * f64::from(self.mean_edge_length),
+        )?;
         let mut proposed = self.positions.clone();
         for (position, fixed) in proposed.iter_mut().zip(&self.fixed) {
             if let Some(fixed) = fixed {

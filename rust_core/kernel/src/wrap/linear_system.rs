@@ -164,6 +164,18 @@ pub struct SolveStatistics {
     pub iterations: usize,
 }
 
+/// When a conjugate-gradient solve stops: whichever is met first.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Tolerances {
+    /// The residual of every axis within this fraction of the right-hand side's norm.
+    pub residual: f64,
+    /// The preconditioned residual's norm within this fraction of the start's.
+    pub step: f64,
+    /// The correction the preconditioner estimates, its root mean square over the rows
+    /// (weighted by the diagonal), within this length (in model units).
+    pub position: f64,
+}
+
 /// Relative residual (per axis, against the right-hand side) at which a solve is exact enough.
 const RESIDUAL_TOLERANCE: f64 = 1e-7;
 /// A warm-started solve also stops once the preconditioned residual has fallen to this fraction of
@@ -512,14 +524,20 @@ impl LinearSystem {
         extra_diagonal: &[f64],
         right_hand_side: &[DVec3],
         start: &[DVec3],
+        position_tolerance: f64,
     ) -> Result<Vec<DVec3>, KernelError> {
         self.statistics.solves += 1;
+        let tolerances = Tolerances {
+            residual: RESIDUAL_TOLERANCE,
+            step: STEP_TOLERANCE,
+            position: position_tolerance,
+        };
         if !self.is_direct() {
             let (solution, _, _) = self.solve_preconditioned(
                 extra_diagonal,
                 right_hand_side,
                 start,
-                (RESIDUAL_TOLERANCE, STEP_TOLERANCE),
+                tolerances,
                 JACOBI_ITERATIONS,
             )?;
             return Ok(solution);
@@ -531,7 +549,7 @@ impl LinearSystem {
                 extra_diagonal,
                 right_hand_side,
                 start,
-                (RESIDUAL_TOLERANCE, STEP_TOLERANCE),
+                tolerances,
                 self.iteration_budget,
             )?;
             if converged {
@@ -555,10 +573,8 @@ impl LinearSystem {
 
     /// Solves `(A + diag(extra)) x = b + fixed part` by conjugate gradients from `start`,
     /// preconditioned with the last factorization (of `A + diag(extra')` for an earlier
-    /// `extra'`), or by the diagonal when there is no factor. Stops when the residual of every
-    /// axis is within `tolerances.0` of the right-hand side's norm or its preconditioned norm
-    /// within `tolerances.1` of the start's, or after `max_iterations`. Returns `x`, the
-    /// iterations it took and whether it converged.
+    /// `extra'`), or by the diagonal when there is no factor. Stops when `tolerances` are met or
+    /// after `max_iterations`. Returns `x`, the iterations it took and whether it converged.
     ///
     /// # Errors
     /// [`KernelError::InvalidArgument`] when the system has a factor but nothing was factored
@@ -568,11 +584,11 @@ impl LinearSystem {
         extra_diagonal: &[f64],
         right_hand_side: &[DVec3],
         start: &[DVec3],
-        tolerances: (f64, f64),
+        tolerances: Tolerances,
         max_iterations: usize,
     ) -> Result<(Vec<DVec3>, usize, bool), KernelError> {
         let wanted = self.full_right_hand_side(right_hand_side);
-        let target_norm = column_norms(&wanted) * tolerances.0;
+        let target_norm = column_norms(&wanted) * tolerances.residual;
         let mut solution = start.to_vec();
         let product = self.multiply(extra_diagonal, &solution);
         let mut residual: Vec<DVec3> = wanted
@@ -605,7 +621,15 @@ impl LinearSystem {
         let mut preconditioned = precondition(&residual)?;
         let mut direction = preconditioned.clone();
         let mut alignment = column_dots(&residual, &preconditioned);
-        let target_alignment = alignment * (tolerances.1 * tolerances.1);
+        let values = self.matrix.val();
+        let diagonal_sum: f64 = self
+            .diagonal
+            .iter()
+            .zip(extra_diagonal)
+            .map(|(&entry, &extra)| values[entry] + extra)
+            .sum();
+        let target_alignment = (alignment * (tolerances.step * tolerances.step))
+            .max(DVec3::splat(tolerances.position.powi(2) * diagonal_sum));
         let mut iterations = 0;
         let mut converged = false;
         loop {
@@ -749,7 +773,13 @@ mod tests {
             .collect();
         system.factor(&old).unwrap();
         let (iterative, iterations, converged) = system
-            .solve_preconditioned(&new, &b, &vec![DVec3::ZERO; rows], (1e-10, 0.0), 200)
+            .solve_preconditioned(
+                &new,
+                &b,
+                &vec![DVec3::ZERO; rows],
+                residual_only(1e-10),
+                200,
+            )
             .unwrap();
         assert!(converged);
         assert!(iterations > 0);
@@ -760,7 +790,7 @@ mod tests {
         }
         // From the answer itself it takes no iteration.
         let (_, iterations, converged) = system
-            .solve_preconditioned(&new, &b, &direct, (1e-8, 0.0), 5)
+            .solve_preconditioned(&new, &b, &direct, residual_only(1e-8), 5)
             .unwrap();
         assert!(converged);
         assert_eq!(iterations, 0);
@@ -778,7 +808,7 @@ mod tests {
                 &vec![0.0; rows],
                 &b,
                 &vec![DVec3::ZERO; rows],
-                (1e-12, 0.0),
+                residual_only(1e-12),
                 1,
             )
             .unwrap();
@@ -802,6 +832,15 @@ mod tests {
         assert_eq!(system.solve(&b).unwrap(), first);
     }
 
+    /// Tolerances on the residual alone.
+    fn residual_only(residual: f64) -> Tolerances {
+        Tolerances {
+            residual,
+            step: 0.0,
+            position: 0.0,
+        }
+    }
+
     /// A diagonal of one value per row, varied by `(row % 3) · spread`.
     fn varied(rows: usize, base: f64, spread: f64) -> Vec<f64> {
         (0..rows)
@@ -817,12 +856,12 @@ mod tests {
         let b = right_hand_side(rows);
         let zero = vec![DVec3::ZERO; rows];
         let first = system
-            .solve_reusing(&varied(rows, 1.0, 0.1), &b, &zero)
+            .solve_reusing(&varied(rows, 1.0, 0.1), &b, &zero, 0.0)
             .unwrap();
         assert_eq!(system.statistics().factorizations, 1);
         // A small change of the diagonal: iterations with the old factor, close to the exact answer.
         let changed = varied(rows, 1.1, 0.1);
-        let reused = system.solve_reusing(&changed, &b, &first).unwrap();
+        let reused = system.solve_reusing(&changed, &b, &first, 0.0).unwrap();
         let statistics = system.statistics();
         assert_eq!((statistics.solves, statistics.factorizations), (2, 1));
         assert!(statistics.iterations > 0);
@@ -836,7 +875,7 @@ mod tests {
         // Every row's diagonal ten times larger: factored anew without iterating.
         let iterations = system.statistics().iterations;
         let answer = system
-            .solve_reusing(&varied(rows, 10.0, 1.0), &b, &reused)
+            .solve_reusing(&varied(rows, 10.0, 1.0), &b, &reused, 0.0)
             .unwrap();
         assert_eq!(system.statistics().factorizations, 2);
         assert_eq!(system.statistics().iterations, iterations);
@@ -857,14 +896,20 @@ mod tests {
         let exact = direct.solve(&b).unwrap();
         assert!(iterative.factor(&extra).is_err(), "no factor to make");
         let (solution, iterations, converged) = iterative
-            .solve_preconditioned(&extra, &b, &vec![DVec3::ZERO; rows], (1e-12, 0.0), 500)
+            .solve_preconditioned(
+                &extra,
+                &b,
+                &vec![DVec3::ZERO; rows],
+                residual_only(1e-12),
+                500,
+            )
             .unwrap();
         assert!(converged && iterations > 1);
         for (a, b) in solution.iter().zip(&exact) {
             assert!(a.distance(*b) < 1e-8, "{a} against {b}");
         }
         // The policy's solve gets close from the start too.
-        let answer = iterative.solve_reusing(&extra, &b, &exact).unwrap();
+        let answer = iterative.solve_reusing(&extra, &b, &exact, 0.0).unwrap();
         for (a, b) in answer.iter().zip(&exact) {
             assert!(a.distance(*b) < 1e-8, "{a} against {b}");
         }
