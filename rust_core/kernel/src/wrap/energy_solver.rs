@@ -131,7 +131,7 @@ const MEAN_ROTATION_ROUNDS: usize = 3;
 /// A corner may turn from its frame until this cosine; beyond it, only back toward it.
 const MIN_ALIGNMENT: f32 = 0.0;
 /// A global step is solved until its remaining correction is about this fraction of a mean edge.
-const SOLVE_PRECISION: f64 = 1e-4;
+const SOLVE_PRECISION: f64 = 1e-5;
 /// The most memory the global step's factorization may take, in bytes (2 GiB): about a million
 /// layout points on a grid. A larger layout is solved without a factor (conjugate gradients
 /// preconditioned by the diagonal), in memory that grows only linearly with the points.

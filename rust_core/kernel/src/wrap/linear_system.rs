@@ -181,7 +181,7 @@ const RESIDUAL_TOLERANCE: f64 = 1e-7;
 /// A warm-started solve also stops once the preconditioned residual has fallen to this fraction of
 /// its value at the start: the step from the current positions is then known to about this
 /// fraction of its length (in the energy's norm), far below what the next iteration changes.
-const STEP_TOLERANCE: f64 = 1e-3;
+const STEP_TOLERANCE: f64 = 1e-4;
 /// When more than this fraction of the rows changed their extra diagonal by more than
 /// [`OUTLIER_FACTOR`] (up or down) since the last factorization (a new stiffness level), the
 /// system is factored anew without trying the old factor (measured on the body: such solves
