@@ -197,7 +197,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--large", action="store_true", help="also the 2048 x 2048 spring on 1M triangles")
     parser.add_argument("--large-iterations", type=int, default=200, help="iteration cap of the large spring")
     parser.add_argument("--large-seconds", type=float, default=120.0, help="time cap of the large spring")
-    parser.add_argument("--large-solver", choices=("ENERGY", "SPRINGS"), default="ENERGY", help="solver of the large spring")
+    parser.add_argument(
+        "--large-solver", choices=("ENERGY", "SPRINGS"), default="ENERGY", help="solver of the large spring"
+    )
     parser.add_argument("--json", type=Path, default=REPOSITORY / "out" / "bench" / "wrap_speed.json")
     arguments = parser.parse_args(argv)
 
