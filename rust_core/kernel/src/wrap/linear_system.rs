@@ -755,12 +755,17 @@ mod tests {
             .collect()
     }
 
+    /// The chain's system (with a factor allowed), its rows and a right-hand side.
+    fn chain_system(n: u32) -> (LinearSystem, usize, Vec<DVec3>) {
+        let (stencils, fixed) = chain(n);
+        let system = LinearSystem::new(&stencils, n as usize, &fixed, usize::MAX).unwrap();
+        let rows = system.rows();
+        (system, rows, right_hand_side(rows))
+    }
+
     #[test]
     fn a_solve_preconditioned_by_an_older_factor_matches_a_fresh_factor() {
-        let (stencils, fixed) = chain(60);
-        let mut system = LinearSystem::new(&stencils, 60, &fixed, usize::MAX).unwrap();
-        let rows = system.rows();
-        let b = right_hand_side(rows);
+        let (mut system, rows, b) = chain_system(60);
         let old: Vec<f64> = (0..rows).map(|row| 1.0 + (row % 3) as f64).collect();
         let new: Vec<f64> = (0..rows)
             .map(|row| {
@@ -798,10 +803,7 @@ mod tests {
 
     #[test]
     fn a_preconditioned_solve_that_does_not_converge_says_so() {
-        let (stencils, fixed) = chain(60);
-        let mut system = LinearSystem::new(&stencils, 60, &fixed, usize::MAX).unwrap();
-        let rows = system.rows();
-        let b = right_hand_side(rows);
+        let (mut system, rows, b) = chain_system(60);
         system.factor(&vec![100.0; rows]).unwrap();
         let (_, iterations, converged) = system
             .solve_preconditioned(
@@ -817,10 +819,7 @@ mod tests {
 
     #[test]
     fn a_failed_factorization_leaves_nothing_to_solve_with() {
-        let (stencils, fixed) = chain(30);
-        let mut system = LinearSystem::new(&stencils, 30, &fixed, usize::MAX).unwrap();
-        let rows = system.rows();
-        let b = right_hand_side(rows);
+        let (mut system, rows, b) = chain_system(30);
         assert!(system.solve(&b).is_err(), "nothing factored yet");
         system.factor(&vec![1.0; rows]).unwrap();
         let first = system.solve(&b).unwrap();
@@ -850,10 +849,7 @@ mod tests {
 
     #[test]
     fn the_reuse_policy_factors_once_for_small_changes_and_again_for_large_ones() {
-        let (stencils, fixed) = chain(200);
-        let mut system = LinearSystem::new(&stencils, 200, &fixed, usize::MAX).unwrap();
-        let rows = system.rows();
-        let b = right_hand_side(rows);
+        let (mut system, rows, b) = chain_system(200);
         let zero = vec![DVec3::ZERO; rows];
         let first = system
             .solve_reusing(&varied(rows, 1.0, 0.1), &b, &zero, 0.0)
