@@ -428,7 +428,7 @@ impl SubdivisionFit {
             .zip(cage)
             .map(|(&fixed, &position)| fixed.then_some(position))
             .collect();
-        let mut system = LinearSystem::new(&all_terms, cage.len(), &fixed)?;
+        let mut system = LinearSystem::new(&all_terms, cage.len(), &fixed, usize::MAX)?;
         let rows = system.rows();
         let mut right_hand_side: Vec<DVec3> = system
             .vertex_of_row()

@@ -24,8 +24,9 @@
 //! that a posed target's limbs turn with their anchors instead of being dragged by the data.
 //!
 //! **Local step**: fit `T_i` and the correspondences at the current positions. **Global step**:
-//! solve `A x = b`; `A` is the same scalar matrix for x, y and z, its pattern analysed once, its
-//! diagonal (the data weights) refactored every iteration. **Safeguard**: a corner of a layout
+//! solve `A x = b`; `A` is the same scalar matrix for x, y and z, its pattern analysed once; only
+//! its diagonal (the data weights) changes, and the linear system decides when to factor it anew
+//! (`linear_system.rs`). **Safeguard**: a corner of a layout
 //! face (a vertex and its two face neighbours) may not turn more than 90 degrees from its rest
 //! normal turned by the layout's mean rotation (one frame for all: a region cannot roll over by
 //! small steps), and a corner already beyond may only turn back; the vertices of corners that
@@ -131,15 +132,11 @@ const LANDING_FACING: f32 = 0.26;
 const MEAN_ROTATION_ROUNDS: usize = 3;
 /// A corner may turn from its frame until this cosine; beyond it, only back toward it.
 const MIN_ALIGNMENT: f32 = 0.0;
-/// Relative residual (per axis) at which a solve preconditioned by an earlier factorization is
-/// taken, and the most conjugate-gradient iterations before factoring anew.
-const REUSE_TOLERANCE: f64 = 1e-7;
-const REUSE_ITERATIONS: usize = 10;
-/// A solve that took more conjugate-gradient iterations than this is followed by a factorization.
-const REUSE_FAST: usize = 6;
+/// A global step is solved until its remaining correction is about this fraction of a mean edge.
+const SOLVE_PRECISION: f64 = 1e-5;
 /// The most memory the global step's factorization may take, in bytes (2 GiB): about a million
-/// layout points on a grid. A larger layout is refused before anything is factored, naming the
-/// spring solver, whose memory grows only linearly with the points.
+/// layout points on a grid. A larger layout is solved without a factor (conjugate gradients
+/// preconditioned by the diagonal), in memory that grows only linearly with the points.
 pub(crate) const MAX_FACTOR_BYTES: usize = 2 << 30;
 /// The stiffness at which a vertex has the energy's own weights.
 pub(crate) const NEUTRAL_STIFFNESS: f32 = 0.5;
@@ -231,13 +228,6 @@ pub(crate) struct EnergySolver {
     /// rotations. One frame for the whole layout, so that no region (an ear, a lip) can roll
     /// over by small steps that each look fine to its own turning neighbourhood.
     frame: Quat,
-    /// The level whose first diagonal was factored last (later iterations of the level solve by
-    /// conjugate gradients preconditioned with it), or `None`.
-    factored_level: Option<usize>,
-    /// Whether the next solve may try the last factorization.
-    reuse_factor: bool,
-    /// The level in which a preconditioned solve did not converge (no more reuse there).
-    reuse_failed_level: Option<usize>,
     /// Per vertex, the triangle of its last closest point (where the next query starts), or
     /// [`NO_TRIANGLE`].
     last_hits: Vec<u32>,
@@ -264,8 +254,7 @@ impl EnergySolver {
     /// Sets up the energy of a layout at `positions` with the constraints of `inputs`.
     ///
     /// # Errors
-    /// [`KernelError::InvalidArgument`] when the linear system cannot be built, or when its
-    /// factorization would take more than [`MAX_FACTOR_BYTES`].
+    /// [`KernelError::InvalidArgument`] when the linear system cannot be built (out of memory).
     pub(crate) fn new(inputs: &EnergyInputs<'_>) -> Result<Self, KernelError> {
         let structure = inputs.structure;
         let vertex_count = structure.vertex_count;
@@ -322,8 +311,7 @@ impl EnergySolver {
                 }
             })
             .collect();
-        let system = LinearSystem::new(&stencils, vertex_count, &fixed)?;
-        check_factor_size(system.factor_bytes(), system.rows(), MAX_FACTOR_BYTES)?;
+        let system = LinearSystem::new(&stencils, vertex_count, &fixed, MAX_FACTOR_BYTES)?;
         // Constrained vertices move to their constraints in the first step, with their
         // neighbours: the safeguard then sees the whole move.
         let positions = inputs.positions.to_vec();
@@ -355,9 +343,6 @@ impl EnergySolver {
             frame: Quat::IDENTITY,
             held_back: vec![false; vertex_count],
             last_hits: vec![NO_TRIANGLE; vertex_count],
-            factored_level: None,
-            reuse_factor: false,
-            reuse_failed_level: None,
             orientation: 1.0,
             mean_edge_length: inputs.mean_edge_length,
             landing_distance: inputs.landing_distance,
@@ -587,7 +572,6 @@ impl EnergySolver {
             || max_move <= WARMUP_SETTLED_MOVE * self.mean_edge_length
         {
             self.warming_up = false;
-            self.factored_level = None;
         }
         Ok(EnergyStep {
             max_move,
@@ -765,40 +749,18 @@ impl EnergySolver {
                 }
             }
         }
-        // Within a level the diagonal changes little from one iteration to the next: conjugate
-        // gradients preconditioned by the level's factorization are cheaper than a new one.
-        let mut reused = None;
-        let tried = self.factored_level == Some(self.level) && self.reuse_factor;
-        if tried {
-            let start: Vec<DVec3> = vertex_of_row
-                .iter()
-                .map(|&vertex| self.positions[vertex as usize].as_dvec3())
-                .collect();
-            reused = self.system.solve_preconditioned(
-                &diagonal,
-                &right_hand_side,
-                &start,
-                REUSE_TOLERANCE,
-                REUSE_ITERATIONS,
-            )?;
-        }
-        let solution = match reused {
-            Some((solution, iterations)) => {
-                // A slow solve says the diagonal has drifted from the factored one.
-                self.reuse_factor = iterations <= REUSE_FAST;
-                solution
-            }
-            None => {
-                if tried {
-                    // It did not converge: this level's diagonals change too much to reuse.
-                    self.reuse_failed_level = Some(self.level);
-                }
-                self.system.factor(&diagonal)?;
-                self.factored_level = Some(self.level);
-                self.reuse_factor = self.reuse_failed_level != Some(self.level);
-                self.system.solve(&right_hand_side)?
-            }
-        };
+        // Within a level the diagonal changes little from one iteration to the next: the system
+        // reuses its last factorization as a preconditioner, warm-started here.
+        let start: Vec<DVec3> = vertex_of_row
+            .iter()
+            .map(|&vertex| self.positions[vertex as usize].as_dvec3())
+            .collect();
+        let solution = self.system.solve_reusing(
+            &diagonal,
+            &right_hand_side,
+            &start,
+            SOLVE_PRECISION * f64::from(self.mean_edge_length),
+        )?;
         let mut proposed = self.positions.clone();
         for (position, fixed) in proposed.iter_mut().zip(&self.fixed) {
             if let Some(fixed) = fixed {
@@ -1069,23 +1031,6 @@ impl EnergySolver {
 }
 
 /// The largest and the mean distance between `new` and `old` positions.
-/// Refuses a factorization of `rows` rows that would take more than `limit` bytes.
-fn check_factor_size(bytes: usize, rows: usize, limit: usize) -> Result<(), KernelError> {
-    if bytes <= limit {
-        return Ok(());
-    }
-    let gib = |bytes: usize| bytes as f64 / f64::from(1u32 << 30);
-    Err(KernelError::InvalidArgument {
-        name: "layout",
-        reason: format!(
-            "the energy solver would need {:.1} GiB for its factorization of {rows} layout points \
-             (at most {:.1} GiB): use the spring solver (solver 'SPRINGS') or a lower spring resolution",
-            gib(bytes),
-            gib(limit)
-        ),
-    })
-}
-
 fn moves(new: &[Vec3], old: &[Vec3]) -> (f32, f32) {
     let (mut largest, mut total) = (0.0f32, 0.0f64);
     for (new, old) in new.iter().zip(old) {
@@ -1514,19 +1459,33 @@ mod tests {
     }
 
     #[test]
-    fn a_factorization_over_the_memory_limit_is_refused_naming_the_spring_solver() {
-        let (_, structure, positions) = plane_and_grid(11, 0.1, 0.0);
-        let (stencils, _, _) = build_terms(&structure, &positions);
-        let system = LinearSystem::new(&stencils, 144, &vec![None; 144]).unwrap();
-        let bytes = system.factor_bytes();
-        // At least the matrix's own lower triangle, eight bytes a value.
-        assert!(bytes >= 8 * 144, "{bytes}");
-        assert!(check_factor_size(bytes, system.rows(), bytes).is_ok());
-        let message = check_factor_size(bytes, system.rows(), bytes - 1)
-            .unwrap_err()
-            .to_string();
-        assert!(message.contains("144 layout points"), "{message}");
-        assert!(message.contains("'SPRINGS'"), "{message}");
+    fn without_a_factor_the_wrap_ends_where_it_ends_with_one() {
+        // A layout too large to factor is solved by Jacobi-preconditioned iterations: on a small
+        // grid above a plane (no factor allowed), the same place as with factors.
+        let (target, structure, rest) = plane_and_grid(10, 0.1, 0.3);
+        let mut anchors = vec![None; rest.len()];
+        for corner in [0usize, 10, 110, 120] {
+            let position = rest[corner] - Vec3::Z * 0.3;
+            let hit = target.closest_point(position, 1.0).unwrap();
+            anchors[corner] = Some((AnchorTarget::Face(hit.face_point), position));
+        }
+        let mut results = Vec::new();
+        for limit in [MAX_FACTOR_BYTES, 0] {
+            let mut wrap = solver(&target, &structure, &rest, &rest, &anchors);
+            wrap.system =
+                LinearSystem::new(&wrap.stencils, rest.len(), &wrap.fixed, limit).unwrap();
+            assert_eq!(wrap.system.is_direct(), limit > 0);
+            while !wrap.iterate().unwrap().finished {}
+            assert_eq!(wrap.system.statistics().factorizations > 0, limit > 0);
+            results.push(wrap.positions.clone());
+        }
+        let largest = results[0]
+            .iter()
+            .zip(&results[1])
+            .map(|(a, b)| a.distance(*b))
+            .fold(0.0, f32::max);
+        assert!(largest < 1e-3, "{largest}");
+        assert!(results[1].iter().all(|p| p.z.abs() < 1e-3), "on the plane");
     }
 
     #[test]

@@ -9,20 +9,29 @@
 //!
 //! The pattern of `A` depends only on the layout's connectivity and the fixed set: its symbolic
 //! analysis (ordering, elimination tree) is done once per wrap. Only the diagonal changes between
-//! iterations (the data term's per-vertex weights), so each iteration costs one numeric
-//! factorization and one solve.
+//! iterations (the data term's per-vertex weights), so the factor of an earlier diagonal stays a
+//! good preconditioner: [`LinearSystem::solve_reusing`] solves by conjugate gradients
+//! preconditioned with it, warm-started at the current positions, and factors anew only when the
+//! diagonal has moved too far for that to pay (predicted from how many rows changed a lot, or
+//! seen when the iterations stall). A factorization costs as much as a number of iterations that
+//! grows with the layout (estimated from the factor's structure); when the factor would take more
+//! memory than allowed (a few million layout points), there is no factor at all and the
+//! conjugate gradients are preconditioned by the diagonal alone (Jacobi).
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
+use faer::sparse::linalg::cholesky::SymbolicCholeskyRaw;
 use faer::sparse::linalg::cholesky::{
     CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering,
     factorize_symbolic_cholesky,
 };
-use faer::sparse::{SparseColMat, SparseColMatRef, Triplet};
+use faer::sparse::{SparseColMat, SparseColMatRef, SymbolicSparseColMat};
 use faer::{Conj, Mat, Side, get_global_parallelism};
 use glam::DVec3;
+use rayon::prelude::*;
 use std::sync::Arc;
 
+use super::system_assembly::{assemble, try_filled};
 use crate::error::KernelError;
 
 /// The quadratic terms of an energy, in CSR form: term `t` asks
@@ -90,23 +99,129 @@ impl Stencils {
     }
 }
 
-/// `A = Σ weight · s sᵀ` over the free vertices, factored once per change of its diagonal.
+/// Both triangles of `A` in compressed rows (column indices as `u32`), for a product that runs on
+/// every core; kept only when there is no factor (the large layouts, where products are the work).
+#[derive(Debug, Clone)]
+struct FullRows {
+    row_pointers: Vec<usize>,
+    columns: Vec<u32>,
+    values: Vec<f64>,
+}
+
+impl FullRows {
+    /// Both triangles of the lower triangle `lower`.
+    fn new(lower: &SparseColMat<usize, f64>) -> Result<Self, KernelError> {
+        let rows = lower.nrows();
+        let column_pointers = lower.symbolic().col_ptr();
+        let row_indices = lower.symbolic().row_idx();
+        let values = lower.val();
+        // Row i holds column j's entries (j <= i, the lower part) and row i's own column (the
+        // upper part, the diagonal excepted).
+        let mut row_pointers = try_filled(rows + 1, 0usize, "matrix")?;
+        for column in 0..rows {
+            let range = column_pointers[column]..column_pointers[column + 1];
+            row_pointers[column + 1] += range.len().saturating_sub(1);
+            for &row in &row_indices[range] {
+                row_pointers[row + 1] += 1;
+            }
+        }
+        for row in 0..rows {
+            row_pointers[row + 1] += row_pointers[row];
+        }
+        let total = row_pointers[rows];
+        let mut columns = try_filled(total, 0u32, "matrix")?;
+        let mut full_values = try_filled(total, 0.0f64, "matrix")?;
+        let mut next = row_pointers.clone();
+        for column in 0..rows {
+            for entry in column_pointers[column]..column_pointers[column + 1] {
+                let (row, value) = (row_indices[entry], values[entry]);
+                columns[next[row]] = column as u32;
+                full_values[next[row]] = value;
+                next[row] += 1;
+                if row != column {
+                    columns[next[column]] = row as u32;
+                    full_values[next[column]] = value;
+                    next[column] += 1;
+                }
+            }
+        }
+        Ok(Self {
+            row_pointers,
+            columns,
+            values: full_values,
+        })
+    }
+}
+
+/// How the global step's solves went: for the benchmarks and the tests.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct SolveStatistics {
+    /// Solves asked for.
+    pub solves: usize,
+    /// Numeric factorizations made.
+    pub factorizations: usize,
+    /// Preconditioned conjugate-gradient iterations made.
+    pub iterations: usize,
+}
+
+/// When a conjugate-gradient solve stops: whichever is met first.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Tolerances {
+    /// The residual of every axis within this fraction of the right-hand side's norm.
+    pub residual: f64,
+    /// The preconditioned residual's norm within this fraction of the start's.
+    pub step: f64,
+    /// The correction the preconditioner estimates, its root mean square over the rows
+    /// (weighted by the diagonal), within this length (in model units).
+    pub position: f64,
+}
+
+/// Relative residual (per axis, against the right-hand side) at which a solve is exact enough.
+const RESIDUAL_TOLERANCE: f64 = 1e-7;
+/// A warm-started solve also stops once the preconditioned residual has fallen to this fraction of
+/// its value at the start: the step from the current positions is then known to about this
+/// fraction of its length (in the energy's norm), far below what the next iteration changes.
+const STEP_TOLERANCE: f64 = 1e-4;
+/// When more than this fraction of the rows changed their extra diagonal by more than
+/// [`OUTLIER_FACTOR`] (up or down) since the last factorization (a new stiffness level), the
+/// system is factored anew without trying the old factor (measured on the body: such solves
+/// never converged within the budget).
+const OUTLIER_FACTOR: f64 = 2.0;
+const OUTLIER_SHARE: f64 = 0.25;
+/// Bounds of the iteration budget a factorization is worth.
+const BUDGET_BOUNDS: (usize, usize) = (4, 60);
+/// Without a factor: the most Jacobi-preconditioned iterations of one solve (the step is then
+/// taken as far as they got: each lowers the energy).
+const JACOBI_ITERATIONS: usize = 200;
+/// Layouts with more free rows than this are not analysed for a factorization at all (the
+/// analysis alone would take seconds and gigabytes); their factor would pass any memory limit.
+const MAX_DIRECT_ROWS: usize = 1_500_000;
+
+/// `A = Σ weight · s sᵀ` over the free vertices, with its factor-reuse policy.
 pub struct LinearSystem {
     /// Per layout vertex, its row in the system, or `None` when its position is fixed.
     row_of_vertex: Vec<Option<u32>>,
     /// Per row, the layout vertex.
     vertex_of_row: Vec<u32>,
-    /// The stencils' part of `A` (lower triangle, CSC).
+    /// The stencils' part of `A` (lower triangle, CSC, each column's diagonal first).
     matrix: SparseColMat<usize, f64>,
     /// Index of each row's diagonal entry in the matrix's values.
     diagonal: Vec<usize>,
-    /// The factor's pattern (fill-reducing ordering, supernodes), analysed once.
-    symbolic: Arc<SymbolicCholesky<usize>>,
+    /// The factor's pattern (fill-reducing ordering, supernodes), analysed once; `None` when the
+    /// factor would take too much memory (solves are then Jacobi-preconditioned).
+    symbolic: Option<Arc<SymbolicCholesky<usize>>>,
+    /// Both triangles by rows, when there is no factor.
+    full_rows: Option<FullRows>,
     /// The right-hand side's part from the fixed vertices: `-Σ weight · s_a s_b x_b` per free `a`.
     fixed_right_hand_side: Vec<DVec3>,
     /// The factor's values, allocated at the first factorization and reused by the next ones;
     /// empty until then.
     factor: Vec<f64>,
+    /// The extra diagonal of the last factorization.
+    factored_diagonal: Vec<f64>,
+    /// How many preconditioned iterations cost about one factorization.
+    iteration_budget: usize,
+    statistics: SolveStatistics,
 }
 
 impl std::fmt::Debug for LinearSystem {
@@ -115,7 +230,8 @@ impl std::fmt::Debug for LinearSystem {
             .debug_struct("LinearSystem")
             .field("rows", &self.vertex_of_row.len())
             .field("nonzeros", &self.matrix.val().len())
-            .field("factor_nonzeros", &self.symbolic.len_val())
+            .field("factor_bytes", &self.factor_bytes())
+            .field("iteration_budget", &self.iteration_budget)
             .finish_non_exhaustive()
     }
 }
@@ -127,9 +243,13 @@ impl Clone for LinearSystem {
             vertex_of_row: self.vertex_of_row.clone(),
             matrix: self.matrix.clone(),
             diagonal: self.diagonal.clone(),
-            symbolic: Arc::clone(&self.symbolic),
+            symbolic: self.symbolic.clone(),
+            full_rows: self.full_rows.clone(),
             fixed_right_hand_side: self.fixed_right_hand_side.clone(),
             factor: self.factor.clone(),
+            factored_diagonal: self.factored_diagonal.clone(),
+            iteration_budget: self.iteration_budget,
+            statistics: self.statistics,
         }
     }
 }
@@ -141,7 +261,11 @@ fn column_norms(values: &[DVec3]) -> DVec3 {
 
 /// Per axis, the dot product of the columns of `a` and `b`.
 fn column_dots(a: &[DVec3], b: &[DVec3]) -> DVec3 {
-    a.iter().zip(b).map(|(a, b)| *a * *b).sum()
+    a.par_iter()
+        .with_min_len(4096)
+        .zip(b)
+        .map(|(a, b)| *a * *b)
+        .sum()
 }
 
 fn solver_error(reason: impl std::fmt::Display) -> KernelError {
@@ -151,9 +275,37 @@ fn solver_error(reason: impl std::fmt::Display) -> KernelError {
     }
 }
 
+/// The floating-point operations of a numeric factorization with this structure.
+fn factorization_flops(symbolic: &SymbolicCholesky<usize>) -> f64 {
+    match symbolic.raw() {
+        SymbolicCholeskyRaw::Supernodal(supernodal) => {
+            let begin = supernodal.supernode_begin();
+            let end = supernodal.supernode_end();
+            let values = supernodal.col_ptr_for_val();
+            (0..supernodal.n_supernodes())
+                .map(|node| {
+                    let columns = (end[node] - begin[node]).max(1) as f64;
+                    let length = (values[node + 1] - values[node]) as f64;
+                    // A block of `rows` x `columns`: its update of the rows below costs
+                    // about columns · rows².
+                    length * (length / columns)
+                })
+                .sum()
+        }
+        SymbolicCholeskyRaw::Simplicial(simplicial) => {
+            let pointers = simplicial.col_ptr();
+            pointers
+                .windows(2)
+                .map(|pair| ((pair[1] - pair[0]) as f64).powi(2))
+                .sum()
+        }
+    }
+}
+
 impl LinearSystem {
     /// Assembles the system of `stencils` over `vertex_count` vertices, `fixed[v]` giving the
-    /// position of each fixed vertex, and analyses its pattern.
+    /// position of each fixed vertex, and analyses its pattern; a factor that would take more
+    /// than `max_factor_bytes` is not planned (the solves are then iterative).
     ///
     /// # Errors
     /// [`KernelError::InvalidArgument`] when the matrix cannot be built or analysed (out of
@@ -162,6 +314,7 @@ impl LinearSystem {
         stencils: &Stencils,
         vertex_count: usize,
         fixed: &[Option<DVec3>],
+        max_factor_bytes: usize,
     ) -> Result<Self, KernelError> {
         let mut row_of_vertex = vec![None; vertex_count];
         let mut vertex_of_row = Vec::new();
@@ -172,69 +325,81 @@ impl LinearSystem {
             }
         }
         let rows = vertex_of_row.len();
-        let mut triplets: Vec<Triplet<usize, usize, f64>> =
-            (0..rows).map(|row| Triplet::new(row, row, 0.0)).collect();
-        let mut fixed_right_hand_side = vec![DVec3::ZERO; rows];
-        let mut entries: Vec<(u32, f64)> = Vec::new();
-        for term in 0..stencils.len() {
-            let weight = stencils.weights[term];
-            entries.clear();
-            entries.extend(stencils.entries(term));
-            for &(vertex_a, coefficient_a) in &entries {
-                let Some(row_a) = row_of_vertex[vertex_a as usize] else {
-                    continue;
-                };
-                for &(vertex_b, coefficient_b) in &entries {
-                    let value = weight * coefficient_a * coefficient_b;
-                    match row_of_vertex[vertex_b as usize] {
-                        Some(row_b) if row_b <= row_a => {
-                            triplets.push(Triplet::new(row_a as usize, row_b as usize, value));
-                        }
-                        Some(_) => {}
-                        None => {
-                            let position = fixed[vertex_b as usize].unwrap_or(DVec3::ZERO);
-                            fixed_right_hand_side[row_a as usize] -= position * value;
-                        }
-                    }
-                }
+        let assembled = assemble(stencils, &row_of_vertex, rows, fixed)?;
+        let diagonal = assembled.column_pointers[..rows].to_vec();
+        let symbolic_matrix = SymbolicSparseColMat::new_checked(
+            rows,
+            rows,
+            assembled.column_pointers,
+            None,
+            assembled.row_indices,
+        );
+        let matrix = SparseColMat::new(symbolic_matrix, assembled.values);
+        let mut symbolic = None;
+        if rows <= MAX_DIRECT_ROWS {
+            let analysed = factorize_symbolic_cholesky(
+                matrix.symbolic(),
+                Side::Lower,
+                SymmetricOrdering::Amd,
+                CholeskySymbolicParams::default(),
+            )
+            .map_err(|error| solver_error(format!("{error:?}")))?;
+            if analysed
+                .len_val()
+                .saturating_mul(std::mem::size_of::<f64>())
+                <= max_factor_bytes
+            {
+                symbolic = Some(Arc::new(analysed));
             }
         }
-        let matrix = SparseColMat::try_new_from_triplets(rows, rows, &triplets)
-            .map_err(|error| solver_error(format!("{error:?}")))?;
-        let column_pointers = matrix.symbolic().col_ptr();
-        let row_indices = matrix.symbolic().row_idx();
-        let diagonal = (0..rows)
-            .map(|column| {
-                (column_pointers[column]..column_pointers[column + 1])
-                    .find(|&entry| row_indices[entry] == column)
-                    .unwrap_or(usize::MAX)
-            })
-            .collect();
-        let symbolic = factorize_symbolic_cholesky(
-            matrix.symbolic(),
-            Side::Lower,
-            SymmetricOrdering::Amd,
-            CholeskySymbolicParams::default(),
-        )
-        .map_err(|error| solver_error(format!("{error:?}")))?;
+        let iteration_budget = symbolic.as_deref().map_or(0, |symbolic| {
+            let solve = 2.0 * symbolic.len_val() as f64 + 2.0 * matrix.val().len() as f64;
+            // Operations of a factorization over those of an iteration (three right-hand sides
+            // through the factor and the matrix). On the body (13k rows) this says 10; measured:
+            // factorization and solve 42 ms, an iteration about 5 ms (a shared machine).
+            let ratio = factorization_flops(symbolic) / (3.0 * solve);
+            (ratio.round() as usize).clamp(BUDGET_BOUNDS.0, BUDGET_BOUNDS.1)
+        });
+        let full_rows = match symbolic {
+            Some(_) => None,
+            None => Some(FullRows::new(&matrix)?),
+        };
         Ok(Self {
             row_of_vertex,
             vertex_of_row,
             matrix,
             diagonal,
-            symbolic: Arc::new(symbolic),
-            fixed_right_hand_side,
+            symbolic,
+            full_rows,
+            fixed_right_hand_side: assembled.fixed_right_hand_side,
             factor: Vec::new(),
+            factored_diagonal: Vec::new(),
+            iteration_budget,
+            statistics: SolveStatistics::default(),
         })
     }
 
     /// The memory a factorization takes, in bytes: the factor's values (known from the pattern's
-    /// analysis, before anything is factored).
+    /// analysis, before anything is factored); 0 when the solves are iterative.
     #[must_use]
     pub fn factor_bytes(&self) -> usize {
-        self.symbolic
-            .len_val()
-            .saturating_mul(std::mem::size_of::<f64>())
+        self.symbolic.as_ref().map_or(0, |symbolic| {
+            symbolic
+                .len_val()
+                .saturating_mul(std::mem::size_of::<f64>())
+        })
+    }
+
+    /// Whether the system is solved with a factor (else by Jacobi-preconditioned iterations).
+    #[must_use]
+    pub fn is_direct(&self) -> bool {
+        self.symbolic.is_some()
+    }
+
+    /// How the solves went so far.
+    #[must_use]
+    pub fn statistics(&self) -> SolveStatistics {
+        self.statistics
     }
 
     /// Number of free vertices (rows).
@@ -252,14 +417,18 @@ impl LinearSystem {
     /// Factors `A + diag(extra)` (`extra`: one non-negative value per row).
     ///
     /// # Errors
-    /// [`KernelError::InvalidArgument`] when the matrix is not positive definite.
+    /// [`KernelError::InvalidArgument`] when the matrix is not positive definite, or when the
+    /// system has no factor (too large).
     pub fn factor(&mut self, extra_diagonal: &[f64]) -> Result<(), KernelError> {
+        let Some(symbolic) = self.symbolic.clone() else {
+            return Err(solver_error("the system is too large to factor"));
+        };
         let mut values = self.matrix.val().to_vec();
         for (&entry, &extra) in self.diagonal.iter().zip(extra_diagonal) {
             values[entry] += extra;
         }
         let matrix = SparseColMatRef::new(self.matrix.symbolic(), &values);
-        let length = self.symbolic.len_val();
+        let length = symbolic.len_val();
         if self.factor.len() != length {
             self.factor.clear();
             self.factor
@@ -269,11 +438,11 @@ impl LinearSystem {
         }
         let parallelism = get_global_parallelism();
         let mut scratch = MemBuffer::try_new(
-            self.symbolic
-                .factorize_numeric_llt_scratch::<f64>(parallelism, faer::Spec::default()),
+            symbolic.factorize_numeric_llt_scratch::<f64>(parallelism, faer::Spec::default()),
         )
         .map_err(|_| solver_error("out of memory for the factorization's workspace"))?;
-        let factored = self.symbolic.factorize_numeric_llt::<f64>(
+        self.statistics.factorizations += 1;
+        let factored = symbolic.factorize_numeric_llt::<f64>(
             &mut self.factor,
             matrix,
             Side::Lower,
@@ -285,23 +454,28 @@ impl LinearSystem {
         if let Err(error) = factored {
             // A failed factorization leaves nothing to solve with.
             self.factor.clear();
+            self.factored_diagonal.clear();
             return Err(solver_error(format!("{error:?}")));
         }
+        self.factored_diagonal.clear();
+        self.factored_diagonal.extend_from_slice(extra_diagonal);
         Ok(())
     }
 
     /// Solves with the last factorization, in place, the columns of `columns` (one per axis).
     fn solve_with_factor(&self, columns: &mut Mat<f64>) -> Result<(), KernelError> {
+        let Some(symbolic) = self.symbolic.as_deref() else {
+            return Err(solver_error("the system is too large to factor"));
+        };
         if self.factor.is_empty() && self.rows() > 0 {
             return Err(solver_error("solved before it was factored"));
         }
         let parallelism = get_global_parallelism();
         let mut scratch = MemBuffer::try_new(
-            self.symbolic
-                .solve_in_place_scratch::<f64>(columns.ncols(), parallelism),
+            symbolic.solve_in_place_scratch::<f64>(columns.ncols(), parallelism),
         )
         .map_err(|_| solver_error("out of memory for the solve's workspace"))?;
-        LltRef::<usize, f64>::new(&self.symbolic, &self.factor).solve_in_place_with_conj(
+        LltRef::<usize, f64>::new(symbolic, &self.factor).solve_in_place_with_conj(
             Conj::No,
             columns.as_mut(),
             parallelism,
@@ -310,44 +484,111 @@ impl LinearSystem {
         Ok(())
     }
 
-    /// Solves `(A + diag(extra)) x = b + fixed part` with the last factorization, `b` given per
-    /// row; returns `x` per row.
-    ///
-    /// # Errors
-    /// [`KernelError::InvalidArgument`] when nothing was factored yet.
-    pub fn solve(&self, right_hand_side: &[DVec3]) -> Result<Vec<DVec3>, KernelError> {
+    /// `b` plus the fixed vertices' part, per row.
+    fn full_right_hand_side(&self, right_hand_side: &[DVec3]) -> Vec<DVec3> {
+        right_hand_side
+            .iter()
+            .zip(&self.fixed_right_hand_side)
+            .map(|(b, fixed)| *b + *fixed)
+            .collect()
+    }
+
+    /// The last factor applied to `values` (one per row).
+    fn apply_factor(&self, values: &[DVec3]) -> Result<Vec<DVec3>, KernelError> {
         let rows = self.rows();
-        let mut columns = Mat::<f64>::from_fn(rows, 3, |row, axis| {
-            (right_hand_side[row] + self.fixed_right_hand_side[row])[axis]
-        });
+        let mut columns = Mat::<f64>::from_fn(rows, 3, |row, axis| values[row][axis]);
         self.solve_with_factor(&mut columns)?;
         Ok((0..rows)
             .map(|row| DVec3::new(columns[(row, 0)], columns[(row, 1)], columns[(row, 2)]))
             .collect())
     }
 
-    /// Solves `(A + diag(extra)) x = b + fixed part` by conjugate gradients preconditioned with
-    /// the last factorization (of `A + diag(extra')` for an earlier `extra'`), from `start`.
-    /// Returns `None` when the relative residual of some axis is still above `tolerance` after
-    /// `max_iterations` (the caller then factors anew), else `x` and the iterations it took.
+    /// Solves `(A + diag(extra)) x = b + fixed part` with the last factorization, `b` given per
+    /// row; returns `x` per row.
     ///
     /// # Errors
     /// [`KernelError::InvalidArgument`] when nothing was factored yet.
-    pub fn solve_preconditioned(
-        &self,
+    pub fn solve(&self, right_hand_side: &[DVec3]) -> Result<Vec<DVec3>, KernelError> {
+        self.apply_factor(&self.full_right_hand_side(right_hand_side))
+    }
+
+    /// Solves `(A + diag(extra)) x = b + fixed part`, warm-started at `start` (per row), with the
+    /// reuse policy: conjugate gradients preconditioned by the last factorization when its
+    /// diagonal is close enough to `extra` for that to cost less than a factorization (and they
+    /// converge), else a new factorization; without a factor, Jacobi-preconditioned iterations.
+    ///
+    /// # Errors
+    /// [`KernelError::InvalidArgument`] when a factorization fails.
+    pub fn solve_reusing(
+        &mut self,
         extra_diagonal: &[f64],
         right_hand_side: &[DVec3],
         start: &[DVec3],
-        tolerance: f64,
-        max_iterations: usize,
-    ) -> Result<Option<(Vec<DVec3>, usize)>, KernelError> {
-        let rows = self.rows();
-        let wanted: Vec<DVec3> = right_hand_side
+        position_tolerance: f64,
+    ) -> Result<Vec<DVec3>, KernelError> {
+        self.statistics.solves += 1;
+        let tolerances = Tolerances {
+            residual: RESIDUAL_TOLERANCE,
+            step: STEP_TOLERANCE,
+            position: position_tolerance,
+        };
+        if !self.is_direct() {
+            let (solution, _, _) = self.solve_preconditioned(
+                extra_diagonal,
+                right_hand_side,
+                start,
+                tolerances,
+                JACOBI_ITERATIONS,
+            )?;
+            return Ok(solution);
+        }
+        if !self.factor.is_empty()
+            && self.outlying_rows(extra_diagonal) as f64 <= OUTLIER_SHARE * self.rows() as f64
+        {
+            let (solution, _, converged) = self.solve_preconditioned(
+                extra_diagonal,
+                right_hand_side,
+                start,
+                tolerances,
+                self.iteration_budget,
+            )?;
+            if converged {
+                return Ok(solution);
+            }
+        }
+        self.factor(extra_diagonal)?;
+        self.solve(right_hand_side)
+    }
+
+    /// Rows whose extra diagonal differs from the last factorization's by more than
+    /// [`OUTLIER_FACTOR`] (compared without the matrix's own diagonal: the shape terms hold
+    /// smooth motions weakly, so a data weight small beside the diagonal still rules them).
+    fn outlying_rows(&self, extra_diagonal: &[f64]) -> usize {
+        extra_diagonal
             .iter()
-            .zip(&self.fixed_right_hand_side)
-            .map(|(b, fixed)| *b + *fixed)
-            .collect();
-        let target_norm = column_norms(&wanted) * tolerance;
+            .zip(&self.factored_diagonal)
+            .filter(|&(&new, &old)| !(old / OUTLIER_FACTOR..=old * OUTLIER_FACTOR).contains(&new))
+            .count()
+    }
+
+    /// Solves `(A + diag(extra)) x = b + fixed part` by conjugate gradients from `start`,
+    /// preconditioned with the last factorization (of `A + diag(extra')` for an earlier
+    /// `extra'`), or by the diagonal when there is no factor. Stops when `tolerances` are met or
+    /// after `max_iterations`. Returns `x`, the iterations it took and whether it converged.
+    ///
+    /// # Errors
+    /// [`KernelError::InvalidArgument`] when the system has a factor but nothing was factored
+    /// yet.
+    pub fn solve_preconditioned(
+        &mut self,
+        extra_diagonal: &[f64],
+        right_hand_side: &[DVec3],
+        start: &[DVec3],
+        tolerances: Tolerances,
+        max_iterations: usize,
+    ) -> Result<(Vec<DVec3>, usize, bool), KernelError> {
+        let wanted = self.full_right_hand_side(right_hand_side);
+        let target_norm = column_norms(&wanted) * tolerances.residual;
         let mut solution = start.to_vec();
         let product = self.multiply(extra_diagonal, &solution);
         let mut residual: Vec<DVec3> = wanted
@@ -355,47 +596,109 @@ impl LinearSystem {
             .zip(&product)
             .map(|(b, ax)| *b - *ax)
             .collect();
+        let inverse_diagonal: Vec<f64> = if self.is_direct() {
+            Vec::new()
+        } else {
+            let values = self.matrix.val();
+            self.diagonal
+                .iter()
+                .zip(extra_diagonal)
+                .map(|(&entry, &extra)| 1.0 / (values[entry] + extra))
+                .collect()
+        };
         let precondition = |residual: &[DVec3]| -> Result<Vec<DVec3>, KernelError> {
-            let mut columns = Mat::<f64>::from_fn(rows, 3, |row, axis| residual[row][axis]);
-            self.solve_with_factor(&mut columns)?;
-            Ok((0..rows)
-                .map(|row| DVec3::new(columns[(row, 0)], columns[(row, 1)], columns[(row, 2)]))
-                .collect())
+            if inverse_diagonal.is_empty() {
+                self.apply_factor(residual)
+            } else {
+                Ok(residual
+                    .par_iter()
+                    .with_min_len(4096)
+                    .zip(&inverse_diagonal)
+                    .map(|(value, inverse)| *value * *inverse)
+                    .collect())
+            }
         };
         let mut preconditioned = precondition(&residual)?;
         let mut direction = preconditioned.clone();
         let mut alignment = column_dots(&residual, &preconditioned);
-        for iteration in 0..=max_iterations {
+        let values = self.matrix.val();
+        let diagonal_sum: f64 = self
+            .diagonal
+            .iter()
+            .zip(extra_diagonal)
+            .map(|(&entry, &extra)| values[entry] + extra)
+            .sum();
+        let target_alignment = (alignment * (tolerances.step * tolerances.step))
+            .max(DVec3::splat(tolerances.position.powi(2) * diagonal_sum));
+        let mut iterations = 0;
+        let mut converged = false;
+        loop {
             let norms = column_norms(&residual);
-            if norms.cmple(target_norm).all() {
-                return Ok(Some((solution, iteration)));
+            if norms.cmple(target_norm).all() || alignment.cmple(target_alignment).all() {
+                converged = true;
+                break;
             }
-            if iteration == max_iterations {
+            if iterations == max_iterations {
                 break;
             }
             let product = self.multiply(extra_diagonal, &direction);
             let curvature = column_dots(&direction, &product);
-            let step = alignment / curvature;
+            // An axis already solved (no residual) takes no step.
+            let step = DVec3::select(
+                curvature.cmpgt(DVec3::ZERO),
+                alignment / curvature,
+                DVec3::ZERO,
+            );
             if !step.is_finite() {
                 break;
             }
-            for row in 0..rows {
-                solution[row] += direction[row] * step;
-                residual[row] -= product[row] * step;
-            }
+            iterations += 1;
+            solution
+                .par_iter_mut()
+                .with_min_len(4096)
+                .zip(residual.par_iter_mut())
+                .zip(direction.par_iter().zip(&product))
+                .for_each(|((solution, residual), (direction, product))| {
+                    *solution += *direction * step;
+                    *residual -= *product * step;
+                });
             preconditioned = precondition(&residual)?;
             let next_alignment = column_dots(&residual, &preconditioned);
-            let ratio = next_alignment / alignment;
+            let ratio = DVec3::select(
+                alignment.cmpgt(DVec3::ZERO),
+                next_alignment / alignment,
+                DVec3::ZERO,
+            );
             alignment = next_alignment;
-            for row in 0..rows {
-                direction[row] = preconditioned[row] + direction[row] * ratio;
-            }
+            direction
+                .par_iter_mut()
+                .with_min_len(4096)
+                .zip(&preconditioned)
+                .for_each(|(direction, preconditioned)| {
+                    *direction = *preconditioned + *direction * ratio;
+                });
         }
-        Ok(None)
+        self.statistics.iterations += iterations;
+        Ok((solution, iterations, converged))
     }
 
-    /// `(A + diag(extra)) x`, from the stored lower triangle.
+    /// `(A + diag(extra)) x`.
     fn multiply(&self, extra_diagonal: &[f64], x: &[DVec3]) -> Vec<DVec3> {
+        if let Some(full) = &self.full_rows {
+            return (0..self.rows())
+                .into_par_iter()
+                .with_min_len(4096)
+                .map(|row| {
+                    let range = full.row_pointers[row]..full.row_pointers[row + 1];
+                    full.columns[range.clone()]
+                        .iter()
+                        .zip(&full.values[range])
+                        .fold(x[row] * extra_diagonal[row], |sum, (&column, &value)| {
+                            sum + x[column as usize] * value
+                        })
+                })
+                .collect();
+        }
         let mut product: Vec<DVec3> = x
             .iter()
             .zip(extra_diagonal)
@@ -452,12 +755,17 @@ mod tests {
             .collect()
     }
 
+    /// The chain's system (with a factor allowed), its rows and a right-hand side.
+    fn chain_system(n: u32) -> (LinearSystem, usize, Vec<DVec3>) {
+        let (stencils, fixed) = chain(n);
+        let system = LinearSystem::new(&stencils, n as usize, &fixed, usize::MAX).unwrap();
+        let rows = system.rows();
+        (system, rows, right_hand_side(rows))
+    }
+
     #[test]
     fn a_solve_preconditioned_by_an_older_factor_matches_a_fresh_factor() {
-        let (stencils, fixed) = chain(60);
-        let mut system = LinearSystem::new(&stencils, 60, &fixed).unwrap();
-        let rows = system.rows();
-        let b = right_hand_side(rows);
+        let (mut system, rows, b) = chain_system(60);
         let old: Vec<f64> = (0..rows).map(|row| 1.0 + (row % 3) as f64).collect();
         let new: Vec<f64> = (0..rows)
             .map(|row| {
@@ -469,10 +777,16 @@ mod tests {
             })
             .collect();
         system.factor(&old).unwrap();
-        let (iterative, iterations) = system
-            .solve_preconditioned(&new, &b, &vec![DVec3::ZERO; rows], 1e-10, 200)
-            .unwrap()
-            .expect("converges");
+        let (iterative, iterations, converged) = system
+            .solve_preconditioned(
+                &new,
+                &b,
+                &vec![DVec3::ZERO; rows],
+                residual_only(1e-10),
+                200,
+            )
+            .unwrap();
+        assert!(converged);
         assert!(iterations > 0);
         system.factor(&new).unwrap();
         let direct = system.solve(&b).unwrap();
@@ -480,32 +794,32 @@ mod tests {
             assert!(a.distance(*b) < 1e-7, "{a} against {b}");
         }
         // From the answer itself it takes no iteration.
-        let (_, iterations) = system
-            .solve_preconditioned(&new, &b, &direct, 1e-8, 5)
-            .unwrap()
-            .expect("converged at the start");
+        let (_, iterations, converged) = system
+            .solve_preconditioned(&new, &b, &direct, residual_only(1e-8), 5)
+            .unwrap();
+        assert!(converged);
         assert_eq!(iterations, 0);
     }
 
     #[test]
     fn a_preconditioned_solve_that_does_not_converge_says_so() {
-        let (stencils, fixed) = chain(60);
-        let mut system = LinearSystem::new(&stencils, 60, &fixed).unwrap();
-        let rows = system.rows();
-        let b = right_hand_side(rows);
+        let (mut system, rows, b) = chain_system(60);
         system.factor(&vec![100.0; rows]).unwrap();
-        let answer = system
-            .solve_preconditioned(&vec![0.0; rows], &b, &vec![DVec3::ZERO; rows], 1e-12, 1)
+        let (_, iterations, converged) = system
+            .solve_preconditioned(
+                &vec![0.0; rows],
+                &b,
+                &vec![DVec3::ZERO; rows],
+                residual_only(1e-12),
+                1,
+            )
             .unwrap();
-        assert!(answer.is_none());
+        assert_eq!((iterations, converged), (1, false));
     }
 
     #[test]
     fn a_failed_factorization_leaves_nothing_to_solve_with() {
-        let (stencils, fixed) = chain(30);
-        let mut system = LinearSystem::new(&stencils, 30, &fixed).unwrap();
-        let rows = system.rows();
-        let b = right_hand_side(rows);
+        let (mut system, rows, b) = chain_system(30);
         assert!(system.solve(&b).is_err(), "nothing factored yet");
         system.factor(&vec![1.0; rows]).unwrap();
         let first = system.solve(&b).unwrap();
@@ -515,5 +829,86 @@ mod tests {
         // Factoring again with the first diagonal gives the first answer.
         system.factor(&vec![1.0; rows]).unwrap();
         assert_eq!(system.solve(&b).unwrap(), first);
+    }
+
+    /// Tolerances on the residual alone.
+    fn residual_only(residual: f64) -> Tolerances {
+        Tolerances {
+            residual,
+            step: 0.0,
+            position: 0.0,
+        }
+    }
+
+    /// A diagonal of one value per row, varied by `(row % 3) · spread`.
+    fn varied(rows: usize, base: f64, spread: f64) -> Vec<f64> {
+        (0..rows)
+            .map(|row| base + (row % 3) as f64 * spread)
+            .collect()
+    }
+
+    #[test]
+    fn the_reuse_policy_factors_once_for_small_changes_and_again_for_large_ones() {
+        let (mut system, rows, b) = chain_system(200);
+        let zero = vec![DVec3::ZERO; rows];
+        let first = system
+            .solve_reusing(&varied(rows, 1.0, 0.1), &b, &zero, 0.0)
+            .unwrap();
+        assert_eq!(system.statistics().factorizations, 1);
+        // A small change of the diagonal: iterations with the old factor, close to the exact answer.
+        let changed = varied(rows, 1.1, 0.1);
+        let reused = system.solve_reusing(&changed, &b, &first, 0.0).unwrap();
+        let statistics = system.statistics();
+        assert_eq!((statistics.solves, statistics.factorizations), (2, 1));
+        assert!(statistics.iterations > 0);
+        let mut exact = system.clone();
+        exact.factor(&changed).unwrap();
+        let exact = exact.solve(&b).unwrap();
+        let scale = exact.iter().map(|x| x.length()).fold(0.0, f64::max);
+        for (a, b) in reused.iter().zip(&exact) {
+            assert!(a.distance(*b) < 1e-4 * scale, "{a} against {b}");
+        }
+        // Every row's diagonal ten times larger: factored anew without iterating.
+        let iterations = system.statistics().iterations;
+        let answer = system
+            .solve_reusing(&varied(rows, 10.0, 1.0), &b, &reused, 0.0)
+            .unwrap();
+        assert_eq!(system.statistics().factorizations, 2);
+        assert_eq!(system.statistics().iterations, iterations);
+        assert!(answer.iter().all(|x| x.is_finite()));
+    }
+
+    #[test]
+    fn without_a_factor_jacobi_iterations_solve_the_system() {
+        let (stencils, fixed) = chain(60);
+        let mut direct = LinearSystem::new(&stencils, 60, &fixed, usize::MAX).unwrap();
+        let mut iterative = LinearSystem::new(&stencils, 60, &fixed, 0).unwrap();
+        assert!(direct.is_direct() && !iterative.is_direct());
+        assert_eq!(iterative.factor_bytes(), 0);
+        let rows = direct.rows();
+        let b = right_hand_side(rows);
+        let extra = varied(rows, 0.5, 0.25);
+        direct.factor(&extra).unwrap();
+        let exact = direct.solve(&b).unwrap();
+        assert!(iterative.factor(&extra).is_err(), "no factor to make");
+        let (solution, iterations, converged) = iterative
+            .solve_preconditioned(
+                &extra,
+                &b,
+                &vec![DVec3::ZERO; rows],
+                residual_only(1e-12),
+                500,
+            )
+            .unwrap();
+        assert!(converged && iterations > 1);
+        for (a, b) in solution.iter().zip(&exact) {
+            assert!(a.distance(*b) < 1e-8, "{a} against {b}");
+        }
+        // The policy's solve gets close from the start too.
+        let answer = iterative.solve_reusing(&extra, &b, &exact, 0.0).unwrap();
+        for (a, b) in answer.iter().zip(&exact) {
+            assert!(a.distance(*b) < 1e-8, "{a} against {b}");
+        }
+        assert_eq!(iterative.statistics().factorizations, 0);
     }
 }

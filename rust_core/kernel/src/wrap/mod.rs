@@ -9,6 +9,7 @@ pub mod linear_system;
 pub mod plane_constraint;
 pub mod settings;
 pub mod solver;
+mod system_assembly;
 
 pub use anchor::{Anchor, AnchorTarget};
 pub use curve_constraint::CurveConstraint;
