@@ -42,7 +42,7 @@ impl Smoother {
         }
         let fixed = vec![None; structure.vertex_count];
         Ok(Self {
-            system: LinearSystem::new(&stencils, structure.vertex_count, &fixed)?,
+            system: LinearSystem::new(&stencils, structure.vertex_count, &fixed, usize::MAX)?,
             factored: None,
         })
     }
