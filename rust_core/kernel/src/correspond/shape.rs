@@ -145,7 +145,7 @@ impl<'a> Shape<'a> {
                 || (Scratch::new(self.positions.len()), Vec::new()),
                 |(scratch, ball), &vertex| {
                     let value = value_of[vertex as usize];
-                    if !(value.abs() >= threshold) {
+                    if value.is_nan() || value.abs() < threshold {
                         return None;
                     }
                     gather(
