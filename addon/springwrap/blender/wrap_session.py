@@ -138,7 +138,13 @@ class WrapSession:
         rest = attributes.read_rest(layout)
         self.rest = arrays.positions if rest is None else rest
         inputs, resolution = wrap_inputs.prepare_wrap(
-            arrays, self.target, settings.target_signature, self.anchors, unreliable, curve_constraints, self.rest
+            arrays,
+            self.target,
+            settings.target_signature,
+            anchors.used_by_wrap(self.anchors),
+            unreliable,
+            curve_constraints,
+            self.rest,
         )
         inputs = self._vertex_groups(inputs, layout, parameters)
         wrap_inputs.check_something_pulled(
@@ -333,7 +339,7 @@ class WrapSession:
             fold_tolerance=float(report.fold_tolerance),
             held_back=int(report.held_back),
             energy_decrease=float(report.energy_decrease),
-            anchor_count=int(self.anchors.vertex_indices.shape[0]),
+            anchor_count=anchors.anchor_count(anchors.used_by_wrap(self.anchors)),
             unreliable_triangles=self.unreliable_count,
             topology_detached_count=detached,
             topology_reattached_count=reattached,

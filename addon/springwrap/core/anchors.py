@@ -45,6 +45,8 @@ class Anchors(NamedTuple):
     barycentrics: np.ndarray  # (K, 3) float32 weights of the triangle's corners, zero for a space anchor
     locations: np.ndarray  # (K, 3) float64 world-space target point
     twins: np.ndarray  # (K,) int32 the vertex of the paired (symmetric) anchor, its own vertex on the plane, -1 none
+    proposed: np.ndarray  # (K,) bool a proposed pair not yet accepted (``core.proposals``); the wrap leaves it out
+    confidences: np.ndarray  # (K,) float32 a proposed pair's confidence in [0, 1]; 0 for a hand pair
 
 
 class AnchorOutcome(NamedTuple):
@@ -61,11 +63,14 @@ class AnchorOutcome(NamedTuple):
     topology_reattached_count: int = 0  # face anchors found again on the changed target
 
 
-def make_anchors(vertex_indices, kinds, triangles, barycentrics, locations, twins=None) -> Anchors:
+def make_anchors(
+    vertex_indices, kinds, triangles, barycentrics, locations, twins=None, proposed=None, confidences=None
+) -> Anchors:
     """:class:`Anchors` with the right dtypes and shapes, space anchors written canonically.
 
     Anything that is not :data:`FACE_ANCHOR` is a space anchor (triangle -1, weights 0), so a
-    hand-edited list cannot produce a half-attached anchor. ``twins`` defaults to none (-1).
+    hand-edited list cannot produce a half-attached anchor. ``twins`` defaults to none (-1),
+    ``proposed`` to none (hand pairs), ``confidences`` to 0.
     """
     vertex_indices = np.asarray(vertex_indices).reshape(-1).astype(np.int32)
     count = vertex_indices.shape[0]
@@ -83,6 +88,10 @@ def make_anchors(vertex_indices, kinds, triangles, barycentrics, locations, twin
         twins=np.full(count, -1, dtype=np.int32)
         if twins is None
         else np.asarray(twins).reshape(count).astype(np.int32),
+        proposed=np.zeros(count, dtype=bool) if proposed is None else np.asarray(proposed).reshape(count).astype(bool),
+        confidences=np.zeros(count, dtype=np.float32)
+        if confidences is None
+        else np.asarray(confidences).reshape(count).astype(np.float32),
     )
 
 
@@ -106,6 +115,11 @@ def concatenate(first: Anchors, second: Anchors) -> Anchors:
     return Anchors(*(np.concatenate([a, b]) for a, b in zip(first, second)))
 
 
+def used_by_wrap(anchors: Anchors) -> Anchors:
+    """The anchors a wrap pulls by: all but the proposed pairs not yet accepted."""
+    return take(anchors, ~np.asarray(anchors.proposed, dtype=bool))
+
+
 def as_state(anchors: Anchors) -> LayoutState:
     """The anchors' targets as a :class:`~.layout_state.LayoutState` (one row per anchor)."""
     return LayoutState(anchors.kinds.copy(), anchors.triangles.copy(), anchors.barycentrics.copy())
@@ -114,7 +128,14 @@ def as_state(anchors: Anchors) -> LayoutState:
 def with_state(anchors: Anchors, state: LayoutState) -> Anchors:
     """The anchors with their kinds, triangles and barycentrics taken from ``state``."""
     return make_anchors(
-        anchors.vertex_indices, state.states, state.faces, state.barycentrics, anchors.locations, anchors.twins
+        anchors.vertex_indices,
+        state.states,
+        state.faces,
+        state.barycentrics,
+        anchors.locations,
+        anchors.twins,
+        anchors.proposed,
+        anchors.confidences,
     )
 
 
