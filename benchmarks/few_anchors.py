@@ -5,8 +5,10 @@
 
 Runs ``benchmarks.retarget.run`` once per anchor count (the same landmarks, the first N, given to every
 method) with the aligned template, trimesh's ``nricp_amberg`` and the wrap with each stiffness schedule
-(``Springwrap wrap``: the local schedule, ``Springwrap wrap global``: global to local), and gathers the
-per-case mean error, p95, flipped quads and time into one JSON. :func:`markdown` turns it into the
+(``Springwrap wrap``: the local schedule, ``Springwrap wrap global``: global to local) and the wrap after
+``springwrap.anchors_propose`` (``Springwrap wrap proposals``: further pairs proposed from the anchors and
+all accepted), and gathers the per-case mean error, p95, flipped quads and time into one JSON, with the
+proposals' truth check (how many proposed, the share within 1 % of the diagonal of the true point). :func:`markdown` turns it into the
 section of ``docs/benchmarks.md`` (``benchmarks/report.py --few-anchors``). No ``bpy`` here: the runs are
 subprocesses.
 """
@@ -25,7 +27,13 @@ REPOSITORY_ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_JSON = REPOSITORY_ROOT / "out" / "bench" / "few_anchors.json"
 DEFAULT_CASES = ("heavy", "heavy-old", "old-male", "young-female")
 DEFAULT_ANCHORS = (4, 6, 12, 24)
-METHODS = ("aligned template", "trimesh nricp_amberg", "Springwrap wrap", "Springwrap wrap global")
+METHODS = (
+    "aligned template",
+    "trimesh nricp_amberg",
+    "Springwrap wrap",
+    "Springwrap wrap global",
+    "Springwrap wrap proposals",
+)
 """The methods compared, in the table's order."""
 REFERENCE = "trimesh nricp_amberg"
 """The method the wraps are measured against."""
@@ -49,6 +57,9 @@ def rows_of(retarget: dict, anchors: int) -> list[dict]:
             row = {"case": record["case"], "anchors": anchors, "method": method, "status": entry["status"]}
             row.update({field: metrics.get(field) for field in FIELDS})
             row["seconds"] = entry.get("seconds")
+            proposals = (entry.get("details") or {}).get("proposals")
+            if proposals is not None:
+                row["proposals"] = proposals
             rows.append(row)
     return rows
 
@@ -106,11 +117,14 @@ def markdown(result: dict) -> list[str]:
         f"The body cases with the first {', '.join(str(n) for n in sorted(result['anchors']))} landmarks as anchors, the "
         "same anchors to every method (`benchmarks/few_anchors.py`, one run per anchor count). `Springwrap wrap` "
         "is the energy wrap with its default, local schedule; `Springwrap wrap global` the global-to-local "
-        "schedule (`schedule='GLOBAL_TO_LOCAL'`). Errors in % of the diagonal; flipped quads against the true "
-        "quads; × nricp: the wrap's mean (p95) over nricp's with the same anchors.",
+        "schedule (`schedule='GLOBAL_TO_LOCAL'`); `Springwrap wrap proposals` the local wrap after "
+        "`springwrap.anchors_propose(accept=True)` (further pairs proposed from the anchors, all accepted). Errors "
+        "in % of the diagonal; flipped quads against the true quads; × nricp: the wrap's mean (p95) over nricp's "
+        "with the same anchors; proposed: the pairs proposed, and how many (share) lie within 1 % of the diagonal "
+        "of their vertex's true point.",
         "",
     ]
-    header = ["case", "anchors", "method", "mean %", "p95 %", "flipped", "time s", "× nricp mean (p95)"]
+    header = ["case", "anchors", "method", "mean %", "p95 %", "flipped", "time s", "× nricp mean (p95)", "proposed"]
     table_rows = []
     for case in result["cases"]:
         for anchors in sorted(result["anchors"]):
@@ -120,7 +134,7 @@ def markdown(result: dict) -> list[str]:
                 if row is None:
                     continue
                 if row["status"] != "ok":
-                    table_rows.append([case, str(anchors), method, row["status"], "", "", "", ""])
+                    table_rows.append([case, str(anchors), method, row["status"], "", "", "", "", ""])
                     continue
                 ratio = ""
                 if method.startswith("Springwrap") and reference and reference["status"] == "ok":
@@ -138,17 +152,48 @@ def markdown(result: dict) -> list[str]:
                         str(row["flipped_quads"]),
                         _number(row["seconds"], 1),
                         ratio,
+                        _proposal_cell(row.get("proposals")),
                     ]
                 )
-    lines += ["| " + " | ".join(header) + " |", "|" + "|".join([":---"] * 3 + ["---:"] * 5) + "|"]
+    lines += ["| " + " | ".join(header) + " |", "|" + "|".join([":---"] * 3 + ["---:"] * 6) + "|"]
     lines += ["| " + " | ".join(cells) + " |" for cells in table_rows]
     lines += aims(lookup, result["cases"], 6)
+    lines += proposal_aims(lookup, result["cases"], 6, 24)
     loads = [run.get("load_average_end") or [] for run in result.get("runs", [])]
     if loads:
         text = "; ".join(", ".join(f"{load:.1f}" for load in triple) for triple in loads)
         lines += ["", f"Load averages (1, 5, 15 minutes) at the end of each run: {text} (2 cores, shared)."]
     lines.append("")
     return lines
+
+
+def _proposal_cell(proposals: dict | None) -> str:
+    """``count (right, share %)`` of a row's proposals, empty for a method that proposes none."""
+    if not proposals:
+        return ""
+    if not proposals["count"]:
+        return "0"
+    return f"{proposals['count']} ({proposals['right']} right, {100.0 * proposals['share_right']:.0f} %)"
+
+
+def proposal_aims(lookup: dict, case_names: list[str], anchors: int, many: int) -> list[str]:
+    """Per case, the wrap with proposals from ``anchors`` anchors against the local wrap with ``many`` anchors:
+    the mean's ratio (the aim: at most 1.25)."""
+    lines = []
+    for case in case_names:
+        row = lookup.get((case, anchors, "Springwrap wrap proposals"))
+        reference = lookup.get((case, many, "Springwrap wrap"))
+        plain = lookup.get((case, anchors, "Springwrap wrap"))
+        if not row or not reference or row["status"] != "ok" or reference["status"] != "ok":
+            continue
+        text = (
+            f"- {case}: with proposals from {anchors} anchors the mean is "
+            f"{row['error_percent_mean'] / reference['error_percent_mean']:.2f}× the {many}-anchor wrap's"
+        )
+        if plain and plain["status"] == "ok":
+            text += f" ({plain['error_percent_mean'] / reference['error_percent_mean']:.2f}× without proposals)"
+        lines.append(text + ".")
+    return [""] + lines if lines else []
 
 
 def aims(lookup: dict, case_names: list[str], anchors: int) -> list[str]:

@@ -199,8 +199,11 @@ class SpringwrapAnchorItem(bpy.types.PropertyGroup):
         False,
     )
     confidence: props.number(
-        "Confidence", "How sure Propose Anchors was of this pair (0 to 1; 0 for a pair placed by hand)", 0.0,
-        min=0.0, max=1.0,
+        "Confidence",
+        "How sure Propose Anchors was of this pair (0 to 1; 0 for a pair placed by hand)",
+        0.0,
+        min=0.0,
+        max=1.0,
     )
 
 

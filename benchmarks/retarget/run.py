@@ -39,6 +39,7 @@ SHORT_NAMES = {
     "Springwrap snap": "snap",
     "Springwrap wrap": "wrap",
     "Springwrap wrap global": "wrap-g2l",
+    "Springwrap wrap proposals": "wrap+prop",
     "Springwrap snap+wrap": "snap+wrap",
     "Springwrap project+wrap": "proj+wrap",
     "Springwrap align": "sw-align",

@@ -1,7 +1,20 @@
 """The add-on's operators: ``poll`` says why one cannot run, ``execute`` / ``invoke`` check, call ``core`` and
 ``blender``, and report. One module per operator family; ``base`` holds their shared opening."""
 
-from . import align, anchors, armature, cage_fit, curves, features, mirror, pair_tool, proposals, quality, snapping, wrap
+from . import (
+    align,
+    anchors,
+    armature,
+    cage_fit,
+    curves,
+    features,
+    mirror,
+    pair_tool,
+    proposals,
+    quality,
+    snapping,
+    wrap,
+)
 
 classes = (
     snapping.classes

@@ -24,7 +24,10 @@ class SPRINGWRAP_OT_anchors_propose(_AnchorOperator, bpy.types.Operator):
     reads = frozenset({"positions", "anchors"})
 
     max_count: props.integer(
-        "Most Pairs", "Propose at most this many pairs (the most confident)", proposals.DEFAULTS["max_count"], min=1,
+        "Most Pairs",
+        "Propose at most this many pairs (the most confident)",
+        proposals.DEFAULTS["max_count"],
+        min=1,
         max=10_000,
     )
     min_confidence: props.number(
