@@ -135,8 +135,9 @@ pub const MIN_GIVEN_PAIRS: usize = 3;
 const PROTRUSION_THRESHOLD: f32 = 0.2;
 /// The larger descriptor radius, in feature scales.
 const LARGE_RADIUS: f32 = 3.0;
-/// Layout points closer than this many feature radii to an anchored vertex are not proposed.
-const ANCHOR_CLEARANCE: f32 = 2.0;
+/// Points closer than this many feature radii to an anchor (on either shape) are not proposed: the
+/// anchor already holds them, and a bump's rim beside an anchored tip is no feature of its own.
+const ANCHOR_CLEARANCE: f32 = 3.0;
 
 /// Proposes further pairs from the `given` ones, most confident first (see the module's
 /// documentation for how).
@@ -261,7 +262,17 @@ pub fn propose_correspondences(
     for (&v, p) in nearby.iter().zip(&target_protrusion) {
         value_of[v as usize] = p[0];
     }
-    let target_points = surface.extremes(&nearby, &value_of, target_radius, PROTRUSION_THRESHOLD);
+    let target_clearance = ANCHOR_CLEARANCE * target_radius;
+    let target_points: Vec<u32> = surface
+        .extremes(&nearby, &value_of, target_radius, PROTRUSION_THRESHOLD)
+        .into_iter()
+        .filter(|&v| {
+            let p = target.vertices()[v as usize];
+            anchor_hits
+                .iter()
+                .all(|hit| hit.position.distance(p) > target_clearance)
+        })
+        .collect();
     let row_of = |v: u32| nearby.binary_search(&v).unwrap_or(0);
     let target_features: Vec<Feature> = target_points
         .iter()
