@@ -17,8 +17,8 @@ IDENTITY = Matrix.Identity(4)
 def ball_scene(landmarks: int = 3):
     """The target: a finer bumpy ball, stretched; the layout: a coarser one where Align would put it, anchored at
     its first ``landmarks`` tips' true points. (layout, truth: each layout vertex's true point)."""
-    rest, faces = bumpy_ball(40, 60)
-    fine, fine_faces = bumpy_ball(80, 120)
+    rest, faces = bumpy_ball(60, 90)
+    fine, fine_faces = bumpy_ball(110, 170)
     target = make_object("Target", ball_stretch(fine), [tuple(t) for t in triangulated(fine_faces)], IDENTITY)
     layout = make_object("Layout", rest * 1.05 + np.array([0.1, -0.2, 0.05]), faces, IDENTITY)
     layout.springwrap.target = target

@@ -19,8 +19,8 @@ run = functools.partial(run_script, RETARGET)
 @pytest.fixture(scope="module")
 def inputs(tmp_path_factory) -> dict:
     folder = tmp_path_factory.mktemp("propose_inputs")
-    rest, faces = bumpy_ball(40, 60)
-    fine, fine_faces = bumpy_ball(80, 120)
+    rest, faces = bumpy_ball(60, 90)
+    fine, fine_faces = bumpy_ball(110, 170)
     paths = {"template": folder / "ball.obj", "target": folder / "stretched.obj"}
     paths["template"].write_text(obj_text(rest * 1.05 + [0.1, -0.2, 0.05], faces))
     paths["target"].write_text(obj_text(ball_stretch(fine), fine_faces))
