@@ -75,7 +75,7 @@ impl Default for ProposalSettings {
     fn default() -> Self {
         Self {
             max_count: 40,
-            min_confidence: 0.3,
+            min_confidence: 0.5,
             search_radius: 0.06,
             feature_scale: 0.015,
         }
@@ -256,10 +256,10 @@ pub fn propose_correspondences(
         })
         .collect();
     let target_radius = settings.feature_scale * surface.diagonal;
-    let target_protrusion =
-        surface.protrusions(&nearby, &[target_radius, LARGE_RADIUS * target_radius]);
+    // The small radius everywhere near; the large one (costlier) only at the distinct points.
+    let target_small = surface.protrusions(&nearby, &[target_radius]);
     let mut value_of = vec![f32::NAN; target.vertices().len()];
-    for (&v, p) in nearby.iter().zip(&target_protrusion) {
+    for (&v, p) in nearby.iter().zip(&target_small) {
         value_of[v as usize] = p[0];
     }
     let target_clearance = ANCHOR_CLEARANCE * target_radius;
@@ -273,21 +273,19 @@ pub fn propose_correspondences(
                 .all(|hit| hit.position.distance(p) > target_clearance)
         })
         .collect();
-    let row_of = |v: u32| nearby.binary_search(&v).unwrap_or(0);
+    let target_large = surface.protrusions(&target_points, &[LARGE_RADIUS * target_radius]);
     let target_features: Vec<Feature> = target_points
         .iter()
-        .map(|&v| {
-            let row = row_of(v);
-            Feature {
-                vertex: v,
-                position: target.vertices()[v as usize],
-                normal: surface.normals[v as usize],
-                protrusion: [target_protrusion[row][0], target_protrusion[row][1]],
-                geodesic: target_geodesics
-                    .iter()
-                    .map(|d| d[v as usize] / target_unit)
-                    .collect(),
-            }
+        .zip(&target_large)
+        .map(|(&v, large)| Feature {
+            vertex: v,
+            position: target.vertices()[v as usize],
+            normal: surface.normals[v as usize],
+            protrusion: [value_of[v as usize], large[0]],
+            geodesic: target_geodesics
+                .iter()
+                .map(|d| d[v as usize] / target_unit)
+                .collect(),
         })
         .collect();
 

@@ -587,7 +587,7 @@ def propose_correspondences(
     anchor_targets: npt.NDArray[np.float32],
     *,
     max_count: int = 40,
-    min_confidence: float = 0.3,
+    min_confidence: float = 0.5,
     search_radius: float = 0.06,
     feature_scale: float = 0.015,
 ) -> Proposals:
