@@ -16,8 +16,7 @@ from .anchors import _AnchorOperator, _list_outcome
 
 
 class SPRINGWRAP_OT_anchors_propose(_AnchorOperator, bpy.types.Operator):
-    """Propose further pairs where both shapes say where a point goes (tips and pits of the layout and the target),
-    from the anchors placed by hand and the current fit: added as proposed pairs to accept, drag or reject"""
+    """Propose further pairs where both shapes agree (tips and pits), from the hand anchors and the current fit"""
 
     bl_label = "Propose Anchors"
 
