@@ -102,13 +102,8 @@ impl<'a> Shape<'a> {
             .collect()
     }
 
-    fn protrusion(
-        &self,
-        vertex: u32,
-        radius: f32,
-        scratch: &mut Scratch,
-        ball: &mut Vec<u32>,
-    ) -> f32 {
+    /// The vertices within `radius` of `vertex` along edges (the vertex first), into `ball`.
+    fn ball(&self, vertex: u32, radius: f32, scratch: &mut Scratch, ball: &mut Vec<u32>) {
         gather(
             self.positions,
             &self.adjacency,
@@ -118,6 +113,16 @@ impl<'a> Shape<'a> {
             scratch,
             ball,
         );
+    }
+
+    fn protrusion(
+        &self,
+        vertex: u32,
+        radius: f32,
+        scratch: &mut Scratch,
+        ball: &mut Vec<u32>,
+    ) -> f32 {
+        self.ball(vertex, radius, scratch, ball);
         if ball.len() < 2 || radius <= 0.0 {
             return 0.0;
         }
@@ -148,15 +153,7 @@ impl<'a> Shape<'a> {
                     if value.is_nan() || value.abs() < threshold {
                         return None;
                     }
-                    gather(
-                        self.positions,
-                        &self.adjacency,
-                        vertex,
-                        radius,
-                        MIN_NEIGHBOURHOOD,
-                        scratch,
-                        ball,
-                    );
+                    self.ball(vertex, radius, scratch, ball);
                     let sign = value.signum();
                     let beaten = ball[1..].iter().any(|&other| {
                         let other_value = value_of[other as usize] * sign;
