@@ -123,7 +123,7 @@ class CageFitSession:
         movable = cage_fit.movable_mask(vertex_count, on_face, arrays.selection, parameters.only_selected)
         if not movable.any():
             raise LayoutError(f"Layout '{layout.name}': no vertex to move (no selected vertex on a face)")
-        anchors = anchor_data.read_anchors(layout)
+        anchors = anchor_logic.used_by_wrap(anchor_data.read_anchors(layout))
         anchor_logic.check_anchor_vertices(anchors, vertex_count)
         anchors, _ = anchor_logic.resolve(anchors, self.target, layout.springwrap.anchors_signature)
         valid = anchor_logic.valid_vertex_mask(anchors, vertex_count)

@@ -116,7 +116,8 @@ def concatenate(first: Anchors, second: Anchors) -> Anchors:
 
 
 def used_by_wrap(anchors: Anchors) -> Anchors:
-    """The anchors a wrap pulls by: all but the proposed pairs not yet accepted."""
+    """The anchors a wrap pulls by (and Align fits, and the cage fit holds): all but the proposed pairs not yet
+    accepted."""
     return take(anchors, ~np.asarray(anchors.proposed, dtype=bool))
 
 

@@ -106,7 +106,9 @@ class SPRINGWRAP_OT_align(LayoutOperator, bpy.types.Operator):
                 anchor_list = anchors.no_anchors()
                 if self.use_anchors:
                     anchor_list, _resolution = anchors.resolve(
-                        anchor_data.read_anchors(layout), target, layout.springwrap.anchors_signature
+                        anchors.used_by_wrap(anchor_data.read_anchors(layout)),
+                        target,
+                        layout.springwrap.anchors_signature,
                     )
                 outcome = alignment.align(arrays, anchor_list, target, parameters)
                 detached = alignment.detached_count(arrays)
