@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from mathutils import Matrix
 
-from bpy_helpers import activate, anchor_snapshot, make_object, world_positions
+from bpy_helpers import PanelRecorder, activate, anchor_snapshot, make_object, world_positions
 from helpers import ball_landmarks, ball_stretch, bumpy_ball, triangulated
 
 IDENTITY = Matrix.Identity(4)
@@ -118,3 +118,21 @@ def test_too_few_anchors_is_refused_and_nothing_changes():
         bpy.ops.springwrap.anchors_propose()
     assert anchor_snapshot(layout) == before
     np.testing.assert_array_equal(world_positions(layout), positions)
+
+
+def test_the_panel_offers_accept_and_reject_while_there_are_proposals():
+    from springwrap.ui.panels import SPRINGWRAP_PT_anchors
+
+    layout, _truth = ball_scene()
+
+    def buttons():
+        recorder = PanelRecorder()
+        SPRINGWRAP_PT_anchors.draw(type("Panel", (), {"layout": recorder})(), bpy.context)
+        return [name for name, _properties in recorder.operators], recorder.labels
+
+    names, _labels = buttons()
+    assert "springwrap.anchors_propose" in names and "springwrap.anchor_accept" not in names
+    bpy.ops.springwrap.anchors_propose()
+    names, labels = buttons()
+    assert names.count("springwrap.anchor_accept") == 2 and names.count("springwrap.anchor_reject") == 2
+    assert f"{len(proposed_rows(layout))} proposed" in labels
