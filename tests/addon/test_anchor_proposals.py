@@ -93,15 +93,15 @@ def test_accept_and_reject_one_pair_or_all():
 
 
 def test_the_wrap_leaves_unaccepted_proposals_out():
-    from springwrap.core import anchors
+    from springwrap.core import anchors, proposals
 
     layout, _truth = ball_scene()
     bpy.ops.springwrap.anchors_propose()
     listed = anchors.anchor_count(bpy_anchor_list(layout))
-    used = anchors.anchor_count(anchors.used_by_wrap(bpy_anchor_list(layout)))
+    used = anchors.anchor_count(proposals.used_by_wrap(bpy_anchor_list(layout)))
     assert used == 3 and listed > 3
     bpy.ops.springwrap.anchor_accept(all=True)
-    assert anchors.anchor_count(anchors.used_by_wrap(bpy_anchor_list(layout))) == listed
+    assert anchors.anchor_count(proposals.used_by_wrap(bpy_anchor_list(layout))) == listed
 
 
 def bpy_anchor_list(layout):

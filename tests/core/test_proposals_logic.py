@@ -28,13 +28,13 @@ def listed():
 
 def test_the_wrap_uses_hand_and_accepted_pairs_only():
     anchors = listed()
-    assert an.used_by_wrap(anchors).vertex_indices.tolist() == [0, 10]
+    assert pr.used_by_wrap(anchors).vertex_indices.tolist() == [0, 10]
     accepted, count = pr.accept(anchors, 3)
     assert count == 1
-    assert an.used_by_wrap(accepted).vertex_indices.tolist() == [0, 10, 30]
+    assert pr.used_by_wrap(accepted).vertex_indices.tolist() == [0, 10, 30]
     assert accepted.confidences.tolist() == pytest.approx([0.0, 0.0, 0.9, 0.6, 0.4])
     every, count = pr.accept(anchors)
-    assert count == 3 and an.anchor_count(an.used_by_wrap(every)) == 5
+    assert count == 3 and an.anchor_count(pr.used_by_wrap(every)) == 5
 
 
 def test_reject_removes_proposed_pairs_only():

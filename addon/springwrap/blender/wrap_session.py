@@ -12,7 +12,7 @@ import numpy as np
 
 import springwrap_kernel
 
-from ..core import anchors, input_policy, layout_state, subdivision, transforms, wrap_inputs
+from ..core import anchors, input_policy, layout_state, proposals, subdivision, transforms, wrap_inputs
 from ..core.errors import LayoutError
 from ..core.target import Target
 from ..core.wrap_run import FramePacer, WrapResult
@@ -141,7 +141,7 @@ class WrapSession:
             arrays,
             self.target,
             settings.target_signature,
-            anchors.used_by_wrap(self.anchors),
+            proposals.used_by_wrap(self.anchors),
             unreliable,
             curve_constraints,
             self.rest,
@@ -339,7 +339,7 @@ class WrapSession:
             fold_tolerance=float(report.fold_tolerance),
             held_back=int(report.held_back),
             energy_decrease=float(report.energy_decrease),
-            anchor_count=anchors.anchor_count(anchors.used_by_wrap(self.anchors)),
+            anchor_count=anchors.anchor_count(proposals.used_by_wrap(self.anchors)),
             unreliable_triangles=self.unreliable_count,
             topology_detached_count=detached,
             topology_reattached_count=reattached,

@@ -65,12 +65,11 @@ class AnchorOutcome(NamedTuple):
 
 def make_anchors(
     vertex_indices, kinds, triangles, barycentrics, locations, twins=None, proposed=None, confidences=None
-) -> Anchors:
+):
     """:class:`Anchors` with the right dtypes and shapes, space anchors written canonically.
 
-    Anything that is not :data:`FACE_ANCHOR` is a space anchor (triangle -1, weights 0), so a
-    hand-edited list cannot produce a half-attached anchor. ``twins`` defaults to none (-1),
-    ``proposed`` to none (hand pairs), ``confidences`` to 0.
+    Anything that is not :data:`FACE_ANCHOR` is a space anchor (triangle -1, weights 0), so a hand-edited list
+    cannot produce a half-attached anchor. Defaults: no twin (-1), not proposed, confidence 0.
     """
     vertex_indices = np.asarray(vertex_indices).reshape(-1).astype(np.int32)
     count = vertex_indices.shape[0]
@@ -85,13 +84,9 @@ def make_anchors(
         triangles=state.faces,
         barycentrics=state.barycentrics,
         locations=np.asarray(locations, dtype=np.float64).reshape(count, 3).copy(),
-        twins=np.full(count, -1, dtype=np.int32)
-        if twins is None
-        else np.asarray(twins).reshape(count).astype(np.int32),
-        proposed=np.zeros(count, dtype=bool) if proposed is None else np.asarray(proposed).reshape(count).astype(bool),
-        confidences=np.zeros(count, dtype=np.float32)
-        if confidences is None
-        else np.asarray(confidences).reshape(count).astype(np.float32),
+        twins=np.full(count, -1, np.int32) if twins is None else np.asarray(twins).reshape(count).astype(np.int32),
+        proposed=np.zeros(count, bool) if proposed is None else np.asarray(proposed, bool).reshape(count),
+        confidences=np.zeros(count, np.float32) if confidences is None else np.asarray(confidences, np.float32).ravel(),
     )
 
 
@@ -115,12 +110,6 @@ def concatenate(first: Anchors, second: Anchors) -> Anchors:
     return Anchors(*(np.concatenate([a, b]) for a, b in zip(first, second)))
 
 
-def used_by_wrap(anchors: Anchors) -> Anchors:
-    """The anchors a wrap pulls by (and Align fits, and the cage fit holds): all but the proposed pairs not yet
-    accepted."""
-    return take(anchors, ~np.asarray(anchors.proposed, dtype=bool))
-
-
 def as_state(anchors: Anchors) -> LayoutState:
     """The anchors' targets as a :class:`~.layout_state.LayoutState` (one row per anchor)."""
     return LayoutState(anchors.kinds.copy(), anchors.triangles.copy(), anchors.barycentrics.copy())
@@ -128,16 +117,7 @@ def as_state(anchors: Anchors) -> LayoutState:
 
 def with_state(anchors: Anchors, state: LayoutState) -> Anchors:
     """The anchors with their kinds, triangles and barycentrics taken from ``state``."""
-    return make_anchors(
-        anchors.vertex_indices,
-        state.states,
-        state.faces,
-        state.barycentrics,
-        anchors.locations,
-        anchors.twins,
-        anchors.proposed,
-        anchors.confidences,
-    )
+    return make_anchors(anchors.vertex_indices, state.states, state.faces, state.barycentrics, *anchors[4:])
 
 
 def partner_indices(anchors: Anchors) -> np.ndarray:

@@ -51,7 +51,7 @@ def propose(
     get no proposal. Raises :class:`LayoutError` with too few of them, the kernel's errors for bad input.
     """
     anchors, resolution = resolve(existing, target, stored_signature)
-    given = take(anchors, ~anchors.proposed)
+    given = used_by_wrap(anchors)
     needed = int(DEFAULTS["min_anchors"])
     if anchor_count(given) < needed:
         raise LayoutError(
@@ -92,6 +92,12 @@ def propose(
         topology_detached_count=resolution.detached_count,
         topology_reattached_count=resolution.reattached_count,
     )
+
+
+def used_by_wrap(anchors: Anchors) -> Anchors:
+    """The anchors a wrap pulls by (and Align fits, and the cage fit holds): all but the proposed pairs not yet
+    accepted."""
+    return take(anchors, ~np.asarray(anchors.proposed, dtype=bool))
 
 
 def _chosen(anchors: Anchors, index: int) -> np.ndarray:
