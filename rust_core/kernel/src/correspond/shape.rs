@@ -87,17 +87,26 @@ impl<'a> Shape<'a> {
     /// (fingertip, toe, nose) is near +0.5 to +1, a flat patch 0, a pit or crease negative. Being a
     /// ratio to the radius, it does not change when the shape is scaled.
     pub fn protrusions(&self, vertices: &[u32], radii: &[f32]) -> Vec<Vec<f32>> {
+        self.per_vertex(vertices, |vertex, scratch, ball| {
+            radii
+                .iter()
+                .map(|&radius| self.protrusion(vertex, radius, scratch, ball))
+                .collect()
+        })
+    }
+
+    /// `work(vertex, scratch, ball)` for each listed vertex in parallel, with per-task scratch space.
+    fn per_vertex<T: Send>(
+        &self,
+        vertices: &[u32],
+        work: impl Fn(u32, &mut Scratch, &mut Vec<u32>) -> T + Sync + Send,
+    ) -> Vec<T> {
         vertices
             .par_iter()
             .with_min_len(VERTICES_PER_TASK)
             .map_init(
                 || (Scratch::new(self.positions.len()), Vec::new()),
-                |(scratch, ball), &vertex| {
-                    radii
-                        .iter()
-                        .map(|&radius| self.protrusion(vertex, radius, scratch, ball))
-                        .collect()
-                },
+                |(scratch, ball), &vertex| work(vertex, scratch, ball),
             )
             .collect()
     }
@@ -143,28 +152,22 @@ impl<'a> Shape<'a> {
         radius: f32,
         threshold: f32,
     ) -> Vec<u32> {
-        vertices
-            .par_iter()
-            .with_min_len(VERTICES_PER_TASK)
-            .map_init(
-                || (Scratch::new(self.positions.len()), Vec::new()),
-                |(scratch, ball), &vertex| {
-                    let value = value_of[vertex as usize];
-                    if value.is_nan() || value.abs() < threshold {
-                        return None;
-                    }
-                    self.ball(vertex, radius, scratch, ball);
-                    let sign = value.signum();
-                    let beaten = ball[1..].iter().any(|&other| {
-                        let other_value = value_of[other as usize] * sign;
-                        other_value > value * sign
-                            || (other_value == value * sign && other < vertex)
-                    });
-                    (!beaten).then_some(vertex)
-                },
-            )
-            .flatten()
-            .collect()
+        self.per_vertex(vertices, |vertex, scratch, ball| {
+            let value = value_of[vertex as usize];
+            if value.is_nan() || value.abs() < threshold {
+                return None;
+            }
+            self.ball(vertex, radius, scratch, ball);
+            let sign = value.signum();
+            let beaten = ball[1..].iter().any(|&other| {
+                let other_value = value_of[other as usize] * sign;
+                other_value > value * sign || (other_value == value * sign && other < vertex)
+            });
+            (!beaten).then_some(vertex)
+        })
+        .into_iter()
+        .flatten()
+        .collect()
     }
 }
 
