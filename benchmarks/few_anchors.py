@@ -6,8 +6,10 @@
 Runs ``benchmarks.retarget.run`` once per anchor count (the same landmarks, the first N, given to every
 method) with the aligned template, trimesh's ``nricp_amberg`` and the wrap with each stiffness schedule
 (``Springwrap wrap``: the default, automatic choice; ``Springwrap wrap local``: the local schedule;
-``Springwrap wrap global``: global to local), and gathers the
-per-case mean error, p95, flipped quads and time into one JSON. :func:`markdown` turns it into the
+``Springwrap wrap global``: global to local) and the wrap after ``springwrap.anchors_propose``
+(``Springwrap wrap proposals``: further pairs proposed from the anchors and all accepted), and gathers the
+per-case mean error, p95, flipped quads and time into one JSON, with the proposals' truth check (how many
+proposed, the share within 1 % of the diagonal of the true point). :func:`markdown` turns it into the
 section of ``docs/benchmarks.md`` (``benchmarks/report.py --few-anchors``). No ``bpy`` here: the runs are
 subprocesses.
 """
@@ -32,6 +34,7 @@ METHODS = (
     "Springwrap wrap",
     "Springwrap wrap local",
     "Springwrap wrap global",
+    "Springwrap wrap proposals",
 )
 """The methods compared, in the table's order."""
 REFERENCE = "trimesh nricp_amberg"
@@ -57,6 +60,9 @@ def rows_of(retarget: dict, anchors: int) -> list[dict]:
             row.update({field: metrics.get(field) for field in FIELDS})
             row["seconds"] = entry.get("seconds")
             row["wrap_seconds"] = (entry.get("details") or {}).get("wrap_seconds")
+            proposals = (entry.get("details") or {}).get("proposals")
+            if proposals is not None:
+                row["proposals"] = proposals
             rows.append(row)
     return rows
 
@@ -121,12 +127,15 @@ def markdown(result: dict) -> list[str]:
         "same anchors to every method (`benchmarks/few_anchors.py`, one run per anchor count). `Springwrap wrap` "
         "is the energy wrap with its default schedule (`'AUTO'`: global to local for 3 to 11 anchors or a large "
         "change of shape, else local); `Springwrap wrap local` the local schedule (`schedule='LOCAL'`); "
-        "`Springwrap wrap global` the global-to-local schedule (`schedule='GLOBAL_TO_LOCAL'`). Errors in % of "
-        "the diagonal; flipped quads against the true quads; time: every operator call of the method (the "
-        "wrap's own time in brackets); × nricp: the wrap's mean (p95) over nricp's with the same anchors.",
+        "`Springwrap wrap global` the global-to-local schedule (`schedule='GLOBAL_TO_LOCAL'`); `Springwrap wrap "
+        "proposals` the default wrap after `springwrap.anchors_propose(accept=True)` (further pairs proposed from "
+        "the anchors, all accepted). Errors in % of the diagonal; flipped quads against the true quads; time: every "
+        "operator call of the method (the wrap's own time in brackets); × nricp: the wrap's mean (p95) over "
+        "nricp's with the same anchors; proposed: the pairs proposed, and how many (share) lie within 1 % of the "
+        "diagonal of their vertex's true point.",
         "",
     ]
-    header = ["case", "anchors", "method", "mean %", "p95 %", "flipped", "time s", "× nricp mean (p95)"]
+    header = ["case", "anchors", "method", "mean %", "p95 %", "flipped", "time s", "× nricp mean (p95)", "proposed"]
     table_rows = []
     for case in result["cases"]:
         for anchors in sorted(result["anchors"]):
@@ -136,7 +145,7 @@ def markdown(result: dict) -> list[str]:
                 if row is None:
                     continue
                 if row["status"] != "ok":
-                    table_rows.append([case, str(anchors), method, row["status"], "", "", "", ""])
+                    table_rows.append([case, str(anchors), method, row["status"], "", "", "", "", ""])
                     continue
                 ratio = ""
                 if method.startswith("Springwrap") and reference and reference["status"] == "ok":
@@ -154,17 +163,48 @@ def markdown(result: dict) -> list[str]:
                         str(row["flipped_quads"]),
                         _seconds(row),
                         ratio,
+                        _proposal_cell(row.get("proposals")),
                     ]
                 )
-    lines += ["| " + " | ".join(header) + " |", "|" + "|".join([":---"] * 3 + ["---:"] * 5) + "|"]
+    lines += ["| " + " | ".join(header) + " |", "|" + "|".join([":---"] * 3 + ["---:"] * 6) + "|"]
     lines += ["| " + " | ".join(cells) + " |" for cells in table_rows]
     lines += aims(lookup, result["cases"], 6)
+    lines += proposal_aims(lookup, result["cases"], 6, 24)
     loads = [run.get("load_average_end") or [] for run in result.get("runs", [])]
     if loads:
         text = "; ".join(", ".join(f"{load:.1f}" for load in triple) for triple in loads)
         lines += ["", f"Load averages (1, 5, 15 minutes) at the end of each run: {text} (2 cores, shared)."]
     lines.append("")
     return lines
+
+
+def _proposal_cell(proposals: dict | None) -> str:
+    """``count (right, share %)`` of a row's proposals, empty for a method that proposes none."""
+    if not proposals:
+        return ""
+    if not proposals["count"]:
+        return "0"
+    return f"{proposals['count']} ({proposals['right']} right, {100.0 * proposals['share_right']:.0f} %)"
+
+
+def proposal_aims(lookup: dict, case_names: list[str], anchors: int, many: int) -> list[str]:
+    """Per case, the wrap with proposals from ``anchors`` anchors against the local wrap with ``many`` anchors:
+    the mean's ratio (the aim: at most 1.25)."""
+    lines = []
+    for case in case_names:
+        row = lookup.get((case, anchors, "Springwrap wrap proposals"))
+        reference = lookup.get((case, many, "Springwrap wrap"))
+        plain = lookup.get((case, anchors, "Springwrap wrap"))
+        if not row or not reference or row["status"] != "ok" or reference["status"] != "ok":
+            continue
+        text = (
+            f"- {case}: with proposals from {anchors} anchors the mean is "
+            f"{row['error_percent_mean'] / reference['error_percent_mean']:.2f}× the {many}-anchor wrap's"
+        )
+        if plain and plain["status"] == "ok":
+            text += f" ({plain['error_percent_mean'] / reference['error_percent_mean']:.2f}× without proposals)"
+        lines.append(text + ".")
+    return [""] + lines if lines else []
 
 
 def aims(lookup: dict, case_names: list[str], anchors: int) -> list[str]:

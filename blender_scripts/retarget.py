@@ -16,7 +16,8 @@ centre and diagonal onto the target's; ``icp``: that, then ``springwrap.align`` 
 ``--align-method`` picks rigid, similarity or affine; ``none``, the default: as placed), detached, anchored (``--anchors FILE.json``:
 ``{"anchors": [{"vertex": 12, "target": [x, y, z]}, ...]}``, each layout vertex pulled to the target
 surface point closest to that point of the files' frame; or ``--anchors-spacing S``, spread automatically;
-0 = a tenth of the layout's size; ``--symmetric-anchors X|Y|Z``: each anchor, from the file or spread, with its
+0 = a tenth of the layout's size; ``--propose-anchors``: then further pairs proposed from them and all accepted;
+``--symmetric-anchors X|Y|Z``: each anchor, from the file or spread, with its
 twin across the layout's local plane of that axis, spread on one side and mirrored), then wrapped (``--max-iterations``, ``--fairness``,
 ``--arc-length``, ``--thin-plate``, ``--tolerance``). A template with shape keys (a .blend's object, or a
 glTF's morph targets) has its basis wrapped and every other key carried over onto it (``--shape-keys
@@ -144,6 +145,12 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
         help="anchors in symmetric pairs across the template's local plane perpendicular to this axis (in "
         "Blender's frame): each anchor also anchors its twin vertex (by topology, else by position) to the target "
         "point closest to its reflected target point; automatic ones are spread on one side and mirrored",
+    )
+    parser.add_argument(
+        "--propose-anchors",
+        action="store_true",
+        help="after anchoring, propose further pairs where both shapes agree (tips and pits; springwrap."
+        "anchors_propose) and accept them all; needs at least 3 anchors",
     )
     parser.add_argument(
         "--align",
@@ -518,6 +525,11 @@ def retarget(arguments: argparse.Namespace) -> dict:
             replace=True,
             **symmetric_anchor_properties(arguments),
         )
+    proposed = 0
+    if arguments.propose_anchors:
+        before = len(layout.springwrap.anchors)
+        run_operator(blame, "anchors_propose", accept=True)
+        proposed = len(layout.springwrap.anchors) - before
     if len(layout.springwrap.anchors) == 0:
         warnings.append("no anchors: the wrap is pulled by folding alone")
     symmetric = symmetric_anchor_report(layout, arguments, warnings)
@@ -574,6 +586,7 @@ def retarget(arguments: argparse.Namespace) -> dict:
         "vertices": result.vertex_count,
         "faces": len(layout.data.polygons),
         "anchors": len(layout.springwrap.anchors),
+        "proposed_anchors": proposed,
         "symmetric_anchors": symmetric,
         "frame": {"up_axis": arguments.up_axis, "forward_axis": arguments.forward_axis},
         "alignment": alignment,

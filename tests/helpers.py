@@ -393,3 +393,32 @@ def cube_sphere_cage(cuts: int = 3, radius: float = 1.0):
         np.array(corners, dtype=np.uint32),
         np.full(len(corners) // 4, 4, dtype=np.uint32),
     )
+
+
+BUMPS = tuple(
+    (
+        (np.sin(polar) * np.cos(azimuth), np.sin(polar) * np.sin(azimuth), np.cos(polar)),
+        -0.12 if k % 4 == 3 else 0.35,
+    )
+    for k, (polar, azimuth) in enumerate((1.1 if k % 2 == 0 else 2.0, 2.0 * np.pi * k / 8.0) for k in range(8))
+)
+"""The bumpy ball's tips (raised) and pits (sunk): (unit direction, height)."""
+
+
+def bumpy_ball(rings: int, segments: int):
+    """A unit UV sphere with narrow bumps and dimples along :data:`BUMPS`: (vertices float64, faces as
+    :func:`sphere_faces`). The correspondence proposals' test shape (as in the kernel's tests)."""
+    points = sphere_points(rings, segments)
+    radius = 1.0 + sum(height * np.exp(-(1.0 - points @ np.array(d)) / 0.012) for d, height in BUMPS)
+    return points * radius[:, None], sphere_faces(rings, segments)
+
+
+def ball_stretch(points):
+    """The change of proportions from the bumpy layout to its target (a scale per axis and a shift)."""
+    return np.asarray(points, dtype=np.float64) * np.array([1.15, 1.0, 0.9]) + np.array([0.1, -0.2, 0.05])
+
+
+def ball_landmarks(vertices, count: int) -> np.ndarray:
+    """The vertices nearest the first ``count`` bumps' tips (int64)."""
+    tips = np.array([np.array(d) * (1.0 + height) for d, height in BUMPS[:count]])
+    return np.array([int(np.argmin(np.linalg.norm(vertices - tip, axis=1))) for tip in tips], dtype=np.int64)

@@ -192,6 +192,19 @@ class SpringwrapAnchorItem(bpy.types.PropertyGroup):
         -1,
         min=-1,
     )
+    proposed: props.flag(
+        "Proposed",
+        "A pair proposed by Propose Anchors and not yet accepted: the wrap leaves it out until it is accepted "
+        "(Accept, or a drag with the Pair tool)",
+        False,
+    )
+    confidence: props.number(
+        "Confidence",
+        "How sure Propose Anchors was of this pair (0 to 1; 0 for a pair placed by hand)",
+        0.0,
+        min=0.0,
+        max=1.0,
+    )
 
 
 CURVE_SOURCE_ITEMS = (

@@ -257,6 +257,7 @@ METHODS = (
     "Springwrap wrap",
     "Springwrap wrap local",
     "Springwrap wrap global",
+    "Springwrap wrap proposals",
     "Springwrap snap+wrap",
     "Springwrap project+wrap",
     "Springwrap align",
@@ -265,6 +266,28 @@ METHODS = (
     "Springwrap armature+wrap",
     "Springwrap wrap+mirror",
 )
+
+
+PROPOSAL_TOLERANCE_PERCENT = 1.0
+"""A proposed pair is right when its target point is within this % of the truth's bounding-box diagonal of the
+true point of its vertex."""
+
+
+def proposal_truth(true_positions: np.ndarray, vertices: np.ndarray, locations: np.ndarray) -> dict:
+    """The proposals against the truth: how many, how many (and what share) within
+    :data:`PROPOSAL_TOLERANCE_PERCENT` of the diagonal of their vertex's true point, the median error in %."""
+    truth = np.asarray(true_positions, dtype=np.float64)
+    diagonal = float(np.linalg.norm(truth.max(axis=0) - truth.min(axis=0)))
+    errors = np.linalg.norm(np.asarray(locations, dtype=np.float64) - truth[np.asarray(vertices)], axis=1)
+    percent = 100.0 * errors / diagonal
+    right = int(np.count_nonzero(percent <= PROPOSAL_TOLERANCE_PERCENT))
+    count = int(percent.shape[0])
+    return {
+        "count": count,
+        "right": right,
+        "share_right": right / count if count else float("nan"),
+        "median_error_percent": float(np.median(percent)) if count else float("nan"),
+    }
 
 
 def run_baselines(
@@ -300,6 +323,7 @@ def run_baselines(
                 elif method == "Springwrap snap":
                     result.positions, result.notes = springwrap_snap(aligned, case.layout_quads, target_object)
                 elif method in springwrap_methods.WRAP_METHODS:
+                    proposals = [] if method in springwrap_methods.PROPOSE_METHODS else None
                     result.positions, result.notes, report = springwrap_methods.springwrap_wrap(
                         aligned,
                         case.layout_quads,
@@ -309,8 +333,11 @@ def run_baselines(
                         start=springwrap_methods.WRAP_METHODS[method],
                         max_iterations=wrap_max_iterations,
                         wrap_options=springwrap_methods.WRAP_OPTIONS.get(method),
+                        proposals=proposals,
                     )
                     result.details = report.as_dict()
+                    if proposals:
+                        result.details["proposals"] = proposal_truth(case.true_positions, *proposals[0])
                 elif method in springwrap_methods.ALIGN_METHODS:
                     result.positions, result.notes = springwrap_methods.springwrap_align(
                         case.layout_vertices, case.layout_quads, target_object, marks.vertices, anchors

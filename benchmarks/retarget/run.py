@@ -40,6 +40,7 @@ SHORT_NAMES = {
     "Springwrap wrap": "wrap",
     "Springwrap wrap local": "wrap-local",
     "Springwrap wrap global": "wrap-g2l",
+    "Springwrap wrap proposals": "wrap+prop",
     "Springwrap snap+wrap": "snap+wrap",
     "Springwrap project+wrap": "proj+wrap",
     "Springwrap align": "sw-align",

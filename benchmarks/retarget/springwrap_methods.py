@@ -9,6 +9,9 @@
   chooses a schedule from the anchors);
 - ``Springwrap wrap global``: the same with ``springwrap.wrap(schedule='GLOBAL_TO_LOCAL')``: stiff,
   nearly affine levels before the local fit;
+- ``Springwrap wrap proposals``: ``Springwrap wrap`` with ``springwrap.anchors_propose(accept=True)`` after
+  the anchors: further pairs proposed from them (tips and pits of both shapes) and all accepted, as the
+  command line's ``--propose-anchors`` does; the proposals are returned for the truth check;
 - ``Springwrap snap+wrap``: the same, with ``springwrap.snap(mode='SURFACE')`` after the detach,
   so the wrap starts from face-points on the surface instead of a floating template;
 - ``Springwrap project+wrap``: the same, with ``springwrap.project(direction='NORMAL',
@@ -44,10 +47,13 @@ WRAP_METHODS = {
     "Springwrap wrap": "detach",
     "Springwrap wrap local": "detach",
     "Springwrap wrap global": "detach",
+    "Springwrap wrap proposals": "detach",
     "Springwrap snap+wrap": "snap",
     "Springwrap project+wrap": "project",
 }
 """The wrap methods and how each starts (:func:`springwrap_wrap`'s ``start``)."""
+PROPOSE_METHODS = ("Springwrap wrap proposals",)
+"""The wrap methods that propose (and accept) further pairs before the wrap."""
 WRAP_OPTIONS = {
     "Springwrap wrap local": {"schedule": "LOCAL"},
     "Springwrap wrap global": {"schedule": "GLOBAL_TO_LOCAL"},
@@ -200,8 +206,11 @@ def springwrap_wrap(
     start: str = "detach",
     max_iterations: int | None = None,
     wrap_options: dict | None = None,
+    proposals: list | None = None,
 ) -> tuple[np.ndarray, list[str], WrapReport]:
-    """detach [→ snap or project] → anchor_add per landmark → wrap, on a new layout object; (positions, notes, report).
+    """detach [→ snap or project] → anchor_add per landmark [→ anchors_propose] → wrap, on a new layout object;
+    (positions, notes, report). With a list as ``proposals``, further pairs are proposed and accepted, and
+    ``(vertices, locations)`` of those pairs appended to it.
 
     ``start`` is ``"detach"``, ``"snap"`` or ``"project"``; ``max_iterations=None`` keeps the operator's default;
     ``wrap_options``: more ``springwrap.wrap`` properties."""
@@ -210,7 +219,7 @@ def springwrap_wrap(
     layout = mesh_object(f"Springwrap {start}", layout_positions, quads)
     layout.springwrap.target = target_object
     return wrap_layout(
-        layout, layout_positions, landmark_vertices, anchor_positions, start, max_iterations, wrap_options
+        layout, layout_positions, landmark_vertices, anchor_positions, start, max_iterations, wrap_options, proposals
     )
 
 
@@ -222,6 +231,7 @@ def wrap_layout(
     start: str = "detach",
     max_iterations: int | None = None,
     wrap_options: dict | None = None,
+    proposals: list | None = None,
 ) -> tuple[np.ndarray, list[str], WrapReport]:
     """:func:`springwrap_wrap` on an existing layout object whose target is set (``layout_positions``: its
     vertices, for ``project``'s ray length; ``wrap_options``: more ``springwrap.wrap`` properties);
@@ -243,6 +253,15 @@ def wrap_layout(
             only_selected=False,
         )
     anchor_count = _add_anchors(layout, landmark_vertices, anchor_positions)
+    if proposals is not None:
+        _call("anchors_propose", bpy.ops.springwrap.anchors_propose, accept=True)
+        items = list(layout.springwrap.anchors)[anchor_count:]
+        proposals.append(
+            (
+                np.array([item.vertex_index for item in items], dtype=np.int64),
+                np.array([tuple(item.location) for item in items], dtype=np.float64).reshape(-1, 3),
+            )
+        )
     wrap_properties = {} if max_iterations is None else {"max_iterations": int(max_iterations)}
     report = parse_wrap_report(_call("wrap", bpy.ops.springwrap.wrap, **wrap_properties, **(wrap_options or {})))
     ending = "converged" if report.converged else "stopped at the iteration limit"

@@ -582,6 +582,7 @@ def test_anchor_panel_lists_anchors_and_offers_the_operators():
         "springwrap.anchors_clear",
         "springwrap.anchors_auto",
         "springwrap.anchors_update",
+        "springwrap.anchors_propose",
         "springwrap.pair_tool",
     }
     assert "pair_live" in recorder.props

@@ -137,6 +137,17 @@ def _select_problems():
     return result
 
 
+def _proposed_then(operator):
+    """Propose pairs (any confidence, searched widely), then accept or reject them all."""
+
+    def run():
+        assert bpy.ops.springwrap.anchors_propose(min_confidence=0.0, search_radius=0.5) == {"FINISHED"}
+        assert any(item.proposed for item in bpy.context.active_object.springwrap.anchors)
+        return {"FINISHED"}, _call(operator, all=True)
+
+    return run
+
+
 def _call(operator, **arguments):
     return lambda: getattr(bpy.ops.springwrap, operator)(**arguments)
 
@@ -165,6 +176,9 @@ CASES = {
     "anchors_update": (_call("anchors_update"), {ANCHORS}),
     "anchor_remove": (_call("anchor_remove"), {ANCHORS}),
     "anchors_clear": (_call("anchors_clear"), {ANCHORS}),
+    "anchors_propose": (_call("anchors_propose", min_confidence=0.0, search_radius=0.5), {ANCHORS}),
+    "anchor_accept": (_proposed_then("anchor_accept"), {ANCHORS}),
+    "anchor_reject": (_proposed_then("anchor_reject"), {ANCHORS}),
     "curve_constraint_add": (_select_chain_then("curve_constraint_add"), {CONSTRAINTS}),
     "curve_constraints_auto": (_call("curve_constraints_auto"), {CONSTRAINTS}),
     "curve_constraint_remove": (_call("curve_constraint_remove"), {CONSTRAINTS}),

@@ -227,3 +227,18 @@ def test_symmetric_place_and_repick_move_the_twin_with_the_pair():
     repicked, _ = pe.repick(count, moved.anchors, target, "", 0, new_vertex, (twins, plane))
     assert repicked.anchors.vertex_indices.tolist() == [new_vertex, int(twins.twins[new_vertex])]
     assert pe.remove(repicked.anchors, 0, symmetric=True).anchors.vertex_indices.size == 0
+
+
+def test_dragging_a_proposed_pair_accepts_it():
+    target = flat_target()
+    anchors = an.no_anchors()
+    for vertex, x in ((3, -1.0), (7, 0.0), (9, 1.0)):
+        anchors = pe.place(20, anchors, target, "", vertex, (x, 0.5, 0.0))[0].anchors
+    anchors = anchors._replace(
+        proposed=np.array([False, True, True]), confidences=np.array([0.0, 0.7, 0.6], np.float32)
+    )
+    moved, _report = pe.place(20, anchors, target, "", 7, (0.25, -1.25, 0.0))  # its target end dragged
+    assert moved.anchors.proposed.tolist() == [False, False, True]
+    repicked, _report = pe.repick(20, anchors, target, "", 2, 12)  # its layout end dragged
+    assert repicked.anchors.vertex_indices.tolist() == [3, 7, 12]
+    assert repicked.anchors.proposed.tolist() == [False, True, False]

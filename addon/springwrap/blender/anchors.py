@@ -18,6 +18,8 @@ _ANCHOR_FIELDS = (
     ("barycentric", np.float32, 3),
     ("location", np.float64, 3),
     ("twin_vertex", np.int32, 1),  # -1 (no pair) in files saved before symmetric anchors
+    ("proposed", bool, 1),  # off (a hand pair) in files saved before proposals
+    ("confidence", np.float32, 1),
 )
 
 

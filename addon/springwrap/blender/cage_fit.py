@@ -11,7 +11,7 @@ import bpy
 import numpy as np
 
 from ..core import anchors as anchor_logic
-from ..core import cage_fit, layout_state, transforms
+from ..core import cage_fit, layout_state, proposals, transforms
 from ..core.errors import LayoutError
 from . import anchors as anchor_data
 from . import compat
@@ -126,7 +126,7 @@ class CageFitSession:
         movable = cage_fit.movable_mask(vertex_count, on_face, arrays.selection, parameters.only_selected)
         if not movable.any():
             raise LayoutError(f"Layout '{layout.name}': no vertex to move (no selected vertex on a face)")
-        anchors = anchor_data.read_anchors(layout)
+        anchors = proposals.used_by_wrap(anchor_data.read_anchors(layout))
         anchor_logic.check_anchor_vertices(anchors, vertex_count)
         anchors, _ = anchor_logic.resolve(anchors, self.target, layout.springwrap.anchors_signature)
         valid = anchor_logic.valid_vertex_mask(anchors, vertex_count)

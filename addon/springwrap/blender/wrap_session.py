@@ -12,7 +12,7 @@ import numpy as np
 
 import springwrap_kernel
 
-from ..core import anchors, follow, input_policy, layout_state, parts, subdivision, transforms, wrap_inputs
+from ..core import anchors, follow, input_policy, layout_state, parts, proposals, subdivision, transforms, wrap_inputs
 from ..core.errors import LayoutError
 from ..core.target import Target
 from ..core.wrap_run import FramePacer, WrapResult
@@ -146,7 +146,13 @@ class WrapSession:
         rest = attributes.read_rest(layout)
         self.rest = arrays.positions if rest is None else rest
         inputs, resolution = wrap_inputs.prepare_wrap(
-            arrays, self.target, settings.target_signature, self.anchors, unreliable, curve_constraints, self.rest
+            arrays,
+            self.target,
+            settings.target_signature,
+            proposals.used_by_wrap(self.anchors),
+            unreliable,
+            curve_constraints,
+            self.rest,
         )
         inputs = self._vertex_groups(inputs, layout, parameters)
         self.parts, self.follower = part_data.plan_wrap_parts(
@@ -369,7 +375,7 @@ class WrapSession:
             fold_tolerance=float(report.fold_tolerance),
             held_back=int(report.held_back),
             energy_decrease=float(report.energy_decrease),
-            anchor_count=int(self.anchors.vertex_indices.shape[0]),
+            anchor_count=anchors.anchor_count(proposals.used_by_wrap(self.anchors)),
             unreliable_triangles=self.unreliable_count,
             topology_detached_count=detached,
             topology_reattached_count=reattached,

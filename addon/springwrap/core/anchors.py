@@ -45,6 +45,8 @@ class Anchors(NamedTuple):
     barycentrics: np.ndarray  # (K, 3) float32 weights of the triangle's corners, zero for a space anchor
     locations: np.ndarray  # (K, 3) float64 world-space target point
     twins: np.ndarray  # (K,) int32 the vertex of the paired (symmetric) anchor, its own vertex on the plane, -1 none
+    proposed: np.ndarray  # (K,) bool a proposed pair not yet accepted (``core.proposals``); the wrap leaves it out
+    confidences: np.ndarray  # (K,) float32 a proposed pair's confidence in [0, 1]; 0 for a hand pair
 
 
 class AnchorOutcome(NamedTuple):
@@ -61,11 +63,13 @@ class AnchorOutcome(NamedTuple):
     topology_reattached_count: int = 0  # face anchors found again on the changed target
 
 
-def make_anchors(vertex_indices, kinds, triangles, barycentrics, locations, twins=None) -> Anchors:
+def make_anchors(
+    vertex_indices, kinds, triangles, barycentrics, locations, twins=None, proposed=None, confidences=None
+):
     """:class:`Anchors` with the right dtypes and shapes, space anchors written canonically.
 
-    Anything that is not :data:`FACE_ANCHOR` is a space anchor (triangle -1, weights 0), so a
-    hand-edited list cannot produce a half-attached anchor. ``twins`` defaults to none (-1).
+    Anything that is not :data:`FACE_ANCHOR` is a space anchor (triangle -1, weights 0), so a hand-edited list
+    cannot produce a half-attached anchor. Defaults: no twin (-1), not proposed, confidence 0.
     """
     vertex_indices = np.asarray(vertex_indices).reshape(-1).astype(np.int32)
     count = vertex_indices.shape[0]
@@ -80,9 +84,9 @@ def make_anchors(vertex_indices, kinds, triangles, barycentrics, locations, twin
         triangles=state.faces,
         barycentrics=state.barycentrics,
         locations=np.asarray(locations, dtype=np.float64).reshape(count, 3).copy(),
-        twins=np.full(count, -1, dtype=np.int32)
-        if twins is None
-        else np.asarray(twins).reshape(count).astype(np.int32),
+        twins=np.full(count, -1, np.int32) if twins is None else np.asarray(twins).reshape(count).astype(np.int32),
+        proposed=np.zeros(count, bool) if proposed is None else np.asarray(proposed, bool).reshape(count),
+        confidences=np.zeros(count, np.float32) if confidences is None else np.asarray(confidences, np.float32).ravel(),
     )
 
 
@@ -113,9 +117,7 @@ def as_state(anchors: Anchors) -> LayoutState:
 
 def with_state(anchors: Anchors, state: LayoutState) -> Anchors:
     """The anchors with their kinds, triangles and barycentrics taken from ``state``."""
-    return make_anchors(
-        anchors.vertex_indices, state.states, state.faces, state.barycentrics, anchors.locations, anchors.twins
-    )
+    return make_anchors(anchors.vertex_indices, state.states, state.faces, state.barycentrics, *anchors[4:])
 
 
 def partner_indices(anchors: Anchors) -> np.ndarray:

@@ -1,12 +1,27 @@
 """The add-on's operators: ``poll`` says why one cannot run, ``execute`` / ``invoke`` check, call ``core`` and
 ``blender``, and report. One module per operator family; ``base`` holds their shared opening."""
 
-from . import align, anchors, armature, cage_fit, curves, features, mirror, pair_tool, quality, sequence, snapping, wrap
+from . import (
+    align,
+    anchors,
+    armature,
+    cage_fit,
+    curves,
+    features,
+    mirror,
+    pair_tool,
+    proposals,
+    quality,
+    sequence,
+    snapping,
+    wrap,
+)
 
 classes = (
     snapping.classes
     + align.classes
     + anchors.classes
+    + proposals.classes
     + pair_tool.classes
     + curves.classes
     + wrap.classes

@@ -15,7 +15,7 @@ from ..blender import anchors as anchor_data
 from ..blender import layout as layout_data
 from ..blender import target as target_data
 from ..blender.edit_mode import object_mode
-from ..core import alignment, anchors
+from ..core import alignment, anchors, proposals
 from ..core.errors import ERRORS
 from ..properties import max_distance_property
 from .base import READS_LAYOUT, LayoutOperator, check_inputs, open_layout, operator_values
@@ -106,7 +106,9 @@ class SPRINGWRAP_OT_align(LayoutOperator, bpy.types.Operator):
                 anchor_list = anchors.no_anchors()
                 if self.use_anchors:
                     anchor_list, _resolution = anchors.resolve(
-                        anchor_data.read_anchors(layout), target, layout.springwrap.anchors_signature
+                        proposals.used_by_wrap(anchor_data.read_anchors(layout)),
+                        target,
+                        layout.springwrap.anchors_signature,
                     )
                 outcome = alignment.align(arrays, anchor_list, target, parameters)
                 detached = alignment.detached_count(arrays)

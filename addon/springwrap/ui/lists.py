@@ -170,6 +170,8 @@ class SPRINGWRAP_UL_anchors(bpy.types.UIList):
             else:
                 box.alignment = "RIGHT"
             box.label(text=cell.text, icon=cell.icon)
+        if item.proposed:  # a proposed pair, not used by the wrap until accepted: marked with its confidence
+            line.label(text=f"proposed {item.confidence:.2f}", icon="LIGHT")
 
 
 def _ui_scale(context) -> float:

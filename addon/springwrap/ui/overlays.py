@@ -32,6 +32,8 @@ LAYOUT_POINT_COLOR = (1.0, 0.85, 0.2, 1.0)
 """Colour of the anchored layout vertices."""
 TARGET_POINT_COLOR = (1.0, 0.3, 0.1, 1.0)
 """Colour of the target points."""
+PROPOSED_LINE_COLOR = (0.75, 0.45, 1.0, 0.7)
+"""A proposed pair's line (not used by the wrap until accepted): violet, against the hand pairs' orange."""
 CURVE_LINE_COLOR = (0.2, 0.8, 1.0, 0.9)
 """Colour of the dashed curve-constraint lines (light blue)."""
 CURVE_DASH_COUNT = 5
@@ -149,8 +151,9 @@ def anchor_ends(layout) -> tuple[anchors.Anchors, np.ndarray]:
     return anchor_list, _position_cache["positions"]
 
 
-def anchor_segments(layout) -> tuple[np.ndarray, np.ndarray]:
-    """The lines to draw for ``layout``: (K, 3) float32 world starts (layout vertices) and ends (targets).
+def anchor_segments(layout, proposed: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """The lines to draw for ``layout``: (K, 3) float32 world starts (layout vertices) and ends (targets), of
+    the hand (and accepted) pairs, or with ``proposed`` of the proposed pairs.
 
     Empty when the layout has no anchors or hides them. Anchors whose vertex no longer exists are
     left out.
@@ -159,7 +162,8 @@ def anchor_segments(layout) -> tuple[np.ndarray, np.ndarray]:
     if not settings.show_anchors or not len(settings.anchors):
         return _NO_SEGMENTS
     anchor_list, positions = anchor_ends(layout)
-    return anchors.segments(anchor_list, positions)
+    chosen = np.asarray(anchor_list.proposed, dtype=bool) == proposed
+    return anchors.segments(anchors.take(anchor_list, chosen), positions[chosen])
 
 
 def curve_segments(layout) -> tuple[np.ndarray, np.ndarray]:
@@ -202,6 +206,9 @@ def draw_anchors() -> None:
             starts, ends = anchor_segments(layout)
             if starts.shape[0]:
                 _draw_segments(starts, ends)
+            starts, ends = anchor_segments(layout, proposed=True)
+            if starts.shape[0]:
+                _draw_segments(starts, ends, PROPOSED_LINE_COLOR)
             _draw_highlights(layout)
         _draw_tool_points(layout)
         if show_curves:

@@ -196,6 +196,20 @@ class SPRINGWRAP_PT_anchors(_LayoutSubPanel, bpy.types.Panel):
         auto.max_distance = settings.max_distance
         _symmetry_arguments(auto, settings)
 
+        # Proposed pairs: from the anchors placed by hand, more where both shapes agree; accepted or rejected.
+        propose = layout.row(align=True)
+        propose.operator("springwrap.anchors_propose", icon="LIGHT")
+        proposed = sum(1 for item in settings.anchors if item.proposed)
+        if proposed:
+            row = layout.row(align=True)
+            row.label(text=f"{proposed} proposed")
+            accept = row.operator("springwrap.anchor_accept", text="Accept", icon="CHECKMARK")
+            accept.index, accept.all = -1, False
+            row.operator("springwrap.anchor_accept", text="All", icon="CHECKMARK").all = True
+            reject = row.operator("springwrap.anchor_reject", text="Reject", icon="CANCEL")
+            reject.index, reject.all = -1, False
+            row.operator("springwrap.anchor_reject", text="All", icon="CANCEL").all = True
+
 
 def _symmetry_arguments(operator, settings):
     """The panel's symmetric-anchor settings given to Add or Auto Anchors."""

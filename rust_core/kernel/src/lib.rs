@@ -41,6 +41,7 @@
 
 pub mod align;
 pub mod bvh;
+pub mod correspond;
 pub mod error;
 pub mod face_point;
 pub mod features;
@@ -57,6 +58,9 @@ pub mod wrap;
 pub use align::{
     AlignMethod, IcpAnchors, IcpReport, IcpSettings, IcpUpdate, Transform, fit_transform, icp,
     icp_anchored,
+};
+pub use correspond::{
+    GivenPair, Proposal, ProposalLayout, ProposalSettings, propose_correspondences,
 };
 pub use error::KernelError;
 pub use face_point::{FacePoint, LayoutPoint, SurfaceHit, VertexHit};

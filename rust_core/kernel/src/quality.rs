@@ -45,7 +45,7 @@ pub struct LayoutFaces<'a> {
 impl LayoutFaces<'_> {
     /// The first corner of each face (prefix sums of the sizes), checked against the corners and
     /// the vertex count.
-    fn starts(&self, vertex_count: usize) -> Result<Vec<usize>, KernelError> {
+    pub(crate) fn starts(&self, vertex_count: usize) -> Result<Vec<usize>, KernelError> {
         let mut starts = Vec::with_capacity(self.sizes.len());
         let mut next = 0usize;
         for &size in self.sizes {

@@ -7,6 +7,7 @@
 mod align;
 mod arguments;
 mod arrays;
+mod correspond;
 mod errors;
 mod features;
 mod fit;
@@ -30,6 +31,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<wrap_settings::PyWrapSettings>()?;
     m.add_class::<wrap::PyWrapSolver>()?;
     m.add_function(wrap_pyfunction!(align::fit_transform_py, m)?)?;
+    correspond::register(m)?;
     errors::register(m)?;
     features::register(m)?;
     fit::register(m)?;

@@ -46,6 +46,7 @@ from ._native import (
     flipped_faces,
     layout_pieces,
     layout_readout,
+    proposal_defaults,
     subdivision_fit_defaults,
     vertex_stretch,
 )
@@ -66,6 +67,7 @@ __all__ = [
     "FlatSurfaceError",
     "IcpReport",
     "IndexOutOfRangeError",
+    "Proposals",
     "InternalError",
     "InvalidArgumentError",
     "LayoutStructure",
@@ -90,6 +92,8 @@ __all__ = [
     "flipped_faces",
     "layout_pieces",
     "layout_readout",
+    "proposal_defaults",
+    "propose_correspondences",
     "subdivision_fit_defaults",
     "vertex_stretch",
 ]
@@ -152,6 +156,38 @@ class Features(NamedTuple):
     curves: list
     scale: float
     """The scale used: the one given, or the automatic one."""
+
+
+class Proposals(NamedTuple):
+    """Result of :func:`propose_correspondences`: proposed pairs, most confident first."""
+
+    vertices: np.ndarray
+    """(P,) uint32 layout vertices."""
+    triangles: np.ndarray
+    """(P,) uint32 target triangles."""
+    barycentric: np.ndarray
+    """(P, 3) float32 weights in those triangles."""
+    positions: np.ndarray
+    """(P, 3) float32 the target points."""
+    confidences: np.ndarray
+    """(P,) float32 in [0, 1]."""
+
+
+def propose_correspondences(
+    mesh, rest, current, face_corners, face_sizes, anchor_vertices, anchor_targets, **settings
+) -> Proposals:
+    """Further layout-vertex → target-point pairs from the anchors given and the current fit.
+
+    ``rest`` and ``current``: the layout's (N, 3) float32 rest shape and positions in the target's
+    space; ``face_corners``/``face_sizes``: its faces (uint32); ``anchor_vertices`` (K,) uint32 and
+    ``anchor_targets`` (K, 3) float32, K >= 3. Settings (keywords): ``max_count``,
+    ``min_confidence``, ``search_radius`` and ``feature_scale`` (fractions of the diagonals); see
+    :func:`proposal_defaults`."""
+    return Proposals(
+        *_native.propose_correspondences(
+            mesh, rest, current, face_corners, face_sizes, anchor_vertices, anchor_targets, **settings
+        )
+    )
 
 
 class TargetMesh(_native.TargetMesh):

@@ -623,3 +623,38 @@ def layout_readout(
     """(stretch (N,), flipped (F,), diagonal): :func:`vertex_stretch`, :func:`flipped_faces` and the finite points'
     bounding-box diagonal in one pass; ``rest`` None: no usable rest shape (the stretch reads 1, no face is
     flipped)."""
+
+# ---------------------------------------------------------------- correspondence proposals
+
+class Proposals(NamedTuple):
+    """Proposed pairs, most confident first."""
+
+    vertices: npt.NDArray[np.uint32]  # (P,) layout vertices
+    triangles: npt.NDArray[np.uint32]  # (P,) target triangles
+    barycentric: npt.NDArray[np.float32]  # (P, 3)
+    positions: npt.NDArray[np.float32]  # (P, 3) the target points
+    confidences: npt.NDArray[np.float32]  # (P,) in [0, 1]
+
+def propose_correspondences(
+    mesh: TargetMesh,
+    rest: npt.NDArray[np.float32],
+    current: npt.NDArray[np.float32],
+    face_corners: npt.NDArray[np.uint32],
+    face_sizes: npt.NDArray[np.uint32],
+    anchor_vertices: npt.NDArray[np.uint32],
+    anchor_targets: npt.NDArray[np.float32],
+    *,
+    max_count: int = 40,
+    min_confidence: float = 0.5,
+    search_radius: float = 0.06,
+    feature_scale: float = 0.015,
+) -> Proposals:
+    """Further layout-vertex → target-point pairs where both shapes say where a point goes: distinct
+    points (tips, pits) of the layout's rest shape and of the target, matched by position after the
+    current fit, protrusion and geodesic ratios to the anchors, reciprocally, outliers rejected.
+    Raises :class:`InvalidArgumentError` for fewer than 3 anchors on distinct vertices, coincident
+    anchors or a setting out of range; :class:`IndexOutOfRangeError`, :class:`NonFiniteError`,
+    :class:`ArrayError` for bad arrays."""
+
+def proposal_defaults() -> dict[str, float | int]:
+    """The proposals' defaults: max_count, min_confidence, search_radius, feature_scale, min_anchors."""
