@@ -635,6 +635,7 @@ def batch_task(arguments: argparse.Namespace, target: Path, output_dir: Path, sh
             "target_object",
             "anchors_spacing",
             "symmetric_anchors",
+            "propose_anchors",
             "align",
             "align_method",
             "max_iterations",

@@ -62,3 +62,17 @@ def test_too_few_anchors_fail_in_one_line_and_write_nothing(inputs, tmp_path):
     assert process.returncode != 0
     assert "at least 3 anchors" in process.stderr
     assert not (tmp_path / "r.json").exists()
+
+
+def test_a_batch_proposes_for_every_mesh(inputs, tmp_path):
+    folder = tmp_path / "meshes"
+    folder.mkdir()
+    (folder / "stretched.obj").write_text(inputs["target"].read_text())
+    out = tmp_path / "out"
+    process = run(
+        "--template", inputs["template"], "--batch", folder, "--output-dir", out, "--anchors", inputs[3],
+        "--propose-anchors", "--jobs", 1,
+    )  # fmt: skip
+    assert process.returncode == 0, process.stderr[-3000:]
+    report = json.loads((out / "stretched.json").read_text())
+    assert report["proposed_anchors"] >= 3 and report["anchors"] == 3 + report["proposed_anchors"]
