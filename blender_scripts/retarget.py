@@ -565,7 +565,8 @@ def retarget(arguments: argparse.Namespace) -> dict:
             f"did not converge within {arguments.max_iterations} iterations "
             f"(last move {result.max_displacement:.2e} of the layout's size); the result is kept"
         )
-    part_count = int(session.parts.parts.sum())
+    followed = addon_module("blender.parts").read_parts(layout)  # the vertices the wrap moved as parts
+    part_count = 0 if followed is None else int(followed.sum())
     if result.space_points > part_count:
         warnings.append(
             f"{result.space_points - part_count} of {result.vertex_count - part_count} surface vertices are off the "

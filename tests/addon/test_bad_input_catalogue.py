@@ -305,6 +305,9 @@ OPERATORS = {
     "anchors_auto": ({"spacing": 0.7, "replace": False}, {"positions", "positions far", "anchors", "target"}),
     "anchors_update": ({}, {"anchors", "target"}),
     "anchor_remove": ({}, set()),
+    "anchors_propose": ({}, {"positions", "positions far", "anchors", "target"}),
+    "anchor_accept": ({"all": True}, set()),
+    "anchor_reject": ({"all": True}, set()),
     "anchors_clear": ({}, set()),
     "curve_constraint_add": ({"curve_object": "Curve"}, ALL_LAYOUT | {"new curve"}),
     "curve_constraints_auto": ({}, ALL_LAYOUT),
@@ -338,6 +341,18 @@ def _call(operator, arguments):
     return getattr(bpy.ops.springwrap, operator)(**arguments)
 
 
+NEEDS_A_PROPOSAL = {"anchor_accept", "anchor_reject"}
+
+
+def _scene_for(operator):
+    """The catalogue's healthy scene for ``operator`` (target, layout): with the rigs for Align Armature, and the
+    last anchor (the scene's space anchor) a proposed pair for the operators that accept or reject one."""
+    target, layout = catalogue_scene(with_armatures=operator == "align_armature")
+    if operator in NEEDS_A_PROPOSAL:
+        layout.springwrap.anchors[-1].proposed = True
+    return target, layout
+
+
 INTERACTIVE = {"pair_tool"}
 """Operators that run only in a 3D view (called from a script they refuse, saying so); their bad input is checked
 on the functions they call (``test_pair_tool.py``)."""
@@ -351,7 +366,7 @@ def test_every_operator_is_in_the_catalogue():
 @pytest.mark.parametrize("operator", list(OPERATORS))
 def test_each_catalogue_call_finishes_on_the_healthy_scene(operator):
     arguments, _reads = OPERATORS[operator]
-    catalogue_scene(with_armatures=operator == "align_armature")
+    _scene_for(operator)
     assert _call(operator, arguments) == {"FINISHED"}
 
 
@@ -359,7 +374,7 @@ def _broken_scene(operator, case):
     """The catalogue's scene for ``operator`` broken by ``case``: (the operator's arguments, the layout, the message
     expected, the layout's full snapshot)."""
     arguments, _reads = OPERATORS[operator]
-    target, layout = catalogue_scene(with_armatures=operator == "align_armature")
+    target, layout = _scene_for(operator)
     breaks, _kind, message = CATALOGUE[case]
     breaks(target, layout)
     bpy.context.view_layer.update()
