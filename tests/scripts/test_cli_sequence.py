@@ -53,7 +53,9 @@ def test_a_sequence_from_the_command_line(tmp_path):
     assert sequence["failed"] == []
     read = run_script(reader, output)
     assert read.returncode == 0, read.stderr[-2000:]
-    measured = json.loads(read.stdout.strip().splitlines()[-1])
+    # The reader prints one JSON line; the blender binary prints "Blender quit" after it.
+    [line] = [line for line in read.stdout.splitlines() if line.startswith("{")]
+    measured = json.loads(line)
     assert measured["keys"] == ["Basis", "Wrap 0001", "Wrap 0002", "Wrap 0003"]
     widths = {int(frame): width for frame, width in measured["widths"].items()}
     assert widths[3] > 1.3 * widths[1] and widths[1] < widths[2] < widths[3]
