@@ -142,30 +142,38 @@ fn without_scale_a_rigid_part_keeps_its_size() {
 }
 
 #[test]
-fn the_number_of_neighbours_changes_the_binding() {
+fn each_number_of_neighbours_changes_the_binding_of_its_own_kind_of_part() {
     let surface = sphere(300, 1.0, DVec3::ZERO);
-    let part = vec![DVec3::new(0.5, 0.0, 0.0)];
+    // A rigid pair of points and a soft point, inside a surface bent unevenly.
+    let parts = vec![
+        DVec3::new(0.5, 0.0, 0.0),
+        DVec3::new(0.5, 0.05, 0.0),
+        DVec3::new(-0.5, 0.0, 0.0),
+    ];
+    let pieces = [0, 0, 1];
     let now: Vec<DVec3> = surface
         .iter()
-        .map(|&p| p + DVec3::new(0.0, 0.3 * p.x * p.x, 0.0))
+        .map(|&p| p + DVec3::new(0.0, 0.3 * p.x * p.x * p.x, 0.1 * p.z * p.z))
         .collect();
-    let few = FollowSettings {
+    let moved = |settings: FollowSettings| {
+        SurfaceFollower::new(&surface, &parts, &pieces, &[true, false], settings)
+            .unwrap()
+            .apply(&now)
+            .unwrap()
+    };
+    let base = moved(FollowSettings::default());
+    let rigid_few = moved(FollowSettings {
         neighbours: 4,
         ..FollowSettings::default()
-    };
-    let many = FollowSettings {
-        neighbours: 64,
+    });
+    let soft_few = moved(FollowSettings {
+        soft_neighbours: 4,
         ..FollowSettings::default()
-    };
-    let a = SurfaceFollower::new(&surface, &part, &[0], &[false], few)
-        .unwrap()
-        .apply(&now)
-        .unwrap();
-    let b = SurfaceFollower::new(&surface, &part, &[0], &[false], many)
-        .unwrap()
-        .apply(&now)
-        .unwrap();
-    assert!(a[0].distance(b[0]) > 1e-4);
+    });
+    assert!(base[0].distance(rigid_few[0]) > 1e-4);
+    assert!(base[2].distance(rigid_few[2]) < 1e-12);
+    assert!(base[2].distance(soft_few[2]) > 1e-4);
+    assert!(base[0].distance(soft_few[0]) < 1e-12);
 }
 
 #[test]
@@ -229,6 +237,23 @@ fn bad_inputs_are_refused_by_name() {
         )),
         KernelError::InvalidArgument {
             name: "neighbours",
+            ..
+        }
+    ));
+    let too_many = FollowSettings {
+        soft_neighbours: 2000,
+        ..settings
+    };
+    assert!(matches!(
+        refused(SurfaceFollower::new(
+            &surface,
+            &part,
+            &[0; 3],
+            &[false],
+            too_many
+        )),
+        KernelError::InvalidArgument {
+            name: "soft_neighbours",
             ..
         }
     ));
