@@ -269,3 +269,55 @@ fn bad_inputs_are_refused_by_name() {
         Err(KernelError::CoordinateOutOfRange { .. })
     ));
 }
+
+/// `point` reflected in the plane x = 0.
+fn mirrored(point: DVec3) -> DVec3 {
+    DVec3::new(-point.x, point.y, point.z)
+}
+
+#[test]
+fn a_part_across_the_mirror_plane_moves_as_symmetrically_as_the_surface() {
+    // A surface symmetric about x = 0 (each point with its mirror image, no point on the plane), a
+    // part whose vertices lie on the plane (equally far from each surface point and its image),
+    // and a symmetric, uneven motion of the surface.
+    let half: Vec<DVec3> = sphere(600, 1.0, DVec3::ZERO)
+        .into_iter()
+        .filter(|point| point.x > 1e-3)
+        .collect();
+    let surface: Vec<DVec3> = half
+        .iter()
+        .flat_map(|&point| [point, mirrored(point)])
+        .collect();
+    let part: Vec<DVec3> = (0..12)
+        .map(|i| {
+            let angle = i as f64 * 0.5;
+            DVec3::new(0.0, 0.2 * angle.cos() + 0.3, 0.2 * angle.sin())
+        })
+        .collect();
+    let now: Vec<DVec3> = surface
+        .iter()
+        .map(|&p| {
+            p + DVec3::new(
+                0.2 * p.x * p.y,
+                0.3 * p.x * p.x + 0.1 * p.z,
+                0.2 * p.y * p.y,
+            )
+        })
+        .collect();
+    for rigid in [true, false] {
+        for neighbours in [7, 31, 64] {
+            let settings = FollowSettings {
+                neighbours,
+                soft_neighbours: neighbours,
+                ..FollowSettings::default()
+            };
+            let moved = SurfaceFollower::new(&surface, &part, &[0; 12], &[rigid], settings)
+                .unwrap()
+                .apply(&now)
+                .unwrap();
+            for point in moved {
+                assert!(point.x.abs() < 1e-12, "{point} ({rigid}, {neighbours})");
+            }
+        }
+    }
+}
