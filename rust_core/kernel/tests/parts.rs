@@ -223,40 +223,37 @@ fn bad_inputs_are_refused_by_name() {
             index: 1
         }
     ));
-    let none = FollowSettings {
-        neighbours: 0,
-        ..settings
-    };
-    assert!(matches!(
-        refused(SurfaceFollower::new(
+    // Each number of neighbours out of its range, named (on a piece of its own kind).
+    for (settings, rigid, name) in [
+        (
+            FollowSettings {
+                neighbours: 0,
+                ..settings
+            },
+            true,
+            "neighbours",
+        ),
+        (
+            FollowSettings {
+                soft_neighbours: 2000,
+                ..settings
+            },
+            false,
+            "soft_neighbours",
+        ),
+    ] {
+        let error = refused(SurfaceFollower::new(
             &surface,
             &part,
             &[0; 3],
-            &[true],
-            none
-        )),
-        KernelError::InvalidArgument {
-            name: "neighbours",
-            ..
-        }
-    ));
-    let too_many = FollowSettings {
-        soft_neighbours: 2000,
-        ..settings
-    };
-    assert!(matches!(
-        refused(SurfaceFollower::new(
-            &surface,
-            &part,
-            &[0; 3],
-            &[false],
-            too_many
-        )),
-        KernelError::InvalidArgument {
-            name: "soft_neighbours",
-            ..
-        }
-    ));
+            &[rigid],
+            settings,
+        ));
+        assert!(
+            matches!(error, KernelError::InvalidArgument { name: named, .. } if named == name),
+            "{error:?}"
+        );
+    }
     let follower = SurfaceFollower::new(&surface, &part, &[0; 3], &[true], settings).unwrap();
     assert!(matches!(
         follower.apply(&surface[..5]),
@@ -290,7 +287,7 @@ fn a_part_across_the_mirror_plane_moves_as_symmetrically_as_the_surface() {
         .collect();
     let part: Vec<DVec3> = (0..12)
         .map(|i| {
-            let angle = i as f64 * 0.5;
+            let angle = f64::from(i) * 0.5;
             DVec3::new(0.0, 0.2 * angle.cos() + 0.3, 0.2 * angle.sin())
         })
         .collect();

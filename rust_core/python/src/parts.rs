@@ -39,6 +39,7 @@ pub(crate) struct PySurfaceFollower {
 #[pymethods]
 impl PySurfaceFollower {
     #[new]
+    #[allow(clippy::too_many_arguments)] // keyword arguments of one Python constructor
     #[pyo3(signature = (surface_rest, part_rest, pieces, rigid, *, neighbours = None, soft_neighbours = None, scale = None))]
     fn new(
         py: Python<'_>,
