@@ -60,6 +60,8 @@ TEMPLATE_MOVE = {"rotation_degrees": -12.0, "scale": 0.93, "translation": (-0.15
 """How the template is moved before the alignment (turned about +Y, scaled, shifted; metres)."""
 NEAR_PARTS = 0.05
 """The skin near the parts: body vertices of the template within this distance (metres) of a part vertex."""
+CLOSE_SKIN = 0.005
+"""The skin a piece follows most closely: body vertices of the template within this distance (metres) of it."""
 ANCHORS = 24
 METHODS = ("aligned template", "wrap, body alone", "wrap, parts pulled", "wrap, Free group", "wrap (defaults)")
 
@@ -96,8 +98,39 @@ def layout_with_parts(cache=None) -> dict:
     }
 
 
-def errors_of(positions: np.ndarray, truth: np.ndarray, layout: dict, diagonal: float, near: np.ndarray) -> dict:
-    """The method's errors (see the module's docstring), in % of ``diagonal``."""
+def close_skin(template: np.ndarray, layout: dict) -> dict:
+    """Per part group, (B,) bool the body vertices of ``template`` within :data:`CLOSE_SKIN` of the group."""
+    body = layout["body_count"]
+    close = {}
+    for group in PART_GROUPS:
+        members = template[body + np.flatnonzero(layout["groups"] == group)]
+        distance = np.min(np.linalg.norm(template[:body, None, :] - members[None, :, :], axis=2), axis=1)
+        close[group] = distance < CLOSE_SKIN
+    return close
+
+
+def true_surface_follow(aligned: np.ndarray, truth: np.ndarray, layout: dict) -> np.ndarray:
+    """The parts moved by the body's true motion from ``aligned`` (``springwrap_kernel.SurfaceFollower`` with the
+    wrap's defaults; the eyes, teeth and tongue rigid, the lashes soft): how well the parts follow a surface
+    wrapped without error, apart from the wrap's own error."""
+    import springwrap_kernel
+
+    body = layout["body_count"]
+    rigid_groups = PART_GROUPS[:5]
+    groups = list(layout["groups"])
+    pieces = np.array([PART_GROUPS.index(group) for group in groups], dtype=np.uint32)
+    rigid = np.array([group in rigid_groups for group in PART_GROUPS])
+    follower = springwrap_kernel.SurfaceFollower(
+        np.ascontiguousarray(aligned[:body]), np.ascontiguousarray(aligned[body:]), pieces, rigid
+    )
+    return np.concatenate([truth[:body], follower.apply(np.ascontiguousarray(truth[:body]))])
+
+
+def errors_of(
+    positions: np.ndarray, truth: np.ndarray, layout: dict, diagonal: float, near: np.ndarray, close: dict | None = None
+) -> dict:
+    """The method's errors (see the module's docstring), in % of ``diagonal``; per piece also the mean error of the
+    skin ``close`` to it, when given."""
     error = 100.0 * np.linalg.norm(positions - truth, axis=1) / diagonal
     body = layout["body_count"]
     parts = error[body:]
@@ -111,6 +144,8 @@ def errors_of(positions: np.ndarray, truth: np.ndarray, layout: dict, diagonal: 
     for group in PART_GROUPS:
         members = layout["groups"] == group
         result["pieces"][group] = {"mean": float(parts[members].mean()), "max": float(parts[members].max())}
+        if close is not None and close[group].any():
+            result["pieces"][group]["skin"] = float(error[:body][close[group]].mean())
     spreads = []
     for group in EYES:
         members = body + np.flatnonzero(layout["groups"] == group)
@@ -142,6 +177,7 @@ def run_case(name: str, layout: dict) -> dict:
     part_rest = template[body:]
     distance = np.min(np.linalg.norm(template[:body, None, :] - part_rest[None, ::4, :], axis=2), axis=1)
     near = distance < NEAR_PARTS
+    close = close_skin(template, layout)
     target_mesh = bpy.data.meshes.new("target")
     target_mesh.from_pydata(case.target_vertices.astype(np.float64).tolist(), [], case.target_triangles.tolist())
     target = bpy.data.objects.new("Target", target_mesh)
@@ -177,7 +213,7 @@ def run_case(name: str, layout: dict) -> dict:
         positions = read_positions(layout_object.data)
         if alone:  # the parts where Align left them: only the body's numbers count
             positions = np.concatenate([positions, aligned[body:]])
-        entry = errors_of(positions, truth, layout, diagonal, near)
+        entry = errors_of(positions, truth, layout, diagonal, near, close)
         if alone:
             entry = {key: entry[key] for key in ("body_mean", "near_parts_mean")}
         entry |= {"seconds": time.perf_counter() - start, "notes": notes}
@@ -189,6 +225,9 @@ def run_case(name: str, layout: dict) -> dict:
         )
         if notes:
             print(f"  {notes}", flush=True)
+    ideal = errors_of(true_surface_follow(aligned, truth, layout), truth, layout, diagonal, near)
+    record["true_surface"] = {key: ideal[key] for key in ("parts_mean", "parts_max", "pieces")}
+    print(f"{name:10s} parts on the true surface: mean {ideal['parts_mean']:.3f} max {ideal['parts_max']:.3f}")
     return record
 
 
@@ -246,13 +285,25 @@ def markdown(result: dict) -> list[str]:
                 f"{entry['parts_mean']:.3f} | {entry['parts_max']:.3f} | {entry['eye_shape_change']:.2f} |"
             )
     lines += ["", *aims(result)]
-    lines += ["", "Per piece, the wrap with its defaults (mean / max %):", ""]
+    lines += [
+        "",
+        "Per piece, the wrap with its defaults (mean / max %); below each case, the mean error of the wrapped skin "
+        f"within {1000 * CLOSE_SKIN:g} mm of the piece (what it follows most closely), and the piece moved by the "
+        "body's true motion instead of the wrapped one (the binding's own error, apart from the wrap's):",
+        "",
+    ]
     lines += ["| case | " + " | ".join(group.removeprefix("helper-") for group in PART_GROUPS) + " |"]
     lines += ["| :--- |" + " ---: |" * len(PART_GROUPS)]
     for record in result["cases"]:
         pieces = record["methods"].get("wrap (defaults)", {}).get("pieces", {})
         cells = [f"{pieces[g]['mean']:.2f} / {pieces[g]['max']:.2f}" if g in pieces else "-" for g in PART_GROUPS]
         lines.append(f"| {record['case']} | " + " | ".join(cells) + " |")
+        skin = [f"{pieces[g]['skin']:.2f}" if "skin" in pieces.get(g, {}) else "-" for g in PART_GROUPS]
+        lines.append(f"| {record['case']}: skin within {1000 * CLOSE_SKIN:g} mm, mean | " + " | ".join(skin) + " |")
+        ideal = record.get("true_surface", {}).get("pieces", {})
+        if ideal:
+            cells = [f"{ideal[g]['mean']:.2f} / {ideal[g]['max']:.2f}" for g in PART_GROUPS]
+            lines.append(f"| {record['case']}: on the true surface | " + " | ".join(cells) + " |")
     notes = [
         f"- {record['case']}: {record['methods']['wrap (defaults)']['notes']}"
         for record in result["cases"]

@@ -43,6 +43,17 @@ def test_neighbours_and_scale_change_the_result_and_bad_arguments_are_named():
     default = sk.SurfaceFollower(surface, ball, pieces, rigid).apply(now)
     assert np.abs(sk.SurfaceFollower(surface, ball, pieces, rigid, neighbours=4).apply(now) - default).max() > 1e-4
     assert np.abs(sk.SurfaceFollower(surface, ball, pieces, rigid, scale=True).apply(now) - default).max() > 1e-4
+    # soft_neighbours binds the soft vertices alone; neighbours the rigid pieces alone.
+    soft = np.array([False])
+    soft_default = sk.SurfaceFollower(surface, ball, pieces, soft).apply(now)
+    assert (
+        np.abs(sk.SurfaceFollower(surface, ball, pieces, soft, soft_neighbours=8).apply(now) - soft_default).max()
+        > 1e-4
+    )
+    assert np.array_equal(sk.SurfaceFollower(surface, ball, pieces, soft, neighbours=8).apply(now), soft_default)
+    assert np.array_equal(sk.SurfaceFollower(surface, ball, pieces, rigid, soft_neighbours=8).apply(now), default)
+    with pytest.raises(sk.InvalidArgumentError, match="soft_neighbours"):
+        sk.SurfaceFollower(surface, ball, pieces, soft, soft_neighbours=5000)
     with pytest.raises(sk.InvalidArgumentError, match="neighbours"):
         sk.SurfaceFollower(surface, ball, pieces, rigid, neighbours=0)
     with pytest.raises(sk.InvalidArgumentError, match="pieces"):

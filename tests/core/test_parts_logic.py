@@ -132,3 +132,64 @@ def test_the_follower_moves_the_ball_with_the_body_and_the_readout_leaves_it_out
     surface = parts.surface_readout(readout, plan.parts)
     assert surface.distances.size == len(body[0]) and surface.distances.max() == len(body[0]) - 1
     assert parts.surface_readout(readout, None) is readout
+
+
+def body_and_ball_inputs():
+    """(positions, topology, plan, WrapInputs) of a body with a ball part after it, an anchor on each, the body's
+    vertex 2 held on a plane and a curve through its vertices 0, 1 and 2."""
+    wrap_inputs = core_module("wrap_inputs")
+    body, ball = cube_sphere(4, 1.4), cube_sphere(2, 0.3, (0.4, 0.0, 0.3))
+    positions, topology = topology_of([body, ball])
+    count, body_count = len(positions), len(body[0])
+    follow = np.arange(count) >= body_count
+    plan = parts.plan_parts("Layout", positions, topology, parts.PartGroups(follow=follow), False)
+    points = positions.astype(np.float32)
+    anchors = np.array([5, body_count + 1], dtype=np.uint32)
+    inputs = wrap_inputs.WrapInputs(
+        states=np.zeros(count, dtype=np.int32),
+        triangles=np.full(count, -1, dtype=np.int32),
+        barycentrics=np.zeros((count, 3), dtype=np.float32),
+        positions=points,
+        anchor_vertices=anchors,
+        anchor_triangles=np.full(2, -1, dtype=np.int32),
+        anchor_barycentrics=np.zeros((2, 3), dtype=np.float32),
+        anchor_positions=points[anchors],
+        unreliable_triangles=None,
+        curve_vertices=np.array([0, 1, 2], dtype=np.uint32),
+        curve_vertex_counts=np.array([3], dtype=np.uint32),
+        curve_points=points[:2],
+        curve_point_counts=np.array([2], dtype=np.uint32),
+        plane_vertices=np.array([2, body_count + 3], dtype=np.uint32),
+        plane_point=(0.0, 0.0, 0.0),
+        plane_normal=(1.0, 0.0, 0.0),
+        free_vertices=follow.copy(),
+    )
+    return positions, topology, plan, inputs
+
+
+def test_the_solver_is_given_the_layout_without_its_parts():
+    positions, topology, plan, inputs = body_and_ball_inputs()
+    body_count = int((~plan.parts).sum())
+    restriction, cut = parts.cut_out(topology, inputs, plan, positions.astype(np.float32))
+    assert restriction.kept.tolist() == list(range(body_count))  # the body alone, in its own numbering
+    assert restriction.topology.vertex_count == body_count
+    assert restriction.topology.face_corners.max() < body_count
+    assert cut.positions.shape == (body_count, 3) and not cut.free_vertices.any()
+    assert cut.anchor_vertices.tolist() == [5]  # the ball's anchor is not the body's
+    assert cut.curve_vertices.tolist() == [0, 1, 2] and cut.plane_vertices.tolist() == [2]
+    # Within a region, only the region's surface vertices are re-settled.
+    region = np.zeros(len(positions), dtype=bool)
+    region[:4] = True
+    region[-1] = True
+    restriction, _cut = parts.cut_out(topology, inputs, plan, positions.astype(np.float32), region)
+    assert restriction.region.tolist() == (region & ~plan.parts).tolist()
+    none = plan._replace(parts=np.zeros(len(positions), dtype=bool))
+    assert parts.cut_out(topology, inputs, none, positions) is None
+
+
+def test_faces_without_the_parts():
+    _positions, topology, plan, _inputs = body_and_ball_inputs()
+    corners, sizes = parts.faces_without(topology, plan.parts)
+    body_count = int((~plan.parts).sum())
+    assert corners.max() < body_count and corners.size == sizes.sum()
+    assert sizes.size == int((np.asarray(topology.face_corners).reshape(-1, 4) < body_count).all(axis=1).sum())

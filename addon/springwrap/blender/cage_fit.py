@@ -11,11 +11,12 @@ import bpy
 import numpy as np
 
 from ..core import anchors as anchor_logic
-from ..core import cage_fit, layout_state, proposals, transforms
+from ..core import cage_fit, layout_state, parts, proposals, transforms
 from ..core.errors import LayoutError
 from . import anchors as anchor_data
 from . import compat
 from . import layout as layout_data
+from . import parts as part_data
 from .evaluated_mesh import read_evaluated_mesh
 
 TEMPORARY_NAME = "springwrap_cage_fit"
@@ -108,6 +109,7 @@ class CageFitSession:
         self.parameters = parameters
         self.run = None
         self.size = None
+        self.parts = None  # the parts the last wrap moved (core.parts.PartPlan), which follow the fit
         self._subdivision = None
         self._worker = None
 
@@ -124,6 +126,13 @@ class CageFitSession:
         on_face = np.zeros(vertex_count, dtype=bool)
         on_face[np.asarray(topology.face_corners, dtype=np.int64)] = True
         movable = cage_fit.movable_mask(vertex_count, on_face, arrays.selection, parameters.only_selected)
+        # The parts the last wrap moved are not fitted (the target lacks them): their faces are left out of the
+        # subdivision fitted, and they follow the fitted surface's motion at the end.
+        self.parts = part_data.read_followed_plan(layout, topology)
+        face_corners, face_sizes = topology.face_corners, topology.face_sizes
+        if self.parts is not None:
+            movable &= ~self.parts.parts
+            face_corners, face_sizes = parts.faces_without(topology, self.parts.parts)
         if not movable.any():
             raise LayoutError(f"Layout '{layout.name}': no vertex to move (no selected vertex on a face)")
         anchors = proposals.used_by_wrap(anchor_data.read_anchors(layout))
@@ -146,8 +155,8 @@ class CageFitSession:
             self.run = cage_fit.CageFitRun(
                 frame.kernel,
                 world - frame.origin,
-                topology.face_corners,
-                topology.face_sizes,
+                face_corners,
+                face_sizes,
                 movable,
                 levels=parameters.levels,
                 rounds=parameters.rounds,
@@ -205,7 +214,16 @@ class CageFitSession:
         outcome = outcome._replace(positions=self.target.mesh.from_kernel(outcome.positions))
         local = transforms.to_local(self.arrays.matrix_world, outcome.positions)
         positions = np.where(outcome.moved[:, None], local, self.arrays.positions)
-        state = layout_state.detach_points(self.arrays.state, outcome.moved)
+        moved = outcome.moved
+        if self.parts is not None:  # the parts: moved by the surface's motion, off the target
+            world = transforms.world_positions(self.arrays)
+            follower = parts.make_follower(self.parts, world)
+            followed = parts.follow(
+                follower, self.parts, transforms.transform_points(self.arrays.matrix_world, positions)
+            )
+            positions = transforms.to_local(self.arrays.matrix_world, followed)
+            moved = moved | self.parts.parts
+        state = layout_state.detach_points(self.arrays.state, moved)
         layout_data.write_layout(self.layout, positions, state)
         return outcome
 

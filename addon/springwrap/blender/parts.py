@@ -124,3 +124,15 @@ def readout_summary(layout: bpy.types.Object, readout) -> dict:
     followed = read_parts(layout)
     summary = quality.summary(parts.surface_readout(readout, followed))
     return summary | {"part_vertices": 0 if followed is None else int(followed.sum())}
+
+
+def read_followed_plan(layout: bpy.types.Object, topology) -> parts.PartPlan | None:
+    """The parts the layout's last wrap moved (:data:`core.parts.PART_ATTRIBUTE`: rigid and soft) as a
+    :class:`core.parts.PartPlan`, or None when it had none (or the mesh changed since)."""
+    codes = attributes.read_point_attribute(layout.data, parts.PART_ATTRIBUTE, "INT")
+    if codes is None or codes.size != int(topology.vertex_count):
+        return None
+    codes = np.asarray(codes).reshape(-1)
+    if not (codes > 0).any() or (codes > 0).all():
+        return None
+    return parts.PartPlan(codes > 0, codes == 1, parts.layout_pieces(topology), ())

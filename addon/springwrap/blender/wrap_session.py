@@ -166,10 +166,16 @@ class WrapSession:
         if adjust_inputs is not None:
             inputs = adjust_inputs(inputs)
         self.restriction = None
+        self.whole_inputs = inputs  # the mirror's plane in the layout's own numbering, for the parts' seam
         if region is not None:
             inputs = follow.held(inputs, region)
-            cut = follow.restrict(self.layout_topology, inputs, region, arrays.positions)
-            if cut is not None and int(parameters.spring_resolution) == 1:
+        if int(parameters.spring_resolution) == 1:
+            # The solver works without the parts (they take no part in the surface's wrap) and, with a region,
+            # on the faces around it alone.
+            cut = parts.cut_out(self.layout_topology, inputs, self.parts, arrays.positions, region)
+            if cut is None and region is not None:
+                cut = follow.restrict(self.layout_topology, inputs, region, arrays.positions)
+            if cut is not None:
                 self.restriction, inputs = cut
                 structure = layout_data.make_layout_structure(self.restriction.topology)
         self.solver = make_wrap_solver(self.target, structure, inputs, parameters)
@@ -317,16 +323,13 @@ class WrapSession:
             count = self.restriction.kept.size
         world = wrap_inputs.from_frame(self.inputs, self.solver.positions()[:count])
         states, triangles, barycentrics = (np.array(array[:count]) for array in self.solver.states())
-        if self.follower is not None and self.restriction is None:  # the parts: moved by the surface, off the target
-            world = part_data.hold_on_plane(parts.follow(self.follower, self.parts, world), self.parts, self.inputs)
-            states[self.parts.parts], triangles[self.parts.parts] = layout_state.SPACE_POINT, layout_state.NO_FACE
         positions = transforms.to_local(self.matrix_world, world)
         state = layout_state.normalized_state(states, triangles, barycentrics)
-        if self.restriction is None:
-            return positions, state
-        positions, state = follow.scatter(self.restriction, positions, state)
-        if self.follower is not None:  # the parts follow the whole surface, in the layout's own numbering
+        if self.restriction is not None:
+            positions, state = follow.scatter(self.restriction, positions, state)
+        if self.follower is not None:  # the parts: moved by the whole surface, off the target
             world = parts.follow(self.follower, self.parts, transforms.transform_points(self.matrix_world, positions))
+            world = part_data.hold_on_plane(world, self.parts, self.whole_inputs)
             positions = transforms.to_local(self.matrix_world, world)
             state.states[self.parts.parts] = layout_state.SPACE_POINT
             state.faces[self.parts.parts] = layout_state.NO_FACE

@@ -27,6 +27,7 @@ import numpy as np
 import springwrap_kernel
 
 from .errors import LayoutError
+from .follow import restrict
 
 PART_ATTRIBUTE = "springwrap_part"
 """POINT INT attribute the wrap writes: 2 a rigid part's vertex, 1 a soft part's, 0 the surface (the read-out
@@ -81,6 +82,20 @@ def fan_triangles(face_corners: np.ndarray, face_sizes: np.ndarray, keep_face: n
     step = np.arange(int(fans.sum())) - np.repeat(np.cumsum(fans) - fans, fans)
     first = starts[faces]
     return np.stack([corners[first], corners[first + step + 1], corners[first + step + 2]], axis=1)
+
+
+def faces_without(topology, vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(face_corners, face_sizes) of ``topology``'s faces with no corner among ``vertices`` ((N,) bool)."""
+    sizes = np.asarray(topology.face_sizes, dtype=np.int64).reshape(-1)
+    corners = np.asarray(topology.face_corners, dtype=np.int64).reshape(-1)
+    face_of_corner = np.repeat(np.arange(sizes.size), sizes)
+    touched = np.zeros(sizes.size, dtype=bool)
+    np.logical_or.at(touched, face_of_corner, np.asarray(vertices, dtype=bool)[corners])
+    kept = ~touched[face_of_corner]
+    return (
+        np.ascontiguousarray(corners[kept], dtype=np.uint32),
+        np.ascontiguousarray(sizes[~touched], dtype=np.uint32),
+    )
 
 
 def face_pieces(topology, pieces: np.ndarray) -> np.ndarray:
@@ -273,3 +288,31 @@ def surface_readout(readout, part_flags: np.ndarray | None):
         return readout
     kept = ~np.asarray(part_flags, dtype=bool)
     return readout._replace(distances=readout.distances[kept], stretch=readout.stretch[kept])
+
+
+def cut_out(topology, inputs, plan: PartPlan, positions: np.ndarray, region: np.ndarray | None = None):
+    """(``core.follow.Restriction``, its inputs): the layout without its part pieces, for the solver, so that the
+    parts take no part in the surface's wrap at all (its statistics, such as the mean edge length, and its
+    correspondences are the surface's alone); every part vertex is written back as it was, for :func:`follow` to
+    move. ``region`` (optional, (N,) bool): re-settle only these vertices of the surface (the caller holds the
+    others, ``core.follow.held``). A part vertex that shares a face with the surface (a Follow group that cuts a
+    piece) stays in the solve as a free vertex. None when there is no part to leave out."""
+    if not plan.any:
+        return None
+    solved = ~plan.parts if region is None else np.asarray(region, dtype=bool) & ~plan.parts
+    curves, plane = inputs.curve_vertices, inputs.plane_vertices
+    cut = restrict(topology, inputs._replace(curve_vertices=None, plane_vertices=None), solved, positions)
+    if cut is None:
+        return None
+    restriction, cut_inputs = cut
+    number = np.full(int(topology.vertex_count), -1, dtype=np.int64)
+    number[restriction.kept] = np.arange(restriction.kept.size)
+    if curves is not None:
+        chained = number[np.asarray(curves, dtype=np.int64)]
+        if (chained < 0).any():
+            return None  # a curve runs through a part (never planned so: only by a caller's own inputs)
+        cut_inputs = cut_inputs._replace(curve_vertices=np.ascontiguousarray(chained, dtype=np.uint32))
+    if plane is not None:
+        held = number[np.asarray(plane, dtype=np.int64)]
+        cut_inputs = cut_inputs._replace(plane_vertices=np.ascontiguousarray(held[held >= 0], dtype=np.uint32))
+    return restriction, cut_inputs

@@ -142,30 +142,38 @@ fn without_scale_a_rigid_part_keeps_its_size() {
 }
 
 #[test]
-fn the_number_of_neighbours_changes_the_binding() {
+fn each_number_of_neighbours_changes_the_binding_of_its_own_kind_of_part() {
     let surface = sphere(300, 1.0, DVec3::ZERO);
-    let part = vec![DVec3::new(0.5, 0.0, 0.0)];
+    // A rigid pair of points and a soft point, inside a surface bent unevenly.
+    let parts = vec![
+        DVec3::new(0.5, 0.0, 0.0),
+        DVec3::new(0.5, 0.05, 0.0),
+        DVec3::new(-0.5, 0.0, 0.0),
+    ];
+    let pieces = [0, 0, 1];
     let now: Vec<DVec3> = surface
         .iter()
-        .map(|&p| p + DVec3::new(0.0, 0.3 * p.x * p.x, 0.0))
+        .map(|&p| p + DVec3::new(0.0, 0.3 * p.x * p.x * p.x, 0.1 * p.z * p.z))
         .collect();
-    let few = FollowSettings {
+    let moved = |settings: FollowSettings| {
+        SurfaceFollower::new(&surface, &parts, &pieces, &[true, false], settings)
+            .unwrap()
+            .apply(&now)
+            .unwrap()
+    };
+    let base = moved(FollowSettings::default());
+    let rigid_few = moved(FollowSettings {
         neighbours: 4,
         ..FollowSettings::default()
-    };
-    let many = FollowSettings {
-        neighbours: 64,
+    });
+    let soft_few = moved(FollowSettings {
+        soft_neighbours: 4,
         ..FollowSettings::default()
-    };
-    let a = SurfaceFollower::new(&surface, &part, &[0], &[false], few)
-        .unwrap()
-        .apply(&now)
-        .unwrap();
-    let b = SurfaceFollower::new(&surface, &part, &[0], &[false], many)
-        .unwrap()
-        .apply(&now)
-        .unwrap();
-    assert!(a[0].distance(b[0]) > 1e-4);
+    });
+    assert!(base[0].distance(rigid_few[0]) > 1e-4);
+    assert!(base[2].distance(rigid_few[2]) < 1e-12);
+    assert!(base[2].distance(soft_few[2]) > 1e-4);
+    assert!(base[0].distance(soft_few[0]) < 1e-12);
 }
 
 #[test]
@@ -215,23 +223,37 @@ fn bad_inputs_are_refused_by_name() {
             index: 1
         }
     ));
-    let none = FollowSettings {
-        neighbours: 0,
-        ..settings
-    };
-    assert!(matches!(
-        refused(SurfaceFollower::new(
+    // Each number of neighbours out of its range, named (on a piece of its own kind).
+    for (settings, rigid, name) in [
+        (
+            FollowSettings {
+                neighbours: 0,
+                ..settings
+            },
+            true,
+            "neighbours",
+        ),
+        (
+            FollowSettings {
+                soft_neighbours: 2000,
+                ..settings
+            },
+            false,
+            "soft_neighbours",
+        ),
+    ] {
+        let error = refused(SurfaceFollower::new(
             &surface,
             &part,
             &[0; 3],
-            &[true],
-            none
-        )),
-        KernelError::InvalidArgument {
-            name: "neighbours",
-            ..
-        }
-    ));
+            &[rigid],
+            settings,
+        ));
+        assert!(
+            matches!(error, KernelError::InvalidArgument { name: named, .. } if named == name),
+            "{error:?}"
+        );
+    }
     let follower = SurfaceFollower::new(&surface, &part, &[0; 3], &[true], settings).unwrap();
     assert!(matches!(
         follower.apply(&surface[..5]),
@@ -243,4 +265,56 @@ fn bad_inputs_are_refused_by_name() {
         follower.apply(&far),
         Err(KernelError::CoordinateOutOfRange { .. })
     ));
+}
+
+/// `point` reflected in the plane x = 0.
+fn mirrored(point: DVec3) -> DVec3 {
+    DVec3::new(-point.x, point.y, point.z)
+}
+
+#[test]
+fn a_part_across_the_mirror_plane_moves_as_symmetrically_as_the_surface() {
+    // A surface symmetric about x = 0 (each point with its mirror image, no point on the plane), a
+    // part whose vertices lie on the plane (equally far from each surface point and its image),
+    // and a symmetric, uneven motion of the surface.
+    let half: Vec<DVec3> = sphere(600, 1.0, DVec3::ZERO)
+        .into_iter()
+        .filter(|point| point.x > 1e-3)
+        .collect();
+    let surface: Vec<DVec3> = half
+        .iter()
+        .flat_map(|&point| [point, mirrored(point)])
+        .collect();
+    let part: Vec<DVec3> = (0..12)
+        .map(|i| {
+            let angle = f64::from(i) * 0.5;
+            DVec3::new(0.0, 0.2 * angle.cos() + 0.3, 0.2 * angle.sin())
+        })
+        .collect();
+    let now: Vec<DVec3> = surface
+        .iter()
+        .map(|&p| {
+            p + DVec3::new(
+                0.2 * p.x * p.y,
+                0.3 * p.x * p.x + 0.1 * p.z,
+                0.2 * p.y * p.y,
+            )
+        })
+        .collect();
+    for rigid in [true, false] {
+        for neighbours in [7, 31, 64] {
+            let settings = FollowSettings {
+                neighbours,
+                soft_neighbours: neighbours,
+                ..FollowSettings::default()
+            };
+            let moved = SurfaceFollower::new(&surface, &part, &[0; 12], &[rigid], settings)
+                .unwrap()
+                .apply(&now)
+                .unwrap();
+            for point in moved {
+                assert!(point.x.abs() < 1e-12, "{point} ({rigid}, {neighbours})");
+            }
+        }
+    }
 }

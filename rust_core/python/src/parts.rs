@@ -39,7 +39,8 @@ pub(crate) struct PySurfaceFollower {
 #[pymethods]
 impl PySurfaceFollower {
     #[new]
-    #[pyo3(signature = (surface_rest, part_rest, pieces, rigid, *, neighbours = None, scale = None))]
+    #[allow(clippy::too_many_arguments)] // keyword arguments of one Python constructor
+    #[pyo3(signature = (surface_rest, part_rest, pieces, rigid, *, neighbours = None, soft_neighbours = None, scale = None))]
     fn new(
         py: Python<'_>,
         surface_rest: &Bound<'_, PyAny>,
@@ -47,12 +48,16 @@ impl PySurfaceFollower {
         pieces: &Bound<'_, PyAny>,
         rigid: &Bound<'_, PyAny>,
         neighbours: Option<&Bound<'_, PyAny>>,
+        soft_neighbours: Option<&Bound<'_, PyAny>>,
         scale: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let defaults = FollowSettings::default();
         let settings = FollowSettings {
             neighbours: neighbours.map_or(Ok(defaults.neighbours), |value| {
                 count("neighbours", value, 1 << 20)
+            })?,
+            soft_neighbours: soft_neighbours.map_or(Ok(defaults.soft_neighbours), |value| {
+                count("soft_neighbours", value, 1 << 20)
             })?,
             scale: flag("scale", scale, defaults.scale)?,
         };

@@ -12,9 +12,13 @@ use crate::validate::{SettingRange, check_setting};
 /// How parts are bound to the surface.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FollowSettings {
-    /// Surface vertices each part vertex is bound to (its nearest at rest): 1 … 256. More reach
-    /// further and average the surface's motion over a wider region.
+    /// Surface vertices each vertex of a rigid piece is bound to (its nearest at rest): 1 … 1024.
+    /// More reach further and average the surface's motion over a wider region.
     pub neighbours: usize,
+    /// Surface vertices each soft part vertex is bound to: 1 … 1024. A soft vertex follows its own
+    /// neighbourhood alone, so it needs a wider one than a rigid piece (whose vertices pool
+    /// theirs) to average out the unevenness of the surface's motion.
+    pub soft_neighbours: usize,
     /// Whether the parts also take the surface's uniform scale around them (else rotation and
     /// translation alone: after an alignment has scaled the template, a part keeps its size, as an
     /// eyeball does when the face around it gains weight).
@@ -25,6 +29,7 @@ impl Default for FollowSettings {
     fn default() -> Self {
         Self {
             neighbours: 64,
+            soft_neighbours: 256,
             scale: false,
         }
     }
@@ -40,10 +45,19 @@ impl FollowSettings {
             "neighbours",
             "number of surface neighbours",
             self.neighbours as f64,
-            SettingRange::closed(1.0, 256.0),
+            SettingRange::closed(1.0, MAX_NEIGHBOURS),
+        )?;
+        check_setting(
+            "soft_neighbours",
+            "number of surface neighbours of a soft part vertex",
+            self.soft_neighbours as f64,
+            SettingRange::closed(1.0, MAX_NEIGHBOURS),
         )
     }
 }
+
+/// The most surface neighbours a part vertex may be bound to.
+const MAX_NEIGHBOURS: f64 = 1024.0;
 
 /// One part vertex's (or a rigid piece's) surface vertices and weights (summing to 1).
 type Binding = Vec<(u32, f64)>;
@@ -113,7 +127,15 @@ impl SurfaceFollower {
         let grid = PointGrid::new(surface_rest, settings.neighbours);
         let bindings: Vec<Binding> = part_rest
             .par_iter()
-            .map(|&point| bind(&grid.nearest(surface_rest, point, settings.neighbours)))
+            .zip(pieces)
+            .map(|(&point, &piece)| {
+                let count = if rigid[piece as usize] {
+                    settings.neighbours
+                } else {
+                    settings.soft_neighbours
+                };
+                bind(&nearest_with_ties(&grid, surface_rest, point, count))
+            })
             .collect();
         let mut rigid_pieces: Vec<Option<(Vec<u32>, Vec<f64>)>> = vec![None; rigid.len()];
         let mut soft = Vec::with_capacity(part_rest.len());
@@ -205,6 +227,31 @@ impl SurfaceFollower {
         }
         Ok(moved)
     }
+}
+
+/// Surface vertices as far as the farthest of the `count` nearest within this fraction of its
+/// distance are bound too: the mirror images of a symmetric layout's vertices are equally far
+/// from a part vertex on the mirror plane, and binding one of them and not the other would make
+/// the part's motion lopsided.
+const TIE_TOLERANCE: f64 = 1e-6;
+/// The most surface vertices bound beyond `count` for being as far as its farthest.
+const MAX_TIES: usize = 16;
+
+/// The `count` nearest surface vertices of `point` (nearest first, with distances) and those
+/// tied with the farthest of them (see [`TIE_TOLERANCE`]).
+fn nearest_with_ties(
+    grid: &PointGrid,
+    surface: &[DVec3],
+    point: DVec3,
+    count: usize,
+) -> Vec<(u32, f64)> {
+    let mut nearest = grid.nearest(surface, point, count + MAX_TIES);
+    if let Some(&(_, farthest)) = nearest.get(count.saturating_sub(1)) {
+        let limit = farthest * (1.0 + TIE_TOLERANCE) + f64::MIN_POSITIVE;
+        let kept = nearest.partition_point(|&(_, distance)| distance <= limit);
+        nearest.truncate(kept.max(count));
+    }
+    nearest
 }
 
 fn check_points(what: &'static str, points: &[DVec3]) -> Result<(), KernelError> {

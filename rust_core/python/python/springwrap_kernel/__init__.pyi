@@ -592,9 +592,9 @@ def layout_pieces(vertex_count: int, edges: npt.NDArray[np.uint32]) -> npt.NDArr
 
 class SurfaceFollower:
     """Parts bound to the layout's surface at rest, moved by the surface's motion: each part vertex bound to its
-    ``neighbours`` nearest surface vertices; a rigid piece moves by the best similarity (rotation, translation and,
-    with ``scale``, a uniform scale) of the surface around all its vertices, a soft vertex by its own
-    neighbourhood's."""
+    ``neighbours`` nearest surface vertices (a soft one to its ``soft_neighbours`` nearest); a rigid piece moves by
+    the best similarity (rotation, translation and, with ``scale``, a uniform scale) of the surface around all its
+    vertices, a soft vertex by its own neighbourhood's."""
 
     def __init__(
         self,
@@ -604,6 +604,7 @@ class SurfaceFollower:
         rigid: npt.NDArray[np.bool_],
         *,
         neighbours: int = 64,
+        soft_neighbours: int = 256,
         scale: bool = False,
     ) -> None: ...
     @property
