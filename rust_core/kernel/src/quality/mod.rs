@@ -226,7 +226,7 @@ impl Neighbours {
 /// The first and second moments of a group of vertices in both shapes: how many, their centroids
 /// at rest and now, and their centred cross-covariance `Σ (rest − rest centroid)(now − now
 /// centroid)ᵀ` (rows at rest, columns now). Groups merge exactly (Chan's pairwise update), so a
-/// face's neighbourhood is the merge of its corners' closed rings, each computed once.
+/// face's neighbourhood is the merge of its corners' closed rings, each measured once per block of faces.
 #[derive(Debug, Clone, Copy, Default)]
 struct Moments {
     count: f64,
