@@ -29,7 +29,6 @@ import argparse
 import gc
 import json
 import os
-import resource
 import subprocess
 import sys
 import time
@@ -86,12 +85,6 @@ def dense_body(triangles: int):
     return case, vertices, faces
 
 
-def cpu_seconds() -> float:
-    """This process's processor time so far, every thread's, user and system."""
-    usage = resource.getrusage(resource.RUSAGE_SELF)
-    return usage.ru_utime + usage.ru_stime
-
-
 def worker(triangles: int, wrap: bool) -> dict:
     """In the worker process: the dense body, the kernel's build of it, then the wrap onto it."""
     import bpy  # noqa: I001 - bpy first, then the add-on
@@ -117,11 +110,11 @@ def worker(triangles: int, wrap: bool) -> dict:
     gc.collect()
     before = _worker.status_kilobytes("VmRSS")
     _worker.reset_peak()
-    start, start_cpu = time.perf_counter(), cpu_seconds()
+    start, start_cpu = time.perf_counter(), _worker.cpu_seconds()
     mesh = springwrap_kernel.TargetMesh(vertices, faces)
-    built, built_cpu = time.perf_counter(), cpu_seconds()
+    built, built_cpu = time.perf_counter(), _worker.cpu_seconds()
     mesh.prepare_all()
-    prepared, prepared_cpu = time.perf_counter(), cpu_seconds()
+    prepared, prepared_cpu = time.perf_counter(), _worker.cpu_seconds()
     result["build"] = {
         "seconds": built - start,
         "prepare_seconds": prepared - built,

@@ -408,8 +408,15 @@ def snap_section(snap: dict) -> list[str]:
             f"Through the operator: `springwrap.snap` on a {operator['layout_vertices']:,}-vertex quad layout takes "
             f"{number(operator['seconds'])} s, of which the quality read-out (distance, stretch, flipped faces; "
             f"measured and written) {number(operator['readout_seconds'])} s "
-            f"({100.0 * operator['readout_share']:.0f} %); Shrinkwrap on the same layout "
-            f"{number(operator['shrinkwrap_seconds'])} s.",
+            f"({100.0 * operator['readout_share']:.0f} %)"
+            + (
+                f"; in processor time (all threads; what other work on the machine skews least) "
+                f"{number(operator['readout_cpu_seconds'])} of {number(operator['cpu_seconds'])} s "
+                f"({100.0 * operator['readout_cpu_share']:.0f} %)"
+                if "readout_cpu_share" in operator
+                else ""
+            )
+            + f"; Shrinkwrap on the same layout {number(operator['shrinkwrap_seconds'])} s.",
         ]
     failed = [check["name"] for check in snap.get("checks", []) if not check.get("passed")]
     lines += [
