@@ -1099,6 +1099,7 @@ def build_document(
         ".venv/bin/python benchmarks/parts.py [--cases NAME ...] --json out/bench/parts.json",
         ".venv/bin/python benchmarks/sequence.py [--frames N] --json out/bench/sequence.json",
         ".venv/bin/python benchmarks/pair_tool.py --json out/bench/pair_tool.json",
+        ".venv/bin/python benchmarks/dense_target.py [--sizes N ...] [--no-wrap] --json out/bench/dense_target.json",
         ".venv/bin/python benchmarks/figures.py && .venv/bin/python benchmarks/report.py",
         "```",
         "",
