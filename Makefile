@@ -157,6 +157,7 @@ bench: setup $(STAMPS)/bench-requirements
 	$(PY) benchmarks/cage_fit.py $(if $(QUICK),--cases heavy,) --json $(BENCH_OUT)/cage_fit.json
 	$(PY) benchmarks/quality_readout.py $(if $(QUICK),--cases heavy,) --json $(BENCH_OUT)/quality_readout.json
 	$(PY) benchmarks/large_target.py $(if $(QUICK),--triangles 1000000,) --json $(BENCH_OUT)/large_target.json
+	$(PY) benchmarks/dense_target.py $(if $(QUICK),--sizes 1250000,) --json $(BENCH_OUT)/dense_target.json
 	$(PY) benchmarks/feature_curves.py $(BENCH_QUICK) --json $(BENCH_OUT)/feature_curves.json
 	$(PY) benchmarks/few_anchors.py $(if $(QUICK),--cases heavy --anchors 6 24,) --json $(BENCH_OUT)/few_anchors.json
 	$(PY) benchmarks/parts.py $(if $(QUICK),--cases heavy,) --json $(BENCH_OUT)/parts.json
@@ -167,7 +168,7 @@ bench: setup $(STAMPS)/bench-requirements
 	  --snap $(BENCH_OUT)/snap_throughput.json --speed $(BENCH_OUT)/wrap_speed.json \
 	  --batch $(BENCH_OUT)/batch_throughput.json --features $(BENCH_OUT)/feature_curves.json \
 	  --quality $(BENCH_OUT)/quality_readout.json --cage-fit $(BENCH_OUT)/cage_fit.json \
-	  --large-target $(BENCH_OUT)/large_target.json --few-anchors $(BENCH_OUT)/few_anchors.json \
+	  --large-target $(BENCH_OUT)/large_target.json --dense-target $(BENCH_OUT)/dense_target.json --few-anchors $(BENCH_OUT)/few_anchors.json \
 	  --parts $(BENCH_OUT)/parts.json \
 	  --sequence $(BENCH_OUT)/sequence.json \
 	  --pair-tool $(BENCH_OUT)/pair_tool.json \

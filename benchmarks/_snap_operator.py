@@ -2,7 +2,9 @@
 layout over the target, its quality read-out included (measured, and written with the layout), and Blender's
 Shrinkwrap modifier (``NEAREST_SURFACEPOINT``) on the same layout, in the same run.
 
-The read-out's share is timed inside the operator (``blender.quality.measure_layout`` and ``write_readout``);
+The read-out's share is timed inside the operator (``blender.quality.measure_layout`` and ``write_readout``), by
+the wall clock and by the process's processor time over all its threads (which other work on a busy machine
+skews far less);
 each figure is the best of ``repeat`` snaps, each from the layout detached again. Shrinkwrap's time is its
 depsgraph evaluation plus reading the positions back, after a first evaluation that built Blender's BVH.
 """
@@ -19,15 +21,17 @@ LAYOUT_SEED = 2
 
 
 def _timed(module, name: str, spent: dict) -> None:
-    """Wrap ``module.name`` so that its time adds up in ``spent['readout']``."""
+    """Wrap ``module.name`` so that its time adds up in ``spent['readout']`` (its processor time in
+    ``spent['readout_cpu']``)."""
     original = getattr(module, name)
 
     def timed(*arguments, **options):
-        start = time.perf_counter()
+        start, start_cpu = time.perf_counter(), _worker.cpu_seconds()
         try:
             return original(*arguments, **options)
         finally:
             spent["readout"] += time.perf_counter() - start
+            spent["readout_cpu"] += _worker.cpu_seconds() - start_cpu
 
     setattr(module, name, timed)
 
@@ -48,7 +52,7 @@ def measure(bpy, vertices, triangles, quads: int, repeat: int) -> dict:
     for obj in bpy.context.view_layer.objects:
         obj.select_set(obj == layout)
     bpy.context.view_layer.objects.active = layout
-    spent = {"readout": 0.0}
+    spent = {"readout": 0.0, "readout_cpu": 0.0}
     measure_layout, write_readout = quality_data.measure_layout, quality_data.write_readout
     _timed(quality_data, "measure_layout", spent)
     _timed(quality_data, "write_readout", spent)
@@ -58,14 +62,16 @@ def measure(bpy, vertices, triangles, quads: int, repeat: int) -> dict:
         runs = []
         for _ in range(repeat):
             bpy.ops.springwrap.detach()
-            spent["readout"] = 0.0
-            start = time.perf_counter()
+            spent["readout"] = spent["readout_cpu"] = 0.0
+            start, start_cpu = time.perf_counter(), _worker.cpu_seconds()
             if bpy.ops.springwrap.snap(mode="SURFACE") != {"FINISHED"}:
                 raise RuntimeError("springwrap.snap failed")
-            runs.append((time.perf_counter() - start, spent["readout"]))
+            runs.append(
+                (time.perf_counter() - start, spent["readout"], _worker.cpu_seconds() - start_cpu, spent["readout_cpu"])
+            )
     finally:
         quality_data.measure_layout, quality_data.write_readout = measure_layout, write_readout
-    seconds, readout_seconds = min(runs)
+    seconds, readout_seconds, cpu_seconds, readout_cpu_seconds = min(runs)
     readout = quality_data.read_readout(layout)
 
     shrinkwrapped = _worker.mesh_object(bpy, "OperatorShrinkwrap", layout_vertices, layout_quads)
@@ -91,6 +97,9 @@ def measure(bpy, vertices, triangles, quads: int, repeat: int) -> dict:
         "seconds": seconds,
         "readout_seconds": readout_seconds,
         "readout_share": readout_seconds / seconds,
+        "cpu_seconds": cpu_seconds,
+        "readout_cpu_seconds": readout_cpu_seconds,
+        "readout_cpu_share": readout_cpu_seconds / cpu_seconds if cpu_seconds > 0 else float("nan"),
         "shrinkwrap_seconds": shrinkwrap_seconds,
         "flipped": int(readout.flipped.sum()),
         "distance_max": float(readout.distances.max()),

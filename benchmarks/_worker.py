@@ -1,5 +1,5 @@
-"""What the benchmarks' worker processes share: this process's memory (``/proc/self``) and a mesh object built
-from arrays in the ``bpy`` module."""
+"""What the benchmarks' worker processes share: this process's memory (``/proc/self``) and processor time, and a
+mesh object built from arrays in the ``bpy`` module."""
 
 from __future__ import annotations
 
@@ -11,6 +11,14 @@ def status_kilobytes(field_name: str) -> int:
             if line.startswith(field_name + ":"):
                 return int(line.split()[1])
     raise RuntimeError(f"/proc/self/status has no {field_name}")
+
+
+def cpu_seconds() -> float:
+    """This process's processor time so far, every thread's, user and system."""
+    import resource
+
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    return usage.ru_utime + usage.ru_stime
 
 
 def reset_peak() -> None:

@@ -408,8 +408,15 @@ def snap_section(snap: dict) -> list[str]:
             f"Through the operator: `springwrap.snap` on a {operator['layout_vertices']:,}-vertex quad layout takes "
             f"{number(operator['seconds'])} s, of which the quality read-out (distance, stretch, flipped faces; "
             f"measured and written) {number(operator['readout_seconds'])} s "
-            f"({100.0 * operator['readout_share']:.0f} %); Shrinkwrap on the same layout "
-            f"{number(operator['shrinkwrap_seconds'])} s.",
+            f"({100.0 * operator['readout_share']:.0f} %)"
+            + (
+                f"; in processor time (all threads; what other work on the machine skews least) "
+                f"{number(operator['readout_cpu_seconds'])} of {number(operator['cpu_seconds'])} s "
+                f"({100.0 * operator['readout_cpu_share']:.0f} %)"
+                if "readout_cpu_share" in operator
+                else ""
+            )
+            + f"; Shrinkwrap on the same layout {number(operator['shrinkwrap_seconds'])} s.",
         ]
     failed = [check["name"] for check in snap.get("checks", []) if not check.get("passed")]
     lines += [
@@ -914,6 +921,67 @@ def quality_section(results: dict) -> list[str]:
     return lines + table(header, body, "lrrrrrrr") + [""]
 
 
+def dense_target_section(result: dict) -> list[str]:
+    """Dense targets (``benchmarks/dense_target.py --json``): the kernel's build of a body target up to 20M
+    triangles, its memory per triangle, and the body's wrap onto it, against their aims."""
+    lines = [
+        "### Dense targets",
+        "",
+        "The `heavy` body voxel-remeshed to about 1.25M triangles and split by its edges' midpoints to 5M and 20M "
+        "(the same surface, as dense as a scan), each size in a fresh process "
+        "(`.venv/bin/python benchmarks/dense_target.py`). *Build*: `TargetMesh(...)` (validation, the face tree); "
+        "*prepare*: `prepare_all()` (the closest-point and vertex trees, adjacency, normals); wall clock and the "
+        "process's processor time over its threads (*CPU s*: what a busy machine skews least); *peak* and *kept*: "
+        "the process's resident set over both, above what it held before, per triangle. *Wrap*: the MakeHuman "
+        "quad body wrapped onto it through the operators (the operator reads the target from Blender and builds "
+        "its own kernel mesh), its peak above the scene (the dense mesh in Blender included in the scene). "
+        f"Aims: build at most {BUILD_AIM:.1f} s per million triangles, at most {MEMORY_AIM:.0f} B per triangle. "
+        f"Load average at the start: {result['machine'].get('load_average', 0):.1f} on "
+        f"{result['machine'].get('cpu_count')} CPUs.",
+        "",
+    ]
+    rows = []
+    for size in result["sizes"]:
+        build, wrap = size["build"], size.get("wrap", {})
+        rows.append(
+            [
+                f"{size['triangles']:,}",
+                number(build["seconds"], 2),
+                number(build["seconds_per_million"], 3),
+                number(build["prepare_seconds"], 2),
+                number(build.get("cpu_seconds"), 2),
+                number(build.get("prepare_cpu_seconds"), 2),
+                number(build["peak_bytes_per_triangle"], 0),
+                number(build["kept_bytes_per_triangle"], 0),
+                number(wrap.get("seconds"), 1),
+                str(wrap.get("iterations", "-")),
+                number(wrap.get("peak_bytes_per_triangle"), 0),
+                number(size.get("load_average"), 1),
+            ]
+        )
+    header = [
+        "triangles",
+        "build s",
+        "build s/M",
+        "prepare s",
+        "build CPU s",
+        "prepare CPU s",
+        "peak B/tri",
+        "kept B/tri",
+        "wrap s",
+        "iterations",
+        "wrap peak B/tri",
+        "load",
+    ]
+    return lines + table(header, rows) + [""]
+
+
+BUILD_AIM = 0.3
+"""Dense targets: the build's aim, seconds per million triangles."""
+MEMORY_AIM = 200.0
+"""Dense targets: the memory aim, bytes per triangle."""
+
+
 def large_target_section(result: dict) -> list[str]:
     """Large targets (``benchmarks/large_target.py --json``): how soon an operation starts on a large target,
     the target cache, and the memory of a wrap on it."""
@@ -1031,6 +1099,7 @@ def build_document(
         ".venv/bin/python benchmarks/parts.py [--cases NAME ...] --json out/bench/parts.json",
         ".venv/bin/python benchmarks/sequence.py [--frames N] --json out/bench/sequence.json",
         ".venv/bin/python benchmarks/pair_tool.py --json out/bench/pair_tool.json",
+        ".venv/bin/python benchmarks/dense_target.py [--sizes N ...] [--no-wrap] --json out/bench/dense_target.json",
         ".venv/bin/python benchmarks/figures.py && .venv/bin/python benchmarks/report.py",
         "```",
         "",
@@ -1084,6 +1153,8 @@ def build_document(
             lines += cage_fit_section(after_wrap["cage_fit"])
     if after_wrap.get("large_target") is not None:
         lines += ["## Large targets", ""] + large_target_section(after_wrap["large_target"])[2:]
+    if after_wrap.get("dense_target") is not None:
+        lines += dense_target_section(after_wrap["dense_target"])
     if features is not None:  # benchmarks/feature_curves.py
         sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
         from benchmarks.feature_curves import markdown_lines
@@ -1107,17 +1178,27 @@ def parts_section(parts: dict) -> list[str]:
 
 def splice_section(document: str, section: list[str], before: str = "## Performance") -> str:
     """``document`` with the section whose heading is ``section[0]`` replaced by ``section`` (up to the next
-    ``## `` heading), or inserted before the ``before`` heading (at the end without one)."""
+    heading of its level or above: ``## `` for a ``## `` section, ``## `` or ``### `` for a ``### `` one), or
+    inserted before the ``before`` heading (at the end without one)."""
     lines = document.rstrip("\n").split("\n")
     heading = section[0]
+    level = len(heading) - len(heading.lstrip("#"))
+    ends = tuple("#" * depth + " " for depth in range(2, level + 1))
     if heading in lines:
         start = lines.index(heading)
-        end = next((i for i in range(start + 1, len(lines)) if lines[i].startswith("## ")), len(lines))
+        end = next((i for i in range(start + 1, len(lines)) if lines[i].startswith(ends)), len(lines))
         lines[start:end] = section
     else:
         at = lines.index(before) if before in lines else len(lines)
         lines[at:at] = section
     return "\n".join(lines).rstrip() + "\n"
+
+
+ONLY_SECTIONS = {
+    "snap": (snap_section, "snap", "### Wrap speed against its aims"),
+    "dense-target": (dense_target_section, "dense_target", "## Feature curves"),
+}
+"""``--only``: the section's maker, the argument naming its JSON, and the heading it goes before when new."""
 
 
 def load(path: Path) -> dict | None:
@@ -1135,6 +1216,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--quality", type=Path, default=OUT / "quality_readout.json")
     parser.add_argument("--cage-fit", type=Path, default=OUT / "cage_fit.json")
     parser.add_argument("--large-target", type=Path, default=OUT / "large_target.json")
+    parser.add_argument("--dense-target", type=Path, default=OUT / "dense_target.json")
     parser.add_argument("--few-anchors", type=Path, default=OUT / "few_anchors.json")
     parser.add_argument("--parts", type=Path, default=OUT / "parts.json")
     parser.add_argument(
@@ -1142,10 +1224,24 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="only put the parts section (from --parts) into the existing --output, leaving the rest as it is",
     )
+    parser.add_argument(
+        "--only",
+        choices=sorted(ONLY_SECTIONS),
+        help="only put this section (from its JSON) into the existing --output, leaving the rest as it is",
+    )
     parser.add_argument("--sequence", type=Path, default=OUT / "sequence.json")
     parser.add_argument("--pair-tool", type=Path, default=OUT / "pair_tool.json")
     parser.add_argument("--output", type=Path, default=DOCS / "benchmarks.md")
     arguments = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    if arguments.only:
+        section, source, before = ONLY_SECTIONS[arguments.only]
+        result = load(getattr(arguments, source))
+        if result is None:
+            print(f"report.py: no {getattr(arguments, source)}", file=sys.stderr)
+            return 1
+        arguments.output.write_text(splice_section(arguments.output.read_text(), section(result), before))
+        print(f"wrote the {arguments.only} section into {arguments.output}")
+        return 0
     if arguments.only_parts:
         parts = load(arguments.parts)
         if parts is None:
@@ -1171,7 +1267,7 @@ def main(argv: list[str] | None = None) -> int:
             load(arguments.speed),
             load(arguments.batch),
             load(arguments.features),
-            {name: load(getattr(arguments, name)) for name in ("quality", "cage_fit", "large_target")},
+            {name: load(getattr(arguments, name)) for name in ("quality", "cage_fit", "large_target", "dense_target")},
             load(arguments.few_anchors),
             load(arguments.parts),
             load(arguments.sequence),

@@ -41,13 +41,13 @@ BODY_TRIANGLES = 200_000
 ANCHORS = 24
 
 
-def body_case():
-    """(case, target vertices, target triangles, voxel size): the ``heavy`` case remeshed to ~200k triangles."""
+def body_case(triangles: int = BODY_TRIANGLES):
+    """(case, target vertices, target triangles, voxel size): the ``heavy`` case remeshed to ~``triangles``."""
     from benchmarks.retarget import cases
 
     case, _cached = cases.get_case(cases.case_specs(["heavy"])[0])
-    # Triangle counts go as 1 / voxel size squared: scale the case's voxel to aim at BODY_TRIANGLES.
-    voxel = cases.VOXEL_SIZE * cases.PLACEMENT["scale"] * np.sqrt(len(case.target_triangles) / BODY_TRIANGLES)
+    # Triangle counts go as 1 / voxel size squared: scale the case's voxel to aim at the count asked.
+    voxel = cases.VOXEL_SIZE * cases.PLACEMENT["scale"] * np.sqrt(len(case.target_triangles) / triangles)
     vertices, triangles = cases.voxel_remesh(case.true_positions, case.layout_quads, voxel)
     return case, vertices, triangles, voxel
 

@@ -105,6 +105,7 @@ if TYPE_CHECKING:
 
 OUTPUT_SUFFIXES = ("blend", "obj", "json")  # a batch's outputs per mesh: OUT/<name>.<suffix>
 WORKER_FLAG = "--batch-worker"
+TASK_ENTRY_POINT = "retarget:retarget_task"  # what a Ray worker runs, imported there by name
 SCRIPTS_FOLDER = Path(__file__).resolve().parent
 LAYOUT_NAME = "Retargeted"
 
@@ -764,7 +765,7 @@ def batch_executor(arguments: argparse.Namespace):
             "--executor ray runs with the bpy module (python retarget.py ...), not inside a Blender binary"
         )
     try:
-        return retarget_batch.RayExecutor(arguments.address, arguments.jobs, SCRIPTS_FOLDER)
+        return retarget_batch.RayExecutor(arguments.address, arguments.jobs, SCRIPTS_FOLDER, TASK_ENTRY_POINT)
     except ImportError as error:
         raise ScriptError(str(error)) from None
     except (ConnectionError, RuntimeError, ValueError) as error:
@@ -906,8 +907,7 @@ def main() -> int:
     if script_arguments(sys.argv, __file__)[:1] == [WORKER_FLAG]:
         import retarget_batch
 
-        sys.modules.setdefault("retarget", sys.modules[__name__])  # BatchWorker imports this very module
-        return retarget_batch.serve()
+        return retarget_batch.serve(retarget_task)
     try:
         arguments = parse_arguments(sys.argv)  # reads the kernel's defaults: ScriptError without the add-on
         if arguments.batch is not None:

@@ -1,12 +1,15 @@
 """The batch of ``retarget.py --batch``: pools of long-lived workers, one scheduler, progress on stderr.
 
 Every worker imports ``bpy`` and enables the add-on once (``BatchWorker``), then serves many meshes
-with the one task function, ``retarget.retarget_task``. Two executors provide the workers:
+with the one task function it is given (``retarget.py`` gives ``retarget_task``; this module does not import
+it). Two executors provide the workers:
 
-- ``LocalExecutor`` (``--executor local``, the default): worker processes of this same Python, or of
-  this same Blender binary, each reading one JSON task a line on its stdin (``serve``);
+- ``LocalExecutor`` (``--executor local``, the default): worker processes started by a command it is given
+  (``retarget.py --batch-worker``, in this same Python or Blender binary), each reading one JSON task a line on
+  its stdin (``serve``, given the task function by that script);
 - ``RayExecutor`` (``--executor ray``): Ray actors, on a Ray instance started here or on a cluster
-  (``--address``); this folder travels to every node as the job's working directory.
+  (``--address``); this folder travels to every node as the job's working directory, and each actor imports the
+  task function by its name there (``module:function``).
 
 The scheduler (``run_tasks``) is the same for both. A worker that dies (an importer abort, the out-of-memory
 killer) or raises an error other than the scripts' own ``headless.ScriptError`` is stopped and replaced, and its
@@ -21,13 +24,14 @@ from other inputs or settings are made again.
 The summary's quality check (``quality_outliers``) flags the meshes whose read-out numbers stand out from the
 rest of the batch (``OUTLIER_RULE``).
 
-This module does not import ``bpy``: only ``BatchWorker``, in a worker, does (through ``retarget``).
+This module imports neither ``bpy`` nor ``retarget``: a worker's task function (which does) is given to it.
 """
 
 import collections
 import concurrent.futures
 import dataclasses
 import hashlib
+import importlib
 import json
 import math
 import os
@@ -41,6 +45,7 @@ import tempfile
 import threading
 import time
 import traceback
+from collections.abc import Callable
 from pathlib import Path
 
 PROTOCOL_PREFIX = "springwrap-batch-worker: "  # a local worker's replies on stdout; any other line is ignored
@@ -93,15 +98,17 @@ def describe_error(error: BaseException) -> str:
 
 
 class BatchWorker:
-    """One worker's state: ``bpy`` imported and the add-on enabled once, then any number of meshes (``run``)."""
+    """One worker's state: ``bpy`` imported and the add-on enabled once, then any number of meshes (``run``),
+    each by ``task`` (a task dict -> its summary entry; ``retarget.retarget_task``). ``started``: the
+    ``time.perf_counter()`` from which the worker's start-up is counted (default: now), so that importing
+    ``bpy`` before the worker is made counts too."""
 
-    def __init__(self) -> None:
-        start = time.perf_counter()
+    def __init__(self, task: Callable[[dict], dict], started: float | None = None) -> None:
+        start = time.perf_counter() if started is None else started
         import headless
-        import retarget  # imports bpy
 
         headless.enable_addon()
-        self._retarget = retarget
+        self._task = task
         self.identity = f"{socket.gethostname()}:{os.getpid()}"
         self.import_seconds = round(time.perf_counter() - start, 3)
 
@@ -125,7 +132,7 @@ class BatchWorker:
                     Path(marker).touch()
                 os.abort()
         start = time.perf_counter()
-        entry = self._retarget.retarget_task(task)
+        entry = self._task(task)
         return {
             "entry": entry | {"worker": self.identity},
             "peak_memory_mb": peak_memory_mb(),
@@ -133,8 +140,19 @@ class BatchWorker:
         }
 
 
-def serve() -> int:
-    """A local worker's loop (``retarget.py --batch-worker``): one JSON task a line on stdin, one reply each.
+class EntryPointWorker(BatchWorker):
+    """A :class:`BatchWorker` whose task function is named ``module:function`` (a Ray actor: the function is
+    imported where the actor runs, from the job's working directory)."""
+
+    def __init__(self, entry_point: str) -> None:
+        start = time.perf_counter()
+        module, _, function = entry_point.partition(":")
+        super().__init__(getattr(importlib.import_module(module), function), started=start)
+
+
+def serve(task: Callable[[dict], dict]) -> int:
+    """A local worker's loop (``retarget.py --batch-worker``): one JSON task a line on stdin, one reply each,
+    each by ``task`` (see :class:`BatchWorker`).
 
     Replies are ``PROTOCOL_PREFIX`` + JSON on the process's original stdout: ``{"ready": describe()}`` first,
     then ``{"result": run(task)}`` or ``{"fault": "..."}`` per task. Everything else that is printed (Blender's
@@ -149,7 +167,7 @@ def serve() -> int:
         replies.flush()
 
     try:
-        worker = BatchWorker()
+        worker = BatchWorker(task)
     except Exception as error:  # noqa: BLE001 - a worker that cannot start says why
         traceback.print_exc()
         send({"fault": describe_error(error)})
@@ -289,7 +307,7 @@ def check_reachable(address: str, seconds: float = 10.0) -> None:
 
 
 class RayWorker:
-    """A Ray actor running BatchWorker; its calls' results as concurrent futures, Ray's errors as WorkerFault."""
+    """A Ray actor running EntryPointWorker; its calls' results as concurrent futures, Ray's errors as WorkerFault."""
 
     def __init__(self, ray, actor) -> None:
         self._ray = ray
@@ -356,11 +374,12 @@ def _running(pid: int) -> bool:
 
 
 class RayExecutor:
-    """Ray actors, one CPU each: on the cluster at ``address``, or on a Ray instance started here."""
+    """Ray actors, one CPU each: on the cluster at ``address``, or on a Ray instance started here; each runs the
+    task function ``entry_point`` names (``module:function``, importable from ``scripts_folder``)."""
 
     name = "ray"
 
-    def __init__(self, address: str | None, jobs: int | None, scripts_folder: Path) -> None:
+    def __init__(self, address: str | None, jobs: int | None, scripts_folder: Path, entry_point: str) -> None:
         import logging
 
         ray = import_ray()
@@ -379,14 +398,15 @@ class RayExecutor:
             logging_level=logging.WARNING,
             **options,
         )
-        self._actor_class = ray.remote(num_cpus=1, max_restarts=0, max_task_retries=0)(BatchWorker)
+        self._actor_class = ray.remote(num_cpus=1, max_restarts=0, max_task_retries=0)(EntryPointWorker)
+        self._entry_point = entry_point
 
     def default_jobs(self) -> int:
         """Workers when --jobs is not given: one per CPU of the cluster."""
         return max(1, int(self._ray.cluster_resources().get("CPU", 1)))
 
     def start_worker(self) -> RayWorker:
-        return RayWorker(self._ray, self._actor_class.remote())
+        return RayWorker(self._ray, self._actor_class.remote(self._entry_point))
 
     def close(self) -> None:
         self._ray.shutdown()

@@ -28,7 +28,7 @@ if not __package__:  # run as a script: make `benchmarks.retarget` importable
 import numpy as np
 
 from benchmarks import _machine
-from benchmarks.retarget import baselines, cases, data, landmarks, metrics
+from benchmarks.retarget import all_methods, baselines, cases, data, landmarks, metrics
 
 DEFAULT_JSON = data.REPOSITORY_ROOT / "out" / "bench" / "retarget.json"
 SHORT_NAMES = {
@@ -256,7 +256,7 @@ def run(arguments: argparse.Namespace) -> int:
         import springwrap_kernel
 
         target = springwrap_kernel.TargetMesh(case.target_vertices, case.target_triangles)
-        results = baselines.run_baselines(case, anchor_count, methods, arguments.wrap_max_iterations)
+        results = all_methods.run_baselines(case, anchor_count, methods, arguments.wrap_max_iterations)
         record = {
             "case": spec.name,
             "spec": spec.__dict__,

@@ -14,51 +14,11 @@
 //! Only a call that does not match the signature at all (a missing argument, an unknown keyword)
 //! raises Python's own `TypeError`, as for any Python function.
 
-use pyo3::exceptions::{PyOverflowError, PyTypeError};
+use pyo3::exceptions::PyOverflowError;
 use pyo3::prelude::*;
-use pyo3::sync::PyOnceLock;
-use pyo3::types::{PyBool, PyDict, PyTuple, PyType};
+use pyo3::types::PyBool;
 
-use crate::errors::{ArrayError, InvalidArgumentError, SpringwrapError, TooLargeError};
-
-/// `springwrap_kernel.ArgumentTypeError`: both a `SpringwrapError` and a `TypeError`.
-static ARGUMENT_TYPE_ERROR: PyOnceLock<Py<PyType>> = PyOnceLock::new();
-
-/// The class `ArgumentTypeError(SpringwrapError, TypeError)`, made on first use (PyO3's
-/// `create_exception!` takes one base class only).
-pub(crate) fn argument_type_error_class(py: Python<'_>) -> PyResult<&Bound<'_, PyType>> {
-    ARGUMENT_TYPE_ERROR
-        .get_or_try_init(py, || {
-            let bases = PyTuple::new(
-                py,
-                [
-                    py.get_type::<SpringwrapError>(),
-                    py.get_type::<PyTypeError>(),
-                ],
-            )?;
-            let namespace = PyDict::new(py);
-            namespace.set_item("__module__", "springwrap_kernel")?;
-            namespace.set_item(
-                "__doc__",
-                "An argument has the wrong Python type (the message names it). Both a \
-                 SpringwrapError and a TypeError.",
-            )?;
-            let class = py
-                .get_type::<PyType>()
-                .call1(("ArgumentTypeError", bases, namespace))?
-                .cast_into::<PyType>()?;
-            Ok(class.unbind())
-        })
-        .map(|class| class.bind(py))
-}
-
-/// An `ArgumentTypeError` with `message`.
-pub(crate) fn argument_type_error(py: Python<'_>, message: String) -> PyErr {
-    match argument_type_error_class(py) {
-        Ok(class) => PyErr::from_type(class.clone(), message),
-        Err(error) => error,
-    }
-}
+use crate::errors::{ArrayError, InvalidArgumentError, TooLargeError, argument_type_error};
 
 /// The name of `value`'s Python type, for messages.
 fn type_name(value: &Bound<'_, PyAny>) -> String {

@@ -3,11 +3,11 @@
 use std::panic::{AssertUnwindSafe, catch_unwind};
 
 use pyo3::create_exception;
-use pyo3::exceptions::PyValueError;
+use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
+use pyo3::sync::PyOnceLock;
+use pyo3::types::{PyDict, PyTuple, PyType};
 use springwrap_kernel::KernelError;
-
-use crate::features;
 
 create_exception!(
     springwrap_kernel,
@@ -90,6 +90,52 @@ create_exception!(
     "A bug in the kernel (a caught Rust panic). Please report it."
 );
 
+create_exception!(
+    springwrap_kernel,
+    FlatSurfaceError,
+    SpringwrapError,
+    "Feature detection found no curvature at the scale given (a plane): nothing to detect."
+);
+
+/// `springwrap_kernel.ArgumentTypeError`: both a `SpringwrapError` and a `TypeError`.
+static ARGUMENT_TYPE_ERROR: PyOnceLock<Py<PyType>> = PyOnceLock::new();
+
+/// The class `ArgumentTypeError(SpringwrapError, TypeError)`, made on first use (PyO3's
+/// `create_exception!` takes one base class only).
+pub(crate) fn argument_type_error_class(py: Python<'_>) -> PyResult<&Bound<'_, PyType>> {
+    ARGUMENT_TYPE_ERROR
+        .get_or_try_init(py, || {
+            let bases = PyTuple::new(
+                py,
+                [
+                    py.get_type::<SpringwrapError>(),
+                    py.get_type::<PyTypeError>(),
+                ],
+            )?;
+            let namespace = PyDict::new(py);
+            namespace.set_item("__module__", "springwrap_kernel")?;
+            namespace.set_item(
+                "__doc__",
+                "An argument has the wrong Python type (the message names it). Both a \
+                 SpringwrapError and a TypeError.",
+            )?;
+            let class = py
+                .get_type::<PyType>()
+                .call1(("ArgumentTypeError", bases, namespace))?
+                .cast_into::<PyType>()?;
+            Ok(class.unbind())
+        })
+        .map(|class| class.bind(py))
+}
+
+/// An `ArgumentTypeError` with `message`.
+pub(crate) fn argument_type_error(py: Python<'_>, message: String) -> PyErr {
+    match argument_type_error_class(py) {
+        Ok(class) => PyErr::from_type(class.clone(), message),
+        Err(error) => error,
+    }
+}
+
 /// The one place where kernel errors become Python exceptions.
 pub(crate) fn to_python_error(error: &KernelError) -> PyErr {
     let message = error.to_string();
@@ -113,7 +159,7 @@ pub(crate) fn to_python_error(error: &KernelError) -> PyErr {
         KernelError::CoordinateOutOfRange { .. } | KernelError::BeyondReach { .. } => {
             CoordinateRangeError::new_err(message)
         }
-        KernelError::FlatSurface { .. } => features::FlatSurfaceError::new_err(message),
+        KernelError::FlatSurface { .. } => FlatSurfaceError::new_err(message),
         KernelError::Diverged { .. } => DivergedError::new_err(message),
         KernelError::Cancelled { .. } => CancelledError::new_err(message),
     }
@@ -167,11 +213,9 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
         "CoordinateRangeError",
         py.get_type::<CoordinateRangeError>(),
     )?;
-    m.add(
-        "ArgumentTypeError",
-        crate::arguments::argument_type_error_class(py)?,
-    )?;
+    m.add("ArgumentTypeError", argument_type_error_class(py)?)?;
     m.add("DivergedError", py.get_type::<DivergedError>())?;
     m.add("InternalError", py.get_type::<InternalError>())?;
+    m.add("FlatSurfaceError", py.get_type::<FlatSurfaceError>())?;
     Ok(())
 }

@@ -6,7 +6,6 @@
 use std::sync::Arc;
 
 use numpy::{PyArray1, PyArray2};
-use pyo3::create_exception;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use springwrap_kernel::features::{detect, scale};
@@ -17,15 +16,8 @@ use springwrap_kernel::{
 
 use crate::arguments;
 use crate::arrays::rows_array;
-use crate::errors::{SpringwrapError, run_kernel};
+use crate::errors::run_kernel;
 use crate::target_mesh::PyTargetMesh;
-
-create_exception!(
-    springwrap_kernel,
-    FlatSurfaceError,
-    SpringwrapError,
-    "Feature detection found no curvature at the scale given (a plane): nothing to detect."
-);
 
 type CurvatureArrays<'py> = (
     Bound<'py, PyArray1<f32>>,
@@ -188,12 +180,11 @@ fn feature_defaults_py(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     Ok(dict)
 }
 
-/// Adds the feature functions and their exception to the native module.
+/// Adds the feature functions to the native module.
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(principal_curvatures_py, m)?)?;
     m.add_function(wrap_pyfunction!(detect_features_py, m)?)?;
     m.add_function(wrap_pyfunction!(automatic_feature_scale_py, m)?)?;
     m.add_function(wrap_pyfunction!(feature_defaults_py, m)?)?;
-    m.add("FlatSurfaceError", m.py().get_type::<FlatSurfaceError>())?;
     Ok(())
 }

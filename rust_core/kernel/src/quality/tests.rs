@@ -1,0 +1,369 @@
+//! The read-out's stretch, flips and distances against hand-made layouts and references.
+
+use super::*;
+
+/// An n x n grid of quads in z = 0, unit cells: positions, corners, sizes, edges.
+fn grid(n: u32) -> (Vec<DVec3>, Vec<u32>, Vec<u32>, Vec<[u32; 2]>) {
+    let side = n + 1;
+    let points = (0..side * side)
+        .map(|index| DVec3::new(f64::from(index % side), f64::from(index / side), 0.0))
+        .collect();
+    let mut corners = Vec::new();
+    let mut edges = Vec::new();
+    for row in 0..n {
+        for column in 0..n {
+            let first = row * side + column;
+            corners.extend([first, first + 1, first + side + 1, first + side]);
+        }
+    }
+    for row in 0..side {
+        for column in 0..side {
+            let vertex = row * side + column;
+            if column + 1 < side {
+                edges.push([vertex, vertex + 1]);
+            }
+            if row + 1 < side {
+                edges.push([vertex, vertex + side]);
+            }
+        }
+    }
+    let sizes = vec![4; (n * n) as usize];
+    (points, corners, sizes, edges)
+}
+
+#[test]
+fn a_layout_scaled_by_two_stretches_two_and_unchanged_reads_one() {
+    let (points, _, _, edges) = grid(3);
+    let doubled: Vec<DVec3> = points.iter().map(|&point| point * 2.0).collect();
+    assert!(
+        vertex_stretch(&doubled, &points, &edges)
+            .unwrap()
+            .iter()
+            .all(|&s| (s - 2.0).abs() < 1e-12)
+    );
+    assert!(
+        vertex_stretch(&points, &points, &edges)
+            .unwrap()
+            .iter()
+            .all(|&s| s == 1.0)
+    );
+    let collapsed = vec![DVec3::ONE; points.len()];
+    assert!(
+        vertex_stretch(&points, &collapsed, &edges)
+            .unwrap()
+            .iter()
+            .all(|&s| s == 1.0)
+    );
+}
+
+#[test]
+fn a_fold_flips_the_faces_it_turns_over_and_a_turn_flips_none() {
+    let (points, corners, sizes, edges) = grid(4);
+    let faces = LayoutFaces {
+        corners: &corners,
+        sizes: &sizes,
+    };
+    assert!(
+        !flipped_faces(&points, &points, faces, &edges)
+            .unwrap()
+            .contains(&true)
+    );
+    let turned: Vec<DVec3> = points
+        .iter()
+        .map(|&p| DVec3::new(-p.x, p.y, -p.z + 3.0))
+        .collect();
+    assert!(
+        !flipped_faces(&turned, &points, faces, &edges)
+            .unwrap()
+            .contains(&true)
+    );
+    let mut folded = points.clone();
+    folded[6] = points[18] + DVec3::new(0.4, 0.4, 0.0); // an inner vertex dragged over others
+    let flipped = flipped_faces(&folded, &points, faces, &edges).unwrap();
+    let normals = face_normals(&folded, faces).unwrap();
+    assert!(flipped.contains(&true));
+    for (flip, normal) in flipped.iter().zip(&normals) {
+        assert_eq!(*flip, normal.z < 0.0);
+    }
+}
+
+#[test]
+fn degenerate_and_non_finite_faces_are_not_flipped() {
+    let (points, corners, sizes, edges) = grid(2);
+    let faces = LayoutFaces {
+        corners: &corners,
+        sizes: &sizes,
+    };
+    let mut broken = points.clone();
+    for &corner in &corners[..4] {
+        broken[corner as usize] = DVec3::splat(0.5); // face 0 to a point
+    }
+    broken[8] = DVec3::NAN;
+    let flipped = flipped_faces(&broken, &points, faces, &edges).unwrap();
+    assert!(!flipped[0] && !flipped[3]);
+    assert_eq!(face_normals(&broken, faces).unwrap()[0], DVec3::ZERO);
+}
+
+#[test]
+fn the_fast_rotation_is_the_eigen_solvers() {
+    let mut seed = 7u64;
+    let mut random = move || {
+        seed = seed
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    };
+    for case in 0..2000 {
+        let mut cross: [[f64; 3]; 3] = std::array::from_fn(|_| std::array::from_fn(|_| random()));
+        if case % 3 == 0 {
+            cross[2] = [0.0; 3]; // planar neighbourhoods: rank 2
+        }
+        let fast = fast_horn_rotation(&cross);
+        let reference = horn_rotation(&cross);
+        assert!(
+            fast.dot(reference).abs() > 1.0 - 1e-9,
+            "case {case}: {fast} against {reference}"
+        );
+    }
+    assert_eq!(fast_horn_rotation(&[[0.0; 3]; 3]), glam::DQuat::IDENTITY);
+}
+
+#[test]
+fn bad_indices_and_lengths_are_refused() {
+    let (points, corners, sizes, edges) = grid(1);
+    let faces = LayoutFaces {
+        corners: &corners,
+        sizes: &[3],
+    };
+    assert!(matches!(
+        face_normals(&points, faces),
+        Err(KernelError::LengthMismatch { .. })
+    ));
+    let bad = [0, 1, 9, 3];
+    let faces = LayoutFaces {
+        corners: &bad,
+        sizes: &sizes,
+    };
+    assert!(matches!(
+        face_normals(&points, faces),
+        Err(KernelError::LayoutIndexOutOfRange { .. })
+    ));
+    assert!(matches!(
+        vertex_stretch(&points, &points, &[[0, 7]]),
+        Err(KernelError::LayoutIndexOutOfRange { .. })
+    ));
+    assert!(matches!(
+        vertex_stretch(&points, &points[1..], &edges),
+        Err(KernelError::LengthMismatch { .. })
+    ));
+}
+
+/// Positions now and at rest, face corners, face sizes, edges.
+type Warped = (Vec<DVec3>, Vec<DVec3>, Vec<u32>, Vec<u32>, Vec<[u32; 2]>);
+
+/// A grid of `n` x `n` quads warped and folded at random.
+fn warped(n: u32, seed: u64) -> Warped {
+    let (rest, corners, sizes, edges) = grid(n);
+    let mut state = seed;
+    let mut random = move || {
+        state = state
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    };
+    let points = rest
+        .iter()
+        .map(|p| {
+            let bent = DVec3::new(p.x, p.y * p.y.cos(), p.y.sin() * 3.0);
+            bent + 1.5 * DVec3::new(random(), random(), random()) + DVec3::splat(1e4)
+        })
+        .collect();
+    (points, rest, corners, sizes, edges)
+}
+
+/// Each vertex's closed ring, stored per vertex (what the blocks measure where needed).
+fn ring_moments(points: &[DVec3], rest: &[DVec3], neighbours: &Neighbours) -> Vec<Moments> {
+    (0..points.len() as u32)
+        .map(|vertex| {
+            let ring = std::iter::once(vertex).chain(neighbours.of(vertex).iter().copied());
+            Moments::of(points, rest, ring)
+        })
+        .collect()
+}
+
+#[test]
+fn flips_judged_by_blocks_are_those_of_rings_stored_per_vertex() {
+    // 10,000 quads: two blocks of faces and then some; numbered along the grid and at random.
+    let (points, rest, corners, sizes, edges) = warped(100, 7);
+    let mut state = 11u64;
+    let mut order: Vec<u32> = (0..points.len() as u32).collect();
+    for index in (1..order.len()).rev() {
+        state = state
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        order.swap(index, (state >> 33) as usize % (index + 1));
+    }
+    let shuffled = |positions: &[DVec3]| {
+        let mut out = vec![DVec3::ZERO; positions.len()];
+        for (old, &new) in order.iter().enumerate() {
+            out[new as usize] = positions[old];
+        }
+        out
+    };
+    let renumber =
+        |vertices: &[u32]| -> Vec<u32> { vertices.iter().map(|&v| order[v as usize]).collect() };
+    let shuffled_edges: Vec<[u32; 2]> = edges
+        .iter()
+        .map(|&[a, b]| [order[a as usize], order[b as usize]])
+        .collect();
+    let layouts = [
+        (points.clone(), rest.clone(), corners.clone(), edges.clone()),
+        (
+            shuffled(&points),
+            shuffled(&rest),
+            renumber(&corners),
+            shuffled_edges,
+        ),
+    ];
+    for (points, rest, corners, edges) in &layouts {
+        let faces = LayoutFaces {
+            corners,
+            sizes: &sizes,
+        };
+        let starts = faces.starts(points.len()).unwrap();
+        let neighbours = Neighbours::new(edges, points.len());
+        let rings = ring_moments(points, rest, &neighbours);
+        let expected: Vec<bool> = starts
+            .iter()
+            .zip(&sizes)
+            .map(|(&start, &size)| {
+                let corners = &corners[start..start + size as usize];
+                let (normal, rest_normal) =
+                    (newell_normal(points, corners), newell_normal(rest, corners));
+                if normal == DVec3::ZERO || rest_normal == DVec3::ZERO {
+                    return false;
+                }
+                let mut group = Moments::default();
+                for &corner in corners {
+                    group.merge(&rings[corner as usize]);
+                }
+                let facing = (group.best_rotation() * rest_normal).dot(normal);
+                facing.is_finite() && facing < 0.0
+            })
+            .collect();
+        assert!(expected.contains(&true) && expected.contains(&false));
+        // Cached blocks, no cache at all, and (along the grid: the first block's 8,192 faces span
+        // about 8,400 vertices, the second's about 1,900) a cache too narrow for the first only.
+        for span in [RING_CACHE_SPAN, 0, 2_000] {
+            let flipped = flips_cached(points, rest, faces, &starts, &neighbours, span);
+            assert_eq!(flipped, expected, "span {span}");
+        }
+    }
+}
+
+#[test]
+fn a_neighbourhood_merged_from_rings_has_the_groups_moments() {
+    let (points, rest, corners, sizes, edges) = warped(6, 3);
+    let neighbours = Neighbours::new(&edges, points.len());
+    let rings = ring_moments(&points, &rest, &neighbours);
+    for face in corners.chunks_exact(sizes[0] as usize) {
+        let group = face.iter().flat_map(|&corner| {
+            std::iter::once(corner).chain(neighbours.of(corner).iter().copied())
+        });
+        let direct = Moments::of(&points, &rest, group);
+        let mut merged = Moments::default();
+        for &corner in face {
+            merged.merge(&rings[corner as usize]);
+        }
+        assert_eq!(merged.count, direct.count);
+        assert!(merged.mean_now.distance(direct.mean_now) < 1e-9);
+        assert!(merged.mean_rest.distance(direct.mean_rest) < 1e-9);
+        for (a, b) in merged
+            .cross
+            .iter()
+            .flatten()
+            .zip(direct.cross.iter().flatten())
+        {
+            assert!((a - b).abs() < 1e-8 * (1.0 + b.abs()), "{a} against {b}");
+        }
+    }
+}
+
+#[test]
+fn the_one_pass_readout_is_the_stretch_flips_and_size() {
+    let (points, rest, corners, sizes, edges) = warped(12, 5);
+    let faces = LayoutFaces {
+        corners: &corners,
+        sizes: &sizes,
+    };
+    let readout = layout_readout(&points, Some(&rest), faces, &edges).unwrap();
+    let stretch = vertex_stretch(&points, &rest, &edges).unwrap();
+    for (a, b) in readout.stretch.iter().zip(&stretch) {
+        assert!((a - b).abs() < 1e-12 * b.abs().max(1.0));
+    }
+    let flipped = flipped_faces(&points, &rest, faces, &edges).unwrap();
+    assert_eq!(readout.flipped, flipped);
+    assert!(flipped.contains(&true) && flipped.contains(&false));
+    let (low, high) = points
+        .iter()
+        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(low, high), p| {
+            (low.min(*p), high.max(*p))
+        });
+    assert!((readout.diagonal - low.distance(high)).abs() < 1e-9);
+    let unmeasured = layout_readout(&points, None, faces, &edges).unwrap();
+    assert!(unmeasured.stretch.iter().all(|&s| s == 1.0));
+    assert!(!unmeasured.flipped.contains(&true));
+    assert_eq!(unmeasured.diagonal, readout.diagonal);
+    let mut broken = points.clone();
+    broken[0] = DVec3::NAN;
+    let partial = layout_readout(&broken, Some(&rest), faces, &edges).unwrap();
+    assert!(partial.diagonal > 0.0 && partial.diagonal <= readout.diagonal);
+    assert!(partial.flipped.len() == flipped.len() && partial.stretch[0] == 1.0);
+    assert!(matches!(
+        layout_readout(&points, Some(&rest[1..]), faces, &edges),
+        Err(KernelError::LengthMismatch { .. })
+    ));
+    assert_eq!(
+        layout_readout(
+            &[],
+            None,
+            LayoutFaces {
+                corners: &[],
+                sizes: &[]
+            },
+            &[]
+        )
+        .unwrap()
+        .diagonal,
+        0.0
+    );
+}
+
+#[test]
+fn surface_distances_match_the_closest_points_with_or_without_a_start() {
+    let (points, corners, _, _) = grid(4);
+    let vertices: Vec<Vec3> = points.iter().map(|point| point.as_vec3()).collect();
+    let triangles: Vec<[u32; 3]> = corners
+        .chunks_exact(4)
+        .flat_map(|quad| [[quad[0], quad[1], quad[2]], [quad[0], quad[2], quad[3]]])
+        .collect();
+    let mesh = TargetMesh::new(vertices, triangles, crate::TargetMeshOptions::default()).unwrap();
+    let queries = [
+        DVec3::new(1.5, 2.5, 0.25),
+        DVec3::new(-1.0, 2.0, 0.0),
+        DVec3::NAN,
+    ];
+    let plain = mesh.surface_distances(&queries, None, 0.0).unwrap();
+    let started = mesh
+        .surface_distances(&queries, Some(&[30, 0, 5]), 1e-6)
+        .unwrap();
+    assert_eq!(plain, started);
+    assert!((plain[0] - 0.25).abs() < 1e-7 && (plain[1] - 1.0).abs() < 1e-7);
+    assert_eq!(plain[2], f64::INFINITY);
+    assert!(mesh.surface_distances(&queries, Some(&[0]), 0.0).is_err());
+    // On its own triangle within the tolerance: that triangle's distance, the same as the search's.
+    let on = [DVec3::new(1.25, 1.5, 1e-7)];
+    let found = mesh.surface_distances(&on, Some(&[8]), 1e-6).unwrap();
+    assert!((found[0] - 1e-7).abs() < 1e-9);
+    assert!((found[0] - mesh.surface_distances(&on, None, 0.0).unwrap()[0]).abs() < 1e-9);
+}
