@@ -248,3 +248,55 @@ def test_a_first_frame_that_fails_writes_nothing():
     with pytest.raises(RuntimeError, match="first frame"):
         run_sequence(source="COLLECTION", collection="Frames")
     assert snapshot(layout) == before and key_names(layout) == []
+
+
+def has_exporter(file_format) -> bool:
+    """Whether this Blender was built with the exporter of ``file_format``."""
+    return bool(getattr(bpy.app.build_options, "alembic" if file_format == "ALEMBIC" else "usd", False))
+
+
+def imported_positions(path, frame):
+    """World positions, at ``frame``, of the mesh a point cache file imports as (the import removed after)."""
+    before = set(bpy.data.objects)
+    importer = bpy.ops.wm.alembic_import if path.endswith(".abc") else bpy.ops.wm.usd_import
+    assert importer(filepath=path) == {"FINISHED"}
+    (imported,) = [obj for obj in set(bpy.data.objects) - before if obj.type == "MESH"]
+    try:
+        assert any(modifier.type == "MESH_SEQUENCE_CACHE" for modifier in imported.modifiers)
+        return shown_positions(imported, frame)
+    finally:
+        for obj in set(bpy.data.objects) - before:
+            bpy.data.objects.remove(obj)
+
+
+def export_sequence(path, file_format):
+    return bpy.ops.springwrap.export_sequence("EXEC_DEFAULT", filepath=str(path), file_format=file_format)
+
+
+@pytest.mark.parametrize(("file_format", "suffix"), [("ALEMBIC", ".abc"), ("USD", ".usdc")])
+def test_the_sequence_exports_as_a_point_cache_that_reads_back_frame_for_frame(tmp_path, file_format, suffix):
+    if not has_exporter(file_format):
+        pytest.skip(f"this Blender was built without {file_format}")
+    _target, layout = sequence_scene()
+    other = make_inner_layout(bpy.data.objects["Target"])  # selected, not exported
+    other.select_set(True)
+    bpy.context.view_layer.objects.active = layout
+    run_sequence()
+    scene = bpy.context.scene
+    scene.frame_set(2)
+    settings = (scene.frame_start, scene.frame_end, [obj.name for obj in bpy.context.selected_objects])
+    assert export_sequence(tmp_path / "layout", file_format) == {"FINISHED"}
+    path = str(tmp_path / f"layout{suffix}")  # the format's extension added
+    assert (scene.frame_current, scene.frame_start, scene.frame_end) == (2, settings[0], settings[1])
+    assert [obj.name for obj in bpy.context.selected_objects] == settings[2]
+    expected = {frame: shown_positions(layout, frame) for frame in FRAMES}
+    for frame in FRAMES:
+        assert np.abs(imported_positions(path, frame) - expected[frame]).max() < 1e-5, frame
+    assert not np.allclose(expected[FRAMES[0]], expected[FRAMES[-1]], atol=1e-3)  # the frames differ
+
+
+def test_a_layout_without_sequence_keys_exports_nothing(tmp_path):
+    _target, _layout = sequence_scene()
+    with pytest.raises(RuntimeError, match="no sequence keys"):
+        export_sequence(tmp_path / "layout.abc", "ALEMBIC")
+    assert not list(tmp_path.iterdir())
