@@ -300,3 +300,16 @@ def test_a_layout_without_sequence_keys_exports_nothing(tmp_path):
     with pytest.raises(RuntimeError, match="no sequence keys"):
         export_sequence(tmp_path / "layout.abc", "ALEMBIC")
     assert not list(tmp_path.iterdir())
+
+
+def test_each_frame_s_steps_are_timed():
+    _target, layout = sequence_scene()
+    sequence_module = addon_module("blender.wrap_sequence")
+    parameters = addon_module("core.wrap_inputs").WrapParameters()
+    run = sequence_module.SequenceRun(bpy.context, layout, parameters, FRAMES)
+    while not run.done:
+        run.advance()
+    run.finish()
+    assert set(run.step_seconds[FRAMES[0]]) == {"target", "session", "solve", "write"}  # an ordinary wrap
+    assert set(run.step_seconds[FRAMES[-1]]) == {"target", "region", "session", "solve", "write"}
+    assert all(seconds >= 0.0 for steps in run.step_seconds.values() for seconds in steps.values())
