@@ -194,7 +194,6 @@ class SPRINGWRAP_OT_export_sequence(LayoutOperator, bpy.types.Operator):
         ),
         "ALEMBIC",
     )
-    filter_glob: props.text("Filter", "Files shown", "*.abc;*.usd;*.usda;*.usdc", options={"HIDDEN"})
 
     def execute(self, context):
         layout = context.active_object
