@@ -46,6 +46,8 @@ EXPRESSIONS = (
     ("eye-left-closure", 0.9, 3.0, 0.4),
 )
 UNITS = "expression/units/caucasian"
+STILL_WEIGHT = 0.03
+"""An expression weight below which the face has barely moved (the report's spread of the cold wraps)."""
 STEPS = ("target", "region", "session", "solve", "write")
 """A sequence frame's steps, timed by ``SequenceRun`` (``step_seconds``)."""
 STEP_LABELS = {
@@ -300,6 +302,7 @@ def markdown(result: dict) -> list[str]:
     warm_mean = np.array([row["mean_mm"] for row in result["sequence"]["errors"]])
     cold_mean = np.array([row["mean_mm"] for row in result["cold"]["errors"]])
     load = result.get("machine", {}).get("load_average")
+    still = max(2, int((weights(result["frames"]).max(axis=1) < STILL_WEIGHT).sum()))
     steps = numbers.get("later_steps")
     if steps and any(steps.values()):
         lines += [
@@ -316,6 +319,13 @@ def markdown(result: dict) -> list[str]:
         f"{int((warm_p95 > cold_p95).sum())} (by at most {float((warm_p95 - cold_p95).max()):.2f} mm)."
         + (f" Frames that failed: {result['failed_frames']}." if result["failed_frames"] else " No frame failed.")
         + (f" Load average while it ran: {load[0]:.1f} on {result['machine'].get('cpu', '?')}." if load else ""),
+        "",
+        f"How much a cold wrap's own error moves: on the first {still} frames, where every expression weight is "
+        f"below {STILL_WEIGHT:.0%} (the face has barely moved), the cold wraps' mean error spans "
+        f"{cold_mean[:still].min():.2f}–{cold_mean[:still].max():.2f} mm and their p95 "
+        f"{cold_p95[:still].min():.2f}–{cold_p95[:still].max():.2f} mm; the sequence's, which keeps the first "
+        f"frame's wrap wherever the target did not change, {warm_mean[:still].min():.2f}–"
+        f"{warm_mean[:still].max():.2f} mm and {warm_p95[:still].min():.2f}–{warm_p95[:still].max():.2f} mm.",
         "",
     ]
     return lines
