@@ -313,3 +313,13 @@ def test_each_frame_s_steps_are_timed():
     assert set(run.step_seconds[FRAMES[0]]) == {"target", "session", "solve", "write"}  # an ordinary wrap
     assert set(run.step_seconds[FRAMES[-1]]) == {"target", "region", "session", "solve", "write"}
     assert all(seconds >= 0.0 for steps in run.step_seconds.values() for seconds in steps.values())
+
+
+def test_the_over_time_panel_offers_the_export():
+    from bpy_helpers import PanelRecorder
+    from springwrap.ui import panels
+
+    sequence_scene()
+    recorder = PanelRecorder()
+    panels.SPRINGWRAP_PT_over_time.draw(type("Panel", (), {"layout": recorder})(), bpy.context)
+    assert "springwrap.export_sequence" in [idname for idname, _button in recorder.operators]
