@@ -177,6 +177,13 @@ class SPRINGWRAP_OT_wrap_sequence(LayoutOperator, bpy.types.Operator):
             self.report({"WARNING"}, f"Frame {outcome.frame} failed: {outcome.message}")
 
 
+FORMAT_ITEMS = (
+    ("ALEMBIC", "Alembic", "An Alembic file (.abc): vertex positions sampled per frame"),
+    ("USD", "USD", "A USD file (.usdc): the mesh's points sampled per frame"),
+)
+"""The point-cache formats Export Point Cache writes (``blender.point_cache.FORMATS``)."""
+
+
 class SPRINGWRAP_OT_export_sequence(LayoutOperator, bpy.types.Operator):
     """Export the layout's sequence (the frames of its Wrap keys) as an Alembic or USD point cache"""
 
@@ -186,13 +193,7 @@ class SPRINGWRAP_OT_export_sequence(LayoutOperator, bpy.types.Operator):
 
     filepath: props.text("File Path", "Where to write the point cache", subtype="FILE_PATH")
     file_format: props.choice(
-        "Format",
-        "The point cache's file format (written by Blender's own exporter)",
-        (
-            ("ALEMBIC", "Alembic", "An Alembic file (.abc): vertex positions sampled per frame"),
-            ("USD", "USD", "A USD file (.usdc): the mesh's points sampled per frame"),
-        ),
-        "ALEMBIC",
+        "Format", "The point cache's file format (Blender's own exporter)", FORMAT_ITEMS, "ALEMBIC"
     )
 
     def execute(self, context):
