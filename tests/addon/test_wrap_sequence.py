@@ -323,3 +323,33 @@ def test_the_over_time_panel_offers_the_export():
     recorder = PanelRecorder()
     panels.SPRINGWRAP_PT_over_time.draw(type("Panel", (), {"layout": recorder})(), bpy.context)
     assert "springwrap.export_sequence" in [idname for idname, _button in recorder.operators]
+
+
+def test_a_slow_change_adds_up_until_the_layout_follows_it():
+    """Each frame moves the target by less than a change that counts (1e-5 of its size), two frames by more, and
+    renumbers its vertices (a new topology, as a scan's would be: the face-points are found again): the vertices
+    held on one frame are settled once their distance's change since they were last settled counts."""
+    step = 3e-5  # the target's diagonal is about 5.2, so a change counts above about 5.2e-5
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=32, ring_count=16, radius=1.5)
+    sphere = bpy.context.active_object
+    points = np.array([tuple(vertex.co) for vertex in sphere.data.vertices])
+    faces = [list(polygon.vertices) for polygon in sphere.data.polygons]
+    bpy.data.objects.remove(sphere)
+    collection = bpy.data.collections.new("Frames")
+    bpy.context.scene.collection.children.link(collection)
+    objects = []
+    for index in range(4):
+        order = np.random.default_rng(index).permutation(len(points))  # new vertex numbers every frame
+        number = np.argsort(order)
+        mesh = bpy.data.meshes.new(f"Frame {index + 1}")
+        renumbered = [number[face].tolist() for face in faces]
+        mesh.from_pydata((points[order] + [index * step, 0.0, 0.0]).tolist(), [], renumbered)
+        obj = bpy.data.objects.new(f"Frame {index + 1}", mesh)
+        collection.objects.link(obj)
+        objects.append(obj)
+    layout = make_inner_layout(objects[0])
+    options = {"use_scene_range": False, "frame_start": 1, "frame_end": 4, "source": "COLLECTION"}
+    assert run_sequence(**options, collection="Frames") == {"FINISHED"}
+    last = surface_distances(Reference(objects[-1]), shown_positions(layout, 4))
+    assert last.max() < 1.7 * step  # settled on frame 3 (two steps), one step behind at most
+    assert np.abs(shown_positions(layout, 4) - shown_positions(layout, 1)).max() > 1.5 * step  # it followed

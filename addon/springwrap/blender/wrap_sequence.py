@@ -89,7 +89,7 @@ class SequenceRun:
         self.outcomes: list[FrameOutcome] = []
         self.first_snapshot = None
         self.first_result = None  # the first frame's WrapResult
-        self.distances = None  # (N,) the layout's distances to the last frame's target, as written
+        self.distances = None  # (N,) each vertex's distance to the target of the frame that last settled it
         self.step_seconds: dict[int, dict[str, float]] = {}  # per frame: seconds of each step (see _Clock)
         self.edges = layout_data.read_layout_topology(layout).edges
 
@@ -112,9 +112,10 @@ class SequenceRun:
     def _frame(self, index: int, start: float) -> FrameOutcome:
         """Wrap the ``index``-th frame and write it; its outcome. Raises what went wrong (nothing is written then).
 
-        A later frame with ``warm_rest='PREVIOUS'`` re-settles only where the target changed since the previous
-        frame (``core.follow``: its surface distance changed, or its face-point moved), the rest held and written
-        back bit for bit; a frame in which nothing changed keeps the previous frame's shape unwrapped."""
+        A later frame with ``warm_rest='PREVIOUS'`` re-settles only where the target changed (``core.follow``: a
+        vertex's surface distance changed since the frame that last settled it, or its face-point moved), the rest
+        held and written back bit for bit; a frame in which nothing changed keeps the previous frame's shape
+        unwrapped."""
         frame = self.frames[index]
         steps = self.step_seconds.setdefault(frame, {})
         clock = _Clock(steps)
@@ -126,12 +127,11 @@ class SequenceRun:
             before = layout_data.read_layout(self.layout)
             world = transforms.world_positions(before)
             same_topology = self.layout.springwrap.target_signature == target.signature
-            region, after = follow.changed_region(
+            region, _after = follow.changed_region(
                 target, world, before.state, same_topology, self.distances, self.edges
             )
             clock.lap("region")
             if not region.any():
-                self.distances = after
                 return FrameOutcome(frame, True, time.perf_counter() - start, 0, "")
         session = WrapSession(self.context, self.layout, self.parameters, target=target, region=region)
         clock.lap("session")
@@ -149,8 +149,8 @@ class SequenceRun:
         world = transforms.world_positions(layout_data.read_layout(self.layout))
         if region is None:
             self.distances = follow.surface_distances(target, world)
-        else:
-            self.distances = after
+        else:  # a held vertex keeps the distance it was settled at: a slow change adds up until it counts
+            self.distances = self.distances.copy()
             self.distances[region] = follow.surface_distances(target, world[region])
         if index == 0:
             self.first_result = result
