@@ -46,6 +46,17 @@ EXPRESSIONS = (
     ("eye-left-closure", 0.9, 3.0, 0.4),
 )
 UNITS = "expression/units/caucasian"
+STILL_WEIGHT = 0.03
+"""An expression weight below which the face has barely moved (the report's spread of the cold wraps)."""
+STEPS = ("target", "region", "session", "solve", "write")
+"""A sequence frame's steps, timed by ``SequenceRun`` (``step_seconds``)."""
+STEP_LABELS = {
+    "target": "target read and built",
+    "region": "changed region",
+    "session": "wrap inputs and solver",
+    "solve": "iterations",
+    "write": "result written",
+}
 
 
 def parse_arguments(argv: list[str]) -> argparse.Namespace:
@@ -176,6 +187,7 @@ def run(arguments: argparse.Namespace) -> dict:
     warm = np.array([run.shapes[frame] for frame in frames], dtype=np.float64)
     warm_seconds = [outcome.seconds for outcome in result.outcomes]
     warm_iterations = [outcome.iterations for outcome in result.outcomes]
+    warm_steps = [run.step_seconds.get(frame, {}) for frame in frames]
     failed = [outcome.frame for outcome in result.failed]
 
     cold, cold_seconds, cold_iterations = [], [], []
@@ -202,7 +214,12 @@ def run(arguments: argparse.Namespace) -> dict:
         "expressions": [list(entry) for entry in EXPRESSIONS],
         "remesh_seconds": remesh_seconds,
         "failed_frames": failed,
-        "sequence": {"seconds": warm_seconds, "iterations": warm_iterations, "errors": errors(warm, truths, valid)},
+        "sequence": {
+            "seconds": warm_seconds,
+            "iterations": warm_iterations,
+            "steps": warm_steps,
+            "errors": errors(warm, truths, valid),
+        },
         "cold": {"seconds": cold_seconds, "iterations": cold_iterations, "errors": errors(cold, truths, valid)},
         "machine": {"cpu": _machine.cpu_model(), "load_average": list(os.getloadavg())},
     }
@@ -230,6 +247,8 @@ def summary(result: dict) -> dict:
             "jitter_p95_mm": _mean([row.get("jitter_p95_mm") for row in rows[1:]]),
         }
     out["speedup"] = out["cold"]["later_seconds"] / out["sequence"]["later_seconds"]
+    later_steps = result["sequence"].get("steps", [])[1:]
+    out["later_steps"] = {name: _mean([steps.get(name, 0.0) for steps in later_steps]) for name in STEPS}
     return out
 
 
@@ -283,6 +302,15 @@ def markdown(result: dict) -> list[str]:
     warm_mean = np.array([row["mean_mm"] for row in result["sequence"]["errors"]])
     cold_mean = np.array([row["mean_mm"] for row in result["cold"]["errors"]])
     load = result.get("machine", {}).get("load_average")
+    still = max(2, int((weights(result["frames"]).max(axis=1) < STILL_WEIGHT).sum()))
+    steps = numbers.get("later_steps")
+    if steps and any(steps.values()):
+        lines += [
+            "",
+            "A later frame of the sequence, step by step (mean seconds): "
+            + ", ".join(f"{STEP_LABELS[name]} {steps[name]:.3f}" for name in STEPS)
+            + ".",
+        ]
     lines += [
         "",
         f"A later frame of the sequence takes {numbers['speedup']:.2f}× less time than a cold wrap of that frame. "
@@ -291,6 +319,13 @@ def markdown(result: dict) -> list[str]:
         f"{int((warm_p95 > cold_p95).sum())} (by at most {float((warm_p95 - cold_p95).max()):.2f} mm)."
         + (f" Frames that failed: {result['failed_frames']}." if result["failed_frames"] else " No frame failed.")
         + (f" Load average while it ran: {load[0]:.1f} on {result['machine'].get('cpu', '?')}." if load else ""),
+        "",
+        f"How much a cold wrap's own error moves: on the first {still} frames, where every expression weight is "
+        f"below {STILL_WEIGHT:.0%} (the face has barely moved), the cold wraps' mean error spans "
+        f"{cold_mean[:still].min():.2f}–{cold_mean[:still].max():.2f} mm and their p95 "
+        f"{cold_p95[:still].min():.2f}–{cold_p95[:still].max():.2f} mm; the sequence's, which keeps the first "
+        f"frame's wrap wherever the target did not change, {warm_mean[:still].min():.2f}–"
+        f"{warm_mean[:still].max():.2f} mm and {warm_p95[:still].min():.2f}–{warm_p95[:still].max():.2f} mm.",
         "",
     ]
     return lines

@@ -37,7 +37,12 @@ def made_up_result():
         "target_triangles": [280000, 281000, 282000],
         "expressions": [list(entry) for entry in sequence.EXPRESSIONS],
         "failed_frames": [],
-        "sequence": {"seconds": [4.0, 1.0, 1.0], "iterations": [19, 19, 0], "errors": rows},
+        "sequence": {
+            "seconds": [4.0, 1.0, 1.0],
+            "iterations": [19, 19, 0],
+            "steps": [{"target": 1.0}, {"target": 0.25, "solve": 0.5}, {"target": 0.75}],
+            "errors": rows,
+        },
         "cold": {"seconds": [4.0, 4.0, 4.0], "iterations": [19, 19, 19], "errors": rows},
     }
 
@@ -47,3 +52,6 @@ def test_summary_and_markdown():
     assert numbers["speedup"] == 4.0 and numbers["sequence"]["later_seconds"] == 1.0
     text = "\n".join(sequence.markdown(made_up_result()))
     assert "## Over time" in text and "4.00× less time" in text and "| Wrap Sequence | 4.00 | 1.00 |" in text
+    assert numbers["later_steps"]["target"] == 0.5 and numbers["later_steps"]["solve"] == 0.25
+    assert "target read and built 0.500" in text and "iterations 0.250" in text
+    assert "the cold wraps' mean error spans 1.00–1.00 mm" in text

@@ -10,6 +10,8 @@ the others must finish or refuse, never crash, and leave the scene as it was whe
 """
 
 import math
+import tempfile
+from pathlib import Path
 
 import bpy
 
@@ -319,6 +321,13 @@ OPERATORS = {
         {"use_scene_range": False, "frame_start": 1, "frame_end": 2, "max_iterations": 30},
         ALL_LAYOUT | {"anchor vertices"},
     ),
+    "export_sequence": (
+        {
+            "filepath": str(Path(tempfile.gettempdir()) / "springwrap-catalogue"),
+            "file_format": "ALEMBIC" if bpy.app.build_options.alembic else "USD",
+        },
+        set(),
+    ),
     "align_armature": ({"target_armature": "Target Rig"}, {"positions", "shape keys"}),
     "detect_features": ({"scale": 0.5, "write_curves": False}, {"target"}),
     "select_problems": ({"kind": "STRETCHED", "threshold": 1.2}, {"read-out"}),
@@ -342,6 +351,7 @@ def _call(operator, arguments):
 
 
 NEEDS_A_PROPOSAL = {"anchor_accept", "anchor_reject"}
+NEEDS_SEQUENCE_KEYS = {"export_sequence"}
 
 
 def _scene_for(operator):
@@ -350,6 +360,10 @@ def _scene_for(operator):
     target, layout = catalogue_scene(with_armatures=operator == "align_armature")
     if operator in NEEDS_A_PROPOSAL:
         layout.springwrap.anchors[-1].proposed = True
+    if operator in NEEDS_SEQUENCE_KEYS:  # two frames of a sequence, as Wrap Sequence writes them
+        layout.shape_key_add(name="Basis", from_mix=False)
+        for frame in (1, 2):
+            layout.shape_key_add(name=f"Wrap {frame:04d}", from_mix=False).keyframe_insert("value", frame=frame)
     return target, layout
 
 

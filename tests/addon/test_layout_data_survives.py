@@ -17,6 +17,9 @@ original, bit for bit, with vertex group weights moved to the group of the mirro
 modifier does).
 """
 
+import tempfile
+from pathlib import Path
+
 import bpy
 
 import numpy as np
@@ -148,6 +151,14 @@ def _proposed_then(operator):
     return run
 
 
+def _sequence_then_export():
+    """Wrap two frames (the layout gets its sequence keys), then export them as a point cache."""
+    assert bpy.ops.springwrap.wrap_sequence(use_scene_range=False, frame_start=1, frame_end=2) == {"FINISHED"}
+    path = str(Path(tempfile.gettempdir()) / "springwrap-survives")
+    file_format = "ALEMBIC" if bpy.app.build_options.alembic else "USD"
+    return {"FINISHED"}, _call("export_sequence", filepath=path, file_format=file_format)
+
+
 def _call(operator, **arguments):
     return lambda: getattr(bpy.ops.springwrap, operator)(**arguments)
 
@@ -190,6 +201,7 @@ CASES = {
     "wrap live, finished": (_live_wrap(cancel=False), READOUT),
     "wrap live, cancelled": (_live_wrap(cancel=True), set()),
     "wrap_sequence": (_call("wrap_sequence", use_scene_range=False, frame_start=1, frame_end=2), READOUT),
+    "export_sequence": (_sequence_then_export, set()),
     "detect_features": (_call("detect_features", scale=0.3), set()),
     "fit_subdivision": (_call("fit_subdivision", rounds=2), set()),
     "select_problems": (_select_problems, SELECTION),

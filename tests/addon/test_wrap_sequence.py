@@ -248,3 +248,108 @@ def test_a_first_frame_that_fails_writes_nothing():
     with pytest.raises(RuntimeError, match="first frame"):
         run_sequence(source="COLLECTION", collection="Frames")
     assert snapshot(layout) == before and key_names(layout) == []
+
+
+def has_exporter(file_format) -> bool:
+    """Whether this Blender was built with the exporter of ``file_format``."""
+    return bool(getattr(bpy.app.build_options, "alembic" if file_format == "ALEMBIC" else "usd", False))
+
+
+def imported_positions(path, frame):
+    """World positions, at ``frame``, of the mesh a point cache file imports as (the import removed after)."""
+    before = set(bpy.data.objects)
+    importer = bpy.ops.wm.alembic_import if path.endswith(".abc") else bpy.ops.wm.usd_import
+    assert importer(filepath=path) == {"FINISHED"}
+    (imported,) = [obj for obj in set(bpy.data.objects) - before if obj.type == "MESH"]
+    try:
+        assert any(modifier.type == "MESH_SEQUENCE_CACHE" for modifier in imported.modifiers)
+        return shown_positions(imported, frame)
+    finally:
+        for obj in set(bpy.data.objects) - before:
+            bpy.data.objects.remove(obj)
+
+
+def export_sequence(path, file_format):
+    return bpy.ops.springwrap.export_sequence("EXEC_DEFAULT", filepath=str(path), file_format=file_format)
+
+
+@pytest.mark.parametrize(("file_format", "suffix"), [("ALEMBIC", ".abc"), ("USD", ".usdc")])
+def test_the_sequence_exports_as_a_point_cache_that_reads_back_frame_for_frame(tmp_path, file_format, suffix):
+    if not has_exporter(file_format):
+        pytest.skip(f"this Blender was built without {file_format}")
+    _target, layout = sequence_scene()
+    other = make_inner_layout(bpy.data.objects["Target"])  # selected, not exported
+    other.select_set(True)
+    bpy.context.view_layer.objects.active = layout
+    run_sequence()
+    scene = bpy.context.scene
+    scene.frame_set(2)
+    settings = (scene.frame_start, scene.frame_end, [obj.name for obj in bpy.context.selected_objects])
+    assert export_sequence(tmp_path / "layout", file_format) == {"FINISHED"}
+    path = str(tmp_path / f"layout{suffix}")  # the format's extension added
+    assert (scene.frame_current, scene.frame_start, scene.frame_end) == (2, settings[0], settings[1])
+    assert [obj.name for obj in bpy.context.selected_objects] == settings[2]
+    expected = {frame: shown_positions(layout, frame) for frame in FRAMES}
+    for frame in FRAMES:
+        assert np.abs(imported_positions(path, frame) - expected[frame]).max() < 1e-5, frame
+    assert not np.allclose(expected[FRAMES[0]], expected[FRAMES[-1]], atol=1e-3)  # the frames differ
+
+
+def test_a_layout_without_sequence_keys_exports_nothing(tmp_path):
+    _target, _layout = sequence_scene()
+    with pytest.raises(RuntimeError, match="no sequence keys"):
+        export_sequence(tmp_path / "layout.abc", "ALEMBIC")
+    assert not list(tmp_path.iterdir())
+
+
+def test_each_frame_s_steps_are_timed():
+    _target, layout = sequence_scene()
+    sequence_module = addon_module("blender.wrap_sequence")
+    parameters = addon_module("core.wrap_inputs").WrapParameters()
+    run = sequence_module.SequenceRun(bpy.context, layout, parameters, FRAMES)
+    while not run.done:
+        run.advance()
+    run.finish()
+    assert set(run.step_seconds[FRAMES[0]]) == {"target", "session", "solve", "write"}  # an ordinary wrap
+    assert set(run.step_seconds[FRAMES[-1]]) == {"target", "region", "session", "solve", "write"}
+    assert all(seconds >= 0.0 for steps in run.step_seconds.values() for seconds in steps.values())
+
+
+def test_the_over_time_panel_offers_the_export():
+    from bpy_helpers import PanelRecorder
+    from springwrap.ui import panels
+
+    sequence_scene()
+    recorder = PanelRecorder()
+    panels.SPRINGWRAP_PT_over_time.draw(type("Panel", (), {"layout": recorder})(), bpy.context)
+    assert "springwrap.export_sequence" in [idname for idname, _button in recorder.operators]
+
+
+def test_a_slow_change_adds_up_until_the_layout_follows_it():
+    """Each frame moves the target by less than a change that counts (1e-5 of its size), two frames by more, and
+    renumbers its vertices (a new topology, as a scan's would be: the face-points are found again): the vertices
+    held on one frame are settled once their distance's change since they were last settled counts."""
+    step = 3e-5  # the target's diagonal is about 5.2, so a change counts above about 5.2e-5
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=32, ring_count=16, radius=1.5)
+    sphere = bpy.context.active_object
+    points = np.array([tuple(vertex.co) for vertex in sphere.data.vertices])
+    faces = [list(polygon.vertices) for polygon in sphere.data.polygons]
+    bpy.data.objects.remove(sphere)
+    collection = bpy.data.collections.new("Frames")
+    bpy.context.scene.collection.children.link(collection)
+    objects = []
+    for index in range(4):
+        order = np.random.default_rng(index).permutation(len(points))  # new vertex numbers every frame
+        number = np.argsort(order)
+        mesh = bpy.data.meshes.new(f"Frame {index + 1}")
+        renumbered = [number[face].tolist() for face in faces]
+        mesh.from_pydata((points[order] + [index * step, 0.0, 0.0]).tolist(), [], renumbered)
+        obj = bpy.data.objects.new(f"Frame {index + 1}", mesh)
+        collection.objects.link(obj)
+        objects.append(obj)
+    layout = make_inner_layout(objects[0])
+    options = {"use_scene_range": False, "frame_start": 1, "frame_end": 4, "source": "COLLECTION"}
+    assert run_sequence(**options, collection="Frames") == {"FINISHED"}
+    last = surface_distances(Reference(objects[-1]), shown_positions(layout, 4))
+    assert last.max() < 1.7 * step  # settled on frame 3 (two steps), one step behind at most
+    assert np.abs(shown_positions(layout, 4) - shown_positions(layout, 1)).max() > 1.5 * step  # it followed

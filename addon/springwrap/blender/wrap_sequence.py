@@ -89,7 +89,8 @@ class SequenceRun:
         self.outcomes: list[FrameOutcome] = []
         self.first_snapshot = None
         self.first_result = None  # the first frame's WrapResult
-        self.distances = None  # (N,) the layout's distances to the last frame's target, as written
+        self.distances = None  # (N,) each vertex's distance to the target of the frame that last settled it
+        self.step_seconds: dict[int, dict[str, float]] = {}  # per frame: seconds of each step (see _Clock)
         self.edges = layout_data.read_layout_topology(layout).edges
 
     @property
@@ -111,27 +112,33 @@ class SequenceRun:
     def _frame(self, index: int, start: float) -> FrameOutcome:
         """Wrap the ``index``-th frame and write it; its outcome. Raises what went wrong (nothing is written then).
 
-        A later frame with ``warm_rest='PREVIOUS'`` re-settles only where the target changed since the previous
-        frame (``core.follow``: its surface distance changed, or its face-point moved), the rest held and written
-        back bit for bit; a frame in which nothing changed keeps the previous frame's shape unwrapped."""
+        A later frame with ``warm_rest='PREVIOUS'`` re-settles only where the target changed (``core.follow``: a
+        vertex's surface distance changed since the frame that last settled it, or its face-point moved), the rest
+        held and written back bit for bit; a frame in which nothing changed keeps the previous frame's shape
+        unwrapped."""
         frame = self.frames[index]
+        steps = self.step_seconds.setdefault(frame, {})
+        clock = _Clock(steps)
         target = self._frame_target(index)
+        clock.lap("target")
         region = None
         before = None
         if index > 0 and self.warm_rest == "PREVIOUS":
             before = layout_data.read_layout(self.layout)
             world = transforms.world_positions(before)
             same_topology = self.layout.springwrap.target_signature == target.signature
-            region, after = follow.changed_region(
+            region, _after = follow.changed_region(
                 target, world, before.state, same_topology, self.distances, self.edges
             )
+            clock.lap("region")
             if not region.any():
-                self.distances = after
                 return FrameOutcome(frame, True, time.perf_counter() - start, 0, "")
         session = WrapSession(self.context, self.layout, self.parameters, target=target, region=region)
+        clock.lap("session")
         try:
             session.run()
-            result = session.finish()
+            clock.lap("solve")
+            result = session.finish(measure=index == 0)  # the first frame's read-out is what the layout keeps
             if region is not None:
                 positions = follow.merged(layout_data.read_layout(self.layout).positions, before.positions, region)
                 self.layout.data.vertices.foreach_set("co", positions.reshape(-1))
@@ -142,11 +149,12 @@ class SequenceRun:
         world = transforms.world_positions(layout_data.read_layout(self.layout))
         if region is None:
             self.distances = follow.surface_distances(target, world)
-        else:
-            self.distances = after
+        else:  # a held vertex keeps the distance it was settled at: a slow change adds up until it counts
+            self.distances = self.distances.copy()
             self.distances[region] = follow.surface_distances(target, world[region])
         if index == 0:
             self.first_result = result
+        clock.lap("write")
         return FrameOutcome(frame, True, time.perf_counter() - start, result.iterations, "")
 
     def advance(self) -> FrameOutcome:
@@ -199,6 +207,21 @@ class SequenceRun:
         if failed:
             text += f", {failed} failed"
         return text + "  —  Esc / right-click: stop, keeping the frames done"
+
+
+class _Clock:
+    """The seconds of a frame's steps, each lap into ``steps`` under its name: ``target`` (the frame set, the
+    target read and built), ``region`` (where it changed), ``session`` (the wrap's inputs and solver), ``solve``
+    (the iterations), ``write`` (the result written, merged and measured)."""
+
+    def __init__(self, steps: dict):
+        self.steps = steps
+        self.last = time.perf_counter()
+
+    def lap(self, name: str) -> None:
+        now = time.perf_counter()
+        self.steps[name] = self.steps.get(name, 0.0) + now - self.last
+        self.last = now
 
 
 def _message(error: BaseException) -> str:

@@ -120,7 +120,6 @@ class WrapSession:
             target if target is not None else target_data.read_target(context.evaluated_depsgraph_get(), layout)
         )
         self.layout_topology = layout_data.read_layout_topology(layout)
-        structure = layout_data.make_layout_structure(self.layout_topology)
         self.anchors, anchor_resolution = anchors.resolve(
             anchor_data.read_anchors(layout), self.target, settings.anchors_signature
         )
@@ -177,7 +176,9 @@ class WrapSession:
                 cut = follow.restrict(self.layout_topology, inputs, region, arrays.positions)
             if cut is not None:
                 self.restriction, inputs = cut
-                structure = layout_data.make_layout_structure(self.restriction.topology)
+        structure = layout_data.make_layout_structure(
+            self.layout_topology if self.restriction is None else self.restriction.topology
+        )
         self.solver = make_wrap_solver(self.target, structure, inputs, parameters)
         self.inputs = inputs
         # Coarse to fine: with a spring resolution above 1 the layout is relaxed first, then a grid
@@ -341,21 +342,25 @@ class WrapSession:
         attributes.write_wrap_frame(self.layout, positions, state)
         shape_key_data.follow(self.layout, self.shape_keys, positions)
 
-    def finish(self) -> WrapResult:
-        """Write the result for good: positions, state, the target signature and the resolved anchors."""
+    def finish(self, measure: bool = True) -> WrapResult:
+        """Write the result for good: positions, state, the target signature and the resolved anchors, and (with
+        ``measure``) the quality read-out; without it the read-out stays as it was (a sequence's later frame)."""
         if self.last_report is None:
             self.step(0)
         positions, state = self.current_layout()
-        readout = quality_data.measure_layout(
-            self.layout, self.target, positions, self.rest, self.layout_topology, state
-        )
+        readout = None
+        if measure:
+            readout = quality_data.measure_layout(
+                self.layout, self.target, positions, self.rest, self.layout_topology, state
+            )
         shape_key_data.restore(self.layout, self.shape_keys)  # carried from the keys as they were, not a frame
         layout_data.write_layout(self.layout, positions, state, rest=self.rest)
         settings = self.layout.springwrap
         settings.target_signature = self.target.signature
         if len(settings.anchors):
             anchor_data.write_anchors(self.layout, self.anchors, -1, self.target.signature)
-        quality_data.write_readout(self.layout, readout)  # the quality read-out, in the same undo step
+        if readout is not None:
+            quality_data.write_readout(self.layout, readout)  # the quality read-out, in the same undo step
         part_data.write_parts(self.layout, self.parts)
         report = self.last_report
         face_points, space_points = layout_state.point_counts(state.states)

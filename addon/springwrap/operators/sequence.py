@@ -12,7 +12,7 @@ runs to the end at once. Either way the whole sequence is one undo step. The wor
 import bpy
 
 from .. import property_kinds as props
-from ..blender import follow
+from ..blender import follow, point_cache
 from ..blender.edit_mode import EditModeGuard, object_mode
 from ..blender.wrap_sequence import SequenceRun
 from ..core import sequence
@@ -177,4 +177,41 @@ class SPRINGWRAP_OT_wrap_sequence(LayoutOperator, bpy.types.Operator):
             self.report({"WARNING"}, f"Frame {outcome.frame} failed: {outcome.message}")
 
 
-classes = (SPRINGWRAP_OT_wrap_sequence,)
+FORMAT_ITEMS = (
+    ("ALEMBIC", "Alembic", "An Alembic file (.abc): vertex positions sampled per frame"),
+    ("USD", "USD", "A USD file (.usdc): the mesh's points sampled per frame"),
+)
+"""The point-cache formats Export Point Cache writes (``blender.point_cache.FORMATS``)."""
+
+
+class SPRINGWRAP_OT_export_sequence(LayoutOperator, bpy.types.Operator):
+    """Export the layout's sequence (the frames of its Wrap keys) as an Alembic or USD point cache"""
+
+    bl_label = "Export Point Cache"
+    bl_options = {"REGISTER"}  # writes a file, changes nothing in the scene
+    requires_target = False
+
+    filepath: props.text("File Path", "Where to write the point cache", subtype="FILE_PATH")
+    file_format: props.choice(
+        "Format", "The point cache's file format (Blender's own exporter)", FORMAT_ITEMS, "ALEMBIC"
+    )
+
+    def execute(self, context):
+        layout = context.active_object
+        try:
+            path, frames = point_cache.export_point_cache(context, layout, self.filepath, self.file_format)
+        except ERRORS as error:
+            self.report({"ERROR"}, str(error))
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"Exported '{layout.name}' over frames {frames[0]}-{frames[-1]} to {path}")
+        return {"FINISHED"}
+
+    def invoke(self, context, event):
+        layout = context.active_object
+        if not self.filepath:
+            self.filepath = bpy.path.ensure_ext(bpy.path.clean_name(layout.name), ".abc")
+        context.window_manager.fileselect_add(self)
+        return {"RUNNING_MODAL"}
+
+
+classes = (SPRINGWRAP_OT_wrap_sequence, SPRINGWRAP_OT_export_sequence)

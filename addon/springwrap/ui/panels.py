@@ -335,6 +335,7 @@ class SPRINGWRAP_PT_over_time(_LayoutSubPanel, bpy.types.Panel):
         button.collection = settings.sequence_collection.name if settings.sequence_collection else ""
         button.solver = settings.wrap_solver
         button.schedule = settings.wrap_schedule if settings.wrap_solver == "ENERGY" else "LOCAL"
+        layout.operator("springwrap.export_sequence", icon="EXPORT")
 
 
 def _draw_progress(layout, session) -> None:
