@@ -5,16 +5,20 @@ use pyo3::prelude::*;
 use springwrap_kernel::features::pairing::{
     FreeReason, PairSettings, TargetCurve, TargetCurveKind, pair_lines,
 };
-use springwrap_kernel::layout::{
-    FeatureLine, LineKind, LineSettings, LineSource, feature_lines,
-};
+use springwrap_kernel::layout::{FeatureLine, LineKind, LineSettings, LineSource, feature_lines};
 
 use crate::arguments;
 use crate::arrays::{read_array, read_faces, read_pairs, read_positions, rows_array};
 use crate::errors::{InvalidArgumentError, run_kernel};
 
 /// (kind, source, vertices uint32, closed, mean signed dihedral in degrees).
-type LineTuple<'py> = (&'static str, &'static str, Bound<'py, PyArray1<u32>>, bool, f32);
+type LineTuple<'py> = (
+    &'static str,
+    &'static str,
+    Bound<'py, PyArray1<u32>>,
+    bool,
+    f32,
+);
 
 /// (curve index or None, why free or None, confidence, chain uint32, target (P, 3) float32).
 type PairTuple<'py> = (

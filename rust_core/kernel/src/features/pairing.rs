@@ -20,7 +20,11 @@
 //! one whose stretch of curve overlaps (by more than [`MAX_OVERLAP`] of its length) a stretch
 //! already taken stays free, as do lines without a candidate. A paired line's target is its
 //! stretch of curve in the line's direction (a closed line: the whole loop from the projection of
-//! its first vertex, the chain then ending on its first vertex again).
+//! its first vertex, the chain then ending on its first vertex again). An open line's end that
+//! another line shares (a junction, such as a box's corner where three creases meet) is left out
+//! of its chain, so that no vertex follows two curves.
+
+use std::collections::HashMap;
 
 use glam::Vec3;
 
@@ -315,7 +319,7 @@ pub fn pair_lines(
         "max_distance",
         "maximum distance",
         settings.max_distance,
-        SettingRange::closed(f32::MIN_POSITIVE as f64, validate::MAX_COORDINATE as f64),
+        SettingRange::above(0.0, validate::MAX_COORDINATE as f64),
     )?;
     check_setting(
         "max_angle",
@@ -343,6 +347,12 @@ pub fn pair_lines(
         validate::check_coordinates("curve point", &curve.points)?;
         prepared.push((curve.kind, Prepared::new(curve)));
     }
+    let mut uses: HashMap<u32, usize> = HashMap::new();
+    for line in lines {
+        for &vertex in &line.vertices {
+            *uses.entry(vertex).or_default() += 1;
+        }
+    }
     let mut candidates = Vec::with_capacity(lines.len());
     for (index, line) in lines.iter().enumerate() {
         if line.vertices.len() < 2 {
@@ -357,6 +367,15 @@ pub fn pair_lines(
         let mut chain = line.vertices.clone();
         if line.closed {
             chain.push(chain[0]);
+        } else {
+            // An end shared with another line (a junction: a box's corner) is left out: a vertex
+            // follows one curve only.
+            if chain.len() > 2 && uses[&chain[0]] > 1 {
+                chain.remove(0);
+            }
+            if chain.len() > 2 && uses[&chain[chain.len() - 1]] > 1 {
+                chain.pop();
+            }
         }
         let mut points = Vec::with_capacity(chain.len());
         for &vertex in &chain {
@@ -561,6 +580,40 @@ mod tests {
         assert_eq!(outcome[0].chain, vec![0, 1, 2, 3, 0]);
         let target = &outcome[0].target;
         assert!(target[0].distance(target[target.len() - 1]) < 1e-4);
+    }
+
+    #[test]
+    fn a_junction_shared_by_two_lines_is_left_out_of_both() {
+        // Two lines meeting at vertex 4 at a right angle, each beside a curve.
+        let mut positions: Vec<Vec3> = (0..5).map(|i| Vec3::new(i as f32, 0.1, 0.0)).collect();
+        positions.extend((1..5).map(|i| Vec3::new(4.1, -(i as f32), 0.0)));
+        let lines = [
+            line(vec![0, 1, 2, 3, 4], LineKind::Ridge),
+            line(vec![4, 5, 6, 7, 8], LineKind::Ridge),
+        ];
+        let curves = [
+            straight(
+                TargetCurveKind::Ridge,
+                Vec3::ZERO,
+                Vec3::new(4.0, 0.0, 0.0),
+                5,
+            ),
+            straight(
+                TargetCurveKind::Ridge,
+                Vec3::new(4.0, 0.0, 0.0),
+                Vec3::new(4.0, -4.0, 0.0),
+                5,
+            ),
+        ];
+        let outcome = pair_lines(
+            &positions,
+            &lines,
+            &curves,
+            &PairSettings::with_distance(0.5),
+        )
+        .unwrap();
+        assert_eq!(outcome[0].chain, vec![0, 1, 2, 3]);
+        assert_eq!(outcome[1].chain, vec![5, 6, 7, 8]);
     }
 
     #[test]
