@@ -91,7 +91,12 @@ def test_the_cubes_creases_pair_with_the_boxs_ridges(cube, capfd):
         distances = distance_to_polyline(positions[chain], points)
         assert distances.max() < 0.25
         assert np.linalg.norm(points[0] - positions[chain[0]]) < np.linalg.norm(points[-1] - positions[chain[0]])
-    # The list shows each pair with its confidence; a second run replaces the pairs instead of adding more.
+    # Drawn in the viewport like every curve constraint: a dashed line from each chain vertex to its target.
+    from springwrap.ui.overlays import CURVE_DASH_COUNT, curve_segments
+
+    starts, _ends = curve_segments(cube)
+    assert starts.shape[0] == CURVE_DASH_COUNT * sum(len(item.layout_vertices.split()) for item in items)
+    # A second run replaces the pairs instead of adding more.
     assert bpy.ops.springwrap.feature_lines_pair() == {"FINISHED"}
     assert len(feature_items(cube)) == 12
     # Removable one by one like any curve constraint.
