@@ -28,7 +28,7 @@ FREE_REASONS = {
 }
 """Why a feature line stays free (the kernel's reasons, and one of the add-on's), as said in reports."""
 
-DISTANCE_EDGES = 2.0
+DISTANCE_EDGES = 1.0
 """The automatic maximum distance between a line and its curve, in median layout edge lengths."""
 
 

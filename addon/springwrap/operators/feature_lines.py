@@ -59,7 +59,7 @@ class SPRINGWRAP_OT_feature_lines_pair(LayoutCollectionOperator, bpy.types.Opera
     min_confidence: props.number(
         "Min Confidence",
         "Pairs less sure than this (closeness x parallelism x length agreement, 0 to 1) are not made",
-        0.3,
+        0.5,
         min=0.0,
         max=1.0,
         subtype="FACTOR",

@@ -7,8 +7,8 @@
 //!
 //! - **close**: the mean projection distance is within the maximum distance, and at least
 //!   [`MIN_NEAR_FRACTION`] of the vertices are within it;
-//! - **parallel**: the mean `|cos|` between each line edge and the curve's tangent where the edge's
-//!   midpoint projects is at least the cosine of the maximum angle;
+//! - **parallel**: the mean `|cos|` between each line edge and the chord of the curve between the
+//!   projections of the edge's ends is at least the cosine of the maximum angle;
 //! - **the same length within reason**: the stretch of curve between the projections of the
 //!   line's ends (unrolled along a closed curve) is at least [`MIN_LENGTH_RATIO`] of the line's
 //!   length and at most its inverse.
@@ -68,7 +68,7 @@ pub struct PairSettings {
     pub max_distance: f32,
     /// The largest angle (degrees) between a line and its curve (default 30).
     pub max_angle: f32,
-    /// The lowest confidence a pair may have (default 0.3).
+    /// The lowest confidence a pair may have (default 0.5).
     pub min_confidence: f32,
 }
 
@@ -79,7 +79,7 @@ impl PairSettings {
         Self {
             max_distance,
             max_angle: 30.0,
-            min_confidence: 0.3,
+            min_confidence: 0.5,
         }
     }
 }
@@ -250,8 +250,16 @@ fn best_candidate(
             continue;
         }
         let mut cosine_sum = 0.0f32;
-        for pair in chain.windows(2) {
-            let (_, _, tangent) = curve.project((pair[0] + pair[1]) * 0.5);
+        for (pair, projected) in chain.windows(2).zip(projections.windows(2)) {
+            // The curve's direction over the stretch the edge projects onto (its chord: a polyline
+            // that zig-zags at the scale of the target's triangles is judged at the edge's scale),
+            // or its tangent where the edge's ends project to one point.
+            let chord = curve.point_at(projected[1].1) - curve.point_at(projected[0].1);
+            let tangent = if chord.length() > 1e-3 * pair[0].distance(pair[1]) {
+                chord.normalize()
+            } else {
+                curve.project((pair[0] + pair[1]) * 0.5).2
+            };
             cosine_sum += (pair[1] - pair[0]).normalize_or_zero().dot(tangent).abs();
         }
         let cosine = cosine_sum / (chain.len() - 1) as f32;

@@ -691,7 +691,7 @@ def pair_feature_lines(
     *,
     max_distance: float,
     max_angle: float = 30.0,
-    min_confidence: float = 0.3,
+    min_confidence: float = 0.5,
 ) -> list[LinePairing]:
     """Pairs feature lines with target curves (close, parallel, same kind, similar length) under the current
     fit; one :class:`LinePairing` per line, the curve index or why it stays free."""
