@@ -25,6 +25,7 @@ out): curves, their median length in layout edges, how many are shorter than 3 l
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
@@ -35,7 +36,7 @@ REPOSITORY = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPOSITORY))
 sys.path.insert(0, str(REPOSITORY / "blender_scripts"))
 
-from benchmarks._machine import write_json  # noqa: E402 - after the path is set
+from benchmarks._machine import cpu_model, write_json  # noqa: E402 - after the path is set
 from benchmarks.feature_detection import read_off  # noqa: E402
 
 DEFAULT_JSON = REPOSITORY / "out" / "bench" / "feature_lines.json"
@@ -285,6 +286,11 @@ def run(arguments: argparse.Namespace) -> dict:
         "detection": detection_measure(target, changed_segments, layout_edge),
         "rows": rows,
         "body": None if arguments.no_body else body_fragmentation(),
+        "machine": {
+            "cpu": cpu_model(),
+            "load_average": [round(value, 1) for value in os.getloadavg()],
+            "finished": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
+        },
     }
 
 
@@ -322,12 +328,20 @@ def markdown(result: dict) -> list[str]:
         f"than 3 edges; {100 * detection['crease_length_covered']:.0f} % of the true crease length lies within half "
         "a layout edge of a detected curve.",
     ]
+    machine = result.get("machine")
+    if machine:
+        lines += [
+            "",
+            f"One run on {machine['cpu']} (load average {', '.join(map(str, machine['load_average']))}), "
+            f"finished {machine['finished']}.",
+        ]
     body = result.get("body")
     if body:
         lines += [
             "",
             f"Fragmentation on the MakeHuman body voxel-remeshed with 4 mm voxels ({body['target_vertices']} "
-            f"vertices; layout median edge {1000 * body['layout_edge']:.1f} mm):",
+            f"vertices; layout median edge {1000 * body['layout_edge']:.1f} mm). Detect Features drops curves "
+            "shorter than three scales, so the count and the median length measure the fragmentation:",
             "",
             "| scale | curves | median length (layout edges) | shorter than 3 edges | length in curves of 5+ edges |",
             "|---|---:|---:|---:|---:|",

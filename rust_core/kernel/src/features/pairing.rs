@@ -308,6 +308,14 @@ fn reason_after(old: FreeReason, new: FreeReason) -> FreeReason {
     if rank(new) > rank(old) { new } else { old }
 }
 
+/// The error of a curve or line (`what` `index`, in the argument `name`) of fewer than 2 points.
+fn too_few(name: &'static str, what: &str, index: usize, count: usize) -> KernelError {
+    KernelError::InvalidArgument {
+        name,
+        reason: format!("{what} {index} has {count} points, it needs 2"),
+    }
+}
+
 /// Pairs each of `lines` (their vertices at `positions`, the current fit) with at most one of
 /// `curves` (see the module docs). One outcome per line, in order.
 ///
@@ -344,13 +352,7 @@ pub fn pair_lines(
     let mut prepared = Vec::with_capacity(curves.len());
     for (index, curve) in curves.iter().enumerate() {
         if curve.points.len() < 2 {
-            return Err(KernelError::InvalidArgument {
-                name: "target curves",
-                reason: format!(
-                    "curve {index} has {} points, it needs 2",
-                    curve.points.len()
-                ),
-            });
+            return Err(too_few("target curves", "curve", index, curve.points.len()));
         }
         validate::check_coordinates("curve point", &curve.points)?;
         prepared.push((curve.kind, Prepared::new(curve)));
@@ -364,13 +366,7 @@ pub fn pair_lines(
     let mut candidates = Vec::with_capacity(lines.len());
     for (index, line) in lines.iter().enumerate() {
         if line.vertices.len() < 2 {
-            return Err(KernelError::InvalidArgument {
-                name: "feature lines",
-                reason: format!(
-                    "line {index} has {} vertices, it needs 2",
-                    line.vertices.len()
-                ),
-            });
+            return Err(too_few("feature lines", "line", index, line.vertices.len()));
         }
         let mut chain = line.vertices.clone();
         if line.closed {
