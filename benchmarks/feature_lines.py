@@ -209,7 +209,7 @@ def body_fragmentation(voxel: float = 0.004) -> dict:
     }
 
 
-def run_case(anchors: int, with_pairing: bool, scene) -> dict:
+def run_case(anchors: int, with_pairing: bool, scene, feature_scale: float = 0.0) -> dict:
     """One wrap pair (see the module docs); the errors and the pairing's report."""
     import bpy
 
@@ -228,7 +228,8 @@ def run_case(anchors: int, with_pairing: bool, scene) -> dict:
     first = read_positions(layout.data)
     report = ""
     if with_pairing:
-        report = _call("feature_lines_pair", bpy.ops.springwrap.feature_lines_pair).strip().splitlines()[-1]
+        report = _call("feature_lines_pair", bpy.ops.springwrap.feature_lines_pair, feature_scale=feature_scale)
+        report = report.strip().splitlines()[-1]
     _call("wrap", bpy.ops.springwrap.wrap)
     seconds = time.perf_counter() - start
     result = read_positions(layout.data)
@@ -276,7 +277,11 @@ def run(arguments: argparse.Namespace) -> dict:
     target_mesh = springwrap_kernel.TargetMesh(*target_arrays(target))
     on_surface = target_mesh.closest_points(np.ascontiguousarray(truth, dtype=np.float32)).positions.astype(np.float64)
     scene = (target, rest, quads, truth, on_surface, crease, diagonal)
-    rows = [run_case(count, pairing, scene) for count in arguments.anchors for pairing in (False, True)]
+    rows = [
+        run_case(count, pairing, scene, arguments.feature_scale)
+        for count in arguments.anchors
+        for pairing in (False, True)
+    ]
     return {
         "mesh": arguments.off.name,
         "layout": {"maker": "QuadriFlow", "vertices": int(rest.shape[0]), "quads": int(quads.shape[0])},
@@ -360,6 +365,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--off", type=Path, required=True, help="fandisk.off (or another machined part)")
     parser.add_argument("--anchors", nargs="+", type=int, default=[8, 24])
     parser.add_argument("--faces", type=int, default=3000, help="QuadriFlow's target face count")
+    parser.add_argument(
+        "--feature-scale", type=float, default=0.0, help="Pair Feature Lines' feature scale (default 0: automatic)"
+    )
     parser.add_argument("--no-body", action="store_true", help="leave out the voxel-remeshed body's fragmentation")
     parser.add_argument("--json", type=Path, default=DEFAULT_JSON)
     arguments = parser.parse_args(argv)

@@ -123,6 +123,7 @@ def test_each_setting_changes_the_pairs(cube):
         ("min_confidence", 0.999),
         ("max_distance", 0.01),
         ("max_angle", 0.0),
+        ("feature_scale", 1.5),
     ]:
         arguments = {} if value is None else {name: value}
         assert bpy.ops.springwrap.feature_lines_pair(**arguments) == {"FINISHED"}

@@ -48,6 +48,11 @@ class SPRINGWRAP_OT_feature_lines_pair(LayoutCollectionOperator, bpy.types.Opera
         max=180.0,
     )
     use_borders: props.flag("Open Borders", "The layout's open borders (rims of holes) are feature lines", True)
+    feature_scale: props.distance(
+        "Feature Scale",
+        "Scale at which the target's ridges and valleys are detected (see Detect Features); 0 = automatic, from "
+        "the layout's median edge length",
+    )
     max_distance: props.distance(
         "Max Distance",
         "Farthest a line may lie from its feature (mean, under the current fit); 0 = "
@@ -87,7 +92,9 @@ class SPRINGWRAP_OT_feature_lines_pair(LayoutCollectionOperator, bpy.types.Opera
             existing = [item for item in existing if item.source_kind != curves.FEATURE_LINE]
         median_edge = line_data.median_layout_edge(lines_read)
         distance = self.max_distance or feature_lines.automatic_distance(median_edge)
-        found_curves, scale = line_data.read_target_features(depsgraph, check_target(layout), median_edge)
+        found_curves, scale = line_data.read_target_features(
+            depsgraph, check_target(layout), median_edge, scale=self.feature_scale
+        )
         anchored = anchors.anchored_mask(anchor_data.read_anchors(layout), lines_read.current.shape[0])
         pairing = feature_lines.pair_lines(
             lines,
