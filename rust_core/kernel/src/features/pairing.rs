@@ -335,7 +335,7 @@ pub fn pair_lines(
         "max_distance",
         "maximum distance",
         settings.max_distance,
-        SettingRange::above(0.0, validate::MAX_COORDINATE as f64),
+        SettingRange::above(0.0, f64::from(validate::MAX_COORDINATE)),
     )?;
     check_setting(
         "max_angle",
@@ -626,7 +626,15 @@ mod tests {
         let lines = [line(vec![0, 1], LineKind::Any)];
         let curve = straight(TargetCurveKind::Ridge, Vec3::ZERO, Vec3::X, 2);
         let bad_distance = PairSettings::with_distance(0.0);
-        assert!(pair_lines(&positions, &lines, &[curve.clone()], &bad_distance).is_err());
+        assert!(
+            pair_lines(
+                &positions,
+                &lines,
+                std::slice::from_ref(&curve),
+                &bad_distance
+            )
+            .is_err()
+        );
         let beyond = [line(vec![0, 7], LineKind::Any)];
         assert!(matches!(
             pair_lines(&positions, &beyond, &[], &PairSettings::with_distance(1.0)),

@@ -93,6 +93,9 @@ impl Default for LineSettings {
     }
 }
 
+/// An undirected edge: its two vertices, the smaller first.
+type Edge = (u32, u32);
+
 /// Key of an undirected edge.
 fn edge_key(a: u32, b: u32) -> (u32, u32) {
     (a.min(b), a.max(b))
@@ -120,7 +123,7 @@ fn edge_angles(
     positions: &[Vec3],
     face_corners: &[u32],
     face_sizes: &[u32],
-) -> (HashMap<(u32, u32), f32>, Vec<(u32, u32)>) {
+) -> (HashMap<Edge, f32>, Vec<Edge>) {
     let mut faces_of: HashMap<(u32, u32), Vec<usize>> = HashMap::new();
     let mut frames = Vec::with_capacity(face_sizes.len());
     let mut start = 0usize;
