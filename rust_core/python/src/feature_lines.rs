@@ -142,24 +142,24 @@ fn pair_feature_lines_py<'py>(
 ) -> PyResult<Vec<PairTuple<'py>>> {
     let positions = read_positions("positions", positions)?;
     let lines = lines
-        .iter()
+        .into_iter()
         .map(|(vertices, closed, kind)| {
             Ok(FeatureLine {
-                vertices: read_array::<u32>("line vertices", vertices, None)?,
-                closed: *closed,
-                kind: line_kind(kind)?,
+                vertices: read_array::<u32>("line vertices", &vertices, None)?,
+                closed,
+                kind: line_kind(&kind)?,
                 source: LineSource::Marked,
                 dihedral: 0.0,
             })
         })
         .collect::<PyResult<Vec<_>>>()?;
     let curves = curves
-        .iter()
+        .into_iter()
         .map(|(kind, points, closed)| {
             Ok(TargetCurve {
-                kind: curve_kind(kind)?,
-                points: read_positions("curve points", points)?,
-                closed: *closed,
+                kind: curve_kind(&kind)?,
+                points: read_positions("curve points", &points)?,
+                closed,
             })
         })
         .collect::<PyResult<Vec<_>>>()?;
