@@ -444,6 +444,22 @@ mod tests {
     use super::*;
     use crate::layout::LineSource;
 
+    /// `pair_lines` with the default settings at `distance`, which must succeed.
+    fn pair(
+        positions: &[Vec3],
+        lines: &[FeatureLine],
+        curves: &[TargetCurve],
+        distance: f32,
+    ) -> Vec<LinePairing> {
+        pair_lines(
+            positions,
+            lines,
+            curves,
+            &PairSettings::with_distance(distance),
+        )
+        .unwrap()
+    }
+
     fn line(vertices: Vec<u32>, kind: LineKind) -> FeatureLine {
         FeatureLine {
             vertices,
@@ -490,13 +506,7 @@ mod tests {
                 9,
             ),
         ];
-        let outcome = pair_lines(
-            &positions,
-            &lines,
-            &curves,
-            &PairSettings::with_distance(0.5),
-        )
-        .unwrap();
+        let outcome = pair(&positions, &lines, &curves, 0.5);
         assert_eq!(outcome[0].result, Ok(2));
         assert!(outcome[0].confidence > 0.7 && outcome[0].confidence < 1.0);
         assert_eq!(outcome[0].chain, vec![0, 1, 2, 3, 4]);
@@ -554,13 +564,7 @@ mod tests {
             Vec3::new(4.0, 0.0, 0.0),
             5,
         )];
-        let outcome = pair_lines(
-            &positions,
-            &lines,
-            &curves,
-            &PairSettings::with_distance(1.0),
-        )
-        .unwrap();
+        let outcome = pair(&positions, &lines, &curves, 1.0);
         assert_eq!(outcome[0].result, Err(FreeReason::Taken));
         assert_eq!(outcome[1].result, Ok(0));
         // A closed line round a closed curve: the chain comes back to its first vertex.
@@ -574,13 +578,7 @@ mod tests {
             points: square.iter().map(|p| *p * 1.02).collect(),
             closed: true,
         };
-        let outcome = pair_lines(
-            &square,
-            &[ring],
-            &[loop_curve],
-            &PairSettings::with_distance(0.2),
-        )
-        .unwrap();
+        let outcome = pair(&square, &[ring], &[loop_curve], 0.2);
         assert_eq!(outcome[0].chain, vec![0, 1, 2, 3, 0]);
         let target = &outcome[0].target;
         assert!(target[0].distance(target[target.len() - 1]) < 1e-4);
@@ -609,13 +607,7 @@ mod tests {
                 5,
             ),
         ];
-        let outcome = pair_lines(
-            &positions,
-            &lines,
-            &curves,
-            &PairSettings::with_distance(0.5),
-        )
-        .unwrap();
+        let outcome = pair(&positions, &lines, &curves, 0.5);
         assert_eq!(outcome[0].chain, vec![0, 1, 2, 3]);
         assert_eq!(outcome[1].chain, vec![5, 6, 7, 8]);
     }
