@@ -140,12 +140,19 @@ test-all-lanes: test test-bpy42 test-blender34 test-gui
 BENCH_QUICK := $(if $(QUICK),--quick,)
 BENCH_OUT ?= out/bench
 BENCH_DOCS ?= docs
+# CGAL's fandisk (a machined part) from Debian's libcgal-demo, for benchmarks/feature_lines.py.
+FANDISK ?= out/data/fandisk.off
+
+$(FANDISK):
+	mkdir -p $(@D)/cgal && cd $(@D)/cgal && apt-get download libcgal-demo && dpkg-deb -x libcgal-demo_*.deb x \
+	  && tar xzf x/usr/share/doc/libcgal-dev/data.tar.gz data/meshes/fandisk.off
+	cp $(@D)/cgal/data/meshes/fandisk.off $@
 
 $(STAMPS)/bench-requirements: $(STAMPS)/venv benchmarks/requirements.txt
 	$(PY) -m pip install --quiet -r benchmarks/requirements.txt
 	touch $@
 
-bench: setup $(STAMPS)/bench-requirements
+bench: setup $(STAMPS)/bench-requirements $(FANDISK)
 	$(PY) -m benchmarks.retarget.run $(BENCH_QUICK) --json $(BENCH_OUT)/retarget.json
 	$(PY) benchmarks/performance.py $(BENCH_QUICK) --json $(BENCH_OUT)/performance.json
 	$(PY) benchmarks/snap_throughput.py $(BENCH_QUICK) --json $(BENCH_OUT)/snap_throughput.json
@@ -162,6 +169,8 @@ bench: setup $(STAMPS)/bench-requirements
 	$(PY) benchmarks/few_anchors.py $(if $(QUICK),--cases heavy --anchors 6 24,) --json $(BENCH_OUT)/few_anchors.json
 	$(PY) benchmarks/parts.py $(if $(QUICK),--cases heavy,) --json $(BENCH_OUT)/parts.json
 	$(PY) benchmarks/sequence.py $(if $(QUICK),--frames 8,) --json $(BENCH_OUT)/sequence.json
+	$(PY) benchmarks/feature_lines.py --off $(FANDISK) $(if $(QUICK),--anchors 8 --no-body,) \
+	  --json $(BENCH_OUT)/feature_lines.json
 	$(PY) benchmarks/figures.py $(if $(QUICK),--cases heavy,) --retarget $(BENCH_OUT)/retarget.json \
 	  --performance $(BENCH_OUT)/performance.json --positions $(BENCH_OUT)/retarget-positions --output $(BENCH_DOCS)/img
 	$(PY) benchmarks/report.py --retarget $(BENCH_OUT)/retarget.json --performance $(BENCH_OUT)/performance.json \
@@ -172,6 +181,7 @@ bench: setup $(STAMPS)/bench-requirements
 	  --parts $(BENCH_OUT)/parts.json \
 	  --sequence $(BENCH_OUT)/sequence.json \
 	  --pair-tool $(BENCH_OUT)/pair_tool.json \
+	  --feature-lines $(BENCH_OUT)/feature_lines.json \
 	  --output $(BENCH_DOCS)/benchmarks.md
 
 clean:

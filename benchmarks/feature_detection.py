@@ -18,7 +18,7 @@ import numpy as np
 import springwrap_kernel as sk
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
-from test_feature_binding import rounded_box
+from helpers import rounded_box
 
 
 def read_off(path: Path):

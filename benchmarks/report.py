@@ -1069,6 +1069,7 @@ def build_document(
     parts: dict | None = None,
     sequence: dict | None = None,
     pair_tool: dict | None = None,
+    feature_lines: dict | None = None,
 ) -> str:
     """The whole of ``docs/benchmarks.md``."""
     lines = [
@@ -1100,6 +1101,7 @@ def build_document(
         ".venv/bin/python benchmarks/sequence.py [--frames N] --json out/bench/sequence.json",
         ".venv/bin/python benchmarks/pair_tool.py --json out/bench/pair_tool.json",
         ".venv/bin/python benchmarks/dense_target.py [--sizes N ...] [--no-wrap] --json out/bench/dense_target.json",
+        ".venv/bin/python benchmarks/feature_lines.py --off fandisk.off --json out/bench/feature_lines.json",
         ".venv/bin/python benchmarks/figures.py && .venv/bin/python benchmarks/report.py",
         "```",
         "",
@@ -1160,6 +1162,10 @@ def build_document(
         from benchmarks.feature_curves import markdown_lines
 
         lines += markdown_lines(features)
+    if feature_lines is not None:  # benchmarks/feature_lines.py
+        from benchmarks.feature_lines import markdown as feature_lines_markdown
+
+        lines += feature_lines_markdown(feature_lines) + [""]
     if sequence is not None:  # benchmarks/sequence.py
         sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
         from benchmarks.sequence import markdown as sequence_markdown
@@ -1231,6 +1237,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--sequence", type=Path, default=OUT / "sequence.json")
     parser.add_argument("--pair-tool", type=Path, default=OUT / "pair_tool.json")
+    parser.add_argument("--feature-lines", type=Path, default=OUT / "feature_lines.json")
     parser.add_argument("--output", type=Path, default=DOCS / "benchmarks.md")
     arguments = parser.parse_args(sys.argv[1:] if argv is None else argv)
     if arguments.only:
@@ -1272,6 +1279,7 @@ def main(argv: list[str] | None = None) -> int:
             load(arguments.parts),
             load(arguments.sequence),
             load(arguments.pair_tool),
+            load(arguments.feature_lines),
         )
     )
     print(f"wrote {arguments.output}")

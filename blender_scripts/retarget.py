@@ -245,6 +245,12 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
         help="after the wrap, fit the layout as a subdivision cage: its Subdivision Surface at LEVELS (1 to 6) "
         "onto the target (the report gains the surface's distances before and after)",
     )
+    parser.add_argument(
+        "--feature-lines",
+        action="store_true",
+        help="after the wrap, pair the template's feature lines (sharp edges, creases, open borders) with the "
+        "target's ridges, valleys and hole borders as curve constraints, and wrap again (the report lists them)",
+    )
     add_shape_keys_argument(parser)
     parser.add_argument(
         "--sequence",
@@ -470,6 +476,21 @@ def wrap_sequence(layout, parameters, frames: list[int]) -> tuple:
     return run.first_result, block
 
 
+def feature_lines_report(layout) -> dict:
+    """The feature pairs on the layout (chain ends, vertex count, confidence) and the lines left free."""
+    pairs = [
+        {
+            "chain": [int(item.layout_vertices.split()[0]), int(item.layout_vertices.split()[-1])],
+            "vertices": len(item.layout_vertices.split()),
+            "confidence": round(item.confidence, 3),
+        }
+        for item in layout.springwrap.curve_constraints
+        if item.source_kind == "FEATURE_LINE"
+    ]
+    free = addon_module("blender.feature_lines").free_lines(layout.name)
+    return {"paired": pairs, "free": [{"line": label, "reason": reason} for label, reason in free]}
+
+
 def retarget(arguments: argparse.Namespace) -> dict:
     """Load, align, detach, anchor, wrap, measure, write; the report (also written to --report)."""
     WrapSession = addon_module("blender.wrap_session").WrapSession  # noqa: N806 - a class of the enabled add-on
@@ -574,6 +595,17 @@ def retarget(arguments: argparse.Namespace) -> dict:
             "surface (space-points)"
         )
     lap("wrap")
+    feature_lines = None
+    if getattr(arguments, "feature_lines", False) and frames is None:
+        run_operator(blame, "feature_lines_pair")
+        feature_lines = feature_lines_report(layout)
+        try:
+            session = WrapSession(bpy.context, layout, parameters, shape_keys=arguments.shape_keys)
+        except ERRORS as error:
+            raise ScriptError(f"{blame}: cannot wrap with the feature pairs: {error}") from None
+        session.run()
+        result = session.finish()
+        lap("feature lines")
 
     subdivision_fit = None
     if arguments.fit_subdivision:
@@ -601,6 +633,7 @@ def retarget(arguments: argparse.Namespace) -> dict:
             "parts": result.parts,
         },
         "fit_subdivision": subdivision_fit,
+        "feature_lines": feature_lines,
         "sequence": sequence,
         "shape_keys": shape_keys_report(layout, arguments.shape_keys),
         "metrics": distances_to_target(layout, target),
@@ -654,6 +687,7 @@ def batch_task(arguments: argparse.Namespace, target: Path, output_dir: Path, sh
             "surface_group",
             "no_find_parts",
             "fit_subdivision",
+            "feature_lines",
             "shape_keys",
             "up_axis",
             "forward_axis",

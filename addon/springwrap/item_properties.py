@@ -67,6 +67,13 @@ CURVE_SOURCE_ITEMS = (
         0,
     ),
     ("TARGET_EDGES", "Target Edges", "The target curve is a chain of target mesh edges", "EDGESEL", 1),
+    (
+        "FEATURE_LINE",
+        "Feature Pair",
+        "A layout feature line paired with a stretch of a target feature (ridge, valley, hole border)",
+        "SHARPCURVE",
+        2,
+    ),
 )
 """Sources of a curve constraint's target curve (``curves.CURVE_OBJECT`` / ``curves.TARGET_EDGES``)."""
 
@@ -99,4 +106,11 @@ class SpringwrapCurveConstraintItem(bpy.types.PropertyGroup):
         "Points",
         "The target polyline in world space, as last resolved (its start at the chain's start)",
         SpringwrapCurvePointItem,
+    )
+    confidence: props.number(
+        "Confidence",
+        "How sure Pair Feature Lines was of this pair (0 to 1; 0 for a constraint added otherwise)",
+        0.0,
+        min=0.0,
+        max=1.0,
     )

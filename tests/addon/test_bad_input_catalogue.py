@@ -315,6 +315,7 @@ OPERATORS = {
     "curve_constraints_auto": ({}, ALL_LAYOUT),
     "curve_constraint_remove": ({}, set()),
     "curve_constraints_clear": ({}, set()),
+    "feature_lines_pair": ({}, ALL_LAYOUT),
     "wrap": ({"max_iterations": 30}, ALL_LAYOUT | {"anchor vertices", "shape key data"}),
     "mirror": ({"axis": "Y", "max_iterations": 30}, ALL_LAYOUT | {"anchor vertices", "shape key data"}),
     "wrap_sequence": (

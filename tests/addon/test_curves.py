@@ -406,6 +406,7 @@ def test_panel_lists_the_constraints_with_their_buttons():
         "springwrap.curve_constraint_remove",
         "springwrap.curve_constraints_clear",
         "springwrap.curve_constraints_auto",
+        "springwrap.feature_lines_pair",
     ]
     assert recorder.operators[0][1].curve_object == "Curve"
     assert recorder.lists == [("SPRINGWRAP_UL_curve_constraints", "curve_constraints", "active_curve_constraint_index")]

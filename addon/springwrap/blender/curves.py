@@ -84,6 +84,7 @@ def write_curve_constraints(layout: bpy.types.Object, constraints, active_index:
         item.source_kind = constraint.source_kind
         item.curve_object = constraint.curve_object if constraint.source_kind == curves.CURVE_OBJECT else None
         item.target_vertices = curves.format_indices(constraint.target_vertices)
+        item.confidence = constraint.confidence
         for _ in range(constraint.points.shape[0]):
             item.points.add()
         if constraint.points.shape[0]:
@@ -106,7 +107,11 @@ def resolve_curve_constraints(depsgraph: bpy.types.Depsgraph, layout: bpy.types.
     target_positions = None
     resolved = []
     for number, constraint in enumerate(constraints):
-        if constraint.source_kind == curves.CURVE_OBJECT:
+        if constraint.source_kind == curves.FEATURE_LINE:  # the stretch of feature found by pairing, kept
+            if constraint.points.shape[0] < 2:
+                raise LayoutError(f"Curve constraint {number} has lost its feature curve: pair the feature lines again")
+            points = constraint.points
+        elif constraint.source_kind == curves.CURVE_OBJECT:
             if constraint.points.shape[0] >= 2:
                 reference = constraint.points
             else:

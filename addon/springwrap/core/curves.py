@@ -23,6 +23,8 @@ CURVE_OBJECT = "CURVE_OBJECT"
 """Source of a constraint whose target is a Blender curve object."""
 TARGET_EDGES = "TARGET_EDGES"
 """Source of a constraint whose target is a chain of target mesh edges."""
+FEATURE_LINE = "FEATURE_LINE"
+"""Source of a constraint pairing a layout feature line with a stretch of a target feature (the polyline kept)."""
 
 SKIP_REASONS = {
     "closed": "the layout curve is closed",
@@ -42,6 +44,7 @@ class CurveConstraint(NamedTuple):
     source_kind: str  # CURVE_OBJECT or TARGET_EDGES
     target_vertices: np.ndarray  # (P,) int64 target vertices of a TARGET_EDGES polyline, empty otherwise
     curve_object: Any = None  # the curve object of a CURVE_OBJECT constraint (opaque here)
+    confidence: float = 0.0  # how sure the pairing of a FEATURE_LINE constraint was (0 to 1)
 
 
 class AutoOutcome(NamedTuple):
@@ -51,9 +54,11 @@ class AutoOutcome(NamedTuple):
     skipped: dict  # SKIP_REASONS key -> count
 
 
-def make_constraint(layout_vertices, points, source_kind, target_vertices=(), curve_object=None) -> CurveConstraint:
+def make_constraint(
+    layout_vertices, points, source_kind, target_vertices=(), curve_object=None, confidence=0.0
+) -> CurveConstraint:
     """A :class:`CurveConstraint` with the right dtypes and shapes."""
-    if source_kind not in (CURVE_OBJECT, TARGET_EDGES):
+    if source_kind not in (CURVE_OBJECT, TARGET_EDGES, FEATURE_LINE):
         raise ValueError(f"unknown curve constraint source {source_kind!r}")
     return CurveConstraint(
         layout_vertices=np.asarray(layout_vertices, dtype=np.int64).reshape(-1).copy(),
@@ -61,6 +66,7 @@ def make_constraint(layout_vertices, points, source_kind, target_vertices=(), cu
         source_kind=source_kind,
         target_vertices=np.asarray(target_vertices, dtype=np.int64).reshape(-1).copy(),
         curve_object=curve_object,
+        confidence=float(confidence),
     )
 
 

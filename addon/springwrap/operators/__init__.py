@@ -7,6 +7,7 @@ from . import (
     armature,
     cage_fit,
     curves,
+    feature_lines,
     features,
     mirror,
     pair_tool,
@@ -28,6 +29,7 @@ classes = (
     + sequence.classes
     + armature.classes
     + features.classes
+    + feature_lines.classes
     + mirror.classes
     + cage_fit.classes
     + quality.classes

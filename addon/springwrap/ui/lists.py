@@ -261,6 +261,8 @@ class SPRINGWRAP_UL_curve_constraints(bpy.types.UIList):
             name = item.curve_object.name if item.curve_object is not None else "(missing curve)"
             row.alert = item.curve_object is None
             row.label(text=name, icon="CURVE_DATA")
+        elif item.source_kind == "FEATURE_LINE":
+            row.label(text=f"feature, confidence {item.confidence:.2f}", icon="SHARPCURVE")
         else:
             row.label(text=f"{len(item.points)} target vertices", icon="MESH_DATA")
 

@@ -252,7 +252,9 @@ class SPRINGWRAP_PT_curve_constraints(_ToolPanel, bpy.types.Panel):
         column.separator()
         column.operator("springwrap.curve_constraints_clear", icon="X", text="")
         _split(layout.column()).prop(settings, "curve_source")
-        layout.operator("springwrap.curve_constraints_auto", icon="AUTO")
+        row = layout.row(align=True)
+        row.operator("springwrap.curve_constraints_auto", icon="AUTO")
+        row.operator("springwrap.feature_lines_pair", icon="SHARPCURVE")
 
 
 class SPRINGWRAP_PT_wrap(_LayoutSubPanel, bpy.types.Panel):

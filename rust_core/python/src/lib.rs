@@ -9,6 +9,7 @@ mod arguments;
 mod arrays;
 mod correspond;
 mod errors;
+mod feature_lines;
 mod features;
 mod fit;
 mod layout;
@@ -34,6 +35,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     correspond::register(m)?;
     errors::register(m)?;
     features::register(m)?;
+    feature_lines::register(m)?;
     fit::register(m)?;
     quality::register(m)?;
     parts::register(m)?;

@@ -44,6 +44,7 @@ from ._native import (
     feature_defaults,
     fit_transform,
     flipped_faces,
+    layout_feature_lines,
     layout_pieces,
     layout_readout,
     proposal_defaults,
@@ -67,6 +68,7 @@ __all__ = [
     "FlatSurfaceError",
     "IcpReport",
     "IndexOutOfRangeError",
+    "LinePairing",
     "Proposals",
     "InternalError",
     "InvalidArgumentError",
@@ -90,8 +92,10 @@ __all__ = [
     "feature_defaults",
     "fit_transform",
     "flipped_faces",
+    "layout_feature_lines",
     "layout_pieces",
     "layout_readout",
+    "pair_feature_lines",
     "proposal_defaults",
     "propose_correspondences",
     "subdivision_fit_defaults",
@@ -156,6 +160,28 @@ class Features(NamedTuple):
     curves: list
     scale: float
     """The scale used: the one given, or the automatic one."""
+
+
+class LinePairing(NamedTuple):
+    """One feature line's outcome of :func:`pair_feature_lines`."""
+
+    curve: int | None
+    """The index of the curve it follows, or None when it stays free."""
+    reason: str | None
+    """Why it stays free (NONE_NEARBY, NOT_PARALLEL, LENGTH_DIFFERS, LOW_CONFIDENCE, TAKEN), or None."""
+    confidence: float
+    chain: np.ndarray
+    """(C,) uint32 the layout chain to constrain (a closed line ends on its first vertex again)."""
+    target: np.ndarray
+    """(P, 3) float32 the target polyline in the chain's direction."""
+
+
+def pair_feature_lines(positions, lines, curves, **settings) -> list:
+    """Pairs layout feature lines with target feature curves under the current fit (``positions``,
+    (N, 3) float32). ``lines``: (vertices uint32, closed, kind) each, ``curves``: (kind, points
+    (P, 3) float32, closed) each; settings ``max_distance`` (required), ``max_angle`` (degrees),
+    ``min_confidence``. A :class:`LinePairing` per line."""
+    return [LinePairing(*outcome) for outcome in _native.pair_feature_lines(positions, lines, curves, **settings)]
 
 
 class Proposals(NamedTuple):

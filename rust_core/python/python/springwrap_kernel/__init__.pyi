@@ -659,3 +659,40 @@ def propose_correspondences(
 
 def proposal_defaults() -> dict[str, float | int]:
     """The proposals' defaults: max_count, min_confidence, search_radius, feature_scale, min_anchors."""
+
+# ---------------------------------------------------------------- feature lines
+def layout_feature_lines(
+    positions: npt.NDArray[np.float32],
+    face_corners: npt.NDArray[np.uint32],
+    face_sizes: npt.NDArray[np.uint32],
+    *,
+    marked: npt.NDArray[np.uint32] | None = None,
+    crease_degrees: float = 30.0,
+    borders: bool = True,
+    min_edges: int = 2,
+) -> list[tuple[str, str, npt.NDArray[np.uint32], bool, float]]:
+    """The layout's feature lines: (kind RIDGE/VALLEY/BORDER/ANY, source MARKED/CREASE/BORDER, vertices,
+    closed, mean signed dihedral in degrees) each. ``marked``: (K, 2) edges the artist marked; creases
+    beyond ``crease_degrees`` (0: none) and open borders (``borders``) are found on ``positions``. A
+    marked line that crosses itself raises InvalidArgumentError."""
+
+class LinePairing(NamedTuple):
+    """One feature line's outcome of :func:`pair_feature_lines`."""
+
+    curve: int | None
+    reason: str | None
+    confidence: float
+    chain: npt.NDArray[np.uint32]
+    target: npt.NDArray[np.float32]
+
+def pair_feature_lines(
+    positions: npt.NDArray[np.float32],
+    lines: list[tuple[npt.NDArray[np.uint32], bool, str]],
+    curves: list[tuple[str, npt.NDArray[np.float32], bool]],
+    *,
+    max_distance: float,
+    max_angle: float = 30.0,
+    min_confidence: float = 0.5,
+) -> list[LinePairing]:
+    """Pairs feature lines with target curves (close, parallel, same kind, similar length) under the current
+    fit; one :class:`LinePairing` per line, the curve index or why it stays free."""

@@ -1,0 +1,178 @@
+"""The layout's feature lines paired with the target's feature curves, on arrays (numpy + kernel, no ``bpy``).
+
+A feature line is a chain of layout edges that should land on a feature of the target: edges the artist marked
+(sharp or seam edges, a vertex group, a boolean edge attribute), creases of the layout's rest shape (dihedral
+angle) and open borders (the rim of a hole). The kernel finds and chains them
+(``springwrap_kernel.layout_feature_lines``) and pairs each with a target ridge, valley or hole border that is
+close under the current fit, parallel, of its kind and about as long (``springwrap_kernel.pair_feature_lines``);
+each pair becomes a curve constraint whose target is that stretch of curve, with the pair's confidence. Lines
+without a partner stay free and are listed.
+"""
+
+from typing import NamedTuple
+
+import numpy as np
+
+import springwrap_kernel
+
+from . import curves
+from .errors import LayoutError
+
+FREE_REASONS = {
+    "NONE_NEARBY": "no target feature of its kind nearby",
+    "NOT_PARALLEL": "the nearby features run across it",
+    "LENGTH_DIFFERS": "the nearby features are much shorter or longer",
+    "LOW_CONFIDENCE": "below the minimum confidence",
+    "TAKEN": "a more confident line follows that feature",
+    "CONSTRAINED": "its vertices already follow another curve constraint",
+}
+"""Why a feature line stays free (the kernel's reasons, and one of the add-on's), as said in reports."""
+
+DISTANCE_EDGES = 1.0
+"""The automatic maximum distance between a line and its curve, in median layout edge lengths."""
+
+
+class FeatureLine(NamedTuple):
+    """A layout feature line as the kernel found it."""
+
+    kind: str  # RIDGE, VALLEY, BORDER or ANY (what it may pair with)
+    source: str  # MARKED, CREASE or BORDER
+    vertices: np.ndarray  # (C,) int64 in order; a closed line does not repeat its first vertex
+    closed: bool
+    dihedral: float  # mean signed dihedral angle, degrees (convex positive)
+
+
+class Pairing(NamedTuple):
+    """What :func:`pair_lines` found: the new constraints and the lines left free."""
+
+    constraints: list  # of curves.CurveConstraint (source FEATURE_LINE, with a confidence)
+    free: list  # of (FeatureLine, FREE_REASONS key)
+
+
+def marked_edges(edges, flags) -> np.ndarray:
+    """(K, 2) uint32: the rows of ``edges`` ((E, 2) vertex pairs) whose flag ((E,) bool) is set."""
+    edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    return np.ascontiguousarray(edges[np.asarray(flags, dtype=bool).reshape(-1)], dtype=np.uint32)
+
+
+def group_edges(edges, member, group_name: str) -> np.ndarray:
+    """(K, 2) uint32: the edges both of whose vertices are in the vertex group (``member``: (N,) bool).
+
+    Raises :class:`LayoutError` when no edge lies in the group (an empty group, or scattered vertices)."""
+    edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    member = np.asarray(member, dtype=bool)
+    inside = member[edges[:, 0]] & member[edges[:, 1]] if edges.size else np.zeros(0, dtype=bool)
+    if not inside.any():
+        raise LayoutError(
+            f"Vertex group '{group_name}' holds no edge ({int(member.sum())} vertices, none joined by an edge): "
+            "assign the vertices of whole edge chains to it"
+        )
+    return marked_edges(edges, inside)
+
+
+def find_lines(positions, face_corners, face_sizes, marked, crease_degrees: float, borders: bool) -> list:
+    """The layout's feature lines (:class:`FeatureLine`) at ``positions`` ((N, 3) world rest shape).
+
+    Raises the kernel's ``InvalidArgumentError`` for a marked line that crosses itself."""
+    found = springwrap_kernel.layout_feature_lines(
+        np.ascontiguousarray(positions, dtype=np.float32),
+        np.ascontiguousarray(face_corners, dtype=np.uint32),
+        np.ascontiguousarray(face_sizes, dtype=np.uint32),
+        marked=np.ascontiguousarray(marked, dtype=np.uint32).reshape(-1, 2),
+        crease_degrees=float(crease_degrees),
+        borders=bool(borders),
+    )
+    return [
+        FeatureLine(kind, source, np.asarray(vertices, dtype=np.int64), bool(closed), float(dihedral))
+        for kind, source, vertices, closed, dihedral in found
+    ]
+
+
+def target_curves(feature_curves, target_positions, triangles) -> list:
+    """(kind, (P, 3) float32 points, closed) per target feature: each ridge and valley of ``feature_curves``
+    (the kernel's ``FeatureCurve``), then each open border of the target's triangles (a hole's rim)."""
+    found = [
+        (curve.kind, np.ascontiguousarray(curve.points, dtype=np.float32), bool(curve.closed))
+        for curve in feature_curves
+    ]
+    target_positions = np.ascontiguousarray(target_positions, dtype=np.float32)
+    triangles = np.ascontiguousarray(triangles, dtype=np.uint32).reshape(-1, 3)
+    borders = springwrap_kernel.layout_feature_lines(
+        target_positions,
+        triangles.reshape(-1),
+        np.full(triangles.shape[0], 3, dtype=np.uint32),
+        crease_degrees=0.0,
+        borders=True,
+    )
+    for _kind, _source, vertices, closed, _dihedral in borders:
+        found.append(("BORDER", np.ascontiguousarray(target_positions[vertices]), bool(closed)))
+    return found
+
+
+def pair_lines(lines, current, curves_found, anchored, existing, max_distance: float, **settings) -> Pairing:
+    """Pair ``lines`` with ``curves_found`` (:func:`target_curves`) under the current fit (``current``, (N, 3)
+    world positions). A paired line whose vertices (``anchored`` ones excepted) already follow one of
+    ``existing`` constraints stays free. ``settings``: ``max_angle`` (degrees), ``min_confidence``."""
+    outcomes = springwrap_kernel.pair_feature_lines(
+        np.ascontiguousarray(current, dtype=np.float32),
+        [(np.ascontiguousarray(line.vertices, dtype=np.uint32), line.closed, line.kind) for line in lines],
+        curves_found,
+        max_distance=float(max_distance),
+        **settings,
+    )
+    constraints, free = [], []
+    held = curves.constrained_vertices(existing, anchored)
+    for line, outcome in zip(lines, outcomes):
+        if outcome.curve is None:
+            free.append((line, outcome.reason))
+            continue
+        chain = np.asarray(outcome.chain, dtype=np.int64)
+        if any(vertex in held and not anchored[vertex] for vertex in chain.tolist()):
+            free.append((line, "CONSTRAINED"))
+            continue
+        constraints.append(
+            curves.make_constraint(chain, outcome.target, curves.FEATURE_LINE, confidence=float(outcome.confidence))
+        )
+    return Pairing(constraints, free)
+
+
+def automatic_distance(median_edge: float) -> float:
+    """The maximum line-to-curve distance used when none is given: :data:`DISTANCE_EDGES` median edge lengths."""
+    if not median_edge > 0.0:
+        raise LayoutError("The layout has no edge of non-zero length: give the maximum distance")
+    return DISTANCE_EDGES * median_edge
+
+
+def line_label(line: FeatureLine) -> str:
+    """``"crease (ridge) 12-13-...-40, 9 vertices"``: a line as a report names it."""
+    source = {"MARKED": "marked line", "CREASE": "crease", "BORDER": "border"}[line.source]
+    ends = (
+        f"{int(line.vertices[0])}…{int(line.vertices[-1])}" if not line.closed else f"loop at {int(line.vertices[0])}"
+    )
+    return f"{source} ({line.kind.lower()}) {ends}, {line.vertices.size} vertices"
+
+
+def pairing_report(line_count: int, pairing: Pairing, listed: int = 5) -> tuple[str, str]:
+    """``(report level, text)``: how many lines were paired (with their confidences), and the free ones listed
+    (the first ``listed``) with why."""
+    paired = len(pairing.constraints)
+    if line_count == 0:
+        return "WARNING", (
+            "The layout has no feature lines: mark edges sharp (or give a vertex group or edge attribute), "
+            "or lower the crease angle"
+        )
+    text = f"Paired {paired} of {line_count} feature line{'' if line_count == 1 else 's'}"
+    if paired:
+        confidences = [constraint.confidence for constraint in pairing.constraints]
+        text += f" (confidence {min(confidences):.2f} to {max(confidences):.2f})"
+    if pairing.free:
+        reasons = {}
+        for _line, reason in pairing.free:
+            reasons[reason] = reasons.get(reason, 0) + 1
+        text += f"; {len(pairing.free)} free: " + ", ".join(
+            f"{count} {FREE_REASONS[reason]}" for reason, count in reasons.items()
+        )
+        shown = "; ".join(f"{line_label(line)}: {FREE_REASONS[reason]}" for line, reason in pairing.free[:listed])
+        more = len(pairing.free) - listed
+        text += f" [{shown}{f'; {more} more' if more > 0 else ''}]"
+    return ("INFO" if paired else "WARNING"), text

@@ -1,0 +1,122 @@
+"""``springwrap.feature_lines_pair``: the layout's feature lines paired with the target's features as curve
+constraints.
+
+The layout's feature lines are the edges the artist marked (sharp edges, seams, a vertex group, a boolean edge
+attribute) and, on its rest shape, its creases (dihedral angle) and open borders; the target's features are its
+ridges and valleys (Detect Features at the automatic scale for the layout's edge length) and the borders of its
+holes. Each line is paired with a feature close to it under the current fit, parallel, of its kind and about as
+long; the pair becomes a curve constraint (source Feature Pair, with its confidence) that the next wrap follows.
+Lines without a partner stay free and are listed in the report. Everything is computed first and written only
+when it succeeded; a bad input (a marked line that crosses itself, an empty group) changes nothing.
+"""
+
+import time
+
+import bpy
+
+from .. import property_kinds as props
+from ..blender import anchors as anchor_data
+from ..blender import curves as curve_data
+from ..blender import feature_lines as line_data
+from ..blender.target import check_target
+from ..core import anchors, curves, feature_lines
+from .base import LayoutCollectionOperator
+
+
+class SPRINGWRAP_OT_feature_lines_pair(LayoutCollectionOperator, bpy.types.Operator):
+    """Pair the layout's feature lines (marked edges, creases, open borders) with the target's ridges, valleys and hole borders nearby, as curve constraints"""
+
+    bl_label = "Pair Feature Lines"
+
+    collection = "curve_constraints"
+    active_index = "active_curve_constraint_index"
+
+    use_sharp: props.flag("Sharp Edges", "The layout's edges marked sharp are feature lines", True)
+    use_seams: props.flag("Seams", "The layout's edges marked as seams are feature lines", False)
+    vertex_group: props.text(
+        "Vertex Group", "Edges both of whose vertices are in this layout vertex group are feature lines; empty: none"
+    )
+    edge_attribute: props.text(
+        "Edge Attribute", "Edges whose boolean edge attribute of this name is set are feature lines; empty: none"
+    )
+    crease_angle: props.number(
+        "Crease Angle",
+        "Edges of the layout's rest shape whose two faces' normals differ by more than this (degrees) are "
+        "creases, feature lines too; 0: no creases",
+        30.0,
+        min=0.0,
+        max=180.0,
+    )
+    use_borders: props.flag("Open Borders", "The layout's open borders (rims of holes) are feature lines", True)
+    feature_scale: props.distance(
+        "Feature Scale",
+        "Scale at which the target's ridges and valleys are detected (see Detect Features); 0 = automatic, from "
+        "the layout's median edge length",
+    )
+    max_distance: props.distance(
+        "Max Distance",
+        "Farthest a line may lie from its feature (mean, under the current fit); 0 = "
+        f"{feature_lines.DISTANCE_EDGES:g} median layout edge lengths",
+    )
+    max_angle: props.number(
+        "Max Angle", "Largest angle (degrees) between a line and its feature", 30.0, min=0.0, max=90.0
+    )
+    min_confidence: props.number(
+        "Min Confidence",
+        "Pairs less sure than this (closeness x parallelism x length agreement, 0 to 1) are not made",
+        0.5,
+        min=0.0,
+        max=1.0,
+        subtype="FACTOR",
+    )
+    replace: props.flag(
+        "Replace", "Remove the feature pairs made before (other curve constraints stay) before pairing again", True
+    )
+
+    def run(self, context, layout):
+        start = time.perf_counter()
+        depsgraph = context.evaluated_depsgraph_get()
+        lines_read = line_data.read_layout_lines(
+            layout, self.use_sharp, self.use_seams, self.vertex_group, self.edge_attribute
+        )
+        lines = feature_lines.find_lines(
+            lines_read.rest,
+            lines_read.face_corners,
+            lines_read.face_sizes,
+            lines_read.marked,
+            self.crease_angle,
+            self.use_borders,
+        )
+        existing = curve_data.read_curve_constraints(layout)
+        if self.replace:
+            existing = [item for item in existing if item.source_kind != curves.FEATURE_LINE]
+        median_edge = line_data.median_layout_edge(lines_read)
+        distance = self.max_distance or feature_lines.automatic_distance(median_edge)
+        found_curves, scale = line_data.read_target_features(
+            depsgraph, check_target(layout), median_edge, scale=self.feature_scale
+        )
+        anchored = anchors.anchored_mask(anchor_data.read_anchors(layout), lines_read.current.shape[0])
+        pairing = feature_lines.pair_lines(
+            lines,
+            lines_read.current,
+            found_curves,
+            anchored,
+            existing,
+            distance,
+            max_angle=self.max_angle,
+            min_confidence=self.min_confidence,
+        )
+        curve_data.write_curve_constraints(layout, existing + pairing.constraints, -1)
+        line_data.remember_free(
+            layout.name,
+            [(feature_lines.line_label(line), feature_lines.FREE_REASONS[reason]) for line, reason in pairing.free],
+        )
+        level, text = feature_lines.pairing_report(len(lines), pairing)
+        text += (
+            f"; {len(found_curves)} target features at scale {scale:.4g}, max distance {distance:.4g} "
+            f"({time.perf_counter() - start:.2f} s)"
+        )
+        return [({level}, text)]
+
+
+classes = (SPRINGWRAP_OT_feature_lines_pair,)

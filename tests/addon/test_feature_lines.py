@@ -1,0 +1,182 @@
+"""Pair Feature Lines under Blender (PyPI ``bpy``): a cube layout's creases and marked edges paired with a rounded
+box's ridges as curve constraints, what stays free, and bad inputs that change nothing.
+
+The target is the rounded box of ``test_features`` (half-size 1, edges rounded by 0.25): its twelve blend
+centre-lines are ridges. The layout is a cube of the same size, each face a 6 x 6 quad grid: its twelve edges
+are 90-degree convex creases, each about 0.1 from the ridge it should follow.
+"""
+
+import bpy
+
+import bmesh
+import numpy as np
+import pytest
+
+from bpy_helpers import distance_to_polyline, world_positions
+from helpers import rounded_box
+
+
+def cube_layout(target, name="Cube"):
+    """A quad cube of half-size 1 (6 x 6 quads a face), whose target is ``target``, active and selected."""
+    mesh = bpy.data.meshes.new(name)
+    editable = bmesh.new()
+    bmesh.ops.create_cube(editable, size=2.0)
+    bmesh.ops.subdivide_edges(editable, edges=editable.edges[:], cuts=5, use_grid_fill=True)
+    editable.to_mesh(mesh)
+    editable.free()
+    layout = bpy.data.objects.new(name, mesh)
+    bpy.context.scene.collection.objects.link(layout)
+    layout.springwrap.target = target
+    for obj in bpy.context.view_layer.objects:
+        obj.select_set(obj == layout)
+    bpy.context.view_layer.objects.active = layout
+    bpy.context.view_layer.update()
+    return layout
+
+
+def box_target():
+    vertices, triangles = rounded_box(1.0, 0.25, 24)
+    mesh = bpy.data.meshes.new("Box")
+    mesh.from_pydata(vertices.tolist(), [], triangles.tolist())
+    mesh.update()
+    obj = bpy.data.objects.new("Box", mesh)
+    bpy.context.scene.collection.objects.link(obj)
+    return obj
+
+
+@pytest.fixture
+def cube():
+    return cube_layout(box_target())
+
+
+def feature_items(layout):
+    return [item for item in layout.springwrap.curve_constraints if item.source_kind == "FEATURE_LINE"]
+
+
+def mark_sharp(layout, pairs):
+    """Mark the edges joining the given vertex pairs sharp (and only those)."""
+    wanted = {tuple(sorted(pair)) for pair in pairs}
+    mesh = layout.data
+    flags = [tuple(sorted(edge.vertices)) in wanted for edge in mesh.edges]
+    attribute = mesh.attributes.get("sharp_edge") or mesh.attributes.new("sharp_edge", "BOOLEAN", "EDGE")
+    attribute.data.foreach_set("value", flags)
+    mesh.update()
+    assert sum(flags) == len(wanted)
+
+
+def ring_at_height(layout, height=0.0):
+    """The vertex pairs of the edges of the layout's horizontal loop at ``height`` (round the four sides)."""
+    positions = world_positions(layout)
+    pairs = []
+    for edge in layout.data.edges:
+        a, b = edge.vertices
+        if abs(positions[a][2] - height) < 1e-4 and abs(positions[b][2] - height) < 1e-4:
+            pairs.append((a, b))
+    return pairs
+
+
+def test_the_cubes_creases_pair_with_the_boxs_ridges(cube, capfd):
+    assert bpy.ops.springwrap.feature_lines_pair() == {"FINISHED"}
+    output = capfd.readouterr().out
+    items = feature_items(cube)
+    assert len(items) == 12, output
+    assert "Paired 12 of 12 feature lines" in output
+    positions = world_positions(cube)
+    for item in items:
+        assert 0.3 <= item.confidence <= 1.0
+        chain = [int(vertex) for vertex in item.layout_vertices.split()]
+        assert len(chain) == 5  # an edge of the cube (6 quads) but its two corners, which three creases share
+        points = np.array([tuple(point.co) for point in item.points])
+        # The target stretch runs beside the crease (the ridge of the blend, about 0.1 in), end to end.
+        distances = distance_to_polyline(positions[chain], points)
+        assert distances.max() < 0.25
+        assert np.linalg.norm(points[0] - positions[chain[0]]) < np.linalg.norm(points[-1] - positions[chain[0]])
+    # Drawn in the viewport like every curve constraint: a dashed line from each chain vertex to its target.
+    from springwrap.ui.overlays import CURVE_DASH_COUNT, curve_segments
+
+    starts, _ends = curve_segments(cube)
+    assert starts.shape[0] == CURVE_DASH_COUNT * sum(len(item.layout_vertices.split()) for item in items)
+    # A second run replaces the pairs instead of adding more.
+    assert bpy.ops.springwrap.feature_lines_pair() == {"FINISHED"}
+    assert len(feature_items(cube)) == 12
+    # Removable one by one like any curve constraint.
+    assert bpy.ops.springwrap.curve_constraint_remove(index=0) == {"FINISHED"}
+    assert len(feature_items(cube)) == 11
+
+
+def test_the_wrap_puts_the_paired_creases_on_the_ridges(cube):
+    assert bpy.ops.springwrap.feature_lines_pair() == {"FINISHED"}
+    assert bpy.ops.springwrap.detach(only_selected=False) == {"FINISHED"}
+    assert bpy.ops.springwrap.wrap(max_iterations=300) == {"FINISHED"}
+    positions = world_positions(cube)
+    for item in feature_items(cube):
+        chain = [int(vertex) for vertex in item.layout_vertices.split()]
+        points = np.array([tuple(point.co) for point in item.points])
+        assert distance_to_polyline(positions[chain], points).mean() < 0.02
+
+
+def test_each_setting_changes_the_pairs(cube):
+    counts = {}
+    for name, value in [
+        ("default", None),
+        ("crease_angle", 120.0),
+        ("min_confidence", 0.999),
+        ("max_distance", 0.01),
+        ("max_angle", 0.0),
+        ("feature_scale", 1.5),
+    ]:
+        arguments = {} if value is None else {name: value}
+        assert bpy.ops.springwrap.feature_lines_pair(**arguments) == {"FINISHED"}
+        counts[name] = len(feature_items(cube))
+    assert counts["default"] == 12
+    assert all(counts[name] < 12 for name in counts if name != "default"), counts
+
+
+def test_a_marked_loop_across_a_face_stays_free_and_is_listed(cube, capfd):
+    mark_sharp(cube, ring_at_height(cube, 0.0))
+    before = len(cube.springwrap.curve_constraints)
+    assert bpy.ops.springwrap.feature_lines_pair(crease_angle=0.0, use_borders=False) == {"FINISHED"}
+    output = capfd.readouterr().out
+    assert "Paired 0 of 1 feature line" in output
+    assert "marked line (any) loop at" in output and "1 free" in output
+    assert len(cube.springwrap.curve_constraints) == before
+
+
+def test_a_marked_line_that_crosses_itself_is_refused_and_nothing_changes(cube):
+    # A figure eight on the front face (y = 1): two squares of quads touching at its centre, one line going
+    # straight through the centre twice.
+    positions = world_positions(cube)
+    third = 1.0 / 3.0
+
+    def at(x, z):
+        return int(np.argmin(np.linalg.norm(positions - [x, 1.0, z], axis=1)))
+
+    eight = [(0, 0), (third, 0), (third, third), (0, third), (0, 0), (-third, 0), (-third, -third), (0, -third), (0, 0)]
+    vertices = [at(x, z) for x, z in eight]
+    mark_sharp(cube, list(zip(vertices[:-1], vertices[1:])))
+    before = [item.layout_vertices for item in cube.springwrap.curve_constraints]
+    with pytest.raises(RuntimeError, match="crosses itself"):
+        bpy.ops.springwrap.feature_lines_pair(crease_angle=0.0, use_borders=False)
+    assert [item.layout_vertices for item in cube.springwrap.curve_constraints] == before
+
+
+def test_an_empty_or_missing_group_and_a_missing_attribute_are_refused(cube):
+    cube.vertex_groups.new(name="Empty")
+    before = len(cube.springwrap.curve_constraints)
+    with pytest.raises(RuntimeError, match="'Empty' holds no edge"):
+        bpy.ops.springwrap.feature_lines_pair(vertex_group="Empty")
+    with pytest.raises(RuntimeError, match="no vertex group 'Nothing'"):
+        bpy.ops.springwrap.feature_lines_pair(vertex_group="Nothing")
+    with pytest.raises(RuntimeError, match="no boolean edge attribute 'lips'"):
+        bpy.ops.springwrap.feature_lines_pair(edge_attribute="lips")
+    assert len(cube.springwrap.curve_constraints) == before
+
+
+def test_a_vertex_group_marks_a_line(cube, capfd):
+    group = cube.vertex_groups.new(name="Lips")
+    members = sorted({vertex for pair in ring_at_height(cube, 0.0) for vertex in pair})
+    group.add(members, 1.0, "REPLACE")
+    assert bpy.ops.springwrap.feature_lines_pair(vertex_group="Lips", crease_angle=0.0, use_borders=False) == {
+        "FINISHED"
+    }
+    assert "of 1 feature line" in capfd.readouterr().out
