@@ -15,10 +15,10 @@ import springwrap_kernel
 from ..core import anchors, follow, input_policy, layout_state, parts, proposals, subdivision, transforms, wrap_inputs
 from ..core.errors import LayoutError
 from ..core.target import Target
-from ..core.wrap_run import FramePacer, WrapResult
+from ..core.wrap_run import FramePacer, SolveWorker, WrapResult
 from ..properties import WRAP_DEFAULTS
 from . import anchors as anchor_data
-from . import attributes, last_run
+from . import attributes, last_run, wrap_reads
 from . import curves as curve_data
 from . import layout as layout_data
 from . import parts as part_data
@@ -87,7 +87,8 @@ class WrapSession:
     viewport's measured draw time): the first frame's solve time is paced from it. ``shape_keys``:
     ``'TRANSFER'`` wraps the basis (the reference key) and carries the other keys over when it finishes
     (frames move them along), ``'REFUSE'`` refuses a layout with shape keys. ``target`` (optional): the
-    target already read (a sequence's frame object); None reads the layout's target. ``region`` (optional, (N,)
+    target already read (a sequence's frame object); None reads the layout's target. ``reads`` (optional): the
+    layout and target as the caller read (and checked) them (``blender.wrap_reads``); None reads them here. ``region`` (optional, (N,)
     bool): re-settle only these vertices, every other one held where it is and written back as it was
     (``core.follow``: the solver then works on the faces around the region alone).
     """
@@ -102,6 +103,7 @@ class WrapSession:
         shape_keys: str = "TRANSFER",
         target: Target | None = None,
         region: np.ndarray | None = None,
+        reads: wrap_reads.WrapReads | None = None,
     ):
         self.start_time = time.perf_counter()
         self.layout = layout
@@ -110,20 +112,18 @@ class WrapSession:
         shape_key_data.refuse(layout, shape_keys, shape_key_data.REFUSED)
         self.shape_keys = shape_key_data.read(layout)  # as they were: frames follow them, finish carries them
         settings = layout.springwrap
-        arrays = layout_data.read_layout(layout)
+        if reads is None:
+            reads = wrap_reads.read(context, layout, target)
+        arrays = reads.arrays
         if not transforms.is_invertible(arrays.matrix_world):
             raise LayoutError(
                 f"Layout '{layout.name}' has zero scale: the wrap's world positions cannot be written back"
             )
         self.matrix_world = arrays.matrix_world
-        self.target = (
-            target if target is not None else target_data.read_target(context.evaluated_depsgraph_get(), layout)
-        )
-        self.layout_topology = layout_data.read_layout_topology(layout)
+        self.target = reads.target
+        self.layout_topology = reads.topology
         structure = layout_data.make_layout_structure(self.layout_topology)
-        self.anchors, anchor_resolution = anchors.resolve(
-            anchor_data.read_anchors(layout), self.target, settings.anchors_signature
-        )
+        self.anchors, anchor_resolution = anchors.resolve(reads.anchors, self.target, settings.anchors_signature)
         unreliable = None
         if settings.unreliable_group:
             weights = target_data.read_vertex_group_weights(context, settings.target, settings.unreliable_group)
@@ -134,7 +134,7 @@ class WrapSession:
                 )
             unreliable = wrap_inputs.unreliable_triangles(self.target.mesh.triangles(), weights)
         curve_constraints = curve_data.resolve_curve_constraints(
-            context.evaluated_depsgraph_get(), layout, curve_data.read_curve_constraints(layout)
+            context.evaluated_depsgraph_get(), layout, reads.curves
         )
         # The input policy on what the solver gets (the operators check before; the mirror and the scripts
         # come here too): the layout, the anchors and the curves as resolved on the current target.
@@ -183,7 +183,7 @@ class WrapSession:
         # What finish() writes on the object besides the mesh, to put back when it fails half-way.
         self.settings_snapshot = (
             settings.target_signature,
-            anchor_data.read_anchors(layout),
+            reads.anchors,
             settings.active_anchor_index,
             settings.anchors_signature,
         )
@@ -196,6 +196,7 @@ class WrapSession:
         self.frames = 0
         self.events = {"landed": 0, "folded": 0, "lifted": 0}
         self._frame_end: float | None = None
+        self.worker: SolveWorker | None = None
 
     @property
     def stage_iterations(self) -> int:
@@ -272,18 +273,32 @@ class WrapSession:
         self.last_report = None
         self.stage = "fine"
 
-    def advance(self):
-        """One frame of the interactive wrap: solve for the frame's share of time, then write the layout.
+    def advance(self, max_seconds: float | None = None):
+        """One frame of the interactive wrap; returns the last ``StepReport`` (None before the worker's first).
 
-        The time since the previous frame's write ended (Blender's redraw and event handling) is the
-        display's measured cost, from which the pacer sizes this frame's solve time; the kernel is
-        called in chunks until that time is used or the wrap is done. Writes positions and state into
-        the layout mesh (no undo step). Returns the last ``StepReport``.
+        Without a worker (:meth:`start_worker`) the frame solves here for its share of time, then writes the layout:
+        the time since the previous frame's write ended (Blender's redraw and event handling) is the display's
+        measured cost, from which the pacer sizes this frame's solve time (at most ``max_seconds`` when given); the
+        kernel is called in chunks until that time is used or the wrap is done. With a worker the frame writes the
+        newest positions the worker solved, if there are new ones, and solves nothing; an error of the worker is
+        raised here. Either way it writes positions and state into the layout mesh (no undo step).
         """
+        if self.worker is not None:
+            return self._present()
         begin = time.perf_counter()
         if self._frame_end is not None:
             self.pacer.record_display(begin - self._frame_end)
-        deadline = begin + self.pacer.solve_seconds()
+        seconds = self.pacer.solve_seconds()
+        report = self._solve_for(seconds if max_seconds is None else min(seconds, max_seconds))
+        self.write_frame()
+        self._frame_end = time.perf_counter()
+        self.frames += 1
+        return report
+
+    def _solve_for(self, seconds: float):
+        """Call the kernel in chunks sized by the pacer for about ``seconds`` (at least one iteration, or the start of
+        the next stage); the last ``StepReport``."""
+        deadline = time.perf_counter() + seconds
         report = None
         while report is None or not self.done:
             now = time.perf_counter()
@@ -297,10 +312,34 @@ class WrapSession:
             self.pacer.record_step(report.iterations, time.perf_counter() - now)
             if self.stage == "fine" and report.iterations == 0:
                 break  # nothing left to run in this stage (the limit): done says so
-        self.write_frame()
-        self._frame_end = time.perf_counter()
-        self.frames += 1
         return report
+
+    def start_worker(self) -> None:
+        """Solve the rest of the wrap in a worker thread (``core.wrap_run.SolveWorker``): from now on :meth:`advance`
+        only writes what it solved, and the solver is not touched here until :meth:`stop_worker` (which
+        :meth:`finish` and :meth:`cancel` call). Each of its chunks solves about one frame's time."""
+        if self.worker is None and not self.done:
+            self.worker = SolveWorker(self._solve_for, self.current_layout, lambda: self.done, self.pacer.frame_seconds)
+
+    def stop_worker(self, raise_error: bool = True) -> None:
+        """Stop the worker after its iteration in progress (the solver is then this thread's again); raise what it
+        raised unless ``raise_error`` is False. Nothing without a worker."""
+        worker, self.worker = self.worker, None
+        if worker is None:
+            return
+        worker.stop()
+        if worker.error is not None and raise_error:
+            raise worker.error
+
+    def _present(self):
+        """A frame with a worker: write its newest positions and state; raise its error when it failed."""
+        frame = self.worker.take()
+        if frame is not None:
+            self._write_frame(*frame)
+            self.frames += 1
+        if not self.worker.running:
+            self.stop_worker()
+        return self.last_report
 
     def run(self, progress: Callable | None = None, chunk: int = SYNCHRONOUS_CHUNK):
         """Step to the end at once (converged or the limit), writing nothing; ``progress(report)`` after each chunk."""
@@ -334,12 +373,16 @@ class WrapSession:
 
     def write_frame(self) -> None:
         """Write the solver's current positions and state into the layout (an intermediate frame)."""
-        positions, state = self.current_layout()
+        self._write_frame(*self.current_layout())
+
+    def _write_frame(self, positions, state) -> None:
         attributes.write_wrap_frame(self.layout, positions, state)
         shape_key_data.follow(self.layout, self.shape_keys, positions)
 
     def finish(self) -> WrapResult:
-        """Write the result for good: positions, state, the target signature and the resolved anchors."""
+        """Write the result for good: positions, state, the target signature and the resolved anchors (a worker is
+        stopped first, after its iteration in progress)."""
+        self.stop_worker()
         if self.last_report is None:
             self.step(0)
         positions, state = self.current_layout()
@@ -387,7 +430,8 @@ class WrapSession:
     def cancel(self) -> None:
         """Put the layout back exactly as it was at the start: positions, state attributes, rest shape, read-out,
         and what :meth:`finish` writes on the object (target signature, anchors), the shape keys; also after a
-        failed finish."""
+        failed finish (a worker is stopped first)."""
+        self.stop_worker(raise_error=False)
         shape_key_data.restore(self.layout, self.shape_keys)
         attributes.restore_snapshot(self.layout, self.snapshot)
         target_signature, anchor_list, active_index, anchors_signature = self.settings_snapshot
@@ -460,7 +504,10 @@ def last_result(layout: bpy.types.Object) -> WrapResult | None:
 
 
 def forget_results() -> None:
-    """Drop the remembered results and live wraps (the add-on is unregistered, another file is loaded)."""
+    """Drop the remembered results and live wraps (the add-on is unregistered, another file is loaded); their worker
+    threads are stopped."""
+    for session in _running:
+        session.stop_worker(raise_error=False)
     _running.clear()
     last_run.forget_all()
 

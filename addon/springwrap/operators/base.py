@@ -83,7 +83,12 @@ def open_layout(
 
 
 def check_inputs(
-    context, layout: bpy.types.Object, reads=READS_LAYOUT, with_target: bool = True, target_required: bool = True
+    context,
+    layout: bpy.types.Object,
+    reads=READS_LAYOUT,
+    with_target: bool = True,
+    target_required: bool = True,
+    snapshot=None,
 ) -> input_policy.Extent | None:
     """The add-on's input policy (``core.input_policy``) on what an operation reads; the target's extent.
 
@@ -93,27 +98,31 @@ def check_inputs(
     data: call it inside ``object_mode(layout)``. Writes nothing. ``with_target=False``: the target is
     not read (an operation that does not use it), only finiteness and the absolute limit apply; with
     ``target_required=False`` an unusable target is not this operation's problem and is not judged
-    against either (Set Rest Shape with a target that lost its faces).
+    against either (Set Rest Shape with a target that lost its faces). ``snapshot``: the layout and target already
+    read (``blender.wrap_reads.WrapReads``), checked instead of reading them again.
     """
     extent = None
-    if with_target and layout.springwrap.target is not None:
+    if snapshot is not None:
+        extent = snapshot.target.extent
+    elif with_target and layout.springwrap.target is not None:
         try:
             extent = target_data.read_target(context.evaluated_depsgraph_get(), layout).extent
         except ERRORS:
             if target_required:
                 raise
     if "positions" in reads:
-        arrays = layout_data.read_layout(layout)
+        arrays = layout_data.read_layout(layout) if snapshot is None else snapshot.arrays
         if not np.all(np.isfinite(arrays.matrix_world)):
             raise LayoutError(
                 f"Layout '{layout.name}' has a NaN or infinite transform: reset its location, rotation and scale"
             )
         input_policy.check_layout_points(layout.name, transforms.world_positions(arrays), extent)
     if "anchors" in reads and len(layout.springwrap.anchors):
-        anchor_list = anchor_data.read_anchors(layout)
+        anchor_list = anchor_data.read_anchors(layout) if snapshot is None else snapshot.anchors
         input_policy.check_anchor_points(anchor_list.vertex_indices, anchor_list.locations, extent)
     if "curves" in reads and len(layout.springwrap.curve_constraints):
-        input_policy.check_curve_points(curve_data.read_curve_constraints(layout), extent)
+        curve_list = curve_data.read_curve_constraints(layout) if snapshot is None else snapshot.curves
+        input_policy.check_curve_points(curve_list, extent)
     return extent
 
 
