@@ -1,6 +1,6 @@
 """What one wrap reads from Blender, read once (:class:`WrapReads`): the layout's arrays and topology, its anchors and
 curve constraints as stored, and its evaluated target. An operator reads it, checks it (``operators.base.check_inputs``
-with ``snapshot=``) and hands it to ``blender.wrap_session.WrapSession``, which reads none of these again.
+given its members) and hands it to ``blender.wrap_session.WrapSession``, which reads none of these again.
 
 Object mode data: read inside ``edit_mode.object_mode(layout)``.
 """

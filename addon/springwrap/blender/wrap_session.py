@@ -197,6 +197,7 @@ class WrapSession:
         self.events = {"landed": 0, "folded": 0, "lifted": 0}
         self._frame_end: float | None = None
         self.worker: SolveWorker | None = None
+        self.written_positions: np.ndarray | None = None  # the local positions finish() wrote
 
     @property
     def stage_iterations(self) -> int:
@@ -391,6 +392,7 @@ class WrapSession:
         )
         shape_key_data.restore(self.layout, self.shape_keys)  # carried from the keys as they were, not a frame
         layout_data.write_layout(self.layout, positions, state, rest=self.rest)
+        self.written_positions = positions  # what the operator's storage check needs, not read back
         settings = self.layout.springwrap
         settings.target_signature = self.target.signature
         if len(settings.anchors):

@@ -197,7 +197,9 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
         try:
             layout = context.active_object
             reads = wrap_reads.read(context, layout)  # once: checked here, then handed to the session
-            extent = check_inputs(context, layout, snapshot=reads)
+            extent = check_inputs(
+                context, layout, arrays=reads.arrays, target=reads.target, anchors=reads.anchors, curves=reads.curves
+            )
             self._find_midline(layout, reads)
             return WrapSession(
                 context,
@@ -228,7 +230,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
                 session.cancel()
                 self.report({"ERROR"}, f"The wrap failed: {error}")
                 return {"CANCELLED"}
-            report_storage_precision(self, layout, session.target.extent)
+            report_storage_precision(self, layout, session.target.extent, session.written_positions)
         self._report_result(result, session.parameters.settings)
         return {"FINISHED"}
 
@@ -273,7 +275,8 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
     def _ended(self, outcome: str) -> set:
         """Report how the wrap ended (``'FINISHED'`` or ``'CANCELLED'``) and return the operator's result."""
         if outcome == "FINISHED":
-            report_storage_precision(self, self._loop.session.layout, self._loop.session.target.extent)
+            session = self._loop.session
+            report_storage_precision(self, session.layout, session.target.extent, session.written_positions)
             self._report_result(self._loop.result, self._loop.session.parameters.settings)
             return {"FINISHED"}
         if self._loop.error is not None:
