@@ -192,3 +192,14 @@ def test_live_frames_read_nothing_again(monkeypatch):
     _frames(loop, 3)
     loop.cancel()
     assert counts == {}
+
+
+@pytest.mark.parametrize("operator", ["snap", "project", "detach"])
+def test_a_snap_reads_the_layout_and_the_target_once(monkeypatch, operator):
+    """The snap's checks, its solve and its read-out share one read; the storage check uses what it wrote."""
+    plane_scene()
+    counts = _count_reads(monkeypatch)
+    assert getattr(bpy.ops.springwrap, operator)() == {"FINISHED"}
+    print(operator, counts)
+    assert counts.get("read_layout") == 1 and counts.get("read_target", 0) <= 1
+    assert counts.get("read_layout_topology", 0) <= 1
