@@ -10,8 +10,6 @@ import bpy
 
 import numpy as np
 
-import springwrap_kernel
-
 from ..core import anchors, follow, input_policy, layout_state, parts, proposals, subdivision, transforms, wrap_inputs
 from ..core.errors import LayoutError
 from ..core.target import Target
@@ -34,45 +32,6 @@ MAX_SOLVE_SECONDS = 4.0
 """Longest a frame of the modal wrap solves before it writes the layout and lets Blender redraw (and see Esc)."""
 SYNCHRONOUS_CHUNK = 100
 """Iterations per kernel call when the wrap runs to the end at once."""
-
-
-_SOLVER_KEYWORDS = (
-    "anchor_vertices",
-    "anchor_triangles",
-    "anchor_barycentrics",
-    "anchor_positions",
-    "unreliable_triangles",
-    "rest_positions",
-)
-"""The ``WrapInputs`` fields the kernel's ``WrapSolver`` takes as keywords of the same names."""
-_CURVE_KEYWORDS = ("curve_vertices", "curve_vertex_counts", "curve_points", "curve_point_counts")
-"""The ``WrapInputs`` fields of the curve constraints, passed to ``WrapSolver`` when there are any."""
-
-
-def make_wrap_solver(target: Target, structure, inputs, parameters):
-    """A kernel ``WrapSolver`` for the prepared inputs (``core.wrap_inputs.WrapInputs``, the kernel's frame)."""
-    keywords = {name: getattr(inputs, name) for name in _SOLVER_KEYWORDS}
-    if inputs.curve_vertices is not None:
-        keywords |= {name: getattr(inputs, name) for name in _CURVE_KEYWORDS}
-    if getattr(inputs, "plane_vertices", None) is not None:
-        keywords |= {
-            "plane_vertices": inputs.plane_vertices,
-            "plane_point": tuple(float(value) for value in inputs.plane_point),
-            "plane_normal": tuple(float(value) for value in inputs.plane_normal),
-            "plane_slide": bool(inputs.plane_slide),
-        }
-    return springwrap_kernel.WrapSolver(
-        target.mesh.kernel,
-        structure,
-        inputs.states,
-        inputs.triangles,
-        inputs.barycentrics,
-        inputs.positions,
-        settings=parameters.settings,
-        stiffness=getattr(inputs, "stiffness", None),
-        free_vertices=getattr(inputs, "free_vertices", None),
-        **keywords,
-    )
 
 
 class WrapSession:
@@ -172,7 +131,7 @@ class WrapSession:
             if cut is not None and int(parameters.spring_resolution) == 1:
                 self.restriction, inputs = cut
                 structure = layout_data.make_layout_structure(self.restriction.topology)
-        self.solver = make_wrap_solver(self.target, structure, inputs, parameters)
+        self.solver = wrap_inputs.make_wrap_solver(self.target, structure, inputs, parameters)
         self.inputs = inputs
         # Coarse to fine: with a spring resolution above 1 the layout is relaxed first, then a grid
         # of its faces cut k x k (its own vertices first) takes over; the layout's vertices are read
@@ -267,7 +226,7 @@ class WrapSession:
         )
         structure = layout_data.make_layout_structure(fine.topology)
         inputs = part_data.refine_free(inputs, fine, self.vertex_count)
-        self.solver = make_wrap_solver(self.target, structure, inputs, self.parameters)
+        self.solver = wrap_inputs.make_wrap_solver(self.target, structure, inputs, self.parameters)
         self.kernel_seconds += time.perf_counter() - start
         self.coarse_iterations = self.stage_iterations
         self.fine_vertex_count = fine.topology.vertex_count
