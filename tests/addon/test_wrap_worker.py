@@ -15,7 +15,7 @@ import bpy
 import numpy as np
 import pytest
 
-from bpy_helpers import anchor_snapshot, plane_scene, snapshot, wrap_session
+from bpy_helpers import anchor_snapshot, plane_scene, snapshot, wrap_session, wrapped_at_once
 
 
 class _OneThreadAtATime:
@@ -75,13 +75,8 @@ def test_the_worker_finishes_where_a_synchronous_wrap_ends(solver):
     assert outcome == "FINISHED" and loop.result.converged and loop.result.frames >= 2
     assert loop.session.worker is None
     assert not loop.session.solver.overlaps and len(loop.session.solver.threads) == 2  # main, then the worker
-    threaded = snapshot(bpy.data.objects["Layout"])
-
-    bpy.ops.wm.read_homefile(use_empty=True)
-    plane_scene()
-    bpy.ops.springwrap.anchors_auto(spacing=0.5)
-    assert bpy.ops.springwrap.wrap(solver=solver) == {"FINISHED"}
-    assert snapshot(bpy.data.objects["Layout"]) == threaded
+    live = snapshot(bpy.data.objects["Layout"])
+    assert live == wrapped_at_once(solver)
 
 
 @pytest.mark.parametrize("key", ["ESC", "RIGHTMOUSE"])
