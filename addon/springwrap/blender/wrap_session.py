@@ -277,7 +277,8 @@ class WrapSession:
     def start_worker(self) -> None:
         """Solve the rest of the wrap in a worker thread (``core.wrap_run.SolveWorker``): from now on :meth:`advance`
         only writes what it solved, and the solver is not touched here until :meth:`stop_worker` (which
-        :meth:`finish` and :meth:`cancel` call). Each of its chunks solves about one frame's time."""
+        :meth:`finish` and :meth:`cancel` call). Each of its chunks solves about one frame's time. What runs in the
+        worker (:meth:`step`, the fine stage's start, :meth:`current_layout`) reads and writes no Blender data."""
         if self.worker is None and not self.done:
             self.worker = SolveWorker(self._solve_for, self.current_layout, lambda: self.done, self.pacer.frame_seconds)
 
