@@ -127,6 +127,10 @@ def measure(case, vertices, triangles, edits: int, moves: int) -> dict:
     return results
 
 
+REDRAW_SECONDS = 0.005
+"""What a frame's redraw costs the main thread between two frames of the re-settle (a GPU's)."""
+
+
 def settle_row(context, layout, vertex: int, edit: int) -> dict:
     """One Live re-settle after an edit of ``vertex``'s pair, as the pair tool runs it (paced frames, each written):
     when the layout first moved, when the edited vertex had made half of its way, when it converged."""
@@ -138,11 +142,16 @@ def settle_row(context, layout, vertex: int, edit: int) -> dict:
     built = time.perf_counter()
     frames = []
     while not session.done:
+        shown = session.frames
         pair_tool.advance_settle(session)
-        frames.append((time.perf_counter() - begin, np.array(layout.matrix_world @ layout.data.vertices[vertex].co)))
+        if session.frames != shown:  # a frame with new positions (the later ones come from the worker thread)
+            position = np.array(layout.matrix_world @ layout.data.vertices[vertex].co)
+            frames.append((time.perf_counter() - begin, position))
+        time.sleep(REDRAW_SECONDS)
     session.finish()
     written = time.perf_counter()
-    final = frames[-1][1]
+    final = np.array(layout.matrix_world @ layout.data.vertices[vertex].co)
+    frames.append((written - begin, final))
     way = float(np.linalg.norm(final - np.array(start_position)))
     half_way = next(
         (seconds for seconds, position in frames if np.linalg.norm(final - position) <= 0.5 * way), frames[-1][0]

@@ -657,13 +657,18 @@ def wrap_aims_section(speed: dict) -> list[str]:
         )
     live = speed.get("live")
     if live:
+        shown = live.get("redraws_per_second", live["frames_per_second"])
         rows.append(
             [
                 "live wrap on the body: redraws per second",
                 "30",
-                f"{number(live['frames_per_second'], 1)} ({number(live['iterations_per_second'], 0)} iterations/s)",
+                f"{number(shown, 1)} ({number(live['frames_per_second'], 1)} with new positions, "
+                f"{number(live['iterations_per_second'], 0)} iterations/s)",
             ]
         )
+        cancel = live.get("cancel")
+        if cancel:
+            rows.append(["live wrap on the body: Esc answered", "0.2 s", f"{number(cancel['worst_seconds'], 2)} s"])
     large = speed.get("large")
     if large:
         rows.append(

@@ -5,9 +5,13 @@
    triangles, with 24 landmark anchors at their true positions: the aligned template is detached,
    anchored and wrapped through the add-on's operators (``benchmarks.retarget.springwrap_methods``),
    exactly as a user runs them. Aim: the whole wrap in 1 s on 2 cores.
-2. **Live wrap**: the same body wrapped as the modal operator does it (``WrapSession.advance``,
-   paced for 30 redraws per second, every frame written into the mesh), counting frames per
-   second and iterations per second. Aim: at least 30 redraws per second at 13k quads.
+2. **Live wrap**: the same body wrapped as the modal operator does it (the first frame solved on the
+   main thread, the rest in the worker thread, each frame writing the newest positions into the mesh
+   and followed by a stand-in redraw of 5 ms), counting redraws, redraws with new positions and
+   iterations per second; then Esc pressed at three moments of a live wrap, timing how long it takes
+   to answer (the worker stopped and the layout put back) and checking the layout is back bit for bit.
+   Aims: at least 30 redraws per second at 13k quads, Esc within 0.2 s. ``--live-main-thread`` also
+   measures every frame solving on the main thread, to compare; ``--live-only`` skips the rest.
 3. **Large spring** (``--large``): a 2048 x 2048 spring (a 256 x 256 layout at spring resolution
    8, 4.2 M points) onto a 1 M-triangle noisy torus, through the kernel's ``WrapSolver`` on the
    fine grid started on the surface, with the spring solver by default (``--large-solver ENERGY``:
@@ -90,8 +94,14 @@ def measure_body(case, vertices, triangles) -> dict:
     }
 
 
-def measure_live(case, vertices, triangles, seconds_limit: float = 20.0) -> dict:
-    """The modal wrap's frames (``WrapSession.advance``) on the body: frames and iterations per second."""
+REDRAW_SECONDS = 0.005
+"""What a frame's redraw and event handling cost the main thread in the live measurement (a GPU's)."""
+CANCEL_AFTER_SECONDS = (0.4, 0.9, 1.7)
+"""When the live measurement presses Esc, seconds into the wrap (one live wrap each)."""
+
+
+def _live_session(case, vertices, triangles):
+    """A ``WrapSession`` of the body as the modal wrap starts it (detached, 24 anchors)."""
     import bpy
 
     from benchmarks.retarget import baselines
@@ -112,20 +122,69 @@ def measure_live(case, vertices, triangles, seconds_limit: float = 20.0) -> dict
     from springwrap.blender.wrap_session import WrapSession
     from springwrap.core.wrap_inputs import WrapParameters
 
-    session = WrapSession(bpy.context, layout, WrapParameters())
+    return WrapSession(bpy.context, layout, WrapParameters(), display_seconds=REDRAW_SECONDS)
+
+
+def measure_live(case, vertices, triangles, seconds_limit: float = 20.0, worker: bool = True) -> dict:
+    """The modal wrap's frames on the body, each followed by a stand-in redraw of ``REDRAW_SECONDS``: redraws and
+    iterations per second, and how many redraws showed new positions. ``worker``: the solve in the worker thread
+    after the first frame, as the operator runs it; else every frame solves on the main thread."""
+    session = _live_session(case, vertices, triangles)
     start = time.perf_counter()
+    session.advance()  # the first frame, in invoke
+    if worker:
+        session.start_worker()
+    redraws = 1
     while not session.done and time.perf_counter() - start < seconds_limit:
         session.advance()
+        time.sleep(REDRAW_SECONDS)
+        redraws += 1
     elapsed = time.perf_counter() - start
     session.cancel()
     return {
+        "worker": worker,
+        "redraws": redraws,
         "frames": session.frames,
         "seconds": elapsed,
+        "redraws_per_second": redraws / elapsed,
         "frames_per_second": session.frames / elapsed,
         "iterations": session.total_iterations,
         "iterations_per_second": session.total_iterations / elapsed,
         "finished": session.done,
         "kernel_seconds": session.kernel_seconds,
+    }
+
+
+def measure_cancel(case, vertices, triangles, worker: bool = True) -> dict:
+    """Esc during the live wrap on the body: the seconds from the key to the layout put back, at a few moments;
+    ``worker`` as in :func:`measure_live` (without it, Esc waits for the frame in progress: measured as the
+    longest frame)."""
+    from springwrap.core.wrap_run import WrapLoop
+
+    latencies = []
+    for after in CANCEL_AFTER_SECONDS:
+        loop = WrapLoop(_live_session(case, vertices, triangles))
+        before = np.array([vertex.co[:] for vertex in loop.session.layout.data.vertices])
+        start, longest = time.perf_counter(), 0.0
+        loop.handle("TIMER")
+        if worker:
+            loop.session.start_worker()
+        while time.perf_counter() - start < after and loop.state == "RUNNING_MODAL":
+            frame = time.perf_counter()
+            loop.handle("TIMER")
+            longest = max(longest, time.perf_counter() - frame)
+            time.sleep(REDRAW_SECONDS)
+        pressed = time.perf_counter()
+        loop.handle("ESC", "PRESS")
+        answered = time.perf_counter() - pressed
+        restored = np.array_equal(np.array([vertex.co[:] for vertex in loop.session.layout.data.vertices]), before)
+        latencies.append(
+            {"after": after, "answered_seconds": answered + (0.0 if worker else longest), "restored": restored}
+        )
+    return {
+        "worker": worker,
+        "cancels": latencies,
+        "worst_seconds": max(item["answered_seconds"] for item in latencies),
     }
 
 
@@ -192,6 +251,20 @@ def measure_large(max_iterations: int, seconds_limit: float, solver_name: str = 
     }
 
 
+def _report_body(results: dict, body: dict) -> None:
+    """Keep and print the body's wrap."""
+    results["body"] = body
+    wrap = body["wrap"]
+    print(
+        f"body wrap: {wrap['iterations']} iterations ({'converged' if wrap['converged'] else 'not converged'}), "
+        f"wrap {wrap['wrap_seconds']:.2f} s ({wrap['iterations_per_second']:.0f} it/s), operators "
+        f"{body['operators_seconds']:.2f} s; error mean {body['error_percent_mean']:.3f} % p95 "
+        f"{body['error_percent_p95']:.3f} % of the diagonal, {body['flipped_quads']} flipped quads "
+        f"(aim: 1 s)",
+        flush=True,
+    )
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--large", action="store_true", help="also the 2048 x 2048 spring on 1M triangles")
@@ -199,6 +272,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--large-seconds", type=float, default=120.0, help="time cap of the large spring")
     parser.add_argument(
         "--large-solver", choices=("ENERGY", "SPRINGS"), default="SPRINGS", help="solver of the large spring"
+    )
+    parser.add_argument("--live-only", action="store_true", help="only the live wrap (and Esc) on the body")
+    parser.add_argument(
+        "--live-main-thread", action="store_true", help="also the live wrap solving on the main thread, to compare"
     )
     parser.add_argument("--json", type=Path, default=REPOSITORY / "out" / "bench" / "wrap_speed.json")
     arguments = parser.parse_args(argv)
@@ -221,24 +298,20 @@ def main(argv: list[str] | None = None) -> int:
     }
     case, vertices, triangles, voxel = body_case()
     print(f"body: target remeshed at voxel {voxel * 1000:.1f} mm: {len(triangles)} triangles", flush=True)
-    body = measure_body(case, vertices, triangles)
-    results["body"] = body
-    wrap = body["wrap"]
-    print(
-        f"body wrap: {wrap['iterations']} iterations ({'converged' if wrap['converged'] else 'not converged'}), "
-        f"wrap {wrap['wrap_seconds']:.2f} s ({wrap['iterations_per_second']:.0f} it/s), operators "
-        f"{body['operators_seconds']:.2f} s; error mean {body['error_percent_mean']:.3f} % p95 "
-        f"{body['error_percent_p95']:.3f} % of the diagonal, {body['flipped_quads']} flipped quads "
-        f"(aim: 1 s)",
-        flush=True,
-    )
-    live = measure_live(case, vertices, triangles)
-    results["live"] = live
-    print(
-        f"live wrap: {live['frames_per_second']:.1f} frames/s, {live['iterations_per_second']:.0f} it/s over "
-        f"{live['seconds']:.1f} s ({'finished' if live['finished'] else 'time cap'}) (aim: 30 frames/s)",
-        flush=True,
-    )
+    if not arguments.live_only:
+        _report_body(results, measure_body(case, vertices, triangles))
+    for worker in (False, True) if arguments.live_main_thread else (True,):
+        live = measure_live(case, vertices, triangles, worker=worker)
+        cancel = measure_cancel(case, vertices, triangles, worker=worker)
+        results["live" if worker else "live_main_thread"] = live | {"cancel": cancel}
+        print(
+            f"live wrap ({'worker thread' if worker else 'main thread'}): {live['redraws_per_second']:.1f} redraws/s, "
+            f"{live['frames_per_second']:.1f} with new positions, {live['iterations_per_second']:.0f} it/s over "
+            f"{live['seconds']:.1f} s ({'finished' if live['finished'] else 'time cap'}) (aim: 30 redraws/s); Esc "
+            f"answered within {cancel['worst_seconds'] * 1000:.0f} ms, layout restored: "
+            f"{all(item['restored'] for item in cancel['cancels'])} (aim: 0.2 s)",
+            flush=True,
+        )
     if arguments.large:
         large = measure_large(arguments.large_iterations, arguments.large_seconds, arguments.large_solver)
         results["large"] = large

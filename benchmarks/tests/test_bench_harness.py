@@ -694,11 +694,17 @@ def test_the_wrap_speed_section_states_each_aim_and_measurement():
             "error_percent_p95": 1.08,
             "wrap": {"wrap_seconds": 2.75, "iterations": 680, "converged": True},
         },
-        "live": {"frames_per_second": 32.2, "iterations_per_second": 189.0},
+        "live": {
+            "redraws_per_second": 88.0,
+            "frames_per_second": 32.2,
+            "iterations_per_second": 189.0,
+            "cancel": {"worst_seconds": 0.04},
+        },
     }
     lines = "\n".join(report.wrap_aims_section(speed))
     assert "| 1 s | 2.75 s (680 iterations, converged" in lines
-    assert "| 30 | 32.2 (189 iterations/s) |" in lines
+    assert "| 30 | 88.0 (32.2 with new positions, 189 iterations/s) |" in lines
+    assert "Esc answered | 0.2 s | 0.04 s |" in lines
     assert "spring onto" not in lines  # no large run, no row
     assert "load average at the end 1.00, 2.00, 3.00" in lines
     assert report.wrap_aims_section({}) == []

@@ -401,6 +401,16 @@ def curves_layout(target, shift):
     return activate_layout(layout, target)
 
 
+def wrapped_at_once(solver):
+    """In a fresh file, the plane scene with automatic anchors wrapped by the operator at once; the layout's
+    ``snapshot`` (what a live wrap must end at)."""
+    bpy.ops.wm.read_homefile(use_empty=True)
+    plane_scene()
+    bpy.ops.springwrap.anchors_auto(spacing=0.5)
+    assert bpy.ops.springwrap.wrap(solver=solver) == {"FINISHED"}
+    return snapshot(bpy.data.objects["Layout"])
+
+
 def wrap_session(layout, solver="SPRINGS", paced=False, tolerance=None, **parameters):
     """A wrap session; the spring solver unless said (its hundreds of iterations make many frames).
 

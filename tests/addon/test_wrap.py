@@ -39,6 +39,7 @@ from bpy_helpers import (
     world_positions,
     wrap_session,
     wrap_with_anchors,
+    wrapped_at_once,
 )
 
 # ---------------------------------------------------------------- scenes
@@ -288,13 +289,8 @@ def test_modal_loop_finishes_with_the_same_result_as_exec(solver):
     while outcome == "RUNNING_MODAL":
         outcome = loop.handle("TIMER")
     assert outcome == "FINISHED" and loop.result.converged and loop.result.frames > 2
-    modal = snapshot(bpy.data.objects["Layout"])
-
-    bpy.ops.wm.read_homefile(use_empty=True)
-    plane_scene()
-    bpy.ops.springwrap.anchors_auto(spacing=0.5)
-    assert bpy.ops.springwrap.wrap(solver=solver) == {"FINISHED"}
-    assert snapshot(bpy.data.objects["Layout"]) == modal
+    live = snapshot(bpy.data.objects["Layout"])
+    assert live == wrapped_at_once(solver)
 
 
 def test_the_schedule_changes_the_wrap_and_the_spring_solver_refuses_it():

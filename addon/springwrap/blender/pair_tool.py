@@ -162,12 +162,13 @@ def start_settle(context, layout: bpy.types.Object, display_seconds: float | Non
 
 
 def advance_settle(session: WrapSession) -> None:
-    """One frame of a Live re-settle, written: the first solves at most :data:`LIVE_FIRST_FRAME_SECONDS`, the
-    others as long as the modal wrap's frames."""
-    limit = session.pacer.max_solve_seconds
-    if session.frames == 0:
-        session.pacer.max_solve_seconds = min(limit, LIVE_FIRST_FRAME_SECONDS)
-    try:
+    """One frame of a Live re-settle, written. The first solves here, at most :data:`LIVE_FIRST_FRAME_SECONDS`, so
+    the layout shows an edit's effect soon after it; the rest solves in the session's worker thread
+    (``WrapSession.start_worker``) and each later frame writes the newest positions it solved. The next edit
+    finishes the re-settle (``WrapSession.finish`` stops the worker between two iterations) before it changes the
+    anchors, and starts another from the layout as it then is."""
+    if session.worker is None and session.frames == 0:
+        session.advance(max_seconds=LIVE_FIRST_FRAME_SECONDS)
+        session.start_worker()
+    else:
         session.advance()
-    finally:
-        session.pacer.max_solve_seconds = limit

@@ -10,15 +10,13 @@ import bpy
 
 import numpy as np
 
-import springwrap_kernel
-
 from ..core import anchors, follow, input_policy, layout_state, parts, proposals, subdivision, transforms, wrap_inputs
 from ..core.errors import LayoutError
 from ..core.target import Target
-from ..core.wrap_run import FramePacer, WrapResult
+from ..core.wrap_run import FramePacer, SolveWorker, WrapResult
 from ..properties import WRAP_DEFAULTS
 from . import anchors as anchor_data
-from . import attributes, last_run
+from . import attributes, last_run, wrap_reads
 from . import curves as curve_data
 from . import layout as layout_data
 from . import parts as part_data
@@ -36,45 +34,6 @@ SYNCHRONOUS_CHUNK = 100
 """Iterations per kernel call when the wrap runs to the end at once."""
 
 
-_SOLVER_KEYWORDS = (
-    "anchor_vertices",
-    "anchor_triangles",
-    "anchor_barycentrics",
-    "anchor_positions",
-    "unreliable_triangles",
-    "rest_positions",
-)
-"""The ``WrapInputs`` fields the kernel's ``WrapSolver`` takes as keywords of the same names."""
-_CURVE_KEYWORDS = ("curve_vertices", "curve_vertex_counts", "curve_points", "curve_point_counts")
-"""The ``WrapInputs`` fields of the curve constraints, passed to ``WrapSolver`` when there are any."""
-
-
-def make_wrap_solver(target: Target, structure, inputs, parameters):
-    """A kernel ``WrapSolver`` for the prepared inputs (``core.wrap_inputs.WrapInputs``, the kernel's frame)."""
-    keywords = {name: getattr(inputs, name) for name in _SOLVER_KEYWORDS}
-    if inputs.curve_vertices is not None:
-        keywords |= {name: getattr(inputs, name) for name in _CURVE_KEYWORDS}
-    if getattr(inputs, "plane_vertices", None) is not None:
-        keywords |= {
-            "plane_vertices": inputs.plane_vertices,
-            "plane_point": tuple(float(value) for value in inputs.plane_point),
-            "plane_normal": tuple(float(value) for value in inputs.plane_normal),
-            "plane_slide": bool(inputs.plane_slide),
-        }
-    return springwrap_kernel.WrapSolver(
-        target.mesh.kernel,
-        structure,
-        inputs.states,
-        inputs.triangles,
-        inputs.barycentrics,
-        inputs.positions,
-        settings=parameters.settings,
-        stiffness=getattr(inputs, "stiffness", None),
-        free_vertices=getattr(inputs, "free_vertices", None),
-        **keywords,
-    )
-
-
 class WrapSession:
     """A wrap in progress on one layout, without any UI: read, step, write frames, then finish or cancel.
 
@@ -87,7 +46,8 @@ class WrapSession:
     viewport's measured draw time): the first frame's solve time is paced from it. ``shape_keys``:
     ``'TRANSFER'`` wraps the basis (the reference key) and carries the other keys over when it finishes
     (frames move them along), ``'REFUSE'`` refuses a layout with shape keys. ``target`` (optional): the
-    target already read (a sequence's frame object); None reads the layout's target. ``region`` (optional, (N,)
+    target already read (a sequence's frame object); None reads the layout's target. ``reads`` (optional): the
+    layout and target as the caller read (and checked) them (``blender.wrap_reads``); None reads them here. ``region`` (optional, (N,)
     bool): re-settle only these vertices, every other one held where it is and written back as it was
     (``core.follow``: the solver then works on the faces around the region alone).
     """
@@ -102,6 +62,7 @@ class WrapSession:
         shape_keys: str = "TRANSFER",
         target: Target | None = None,
         region: np.ndarray | None = None,
+        reads: wrap_reads.WrapReads | None = None,
     ):
         self.start_time = time.perf_counter()
         self.layout = layout
@@ -110,19 +71,17 @@ class WrapSession:
         shape_key_data.refuse(layout, shape_keys, shape_key_data.REFUSED)
         self.shape_keys = shape_key_data.read(layout)  # as they were: frames follow them, finish carries them
         settings = layout.springwrap
-        arrays = layout_data.read_layout(layout)
+        if reads is None:
+            reads = wrap_reads.read(context, layout, target)
+        arrays = reads.arrays
         if not transforms.is_invertible(arrays.matrix_world):
             raise LayoutError(
                 f"Layout '{layout.name}' has zero scale: the wrap's world positions cannot be written back"
             )
         self.matrix_world = arrays.matrix_world
-        self.target = (
-            target if target is not None else target_data.read_target(context.evaluated_depsgraph_get(), layout)
-        )
-        self.layout_topology = layout_data.read_layout_topology(layout)
-        self.anchors, anchor_resolution = anchors.resolve(
-            anchor_data.read_anchors(layout), self.target, settings.anchors_signature
-        )
+        self.target = reads.target
+        self.layout_topology = reads.topology
+        self.anchors, anchor_resolution = anchors.resolve(reads.anchors, self.target, settings.anchors_signature)
         unreliable = None
         if settings.unreliable_group:
             weights = target_data.read_vertex_group_weights(context, settings.target, settings.unreliable_group)
@@ -133,7 +92,7 @@ class WrapSession:
                 )
             unreliable = wrap_inputs.unreliable_triangles(self.target.mesh.triangles(), weights)
         curve_constraints = curve_data.resolve_curve_constraints(
-            context.evaluated_depsgraph_get(), layout, curve_data.read_curve_constraints(layout)
+            context.evaluated_depsgraph_get(), layout, reads.curves
         )
         # The input policy on what the solver gets (the operators check before; the mirror and the scripts
         # come here too): the layout, the anchors and the curves as resolved on the current target.
@@ -179,7 +138,7 @@ class WrapSession:
         structure = layout_data.make_layout_structure(
             self.layout_topology if self.restriction is None else self.restriction.topology
         )
-        self.solver = make_wrap_solver(self.target, structure, inputs, parameters)
+        self.solver = wrap_inputs.make_wrap_solver(self.target, structure, inputs, parameters)
         self.inputs = inputs
         # Coarse to fine: with a spring resolution above 1 the layout is relaxed first, then a grid
         # of its faces cut k x k (its own vertices first) takes over; the layout's vertices are read
@@ -190,7 +149,7 @@ class WrapSession:
         # What finish() writes on the object besides the mesh, to put back when it fails half-way.
         self.settings_snapshot = (
             settings.target_signature,
-            anchor_data.read_anchors(layout),
+            reads.anchors,
             settings.active_anchor_index,
             settings.anchors_signature,
         )
@@ -203,6 +162,8 @@ class WrapSession:
         self.frames = 0
         self.events = {"landed": 0, "folded": 0, "lifted": 0}
         self._frame_end: float | None = None
+        self.worker: SolveWorker | None = None
+        self.written_positions: np.ndarray | None = None  # the local positions finish() wrote
 
     @property
     def stage_iterations(self) -> int:
@@ -272,25 +233,39 @@ class WrapSession:
         )
         structure = layout_data.make_layout_structure(fine.topology)
         inputs = part_data.refine_free(inputs, fine, self.vertex_count)
-        self.solver = make_wrap_solver(self.target, structure, inputs, self.parameters)
+        self.solver = wrap_inputs.make_wrap_solver(self.target, structure, inputs, self.parameters)
         self.kernel_seconds += time.perf_counter() - start
         self.coarse_iterations = self.stage_iterations
         self.fine_vertex_count = fine.topology.vertex_count
         self.last_report = None
         self.stage = "fine"
 
-    def advance(self):
-        """One frame of the interactive wrap: solve for the frame's share of time, then write the layout.
+    def advance(self, max_seconds: float | None = None):
+        """One frame of the interactive wrap; returns the last ``StepReport`` (None before the worker's first).
 
-        The time since the previous frame's write ended (Blender's redraw and event handling) is the
-        display's measured cost, from which the pacer sizes this frame's solve time; the kernel is
-        called in chunks until that time is used or the wrap is done. Writes positions and state into
-        the layout mesh (no undo step). Returns the last ``StepReport``.
+        Without a worker (:meth:`start_worker`) the frame solves here for its share of time, then writes the layout:
+        the time since the previous frame's write ended (Blender's redraw and event handling) is the display's
+        measured cost, from which the pacer sizes this frame's solve time (at most ``max_seconds`` when given); the
+        kernel is called in chunks until that time is used or the wrap is done. With a worker the frame writes the
+        newest positions the worker solved, if there are new ones, and solves nothing; an error of the worker is
+        raised here. Either way it writes positions and state into the layout mesh (no undo step).
         """
+        if self.worker is not None:
+            return self._present()
         begin = time.perf_counter()
         if self._frame_end is not None:
             self.pacer.record_display(begin - self._frame_end)
-        deadline = begin + self.pacer.solve_seconds()
+        seconds = self.pacer.solve_seconds()
+        report = self._solve_for(seconds if max_seconds is None else min(seconds, max_seconds))
+        self.write_frame()
+        self._frame_end = time.perf_counter()
+        self.frames += 1
+        return report
+
+    def _solve_for(self, seconds: float):
+        """Call the kernel in chunks sized by the pacer for about ``seconds`` (at least one iteration, or the start of
+        the next stage); the last ``StepReport``."""
+        deadline = time.perf_counter() + seconds
         report = None
         while report is None or not self.done:
             now = time.perf_counter()
@@ -304,10 +279,35 @@ class WrapSession:
             self.pacer.record_step(report.iterations, time.perf_counter() - now)
             if self.stage == "fine" and report.iterations == 0:
                 break  # nothing left to run in this stage (the limit): done says so
-        self.write_frame()
-        self._frame_end = time.perf_counter()
-        self.frames += 1
         return report
+
+    def start_worker(self) -> None:
+        """Solve the rest of the wrap in a worker thread (``core.wrap_run.SolveWorker``): from now on :meth:`advance`
+        only writes what it solved, and the solver is not touched here until :meth:`stop_worker` (which
+        :meth:`finish` and :meth:`cancel` call). Each of its chunks solves about one frame's time. What runs in the
+        worker (:meth:`step`, the fine stage's start, :meth:`current_layout`) reads and writes no Blender data."""
+        if self.worker is None and not self.done:
+            self.worker = SolveWorker(self._solve_for, self.current_layout, lambda: self.done, self.pacer.frame_seconds)
+
+    def stop_worker(self, raise_error: bool = True) -> None:
+        """Stop the worker after its iteration in progress (the solver is then this thread's again); raise what it
+        raised unless ``raise_error`` is False. Nothing without a worker."""
+        worker, self.worker = self.worker, None
+        if worker is None:
+            return
+        worker.stop()
+        if worker.error is not None and raise_error:
+            raise worker.error
+
+    def _present(self):
+        """A frame with a worker: write its newest positions and state; raise its error when it failed."""
+        frame = self.worker.take()
+        if frame is not None:
+            self._write_frame(*frame)
+            self.frames += 1
+        if not self.worker.running:
+            self.stop_worker()
+        return self.last_report
 
     def run(self, progress: Callable | None = None, chunk: int = SYNCHRONOUS_CHUNK):
         """Step to the end at once (converged or the limit), writing nothing; ``progress(report)`` after each chunk."""
@@ -338,13 +338,17 @@ class WrapSession:
 
     def write_frame(self) -> None:
         """Write the solver's current positions and state into the layout (an intermediate frame)."""
-        positions, state = self.current_layout()
+        self._write_frame(*self.current_layout())
+
+    def _write_frame(self, positions, state) -> None:
         attributes.write_wrap_frame(self.layout, positions, state)
         shape_key_data.follow(self.layout, self.shape_keys, positions)
 
     def finish(self, measure: bool = True) -> WrapResult:
         """Write the result for good: positions, state, the target signature and the resolved anchors, and (with
-        ``measure``) the quality read-out; without it the read-out stays as it was (a sequence's later frame)."""
+        ``measure``) the quality read-out; without it the read-out stays as it was (a sequence's later frame). A
+        worker is stopped first, after its iteration in progress."""
+        self.stop_worker()
         if self.last_report is None:
             self.step(0)
         positions, state = self.current_layout()
@@ -355,6 +359,7 @@ class WrapSession:
             )
         shape_key_data.restore(self.layout, self.shape_keys)  # carried from the keys as they were, not a frame
         layout_data.write_layout(self.layout, positions, state, rest=self.rest)
+        self.written_positions = positions  # what the operator's storage check needs, not read back
         settings = self.layout.springwrap
         settings.target_signature = self.target.signature
         if len(settings.anchors):
@@ -395,7 +400,8 @@ class WrapSession:
     def cancel(self) -> None:
         """Put the layout back exactly as it was at the start: positions, state attributes, rest shape, read-out,
         and what :meth:`finish` writes on the object (target signature, anchors), the shape keys; also after a
-        failed finish."""
+        failed finish (a worker is stopped first)."""
+        self.stop_worker(raise_error=False)
         shape_key_data.restore(self.layout, self.shape_keys)
         attributes.restore_snapshot(self.layout, self.snapshot)
         target_signature, anchor_list, active_index, anchors_signature = self.settings_snapshot
@@ -468,7 +474,10 @@ def last_result(layout: bpy.types.Object) -> WrapResult | None:
 
 
 def forget_results() -> None:
-    """Drop the remembered results and live wraps (the add-on is unregistered, another file is loaded)."""
+    """Drop the remembered results and live wraps (the add-on is unregistered, another file is loaded); their worker
+    threads are stopped."""
+    for session in _running:
+        session.stop_worker(raise_error=False)
     _running.clear()
     last_run.forget_all()
 

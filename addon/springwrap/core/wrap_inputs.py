@@ -1,10 +1,13 @@
 """The wrap's inputs on arrays (paper, section 2.5): parameters, checks, anchors, unreliable triangles,
-the rest shape and the fine stage of a spring resolution above 1. Numpy and the kernel, no ``bpy``.
+the rest shape, the fine stage of a spring resolution above 1, and the kernel's ``WrapSolver`` built from them.
+Numpy and the kernel, no ``bpy``.
 """
 
 from typing import Any, NamedTuple
 
 import numpy as np
+
+import springwrap_kernel
 
 from . import curves, input_policy, layout_state, transforms
 from .anchors import check_anchor_vertices
@@ -340,3 +343,42 @@ def prepare_wrap(
         origin=origin,
     )
     return inputs, resolution
+
+
+_SOLVER_KEYWORDS = (
+    "anchor_vertices",
+    "anchor_triangles",
+    "anchor_barycentrics",
+    "anchor_positions",
+    "unreliable_triangles",
+    "rest_positions",
+)
+"""The ``WrapInputs`` fields the kernel's ``WrapSolver`` takes as keywords of the same names."""
+_CURVE_KEYWORDS = ("curve_vertices", "curve_vertex_counts", "curve_points", "curve_point_counts")
+"""The ``WrapInputs`` fields of the curve constraints, passed to ``WrapSolver`` when there are any."""
+
+
+def make_wrap_solver(target: Target, structure, inputs, parameters):
+    """A kernel ``WrapSolver`` for the prepared inputs (``core.wrap_inputs.WrapInputs``, the kernel's frame)."""
+    keywords = {name: getattr(inputs, name) for name in _SOLVER_KEYWORDS}
+    if inputs.curve_vertices is not None:
+        keywords |= {name: getattr(inputs, name) for name in _CURVE_KEYWORDS}
+    if getattr(inputs, "plane_vertices", None) is not None:
+        keywords |= {
+            "plane_vertices": inputs.plane_vertices,
+            "plane_point": tuple(float(value) for value in inputs.plane_point),
+            "plane_normal": tuple(float(value) for value in inputs.plane_normal),
+            "plane_slide": bool(inputs.plane_slide),
+        }
+    return springwrap_kernel.WrapSolver(
+        target.mesh.kernel,
+        structure,
+        inputs.states,
+        inputs.triangles,
+        inputs.barycentrics,
+        inputs.positions,
+        settings=parameters.settings,
+        stiffness=getattr(inputs, "stiffness", None),
+        free_vertices=getattr(inputs, "free_vertices", None),
+        **keywords,
+    )

@@ -1,9 +1,13 @@
 """Running a wrap, without Blender: what it did (:class:`WrapResult`), how long each
-frame of the live wrap solves (:class:`FramePacer`) and the modal's state machine (:class:`WrapLoop`: events in, the
-operator's return values out), so tests drive them directly. No ``bpy``.
+frame of the live wrap solves (:class:`FramePacer`), the live wrap's solve in a worker thread (:class:`SolveWorker`)
+and the modal's state machine (:class:`WrapLoop`: events in, the operator's return values out), so tests drive them
+directly. No ``bpy``.
 """
 
 import math
+import threading
+import time
+from collections.abc import Callable
 from typing import NamedTuple
 
 CANCEL_EVENTS = frozenset({"ESC", "RIGHTMOUSE"})
@@ -172,6 +176,61 @@ class FramePacer:
             self.display_seconds = seconds
         else:
             self.display_seconds = 0.5 * self.display_seconds + 0.5 * seconds
+
+
+class SolveWorker:
+    """The live wrap's solve in a worker thread, so that Blender's main thread only draws and handles events.
+
+    The thread calls ``step(seconds)`` (run about ``seconds`` of iterations, at least one) and then
+    ``snapshot()`` (what the main thread draws, computed from the solver in this thread), and publishes the
+    snapshot, until ``done()`` or :meth:`stop`. The kernel releases the GIL while it steps. Nothing else may touch
+    the solver while the thread runs: the main thread reads only :meth:`take` (the newest snapshot not yet taken),
+    and reaches the solver again after :meth:`stop`, which waits for the iteration in progress (the solver is never
+    left half-stepped). An exception in the thread ends it and is kept in :attr:`error`.
+    """
+
+    def __init__(self, step: Callable, snapshot: Callable, done: Callable, chunk_seconds: float):
+        self._step, self._snapshot, self._done = step, snapshot, done
+        self.chunk_seconds = chunk_seconds
+        self.error: BaseException | None = None
+        self._stop = threading.Event()
+        self._lock = threading.Lock()
+        self._latest = None
+        self._serial = 0
+        self._taken = 0
+        self._thread = threading.Thread(target=self._run, name="springwrap live wrap", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        try:
+            while not self._stop.is_set() and not self._done():
+                self._step(self.chunk_seconds)
+                snapshot = self._snapshot()
+                with self._lock:
+                    self._latest = snapshot
+                    self._serial += 1
+        except BaseException as error:  # noqa: BLE001 - handed to the main thread, raised there
+            self.error = error
+
+    @property
+    def running(self) -> bool:
+        """Whether the thread is still solving."""
+        return self._thread.is_alive()
+
+    def take(self):
+        """The newest snapshot the thread published since the last call, None when there is none."""
+        with self._lock:
+            if self._serial == self._taken:
+                return None
+            self._taken = self._serial
+            return self._latest
+
+    def stop(self) -> float:
+        """Ask the thread to stop after the iteration in progress and wait for it; the seconds waited."""
+        start = time.perf_counter()
+        self._stop.set()
+        self._thread.join()
+        return time.perf_counter() - start
 
 
 class WrapLoop:

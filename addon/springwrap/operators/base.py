@@ -83,7 +83,16 @@ def open_layout(
 
 
 def check_inputs(
-    context, layout: bpy.types.Object, reads=READS_LAYOUT, with_target: bool = True, target_required: bool = True
+    context,
+    layout: bpy.types.Object,
+    reads=READS_LAYOUT,
+    with_target: bool = True,
+    target_required: bool = True,
+    *,
+    arrays=None,
+    target=None,
+    anchors=None,
+    curves=None,
 ) -> input_policy.Extent | None:
     """The add-on's input policy (``core.input_policy``) on what an operation reads; the target's extent.
 
@@ -93,35 +102,46 @@ def check_inputs(
     data: call it inside ``object_mode(layout)``. Writes nothing. ``with_target=False``: the target is
     not read (an operation that does not use it), only finiteness and the absolute limit apply; with
     ``target_required=False`` an unusable target is not this operation's problem and is not judged
-    against either (Set Rest Shape with a target that lost its faces).
+    against either (Set Rest Shape with a target that lost its faces). What the caller already by the caller: ``arrays`` (``LayoutArrays``), ``target`` (``Target``), ``anchors`` and ``curves`` (as stored),
+    each one given checked instead of read again.
     """
     extent = None
-    if with_target and layout.springwrap.target is not None:
+    if target is not None:
+        extent = target.extent
+    elif with_target and layout.springwrap.target is not None:
         try:
             extent = target_data.read_target(context.evaluated_depsgraph_get(), layout).extent
         except ERRORS:
             if target_required:
                 raise
     if "positions" in reads:
-        arrays = layout_data.read_layout(layout)
+        arrays = layout_data.read_layout(layout) if arrays is None else arrays
         if not np.all(np.isfinite(arrays.matrix_world)):
             raise LayoutError(
                 f"Layout '{layout.name}' has a NaN or infinite transform: reset its location, rotation and scale"
             )
         input_policy.check_layout_points(layout.name, transforms.world_positions(arrays), extent)
     if "anchors" in reads and len(layout.springwrap.anchors):
-        anchor_list = anchor_data.read_anchors(layout)
+        anchor_list = anchor_data.read_anchors(layout) if anchors is None else anchors
         input_policy.check_anchor_points(anchor_list.vertex_indices, anchor_list.locations, extent)
     if "curves" in reads and len(layout.springwrap.curve_constraints):
-        input_policy.check_curve_points(curve_data.read_curve_constraints(layout), extent)
+        curve_list = curve_data.read_curve_constraints(layout) if curves is None else curves
+        input_policy.check_curve_points(curve_list, extent)
     return extent
 
 
-def report_storage_precision(operator, layout: bpy.types.Object, extent: input_policy.Extent | None) -> None:
+def report_storage_precision(
+    operator, layout: bpy.types.Object, extent: input_policy.Extent | None, positions: np.ndarray | None = None
+) -> None:
     """A WARNING when the layout's float32 storage cannot hold the result as precisely as it was computed
-    (``input_policy.storage_precision_note``); object mode data."""
-    arrays = layout_data.read_layout(layout)
-    note = input_policy.storage_precision_note(layout.name, arrays.positions, arrays.matrix_world, extent)
+    (``input_policy.storage_precision_note``); object mode data. ``positions``: the local positions the operation
+    just wrote ((N, 3)), used instead of reading them back."""
+    if positions is None:
+        positions = layout_data.read_layout(layout).positions
+    positions = np.asarray(positions, dtype=np.float32).reshape(-1, 3)  # as stored
+    note = input_policy.storage_precision_note(
+        layout.name, positions, transforms.matrix_array(layout.matrix_world), extent
+    )
     if note is not None:
         operator.report({"WARNING"}, note)
 

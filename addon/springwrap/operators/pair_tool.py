@@ -380,9 +380,12 @@ class SPRINGWRAP_OT_pair_tool(LayoutOperator, bpy.types.Operator):
     def _advance_settle(self, context) -> None:
         if self._settle is None:
             return
+        frames = self._settle.frames
         pair_data.advance_settle(self._settle)
         if self._settle.done:
             self._finish_settle(context)
+        elif self._settle.frames == frames:
+            return  # the worker has solved nothing new since the last frame
         self._area.tag_redraw()
 
     def _finish_settle(self, context) -> None:

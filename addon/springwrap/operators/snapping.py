@@ -52,12 +52,12 @@ class _SnapOperator(LayoutOperator):
         start = time.perf_counter()
         try:
             with object_mode(layout):
-                extent = check_inputs(context, layout, self.reads)
                 settings = layout.springwrap
-                arrays = layout_data.read_layout(layout)
                 target = None
                 if settings.target is not None:
                     target = target_data.read_target(context.evaluated_depsgraph_get(), layout)
+                arrays = layout_data.read_layout(layout)  # once: checked, then computed on
+                extent = check_inputs(context, layout, self.reads, arrays=arrays, target=target)
                 outcome = self.compute(context, layout, arrays, target)
                 readout = None
                 # Points alone (no faces, no edges) are snapped too; the read-out measures faces and edges.
@@ -68,7 +68,7 @@ class _SnapOperator(LayoutOperator):
                     quality_data.write_readout(layout, readout)
                 if target is not None:
                     settings.target_signature = target.signature
-                report_storage_precision(self, layout, extent)
+                report_storage_precision(self, layout, extent, outcome.positions)
         except ERRORS as error:
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}

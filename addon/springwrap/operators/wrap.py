@@ -4,14 +4,13 @@
 positions), its anchors and the evaluated target to the kernel's ``WrapSolver`` and steps it until
 it converges or reaches the iteration limit.
 
-- Interactively (``invoke`` in a window) it is a modal operator: each frame solves for a while, writes
-  the layout mesh so the viewport shows it settling (paper, Figure 12), and shows its progress in
-  the status bar and the panel. How long a frame solves comes from what a redraw really costs
-  (``core.wrap_run.FramePacer``): the rest of a 1/30 s frame on a fast display, 60 % of each frame on
-  a slow one (software OpenGL). The first frame runs in ``invoke`` itself, paced from the viewport's
-  measured draw time (``ui.frame_clock``): a wrap that fits in it finishes there, with no redraw in
-  between. Esc or right-click cancels and puts positions and state back bit for bit; finishing keeps
-  the result as one undo step.
+- Interactively (``invoke`` in a window) it is a modal operator. The first frame solves in ``invoke``
+  itself, paced from the viewport's measured draw time (``ui.frame_clock``, ``core.wrap_run.FramePacer``):
+  a wrap that fits in it finishes there, with no redraw in between. The rest solves in a worker thread
+  (``WrapSession.start_worker``); each timer event writes the newest positions it solved into the layout
+  mesh, so the viewport shows it settling (paper, Figure 12) at the display's own rate, and shows the
+  progress in the status bar and the panel. Esc or right-click stops the worker after its iteration in
+  progress and puts positions and state back bit for bit; finishing keeps the result as one undo step.
 - In background mode, or with ``EXEC_DEFAULT`` (scripts), it runs to the end at once and writes once.
 
 The logic is in two plain classes that need no window or events: ``blender.wrap_session.WrapSession``
@@ -23,7 +22,7 @@ import bpy
 
 from .. import property_kinds as props
 from ..blender import layout as layout_data
-from ..blender import wrap_session
+from ..blender import wrap_reads, wrap_session
 from ..blender.edit_mode import EditModeGuard, object_mode
 from ..blender.wrap_session import WrapSession
 from ..core import input_policy, mirror_seam, mirroring, quality, transforms
@@ -159,7 +158,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
             free_group=self.free_group,
         )
 
-    def _find_midline(self, layout) -> None:
+    def _find_midline(self, layout, reads) -> None:
         """Without Hold on Plane, remember the plane of the layout (or its Mirror Object) its open border lies on, if
         any (a half's midline), to say after the wrap what Hold on Plane is for."""
         self._midline = None
@@ -172,19 +171,19 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
         matrix = matrix_array(owner.matrix_world)
         if not transforms.is_invertible(matrix):
             return
-        world = transforms.world_positions(layout_data.read_layout(layout))
+        world = transforms.world_positions(reads.arrays)
         planes = [(axis, mirroring.plane_from_matrix(matrix, axis)) for axis in mirroring.AXES]
         self._midline = mirror_seam.midline_plane(world, open_edges, edges, planes, mirroring.DEFAULT_WELD_FRACTION)
 
-    def _plane_holder(self, layout, extent):
+    def _plane_holder(self, layout, reads, extent):
         """``adjust_inputs`` for :class:`WrapSession` holding the midline on ``hold_plane``; None without one."""
         if self.hold_plane == "NONE":
             return None
         owner = layout.springwrap.mirror_object or layout
         plane = mirroring.plane_from_matrix(matrix_array(owner.matrix_world), self.hold_plane)
         input_policy.check_plane(plane.point, plane.normal, owner.name, extent)
-        world = transforms.world_positions(layout_data.read_layout(layout))
-        edges = layout_data.read_layout_topology(layout).edges
+        world = transforms.world_positions(reads.arrays)
+        edges = reads.topology.edges
         return lambda inputs: mirroring.held_on_plane(inputs, world, edges, plane)
 
     # A string: typing's cache would keep Optional[WrapSession] (and through it this module) alive until
@@ -197,13 +196,17 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
             return None
         try:
             layout = context.active_object
-            extent = check_inputs(context, layout)
-            self._find_midline(layout)
+            reads = wrap_reads.read(context, layout)  # once: checked here, then handed to the session
+            extent = check_inputs(
+                context, layout, arrays=reads.arrays, target=reads.target, anchors=reads.anchors, curves=reads.curves
+            )
+            self._find_midline(layout, reads)
             return WrapSession(
                 context,
                 layout,
                 self.parameters(),
-                adjust_inputs=self._plane_holder(layout, extent),
+                reads=reads,
+                adjust_inputs=self._plane_holder(layout, reads, extent),
                 display_seconds=display_seconds,
                 shape_keys=self.shape_keys,
             )
@@ -227,7 +230,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
                 session.cancel()
                 self.report({"ERROR"}, f"The wrap failed: {error}")
                 return {"CANCELLED"}
-            report_storage_precision(self, layout, session.target.extent)
+            report_storage_precision(self, layout, session.target.extent, session.written_positions)
         self._report_result(result, session.parameters.settings)
         return {"FINISHED"}
 
@@ -247,6 +250,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
         if outcome != "RUNNING_MODAL":
             self._restore_mode()
             return self._ended(outcome)
+        session.start_worker()  # the rest solves off the main thread, which only draws and answers events
         self._area = context.area  # the header to write in; events may come with another area as context
         window_manager = context.window_manager
         self._timer = window_manager.event_timer_add(TIMER_SECONDS, window=context.window)
@@ -257,9 +261,10 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
         return {"RUNNING_MODAL"}
 
     def modal(self, context, event):
+        frames = self._loop.session.frames
         outcome = self._loop.handle(event.type, event.value)
         if outcome == "RUNNING_MODAL":
-            if event.type == "TIMER":
+            if event.type == "TIMER" and self._loop.session.frames != frames:  # a new frame was written
                 self._show_status(context)
             return {"RUNNING_MODAL"}
         if outcome == "PASS_THROUGH":
@@ -270,7 +275,8 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
     def _ended(self, outcome: str) -> set:
         """Report how the wrap ended (``'FINISHED'`` or ``'CANCELLED'``) and return the operator's result."""
         if outcome == "FINISHED":
-            report_storage_precision(self, self._loop.session.layout, self._loop.session.target.extent)
+            session = self._loop.session
+            report_storage_precision(self, session.layout, session.target.extent, session.written_positions)
             self._report_result(self._loop.result, self._loop.session.parameters.settings)
             return {"FINISHED"}
         if self._loop.error is not None:

@@ -1,0 +1,41 @@
+"""What one wrap reads from Blender, read once (:class:`WrapReads`): the layout's arrays and topology, its anchors and
+curve constraints as stored, and its evaluated target. An operator reads it, checks it (``operators.base.check_inputs``
+given its members) and hands it to ``blender.wrap_session.WrapSession``, which reads none of these again.
+
+Object mode data: read inside ``edit_mode.object_mode(layout)``.
+"""
+
+from typing import NamedTuple
+
+import bpy
+
+from ..core.layout_state import LayoutArrays
+from ..core.target import Target
+from . import anchors as anchor_data
+from . import curves as curve_data
+from . import layout as layout_data
+from . import target as target_data
+
+
+class WrapReads(NamedTuple):
+    """The layout and its target as one wrap reads them."""
+
+    arrays: LayoutArrays  # local positions, selection, state, transform
+    topology: object  # subdivision.LayoutTopology: faces, edges and seams
+    anchors: object  # core.anchors.Anchors as stored on the layout (unresolved)
+    curves: list  # the layout's curve constraints as stored (their cached polylines)
+    target: Target  # the evaluated target in world space
+
+
+def read(context, layout: bpy.types.Object, target: Target | None = None) -> WrapReads:
+    """Read everything a wrap of ``layout`` needs once; ``target``: the target already read (a sequence's frame
+    object), else the layout's target is read. Raises one of ``core.errors.ERRORS`` naming what cannot be read."""
+    if target is None:
+        target = target_data.read_target(context.evaluated_depsgraph_get(), layout)
+    return WrapReads(
+        arrays=layout_data.read_layout(layout),
+        topology=layout_data.read_layout_topology(layout),
+        anchors=anchor_data.read_anchors(layout),
+        curves=curve_data.read_curve_constraints(layout),
+        target=target,
+    )

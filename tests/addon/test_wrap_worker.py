@@ -1,0 +1,199 @@
+"""The live wrap's solve off Blender's main thread, and a wrap's reads of Blender data.
+
+The modal wrap's first frame solves on the main thread; ``WrapSession.start_worker`` then runs the rest in a worker
+thread, and each later frame writes the newest positions it solved. The solver is never called from two threads at
+once (PyO3 would raise "Already borrowed"), a cancel puts the layout back bit for bit, a finish ends exactly where a
+synchronous run does, an error in the worker restores the layout. One Wrap reads the layout, its anchors, its curve
+constraints and its target from Blender once each, and a live frame reads none of them.
+"""
+
+import threading
+import time
+
+import bpy
+
+import numpy as np
+import pytest
+
+from bpy_helpers import anchor_snapshot, plane_scene, snapshot, wrap_session, wrapped_at_once
+
+
+class _OneThreadAtATime:
+    """Wraps the kernel's solver and records every call made while another thread was inside it."""
+
+    def __init__(self, solver):
+        self._solver, self._lock, self.overlaps, self.threads = solver, threading.Lock(), [], set()
+
+    def __getattr__(self, name):
+        attribute = getattr(self._solver, name)
+        if not callable(attribute):
+            return attribute
+
+        def call(*args, **kwargs):
+            if not self._lock.acquire(blocking=False):
+                self.overlaps.append(name)
+                return attribute(*args, **kwargs)
+            try:
+                self.threads.add(threading.get_ident())
+                return attribute(*args, **kwargs)
+            finally:
+                self._lock.release()
+
+        return call
+
+
+def _threaded_loop(layout, solver="SPRINGS", **keywords):
+    """A ``WrapLoop`` as the operator's ``invoke`` leaves it: one frame solved here, the rest in the worker."""
+    from springwrap.core.wrap_run import WrapLoop
+
+    session = wrap_session(layout, solver=solver, **keywords)
+    session.solver = _OneThreadAtATime(session.solver)
+    loop = WrapLoop(session)
+    assert loop.handle("TIMER") == "RUNNING_MODAL"
+    session.start_worker()
+    assert session.worker is not None and session.worker.running
+    return loop
+
+
+def _frames(loop, count, seconds=60.0):
+    """Timer events until ``count`` more frames were written or the wrap ended; the last outcome."""
+    target, outcome, start = loop.session.frames + count, "RUNNING_MODAL", time.perf_counter()
+    while outcome == "RUNNING_MODAL" and loop.session.frames < target and time.perf_counter() - start < seconds:
+        outcome = loop.handle("TIMER")
+        time.sleep(0.002)  # the main thread's redraw
+    return outcome
+
+
+@pytest.mark.parametrize("solver", ["SPRINGS", "ENERGY"])
+def test_the_worker_finishes_where_a_synchronous_wrap_ends(solver):
+    plane_scene()
+    bpy.ops.springwrap.anchors_auto(spacing=0.5)
+    loop = _threaded_loop(bpy.context.active_object, solver=solver)
+    outcome = "RUNNING_MODAL"
+    while outcome == "RUNNING_MODAL":
+        outcome = _frames(loop, 1)
+    assert outcome == "FINISHED" and loop.result.converged and loop.result.frames >= 2
+    assert loop.session.worker is None
+    assert not loop.session.solver.overlaps and len(loop.session.solver.threads) == 2  # main, then the worker
+    live = snapshot(bpy.data.objects["Layout"])
+    assert live == wrapped_at_once(solver)
+
+
+@pytest.mark.parametrize("key", ["ESC", "RIGHTMOUSE"])
+def test_cancel_stops_the_worker_and_restores_the_layout_bit_for_bit(key):
+    target, layout, _normal = plane_scene()
+    bpy.ops.springwrap.anchors_auto(spacing=0.5)
+    before, anchors_before = snapshot(layout), anchor_snapshot(layout)
+    loop = _threaded_loop(layout)
+    assert _frames(loop, 2) == "RUNNING_MODAL"
+    assert snapshot(layout)["positions"] != before["positions"]  # the worker's frames were written
+    worker = loop.session.worker
+    assert loop.handle(key, "PRESS") == "CANCELLED"
+    assert not worker.running and loop.session.worker is None
+    assert snapshot(layout) == before and anchor_snapshot(layout) == anchors_before
+    assert not loop.session.solver.overlaps
+    assert loop.handle("TIMER") == "CANCELLED"
+
+
+def test_an_error_in_the_worker_restores_the_layout():
+    import springwrap_kernel
+
+    target, layout, _normal = plane_scene()
+    bpy.ops.springwrap.anchors_auto(spacing=0.5)
+    before = snapshot(layout)
+    loop = _threaded_loop(layout)
+    solver, calls = loop.session.solver._solver, []
+
+    class Failing:
+        def step(self, iterations):
+            calls.append(iterations)
+            if len(calls) > 3:
+                raise springwrap_kernel.InternalError("simulated failure")
+            return solver.step(iterations)
+
+        def __getattr__(self, name):
+            return getattr(solver, name)
+
+    loop.session.solver._solver = Failing()
+    assert _frames(loop, 1000) == "CANCELLED"
+    assert "simulated failure" in str(loop.error)
+    assert snapshot(layout) == before
+
+
+def test_pair_tool_edit_finishes_the_running_re_settle_between_two_iterations():
+    from springwrap.blender import pair_tool
+
+    target, layout, _normal = plane_scene()
+    bpy.ops.springwrap.anchors_auto(spacing=0.5)
+    settle = wrap_session(layout, tolerance=1e-9, max_iterations=100_000)
+    settle.solver = _OneThreadAtATime(settle.solver)
+    pair_tool.advance_settle(settle)
+    assert settle.worker is not None and settle.worker.running  # the rest solves in the worker
+    while settle.frames < 3:
+        pair_tool.advance_settle(settle)
+        time.sleep(0.002)
+    result = settle.finish()  # what an edit does first: keep the re-settle as it is now
+    assert settle.worker is None and not settle.solver.overlaps
+    positions = np.array([v.co[:] for v in layout.data.vertices])
+    assert result.iterations == settle.total_iterations >= 3
+    assert not np.isnan(positions).any()
+
+
+# ---------------------------------------------------------------- reads of Blender data
+
+
+def _count_reads(monkeypatch):
+    """Counts of the calls to the functions that read the layout, its anchors and curves, and its target."""
+    from springwrap.blender import anchors, curves, layout, target
+
+    counts = {}
+    for module, name in (
+        (layout, "read_layout"),
+        (layout, "read_layout_topology"),
+        (anchors, "read_anchors"),
+        (curves, "read_curve_constraints"),
+        (target, "read_target"),
+    ):
+        original = getattr(module, name)
+
+        def counted(*args, _original=original, _name=name, **kwargs):
+            counts[_name] = counts.get(_name, 0) + 1
+            return _original(*args, **kwargs)
+
+        monkeypatch.setattr(module, name, counted)
+    return counts
+
+
+@pytest.mark.parametrize("hold_plane", ["NONE", "X"])
+def test_one_wrap_reads_the_layout_and_the_target_once(monkeypatch, hold_plane):
+    plane_scene()
+    bpy.ops.springwrap.anchors_auto(spacing=0.5)
+    counts = _count_reads(monkeypatch)
+    assert bpy.ops.springwrap.wrap(hold_plane=hold_plane) == {"FINISHED"}
+    assert counts == {
+        "read_layout": 1,
+        "read_layout_topology": 1,
+        "read_anchors": 1,
+        "read_curve_constraints": 1,
+        "read_target": 1,
+    }
+
+
+def test_live_frames_read_nothing_again(monkeypatch):
+    target, layout, _normal = plane_scene()
+    bpy.ops.springwrap.anchors_auto(spacing=0.5)
+    loop = _threaded_loop(layout)
+    counts = _count_reads(monkeypatch)
+    _frames(loop, 3)
+    loop.cancel()
+    assert counts == {}
+
+
+@pytest.mark.parametrize("operator", ["snap", "project", "detach"])
+def test_a_snap_reads_the_layout_and_the_target_once(monkeypatch, operator):
+    """The snap's checks, its solve and its read-out share one read; the storage check uses what it wrote."""
+    plane_scene()
+    counts = _count_reads(monkeypatch)
+    assert getattr(bpy.ops.springwrap, operator)() == {"FINISHED"}
+    assert counts.get("read_layout") == 1 and counts.get("read_target") == 1
+    assert counts.get("read_layout_topology", 0) <= 1  # the read-out's faces (none read by a detach)

@@ -1,0 +1,76 @@
+"""The live wrap's worker thread without Blender or the kernel: ``core.wrap_run.SolveWorker`` steps, publishes the
+newest snapshot to the main thread, stops between two steps and hands its error over."""
+
+import threading
+
+import pytest
+
+from helpers import core_module
+
+wrap_run = core_module("wrap_run")
+
+
+class _Solve:
+    """A stand-in solve: each step counts one iteration (the thread that ran it is recorded); done at ``limit``."""
+
+    def __init__(self, limit=None, fail_at=None):
+        self.iterations, self.limit, self.fail_at = 0, limit, fail_at
+        self.threads = set()
+        self.proceed = threading.Semaphore(0)  # steps wait for the test to let them run
+
+    def step(self, seconds):
+        assert seconds == 0.01
+        self.proceed.acquire()
+        self.threads.add(threading.get_ident())
+        self.iterations += 1
+        if self.iterations == self.fail_at:
+            raise RuntimeError("simulated failure")
+
+    def snapshot(self):
+        return self.iterations
+
+    def done(self):
+        return self.limit is not None and self.iterations >= self.limit
+
+
+def _wait_for(worker, serial):
+    while worker._serial < serial and worker.running:
+        threading.Event().wait(0.001)
+
+
+def test_the_worker_solves_in_its_own_thread_and_publishes_the_newest_snapshot():
+    solve = _Solve(limit=5)
+    worker = wrap_run.SolveWorker(solve.step, solve.snapshot, solve.done, 0.01)
+    assert worker.take() is None  # nothing solved yet
+    solve.proceed.release(2)
+    _wait_for(worker, 2)
+    assert worker.take() == 2  # the newest of the two, once
+    assert worker.take() is None
+    solve.proceed.release(3)
+    _wait_for(worker, 5)
+    worker.stop()
+    assert not worker.running and worker.error is None
+    assert worker.take() == 5 and solve.iterations == 5  # done: it stopped by itself
+    assert solve.threads and threading.get_ident() not in solve.threads
+
+
+def test_stop_waits_for_the_step_in_progress_and_runs_no_other():
+    solve = _Solve()
+    worker = wrap_run.SolveWorker(solve.step, solve.snapshot, solve.done, 0.01)
+    solve.proceed.release(1)
+    _wait_for(worker, 1)
+    solve.proceed.release(100)  # the next step may start; stop lets it end, then nothing more
+    worker.stop()
+    assert not worker.running
+    assert solve.iterations in (1, 2)
+
+
+def test_an_error_in_the_worker_is_kept_for_the_main_thread():
+    solve = _Solve(fail_at=2)
+    worker = wrap_run.SolveWorker(solve.step, solve.snapshot, solve.done, 0.01)
+    solve.proceed.release(5)
+    worker._thread.join()
+    assert not worker.running
+    with pytest.raises(RuntimeError, match="simulated failure"):
+        raise worker.error
+    assert worker.take() == 1  # what it solved before the failure
