@@ -44,7 +44,8 @@ use rayon::prelude::*;
 use super::anchor::AnchorTarget;
 use super::forces::{Similarity, SpringRest, Springs};
 use super::global_phase::{
-    GLOBAL_TO_LOCAL_LEVELS, RECIPROCAL_LEVELS, Stretches, choose_schedule, keep_reciprocal,
+    GLOBAL_MIN_ALIGNMENT, GLOBAL_TO_LOCAL_LEVELS, RECIPROCAL_LEVELS, Stretches, choose_schedule,
+    keep_reciprocal,
 };
 use super::linear_system::{LinearSystem, Stencils};
 use super::plane_constraint::Plane;
@@ -130,7 +131,8 @@ const MIN_FACING: f32 = 0.5;
 const LANDING_FACING: f32 = 0.26;
 /// Rounds of sign matching when averaging the fitted rotations into the safeguard's frame.
 const MEAN_ROTATION_ROUNDS: usize = 3;
-/// A corner may turn from its frame until this cosine; beyond it, only back toward it.
+/// A corner may turn from its frame until this cosine; beyond it, only back toward it (the
+/// global-to-local schedule has its own, [`GLOBAL_MIN_ALIGNMENT`]).
 const MIN_ALIGNMENT: f32 = 0.0;
 /// A global step is solved until its remaining correction is about this fraction of a mean edge.
 const SOLVE_PRECISION: f64 = 1e-5;
@@ -239,6 +241,8 @@ pub(crate) struct EnergySolver {
     landing_distance: f32,
     /// The stiffness schedule's levels.
     levels: &'static [Level],
+    /// A corner may turn from its frame until this cosine; beyond it, only back toward it.
+    min_alignment: f32,
     /// The per-vertex stretches of the global-to-local schedule (`None`: similarities alone).
     stretches: Option<Stretches>,
     /// Whether the anchors-only warm-up is still running.
@@ -349,6 +353,10 @@ impl EnergySolver {
             levels: match schedule {
                 WrapSchedule::GlobalToLocal => &GLOBAL_TO_LOCAL_LEVELS,
                 WrapSchedule::Local | WrapSchedule::Auto => &LEVELS,
+            },
+            min_alignment: match schedule {
+                WrapSchedule::GlobalToLocal => GLOBAL_MIN_ALIGNMENT,
+                WrapSchedule::Local | WrapSchedule::Auto => MIN_ALIGNMENT,
             },
             stretches: (schedule == WrapSchedule::GlobalToLocal)
                 .then(|| Stretches::new(structure, inputs.rest))
@@ -959,14 +967,14 @@ impl EnergySolver {
     }
 
     /// The vertices of corners that turn away from their frame at `positions`: below
-    /// [`MIN_ALIGNMENT`] and less aligned than in `before`.
+    /// the schedule's least alignment and less aligned than in `before`.
     fn turned_corners(&self, before: &[f32], positions: &[Vec3]) -> Vec<u32> {
         let after = self.corner_orientations(positions);
         let structure = &self.structure;
         let mut vertices = Vec::new();
         for vertex in 0..positions.len() {
             for corner in structure.wedge_range(vertex as u32) {
-                if turned(before[corner], after[corner]) {
+                if turned(before[corner], after[corner], self.min_alignment) {
                     let (previous, next) = structure.wedges[corner];
                     vertices.extend([vertex as u32, previous, next]);
                 }
@@ -985,6 +993,7 @@ impl EnergySolver {
             turned(
                 before[corner],
                 self.corner_alignment(owner, corner, positions),
+                self.min_alignment,
             )
         };
         let own = structure
@@ -1042,9 +1051,9 @@ fn moves(new: &[Vec3], old: &[Vec3]) -> (f32, f32) {
 }
 
 /// Whether a corner aligned `before` with its frame has turned at `after`: beyond
-/// [`MIN_ALIGNMENT`] and further from its frame than it was.
-fn turned(before: f32, after: f32) -> bool {
-    after < MIN_ALIGNMENT && after < before
+/// `min_alignment` and further from its frame than it was.
+fn turned(before: f32, after: f32, min_alignment: f32) -> bool {
+    after < min_alignment && after < before
 }
 
 /// `sum` plus `rotation` as a quaternion, its sign matched to `reference` (q and -q are the
@@ -1281,6 +1290,18 @@ mod tests {
         rest: &[Vec3],
         anchors: &[Option<(AnchorTarget, Vec3)>],
     ) -> EnergySolver {
+        let schedule = WrapSchedule::Local;
+        solver_following(schedule, target, structure, positions, rest, anchors)
+    }
+
+    fn solver_following(
+        schedule: WrapSchedule,
+        target: &Arc<TargetMesh>,
+        structure: &LayoutStructure,
+        positions: &[Vec3],
+        rest: &[Vec3],
+        anchors: &[Option<(AnchorTarget, Vec3)>],
+    ) -> EnergySolver {
         let points: Vec<LayoutPoint> = positions.iter().map(|&p| LayoutPoint::Space(p)).collect();
         EnergySolver::new(&EnergyInputs {
             target,
@@ -1298,7 +1319,7 @@ mod tests {
             plane_slide: true,
             mean_edge_length: 0.1,
             landing_distance: 0.025,
-            schedule: WrapSchedule::Local,
+            schedule,
         })
         .unwrap()
     }
@@ -1379,13 +1400,13 @@ mod tests {
         assert_ne!(accepted[24], proposed[24]);
     }
 
-    #[test]
-    fn a_region_cannot_roll_over_by_small_steps() {
-        // A strip of the grid (the last two columns) folds up about a grid line by 10 degrees a
-        // step, each step small to the strip's own neighbourhood; the safeguard's frame is the
-        // whole layout's, so the strip stops before its faces turn over.
+    /// A strip of a grid (its last two columns) folded up about a grid line by 10 degrees a step
+    /// through the safeguard of a solver following `schedule`: the least corner alignment at the
+    /// end and the angle the strip turned by, in degrees.
+    fn folded_strip(schedule: WrapSchedule) -> (f32, f32) {
         let (target, structure, rest) = plane_and_grid(10, 0.1, 0.05);
-        let mut solver = solver(&target, &structure, &rest, &rest, &vec![None; rest.len()]);
+        let none = vec![None; rest.len()];
+        let mut solver = solver_following(schedule, &target, &structure, &rest, &rest, &none);
         let hinge = rest[8].x;
         for step in 1..=18 {
             let angle = (step as f32 * 10.0).to_radians();
@@ -1411,13 +1432,34 @@ mod tests {
             .corner_orientations(&solver.positions)
             .into_iter()
             .fold(f32::INFINITY, f32::min);
+        let arm = solver.positions[10] - solver.positions[8];
+        (worst, arm.z.atan2(arm.x).to_degrees())
+    }
+
+    #[test]
+    fn a_region_cannot_roll_over_by_small_steps() {
+        // Each step is small to the strip's own neighbourhood; the safeguard's frame is the whole
+        // layout's, so the strip stops before its faces turn over.
+        let (worst, angle) = folded_strip(WrapSchedule::Local);
         assert!(worst >= 0.0, "a corner turned to cosine {worst}");
         // The strip did fold up, as far as the safeguard let it: past 60 degrees, short of flat.
-        let arm = solver.positions[10] - solver.positions[8];
-        let angle = arm.z.atan2(arm.x).to_degrees();
         assert!(
             (60.0..150.0).contains(&angle),
             "the strip turned by {angle} degrees"
+        );
+    }
+
+    #[test]
+    fn the_global_to_local_schedule_lets_a_corner_turn_less() {
+        let (worst, angle) = folded_strip(WrapSchedule::GlobalToLocal);
+        assert!(
+            worst >= GLOBAL_MIN_ALIGNMENT - 1e-4,
+            "a corner turned to cosine {worst}"
+        );
+        let (_, local_angle) = folded_strip(WrapSchedule::Local);
+        assert!(
+            angle > 20.0 && angle < local_angle - 20.0,
+            "the strip turned by {angle} degrees, {local_angle} in the local schedule"
         );
     }
 

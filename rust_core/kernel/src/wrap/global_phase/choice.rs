@@ -5,8 +5,8 @@
 //! better. Measured through the kernel on the benchmark bodies (`benchmarks/few_anchors.py`'s
 //! cases): with 6 anchors global to local lowers the mean error on every body; with 12 it wins on
 //! the bodies whose anchors sit 1.8–2.1 % of their diagonal from any similarity of the template
-//! and loses on the heavy body (0.5 %); with 24 it is slightly worse on the heavy body (0.222 %
-//! against 0.216 % of the diagonal) and turns more quads over on the heavy, old one. So `Auto`
+//! and loses on the heavy body (0.5 %); with 24 it is better on three bodies but slightly worse on
+//! the heavy one (0.222 % against 0.216 % of the diagonal). So `Auto`
 //! takes the global-to-local schedule for 3 to 11 anchors, and for `n` ≥ 12 when the anchors'
 //! distance from the best similarity of the template onto them (root mean square, over their
 //! bounding-box diagonal) exceeds [`LARGE_CHANGE`] × `n` / 12: the more anchors, the larger the

@@ -78,6 +78,18 @@ pub(crate) const RECIPROCAL_LEVELS: usize = 3;
 const RECIPROCAL_NEAR: f32 = 2.0;
 const RECIPROCAL_RATIO: f32 = 0.5;
 
+/// In the global-to-local schedule a layout corner may turn from its rest normal (turned by the
+/// layout's frame) until this cosine, about 45 degrees, where the local schedule lets it reach 90:
+/// the stretches let a region shear far, and a corner let through at 80 degrees from its rest
+/// normal faces against the surface wherever the change of shape has turned the surface too
+/// (armpits, hands at the hips, folds of a heavy body). Measured with 6 anchors
+/// (`benchmarks/few_anchors.py`'s global-to-local wrap; flipped quads against the true layout and
+/// mean error in % of the diagonal, on the heavy, heavy-old, old-male and young-female bodies):
+/// at 0 (the local schedule's) 9, 17, 15, 1 flipped and 0.244, 0.480, 0.446, 0.373; at 0.3 9, 5,
+/// 4 and 0.244, 0.474, 0.434; at 0.5 10, 4, 2 and 0.244, 0.468, 0.431; at 0.7 8, 3, 0, 3 and
+/// 0.246, 0.469, 0.429, 0.348; at 0.85 6, 2, 0, 2 but 0.462 on the old-male body.
+pub(crate) const GLOBAL_MIN_ALIGNMENT: f32 = 0.7;
+
 /// A stretch's determinant may not fall below this fraction of its mean scale cubed (a region
 /// squashed flat or turned inside out by averaging); such a stretch becomes its mean scale.
 const MIN_STRETCH_VOLUME: f32 = 0.05;
