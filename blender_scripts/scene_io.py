@@ -29,18 +29,10 @@ GLTF_TO_BLENDER = ((1.0, 0.0, 0.0), (0.0, 0.0, -1.0), (0.0, 1.0, 0.0))
 Undone after the import, so that a glTF file is read in the same convention as every other file."""
 
 
-def kernel_wrap_defaults():
-    """``springwrap_kernel.WrapSettings()``: the wrap's defaults, defined once, in the kernel.
-
-    The kernel comes with the add-on (the legacy zip carries it in the add-on's folder), so the
-    add-on is enabled first when the kernel cannot be imported by itself.
-    """
-    try:
-        import springwrap_kernel
-    except ImportError:
-        enable_addon()
-        import springwrap_kernel
-    return springwrap_kernel.WrapSettings()
+def wrap_defaults_module():
+    """The add-on's ``core.defaults``: the wrap's defaults and ranges in one place (the iteration limit, the
+    kernel's ``WrapSettings()``), the add-on enabled first so that its kernel can be imported."""
+    return addon_module("core.defaults")
 
 
 def frame_matrix(up_axis: str, forward_axis: str) -> "Matrix":
@@ -278,15 +270,6 @@ def run_operator(blame: str, name: str, **properties) -> None:
         raise ScriptError(f"{blame}: springwrap.{name}: {message}") from None
     if result != {"FINISHED"}:
         raise ScriptError(f"{blame}: springwrap.{name} returned {sorted(result)}")
-
-
-def warn_energy_ignored(settings, warnings: list) -> None:
-    """Append to ``warnings`` that the energy solver ignores the options ``settings`` (the wrap's
-    ``springwrap_kernel.WrapSettings``) set away from their defaults (``core.wrap_inputs.energy_ignored``)."""
-    wrap_inputs = addon_module("core.wrap_inputs")
-    names = wrap_inputs.energy_ignored(settings, kernel_wrap_defaults())
-    if names:
-        warnings.append(wrap_inputs.energy_ignored_warning(names, lambda name: "--" + name.replace("_", "-")))
 
 
 def to_file_frame(frame: "Matrix", matrix) -> list:

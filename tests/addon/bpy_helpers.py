@@ -401,8 +401,8 @@ def curves_layout(target, shift):
     return activate_layout(layout, target)
 
 
-def wrap_session(layout, solver="SPRINGS", paced=False, tolerance=None, **parameters):
-    """A wrap session; the spring solver unless said (its hundreds of iterations make many frames).
+def wrap_session(layout, paced=False, tolerance=None, **parameters):
+    """A wrap session.
 
     Its frames (``advance``) run one iteration each, so that tests can count them; ``paced``: the real
     pacer, whose first frame of 1/30 s would finish these small wraps at once (a tiny ``tolerance`` keeps
@@ -413,7 +413,7 @@ def wrap_session(layout, solver="SPRINGS", paced=False, tolerance=None, **parame
     from springwrap.core.wrap_inputs import WrapParameters
     from springwrap.core.wrap_run import FramePacer
 
-    settings = springwrap_kernel.WrapSettings(solver=solver, **({} if tolerance is None else {"tolerance": tolerance}))
+    settings = springwrap_kernel.WrapSettings(**({} if tolerance is None else {"tolerance": tolerance}))
     session = WrapSession(bpy.context, layout, WrapParameters(settings=settings, **parameters))
     if not paced:
         session.pacer = FramePacer(frame_rate=1e6)  # a microsecond of solving: one iteration a frame

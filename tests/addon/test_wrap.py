@@ -53,7 +53,7 @@ def test_wrap_operator_panel_and_setting_are_registered():
     assert bpy.types.SPRINGWRAP_OT_wrap.bl_options == {"REGISTER", "UNDO"}
     properties = rna.properties
     assert properties["max_iterations"].default == 2000
-    for name in ("tolerance", "fairness", "arc_length", "thin_plate", "constraint", "folding", "rest", "solver"):
+    for name in ("tolerance", "fairness", "arc_length", "thin_plate", "constraint", "folding", "schedule"):
         assert name in properties  # their defaults are the kernel's: test_wrap_defaults
     assert "only_selected" not in properties
     settings = bpy.types.Object.bl_rna.properties["springwrap"].fixed_type
@@ -77,7 +77,6 @@ def test_wrap_panel_searches_the_targets_vertex_groups():
     recorder = RecordingLayout()
     SPRINGWRAP_PT_wrap.draw(type("Panel", (), {"layout": recorder})(), bpy.context)
     assert recorder.searches == layout_groups and recorder.props == [
-        ("wrap_solver", True),
         ("wrap_schedule", True),
         ("unreliable_group", False),
         ("find_parts", False),  # one recorder stands for every row: the disabled row before it leaves it so
@@ -276,14 +275,13 @@ def test_right_click_cancels_too():
     assert snapshot(layout) == before
 
 
-@pytest.mark.parametrize("solver", ["SPRINGS", "ENERGY"])
-def test_modal_loop_finishes_with_the_same_result_as_exec(solver):
+def test_modal_loop_finishes_with_the_same_result_as_exec():
     """Frames of a few iterations each end exactly where one synchronous run ends (the solver is deterministic)."""
     from springwrap.core.wrap_run import WrapLoop
 
     plane_scene()
     bpy.ops.springwrap.anchors_auto(spacing=0.5)
-    loop = WrapLoop(wrap_session(bpy.context.active_object, solver=solver))
+    loop = WrapLoop(wrap_session(bpy.context.active_object))
     outcome = "RUNNING_MODAL"
     while outcome == "RUNNING_MODAL":
         outcome = loop.handle("TIMER")
@@ -293,11 +291,11 @@ def test_modal_loop_finishes_with_the_same_result_as_exec(solver):
     bpy.ops.wm.read_homefile(use_empty=True)
     plane_scene()
     bpy.ops.springwrap.anchors_auto(spacing=0.5)
-    assert bpy.ops.springwrap.wrap(solver=solver) == {"FINISHED"}
+    assert bpy.ops.springwrap.wrap() == {"FINISHED"}
     assert snapshot(bpy.data.objects["Layout"]) == modal
 
 
-def test_the_schedule_changes_the_wrap_and_the_spring_solver_refuses_it():
+def test_the_schedule_changes_the_wrap():
     """The global-to-local schedule ends elsewhere than the local one (the energy solver's setting)."""
     results = {}
     for schedule in ("LOCAL", "GLOBAL_TO_LOCAL"):
@@ -307,12 +305,6 @@ def test_the_schedule_changes_the_wrap_and_the_spring_solver_refuses_it():
         assert bpy.ops.springwrap.wrap(schedule=schedule) == {"FINISHED"}
         results[schedule] = snapshot(bpy.data.objects["Layout"])
     assert results["LOCAL"] != results["GLOBAL_TO_LOCAL"]
-    bpy.ops.wm.read_homefile(use_empty=True)
-    _target, layout, _normal = plane_scene()
-    before = snapshot(layout)
-    with pytest.raises(RuntimeError, match="the global-to-local schedule needs the energy solver"):
-        bpy.ops.springwrap.wrap(solver="SPRINGS", schedule="GLOBAL_TO_LOCAL")
-    assert snapshot(layout) == before
 
 
 def test_the_automatic_schedule_follows_the_anchors():
