@@ -167,17 +167,7 @@ impl PyWrapSolver {
         py: Python<'_>,
         iterations: &Bound<'_, PyAny>,
     ) -> PyResult<(
-        (
-            usize,
-            usize,
-            f32,
-            bool,
-            usize,
-            usize,
-            usize,
-            usize,
-            f32,
-        ),
+        (usize, usize, f32, bool, usize, usize, usize, usize, f32),
         f64,
         usize,
         f64,

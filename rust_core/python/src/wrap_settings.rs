@@ -69,7 +69,10 @@ fn check_retired(
         }
     }
     if momentum.is_some() {
-        return Err(retired("momentum", "the energy solver has no momentum".to_owned()));
+        return Err(retired(
+            "momentum",
+            "the energy solver has no momentum".to_owned(),
+        ));
     }
     Ok(())
 }
@@ -238,7 +241,13 @@ impl PyWrapSettings {
         for (name, label, range) in WrapSettings::RANGES {
             dict.set_item(
                 name,
-                (label, range.low, range.high, range.low_open, range.high_open),
+                (
+                    label,
+                    range.low,
+                    range.high,
+                    range.low_open,
+                    range.high_open,
+                ),
             )?;
         }
         Ok(dict)
