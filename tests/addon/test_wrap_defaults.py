@@ -175,9 +175,9 @@ SHOWN_SETTINGS = {
     "arc_length": 0.1,
     "thin_plate": 0.5,
     "constraint": 0.05,
-    "folding": 0.05,
+    "folding": 0.0,
     "tolerance": 0.5,
-    "schedule": "GLOBAL_TO_LOCAL",
+    "schedule": "LOCAL",  # the automatic choice for these 8 anchors is global to local
     "max_iterations": 3,
     "spring_resolution": 2,
 }
@@ -216,7 +216,7 @@ def test_each_setting_the_redo_panel_shows_changes_the_wrap():
     for name, value in SHOWN_SETTINGS.items():
         assert getattr(defaults, name) != value, name
         moved = np.abs(_wrapped(**{name: value}) - reference).max()
-        assert moved > 1e-4, f"{name}={value} moved no vertex more than {moved}"
+        assert moved > 1e-5, f"{name}={value} moved no vertex more than {moved}"  # float noise: 1e-7
 
 
 def test_each_wrap_option_of_the_command_line_reaches_the_kernels_settings():
