@@ -50,6 +50,7 @@ from headless import (
 )
 from scene_io import (
     Laps,
+    add_wrap_options,
     distances_to_target,
     frame_matrix,
     load_mesh,
@@ -61,8 +62,6 @@ from scene_io import (
 
 def parse_arguments(argv: list[str]) -> argparse.Namespace:
     """Parse the script's own arguments (see the module docstring); exits with code 2 when they are wrong."""
-    module = wrap_defaults_module()
-    defaults = module.wrap_defaults()
     parser = argparse.ArgumentParser(prog="mirror.py", description=__doc__.splitlines()[0])
     parser.add_argument("--layout", type=Path, required=True, help="the layout: mesh file or .blend")
     parser.add_argument("--layout-object", help="the layout's object in a .blend")
@@ -86,19 +85,7 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("--no-mirror-anchors", action="store_true", help="do not mirror the anchors")
     parser.add_argument("--no-wrap", action="store_true", help="only mirror")
     parser.add_argument("--snap", action="store_true", help="snap the layout onto the target first")
-    parser.add_argument(
-        "--max-iterations",
-        type=int,
-        default=module.MAX_ITERATIONS,
-        help="wrap iteration limit (default %(default)s)",
-    )
-    parser.add_argument(
-        "--tolerance",
-        type=finite_number,
-        default=defaults.tolerance,
-        help="each stiffness level of the wrap ends once an iteration lowers the energy by less than this "
-        "fraction (default %(default)s)",
-    )
+    add_wrap_options(parser, weights=False)
     add_shape_keys_argument(parser)
     add_frame_arguments(parser)
     parser.add_argument("--output-blend", type=Path, help="save layout, target and result here")
@@ -114,7 +101,7 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     if arguments.max_iterations < 1:
         parser.error("--max-iterations must be at least 1")
     try:
-        defaults.replace(tolerance=arguments.tolerance)
+        wrap_defaults_module().wrap_defaults().replace(tolerance=arguments.tolerance)
     except ValueError as error:  # springwrap_kernel.InvalidArgumentError
         parser.error(str(error))
     if not arguments.weld_distance > 0:

@@ -89,6 +89,7 @@ from mesh_files import check_blend_file, check_mesh_file
 from scene_io import (
     INPUT_SUFFIXES,
     Laps,
+    add_wrap_options,
     distances_to_target,
     frame_matrix,
     load_mesh,
@@ -129,8 +130,7 @@ def wrap_settings(arguments: argparse.Namespace):
 
 def parse_arguments(argv: list[str]) -> argparse.Namespace:
     """Parse the script's own arguments (see the module docstring); exits with code 2 when they are wrong."""
-    module = wrap_defaults_module()
-    defaults = module.wrap_defaults()
+    defaults = wrap_defaults_module().wrap_defaults()
     parser = argparse.ArgumentParser(prog="retarget.py", description=__doc__.splitlines()[0])
     parser.add_argument("--template", type=Path, required=True, help="the template layout: mesh file or .blend")
     parser.add_argument("--template-object", help="the template's object in a .blend")
@@ -169,50 +169,7 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
         default="similarity",
         help="transform of --align icp / anchors (default similarity; ICP alone: rigid or similarity)",
     )
-    parser.add_argument(
-        "--max-iterations",
-        type=int,
-        default=module.MAX_ITERATIONS,
-        help="wrap iteration limit (default %(default)s)",
-    )
-    # The wrap's settings: their defaults are the kernel's.
-    parser.add_argument(
-        "--tolerance",
-        type=finite_number,
-        default=defaults.tolerance,
-        help="each stiffness level ends once an iteration lowers the energy by less than this fraction "
-        "(default %(default)s)",
-    )
-    parser.add_argument(
-        "--fairness",
-        type=finite_number,
-        default=defaults.fairness,
-        help="weight of the second differences along the grid lines, 0 to 1 (default %(default)s)",
-    )
-    parser.add_argument(
-        "--arc-length",
-        type=finite_number,
-        default=defaults.arc_length,
-        help="weight of the edges against the template's: the spacing along grid lines, 0 to 1 (default %(default)s)",
-    )
-    parser.add_argument(
-        "--thin-plate",
-        type=finite_number,
-        default=defaults.thin_plate,
-        help="weight of the smoothness at points no grid line runs through, 0 to 0.5 (default %(default)s)",
-    )
-    parser.add_argument(
-        "--constraint",
-        type=finite_number,
-        default=defaults.constraint,
-        help="pull of the layout onto the target, 0 to 1 (default %(default)s)",
-    )
-    parser.add_argument(
-        "--folding",
-        type=finite_number,
-        default=defaults.folding,
-        help="how far off the surface the layout is still drawn onto it, 0 to 1 (default %(default)s)",
-    )
+    add_wrap_options(parser, weights=True)
     parser.add_argument(
         "--solver",
         choices=("energy", "springs"),
