@@ -415,10 +415,11 @@ def test_modal_frames_each_write_the_layout_and_run_paced_iterations():
 
     bpy.ops.mesh.primitive_grid_add(x_subdivisions=60, y_subdivisions=60, size=4)
     target = bpy.context.active_object
-    bpy.ops.mesh.primitive_grid_add(x_subdivisions=30, y_subdivisions=30, size=3, location=(0.0, 0.0, 0.2))
+    # Large enough (about 40,000 points at the fine stage) that the wrap takes several frames.
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=100, y_subdivisions=100, size=3, location=(0.0, 0.0, 0.2))
     layout = activate_layout(bpy.context.active_object, target)
     bpy.ops.springwrap.anchors_auto(spacing=0.3)
-    loop = WrapLoop(wrap_session(layout, paced=True, tolerance=1e-9, max_iterations=100_000))
+    loop = WrapLoop(wrap_session(layout, paced=True, tolerance=1e-9, max_iterations=100_000, spring_resolution=2))
     before = local_positions(layout).copy()
     iterations, state = [], "RUNNING_MODAL"
     for _ in range(20):
