@@ -540,12 +540,12 @@ def test_a_slow_display_gets_long_solving_frames_and_a_fast_one_short_ones():
 
     bpy.ops.mesh.primitive_grid_add(x_subdivisions=60, y_subdivisions=60, size=4)
     target = bpy.context.active_object
-    # Large enough (about 40,000 points at the fine stage) that the wrap outlasts a 0.6 s frame.
-    bpy.ops.mesh.primitive_grid_add(x_subdivisions=100, y_subdivisions=100, size=3, location=(0.0, 0.0, 0.2))
+    # Large enough (about 200,000 points at the fine stage) that the wrap outlasts a 0.6 s frame.
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=150, y_subdivisions=150, size=3, location=(0.0, 0.0, 0.2))
     layout = activate_layout(bpy.context.active_object, target)
     bpy.ops.springwrap.anchors_auto(spacing=0.3)
     before = snapshot(layout)
-    session = wrap_session(layout, paced=True, tolerance=1e-9, max_iterations=1_000_000, spring_resolution=2)
+    session = wrap_session(layout, paced=True, tolerance=1e-9, max_iterations=1_000_000, spring_resolution=3)
     session.pacer = FramePacer(display_seconds=0.4)
     session.advance()
     assert session.frames == 1 and not session.done
