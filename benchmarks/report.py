@@ -673,8 +673,7 @@ def wrap_aims_section(speed: dict) -> list[str]:
     if large:
         rows.append(
             [
-                f"{large['spring_points']}-point spring onto {large['target_triangles']} triangles "
-                f"({large.get('solver', 'default')} solver)",
+                f"{large['spring_points']}-point spring onto {large['target_triangles']} triangles",
                 "30 s",
                 f"{number(large['seconds'], 1)} s for {large['iterations']} iterations "
                 f"({'converged' if large['converged'] else 'cap reached'}), "

@@ -14,9 +14,8 @@
    measures every frame solving on the main thread, to compare; ``--live-only`` skips the rest.
 3. **Large spring** (``--large``): a 2048 x 2048 spring (a 256 x 256 layout at spring resolution
    8, 4.2 M points) onto a 1 M-triangle noisy torus, through the kernel's ``WrapSolver`` on the
-   fine grid started on the surface, with the spring solver by default (``--large-solver ENERGY``:
-   the energy solver, whose factor of 4.2 M points would pass its 2 GiB limit, so that it solves by
-   Jacobi-preconditioned conjugate gradients); reports the time per iteration and the time to
+   fine grid started on the surface (its factor of 4.2 M points would pass the 2 GiB limit, so the
+   global step solves by Jacobi-preconditioned conjugate gradients); reports the time per iteration and the time to
    converge or to ``--large-iterations``. Aim: 30 s.
 
 Run: ``.venv/bin/python benchmarks/wrap_speed.py [--large] [--json out/bench/wrap_speed.json]``.
@@ -188,7 +187,7 @@ def measure_cancel(case, vertices, triangles, worker: bool = True) -> dict:
     }
 
 
-def measure_large(max_iterations: int, seconds_limit: float, solver_name: str = "SPRINGS") -> dict:
+def measure_large(max_iterations: int, seconds_limit: float) -> dict:
     """A 2048 x 2048 spring (256 x 256 at resolution 8) on a 1M-triangle torus, through the kernel."""
     import springwrap_kernel
     from benchmarks import _noisy_torus
@@ -223,7 +222,6 @@ def measure_large(max_iterations: int, seconds_limit: float, solver_name: str = 
         hits.barycentrics,
         hits.positions,
         rest_positions=positions,
-        settings=springwrap_kernel.WrapSettings(solver=solver_name),
     )
     setup = time.perf_counter() - build
     start = time.perf_counter()
@@ -240,7 +238,6 @@ def measure_large(max_iterations: int, seconds_limit: float, solver_name: str = 
         "target_triangles": int(len(torus_triangles)),
         "layout_quads": int(len(layout_quads)),
         "spring_points": int(fine.topology.vertex_count),
-        "solver": solver_name,
         "setup_seconds": setup,
         "first_iteration_seconds": first,
         "iterations": int(report.total_iterations),
@@ -270,9 +267,6 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--large", action="store_true", help="also the 2048 x 2048 spring on 1M triangles")
     parser.add_argument("--large-iterations", type=int, default=200, help="iteration cap of the large spring")
     parser.add_argument("--large-seconds", type=float, default=120.0, help="time cap of the large spring")
-    parser.add_argument(
-        "--large-solver", choices=("ENERGY", "SPRINGS"), default="SPRINGS", help="solver of the large spring"
-    )
     parser.add_argument("--live-only", action="store_true", help="only the live wrap (and Esc) on the body")
     parser.add_argument(
         "--live-main-thread", action="store_true", help="also the live wrap solving on the main thread, to compare"
@@ -313,7 +307,7 @@ def main(argv: list[str] | None = None) -> int:
             flush=True,
         )
     if arguments.large:
-        large = measure_large(arguments.large_iterations, arguments.large_seconds, arguments.large_solver)
+        large = measure_large(arguments.large_iterations, arguments.large_seconds)
         results["large"] = large
         print(
             f"large spring: {large['spring_points']} points on {large['target_triangles']} triangles: "

@@ -30,7 +30,7 @@ from mathutils import Euler, Matrix, Vector
 from mathutils.bvhtree import BVHTree
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # `blender --python` does not add it
-from headless import EXIT_OK, enable_addon, failed, script_arguments
+from headless import EXIT_OK, addon_module, enable_addon, failed, script_arguments
 
 REPOSITORY_ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_OUTPUT = REPOSITORY_ROOT / "out" / "demo.blend"
@@ -51,10 +51,9 @@ SURFACE_TOLERANCE = 1e-4
 # head; the final snap then lays them on the hole's rim.
 PROJECT_MAX_DISTANCE = 0.3
 # The wrap: anchors every WRAP_ANCHOR_SPACING (world units) by closest point, then at most
-# WRAP_MAX_ITERATIONS spring iterations; at least WRAP_MIN_FACE_FRACTION of the vertices must land
+# the wrap's default iteration limit; at least WRAP_MIN_FACE_FRACTION of the vertices must land
 # (the rest are space-points over the hole and Suzanne's own open borders, the eye sockets).
 WRAP_ANCHOR_SPACING = 0.3
-WRAP_MAX_ITERATIONS = 2000
 WRAP_MIN_FACE_FRACTION = 0.8
 
 
@@ -146,7 +145,7 @@ def attach_and_activate(layout: bpy.types.Object, target: bpy.types.Object) -> N
 
 def wrap_with_auto_anchors(layout: bpy.types.Object, target: bpy.types.Object, *execution) -> float:
     """The demo's wrap of a template: :func:`attach_and_activate`, then through the operators detach, automatic
-    anchors (WRAP_ANCHOR_SPACING) and the wrap (WRAP_MAX_ITERATIONS; ``execution``: the wrap's execution
+    anchors (WRAP_ANCHOR_SPACING) and the wrap (its default iteration limit; ``execution``: the wrap's execution
     context, e.g. ``"EXEC_DEFAULT"``). The wrap's seconds; raises when an operator does not finish."""
     attach_and_activate(layout, target)
     for operator, properties in (
@@ -156,7 +155,7 @@ def wrap_with_auto_anchors(layout: bpy.types.Object, target: bpy.types.Object, *
         if operator(**properties) != {"FINISHED"}:
             raise RuntimeError(f"{operator.idname_py()} did not finish")
     start = time.perf_counter()
-    if bpy.ops.springwrap.wrap(*execution, max_iterations=WRAP_MAX_ITERATIONS) != {"FINISHED"}:
+    if bpy.ops.springwrap.wrap(*execution) != {"FINISHED"}:
         raise RuntimeError("springwrap.wrap did not finish")
     return time.perf_counter() - start
 
@@ -426,11 +425,10 @@ def run(output: Path) -> None:
     )
     reports.append(
         run_step(
-            f"wrap (<={WRAP_MAX_ITERATIONS} iterations)",
+            f"wrap (<={addon_module('core.defaults').MAX_ITERATIONS} iterations)",
             operators.wrap,
             wrapped,
             probe,
-            max_iterations=WRAP_MAX_ITERATIONS,
         )
     )
     print()

@@ -50,19 +50,18 @@ from headless import (
 )
 from scene_io import (
     Laps,
+    add_wrap_options,
     distances_to_target,
     frame_matrix,
-    kernel_wrap_defaults,
     load_mesh,
     run_operator,
-    warn_energy_ignored,
+    wrap_defaults_module,
     write_outputs,
 )
 
 
 def parse_arguments(argv: list[str]) -> argparse.Namespace:
     """Parse the script's own arguments (see the module docstring); exits with code 2 when they are wrong."""
-    defaults = kernel_wrap_defaults()
     parser = argparse.ArgumentParser(prog="mirror.py", description=__doc__.splitlines()[0])
     parser.add_argument("--layout", type=Path, required=True, help="the layout: mesh file or .blend")
     parser.add_argument("--layout-object", help="the layout's object in a .blend")
@@ -86,14 +85,7 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("--no-mirror-anchors", action="store_true", help="do not mirror the anchors")
     parser.add_argument("--no-wrap", action="store_true", help="only mirror")
     parser.add_argument("--snap", action="store_true", help="snap the layout onto the target first")
-    parser.add_argument("--max-iterations", type=int, default=2000, help="wrap iteration limit (default 2000)")
-    parser.add_argument(
-        "--tolerance",
-        type=finite_number,
-        default=defaults.tolerance,
-        help="the spring solver's convergence, fraction of the layout's size (default %(default)s); the mirror's "
-        "wrap uses the energy solver, which ignores it",
-    )
+    add_wrap_options(parser, weights=False)
     add_shape_keys_argument(parser)
     add_frame_arguments(parser)
     parser.add_argument("--output-blend", type=Path, help="save layout, target and result here")
@@ -109,7 +101,7 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     if arguments.max_iterations < 1:
         parser.error("--max-iterations must be at least 1")
     try:
-        defaults.replace(tolerance=arguments.tolerance)
+        wrap_defaults_module().wrap_defaults().replace(tolerance=arguments.tolerance)
     except ValueError as error:  # springwrap_kernel.InvalidArgumentError
         parser.error(str(error))
     if not arguments.weld_distance > 0:
@@ -194,7 +186,6 @@ def mirror(arguments: argparse.Namespace) -> dict:
             )
         if outcome.wrap.space_points:
             warnings.append(f"{outcome.wrap.space_points} of {outcome.vertices} vertices are off the surface")
-        warn_energy_ignored(kernel_wrap_defaults().replace(tolerance=arguments.tolerance), warnings)
     report = {
         "layout": str(arguments.layout),
         "target": str(arguments.target) if arguments.target else None,

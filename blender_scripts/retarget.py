@@ -89,14 +89,14 @@ from mesh_files import check_blend_file, check_mesh_file
 from scene_io import (
     INPUT_SUFFIXES,
     Laps,
+    add_wrap_options,
     distances_to_target,
     frame_matrix,
-    kernel_wrap_defaults,
     load_mesh,
     run_operator,
     to_file_frame,
-    warn_energy_ignored,
     world_vertices,
+    wrap_defaults_module,
     write_outputs,
 )
 
@@ -111,23 +111,27 @@ LAYOUT_NAME = "Retargeted"
 
 
 def wrap_settings(arguments: argparse.Namespace):
-    """The ``springwrap_kernel.WrapSettings`` of --tolerance, --fairness, --arc-length, --thin-plate, --solver and
-    --schedule (checked by the kernel: ``springwrap_kernel.InvalidArgumentError`` names a value out of its range)."""
-    import springwrap_kernel
-
-    return springwrap_kernel.WrapSettings(
-        tolerance=arguments.tolerance,
-        fairness=arguments.fairness,
-        arc_length=arguments.arc_length,
-        thin_plate=arguments.thin_plate,
-        solver=arguments.solver.upper(),
-        schedule=arguments.schedule.upper().replace("-", "_"),
+    """The ``springwrap_kernel.WrapSettings`` of --tolerance, --fairness, --arc-length, --thin-plate, --constraint,
+    --folding and --schedule (checked by the kernel: ``springwrap_kernel.InvalidArgumentError`` names a value out of
+    its range)."""
+    return (
+        wrap_defaults_module()
+        .wrap_defaults()
+        .replace(
+            tolerance=arguments.tolerance,
+            fairness=arguments.fairness,
+            arc_length=arguments.arc_length,
+            thin_plate=arguments.thin_plate,
+            constraint=arguments.constraint,
+            folding=arguments.folding,
+            schedule=arguments.schedule.upper().replace("-", "_"),
+        )
     )
 
 
 def parse_arguments(argv: list[str]) -> argparse.Namespace:
     """Parse the script's own arguments (see the module docstring); exits with code 2 when they are wrong."""
-    defaults = kernel_wrap_defaults()
+    defaults = wrap_defaults_module().wrap_defaults()
     parser = argparse.ArgumentParser(prog="retarget.py", description=__doc__.splitlines()[0])
     parser.add_argument("--template", type=Path, required=True, help="the template layout: mesh file or .blend")
     parser.add_argument("--template-object", help="the template's object in a .blend")
@@ -166,55 +170,30 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
         default="similarity",
         help="transform of --align icp / anchors (default similarity; ICP alone: rigid or similarity)",
     )
-    parser.add_argument("--max-iterations", type=int, default=2000, help="wrap iteration limit (default 2000)")
-    # The wrap's settings: their defaults are the kernel's.
-    parser.add_argument(
-        "--tolerance",
-        type=finite_number,
-        default=defaults.tolerance,
-        help="spring solver only: convergence, fraction of the layout's size (default %(default)s)",
-    )
-    parser.add_argument(
-        "--fairness",
-        type=finite_number,
-        default=defaults.fairness,
-        help="spring solver only: straight grid lines, 0 to 1 (default %(default)s)",
-    )
-    parser.add_argument(
-        "--arc-length",
-        type=finite_number,
-        default=defaults.arc_length,
-        help="spring solver only: even spacing along grid lines, 0 to 1 (default %(default)s)",
-    )
-    parser.add_argument(
-        "--thin-plate",
-        type=finite_number,
-        default=defaults.thin_plate,
-        help="spring solver only: curvature over holes, 0 to 0.5 (default %(default)s)",
-    )
+    add_wrap_options(parser, weights=True)
     parser.add_argument(
         "--solver",
-        choices=("springs", "energy"),
-        default=defaults.solver.lower(),
-        help="the wrap's algorithm: the paper's force iteration, or one energy by a global solve (default %(default)s)",
+        choices=("energy", "springs"),
+        default="energy",
+        help="retired: the wrap has one solver, the energy solver; 'springs' wraps with it and warns",
     )
     parser.add_argument(
         "--schedule",
         choices=("auto", "local", "global-to-local"),
         default=defaults.schedule.lower().replace("_", "-"),
-        help="the energy solver's stiffness schedule: local, or stiff nearly affine levels first, for a few anchors "
+        help="the wrap's stiffness schedule: local, or stiff nearly affine levels first, for a few anchors "
         "on a large change of shape; auto chooses from the anchors (default %(default)s)",
     )
     parser.add_argument(
         "--stiffness-group",
         default="",
-        help="the template's vertex group of per-vertex stiffness, energy solver only (weight 0 "
+        help="the template's vertex group of per-vertex stiffness (weight 0 "
         "follows the target freely, 0.5 as the others, 1 keeps the template's shape)",
     )
     parser.add_argument(
         "--free-group",
         default="",
-        help="the template's vertex group with no pull toward the target, energy solver only "
+        help="the template's vertex group with no pull toward the target "
         "(sockets, teeth: they follow their neighbours and stay off the surface)",
     )
     parser.add_argument(
@@ -557,7 +536,8 @@ def retarget(arguments: argparse.Namespace) -> dict:
     symmetric = symmetric_anchor_report(layout, arguments, warnings)
     lap("anchors")
 
-    warn_energy_ignored(wrap_settings(arguments), warnings)
+    if arguments.solver == "springs":
+        warnings.append("--solver springs: " + wrap_defaults_module().RETIRED_SOLVER_WARNING)
     layout.springwrap.find_parts = not arguments.no_find_parts
     layout.springwrap.follow_group = arguments.follow_group
     layout.springwrap.follow_soft_group = arguments.follow_soft_group
@@ -678,6 +658,8 @@ def batch_task(arguments: argparse.Namespace, target: Path, output_dir: Path, sh
             "fairness",
             "arc_length",
             "thin_plate",
+            "constraint",
+            "folding",
             "solver",
             "schedule",
             "stiffness_group",

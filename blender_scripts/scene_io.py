@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 import bpy
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # `blender --python` does not add it
-from headless import ScriptError, addon_module, enable_addon, signed_axis, write_all_or_nothing
+from headless import ScriptError, addon_module, enable_addon, finite_number, signed_axis, write_all_or_nothing
 from mesh_files import MESH_SUFFIXES, MeshFileError, check_blend_file, check_coordinates, check_mesh_file
 
 if TYPE_CHECKING:
@@ -29,18 +29,44 @@ GLTF_TO_BLENDER = ((1.0, 0.0, 0.0), (0.0, 0.0, -1.0), (0.0, 1.0, 0.0))
 Undone after the import, so that a glTF file is read in the same convention as every other file."""
 
 
-def kernel_wrap_defaults():
-    """``springwrap_kernel.WrapSettings()``: the wrap's defaults, defined once, in the kernel.
+def wrap_defaults_module():
+    """The add-on's ``core.defaults``: the wrap's defaults and ranges in one place (the iteration limit, the
+    kernel's ``WrapSettings()``), the add-on enabled first so that its kernel can be imported."""
+    return addon_module("core.defaults")
 
-    The kernel comes with the add-on (the legacy zip carries it in the add-on's folder), so the
-    add-on is enabled first when the kernel cannot be imported by itself.
-    """
-    try:
-        import springwrap_kernel
-    except ImportError:
-        enable_addon()
-        import springwrap_kernel
-    return springwrap_kernel.WrapSettings()
+
+WEIGHT_OPTIONS = (
+    ("fairness", "weight of the second differences along the grid lines, 0 to 1"),
+    ("arc_length", "weight of the edges against the template's: the spacing along grid lines, 0 to 1"),
+    ("thin_plate", "weight of the smoothness at points no grid line runs through, 0 to 0.5"),
+    ("constraint", "pull of the layout onto the target, 0 to 1"),
+    ("folding", "how far off the surface the layout is still drawn onto it, 0 to 1"),
+)
+"""The wrap's weights as command-line options: (setting, help)."""
+
+
+def add_wrap_options(parser: argparse.ArgumentParser, weights: bool) -> None:
+    """``--max-iterations`` and ``--tolerance`` (and with ``weights`` the energy's five weights), their defaults
+    the add-on's ``core.defaults`` (the kernel's for the settings)."""
+    module = wrap_defaults_module()
+    defaults = module.wrap_defaults()
+    parser.add_argument(
+        "--max-iterations", type=int, default=module.MAX_ITERATIONS, help="wrap iteration limit (default %(default)s)"
+    )
+    parser.add_argument(
+        "--tolerance",
+        type=finite_number,
+        default=defaults.tolerance,
+        help="each stiffness level of the wrap ends once an iteration lowers the energy by less than this fraction "
+        "(default %(default)s)",
+    )
+    for name, text in WEIGHT_OPTIONS if weights else ():
+        parser.add_argument(
+            "--" + name.replace("_", "-"),
+            type=finite_number,
+            default=getattr(defaults, name),
+            help=f"{text} (default %(default)s)",
+        )
 
 
 def frame_matrix(up_axis: str, forward_axis: str) -> "Matrix":
@@ -278,15 +304,6 @@ def run_operator(blame: str, name: str, **properties) -> None:
         raise ScriptError(f"{blame}: springwrap.{name}: {message}") from None
     if result != {"FINISHED"}:
         raise ScriptError(f"{blame}: springwrap.{name} returned {sorted(result)}")
-
-
-def warn_energy_ignored(settings, warnings: list) -> None:
-    """Append to ``warnings`` that the energy solver ignores the options ``settings`` (the wrap's
-    ``springwrap_kernel.WrapSettings``) set away from their defaults (``core.wrap_inputs.energy_ignored``)."""
-    wrap_inputs = addon_module("core.wrap_inputs")
-    names = wrap_inputs.energy_ignored(settings, kernel_wrap_defaults())
-    if names:
-        warnings.append(wrap_inputs.energy_ignored_warning(names, lambda name: "--" + name.replace("_", "-")))
 
 
 def to_file_frame(frame: "Matrix", matrix) -> list:

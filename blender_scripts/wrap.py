@@ -6,7 +6,7 @@ Runs both ways (arguments after ``--`` when present, else all of ``sys.argv[1:]`
 
 Options: ``--target NAME`` (default: the layout's own target), ``--anchors-spacing S`` (run
 ``springwrap.anchors_auto`` first, replacing the anchors; 0 = a tenth of the layout's size),
-``--max-iterations N`` (default 2000), ``--shape-keys TRANSFER|REFUSE`` (a layout with shape keys: its
+``--max-iterations N`` (default the add-on's ``core.defaults.MAX_ITERATIONS``), ``--shape-keys TRANSFER|REFUSE`` (a layout with shape keys: its
 basis wrapped and the other keys carried over, the default, or refused), ``--output FILE.blend``
 (default: nothing is saved).
 Prints the wrap's progress and a summary; exits non-zero on any failure (a wrap that stops at
@@ -32,7 +32,7 @@ from headless import (
     script_main,
     write_atomically,
 )
-from scene_io import find_mesh, open_blend
+from scene_io import find_mesh, open_blend, wrap_defaults_module
 
 PROGRESS_CHUNK = 100
 """Iterations between two progress lines."""
@@ -47,7 +47,12 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     parser.add_argument(
         "--anchors-spacing", type=finite_number, help="spread anchors with this spacing first (0: automatic)"
     )
-    parser.add_argument("--max-iterations", type=int, default=2000, help="iteration limit (default 2000)")
+    parser.add_argument(
+        "--max-iterations",
+        type=int,
+        default=wrap_defaults_module().MAX_ITERATIONS,
+        help="iteration limit (default %(default)s)",
+    )
     add_shape_keys_argument(parser)
     parser.add_argument("--output", type=Path, help="the .blend to save the result to")
     arguments = parser.parse_args(script_arguments(argv, __file__))

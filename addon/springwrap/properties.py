@@ -11,7 +11,7 @@ import bpy
 
 from . import property_kinds as props
 from .blender import compat
-from .core import quality
+from .core import defaults, quality
 from .core.subdivision import MAX_RESOLUTION
 from .item_properties import (
     SpringwrapAnchorItem,
@@ -20,25 +20,10 @@ from .item_properties import (
     is_curve_object,
 )
 
-
-def _kernel_wrap_defaults():
-    """``springwrap_kernel.WrapSettings()``: the wrap's defaults, defined once, in the kernel.
-
-    Read when the add-on is imported, because a Blender property's default is fixed when its class
-    is defined: without its kernel the add-on cannot be enabled, and this error says why.
-    """
-    try:
-        import springwrap_kernel
-    except ImportError as error:
-        raise ImportError(
-            f"The Springwrap kernel is not available ({error}): the add-on needs its springwrap_kernel package "
-            "(bundled in the extension and in the legacy zip; `make setup` in a checkout)"
-        ) from error
-    return springwrap_kernel.WrapSettings()
-
-
-WRAP_DEFAULTS = _kernel_wrap_defaults()
-"""The kernel's default wrap settings: the defaults of the wrap's operator, panel and scripts."""
+WRAP_DEFAULTS = defaults.wrap_defaults()
+"""The kernel's default wrap settings: the defaults of the wrap's operator, panel and scripts. Read when the add-on
+is imported (a Blender property's default is fixed when its class is defined): without its kernel the add-on
+cannot be enabled, and the error says why."""
 
 
 class Range(NamedTuple):
@@ -58,16 +43,20 @@ class Range(NamedTuple):
 INT_LIMIT = 2**31 - 1
 """The largest value of a Blender int property."""
 
+
+def _kernel_range(name: str) -> Range:
+    """A kernel setting's range (``defaults.wrap_ranges``) as a property's: the hard limits the kernel's (an open
+    minimum is kept as the minimum: Blender cannot make it open, and the kernel refuses it), the soft ones the same
+    (the tolerance's slider from 1e-5 to 0.1)."""
+    kernel = defaults.wrap_ranges()[name]
+    if name == "tolerance":
+        return Range(kernel.low, kernel.high, 1e-5, 0.1)
+    return Range(kernel.low, kernel.high, kernel.low, kernel.high)
+
+
 WRAP_RANGES = {
-    # The kernel's WrapSettings ranges (its docstrings; tests/addon/test_ranges.py checks the kernel accepts
-    # each hard limit and refuses what lies beyond): weights [0, 1], the thin plate [0, 0.5], the
-    # tolerance (0, 1] (0 itself passes Blender and the kernel refuses it: a hard minimum cannot be open).
-    "fairness": Range(0.0, 1.0, 0.0, 1.0),
-    "arc_length": Range(0.0, 1.0, 0.0, 1.0),
-    "thin_plate": Range(0.0, 0.5, 0.0, 0.5),
-    "constraint": Range(0.0, 1.0, 0.0, 1.0),
-    "folding": Range(0.0, 1.0, 0.0, 1.0),
-    "tolerance": Range(0.0, 1.0, 1e-7, 1e-2),
+    **{name: _kernel_range(name) for name in ("fairness", "arc_length", "thin_plate", "constraint", "folding")},
+    "tolerance": _kernel_range("tolerance"),
     # The add-on's own: at least one iteration; the spring resolution up to core.subdivision.MAX_RESOLUTION.
     "max_iterations": Range(1, INT_LIMIT, 1, 20000),
     "spring_resolution": Range(1, MAX_RESOLUTION, 1, MAX_RESOLUTION),
@@ -85,13 +74,16 @@ def max_iterations_property(
 ):
     """The wrap's iteration limit: shared by the operators that wrap (wrap, mirror)."""
     return bpy.props.IntProperty(
-        name="Max Iterations", description=description, default=2000, **WRAP_RANGES["max_iterations"].keywords()
+        name="Max Iterations",
+        description=description,
+        default=defaults.MAX_ITERATIONS,
+        **WRAP_RANGES["max_iterations"].keywords(),
     )
 
 
 def tolerance_property(
-    description: str = "Springs solver only: the wrap has converged when no point moves more than this fraction of the "
-    "layout's size (the Energy solver stops by its own test)",
+    description: str = "Each stiffness level of the wrap ends once an iteration lowers its energy by less than this "
+    "fraction: smaller runs longer and fits closer",
 ):
     """The wrap's convergence tolerance: shared by the operators that wrap (wrap, mirror)."""
     return bpy.props.FloatProperty(
@@ -161,38 +153,38 @@ def _is_empty(_settings, candidate):
     return candidate is not None and candidate.type == "EMPTY"
 
 
-WRAP_SOLVER_ITEMS = (
-    (
-        "SPRINGS",
-        "Springs",
-        "The paper's force iteration: springs relaxed step by step, points folding onto the surface one ring at a time",
-    ),
-    (
+def retired_solver_property():
+    """The retired ``solver`` choice of the wrap's operators: hidden, kept so that scripts and presets naming it
+    still run; ``'SPRINGS'`` wraps with the energy solver and says so (``defaults.RETIRED_SOLVER_WARNING``)."""
+    return props.choice(
+        "Solver",
+        "Retired: the wrap has one solver, the energy solver ('SPRINGS' is mapped to it with a warning)",
+        (
+            ("ENERGY", "Energy", "The wrap's one solver"),
+            (defaults.RETIRED_SOLVER, "Springs (retired)", "Wraps with the Energy solver, with a warning"),
+        ),
         "ENERGY",
-        "Energy",
-        "One energy minimised by a global solve: a body in a few dozen iterations, no layout face "
-        "turned over by a step",
-    ),
-)
-"""The wrap's algorithms (``springwrap_kernel.WrapSettings(solver=...)``)."""
+        options={"HIDDEN", "SKIP_SAVE"},
+    )
+
 
 WRAP_SCHEDULE_ITEMS = (
     (
         "AUTO",
         "Automatic",
-        "Energy solver: Global to Local for 3 to 11 anchors, or for more whose places no similarity of the template "
+        "Global to Local for 3 to 11 anchors, or for more whose places no similarity of the template "
         "explains (a large change of shape for their number); Local otherwise",
     ),
     (
         "LOCAL",
         "Local",
-        "Energy solver: one scale for the whole layout at first, then local scales; quick, and right when the "
+        "One scale for the whole layout at first, then local scales; quick, and right when the "
         "layout starts near its place (many anchors, or a small change of shape)",
     ),
     (
         "GLOBAL_TO_LOCAL",
         "Global to Local",
-        "Energy solver: stiff, nearly affine levels first (each region stretched and sheared as one piece), "
+        "Stiff, nearly affine levels first (each region stretched and sheared as one piece), "
         "then the local fit; for a few anchors on a large change of shape",
     ),
 )
@@ -260,12 +252,9 @@ class SpringwrapObjectSettings(bpy.types.PropertyGroup):
     target_signature: props.hidden_text(
         "Target Signature", "Topology signature of the target when face-points were last written"
     )
-    wrap_solver: props.choice(
-        "Solver", "Algorithm of the panel's Wrap and Mirror buttons", WRAP_SOLVER_ITEMS, WRAP_DEFAULTS.solver
-    )
     wrap_schedule: props.choice(
         "Schedule",
-        "Stiffness schedule of the panel's Wrap button (Energy solver)",
+        "Stiffness schedule of the panel's Wrap button",
         WRAP_SCHEDULE_ITEMS,
         WRAP_DEFAULTS.schedule,
     )

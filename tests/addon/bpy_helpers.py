@@ -401,18 +401,18 @@ def curves_layout(target, shift):
     return activate_layout(layout, target)
 
 
-def wrapped_at_once(solver):
+def wrapped_at_once():
     """In a fresh file, the plane scene with automatic anchors wrapped by the operator at once; the layout's
     ``snapshot`` (what a live wrap must end at)."""
     bpy.ops.wm.read_homefile(use_empty=True)
     plane_scene()
     bpy.ops.springwrap.anchors_auto(spacing=0.5)
-    assert bpy.ops.springwrap.wrap(solver=solver) == {"FINISHED"}
+    assert bpy.ops.springwrap.wrap() == {"FINISHED"}
     return snapshot(bpy.data.objects["Layout"])
 
 
-def wrap_session(layout, solver="SPRINGS", paced=False, tolerance=None, **parameters):
-    """A wrap session; the spring solver unless said (its hundreds of iterations make many frames).
+def wrap_session(layout, paced=False, tolerance=None, **parameters):
+    """A wrap session.
 
     Its frames (``advance``) run one iteration each, so that tests can count them; ``paced``: the real
     pacer, whose first frame of 1/30 s would finish these small wraps at once (a tiny ``tolerance`` keeps
@@ -423,7 +423,7 @@ def wrap_session(layout, solver="SPRINGS", paced=False, tolerance=None, **parame
     from springwrap.core.wrap_inputs import WrapParameters
     from springwrap.core.wrap_run import FramePacer
 
-    settings = springwrap_kernel.WrapSettings(solver=solver, **({} if tolerance is None else {"tolerance": tolerance}))
+    settings = springwrap_kernel.WrapSettings(**({} if tolerance is None else {"tolerance": tolerance}))
     session = WrapSession(bpy.context, layout, WrapParameters(settings=settings, **parameters))
     if not paced:
         session.pacer = FramePacer(frame_rate=1e6)  # a microsecond of solving: one iteration a frame

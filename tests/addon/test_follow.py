@@ -121,7 +121,7 @@ def test_the_panel_shows_follow_on_and_passes_its_settings_to_wrap_sequence():
     panels.SPRINGWRAP_PT_over_time.draw(type("Panel", (), {"layout": recorder})(), bpy.context)
     assert "follow" in recorder.props and recorder.prop_options["follow"]["icon"] == "UNLINKED"
     ((idname, button),) = [entry for entry in recorder.operators if entry[0] == "springwrap.wrap_sequence"]
-    assert button.source == "TARGET" and button.solver == layout.springwrap.wrap_solver
+    assert button.source == "TARGET" and button.schedule == layout.springwrap.wrap_schedule
     layout.springwrap.follow = True
     recorder = PanelRecorder()
     panels.SPRINGWRAP_PT_over_time.draw(type("Panel", (), {"layout": recorder})(), bpy.context)

@@ -99,8 +99,7 @@ def test_mirror_across_an_empty_uses_its_local_plane():
 # ---------------------------------------------------------------- mirror and wrap
 
 
-@pytest.mark.parametrize("solver", ["SPRINGS", "ENERGY"])
-def test_a_snapped_half_pinned_gets_its_own_reflection(solver):
+def test_a_snapped_half_pinned_gets_its_own_reflection():
     """A half snapped from a sphere (its shape is not the template's, its rest shape never set) and pinned:
     the new half keeps the surfaced half's shape, not the template's, so on a symmetric target it comes out
     as its reflection. Only the seam moves: the snap left it up to 1.4e-3 off the plane, the wrap walks it
@@ -109,9 +108,7 @@ def test_a_snapped_half_pinned_gets_its_own_reflection(solver):
     rest shape 6.0e-2 and 2.3e-2)."""
     target, layout = head_scene()
     assert bpy.ops.springwrap.snap() == {"FINISHED"}
-    assert bpy.ops.springwrap.mirror(
-        axis="X", seam="SLIDE", surfaced_half="PIN", max_iterations=3000, solver=solver
-    ) == {"FINISHED"}
+    assert bpy.ops.springwrap.mirror(axis="X", seam="SLIDE", surfaced_half="PIN", max_iterations=3000) == {"FINISHED"}
     outcome = mirror_outcome()
     assert outcome.wrap is not None and outcome.wrap.converged
     partners, seam = symmetry_errors(layout, outcome)
@@ -120,10 +117,9 @@ def test_a_snapped_half_pinned_gets_its_own_reflection(solver):
     assert seam.max() < SYMMETRY_TOLERANCE, f"seam {seam.max():.3g} off the plane"
 
 
-@pytest.mark.parametrize("solver", ["SPRINGS", "ENERGY"])
 @pytest.mark.parametrize("seam_mode", ["SLIDE", "HOLD"])
 @pytest.mark.parametrize("surfaced_half", ["PIN", "FREE"])
-def test_mirror_and_wrap_on_a_symmetric_target_is_symmetric(seam_mode, surfaced_half, solver):
+def test_mirror_and_wrap_on_a_symmetric_target_is_symmetric(seam_mode, surfaced_half):
     """PIN: the surfaced half must be what the springs want for the result to be symmetric: the half layout
     put on the target's own vertices (its grid is a subset of the target's), its rest shape set there. FREE:
     both halves are wrapped from the snapped template (a sphere: far from the head's shape) and must stay
@@ -136,9 +132,9 @@ def test_mirror_and_wrap_on_a_symmetric_target_is_symmetric(seam_mode, surfaced_
         target, layout = head_scene()
         assert bpy.ops.springwrap.snap() == {"FINISHED"}
     start = world_positions(layout).copy()
-    assert bpy.ops.springwrap.mirror(
-        axis="X", seam=seam_mode, surfaced_half=surfaced_half, max_iterations=3000, solver=solver
-    ) == {"FINISHED"}
+    assert bpy.ops.springwrap.mirror(axis="X", seam=seam_mode, surfaced_half=surfaced_half, max_iterations=3000) == {
+        "FINISHED"
+    }
     outcome = mirror_outcome()
     assert outcome.wrap is not None and outcome.wrap.converged
     moved = np.linalg.norm(world_positions(layout)[: len(start)] - start, axis=1)

@@ -192,7 +192,7 @@ def test_an_anchored_vertex_in_the_follow_group_stays_on_its_anchor():
     assert states[anchored] == 1
 
 
-def test_parts_follow_with_the_springs_solver_and_a_finer_spring_resolution():
+def test_parts_follow_with_the_retired_solvers_name_and_a_finer_spring_resolution():
     for options in ({"solver": "SPRINGS"}, {"spring_resolution": 2}):
         target, layout = parts_scene()
         before = world_positions(layout)

@@ -279,12 +279,12 @@ def test_the_live_wrap_writes_the_readout_when_it_finishes_and_not_when_cancelle
 
     _target, layout, _normal = plane_scene()
     assert bpy.ops.springwrap.anchors_auto(spacing=0.5) == {"FINISHED"}
-    session = wrap_session(layout, solver="ENERGY")
+    session = wrap_session(layout)
     session.advance()  # a frame written into the layout: no read-out yet
     assert readout(layout) is None
     session.cancel()
     assert readout(layout) is None
-    loop = WrapLoop(wrap_session(layout, solver="ENERGY"))
+    loop = WrapLoop(wrap_session(layout))
     while loop.handle("TIMER") == "RUNNING_MODAL":
         pass
     assert loop.state == "FINISHED" and loop.result.readout is not None

@@ -5,7 +5,7 @@ import bpy
 import numpy as np
 import pytest
 
-from bpy_helpers import local_positions, plane_scene, read_state, snapshot, wrap_with_anchors
+from bpy_helpers import local_positions, plane_scene, snapshot, wrap_with_anchors
 
 REST = "springwrap_rest"
 
@@ -54,7 +54,7 @@ def test_a_wrap_keeps_the_templates_spacing_from_the_stored_rest():
         assert bpy.ops.springwrap.anchor_add(vertex_index=vertex, location=world[vertex], use_location=True) == {
             "FINISHED"
         }
-    assert bpy.ops.springwrap.wrap(solver="SPRINGS") == {"FINISHED"}
+    assert bpy.ops.springwrap.wrap() == {"FINISHED"}
     wrapped = local_positions(layout).astype(np.float64)
     edges = np.array([tuple(edge.vertices) for edge in layout.data.edges])
     along_x = np.abs(template[edges[:, 0], 1] - template[edges[:, 1], 1]) < 1e-6
@@ -77,17 +77,12 @@ def test_set_rest_shape_takes_the_current_shape_and_is_undoable():
     assert not np.array_equal(read_rest(layout), snapped)
 
 
-def test_even_springs_are_kept_apart_and_named_in_the_operator():
+def test_the_retired_even_rest_shape_is_no_longer_an_option():
     _target, layout, _normal = plane_scene()
     before = snapshot(layout)
-    with pytest.raises(RuntimeError, match="even rest shape .* needs the spring solver"):
-        bpy.ops.springwrap.wrap(solver="ENERGY", rest="EVEN")
-    assert snapshot(layout) == before
-    assert wrap_with_anchors(layout, spacing=0.5, rest="EVEN", solver="SPRINGS") == {"FINISHED"}
-    states, _faces, _barycentrics = read_state(layout)
-    assert np.all(states == 1)
     with pytest.raises(TypeError):
-        bpy.ops.springwrap.wrap(rest="SOFT")
+        bpy.ops.springwrap.wrap(rest="EVEN")
+    assert snapshot(layout) == before
 
 
 def test_a_broken_stored_rest_shape_is_reported_and_nothing_changes():

@@ -1,7 +1,8 @@
-"""The wrap's defaults have one source, the kernel's ``springwrap_kernel.WrapSettings()``.
+"""The wrap's defaults and ranges have one source: the kernel's ``springwrap_kernel.WrapSettings()`` and
+``WrapSettings.ranges()``, and the add-on's own in ``core.defaults``; and every setting shown acts.
 
-The wrap and mirror operators' properties, the panel's solver, the add-on's own parameters and the
-command lines (``retarget.py``, ``mirror.py``) read it; these tests fail when any of them holds a
+The wrap and mirror operators' properties, the add-on's own parameters and the command lines
+(``retarget.py``, ``mirror.py``, ``wrap.py``) read them; these tests fail when any of them holds a
 number of its own. Blender's float properties are float32, as the kernel's settings are, so values
 are compared as float32, and the settings an operator hands to the kernel are compared exactly.
 """
@@ -27,8 +28,6 @@ WRAP_OPERATOR_SETTINGS = (
     "thin_plate",
     "constraint",
     "folding",
-    "rest",
-    "solver",
     "schedule",
 )
 """The kernel settings ``springwrap.wrap`` has a property for."""
@@ -58,14 +57,42 @@ def test_the_wrap_operators_defaults_are_the_kernels():
     assert wrap_operator.SPRINGWRAP_OT_wrap.parameters(defaults).settings == KERNEL
 
 
-def test_the_mirror_operators_tolerance_and_the_panels_solver_are_the_kernels():
+def test_the_mirror_operators_tolerance_and_the_panels_schedule_are_the_kernels():
     from springwrap.operators import mirror as mirror_operator
 
     defaults = operator_defaults(bpy.ops.springwrap.mirror)
     assert same(defaults.tolerance, KERNEL.tolerance)
     assert mirror_operator.SPRINGWRAP_OT_mirror.parameters(defaults).settings == KERNEL
     panel = bpy.types.Object.bl_rna.properties["springwrap"].fixed_type
-    assert panel.properties["wrap_solver"].default == KERNEL.solver
+    assert panel.properties["wrap_schedule"].default == KERNEL.schedule
+    assert "wrap_solver" not in panel.properties
+
+
+def test_the_properties_ranges_are_the_kernels_and_the_iteration_limit_is_one_number():
+    from springwrap.core import defaults
+
+    ranges = sk.WrapSettings.ranges()
+    for operator in (bpy.ops.springwrap.wrap, bpy.ops.springwrap.mirror):
+        properties = operator.get_rna_type().properties
+        for name in ("tolerance", "fairness", "arc_length", "thin_plate", "constraint", "folding"):
+            if name not in properties:
+                continue
+            _label, low, high, _low_open, _high_open = ranges[name]
+            assert (properties[name].hard_min, properties[name].hard_max) == (
+                pytest.approx(low),
+                pytest.approx(high),
+            ), name
+        assert properties["max_iterations"].default == defaults.MAX_ITERATIONS
+    sequence = bpy.ops.springwrap.wrap_sequence.get_rna_type().properties
+    assert sequence["max_iterations"].default == defaults.MAX_ITERATIONS
+    assert bpy.ops.springwrap.wrap.get_rna_type().properties["spring_resolution"].default == defaults.SPRING_RESOLUTION
+    for script, options in (
+        ("retarget.py", ["--template", "t.obj", "--target", "m.obj"]),
+        ("mirror.py", ["--layout", "l.obj", "--target", "m.obj"]),
+        ("wrap.py", []),
+    ):
+        arguments = _script(script)["parse_arguments"](["--", *options])
+        assert arguments.max_iterations == defaults.MAX_ITERATIONS, script
 
 
 def test_the_add_ons_parameters_default_to_the_kernels_settings():
@@ -96,9 +123,8 @@ def test_the_retarget_command_lines_defaults_are_the_kernels():
     retarget = _script("retarget.py")
     arguments = retarget["parse_arguments"](["--", "--template", "template.obj", "--target", "target.obj"])
     assert retarget["wrap_settings"](arguments) == KERNEL
-    for name in ("tolerance", "fairness", "arc_length", "thin_plate"):
+    for name in ("tolerance", "fairness", "arc_length", "thin_plate", "constraint", "folding"):
         assert getattr(arguments, name) == getattr(KERNEL, name), name
-    assert arguments.solver.upper() == KERNEL.solver
 
 
 def test_the_retarget_command_line_takes_the_schedule():
@@ -144,76 +170,90 @@ def test_a_bad_setting_on_the_command_line_is_a_usage_error_naming_it(script, op
     assert message in capsys.readouterr().err
 
 
-def test_the_energy_solver_reads_none_of_the_spring_settings():
-    """What the warning below says: with the energy solver, the spring solver's weights and tolerance change
-    nothing (the same positions bit for bit), while the same change does move the spring solver's result."""
-    from springwrap.core.wrap_inputs import ENERGY_IGNORED
+SHOWN_SETTINGS = {
+    "fairness": 1.0,
+    "arc_length": 0.1,
+    "thin_plate": 0.5,
+    "constraint": 0.05,
+    "folding": 0.0,
+    "tolerance": 0.5,
+    "schedule": "LOCAL",  # the automatic choice for these 8 anchors is global to local
+    "max_iterations": 3,
+    "spring_resolution": 2,
+}
+"""Every setting the wrap's redo panel shows that changes the wrap itself, each with a value away from its
+default (the groups and Hold on Plane have their own tests)."""
 
-    changed = {"fairness": 0.9, "arc_length": 0.1, "thin_plate": 0.45, "constraint": 0.9, "folding": 0.9}
-    changed["tolerance"] = 1e-3
-    assert set(changed) == set(ENERGY_IGNORED)
+
+def _wrapped(**properties) -> np.ndarray:
+    """The world positions after a wrap of the sphere scene (one of its quads cut into two triangles, so that two
+    vertices have no grid line through them) with ``properties``."""
+    import bmesh
+
+    from bpy_helpers import sphere_scene, world_positions
+
+    bpy.ops.wm.read_homefile(use_empty=True)
+    _target, layout = sphere_scene()
+    editable = bmesh.new()
+    editable.from_mesh(layout.data)
+    editable.faces.ensure_lookup_table()
+    bmesh.ops.triangulate(editable, faces=[editable.faces[44]])
+    editable.to_mesh(layout.data)
+    editable.free()
+    layout.data.update()
+    assert bpy.ops.springwrap.anchors_auto(spacing=0.9) == {"FINISHED"}
+    assert bpy.ops.springwrap.wrap(**properties) == {"FINISHED"}
+    return world_positions(bpy.data.objects[layout.name])
+
+
+def test_each_setting_the_redo_panel_shows_changes_the_wrap():
+    shown = {prop.identifier for prop in bpy.ops.springwrap.wrap.get_rna_type().properties if not prop.is_hidden}
+    assert set(WRAP_OPERATOR_SETTINGS) <= shown and "solver" not in shown and "rest" not in shown
+    assert set(SHOWN_SETTINGS) == set(WRAP_OPERATOR_SETTINGS) | {"max_iterations", "spring_resolution"}
+    reference = _wrapped()
+    assert np.array_equal(_wrapped(), reference)  # deterministic
+    defaults = operator_defaults(bpy.ops.springwrap.wrap)
+    for name, value in SHOWN_SETTINGS.items():
+        assert getattr(defaults, name) != value, name
+        moved = np.abs(_wrapped(**{name: value}) - reference).max()
+        assert moved > 1e-5, f"{name}={value} moved no vertex more than {moved}"  # float noise: 1e-7
+
+
+def test_each_wrap_option_of_the_command_line_reaches_the_kernels_settings():
+    retarget = _script("retarget.py")
+    base = ["--", "--template", "t.obj", "--target", "m.obj"]
+    for name, value in SHOWN_SETTINGS.items():
+        if name in ("max_iterations", "spring_resolution"):
+            continue
+        option = "--" + name.replace("_", "-")
+        text = value.lower().replace("_", "-") if isinstance(value, str) else str(value)
+        arguments = retarget["parse_arguments"]([*base, option, text])
+        settings = retarget["wrap_settings"](arguments)
+        assert settings == KERNEL.replace(**{name: value}), option
+
+
+def test_the_retired_spring_solver_is_mapped_with_a_warning(capfd):
+    """Scripts and presets that name ``solver='SPRINGS'`` wrap with the energy solver and say so; an old file's
+    stored panel solver is ignored."""
+    from springwrap.core import defaults
+
     results = {}
-    for solver in ("ENERGY", "SPRINGS"):
-        for label, settings in (("default", {}), ("changed", changed)):
-            _target, layout, _normal = plane_scene(hole=True)
-            bpy.ops.springwrap.anchors_auto(spacing=0.5)
-            assert bpy.ops.springwrap.wrap(solver=solver, max_iterations=300, **settings) == {"FINISHED"}
-            results[solver, label] = np.array([vertex.co[:] for vertex in layout.data.vertices])
-            for obj in list(bpy.data.objects):
-                bpy.data.objects.remove(obj)
-    assert np.array_equal(results["ENERGY", "default"], results["ENERGY", "changed"])
-    assert not np.allclose(results["SPRINGS", "default"], results["SPRINGS", "changed"])
+    for solver in ("SPRINGS", "ENERGY"):
+        bpy.ops.wm.read_homefile(use_empty=True)
+        _target, layout, _normal = plane_scene()
+        layout.springwrap["wrap_solver"] = 0  # an old .blend's stored panel choice (SPRINGS)
+        bpy.ops.springwrap.anchors_auto(spacing=0.5)
+        capfd.readouterr()
+        assert bpy.ops.springwrap.wrap(solver=solver) == {"FINISHED"}
+        assert (defaults.RETIRED_SOLVER_WARNING in capfd.readouterr().out) == (solver == "SPRINGS")
+        results[solver] = snapshot_positions(layout)
+    assert np.array_equal(results["SPRINGS"], results["ENERGY"])
+    retarget = _script("retarget.py")
+    arguments = retarget["parse_arguments"](["--", "--template", "t.obj", "--target", "m.obj", "--solver", "springs"])
+    assert retarget["wrap_settings"](arguments) == KERNEL
+    with pytest.raises(sk.InvalidArgumentError, match="the spring solver was retired"):
+        sk.WrapSettings(solver="SPRINGS")
 
 
-def test_a_setting_the_energy_solver_ignores_is_warned_about(capfd):
-    plane_scene()
-    bpy.ops.springwrap.anchors_auto(spacing=0.5)
-    capfd.readouterr()
-    assert bpy.ops.springwrap.wrap(fairness=0.8, tolerance=1e-3) == {"FINISHED"}
-    output = capfd.readouterr().out
-    assert (
-        "The Energy solver ignores Fairness, Tolerance: only the Springs solver reads them "
-        "(the result is what the default would give)" in output
-    )
-    bpy.ops.springwrap.wrap()  # the defaults: nothing to warn about
-    assert "ignores" not in capfd.readouterr().out
-    bpy.ops.springwrap.wrap(solver="SPRINGS", fairness=0.8, max_iterations=50)
-    assert "ignores" not in capfd.readouterr().out
-
-
-@pytest.mark.parametrize(
-    "script, options, warned",
-    [
-        ("retarget.py", ["--template", "t.obj", "--target", "m.obj", "--fairness", "0.8"], "--fairness"),
-        (
-            "retarget.py",
-            ["--template", "t.obj", "--target", "m.obj", "--thin-plate", "0.3", "--tolerance", "1e-3"],
-            "--thin-plate, --tolerance",
-        ),
-        ("retarget.py", ["--template", "t.obj", "--target", "m.obj", "--fairness", "0.8", "--solver", "springs"], None),
-        ("retarget.py", ["--template", "t.obj", "--target", "m.obj"], None),
-    ],
-)
-def test_the_command_line_warns_about_options_the_energy_solver_ignores(script, options, warned):
-    """retarget.py's report (and its printed warnings) carry the warning; mirror.py's does the same for --tolerance."""
-    retarget = _script(script)
-    arguments = retarget["parse_arguments"](["--", *options])
-    warnings = []
-    retarget["warn_energy_ignored"](retarget["wrap_settings"](arguments), warnings)
-    if warned is None:
-        assert warnings == []
-    else:
-        assert warnings == [
-            f"The Energy solver ignores {warned}: only the Springs solver reads "
-            f"{'them' if ',' in warned else 'it'} (the result is what the default would give)"
-        ]
-
-
-def test_the_mirror_warns_about_a_tolerance_its_energy_wrap_ignores(capfd):
-    from bpy_helpers import head_scene
-
-    head_scene()
-    assert bpy.ops.springwrap.snap() == {"FINISHED"}
-    capfd.readouterr()
-    assert bpy.ops.springwrap.mirror(axis="X", tolerance=1e-3) == {"FINISHED"}
-    assert "The Energy solver ignores Tolerance: only the Springs solver reads it" in capfd.readouterr().out
+def snapshot_positions(layout) -> np.ndarray:
+    return np.array([vertex.co[:] for vertex in layout.data.vertices])

@@ -71,22 +71,6 @@ def test_sphere_cap_lands_on_the_sphere_without_a_flipped_quad():
     assert_no_flipped_quads(layout, radial)
 
 
-def test_the_panel_setting_chooses_the_solver():
-    target, layout, _normal = plane_scene()
-    assert layout.springwrap.wrap_solver == "ENERGY"  # the default
-    layout.springwrap.wrap_solver = "SPRINGS"
-    from types import SimpleNamespace
-
-    from springwrap.operators import wrap as wrap_operator
-
-    rna = bpy.ops.springwrap.wrap.get_rna_type()
-    properties = SimpleNamespace(
-        **{prop.identifier: prop.default for prop in rna.properties if prop.identifier != "rna_type"}
-    )
-    properties.solver = layout.springwrap.wrap_solver  # what the panel's button sets
-    assert wrap_operator.SPRINGWRAP_OT_wrap.parameters(properties).settings.solver == "SPRINGS"
-
-
 def test_hold_on_plane_keeps_a_lone_half_s_midline_on_the_plane_with_the_energy_solver():
     """As ``test_mirror``'s test for the spring solver: the held midline ends on the plane, so the
     mirror that follows finds no face crossing it."""
@@ -113,16 +97,11 @@ def test_undo_after_an_energy_wrap_restores_the_template():
     assert snapshot(bpy.data.objects["Layout"]) == before
 
 
-def test_the_report_says_what_each_solver_did(capfd):
+def test_the_report_says_what_the_wrap_did(capfd):
     target, layout, _normal = plane_scene()
     bpy.ops.springwrap.anchors_auto(spacing=0.5)
     capfd.readouterr()
-    assert bpy.ops.springwrap.wrap(solver="SPRINGS") == {"FINISHED"}
-    springs = capfd.readouterr().out
-    assert "landed on anchors or curves" in springs and "fold tolerance" in springs, springs
-    assert bpy.ops.springwrap.detach() == {"FINISHED"}
-    capfd.readouterr()
-    assert bpy.ops.springwrap.wrap(solver="ENERGY") == {"FINISHED"}
+    assert bpy.ops.springwrap.wrap() == {"FINISHED"}
     energy = capfd.readouterr().out
     assert "landed at the end" in energy and "held back" in energy and "fold tolerance" not in energy, energy
     assert "lowered the energy by" in energy, energy
@@ -179,15 +158,12 @@ def test_the_stiffness_group_reaches_the_wrap_and_the_operator_overrides_the_set
     assert (states[rigid] == 0).all() and (np.delete(states, rigid) == 1).all()
 
 
-def test_the_groups_need_the_energy_solver_and_leave_the_layout_as_it_was():
+def test_the_groups_need_spring_resolution_1_and_leave_the_layout_as_it_was():
     target, layout, _normal = plane_scene()
     _group(layout, "Sockets", [0, 1, 2])
     layout.springwrap.free_group = "Sockets"
     bpy.ops.springwrap.anchors_auto(spacing=0.5)
     before = snapshot(layout)
-    with pytest.raises(RuntimeError, match="need the Energy solver"):
-        bpy.ops.springwrap.wrap(solver="SPRINGS")
-    assert snapshot(layout) == before
     with pytest.raises(RuntimeError, match="need Spring Resolution 1"):
         bpy.ops.springwrap.wrap(solver="ENERGY", spring_resolution=2)
     assert snapshot(layout) == before

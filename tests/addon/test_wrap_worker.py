@@ -42,11 +42,11 @@ class _OneThreadAtATime:
         return call
 
 
-def _threaded_loop(layout, solver="SPRINGS", **keywords):
+def _threaded_loop(layout, **keywords):
     """A ``WrapLoop`` as the operator's ``invoke`` leaves it: one frame solved here, the rest in the worker."""
     from springwrap.core.wrap_run import WrapLoop
 
-    session = wrap_session(layout, solver=solver, **keywords)
+    session = wrap_session(layout, **keywords)
     session.solver = _OneThreadAtATime(session.solver)
     loop = WrapLoop(session)
     assert loop.handle("TIMER") == "RUNNING_MODAL"
@@ -64,11 +64,10 @@ def _frames(loop, count, seconds=60.0):
     return outcome
 
 
-@pytest.mark.parametrize("solver", ["SPRINGS", "ENERGY"])
-def test_the_worker_finishes_where_a_synchronous_wrap_ends(solver):
+def test_the_worker_finishes_where_a_synchronous_wrap_ends():
     plane_scene()
     bpy.ops.springwrap.anchors_auto(spacing=0.5)
-    loop = _threaded_loop(bpy.context.active_object, solver=solver)
+    loop = _threaded_loop(bpy.context.active_object)
     outcome = "RUNNING_MODAL"
     while outcome == "RUNNING_MODAL":
         outcome = _frames(loop, 1)
@@ -76,7 +75,7 @@ def test_the_worker_finishes_where_a_synchronous_wrap_ends(solver):
     assert loop.session.worker is None
     assert not loop.session.solver.overlaps and len(loop.session.solver.threads) == 2  # main, then the worker
     live = snapshot(bpy.data.objects["Layout"])
-    assert live == wrapped_at_once(solver)
+    assert live == wrapped_at_once()
 
 
 @pytest.mark.parametrize("key", ["ESC", "RIGHTMOUSE"])

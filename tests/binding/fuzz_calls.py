@@ -226,12 +226,10 @@ def call_layout_structure(draw):
 
 def settings(draw):
     names = ["fairness", "arc_length", "thin_plate", "constraint", "folding", "tolerance", "landing_distance"]
-    names += ["fold_tolerance", "momentum"]
+    names += ["fold_tolerance"]
     options = {name: draw.number(0, 0.5) for name in names if draw.chance(0.15)}
     if draw.chance(0.2):
-        options["rest"] = draw.text(["TEMPLATE", "EVEN"])
-    if draw.chance(0.2):
-        options["solver"] = draw.text(["ENERGY", "SPRINGS"])
+        options["schedule"] = draw.text(["AUTO", "LOCAL", "GLOBAL_TO_LOCAL"])
     return sk.WrapSettings(**options)
 
 
@@ -239,7 +237,7 @@ def call_wrap_settings(draw):
     value = settings(draw)
     assert value == sk.WrapSettings(**value.to_dict())
     if draw.chance(0.5):
-        value.replace(**{draw.pick(["fairness", "momentum", "rest", "solver"]): draw.number(0, 1)})
+        value.replace(**{draw.pick(["fairness", "folding", "tolerance", "schedule"]): draw.number(0, 1)})
 
 
 def call_wrap(draw):

@@ -93,9 +93,6 @@ SETTING_NAMES = [
     "tolerance",
     "landing_distance",
     "fold_tolerance",
-    "momentum",
-    "rest",
-    "solver",
     "schedule",
 ]
 
@@ -111,34 +108,55 @@ def test_wrap_settings_hold_the_kernels_defaults_and_read_every_field():
         "thin_plate": 0.2,
         "constraint": 0.5,
         "folding": 0.3,
-        "tolerance": 1e-5,
+        "tolerance": 0.002,
         "landing_distance": 0.25,
-        "fold_tolerance": 0.17453292,
-        "momentum": 0.9,
-        "rest": "TEMPLATE",
-        "solver": "ENERGY",
+        "fold_tolerance": 1.3089969,
         "schedule": "AUTO",
     }
-    assert np.float32(settings.fold_tolerance) == np.float32(np.radians(10))
+    assert np.float32(settings.fold_tolerance) == np.float32(np.radians(75))
     assert repr(settings) == (
-        "WrapSettings(fairness=0.5, arc_length=0.5, thin_plate=0.2, constraint=0.5, folding=0.3, tolerance=1e-05, "
-        "landing_distance=0.25, fold_tolerance=0.17453292, momentum=0.9, rest='TEMPLATE', solver='ENERGY', "
-        "schedule='AUTO')"
+        "WrapSettings(fairness=0.5, arc_length=0.5, thin_plate=0.2, constraint=0.5, folding=0.3, tolerance=0.002, "
+        "landing_distance=0.25, fold_tolerance=1.3089969, schedule='AUTO')"
     )
 
 
+def test_the_ranges_are_the_kernels_one_table():
+    ranges = sk.WrapSettings.ranges()
+    assert list(ranges) == SETTING_NAMES[:-1]
+    assert ranges["thin_plate"] == ("thin plate weight", 0.0, 0.5, False, False)
+    assert ranges["tolerance"] == ("tolerance", 0.0, 1.0, True, False)
+    for name, (_label, low, high, low_open, high_open) in ranges.items():
+        inside = [value for value, is_open in ((low, low_open), (high, high_open)) if not is_open]
+        for value in inside:
+            assert getattr(sk.WrapSettings(**{name: value}), name) == pytest.approx(value)
+        with pytest.raises(sk.InvalidArgumentError, match=f"invalid {name}: "):
+            sk.WrapSettings(**{name: high + 1.0})
+
+
+def test_the_retired_spring_solvers_keywords_say_what_to_do():
+    # 'ENERGY' and 'TEMPLATE' are what every wrap does: taken as the defaults.
+    assert sk.WrapSettings(solver="ENERGY", rest="TEMPLATE") == sk.WrapSettings()
+    for keywords, name in (
+        ({"solver": "SPRINGS"}, "solver"),
+        ({"rest": "EVEN"}, "rest"),
+        ({"momentum": 0.9}, "momentum"),
+    ):
+        with pytest.raises(sk.InvalidArgumentError, match=f"invalid {name}: .*the spring solver was retired"):
+            sk.WrapSettings(**keywords)
+        with pytest.raises(sk.InvalidArgumentError, match="the spring solver was retired"):
+            sk.WrapSettings().replace(**keywords)
+
+
 def test_wrap_settings_take_keywords_compare_by_value_and_are_immutable():
-    settings = sk.WrapSettings(fairness=0.25, thin_plate=0.1, rest="EVEN", solver="SPRINGS")
-    assert (settings.fairness, settings.thin_plate, settings.rest, settings.solver) == (0.25, 0.1, "EVEN", "SPRINGS")
+    settings = sk.WrapSettings(fairness=0.25, thin_plate=0.1, schedule="LOCAL")
+    assert (settings.fairness, settings.thin_plate, settings.schedule) == (0.25, 0.1, "LOCAL")
     assert settings.arc_length == sk.WrapSettings().arc_length
-    assert settings == sk.WrapSettings(solver="SPRINGS", rest="EVEN", thin_plate=0.1, fairness=0.25)
-    with pytest.raises(sk.InvalidArgumentError, match="invalid rest: the even rest shape"):
-        sk.WrapSettings(rest="EVEN")  # the energy solver (the default) keeps the template's shape
+    assert settings == sk.WrapSettings(schedule="LOCAL", thin_plate=0.1, fairness=0.25)
     assert settings != sk.WrapSettings() and sk.WrapSettings() == sk.WrapSettings()
     assert eval(repr(settings), {"WrapSettings": sk.WrapSettings}) == settings
-    changed = settings.replace(momentum=0.5)
-    assert changed.momentum == 0.5 and changed.replace(momentum=settings.momentum) == settings
-    assert settings.momentum == sk.WrapSettings().momentum  # replace made a copy
+    changed = settings.replace(folding=0.5)
+    assert changed.folding == 0.5 and changed.replace(folding=settings.folding) == settings
+    assert settings.folding == sk.WrapSettings().folding  # replace made a copy
     with pytest.raises(AttributeError):
         settings.fairness = 0.3
     with pytest.raises(TypeError):
@@ -158,19 +176,9 @@ BAD_SETTINGS = {
     "tolerance": (0.0, r"invalid tolerance: the tolerance must be within \(0, 1\], not 0"),
     "landing_distance": (-1.0, "invalid landing_distance: "),
     "fold_tolerance": (2.0, "invalid fold_tolerance: "),
-    "momentum": (1.0, r"invalid momentum: the momentum must be within \[0, 0.99\], not 1"),
-    "rest": ("SOFT", "invalid rest: \"SOFT\" is not 'TEMPLATE' or 'EVEN'"),
-    "solver": ("FAST", "invalid solver: \"FAST\" is not 'SPRINGS' or 'ENERGY'"),
+    "solver": ("FAST", "invalid solver: \"FAST\" is not 'ENERGY'"),
     "schedule": ("FAST", "invalid schedule: \"FAST\" is not 'AUTO', 'LOCAL' or 'GLOBAL_TO_LOCAL'"),
 }
-
-
-def test_the_global_to_local_schedule_needs_the_energy_solver():
-    settings = sk.WrapSettings(schedule="GLOBAL_TO_LOCAL")
-    assert settings.schedule == "GLOBAL_TO_LOCAL" and settings != sk.WrapSettings()
-    assert eval(repr(settings), {"WrapSettings": sk.WrapSettings}) == settings
-    with pytest.raises(sk.InvalidArgumentError, match="invalid schedule: the global-to-local schedule needs"):
-        settings.replace(solver="SPRINGS")
 
 
 @pytest.mark.parametrize("name", list(BAD_SETTINGS))
@@ -188,10 +196,10 @@ def test_the_solver_runs_with_the_settings_it_was_given():
     structure = sk.LayoutStructure(len(positions), face_corners, face_sizes)
     solver, _hits = make_solver(target, positions, structure, [0])
     assert solver.settings == sk.WrapSettings()
-    settings = sk.WrapSettings(solver="ENERGY", tolerance=1e-4)
+    settings = sk.WrapSettings(tolerance=1e-4)
     solver, _hits = make_solver(target, positions, structure, [0], settings=settings)
     assert solver.settings == settings
-    assert not np.isnan(solver.step(1).energy)  # the energy solver reports its energy, the springs NaN
+    assert not np.isnan(solver.step(1).energy)
 
 
 def test_free_vertices_and_stiffness_reach_the_energy_solver_and_are_checked():
@@ -199,7 +207,7 @@ def test_free_vertices_and_stiffness_reach_the_energy_solver_and_are_checked():
     positions, face_corners, face_sizes = quad_layout()
     structure = sk.LayoutStructure(len(positions), face_corners, face_sizes)
     anchors = [0, 12, 156, 168]
-    energy = sk.WrapSettings(solver="ENERGY")
+    energy = sk.WrapSettings()
     free = np.zeros(len(positions), bool)
     free[[84, 85, 71]] = True
     solver, _ = make_solver(target, positions, structure, anchors, settings=energy, free_vertices=free)
@@ -213,8 +221,3 @@ def test_free_vertices_and_stiffness_reach_the_energy_solver_and_are_checked():
         make_solver(target, positions, structure, anchors, settings=energy, stiffness=stiffness)
     with pytest.raises(sk.ArrayError, match="stiffness must be a C-contiguous numpy array of dtype float32"):
         make_solver(target, positions, structure, anchors, settings=energy, stiffness=np.full(len(positions), 0.5))
-    springs, _ = make_solver(
-        target, positions, structure, anchors, settings=sk.WrapSettings(solver="SPRINGS"), free_vertices=free
-    )
-    with pytest.raises(sk.InvalidArgumentError, match="need the energy solver"):
-        springs.step(1)

@@ -129,7 +129,7 @@ def test_anchors_from_json_and_a_blend_template_object(inputs, tmp_path):
     assert space_points == 0 or any(f"{space_points} of {GRID_SIDE**2} vertices" in line for line in report["warnings"])
 
 
-def test_a_free_group_floats_with_the_energy_solver_and_is_refused_with_springs(inputs, tmp_path):
+def test_a_free_group_floats_and_the_retired_solver_is_mapped_with_a_warning(inputs, tmp_path):
     common = (
         "--template",
         inputs["blend"],
@@ -147,9 +147,11 @@ def test_a_free_group_floats_with_the_energy_solver_and_is_refused_with_springs(
     assert process.returncode == 0, process.stderr[-3000:]
     report = json.loads(report_path.read_text())
     assert report["wrap"]["converged"] and report["wrap"]["space_points"] >= 1, report["wrap"]
-    refused = run(*common, "--solver", "springs", "--report", tmp_path / "refused.json")
-    assert refused.returncode == 1
-    assert "need the Energy solver" in refused.stderr and not (tmp_path / "refused.json").exists()
+    mapped = run(*common, "--solver", "springs", "--report", tmp_path / "mapped.json")
+    assert mapped.returncode == 0, mapped.stderr[-3000:]
+    mapped_report = json.loads((tmp_path / "mapped.json").read_text())
+    assert any("The Springs solver was retired" in line for line in mapped_report["warnings"])
+    assert mapped_report["wrap"]["space_points"] == report["wrap"]["space_points"]
     missing = run(*common[:-1], "Nowhere", "--solver", "energy")
     assert missing.returncode == 1 and "no vertex group 'Nowhere'" in missing.stderr
 

@@ -174,8 +174,7 @@ def settle(context, layout) -> int:
 
 
 def _settings(settings):
-    solver = settings.wrap_solver
-    return WRAP_DEFAULTS.replace(solver=solver, schedule=settings.wrap_schedule if solver == "ENERGY" else "LOCAL")
+    return WRAP_DEFAULTS.replace(schedule=settings.wrap_schedule)
 
 
 def follow_changed(settings, context) -> None:

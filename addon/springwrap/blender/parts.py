@@ -56,11 +56,10 @@ def plan_wrap_parts(layout, arrays, topology, target, anchor_list, curve_constra
     return plan, parts.make_follower(plan, world)
 
 
-def free_parts(inputs, plan: parts.PartPlan, solver: str):
-    """``inputs`` (``core.wrap_inputs.WrapInputs``) with the parts among the free vertices (no pull to the target)
-    for the Energy solver; the Springs solver has no free vertices: it solves the parts with the rest, and the
-    follow replaces where it put them."""
-    if not plan.any or solver != "ENERGY":
+def free_parts(inputs, plan: parts.PartPlan):
+    """``inputs`` (``core.wrap_inputs.WrapInputs``) with the parts among the free vertices (no pull to the
+    target)."""
+    if not plan.any:
         return inputs
     free = plan.parts if inputs.free_vertices is None else plan.parts | np.asarray(inputs.free_vertices, dtype=bool)
     return inputs._replace(free_vertices=np.ascontiguousarray(free))

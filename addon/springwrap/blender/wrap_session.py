@@ -14,7 +14,6 @@ from ..core import anchors, follow, input_policy, layout_state, parts, proposals
 from ..core.errors import LayoutError
 from ..core.target import Target
 from ..core.wrap_run import FramePacer, SolveWorker, WrapResult
-from ..properties import WRAP_DEFAULTS
 from . import anchors as anchor_data
 from . import attributes, last_run, wrap_reads
 from . import curves as curve_data
@@ -116,8 +115,7 @@ class WrapSession:
         self.parts, self.follower = part_data.plan_wrap_parts(
             layout, arrays, self.layout_topology, self.target, self.anchors, curve_constraints
         )
-        solver = WRAP_DEFAULTS.solver if parameters.settings is None else parameters.settings.solver
-        inputs = part_data.free_parts(inputs, self.parts, solver)
+        inputs = part_data.free_parts(inputs, self.parts)
         wrap_inputs.check_something_pulled(
             layout.name, inputs.free_vertices, getattr(parameters, "free_group", "") or settings.free_group
         )
@@ -160,7 +158,7 @@ class WrapSession:
         self.last_report = None
         self.kernel_seconds = 0.0
         self.frames = 0
-        self.events = {"landed": 0, "folded": 0, "lifted": 0}
+        self.events = {"landed": 0, "folded": 0}
         self._frame_end: float | None = None
         self.worker: SolveWorker | None = None
         self.written_positions: np.ndarray | None = None  # the local positions finish() wrote
@@ -177,11 +175,6 @@ class WrapSession:
         free_group = getattr(parameters, "free_group", "") or settings.free_group
         if not stiffness_group and not free_group:
             return inputs
-        solver = WRAP_DEFAULTS.solver if parameters.settings is None else parameters.settings.solver
-        if solver != "ENERGY":
-            raise LayoutError(
-                "The Stiffness and Free groups need the Energy solver (the Springs solver has no per-vertex stiffness)"
-            )
         if int(parameters.spring_resolution) > 1:
             raise LayoutError("The Stiffness and Free groups need Spring Resolution 1")
         if stiffness_group:
@@ -383,9 +376,6 @@ class WrapSession:
             space_points=space_points,
             landed=self.events["landed"],
             folded=self.events["folded"],
-            lifted=self.events["lifted"],
-            solver=self.solver.settings.solver,
-            fold_tolerance=float(report.fold_tolerance),
             held_back=int(report.held_back),
             energy_decrease=float(report.energy_decrease),
             anchor_count=anchors.anchor_count(proposals.used_by_wrap(self.anchors)),

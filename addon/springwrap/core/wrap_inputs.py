@@ -9,7 +9,7 @@ import numpy as np
 
 import springwrap_kernel
 
-from . import curves, input_policy, layout_state, transforms
+from . import curves, defaults, input_policy, layout_state, transforms
 from .anchors import check_anchor_vertices
 from .errors import LayoutError
 from .layout_state import LayoutArrays, check_finite
@@ -59,37 +59,13 @@ UNRELIABLE_WEIGHT = 0.5
 class WrapParameters(NamedTuple):
     """What the user sets for a wrap: the iteration limit, the spring resolution and the kernel's settings."""
 
-    max_iterations: int = 2000
-    settings: Any = (
-        None  # springwrap_kernel.WrapSettings (weights, tolerance, rest, solver); None: the kernel's defaults
-    )
-    spring_resolution: int = 1  # > 1: relax, then relax again the faces cut k x k (coarse to fine)
-    stiffness_group: str = ""  # layout vertex group of per-vertex stiffness (energy solver); "": the layout's setting
+    max_iterations: int = defaults.MAX_ITERATIONS
+    settings: Any = None  # springwrap_kernel.WrapSettings (weights, tolerance, schedule); None: the kernel's defaults
+    spring_resolution: int = (
+        defaults.SPRING_RESOLUTION
+    )  # > 1: relax, then relax again the faces cut k x k (coarse to fine)
+    stiffness_group: str = ""  # layout vertex group of per-vertex stiffness; "": the layout's setting
     free_group: str = ""  # layout vertex group of vertices without a pull to the target; "": the layout's setting
-
-
-ENERGY_IGNORED = ("fairness", "arc_length", "thin_plate", "constraint", "folding", "tolerance")
-"""Settings only the spring solver reads: its force weights and its convergence test. The energy solver
-(the default) keeps the template's shape, pulls onto the target and holds the anchors by its own fixed
-weights, and stops by its own test."""
-
-
-def energy_ignored(settings, defaults) -> list[str]:
-    """The names of :data:`ENERGY_IGNORED` that ``settings`` (a ``springwrap_kernel.WrapSettings``) sets to
-    other than ``defaults``' value while its solver is the energy solver, which does not read them; else []."""
-    if settings is None or settings.solver != "ENERGY":
-        return []
-    return [name for name in ENERGY_IGNORED if getattr(settings, name) != getattr(defaults, name)]
-
-
-def energy_ignored_warning(names: list[str], spell) -> str:
-    """The warning for :func:`energy_ignored`'s ``names``, each written by ``spell`` (a label, an option)."""
-    listed = ", ".join(spell(name) for name in names)
-    pronoun = "it" if len(names) == 1 else "them"
-    return (
-        f"The Energy solver ignores {listed}: only the Springs solver reads {pronoun} "
-        "(the result is what the default would give)"
-    )
 
 
 class WrapInputs(NamedTuple):
@@ -113,13 +89,13 @@ class WrapInputs(NamedTuple):
     curve_vertex_counts: np.ndarray | None = None  # (K,) uint32 vertices per chain
     curve_points: np.ndarray | None = None  # (sum P, 3) float32 target polylines one after another, kernel frame
     curve_point_counts: np.ndarray | None = None  # (K,) uint32 points per polyline
-    rest_positions: np.ndarray | None = None  # (N, 3) float32 template shape the springs rest in, kernel frame
+    rest_positions: np.ndarray | None = None  # (N, 3) float32 template shape the wrap keeps, kernel frame
     plane_vertices: np.ndarray | None = None  # (S,) uint32 vertices held on the mirror plane; None: no plane
     plane_point: tuple | None = None  # (3,) point of the mirror plane, kernel frame
     plane_normal: tuple | None = None  # (3,) world normal of the mirror plane
     plane_slide: bool = True  # held points slide along the target's cross-section (False: only move onto it)
-    stiffness: np.ndarray | None = None  # (N,) float32 per-vertex stiffness 0 … 1 (energy solver); None: neutral
-    free_vertices: np.ndarray | None = None  # (N,) bool vertices without a data term (energy solver); None: none
+    stiffness: np.ndarray | None = None  # (N,) float32 per-vertex stiffness 0 … 1; None: neutral
+    free_vertices: np.ndarray | None = None  # (N,) bool vertices without a data term; None: none
     origin: np.ndarray = np.zeros(3)  # (3,) float64 world point the kernel frame is centred on
 
 

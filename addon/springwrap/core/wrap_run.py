@@ -68,13 +68,10 @@ class WrapResult(NamedTuple):
     frames: int  # frames written while it ran (0 when it ran at once)
     face_points: int
     space_points: int
-    landed: int  # points that landed on their anchors or curve constraints (spring solver)
-    folded: int  # points that folded onto the surface (spring solver) or landed at the end (energy solver)
-    lifted: int
-    solver: str  # 'SPRINGS' or 'ENERGY'
-    fold_tolerance: float  # the annealed folding tolerance at the end, radians (spring solver)
-    held_back: int  # points whose last step was shortened so that no face turned (energy solver)
-    energy_decrease: float  # how much the last step lowered the energy, relative (energy solver; NaN otherwise)
+    landed: int  # anchored points on the surface at the landing
+    folded: int  # free points that landed on the surface at the end
+    held_back: int  # points whose last step was shortened so that no face turned
+    energy_decrease: float  # how much the last step lowered the energy, relative (NaN for a level's first step)
     anchor_count: int
     unreliable_triangles: int
     topology_detached_count: int  # face-points whose target face was gone, made space-points
@@ -86,15 +83,9 @@ class WrapResult(NamedTuple):
     def summary(self) -> str:
         """One line: iterations, time, face / space points and what changed state."""
         ending = "converged" if self.converged else "stopped at the iteration limit"
-        if self.solver == "ENERGY":
-            details = f"{self.folded} landed at the end, {self.held_back} held back by the last step"
-            if math.isfinite(self.energy_decrease):
-                details += f", which lowered the energy by {100.0 * self.energy_decrease:.2g} %"
-        else:
-            details = (
-                f"{self.landed} landed on anchors or curves, {self.folded} folded, {self.lifted} lifted off borders; "
-                f"fold tolerance {math.degrees(self.fold_tolerance):.1f}°"
-            )
+        details = f"{self.folded} landed at the end, {self.held_back} held back by the last step"
+        if math.isfinite(self.energy_decrease):
+            details += f", which lowered the energy by {100.0 * self.energy_decrease:.2g} %"
         timing = f"{self.seconds:.2f} s"
         if self.frames:  # the live wrap: how much of its time was solving, over how many redraws
             timing += f" ({self.kernel_seconds:.2f} s solving, {self.frames} frame{'s' if self.frames > 1 else ''})"

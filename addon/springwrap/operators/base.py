@@ -19,9 +19,8 @@ from ..blender import layout as layout_data
 from ..blender import shape_keys as shape_key_data
 from ..blender import target as target_data
 from ..blender.edit_mode import object_mode
-from ..core import input_policy, transforms, wrap_inputs
+from ..core import defaults, input_policy, transforms
 from ..core.errors import ERRORS, LayoutError
-from ..properties import WRAP_DEFAULTS
 
 READS_LAYOUT = frozenset({"positions", "anchors", "curves"})
 """What an operation on the layout reads and :func:`check_inputs` checks by default: the layout's vertices,
@@ -332,16 +331,11 @@ def topology_change_report(outcome, on_faces: str, in_space: str) -> tuple[set, 
     )
 
 
-def report_energy_ignored(operator, settings) -> None:
-    """Warn when ``settings`` (the wrap's ``springwrap_kernel.WrapSettings``) give the energy solver a setting it
-    does not read (``wrap_inputs.energy_ignored``), each named by the operator's label for it."""
-    names = wrap_inputs.energy_ignored(settings, WRAP_DEFAULTS)
-    if names:
-
-        def label(name: str) -> str:  # as the redo panel shows it
-            return operator.properties.bl_rna.properties[name].name
-
-        operator.report({"WARNING"}, wrap_inputs.energy_ignored_warning(names, label))
+def report_retired_solver(operator) -> None:
+    """Warn when the operator was called with the retired spring solver (``solver='SPRINGS'``, from an old script or
+    preset): it wrapped with the energy solver."""
+    if getattr(operator, "solver", "ENERGY") == defaults.RETIRED_SOLVER:
+        operator.report({"WARNING"}, defaults.RETIRED_SOLVER_WARNING)
 
 
 def show_modal_status(operator, context, text: str, progress: float) -> None:

@@ -44,12 +44,12 @@ from ..core.transforms import matrix_array
 from ..core.wrap_inputs import WrapParameters
 from ..properties import (
     WRAP_DEFAULTS,
-    WRAP_SOLVER_ITEMS,
     max_iterations_property,
+    retired_solver_property,
     shape_keys_property,
     tolerance_property,
 )
-from .base import SpringwrapOperator, check_inputs, open_layout, poll_layout, report_energy_ignored
+from .base import SpringwrapOperator, check_inputs, open_layout, poll_layout, report_retired_solver
 
 LANDING_REACH = 0.25
 """Before the wrap, a copy within this fraction of its mean edge length of the target lands there at once."""
@@ -105,8 +105,7 @@ class SPRINGWRAP_OT_mirror(SpringwrapOperator, bpy.types.Operator):
             (
                 "SLIDE",
                 "Slide",
-                "Seam points slide along the target's cross-section with the plane, pulled by the "
-                "springs of both halves",
+                "Seam points slide along the target's cross-section with the plane, drawn by both halves",
             ),
             (
                 "HOLD",
@@ -123,7 +122,7 @@ class SPRINGWRAP_OT_mirror(SpringwrapOperator, bpy.types.Operator):
         "point (a guess as good as the target's symmetry); anchors on the seam are dropped either way",
         True,
     )
-    solver: props.choice("Solver", "The new half's wrap algorithm", WRAP_SOLVER_ITEMS, WRAP_DEFAULTS.solver)
+    solver: retired_solver_property()
     max_iterations: max_iterations_property()
     tolerance: tolerance_property()
     shape_keys: shape_keys_property(
@@ -235,7 +234,7 @@ class SPRINGWRAP_OT_mirror(SpringwrapOperator, bpy.types.Operator):
         """The wrap's ``wrap_inputs.WrapParameters`` (the wrap operator's defaults, this operator's limits)."""
         return WrapParameters(
             max_iterations=self.max_iterations,
-            settings=WRAP_DEFAULTS.replace(tolerance=self.tolerance, solver=self.solver),
+            settings=WRAP_DEFAULTS.replace(tolerance=self.tolerance),
         )
 
     def _run(self, context, layout, prepared, window_manager):
@@ -384,7 +383,7 @@ class SPRINGWRAP_OT_mirror(SpringwrapOperator, bpy.types.Operator):
                 "sides): their mirror overlaps them. They are selected; cut them at the plane or move them to one side",
             )
         if outcome.wrap is not None:
-            report_energy_ignored(self, self.parameters().settings)
+            report_retired_solver(self)
 
 
 classes = (SPRINGWRAP_OT_mirror,)

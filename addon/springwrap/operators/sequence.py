@@ -23,10 +23,17 @@ from ..properties import (
     SEQUENCE_SOURCE_ITEMS,
     WRAP_DEFAULTS,
     WRAP_SCHEDULE_ITEMS,
-    WRAP_SOLVER_ITEMS,
     max_iterations_property,
+    retired_solver_property,
 )
-from .base import LayoutOperator, check_inputs, end_modal_display, layout_problem, show_modal_status
+from .base import (
+    LayoutOperator,
+    check_inputs,
+    end_modal_display,
+    layout_problem,
+    report_retired_solver,
+    show_modal_status,
+)
 from .wrap import TIMER_SECONDS
 
 
@@ -42,7 +49,7 @@ class SPRINGWRAP_OT_wrap_sequence(LayoutOperator, bpy.types.Operator):
     collection: props.text("Collection", "Collection of one mesh object per frame (Source: Collection)")
     warm_rest: props.choice(
         "Later Frames",
-        "What the springs keep on the frames after the first",
+        "What the wrap keeps on the frames after the first",
         (
             ("PREVIOUS", "Previous Frame", "Keep the previous frame's shape: the layout settles onto the change"),
             ("TEMPLATE", "Template", "Keep the template's shape, as the first frame's wrap does"),
@@ -50,10 +57,8 @@ class SPRINGWRAP_OT_wrap_sequence(LayoutOperator, bpy.types.Operator):
         "PREVIOUS",
     )
     max_iterations: max_iterations_property("Stop each frame's wrap after this many iterations")
-    solver: props.choice("Solver", "The wrap's algorithm", WRAP_SOLVER_ITEMS, WRAP_DEFAULTS.solver)
-    schedule: props.choice(
-        "Schedule", "How the energy solver's stiffness relaxes", WRAP_SCHEDULE_ITEMS, WRAP_DEFAULTS.schedule
-    )
+    solver: retired_solver_property()
+    schedule: props.choice("Schedule", "How the wrap's stiffness relaxes", WRAP_SCHEDULE_ITEMS, WRAP_DEFAULTS.schedule)
 
     def frames(self, scene) -> list[int]:
         start, end = (
@@ -77,7 +82,8 @@ class SPRINGWRAP_OT_wrap_sequence(LayoutOperator, bpy.types.Operator):
         layout = context.active_object
         try:
             check_inputs(context, layout, with_target=self.source == "TARGET")
-            settings = WRAP_DEFAULTS.replace(solver=self.solver, schedule=self.schedule)
+            report_retired_solver(self)
+            settings = WRAP_DEFAULTS.replace(schedule=self.schedule)
             parameters = WrapParameters(max_iterations=self.max_iterations, settings=settings)
             return SequenceRun(
                 context, layout, parameters, self.frames(context.scene), self._collection(), self.warm_rest

@@ -1,8 +1,9 @@
-"""The wrap (paper, section 2.5): springs pull the whole layout onto the target like a rubber sheet.
+"""The wrap (paper, section 2.5): the whole layout drawn onto the target, keeping the template's shape.
 
 ``springwrap.wrap`` hands the layout (its faces, edges and seams, its face-point state and world
-positions), its anchors and the evaluated target to the kernel's ``WrapSolver`` and steps it until
-it converges or reaches the iteration limit.
+positions), its anchors and the evaluated target to the kernel's ``WrapSolver`` (one energy whose weights
+are the paper's: fairness, arc length, thin plate, constraint, folding) and steps it until its stiffness
+schedule ends or it reaches the iteration limit.
 
 - Interactively (``invoke`` in a window) it is a modal operator. The first frame solves in ``invoke``
   itself, paced from the viewport's measured draw time (``ui.frame_clock``, ``core.wrap_run.FramePacer``):
@@ -25,7 +26,7 @@ from ..blender import layout as layout_data
 from ..blender import wrap_reads, wrap_session
 from ..blender.edit_mode import EditModeGuard, object_mode
 from ..blender.wrap_session import WrapSession
-from ..core import input_policy, mirror_seam, mirroring, quality, transforms
+from ..core import defaults, input_policy, mirror_seam, mirroring, quality, transforms
 from ..core.errors import ERRORS
 from ..core.transforms import matrix_array
 from ..core.wrap_inputs import WrapParameters
@@ -34,8 +35,8 @@ from ..properties import (
     WRAP_DEFAULTS,
     WRAP_RANGES,
     WRAP_SCHEDULE_ITEMS,
-    WRAP_SOLVER_ITEMS,
     max_iterations_property,
+    retired_solver_property,
     shape_keys_property,
     tolerance_property,
     wrap_weight_property,
@@ -46,7 +47,7 @@ from .base import (
     check_inputs,
     end_modal_display,
     layout_problem,
-    report_energy_ignored,
+    report_retired_solver,
     report_storage_precision,
     show_modal_status,
 )
@@ -56,66 +57,58 @@ TIMER_SECONDS = 0.01
 
 
 class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
-    """Wrap the layout onto the target: springs with anchors pull it on like a rubber sheet (Esc cancels)"""
+    """Wrap the layout onto the target: its anchors and the surface draw it on, keeping the template's shape (Esc cancels)"""
 
     bl_label = "Wrap"
 
     max_iterations: max_iterations_property("Stop after this many iterations if it has not converged by then")
-    tolerance: tolerance_property(
-        "Springs solver only: converged when no point moves more than this fraction of the layout's size in an "
-        "iteration (the Energy solver stops by its own test)"
-    )
+    tolerance: tolerance_property()
     fairness: wrap_weight_property(
-        "fairness", "Fairness", "Springs solver only: straightens the layout's grid lines (paper's alpha), 0 to 1"
+        "fairness",
+        "Fairness",
+        "Weight of the second differences along the layout's grid lines (the paper's alpha): higher keeps the "
+        "template's bends and steps closer, 0 to 1",
     )
     arc_length: wrap_weight_property(
-        "arc_length", "Arc Length", "Springs solver only: evens the spacing along the grid lines (paper's beta), 0 to 1"
+        "arc_length",
+        "Arc Length",
+        "Weight of the edges' lengths and directions against the template's (the paper's beta): the spacing along "
+        "the grid lines, 0 to 1",
     )
     thin_plate: wrap_weight_property(
         "thin_plate",
         "Thin Plate",
-        "Springs solver only: space-points continue the curvature of the surface around them (over holes), 0 to 0.5",
+        "Weight of the smoothness at points no grid line runs straight through (poles, triangles): the surface "
+        "continues smoothly around them, 0 to 0.5",
     )
     constraint: wrap_weight_property(
-        "constraint", "Constraint", "Springs solver only: pull of anchored points toward their targets, 0 to 1"
+        "constraint",
+        "Constraint",
+        "Pull of the layout onto the target (the energy's data term): higher fits the surface closer, lower keeps "
+        "the template's shape, 0 to 1",
     )
     folding: wrap_weight_property(
-        "folding", "Folding", "Springs solver only: pull of space-points next to face-points onto the surface, 0 to 1"
+        "folding",
+        "Folding",
+        "How far off the surface the layout is still drawn onto it (the data term's reach); 0 draws nothing on, 0 to 1",
     )
-    rest: props.choice(
-        "Rest Shape",
-        "What the springs consider relaxed",
-        (
-            (
-                "TEMPLATE",
-                "Template",
-                "Keep the template's own spacing and curvature (its shape before the first snap, "
-                "projection or wrap, or as set by Set Rest Shape)",
-            ),
-            ("EVEN", "Even", "Straight, evenly spaced grid lines (Krishnamurthy & Levoy's springs)"),
-        ),
-        WRAP_DEFAULTS.rest,
-    )
-    solver: props.choice("Solver", "The wrap's algorithm", WRAP_SOLVER_ITEMS, WRAP_DEFAULTS.solver)
-    schedule: props.choice(
-        "Schedule", "How the energy solver's stiffness relaxes", WRAP_SCHEDULE_ITEMS, WRAP_DEFAULTS.schedule
-    )
+    solver: retired_solver_property()
+    schedule: props.choice("Schedule", "How the wrap's stiffness relaxes", WRAP_SCHEDULE_ITEMS, WRAP_DEFAULTS.schedule)
     spring_resolution: bpy.props.IntProperty(
         name="Spring Resolution",
         description="Above 1: relax the layout, then relax again with every quad cut into this many by this many "
         "springs (coarse to fine), and read the layout's vertices back",
-        default=1,
+        default=defaults.SPRING_RESOLUTION,
         **WRAP_RANGES["spring_resolution"].keywords(),
     )
     stiffness_group: props.text(
         "Stiffness Group",
-        "Layout vertex group of per-vertex stiffness (Energy solver: weight 0 follows the target freely, "
-        "0.5 as the others, 1 keeps the template's shape); empty: the layout's Stiffness setting",
+        "Layout vertex group of per-vertex stiffness (weight 0 follows the target freely, 0.5 as the others, 1 "
+        "keeps the template's shape); empty: the layout's Stiffness setting",
     )
     free_group: props.text(
         "Free Group",
-        "Layout vertex group without a pull toward the target (Energy solver: sockets, teeth); empty: the "
-        "layout's Free setting",
+        "Layout vertex group without a pull toward the target (sockets, teeth); empty: the layout's Free setting",
     )
     hold_plane: props.choice(
         "Hold on Plane",
@@ -146,8 +139,6 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
             "thin_plate",
             "constraint",
             "folding",
-            "rest",
-            "solver",
             "schedule",
         )
         return WrapParameters(
@@ -231,7 +222,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
                 self.report({"ERROR"}, f"The wrap failed: {error}")
                 return {"CANCELLED"}
             report_storage_precision(self, layout, session.target.extent, session.written_positions)
-        self._report_result(result, session.parameters.settings)
+        self._report_result(result)
         return {"FINISHED"}
 
     def invoke(self, context, event):
@@ -277,7 +268,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
         if outcome == "FINISHED":
             session = self._loop.session
             report_storage_precision(self, session.layout, session.target.extent, session.written_positions)
-            self._report_result(self._loop.result, self._loop.session.parameters.settings)
+            self._report_result(self._loop.result)
             return {"FINISHED"}
         if self._loop.error is not None:
             self.report({"ERROR"}, f"The wrap failed and was undone: {self._loop.error}")
@@ -319,8 +310,8 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
         if mode is not None:
             mode.restore()
 
-    def _report_result(self, result: WrapResult, settings) -> None:
-        """Report ``result``; warn about what in ``settings`` (the wrap's ``WrapSettings``) its solver ignored."""
+    def _report_result(self, result: WrapResult) -> None:
+        """Report ``result``; warn when the retired spring solver was asked for."""
         wrap_session.remember_result(result)
         report_midline(self, bpy.data.objects.get(result.layout_name))
         self.report({"INFO"} if result.converged else {"WARNING"}, result.summary())
@@ -335,7 +326,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
                 f"Target topology changed: {detached} face-points and {result.anchors_detached_count} face anchors "
                 f"lost their target face and became space-points, {reattached} face-points re-attached",
             )
-        report_energy_ignored(self, settings)
+        report_retired_solver(self)
 
 
 def report_midline(operator, layout) -> None:

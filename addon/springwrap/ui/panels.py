@@ -258,7 +258,7 @@ class SPRINGWRAP_PT_curve_constraints(_ToolPanel, bpy.types.Panel):
 
 
 class SPRINGWRAP_PT_wrap(_LayoutSubPanel, bpy.types.Panel):
-    """The wrap: the Wrap button, its solver and vertex groups, and the live progress"""
+    """The wrap: the Wrap button, its schedule and vertex groups, and the live progress"""
 
     bl_label = "Wrap"
 
@@ -273,14 +273,9 @@ class SPRINGWRAP_PT_wrap(_LayoutSubPanel, bpy.types.Panel):
             row = layout.row()
             row.scale_y = WRAP_BUTTON_SCALE
             wrap = row.operator("springwrap.wrap", icon="MOD_SHRINKWRAP")
-            wrap.solver, wrap.shape_keys = settings.wrap_solver, settings.shape_keys
-            # The schedule is the energy solver's: the spring solver refuses any but the default.
-            wrap.schedule = settings.wrap_schedule if settings.wrap_solver == "ENERGY" else "LOCAL"
+            wrap.shape_keys, wrap.schedule = settings.shape_keys, settings.wrap_schedule
 
-        layout.prop(settings, "wrap_solver")
-        schedule = layout.row()
-        schedule.active = settings.wrap_solver == "ENERGY"
-        schedule.prop(settings, "wrap_schedule")
+        layout.prop(settings, "wrap_schedule")
         if obj.data.shape_keys is not None:  # shape keys: transferred or refused (Wrap and Mirror)
             layout.prop(settings, "shape_keys")
         row = layout.row()
@@ -290,7 +285,6 @@ class SPRINGWRAP_PT_wrap(_LayoutSubPanel, bpy.types.Panel):
             row.enabled = False
             row.prop(settings, "unreliable_group")
         groups = layout.column()
-        groups.active = settings.wrap_solver == "ENERGY"
         groups.prop_search(settings, "stiffness_group", obj, "vertex_groups", icon="GROUP_VERTEX")
         groups.prop_search(settings, "free_group", obj, "vertex_groups", icon="GROUP_VERTEX")
         _draw_parts(layout, settings, obj)
@@ -335,8 +329,7 @@ class SPRINGWRAP_PT_over_time(_LayoutSubPanel, bpy.types.Panel):
         )
         button.source = settings.sequence_source
         button.collection = settings.sequence_collection.name if settings.sequence_collection else ""
-        button.solver = settings.wrap_solver
-        button.schedule = settings.wrap_schedule if settings.wrap_solver == "ENERGY" else "LOCAL"
+        button.schedule = settings.wrap_schedule
         layout.operator("springwrap.export_sequence", icon="EXPORT")
 
 
@@ -449,7 +442,7 @@ class SPRINGWRAP_PT_mirror(_LayoutToolPanel, bpy.types.Panel):
         settings = context.active_object.springwrap
         layout.prop(settings, "mirror_object", text="Plane")
         mirror = layout.operator("springwrap.mirror", icon="MOD_MIRROR")
-        mirror.solver, mirror.shape_keys = settings.wrap_solver, settings.shape_keys
+        mirror.shape_keys = settings.shape_keys
         mirror.mirror_object = settings.mirror_object.name if settings.mirror_object is not None else ""
 
 

@@ -1,4 +1,4 @@
-//! The energy solver (`SolverKind::Energy`) on targets whose answer is known, and its promise
+//! The wrap's energy solver on targets whose answer is known, and its promise
 //! that no layout face turns over.
 
 mod common;
@@ -7,15 +7,12 @@ use std::sync::Arc;
 
 use glam::Vec3;
 use springwrap_kernel::{
-    Anchor, AnchorTarget, KernelError, LayoutPoint, LayoutStructure, PlaneConstraint, SolverKind,
-    StepReport, TargetMesh, TargetMeshOptions, WrapSettings, WrapSolver,
+    Anchor, AnchorTarget, KernelError, LayoutPoint, LayoutStructure, PlaneConstraint, StepReport,
+    TargetMesh, TargetMeshOptions, WrapSettings, WrapSolver,
 };
 
 fn energy_settings() -> WrapSettings {
-    WrapSettings {
-        solver: SolverKind::Energy,
-        ..WrapSettings::default()
-    }
+    WrapSettings::default()
 }
 
 fn wrap(
@@ -473,17 +470,6 @@ fn vertex_stiffness_and_free_vertices_are_checked_and_need_the_energy_solver() {
         .unwrap_err();
     assert!(
         matches!(error, KernelError::LengthMismatch { .. }),
-        "{error:?}"
-    );
-    let mut springs = make(WrapSettings {
-        solver: SolverKind::Springs,
-        ..WrapSettings::default()
-    })
-    .with_free_vertices(vec![false; count])
-    .unwrap();
-    let error = springs.step(5).unwrap_err();
-    assert!(
-        matches!(error, KernelError::InvalidArgument { name: "solver", .. }),
         "{error:?}"
     );
 }

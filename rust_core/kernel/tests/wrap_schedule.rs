@@ -7,8 +7,8 @@ use std::sync::Arc;
 
 use glam::Vec3;
 use springwrap_kernel::{
-    Anchor, AnchorTarget, LayoutPoint, SolverKind, TargetMesh, TargetMeshOptions, WrapSchedule,
-    WrapSettings, WrapSolver,
+    Anchor, AnchorTarget, LayoutPoint, TargetMesh, TargetMeshOptions, WrapSchedule, WrapSettings,
+    WrapSolver,
 };
 
 /// The mean distance of the wrapped band to the truth (each unit direction scaled by `axes`), with
@@ -80,17 +80,6 @@ fn four_anchors_on_a_stretched_sphere_land_nearer_the_truth_with_the_global_to_l
 }
 
 #[test]
-fn the_global_to_local_schedule_needs_the_energy_solver() {
-    let settings = WrapSettings {
-        solver: SolverKind::Springs,
-        schedule: WrapSchedule::GlobalToLocal,
-        ..WrapSettings::default()
-    };
-    let message = settings.validate().unwrap_err().to_string();
-    assert!(message.starts_with("invalid schedule: "), "{message}");
-}
-
-#[test]
 fn the_automatic_schedule_wraps_four_anchors_as_global_to_local() {
     // Four anchors are few: `Auto` follows the global-to-local schedule, to the same positions.
     let axes = Vec3::new(1.6, 1.0, 0.8);
@@ -102,11 +91,8 @@ fn the_automatic_schedule_wraps_four_anchors_as_global_to_local() {
 }
 
 #[test]
-fn the_automatic_schedule_is_the_default_and_the_spring_solver_takes_it() {
-    let settings = WrapSettings {
-        solver: SolverKind::Springs,
-        ..WrapSettings::default()
-    };
+fn the_automatic_schedule_is_the_default() {
+    let settings = WrapSettings::default();
     assert_eq!(settings.schedule, WrapSchedule::Auto);
     assert_eq!(settings.validate(), Ok(()));
 }

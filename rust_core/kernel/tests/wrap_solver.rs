@@ -4,8 +4,7 @@ mod common;
 
 use glam::Vec3;
 use springwrap_kernel::{
-    Anchor, AnchorTarget, KernelError, LayoutPoint, LayoutStructure, SolverKind, WrapSettings,
-    WrapSolver,
+    Anchor, AnchorTarget, KernelError, LayoutPoint, LayoutStructure, WrapSettings, WrapSolver,
 };
 
 fn edge_length_ratio(structure: &LayoutStructure, positions: &[Vec3]) -> f32 {
@@ -35,7 +34,7 @@ fn a_template_above_a_plane_wraps_onto_it_through_its_anchors() {
         WrapSettings::default(),
     )
     .unwrap();
-    let report = solver.step(2000).expect("the spring solver steps");
+    let report = solver.step(2000).expect("the wrap steps");
     assert!(report.converged, "{report:?}");
     assert_eq!(report.space_points, 0, "{report:?}");
     for (vertex, position) in solver.positions().iter().enumerate() {
@@ -68,7 +67,7 @@ fn points_over_a_hole_stay_space_points_on_the_continued_surface() {
     let points = positions.iter().map(|&p| LayoutPoint::Space(p)).collect();
     let mut solver =
         WrapSolver::new(target, structure, points, &anchors, WrapSettings::default()).unwrap();
-    let report = solver.step(3000).expect("the spring solver steps");
+    let report = solver.step(3000).expect("the wrap steps");
     assert!(report.converged, "{report:?}");
     let mut over_hole = 0;
     for (vertex, (point, position)) in solver.points().iter().zip(solver.positions()).enumerate() {
@@ -95,17 +94,18 @@ fn stepping_reports_progress_and_resumes() {
     let (structure, positions) = common::quad_layout(6, 0.2, Vec3::new(-0.6, -0.6, 0.2));
     let anchors = common::anchors_below(&target, &positions, &[0, 6, 42, 48]);
     let points: Vec<LayoutPoint> = positions.iter().map(|&p| LayoutPoint::Space(p)).collect();
-    let settings = WrapSettings {
-        solver: SolverKind::Springs,
-        ..WrapSettings::default()
-    };
+    let settings = WrapSettings::default();
     let mut solver = WrapSolver::new(target, structure, points, &anchors, settings).unwrap();
-    let first = solver.step(5).expect("the spring solver steps");
+    let start = solver.positions().to_vec();
+    let first = solver.step(5).expect("the wrap steps");
     assert_eq!((first.iterations, first.total_iterations), (5, 5));
-    assert!(!first.converged && first.max_displacement > 0.0);
-    let second = solver.step(5).expect("the spring solver steps");
+    assert!(!first.converged && solver.positions() != start.as_slice());
+    let second = solver.step(5).expect("the wrap steps");
     assert_eq!(second.total_iterations, 10);
-    assert!(first.landed + second.landed >= 1 || second.space_points < 49);
+    let last = solver.step(1000).expect("the wrap steps");
+    assert!(last.converged, "{last:?}");
+    assert_eq!(last.total_iterations, 10 + last.iterations);
+    assert!(last.landed == 4 && last.face_points == 49, "{last:?}");
 }
 
 #[test]
@@ -197,7 +197,7 @@ fn points_over_unreliable_data_behave_as_over_a_hole() {
         .unwrap()
         .with_unreliable_triangles(unreliable)
         .unwrap();
-    let report = solver.step(3000).expect("the spring solver steps");
+    let report = solver.step(3000).expect("the wrap steps");
     assert!(report.converged, "{report:?}");
     let mut over_noise = 0;
     for (vertex, (point, position)) in solver.points().iter().zip(solver.positions()).enumerate() {
@@ -251,7 +251,7 @@ fn a_border_held_to_a_curve_on_the_surface_lies_on_it_evenly() {
         .unwrap()
         .with_curve_constraints(&[constraint])
         .unwrap();
-    let report = solver.step(3000).expect("the spring solver steps");
+    let report = solver.step(3000).expect("the wrap steps");
     assert!(report.converged, "{report:?}");
     let border: Vec<Vec3> = (0..=10).map(|vertex| solver.positions()[vertex]).collect();
     for (vertex, &position) in border.iter().enumerate() {
@@ -293,7 +293,7 @@ fn a_curve_floating_above_the_surface_holds_its_points_in_space() {
         .unwrap()
         .with_curve_constraints(&[constraint])
         .unwrap();
-    let report = solver.step(3000).expect("the spring solver steps");
+    let report = solver.step(3000).expect("the wrap steps");
     assert!(report.converged, "{report:?}");
     for &vertex in &middle[1..middle.len() - 1] {
         let position = solver.positions()[vertex as usize];
@@ -372,9 +372,8 @@ fn bad_curve_constraints_are_refused() {
 }
 
 #[test]
-fn a_point_balanced_at_a_hole_rim_does_not_fold_and_lift_forever() {
-    // A coarse layout whose anchors pull a vertex to the rim of a round hole: folding it on and
-    // walking it off again by turns must die out (fold back-off after lifts) and the wrap converge.
+fn a_point_balanced_at_a_hole_rim_does_not_keep_the_wrap_from_converging() {
+    // A coarse layout whose anchors pull a vertex to the rim of a round hole.
     let target = common::plane_target(20, 0.15, 0.3);
     let (structure, positions) = common::quad_layout(4, 0.5, Vec3::new(-1.0, -1.0, 0.3));
     let anchored: Vec<u32> = [0u32, 2, 4]
@@ -396,7 +395,6 @@ fn a_point_balanced_at_a_hole_rim_does_not_fold_and_lift_forever() {
     let points = positions.iter().map(|&p| LayoutPoint::Space(p)).collect();
     let mut solver =
         WrapSolver::new(target, structure, points, &anchors, WrapSettings::default()).unwrap();
-    let report = solver.step(2000).expect("the spring solver steps");
+    let report = solver.step(2000).expect("the wrap steps");
     assert!(report.converged, "{report:?}");
-    assert!(report.lifted < 20, "{report:?}");
 }

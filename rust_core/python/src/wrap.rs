@@ -160,27 +160,14 @@ impl PyWrapSolver {
 
     /// Runs up to `iterations` iterations (fewer once converged); returns the progress as
     /// ((iterations, total_iterations, max_displacement, converged, face_points, space_points,
-    /// landed, folded, lifted, fold_tolerance, mean_displacement), energy, held_back,
-    /// energy_decrease).
+    /// landed, folded, mean_displacement), energy, held_back, energy_decrease).
     #[allow(clippy::type_complexity)]
     fn step(
         &mut self,
         py: Python<'_>,
         iterations: &Bound<'_, PyAny>,
     ) -> PyResult<(
-        (
-            usize,
-            usize,
-            f32,
-            bool,
-            usize,
-            usize,
-            usize,
-            usize,
-            usize,
-            f32,
-            f32,
-        ),
+        (usize, usize, f32, bool, usize, usize, usize, usize, f32),
         f64,
         usize,
         f64,
@@ -199,8 +186,6 @@ impl PyWrapSolver {
                 report.space_points,
                 report.landed,
                 report.folded,
-                report.lifted,
-                report.fold_tolerance,
                 report.mean_displacement,
             ),
             report.energy,

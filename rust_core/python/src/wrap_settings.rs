@@ -6,7 +6,7 @@
 
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyFloat};
-use springwrap_kernel::{SolverKind, SpringRest, WrapSchedule, WrapSettings, WrapWeights};
+use springwrap_kernel::{WrapSchedule, WrapSettings, WrapWeights};
 
 use crate::arguments;
 use crate::errors::{InvalidArgumentError, to_python_error};
@@ -14,22 +14,6 @@ use crate::errors::{InvalidArgumentError, to_python_error};
 /// The kernel's defaults, read by the constructor's signature.
 fn defaults() -> WrapSettings {
     WrapSettings::default()
-}
-
-/// The binding's name of a rest shape.
-fn rest_name(rest: SpringRest) -> &'static str {
-    match rest {
-        SpringRest::Template => "TEMPLATE",
-        SpringRest::Even => "EVEN",
-    }
-}
-
-/// The binding's name of a solver.
-fn solver_name(solver: SolverKind) -> &'static str {
-    match solver {
-        SolverKind::Springs => "SPRINGS",
-        SolverKind::Energy => "ENERGY",
-    }
 }
 
 /// The binding's name of a stiffness schedule.
@@ -56,26 +40,41 @@ fn parse_schedule(name: &str) -> PyResult<WrapSchedule> {
     })
 }
 
-fn parse_rest(name: &str) -> PyResult<SpringRest> {
-    [SpringRest::Template, SpringRest::Even]
-        .into_iter()
-        .find(|&rest| rest_name(rest) == name)
-        .ok_or_else(|| {
-            InvalidArgumentError::new_err(format!(
-                "invalid rest: {name:?} is not 'TEMPLATE' or 'EVEN'"
-            ))
-        })
-}
-
-fn parse_solver(name: &str) -> PyResult<SolverKind> {
-    [SolverKind::Springs, SolverKind::Energy]
-        .into_iter()
-        .find(|&solver| solver_name(solver) == name)
-        .ok_or_else(|| {
-            InvalidArgumentError::new_err(format!(
-                "invalid solver: {name:?} is not 'SPRINGS' or 'ENERGY'"
-            ))
-        })
+/// Refuses a keyword of the retired spring solver with what to do instead; `'ENERGY'` (the one
+/// solver) and `'TEMPLATE'` (the one rest shape) are taken as the defaults they are.
+fn check_retired(
+    solver: Option<&Bound<'_, PyAny>>,
+    rest: Option<&Bound<'_, PyAny>>,
+    momentum: Option<&Bound<'_, PyAny>>,
+) -> PyResult<()> {
+    let retired = |name: &str, what: String| {
+        InvalidArgumentError::new_err(format!(
+            "invalid {name}: {what}; the spring solver was retired, the energy solver is the \
+             wrap's only solver (leave {name} out)"
+        ))
+    };
+    if let Some(solver) = solver {
+        let name = arguments::text("solver", Some(solver), "ENERGY")?;
+        if name != "ENERGY" {
+            return Err(retired("solver", format!("{name:?} is not 'ENERGY'")));
+        }
+    }
+    if let Some(rest) = rest {
+        let name = arguments::text("rest", Some(rest), "TEMPLATE")?;
+        if name != "TEMPLATE" {
+            return Err(retired(
+                "rest",
+                format!("{name:?}: the energy keeps the template's shape"),
+            ));
+        }
+    }
+    if momentum.is_some() {
+        return Err(retired(
+            "momentum",
+            "the energy solver has no momentum".to_owned(),
+        ));
+    }
+    Ok(())
 }
 
 /// A float32 setting as the Python float of its shortest decimal (`0.2`, not
@@ -84,9 +83,11 @@ fn decimal(value: f32) -> f64 {
     value.to_string().parse().unwrap_or(f64::from(value))
 }
 
-/// Everything that controls a wrap besides the layout, the target and the constraints: the force
-/// weights, the convergence tolerance, landing, folding, momentum, the rest shape and the solver.
-/// Immutable; `WrapSettings()` holds the kernel's defaults.
+/// Everything that controls a wrap besides the layout, the target and the constraints: the
+/// energy's weights, the tolerance that ends each stiffness level, landing, the fold tolerance and
+/// the schedule. Immutable; `WrapSettings()` holds the kernel's defaults. The retired spring
+/// solver's keywords (`solver`, `rest`, `momentum`) are refused with a message, except
+/// `solver='ENERGY'` and `rest='TEMPLATE'`, which are what every wrap does.
 #[pyclass(
     name = "WrapSettings",
     module = "springwrap_kernel",
@@ -132,6 +133,7 @@ impl PyWrapSettings {
         solver: Option<&Bound<'_, PyAny>>,
         schedule: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
+        check_retired(solver, rest, momentum)?;
         // Absent keywords take the kernel's defaults (`WrapSettings::default()`, never a number
         // typed again); every value is converted by `arguments` (naming the keyword) and then
         // checked by the kernel's `validate()`.
@@ -149,11 +151,7 @@ impl PyWrapSettings {
             defaults.landing_distance,
         )?;
         let fold_tolerance = number("fold_tolerance", fold_tolerance, defaults.fold_tolerance)?;
-        let momentum = number("momentum", momentum, defaults.momentum)?;
-        let rest = arguments::text("rest", rest, rest_name(defaults.rest))?;
-        let solver = arguments::text("solver", solver, solver_name(defaults.solver))?;
         let schedule = arguments::text("schedule", schedule, schedule_name(defaults.schedule))?;
-        let (rest, solver) = (rest.as_str(), solver.as_str());
         let settings = WrapSettings {
             weights: WrapWeights {
                 fairness,
@@ -165,9 +163,6 @@ impl PyWrapSettings {
             tolerance,
             landing_distance,
             fold_tolerance,
-            momentum,
-            rest: parse_rest(rest)?,
-            solver: parse_solver(solver)?,
             schedule: parse_schedule(&schedule)?,
         };
         settings
@@ -176,37 +171,40 @@ impl PyWrapSettings {
         Ok(Self { settings })
     }
 
-    /// α: fairness, straightening grid lines, 0 to 1.
+    /// α: fairness, the weight of the second differences along the grid lines, 0 to 1.
     #[getter]
     fn fairness(&self) -> f64 {
         decimal(self.settings.weights.fairness)
     }
 
-    /// β: equal arc length along grid lines, 0 to 1.
+    /// β: arc length, the weight of the edge terms (the spacing along the grid lines), 0 to 1.
     #[getter]
     fn arc_length(&self) -> f64 {
         decimal(self.settings.weights.arc_length)
     }
 
-    /// γ_tp: thin plate on space-points, continuing the surface over holes, 0 to 0.5.
+    /// γ_tp: thin plate, the weight of the umbrella terms at points no grid line runs straight
+    /// through (poles), 0 to 0.5.
     #[getter]
     fn thin_plate(&self) -> f64 {
         decimal(self.settings.weights.thin_plate)
     }
 
-    /// γ_con: attraction of anchored points to their targets, 0 to 1.
+    /// γ_con: the pull of the layout onto the target (the data term's weight), 0 to 1.
     #[getter]
     fn constraint(&self) -> f64 {
         decimal(self.settings.weights.constraint)
     }
 
-    /// γ_fold: fraction of the folding rotation applied per iteration, 0 to 1.
+    /// γ_fold: how far off the surface the layout is still drawn onto it (the data term's
+    /// reach), 0 (nothing is) to 1.
     #[getter]
     fn folding(&self) -> f64 {
         decimal(self.settings.weights.folding)
     }
 
-    /// Converged when the points move less than this fraction of the layout's size, (0, 1].
+    /// A stiffness level ends once an iteration lowers the energy by less than this fraction,
+    /// (0, 1].
     #[getter]
     fn tolerance(&self) -> f64 {
         decimal(self.settings.tolerance)
@@ -219,31 +217,14 @@ impl PyWrapSettings {
         decimal(self.settings.landing_distance)
     }
 
-    /// The starting folding tolerance in radians (it anneals), 0 to pi / 2.
+    /// A free point lands on the surface at the end only where the layout faces it within this
+    /// angle, in radians, 0 to pi / 2.
     #[getter]
     fn fold_tolerance(&self) -> f64 {
         decimal(self.settings.fold_tolerance)
     }
 
-    /// Heavy-ball momentum of free points, 0 (off) to 0.99.
-    #[getter]
-    fn momentum(&self) -> f64 {
-        decimal(self.settings.momentum)
-    }
-
-    /// What the springs consider relaxed: `'TEMPLATE'` (the template's shape) or `'EVEN'`.
-    #[getter]
-    fn rest(&self) -> &'static str {
-        rest_name(self.settings.rest)
-    }
-
-    /// The algorithm: `'SPRINGS'` (the force iteration) or `'ENERGY'` (one energy, global solves).
-    #[getter]
-    fn solver(&self) -> &'static str {
-        solver_name(self.settings.solver)
-    }
-
-    /// The energy solver's stiffness schedule: `'AUTO'` (chosen from the anchors when the wrap
+    /// The stiffness schedule: `'AUTO'` (chosen from the anchors when the wrap
     /// starts: global to local for 3 to 11 anchors, or more on a large change of shape),
     /// `'LOCAL'` or `'GLOBAL_TO_LOCAL'` (stiff, nearly affine levels first: for few anchors on a
     /// large change of shape).
@@ -252,14 +233,32 @@ impl PyWrapSettings {
         schedule_name(self.settings.schedule)
     }
 
+    /// The range of every numeric setting, from the kernel's one table: `{keyword: (label, low,
+    /// high, low_open, high_open)}`, in the constructor's order.
+    #[staticmethod]
+    fn ranges(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
+        let dict = PyDict::new(py);
+        for (name, label, range) in WrapSettings::RANGES {
+            dict.set_item(
+                name,
+                (
+                    label,
+                    range.low,
+                    range.high,
+                    range.low_open,
+                    range.high_open,
+                ),
+            )?;
+        }
+        Ok(dict)
+    }
+
     /// Every setting by its keyword, in the constructor's order.
     fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let dict = PyDict::new(py);
         for (name, value) in self.numbers() {
             dict.set_item(name, decimal(value))?;
         }
-        dict.set_item("rest", self.rest())?;
-        dict.set_item("solver", self.solver())?;
         dict.set_item("schedule", self.schedule())?;
         Ok(dict)
     }
@@ -284,10 +283,8 @@ impl PyWrapSettings {
             parts.push(format!("{name}={value}"));
         }
         Ok(format!(
-            "WrapSettings({}, rest='{}', solver='{}', schedule='{}')",
+            "WrapSettings({}, schedule='{}')",
             parts.join(", "),
-            self.rest(),
-            self.solver(),
             self.schedule()
         ))
     }
@@ -295,7 +292,7 @@ impl PyWrapSettings {
 
 impl PyWrapSettings {
     /// The numeric settings by keyword, in the constructor's order.
-    fn numbers(&self) -> [(&'static str, f32); 9] {
+    fn numbers(&self) -> [(&'static str, f32); 8] {
         let settings = &self.settings;
         let weights = &settings.weights;
         [
@@ -307,7 +304,6 @@ impl PyWrapSettings {
             ("tolerance", settings.tolerance),
             ("landing_distance", settings.landing_distance),
             ("fold_tolerance", settings.fold_tolerance),
-            ("momentum", settings.momentum),
         ]
     }
 }

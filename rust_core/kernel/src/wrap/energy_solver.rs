@@ -2,12 +2,17 @@
 //! Cholesky, every step and every landing checked so that no layout face turns over.
 //!
 //! ```text
-//! E(x) = w_edge Σ_i Σ_{j∈N(i)} |x_j − x_i − T_i (r_j − r_i)|²                  (shape: edges)
-//!      + w_line Σ_(p,v,n)      |x_p + x_n − 2 x_v − T_v (r_p + r_n − 2 r_v)|²   (fairness + arc length)
-//!      + w_line Σ_v∉lines     |mean_N(x) − x_v − T_v (mean_N(r) − r_v)|²       (umbrella, thin plate)
-//!      + λ_k Σ_i c_i |x_i − p_i|²                                               (data)
-//!      + ε Σ_i |x_i − x_i⁰|²                                                    (proximal, keeps A definite)
+//! E(x) = β Σ_i Σ_{j∈N(i)} |x_j − x_i − T_i (r_j − r_i)|²                  (arc length: edges)
+//!      + α Σ_(p,v,n)      |x_p + x_n − 2 x_v − T_v (r_p + r_n − 2 r_v)|²   (fairness: lines)
+//!      + γ_tp Σ_v∉lines   |mean_N(x) − x_v − T_v (mean_N(r) − r_v)|²       (thin plate: umbrella)
+//!      + γ_con λ_k Σ_i c_i |x_i − p_i|²                                    (data)
+//!      + ε Σ_i |x_i − x_i⁰|²                                               (proximal, keeps A definite)
 //! ```
+//!
+//! The weights α, β, γ_tp, γ_con are the settings' weights relative to their defaults (1 at the
+//! defaults); γ_fold scales the data term's reach (the Welsch width σ of every level), the
+//! tolerance ends each level, the fold tolerance bounds how far the layout may face away from
+//! the surface where a point lands.
 //!
 //! `r` is the rest shape (the template), `T_i = s_i R_i` the similarity of vertex `i`'s rest
 //! neighbourhood onto its current one (a Procrustes fit, as in as-rigid-as-possible), the scales
@@ -42,14 +47,14 @@ use glam::{DVec3, Quat, Vec3, Vec4};
 use rayon::prelude::*;
 
 use super::anchor::AnchorTarget;
-use super::forces::{Similarity, SpringRest, Springs};
 use super::global_phase::{
     GLOBAL_MIN_ALIGNMENT, GLOBAL_TO_LOCAL_LEVELS, RECIPROCAL_LEVELS, Stretches, choose_schedule,
     keep_reciprocal,
 };
 use super::linear_system::{LinearSystem, Stencils};
 use super::plane_constraint::Plane;
-use super::settings::WrapSchedule;
+use super::settings::{WrapSchedule, WrapSettings};
+use super::similarity::{RestFit, Similarity};
 use crate::error::KernelError;
 use crate::face_point::{FacePoint, LayoutPoint, SurfaceHit};
 use crate::layout::LayoutStructure;
@@ -118,17 +123,11 @@ pub(crate) const LEVELS: [Level; 4] = [
 const WARMUP_ROTATION_SMOOTHING: usize = 16;
 const WARMUP_MAX_ITERATIONS: usize = 24;
 const WARMUP_SETTLED_MOVE: f32 = 0.1;
-/// A level ends once an iteration lowers the energy by less than this fraction.
-const LEVEL_DECREASE: f64 = 2e-3;
 /// A level is settled when at most one point in this many was held back by the safeguard.
 const HELD_BACK_SETTLED: usize = 200;
 /// Correspondences count only where the layout faces the target's smoothed normal within this
 /// cosine (60 degrees).
 const MIN_FACING: f32 = 0.5;
-/// A point lands only where the layout faces the target's smoothed normal within this cosine
-/// (75 degrees, as the spring solver folds): more lenient than the data term, since the landing
-/// is checked corner by corner.
-const LANDING_FACING: f32 = 0.26;
 /// Rounds of sign matching when averaging the fitted rotations into the safeguard's frame.
 const MEAN_ROTATION_ROUNDS: usize = 3;
 /// A corner may turn from its frame until this cosine; beyond it, only back toward it (the
@@ -180,8 +179,8 @@ pub(crate) struct EnergyInputs<'a> {
     pub plane_slide: bool,
     pub mean_edge_length: f32,
     pub landing_distance: f32,
-    /// Which stiffness schedule the wrap follows.
-    pub schedule: WrapSchedule,
+    /// The weights, the tolerance, the fold tolerance and the schedule.
+    pub settings: WrapSettings,
 }
 
 /// One iteration's outcome.
@@ -206,7 +205,7 @@ pub(crate) struct EnergyStep {
 pub(crate) struct EnergySolver {
     target: Arc<TargetMesh>,
     structure: LayoutStructure,
-    springs: Springs,
+    rest_fit: RestFit,
     /// Per corner (a vertex and one face around it, in `structure.wedges` order), its unit normal
     /// in the rest shape: the orientation the safeguard keeps, turned by the layout's frame.
     rest_corner_normals: Vec<Vec3>,
@@ -243,6 +242,16 @@ pub(crate) struct EnergySolver {
     levels: &'static [Level],
     /// A corner may turn from its frame until this cosine; beyond it, only back toward it.
     min_alignment: f32,
+    /// The factors on every level's data weight and Welsch width (the constraint and folding
+    /// weights relative to their defaults).
+    data_scale: f64,
+    reach_scale: f32,
+    /// A level ends once an iteration lowers the energy by less than this fraction.
+    level_decrease: f64,
+    /// A point lands only where the layout faces the target's smoothed normal within this
+    /// cosine (the fold tolerance's): more lenient than the data term, since the landing is
+    /// checked corner by corner.
+    landing_facing: f32,
     /// The per-vertex stretches of the global-to-local schedule (`None`: similarities alone).
     stretches: Option<Stretches>,
     /// Whether the anchors-only warm-up is still running.
@@ -262,7 +271,8 @@ impl EnergySolver {
     pub(crate) fn new(inputs: &EnergyInputs<'_>) -> Result<Self, KernelError> {
         let structure = inputs.structure;
         let vertex_count = structure.vertex_count;
-        let schedule = choose_schedule(inputs.schedule, inputs.rest, inputs.anchor_of_vertex);
+        let settings = inputs.settings;
+        let schedule = choose_schedule(settings.schedule, inputs.rest, inputs.anchor_of_vertex);
         let mut fixed = vec![None; vertex_count];
         let mut fixed_points = vec![None; vertex_count];
         for vertex in 0..vertex_count {
@@ -295,7 +305,9 @@ impl EnergySolver {
                 fixed_points[vertex] = Some(point);
             }
         }
-        let (mut stencils, term_owner, term_rest) = build_terms(structure, inputs.rest);
+        let [fairness, arc_length, thin_plate, constraint, folding] = settings.weights.relative();
+        let (mut stencils, term_owner, term_rest) =
+            build_terms(structure, inputs.rest, [arc_length, fairness, thin_plate]);
         let stiffness_of = |vertex: usize| {
             inputs
                 .stiffness
@@ -327,7 +339,7 @@ impl EnergySolver {
         let mut solver = Self {
             target: Arc::clone(inputs.target),
             structure: structure.clone(),
-            springs: Springs::new(structure, inputs.rest, SpringRest::Template),
+            rest_fit: RestFit::new(inputs.rest),
             rest_corner_normals,
             stencils,
             term_owner,
@@ -361,6 +373,10 @@ impl EnergySolver {
             stretches: (schedule == WrapSchedule::GlobalToLocal)
                 .then(|| Stretches::new(structure, inputs.rest))
                 .transpose()?,
+            data_scale: constraint,
+            reach_scale: folding as f32,
+            level_decrease: f64::from(settings.tolerance),
+            landing_facing: settings.fold_tolerance.cos(),
             warming_up: true,
             level: 0,
             level_iterations: 0,
@@ -397,7 +413,7 @@ impl EnergySolver {
                     return None;
                 }
                 let hit = self.target.closest_point(self.positions[vertex], reach)?;
-                self.surface_trusted(&hit, normals[vertex], LANDING_FACING)
+                self.surface_trusted(&hit, normals[vertex], self.landing_facing)
                     .then_some(hit)
             })
             .collect();
@@ -494,7 +510,8 @@ impl EnergySolver {
         if self.warming_up {
             return self.warm_up();
         }
-        let level = &self.levels[self.level];
+        let level = self.levels[self.level];
+        let data_weight = level.data_weight * self.data_scale;
         // Local step: similarities and correspondences at the current positions.
         if self.iterations > 0 {
             self.fit_similarities(false);
@@ -502,7 +519,7 @@ impl EnergySolver {
         self.smooth_rotations(level.rotation_smoothing)?;
         self.fit_scales(level.scale_smoothing)?;
         let normals = self.layout_normals(&self.positions);
-        let width = level.welsch_width * self.mean_edge_length;
+        let width = level.welsch_width * self.mean_edge_length * self.reach_scale;
         let mut correspondences = self.correspondences(&normals, width);
         if self.stretches.is_some() && self.level < RECIPROCAL_LEVELS {
             keep_reciprocal(&self.positions, &mut correspondences, self.mean_edge_length);
@@ -514,7 +531,7 @@ impl EnergySolver {
                 *correspondence = None;
             }
         }
-        let mut proposed = self.global_solve(&correspondences, level.data_weight)?;
+        let mut proposed = self.global_solve(&correspondences, data_weight)?;
         self.keep_on_plane(&mut proposed);
         // Safeguard: no corner may turn over.
         let (accepted, held_back) = self.safeguard(&proposed);
@@ -523,12 +540,7 @@ impl EnergySolver {
             *held = accepted != proposed;
         }
         let (max_move, mean_move) = moves(&accepted, &self.positions);
-        let energy = self.energy_at(
-            &accepted,
-            &correspondences,
-            level.data_weight,
-            &self.positions,
-        );
+        let energy = self.energy_at(&accepted, &correspondences, data_weight, &self.positions);
         self.positions = accepted;
         self.iterations += 1;
         self.level_iterations += 1;
@@ -541,7 +553,7 @@ impl EnergySolver {
         // A level also waits while the safeguard holds many points back: they have not arrived.
         let settled = held_back * HELD_BACK_SETTLED <= self.positions.len();
         if self.level_iterations >= level.max_iterations
-            || (self.level_iterations > 1 && decrease.abs() < LEVEL_DECREASE && settled)
+            || (self.level_iterations > 1 && decrease.abs() < self.level_decrease && settled)
         {
             self.level += 1;
             self.level_iterations = 0;
@@ -606,7 +618,7 @@ impl EnergySolver {
     /// Fits every vertex's similarity at the current positions (from the last fit).
     fn fit_similarities(&mut self, first: bool) {
         self.similarities =
-            self.springs
+            self.rest_fit
                 .fit_all(&self.positions, &self.structure, &self.similarities, first);
         self.frame = self.mean_rotation();
     }
@@ -819,6 +831,9 @@ impl EnergySolver {
     /// Per free vertex, its correspondence, or `None`; the closest-point queries start from each
     /// vertex's last hit (and record the new one).
     fn correspondences(&mut self, normals: &[Vec3], width: f32) -> Vec<Option<Correspondence>> {
+        if width <= 0.0 {
+            return vec![None; self.positions.len()]; // folding off: nothing is drawn on
+        }
         let found: Vec<(Option<Correspondence>, u32)> = (0..self.positions.len())
             .into_par_iter()
             .with_min_len(256)
@@ -1109,8 +1124,12 @@ fn is_flagged(flags: &[bool], triangle: u32) -> bool {
 
 /// The energy's quadratic terms with their owners and rest vectors: one edge term per directed
 /// edge, one line term per grid-line triple, one umbrella term per vertex on no line (corners
-/// excepted: straightening them would cut them).
-fn build_terms(structure: &LayoutStructure, rest: &[Vec3]) -> (Stencils, Vec<u32>, Vec<DVec3>) {
+/// excepted: straightening them would cut them); `[edge, line, umbrella]` scale their weights.
+fn build_terms(
+    structure: &LayoutStructure,
+    rest: &[Vec3],
+    [edge_scale, line_scale, umbrella_scale]: [f64; 3],
+) -> (Stencils, Vec<u32>, Vec<DVec3>) {
     let mut stencils = Stencils::new();
     let mut owners = Vec::new();
     let mut rests = Vec::new();
@@ -1125,7 +1144,7 @@ fn build_terms(structure: &LayoutStructure, rest: &[Vec3]) -> (Stencils, Vec<u32
     }
     for vertex in 0..structure.vertex_count as u32 {
         for &other in structure.neighbors_of(vertex) {
-            stencils.push([(other, 1.0), (vertex, -1.0)], EDGE_WEIGHT);
+            stencils.push([(other, 1.0), (vertex, -1.0)], EDGE_WEIGHT * edge_scale);
             owners.push(vertex);
             rests.push(rest[other as usize] - rest[vertex as usize]);
         }
@@ -1137,7 +1156,7 @@ fn build_terms(structure: &LayoutStructure, rest: &[Vec3]) -> (Stencils, Vec<u32
                 (triple.next, 1.0),
                 (triple.vertex, -2.0),
             ],
-            LINE_WEIGHT,
+            LINE_WEIGHT * line_scale,
         );
         owners.push(triple.vertex);
         rests.push(
@@ -1161,7 +1180,7 @@ fn build_terms(structure: &LayoutStructure, rest: &[Vec3]) -> (Stencils, Vec<u32
                 .iter()
                 .map(|&other| (other, share))
                 .chain([(vertex, -1.0)]),
-            LINE_WEIGHT,
+            LINE_WEIGHT * umbrella_scale,
         );
         owners.push(vertex);
         rests.push(mean - rest[vertex as usize]);
@@ -1319,7 +1338,10 @@ mod tests {
             plane_slide: true,
             mean_edge_length: 0.1,
             landing_distance: 0.025,
-            schedule,
+            settings: WrapSettings {
+                schedule,
+                ..WrapSettings::default()
+            },
         })
         .unwrap()
     }

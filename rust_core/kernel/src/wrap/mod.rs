@@ -1,18 +1,19 @@
-//! The wrap: hybrid spring optimisation of a layout onto a target (the paper's section 2.5).
+//! The wrap: a layout moved onto a target by minimising one energy whose weights are the
+//! paper's forces (section 2.5).
 
 pub mod anchor;
 pub mod curve_constraint;
 mod energy_solver;
-pub mod forces;
 mod global_phase;
 pub mod linear_system;
 pub mod plane_constraint;
 pub mod settings;
+mod similarity;
 pub mod solver;
 mod system_assembly;
 
 pub use anchor::{Anchor, AnchorTarget};
 pub use curve_constraint::CurveConstraint;
 pub use plane_constraint::PlaneConstraint;
-pub use settings::{SolverKind, SpringRest, WrapSchedule, WrapSettings, WrapWeights};
+pub use settings::{WrapSchedule, WrapSettings, WrapWeights};
 pub use solver::{StepReport, WrapSolver};

@@ -61,12 +61,6 @@ impl Plane {
     pub(crate) fn project(&self, position: Vec3) -> Vec3 {
         position - self.normal * self.distance(position)
     }
-
-    /// The part of `vector` within the plane.
-    #[must_use]
-    pub(crate) fn in_plane(&self, vector: Vec3) -> Vec3 {
-        vector - self.normal * vector.dot(self.normal)
-    }
 }
 
 #[cfg(test)]
@@ -81,10 +75,6 @@ mod tests {
         assert_eq!(
             plane.project(Vec3::new(3.0, 5.0, 1.0)),
             Vec3::new(1.0, 5.0, 1.0)
-        );
-        assert_eq!(
-            plane.in_plane(Vec3::new(3.0, 5.0, 1.0)),
-            Vec3::new(0.0, 5.0, 1.0)
         );
         assert!(Plane::new(Vec3::ZERO, Vec3::ZERO).is_err());
         assert!(Plane::new(Vec3::NAN, Vec3::X).is_err());

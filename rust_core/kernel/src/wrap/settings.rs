@@ -1,25 +1,29 @@
-//! The wrap's parameters: the five force weights and the iteration controls.
+//! The wrap's parameters: the five weights of its energy and its stopping and landing controls.
 
 use crate::error::KernelError;
 use crate::validate::{SettingRange, check_setting};
 
-pub use super::forces::SpringRest;
-
-/// Scalar multipliers of the wrap's forces (the paper's α, β, γ_tp, γ_con, γ_fold).
+/// The weights of the wrap's energy terms (the paper's α, β, γ_tp, γ_con, γ_fold, kept as the
+/// energy's weights).
 ///
-/// Every force is a displacement (in model units) toward what it wants; a weight is the fraction
-/// of it applied per iteration, so weights in `[0, 1]` are stable (thin plate: up to 0.5).
+/// Each weight scales its terms relative to the default: at the default value a term has the
+/// energy's own balance, at twice it twice its weight, at 0 it is off (see `wrap::energy_solver`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct WrapWeights {
-    /// α: fairness, straightening grid lines (second differences across the line).
+    /// α: fairness, the second differences along the grid lines (bends and uneven steps compared
+    /// with the template's).
     pub fairness: f32,
-    /// β: equal arc length along grid lines.
+    /// β: arc length, the edge terms (each edge's length and direction compared with the
+    /// template's turned and scaled by its vertex's fit): the spacing along the grid lines.
     pub arc_length: f32,
-    /// γ_tp: thin plate on space-points, continuing the surrounding surface over holes.
+    /// γ_tp: thin plate, the umbrella terms at points no grid line runs straight through (poles
+    /// and the like): the surface continues smoothly around them.
     pub thin_plate: f32,
-    /// γ_con: attraction of anchored points to their targets.
+    /// γ_con: the pull of every free point onto its closest point on the target (the data
+    /// term's weight λ at every stiffness level).
     pub constraint: f32,
-    /// γ_fold: fraction of the folding rotation applied per iteration.
+    /// γ_fold: how far off the surface the layout is still drawn onto it (the data term's reach,
+    /// the width of its robust weight): 0 draws nothing onto the target.
     pub folding: f32,
 }
 
@@ -35,18 +39,24 @@ impl Default for WrapWeights {
     }
 }
 
-/// Which algorithm moves the points.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum SolverKind {
-    /// The paper's force iteration: spring forces relaxed by Jacobi steps, folding, annealing.
-    Springs,
-    /// One energy minimised by local–global steps with a sparse Cholesky, no face turned over
-    /// (see `wrap::energy_solver`).
-    #[default]
-    Energy,
+impl WrapWeights {
+    /// Each weight over its default, in the order fairness, arc length, thin plate, constraint,
+    /// folding: the factors the energy's terms are scaled by (1 at the defaults).
+    #[must_use]
+    pub fn relative(&self) -> [f64; 5] {
+        let defaults = Self::default();
+        let over = |value: f32, default: f32| f64::from(value) / f64::from(default);
+        [
+            over(self.fairness, defaults.fairness),
+            over(self.arc_length, defaults.arc_length),
+            over(self.thin_plate, defaults.thin_plate),
+            over(self.constraint, defaults.constraint),
+            over(self.folding, defaults.folding),
+        ]
+    }
 }
 
-/// How the energy wrap's stiffness relaxes.
+/// How the wrap's stiffness relaxes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum WrapSchedule {
     /// Chosen from the anchors when the wrap starts: [`WrapSchedule::GlobalToLocal`] for a few
@@ -67,26 +77,19 @@ pub enum WrapSchedule {
 /// Everything that controls a wrap besides the layout, the target and the anchors.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct WrapSettings {
-    /// The force weights.
+    /// The energy's weights.
     pub weights: WrapWeights,
-    /// Converged when no point moved more than this fraction of the layout's size in an iteration
-    /// and no point changed state.
+    /// A stiffness level ends once an iteration lowers the energy by less than this fraction of
+    /// it (each level also has an iteration limit): smaller runs longer and fits closer.
     pub tolerance: f32,
     /// An anchored space-point lands on its face-point target when closer than this fraction of
-    /// the layout's mean edge length.
+    /// the layout's mean edge length; a free point lands (becomes a face-point) at the end when
+    /// its closest surface point is within twice it.
     pub landing_distance: f32,
-    /// Starting folding tolerance in radians; it anneals by itself from how many points fold.
+    /// At the end a free point lands (folds onto the surface) only where the layout faces the
+    /// target's smoothed normal within this angle, in radians.
     pub fold_tolerance: f32,
-    /// Heavy-ball momentum: the fraction of its previous move a free point carries into the next.
-    /// Relaxing a spring grid by plain iterations takes a number of iterations that grows with the
-    /// square of its width; momentum makes it grow with the width. 0 turns it off.
-    pub momentum: f32,
-    /// What the springs consider relaxed: the template's own bends and spacing (the default), or
-    /// straight, evenly spaced grid lines (Krishnamurthy & Levoy).
-    pub rest: SpringRest,
-    /// The algorithm.
-    pub solver: SolverKind,
-    /// The energy solver's stiffness schedule.
+    /// The stiffness schedule.
     pub schedule: WrapSchedule,
 }
 
@@ -94,12 +97,9 @@ impl Default for WrapSettings {
     fn default() -> Self {
         Self {
             weights: WrapWeights::default(),
-            tolerance: 1e-5,
+            tolerance: Self::DEFAULT_TOLERANCE,
             landing_distance: 0.25,
-            fold_tolerance: 10f32.to_radians(),
-            momentum: 0.9,
-            rest: SpringRest::Template,
-            solver: SolverKind::default(),
+            fold_tolerance: 75f32.to_radians(),
             schedule: WrapSchedule::default(),
         }
     }
@@ -108,7 +108,7 @@ impl Default for WrapSettings {
 impl WrapSettings {
     /// Every numeric setting: its field (the binding's keyword), what it is, and its range. The
     /// one place these ranges are written.
-    pub const RANGES: [(&'static str, &'static str, SettingRange); 9] = [
+    pub const RANGES: [(&'static str, &'static str, SettingRange); 8] = [
         (
             "fairness",
             "fairness weight",
@@ -130,7 +130,7 @@ impl WrapSettings {
             SettingRange::closed(0.0, 1.0),
         ),
         ("folding", "folding weight", SettingRange::closed(0.0, 1.0)),
-        // 0 would never be met: the wrap would always run to its iteration limit.
+        // 0 would never be met: every level would run to its iteration limit.
         ("tolerance", "tolerance", SettingRange::above(0.0, 1.0)),
         (
             "landing_distance",
@@ -143,8 +143,10 @@ impl WrapSettings {
             // (the float32 right angle, so that the setting's own value is inside)
             SettingRange::closed(0.0, std::f32::consts::FRAC_PI_2 as f64),
         ),
-        ("momentum", "momentum", SettingRange::closed(0.0, 0.99)),
     ];
+
+    /// The default of [`WrapSettings::tolerance`]: a level ends below a 0.2 % decrease.
+    pub const DEFAULT_TOLERANCE: f32 = 2e-3;
 
     /// The most iterations one [`crate::WrapSolver::step`] call takes (a billion: days of work
     /// on any layout; the wrap stops when it converges anyway).
@@ -161,8 +163,7 @@ impl WrapSettings {
             "folding" => weights.folding,
             "tolerance" => self.tolerance,
             "landing_distance" => self.landing_distance,
-            "fold_tolerance" => self.fold_tolerance,
-            _ => self.momentum,
+            _ => self.fold_tolerance,
         }
     }
 
@@ -188,23 +189,6 @@ impl WrapSettings {
     pub fn validate(&self) -> Result<(), KernelError> {
         for (field, label, range) in Self::RANGES {
             check_setting(field, label, self.value_of(field), range)?;
-        }
-        if self.solver == SolverKind::Energy && self.rest == SpringRest::Even {
-            return Err(KernelError::InvalidArgument {
-                name: "rest",
-                reason:
-                    "the even rest shape (straight, evenly spaced grid lines) needs the spring \
-                         solver; the energy solver keeps the template's shape"
-                        .to_owned(),
-            });
-        }
-        if self.solver == SolverKind::Springs && self.schedule == WrapSchedule::GlobalToLocal {
-            return Err(KernelError::InvalidArgument {
-                name: "schedule",
-                reason: "the global-to-local schedule needs the energy solver; the spring \
-                         solver anneals by itself"
-                    .to_owned(),
-            });
         }
         Ok(())
     }
@@ -239,8 +223,8 @@ mod tests {
             "invalid arc_length: the arc length weight must be within [0, 1], not NaN"
         );
         let mut settings = defaults;
-        settings.momentum = 1.0;
-        assert!(message(settings).starts_with("invalid momentum: "));
+        settings.fold_tolerance = 2.0;
+        assert!(message(settings).starts_with("invalid fold_tolerance: "));
     }
 
     #[test]
@@ -256,7 +240,6 @@ mod tests {
         settings.tolerance = 1.0;
         settings.weights.fairness = 0.0;
         settings.weights.thin_plate = 0.5;
-        settings.momentum = 0.0;
         assert_eq!(settings.validate(), Ok(()));
     }
 }

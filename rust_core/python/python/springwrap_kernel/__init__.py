@@ -271,41 +271,35 @@ class StepReport(NamedTuple):
     max_displacement: float
     """Largest move of the last iteration, as a fraction of the layout's size."""
     converged: bool
-    """The last iteration moved the points less than the tolerance on average (none more than 100 times it)
-    and changed no state."""
+    """The stiffness schedule is done and the points have landed."""
     face_points: int
     space_points: int
     landed: int
-    """Space-points that landed on their anchors during this call."""
+    """Anchored points on the surface at the landing (during this call)."""
     folded: int
-    """Space-points that folded onto the surface during this call."""
-    lifted: int
-    """Face-points lifted off boundaries (holes) during this call."""
-    fold_tolerance: float
-    """The annealed folding tolerance, radians."""
+    """Free points that landed on the surface at the end (during this call)."""
     mean_displacement: float
     """Mean move of the last iteration, as a fraction of the layout's size."""
     energy: float
-    """The energy after the last iteration (``solver="ENERGY"``; NaN for the spring solver)."""
+    """The energy after the last iteration."""
     held_back: int
-    """Points whose last step was shortened or refused so that no layout face turned over
-    (``solver="ENERGY"``; 0 for the spring solver)."""
+    """Points whose last step was shortened or refused so that no layout face turned over."""
     energy_decrease: float
-    """How much the last iteration lowered the energy, relative to it: what the energy solver stops on
-    (each stiffness level ends below 0.002); NaN for the spring solver and a level's first iteration."""
+    """How much the last iteration lowered the energy, relative to it (each stiffness level ends below the
+    settings' tolerance); NaN for a level's first iteration."""
 
 
 class WrapSolver(_native.WrapSolver):
-    """A wrap in progress (hybrid spring optimisation): ``step(n)``, then ``positions()`` / ``states()``.
+    """A wrap in progress (one energy minimised level by level): ``step(n)``, then ``positions()`` / ``states()``.
 
     ``WrapSolver(target, structure, states, triangles, barycentrics, positions, *, anchor_vertices=None,
     anchor_triangles=None, anchor_barycentrics=None, anchor_positions=None,
     unreliable_triangles=None, curve_vertices=None, curve_vertex_counts=None, curve_points=None,
     curve_point_counts=None, rest_positions=None, plane_vertices=None, plane_point=None,
     plane_normal=None, plane_slide=True, settings=None, stiffness=None, free_vertices=None)``;
-    ``settings`` is a :class:`WrapSettings` (weights, tolerance, rest shape, solver), the kernel's
-    defaults when ``None``; ``stiffness`` (float32 per vertex, 0 … 1) and ``free_vertices`` (bool per
-    vertex) need ``solver="ENERGY"``.
+    ``settings`` is a :class:`WrapSettings` (weights, tolerance, landing, fold tolerance, schedule), the
+    kernel's defaults when ``None``; ``stiffness`` is float32 per vertex (0 … 1), ``free_vertices`` bool per
+    vertex.
     """
 
     __slots__ = ()

@@ -324,8 +324,6 @@ class StepReport(NamedTuple):
     space_points: int
     landed: int
     folded: int
-    lifted: int
-    fold_tolerance: float
     mean_displacement: float
     energy: float
     held_back: int
@@ -350,59 +348,51 @@ class WrapSettings:
         thin_plate: float = 0.2,
         constraint: float = 0.5,
         folding: float = 0.3,
-        tolerance: float = 1e-05,
+        tolerance: float = 0.002,
         landing_distance: float = 0.25,
-        fold_tolerance: float = 0.17453292,
-        momentum: float = 0.9,
-        rest: Literal["TEMPLATE", "EVEN"] = "TEMPLATE",
-        solver: Literal["SPRINGS", "ENERGY"] = "ENERGY",
+        fold_tolerance: float = 1.3089969,
         schedule: Literal["AUTO", "LOCAL", "GLOBAL_TO_LOCAL"] = "AUTO",
     ) -> None: ...
     @property
     def fairness(self) -> float:
-        """α: fairness, straightening grid lines, 0 to 1."""
+        """α: fairness, the weight of the second differences along the grid lines, 0 to 1."""
     @property
     def arc_length(self) -> float:
-        """β: equal arc length along grid lines, 0 to 1."""
+        """β: arc length, the weight of the edge terms (the spacing along the grid lines), 0 to 1."""
     @property
     def thin_plate(self) -> float:
-        """γ_tp: thin plate on space-points, continuing the surface over holes, 0 to 0.5."""
+        """γ_tp: thin plate, the weight of the umbrella terms at points no grid line runs straight through, 0 to 0.5."""
     @property
     def constraint(self) -> float:
-        """γ_con: attraction of anchored points to their targets, 0 to 1."""
+        """γ_con: the pull of the layout onto the target (the data term's weight), 0 to 1."""
     @property
     def folding(self) -> float:
-        """γ_fold: fraction of the folding rotation applied per iteration, 0 to 1."""
+        """γ_fold: how far off the surface the layout is still drawn onto it (the data term's reach), 0 to 1."""
     @property
     def tolerance(self) -> float:
-        """Converged when the points move less than this fraction of the layout's size, (0, 1]."""
+        """A stiffness level ends once an iteration lowers the energy by less than this fraction, (0, 1]."""
     @property
     def landing_distance(self) -> float:
         """An anchored space-point lands on its face-point target within this fraction of the mean edge length, 0 to 10."""
     @property
     def fold_tolerance(self) -> float:
-        """The starting folding tolerance in radians (it anneals), 0 to pi / 2."""
-    @property
-    def momentum(self) -> float:
-        """Heavy-ball momentum of free points, 0 (off) to 0.99."""
-    @property
-    def rest(self) -> Literal["TEMPLATE", "EVEN"]:
-        """What the springs consider relaxed: the template's shape, or straight and even grid lines."""
-    @property
-    def solver(self) -> Literal["SPRINGS", "ENERGY"]:
-        """The algorithm: the paper's force iteration, or one energy minimised by global solves."""
+        """A free point lands at the end only where the layout faces the surface within this angle (radians), 0 to pi / 2."""
     @property
     def schedule(self) -> Literal["AUTO", "LOCAL", "GLOBAL_TO_LOCAL"]:
-        """The energy solver's stiffness schedule: automatic (chosen from the anchors when the wrap starts: global
-        to local for 3 to 11 anchors, or more on a large change of shape), local, or stiff nearly affine levels
-        first (for few anchors on a large change of shape); the spring solver refuses the global-to-local one."""
+        """The stiffness schedule: automatic (chosen from the anchors when the wrap starts: global to local for 3
+        to 11 anchors, or more on a large change of shape), local, or stiff nearly affine levels first (for few
+        anchors on a large change of shape)."""
+    @staticmethod
+    def ranges() -> dict[str, tuple[str, float, float, bool, bool]]:
+        """The range of every numeric setting (the kernel's one table): keyword -> (label, low, high, low_open,
+        high_open)."""
     def to_dict(self) -> dict[str, float | str]:
         """Every setting by its keyword, in the constructor's order."""
     def replace(self, **changes: float | str) -> WrapSettings:
         """A copy with the given settings changed (checked like the constructor)."""
 
 class WrapSolver:
-    """A wrap in progress (hybrid spring optimisation onto ``target``).
+    """A wrap in progress (one energy minimised onto ``target``).
 
     One row per layout vertex: ``states`` int32 (1 face-point, 0 space-point), ``triangles`` int32
     (the face-point's target triangle, ignored for space-points), ``barycentrics`` float32 (N, 3),
@@ -416,14 +406,13 @@ class WrapSolver:
     ``plane_normal`` (a mirrored layout's seam: face-points slide along the target's cross-section
     with the plane, space-points move within it); all three or none. ``plane_slide=False``: held
     points only move onto the cross-section, the shortest way, and stay there.
-    ``settings`` (a :class:`WrapSettings`; the kernel's defaults when ``None``) holds the force
-    weights, the tolerance, the rest shape and the solver: ``WrapSettings(solver="ENERGY")``
-    minimises one energy by local-global steps with a sparse Cholesky and turns no layout face more
-    than 90 degrees from the template's orientation (the force weights and the fold settings do not
-    apply to it). With it only: ``stiffness`` (float32, one per layout vertex, 0 … 1: 0 follows the
-    target freely, 0.5 the wrap's own balance, 1 keeps the template's shape) and ``free_vertices``
-    (bool, one per layout vertex: no pull toward the target, they stay space-points); the spring
-    solver refuses them at its first step.
+    ``settings`` (a :class:`WrapSettings`; the kernel's defaults when ``None``) holds the energy's
+    weights, the tolerance, landing, the fold tolerance and the schedule: one energy minimised by
+    local-global steps with a sparse Cholesky (or, past 2 GiB of factor, preconditioned conjugate
+    gradients), no layout face turned more than 90 degrees from the template's orientation.
+    ``stiffness`` (float32, one per layout vertex, 0 … 1: 0 follows the target freely, 0.5 the
+    wrap's own balance, 1 keeps the template's shape) and ``free_vertices`` (bool, one per layout
+    vertex: no pull toward the target, they stay space-points).
     """
 
     def __init__(

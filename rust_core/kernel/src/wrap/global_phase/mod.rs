@@ -18,7 +18,7 @@ use glam::{DVec3, Mat3, Quat, Vec3, Vec4};
 use rayon::prelude::*;
 
 use super::energy_solver::{LEVELS, Level};
-use super::forces::Similarity;
+use super::similarity::Similarity;
 use crate::error::KernelError;
 use crate::layout::LayoutStructure;
 pub(crate) use choice::choose_schedule;

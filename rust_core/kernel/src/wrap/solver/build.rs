@@ -24,7 +24,7 @@ impl WrapSolver {
         Self::with_rest_shape(target, structure, points, None, anchors, settings)
     }
 
-    /// Like [`WrapSolver::new`], with the shape the springs rest in given apart from the starting
+    /// Like [`WrapSolver::new`], with the template's shape (the energy's rest shape) given apart from the starting
     /// points: `rest` (one position per layout vertex, in any placement, size and orientation: only
     /// the shape matters) is the template as the artist made it, for a layout that was snapped or
     /// projected since. `None` rests at the starting positions.
@@ -154,37 +154,16 @@ impl WrapSolver {
                 (min.min(p), max.max(p))
             });
         let layout_size = (max - min).length().max(f32::MIN_POSITIVE);
-        let springs = Springs::new(&structure, &rest, settings.rest);
-        let energy_rest = if settings.solver == SolverKind::Energy {
-            rest
-        } else {
-            Vec::new()
-        };
-        let mut is_corner = vec![false; structure.vertex_count];
-        for &corner in &structure.corners {
-            is_corner[corner as usize] = true;
-        }
         let _ = target.face_normals(); // built now rather than inside the first iteration
         Ok(Self {
-            orientation: 0.0,
             target,
-            springs,
-            similarities: vec![Similarity::IDENTITY; structure.vertex_count],
-            global_scale: 1.0,
             settings,
-            fold_tolerance: settings.fold_tolerance,
             landing_distance: settings.landing_distance * mean_edge_length,
-            lift_counts: vec![0; structure.vertex_count],
-            no_fold_until: vec![0; structure.vertex_count],
             layout_size,
-            velocities: vec![Vec3::ZERO; structure.vertex_count],
-            step_scales: vec![1.0; structure.vertex_count],
-            mean_moves: vec![(Vec3::ZERO, 0.0); structure.vertex_count],
             structure,
             points,
             positions,
             anchor_of_vertex,
-            is_corner,
             unreliable: Vec::new(),
             walk_neighbors: None,
             curve_target_of_vertex: Vec::new(),
@@ -192,9 +171,7 @@ impl WrapSolver {
             on_plane: Vec::new(),
             plane_slide: true,
             total_iterations: 0,
-            quiet_iterations: 0,
-            iteration: 0,
-            rest: energy_rest,
+            rest,
             mean_edge_length,
             stiffness: Vec::new(),
             free: Vec::new(),
@@ -206,9 +183,7 @@ impl WrapSolver {
 
     /// Sets how firmly each vertex keeps the template's shape: 0 follows the target freely, 0.5
     /// is the wrap's own balance, 1 keeps the template's shape (no pull toward the target; the
-    /// shape terms it owns weigh 100 times more). One value per layout vertex, in [0, 1]. Only the
-    /// energy solver ([`SolverKind::Energy`]) takes it; the spring solver refuses it at its first
-    /// step.
+    /// shape terms it owns weigh 100 times more). One value per layout vertex, in [0, 1].
     ///
     /// # Errors
     /// [`KernelError::LengthMismatch`] unless there is one value per layout vertex,
@@ -239,7 +214,7 @@ impl WrapSolver {
 
     /// Marks layout vertices as free: no pull toward the target (eye and mouth sockets, teeth,
     /// a region the target does not have); they follow their neighbours by the template's shape
-    /// and stay space-points. One flag per layout vertex. Only the energy solver takes it.
+    /// and stay space-points. One flag per layout vertex.
     ///
     /// # Errors
     /// [`KernelError::LengthMismatch`] unless there is one flag per layout vertex.
@@ -256,8 +231,8 @@ impl WrapSolver {
     }
 
     /// Marks target triangles as unreliable (noisy or untrusted data, paper 2.5): points there
-    /// behave as space-points. Face-points on them are detached now; walks that end on them lift
-    /// off; folding never lands on them. Holes need no marking.
+    /// behave as space-points. Face-points on them are detached now; nothing is drawn onto them
+    /// or lands on them. Holes need no marking.
     ///
     /// # Errors
     /// [`KernelError::LengthMismatch`] unless there is one flag per target triangle.
@@ -300,7 +275,7 @@ impl WrapSolver {
     /// chain vertex is pulled to the target point at the same fraction of the curve's length as it
     /// has along the chain *now* (the template's spacing is kept; matching on the moving positions
     /// would feed back on itself), and lands on the surface when that point lies on it. Anchored
-    /// vertices keep their anchors; constrained points do not fold.
+    /// vertices keep their anchors.
     ///
     /// # Errors
     /// [`KernelError::InvalidArgument`] for a chain shorter than 2 vertices, a vertex that does not

@@ -5,10 +5,9 @@ use super::*;
 
 impl WrapSolver {
     /// Holds layout vertices on a plane (a mirrored layout's seam; paper, section 3): a held
-    /// face-point slides only along the target's cross-section with the plane and is walked back
-    /// onto the plane after every move; a held space-point moves within the plane and lands on
-    /// the cross-section when it comes within the landing distance of it. Anchored vertices keep
-    /// their anchors; held points do not fold.
+    /// point moves within the plane (or, without sliding, a held face-point stays where it
+    /// starts) and at the landing is walked onto the target's cross-section with the plane.
+    /// Anchored vertices keep their anchors.
     ///
     /// # Errors
     /// [`KernelError::NonFinite`] or [`KernelError::CoordinateOutOfRange`] for the plane's point
@@ -57,7 +56,7 @@ impl WrapSolver {
             }
             on_plane[vertex as usize] = true;
         }
-        // Held points start on the plane: the springs' first look at the seam is where it stays.
+        // Held points start on the plane: the energy's first look at the seam is where it stays.
         for (vertex, _) in on_plane.iter().enumerate().filter(|(_, held)| **held) {
             let (point, position) = match self.points[vertex] {
                 LayoutPoint::Face(face_point) => match self.walk_onto_plane(&plane, face_point) {
@@ -124,78 +123,19 @@ impl WrapSolver {
         (plane.distance(position).abs() <= tolerance * 100.0).then_some((face_point, position))
     }
 
-    /// The new state of a point held on the plane, pushed by `force` (reads only the snapshot).
-    pub(super) fn update_on_plane(
-        &self,
-        plane: &Plane,
-        vertex: u32,
-        force: Vec3,
-        deviations: &[Vec3],
-    ) -> (LayoutPoint, Vec3, Event) {
-        let index = vertex as usize;
-        let here = self.positions[index];
-        let scale = if self.plane_slide {
-            self.step_scales[index]
-        } else {
-            0.0
-        };
-        match self.points[index] {
-            LayoutPoint::Face(face_point) => {
-                let normal = self.target.face_normals()[face_point.triangle as usize];
-                // Along the cross-section only: where the surface's tangent plane meets the plane.
-                let along = normal.cross(plane.normal).normalize_or_zero();
-                let slide = along * force.dot(along) * scale;
-                let walked = if slide == Vec3::ZERO {
-                    WalkEnd::OnSurface(face_point)
-                } else {
-                    self.walk(face_point, slide)
-                };
-                let moved = match walked {
-                    WalkEnd::OnSurface(moved) if !self.is_unreliable(moved.triangle) => moved,
-                    WalkEnd::OnSurface(moved) => {
-                        let position = plane
-                            .project(self.target.interpolate(moved.triangle, moved.barycentric));
-                        return (LayoutPoint::Space(position), position, Event::Lifted);
-                    }
-                    WalkEnd::Lifted { position, .. } => {
-                        let position = plane.project(position);
-                        return (LayoutPoint::Space(position), position, Event::Lifted);
-                    }
-                };
-                match self.walk_onto_plane(plane, moved) {
-                    Some((face_point, position)) => {
-                        (LayoutPoint::Face(face_point), position, Event::None)
-                    }
-                    None => {
-                        let position = plane
-                            .project(self.target.interpolate(moved.triangle, moved.barycentric));
-                        (LayoutPoint::Space(position), position, Event::Lifted)
-                    }
-                }
-            }
-            LayoutPoint::Space(_) => {
-                let push = force
-                    + thin_plate(deviations, &self.structure, vertex)
-                        * self.settings.weights.thin_plate;
-                let moved = plane.project(here + plane.in_plane(push) * scale);
-                // Sliding, the springs bring the point down to the surface; held, it only looks
-                // as far as about an edge length (a landing distance is a quarter of one).
-                let reach = if self.plane_slide {
-                    self.landing_distance
-                } else {
-                    self.landing_distance * 4.0
-                };
-                if self.iteration >= self.no_fold_until[index]
-                    && let Some(hit) = self.target.closest_point(moved, reach)
-                    && !self.is_unreliable(hit.face_point.triangle)
-                    && let Some((face_point, position)) =
-                        self.walk_onto_plane(plane, hit.face_point)
-                    && position.distance(moved) <= reach
-                {
-                    return (LayoutPoint::Face(face_point), position, Event::Landed);
-                }
-                (LayoutPoint::Space(moved), moved, Event::None)
-            }
+    /// Walks on the target, stopping at unreliable regions as at holes.
+    fn walk(&self, start: FacePoint, displacement: Vec3) -> WalkEnd {
+        match &self.walk_neighbors {
+            Some(neighbors) => self.target.walk_on(neighbors, start, displacement),
+            None => self.target.walk(start, displacement),
         }
+    }
+
+    /// Whether points on `triangle` must behave as space-points.
+    fn is_unreliable(&self, triangle: u32) -> bool {
+        self.unreliable
+            .get(triangle as usize)
+            .copied()
+            .unwrap_or(false)
     }
 }

@@ -1,0 +1,56 @@
+"""The wrap's defaults and ranges, in one place: the add-on's own (the iteration limit, the spring resolution) and
+the kernel's (``springwrap_kernel.WrapSettings()`` and ``WrapSettings.ranges()``, written once in the kernel).
+
+The operators' and panel's properties (``properties``), the scripts in ``blender_scripts/`` and the benchmarks read
+them from here. No ``bpy``.
+"""
+
+from typing import NamedTuple
+
+MAX_ITERATIONS = 2000
+"""The wrap's iteration limit: the energy solver's schedule ends long before it (a body in a few dozen iterations);
+it bounds a wrap that would not end."""
+
+SPRING_RESOLUTION = 1
+"""Quads cut k x k for the fine stage of a wrap: 1, no fine stage."""
+
+RETIRED_SOLVER = "SPRINGS"
+"""The spring solver's name in old ``.blend`` files, operator calls and scripts: the wrap maps it to the energy
+solver, with :data:`RETIRED_SOLVER_WARNING`."""
+
+RETIRED_SOLVER_WARNING = (
+    "The Springs solver was retired: wrapped with the Energy solver (Fairness, Arc Length, Thin Plate, Constraint, "
+    "Folding and Tolerance weigh its terms)"
+)
+
+
+class SettingRange(NamedTuple):
+    """One kernel setting's range (``springwrap_kernel.WrapSettings.ranges()``)."""
+
+    label: str
+    low: float
+    high: float
+    low_open: bool
+    high_open: bool
+
+
+def kernel():
+    """The ``springwrap_kernel`` module, with a message saying what is missing when it is not installed."""
+    try:
+        import springwrap_kernel
+    except ImportError as error:
+        raise ImportError(
+            f"The Springwrap kernel is not available ({error}): the add-on needs its springwrap_kernel package "
+            "(bundled in the extension and in the legacy zip; `make setup` in a checkout)"
+        ) from error
+    return springwrap_kernel
+
+
+def wrap_defaults():
+    """``springwrap_kernel.WrapSettings()``: the kernel's default wrap settings."""
+    return kernel().WrapSettings()
+
+
+def wrap_ranges() -> dict[str, SettingRange]:
+    """The kernel's range of every numeric wrap setting, by keyword."""
+    return {name: SettingRange(*row) for name, row in kernel().WrapSettings.ranges().items()}
