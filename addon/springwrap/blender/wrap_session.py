@@ -61,6 +61,7 @@ def make_wrap_solver(target: Target, structure, inputs, parameters):
             "plane_normal": tuple(float(value) for value in inputs.plane_normal),
             "plane_slide": bool(inputs.plane_slide),
         }
+    keywords |= _soft_pair_keywords(inputs)
     return springwrap_kernel.WrapSolver(
         target.mesh.kernel,
         structure,
@@ -73,6 +74,20 @@ def make_wrap_solver(target: Target, structure, inputs, parameters):
         free_vertices=getattr(inputs, "free_vertices", None),
         **keywords,
     )
+
+
+def _soft_pair_keywords(inputs) -> dict:
+    """The soft pairs' keywords of ``WrapSolver`` (none without soft pairs), those on a vertex anchored since
+    (a mirror's pin) left out: the anchor holds it."""
+    vertices = getattr(inputs, "soft_pair_vertices", None)
+    if vertices is None:
+        return {}
+    free = ~np.isin(vertices, inputs.anchor_vertices)
+    return {
+        "soft_pair_vertices": np.ascontiguousarray(vertices[free]),
+        "soft_pair_positions": np.ascontiguousarray(inputs.soft_pair_positions[free]),
+        "soft_pair_confidences": np.ascontiguousarray(inputs.soft_pair_confidences[free]),
+    }
 
 
 class WrapSession:
@@ -145,6 +160,7 @@ class WrapSession:
         # The template's shape as made: stored at the first change of the layout, else as it is now.
         rest = attributes.read_rest(layout)
         self.rest = arrays.positions if rest is None else rest
+        solver = WRAP_DEFAULTS.solver if parameters.settings is None else parameters.settings.solver
         inputs, resolution = wrap_inputs.prepare_wrap(
             arrays,
             self.target,
@@ -153,12 +169,12 @@ class WrapSession:
             unreliable,
             curve_constraints,
             self.rest,
+            soft_proposals=solver == "ENERGY",
         )
         inputs = self._vertex_groups(inputs, layout, parameters)
         self.parts, self.follower = part_data.plan_wrap_parts(
             layout, arrays, self.layout_topology, self.target, self.anchors, curve_constraints
         )
-        solver = WRAP_DEFAULTS.solver if parameters.settings is None else parameters.settings.solver
         inputs = part_data.free_parts(inputs, self.parts, solver)
         wrap_inputs.check_something_pulled(
             layout.name, inputs.free_vertices, getattr(parameters, "free_group", "") or settings.free_group

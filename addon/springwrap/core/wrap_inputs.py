@@ -7,7 +7,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from . import curves, input_policy, layout_state, transforms
-from .anchors import check_anchor_vertices
+from .anchors import anchor_count, check_anchor_vertices, take
 from .errors import LayoutError
 from .layout_state import LayoutArrays, check_finite
 from .subdivision import MAX_RESOLUTION
@@ -117,6 +117,9 @@ class WrapInputs(NamedTuple):
     plane_slide: bool = True  # held points slide along the target's cross-section (False: only move onto it)
     stiffness: np.ndarray | None = None  # (N,) float32 per-vertex stiffness 0 … 1 (energy solver); None: neutral
     free_vertices: np.ndarray | None = None  # (N,) bool vertices without a data term (energy solver); None: none
+    soft_pair_vertices: np.ndarray | None = None  # (S,) uint32 accepted proposals as soft pairs (energy solver)
+    soft_pair_positions: np.ndarray | None = None  # (S, 3) float32 their target points, kernel frame
+    soft_pair_confidences: np.ndarray | None = None  # (S,) float32 their confidences in (0, 1]
     origin: np.ndarray = np.zeros(3)  # (3,) float64 world point the kernel frame is centred on
 
 
@@ -293,10 +296,13 @@ def prepare_wrap(
     unreliable: np.ndarray | None,
     curve_constraints=(),
     rest: np.ndarray | None = None,
+    soft_proposals: bool = False,
 ) -> tuple[WrapInputs, layout_state.Resolution]:
     """The solver's inputs: the layout's current state (after the deleted-face rule) and positions.
 
-    ``anchor_list``: resolved anchors (see :func:`wrap_anchor_arrays`); ``unreliable``: (M,) bool
+    ``anchor_list``: resolved anchors (see :func:`wrap_anchor_arrays`); with ``soft_proposals`` (the energy
+    solver) the accepted proposals among them (a confidence above 0) are soft pairs, the others anchors;
+    ``unreliable``: (M,) bool
     flags of the target's triangles, or None; ``curve_constraints``: ``curves.CurveConstraint``
     with current polylines (checked by ``curves.kernel_arrays``); ``rest``: (N, 3) local template shape the
     springs rest in (None: the positions now). Every vertex must be finite in world space.
@@ -308,6 +314,11 @@ def prepare_wrap(
     check_finite(layout, np.ones(vertex_count, dtype=bool))
     resolution = resolve_topology(layout, target, stored_signature)
     state = resolution.state
+    soft = np.zeros(anchor_count(anchor_list), dtype=bool)
+    if soft_proposals:
+        soft = np.asarray(anchor_list.confidences, dtype=np.float32).reshape(-1) > 0.0
+    soft_list = take(anchor_list, soft)
+    anchor_list = take(anchor_list, ~soft)
     anchor_vertices, anchor_triangles, anchor_barycentrics, anchor_positions = wrap_anchor_arrays(
         anchor_list, vertex_count, origin
     )
@@ -339,4 +350,13 @@ def prepare_wrap(
         else transforms.as_float32_points(rest_world_positions(layout, rest) - origin),
         origin=origin,
     )
+    if soft.any():
+        check_anchor_vertices(soft_list, vertex_count)
+        inputs = inputs._replace(
+            soft_pair_vertices=np.ascontiguousarray(soft_list.vertex_indices, dtype=np.uint32),
+            soft_pair_positions=transforms.as_float32_points(
+                np.asarray(soft_list.locations, dtype=np.float64).reshape(-1, 3) - origin
+            ),
+            soft_pair_confidences=np.ascontiguousarray(soft_list.confidences, dtype=np.float32),
+        )
     return inputs, resolution

@@ -8,6 +8,7 @@ mod global_phase;
 pub mod linear_system;
 pub mod plane_constraint;
 pub mod settings;
+pub mod soft_pair;
 pub mod solver;
 mod system_assembly;
 
@@ -15,4 +16,5 @@ pub use anchor::{Anchor, AnchorTarget};
 pub use curve_constraint::CurveConstraint;
 pub use plane_constraint::PlaneConstraint;
 pub use settings::{SolverKind, SpringRest, WrapSchedule, WrapSettings, WrapWeights};
+pub use soft_pair::SoftPair;
 pub use solver::{StepReport, WrapSolver};

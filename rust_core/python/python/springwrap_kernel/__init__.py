@@ -276,10 +276,12 @@ class WrapSolver(_native.WrapSolver):
     anchor_triangles=None, anchor_barycentrics=None, anchor_positions=None,
     unreliable_triangles=None, curve_vertices=None, curve_vertex_counts=None, curve_points=None,
     curve_point_counts=None, rest_positions=None, plane_vertices=None, plane_point=None,
-    plane_normal=None, plane_slide=True, settings=None, stiffness=None, free_vertices=None)``;
+    plane_normal=None, plane_slide=True, settings=None, stiffness=None, free_vertices=None,
+    soft_pair_vertices=None, soft_pair_positions=None, soft_pair_confidences=None)``;
     ``settings`` is a :class:`WrapSettings` (weights, tolerance, rest shape, solver), the kernel's
-    defaults when ``None``; ``stiffness`` (float32 per vertex, 0 … 1) and ``free_vertices`` (bool per
-    vertex) need ``solver="ENERGY"``.
+    defaults when ``None``; ``stiffness`` (float32 per vertex, 0 … 1), ``free_vertices`` (bool per
+    vertex) and the soft pairs (vertices, points, confidences in (0, 1]: pulls in the stiff levels
+    only) need ``solver="ENERGY"``.
     """
 
     __slots__ = ()

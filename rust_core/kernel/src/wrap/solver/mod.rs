@@ -30,6 +30,7 @@ use super::energy_solver::{EnergyInputs, EnergySolver};
 use super::forces::{Similarity, SpringRest, Springs, thin_plate};
 use super::plane_constraint::{Plane, PlaneConstraint};
 use super::settings::{SolverKind, WrapSettings};
+use super::soft_pair::{SoftPair, SoftPairOfVertex};
 use crate::error::KernelError;
 use crate::face_point::{FacePoint, LayoutPoint};
 use crate::layout::LayoutStructure;
@@ -213,6 +214,8 @@ pub struct WrapSolver {
     /// Per vertex, whether it has no pull toward the target (a socket, teeth); empty: none.
     /// Energy solver only.
     free: Vec<bool>,
+    /// Per vertex, its soft pair's point and confidence; empty: none. Energy solver only.
+    soft_pairs: SoftPairOfVertex,
     /// The energy solver, made at the first step of a wrap with [`SolverKind::Energy`].
     energy: Option<Box<EnergySolver>>,
     /// The region the points may reach: a centre and a radius (ten times the target's size and

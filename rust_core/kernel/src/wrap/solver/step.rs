@@ -47,10 +47,11 @@ impl WrapSolver {
         if self.settings.solver == SolverKind::Energy {
             return self.step_energy(iterations);
         }
-        if !self.stiffness.is_empty() || !self.free.is_empty() {
+        if !self.stiffness.is_empty() || !self.free.is_empty() || !self.soft_pairs.is_empty() {
             return Err(KernelError::InvalidArgument {
                 name: "solver",
-                reason: "vertex stiffness and free vertices need the energy solver".to_owned(),
+                reason: "vertex stiffness, free vertices and soft pairs need the energy solver"
+                    .to_owned(),
             });
         }
         Ok(self.step_springs(iterations))
@@ -65,6 +66,7 @@ impl WrapSolver {
                 rest: &self.rest,
                 positions: &self.positions,
                 anchor_of_vertex: &self.anchor_of_vertex,
+                soft_pairs: &self.soft_pairs,
                 curve_target_of_vertex: &self.curve_target_of_vertex,
                 unreliable: &self.unreliable,
                 stiffness: &self.stiffness,
