@@ -104,6 +104,30 @@ def test_the_wrap_leaves_unaccepted_proposals_out():
     assert anchors.anchor_count(proposals.used_by_wrap(bpy_anchor_list(layout))) == listed
 
 
+def wrapped_ball(how: str):
+    """The ball wrapped (energy solver, global-to-local schedule) from 3 hand pairs and the proposals: ``'none'``
+    rejected, ``'accepted'`` accepted (soft pairs), ``'hand'`` made hand pairs at the same points (confidence 0,
+    as a drag makes them). (positions, the proposals' vertices)."""
+    layout, _truth = ball_scene()
+    bpy.ops.springwrap.anchors_propose(accept=how != "none")
+    vertices = [item.vertex_index for item in layout.springwrap.anchors][3:]
+    if how == "hand":
+        for item in list(layout.springwrap.anchors)[3:]:
+            item.confidence = 0.0
+    assert bpy.ops.springwrap.wrap(solver="ENERGY", schedule="GLOBAL_TO_LOCAL") == {"FINISHED"}
+    return world_positions(layout), vertices
+
+
+def test_accepted_proposals_pull_as_soft_pairs_in_the_stiff_levels():
+    # They change the wrap, and differently from hand pairs at the same points, which the wrap meets exactly.
+    none, _ = wrapped_ball("none")
+    accepted, vertices = wrapped_ball("accepted")
+    hand, _ = wrapped_ball("hand")
+    assert len(vertices) >= 3
+    assert np.abs(accepted - none).max() > 1e-4
+    assert np.abs(accepted - hand).max() > 1e-4
+
+
 def bpy_anchor_list(layout):
     from springwrap.blender import anchors as anchor_data
 

@@ -339,7 +339,13 @@ impl EnergySolver {
             fixed_points,
             unreliable: inputs.unreliable.to_vec(),
             data_factors,
-            soft_pairs: inputs.soft_pairs.to_vec(),
+            // Soft pairs steer the stiff levels of the global-to-local schedule; the local
+            // schedule (many anchors, a small change) has no need of them.
+            soft_pairs: if schedule == WrapSchedule::GlobalToLocal {
+                inputs.soft_pairs.to_vec()
+            } else {
+                Vec::new()
+            },
             plane: inputs
                 .plane
                 .filter(|_| inputs.on_plane.iter().any(|&held| held)),
