@@ -240,7 +240,9 @@ def test_soft_pairs_reach_the_energy_solver_and_are_checked():
     with pytest.raises(sk.ArrayError, match="soft pairs need all three"):
         make_solver(target, positions, structure, anchors, settings=energy, soft_pair_vertices=vertices)
     with pytest.raises(sk.InvalidArgumentError, match="vertex 0 has an anchor"):
-        make_solver(target, positions, structure, anchors, settings=energy, **(soft | {"soft_pair_vertices": vertices * 0}))
+        make_solver(
+            target, positions, structure, anchors, settings=energy, **(soft | {"soft_pair_vertices": vertices * 0})
+        )
     with pytest.raises(sk.InvalidArgumentError, match="confidence 0"):
         bad = np.array([0.0, 1.0], np.float32)
         make_solver(target, positions, structure, anchors, settings=energy, **(soft | {"soft_pair_confidences": bad}))

@@ -115,7 +115,10 @@ fn right_soft_pairs_bring_the_global_to_local_wrap_nearer_the_truth() {
     let case = stretched(Vec3::new(2.2, 1.0, 0.6));
     let without = case.mean_error(&case.wrap(WrapSchedule::GlobalToLocal, &[]));
     let with = case.mean_error(&case.wrap(WrapSchedule::GlobalToLocal, &case.pairs(Vec3::ZERO)));
-    assert!(with < without * 0.9, "mean error {without} without, {with} with soft pairs");
+    assert!(
+        with < without * 0.9,
+        "mean error {without} without, {with} with soft pairs"
+    );
 }
 
 #[test]
@@ -165,7 +168,12 @@ fn bad_soft_pairs_are_refused() {
         target: Vec3::NAN,
         ..good
     };
-    for pairs in [vec![anchored], vec![missing], vec![unsure], vec![good, good]] {
+    for pairs in [
+        vec![anchored],
+        vec![missing],
+        vec![unsure],
+        vec![good, good],
+    ] {
         let error = case
             .solver(SolverKind::Energy, WrapSchedule::Auto)
             .with_soft_pairs(&pairs)

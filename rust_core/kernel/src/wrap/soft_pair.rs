@@ -55,7 +55,10 @@ pub(crate) fn pull_soft_pairs(
 
 /// The warm-up's pulls: each soft pair at [`SOFT_PAIR_WEIGHT`] × confidence (the warm-up's
 /// global step has a data weight of 1 for them).
-pub(crate) fn warm_up_pulls(soft_pairs: &[Option<(Vec3, f32)>], vertex_count: usize) -> Vec<Option<(f32, Vec3)>> {
+pub(crate) fn warm_up_pulls(
+    soft_pairs: &[Option<(Vec3, f32)>],
+    vertex_count: usize,
+) -> Vec<Option<(f32, Vec3)>> {
     let mut pulls = vec![None; vertex_count];
     for (pull, pair) in pulls.iter_mut().zip(soft_pairs) {
         if let Some((target, confidence)) = *pair {
