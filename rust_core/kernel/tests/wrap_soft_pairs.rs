@@ -7,8 +7,8 @@ use std::sync::Arc;
 
 use glam::Vec3;
 use springwrap_kernel::{
-    Anchor, AnchorTarget, KernelError, LayoutPoint, SoftPair, SolverKind, TargetMesh,
-    TargetMeshOptions, WrapSchedule, WrapSettings, WrapSolver,
+    Anchor, KernelError, LayoutPoint, SoftPair, SolverKind, TargetMesh, TargetMeshOptions,
+    WrapSchedule, WrapSettings, WrapSolver,
 };
 
 const RINGS: u32 = 12;
@@ -32,18 +32,8 @@ fn stretched(axes: Vec3) -> Stretched {
     let (structure, directions) = common::band_layout(Vec3::ONE, RINGS, SEGMENTS);
     let truth: Vec<Vec3> = directions.iter().map(|&d| d * axes).collect();
     let equator = RINGS / 2 * SEGMENTS;
-    let anchors = (0..4)
-        .map(|quarter| {
-            let vertex = equator + quarter * SEGMENTS / 4;
-            let hit = target
-                .closest_point(truth[vertex as usize], f32::INFINITY)
-                .unwrap();
-            Anchor {
-                vertex,
-                target: AnchorTarget::Face(hit.face_point),
-            }
-        })
-        .collect();
+    let quarters: Vec<u32> = (0..4).map(|q| equator + q * SEGMENTS / 4).collect();
+    let anchors = common::anchors_at(&target, &truth, &quarters);
     Stretched {
         target,
         structure,
