@@ -129,7 +129,7 @@ def markdown(result: dict) -> list[str]:
         "change of shape, else local); `Springwrap wrap local` the local schedule (`schedule='LOCAL'`); "
         "`Springwrap wrap global` the global-to-local schedule (`schedule='GLOBAL_TO_LOCAL'`); `Springwrap wrap "
         "proposals` the default wrap after `springwrap.anchors_propose(accept=True)` (further pairs proposed from "
-        "the anchors, all accepted). Errors in % of the diagonal; flipped quads against the true quads; time: every "
+        "the anchors, all accepted: soft pairs that steer the global-to-local schedule's stiff levels). Errors in % of the diagonal; flipped quads against the true quads; time: every "
         "operator call of the method (the wrap's own time in brackets); × nricp: the wrap's mean (p95) over "
         "nricp's with the same anchors; proposed: the pairs proposed, and how many (share) lie within 1 % of the "
         "diagonal of their vertex's true point.",

@@ -221,3 +221,31 @@ def test_free_vertices_and_stiffness_reach_the_energy_solver_and_are_checked():
         make_solver(target, positions, structure, anchors, settings=energy, stiffness=stiffness)
     with pytest.raises(sk.ArrayError, match="stiffness must be a C-contiguous numpy array of dtype float32"):
         make_solver(target, positions, structure, anchors, settings=energy, stiffness=np.full(len(positions), 0.5))
+
+
+def test_soft_pairs_reach_the_energy_solver_and_are_checked():
+    target = plane_target()
+    positions, face_corners, face_sizes = quad_layout()
+    structure = sk.LayoutStructure(len(positions), face_corners, face_sizes)
+    anchors = [0, 12, 156]
+    energy = sk.WrapSettings(schedule="GLOBAL_TO_LOCAL")
+    vertices = np.array([84, 168], np.uint32)
+    points = np.ascontiguousarray(positions[vertices] * [1, 1, 0] + [0.05, 0.0, 0.0], dtype=np.float32)
+    soft = {
+        "soft_pair_vertices": vertices,
+        "soft_pair_positions": points,
+        "soft_pair_confidences": np.array([1.0, 0.8], np.float32),
+    }
+    without, _ = make_solver(target, positions, structure, anchors, settings=energy)
+    with_pairs, _ = make_solver(target, positions, structure, anchors, settings=energy, **soft)
+    assert without.step(1000).converged and with_pairs.step(1000).converged
+    assert np.abs(with_pairs.positions() - without.positions()).max() > 1e-4
+    with pytest.raises(sk.ArrayError, match="soft pairs need all three"):
+        make_solver(target, positions, structure, anchors, settings=energy, soft_pair_vertices=vertices)
+    with pytest.raises(sk.InvalidArgumentError, match="vertex 0 has an anchor"):
+        make_solver(
+            target, positions, structure, anchors, settings=energy, **(soft | {"soft_pair_vertices": vertices * 0})
+        )
+    with pytest.raises(sk.InvalidArgumentError, match="confidence 0"):
+        bad = np.array([0.0, 1.0], np.float32)
+        make_solver(target, positions, structure, anchors, settings=energy, **(soft | {"soft_pair_confidences": bad}))

@@ -110,6 +110,7 @@ class WrapSession:
             unreliable,
             curve_constraints,
             self.rest,
+            soft_proposals=True,
         )
         inputs = self._vertex_groups(inputs, layout, parameters)
         self.parts, self.follower = part_data.plan_wrap_parts(

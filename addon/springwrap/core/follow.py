@@ -80,8 +80,9 @@ def changed_region(target, world, state, same_topology: bool, before, edges, rin
 
 def held(inputs: WrapInputs, region: np.ndarray) -> WrapInputs:
     """``inputs`` with every vertex outside ``region`` held where it starts (the layout's own anchors kept):
-    a face anchor on its face for a face-point, a space anchor at its position for a space-point; and the
-    springs resting in the layout's shape as it is."""
+    a face anchor on its face for a face-point, a space anchor at its position for a space-point; the
+    springs resting in the layout's shape as it is; and no soft pairs (they steer a whole wrap's stiff levels,
+    not a re-settle)."""
     region = np.asarray(region, dtype=bool)
     anchored = np.zeros(region.shape[0], dtype=bool)
     anchored[inputs.anchor_vertices.astype(np.int64)] = True
@@ -97,6 +98,9 @@ def held(inputs: WrapInputs, region: np.ndarray) -> WrapInputs:
             np.concatenate([inputs.anchor_positions, inputs.positions[vertices]])
         ),
         rest_positions=inputs.positions,
+        soft_pair_vertices=None,
+        soft_pair_positions=None,
+        soft_pair_confidences=None,
     )
 
 

@@ -117,7 +117,7 @@ def _chosen(anchors: Anchors, index: int) -> np.ndarray:
 
 
 def accept(anchors: Anchors, index: int = -1) -> tuple[Anchors, int]:
-    """The anchors with the proposed pair at ``index`` (-1: all) made a plain anchor the wrap uses; how many."""
+    """The anchors with the proposed pair at ``index`` (-1: all) accepted (the wrap uses it: a soft pair with the energy solver); how many."""
     chosen = _chosen(anchors, index)
     return anchors._replace(proposed=np.asarray(anchors.proposed, dtype=bool) & ~chosen), int(chosen.sum())
 

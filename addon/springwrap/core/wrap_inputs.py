@@ -10,7 +10,7 @@ import numpy as np
 import springwrap_kernel
 
 from . import curves, defaults, input_policy, layout_state, transforms
-from .anchors import check_anchor_vertices
+from .anchors import anchor_count, check_anchor_vertices, take
 from .errors import LayoutError
 from .layout_state import LayoutArrays, check_finite
 from .subdivision import MAX_RESOLUTION
@@ -96,6 +96,9 @@ class WrapInputs(NamedTuple):
     plane_slide: bool = True  # held points slide along the target's cross-section (False: only move onto it)
     stiffness: np.ndarray | None = None  # (N,) float32 per-vertex stiffness 0 … 1; None: neutral
     free_vertices: np.ndarray | None = None  # (N,) bool vertices without a data term; None: none
+    soft_pair_vertices: np.ndarray | None = None  # (S,) uint32 accepted proposals as soft pairs
+    soft_pair_positions: np.ndarray | None = None  # (S, 3) float32 their target points, kernel frame
+    soft_pair_confidences: np.ndarray | None = None  # (S,) float32 their confidences in (0, 1]
     origin: np.ndarray = np.zeros(3)  # (3,) float64 world point the kernel frame is centred on
 
 
@@ -272,10 +275,13 @@ def prepare_wrap(
     unreliable: np.ndarray | None,
     curve_constraints=(),
     rest: np.ndarray | None = None,
+    soft_proposals: bool = False,
 ) -> tuple[WrapInputs, layout_state.Resolution]:
     """The solver's inputs: the layout's current state (after the deleted-face rule) and positions.
 
-    ``anchor_list``: resolved anchors (see :func:`wrap_anchor_arrays`); ``unreliable``: (M,) bool
+    ``anchor_list``: resolved anchors (see :func:`wrap_anchor_arrays`); with ``soft_proposals`` the accepted
+    proposals among them (a confidence above 0) are soft pairs, the others anchors;
+    ``unreliable``: (M,) bool
     flags of the target's triangles, or None; ``curve_constraints``: ``curves.CurveConstraint``
     with current polylines (checked by ``curves.kernel_arrays``); ``rest``: (N, 3) local template shape the
     springs rest in (None: the positions now). Every vertex must be finite in world space.
@@ -287,6 +293,11 @@ def prepare_wrap(
     check_finite(layout, np.ones(vertex_count, dtype=bool))
     resolution = resolve_topology(layout, target, stored_signature)
     state = resolution.state
+    soft = np.zeros(anchor_count(anchor_list), dtype=bool)
+    if soft_proposals:
+        soft = np.asarray(anchor_list.confidences, dtype=np.float32).reshape(-1) > 0.0
+    soft_list = take(anchor_list, soft)
+    anchor_list = take(anchor_list, ~soft)
     anchor_vertices, anchor_triangles, anchor_barycentrics, anchor_positions = wrap_anchor_arrays(
         anchor_list, vertex_count, origin
     )
@@ -318,6 +329,15 @@ def prepare_wrap(
         else transforms.as_float32_points(rest_world_positions(layout, rest) - origin),
         origin=origin,
     )
+    if soft.any():
+        check_anchor_vertices(soft_list, vertex_count)
+        inputs = inputs._replace(
+            soft_pair_vertices=np.ascontiguousarray(soft_list.vertex_indices, dtype=np.uint32),
+            soft_pair_positions=transforms.as_float32_points(
+                np.asarray(soft_list.locations, dtype=np.float64).reshape(-1, 3) - origin
+            ),
+            soft_pair_confidences=np.ascontiguousarray(soft_list.confidences, dtype=np.float32),
+        )
     return inputs, resolution
 
 
@@ -346,6 +366,7 @@ def make_wrap_solver(target: Target, structure, inputs, parameters):
             "plane_normal": tuple(float(value) for value in inputs.plane_normal),
             "plane_slide": bool(inputs.plane_slide),
         }
+    keywords |= _soft_pair_keywords(inputs)
     return springwrap_kernel.WrapSolver(
         target.mesh.kernel,
         structure,
@@ -358,3 +379,17 @@ def make_wrap_solver(target: Target, structure, inputs, parameters):
         free_vertices=getattr(inputs, "free_vertices", None),
         **keywords,
     )
+
+
+def _soft_pair_keywords(inputs) -> dict:
+    """The soft pairs' keywords of ``WrapSolver`` (none without soft pairs), those on a vertex anchored since
+    (a mirror's pin) left out: the anchor holds it."""
+    vertices = getattr(inputs, "soft_pair_vertices", None)
+    if vertices is None:
+        return {}
+    free = ~np.isin(vertices, inputs.anchor_vertices)
+    return {
+        "soft_pair_vertices": np.ascontiguousarray(vertices[free]),
+        "soft_pair_positions": np.ascontiguousarray(inputs.soft_pair_positions[free]),
+        "soft_pair_confidences": np.ascontiguousarray(inputs.soft_pair_confidences[free]),
+    }

@@ -46,7 +46,7 @@ class SPRINGWRAP_OT_anchors_propose(_AnchorOperator, bpy.types.Operator):
         max=0.5,
     )
     accept: props.flag(
-        "Accept", "Store the pairs accepted at once (plain anchors the wrap uses); off: as proposed pairs", False
+        "Accept", "Store the pairs accepted at once (soft pairs the wrap uses); off: as proposed pairs", False
     )
 
     def compute(self, context, layout):
@@ -97,7 +97,7 @@ class _ProposalEdit(_AnchorOperator):
 
 
 class SPRINGWRAP_OT_anchor_accept(_ProposalEdit, bpy.types.Operator):
-    """Accept a proposed pair (the active one, or all): it becomes a plain anchor the wrap uses"""
+    """Accept a proposed pair (the active one, or all): the wrap uses it, as a soft pair that steers its stiff levels"""
 
     bl_label = "Accept Proposed Pair"
 

@@ -125,17 +125,20 @@ impl Case {
     }
 }
 
+/// The settings with a least confidence below the default's: the ball, with 3 anchors only, has few
+/// pairs above the default.
+fn loose() -> ProposalSettings {
+    ProposalSettings {
+        min_confidence: 0.5,
+        ..ProposalSettings::default()
+    }
+}
+
 #[test]
 fn unanchored_tips_and_pits_are_proposed_near_their_true_points() {
     let case = case();
     let given = case.given(3);
-    let proposals = propose_correspondences(
-        &case.target,
-        case.layout(),
-        &given,
-        &ProposalSettings::default(),
-    )
-    .unwrap();
+    let proposals = propose_correspondences(&case.target, case.layout(), &given, &loose()).unwrap();
     let (low, high) = case.target.bounding_box();
     let diagonal = (high - low).length();
     assert!(
@@ -172,9 +175,19 @@ fn unanchored_tips_and_pits_are_proposed_near_their_true_points() {
 fn every_setting_changes_the_answer() {
     let case = case();
     let given = case.given(3);
-    let defaults = ProposalSettings::default();
+    let defaults = loose();
     let all = propose_correspondences(&case.target, case.layout(), &given, &defaults).unwrap();
     assert!(all.len() >= 3);
+    // The default least confidence keeps the surest of them.
+    let default = ProposalSettings::default();
+    assert!(default.min_confidence > defaults.min_confidence);
+    let surest = propose_correspondences(&case.target, case.layout(), &given, &default).unwrap();
+    let expected: Vec<_> = all
+        .iter()
+        .copied()
+        .filter(|p| p.confidence >= default.min_confidence)
+        .collect();
+    assert_eq!(surest, expected);
     let two = ProposalSettings {
         max_count: 2,
         ..defaults

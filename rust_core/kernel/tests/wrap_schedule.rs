@@ -7,8 +7,7 @@ use std::sync::Arc;
 
 use glam::Vec3;
 use springwrap_kernel::{
-    Anchor, AnchorTarget, LayoutPoint, TargetMesh, TargetMeshOptions, WrapSchedule, WrapSettings,
-    WrapSolver,
+    LayoutPoint, TargetMesh, TargetMeshOptions, WrapSchedule, WrapSettings, WrapSolver,
 };
 
 /// The mean distance of the wrapped band to the truth (each unit direction scaled by `axes`), with
@@ -22,18 +21,8 @@ fn wrap_band(schedule: WrapSchedule, axes: Vec3) -> (f32, bool) {
     let (structure, directions) = common::band_layout(Vec3::ONE, rings, segments);
     let truth: Vec<Vec3> = directions.iter().map(|&d| d * axes).collect();
     let equator = rings / 2 * segments;
-    let anchors: Vec<Anchor> = (0..4)
-        .map(|quarter| {
-            let vertex = equator + quarter * segments / 4;
-            let hit = target
-                .closest_point(truth[vertex as usize], f32::INFINITY)
-                .unwrap();
-            Anchor {
-                vertex,
-                target: AnchorTarget::Face(hit.face_point),
-            }
-        })
-        .collect();
+    let quarters: Vec<u32> = (0..4).map(|q| equator + q * segments / 4).collect();
+    let anchors = common::anchors_at(&target, &truth, &quarters);
     let points = directions.iter().map(|&p| LayoutPoint::Space(p)).collect();
     let settings = WrapSettings {
         schedule,

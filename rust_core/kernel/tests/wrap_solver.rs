@@ -380,18 +380,7 @@ fn a_point_balanced_at_a_hole_rim_does_not_keep_the_wrap_from_converging() {
         .iter()
         .flat_map(|&i| [0u32, 2, 4].map(|j| i * 5 + j))
         .collect();
-    let anchors: Vec<Anchor> = anchored
-        .iter()
-        .map(|&vertex| {
-            let hit = target
-                .closest_point(positions[vertex as usize], f32::INFINITY)
-                .unwrap();
-            Anchor {
-                vertex,
-                target: AnchorTarget::Face(hit.face_point),
-            }
-        })
-        .collect();
+    let anchors = common::anchors_at(&target, &positions, &anchored);
     let points = positions.iter().map(|&p| LayoutPoint::Space(p)).collect();
     let mut solver =
         WrapSolver::new(target, structure, points, &anchors, WrapSettings::default()).unwrap();

@@ -6,8 +6,8 @@ use glam::Vec3;
 use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
 use springwrap_kernel::{
-    Anchor, AnchorTarget, CurveConstraint, FacePoint, LayoutPoint, PlaneConstraint, WrapSettings,
-    WrapSolver,
+    Anchor, AnchorTarget, CurveConstraint, FacePoint, LayoutPoint, PlaneConstraint, SoftPair,
+    WrapSettings, WrapSolver,
 };
 
 use crate::arguments;
@@ -41,7 +41,8 @@ impl PyWrapSolver {
         anchor_positions = None, unreliable_triangles = None, curve_vertices = None,
         curve_vertex_counts = None, curve_points = None, curve_point_counts = None,
         rest_positions = None, plane_vertices = None, plane_point = None, plane_normal = None,
-        plane_slide = None, settings = None, stiffness = None, free_vertices = None
+        plane_slide = None, settings = None, stiffness = None, free_vertices = None,
+        soft_pair_vertices = None, soft_pair_positions = None, soft_pair_confidences = None
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -69,6 +70,9 @@ impl PyWrapSolver {
         settings: Option<&Bound<'_, PyAny>>,
         stiffness: Option<&Bound<'_, PyAny>>,
         free_vertices: Option<&Bound<'_, PyAny>>,
+        soft_pair_vertices: Option<&Bound<'_, PyAny>>,
+        soft_pair_positions: Option<&Bound<'_, PyAny>>,
+        soft_pair_confidences: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let target = arguments::instance::<PyTargetMesh>("target", "TargetMesh", target)?;
         let structure =
@@ -126,6 +130,11 @@ impl PyWrapSolver {
         let free_vertices = free_vertices
             .map(|flags| read_array::<bool>("free_vertices", flags, None))
             .transpose()?;
+        let soft_pairs = read_soft_pairs(
+            soft_pair_vertices,
+            soft_pair_positions,
+            soft_pair_confidences,
+        )?;
         let target = Arc::clone(&target.get().mesh);
         let structure = structure.get().structure.clone();
         let solver = run_kernel(py, || {
@@ -150,8 +159,12 @@ impl PyWrapSolver {
                 Some(values) => solver.with_vertex_stiffness(values)?,
                 None => solver,
             };
-            match free_vertices {
-                Some(flags) => solver.with_free_vertices(flags),
+            let solver = match free_vertices {
+                Some(flags) => solver.with_free_vertices(flags)?,
+                None => solver,
+            };
+            match soft_pairs {
+                Some(pairs) => solver.with_soft_pairs(&pairs),
                 None => Ok(solver),
             }
         })?;
@@ -362,6 +375,43 @@ fn read_plane_constraint(
 }
 
 /// Anchors from parallel arrays; a negative triangle means a space anchor at its position.
+/// The soft pairs from their three arrays (all or none).
+fn read_soft_pairs(
+    vertices: Option<&Bound<'_, PyAny>>,
+    positions: Option<&Bound<'_, PyAny>>,
+    confidences: Option<&Bound<'_, PyAny>>,
+) -> PyResult<Option<Vec<SoftPair>>> {
+    let (Some(vertices), Some(positions), Some(confidences)) = (vertices, positions, confidences)
+    else {
+        if vertices.is_some() || positions.is_some() || confidences.is_some() {
+            return Err(ArrayError::new_err(
+                "soft pairs need all three of soft_pair_vertices, soft_pair_positions and soft_pair_confidences",
+            ));
+        }
+        return Ok(None);
+    };
+    let vertices = read_array::<u32>("soft_pair_vertices", vertices, None)?;
+    let positions = read_positions("soft_pair_positions", positions)?;
+    let confidences = read_array::<f32>("soft_pair_confidences", confidences, None)?;
+    let count = vertices.len();
+    if positions.len() != count || confidences.len() != count {
+        return Err(ArrayError::new_err(format!(
+            "the soft pair arrays differ in length: {count} vertices, {} positions, {} confidences",
+            positions.len(),
+            confidences.len()
+        )));
+    }
+    Ok(Some(
+        (0..count)
+            .map(|index| SoftPair {
+                vertex: vertices[index],
+                target: positions[index],
+                confidence: confidences[index],
+            })
+            .collect(),
+    ))
+}
+
 fn read_anchors(
     vertices: Option<&Bound<'_, PyAny>>,
     triangles: Option<&Bound<'_, PyAny>>,

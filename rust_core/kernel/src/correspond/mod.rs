@@ -75,7 +75,7 @@ impl Default for ProposalSettings {
     fn default() -> Self {
         Self {
             max_count: 40,
-            min_confidence: 0.5,
+            min_confidence: 0.7,
             search_radius: 0.06,
             feature_scale: 0.015,
         }

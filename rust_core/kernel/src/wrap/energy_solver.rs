@@ -22,7 +22,8 @@
 //! along the surface), `c_i` a robust weight: Welsch in the distance, zero when the layout faces
 //! away from the target's smoothed normal there (cavities, the far side of a thin part), on a
 //! boundary edge (a hole) or on an unreliable triangle. Anchors and curve targets are hard
-//! constraints (their vertices are eliminated from the system).
+//! constraints (their vertices are eliminated from the system); a soft pair (`soft_pair.rs`)
+//! replaces its vertex's data term by a pull toward its point in the warm-up and the stiff levels.
 //!
 //! **Warm-up**: before any data term, the constraints alone pull the layout as rigidly as
 //! possible (the same steps with `λ = 0`, rotations averaged over neighbours, no safeguard), so
@@ -55,6 +56,7 @@ use super::linear_system::{LinearSystem, Stencils};
 use super::plane_constraint::Plane;
 use super::settings::{WrapSchedule, WrapSettings};
 use super::similarity::{RestFit, Similarity};
+use super::soft_pair::{pull_soft_pairs, warm_up_pulls};
 use crate::error::KernelError;
 use crate::face_point::{FacePoint, LayoutPoint, SurfaceHit};
 use crate::layout::LayoutStructure;
@@ -164,6 +166,8 @@ pub(crate) struct EnergyInputs<'a> {
     pub rest: &'a [Vec3],
     pub positions: &'a [Vec3],
     pub anchor_of_vertex: &'a [Option<(AnchorTarget, Vec3)>],
+    /// Per vertex, its soft pair's point and confidence (empty: none).
+    pub soft_pairs: &'a [Option<(Vec3, f32)>],
     pub curve_target_of_vertex: &'a [Option<Vec3>],
     pub unreliable: &'a [bool],
     /// Per vertex, its stiffness in [0, 1] (empty: [`NEUTRAL_STIFFNESS`] everywhere).
@@ -219,6 +223,8 @@ pub(crate) struct EnergySolver {
     unreliable: Vec<bool>,
     /// Per vertex, the factor on its data term (0: free, or stiff enough to keep the template).
     data_factors: Vec<f32>,
+    /// Per vertex, its soft pair's point and confidence (empty: none).
+    soft_pairs: Vec<Option<(Vec3, f32)>>,
     /// The mirror plane when some vertex slides on it, and per vertex whether it is held there.
     plane: Option<Plane>,
     on_plane: Vec<bool>,
@@ -349,6 +355,13 @@ impl EnergySolver {
             fixed_points,
             unreliable: inputs.unreliable.to_vec(),
             data_factors,
+            // Soft pairs steer the stiff levels of the global-to-local schedule; the local
+            // schedule (many anchors, a small change) has no need of them.
+            soft_pairs: if schedule == WrapSchedule::GlobalToLocal {
+                inputs.soft_pairs.to_vec()
+            } else {
+                Vec::new()
+            },
             plane: inputs
                 .plane
                 .filter(|_| inputs.on_plane.iter().any(|&held| held)),
@@ -524,6 +537,7 @@ impl EnergySolver {
         if self.stretches.is_some() && self.level < RECIPROCAL_LEVELS {
             keep_reciprocal(&self.positions, &mut correspondences, self.mean_edge_length);
         }
+        pull_soft_pairs(&self.soft_pairs, &mut correspondences, level.data_weight);
         // A point the safeguard held back last time has no data term now: the shape terms
         // alone move it, away from the fold the data pulled it into.
         for (correspondence, held) in correspondences.iter_mut().zip(&self.held_back) {
@@ -581,11 +595,11 @@ impl EnergySolver {
         }
         self.smooth_rotations(WARMUP_ROTATION_SMOOTHING)?;
         self.fit_scales(None)?;
-        let none = vec![None; self.positions.len()];
-        let mut proposed = self.global_solve(&none, 0.0)?;
+        let pulls = warm_up_pulls(&self.soft_pairs, self.positions.len());
+        let mut proposed = self.global_solve(&pulls, 1.0)?;
         self.keep_on_plane(&mut proposed);
         let (max_move, mean_move) = moves(&proposed, &self.positions);
-        let energy = self.energy_at(&proposed, &none, 0.0, &self.positions);
+        let energy = self.energy_at(&proposed, &pulls, 1.0, &self.positions);
         self.positions = proposed;
         self.iterations += 1;
         if self.iterations >= WARMUP_MAX_ITERATIONS
@@ -1328,6 +1342,7 @@ mod tests {
             rest,
             positions,
             anchor_of_vertex: anchors,
+            soft_pairs: &[],
             curve_target_of_vertex: &[],
             unreliable: &[],
             stiffness: &[],

@@ -9,6 +9,7 @@ pub mod linear_system;
 pub mod plane_constraint;
 pub mod settings;
 mod similarity;
+pub mod soft_pair;
 pub mod solver;
 mod system_assembly;
 
@@ -16,4 +17,5 @@ pub use anchor::{Anchor, AnchorTarget};
 pub use curve_constraint::CurveConstraint;
 pub use plane_constraint::PlaneConstraint;
 pub use settings::{WrapSchedule, WrapSettings, WrapWeights};
+pub use soft_pair::SoftPair;
 pub use solver::{StepReport, WrapSolver};

@@ -211,6 +211,23 @@ pub fn plane_target(cells: u32, scale: f32, hole_radius: f32) -> Arc<TargetMesh>
     Arc::new(TargetMesh::new(vertices, triangles, TargetMeshOptions::default()).unwrap())
 }
 
+/// Anchors of `vertices` on the target's closest points to their `points`.
+#[allow(dead_code)] // not every test binary uses every helper
+pub fn anchors_at(target: &TargetMesh, points: &[Vec3], vertices: &[u32]) -> Vec<Anchor> {
+    vertices
+        .iter()
+        .map(|&vertex| {
+            let hit = target
+                .closest_point(points[vertex as usize], f32::INFINITY)
+                .unwrap();
+            Anchor {
+                vertex,
+                target: AnchorTarget::Face(hit.face_point),
+            }
+        })
+        .collect()
+}
+
 pub fn anchors_below(target: &TargetMesh, positions: &[Vec3], vertices: &[u32]) -> Vec<Anchor> {
     vertices
         .iter()

@@ -412,7 +412,11 @@ class WrapSolver:
     gradients), no layout face turned more than 90 degrees from the template's orientation.
     ``stiffness`` (float32, one per layout vertex, 0 … 1: 0 follows the target freely, 0.5 the
     wrap's own balance, 1 keeps the template's shape) and ``free_vertices`` (bool, one per layout
-    vertex: no pull toward the target, they stay space-points).
+    vertex: no pull toward the target, they stay space-points),
+    and soft pairs (``soft_pair_vertices`` uint32, ``soft_pair_positions`` float32 (S, 3),
+    ``soft_pair_confidences`` float32 in (0, 1], all three or none: each vertex is pulled toward its
+    point in proportion to its confidence in the warm-up and the stiff levels of the global-to-local
+    schedule, then let go; not on an anchored vertex).
     """
 
     def __init__(
@@ -441,6 +445,9 @@ class WrapSolver:
         settings: WrapSettings | None = None,
         stiffness: npt.NDArray[np.float32] | None = None,
         free_vertices: npt.NDArray[np.bool_] | None = None,
+        soft_pair_vertices: npt.NDArray[np.uint32] | None = None,
+        soft_pair_positions: npt.NDArray[np.float32] | None = None,
+        soft_pair_confidences: npt.NDArray[np.float32] | None = None,
     ) -> None: ...
     def step(self, iterations: int) -> StepReport:
         """Run up to ``iterations`` iterations (fewer once converged), GIL released."""

@@ -1,5 +1,5 @@
 //! Building a wrap: the layout, its points and anchors, the settings, the rest shape, per-vertex
-//! stiffness, free vertices, unreliable triangles and curve constraints.
+//! stiffness, free vertices, soft pairs, unreliable triangles and curve constraints.
 
 use super::*;
 
@@ -175,6 +175,7 @@ impl WrapSolver {
             mean_edge_length,
             stiffness: Vec::new(),
             free: Vec::new(),
+            soft_pairs: Vec::new(),
             energy: None,
             reach,
             diverged: None,
@@ -227,6 +228,52 @@ impl WrapSolver {
             });
         }
         self.free = free;
+        Ok(self)
+    }
+
+    /// Adds soft pairs (see [`crate::wrap::soft_pair`]): each pulls its vertex toward its point
+    /// in proportion to its confidence during the warm-up and the stiff levels, and lets go
+    /// before the local fit, with the global-to-local schedule (the local one leaves them out).
+    ///
+    /// # Errors
+    /// [`KernelError::InvalidArgument`] for a pair on a vertex that does not exist, that is
+    /// anchored or that has another pair, or with a confidence outside (0, 1];
+    /// [`KernelError::NonFinite`], [`KernelError::CoordinateOutOfRange`] or
+    /// [`KernelError::BeyondReach`] for a bad point.
+    pub fn with_soft_pairs(mut self, pairs: &[SoftPair]) -> Result<Self, KernelError> {
+        let mut of_vertex = vec![None; self.structure.vertex_count];
+        for (index, pair) in pairs.iter().enumerate() {
+            let invalid = |reason: String| KernelError::InvalidArgument {
+                name: "soft pairs",
+                reason,
+            };
+            let slot = of_vertex.get_mut(pair.vertex as usize).ok_or_else(|| {
+                invalid(format!(
+                    "soft pair {index} is on vertex {}, but the layout has {} vertices",
+                    pair.vertex, self.structure.vertex_count
+                ))
+            })?;
+            if slot.is_some() || self.anchor_of_vertex[pair.vertex as usize].is_some() {
+                return Err(invalid(format!(
+                    "vertex {} has an anchor or another soft pair already",
+                    pair.vertex
+                )));
+            }
+            if !(pair.confidence > 0.0 && pair.confidence <= 1.0) {
+                return Err(invalid(format!(
+                    "soft pair {index} has confidence {}; it must be within (0, 1]",
+                    pair.confidence
+                )));
+            }
+            validate::check_coordinate("soft pair target", index, pair.target)?;
+            validate::check_within_reach("soft pair target", index, pair.target, self.reach)?;
+            *slot = Some((pair.target, pair.confidence));
+        }
+        self.soft_pairs = if pairs.is_empty() {
+            Vec::new()
+        } else {
+            of_vertex
+        };
         Ok(self)
     }
 

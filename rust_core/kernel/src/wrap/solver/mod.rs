@@ -20,6 +20,7 @@ use super::curve_constraint::{ArcLengthCurve, CurveConstraint, chain_fractions};
 use super::energy_solver::{EnergyInputs, EnergySolver};
 use super::plane_constraint::{Plane, PlaneConstraint};
 use super::settings::WrapSettings;
+use super::soft_pair::{SoftPair, SoftPairOfVertex};
 use crate::error::KernelError;
 use crate::face_point::{FacePoint, LayoutPoint};
 use crate::layout::LayoutStructure;
@@ -101,6 +102,8 @@ pub struct WrapSolver {
     stiffness: Vec<f32>,
     /// Per vertex, whether it has no pull toward the target (a socket, teeth); empty: none.
     free: Vec<bool>,
+    /// Per vertex, its soft pair's point and confidence; empty: none.
+    soft_pairs: SoftPairOfVertex,
     /// The energy solver, made at the first step.
     energy: Option<Box<EnergySolver>>,
     /// The region the points may reach: a centre and a radius (ten times the target's size and

@@ -48,6 +48,7 @@ impl WrapSolver {
                 rest: &self.rest,
                 positions: &self.positions,
                 anchor_of_vertex: &self.anchor_of_vertex,
+                soft_pairs: &self.soft_pairs,
                 curve_target_of_vertex: &self.curve_target_of_vertex,
                 unreliable: &self.unreliable,
                 stiffness: &self.stiffness,
