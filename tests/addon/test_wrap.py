@@ -526,6 +526,8 @@ def test_frame_pacer_gives_the_solver_its_share_of_the_measured_frame():
     assert pacer.next_count(100_000, 0.0001) == 1  # time left, less than an iteration: still one
     assert pacer.next_count(100_000, 0.0) == 0  # the frame's time is used
     assert pacer.next_count(0, 1.0) == 0
+    pacer.new_stage()  # a finer spring mesh: its iterations are measured again, from one
+    assert pacer.iteration_seconds is None and pacer.next_count(100_000, 0.02) == 1
     with pytest.raises(ValueError, match="solver_share"):
         FramePacer(solver_share=1.0)
 
@@ -550,6 +552,32 @@ def test_a_slow_display_gets_long_solving_frames_and_a_fast_one_short_ones():
     session.pacer.display_seconds = 0.0
     session.advance()
     assert session.total_iterations - slow_iterations < slow_iterations / 4  # a 1/30 s frame: much less work
+    session.cancel()
+    assert snapshot(layout) == before
+
+
+def test_the_fine_stage_starts_with_one_measured_iteration_not_the_coarse_stages_pace():
+    """A frame that ends the coarse stage (cheap iterations) does not run the fine one (many times dearer) to its end
+    on the coarse stage's cost: the fine stage's first call is one iteration, then what fits the frame."""
+    from springwrap.core.wrap_run import FramePacer
+
+    _target, layout, _normal = plane_scene()
+    bpy.ops.springwrap.anchors_auto(spacing=0.5)
+    before = snapshot(layout)
+    session = wrap_session(layout, paced=True, tolerance=1e-9, spring_resolution=6)
+    session.pacer = FramePacer(display_seconds=0.05)  # frames of about 0.075 s of solving
+    asked, step = [], session.step
+
+    def recorded(count):
+        report = step(count)
+        asked.append((session.stage, count))  # the stage the call ran in (a call may start the fine stage)
+        return report
+
+    session.step = recorded
+    while session.stage == "coarse" or len([stage for stage, _count in asked if stage == "fine"]) < 2:
+        session.advance()
+    first_fine = next(index for index, (stage, _count) in enumerate(asked) if stage == "fine")
+    assert asked[first_fine][1] == 1, asked
     session.cancel()
     assert snapshot(layout) == before
 

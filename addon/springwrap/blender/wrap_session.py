@@ -203,12 +203,7 @@ class WrapSession:
 
         When the coarse stage ends, the next call starts the fine one.
         """
-        if (
-            self.stage == "coarse"
-            and self.last_report is not None
-            and (self.last_report.converged or self.stage_iterations >= self.parameters.max_iterations)
-        ):
-            self.refine()
+        self._refine_if_due()
         iterations = min(int(iterations), self.parameters.max_iterations - self.stage_iterations)
         start = time.perf_counter()
         report = self.solver.step(max(iterations, 0))
@@ -217,6 +212,17 @@ class WrapSession:
             self.events[name] += getattr(report, name)
         self.last_report = report
         return report
+
+    def _refine_if_due(self) -> bool:
+        """Start the fine stage when the coarse one has ended (converged or at the limit); whether it started."""
+        if (
+            self.stage == "coarse"
+            and self.last_report is not None
+            and (self.last_report.converged or self.stage_iterations >= self.parameters.max_iterations)
+        ):
+            self.refine()
+            return True
+        return False
 
     def refine(self) -> None:
         """End the coarse stage: a solver on the layout's faces cut k x k, started where the coarse one ended."""
@@ -262,6 +268,8 @@ class WrapSession:
         deadline = time.perf_counter() + seconds
         report = None
         while report is None or not self.done:
+            if self._refine_if_due():
+                self.pacer.new_stage()  # the fine stage's iterations cost more: measured again from one
             now = time.perf_counter()
             remaining = self.parameters.max_iterations - self.stage_iterations
             count = self.pacer.next_count(remaining, deadline - now)

@@ -160,6 +160,11 @@ class FramePacer:
             else:
                 self.iteration_seconds = 0.5 * self.iteration_seconds + 0.5 * per_iteration
 
+    def new_stage(self) -> None:
+        """Forget the cost of an iteration: the next stage's iterations (a finer spring mesh) cost another amount,
+        measured again from one iteration."""
+        self.iteration_seconds = None
+
     def record_display(self, seconds: float) -> None:
         """Account for the display between two frames (redraw and events), smoothed; the first one counts whole."""
         seconds = max(float(seconds), 0.0)
