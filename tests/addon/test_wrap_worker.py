@@ -80,7 +80,7 @@ def test_the_worker_finishes_where_a_synchronous_wrap_ends():
 
 @pytest.mark.parametrize("key", ["ESC", "RIGHTMOUSE"])
 def test_cancel_stops_the_worker_and_restores_the_layout_bit_for_bit(key):
-    target, layout, _normal = plane_scene()
+    target, layout, _normal = plane_scene(subdivisions=120)  # a wrap long enough to be stopped mid-way
     bpy.ops.springwrap.anchors_auto(spacing=0.5)
     before, anchors_before = snapshot(layout), anchor_snapshot(layout)
     loop = _threaded_loop(layout)
