@@ -380,6 +380,8 @@ def test_every_operator_is_in_the_catalogue():
 
 @pytest.mark.parametrize("operator", list(OPERATORS))
 def test_each_catalogue_call_finishes_on_the_healthy_scene(operator):
+    if operator == "export_sequence" and not (bpy.app.build_options.alembic or bpy.app.build_options.usd):
+        pytest.skip("this Blender was built without Alembic and USD (Debian's 3.4): Export Point Cache refuses")
     arguments, _reads = OPERATORS[operator]
     _scene_for(operator)
     assert _call(operator, arguments) == {"FINISHED"}

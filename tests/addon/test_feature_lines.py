@@ -58,8 +58,11 @@ def mark_sharp(layout, pairs):
     wanted = {tuple(sorted(pair)) for pair in pairs}
     mesh = layout.data
     flags = [tuple(sorted(edge.vertices)) in wanted for edge in mesh.edges]
-    attribute = mesh.attributes.get("sharp_edge") or mesh.attributes.new("sharp_edge", "BOOLEAN", "EDGE")
-    attribute.data.foreach_set("value", flags)
+    if bpy.app.version >= (4, 0, 0):
+        attribute = mesh.attributes.get("sharp_edge") or mesh.attributes.new("sharp_edge", "BOOLEAN", "EDGE")
+        attribute.data.foreach_set("value", flags)
+    else:  # Blender 3.x keeps sharpness as an edge flag
+        mesh.edges.foreach_set("use_edge_sharp", flags)
     mesh.update()
     assert sum(flags) == len(wanted)
 

@@ -153,6 +153,8 @@ def _proposed_then(operator):
 
 def _sequence_then_export():
     """Wrap two frames (the layout gets its sequence keys), then export them as a point cache."""
+    if not (bpy.app.build_options.alembic or bpy.app.build_options.usd):
+        pytest.skip("this Blender was built without Alembic and USD (Debian's 3.4): Export Point Cache refuses")
     assert bpy.ops.springwrap.wrap_sequence(use_scene_range=False, frame_start=1, frame_end=2) == {"FINISHED"}
     path = str(Path(tempfile.gettempdir()) / "springwrap-survives")
     file_format = "ALEMBIC" if bpy.app.build_options.alembic else "USD"
