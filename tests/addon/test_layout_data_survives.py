@@ -205,7 +205,7 @@ CASES = {
     "wrap_sequence": (_call("wrap_sequence", use_scene_range=False, frame_start=1, frame_end=2), READOUT),
     "export_sequence": (_sequence_then_export, set()),
     "detect_features": (_call("detect_features", scale=0.3), set()),
-    "feature_lines_pair": (_call("feature_lines_pair", use_seams=True, min_confidence=0.0), {CONSTRAINTS}),
+    "feature_lines_pair": (_call("feature_lines_pair", use_sharp=False, min_confidence=0.0), {CONSTRAINTS}),
     "fit_subdivision": (_call("fit_subdivision", rounds=2), set()),
     "select_problems": (_select_problems, SELECTION),
 }
