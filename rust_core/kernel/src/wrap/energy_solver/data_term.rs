@@ -1,0 +1,156 @@
+//! The data term: each vertex's closest target point, trusted or not (facing, not on a hole's border or an
+//! unreliable triangle), its tangent-plane projection and robust weight; the target's smoothed normals.
+
+use super::*;
+
+impl EnergySolver {
+    /// Per free vertex, its correspondence, or `None`; the closest-point queries start from each
+    /// vertex's last hit (and record the new one).
+    pub(super) fn correspondences(
+        &mut self,
+        normals: &[Vec3],
+        width: f32,
+    ) -> Vec<Option<Correspondence>> {
+        if width <= 0.0 {
+            return vec![None; self.positions.len()]; // folding off: nothing is drawn on
+        }
+        let found: Vec<(Option<Correspondence>, u32)> = (0..self.positions.len())
+            .into_par_iter()
+            .with_min_len(256)
+            .map_init(QueryState::default, |state, vertex| {
+                if self.fixed[vertex].is_some() || self.data_factors[vertex] == 0.0 {
+                    return (None, NO_TRIANGLE);
+                }
+                let position = self.positions[vertex];
+                let Some(hit) = self.target.closest_point_near(
+                    position,
+                    width * 3.0,
+                    self.last_hits[vertex],
+                    state,
+                ) else {
+                    return (None, NO_TRIANGLE);
+                };
+                let triangle = hit.face_point.triangle;
+                if !self.correspondence_trusted(&hit, normals[vertex]) {
+                    return (None, triangle);
+                }
+                let weight = (-(hit.distance * hit.distance) / (2.0 * width * width)).exp()
+                    * self.data_factors[vertex];
+                let normal = self.smoothed_normal(hit.face_point);
+                let face_normal = self.target.face_normals()[triangle as usize];
+                // The tangent plane of the triangle itself: the point is pulled onto the surface,
+                // not onto a smoothed plane beside it.
+                let plane_normal = if face_normal == Vec3::ZERO {
+                    normal
+                } else {
+                    face_normal
+                };
+                let mut projected =
+                    position - plane_normal * plane_normal.dot(position - hit.position);
+                if let Some(plane) = self.plane
+                    && self.on_plane.get(vertex).copied().unwrap_or(false)
+                {
+                    projected = plane.project(projected);
+                }
+                (Some((weight, projected)), triangle)
+            })
+            .collect();
+        let mut correspondences = Vec::with_capacity(found.len());
+        for (vertex, (correspondence, triangle)) in found.into_iter().enumerate() {
+            if triangle != NO_TRIANGLE {
+                self.last_hits[vertex] = triangle;
+            }
+            correspondences.push(correspondence);
+        }
+        correspondences
+    }
+
+    /// Whether a closest-point hit may pull or receive a point whose layout normal is `normal`:
+    /// not on an unreliable triangle, not on a boundary edge (a hole), and facing the way of the
+    /// target's smoothed normal there.
+    pub(super) fn correspondence_trusted(&self, hit: &SurfaceHit, normal: Vec3) -> bool {
+        self.surface_trusted(hit, normal, MIN_FACING)
+    }
+
+    /// [`Self::correspondence_trusted`] with the facing cosine `min_facing`.
+    pub(super) fn surface_trusted(&self, hit: &SurfaceHit, normal: Vec3, min_facing: f32) -> bool {
+        let triangle = hit.face_point.triangle;
+        if is_flagged(&self.unreliable, triangle) {
+            return false;
+        }
+        let neighbors = self.target.triangle_neighbors()[triangle as usize];
+        let barycentric = hit.face_point.barycentric.to_array();
+        // Edge e runs from corner e to corner e + 1: on it, the weight of corner e + 2 is 0.
+        if (0..3).any(|edge| neighbors[edge] == NO_TRIANGLE && barycentric[(edge + 2) % 3] <= 1e-5)
+        {
+            return false;
+        }
+        if normal == Vec3::ZERO {
+            return true;
+        }
+        let surface_normal = self.smoothed_normal(hit.face_point);
+        normal.dot(surface_normal) * self.orientation >= min_facing
+    }
+
+    /// The target's smoothed normal at a face-point.
+    pub(super) fn smoothed_normal(&self, face_point: FacePoint) -> Vec3 {
+        let corners = self.target.triangles()[face_point.triangle as usize];
+        let weights = face_point.barycentric;
+        (self.smoothed_normals[corners[0] as usize] * weights.x
+            + self.smoothed_normals[corners[1] as usize] * weights.y
+            + self.smoothed_normals[corners[2] as usize] * weights.z)
+            .normalize_or_zero()
+    }
+}
+
+/// The target's vertex normals averaged over a neighbourhood about `radius` wide (rounds of
+/// vertex → triangle → vertex averaging, as many as `(radius / mean target edge)²`).
+pub(super) fn smoothed_vertex_normals(target: &TargetMesh, radius: f32) -> Vec<Vec3> {
+    let vertices = target.vertices();
+    let triangles = target.triangles();
+    let mut normals = target.vertex_normals().to_vec();
+    let edge_sum: f64 = triangles
+        .par_iter()
+        .with_min_len(4096)
+        .map(|corners| {
+            f64::from(vertices[corners[0] as usize].distance(vertices[corners[1] as usize]))
+        })
+        .sum();
+    let target_edge = (edge_sum / triangles.len().max(1) as f64) as f32;
+    let ratio = if target_edge > 0.0 {
+        radius / target_edge
+    } else {
+        1.0
+    };
+    let rounds =
+        ((ratio * ratio) as usize).clamp(NORMAL_SMOOTHING_ROUNDS.0, NORMAL_SMOOTHING_ROUNDS.1);
+    let mut triangle_normals = vec![Vec3::ZERO; triangles.len()];
+    for _ in 0..rounds {
+        triangle_normals
+            .par_iter_mut()
+            .with_min_len(4096)
+            .zip(triangles.par_iter())
+            .for_each(|(normal, corners)| {
+                *normal = corners.iter().map(|&corner| normals[corner as usize]).sum();
+            });
+        let mut sums = vec![Vec3::ZERO; vertices.len()];
+        for (corners, normal) in triangles.iter().zip(&triangle_normals) {
+            for &corner in corners {
+                sums[corner as usize] += *normal;
+            }
+        }
+        normals = sums
+            .into_iter()
+            .zip(&normals)
+            .map(|(sum, old)| {
+                let smoothed = sum.normalize_or_zero();
+                if smoothed == Vec3::ZERO {
+                    *old
+                } else {
+                    smoothed
+                }
+            })
+            .collect();
+    }
+    normals
+}

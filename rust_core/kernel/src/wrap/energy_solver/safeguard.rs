@@ -1,0 +1,165 @@
+//! The safeguard: no corner of a layout face turns past the schedule's least alignment from its rest normal
+//! (turned by the layout's mean rotation); steps that would are halved, up to zero.
+
+use super::*;
+
+impl EnergySolver {
+    /// +1 when the layout's faces wind as the target's where they are close, -1 when the other
+    /// way (most layouts agree; a mirrored copy does not).
+    pub(super) fn measure_orientation(&self) -> f32 {
+        let normals = self.layout_normals(&self.positions);
+        let reach = self.mean_edge_length * 2.0;
+        let agreement: f32 = (0..self.positions.len())
+            .into_par_iter()
+            .with_min_len(256)
+            .filter_map(|vertex| {
+                let normal = normals[vertex];
+                if normal == Vec3::ZERO {
+                    return None;
+                }
+                let hit = self.target.closest_point(self.positions[vertex], reach)?;
+                Some(normal.dot(self.smoothed_normal(hit.face_point)))
+            })
+            .sum();
+        if agreement < 0.0 { -1.0 } else { 1.0 }
+    }
+
+    /// Unit layout normals at `positions`.
+    pub(super) fn layout_normals(&self, positions: &[Vec3]) -> Vec<Vec3> {
+        (0..positions.len() as u32)
+            .into_par_iter()
+            .with_min_len(2048)
+            .map(|vertex| {
+                self.structure
+                    .normal_at(positions, vertex)
+                    .normalize_or_zero()
+            })
+            .collect()
+    }
+
+    /// Per corner (a vertex and one face around it, in `structure.wedges` order), the cosine
+    /// between its normal and its rest normal turned by the layout's frame (0 when degenerate).
+    pub(super) fn corner_orientations(&self, positions: &[Vec3]) -> Vec<f32> {
+        let structure = &self.structure;
+        (0..positions.len() as u32)
+            .into_par_iter()
+            .with_min_len(1024)
+            .flat_map_iter(|vertex| {
+                structure
+                    .wedge_range(vertex)
+                    .map(move |corner| self.corner_alignment(vertex, corner, positions))
+            })
+            .collect()
+    }
+
+    /// The cosine between corner `corner` (of vertex `owner`) at `positions` and its rest
+    /// normal turned by the layout's frame (0 when degenerate).
+    pub(super) fn corner_alignment(&self, owner: u32, corner: usize, positions: &[Vec3]) -> f32 {
+        let (previous, next) = self.structure.wedges[corner];
+        let here = positions[owner as usize];
+        (positions[next as usize] - here)
+            .cross(positions[previous as usize] - here)
+            .normalize_or_zero()
+            .dot(self.frame * self.rest_corner_normals[corner])
+    }
+
+    /// The vertices of corners that turn away from their frame at `positions`: below
+    /// the schedule's least alignment and less aligned than in `before`.
+    pub(super) fn turned_corners(&self, before: &[f32], positions: &[Vec3]) -> Vec<u32> {
+        let after = self.corner_orientations(positions);
+        let structure = &self.structure;
+        let mut vertices = Vec::new();
+        for vertex in 0..positions.len() {
+            for corner in structure.wedge_range(vertex as u32) {
+                if turned(before[corner], after[corner], self.min_alignment) {
+                    let (previous, next) = structure.wedges[corner];
+                    vertices.extend([vertex as u32, previous, next]);
+                }
+            }
+        }
+        vertices.sort_unstable();
+        vertices.dedup();
+        vertices
+    }
+
+    /// Whether `positions` turn a corner (as [`Self::turned_corners`] judges against `before`)
+    /// among the corners that `vertex` belongs to: its own and its neighbours'.
+    pub(super) fn turns_corner_around(
+        &self,
+        vertex: u32,
+        before: &[f32],
+        positions: &[Vec3],
+    ) -> bool {
+        let structure = &self.structure;
+        let turns = |owner: u32, corner: usize| {
+            turned(
+                before[corner],
+                self.corner_alignment(owner, corner, positions),
+                self.min_alignment,
+            )
+        };
+        let own = structure
+            .wedge_range(vertex)
+            .any(|corner| turns(vertex, corner));
+        own || structure.neighbors_of(vertex).iter().any(|&other| {
+            structure.wedge_range(other).any(|corner| {
+                let (previous, next) = structure.wedges[corner];
+                (previous == vertex || next == vertex) && turns(other, corner)
+            })
+        })
+    }
+
+    /// The proposed positions with the steps of vertices around turning corners halved until
+    /// none turns (after [`BACKTRACK_HALVINGS`] halvings a step is not taken at all); and how many
+    /// vertices were held back. Only a corner turned by constrained vertices alone can remain.
+    pub(super) fn safeguard(&self, proposed: &[Vec3]) -> (Vec<Vec3>, usize) {
+        let before = self.corner_orientations(&self.positions);
+        let mut fractions = vec![1.0f32; proposed.len()];
+        let mut candidate = proposed.to_vec();
+        for round in 0.. {
+            let mut changed = false;
+            for vertex in self.turned_corners(&before, &candidate) {
+                let vertex = vertex as usize;
+                if self.fixed[vertex].is_some() || fractions[vertex] == 0.0 {
+                    continue;
+                }
+                fractions[vertex] = if round >= BACKTRACK_HALVINGS {
+                    0.0
+                } else {
+                    fractions[vertex] * 0.5
+                };
+                candidate[vertex] = self.positions[vertex]
+                    + (proposed[vertex] - self.positions[vertex]) * fractions[vertex];
+                changed = true;
+            }
+            if !changed {
+                break;
+            }
+        }
+        let held_back = fractions.iter().filter(|&&fraction| fraction < 1.0).count();
+        (candidate, held_back)
+    }
+}
+
+/// Whether a corner aligned `before` with its frame has turned at `after`: beyond
+/// `min_alignment` and further from its frame than it was.
+fn turned(before: f32, after: f32, min_alignment: f32) -> bool {
+    after < min_alignment && after < before
+}
+
+/// Per corner (a vertex and one face around it, in `structure.wedges` order), its normal at
+/// `positions` (twice the corner triangle's area long; the faces' winding).
+pub(super) fn corner_normals(structure: &LayoutStructure, positions: &[Vec3]) -> Vec<Vec3> {
+    (0..positions.len())
+        .into_par_iter()
+        .with_min_len(1024)
+        .flat_map_iter(|vertex| {
+            let here = positions[vertex];
+            structure.wedges[structure.wedge_range(vertex as u32)]
+                .iter()
+                .map(move |&(previous, next)| {
+                    (positions[next as usize] - here).cross(positions[previous as usize] - here)
+                })
+        })
+        .collect()
+}
