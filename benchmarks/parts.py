@@ -63,7 +63,26 @@ NEAR_PARTS = 0.05
 CLOSE_SKIN = 0.005
 """The skin a piece follows most closely: body vertices of the template within this distance (metres) of it."""
 ANCHORS = 24
-METHODS = ("aligned template", "wrap, body alone", "wrap, parts pulled", "wrap, Free group", "wrap (defaults)")
+METHODS = (
+    "aligned template",
+    "wrap, body alone",
+    "wrap, parts pulled",
+    "wrap, Free group",
+    "wrap (defaults)",
+    "wrap + feature pairing",
+)
+LIP_LOOPS = ((468, 7224), (474, 7229), (520, 7267))
+"""The lips' edge loops, each by two of its ``base.obj`` vertices (a midline vertex and the next one to the left):
+the lips' rim, the loop where the closed lips meet, the first loop inside the mouth. Each is a closed quad loop
+round the mouth (38 vertices)."""
+EYELID_LOOPS = ((0, 1), (1081, 1082), (6784, 6785), (7773, 7774))
+"""The eyelids' margin loops of both eyes, each by two of its ``base.obj`` vertices: the front and back edges of
+the lid margin (the layout's sharpest creases of the face), each a closed quad loop round the eye (28 vertices)."""
+HEAD_BELOW_NOSE = 0.20
+"""The head: body vertices of the template at most this far (metres) below the tip of the nose (its most forward
+vertex in the top 15 % of the height)."""
+FACE_CASES = {"face-expression": "MakeHuman body -> mouth open, its corners pulled, left eye closed"}
+"""Cases of this benchmark beside the retargeting benchmark's (their morphs are ``cases.MORPHS``'s)."""
 
 
 def parse_arguments(argv: list[str]) -> argparse.Namespace:
@@ -98,6 +117,47 @@ def layout_with_parts(cache=None) -> dict:
     }
 
 
+def edge_loop(quads: np.ndarray, start: int, following: int) -> np.ndarray:
+    """The vertices of the quad edge loop from ``start`` through ``following`` (straight on through every vertex of
+    four edges, until it closes or meets another vertex)."""
+    edges = np.sort(np.stack([quads, np.roll(quads, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
+    faces = np.repeat(np.arange(len(quads)), 4)
+    faces_of: dict[tuple[int, int], set] = {}
+    neighbours: dict[int, set] = {}
+    for (a, b), face in zip(edges.tolist(), faces.tolist()):
+        faces_of.setdefault((a, b), set()).add(face)
+        neighbours.setdefault(a, set()).add(b)
+        neighbours.setdefault(b, set()).add(a)
+    path = [start, following]
+    while len(path) <= len(neighbours):
+        previous, here = path[-2], path[-1]
+        beside = faces_of[(min(previous, here), max(previous, here))]
+        ahead = [n for n in neighbours[here] if n != previous and not faces_of[(min(n, here), max(n, here))] & beside]
+        if len(neighbours[here]) != 4 or len(ahead) != 1 or ahead[0] == start:
+            break
+        path.append(ahead[0])
+    return np.array(path, dtype=np.int64)
+
+
+def face_regions(template: np.ndarray, layout: dict) -> dict:
+    """(B,) bool masks of the body: ``lips`` and ``eyelids`` (their loops, :data:`LIP_LOOPS`,
+    :data:`EYELID_LOOPS`) and ``head`` (within :data:`HEAD_BELOW_NOSE` below the tip of the nose)."""
+    body = layout["body_count"]
+    quads = layout["quads"][np.all(layout["quads"] < body, axis=1)]
+    position = {int(index): order for order, index in enumerate(layout["indices"][:body].tolist())}
+    regions = {}
+    for name, seeds in (("lips", LIP_LOOPS), ("eyelids", EYELID_LOOPS)):
+        mask = np.zeros(body, dtype=bool)
+        for start, following in seeds:
+            mask[edge_loop(quads, position[start], position[following])] = True
+        regions[name] = mask
+    height = template[:body, 1]
+    upper = height >= height.min() + 0.85 * np.ptp(height)
+    nose_tip = template[:body][upper][int(np.argmax(template[:body, 2][upper]))]
+    regions["head"] = template[:body, 1] >= nose_tip[1] - HEAD_BELOW_NOSE
+    return regions
+
+
 def close_skin(template: np.ndarray, layout: dict) -> dict:
     """Per part group, (B,) bool the body vertices of ``template`` within :data:`CLOSE_SKIN` of the group."""
     body = layout["body_count"]
@@ -127,10 +187,16 @@ def true_surface_follow(aligned: np.ndarray, truth: np.ndarray, layout: dict) ->
 
 
 def errors_of(
-    positions: np.ndarray, truth: np.ndarray, layout: dict, diagonal: float, near: np.ndarray, close: dict | None = None
+    positions: np.ndarray,
+    truth: np.ndarray,
+    layout: dict,
+    diagonal: float,
+    near: np.ndarray,
+    close: dict | None = None,
+    regions: dict | None = None,
 ) -> dict:
     """The method's errors (see the module's docstring), in % of ``diagonal``; per piece also the mean error of the
-    skin ``close`` to it, when given."""
+    skin ``close`` to it, and the face's (:func:`face_regions`) when given."""
     error = 100.0 * np.linalg.norm(positions - truth, axis=1) / diagonal
     body = layout["body_count"]
     parts = error[body:]
@@ -141,6 +207,17 @@ def errors_of(
         "parts_max": float(parts.max()),
         "pieces": {},
     }
+    if regions is not None:
+        head = error[:body][regions["head"]]
+        result["face"] = {
+            "head_mean": float(head.mean()),
+            "head_p95": float(np.percentile(head, 95)),
+            "head_max": float(head.max()),
+            "lips_mean": float(error[:body][regions["lips"]].mean()),
+            "lips_max": float(error[:body][regions["lips"]].max()),
+            "eyelids_mean": float(error[:body][regions["eyelids"]].mean()),
+            "eyelids_max": float(error[:body][regions["eyelids"]].max()),
+        }
     for group in PART_GROUPS:
         members = layout["groups"] == group
         result["pieces"][group] = {"mean": float(parts[members].mean()), "max": float(parts[members].max())}
@@ -164,7 +241,8 @@ def run_case(name: str, layout: dict) -> dict:
     from benchmarks.retarget.baselines import mesh_object, read_positions
     from benchmarks.retarget.springwrap_methods import _add_anchors, _call, _select_only
 
-    case, _cached = cases.get_case(cases.case_specs([name])[0])
+    spec = cases.CaseSpec(name, "anny", name, description=FACE_CASES[name]) if name in FACE_CASES else None
+    case, _cached = cases.get_case(spec or cases.case_specs([name])[0])
     morphed = cases.morphed(layout["base_vertices"], case.spec.morph)
     placement = cases.similarity_matrix(**cases.PLACEMENT)
     truth = cases.transform_points(placement, morphed[layout["indices"]])
@@ -178,6 +256,7 @@ def run_case(name: str, layout: dict) -> dict:
     distance = np.min(np.linalg.norm(template[:body, None, :] - part_rest[None, ::4, :], axis=2), axis=1)
     near = distance < NEAR_PARTS
     close = close_skin(template, layout)
+    regions = face_regions(template, layout)
     target_mesh = bpy.data.meshes.new("target")
     target_mesh.from_pydata(case.target_vertices.astype(np.float64).tolist(), [], case.target_triangles.tolist())
     target = bpy.data.objects.new("Target", target_mesh)
@@ -201,7 +280,7 @@ def run_case(name: str, layout: dict) -> dict:
         notes = ""
         if method != "aligned template":
             settings = layout_object.springwrap
-            settings.find_parts = method == "wrap (defaults)"
+            settings.find_parts = method in ("wrap (defaults)", "wrap + feature pairing")
             if method == "wrap, Free group":
                 group = layout_object.vertex_groups.new(name="Parts")
                 group.add(list(range(body, len(template))), 1.0, "REPLACE")
@@ -210,17 +289,21 @@ def run_case(name: str, layout: dict) -> dict:
             output = _call("wrap", bpy.ops.springwrap.wrap)
             found = re.search(r"Parts: [^\n]*", output)
             notes = found.group(0) if found else ""
+            if method == "wrap + feature pairing":  # the defaults' wrap, its feature lines paired, wrapped again
+                paired = _call("feature_lines_pair", bpy.ops.springwrap.feature_lines_pair)
+                notes = paired.strip().splitlines()[-1]
+                _call("wrap", bpy.ops.springwrap.wrap)
         positions = read_positions(layout_object.data)
         if alone:  # the parts where Align left them: only the body's numbers count
             positions = np.concatenate([positions, aligned[body:]])
-        entry = errors_of(positions, truth, layout, diagonal, near, close)
+        entry = errors_of(positions, truth, layout, diagonal, near, close, regions)
         if alone:
-            entry = {key: entry[key] for key in ("body_mean", "near_parts_mean")}
+            entry = {key: entry[key] for key in ("body_mean", "near_parts_mean", "face")}
         entry |= {"seconds": time.perf_counter() - start, "notes": notes}
         record["methods"][method] = entry
         print(
             f"{name:10s} {method:22s} "
-            + " ".join(f"{key} {value:.3f}" for key, value in entry.items() if isinstance(value, float)),
+            + " ".join(f"{key} {value:.3f}" for key, value in (entry | entry["face"]).items() if isinstance(value, float)),
             flush=True,
         )
         if notes:

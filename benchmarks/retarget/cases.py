@@ -115,6 +115,12 @@ MORPHS: dict[str, tuple[tuple[str, float], ...]] = {
         ("expression/units/caucasian/eyebrows-left-up.target.gz", 1.0),
         ("expression/units/caucasian/eyebrows-right-up.target.gz", 1.0),
     ),
+    # a face expression: mouth open, its corners pulled, the left eye closed (the parts benchmark's face case)
+    "face-expression": (
+        ("expression/units/caucasian/mouth-open.target.gz", 1.0),
+        ("expression/units/caucasian/mouth-corner-puller.target.gz", 1.0),
+        ("expression/units/caucasian/eye-left-closure.target.gz", 1.0),
+    ),
 }
 
 
