@@ -112,7 +112,8 @@ def target_curves(feature_curves, target_positions, triangles) -> list:
 def pair_lines(lines, current, curves_found, anchored, existing, max_distance: float, **settings) -> Pairing:
     """Pair ``lines`` with ``curves_found`` (:func:`target_curves`) under the current fit (``current``, (N, 3)
     world positions). A paired line whose vertices (``anchored`` ones excepted) already follow one of
-    ``existing`` constraints stays free. ``settings``: ``max_angle`` (degrees), ``min_confidence``."""
+    ``existing`` constraints, or a more confident pair of this call (lines that cross), stays free.
+    ``settings``: ``max_angle`` (degrees), ``min_confidence``."""
     outcomes = springwrap_kernel.pair_feature_lines(
         np.ascontiguousarray(current, dtype=np.float32),
         [(np.ascontiguousarray(line.vertices, dtype=np.uint32), line.closed, line.kind) for line in lines],
@@ -120,20 +121,24 @@ def pair_lines(lines, current, curves_found, anchored, existing, max_distance: f
         max_distance=float(max_distance),
         **settings,
     )
-    constraints, free = [], []
+    accepted, free = {}, []
     held = curves.constrained_vertices(existing, anchored)
-    for line, outcome in zip(lines, outcomes):
+    order = sorted(range(len(lines)), key=lambda index: -(outcomes[index].confidence or 0.0))
+    for index in order:
+        line, outcome = lines[index], outcomes[index]
         if outcome.curve is None:
-            free.append((line, outcome.reason))
+            free.append((index, line, outcome.reason))
             continue
         chain = np.asarray(outcome.chain, dtype=np.int64)
         if any(vertex in held and not anchored[vertex] for vertex in chain.tolist()):
-            free.append((line, "CONSTRAINED"))
+            free.append((index, line, "CONSTRAINED"))
             continue
-        constraints.append(
-            curves.make_constraint(chain, outcome.target, curves.FEATURE_LINE, confidence=float(outcome.confidence))
+        held |= {vertex for vertex in chain.tolist() if not anchored[vertex]}
+        accepted[index] = curves.make_constraint(
+            chain, outcome.target, curves.FEATURE_LINE, confidence=float(outcome.confidence)
         )
-    return Pairing(constraints, free)
+    free.sort(key=lambda item: item[0])
+    return Pairing([accepted[index] for index in sorted(accepted)], [(line, reason) for _index, line, reason in free])
 
 
 def automatic_distance(median_edge: float) -> float:
