@@ -2,7 +2,8 @@
 layout, onto a voxel-remeshed morph of the body alone, with the template moved, turned and scaled, aligned from
 anchors (similarity, no ICP) and wrapped.
 
-    .venv/bin/python benchmarks/parts.py [--cases heavy head-nose] [--json out/bench/parts.json]
+    .venv/bin/python benchmarks/parts.py [--cases heavy head-nose expression face-expression]
+        [--json out/bench/parts.json]
 
 The layout is ``base.obj``'s ``body`` group (its vertices first, in the body's own order, so the body cases'
 landmarks name the same vertices) followed by the helper groups of :data:`PART_GROUPS` (756 vertices); the
@@ -18,12 +19,18 @@ first landmarks, each at its true place, snapped to the target as a click does) 
 - ``wrap, parts pulled``: ``springwrap.wrap`` with Find Parts off (every vertex pulled onto the target, as a
   wrap without parts did);
 - ``wrap, Free group``: the same with the part vertices in the Free group (not pulled, not moved);
-- ``wrap (defaults)``: the wrap with its defaults: Find Parts on, no group set by hand.
+- ``wrap (defaults)``: the wrap with its defaults: Find Parts on, no group set by hand;
+- ``wrap twice``: that result wrapped again (the same two wraps as the next, without the pairing);
+- ``wrap + feature pairing``: ``springwrap.feature_lines_pair`` with its defaults (the layout's creases and
+  borders with the target's ridges, valleys and hole borders) between the two wraps.
 
 Errors are distances to the true positions in % of the truth's bounding-box diagonal (the body's): the body's
 mean, the skin within 5 cm of the parts (body vertices of the template within :data:`NEAR_PARTS` of a part
 vertex), the parts' mean and max, and per piece; the eyeballs' shape change (the largest change of a vertex's
-distance to its eyeball's centre, relative to the mean, in % of the radius). :func:`markdown` writes the section
+distance to its eyeball's centre, relative to the mean, in % of the radius); and the face's (:func:`face_regions`):
+the head's mean, p95 and max, the lips' and eyelids' edge loops' mean and max. Besides the retargeting
+benchmark's cases, :data:`FACE_CASES` (``face-expression``: mouth open, its corners pulled, the left eye closed).
+:func:`markdown` writes the section
 of ``docs/benchmarks.md`` (``benchmarks/report.py --parts``).
 """
 
@@ -69,8 +76,11 @@ METHODS = (
     "wrap, parts pulled",
     "wrap, Free group",
     "wrap (defaults)",
+    "wrap twice",
     "wrap + feature pairing",
 )
+PAIRING_METHODS = ("wrap twice", "wrap + feature pairing")
+"""The methods that wrap twice: without and with ``springwrap.feature_lines_pair`` (its defaults) in between."""
 LIP_LOOPS = ((468, 7224), (474, 7229), (520, 7267))
 """The lips' edge loops, each by two of its ``base.obj`` vertices (a midline vertex and the next one to the left):
 the lips' rim, the loop where the closed lips meet, the first loop inside the mouth. Each is a closed quad loop
@@ -280,7 +290,7 @@ def run_case(name: str, layout: dict) -> dict:
         notes = ""
         if method != "aligned template":
             settings = layout_object.springwrap
-            settings.find_parts = method in ("wrap (defaults)", "wrap + feature pairing")
+            settings.find_parts = method in ("wrap (defaults)", *PAIRING_METHODS)
             if method == "wrap, Free group":
                 group = layout_object.vertex_groups.new(name="Parts")
                 group.add(list(range(body, len(template))), 1.0, "REPLACE")
@@ -289,9 +299,10 @@ def run_case(name: str, layout: dict) -> dict:
             output = _call("wrap", bpy.ops.springwrap.wrap)
             found = re.search(r"Parts: [^\n]*", output)
             notes = found.group(0) if found else ""
-            if method == "wrap + feature pairing":  # the defaults' wrap, its feature lines paired, wrapped again
+            if method == "wrap + feature pairing":  # the defaults' wrap, its feature lines paired
                 paired = _call("feature_lines_pair", bpy.ops.springwrap.feature_lines_pair)
                 notes = paired.strip().splitlines()[-1]
+            if method in PAIRING_METHODS:
                 _call("wrap", bpy.ops.springwrap.wrap)
         positions = read_positions(layout_object.data)
         if alone:  # the parts where Align left them: only the body's numbers count
@@ -303,7 +314,9 @@ def run_case(name: str, layout: dict) -> dict:
         record["methods"][method] = entry
         print(
             f"{name:10s} {method:22s} "
-            + " ".join(f"{key} {value:.3f}" for key, value in (entry | entry["face"]).items() if isinstance(value, float)),
+            + " ".join(
+                f"{key} {value:.3f}" for key, value in (entry | entry["face"]).items() if isinstance(value, float)
+            ),
             flush=True,
         )
         if notes:
@@ -368,6 +381,7 @@ def markdown(result: dict) -> list[str]:
                 f"{entry['parts_mean']:.3f} | {entry['parts_max']:.3f} | {entry['eye_shape_change']:.2f} |"
             )
     lines += ["", *aims(result)]
+    lines += face_table(result)
     lines += [
         "",
         "Per piece, the wrap with its defaults (mean / max %); below each case, the mean error of the wrapped skin "
@@ -395,6 +409,46 @@ def markdown(result: dict) -> list[str]:
     if notes:
         lines += ["", "What the wrap reported:", "", *notes]
     lines.append("")
+    return lines
+
+
+def face_table(result: dict) -> list[str]:
+    """The face's errors per case and method (head mean and p95, lip and eyelid loops) and what the feature pairing
+    changed against wrapping twice without it (ratios above 1: lower with the pairing)."""
+    rows = [
+        (record["case"], method, entry["face"])
+        for record in result["cases"]
+        for method, entry in record["methods"].items()
+        if "face" in entry
+    ]
+    if not rows:
+        return []
+    lines = [
+        "",
+        f"The face: the head (body vertices at most {100 * HEAD_BELOW_NOSE:g} cm below the tip of the nose), the "
+        f"lips' {len(LIP_LOOPS)} edge loops (rim, where the lips meet, first loop inside) and the eyelids' "
+        f"{len(EYELID_LOOPS)} margin loops; errors in % of the diagonal. *Wrap twice* wraps the result of the "
+        "defaults again; *wrap + feature pairing* runs Pair Feature Lines (its defaults) between the two wraps.",
+        "",
+        "| case | method | head mean % | head p95 % | head max % | lips mean % | lips max % | eyelids mean % |",
+        "| :--- | :--- | ---: | ---: | ---: | ---: | ---: | ---: |",
+    ]
+    for case, method, face in rows:
+        lines.append(
+            f"| {case} | {method} | {face['head_mean']:.3f} | {face['head_p95']:.3f} | {face['head_max']:.3f} | "
+            f"{face['lips_mean']:.3f} | {face['lips_max']:.3f} | {face['eyelids_mean']:.3f} |"
+        )
+    lines += [""]
+    for record in result["cases"]:
+        without = record["methods"].get("wrap twice", {}).get("face")
+        paired = record["methods"].get("wrap + feature pairing", {}).get("face")
+        if without is None or paired is None:
+            continue
+        ratios = ", ".join(
+            f"{label} {without[key] / paired[key]:.2f}×"
+            for label, key in (("lips", "lips_mean"), ("eyelids", "eyelids_mean"), ("head p95", "head_p95"))
+        )
+        lines.append(f"- {record['case']}: without / with the feature pairing: {ratios} (aim: 1.5× on one of them).")
     return lines
 
 

@@ -1,6 +1,8 @@
 """The parts benchmark's Markdown (``benchmarks/parts.py``) and its place in ``docs/benchmarks.md``
 (``benchmarks/report.py --only-parts``), on made-up results: fast, no Blender."""
 
+import numpy as np
+
 from benchmarks import parts, report
 
 
@@ -60,3 +62,49 @@ def test_the_section_is_put_in_place_or_replaced():
     assert once.index("## Parts that follow the surface") < once.index("## Performance")
     assert "## Few anchors\n\nx" in once and once.endswith("y\n")
     assert report.splice_section(once, section) == once
+
+
+def face(head_p95, lips, eyelids):
+    return {
+        "head_mean": 0.2,
+        "head_p95": head_p95,
+        "head_max": 1.0,
+        "lips_mean": lips,
+        "lips_max": 0.9,
+        "eyelids_mean": eyelids,
+        "eyelids_max": 0.3,
+    }
+
+
+def test_the_face_table_gives_the_pairing_ratios_against_wrapping_twice():
+    result = {
+        **RESULT,
+        "cases": [
+            {
+                "case": "face-expression",
+                "methods": {
+                    "wrap, body alone": {"body_mean": 0.1, "near_parts_mean": 0.2, "face": face(0.7, 0.3, 0.2)},
+                    "wrap twice": entry(0.1, 0.2, 0.2, 0.9) | {"face": face(0.8, 0.3, 0.18)},
+                    "wrap + feature pairing": entry(0.1, 0.2, 0.2, 0.9) | {"face": face(0.4, 0.2, 0.2)},
+                },
+            }
+        ],
+    }
+    text = "\n".join(parts.markdown(result))
+    assert "| face-expression | wrap twice | 0.200 | 0.800 | 1.000 | 0.300 | 0.900 | 0.180 |" in text
+    assert "| face-expression | wrap, body alone | 0.200 | 0.700 |" in text
+    assert "without / with the feature pairing: lips 1.50×, eyelids 0.90×, head p95 2.00×" in text
+    assert "head mean %" not in "\n".join(parts.markdown(RESULT))  # no face measured: no face table
+
+
+def tube(around=6, along=4):
+    """Quads of a tube: ``around`` vertices a ring, ``along`` rings (vertex a + around * r)."""
+    index = np.arange(around * along).reshape(along, around)
+    following = np.roll(index, -1, axis=1)
+    return np.stack([index[:-1], following[:-1], following[1:], index[1:]], axis=-1).reshape(-1, 4)
+
+
+def test_an_edge_loop_goes_round_a_ring_and_stops_at_a_border():
+    quads = tube()
+    np.testing.assert_array_equal(parts.edge_loop(quads, 6, 7), [6, 7, 8, 9, 10, 11])  # an inner ring closes
+    np.testing.assert_array_equal(parts.edge_loop(quads, 7, 13), [7, 13, 19])  # across: ends on the border
