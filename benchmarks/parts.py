@@ -49,7 +49,7 @@ if str(REPOSITORY_ROOT) not in sys.path:
     sys.path.insert(0, str(REPOSITORY_ROOT))
 
 DEFAULT_JSON = REPOSITORY_ROOT / "out" / "bench" / "parts.json"
-DEFAULT_CASES = ("heavy", "head-nose")
+DEFAULT_CASES = ("heavy", "head-nose", "expression", "face-expression")
 PART_GROUPS = (
     "helper-l-eye",
     "helper-r-eye",
