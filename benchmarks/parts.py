@@ -22,7 +22,8 @@ first landmarks, each at its true place, snapped to the target as a click does) 
 - ``wrap (defaults)``: the wrap with its defaults: Find Parts on, no group set by hand;
 - ``wrap twice``: that result wrapped again (the same two wraps as the next, without the pairing);
 - ``wrap + feature pairing``: ``springwrap.feature_lines_pair`` with its defaults (the layout's creases and
-  borders with the target's ridges, valleys and hole borders) between the two wraps.
+  borders with the target's ridges, valleys and hole borders) between the two wraps;
+- ``wrap, lower lip anchored``: the defaults with one anchor more, the lower lip's midline (:data:`LOWER_LIP`).
 
 Errors are distances to the true positions in % of the truth's bounding-box diagonal (the body's): the body's
 mean, the skin within 5 cm of the parts (body vertices of the template within :data:`NEAR_PARTS` of a part
@@ -78,7 +79,11 @@ METHODS = (
     "wrap (defaults)",
     "wrap twice",
     "wrap + feature pairing",
+    "wrap, lower lip anchored",
 )
+LOWER_LIP = 493
+"""``base.obj``'s midline vertex of the lower lip where the lips meet: the one more anchor of ``wrap, lower lip
+anchored`` (at its true place), what a user anchoring an open mouth would add."""
 PAIRING_METHODS = ("wrap twice", "wrap + feature pairing")
 """The methods that wrap twice: without and with ``springwrap.feature_lines_pair`` (its defaults) in between."""
 LIP_LOOPS = ((468, 7224), (474, 7229), (520, 7267))
@@ -283,14 +288,17 @@ def run_case(name: str, layout: dict) -> dict:
         layout_object = mesh_object(method, moved if aligned is None else positions, quads)
         layout_object.springwrap.target = target
         _select_only(layout_object)
-        _add_anchors(layout_object, marks.vertices, case.true_positions[marks.vertices])
+        anchored = marks.vertices
+        if method == "wrap, lower lip anchored":
+            anchored = np.append(anchored, int(np.flatnonzero(layout["indices"][:body] == LOWER_LIP)[0]))
+        _add_anchors(layout_object, anchored, case.true_positions[anchored])
         if aligned is None:
             _call("align", bpy.ops.springwrap.align, method="SIMILARITY", use_icp=False, apply="BAKE")
             aligned = read_positions(layout_object.data)
         notes = ""
         if method != "aligned template":
             settings = layout_object.springwrap
-            settings.find_parts = method in ("wrap (defaults)", *PAIRING_METHODS)
+            settings.find_parts = method in ("wrap (defaults)", "wrap, lower lip anchored", *PAIRING_METHODS)
             if method == "wrap, Free group":
                 group = layout_object.vertex_groups.new(name="Parts")
                 group.add(list(range(body, len(template))), 1.0, "REPLACE")
@@ -428,7 +436,9 @@ def face_table(result: dict) -> list[str]:
         f"The face: the head (body vertices at most {100 * HEAD_BELOW_NOSE:g} cm below the tip of the nose), the "
         f"lips' {len(LIP_LOOPS)} edge loops (rim, where the lips meet, first loop inside) and the eyelids' "
         f"{len(EYELID_LOOPS)} margin loops; errors in % of the diagonal. *Wrap twice* wraps the result of the "
-        "defaults again; *wrap + feature pairing* runs Pair Feature Lines (its defaults) between the two wraps.",
+        "defaults again; *wrap + feature pairing* runs Pair Feature Lines (its defaults) between the two wraps; "
+        "*wrap, lower lip anchored* is the defaults with one anchor more, on the lower lip's midline where the lips "
+        "meet.",
         "",
         "| case | method | head mean % | head p95 % | head max % | lips mean % | lips max % | eyelids mean % |",
         "| :--- | :--- | ---: | ---: | ---: | ---: | ---: | ---: |",
