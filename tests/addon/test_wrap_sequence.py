@@ -217,6 +217,25 @@ def test_later_frames_rest_in_the_previous_frame_or_the_template():
     assert_follows(layout, lambda frame: target)
 
 
+def test_template_frames_are_each_the_wrap_of_that_frame_alone():
+    """Later Frames: Template wraps every frame from the layout as it was before the sequence, so each key is the
+    shape a single wrap onto that frame gives, whatever the frames before it did."""
+    target, layout = sequence_scene()
+    run_sequence(warm_rest="TEMPLATE")
+    keys = {frame: key_positions(layout, f"Wrap {frame:04d}") for frame in FRAMES}
+    session_module = addon_module("blender.wrap_session")
+    parameters = addon_module("core.wrap_inputs").WrapParameters()
+    for frame in FRAMES[1:]:
+        bpy.context.scene.frame_set(frame)
+        alone = make_inner_layout(target, name=f"Alone {frame}")
+        session = session_module.WrapSession(bpy.context, alone, parameters)
+        session.run()
+        session.finish()
+        single = np.array([tuple(vertex.co) for vertex in alone.data.vertices], dtype=np.float32)
+        assert np.allclose(keys[frame], single, atol=1e-5), frame
+    assert not np.allclose(keys[FRAMES[-1]], keys[FRAMES[0]], atol=1e-3)
+
+
 @pytest.mark.parametrize(
     ("properties", "message"),
     [
