@@ -23,7 +23,7 @@ from ..core import follow, sequence, transforms
 from ..core.errors import ERRORS, LayoutError
 from ..core.sequence import FrameOutcome, SequenceResult
 from . import anchors as anchor_data
-from . import attributes
+from . import attributes, wrap_reads
 from . import layout as layout_data
 from . import target as target_data
 from .wrap_session import WrapSession
@@ -135,11 +135,13 @@ class SequenceRun:
         region = None
         before = None
         previous = None
+        reads = None
         if index > 0 and self.initial is not None:  # 'TEMPLATE': from the layout as it was, as frame 0
             previous = (attributes.take_snapshot(self.layout), _settings_snapshot(self.layout))
             _restore(self.layout, self.initial)
         elif index > 0:
-            before = layout_data.read_layout(self.layout)
+            reads = wrap_reads.read(self.context, self.layout, target)  # the session's reads too: read once
+            before = reads.arrays
             world = transforms.world_positions(before)
             same_topology = self.layout.springwrap.target_signature == target.signature
             region, _after = follow.changed_region(
@@ -149,7 +151,7 @@ class SequenceRun:
             if not region.any():
                 return FrameOutcome(frame, True, time.perf_counter() - start, 0, "")
         try:
-            session = WrapSession(self.context, self.layout, self.parameters, target=target, region=region)
+            session = WrapSession(self.context, self.layout, self.parameters, target=target, region=region, reads=reads)
         except Exception:
             if previous is not None:
                 _restore(self.layout, previous)
