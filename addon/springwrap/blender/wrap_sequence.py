@@ -151,7 +151,15 @@ class SequenceRun:
             if not region.any():
                 return FrameOutcome(frame, True, time.perf_counter() - start, 0, "")
         try:
-            session = WrapSession(self.context, self.layout, self.parameters, target=target, region=region, reads=reads)
+            session = WrapSession(
+                self.context,
+                self.layout,
+                self.parameters,
+                target=target,
+                region=region,
+                reads=reads,
+                template_share=follow.TEMPLATE_SHARE,
+            )
         except Exception:
             if previous is not None:
                 _restore(self.layout, previous)
