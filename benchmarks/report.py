@@ -1204,9 +1204,17 @@ def splice_section(document: str, section: list[str], before: str = "## Performa
     return "\n".join(lines).rstrip() + "\n"
 
 
+def sequence_section(result: dict) -> list[str]:
+    """The *Over time* section (``benchmarks/sequence.py``)."""
+    from benchmarks.sequence import markdown as sequence_markdown
+
+    return sequence_markdown(result)
+
+
 ONLY_SECTIONS = {
     "snap": (snap_section, "snap", "### Wrap speed against its aims"),
     "dense-target": (dense_target_section, "dense_target", "## Feature curves"),
+    "sequence": (sequence_section, "sequence", None),
 }
 """``--only``: the section's maker, the argument naming its JSON, and the heading it goes before when new."""
 
