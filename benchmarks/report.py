@@ -1171,10 +1171,7 @@ def build_document(
 
         lines += feature_lines_markdown(feature_lines) + [""]
     if sequence is not None:  # benchmarks/sequence.py
-        sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-        from benchmarks.sequence import markdown as sequence_markdown
-
-        lines += sequence_markdown(sequence)
+        lines += sequence_section(sequence)
     return "\n".join(lines).rstrip() + "\n"
 
 
@@ -1204,9 +1201,18 @@ def splice_section(document: str, section: list[str], before: str = "## Performa
     return "\n".join(lines).rstrip() + "\n"
 
 
+def sequence_section(result: dict) -> list[str]:
+    """The *Over time* section (``benchmarks/sequence.py``)."""
+    sys.path.insert(0, str(REPOSITORY_ROOT))
+    from benchmarks.sequence import markdown as sequence_markdown
+
+    return sequence_markdown(result)
+
+
 ONLY_SECTIONS = {
     "snap": (snap_section, "snap", "### Wrap speed against its aims"),
     "dense-target": (dense_target_section, "dense_target", "## Feature curves"),
+    "sequence": (sequence_section, "sequence", None),
 }
 """``--only``: the section's maker, the argument naming its JSON, and the heading it goes before when new."""
 

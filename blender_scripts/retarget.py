@@ -25,6 +25,8 @@ TRANSFER``, the default; ``REFUSE`` fails on such a template); ``--fit-subdivisi
 ``--sequence START END`` wraps at every frame of the target's animation instead (a .blend target: armature,
 shape keys, modifiers, a Mesh Sequence Cache), each frame from the previous one's result, as one keyed shape key
 per frame on the layout; the report's ``sequence`` block lists each frame's time and any frame that failed.
+``--point-cache F.abc`` (or ``.usd``, ``.usdc``, ``.usda``) also writes those frames as an Alembic or USD
+point cache (``springwrap.export_sequence``).
 
 Outputs: ``--output-blend F.blend`` (template, target and the retargeted layout), ``--output-obj
 F.obj`` (the retargeted layout alone) and ``--report F.json`` (metrics, timings, warnings). They are
@@ -127,6 +129,14 @@ def wrap_settings(arguments: argparse.Namespace):
             schedule=arguments.schedule.upper().replace("-", "_"),
         )
     )
+
+
+def point_cache_format(path: Path) -> str | None:
+    """The point-cache format a file name asks for by its suffix (``blender.point_cache.FORMATS``), None for
+    another suffix."""
+    formats = addon_module("blender.point_cache").FORMATS
+    suffix = Path(path).suffix.lower()
+    return next((name for name, suffixes in formats.items() if suffix in suffixes), None)
 
 
 def parse_arguments(argv: list[str]) -> argparse.Namespace:
@@ -240,6 +250,13 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
         "modifiers, a Mesh Sequence Cache), each frame from the previous one's result, one shape key per frame on "
         "the layout, keyed (--output-blend keeps them; the OBJ and the metrics are the first frame's)",
     )
+    parser.add_argument(
+        "--point-cache",
+        type=Path,
+        help="with --sequence: also write the layout's frames as a point cache here (springwrap.export_sequence: "
+        "Blender's own exporter, one sample of the vertex positions per frame), Alembic for .abc, USD for .usd, "
+        ".usdc or .usda",
+    )
     add_frame_arguments(parser)
     parser.add_argument("--output-blend", type=Path, help="save template, target and result here")
     parser.add_argument("--output-obj", type=Path, help="export the retargeted layout here")
@@ -265,7 +282,12 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     check_frame_arguments(parser, arguments)
     check_output_arguments(
         parser,
-        {"--output-blend": arguments.output_blend, "--output-obj": arguments.output_obj, "--report": arguments.report},
+        {
+            "--output-blend": arguments.output_blend,
+            "--output-obj": arguments.output_obj,
+            "--report": arguments.report,
+            "--point-cache": arguments.point_cache,
+        },
         [arguments.template, arguments.target, arguments.anchors],
     )
     if arguments.max_iterations < 1:
@@ -283,6 +305,14 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
             parser.error("--sequence START END: END must not come before START")
         if arguments.batch is not None or arguments.fit_subdivision is not None:
             parser.error("--sequence wraps one target over time: not with --batch or --fit-subdivision")
+    if arguments.point_cache is not None:
+        if arguments.sequence is None:
+            parser.error("--point-cache writes a sequence's frames: it needs --sequence START END")
+        if point_cache_format(arguments.point_cache) is None:
+            parser.error(
+                f"--point-cache {arguments.point_cache}: the file name must end with .abc (Alembic) or .usd, .usdc, "
+                ".usda (USD)"
+            )
     if arguments.jobs is not None and arguments.jobs < 1:
         parser.error("--jobs must be at least 1")
     if arguments.address is not None and arguments.executor != "ray":
@@ -480,7 +510,8 @@ def retarget(arguments: argparse.Namespace) -> dict:
     lap, warnings = Laps(), []
     timings = lap.timings
 
-    check_output_paths([arguments.output_blend, arguments.output_obj, arguments.report])  # before any work
+    point_cache = getattr(arguments, "point_cache", None)  # a batch's mesh has none (--batch refuses --sequence)
+    check_output_paths([arguments.output_blend, arguments.output_obj, arguments.report, point_cache])  # before work
     enable_addon()
     bpy.ops.wm.read_homefile(use_empty=True)
     frame = frame_matrix(arguments.up_axis, arguments.forward_axis)
@@ -624,9 +655,22 @@ def retarget(arguments: argparse.Namespace) -> dict:
     }
     if getattr(arguments, "fingerprint", None) is not None:  # a batch's mesh: what --resume compares
         report["inputs_fingerprint"] = arguments.fingerprint
+    extra = []
+    if point_cache is not None:
+        file_format = point_cache_format(point_cache)
+        sequence["point_cache"] = {"path": str(point_cache), "format": file_format}
+        extra.append((point_cache, lambda path: export_point_cache(blame, layout, path, file_format)))
     lap("metrics")
-    write_outputs(arguments, layout, report)
+    write_outputs(arguments, layout, report, extra)
     return report
+
+
+def export_point_cache(blame: str, layout, path: Path, file_format: str) -> None:
+    """Write the layout's sequence keys to ``path`` as ``file_format`` (``springwrap.export_sequence``'s work)."""
+    try:
+        addon_module("blender.point_cache").export_point_cache(bpy.context, layout, str(path), file_format)
+    except addon_module("core.errors").ERRORS as error:
+        raise ScriptError(f"{blame}: cannot write the point cache: {error}") from None
 
 
 # ---------------------------------------------------------------- batch
@@ -643,6 +687,7 @@ def batch_task(arguments: argparse.Namespace, target: Path, output_dir: Path, sh
     the fingerprint of its inputs and settings (``shared_digests``: the template's and anchors' contents)."""
     import retarget_batch
 
+    # Every per-mesh option (--sequence and --point-cache are refused with --batch: one target over time).
     settings = {
         name: getattr(arguments, name)
         for name in (

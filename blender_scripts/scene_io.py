@@ -313,9 +313,10 @@ def to_file_frame(frame: "Matrix", matrix) -> list:
     return [list(row) for row in frame.inverted() @ Matrix(matrix) @ frame]
 
 
-def write_outputs(arguments: argparse.Namespace, layout, report: dict) -> None:
+def write_outputs(arguments: argparse.Namespace, layout, report: dict, extra=()) -> None:
     """Write every requested output to temporary files, then rename them all (nothing half-written); the OBJ
-    in the files' frame (``--up-axis``, ``--forward-axis``), the .blend in Blender's."""
+    in the files' frame (``--up-axis``, ``--forward-axis``), the .blend in Blender's. ``extra``: further
+    ``(path, write(temporary path))`` outputs written and renamed with them."""
 
     def save_blend(path: Path) -> None:
         if bpy.ops.wm.save_as_mainfile(filepath=str(path), check_existing=False, copy=True) != {"FINISHED"}:
@@ -336,5 +337,10 @@ def write_outputs(arguments: argparse.Namespace, layout, report: dict) -> None:
         path.write_text(json.dumps(report, indent=2) + "\n")
 
     write_all_or_nothing(
-        [(arguments.output_blend, save_blend), (arguments.output_obj, export_obj), (arguments.report, write_report)]
+        [
+            (arguments.output_blend, save_blend),
+            (arguments.output_obj, export_obj),
+            (arguments.report, write_report),
+            *extra,
+        ]
     )

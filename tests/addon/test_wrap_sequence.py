@@ -217,6 +217,25 @@ def test_later_frames_rest_in_the_previous_frame_or_the_template():
     assert_follows(layout, lambda frame: target)
 
 
+def test_template_frames_are_each_the_wrap_of_that_frame_alone():
+    """Later Frames: Template wraps every frame from the layout as it was before the sequence, so each key is the
+    shape a single wrap onto that frame gives, whatever the frames before it did."""
+    target, layout = sequence_scene()
+    run_sequence(warm_rest="TEMPLATE")
+    keys = {frame: key_positions(layout, f"Wrap {frame:04d}") for frame in FRAMES}
+    session_module = addon_module("blender.wrap_session")
+    parameters = addon_module("core.wrap_inputs").WrapParameters()
+    for frame in FRAMES[1:]:
+        bpy.context.scene.frame_set(frame)
+        alone = make_inner_layout(target, name=f"Alone {frame}")
+        session = session_module.WrapSession(bpy.context, alone, parameters)
+        session.run()
+        session.finish()
+        single = np.array([tuple(vertex.co) for vertex in alone.data.vertices], dtype=np.float32)
+        assert np.allclose(keys[frame], single, atol=1e-5), frame
+    assert not np.allclose(keys[FRAMES[-1]], keys[FRAMES[0]], atol=1e-3)
+
+
 @pytest.mark.parametrize(
     ("properties", "message"),
     [
@@ -353,3 +372,23 @@ def test_a_slow_change_adds_up_until_the_layout_follows_it():
     last = surface_distances(Reference(objects[-1]), shown_positions(layout, 4))
     assert last.max() < 1.7 * step  # settled on frame 3 (two steps), one step behind at most
     assert np.abs(shown_positions(layout, 4) - shown_positions(layout, 1)).max() > 1.5 * step  # it followed
+
+
+def test_a_target_that_changes_and_comes_back_brings_the_layout_back(monkeypatch):
+    """A target stretched and let go again (frames 1 to 5): with the template's share in the re-settles' rest
+    shape the last frame's layout is nearer the first frame's than when the springs rest in the previous frame's
+    shape alone (each re-settle's drift then stays)."""
+    follow = addon_module("core.follow")
+    drifts = {}
+    for share in (0.0, follow.TEMPLATE_SHARE):
+        monkeypatch.setattr(follow, "TEMPLATE_SHARE", share)
+        bpy.ops.wm.read_homefile(use_empty=True)
+        target, layout = sequence_scene()
+        stretch = target.data.shape_keys.key_blocks["Stretch"]
+        for frame, value in ((4, 0.5), (5, 0.0)):
+            stretch.value = value
+            stretch.keyframe_insert("value", frame=frame)
+        assert run_sequence(frame_end=5) == {"FINISHED"}
+        first, last = key_positions(layout, "Wrap 0001"), key_positions(layout, "Wrap 0005")
+        drifts[share] = float(np.linalg.norm(last - first, axis=1).mean())
+    assert drifts[follow.TEMPLATE_SHARE] < 0.95 * drifts[0.0], drifts

@@ -154,3 +154,35 @@ def test_a_re_settle_works_on_the_faces_around_the_region_and_holds_the_rest():
 def test_no_part_is_cut_from_inputs_with_curves():
     inputs = strip_inputs(14)._replace(curve_vertices=np.array([1, 2], dtype=np.uint32))
     assert follow.restrict(strip_topology(6), inputs, np.ones(14, dtype=bool), inputs.positions) is None
+
+
+def test_the_template_s_share_of_the_rest_is_placed_onto_the_layout_first():
+    """The template blended into a re-settle's rest shape is first moved onto the layout by the similarity that fits
+    it best: a template that is the layout turned, scaled and moved blends into the layout's own shape."""
+    rng = np.random.default_rng(3)
+    positions = rng.normal(size=(40, 3)).astype(np.float32)
+    angle = 0.7
+    turn = np.array([[np.cos(angle), -np.sin(angle), 0.0], [np.sin(angle), np.cos(angle), 0.0], [0.0, 0.0, 1.0]])
+    template = (2.5 * positions.astype(np.float64) @ turn.T + [10.0, -4.0, 2.0]).astype(np.float32)
+    assert np.allclose(follow.blended_rest(positions, template, 0.3), positions, atol=1e-4)
+    line = np.outer(np.arange(5.0), [1.0, 2.0, 3.0]).astype(np.float32)  # no similarity on a line: itself
+    assert np.array_equal(follow.blended_rest(line, line * 2.0, 0.3), line)
+    assert np.array_equal(follow.blended_rest(positions, template, 0.0), positions)
+    assert np.array_equal(follow.blended_rest(positions, None, 0.3), positions)
+    bent = positions.copy()
+    bent[:, 2] += positions[:, 0] ** 2  # another shape: the rest lies between the two, by the share
+    half = follow.blended_rest(positions, bent, 0.5)
+    assert 0.0 < np.abs(half - positions).max() < np.abs(bent - positions).max()
+
+
+def test_a_re_settle_rests_in_the_layout_with_a_share_of_the_template():
+    positions = np.random.default_rng(5).normal(size=(14, 3)).astype(np.float32)
+    rest = positions.copy()
+    rest[:, 2] += rest[:, 0] ** 2  # the template: another shape
+    inputs = strip_inputs(14)._replace(positions=positions, rest_positions=rest)
+    region = np.zeros(14, dtype=bool)
+    region[[3, 10]] = True
+    assert np.array_equal(follow.held(inputs, region).rest_positions, inputs.positions)
+    blended = follow.held(inputs, region, follow.TEMPLATE_SHARE).rest_positions
+    assert not np.allclose(blended, inputs.positions)
+    assert np.allclose(blended, follow.blended_rest(inputs.positions, inputs.rest_positions, follow.TEMPLATE_SHARE))

@@ -8,9 +8,10 @@ anchors and target signature are what the next frame starts from: a face-point o
 triangle and weights and so follows its point on the moved surface, and where the target's topology changed
 it is found again by the deleted-face rule). The first frame is an ordinary wrap; later frames keep the
 previous frame's shape as the springs' rest shape (``warm_rest='PREVIOUS'``: they only settle onto the
-changed surface, and only where the target changed: the rest is held and written back bit for bit), or the
-template's (``'TEMPLATE'``: every frame a whole wrap). A frame that fails is put back (the layout keeps the
-previous frame's shape) and reported. :meth:`SequenceRun.finish` puts the layout back as the first frame left
+changed surface, and only where the target changed: the rest is held and written back bit for bit), or
+start again from the layout as it was before the sequence (``'TEMPLATE'``: every frame the wrap a single
+wrap onto that frame would make, independent of the others). A frame that fails is put back (the layout
+keeps the previous frame's shape) and reported. :meth:`SequenceRun.finish` puts the layout back as the first frame left
 it and writes the keys and keyframes; the scene's frame is set back.
 """
 
@@ -22,13 +23,14 @@ from ..core import follow, sequence, transforms
 from ..core.errors import ERRORS, LayoutError
 from ..core.sequence import FrameOutcome, SequenceResult
 from . import anchors as anchor_data
-from . import attributes
+from . import attributes, wrap_reads
 from . import layout as layout_data
 from . import target as target_data
 from .wrap_session import WrapSession
 
 WARM_RESTS = ("PREVIOUS", "TEMPLATE")
-"""What the springs rest in on the frames after the first: the previous frame's result, or the template's shape."""
+"""Where the frames after the first start: the previous frame's result (its shape the springs' rest), or the
+layout as it was before the sequence (each frame wrapped anew, as a single wrap of it would be)."""
 
 
 def collection_objects(collection) -> list:
@@ -45,6 +47,12 @@ def _settings_snapshot(layout) -> tuple:
         settings.active_anchor_index,
         settings.anchors_signature,
     )
+
+
+def _restore(layout, snapshot: tuple) -> None:
+    """Put back a (attributes snapshot, settings snapshot) pair: the layout's mesh and what a wrap writes on it."""
+    attributes.restore_snapshot(layout, snapshot[0])
+    _restore_settings(layout, snapshot[1])
 
 
 def _restore_settings(layout, snapshot: tuple) -> None:
@@ -85,6 +93,9 @@ class SequenceRun:
         reference = None if keys is None or keys.reference_key is None else keys.reference_key.name
         sequence.refuse_own_keys(layout.name, names, reference)
         self.before = layout_data.read_layout(layout).positions.copy()  # local, as it was
+        self.initial = None  # 'TEMPLATE': the layout as it was (attributes, settings), where each frame starts
+        if warm_rest == "TEMPLATE":
+            self.initial = (attributes.take_snapshot(layout), _settings_snapshot(layout))
         self.shapes: dict[int, np.ndarray] = {}
         self.outcomes: list[FrameOutcome] = []
         self.first_snapshot = None
@@ -123,8 +134,14 @@ class SequenceRun:
         clock.lap("target")
         region = None
         before = None
-        if index > 0 and self.warm_rest == "PREVIOUS":
-            before = layout_data.read_layout(self.layout)
+        previous = None
+        reads = None
+        if index > 0 and self.initial is not None:  # 'TEMPLATE': from the layout as it was, as frame 0
+            previous = (attributes.take_snapshot(self.layout), _settings_snapshot(self.layout))
+            _restore(self.layout, self.initial)
+        elif index > 0:
+            reads = wrap_reads.read(self.context, self.layout, target)  # the session's reads too: read once
+            before = reads.arrays
             world = transforms.world_positions(before)
             same_topology = self.layout.springwrap.target_signature == target.signature
             region, _after = follow.changed_region(
@@ -133,7 +150,20 @@ class SequenceRun:
             clock.lap("region")
             if not region.any():
                 return FrameOutcome(frame, True, time.perf_counter() - start, 0, "")
-        session = WrapSession(self.context, self.layout, self.parameters, target=target, region=region)
+        try:
+            session = WrapSession(
+                self.context,
+                self.layout,
+                self.parameters,
+                target=target,
+                region=region,
+                reads=reads,
+                template_share=follow.TEMPLATE_SHARE,
+            )
+        except Exception:
+            if previous is not None:
+                _restore(self.layout, previous)
+            raise
         clock.lap("session")
         try:
             session.run()
@@ -145,17 +175,25 @@ class SequenceRun:
                 self.layout.data.update()
         except Exception:
             session.cancel()
+            if previous is not None:
+                _restore(self.layout, previous)
             raise
-        world = transforms.world_positions(layout_data.read_layout(self.layout))
-        if region is None:
-            self.distances = follow.surface_distances(target, world)
-        else:  # a held vertex keeps the distance it was settled at: a slow change adds up until it counts
-            self.distances = self.distances.copy()
-            self.distances[region] = follow.surface_distances(target, world[region])
+        if self.initial is None:  # where each vertex was settled, for the next frame's change ('TEMPLATE': none)
+            self._measure(target, region)
         if index == 0:
             self.first_result = result
         clock.lap("write")
         return FrameOutcome(frame, True, time.perf_counter() - start, result.iterations, "")
+
+    def _measure(self, target, region) -> None:
+        """Keep each vertex's distance to ``target`` as the frame left it; a vertex held (outside ``region``)
+        keeps the distance it was settled at, so that a slow change adds up until it counts."""
+        world = transforms.world_positions(layout_data.read_layout(self.layout))
+        if region is None:
+            self.distances = follow.surface_distances(target, world)
+        else:
+            self.distances = self.distances.copy()
+            self.distances[region] = follow.surface_distances(target, world[region])
 
     def advance(self) -> FrameOutcome:
         """Wrap the next frame and write it into the layout (its basis, as a wrap does). The first frame's failure is
@@ -190,9 +228,7 @@ class SequenceRun:
         """Put the layout back as the first frame left it, write a key per frame done and its keyframes, and set
         the scene's frame back. Without any frame done nothing was written."""
         if self.outcomes:
-            snapshot, settings = self.first_snapshot
-            attributes.restore_snapshot(self.layout, snapshot)
-            _restore_settings(self.layout, settings)
+            _restore(self.layout, self.first_snapshot)
             write_keys(self.layout, sequence.key_positions(self.outcomes, self.shapes, self.before))
         self._restore_frame()
         return SequenceResult(self.layout.name, tuple(self.outcomes), len(self.frames), stopped and not self.done)

@@ -48,7 +48,8 @@ class WrapSession:
     target already read (a sequence's frame object); None reads the layout's target. ``reads`` (optional): the
     layout and target as the caller read (and checked) them (``blender.wrap_reads``); None reads them here. ``region`` (optional, (N,)
     bool): re-settle only these vertices, every other one held where it is and written back as it was
-    (``core.follow``: the solver then works on the faces around the region alone).
+    (``core.follow``: the solver then works on the faces around the region alone); ``template_share``: the
+    template's share in the rest shape of the vertices re-settled there (``core.follow.blended_rest``).
     """
 
     def __init__(
@@ -62,6 +63,7 @@ class WrapSession:
         target: Target | None = None,
         region: np.ndarray | None = None,
         reads: wrap_reads.WrapReads | None = None,
+        template_share: float = 0.0,
     ):
         self.start_time = time.perf_counter()
         self.layout = layout
@@ -125,7 +127,7 @@ class WrapSession:
         self.restriction = None
         self.whole_inputs = inputs  # the mirror's plane in the layout's own numbering, for the parts' seam
         if region is not None:
-            inputs = follow.held(inputs, region)
+            inputs = follow.held(inputs, region, template_share)
         if int(parameters.spring_resolution) == 1:
             # The solver works without the parts (they take no part in the surface's wrap) and, with a region,
             # on the faces around it alone.

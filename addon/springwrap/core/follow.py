@@ -12,6 +12,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+import springwrap_kernel
+
 from . import layout_state, transforms
 from .subdivision import LayoutTopology
 from .wrap_inputs import WrapInputs
@@ -22,6 +24,12 @@ CHANGE_FRACTION = 1e-5
 
 RINGS = 2
 """Rings of layout edges the changed vertices are grown by."""
+
+TEMPLATE_SHARE = 0.3
+"""A sequence's later frame: the template's share in the rest shape of the springs it re-settles (the previous
+frame's shape the rest). The previous frame's shape keeps the frames steady; the template's share pulls a region
+back toward the template's spacing where the target goes back (without it the frames' small re-settles add up,
+and a face that opened and closed again stays off where a wrap from the template puts it)."""
 
 
 def changed_vertices(before: np.ndarray, after: np.ndarray, moved: np.ndarray, tolerance: float) -> np.ndarray:
@@ -78,11 +86,28 @@ def changed_region(target, world, state, same_topology: bool, before, edges, rin
     return grow(changed, edges, rings) if changed.any() else changed, after
 
 
-def held(inputs: WrapInputs, region: np.ndarray) -> WrapInputs:
+def blended_rest(positions: np.ndarray, template: np.ndarray | None, share: float) -> np.ndarray:
+    """(N, 3) float32 rest shape: ``positions`` (the layout as it is) and, ``share`` of it, ``template`` (the
+    template's shape) moved onto them by the similarity that fits it best. ``positions`` alone without a template
+    or a share, or when no similarity is fitted (the points on one line)."""
+    positions = np.asarray(positions, dtype=np.float32)
+    if template is None or not share > 0.0:
+        return positions
+    template = transforms.as_float32_points(template)
+    try:
+        matrix = springwrap_kernel.fit_transform(template, positions, "SIMILARITY")
+    except springwrap_kernel.SpringwrapError:
+        return positions
+    placed = transforms.transform_points(matrix, template)
+    return transforms.as_float32_points((1.0 - share) * positions.astype(np.float64) + share * placed)
+
+
+def held(inputs: WrapInputs, region: np.ndarray, template_share: float = 0.0) -> WrapInputs:
     """``inputs`` with every vertex outside ``region`` held where it starts (the layout's own anchors kept):
     a face anchor on its face for a face-point, a space anchor at its position for a space-point; the
-    springs resting in the layout's shape as it is; and no soft pairs (they steer a whole wrap's stiff levels,
-    not a re-settle)."""
+    springs resting in the layout's shape as it is (with ``template_share`` of the template's shape, the inputs'
+    rest, blended in: :func:`blended_rest`); and no soft pairs (they steer a whole wrap's stiff levels, not a
+    re-settle)."""
     region = np.asarray(region, dtype=bool)
     anchored = np.zeros(region.shape[0], dtype=bool)
     anchored[inputs.anchor_vertices.astype(np.int64)] = True
@@ -97,7 +122,7 @@ def held(inputs: WrapInputs, region: np.ndarray) -> WrapInputs:
         anchor_positions=transforms.as_float32_points(
             np.concatenate([inputs.anchor_positions, inputs.positions[vertices]])
         ),
-        rest_positions=inputs.positions,
+        rest_positions=blended_rest(inputs.positions, inputs.rest_positions, template_share),
         soft_pair_vertices=None,
         soft_pair_positions=None,
         soft_pair_confidences=None,

@@ -183,7 +183,20 @@ def resolve_topology(layout: LayoutArrays, target: Target, stored_signature: str
     if not mask.any():
         return layout_state.Resolution(layout.state, 0, 0)
     layout_state.check_finite(layout, mask)
-    return resolve_points(layout.state, mask, transforms.world_positions(layout)[mask], target)
+    world = transforms.world_positions(layout)
+    if 2 * int(mask.sum()) < mask.size or not np.isfinite(world).all():
+        return resolve_points(layout.state, mask, world[mask], target)
+    # Most of the layout: asked at every vertex, the query a sequence's later frame has just made to see where
+    # the target changed (``CentredMesh.closest_points`` answers it again without searching).
+    hits = target.mesh.closest_points(world)
+    return layout_state.resolve_face_points(
+        layout.state,
+        mask,
+        hits.triangles[mask],
+        hits.barycentrics[mask],
+        hits.distances[mask],
+        target.reattach_tolerance,
+    )
 
 
 def resolve_points(

@@ -49,10 +49,19 @@ class SPRINGWRAP_OT_wrap_sequence(LayoutOperator, bpy.types.Operator):
     collection: props.text("Collection", "Collection of one mesh object per frame (Source: Collection)")
     warm_rest: props.choice(
         "Later Frames",
-        "What the wrap keeps on the frames after the first",
+        "Where the wrap of each frame after the first starts",
         (
-            ("PREVIOUS", "Previous Frame", "Keep the previous frame's shape: the layout settles onto the change"),
-            ("TEMPLATE", "Template", "Keep the template's shape, as the first frame's wrap does"),
+            (
+                "PREVIOUS",
+                "Previous Frame",
+                "Start from the previous frame's result and settle it onto the change alone: quick and steady",
+            ),
+            (
+                "TEMPLATE",
+                "Template",
+                "Wrap every frame anew from the layout as it was, as a single wrap of that frame would: no frame "
+                "depends on another (for frames that do not follow each other), but slower and less steady",
+            ),
         ),
         "PREVIOUS",
     )
