@@ -83,13 +83,14 @@ const RECIPROCAL_RATIO: f32 = 0.5;
 
 /// In the stiff levels (the first [`RECIPROCAL_LEVELS`]) only samples are queried for their
 /// closest points, every other vertex sharing the tangent plane of a sample within this many edges
-/// ([`DataSamples`]). Measured with 6 anchors through the kernel
-/// alone (`benchmarks/few_anchors.py`'s cases, every vertex queried against one hop, in one run):
-/// the wrap's processor time 2.41 → 1.90 s (heavy) and 2.76 → 2.39 s (old-male); mean error 0.246,
-/// 0.469, 0.429, 0.348 → 0.241, 0.462, 0.427, 0.339 % of the diagonal (heavy, heavy-old,
-/// old-male, young-female), p95 0.960, 2.076, 1.540, 1.199 → 0.958, 1.949, 1.523, 1.185; flipped
-/// quads against the aligned template +4, −7, −8, −7 → +5, −4, −7, −6. Two hops ended the first stiff level after three iterations on the heavy body (its energy barely
-/// fell once the queries were that sparse) and raised its mean error to 0.297 %.
+/// ([`DataSamples`]). Measured with 6 anchors through the kernel alone (`benchmarks/few_anchors.py`'s
+/// cases, every vertex queried against one hop, in one run): the wrap's processor time 2.41 → 1.90 s
+/// (heavy) and 2.76 → 2.39 s (old-male); mean error 0.246, 0.469, 0.429, 0.348 → 0.241, 0.462,
+/// 0.427, 0.339 % of the diagonal (heavy, heavy-old, old-male, young-female), p95 0.960, 2.076,
+/// 1.540, 1.199 → 0.958, 1.949, 1.523, 1.185; flipped quads against the aligned template +4, −7,
+/// −8, −7 → +5, −4, −7, −6. Two hops ended the first stiff level after three iterations on the
+/// heavy body (its energy barely fell once the queries were that sparse) and raised its mean error
+/// to 0.297 %.
 pub(crate) const STIFF_SAMPLE_HOPS: usize = 1;
 
 /// In the global-to-local schedule a layout corner may turn from its rest normal (turned by the
