@@ -200,11 +200,11 @@ impl EnergySolver {
                 (-(distance * distance) / (2.0 * width * width)).exp() * data_factors[vertex]
             },
         );
-        for vertex in 0..self.positions.len() {
+        for (vertex, correspondence) in correspondences.iter_mut().enumerate() {
             if let Some(sample) = samples.sample_of(vertex) {
                 self.last_hits[vertex] = self.last_hits[sample as usize];
             }
-            if let (Some(plane), Some((_, point))) = (self.plane, correspondences[vertex].as_mut())
+            if let (Some(plane), Some((_, point))) = (self.plane, correspondence.as_mut())
                 && self.on_plane.get(vertex).copied().unwrap_or(false)
             {
                 *point = plane.project(*point);
