@@ -118,14 +118,77 @@ fn the_fast_rotation_is_the_eigen_solvers() {
         if case % 3 == 0 {
             cross[2] = [0.0; 3]; // planar neighbourhoods: rank 2
         }
-        let fast = fast_horn_rotation(&cross);
+        let fast = fast_horn_rotation(&cross, f64::INFINITY);
         let reference = horn_rotation(&cross);
         assert!(
             fast.dot(reference).abs() > 1.0 - 1e-9,
             "case {case}: {fast} against {reference}"
         );
     }
-    assert_eq!(fast_horn_rotation(&[[0.0; 3]; 3]), glam::DQuat::IDENTITY);
+    assert_eq!(
+        fast_horn_rotation(&[[0.0; 3]; 3], f64::INFINITY),
+        glam::DQuat::IDENTITY
+    );
+}
+
+#[test]
+fn the_fast_rotation_started_from_the_spreads_is_the_eigen_solvers() {
+    // Groups of points turned, scaled, squashed flat, jittered or scattered: the spreads' bound is
+    // tight for the first, loose for the last; near and far from the origin. (Fewer than three
+    // points have no single best rotation.)
+    let mut seed = 5u64;
+    let mut random = move || {
+        seed = seed
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    };
+    for case in 0..3000 {
+        let count = 3 + case % 7;
+        let turn = glam::DQuat::from_axis_angle(
+            DVec3::new(random(), random(), random() + 1.0).normalize(),
+            7.0 * random(),
+        );
+        let (jitter, scale) =
+            [(0.0, 1.0), (1e-9, 1.0), (0.05, 1.3), (0.5, 0.7), (5.0, 1.0)][case % 5];
+        let far = DVec3::splat(if case % 2 == 0 { 0.0 } else { 1e5 });
+        let rest: Vec<DVec3> = (0..count)
+            .map(|_| {
+                let point = DVec3::new(random(), random(), random());
+                far + if case % 3 == 0 {
+                    point * DVec3::new(1.0, 1.0, 0.0)
+                } else {
+                    point
+                }
+            })
+            .collect();
+        let now: Vec<DVec3> = rest
+            .iter()
+            .map(|&point| {
+                let wobble = jitter * DVec3::new(random(), random(), random());
+                turn * ((point - far) * scale) + wobble - far
+            })
+            .collect();
+        let moments = Moments::of(&now, &rest, 0..count as u32);
+        let bound = (moments.spread_rest * moments.spread_now).sqrt();
+        let fast = fast_horn_rotation(&moments.cross, bound);
+        let reference = fast_horn_rotation(&moments.cross, f64::INFINITY);
+        assert!(
+            fast.dot(reference).abs() > 1.0 - 1e-9,
+            "case {case}: {fast} against {reference}"
+        );
+        assert!(
+            (moments.best_rotation() * DVec3::X).distance(fast * DVec3::X) < 1e-12,
+            "case {case}"
+        );
+        if jitter < 1.0 {
+            let eigen = horn_rotation(&moments.cross);
+            assert!(
+                fast.dot(eigen).abs() > 1.0 - 1e-9,
+                "case {case}: {fast} against {eigen}"
+            );
+        }
+    }
 }
 
 #[test]
@@ -284,6 +347,12 @@ fn a_neighbourhood_merged_from_rings_has_the_groups_moments() {
             .flatten()
             .zip(direct.cross.iter().flatten())
         {
+            assert!((a - b).abs() < 1e-8 * (1.0 + b.abs()), "{a} against {b}");
+        }
+        for (a, b) in [
+            (merged.spread_now, direct.spread_now),
+            (merged.spread_rest, direct.spread_rest),
+        ] {
             assert!((a - b).abs() < 1e-8 * (1.0 + b.abs()), "{a} against {b}");
         }
     }
