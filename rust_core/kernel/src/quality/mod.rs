@@ -266,47 +266,23 @@ struct Moments {
 impl Moments {
     /// The moments of `group`'s vertices finite in both shapes (sums relative to the first of them,
     /// then centred: one pass, precise far from the origin).
-    fn of(points: &[DVec3], rest: &[DVec3], group: impl Iterator<Item = u32>) -> Self {
-        let mut usable = group
-            .map(|vertex| (points[vertex as usize], rest[vertex as usize]))
-            .filter(|(now, before)| now.is_finite() && before.is_finite())
-            .peekable();
-        let Some(&(origin_now, origin_rest)) = usable.peek() else {
-            return Self::default();
-        };
-        let mut count = 0.0f64;
-        let (mut sum_now, mut sum_rest) = (DVec3::ZERO, DVec3::ZERO);
-        let mut cross = [[0.0f64; 3]; 3];
-        let (mut squares_now, mut squares_rest) = (0.0f64, 0.0f64);
-        for (now, before) in usable {
-            let (now, before) = (now - origin_now, before - origin_rest);
-            count += 1.0;
-            sum_now += now;
-            sum_rest += before;
-            squares_now += now.length_squared();
-            squares_rest += before.length_squared();
-            let (now, before) = (now.to_array(), before.to_array());
-            for (row, out) in cross.iter_mut().enumerate() {
-                for (column, value) in out.iter_mut().enumerate() {
-                    *value += before[row] * now[column];
-                }
-            }
+    #[cfg(test)]
+    fn of(points: &[DVec3], rest: &[DVec3], group: impl IntoIterator<Item = u32>) -> Self {
+        let mut sums = Sums::default();
+        for vertex in group {
+            sums.add(points[vertex as usize], rest[vertex as usize]);
         }
-        let (mean_now, mean_rest) = (sum_now / count, sum_rest / count);
-        let (now, before) = (mean_now.to_array(), mean_rest.to_array());
-        for (row, out) in cross.iter_mut().enumerate() {
-            for (column, value) in out.iter_mut().enumerate() {
-                *value -= count * before[row] * now[column];
-            }
+        sums.moments()
+    }
+
+    /// [`Moments::of`] `vertex` and then `around` (a closed ring), in a plain loop.
+    fn of_ring(points: &[DVec3], rest: &[DVec3], vertex: u32, around: &[u32]) -> Self {
+        let mut sums = Sums::default();
+        sums.add(points[vertex as usize], rest[vertex as usize]);
+        for &other in around {
+            sums.add(points[other as usize], rest[other as usize]);
         }
-        Self {
-            count,
-            mean_rest: origin_rest + mean_rest,
-            mean_now: origin_now + mean_now,
-            cross,
-            spread_rest: (squares_rest - count * mean_rest.length_squared()).max(0.0),
-            spread_now: (squares_now - count * mean_now.length_squared()).max(0.0),
-        }
+        sums.moments()
     }
 
     /// The moments of both groups together.
@@ -358,6 +334,76 @@ impl Moments {
             f64::INFINITY
         };
         fast_horn_rotation(&cross, bound)
+    }
+}
+
+/// The running sums [`Moments::of`] takes, relative to the first usable vertex.
+#[derive(Default)]
+struct Sums {
+    count: f64,
+    origin_now: DVec3,
+    origin_rest: DVec3,
+    sum_now: DVec3,
+    sum_rest: DVec3,
+    squares_now: f64,
+    squares_rest: f64,
+    cross: [[f64; 3]; 3],
+}
+
+impl Sums {
+    /// Adds one vertex, left out unless finite in both shapes.
+    #[inline]
+    fn add(&mut self, now: DVec3, before: DVec3) {
+        if !(now.is_finite() && before.is_finite()) {
+            return;
+        }
+        if self.count == 0.0 {
+            (self.origin_now, self.origin_rest) = (now, before);
+        }
+        let (now, before) = (now - self.origin_now, before - self.origin_rest);
+        self.count += 1.0;
+        self.sum_now += now;
+        self.sum_rest += before;
+        self.squares_now += now.length_squared();
+        self.squares_rest += before.length_squared();
+        let (now, before) = (now.to_array(), before.to_array());
+        for (row, out) in self.cross.iter_mut().enumerate() {
+            for (column, value) in out.iter_mut().enumerate() {
+                *value += before[row] * now[column];
+            }
+        }
+    }
+
+    /// The centred moments of what was added.
+    fn moments(self) -> Moments {
+        let Self {
+            count,
+            origin_now,
+            origin_rest,
+            sum_now,
+            sum_rest,
+            squares_now,
+            squares_rest,
+            mut cross,
+        } = self;
+        if count == 0.0 {
+            return Moments::default();
+        }
+        let (mean_now, mean_rest) = (sum_now / count, sum_rest / count);
+        let (now, before) = (mean_now.to_array(), mean_rest.to_array());
+        for (row, out) in cross.iter_mut().enumerate() {
+            for (column, value) in out.iter_mut().enumerate() {
+                *value -= count * before[row] * now[column];
+            }
+        }
+        Moments {
+            count,
+            mean_rest: origin_rest + mean_rest,
+            mean_now: origin_now + mean_now,
+            cross,
+            spread_rest: (squares_rest - count * mean_rest.length_squared()).max(0.0),
+            spread_now: (squares_now - count * mean_now.length_squared()).max(0.0),
+        }
     }
 }
 
@@ -498,10 +544,7 @@ fn flips_cached(
     neighbours: &Neighbours,
     span: usize,
 ) -> Vec<bool> {
-    let ring = |vertex: u32| {
-        let around = std::iter::once(vertex).chain(neighbours.of(vertex).iter().copied());
-        Moments::of(points, rest, around)
-    };
+    let ring = |vertex: u32| Moments::of_ring(points, rest, vertex, neighbours.of(vertex));
     let mut flipped = vec![false; starts.len()];
     flipped
         .par_chunks_mut(FACES_PER_BLOCK)
