@@ -28,10 +28,13 @@ impl Rng {
     }
 }
 
+/// Rest positions, positions now, face corners, face sizes, edges.
+type Layout = (Vec<DVec3>, Vec<DVec3>, Vec<u32>, Vec<u32>, Vec<[u32; 2]>);
+
 /// A quad torus of `rows x columns` vertices: (rest positions, positions now, corners, sizes,
 /// edges). Now: the rest shape bent about the torus's axis, turned, moved and jittered by 5 % of an
 /// edge, with one face in 2,000 folded over (its first corner pushed through the face).
-fn torus(rows: u32, columns: u32) -> (Vec<DVec3>, Vec<DVec3>, Vec<u32>, Vec<u32>, Vec<[u32; 2]>) {
+fn torus(rows: u32, columns: u32) -> Layout {
     let mut rng = Rng(7);
     let (mut rest, mut now) = (Vec::new(), Vec::new());
     let turn = glam::DQuat::from_axis_angle(DVec3::new(1.0, 2.0, 3.0).normalize(), 0.8);
@@ -41,8 +44,12 @@ fn torus(rows: u32, columns: u32) -> (Vec<DVec3>, Vec<DVec3>, Vec<u32>, Vec<u32>
         for column in 0..columns {
             let minor = std::f64::consts::TAU * f64::from(column) / f64::from(columns);
             let point = |major: f64, radius: f64| {
-                let ring = 3.0 + radius * minor.cos();
-                DVec3::new(ring * major.cos(), ring * major.sin(), radius * minor.sin())
+                let around = 3.0 + radius * minor.cos();
+                DVec3::new(
+                    around * major.cos(),
+                    around * major.sin(),
+                    radius * minor.sin(),
+                )
             };
             rest.push(point(major, 1.0));
             let jitter = DVec3::new(rng.signed(), rng.signed(), rng.signed()) * 0.05 * edge;
