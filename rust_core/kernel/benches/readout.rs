@@ -13,18 +13,13 @@ use std::time::Instant;
 use glam::DVec3;
 use springwrap_kernel::{LayoutFaces, face_normals, flipped_faces, layout_readout, vertex_stretch};
 
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    fn signed(&mut self) -> f64 {
-        (self.next() >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+/// Numbers uniform in [-1, 1) from a linear congruential generator.
+fn uniform(mut seed: u64) -> impl FnMut() -> f64 {
+    move || {
+        seed = seed
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        (seed >> 11) as f64 / (1u64 << 52) as f64 - 1.0
     }
 }
 
@@ -35,7 +30,7 @@ type Layout = (Vec<DVec3>, Vec<DVec3>, Vec<u32>, Vec<u32>, Vec<[u32; 2]>);
 /// edges). Now: the rest shape bent about the torus's axis, turned, moved and jittered by 5 % of an
 /// edge, with one face in 2,000 folded over (its first corner pushed through the face).
 fn torus(rows: u32, columns: u32) -> Layout {
-    let mut rng = Rng(7);
+    let mut random = uniform(7);
     let (mut rest, mut now) = (Vec::new(), Vec::new());
     let turn = glam::DQuat::from_axis_angle(DVec3::new(1.0, 2.0, 3.0).normalize(), 0.8);
     let edge = std::f64::consts::TAU / f64::from(columns);
@@ -52,7 +47,7 @@ fn torus(rows: u32, columns: u32) -> Layout {
                 )
             };
             rest.push(point(major, 1.0));
-            let jitter = DVec3::new(rng.signed(), rng.signed(), rng.signed()) * 0.05 * edge;
+            let jitter = DVec3::new(random(), random(), random()) * 0.05 * edge;
             now.push(turn * point(major * 0.9, 1.0 + 0.2 * major.sin()) + jitter + 100.0);
         }
     }

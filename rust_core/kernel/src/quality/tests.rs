@@ -104,15 +104,19 @@ fn degenerate_and_non_finite_faces_are_not_flipped() {
     assert_eq!(face_normals(&broken, faces).unwrap()[0], DVec3::ZERO);
 }
 
-#[test]
-fn the_fast_rotation_is_the_eigen_solvers() {
-    let mut seed = 7u64;
-    let mut random = move || {
+/// Numbers uniform in [-0.5, 0.5) from a linear congruential generator.
+fn uniform(mut seed: u64) -> impl FnMut() -> f64 {
+    move || {
         seed = seed
             .wrapping_mul(6_364_136_223_846_793_005)
             .wrapping_add(1_442_695_040_888_963_407);
         (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-    };
+    }
+}
+
+#[test]
+fn the_fast_rotation_is_the_eigen_solvers() {
+    let mut random = uniform(7);
     for case in 0..2000 {
         let mut cross: [[f64; 3]; 3] = std::array::from_fn(|_| std::array::from_fn(|_| random()));
         if case % 3 == 0 {
@@ -136,13 +140,7 @@ fn the_fast_rotation_started_from_the_spreads_is_the_eigen_solvers() {
     // Groups of points turned, scaled, squashed flat, jittered or scattered: the spreads' bound is
     // tight for the first, loose for the last; near and far from the origin. (Fewer than three
     // points have no single best rotation.)
-    let mut seed = 5u64;
-    let mut random = move || {
-        seed = seed
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(1_442_695_040_888_963_407);
-        (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-    };
+    let mut random = uniform(5);
     for case in 0..3000 {
         let count = 3 + case % 7;
         let turn = glam::DQuat::from_axis_angle(
@@ -227,13 +225,7 @@ type Warped = (Vec<DVec3>, Vec<DVec3>, Vec<u32>, Vec<u32>, Vec<[u32; 2]>);
 /// A grid of `n` x `n` quads warped and folded at random.
 fn warped(n: u32, seed: u64) -> Warped {
     let (rest, corners, sizes, edges) = grid(n);
-    let mut state = seed;
-    let mut random = move || {
-        state = state
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(1_442_695_040_888_963_407);
-        (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-    };
+    let mut random = uniform(seed);
     let points = rest
         .iter()
         .map(|p| {
