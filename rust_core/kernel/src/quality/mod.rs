@@ -32,6 +32,9 @@ const FACES_PER_TASK: usize = 256;
 /// Vertices per rayon task when measuring rings: a microsecond or less each.
 const VERTICES_PER_TASK: usize = 1024;
 
+/// Face corners per chunk when checking them against the vertex count.
+const CORNERS_PER_CHECK: usize = 1 << 14;
+
 /// A layout's faces: `corners` lists each face's vertices in order, face after face; `sizes` says
 /// how many corners each face has (their sum is `corners.len()`).
 #[derive(Debug, Clone, Copy)]
@@ -59,14 +62,25 @@ impl LayoutFaces<'_> {
                 second: next,
             });
         }
-        // Checked in parallel; the face is looked for only when a corner is out of range.
-        let Some(corner) = self
+        // Checked in parallel, a chunk of corners at a time (a loop the compiler vectorizes); the
+        // corner and its face are looked for only when one is out of range.
+        let outside = |vertex: &u32| *vertex as usize >= vertex_count;
+        let Some(chunk) = self
             .corners
-            .par_iter()
-            .position_first(|&vertex| vertex as usize >= vertex_count)
+            .par_chunks(CORNERS_PER_CHECK)
+            .position_first(|chunk| {
+                chunk
+                    .iter()
+                    .fold(false, |any, vertex| any | outside(vertex))
+            })
         else {
             return Ok(starts);
         };
+        let corner = chunk * CORNERS_PER_CHECK
+            + self.corners[chunk * CORNERS_PER_CHECK..]
+                .iter()
+                .position(outside)
+                .unwrap_or(0);
         Err(KernelError::LayoutIndexOutOfRange {
             element: "face",
             index: starts.partition_point(|&start| start <= corner) - 1,
@@ -90,21 +104,32 @@ fn check_lengths(points: &[DVec3], rest: &[DVec3]) -> Result<(), KernelError> {
 
 pub(crate) fn check_edges(edges: &[[u32; 2]], vertex_count: usize) -> Result<(), KernelError> {
     let outside = |vertex: &u32| *vertex as usize >= vertex_count;
-    match edges
-        .par_iter()
-        .position_first(|edge| edge.iter().any(outside))
-    {
-        None => Ok(()),
-        Some(index) => Err(KernelError::LayoutIndexOutOfRange {
-            element: "edge",
-            index,
-            vertex: *edges[index]
+    // As the corners in `LayoutFaces::starts`: a chunk at a time, the edge looked for on a failure.
+    let Some(chunk) = edges
+        .par_chunks(CORNERS_PER_CHECK / 2)
+        .position_first(|chunk| {
+            chunk
                 .iter()
-                .find(|vertex| outside(vertex))
-                .unwrap_or(&0),
-            vertex_count,
-        }),
-    }
+                .fold(false, |any, [a, b]| any | outside(a) | outside(b))
+        })
+    else {
+        return Ok(());
+    };
+    let first = chunk * (CORNERS_PER_CHECK / 2);
+    let index = first
+        + edges[first..]
+            .iter()
+            .position(|edge| edge.iter().any(outside))
+            .unwrap_or(0);
+    Err(KernelError::LayoutIndexOutOfRange {
+        element: "edge",
+        index,
+        vertex: *edges[index]
+            .iter()
+            .find(|vertex| outside(vertex))
+            .unwrap_or(&0),
+        vertex_count,
+    })
 }
 
 /// Each vertex's mean incident edge length now over the same at rest (1 where nothing can be
@@ -224,56 +249,40 @@ impl Neighbours {
 }
 
 /// The first and second moments of a group of vertices in both shapes: how many, their centroids
-/// at rest and now, and their centred cross-covariance `Σ (rest − rest centroid)(now − now
-/// centroid)ᵀ` (rows at rest, columns now). Groups merge exactly (Chan's pairwise update), so a
-/// face's neighbourhood is the merge of its corners' closed rings, each measured once per block of faces.
+/// at rest and now, their centred cross-covariance `Σ (rest − rest centroid)(now − now
+/// centroid)ᵀ` (rows at rest, columns now) and their spreads `Σ |rest − rest centroid|²`, `Σ |now −
+/// now centroid|²`. Groups merge exactly (Chan's pairwise update), so a face's neighbourhood is the
+/// merge of its corners' closed rings, each measured once per block of faces.
 #[derive(Debug, Clone, Copy, Default)]
 struct Moments {
     count: f64,
     mean_rest: DVec3,
     mean_now: DVec3,
     cross: [[f64; 3]; 3],
+    spread_rest: f64,
+    spread_now: f64,
 }
 
 impl Moments {
     /// The moments of `group`'s vertices finite in both shapes (sums relative to the first of them,
     /// then centred: one pass, precise far from the origin).
-    fn of(points: &[DVec3], rest: &[DVec3], group: impl Iterator<Item = u32>) -> Self {
-        let mut usable = group
-            .map(|vertex| (points[vertex as usize], rest[vertex as usize]))
-            .filter(|(now, before)| now.is_finite() && before.is_finite())
-            .peekable();
-        let Some(&(origin_now, origin_rest)) = usable.peek() else {
-            return Self::default();
-        };
-        let mut count = 0.0f64;
-        let (mut sum_now, mut sum_rest) = (DVec3::ZERO, DVec3::ZERO);
-        let mut cross = [[0.0f64; 3]; 3];
-        for (now, before) in usable {
-            let (now, before) = (now - origin_now, before - origin_rest);
-            count += 1.0;
-            sum_now += now;
-            sum_rest += before;
-            let (now, before) = (now.to_array(), before.to_array());
-            for (row, out) in cross.iter_mut().enumerate() {
-                for (column, value) in out.iter_mut().enumerate() {
-                    *value += before[row] * now[column];
-                }
-            }
+    #[cfg(test)]
+    fn of(points: &[DVec3], rest: &[DVec3], group: impl IntoIterator<Item = u32>) -> Self {
+        let mut sums = Sums::default();
+        for vertex in group {
+            sums.add(points[vertex as usize], rest[vertex as usize]);
         }
-        let (mean_now, mean_rest) = (sum_now / count, sum_rest / count);
-        let (now, before) = (mean_now.to_array(), mean_rest.to_array());
-        for (row, out) in cross.iter_mut().enumerate() {
-            for (column, value) in out.iter_mut().enumerate() {
-                *value -= count * before[row] * now[column];
-            }
+        sums.moments()
+    }
+
+    /// [`Moments::of`] `vertex` and then `around` (a closed ring), in a plain loop.
+    fn of_ring(points: &[DVec3], rest: &[DVec3], vertex: u32, around: &[u32]) -> Self {
+        let mut sums = Sums::default();
+        sums.add(points[vertex as usize], rest[vertex as usize]);
+        for &other in around {
+            sums.add(points[other as usize], rest[other as usize]);
         }
-        Self {
-            count,
-            mean_rest: origin_rest + mean_rest,
-            mean_now: origin_now + mean_now,
-            cross,
-        }
+        sums.moments()
     }
 
     /// The moments of both groups together.
@@ -298,6 +307,8 @@ impl Moments {
                 *value += other.cross[row][column] + weight * rest[row] * now[column];
             }
         }
+        self.spread_rest += other.spread_rest + weight * apart_rest.length_squared();
+        self.spread_now += other.spread_now + weight * apart_now.length_squared();
         self.count = count;
         self.mean_rest += share * apart_rest;
         self.mean_now += share * apart_now;
@@ -307,12 +318,92 @@ impl Moments {
     /// their centroids); the identity when nothing can be fitted.
     fn best_rotation(&self) -> glam::DQuat {
         let mut cross = self.cross;
+        let mut finite = true;
         for value in cross.iter_mut().flatten() {
             if !value.is_finite() {
                 *value = 0.0;
+                finite = false;
             }
         }
-        fast_horn_rotation(&cross)
+        // Cauchy-Schwarz: no rotation takes the rest offsets closer onto those now than
+        // √(spread at rest · spread now), so Horn's largest eigenvalue is at most that (equal for
+        // a rigid motion, a uniform scale too). A bound from a zeroed entry's moments is not used.
+        let bound = if finite {
+            (self.spread_rest * self.spread_now).sqrt()
+        } else {
+            f64::INFINITY
+        };
+        fast_horn_rotation(&cross, bound)
+    }
+}
+
+/// The running sums [`Moments::of`] takes, relative to the first usable vertex.
+#[derive(Default)]
+struct Sums {
+    count: f64,
+    origin_now: DVec3,
+    origin_rest: DVec3,
+    sum_now: DVec3,
+    sum_rest: DVec3,
+    squares_now: f64,
+    squares_rest: f64,
+    cross: [[f64; 3]; 3],
+}
+
+impl Sums {
+    /// Adds one vertex, left out unless finite in both shapes.
+    #[inline]
+    fn add(&mut self, now: DVec3, before: DVec3) {
+        if !(now.is_finite() && before.is_finite()) {
+            return;
+        }
+        if self.count == 0.0 {
+            (self.origin_now, self.origin_rest) = (now, before);
+        }
+        let (now, before) = (now - self.origin_now, before - self.origin_rest);
+        self.count += 1.0;
+        self.sum_now += now;
+        self.sum_rest += before;
+        self.squares_now += now.length_squared();
+        self.squares_rest += before.length_squared();
+        let (now, before) = (now.to_array(), before.to_array());
+        for (row, out) in self.cross.iter_mut().enumerate() {
+            for (column, value) in out.iter_mut().enumerate() {
+                *value += before[row] * now[column];
+            }
+        }
+    }
+
+    /// The centred moments of what was added.
+    fn moments(self) -> Moments {
+        let Self {
+            count,
+            origin_now,
+            origin_rest,
+            sum_now,
+            sum_rest,
+            squares_now,
+            squares_rest,
+            mut cross,
+        } = self;
+        if count == 0.0 {
+            return Moments::default();
+        }
+        let (mean_now, mean_rest) = (sum_now / count, sum_rest / count);
+        let (now, before) = (mean_now.to_array(), mean_rest.to_array());
+        for (row, out) in cross.iter_mut().enumerate() {
+            for (column, value) in out.iter_mut().enumerate() {
+                *value -= count * before[row] * now[column];
+            }
+        }
+        Moments {
+            count,
+            mean_rest: origin_rest + mean_rest,
+            mean_now: origin_now + mean_now,
+            cross,
+            spread_rest: (squares_rest - count * mean_rest.length_squared()).max(0.0),
+            spread_now: (squares_now - count * mean_now.length_squared()).max(0.0),
+        }
     }
 }
 
@@ -321,7 +412,11 @@ impl Moments {
 /// (from above: every root is real, so the iteration falls monotonically onto the largest), its
 /// eigenvector from the adjugate of `K - λI`. When that eigenvector is ill-defined (the largest
 /// eigenvalue repeated: no single best rotation) the eigen-solver decides, as it always did.
-fn fast_horn_rotation(cross: &[[f64; 3]; 3]) -> glam::DQuat {
+///
+/// `bound` is a known upper bound of that eigenvalue (infinite for none): Newton starts at the
+/// lower of it (raised by [`BOUND_MARGIN`] for its rounding) and `√3 ‖S‖`, QCP's own start
+/// (`√(G_a G_b)`, tight for a neighbourhood moved nearly rigidly, takes a few steps fewer).
+fn fast_horn_rotation(cross: &[[f64; 3]; 3], bound: f64) -> glam::DQuat {
     let [[sxx, sxy, sxz], [syx, syy, syz], [szx, szy, szz]] = *cross;
     let squared: f64 = cross.iter().flatten().map(|value| value * value).sum();
     if squared == 0.0 || !squared.is_finite() {
@@ -343,8 +438,8 @@ fn fast_horn_rotation(cross: &[[f64; 3]; 3]) -> glam::DQuat {
         .zip(&horn[0])
         .map(|(cofactor, entry)| cofactor * entry)
         .sum::<f64>();
-    // λ_max ≤ σ1 + σ2 + σ3 ≤ √3 ‖S‖: start there.
-    let mut lambda = (3.0 * squared).sqrt();
+    // λ_max ≤ σ1 + σ2 + σ3 ≤ √3 ‖S‖, and λ_max ≤ bound: start at the lower.
+    let mut lambda = (3.0 * squared).sqrt().min(bound * (1.0 + BOUND_MARGIN));
     for _ in 0..60 {
         let lambda2 = lambda * lambda;
         let value = lambda2 * lambda2 + c2 * lambda2 + c1 * lambda + c0;
@@ -380,6 +475,10 @@ fn fast_horn_rotation(cross: &[[f64; 3]; 3]) -> glam::DQuat {
     let [w, x, y, z] = vector;
     glam::DQuat::from_xyzw(x, y, z, w).normalize()
 }
+
+/// The relative margin a start from a computed upper bound of Horn's eigenvalue is raised by: far
+/// above the rounding of the moments' sums, far below what one Newton step removes.
+const BOUND_MARGIN: f64 = 1e-8;
 
 /// The cofactors of row `row` (0 or 1) of a 4x4 matrix, from the 2x2 minors of its rows 2 and 3.
 fn cofactors(matrix: &[[f64; 4]; 4], row: usize) -> [f64; 4] {
@@ -445,10 +544,7 @@ fn flips_cached(
     neighbours: &Neighbours,
     span: usize,
 ) -> Vec<bool> {
-    let ring = |vertex: u32| {
-        let around = std::iter::once(vertex).chain(neighbours.of(vertex).iter().copied());
-        Moments::of(points, rest, around)
-    };
+    let ring = |vertex: u32| Moments::of_ring(points, rest, vertex, neighbours.of(vertex));
     let mut flipped = vec![false; starts.len()];
     flipped
         .par_chunks_mut(FACES_PER_BLOCK)

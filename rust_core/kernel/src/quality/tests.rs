@@ -104,28 +104,89 @@ fn degenerate_and_non_finite_faces_are_not_flipped() {
     assert_eq!(face_normals(&broken, faces).unwrap()[0], DVec3::ZERO);
 }
 
-#[test]
-fn the_fast_rotation_is_the_eigen_solvers() {
-    let mut seed = 7u64;
-    let mut random = move || {
+/// Numbers uniform in [-0.5, 0.5) from a linear congruential generator.
+fn uniform(mut seed: u64) -> impl FnMut() -> f64 {
+    move || {
         seed = seed
             .wrapping_mul(6_364_136_223_846_793_005)
             .wrapping_add(1_442_695_040_888_963_407);
         (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-    };
+    }
+}
+
+#[test]
+fn the_fast_rotation_is_the_eigen_solvers() {
+    let mut random = uniform(7);
     for case in 0..2000 {
         let mut cross: [[f64; 3]; 3] = std::array::from_fn(|_| std::array::from_fn(|_| random()));
         if case % 3 == 0 {
             cross[2] = [0.0; 3]; // planar neighbourhoods: rank 2
         }
-        let fast = fast_horn_rotation(&cross);
+        let fast = fast_horn_rotation(&cross, f64::INFINITY);
         let reference = horn_rotation(&cross);
         assert!(
             fast.dot(reference).abs() > 1.0 - 1e-9,
             "case {case}: {fast} against {reference}"
         );
     }
-    assert_eq!(fast_horn_rotation(&[[0.0; 3]; 3]), glam::DQuat::IDENTITY);
+    assert_eq!(
+        fast_horn_rotation(&[[0.0; 3]; 3], f64::INFINITY),
+        glam::DQuat::IDENTITY
+    );
+}
+
+#[test]
+fn the_fast_rotation_started_from_the_spreads_is_the_eigen_solvers() {
+    // Groups of points turned, scaled, squashed flat, jittered or scattered: the spreads' bound is
+    // tight for the first, loose for the last; near and far from the origin. (Fewer than three
+    // points have no single best rotation.)
+    let mut random = uniform(5);
+    for case in 0..3000 {
+        let count = 3 + case % 7;
+        let turn = glam::DQuat::from_axis_angle(
+            DVec3::new(random(), random(), random() + 1.0).normalize(),
+            7.0 * random(),
+        );
+        let (jitter, scale) =
+            [(0.0, 1.0), (1e-9, 1.0), (0.05, 1.3), (0.5, 0.7), (5.0, 1.0)][case % 5];
+        let far = DVec3::splat(if case % 2 == 0 { 0.0 } else { 1e5 });
+        let rest: Vec<DVec3> = (0..count)
+            .map(|_| {
+                let point = DVec3::new(random(), random(), random());
+                far + if case % 3 == 0 {
+                    point * DVec3::new(1.0, 1.0, 0.0)
+                } else {
+                    point
+                }
+            })
+            .collect();
+        let now: Vec<DVec3> = rest
+            .iter()
+            .map(|&point| {
+                let wobble = jitter * DVec3::new(random(), random(), random());
+                turn * ((point - far) * scale) + wobble - far
+            })
+            .collect();
+        let moments = Moments::of(&now, &rest, 0..count as u32);
+        let bound = (moments.spread_rest * moments.spread_now).sqrt();
+        let fast = fast_horn_rotation(&moments.cross, bound);
+        let reference = fast_horn_rotation(&moments.cross, f64::INFINITY);
+        assert!(
+            fast.dot(reference).abs() > 1.0 - 1e-9,
+            "case {case}: {fast} against {reference}"
+        );
+        assert!(
+            (moments.best_rotation() * DVec3::X).distance(fast * DVec3::X) < 1e-12,
+            "case {case}"
+        );
+        if jitter < 1.0 {
+            let eigen = horn_rotation(&moments.cross);
+            assert!(
+                fast.dot(eigen).abs() > 1.0 - 1e-9,
+                "case {case}: {fast} against {eigen}"
+            );
+        }
+    }
 }
 
 #[test]
@@ -164,13 +225,7 @@ type Warped = (Vec<DVec3>, Vec<DVec3>, Vec<u32>, Vec<u32>, Vec<[u32; 2]>);
 /// A grid of `n` x `n` quads warped and folded at random.
 fn warped(n: u32, seed: u64) -> Warped {
     let (rest, corners, sizes, edges) = grid(n);
-    let mut state = seed;
-    let mut random = move || {
-        state = state
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(1_442_695_040_888_963_407);
-        (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-    };
+    let mut random = uniform(seed);
     let points = rest
         .iter()
         .map(|p| {
@@ -284,6 +339,12 @@ fn a_neighbourhood_merged_from_rings_has_the_groups_moments() {
             .flatten()
             .zip(direct.cross.iter().flatten())
         {
+            assert!((a - b).abs() < 1e-8 * (1.0 + b.abs()), "{a} against {b}");
+        }
+        for (a, b) in [
+            (merged.spread_now, direct.spread_now),
+            (merged.spread_rest, direct.spread_rest),
+        ] {
             assert!((a - b).abs() < 1e-8 * (1.0 + b.abs()), "{a} against {b}");
         }
     }
