@@ -223,6 +223,55 @@ impl TargetMesh {
             .map(|index| Vec3A::from(self.vertices[index as usize]))
     }
 
+    /// The bytes each structure of the mesh holds (allocated capacity), by name: what a dense
+    /// target costs and where (the parts built on first use count once built).
+    #[must_use]
+    pub fn memory_bytes(&self) -> Vec<(&'static str, usize)> {
+        fn bytes<T>(items: &Vec<T>) -> usize {
+            items.capacity() * size_of::<T>()
+        }
+        let tree = |bvh: &Bvh2| {
+            bytes(&bvh.nodes)
+                + bytes(&bvh.primitive_indices)
+                + bytes(&bvh.primitive_indices_freelist)
+                + bytes(&bvh.primitives_to_nodes)
+                + bytes(&bvh.parents)
+        };
+        let mut parts = vec![
+            ("vertices", bytes(&self.vertices)),
+            ("triangles", bytes(&self.triangles)),
+            (
+                "degenerate flags",
+                bytes(&self.degenerate) + bytes(&self.face_tree_degenerate),
+            ),
+            ("face tree", tree(&self.face_tree)),
+            ("face tree slots", bytes(&self.face_tree_slots)),
+        ];
+        if let Some(closest) = self.closest_tree.get() {
+            parts.push(("closest tree nodes", bytes(&closest.tree.nodes)));
+            parts.push(("closest tree packets", bytes(&closest.packets)));
+        }
+        if let Some(vertex) = self.vertex_tree.get() {
+            parts.push((
+                "vertex tree",
+                bytes(&vertex.tree.nodes)
+                    + bytes(&vertex.points)
+                    + bytes(&vertex.vertices)
+                    + bytes(&vertex.vertex_triangle),
+            ));
+        }
+        if let Some(normals) = self.normals.get() {
+            parts.push(("normals", bytes(&normals.faces) + bytes(&normals.vertices)));
+        }
+        if let Some(topology) = self.topology.get() {
+            parts.push((
+                "topology",
+                bytes(&topology.neighbors) + bytes(&topology.boundary_edges),
+            ));
+        }
+        parts
+    }
+
     /// The vertex positions.
     #[must_use]
     pub fn vertices(&self) -> &[Vec3] {
