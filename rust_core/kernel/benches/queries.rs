@@ -330,8 +330,8 @@ fn cpu_seconds() -> f64 {
         .map_or(f64::NAN, |(u, s)| (u + s) / 100.0)
 }
 
-/// `--only anatomy`: each part of the build timed alone (processor seconds per million
-/// triangles), the peak resident set over the whole build, the bytes each structure keeps, and
+/// `--only anatomy`: each part of the build timed alone, in `prepare_all`'s order (processor
+/// seconds per million triangles), the peak resident set over the whole build, the bytes each structure keeps, and
 /// the closest-point query rate. For the peak, run with `MALLOC_MMAP_THRESHOLD_=131072` so that
 /// freed buffers leave the resident set.
 fn anatomy(vertices: Vec<Vec3>, triangles: Vec<[u32; 3]>, queries: &[Vec3]) {
@@ -359,17 +359,17 @@ fn anatomy(vertices: Vec<Vec3>, triangles: Vec<[u32; 3]>, queries: &[Vec3]) {
     });
     let mesh = mesh.unwrap();
     drop((vertices, triangles));
-    timed("closest-point tree", &mut || {
-        mesh.closest_point(Vec3::ZERO, f32::INFINITY);
-    });
     timed("vertex tree", &mut || {
         mesh.nearest_vertices(&[Vec3::ZERO], f32::INFINITY).unwrap();
     });
     timed("topology", &mut || {
-        mesh.triangle_neighbors();
+        let _ = mesh.triangle_neighbors();
     });
     timed("normals", &mut || {
-        mesh.vertex_normals();
+        let _ = mesh.vertex_normals();
+    });
+    timed("closest-point tree", &mut || {
+        let _ = mesh.closest_point(Vec3::ZERO, f32::INFINITY);
     });
     let peak = status_bytes("VmHWM") - before;
     let kept = status_bytes("VmRSS") - before;
@@ -397,11 +397,46 @@ fn anatomy(vertices: Vec<Vec3>, triangles: Vec<[u32; 3]>, queries: &[Vec3]) {
         peak / count,
         kept / count
     );
-    let (seconds, _) = best_of(3, || {
-        mesh.closest_points(queries, f32::INFINITY).unwrap().len()
-    });
-    println!(
-        "closest points (coherent): {}",
-        rate(queries.len(), seconds)
-    );
+    // Query rates in processor time (over all threads), summed over enough repeats to be steady
+    // on a busy machine.
+    let repeat = (2_000_000 / queries.len().max(1)).clamp(1, 200);
+    let per_query = |run: &dyn Fn() -> usize| {
+        let start = cpu_seconds();
+        for _ in 0..repeat {
+            std::hint::black_box(run());
+        }
+        (cpu_seconds() - start) / (repeat * queries.len()) as f64
+    };
+    let near: Vec<u32> = mesh
+        .closest_points(queries, f32::INFINITY)
+        .unwrap()
+        .iter()
+        .map(|hit| hit.unwrap().face_point.triangle)
+        .collect();
+    let directions: Vec<Vec3> = queries.iter().map(|p| -*p).collect();
+    let rates = [
+        (
+            "closest points",
+            per_query(&|| mesh.closest_points(queries, f32::INFINITY).unwrap().len()),
+        ),
+        (
+            "closest points, warm-started",
+            per_query(&|| {
+                mesh.closest_points_near(queries, f32::INFINITY, &near)
+                    .unwrap()
+                    .len()
+            }),
+        ),
+        (
+            "ray casts (both ways)",
+            per_query(&|| {
+                mesh.ray_casts(queries, &directions, f32::INFINITY, true)
+                    .unwrap()
+                    .len()
+            }),
+        ),
+    ];
+    for (name, seconds) in rates {
+        println!("{name:>30}: {:.0}k/processor-second", 1e-3 / seconds);
+    }
 }
