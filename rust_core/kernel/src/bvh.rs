@@ -158,7 +158,10 @@ impl Bvh4Node {
 
 impl Bvh4 {
     /// Collapses a binary BVH: each node takes the up-to-four descendants found by opening,
-    /// again and again, its inner child with the largest surface area.
+    /// again and again, its inner child with the largest surface area. An inner node whose two
+    /// children are leaves of adjacent slots becomes one leaf of both (at most
+    /// [`Bvh4::MAX_LEAF_SLOTS`]): a node of two leaves is 128 bytes for two packets, and the
+    /// leaf's slots pack tighter into packets of four.
     ///
     /// # Panics
     /// With 2^32 nodes or more, or a leaf of more than 65535 primitives.
@@ -168,9 +171,9 @@ impl Bvh4 {
             return Self::default();
         };
         let mut nodes = vec![Bvh4Node::EMPTY];
-        if root.prim_count > 0 {
+        if let Some((first, count)) = leaf_slots(bvh2, 0) {
             nodes[0].set_box(0, root.aabb());
-            nodes[0].set_leaf(0, root.first_index, root.prim_count);
+            nodes[0].set_leaf(0, first, count);
             return Self { nodes };
         }
         // (Bvh4 node to fill, the Bvh2 inner node it stands for).
@@ -181,7 +184,7 @@ impl Bvh4 {
             let mut count = 2;
             while count < 4 {
                 let widest = (0..count)
-                    .filter(|&child| bvh2.nodes[children[child] as usize].prim_count == 0)
+                    .filter(|&child| leaf_slots(bvh2, children[child]).is_none())
                     .max_by(|&a, &b| {
                         let area =
                             |child: usize| bvh2.nodes[children[child] as usize].aabb().half_area();
@@ -197,8 +200,8 @@ impl Bvh4 {
                 let node = &bvh2.nodes[source_child as usize];
                 let target_node = &mut nodes[target as usize];
                 target_node.set_box(child, node.aabb());
-                if node.prim_count > 0 {
-                    target_node.set_leaf(child, node.first_index, node.prim_count);
+                if let Some((first, count)) = leaf_slots(bvh2, source_child) {
+                    target_node.set_leaf(child, first, count);
                 } else {
                     let index = u32::try_from(nodes.len()).expect("fewer than 2^32 BVH nodes");
                     nodes[target as usize].children[child] = index;
@@ -209,6 +212,27 @@ impl Bvh4 {
         }
         Self { nodes }
     }
+
+    /// The most slots a leaf made of two binary leaves holds.
+    pub const MAX_LEAF_SLOTS: u32 = 8;
+}
+
+/// The slots `(first, count)` of `bvh2.nodes[index]` as one leaf of a [`Bvh4`]: a leaf's, or an
+/// inner node's whose two children are leaves of adjacent slots, at most
+/// [`Bvh4::MAX_LEAF_SLOTS`] in all; `None` for other inner nodes.
+fn leaf_slots(bvh2: &Bvh2, index: u32) -> Option<(u32, u32)> {
+    let node = &bvh2.nodes[index as usize];
+    if node.prim_count > 0 {
+        return Some((node.first_index, node.prim_count));
+    }
+    let left = &bvh2.nodes[node.first_index as usize];
+    let right = &bvh2.nodes[node.first_index as usize + 1];
+    let count = left.prim_count + right.prim_count;
+    (left.prim_count > 0
+        && right.prim_count > 0
+        && right.first_index == left.first_index + left.prim_count
+        && count <= Bvh4::MAX_LEAF_SLOTS)
+        .then_some((left.first_index, count))
 }
 
 impl Bvh4 {
@@ -453,6 +477,37 @@ mod tests {
             }
             assert!(seen.iter().all(|&times| times == 1), "{count} primitives");
         }
+    }
+
+    #[test]
+    fn the_four_wide_tree_covers_every_slot_once_in_leaves_of_at_most_eight() {
+        let boxes: Vec<Aabb> = (0..3000)
+            .map(|index| {
+                Aabb::from_point(Vec3A::new(
+                    (index as f32 * 0.37).sin(),
+                    (index as f32 * 0.11).cos(),
+                    index as f32 * 1e-3,
+                ))
+            })
+            .collect();
+        let bvh = Bvh4::from_bvh2(&build_bvh(&boxes));
+        let mut seen = vec![0; boxes.len()];
+        let mut widest = 0;
+        for node in &bvh.nodes {
+            for child in 0..4 {
+                if node.leaf_mask & (1 << child) != 0 {
+                    let count = u32::from(node.counts[child]);
+                    assert!((1..=Bvh4::MAX_LEAF_SLOTS).contains(&count));
+                    widest = widest.max(count);
+                    for slot in node.children[child]..node.children[child] + count {
+                        seen[slot as usize] += 1;
+                    }
+                }
+            }
+        }
+        assert!(seen.iter().all(|&times| times == 1));
+        // Binary leaves hold at most four: a wider leaf is two of them.
+        assert!(widest > 4, "no leaf holds two binary leaves");
     }
 
     #[test]
