@@ -1,4 +1,4 @@
-"""The imports of the command-line scripts, the benchmarks and the kernel's binding form no circle: each module
+"""The imports of the add-on, the command-line scripts, the benchmarks and the kernel's binding form no circle: each module
 imports only modules below it. Imports inside functions count (a lazy import is still a dependency). No
 Blender: the sources are parsed, not imported."""
 
@@ -106,6 +106,13 @@ def circles(graph: dict[str, set[str]]) -> list[list[str]]:
 def test_the_circle_finder_finds_a_circle_and_passes_a_chain():
     assert circles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
     assert circles({"a": {"b"}, "b": {"c"}, "c": set()}) == []
+
+
+def test_the_addon_imports_no_circle():
+    graph = python_imports(python_modules(REPOSITORY / "addon" / "springwrap", "springwrap"))
+    assert "springwrap.blender.follow" in graph["springwrap.properties"]
+    assert "springwrap.core.defaults" in graph["springwrap.blender.follow"]
+    assert circles(graph) == []
 
 
 def test_the_scripts_import_no_circle():

@@ -19,11 +19,10 @@ import bpy
 
 import numpy as np
 
-from ..core import follow, transforms
+from ..core import defaults, follow, transforms
 from ..core.errors import ERRORS
 from ..core.quality import DISTANCE_ATTRIBUTE
 from ..core.wrap_inputs import WrapParameters
-from ..properties import WRAP_DEFAULTS
 from . import attributes, target_changes, wrap_session
 from . import layout as layout_data
 from . import target as target_data
@@ -174,7 +173,9 @@ def settle(context, layout) -> int:
 
 
 def _settings(settings):
-    return WRAP_DEFAULTS.replace(schedule=settings.wrap_schedule)
+    """The kernel's default wrap settings with the panel's schedule (read from ``core.defaults``: the add-on's
+    properties import this module for ``follow``'s update, so it imports nothing from them)."""
+    return defaults.wrap_defaults().replace(schedule=settings.wrap_schedule)
 
 
 def follow_changed(settings, context) -> None:

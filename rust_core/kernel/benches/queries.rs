@@ -167,6 +167,10 @@ fn main() {
         .map(|q| *q + Vec3::new(rng.signed(), rng.signed(), rng.signed()) * (0.2 * edge))
         .collect();
     let triangle_count = triangles.len();
+    if only.as_deref() == Some("anatomy") {
+        anatomy(vertices, triangles, &queries);
+        return;
+    }
     let start = Instant::now();
     let mesh = TargetMesh::new(vertices, triangles, TargetMeshOptions::default()).unwrap();
     let build = start.elapsed().as_secs_f64();
@@ -300,5 +304,139 @@ fn main() {
             rate(points.len(), nearest),
             rate(points.len(), rays)
         );
+    }
+}
+
+/// A value from `/proc/self/status` (`VmRSS`, `VmHWM`), in bytes.
+fn status_bytes(name: &str) -> f64 {
+    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+    status
+        .lines()
+        .find_map(|line| line.strip_prefix(name)?.strip_prefix(':'))
+        .and_then(|rest| rest.split_whitespace().next()?.parse::<f64>().ok())
+        .map_or(f64::NAN, |kilobytes| kilobytes * 1024.0)
+}
+
+/// The processor time of the process over all its threads, in seconds.
+fn cpu_seconds() -> f64 {
+    let stat = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
+    let fields: Vec<&str> = stat
+        .rsplit_once(')')
+        .map_or(vec![], |(_, rest)| rest.split_whitespace().collect());
+    let ticks = |index: usize| fields.get(index).and_then(|f| f.parse::<f64>().ok());
+    // utime and stime are fields 14 and 15 of the line, 12 and 13 after the name.
+    ticks(11)
+        .zip(ticks(12))
+        .map_or(f64::NAN, |(u, s)| (u + s) / 100.0)
+}
+
+/// `--only anatomy`: each part of the build timed alone, in `prepare_all`'s order (processor
+/// seconds per million triangles), the peak resident set over the whole build, the bytes each structure keeps, and
+/// the closest-point query rate. For the peak, run with `MALLOC_MMAP_THRESHOLD_=131072` so that
+/// freed buffers leave the resident set.
+fn anatomy(vertices: Vec<Vec3>, triangles: Vec<[u32; 3]>, queries: &[Vec3]) {
+    let count = triangles.len() as f64;
+    let per_million = |seconds: f64| seconds / count * 1e6;
+    let before = status_bytes("VmRSS");
+    // Resets the peak resident set to the current one.
+    let _ = std::fs::write("/proc/self/clear_refs", "5");
+    let mut phases = Vec::new();
+    let mut timed = |name: &'static str, run: &mut dyn FnMut()| {
+        let (wall, cpu) = (Instant::now(), cpu_seconds());
+        run();
+        phases.push((name, cpu_seconds() - cpu, wall.elapsed().as_secs_f64()));
+    };
+    let mut mesh = None;
+    timed("TargetMesh::new", &mut || {
+        mesh = Some(
+            TargetMesh::new(
+                vertices.clone(),
+                triangles.clone(),
+                TargetMeshOptions::default(),
+            )
+            .unwrap(),
+        );
+    });
+    let mesh = mesh.unwrap();
+    drop((vertices, triangles));
+    timed("vertex tree", &mut || {
+        mesh.nearest_vertices(&[Vec3::ZERO], f32::INFINITY).unwrap();
+    });
+    timed("topology", &mut || {
+        let _ = mesh.triangle_neighbors();
+    });
+    timed("normals", &mut || {
+        let _ = mesh.vertex_normals();
+    });
+    timed("closest-point tree", &mut || {
+        let _ = mesh.closest_point(Vec3::ZERO, f32::INFINITY);
+    });
+    let peak = status_bytes("VmHWM") - before;
+    let kept = status_bytes("VmRSS") - before;
+    for (name, cpu, wall) in &phases {
+        println!(
+            "{name:>20}: {:.3} s/M triangles processor time ({:.3} s/M wall)",
+            per_million(*cpu),
+            per_million(*wall)
+        );
+    }
+    let total: f64 = phases.iter().map(|(_, cpu, _)| cpu).sum();
+    println!(
+        "{:>20}: {:.3} s/M triangles processor time",
+        "all",
+        per_million(total)
+    );
+    let mut held = 0;
+    for (name, bytes) in mesh.memory_bytes() {
+        held += bytes;
+        println!("{name:>20}: {:>6.1} B/triangle", bytes as f64 / count);
+    }
+    println!("{:>20}: {:>6.1} B/triangle", "held", held as f64 / count);
+    println!(
+        "peak {:.0} B/triangle over the build (inputs copied included), resident after {:.0}",
+        peak / count,
+        kept / count
+    );
+    // Query rates in processor time (over all threads), summed over enough repeats to be steady
+    // on a busy machine.
+    let repeat = (2_000_000 / queries.len().max(1)).clamp(1, 200);
+    let per_query = |run: &dyn Fn() -> usize| {
+        let start = cpu_seconds();
+        for _ in 0..repeat {
+            std::hint::black_box(run());
+        }
+        (cpu_seconds() - start) / (repeat * queries.len()) as f64
+    };
+    let near: Vec<u32> = mesh
+        .closest_points(queries, f32::INFINITY)
+        .unwrap()
+        .iter()
+        .map(|hit| hit.unwrap().face_point.triangle)
+        .collect();
+    let directions: Vec<Vec3> = queries.iter().map(|p| -*p).collect();
+    let rates = [
+        (
+            "closest points",
+            per_query(&|| mesh.closest_points(queries, f32::INFINITY).unwrap().len()),
+        ),
+        (
+            "closest points, warm-started",
+            per_query(&|| {
+                mesh.closest_points_near(queries, f32::INFINITY, &near)
+                    .unwrap()
+                    .len()
+            }),
+        ),
+        (
+            "ray casts (both ways)",
+            per_query(&|| {
+                mesh.ray_casts(queries, &directions, f32::INFINITY, true)
+                    .unwrap()
+                    .len()
+            }),
+        ),
+    ];
+    for (name, seconds) in rates {
+        println!("{name:>30}: {:.0}k/processor-second", 1e-3 / seconds);
     }
 }

@@ -8,7 +8,7 @@ use rayon::prelude::*;
 
 use super::normals::{face_normals, vertex_normals};
 use super::topology::{NO_TRIANGLE, Topology, TriangleEdge, compute_topology};
-use crate::bvh::{Bvh4, build_bvh};
+use crate::bvh::{Bvh4, build_bvh_with};
 use crate::error::KernelError;
 use crate::face_point::{FacePoint, LayoutPoint};
 use crate::query::point_triangle::is_degenerate;
@@ -157,7 +157,7 @@ impl TargetMesh {
         }
 
         let (face_tree, face_tree_degenerate) = build_face_tree(&vertices, &triangles, &degenerate);
-        let bounds = face_tree.nodes[0].aabb;
+        let bounds = *face_tree.nodes[0].aabb();
         let coordinate_scale = bounds.min.abs().max(bounds.max.abs()).max_element();
         let mut face_tree_slots = vec![0; triangles.len()];
         for (slot, &triangle) in face_tree.primitive_indices.iter().enumerate() {
@@ -181,12 +181,15 @@ impl TargetMesh {
     }
 
     /// Builds the parts that are otherwise built on first use (closest-point tree, vertex tree,
-    /// topology, normals), in parallel, so that later queries pay nothing.
+    /// topology, normals), so that later queries pay nothing.
+    ///
+    /// Ordered for the peak memory: the builds with the largest transient buffers (the vertex
+    /// tree's, then the topology's) run before the closest-point tree, the largest part kept,
+    /// exists; each build is parallel inside.
     pub fn prepare_all(&self) {
-        rayon::join(
-            || rayon::join(|| self.closest_tree(), || self.vertex_tree()),
-            || rayon::join(|| self.topology(), || self.normals()),
-        );
+        rayon::join(|| self.vertex_tree(), || self.normals());
+        self.topology();
+        self.closest_tree();
     }
 
     pub(crate) fn closest_tree(&self) -> &ClosestTree {
@@ -221,6 +224,55 @@ impl TargetMesh {
     pub(crate) fn slot_corners(&self, slot: usize) -> [Vec3A; 3] {
         self.triangles[self.face_tree.primitive_indices[slot] as usize]
             .map(|index| Vec3A::from(self.vertices[index as usize]))
+    }
+
+    /// The bytes each structure of the mesh holds (allocated capacity), by name: what a dense
+    /// target costs and where (the parts built on first use count once built).
+    #[must_use]
+    pub fn memory_bytes(&self) -> Vec<(&'static str, usize)> {
+        fn bytes<T>(items: &Vec<T>) -> usize {
+            items.capacity() * size_of::<T>()
+        }
+        let tree = |bvh: &Bvh2| {
+            bytes(&bvh.nodes)
+                + bytes(&bvh.primitive_indices)
+                + bytes(&bvh.primitive_indices_freelist)
+                + bytes(&bvh.primitives_to_nodes)
+                + bytes(&bvh.parents)
+        };
+        let mut parts = vec![
+            ("vertices", bytes(&self.vertices)),
+            ("triangles", bytes(&self.triangles)),
+            (
+                "degenerate flags",
+                bytes(&self.degenerate) + bytes(&self.face_tree_degenerate),
+            ),
+            ("face tree", tree(&self.face_tree)),
+            ("face tree slots", bytes(&self.face_tree_slots)),
+        ];
+        if let Some(closest) = self.closest_tree.get() {
+            parts.push(("closest tree nodes", bytes(&closest.tree.nodes)));
+            parts.push(("closest tree packets", bytes(&closest.packets)));
+        }
+        if let Some(vertex) = self.vertex_tree.get() {
+            parts.push((
+                "vertex tree",
+                bytes(&vertex.tree.nodes)
+                    + bytes(&vertex.points)
+                    + bytes(&vertex.vertices)
+                    + bytes(&vertex.vertex_triangle),
+            ));
+        }
+        if let Some(normals) = self.normals.get() {
+            parts.push(("normals", bytes(&normals.faces) + bytes(&normals.vertices)));
+        }
+        if let Some(topology) = self.topology.get() {
+            parts.push((
+                "topology",
+                bytes(&topology.neighbors) + bytes(&topology.boundary_edges),
+            ));
+        }
+        parts
     }
 
     /// The vertex positions.
@@ -346,15 +398,10 @@ fn build_face_tree(
     triangles: &[[u32; 3]],
     degenerate: &[bool],
 ) -> (Bvh2, Vec<bool>) {
-    let boxes: Vec<Aabb> = triangles
-        .par_iter()
-        .map(|corners| {
-            let [a, b, c] = corners.map(|index| Vec3A::from(vertices[index as usize]));
-            Aabb::new(a.min(b).min(c), a.max(b).max(c))
-        })
-        .collect();
-    let tree = build_bvh(&boxes);
-    drop(boxes); // 32 bytes per triangle, not needed past the build
+    let tree = build_bvh_with(triangles.len(), |index| {
+        let [a, b, c] = triangles[index].map(|vertex| Vec3A::from(vertices[vertex as usize]));
+        Aabb::new(a.min(b).min(c), a.max(b).max(c))
+    });
     let slot_degenerate = tree
         .primitive_indices
         .iter()
@@ -414,11 +461,9 @@ fn build_vertex_tree(vertices: &[Vec3], triangles: &[[u32; 3]], degenerate: &[bo
     let used: Vec<u32> = (0..vertices.len() as u32)
         .filter(|&vertex| vertex_triangle[vertex as usize].0 != NO_TRIANGLE)
         .collect();
-    let boxes: Vec<Aabb> = used
-        .iter()
-        .map(|&vertex| Aabb::from_point(vertices[vertex as usize].into()))
-        .collect();
-    let tree = build_bvh(&boxes);
+    let tree = build_bvh_with(used.len(), |index| {
+        Aabb::from_point(vertices[used[index] as usize].into())
+    });
     let slot_vertices: Vec<u32> = tree
         .primitive_indices
         .iter()

@@ -153,7 +153,7 @@ impl TargetMesh {
                         if estimates[lane] >= reach(best_distance_squared) {
                             continue;
                         }
-                        let slot = packet.slots[lane] as usize;
+                        let slot = packet.first_slot as usize + lane;
                         let hit = self.closest_point_in_slot(point, slot);
                         let exact = hit.0.distance_squared(point);
                         if exact < best_distance_squared {

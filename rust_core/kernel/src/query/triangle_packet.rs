@@ -18,9 +18,12 @@ const INSIDE_TOLERANCE: f32 = 1e-3;
 /// the float precision.
 const SLIVER_SIN_SQUARED: f32 = 1e-2;
 
-/// Four triangles in structure-of-arrays form, with the dot products that do not depend on the
-/// query point. Lane `i` is the triangle in BVH slot `slots[i]` (its corners possibly rotated:
+/// Four triangles in structure-of-arrays form, with the reciprocals that do not depend on the
+/// query point (the dot products of the edges are recomputed per query: cheaper than their
+/// bytes). Lane `i` is the triangle in BVH slot `first_slot + i` (its corners possibly rotated:
 /// the estimate does not depend on which corner comes first); unused lanes are NaN.
+///
+/// 224 bytes (four triangles' corner and edges, 4 reciprocals, the first slot).
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(16))]
 pub(crate) struct TrianglePacket {
@@ -30,29 +33,30 @@ pub(crate) struct TrianglePacket {
     e0: [Vec4; 3],
     /// Edge from corner 0 to corner 2, per axis.
     e1: [Vec4; 3],
-    d00: Vec4,
-    d01: Vec4,
-    d11: Vec4,
-    /// `1 / (d00 d11 - d01²)`.
+    /// `1 / (d00 d11 - d01²)` (the edges' dot products); 0 for triangles to test exactly
+    /// whatever the estimate (slivers, degenerate).
     inv_denominator: Vec4,
     /// `1 / |e0|²`, `1 / |e1|²`, `1 / |e1 - e0|²` (0 for a zero-length edge).
     inv_edge_lengths: [Vec4; 3],
-    /// `+inf`, or 0 for triangles to test exactly whatever the estimate (slivers, degenerate).
-    floor: Vec4,
-    /// The BVH slot of each lane (`u32::MAX` for unused lanes).
-    pub(crate) slots: [u32; 4],
+    /// The BVH slot of lane 0; the lanes are consecutive slots.
+    pub(crate) first_slot: u32,
 }
 
 impl TrianglePacket {
-    /// A packet of up to four triangles: `(slot, corners, degenerate)`.
+    /// A packet of up to four triangles of consecutive slots: `(slot, corners, degenerate)`.
     pub(crate) fn new(triangles: &[(u32, [Vec3A; 3], bool)]) -> Self {
         assert!(
-            triangles.len() <= 4,
-            "a packet holds at most four triangles"
+            (1..=4).contains(&triangles.len()),
+            "a packet holds one to four triangles"
         );
-        let mut lanes = [[f32::NAN; 17]; 4];
-        let mut slots = [u32::MAX; 4];
+        let first_slot = triangles[0].0;
+        let mut lanes = [[f32::NAN; 13]; 4];
         for (lane, &(slot, corners, degenerate)) in triangles.iter().enumerate() {
+            assert_eq!(
+                slot,
+                first_slot + lane as u32,
+                "a packet's slots are consecutive"
+            );
             // From the corner of the widest angle (opposite the longest edge), the basis of the
             // barycentric coordinates is as well conditioned as the triangle allows.
             let [a, b, c] = corners;
@@ -90,16 +94,11 @@ impl TrianglePacket {
                 e1.x,
                 e1.y,
                 e1.z,
-                d00,
-                d01,
-                d11,
                 if sliver { 0.0 } else { 1.0 / denominator },
                 inverse(d00),
                 inverse(d11),
                 inverse(e2.length_squared()),
-                if sliver { 0.0 } else { f32::INFINITY },
             ];
-            slots[lane] = slot;
         }
         let column = |index: usize| {
             Vec4::new(
@@ -109,21 +108,13 @@ impl TrianglePacket {
                 lanes[3][index],
             )
         };
-        let mut floor = column(16);
-        for lane in triangles.len()..4 {
-            floor[lane] = f32::INFINITY;
-        }
         Self {
             a: [column(0), column(1), column(2)],
             e0: [column(3), column(4), column(5)],
             e1: [column(6), column(7), column(8)],
-            d00: column(9),
-            d01: column(10),
-            d11: column(11),
-            inv_denominator: column(12),
-            inv_edge_lengths: [column(13), column(14), column(15)],
-            floor,
-            slots,
+            inv_denominator: column(9),
+            inv_edge_lengths: [column(10), column(11), column(12)],
+            first_slot,
         }
     }
 
@@ -139,11 +130,14 @@ impl TrianglePacket {
         let apx = x - self.a[0];
         let apy = y - self.a[1];
         let apz = z - self.a[2];
+        let d00 = e0x * e0x + e0y * e0y + e0z * e0z;
+        let d01 = e0x * e1x + e0y * e1y + e0z * e1z;
+        let d11 = e1x * e1x + e1y * e1y + e1z * e1z;
         let d20 = apx * e0x + apy * e0y + apz * e0z;
         let d21 = apx * e1x + apy * e1y + apz * e1z;
         // Barycentric coordinates of the projection onto the plane.
-        let v = (self.d11 * d20 - self.d01 * d21) * self.inv_denominator;
-        let w = (self.d00 * d21 - self.d01 * d20) * self.inv_denominator;
+        let v = (d11 * d20 - d01 * d21) * self.inv_denominator;
+        let w = (d00 * d21 - d01 * d20) * self.inv_denominator;
         let tolerance = Vec4::splat(-INSIDE_TOLERANCE);
         let inside = v.cmpge(tolerance) & w.cmpge(tolerance) & (Vec4::ONE - v - w).cmpge(tolerance);
         let interior = {
@@ -169,8 +163,7 @@ impl TrianglePacket {
             rx * rx + ry * ry + rz * rz
         };
         // (p - b) · (c - b) = (d21 - d20) - (d01 - d00).
-        let along_bc =
-            (((d21 - d20) - (self.d01 - self.d00)) * inv_bc).clamp(Vec4::ZERO, Vec4::ONE);
+        let along_bc = (((d21 - d20) - (d01 - d00)) * inv_bc).clamp(Vec4::ZERO, Vec4::ONE);
         let edge_bc = {
             let bpx = apx - e0x;
             let bpy = apy - e0y;
@@ -181,8 +174,13 @@ impl TrianglePacket {
             rx * rx + ry * ry + rz * rz
         };
         let edges = edge_ab.min(edge_ac).min(edge_bc);
-        // `min` returns its second operand when the first is NaN: unused lanes (NaN) give
-        // `+inf`, slivers and degenerate triangles 0.
-        Vec4::select(inside, interior, edges).min(self.floor)
+        // Slivers and degenerate triangles (a zero reciprocal) estimate 0; `min` returns its
+        // second operand when the first is NaN, so unused lanes (NaN) give `+inf`.
+        let floor = Vec4::select(
+            self.inv_denominator.cmpeq(Vec4::ZERO),
+            Vec4::ZERO,
+            Vec4::INFINITY,
+        );
+        Vec4::select(inside, interior, edges).min(floor)
     }
 }
