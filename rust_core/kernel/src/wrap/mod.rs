@@ -11,6 +11,7 @@ pub mod settings;
 mod similarity;
 pub mod soft_pair;
 pub mod solver;
+mod multigrid;
 mod system_assembly;
 
 pub use anchor::{Anchor, AnchorTarget};
