@@ -142,7 +142,7 @@ const BUDGET_BOUNDS: (usize, usize) = (4, 60);
 const MULTIGRID_ITERATIONS: usize = 60;
 /// Layouts with more free rows than this are not analysed for a factorization at all (the
 /// analysis alone would take seconds and gigabytes); their factor would pass any memory limit.
-const MAX_DIRECT_ROWS: usize = 500_000;
+const MAX_DIRECT_ROWS: usize = 1_500_000;
 
 /// `A = Σ weight · s sᵀ` over the free vertices, with its factor-reuse policy.
 pub struct LinearSystem {
@@ -837,7 +837,8 @@ mod tests {
                 500,
             )
             .unwrap();
-        assert!(converged && iterations > 1);
+        // A system this small is its multigrid's only level, factored: one iteration solves it.
+        assert!(converged && iterations >= 1);
         for (a, b) in solution.iter().zip(&exact) {
             assert!(a.distance(*b) < 1e-8, "{a} against {b}");
         }

@@ -6,12 +6,12 @@ pub mod curve_constraint;
 mod energy_solver;
 mod global_phase;
 pub mod linear_system;
+mod multigrid;
 pub mod plane_constraint;
 pub mod settings;
 mod similarity;
 pub mod soft_pair;
 pub mod solver;
-mod multigrid;
 mod system_assembly;
 
 pub use anchor::{Anchor, AnchorTarget};
