@@ -391,11 +391,15 @@ impl Multigrid {
             Some((pattern, symbolic)) => {
                 let level = self.levels.last().expect("one level at least");
                 let mut values = level.matrix.values.clone();
-                for (row, &extra) in extra.last().expect("one level at least").iter().enumerate() {
-                    for entry in level.matrix.row_pointers[row]..level.matrix.row_pointers[row + 1]
+                let coarsest_extra = extra.last().expect("one level at least");
+                for (row, &extra) in coarsest_extra.iter().enumerate() {
+                    let range = level.matrix.row_pointers[row]..level.matrix.row_pointers[row + 1];
+                    for (value, &column) in values[range.clone()]
+                        .iter_mut()
+                        .zip(&level.matrix.columns[range])
                     {
-                        if level.matrix.columns[entry] as usize == row {
-                            values[entry] += extra;
+                        if column as usize == row {
+                            *value += extra;
                         }
                     }
                 }
