@@ -15,7 +15,7 @@
 3. **Large spring** (``--large``): a 2048 x 2048 spring (a 256 x 256 layout at spring resolution
    8, 4.2 M points) onto a 1 M-triangle noisy torus, through the kernel's ``WrapSolver`` on the
    fine grid started on the surface (its factor of 4.2 M points would pass the 2 GiB limit, so the
-   global step solves by Jacobi-preconditioned conjugate gradients); reports the time per iteration and the time to
+   global step solves by multigrid-preconditioned conjugate gradients); reports the time per iteration and the time to
    converge or to ``--large-iterations``. Aim: 30 s.
 
 Run: ``.venv/bin/python benchmarks/wrap_speed.py [--large] [--json out/bench/wrap_speed.json]``.

@@ -6,6 +6,7 @@ pub mod curve_constraint;
 mod energy_solver;
 mod global_phase;
 pub mod linear_system;
+mod multigrid;
 pub mod plane_constraint;
 pub mod settings;
 mod similarity;

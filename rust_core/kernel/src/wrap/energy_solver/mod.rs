@@ -152,7 +152,7 @@ const MIN_ALIGNMENT: f32 = 0.0;
 const SOLVE_PRECISION: f64 = 1e-5;
 /// The most memory the global step's factorization may take, in bytes (2 GiB): about a million
 /// layout points on a grid. A larger layout is solved without a factor (conjugate gradients
-/// preconditioned by the diagonal), in memory that grows only linearly with the points.
+/// preconditioned by a multigrid cycle), in memory that grows only linearly with the points.
 pub(crate) const MAX_FACTOR_BYTES: usize = 2 << 30;
 /// The stiffness at which a vertex has the energy's own weights.
 pub(crate) const NEUTRAL_STIFFNESS: f32 = 0.5;

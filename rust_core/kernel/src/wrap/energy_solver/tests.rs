@@ -276,8 +276,9 @@ fn a_landing_that_would_turn_a_corner_is_refused() {
 
 #[test]
 fn without_a_factor_the_wrap_ends_where_it_ends_with_one() {
-    // A layout too large to factor is solved by Jacobi-preconditioned iterations: on a small
-    // grid above a plane (no factor allowed), the same place as with factors.
+    // A layout too large to factor is solved by multigrid-preconditioned iterations: on a small
+    // grid above a plane (no factor allowed, a hierarchy of several levels), the same place as
+    // with factors.
     let (target, structure, rest) = plane_and_grid(10, 0.1, 0.3);
     let mut anchors = vec![None; rest.len()];
     for corner in [0usize, 10, 110, 120] {
@@ -290,6 +291,9 @@ fn without_a_factor_the_wrap_ends_where_it_ends_with_one() {
         let mut wrap = solver(&target, &structure, &rest, &rest, &anchors);
         wrap.system = LinearSystem::new(&wrap.stencils, rest.len(), &wrap.fixed, limit).unwrap();
         assert_eq!(wrap.system.is_direct(), limit > 0);
+        if limit == 0 {
+            assert!(wrap.system.coarsen_to(12) >= 3);
+        }
         while !wrap.iterate().unwrap().finished {}
         assert_eq!(wrap.system.statistics().factorizations > 0, limit > 0);
         results.push(wrap.positions.clone());
