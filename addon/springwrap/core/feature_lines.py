@@ -25,6 +25,7 @@ FREE_REASONS = {
     "LOW_CONFIDENCE": "below the minimum confidence",
     "TAKEN": "a more confident line follows that feature",
     "CONSTRAINED": "its vertices already follow another curve constraint",
+    "WITHIN_ACCURACY": "it already lies within the accuracy of its feature",
 }
 """Why a feature line stays free (the kernel's reasons, and one of the add-on's), as said in reports."""
 
@@ -88,25 +89,67 @@ def find_lines(positions, face_corners, face_sizes, marked, crease_degrees: floa
     ]
 
 
-def target_curves(feature_curves, target_positions, triangles) -> list:
-    """(kind, (P, 3) float32 points, closed) per target feature: each ridge and valley of ``feature_curves``
-    (the kernel's ``FeatureCurve``), then each open border of the target's triangles (a hole's rim)."""
-    found = [
-        (curve.kind, np.ascontiguousarray(curve.points, dtype=np.float32), bool(curve.closed))
-        for curve in feature_curves
-    ]
+RIDGE_ACCURACY_SCALES = 0.5
+"""How far a ridge or valley traced from curvatures may lie from the feature it marks, in feature scales: the
+crest of a rounded crease is located only to within the fit's reach (a line already that close to it stays
+free)."""
+
+
+def zigzag(points, closed: bool) -> float:
+    """Twice the mean distance of a polyline's inner points from the mean of each with its two neighbours: about
+    0 along a crease of straight or gently bending edges, half a triangle's size along a staircase of edges on a
+    rounded crease (a scan's): how far the polyline may lie from the crease it marks."""
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    if closed:
+        points = np.concatenate([points[-1:], points, points[:1]])
+    if points.shape[0] < 3:
+        return 0.0
+    smoothed = (points[:-2] + 2.0 * points[1:-1] + points[2:]) / 4.0
+    return float(2.0 * np.linalg.norm(points[1:-1] - smoothed, axis=1).mean())
+
+
+def _along(points, creases, distance: float) -> bool:
+    """Whether most of ``points`` lie within ``distance`` of one of ``creases`` (lists of (P, 3) points)."""
+    if not creases or distance <= 0.0:
+        return False
+    crease_points = np.concatenate(creases).astype(np.float64)
+    points = np.asarray(points, dtype=np.float64)
+    near = np.zeros(points.shape[0], dtype=bool)
+    for begin in range(0, crease_points.shape[0], 4096):
+        block = crease_points[begin : begin + 4096]
+        squared = np.sum((points[:, None, :] - block[None, :, :]) ** 2, axis=2)
+        near |= squared.min(axis=1) <= distance * distance
+    return bool(near.mean() >= 0.5)
+
+
+def target_curves(feature_curves, target_positions, triangles, crease_degrees: float = 0.0, scale: float = 0.0):
+    """(kind, (P, 3) float32 points, closed, accuracy) per target feature: each sharp crease of the target's own
+    edges (faces' normals differing by more than ``crease_degrees``; 0: none), kind RIDGE (convex) or VALLEY,
+    its accuracy :func:`zigzag`; each ridge and valley of ``feature_curves`` (the kernel's ``FeatureCurve``,
+    detected at ``scale``) that does not run along such a crease, accuracy :data:`RIDGE_ACCURACY_SCALES` scales;
+    then each open border of the target's triangles (a hole's rim), accuracy 0."""
     target_positions = np.ascontiguousarray(target_positions, dtype=np.float32)
     triangles = np.ascontiguousarray(triangles, dtype=np.uint32).reshape(-1, 3)
-    borders = springwrap_kernel.layout_feature_lines(
+    chains = springwrap_kernel.layout_feature_lines(
         target_positions,
         triangles.reshape(-1),
         np.full(triangles.shape[0], 3, dtype=np.uint32),
-        crease_degrees=0.0,
+        crease_degrees=float(crease_degrees),
         borders=True,
     )
-    for _kind, _source, vertices, closed, _dihedral in borders:
-        found.append(("BORDER", np.ascontiguousarray(target_positions[vertices]), bool(closed)))
-    return found
+    found, creases, borders = [], [], []
+    for kind, source, vertices, closed, _dihedral in chains:
+        points = np.ascontiguousarray(target_positions[vertices])
+        if source == "CREASE":
+            creases.append(points)
+            found.append((kind, points, bool(closed), zigzag(points, bool(closed))))
+        else:
+            borders.append(("BORDER", points, bool(closed), 0.0))
+    for curve in feature_curves:
+        points = np.ascontiguousarray(curve.points, dtype=np.float32)
+        if not _along(points, creases, scale):
+            found.append((curve.kind, points, bool(curve.closed), RIDGE_ACCURACY_SCALES * scale))
+    return found + borders
 
 
 def pair_lines(lines, current, curves_found, anchored, existing, max_distance: float, **settings) -> Pairing:

@@ -18,11 +18,17 @@
 //! of the shorter of the two lengths to the longer. Each line takes its most confident candidate
 //! at or above the minimum confidence; lines are then accepted from the most confident down, and
 //! one whose stretch of curve overlaps (by more than [`MAX_OVERLAP`] of its length) a stretch
-//! already taken stays free, as do lines without a candidate. A paired line's target is its
+//! already taken stays free, as do lines without a candidate. A curve known only to within some
+//! accuracy (a crest traced on a rounded crease) does not pair a line that already lies within
+//! that accuracy of it: the curve would be no better a reference than the fit itself; an exact
+//! curve (a sharp crease of the target's own edges, accuracy 0) pairs any line close enough. A paired line's target is its
 //! stretch of curve in the line's direction (a closed line: the whole loop from the projection of
 //! its first vertex, the chain then ending on its first vertex again). An open line's end that
 //! another line shares (a junction, such as a box's corner where three creases meet) is left out
-//! of its chain, so that no vertex follows two curves.
+//! of its chain, so that no vertex follows two curves; when an end of the curve lies within the
+//! maximum distance of that junction (the target's own corner), the stretch is measured from that
+//! end, one edge (the junction's, as the fit has it) along the curve: the corner fixes where the
+//! chain lies along the curve, not the fit's sliding.
 
 use std::collections::HashMap;
 
@@ -59,6 +65,9 @@ pub struct TargetCurve {
     pub points: Vec<Vec3>,
     /// Whether it is a loop.
     pub closed: bool,
+    /// How far the curve may lie from the feature it marks (model units, ≥ 0): 0 for a curve of the
+    /// target's own sharp edges, about the rounding for a crest traced on a rounded crease.
+    pub accuracy: f32,
 }
 
 /// Settings of [`pair_lines`].
@@ -97,6 +106,8 @@ pub enum FreeReason {
     LowConfidence,
     /// A more confident line already follows that stretch of its curve.
     Taken,
+    /// The line already lies within the accuracy of the curve it would follow.
+    WithinAccuracy,
 }
 
 /// The outcome for one line.
@@ -118,6 +129,7 @@ struct Prepared {
     points: Vec<Vec3>,
     cumulative: Vec<f32>,
     closed: bool,
+    accuracy: f32,
     lower: Vec3,
     upper: Vec3,
 }
@@ -138,6 +150,7 @@ impl Prepared {
             points,
             cumulative,
             closed: curve.closed,
+            accuracy: curve.accuracy,
             lower,
             upper,
         }
@@ -216,9 +229,35 @@ fn kinds_agree(kind: LineKind, curve: TargetCurveKind) -> bool {
 /// A candidate: (confidence, curve, arc parameter of the first vertex, signed span).
 type Candidate = (f32, usize, f32, f32);
 
+/// The arc parameter of the end of open `curve` within `reach` of `junction` (the nearer end if
+/// both are), one `step` (the junction's edge) into the curve: where the chain vertex next to a
+/// junction lies along the curve when the junction is the curve's end.
+fn from_end(curve: &Prepared, junction: Vec3, step: f32, reach: f32) -> Option<f32> {
+    if curve.closed {
+        return None;
+    }
+    let last = curve.points.len() - 1;
+    let length = curve.length();
+    let to_start = junction.distance(curve.points[0]);
+    let to_end = junction.distance(curve.points[last]);
+    if to_start.min(to_end) > reach {
+        return None;
+    }
+    Some(if to_start <= to_end {
+        step.min(length)
+    } else {
+        (length - step).max(0.0)
+    })
+}
+
+/// The line's junction ends, as [`best_candidate`] takes them: per end (first, last), the
+/// junction vertex's position and the length of its edge to the chain, when that end was left out.
+type JunctionEnds = [Option<(Vec3, f32)>; 2];
+
 /// The best candidate curve for one line, or why there is none.
 fn best_candidate(
     chain: &[Vec3],
+    junctions: JunctionEnds,
     kind: LineKind,
     curves: &[(TargetCurveKind, Prepared)],
     settings: &PairSettings,
@@ -247,6 +286,10 @@ fn best_candidate(
         if mean_distance > settings.max_distance
             || (near as f32) < MIN_NEAR_FRACTION * projections.len() as f32
         {
+            continue;
+        }
+        if mean_distance <= curve.accuracy {
+            reason = reason_after(reason, FreeReason::WithinAccuracy);
             continue;
         }
         let mut cosine_sum = 0.0f32;
@@ -290,8 +333,23 @@ fn best_candidate(
             reason = reason_after(reason, FreeReason::LowConfidence);
             continue;
         }
+        let (mut begin, mut finish) = (projections[0].1, projections[0].1 + span);
+        if let Some((junction, step)) = junctions[0]
+            && let Some(end) = from_end(curve, junction, step, settings.max_distance)
+        {
+            begin = end;
+        }
+        if let Some((junction, step)) = junctions[1]
+            && let Some(end) = from_end(curve, junction, step, settings.max_distance)
+        {
+            finish = end;
+        }
+        if (finish - begin) * span <= 0.0 {
+            // Both ends snapped to one end of the curve, or across each other: keep the fit's.
+            (begin, finish) = (projections[0].1, projections[0].1 + span);
+        }
         if best.is_none_or(|b| confidence > b.0) {
-            best = Some((confidence, index, projections[0].1, span));
+            best = Some((confidence, index, begin, finish - begin));
         }
     }
     best.ok_or(reason)
@@ -303,7 +361,8 @@ fn reason_after(old: FreeReason, new: FreeReason) -> FreeReason {
         FreeReason::NoneNearby => 0,
         FreeReason::NotParallel => 1,
         FreeReason::LengthDiffers => 2,
-        _ => 3,
+        FreeReason::WithinAccuracy => 3,
+        _ => 4,
     };
     if rank(new) > rank(old) { new } else { old }
 }
@@ -321,7 +380,8 @@ fn too_few(name: &'static str, what: &str, index: usize, count: usize) -> Kernel
 ///
 /// # Errors
 /// [`KernelError::InvalidArgument`] for a maximum distance that is not positive and finite, an
-/// angle outside 0 to 90 degrees, a confidence outside 0 to 1, a curve of fewer than two points
+/// angle outside 0 to 90 degrees, a confidence outside 0 to 1, a curve's accuracy that is negative
+/// or not finite, a curve of fewer than two points
 /// or a line of fewer than two vertices; [`KernelError::LayoutIndexOutOfRange`] for a line vertex
 /// beyond `positions`; the coordinate errors of [`validate::check_coordinates`].
 pub fn pair_lines(
@@ -355,6 +415,12 @@ pub fn pair_lines(
             return Err(too_few("target curves", "curve", index, curve.points.len()));
         }
         validate::check_coordinates("curve point", &curve.points)?;
+        check_setting(
+            "curves",
+            "a curve's accuracy",
+            curve.accuracy,
+            SettingRange::closed(0.0, f64::from(validate::MAX_COORDINATE)),
+        )?;
         prepared.push((curve.kind, Prepared::new(curve)));
     }
     let mut uses: HashMap<u32, usize> = HashMap::new();
@@ -369,33 +435,42 @@ pub fn pair_lines(
             return Err(too_few("feature lines", "line", index, line.vertices.len()));
         }
         let mut chain = line.vertices.clone();
+        let position = |vertex: u32| {
+            positions
+                .get(vertex as usize)
+                .copied()
+                .ok_or(KernelError::LayoutIndexOutOfRange {
+                    element: "feature line",
+                    index,
+                    vertex,
+                    vertex_count: positions.len(),
+                })
+        };
+        let mut junctions: JunctionEnds = [None, None];
         if line.closed {
             chain.push(chain[0]);
         } else {
             // An end shared with another line (a junction: a box's corner) is left out: a vertex
             // follows one curve only.
             if chain.len() > 2 && uses[&chain[0]] > 1 {
+                let (junction, next) = (position(chain[0])?, position(chain[1])?);
+                junctions[0] = Some((junction, junction.distance(next)));
                 chain.remove(0);
             }
-            if chain.len() > 2 && uses[&chain[chain.len() - 1]] > 1 {
+            let last = chain.len() - 1;
+            if chain.len() > 2 && uses[&chain[last]] > 1 {
+                let (junction, before) = (position(chain[last])?, position(chain[last - 1])?);
+                junctions[1] = Some((junction, junction.distance(before)));
                 chain.pop();
             }
         }
-        let mut points = Vec::with_capacity(chain.len());
-        for &vertex in &chain {
-            let Some(&point) = positions.get(vertex as usize) else {
-                return Err(KernelError::LayoutIndexOutOfRange {
-                    element: "feature line",
-                    index,
-                    vertex,
-                    vertex_count: positions.len(),
-                });
-            };
-            points.push(point);
-        }
+        let points = chain
+            .iter()
+            .map(|&vertex| position(vertex))
+            .collect::<Result<Vec<_>, _>>()?;
         candidates.push((
             chain,
-            best_candidate(&points, line.kind, &prepared, settings),
+            best_candidate(&points, junctions, line.kind, &prepared, settings),
         ));
     }
     let mut order: Vec<usize> = (0..lines.len()).collect();
@@ -477,6 +552,7 @@ mod tests {
                 .map(|i| from.lerp(to, i as f32 / (count - 1) as f32))
                 .collect(),
             closed: false,
+            accuracy: 0.0,
         }
     }
 
@@ -577,6 +653,7 @@ mod tests {
             kind: TargetCurveKind::Border,
             points: square.iter().map(|p| *p * 1.02).collect(),
             closed: true,
+            accuracy: 0.0,
         };
         let outcome = pair(&square, &[ring], &[loop_curve], 0.2);
         assert_eq!(outcome[0].chain, vec![0, 1, 2, 3, 0]);
@@ -613,6 +690,53 @@ mod tests {
     }
 
     #[test]
+    fn a_line_within_the_curves_accuracy_stays_free_an_exact_curve_pairs_it() {
+        let positions: Vec<Vec3> = (0..5).map(|i| Vec3::new(i as f32, 0.1, 0.0)).collect();
+        let lines = [line(vec![0, 1, 2, 3, 4], LineKind::Ridge)];
+        let rounded = TargetCurve {
+            accuracy: 0.2,
+            ..straight(TargetCurveKind::Ridge, Vec3::ZERO, Vec3::new(4.0, 0.0, 0.0), 9)
+        };
+        let outcome = pair(&positions, &lines, std::slice::from_ref(&rounded), 0.5);
+        assert_eq!(outcome[0].result, Err(FreeReason::WithinAccuracy));
+        // Farther off than the curve's accuracy, or an exact curve: paired.
+        let far: Vec<Vec3> = positions.iter().map(|p| *p + Vec3::Y * 0.2).collect();
+        assert_eq!(pair(&far, &lines, &[rounded.clone()], 0.5)[0].result, Ok(0));
+        let exact = TargetCurve {
+            accuracy: 0.0,
+            ..rounded
+        };
+        assert_eq!(pair(&positions, &lines, &[exact], 0.5)[0].result, Ok(0));
+    }
+
+    #[test]
+    fn a_junction_at_the_curves_end_places_the_chain_along_the_curve() {
+        // Two creases meeting at a corner (vertex 4), the fit slid 0.3 along x; the target's two
+        // crease curves end at the corner (4, 0, 0).
+        let mut positions: Vec<Vec3> = (0..5)
+            .map(|i| Vec3::new(i as f32 + 0.3, 0.1, 0.0))
+            .collect();
+        positions.extend((1..5).map(|i| Vec3::new(4.3, -(i as f32), 0.0)));
+        let lines = [
+            line(vec![0, 1, 2, 3, 4], LineKind::Ridge),
+            line(vec![4, 5, 6, 7, 8], LineKind::Ridge),
+        ];
+        let corner = Vec3::new(4.0, 0.0, 0.0);
+        let curves = [
+            straight(TargetCurveKind::Ridge, Vec3::new(-1.0, 0.0, 0.0), corner, 6),
+            straight(TargetCurveKind::Ridge, corner, Vec3::new(4.0, -5.0, 0.0), 6),
+        ];
+        let outcome = pair(&positions, &lines, &curves, 0.5);
+        // The chain next to the corner lands one edge from the corner, not where the slid fit
+        // projects (3.3); the free end keeps its projection (0.3).
+        let first = &outcome[0].target;
+        assert!(first[0].distance(Vec3::new(0.3, 0.0, 0.0)) < 1e-4);
+        assert!(first[first.len() - 1].distance(Vec3::new(3.0, 0.0, 0.0)) < 1e-4);
+        let second = &outcome[1].target;
+        assert!(second[0].distance(Vec3::new(4.0, -1.1, 0.0)) < 1e-4);
+    }
+
+    #[test]
     fn bad_settings_and_inputs_are_refused() {
         let positions = [Vec3::ZERO, Vec3::X];
         let lines = [line(vec![0, 1], LineKind::Any)];
@@ -632,6 +756,19 @@ mod tests {
             pair_lines(&positions, &beyond, &[], &PairSettings::with_distance(1.0)),
             Err(KernelError::LayoutIndexOutOfRange { vertex: 7, .. })
         ));
+        let inexact = TargetCurve {
+            accuracy: -1.0,
+            ..curve.clone()
+        };
+        assert!(
+            pair_lines(
+                &positions,
+                &lines,
+                &[inexact],
+                &PairSettings::with_distance(1.0)
+            )
+            .is_err()
+        );
         let one_point = TargetCurve {
             points: vec![Vec3::ZERO],
             ..curve
