@@ -10,9 +10,9 @@ import bpy
 
 import bmesh
 import numpy as np
+from test_feature_lines import box_target, cube_layout, feature_items, mark_sharp
 
 from bpy_helpers import distance_to_polyline, world_positions
-from test_feature_lines import box_target, cube_layout, feature_items, mark_sharp
 
 HALF = 1.1
 """Half-size of the sharp box target (the cube layout's is 1)."""

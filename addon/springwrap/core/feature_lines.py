@@ -96,16 +96,17 @@ free)."""
 
 
 def zigzag(points, closed: bool) -> float:
-    """Twice the mean distance of a polyline's inner points from the mean of each with its two neighbours: about
-    0 along a crease of straight or gently bending edges, half a triangle's size along a staircase of edges on a
-    rounded crease (a scan's): how far the polyline may lie from the crease it marks."""
+    """Twice the median distance of a polyline's inner points from the mean of each with its two neighbours:
+    about 0 along a crease of straight or gently bending edges (a few corners do not count), half a triangle's
+    size along a staircase of edges on a rounded crease (a scan's): how far the polyline may lie from the crease
+    it marks."""
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     if closed:
         points = np.concatenate([points[-1:], points, points[:1]])
     if points.shape[0] < 3:
         return 0.0
     smoothed = (points[:-2] + 2.0 * points[1:-1] + points[2:]) / 4.0
-    return float(2.0 * np.linalg.norm(points[1:-1] - smoothed, axis=1).mean())
+    return float(2.0 * np.median(np.linalg.norm(points[1:-1] - smoothed, axis=1)))
 
 
 def _along(points, creases, distance: float) -> bool:

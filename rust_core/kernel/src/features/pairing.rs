@@ -25,7 +25,8 @@
 //! stretch of curve in the line's direction (a closed line: the whole loop from the projection of
 //! its first vertex, the chain then ending on its first vertex again). An open line's end that
 //! another line shares (a junction, such as a box's corner where three creases meet) is left out
-//! of its chain, so that no vertex follows two curves; when an end of the curve lies within the
+//! of its chain, so that no vertex follows two curves, and so are the vertices of a line beyond an
+//! end of an open curve (projecting onto that end as the one before them does); when an end of the curve lies within the
 //! maximum distance of that junction (the target's own corner), the stretch is measured from that
 //! end, one edge (the junction's, as the fit has it) along the curve: the corner fixes where the
 //! chain lies along the curve, not the fit's sliding.
@@ -226,8 +227,36 @@ fn kinds_agree(kind: LineKind, curve: TargetCurveKind) -> bool {
     )
 }
 
-/// A candidate: (confidence, curve, arc parameter of the first vertex, signed span).
-type Candidate = (f32, usize, f32, f32);
+/// A candidate: (confidence, curve, arc parameter of the first vertex, signed span, vertices
+/// trimmed off the chain's start and end).
+type Candidate = (f32, usize, f32, f32, usize, usize);
+
+/// How many vertices at each end of a chain to leave out when pairing with open `curve`: those
+/// beyond one of its ends (projecting onto that end, as the one before them does), so that a line
+/// longer than its feature follows it only where it runs beside it.
+fn overshoot(curve: &Prepared, projections: &[(f32, f32, Vec3)]) -> (usize, usize) {
+    if curve.closed {
+        return (0, 0);
+    }
+    let length = curve.length();
+    let at_end = |s: f32| s <= 1e-6 * length || s >= (1.0 - 1e-6) * length;
+    let count = projections.len();
+    let mut front = 0;
+    while front + 2 < count
+        && at_end(projections[front].1)
+        && projections[front + 1].1 == projections[front].1
+    {
+        front += 1;
+    }
+    let mut back = 0;
+    while back + front + 2 < count
+        && at_end(projections[count - 1 - back].1)
+        && projections[count - 2 - back].1 == projections[count - 1 - back].1
+    {
+        back += 1;
+    }
+    (front, back)
+}
 
 /// The arc parameter of the end of open `curve` within `reach` of `junction` (the nearer end if
 /// both are), one `step` (the junction's edge) into the curve: where the chain vertex next to a
@@ -262,9 +291,10 @@ fn best_candidate(
     curves: &[(TargetCurveKind, Prepared)],
     settings: &PairSettings,
 ) -> Result<Candidate, FreeReason> {
-    let line_length: f32 = chain.windows(2).map(|pair| pair[0].distance(pair[1])).sum();
+    let full_length: f32 = chain.windows(2).map(|pair| pair[0].distance(pair[1])).sum();
     let lower = chain.iter().fold(Vec3::MAX, |a, &b| a.min(b)) - settings.max_distance;
     let upper = chain.iter().fold(Vec3::MIN, |a, &b| a.max(b)) + settings.max_distance;
+    let whole = chain;
     let min_cos = settings.max_angle.to_radians().cos();
     let mut reason = FreeReason::NoneNearby;
     let mut best: Option<Candidate> = None;
@@ -272,12 +302,15 @@ fn best_candidate(
         if !kinds_agree(kind, *curve_kind)
             || curve.lower.cmpgt(upper).any()
             || curve.upper.cmplt(lower).any()
-            || line_length <= 0.0
+            || full_length <= 0.0
         {
             continue;
         }
-        let projections: Vec<(f32, f32, Vec3)> =
-            chain.iter().map(|&point| curve.project(point)).collect();
+        let all: Vec<(f32, f32, Vec3)> = whole.iter().map(|&point| curve.project(point)).collect();
+        let (front, back) = overshoot(curve, &all);
+        let projections = &all[front..all.len() - back];
+        let chain = &whole[front..whole.len() - back];
+        let line_length: f32 = chain.windows(2).map(|pair| pair[0].distance(pair[1])).sum();
         let mean_distance = projections.iter().map(|p| p.0).sum::<f32>() / projections.len() as f32;
         let near = projections
             .iter()
@@ -335,11 +368,13 @@ fn best_candidate(
         }
         let (mut begin, mut finish) = (projections[0].1, projections[0].1 + span);
         if let Some((junction, step)) = junctions[0]
+            && front == 0
             && let Some(end) = from_end(curve, junction, step, settings.max_distance)
         {
             begin = end;
         }
         if let Some((junction, step)) = junctions[1]
+            && back == 0
             && let Some(end) = from_end(curve, junction, step, settings.max_distance)
         {
             finish = end;
@@ -349,7 +384,7 @@ fn best_candidate(
             (begin, finish) = (projections[0].1, projections[0].1 + span);
         }
         if best.is_none_or(|b| confidence > b.0) {
-            best = Some((confidence, index, begin, finish - begin));
+            best = Some((confidence, index, begin, finish - begin, front, back));
         }
     }
     best.ok_or(reason)
@@ -490,7 +525,7 @@ pub fn pair_lines(
         };
         let outcome = match *candidate {
             Err(reason) => free(reason),
-            Ok((confidence, curve, begin, span)) => {
+            Ok((confidence, curve, begin, span, front, back)) => {
                 let (low, high) = (begin.min(begin + span), begin.max(begin + span));
                 let overlaps = taken.iter().any(|&(other, other_low, other_high)| {
                     other == curve
@@ -503,7 +538,7 @@ pub fn pair_lines(
                     LinePairing {
                         result: Ok(curve),
                         confidence,
-                        chain: chain.clone(),
+                        chain: chain[front..chain.len() - back].to_vec(),
                         target: prepared[curve].1.stretch(begin, span),
                     }
                 }
@@ -734,6 +769,25 @@ mod tests {
         assert!(first[first.len() - 1].distance(Vec3::new(3.0, 0.0, 0.0)) < 1e-4);
         let second = &outcome[1].target;
         assert!(second[0].distance(Vec3::new(4.0, -1.1, 0.0)) < 1e-4);
+    }
+
+    #[test]
+    fn a_line_longer_than_its_curve_follows_it_only_beside_it() {
+        // A line from x = 0 to 6 beside a ridge from 0 to 4: its last two vertices are beyond the
+        // ridge's end and stay out of the chain.
+        let positions: Vec<Vec3> = (0..7).map(|i| Vec3::new(i as f32, 0.1, 0.0)).collect();
+        let lines = [line((0..7).collect(), LineKind::Ridge)];
+        let curves = [straight(
+            TargetCurveKind::Ridge,
+            Vec3::ZERO,
+            Vec3::new(4.0, 0.0, 0.0),
+            5,
+        )];
+        let outcome = pair(&positions, &lines, &curves, 2.0);
+        assert_eq!(outcome[0].result, Ok(0));
+        assert_eq!(outcome[0].chain, vec![0, 1, 2, 3, 4]);
+        let target = &outcome[0].target;
+        assert!(target[target.len() - 1].distance(Vec3::new(4.0, 0.0, 0.0)) < 1e-4);
     }
 
     #[test]
