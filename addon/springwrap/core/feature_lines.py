@@ -89,24 +89,26 @@ def find_lines(positions, face_corners, face_sizes, marked, crease_degrees: floa
     ]
 
 
-RIDGE_ACCURACY_SCALES = 0.5
+RIDGE_ACCURACY_SCALES = 0.1
 """How far a ridge or valley traced from curvatures may lie from the feature it marks, in feature scales: the
 crest of a rounded crease is located only to within the fit's reach (a line already that close to it stays
 free)."""
 
 
 def zigzag(points, closed: bool) -> float:
-    """Twice the median distance of a polyline's inner points from the mean of each with its two neighbours:
-    about 0 along a crease of straight or gently bending edges (a few corners do not count), half a triangle's
-    size along a staircase of edges on a rounded crease (a scan's): how far the polyline may lie from the crease
-    it marks."""
+    """The median distance of a polyline's inner points from the line through their two neighbours: about 0
+    along a crease of straight or gently bending edges however unevenly they are split (a few corners do not
+    count), about half a triangle's size along a staircase of edges on a rounded crease (a scan's): how far the
+    polyline may lie from the crease it marks."""
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     if closed:
         points = np.concatenate([points[-1:], points, points[:1]])
     if points.shape[0] < 3:
         return 0.0
-    smoothed = (points[:-2] + 2.0 * points[1:-1] + points[2:]) / 4.0
-    return float(2.0 * np.median(np.linalg.norm(points[1:-1] - smoothed, axis=1)))
+    before, here, after = points[:-2], points[1:-1], points[2:]
+    chord = after - before
+    length = np.maximum(np.linalg.norm(chord, axis=1), 1e-30)
+    return float(np.median(np.linalg.norm(np.cross(here - before, chord), axis=1) / length))
 
 
 def _along(points, creases, distance: float) -> bool:
@@ -123,9 +125,51 @@ def _along(points, creases, distance: float) -> bool:
     return bool(near.mean() >= 0.5)
 
 
+CLEAN_SHARE = 0.8
+"""The share of a target crease's edges that must have flat flanks (:func:`sharp_edges`) for it to be a sharp
+crease."""
+
+
+def sharp_edges(positions, triangles, crease_degrees: float) -> np.ndarray:
+    """(K, 2) uint32: the target's sharp edges, those whose two triangles' normals differ by more than
+    ``crease_degrees`` while the triangles' other edges bend less than a third of that (flat flanks) or are sharp
+    themselves (a corner): a crease of a part exported sharp. On a rounded crease (a scan's) the bend is spread
+    over several rows of edges, none of which has flat flanks."""
+    positions = np.asarray(positions, dtype=np.float64)
+    triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    if crease_degrees <= 0.0 or triangles.shape[0] == 0:
+        return np.zeros((0, 2), dtype=np.uint32)
+    corners = positions[triangles]
+    normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
+    count = triangles.shape[0]
+    edges = np.sort(np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]]), axis=1)
+    keys, slot = np.unique(edges, axis=0, return_inverse=True)
+    slot = slot.reshape(-1)
+    faces = np.tile(np.arange(count), 3)
+    order = np.argsort(slot, kind="stable")
+    uses = np.bincount(slot, minlength=keys.shape[0])
+    starts = np.concatenate([[0], np.cumsum(uses)[:-1]])
+    angle = np.zeros(keys.shape[0])
+    inner = uses == 2
+    first, second = faces[order[starts[inner]]], faces[order[starts[inner] + 1]]
+    angle[inner] = np.degrees(np.arccos(np.clip(np.sum(normals[first] * normals[second], axis=1), -1.0, 1.0)))
+    sharp = angle > crease_degrees
+    flank_ok = (angle < crease_degrees / 3.0) | sharp  # per edge: flat, or a sharp edge meeting it
+    face_edges = slot.reshape(3, count).T  # each triangle's three edges
+    # A triangle has flat flanks for one of its edges when its two other edges are fine.
+    fine = flank_ok[face_edges]
+    clean_face_edge = np.stack(
+        [fine[:, [1, 2]].all(axis=1), fine[:, [2, 0]].all(axis=1), fine[:, [0, 1]].all(axis=1)], 1
+    )
+    clean = np.ones(keys.shape[0], dtype=bool)
+    np.logical_and.at(clean, face_edges.ravel(), clean_face_edge.ravel())
+    return np.ascontiguousarray(keys[sharp & clean], dtype=np.uint32)
+
+
 def target_curves(feature_curves, target_positions, triangles, crease_degrees: float = 0.0, scale: float = 0.0):
     """(kind, (P, 3) float32 points, closed, accuracy) per target feature: each sharp crease of the target's own
-    edges (faces' normals differing by more than ``crease_degrees``; 0: none), kind RIDGE (convex) or VALLEY,
+    edges (:func:`sharp_edges` at ``crease_degrees``; 0: none), kind RIDGE (convex) or VALLEY,
     its accuracy :func:`zigzag`; each ridge and valley of ``feature_curves`` (the kernel's ``FeatureCurve``,
     detected at ``scale``) that does not run along such a crease, accuracy :data:`RIDGE_ACCURACY_SCALES` scales;
     then each open border of the target's triangles (a hole's rim), accuracy 0."""
@@ -138,10 +182,17 @@ def target_curves(feature_curves, target_positions, triangles, crease_degrees: f
         crease_degrees=float(crease_degrees),
         borders=True,
     )
+    clean = sharp_edges(target_positions, triangles, crease_degrees).astype(np.int64)
+    clean_keys = set((clean[:, 0] * target_positions.shape[0] + clean[:, 1]).tolist())
     found, creases, borders = [], [], []
     for kind, source, vertices, closed, _dihedral in chains:
         points = np.ascontiguousarray(target_positions[vertices])
         if source == "CREASE":
+            ring = np.concatenate([vertices, vertices[:1]]) if closed else np.asarray(vertices)
+            pairs = np.sort(np.stack([ring[:-1], ring[1:]], axis=1).astype(np.int64), axis=1)
+            keys = (pairs[:, 0] * target_positions.shape[0] + pairs[:, 1]).tolist()
+            if np.mean([key in clean_keys for key in keys]) < CLEAN_SHARE:
+                continue  # a rounded crease's row of edges (a scan's), not a sharp one
             creases.append(points)
             found.append((kind, points, bool(closed), zigzag(points, bool(closed))))
         else:

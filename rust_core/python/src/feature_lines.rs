@@ -158,19 +158,15 @@ fn pair_feature_lines_py<'py>(
         .into_iter()
         .map(|curve| {
             // (kind, points, closed) or (kind, points, closed, accuracy).
-            let (kind, points, closed, accuracy) = match curve.extract::<(
-                String,
-                Bound<'py, PyAny>,
-                bool,
-                f32,
-            )>() {
-                Ok(full) => full,
-                Err(_) => {
-                    let (kind, points, closed) =
-                        curve.extract::<(String, Bound<'py, PyAny>, bool)>()?;
-                    (kind, points, closed, 0.0)
-                }
-            };
+            let (kind, points, closed, accuracy) =
+                match curve.extract::<(String, Bound<'py, PyAny>, bool, f32)>() {
+                    Ok(full) => full,
+                    Err(_) => {
+                        let (kind, points, closed) =
+                            curve.extract::<(String, Bound<'py, PyAny>, bool)>()?;
+                        (kind, points, closed, 0.0)
+                    }
+                };
             Ok(TargetCurve {
                 kind: curve_kind(&kind)?,
                 points: read_positions("curve points", &points)?,

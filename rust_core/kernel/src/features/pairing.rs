@@ -21,15 +21,12 @@
 //! already taken stays free, as do lines without a candidate. A curve known only to within some
 //! accuracy (a crest traced on a rounded crease) does not pair a line that already lies within
 //! that accuracy of it: the curve would be no better a reference than the fit itself; an exact
-//! curve (a sharp crease of the target's own edges, accuracy 0) pairs any line close enough. A paired line's target is its
-//! stretch of curve in the line's direction (a closed line: the whole loop from the projection of
-//! its first vertex, the chain then ending on its first vertex again). An open line's end that
+//! curve (a sharp crease of the target's own edges, accuracy 0) pairs any line close enough. A
+//! paired line's target is its stretch of curve in the line's direction (a closed line: the whole
+//! loop from the projection of its first vertex, the chain then ending on its first vertex again). An open line's end that
 //! another line shares (a junction, such as a box's corner where three creases meet) is left out
 //! of its chain, so that no vertex follows two curves, and so are the vertices of a line beyond an
-//! end of an open curve (projecting onto that end as the one before them does); when an end of the curve lies within the
-//! maximum distance of that junction (the target's own corner), the stretch is measured from that
-//! end, one edge (the junction's, as the fit has it) along the curve: the corner fixes where the
-//! chain lies along the curve, not the fit's sliding.
+//! end of an open curve (projecting onto that end as the one before them does).
 
 use std::collections::HashMap;
 
@@ -258,35 +255,9 @@ fn overshoot(curve: &Prepared, projections: &[(f32, f32, Vec3)]) -> (usize, usiz
     (front, back)
 }
 
-/// The arc parameter of the end of open `curve` within `reach` of `junction` (the nearer end if
-/// both are), one `step` (the junction's edge) into the curve: where the chain vertex next to a
-/// junction lies along the curve when the junction is the curve's end.
-fn from_end(curve: &Prepared, junction: Vec3, step: f32, reach: f32) -> Option<f32> {
-    if curve.closed {
-        return None;
-    }
-    let last = curve.points.len() - 1;
-    let length = curve.length();
-    let to_start = junction.distance(curve.points[0]);
-    let to_end = junction.distance(curve.points[last]);
-    if to_start.min(to_end) > reach {
-        return None;
-    }
-    Some(if to_start <= to_end {
-        step.min(length)
-    } else {
-        (length - step).max(0.0)
-    })
-}
-
-/// The line's junction ends, as [`best_candidate`] takes them: per end (first, last), the
-/// junction vertex's position and the length of its edge to the chain, when that end was left out.
-type JunctionEnds = [Option<(Vec3, f32)>; 2];
-
 /// The best candidate curve for one line, or why there is none.
 fn best_candidate(
     chain: &[Vec3],
-    junctions: JunctionEnds,
     kind: LineKind,
     curves: &[(TargetCurveKind, Prepared)],
     settings: &PairSettings,
@@ -366,25 +337,8 @@ fn best_candidate(
             reason = reason_after(reason, FreeReason::LowConfidence);
             continue;
         }
-        let (mut begin, mut finish) = (projections[0].1, projections[0].1 + span);
-        if let Some((junction, step)) = junctions[0]
-            && front == 0
-            && let Some(end) = from_end(curve, junction, step, settings.max_distance)
-        {
-            begin = end;
-        }
-        if let Some((junction, step)) = junctions[1]
-            && back == 0
-            && let Some(end) = from_end(curve, junction, step, settings.max_distance)
-        {
-            finish = end;
-        }
-        if (finish - begin) * span <= 0.0 {
-            // Both ends snapped to one end of the curve, or across each other: keep the fit's.
-            (begin, finish) = (projections[0].1, projections[0].1 + span);
-        }
         if best.is_none_or(|b| confidence > b.0) {
-            best = Some((confidence, index, begin, finish - begin, front, back));
+            best = Some((confidence, index, projections[0].1, span, front, back));
         }
     }
     best.ok_or(reason)
@@ -470,42 +424,33 @@ pub fn pair_lines(
             return Err(too_few("feature lines", "line", index, line.vertices.len()));
         }
         let mut chain = line.vertices.clone();
-        let position = |vertex: u32| {
-            positions
-                .get(vertex as usize)
-                .copied()
-                .ok_or(KernelError::LayoutIndexOutOfRange {
-                    element: "feature line",
-                    index,
-                    vertex,
-                    vertex_count: positions.len(),
-                })
-        };
-        let mut junctions: JunctionEnds = [None, None];
         if line.closed {
             chain.push(chain[0]);
         } else {
             // An end shared with another line (a junction: a box's corner) is left out: a vertex
             // follows one curve only.
             if chain.len() > 2 && uses[&chain[0]] > 1 {
-                let (junction, next) = (position(chain[0])?, position(chain[1])?);
-                junctions[0] = Some((junction, junction.distance(next)));
                 chain.remove(0);
             }
-            let last = chain.len() - 1;
-            if chain.len() > 2 && uses[&chain[last]] > 1 {
-                let (junction, before) = (position(chain[last])?, position(chain[last - 1])?);
-                junctions[1] = Some((junction, junction.distance(before)));
+            if chain.len() > 2 && uses[&chain[chain.len() - 1]] > 1 {
                 chain.pop();
             }
         }
-        let points = chain
-            .iter()
-            .map(|&vertex| position(vertex))
-            .collect::<Result<Vec<_>, _>>()?;
+        let mut points = Vec::with_capacity(chain.len());
+        for &vertex in &chain {
+            let Some(&point) = positions.get(vertex as usize) else {
+                return Err(KernelError::LayoutIndexOutOfRange {
+                    element: "feature line",
+                    index,
+                    vertex,
+                    vertex_count: positions.len(),
+                });
+            };
+            points.push(point);
+        }
         candidates.push((
             chain,
-            best_candidate(&points, junctions, line.kind, &prepared, settings),
+            best_candidate(&points, line.kind, &prepared, settings),
         ));
     }
     let mut order: Vec<usize> = (0..lines.len()).collect();
@@ -730,7 +675,12 @@ mod tests {
         let lines = [line(vec![0, 1, 2, 3, 4], LineKind::Ridge)];
         let rounded = TargetCurve {
             accuracy: 0.2,
-            ..straight(TargetCurveKind::Ridge, Vec3::ZERO, Vec3::new(4.0, 0.0, 0.0), 9)
+            ..straight(
+                TargetCurveKind::Ridge,
+                Vec3::ZERO,
+                Vec3::new(4.0, 0.0, 0.0),
+                9,
+            )
         };
         let outcome = pair(&positions, &lines, std::slice::from_ref(&rounded), 0.5);
         assert_eq!(outcome[0].result, Err(FreeReason::WithinAccuracy));
@@ -742,33 +692,6 @@ mod tests {
             ..rounded
         };
         assert_eq!(pair(&positions, &lines, &[exact], 0.5)[0].result, Ok(0));
-    }
-
-    #[test]
-    fn a_junction_at_the_curves_end_places_the_chain_along_the_curve() {
-        // Two creases meeting at a corner (vertex 4), the fit slid 0.3 along x; the target's two
-        // crease curves end at the corner (4, 0, 0).
-        let mut positions: Vec<Vec3> = (0..5)
-            .map(|i| Vec3::new(i as f32 + 0.3, 0.1, 0.0))
-            .collect();
-        positions.extend((1..5).map(|i| Vec3::new(4.3, -(i as f32), 0.0)));
-        let lines = [
-            line(vec![0, 1, 2, 3, 4], LineKind::Ridge),
-            line(vec![4, 5, 6, 7, 8], LineKind::Ridge),
-        ];
-        let corner = Vec3::new(4.0, 0.0, 0.0);
-        let curves = [
-            straight(TargetCurveKind::Ridge, Vec3::new(-1.0, 0.0, 0.0), corner, 6),
-            straight(TargetCurveKind::Ridge, corner, Vec3::new(4.0, -5.0, 0.0), 6),
-        ];
-        let outcome = pair(&positions, &lines, &curves, 0.5);
-        // The chain next to the corner lands one edge from the corner, not where the slid fit
-        // projects (3.3); the free end keeps its projection (0.3).
-        let first = &outcome[0].target;
-        assert!(first[0].distance(Vec3::new(0.3, 0.0, 0.0)) < 1e-4);
-        assert!(first[first.len() - 1].distance(Vec3::new(3.0, 0.0, 0.0)) < 1e-4);
-        let second = &outcome[1].target;
-        assert!(second[0].distance(Vec3::new(4.0, -1.1, 0.0)) < 1e-4);
     }
 
     #[test]

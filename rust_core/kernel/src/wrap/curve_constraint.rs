@@ -10,7 +10,7 @@ use crate::validate;
 /// The target curve is a polyline in space: a chain of target mesh edges, a Blender curve, a
 /// feature curve, or a curve floating off the surface (a blend's limit curve). Each layout vertex
 /// of the chain is pulled to the target point at the same fraction of the curve's length as the
-/// vertex sits along the layout chain in the template (the rest shape).
+/// vertex sits along the layout chain (recomputed every iteration from the current positions).
 #[derive(Debug, Clone, PartialEq)]
 pub struct CurveConstraint {
     /// The layout chain, in order (at least 2 vertices).

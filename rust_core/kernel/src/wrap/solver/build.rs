@@ -320,9 +320,9 @@ impl WrapSolver {
 
     /// Holds layout chains to target curves, matched by arc length (paper, section 2.4): each
     /// chain vertex is pulled to the target point at the same fraction of the curve's length as it
-    /// has along the chain in the rest shape (the template's spacing is kept, whatever sliding the
-    /// starting fit has; matching on the moving positions would feed back on itself), and lands on
-    /// the surface when that point lies on it. Anchored vertices keep their anchors.
+    /// has along the chain *now* (the template's spacing is kept; matching on the moving positions
+    /// would feed back on itself), and lands on the surface when that point lies on it. Anchored
+    /// vertices keep their anchors.
     ///
     /// # Errors
     /// [`KernelError::InvalidArgument`] for a chain shorter than 2 vertices, a vertex that does not
@@ -375,7 +375,7 @@ impl WrapSolver {
             let curve = ArcLengthCurve::new(index, first_point, &constraint.target, self.reach)?;
             first_point += constraint.target.len();
             let chain = &constraint.layout_vertices;
-            for (&vertex, fraction) in chain.iter().zip(chain_fractions(&self.rest, chain)) {
+            for (&vertex, fraction) in chain.iter().zip(chain_fractions(&self.positions, chain)) {
                 if self.anchor_of_vertex[vertex as usize].is_none() {
                     targets[vertex as usize] = Some(curve.point_at(fraction));
                 }
