@@ -4,6 +4,7 @@ surface and the same sharp creases."""
 import numpy as np
 
 from benchmarks._retessellate import retessellate, split_edges
+from benchmarks.feature_lines import sharp_segments
 
 
 def folded_sheet(cells: int = 6):
@@ -34,17 +35,8 @@ def area(vertices, triangles) -> float:
 
 
 def sharp_length(vertices, triangles) -> float:
-    corners = vertices[triangles]
-    normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
-    edges = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
-    faces = np.tile(np.arange(triangles.shape[0]), 3)
-    keys = np.sort(edges, axis=1)
-    order = np.lexsort((keys[:, 1], keys[:, 0]))
-    keys, faces = keys[order], faces[order]
-    first = np.flatnonzero(np.all(keys[1:] == keys[:-1], axis=1))
-    sharp = first[np.sum(normals[faces[first]] * normals[faces[first + 1]], axis=1) < np.cos(np.radians(30.0))]
-    return float(np.linalg.norm(vertices[keys[sharp, 0]] - vertices[keys[sharp, 1]], axis=1).sum())
+    segments = sharp_segments(np.asarray(vertices, dtype=np.float64), np.asarray(triangles, dtype=np.int64))
+    return float(np.linalg.norm(segments[:, 1] - segments[:, 0], axis=1).sum())
 
 
 def test_the_sheet_keeps_its_surface_and_fold_under_other_triangles():
