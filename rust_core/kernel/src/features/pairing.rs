@@ -281,7 +281,8 @@ fn best_candidate(
         let (front, back) = overshoot(curve, &all);
         let projections = &all[front..all.len() - back];
         let chain = &whole[front..whole.len() - back];
-        let line_length: f32 = chain.windows(2).map(|pair| pair[0].distance(pair[1])).sum();
+        // The length agreement is the whole line's: a short curve beside a long line is no partner.
+        let line_length = full_length;
         let mean_distance = projections.iter().map(|p| p.0).sum::<f32>() / projections.len() as f32;
         let near = projections
             .iter()
@@ -686,7 +687,7 @@ mod tests {
         assert_eq!(outcome[0].result, Err(FreeReason::WithinAccuracy));
         // Farther off than the curve's accuracy, or an exact curve: paired.
         let far: Vec<Vec3> = positions.iter().map(|p| *p + Vec3::Y * 0.2).collect();
-        assert_eq!(pair(&far, &lines, &[rounded.clone()], 0.5)[0].result, Ok(0));
+        assert_eq!(pair(&far, &lines, &[rounded.clone()], 1.0)[0].result, Ok(0));
         let exact = TargetCurve {
             accuracy: 0.0,
             ..rounded
