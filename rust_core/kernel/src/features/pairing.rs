@@ -687,7 +687,10 @@ mod tests {
         assert_eq!(outcome[0].result, Err(FreeReason::WithinAccuracy));
         // Farther off than the curve's accuracy, or an exact curve: paired.
         let far: Vec<Vec3> = positions.iter().map(|p| *p + Vec3::Y * 0.2).collect();
-        assert_eq!(pair(&far, &lines, &[rounded.clone()], 1.0)[0].result, Ok(0));
+        assert_eq!(
+            pair(&far, &lines, std::slice::from_ref(&rounded), 1.0)[0].result,
+            Ok(0)
+        );
         let exact = TargetCurve {
             accuracy: 0.0,
             ..rounded
