@@ -106,9 +106,32 @@ def farthest_points(points: np.ndarray, count: int) -> np.ndarray:
     return np.array(chosen, dtype=np.int64)
 
 
-def make_scene(vertices: np.ndarray, triangles: np.ndarray, faces: int):
-    """(layout object, target object, layout rest positions, layout quads): QuadriFlow's layout of the part and
-    the voxel-remeshed, changed part."""
+def changed_target(name: str, vertices: np.ndarray, triangles: np.ndarray, bounds, tessellation: str):
+    """The part after the design change as a mesh object, re-tessellated: ``"sharp"`` re-tessellated first
+    without moving its surface (its creases stay sharp: a CAD model re-exported), ``"voxel"`` voxel-remeshed
+    after the change (1/200 of the diagonal: a scan, its creases rounded)."""
+    import bpy
+
+    from benchmarks._retessellate import retessellate
+    from benchmarks.retarget.baselines import mesh_object
+
+    lower, upper = bounds
+    if tessellation == "sharp":
+        split, corners = retessellate(vertices, triangles)
+        return mesh_object(name, design_change(split, lower, upper), corners)
+    changed = mesh_object(name, design_change(vertices, lower, upper), triangles)
+    remesh = changed.modifiers.new("Voxel", "REMESH")
+    remesh.mode = "VOXEL"
+    remesh.voxel_size = float(np.linalg.norm(upper - lower) * VOXEL_FRACTION)
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    baked = bpy.data.meshes.new_from_object(changed.evaluated_get(depsgraph))
+    changed.modifiers.clear()
+    changed.data = baked
+    return changed
+
+
+def make_layout(vertices: np.ndarray, triangles: np.ndarray, faces: int):
+    """(layout rest positions, layout quads): QuadriFlow's layout of the part as it is."""
     import bpy
 
     from benchmarks.retarget.baselines import mesh_object, read_positions
@@ -126,16 +149,7 @@ def make_scene(vertices: np.ndarray, triangles: np.ndarray, faces: int):
     if len(quads) != len(part.data.polygons):
         raise RuntimeError("QuadriFlow left faces that are not quads")
     bpy.data.objects.remove(part)
-    lower, upper = vertices.min(axis=0).astype(np.float64), vertices.max(axis=0).astype(np.float64)
-    changed = mesh_object("Target", design_change(vertices, lower, upper), triangles)
-    remesh = changed.modifiers.new("Voxel", "REMESH")
-    remesh.mode = "VOXEL"
-    remesh.voxel_size = float(np.linalg.norm(upper - lower) * VOXEL_FRACTION)
-    depsgraph = bpy.context.evaluated_depsgraph_get()
-    baked = bpy.data.meshes.new_from_object(changed.evaluated_get(depsgraph))
-    changed.modifiers.clear()
-    changed.data = baked
-    return changed, layout_positions, quads, (lower, upper)
+    return layout_positions, quads
 
 
 def target_arrays(target):
@@ -255,25 +269,24 @@ def run_case(anchors: int, with_pairing: bool, scene, feature_scale: float = 0.0
     }
 
 
-def run(arguments: argparse.Namespace) -> dict:
-    import bpy
+TESSELLATIONS = {
+    "sharp": "re-tessellated, creases kept sharp (a CAD model re-exported)",
+    "voxel": "voxel-remeshed, creases rounded (a scan)",
+}
+"""The target's re-tessellations (see :func:`changed_target`), as the table names them."""
 
-    import headless
 
-    headless.enable_addon()
-    bpy.ops.wm.read_homefile(use_empty=True)
-    vertices, triangles = read_off(arguments.off)
-    target, rest, quads, (lower, upper) = make_scene(vertices, triangles, arguments.faces)
-    truth = design_change(rest, lower, upper)
-    edges = np.concatenate([quads[:, [0, 1]], quads[:, [1, 2]], quads[:, [2, 3]], quads[:, [3, 0]]])
-    layout_edge = float(np.median(np.linalg.norm(rest[edges[:, 0]] - rest[edges[:, 1]], axis=1)))
-    segments = sharp_segments(vertices.astype(np.float64), triangles.astype(np.int64))
+def target_case(arguments, tessellation: str, part, rest, quads, bounds, layout_edge: float) -> dict:
+    """The rows of one re-tessellation of the changed part: each anchor count without and with pairing."""
+    import springwrap_kernel
+
+    vertices, triangles, segments = part
+    target = changed_target(f"Target {tessellation}", vertices, triangles, bounds, tessellation)
+    truth = design_change(rest, *bounds)
     crease = distance_to_segments(rest, segments) < 0.1 * layout_edge
     target_vertices, _ = target_arrays(target)
     diagonal = float(np.linalg.norm(np.ptp(target_vertices, axis=0)))
-    changed_segments = design_change(segments.reshape(-1, 3), lower, upper).reshape(-1, 2, 3)
-    import springwrap_kernel
-
+    changed_segments = design_change(segments.reshape(-1, 3), *bounds).reshape(-1, 2, 3)
     target_mesh = springwrap_kernel.TargetMesh(*target_arrays(target))
     on_surface = target_mesh.closest_points(np.ascontiguousarray(truth, dtype=np.float32)).positions.astype(np.float64)
     scene = (target, rest, quads, truth, on_surface, crease, diagonal)
@@ -283,13 +296,37 @@ def run(arguments: argparse.Namespace) -> dict:
         for pairing in (False, True)
     ]
     return {
-        "mesh": arguments.off.name,
-        "layout": {"maker": "QuadriFlow", "vertices": int(rest.shape[0]), "quads": int(quads.shape[0])},
+        "tessellation": tessellation,
         "target_vertices": int(target_vertices.shape[0]),
         "crease_vertices": int(crease.sum()),
         "crease_rounding": float(np.linalg.norm(truth - on_surface, axis=1)[crease].mean() / diagonal * 100.0),
         "detection": detection_measure(target, changed_segments, layout_edge),
         "rows": rows,
+    }
+
+
+def run(arguments: argparse.Namespace) -> dict:
+    import bpy
+
+    import headless
+
+    headless.enable_addon()
+    bpy.ops.wm.read_homefile(use_empty=True)
+    vertices, triangles = read_off(arguments.off)
+    rest, quads = make_layout(vertices, triangles, arguments.faces)
+    bounds = (vertices.min(axis=0).astype(np.float64), vertices.max(axis=0).astype(np.float64))
+    edges = np.concatenate([quads[:, [0, 1]], quads[:, [1, 2]], quads[:, [2, 3]], quads[:, [3, 0]]])
+    layout_edge = float(np.median(np.linalg.norm(rest[edges[:, 0]] - rest[edges[:, 1]], axis=1)))
+    segments = sharp_segments(vertices.astype(np.float64), triangles.astype(np.int64))
+    part = (vertices.astype(np.float64), triangles.astype(np.int64), segments)
+    targets = [
+        target_case(arguments, tessellation, part, rest, quads, bounds, layout_edge)
+        for tessellation in arguments.tessellations
+    ]
+    return {
+        "mesh": arguments.off.name,
+        "layout": {"maker": "QuadriFlow", "vertices": int(rest.shape[0]), "quads": int(quads.shape[0])},
+        "targets": targets,
         "body": None if arguments.no_body else body_fragmentation(),
         "machine": {
             "cpu": cpu_model(),
@@ -301,7 +338,7 @@ def run(arguments: argparse.Namespace) -> dict:
 
 def markdown(result: dict) -> list[str]:
     """The docs/benchmarks.md table of a :func:`run` result."""
-    detection = result["detection"]
+    targets = result["targets"]
     lines = [
         "## Feature lines",
         "",
@@ -309,30 +346,46 @@ def markdown(result: dict) -> list[str]:
         "machined part after a smooth design change and a re-tessellation, with and without the pairing.",
         "",
         f"Part `{result['mesh']}`; layout by {result['layout']['maker']}: {result['layout']['vertices']} vertices, "
-        f"{result['layout']['quads']} quads, {result['crease_vertices']} on the part's creases; target: the part "
-        f"tapered, bent and bulged, voxel-remeshed ({result['target_vertices']} vertices). Errors in % of the "
-        "target's diagonal, against the known truth: each layout vertex's changed place `f(v)` taken to the nearest "
-        "point of the target (a crease's sharp corner is not on the remeshed surface, which rounds it: the "
-        f"crease vertices' corners lie {result['crease_rounding']:.3f} % from it on average); the last column "
-        "measures the crease vertices to `f(v)` itself.",
-        "",
-        "| anchors | feature pairing | pairs (mean confidence) | mean error, all | mean error, creases | p95, creases "
-        "| creases to `f(v)` |",
-        "|---:|---|---|---:|---:|---:|---:|",
-    ]
-    for row in result["rows"]:
-        pairs = f"{row['pairs']} ({row['mean_confidence']:.2f})" if row["pairs"] else "-"
-        lines.append(
-            f"| {row['anchors']} | {'with' if row['pairing'] else 'without'} | {pairs} | {row['mean_all']:.3f} | "
-            f"{row['mean_crease']:.3f} | {row['p95_crease']:.3f} | {row['mean_crease_to_corner']:.3f} |"
+        f"{result['layout']['quads']} quads, {targets[0]['crease_vertices']} on the part's creases. Target: the "
+        "part tapered, bent and bulged, re-tessellated two ways: "
+        + "; ".join(
+            f"**{target['tessellation']}**, {TESSELLATIONS[target['tessellation']]} ({target['target_vertices']} "
+            "vertices)"
+            for target in targets
         )
-    lines += [
+        + ". Errors in % of the target's diagonal, against the known truth: each layout vertex's changed place "
+        "`f(v)` taken to the nearest point of the target (on the voxel remesh a crease's sharp corner is not on "
+        "the surface: "
+        + "; ".join(
+            f"{target['tessellation']}: the crease vertices' corners lie {target['crease_rounding']:.3f} % from it"
+            for target in targets
+        )
+        + "); the last column measures the crease vertices to `f(v)` itself.",
         "",
-        f"Target features at the automatic scale ({detection['scale']:.4g}): {detection['curves']} curves, median "
-        f"length {detection['median_length_edges']:.1f} layout edges, {detection['curves_under_3_edges']} shorter "
-        f"than 3 edges; {100 * detection['crease_length_covered']:.0f} % of the true crease length lies within half "
-        "a layout edge of a detected curve.",
+        "| target | anchors | feature pairing | pairs (mean confidence) | mean error, all | mean error, creases "
+        "| p95, creases | creases to `f(v)` |",
+        "|---|---:|---|---|---:|---:|---:|---:|",
     ]
+    for target in targets:
+        for row in target["rows"]:
+            pairs = f"{row['pairs']} ({row['mean_confidence']:.2f})" if row["pairs"] else "-"
+            lines.append(
+                f"| {target['tessellation']} | {row['anchors']} | {'with' if row['pairing'] else 'without'} | "
+                f"{pairs} | {row['mean_all']:.3f} | {row['mean_crease']:.3f} | {row['p95_crease']:.3f} | "
+                f"{row['mean_crease_to_corner']:.3f} |"
+            )
+    lines.append("")
+    for target in targets:
+        detection = target["detection"]
+        lines.append(
+            f"Target features on the {target['tessellation']} target at the automatic scale "
+            f"({detection['scale']:.4g}): {detection['curves']} curves, median length "
+            f"{detection['median_length_edges']:.1f} layout edges, {detection['curves_under_3_edges']} shorter than "
+            f"3 edges; {100 * detection['crease_length_covered']:.0f} % of the true crease length lies within half "
+            "a layout edge of a detected curve."
+        )
+        lines.append("")
+    lines.pop()
     machine = result.get("machine")
     if machine:
         lines += [
@@ -367,6 +420,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--faces", type=int, default=3000, help="QuadriFlow's target face count")
     parser.add_argument(
         "--feature-scale", type=float, default=0.0, help="Pair Feature Lines' feature scale (default 0: automatic)"
+    )
+    parser.add_argument(
+        "--tessellations", nargs="+", choices=sorted(TESSELLATIONS), default=list(TESSELLATIONS), help="targets"
     )
     parser.add_argument("--no-body", action="store_true", help="leave out the voxel-remeshed body's fragmentation")
     parser.add_argument("--json", type=Path, default=DEFAULT_JSON)

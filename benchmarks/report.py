@@ -1167,9 +1167,7 @@ def build_document(
 
         lines += markdown_lines(features)
     if feature_lines is not None:  # benchmarks/feature_lines.py
-        from benchmarks.feature_lines import markdown as feature_lines_markdown
-
-        lines += feature_lines_markdown(feature_lines) + [""]
+        lines += feature_lines_section(feature_lines)
     if sequence is not None:  # benchmarks/sequence.py
         lines += sequence_section(sequence)
     return "\n".join(lines).rstrip() + "\n"
@@ -1209,10 +1207,19 @@ def sequence_section(result: dict) -> list[str]:
     return sequence_markdown(result)
 
 
+def feature_lines_section(result: dict) -> list[str]:
+    """The feature-lines section (``benchmarks/feature_lines.py --json``)."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from benchmarks.feature_lines import markdown as feature_lines_markdown
+
+    return feature_lines_markdown(result) + [""]
+
+
 ONLY_SECTIONS = {
     "snap": (snap_section, "snap", "### Wrap speed against its aims"),
     "dense-target": (dense_target_section, "dense_target", "## Feature curves"),
     "sequence": (sequence_section, "sequence", None),
+    "feature-lines": (feature_lines_section, "feature_lines", "## Over time"),
 }
 """``--only``: the section's maker, the argument naming its JSON, and the heading it goes before when new."""
 

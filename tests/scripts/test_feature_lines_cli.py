@@ -1,12 +1,12 @@
-"""``retarget.py --feature-lines``, end to end in its own process: a quad cube template onto a rounded box, its
-twelve creases paired with the box's ridges and listed in the report with their confidences; without the flag
-the report has no pairs."""
+"""``retarget.py --feature-lines``, end to end in its own process: a quad cube template onto a larger box of other
+triangles, its twelve creases paired with the box's sharp edges and listed in the report with their confidences;
+without the flag the report has no pairs."""
 
 import json
 
 import numpy as np
 
-from helpers import REPOSITORY, obj_text, options, outputs, rounded_box, run_script
+from helpers import REPOSITORY, obj_text, options, outputs, run_script
 
 RETARGET = REPOSITORY / "blender_scripts" / "retarget.py"
 
@@ -34,8 +34,9 @@ def quad_cube(cells: int = 6) -> tuple[np.ndarray, np.ndarray]:
 def test_the_creases_are_paired_wrapped_and_reported(tmp_path):
     template, target = tmp_path / "cube.obj", tmp_path / "box.obj"
     template.write_text(obj_text(*quad_cube(), digits=6))
-    vertices, triangles = rounded_box(1.0, 0.25, 24)
-    target.write_text(obj_text(vertices, triangles, digits=6))
+    vertices, quads = quad_cube(7)
+    triangles = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
+    target.write_text(obj_text(1.1 * vertices, triangles, digits=6))
     reports = {}
     for flag in (False, True):
         out = tmp_path / f"out{int(flag)}"

@@ -25,6 +25,7 @@ FREE_REASONS = {
     "LOW_CONFIDENCE": "below the minimum confidence",
     "TAKEN": "a more confident line follows that feature",
     "CONSTRAINED": "its vertices already follow another curve constraint",
+    "WITHIN_ACCURACY": "it already lies within the accuracy of its feature",
 }
 """Why a feature line stays free (the kernel's reasons, and one of the add-on's), as said in reports."""
 
@@ -88,25 +89,142 @@ def find_lines(positions, face_corners, face_sizes, marked, crease_degrees: floa
     ]
 
 
-def target_curves(feature_curves, target_positions, triangles) -> list:
-    """(kind, (P, 3) float32 points, closed) per target feature: each ridge and valley of ``feature_curves``
-    (the kernel's ``FeatureCurve``), then each open border of the target's triangles (a hole's rim)."""
-    found = [
-        (curve.kind, np.ascontiguousarray(curve.points, dtype=np.float32), bool(curve.closed))
-        for curve in feature_curves
-    ]
+RIDGE_ACCURACY_SCALES = 0.1
+"""How far a ridge or valley traced from curvatures may lie from the feature it marks, in feature scales: the
+crest of a rounded crease is located only to within the fit's reach (a line already that close to it stays
+free)."""
+
+
+def zigzag(points, closed: bool) -> float:
+    """The median distance of a polyline's inner points from the line through their two neighbours: about 0
+    along a crease of straight or gently bending edges however unevenly they are split (a few corners do not
+    count), about half a triangle's size along a staircase of edges on a rounded crease (a scan's): how far the
+    polyline may lie from the crease it marks."""
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    if closed:
+        points = np.concatenate([points[-1:], points, points[:1]])
+    if points.shape[0] < 3:
+        return 0.0
+    before, here, after = points[:-2], points[1:-1], points[2:]
+    chord = after - before
+    length = np.maximum(np.linalg.norm(chord, axis=1), 1e-30)
+    return float(np.median(np.linalg.norm(np.cross(here - before, chord), axis=1) / length))
+
+
+def _along(points, creases, distance: float) -> bool:
+    """Whether most of ``points`` lie within ``distance`` of one of ``creases`` (lists of (P, 3) points)."""
+    if not creases or distance <= 0.0:
+        return False
+    crease_points = np.concatenate(creases).astype(np.float64)
+    points = np.asarray(points, dtype=np.float64)
+    near = np.zeros(points.shape[0], dtype=bool)
+    for begin in range(0, crease_points.shape[0], 4096):
+        block = crease_points[begin : begin + 4096]
+        squared = np.sum((points[:, None, :] - block[None, :, :]) ** 2, axis=2)
+        near |= squared.min(axis=1) <= distance * distance
+    return bool(near.mean() >= 0.5)
+
+
+CLEAN_SHARE = 0.8
+"""The share of a target crease's edges that must have flat flanks (:func:`sharp_edges`) for it to be a sharp
+crease."""
+
+
+def sharp_edges(positions, triangles, crease_degrees: float) -> np.ndarray:
+    """(K, 2) uint32: the target's sharp edges, those whose two triangles' normals differ by more than
+    ``crease_degrees`` while the triangles' other edges bend less than a third of that (flat flanks) or are sharp
+    themselves (a corner), and that have no parallel twin beside them: a crease of a part exported sharp. On a
+    rounded crease (a scan's) the bend is spread over several rows of edges, none of which has flat flanks, or
+    cut into a chamfer of two parallel rows (:func:`_twinned`)."""
+    positions = np.asarray(positions, dtype=np.float64)
+    triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    if crease_degrees <= 0.0 or triangles.shape[0] == 0:
+        return np.zeros((0, 2), dtype=np.uint32)
+    corners = positions[triangles]
+    normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
+    count = triangles.shape[0]
+    edges = np.sort(np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]]), axis=1)
+    keys, slot = np.unique(edges, axis=0, return_inverse=True)
+    slot = slot.reshape(-1)
+    faces = np.tile(np.arange(count), 3)
+    order = np.argsort(slot, kind="stable")
+    uses = np.bincount(slot, minlength=keys.shape[0])
+    starts = np.concatenate([[0], np.cumsum(uses)[:-1]])
+    angle = np.zeros(keys.shape[0])
+    inner = uses == 2
+    first, second = faces[order[starts[inner]]], faces[order[starts[inner] + 1]]
+    angle[inner] = np.degrees(np.arccos(np.clip(np.sum(normals[first] * normals[second], axis=1), -1.0, 1.0)))
+    sharp = angle > crease_degrees
+    flank_ok = (angle < crease_degrees / 3.0) | sharp  # per edge: flat, or a sharp edge meeting it
+    face_edges = slot.reshape(3, count).T  # each triangle's three edges
+    # A triangle has flat flanks for one of its edges when its two other edges are fine.
+    fine = flank_ok[face_edges]
+    clean_face_edge = np.stack(
+        [fine[:, [1, 2]].all(axis=1), fine[:, [2, 0]].all(axis=1), fine[:, [0, 1]].all(axis=1)], 1
+    )
+    clean = np.ones(keys.shape[0], dtype=bool)
+    np.logical_and.at(clean, face_edges.ravel(), clean_face_edge.ravel())
+    found = np.flatnonzero(sharp & clean)
+    found = found[~_twinned(positions[keys[found, 0]], positions[keys[found, 1]])]
+    return np.ascontiguousarray(keys[found], dtype=np.uint32)
+
+
+def _twinned(starts: np.ndarray, ends: np.ndarray, chunk: int = 1024) -> np.ndarray:
+    """(S,) bool: the segments with a parallel one beside them (offset by more than a quarter of their length,
+    within twice their length): the two edges of a chamfer, as a voxel remesh cuts a crease, not a sharp crease,
+    whose edges only continue each other."""
+    middles = (starts + ends) / 2.0
+    directions = ends - starts
+    lengths = np.maximum(np.linalg.norm(directions, axis=1), 1e-300)
+    units = directions / lengths[:, None]
+    twinned = np.zeros(starts.shape[0], dtype=bool)
+    for begin in range(0, starts.shape[0], chunk):
+        here = slice(begin, begin + chunk)
+        offsets = middles[None, :, :] - middles[here, None, :]
+        along = np.einsum("ijk,ik->ij", offsets, units[here])
+        across = np.linalg.norm(offsets - along[..., None] * units[here, None, :], axis=2)
+        parallel = np.abs(units[here] @ units.T) > 0.9
+        near = np.linalg.norm(offsets, axis=2) < 2.0 * lengths[here, None]
+        twinned[here] = np.any(parallel & near & (across > 0.25 * lengths[here, None]), axis=1)
+    return twinned
+
+
+def target_curves(feature_curves, target_positions, triangles, crease_degrees: float = 0.0, scale: float = 0.0):
+    """(kind, (P, 3) float32 points, closed, accuracy) per target feature: each sharp crease of the target's own
+    edges (:func:`sharp_edges` at ``crease_degrees``; 0: none), kind RIDGE (convex) or VALLEY,
+    its accuracy :func:`zigzag`; each ridge and valley of ``feature_curves`` (the kernel's ``FeatureCurve``,
+    detected at ``scale``) that does not run along such a crease, accuracy :data:`RIDGE_ACCURACY_SCALES` scales;
+    then each open border of the target's triangles (a hole's rim), accuracy 0."""
     target_positions = np.ascontiguousarray(target_positions, dtype=np.float32)
     triangles = np.ascontiguousarray(triangles, dtype=np.uint32).reshape(-1, 3)
-    borders = springwrap_kernel.layout_feature_lines(
+    chains = springwrap_kernel.layout_feature_lines(
         target_positions,
         triangles.reshape(-1),
         np.full(triangles.shape[0], 3, dtype=np.uint32),
-        crease_degrees=0.0,
+        crease_degrees=float(crease_degrees),
         borders=True,
     )
-    for _kind, _source, vertices, closed, _dihedral in borders:
-        found.append(("BORDER", np.ascontiguousarray(target_positions[vertices]), bool(closed)))
-    return found
+    clean = sharp_edges(target_positions, triangles, crease_degrees).astype(np.int64)
+    clean_keys = set((clean[:, 0] * target_positions.shape[0] + clean[:, 1]).tolist())
+    found, creases, borders = [], [], []
+    for kind, source, vertices, closed, _dihedral in chains:
+        points = np.ascontiguousarray(target_positions[vertices])
+        if source == "CREASE":
+            ring = np.concatenate([vertices, vertices[:1]]) if closed else np.asarray(vertices)
+            pairs = np.sort(np.stack([ring[:-1], ring[1:]], axis=1).astype(np.int64), axis=1)
+            keys = (pairs[:, 0] * target_positions.shape[0] + pairs[:, 1]).tolist()
+            if np.mean([key in clean_keys for key in keys]) < CLEAN_SHARE:
+                continue  # a rounded crease's row of edges (a scan's), not a sharp one
+            creases.append(points)
+            found.append((kind, points, bool(closed), zigzag(points, bool(closed))))
+        else:
+            borders.append(("BORDER", points, bool(closed), 0.0))
+    for curve in feature_curves:
+        points = np.ascontiguousarray(curve.points, dtype=np.float32)
+        if not _along(points, creases, scale):
+            found.append((curve.kind, points, bool(curve.closed), RIDGE_ACCURACY_SCALES * scale))
+    return found + borders
 
 
 def pair_lines(lines, current, curves_found, anchored, existing, max_distance: float, **settings) -> Pairing:

@@ -3,9 +3,10 @@ constraints.
 
 The layout's feature lines are the edges the artist marked (sharp edges, seams, a vertex group, a boolean edge
 attribute) and, on its rest shape, its creases (dihedral angle) and open borders; the target's features are its
-ridges and valleys (Detect Features at the automatic scale for the layout's edge length) and the borders of its
-holes. Each line is paired with a feature close to it under the current fit, parallel, of its kind and about as
-long; the pair becomes a curve constraint (source Feature Pair, with its confidence) that the next wrap follows.
+sharp creases (its own edges, exact), ridges and valleys (Detect Features at the automatic scale for the layout's
+edge length: crests known to within their scale) and the borders of its holes. Each line is paired with a feature
+close to it under the current fit, parallel, of its kind and about as long, unless it already lies within the
+feature's accuracy; the pair becomes a curve constraint (source Feature Pair, with its confidence) that the next wrap follows.
 Lines without a partner stay free and are listed in the report. Everything is computed first and written only
 when it succeeded; a bad input (a marked line that crosses itself, an empty group) changes nothing.
 """
@@ -42,7 +43,7 @@ class SPRINGWRAP_OT_feature_lines_pair(LayoutCollectionOperator, bpy.types.Opera
     crease_angle: props.number(
         "Crease Angle",
         "Edges of the layout's rest shape whose two faces' normals differ by more than this (degrees) are "
-        "creases, feature lines too; 0: no creases",
+        "creases, feature lines too, and so are the target's sharp edges features to pair with; 0: no creases",
         30.0,
         min=0.0,
         max=180.0,
@@ -93,7 +94,7 @@ class SPRINGWRAP_OT_feature_lines_pair(LayoutCollectionOperator, bpy.types.Opera
         median_edge = line_data.median_layout_edge(lines_read)
         distance = self.max_distance or feature_lines.automatic_distance(median_edge)
         found_curves, scale = line_data.read_target_features(
-            depsgraph, check_target(layout), median_edge, scale=self.feature_scale
+            depsgraph, check_target(layout), median_edge, self.crease_angle, scale=self.feature_scale
         )
         anchored = anchors.anchored_mask(anchor_data.read_anchors(layout), lines_read.current.shape[0])
         pairing = feature_lines.pair_lines(

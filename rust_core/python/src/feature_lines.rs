@@ -126,16 +126,17 @@ fn layout_feature_lines_py<'py>(
 
 /// Pairs feature lines with target curves under the current fit: `positions` (N, 3) float32 the
 /// layout where the fit has it, `lines` a list of (vertices uint32, closed, kind), `curves` a list
-/// of (kind "RIDGE"/"VALLEY"/"BORDER", points (P, 3) float32, closed). One tuple per line: (curve
-/// index or None, why it stays free ("NONE_NEARBY", "NOT_PARALLEL", "LENGTH_DIFFERS",
-/// "LOW_CONFIDENCE", "TAKEN") or None, confidence, chain uint32, target (P, 3) float32).
+/// of (kind "RIDGE"/"VALLEY"/"BORDER", points (P, 3) float32, closed[, accuracy: how far the curve
+/// may lie from its feature, 0 when left out]). One tuple per line: (curve index or None, why it
+/// stays free ("NONE_NEARBY", "NOT_PARALLEL", "LENGTH_DIFFERS", "LOW_CONFIDENCE", "TAKEN",
+/// "WITHIN_ACCURACY") or None, confidence, chain uint32, target (P, 3) float32).
 #[pyfunction(name = "pair_feature_lines")]
 #[pyo3(signature = (positions, lines, curves, *, max_distance, max_angle = None, min_confidence = None))]
 fn pair_feature_lines_py<'py>(
     py: Python<'py>,
     positions: &Bound<'py, PyAny>,
     lines: Vec<(Bound<'py, PyAny>, bool, String)>,
-    curves: Vec<(String, Bound<'py, PyAny>, bool)>,
+    curves: Vec<Bound<'py, PyAny>>,
     max_distance: &Bound<'py, PyAny>,
     max_angle: Option<&Bound<'py, PyAny>>,
     min_confidence: Option<&Bound<'py, PyAny>>,
@@ -155,11 +156,22 @@ fn pair_feature_lines_py<'py>(
         .collect::<PyResult<Vec<_>>>()?;
     let curves = curves
         .into_iter()
-        .map(|(kind, points, closed)| {
+        .map(|curve| {
+            // (kind, points, closed) or (kind, points, closed, accuracy).
+            let (kind, points, closed, accuracy) =
+                match curve.extract::<(String, Bound<'py, PyAny>, bool, f32)>() {
+                    Ok(full) => full,
+                    Err(_) => {
+                        let (kind, points, closed) =
+                            curve.extract::<(String, Bound<'py, PyAny>, bool)>()?;
+                        (kind, points, closed, 0.0)
+                    }
+                };
             Ok(TargetCurve {
                 kind: curve_kind(&kind)?,
                 points: read_positions("curve points", &points)?,
                 closed,
+                accuracy,
             })
         })
         .collect::<PyResult<Vec<_>>>()?;
@@ -187,6 +199,7 @@ fn pair_feature_lines_py<'py>(
                         FreeReason::LengthDiffers => "LENGTH_DIFFERS",
                         FreeReason::LowConfidence => "LOW_CONFIDENCE",
                         FreeReason::Taken => "TAKEN",
+                        FreeReason::WithinAccuracy => "WITHIN_ACCURACY",
                     }),
                 ),
             };

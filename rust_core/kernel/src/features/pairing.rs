@@ -18,11 +18,15 @@
 //! of the shorter of the two lengths to the longer. Each line takes its most confident candidate
 //! at or above the minimum confidence; lines are then accepted from the most confident down, and
 //! one whose stretch of curve overlaps (by more than [`MAX_OVERLAP`] of its length) a stretch
-//! already taken stays free, as do lines without a candidate. A paired line's target is its
-//! stretch of curve in the line's direction (a closed line: the whole loop from the projection of
-//! its first vertex, the chain then ending on its first vertex again). An open line's end that
+//! already taken stays free, as do lines without a candidate. A curve known only to within some
+//! accuracy (a crest traced on a rounded crease) does not pair a line that already lies within
+//! that accuracy of it: the curve would be no better a reference than the fit itself; an exact
+//! curve (a sharp crease of the target's own edges, accuracy 0) pairs any line close enough. A
+//! paired line's target is its stretch of curve in the line's direction (a closed line: the whole
+//! loop from the projection of its first vertex, the chain then ending on its first vertex again). An open line's end that
 //! another line shares (a junction, such as a box's corner where three creases meet) is left out
-//! of its chain, so that no vertex follows two curves.
+//! of its chain, so that no vertex follows two curves, and so are the vertices of a line beyond an
+//! end of an open curve (projecting onto that end as the one before them does).
 
 use std::collections::HashMap;
 
@@ -59,6 +63,9 @@ pub struct TargetCurve {
     pub points: Vec<Vec3>,
     /// Whether it is a loop.
     pub closed: bool,
+    /// How far the curve may lie from the feature it marks (model units, ≥ 0): 0 for a curve of the
+    /// target's own sharp edges, about the rounding for a crest traced on a rounded crease.
+    pub accuracy: f32,
 }
 
 /// Settings of [`pair_lines`].
@@ -97,6 +104,8 @@ pub enum FreeReason {
     LowConfidence,
     /// A more confident line already follows that stretch of its curve.
     Taken,
+    /// The line already lies within the accuracy of the curve it would follow.
+    WithinAccuracy,
 }
 
 /// The outcome for one line.
@@ -118,6 +127,7 @@ struct Prepared {
     points: Vec<Vec3>,
     cumulative: Vec<f32>,
     closed: bool,
+    accuracy: f32,
     lower: Vec3,
     upper: Vec3,
 }
@@ -138,6 +148,7 @@ impl Prepared {
             points,
             cumulative,
             closed: curve.closed,
+            accuracy: curve.accuracy,
             lower,
             upper,
         }
@@ -213,8 +224,36 @@ fn kinds_agree(kind: LineKind, curve: TargetCurveKind) -> bool {
     )
 }
 
-/// A candidate: (confidence, curve, arc parameter of the first vertex, signed span).
-type Candidate = (f32, usize, f32, f32);
+/// A candidate: (confidence, curve, arc parameter of the first vertex, signed span, vertices
+/// trimmed off the chain's start and end).
+type Candidate = (f32, usize, f32, f32, usize, usize);
+
+/// How many vertices at each end of a chain to leave out when pairing with open `curve`: those
+/// beyond one of its ends (projecting onto that end, as the one before them does), so that a line
+/// longer than its feature follows it only where it runs beside it.
+fn overshoot(curve: &Prepared, projections: &[(f32, f32, Vec3)]) -> (usize, usize) {
+    if curve.closed {
+        return (0, 0);
+    }
+    let length = curve.length();
+    let at_end = |s: f32| s <= 1e-6 * length || s >= (1.0 - 1e-6) * length;
+    let count = projections.len();
+    let mut front = 0;
+    while front + 2 < count
+        && at_end(projections[front].1)
+        && projections[front + 1].1 == projections[front].1
+    {
+        front += 1;
+    }
+    let mut back = 0;
+    while back + front + 2 < count
+        && at_end(projections[count - 1 - back].1)
+        && projections[count - 2 - back].1 == projections[count - 1 - back].1
+    {
+        back += 1;
+    }
+    (front, back)
+}
 
 /// The best candidate curve for one line, or why there is none.
 fn best_candidate(
@@ -223,9 +262,10 @@ fn best_candidate(
     curves: &[(TargetCurveKind, Prepared)],
     settings: &PairSettings,
 ) -> Result<Candidate, FreeReason> {
-    let line_length: f32 = chain.windows(2).map(|pair| pair[0].distance(pair[1])).sum();
+    let full_length: f32 = chain.windows(2).map(|pair| pair[0].distance(pair[1])).sum();
     let lower = chain.iter().fold(Vec3::MAX, |a, &b| a.min(b)) - settings.max_distance;
     let upper = chain.iter().fold(Vec3::MIN, |a, &b| a.max(b)) + settings.max_distance;
+    let whole = chain;
     let min_cos = settings.max_angle.to_radians().cos();
     let mut reason = FreeReason::NoneNearby;
     let mut best: Option<Candidate> = None;
@@ -233,12 +273,16 @@ fn best_candidate(
         if !kinds_agree(kind, *curve_kind)
             || curve.lower.cmpgt(upper).any()
             || curve.upper.cmplt(lower).any()
-            || line_length <= 0.0
+            || full_length <= 0.0
         {
             continue;
         }
-        let projections: Vec<(f32, f32, Vec3)> =
-            chain.iter().map(|&point| curve.project(point)).collect();
+        let all: Vec<(f32, f32, Vec3)> = whole.iter().map(|&point| curve.project(point)).collect();
+        let (front, back) = overshoot(curve, &all);
+        let projections = &all[front..all.len() - back];
+        let chain = &whole[front..whole.len() - back];
+        // The length agreement is the whole line's: a short curve beside a long line is no partner.
+        let line_length = full_length;
         let mean_distance = projections.iter().map(|p| p.0).sum::<f32>() / projections.len() as f32;
         let near = projections
             .iter()
@@ -247,6 +291,10 @@ fn best_candidate(
         if mean_distance > settings.max_distance
             || (near as f32) < MIN_NEAR_FRACTION * projections.len() as f32
         {
+            continue;
+        }
+        if mean_distance <= curve.accuracy {
+            reason = reason_after(reason, FreeReason::WithinAccuracy);
             continue;
         }
         let mut cosine_sum = 0.0f32;
@@ -291,7 +339,7 @@ fn best_candidate(
             continue;
         }
         if best.is_none_or(|b| confidence > b.0) {
-            best = Some((confidence, index, projections[0].1, span));
+            best = Some((confidence, index, projections[0].1, span, front, back));
         }
     }
     best.ok_or(reason)
@@ -303,7 +351,8 @@ fn reason_after(old: FreeReason, new: FreeReason) -> FreeReason {
         FreeReason::NoneNearby => 0,
         FreeReason::NotParallel => 1,
         FreeReason::LengthDiffers => 2,
-        _ => 3,
+        FreeReason::WithinAccuracy => 3,
+        _ => 4,
     };
     if rank(new) > rank(old) { new } else { old }
 }
@@ -321,7 +370,8 @@ fn too_few(name: &'static str, what: &str, index: usize, count: usize) -> Kernel
 ///
 /// # Errors
 /// [`KernelError::InvalidArgument`] for a maximum distance that is not positive and finite, an
-/// angle outside 0 to 90 degrees, a confidence outside 0 to 1, a curve of fewer than two points
+/// angle outside 0 to 90 degrees, a confidence outside 0 to 1, a curve's accuracy that is negative
+/// or not finite, a curve of fewer than two points
 /// or a line of fewer than two vertices; [`KernelError::LayoutIndexOutOfRange`] for a line vertex
 /// beyond `positions`; the coordinate errors of [`validate::check_coordinates`].
 pub fn pair_lines(
@@ -355,6 +405,12 @@ pub fn pair_lines(
             return Err(too_few("target curves", "curve", index, curve.points.len()));
         }
         validate::check_coordinates("curve point", &curve.points)?;
+        check_setting(
+            "curves",
+            "a curve's accuracy",
+            curve.accuracy,
+            SettingRange::closed(0.0, f64::from(validate::MAX_COORDINATE)),
+        )?;
         prepared.push((curve.kind, Prepared::new(curve)));
     }
     let mut uses: HashMap<u32, usize> = HashMap::new();
@@ -415,7 +471,7 @@ pub fn pair_lines(
         };
         let outcome = match *candidate {
             Err(reason) => free(reason),
-            Ok((confidence, curve, begin, span)) => {
+            Ok((confidence, curve, begin, span, front, back)) => {
                 let (low, high) = (begin.min(begin + span), begin.max(begin + span));
                 let overlaps = taken.iter().any(|&(other, other_low, other_high)| {
                     other == curve
@@ -428,7 +484,7 @@ pub fn pair_lines(
                     LinePairing {
                         result: Ok(curve),
                         confidence,
-                        chain: chain.clone(),
+                        chain: chain[front..chain.len() - back].to_vec(),
                         target: prepared[curve].1.stretch(begin, span),
                     }
                 }
@@ -477,6 +533,7 @@ mod tests {
                 .map(|i| from.lerp(to, i as f32 / (count - 1) as f32))
                 .collect(),
             closed: false,
+            accuracy: 0.0,
         }
     }
 
@@ -577,6 +634,7 @@ mod tests {
             kind: TargetCurveKind::Border,
             points: square.iter().map(|p| *p * 1.02).collect(),
             closed: true,
+            accuracy: 0.0,
         };
         let outcome = pair(&square, &[ring], &[loop_curve], 0.2);
         assert_eq!(outcome[0].chain, vec![0, 1, 2, 3, 0]);
@@ -613,6 +671,53 @@ mod tests {
     }
 
     #[test]
+    fn a_line_within_the_curves_accuracy_stays_free_an_exact_curve_pairs_it() {
+        let positions: Vec<Vec3> = (0..5).map(|i| Vec3::new(i as f32, 0.1, 0.0)).collect();
+        let lines = [line(vec![0, 1, 2, 3, 4], LineKind::Ridge)];
+        let rounded = TargetCurve {
+            accuracy: 0.2,
+            ..straight(
+                TargetCurveKind::Ridge,
+                Vec3::ZERO,
+                Vec3::new(4.0, 0.0, 0.0),
+                9,
+            )
+        };
+        let outcome = pair(&positions, &lines, std::slice::from_ref(&rounded), 0.5);
+        assert_eq!(outcome[0].result, Err(FreeReason::WithinAccuracy));
+        // Farther off than the curve's accuracy, or an exact curve: paired.
+        let far: Vec<Vec3> = positions.iter().map(|p| *p + Vec3::Y * 0.2).collect();
+        assert_eq!(
+            pair(&far, &lines, std::slice::from_ref(&rounded), 1.0)[0].result,
+            Ok(0)
+        );
+        let exact = TargetCurve {
+            accuracy: 0.0,
+            ..rounded
+        };
+        assert_eq!(pair(&positions, &lines, &[exact], 0.5)[0].result, Ok(0));
+    }
+
+    #[test]
+    fn a_line_longer_than_its_curve_follows_it_only_beside_it() {
+        // A line from x = 0 to 6 beside a ridge from 0 to 4: its last two vertices are beyond the
+        // ridge's end and stay out of the chain.
+        let positions: Vec<Vec3> = (0..7).map(|i| Vec3::new(i as f32, 0.1, 0.0)).collect();
+        let lines = [line((0..7).collect(), LineKind::Ridge)];
+        let curves = [straight(
+            TargetCurveKind::Ridge,
+            Vec3::ZERO,
+            Vec3::new(4.0, 0.0, 0.0),
+            5,
+        )];
+        let outcome = pair(&positions, &lines, &curves, 2.0);
+        assert_eq!(outcome[0].result, Ok(0));
+        assert_eq!(outcome[0].chain, vec![0, 1, 2, 3, 4]);
+        let target = &outcome[0].target;
+        assert!(target[target.len() - 1].distance(Vec3::new(4.0, 0.0, 0.0)) < 1e-4);
+    }
+
+    #[test]
     fn bad_settings_and_inputs_are_refused() {
         let positions = [Vec3::ZERO, Vec3::X];
         let lines = [line(vec![0, 1], LineKind::Any)];
@@ -632,6 +737,19 @@ mod tests {
             pair_lines(&positions, &beyond, &[], &PairSettings::with_distance(1.0)),
             Err(KernelError::LayoutIndexOutOfRange { vertex: 7, .. })
         ));
+        let inexact = TargetCurve {
+            accuracy: -1.0,
+            ..curve.clone()
+        };
+        assert!(
+            pair_lines(
+                &positions,
+                &lines,
+                &[inexact],
+                &PairSettings::with_distance(1.0)
+            )
+            .is_err()
+        );
         let one_point = TargetCurve {
             points: vec![Vec3::ZERO],
             ..curve
