@@ -611,11 +611,12 @@ def _stop_on_signals(stop_requested: threading.Event) -> dict:
 OUTLIER_Z = 3.5
 """A mesh stands out when one of its metrics' robust z-scores passes this (Iglewicz and Hoaglin's cut-off)."""
 OUTLIER_METRICS = {
-    # metric of the report's quality block: (which way is worse, the spread's floor: ("count", units) or
-    # ("relative", fraction of the batch's median))
-    "distance_p50": (1, ("relative", 0.01)),
-    "distance_p95": (1, ("relative", 0.01)),
-    "distance_max": (1, ("relative", 0.01)),
+    # metric of the report's quality block: (which way is worse, the spread's floor: ("count", units),
+    # ("relative", fraction of the batch's median) or ("distance", fraction of the batch's median and of its
+    # median off-surface threshold: distances at the storage's rounding are all alike))
+    "distance_p50": (1, ("distance", 0.01)),
+    "distance_p95": (1, ("distance", 0.01)),
+    "distance_max": (1, ("distance", 0.01)),
     "stretch_p5": (-1, ("relative", 0.01)),
     "stretch_p95": (1, ("relative", 0.01)),
     "stretch_max": (1, ("relative", 0.01)),
@@ -628,7 +629,8 @@ OUTLIER_RULE = (
     + ", ".join(OUTLIER_METRICS)
     + ", its robust z-score (value - batch median) / (1.4826 x median absolute deviation), signed so that "
     "positive is worse (lower for stretch_p5, higher for the others), is above 3.5; the spread is taken at least "
-    "1 for counts and 1 % of the median for the others; batches of fewer than 3 meshes flag nothing"
+    "1 for counts, 1 % of the median for the others and, for distances, 1 % of the median off-surface threshold; "
+    "batches of fewer than 3 meshes flag nothing"
 )
 """The rule, as the summary states it."""
 
@@ -639,10 +641,19 @@ def quality_outliers(rows: dict) -> dict:
 
     For each metric over the meshes that have a finite value of it, a mesh's robust z-score is
     ``(value - median) / (1.4826 * MAD)``, signed so that positive is worse; the spread is never taken below a
-    floor (one element for counts, 1 % of the median for the others), so that a batch of equal numbers flags
-    nothing but a count that jumps from a few to many.
+    floor (one element for counts, 1 % of the median for the others, and for distances also 1 % of the batch's
+    median off-surface threshold), so that a batch of equal numbers flags nothing but a count that jumps from a
+    few to many, and distances all at the storage's rounding (1e-7) flag nothing.
     """
     flagged: dict = {}
+    thresholds = [
+        float(row["off_surface_threshold"])
+        for row in rows.values()
+        if isinstance(row, dict)
+        and isinstance(row.get("off_surface_threshold"), (int, float))
+        and math.isfinite(float(row["off_surface_threshold"]))
+    ]
+    threshold = statistics.median(thresholds) if thresholds else 0.0
     for metric, (direction, (floor_kind, floor)) in OUTLIER_METRICS.items():
         values = {
             name: float(row[metric])
@@ -653,7 +664,10 @@ def quality_outliers(rows: dict) -> dict:
             continue
         median = statistics.median(values.values())
         spread = 1.4826 * statistics.median(abs(value - median) for value in values.values())
-        spread = max(spread, floor if floor_kind == "count" else floor * abs(median), sys.float_info.min)
+        least = floor if floor_kind == "count" else floor * abs(median)
+        if floor_kind == "distance":
+            least = max(least, floor * threshold)
+        spread = max(spread, least, sys.float_info.min)
         for name, value in values.items():
             score = direction * (value - median) / spread
             if score > OUTLIER_Z:

@@ -161,6 +161,18 @@ def test_the_rule_needs_three_meshes_and_a_count_needs_more_than_one_element():
     assert "stretch_p5" in retarget_batch.quality_outliers(rows)["f"]
 
 
+def test_distances_at_the_storage_rounding_flag_nothing():
+    """Snapped meshes' distances are float32 rounding (about 1e-7): one twice another's is no outlier, while a
+    mesh off its target by a hundredth of the off-surface threshold still is."""
+    import retarget_batch
+
+    rows = {f"m{index}": dict(row(distance=3e-8), off_surface_threshold=1e-3) for index in range(4)}
+    rows["m4"] = dict(row(distance=6e-8), off_surface_threshold=1e-3)
+    assert retarget_batch.quality_outliers(rows) == {}
+    rows["off"] = dict(row(distance=1e-4), off_surface_threshold=1e-3)
+    assert set(retarget_batch.quality_outliers(rows)) == {"off"}
+
+
 def test_the_rule_judges_metrics_the_report_has():
     import retarget_batch
 
