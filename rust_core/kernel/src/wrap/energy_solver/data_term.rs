@@ -11,17 +11,6 @@ impl EnergySolver {
         normals: &[Vec3],
         width: f32,
     ) -> Vec<Option<Correspondence>> {
-        self.correspondences_among(normals, width, None)
-    }
-
-    /// [`Self::correspondences`] of the vertices `queried` says (all when `None`); the others
-    /// have none.
-    pub(super) fn correspondences_among(
-        &mut self,
-        normals: &[Vec3],
-        width: f32,
-        queried: Option<&[bool]>,
-    ) -> Vec<Option<Correspondence>> {
         if width <= 0.0 {
             return vec![None; self.positions.len()]; // folding off: nothing is drawn on
         }
@@ -29,10 +18,7 @@ impl EnergySolver {
             .into_par_iter()
             .with_min_len(256)
             .map_init(QueryState::default, |state, vertex| {
-                if self.fixed[vertex].is_some()
-                    || self.data_factors[vertex] == 0.0
-                    || queried.is_some_and(|queried| !queried[vertex])
-                {
+                if self.fixed[vertex].is_some() || self.data_factors[vertex] == 0.0 {
                     return (None, NO_TRIANGLE);
                 }
                 let position = self.positions[vertex];
@@ -193,52 +179,4 @@ pub(super) fn smoothed_vertex_normals(target: &TargetMesh, radius: f32) -> Vec<V
             .collect();
     }
     normals
-}
-
-impl EnergySolver {
-    /// The stiff levels' correspondences: only the samples of [`DataSamples`] are queried, the
-    /// other vertices pulled onto their sample's tangent plane.
-    pub(super) fn stiff_correspondences(
-        &mut self,
-        normals: &[Vec3],
-        width: f32,
-    ) -> Vec<Option<Correspondence>> {
-        let samples = self.stretches.as_mut().and_then(|s| s.samples.take());
-        let samples = samples.unwrap_or_else(|| {
-            let queried: Vec<bool> = (0..self.positions.len())
-                .map(|vertex| self.fixed[vertex].is_none() && self.data_factors[vertex] != 0.0)
-                .collect();
-            DataSamples::new(&self.structure, &queried, STIFF_SAMPLE_HOPS)
-        });
-        let mut correspondences =
-            self.correspondences_among(normals, width, Some(&samples.is_sample));
-        let face_normals = self.target.face_normals();
-        let last_hits = &self.last_hits;
-        let data_factors = &self.data_factors;
-        samples.share(
-            &self.positions,
-            &mut correspondences,
-            |sample| {
-                let normal = *face_normals.get(last_hits[sample as usize] as usize)?;
-                (normal != Vec3::ZERO).then_some(normal)
-            },
-            |vertex, distance| {
-                (-(distance * distance) / (2.0 * width * width)).exp() * data_factors[vertex]
-            },
-        );
-        for (vertex, correspondence) in correspondences.iter_mut().enumerate() {
-            if let Some(sample) = samples.sample_of(vertex) {
-                self.last_hits[vertex] = self.last_hits[sample as usize];
-            }
-            if let (Some(plane), Some((_, point))) = (self.plane, correspondence.as_mut())
-                && self.on_plane.get(vertex).copied().unwrap_or(false)
-            {
-                *point = plane.project(*point);
-            }
-        }
-        if let Some(stretches) = self.stretches.as_mut() {
-            stretches.samples = Some(samples);
-        }
-        correspondences
-    }
 }

@@ -50,8 +50,8 @@ use rayon::prelude::*;
 
 use super::anchor::AnchorTarget;
 use super::global_phase::{
-    DataSamples, GLOBAL_MIN_ALIGNMENT, GLOBAL_TO_LOCAL_LEVELS, RECIPROCAL_LEVELS,
-    STIFF_SAMPLE_HOPS, Stretches, choose_schedule, keep_reciprocal,
+    GLOBAL_MIN_ALIGNMENT, GLOBAL_TO_LOCAL_LEVELS, RECIPROCAL_LEVELS, Stretches, choose_schedule,
+    keep_reciprocal,
 };
 use super::linear_system::{LinearSystem, Stencils};
 use super::plane_constraint::Plane;
@@ -461,13 +461,8 @@ impl EnergySolver {
         self.fit_scales(level.scale_smoothing)?;
         let normals = self.layout_normals(&self.positions);
         let width = level.welsch_width * self.mean_edge_length * self.reach_scale;
-        let stiff = self.stretches.is_some() && self.level < RECIPROCAL_LEVELS;
-        let mut correspondences = if stiff {
-            self.stiff_correspondences(&normals, width)
-        } else {
-            self.correspondences(&normals, width)
-        };
-        if stiff {
+        let mut correspondences = self.correspondences(&normals, width);
+        if self.stretches.is_some() && self.level < RECIPROCAL_LEVELS {
             keep_reciprocal(&self.positions, &mut correspondences, self.mean_edge_length);
         }
         pull_soft_pairs(&self.soft_pairs, &mut correspondences, level.data_weight);

@@ -9,11 +9,9 @@
 //! al. 2007). Stiffness is the smoothing of the stretches and rotations over many rings (one
 //! factored solve each, `smoothing`), relaxed level by level (a near-affine deformation of whole regions first, local at the end), while the
 //! data term tightens from weak and wide to strong and narrow; then the default schedule's local
-//! levels follow, with the stretches kept. The stiff levels query the closest points of samples
-//! only, the other vertices sharing a sample's tangent plane (`sampling`).
+//! levels follow, with the stretches kept.
 
 mod choice;
-mod sampling;
 mod smoothing;
 
 use glam::{DVec3, Mat3, Quat, Vec3, Vec4};
@@ -24,7 +22,6 @@ use super::similarity::Similarity;
 use crate::error::KernelError;
 use crate::layout::LayoutStructure;
 pub(crate) use choice::choose_schedule;
-pub(crate) use sampling::DataSamples;
 use smoothing::Smoother;
 
 /// The global-to-local schedule: three stiff levels whose stretches are smoothed as 16,384, 4,096
@@ -81,18 +78,6 @@ pub(crate) const RECIPROCAL_LEVELS: usize = 3;
 const RECIPROCAL_NEAR: f32 = 2.0;
 const RECIPROCAL_RATIO: f32 = 0.5;
 
-/// In the stiff levels (the first [`RECIPROCAL_LEVELS`]) only samples are queried for their
-/// closest points, every other vertex sharing the tangent plane of a sample within this many edges
-/// ([`DataSamples`]). Measured with 6 anchors through the kernel alone (`benchmarks/few_anchors.py`'s
-/// cases, every vertex queried against one hop, in one run): the wrap's processor time 2.41 → 1.90 s
-/// (heavy) and 2.76 → 2.39 s (old-male); mean error 0.246, 0.469, 0.429, 0.348 → 0.241, 0.462,
-/// 0.427, 0.339 % of the diagonal (heavy, heavy-old, old-male, young-female), p95 0.960, 2.076,
-/// 1.540, 1.199 → 0.958, 1.949, 1.523, 1.185; flipped quads against the aligned template +4, −7,
-/// −8, −7 → +5, −4, −7, −6. Two hops ended the first stiff level after three iterations on the
-/// heavy body (its energy barely fell once the queries were that sparse) and raised its mean error
-/// to 0.297 %.
-pub(crate) const STIFF_SAMPLE_HOPS: usize = 1;
-
 /// In the global-to-local schedule a layout corner may turn from its rest normal (turned by the
 /// layout's frame) until this cosine, about 45 degrees, where the local schedule lets it reach 90:
 /// the stretches let a region shear far, and a corner let through at 80 degrees from its rest
@@ -123,9 +108,6 @@ pub(crate) struct Stretches {
     /// averaging).
     stretch_smoother: Smoother,
     rotation_smoother: Smoother,
-    /// The stiff levels' clusters of vertices sharing a closest-point query, made at their first
-    /// use.
-    pub(crate) samples: Option<DataSamples>,
 }
 
 impl Stretches {
@@ -146,7 +128,6 @@ impl Stretches {
             values: vec![Mat3::IDENTITY; rest.len()],
             rotation_smoother: stretch_smoother.clone(),
             stretch_smoother,
-            samples: None,
         })
     }
 
@@ -369,25 +350,18 @@ mod tests {
 
     /// A 4 x 4 grid of unit cells in the xy plane and its structure.
     fn grid() -> (LayoutStructure, Vec<Vec3>) {
-        grid_of(4)
-    }
-
-    /// An `n` x `n` grid of unit cells in the xy plane (vertex `x + (n + 1) y` at `(x, y, 0)`)
-    /// and its structure.
-    pub(super) fn grid_of(n: u32) -> (LayoutStructure, Vec<Vec3>) {
-        let row = n + 1;
+        let row = 5u32;
         let rest: Vec<Vec3> = (0..row * row)
             .map(|index| Vec3::new((index % row) as f32, (index / row) as f32, 0.0))
             .collect();
         let mut corners = Vec::new();
-        for y in 0..n {
-            for x in 0..n {
+        for y in 0..4 {
+            for x in 0..4 {
                 let a = y * row + x;
                 corners.extend([a, a + 1, a + row + 1, a + row]);
             }
         }
-        let faces = vec![4; (n * n) as usize];
-        let structure = LayoutStructure::new(rest.len(), &corners, &faces, &[], &[]).unwrap();
+        let structure = LayoutStructure::new(rest.len(), &corners, &[4; 16], &[], &[]).unwrap();
         (structure, rest)
     }
 
