@@ -85,3 +85,72 @@ fn the_automatic_schedule_is_the_default() {
     assert_eq!(settings.schedule, WrapSchedule::Auto);
     assert_eq!(settings.validate(), Ok(()));
 }
+
+/// The band wrapped onto the sphere stretched by `first` (four anchors), then wrapped again from
+/// there onto the sphere stretched by `second`, as a re-settle or as a whole wrap: the second
+/// wrap's iterations and mean distance to its truth.
+fn wrap_again(first: Vec3, second: Vec3, resettle: bool) -> (usize, f32) {
+    let (rings, segments) = (12, 48);
+    let (structure, directions) = common::band_layout(Vec3::ONE, rings, segments);
+    let equator = rings / 2 * segments;
+    let quarters: Vec<u32> = (0..4).map(|q| equator + q * segments / 4).collect();
+    let mut points: Vec<LayoutPoint> = directions.iter().map(|&p| LayoutPoint::Space(p)).collect();
+    let mut report = None;
+    for (index, axes) in [first, second].into_iter().enumerate() {
+        let (vertices, triangles) = common::uv_sphere(1.0, 64, 128);
+        let vertices = vertices.into_iter().map(|v| v * axes).collect();
+        let target =
+            Arc::new(TargetMesh::new(vertices, triangles, TargetMeshOptions::default()).unwrap());
+        let truth: Vec<Vec3> = directions.iter().map(|&d| d * axes).collect();
+        let anchors = common::anchors_at(&target, &truth, &quarters);
+        let start = points.clone();
+        let rest = Some(directions.clone());
+        let solver = WrapSolver::with_rest_shape(
+            Arc::clone(&target),
+            structure.clone(),
+            start,
+            rest,
+            &anchors,
+            WrapSettings::default(),
+        )
+        .unwrap();
+        let mut solver = if index == 1 && resettle {
+            solver.resettling()
+        } else {
+            solver
+        };
+        let step = solver.step(1000).unwrap();
+        assert!(step.converged, "{step:?}");
+        let error = solver
+            .positions()
+            .iter()
+            .zip(&truth)
+            .map(|(p, t)| p.distance(*t))
+            .sum::<f32>()
+            / truth.len() as f32;
+        points = solver
+            .positions()
+            .iter()
+            .map(|&p| LayoutPoint::Space(p))
+            .collect();
+        report = Some((step.iterations, error));
+    }
+    report.unwrap()
+}
+
+#[test]
+fn a_resettle_after_a_small_change_takes_fewer_iterations_and_lands_as_near_the_truth() {
+    // The stretched sphere stretched a little more: the layout already on the first is re-settled
+    // onto the second without the warm-up and the stiff first level.
+    let (first, second) = (Vec3::new(1.6, 1.0, 0.8), Vec3::new(1.65, 1.0, 0.78));
+    let (whole_iterations, whole_error) = wrap_again(first, second, false);
+    let (resettle_iterations, resettle_error) = wrap_again(first, second, true);
+    assert!(
+        resettle_iterations < whole_iterations,
+        "{resettle_iterations} iterations re-settled, {whole_iterations} wrapped whole"
+    );
+    assert!(
+        resettle_error <= whole_error * 1.1 + 1e-3,
+        "mean error {resettle_error} re-settled, {whole_error} wrapped whole"
+    );
+}
