@@ -375,16 +375,13 @@ def test_a_slow_change_adds_up_until_the_layout_follows_it():
 
 
 def test_a_target_that_changes_and_comes_back_brings_the_layout_back(monkeypatch):
-    """A target stretched and let go again (frames 1 to 5): re-settled with the kernel's local levels alone, the last
-    frame's layout is nearer the first frame's than when each re-settle runs the whole schedule (its warm-up and
-    stiff first level move whole regions, and each re-settle's drift stays); the template's share in the
-    re-settles' rest shape changes where it ends."""
+    """A target stretched and let go again (frames 1 to 5): with the template's share in the re-settles' rest
+    shape the last frame's layout is nearer the first frame's than when the springs rest in the previous frame's
+    shape alone (each re-settle's drift then stays)."""
     follow = addon_module("core.follow")
-    run_class = addon_module("blender.wrap_sequence").SequenceRun
-    drifts, template_share = {}, follow.TEMPLATE_SHARE
-    for share, resettle in ((template_share, False), (template_share, True), (0.0, True)):
+    drifts = {}
+    for share in (0.0, follow.TEMPLATE_SHARE):
         monkeypatch.setattr(follow, "TEMPLATE_SHARE", share)
-        monkeypatch.setattr(run_class, "resettle", resettle)
         bpy.ops.wm.read_homefile(use_empty=True)
         target, layout = sequence_scene()
         stretch = target.data.shape_keys.key_blocks["Stretch"]
@@ -393,9 +390,6 @@ def test_a_target_that_changes_and_comes_back_brings_the_layout_back(monkeypatch
             stretch.keyframe_insert("value", frame=frame)
         assert run_sequence(frame_end=5) == {"FINISHED"}
         first, last = key_positions(layout, "Wrap 0001"), key_positions(layout, "Wrap 0005")
-        drifts[share, resettle] = float(np.linalg.norm(last - first, axis=1).mean())
-    share = template_share
-    # measured 0.0049 against 0.0077 on this small sphere (0.0029 without the template's share: on the body the
-    # share is what brings a closed mouth back, benchmarks/sequence.py)
-    assert drifts[share, True] < 0.8 * drifts[share, False], drifts
-    assert drifts[share, True] != drifts[0.0, True], drifts
+        drifts[share] = float(np.linalg.norm(last - first, axis=1).mean())
+    # about 5 % nearer on this small sphere (the closest-point ties of the target's tree decide the rest)
+    assert drifts[follow.TEMPLATE_SHARE] < 0.97 * drifts[0.0], drifts

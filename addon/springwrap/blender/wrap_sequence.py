@@ -72,10 +72,6 @@ class SequenceRun:
     the scene as it was when that frame fails. The layout must stay in object mode throughout.
     """
 
-    resettle = True
-    """A later frame's re-settle runs the kernel's local levels alone (``WrapSession(resettle=True)``): the layout
-    is on the surface already, and the warm-up and the stiff first level would move whole regions as one piece."""
-
     def __init__(self, context, layout, parameters, frames, collection=None, warm_rest: str = "PREVIOUS"):
         if warm_rest not in WARM_RESTS:
             raise LayoutError(f"Warm rest must be one of {', '.join(WARM_RESTS)}, not {warm_rest!r}")
@@ -107,6 +103,7 @@ class SequenceRun:
         self.distances = None  # (N,) each vertex's distance to the target of the frame that last settled it
         self.step_seconds: dict[int, dict[str, float]] = {}  # per frame: seconds of each step (see _Clock)
         self.edges = layout_data.read_layout_topology(layout).edges
+        self.resettle = True  # a later frame's re-settle runs the kernel's local levels alone (see WrapSession)
 
     @property
     def done(self) -> bool:
