@@ -103,7 +103,6 @@ class SequenceRun:
         self.distances = None  # (N,) each vertex's distance to the target of the frame that last settled it
         self.step_seconds: dict[int, dict[str, float]] = {}  # per frame: seconds of each step (see _Clock)
         self.edges = layout_data.read_layout_topology(layout).edges
-        self.resettle = True  # a later frame's re-settle runs the kernel's local levels alone (see WrapSession)
 
     @property
     def done(self) -> bool:
@@ -126,9 +125,8 @@ class SequenceRun:
 
         A later frame with ``warm_rest='PREVIOUS'`` re-settles only where the target changed (``core.follow``: a
         vertex's surface distance changed since the frame that last settled it, or its face-point moved), the rest
-        held and written back bit for bit, with the kernel's local levels alone (:attr:`resettle`: the layout is
-        already on the surface, which moved a little); a frame in which nothing changed keeps the previous frame's
-        shape unwrapped."""
+        held and written back bit for bit; a frame in which nothing changed keeps the previous frame's shape
+        unwrapped."""
         frame = self.frames[index]
         steps = self.step_seconds.setdefault(frame, {})
         clock = _Clock(steps)
@@ -161,7 +159,6 @@ class SequenceRun:
                 region=region,
                 reads=reads,
                 template_share=follow.TEMPLATE_SHARE,
-                resettle=region is not None and self.resettle,
             )
         except Exception:
             if previous is not None:

@@ -49,9 +49,7 @@ class WrapSession:
     layout and target as the caller read (and checked) them (``blender.wrap_reads``); None reads them here. ``region`` (optional, (N,)
     bool): re-settle only these vertices, every other one held where it is and written back as it was
     (``core.follow``: the solver then works on the faces around the region alone); ``template_share``: the
-    template's share in the rest shape of the vertices re-settled there (``core.follow.blended_rest``);
-    ``resettle``: the layout already lies on a target that changed a little since (a sequence's next frame): the
-    kernel's local levels alone, without its warm-up and stiff first level (``WrapSolver(resettle=True)``).
+    template's share in the rest shape of the vertices re-settled there (``core.follow.blended_rest``).
     """
 
     def __init__(
@@ -66,7 +64,6 @@ class WrapSession:
         region: np.ndarray | None = None,
         reads: wrap_reads.WrapReads | None = None,
         template_share: float = 0.0,
-        resettle: bool = False,
     ):
         self.start_time = time.perf_counter()
         self.layout = layout
@@ -142,8 +139,7 @@ class WrapSession:
         structure = layout_data.make_layout_structure(
             self.layout_topology if self.restriction is None else self.restriction.topology
         )
-        self.resettle = resettle
-        self.solver = wrap_inputs.make_wrap_solver(self.target, structure, inputs, parameters, resettle)
+        self.solver = wrap_inputs.make_wrap_solver(self.target, structure, inputs, parameters)
         self.inputs = inputs
         # Coarse to fine: with a spring resolution above 1 the layout is relaxed first, then a grid
         # of its faces cut k x k (its own vertices first) takes over; the layout's vertices are read
@@ -239,7 +235,7 @@ class WrapSession:
         )
         structure = layout_data.make_layout_structure(fine.topology)
         inputs = part_data.refine_free(inputs, fine, self.vertex_count)
-        self.solver = wrap_inputs.make_wrap_solver(self.target, structure, inputs, self.parameters, self.resettle)
+        self.solver = wrap_inputs.make_wrap_solver(self.target, structure, inputs, self.parameters)
         self.kernel_seconds += time.perf_counter() - start
         self.coarse_iterations = self.stage_iterations
         self.fine_vertex_count = fine.topology.vertex_count

@@ -354,9 +354,8 @@ _CURVE_KEYWORDS = ("curve_vertices", "curve_vertex_counts", "curve_points", "cur
 """The ``WrapInputs`` fields of the curve constraints, passed to ``WrapSolver`` when there are any."""
 
 
-def make_wrap_solver(target: Target, structure, inputs, parameters, resettle: bool = False):
-    """A kernel ``WrapSolver`` for the prepared inputs (``core.wrap_inputs.WrapInputs``, the kernel's frame);
-    ``resettle``: the layout already lies on a target that changed a little (the kernel's local levels alone)."""
+def make_wrap_solver(target: Target, structure, inputs, parameters):
+    """A kernel ``WrapSolver`` for the prepared inputs (``core.wrap_inputs.WrapInputs``, the kernel's frame)."""
     keywords = {name: getattr(inputs, name) for name in _SOLVER_KEYWORDS}
     if inputs.curve_vertices is not None:
         keywords |= {name: getattr(inputs, name) for name in _CURVE_KEYWORDS}
@@ -378,7 +377,6 @@ def make_wrap_solver(target: Target, structure, inputs, parameters, resettle: bo
         settings=parameters.settings,
         stiffness=getattr(inputs, "stiffness", None),
         free_vertices=getattr(inputs, "free_vertices", None),
-        resettle=resettle,
         **keywords,
     )
 

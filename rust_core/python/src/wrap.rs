@@ -42,8 +42,7 @@ impl PyWrapSolver {
         curve_vertex_counts = None, curve_points = None, curve_point_counts = None,
         rest_positions = None, plane_vertices = None, plane_point = None, plane_normal = None,
         plane_slide = None, settings = None, stiffness = None, free_vertices = None,
-        soft_pair_vertices = None, soft_pair_positions = None, soft_pair_confidences = None,
-        resettle = None
+        soft_pair_vertices = None, soft_pair_positions = None, soft_pair_confidences = None
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -74,7 +73,6 @@ impl PyWrapSolver {
         soft_pair_vertices: Option<&Bound<'_, PyAny>>,
         soft_pair_positions: Option<&Bound<'_, PyAny>>,
         soft_pair_confidences: Option<&Bound<'_, PyAny>>,
-        resettle: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let target = arguments::instance::<PyTargetMesh>("target", "TargetMesh", target)?;
         let structure =
@@ -90,7 +88,6 @@ impl PyWrapSolver {
         let plane_point = arguments::vector3("plane_point", plane_point)?;
         let plane_normal = arguments::vector3("plane_normal", plane_normal)?;
         let plane_slide = arguments::flag("plane_slide", plane_slide, true)?;
-        let resettle = arguments::flag("resettle", resettle, false)?;
         let plane = read_plane_constraint(plane_vertices, plane_point, plane_normal, plane_slide)?;
         let states = read_array::<i32>("states", states, None)?;
         let triangles = read_array::<i32>("triangles", triangles, None)?;
@@ -165,11 +162,6 @@ impl PyWrapSolver {
             let solver = match free_vertices {
                 Some(flags) => solver.with_free_vertices(flags)?,
                 None => solver,
-            };
-            let solver = if resettle {
-                solver.resettling()
-            } else {
-                solver
             };
             match soft_pairs {
                 Some(pairs) => solver.with_soft_pairs(&pairs),

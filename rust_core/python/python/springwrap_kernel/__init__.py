@@ -297,12 +297,10 @@ class WrapSolver(_native.WrapSolver):
     unreliable_triangles=None, curve_vertices=None, curve_vertex_counts=None, curve_points=None,
     curve_point_counts=None, rest_positions=None, plane_vertices=None, plane_point=None,
     plane_normal=None, plane_slide=True, settings=None, stiffness=None, free_vertices=None,
-    soft_pair_vertices=None, soft_pair_positions=None, soft_pair_confidences=None, resettle=False)``;
+    soft_pair_vertices=None, soft_pair_positions=None, soft_pair_confidences=None)``;
     ``settings`` is a :class:`WrapSettings` (weights, tolerance, landing, fold tolerance, schedule), the
     kernel's defaults when ``None``; ``stiffness`` is float32 per vertex (0 … 1), ``free_vertices`` bool per
     vertex; the soft pairs (vertices, points, confidences in (0, 1]) pull in the stiff levels only.
-    ``resettle=True``: the layout already lies on a target that changed a little since (a sequence's next
-    frame): no warm-up and no stiff first level, the local levels alone, whatever the schedule.
     """
 
     __slots__ = ()

@@ -416,9 +416,7 @@ class WrapSolver:
     and soft pairs (``soft_pair_vertices`` uint32, ``soft_pair_positions`` float32 (S, 3),
     ``soft_pair_confidences`` float32 in (0, 1], all three or none: each vertex is pulled toward its
     point in proportion to its confidence in the warm-up and the stiff levels of the global-to-local
-    schedule, then let go; not on an anchored vertex). ``resettle=True``: the layout already lies on a
-    target that changed a little since (a sequence's next frame): no warm-up and no stiff first level,
-    the local levels alone, whatever the schedule.
+    schedule, then let go; not on an anchored vertex).
     """
 
     def __init__(
@@ -450,7 +448,6 @@ class WrapSolver:
         soft_pair_vertices: npt.NDArray[np.uint32] | None = None,
         soft_pair_positions: npt.NDArray[np.float32] | None = None,
         soft_pair_confidences: npt.NDArray[np.float32] | None = None,
-        resettle: bool = False,
     ) -> None: ...
     def step(self, iterations: int) -> StepReport:
         """Run up to ``iterations`` iterations (fewer once converged), GIL released."""

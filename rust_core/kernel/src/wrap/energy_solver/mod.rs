@@ -131,9 +131,6 @@ pub(crate) const LEVELS: [Level; 4] = [
         max_iterations: 4,
     },
 ];
-/// A re-settle's schedule: [`LEVELS`] after the first, stiff one (the layout is already on the
-/// target, which changed a little).
-const RESETTLE_LEVELS: [Level; 3] = [LEVELS[1], LEVELS[2], LEVELS[3]];
 /// The warm-up before the schedule: the anchors and curve targets alone deform the layout as
 /// rigidly as possible (no data term, no safeguard), rotations averaged over this many rounds, for
 /// at most this many iterations or until no point moves more than this fraction of a mean edge.
@@ -200,9 +197,6 @@ pub(crate) struct EnergyInputs<'a> {
     pub landing_distance: f32,
     /// The weights, the tolerance, the fold tolerance and the schedule.
     pub settings: WrapSettings,
-    /// A re-settle (no warm-up, the local schedule from its second level: see
-    /// `WrapSolver::resettling`).
-    pub resettle: bool,
 }
 
 /// One iteration's outcome.
@@ -296,11 +290,7 @@ impl EnergySolver {
         let structure = inputs.structure;
         let vertex_count = structure.vertex_count;
         let settings = inputs.settings;
-        let schedule = if inputs.resettle {
-            WrapSchedule::Local
-        } else {
-            choose_schedule(settings.schedule, inputs.rest, inputs.anchor_of_vertex)
-        };
+        let schedule = choose_schedule(settings.schedule, inputs.rest, inputs.anchor_of_vertex);
         let mut fixed = vec![None; vertex_count];
         let mut fixed_points = vec![None; vertex_count];
         for vertex in 0..vertex_count {
@@ -399,7 +389,6 @@ impl EnergySolver {
             landing_distance: inputs.landing_distance,
             levels: match schedule {
                 WrapSchedule::GlobalToLocal => &GLOBAL_TO_LOCAL_LEVELS,
-                WrapSchedule::Local | WrapSchedule::Auto if inputs.resettle => &RESETTLE_LEVELS,
                 WrapSchedule::Local | WrapSchedule::Auto => &LEVELS,
             },
             min_alignment: match schedule {
@@ -413,7 +402,7 @@ impl EnergySolver {
             reach_scale: folding as f32,
             level_decrease: f64::from(settings.tolerance),
             landing_facing: settings.fold_tolerance.cos(),
-            warming_up: !inputs.resettle,
+            warming_up: true,
             level: 0,
             level_iterations: 0,
             iterations: 0,

@@ -95,7 +95,6 @@ fn solver_following(
             schedule,
             ..WrapSettings::default()
         },
-        resettle: false,
     })
     .unwrap()
 }

@@ -175,7 +175,6 @@ impl WrapSolver {
             mean_edge_length,
             stiffness: Vec::new(),
             free: Vec::new(),
-            resettle: false,
             soft_pairs: Vec::new(),
             energy: None,
             reach,
@@ -230,16 +229,6 @@ impl WrapSolver {
         }
         self.free = free;
         Ok(self)
-    }
-
-    /// Makes the wrap a re-settle: the layout already lies on the target, which changed a little
-    /// since (a sequence's next frame), so the wrap skips the warm-up and the schedule's stiff first
-    /// level (which move whole regions as one piece toward a far target) and runs the local levels
-    /// alone, whatever the settings' schedule.
-    #[must_use]
-    pub fn resettling(mut self) -> Self {
-        self.resettle = true;
-        self
     }
 
     /// Adds soft pairs (see [`crate::wrap::soft_pair`]): each pulls its vertex toward its point

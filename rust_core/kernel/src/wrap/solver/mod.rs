@@ -104,9 +104,6 @@ pub struct WrapSolver {
     free: Vec<bool>,
     /// Per vertex, its soft pair's point and confidence; empty: none.
     soft_pairs: SoftPairOfVertex,
-    /// A re-settle of a layout already on a target that changed a little (see
-    /// [`WrapSolver::resettling`]).
-    resettle: bool,
     /// The energy solver, made at the first step.
     energy: Option<Box<EnergySolver>>,
     /// The region the points may reach: a centre and a radius (ten times the target's size and

@@ -60,7 +60,6 @@ impl WrapSolver {
                 mean_edge_length: self.mean_edge_length,
                 landing_distance: self.landing_distance,
                 settings: self.settings,
-                resettle: self.resettle,
             };
             self.energy = Some(Box::new(EnergySolver::new(&inputs)?));
         }
