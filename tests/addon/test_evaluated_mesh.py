@@ -1,6 +1,5 @@
 """The evaluated-mesh reader: its loop triangles, rebuilt from the corner arrays for triangles and quads (folded
-quads split over their other diagonal, as Blender does) or taken whole for a mesh of triangles alone, are Blender's
-own, triangle for triangle."""
+quads split over their other diagonal, as Blender does), are Blender's own, triangle for triangle."""
 
 import bpy
 
@@ -37,9 +36,8 @@ def noisy(obj, sigma):
         lambda: noisy(_added(bpy.ops.mesh.primitive_grid_add, x_subdivisions=40, y_subdivisions=40), 0.04),
         lambda: _added(bpy.ops.mesh.primitive_monkey_add),  # triangles and quads
         lambda: _added(bpy.ops.mesh.primitive_cylinder_add, vertices=12),  # n-gon caps: read element by element
-        lambda: noisy(_added(bpy.ops.mesh.primitive_ico_sphere_add, subdivisions=3), 0.01),  # its corner array
     ],
-    ids=["folded quads", "triangles and quads", "n-gons", "triangles alone"],
+    ids=["folded quads", "triangles and quads", "n-gons"],
 )
 def test_the_loop_triangles_read_are_blender_s_own(make):
     obj = make()

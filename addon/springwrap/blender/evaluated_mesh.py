@@ -74,17 +74,11 @@ def _loop_triangles(mesh, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray
     Read element by element these cost about 1 µs a triangle; for a mesh of triangles and quads they are
     rebuilt from the corner and polygon arrays (read whole) as Blender makes them: a quad (0 1 2 3) gives
     (0 1 2) (0 2 3), or (0 1 3) (1 2 3) when it folds over its first diagonal (Blender's
-    ``is_quad_flip_v3_first_third_fast``); a mesh of triangles alone is its corner array (a remeshed or scanned
-    target: nothing to work out). A mesh with larger polygons is read element by element."""
-    corners = mesh.attributes.get(".corner_vert")
-    polygon_count, corner_count = len(mesh.polygons), len(mesh.loops)
-    if corners is not None and polygon_count and corner_count == 3 * polygon_count and _all_triangles(mesh):
-        corner_vertices = np.empty(corner_count, dtype=np.int32)
-        corners.data.foreach_get("value", corner_vertices)
-        return corner_vertices.view(np.uint32).reshape(-1, 3), np.arange(polygon_count, dtype=np.int32)
+    ``is_quad_flip_v3_first_third_fast``). A mesh with larger polygons is read element by element."""
     mesh.calc_loop_triangles()
     count = len(mesh.loop_triangles)
     polygons = np.empty(count, dtype=np.int32)
+    corners = mesh.attributes.get(".corner_vert")
     if hasattr(mesh, "loop_triangle_polygons") and corners is not None and count:
         mesh.loop_triangle_polygons.foreach_get("value", polygons)
         corner_vertices = np.empty(len(mesh.loops), dtype=np.int32)
@@ -96,14 +90,6 @@ def _loop_triangles(mesh, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray
     mesh.loop_triangles.foreach_get("vertices", triangles)
     mesh.loop_triangles.foreach_get("polygon_index", polygons)
     return np.ascontiguousarray(triangles.reshape(-1, 3)), polygons
-
-
-def _all_triangles(mesh) -> bool:
-    """Whether every polygon has three corners (the corner count alone could hide a quad beside a 2-gon, which a
-    mesh never has, but the polygon starts say it for certain)."""
-    starts = np.empty(len(mesh.polygons), dtype=np.int32)
-    mesh.polygons.foreach_get("loop_start", starts)
-    return bool(np.array_equal(starts, np.arange(0, 3 * starts.size, 3, dtype=np.int32)))
 
 
 def _triangles_of_quads(corner_vertices, polygons, polygon_count: int, positions) -> np.ndarray | None:
