@@ -55,3 +55,17 @@ def test_summary_and_markdown():
     assert numbers["later_steps"]["target"] == 0.5 and numbers["later_steps"]["solve"] == 0.25
     assert "target read and built 0.500" in text and "iterations 0.250" in text
     assert "the cold wraps' mean error spans 1.00–1.00 mm" in text
+
+
+def test_processor_time_beside_the_wall_time():
+    """With each frame's processor time measured, the table has its column and the ratio is said; a result
+    measured before it was (no processor times) still reads, the column then NaN."""
+    result = made_up_result()
+    result["sequence"]["processor_seconds"] = [2.0, 0.25, 0.25]
+    result["cold"]["processor_seconds"] = [2.0, 1.5, 1.5]
+    numbers = sequence.summary(result)
+    assert numbers["processor_speedup"] == 6.0 and numbers["sequence"]["later_processor_seconds"] == 0.25
+    text = "\n".join(sequence.markdown(result))
+    assert "| Wrap Sequence | 4.00 | 1.00 | 0.25 |" in text and "(6.00× less processor time)" in text
+    older = "\n".join(sequence.markdown(made_up_result()))
+    assert "| Wrap Sequence | 4.00 | 1.00 | nan |" in older and "processor time)" not in older
