@@ -17,7 +17,7 @@
 //! are not an error here (the read-out describes what is, it does not judge inputs): their distance
 //! is infinite, their edges are left out of the stretch and they are left out of the fits.
 
-use glam::{DVec3, Vec3, Vec3A};
+use glam::{DMat3, DVec3, Vec3, Vec3A};
 use rayon::prelude::*;
 
 use crate::align::fit::horn_rotation;
@@ -314,6 +314,46 @@ impl Moments {
         self.mean_now += share * apart_now;
     }
 
+    /// Whether every rotation at least as good as `rotation` for the group (its residual
+    /// `Σ |now − R rest|²` about the centroids no larger) turns `rest_normal` to within 90° of
+    /// `normal`, with [`PROOF_SLACK`] to spare; `face`: the positions now and at rest and the
+    /// face's corners (each in the group: finite in both shapes, else nothing is proved). Horn's rotation is the best, so its face is then not flipped.
+    ///
+    /// The proof: two rotations with residuals at most `E` move the rest offsets apart by
+    /// `Σ |(R − R₀) a|² ≤ 4 E` (the triangle inequality); `R₀ᵀR` turns by φ about some axis `w`, so
+    /// that sum is `4 sin²(φ/2) Σ |a ⊥ w|²`, and the face's corners about their own centre spread
+    /// across `w` no more than the group about its own. So `|R m̂ − R₀ m̂| ≤ 2 sin(φ/2) ≤ 2 √(E / s)`,
+    /// `s` the face's spread across any axis ([`spread_across`]).
+    fn keeps_facing(
+        &self,
+        rotation: &DMat3,
+        face: (&[DVec3], &[DVec3], &[u32]),
+        rest_normal: DVec3,
+        normal: DVec3,
+    ) -> bool {
+        let spreads = self.spread_rest + self.spread_now;
+        let turned = rotation.col(0).dot(DVec3::from_array(self.cross[0]))
+            + rotation.col(1).dot(DVec3::from_array(self.cross[1]))
+            + rotation.col(2).dot(DVec3::from_array(self.cross[2]));
+        let residual = (spreads - 2.0 * turned).max(0.0) + PROOF_SLACK * spreads;
+        let lengths = rest_normal.length() * normal.length();
+        let facing = (*rotation * rest_normal).dot(normal);
+        if !(residual.is_finite() && facing.is_finite() && facing > 0.0) {
+            return false;
+        }
+        let (points, rest, corners) = face;
+        let held = |vertex: &u32| {
+            points[*vertex as usize].is_finite() && rest[*vertex as usize].is_finite()
+        };
+        if !corners.iter().all(held) {
+            return false;
+        }
+        let across = spread_across(rest, corners);
+        // facing / lengths > 2 √(residual / across) + slack, without dividing by a zero spread.
+        let margin = facing / lengths - PROOF_SLACK;
+        margin > 0.0 && margin * margin * across > 4.0 * residual
+    }
+
     /// The proper rotation that best takes the group's rest points onto their points now (about
     /// their centroids); the identity when nothing can be fitted.
     fn best_rotation(&self) -> glam::DQuat {
@@ -525,6 +565,10 @@ pub fn flipped_faces(
 /// a buffer of its own thread kept between calls (see [`RingCache`]), so no per-vertex array is
 /// allocated. A ring is the same [`Moments::of`] however often it is measured, so the result does
 /// not depend on the blocks.
+///
+/// A face is judged without Horn's rotation where [`Moments::keeps_facing`] proves that rotation
+/// turns its rest normal to within 90° of its normal (the rotation last fitted in the block, a
+/// neighbouring face's, near enough): the same faces are flipped either way.
 fn flips(
     points: &[DVec3],
     rest: &[DVec3],
@@ -532,10 +576,12 @@ fn flips(
     starts: &[usize],
     neighbours: &Neighbours,
 ) -> Vec<bool> {
-    flips_cached(points, rest, faces, starts, neighbours, RING_CACHE_SPAN)
+    flips_cached(points, rest, faces, starts, neighbours, RING_CACHE_SPAN, true).0
 }
 
-/// [`flips`], its blocks' rings cached when their corners span at most `span` vertex indices.
+/// [`flips`], its blocks' rings cached when their corners span at most `span` vertex indices, a
+/// face proved unflipped by the block's last rotation not fitted when `shortcut`; and how many
+/// faces were judged so.
 fn flips_cached(
     points: &[DVec3],
     rest: &[DVec3],
@@ -543,18 +589,21 @@ fn flips_cached(
     starts: &[usize],
     neighbours: &Neighbours,
     span: usize,
-) -> Vec<bool> {
+    shortcut: bool,
+) -> (Vec<bool>, usize) {
     let ring = |vertex: u32| Moments::of_ring(points, rest, vertex, neighbours.of(vertex));
     let mut flipped = vec![false; starts.len()];
-    flipped
+    let proved = flipped
         .par_chunks_mut(FACES_PER_BLOCK)
         .zip(starts.par_chunks(FACES_PER_BLOCK))
         .zip(faces.sizes.par_chunks(FACES_PER_BLOCK))
-        .for_each(|((flipped, starts), sizes)| {
+        .map(|((flipped, starts), sizes)| {
             let block = &faces.corners
                 [starts[0]..starts[starts.len() - 1] + sizes[sizes.len() - 1] as usize];
+            let mut proved = 0usize;
             RING_CACHE.with_borrow_mut(|cache| {
                 let cached = cache.start(block, span);
+                let mut last: Option<DMat3> = None;
                 for ((out, &start), &size) in flipped.iter_mut().zip(starts).zip(sizes) {
                     let corners = &faces.corners[start..start + size as usize];
                     let normal = newell_normal(points, corners);
@@ -570,12 +619,52 @@ fn flips_cached(
                             group.merge(&ring(corner));
                         }
                     }
-                    let facing = (group.best_rotation() * rest_normal).dot(normal);
+                    if shortcut
+                        && last.is_some_and(|rotation| {
+                            group.keeps_facing(&rotation, (points, rest, corners), rest_normal, normal)
+                        })
+                    {
+                        proved += 1;
+                        continue;
+                    }
+                    let rotation = group.best_rotation();
+                    last = Some(DMat3::from_quat(rotation));
+                    let facing = (rotation * rest_normal).dot(normal);
                     *out = facing.is_finite() && facing < 0.0;
                 }
             });
-        });
-    flipped
+            proved
+        })
+        .sum();
+    (flipped, proved)
+}
+
+/// The relative slack [`Moments::keeps_facing`] allows for rounding: in the residual (of the
+/// spreads), in the facing (of the normals' lengths) and in the face's spread (of its trace); far
+/// above the rounding of the moments' sums and of Horn's rotation.
+const PROOF_SLACK: f64 = 1e-9;
+
+/// A lower bound of `min over unit w of Σ |(p − centre) ⊥ w|²` over the face's corners (their spread
+/// across any axis: 0 for corners on a line), from the trace and Frobenius norm of their scatter
+/// matrix (its largest eigenvalue is at most the mean plus √2 standard deviations of the three);
+/// 0 when a corner is not finite.
+fn spread_across(points: &[DVec3], corners: &[u32]) -> f64 {
+    let centre = corners
+        .iter()
+        .map(|&vertex| points[vertex as usize])
+        .sum::<DVec3>()
+        / corners.len() as f64;
+    let (mut diagonal, mut off) = (DVec3::ZERO, DVec3::ZERO);
+    for &vertex in corners {
+        let offset = points[vertex as usize] - centre;
+        diagonal += offset * offset;
+        off += offset * DVec3::new(offset.y, offset.z, offset.x);
+    }
+    let trace = diagonal.element_sum();
+    let squared = diagonal.length_squared() + 2.0 * off.length_squared();
+    let largest = trace / 3.0 + (2.0 * (squared / 3.0 - trace * trace / 9.0)).max(0.0).sqrt();
+    let lower = trace - largest - PROOF_SLACK * trace;
+    if lower.is_finite() { lower.max(0.0) } else { 0.0 }
 }
 
 /// Faces per block when judging flips: their corners' rings are measured once per block.
@@ -749,11 +838,18 @@ impl TargetMesh {
                 second: near.len(),
             });
         }
-        let queries: Vec<Vec3> = points.iter().map(|point| point.as_vec3()).collect();
-        for (index, query) in queries.iter().enumerate() {
-            if query.is_finite() {
-                crate::validate::check_coordinate("point", index, *query)?;
-            }
+        // In parallel (a million points is milliseconds serially); the first point out of range
+        // is the one named.
+        let queries: Vec<Vec3> = points
+            .par_iter()
+            .with_min_len(VERTICES_PER_TASK)
+            .map(|point| point.as_vec3())
+            .collect();
+        let beyond = |query: &Vec3| {
+            query.is_finite() && crate::validate::check_coordinate("point", 0, *query).is_err()
+        };
+        if let Some(index) = queries.par_iter().position_first(beyond) {
+            crate::validate::check_coordinate("point", index, queries[index])?;
         }
         self.closest_tree();
         Ok((0..points.len())
