@@ -314,44 +314,43 @@ impl Moments {
         self.mean_now += share * apart_now;
     }
 
-    /// Whether every rotation at least as good as `rotation` for the group (its residual
-    /// `Σ |now − R rest|²` about the centroids no larger) turns `rest_normal` to within 90° of
-    /// `normal`, with [`PROOF_SLACK`] to spare; `face`: the positions now and at rest and the
-    /// face's corners (each in the group: finite in both shapes, else nothing is proved). Horn's rotation is the best, so its face is then not flipped.
+    /// Whether Horn's rotation of the group turns `rest_normal` to within 90° of `normal` (with
+    /// [`PROOF_SLACK`] to spare), proved from `rotation` (any proper rotation) without fitting it.
     ///
-    /// The proof: two rotations with residuals at most `E` move the rest offsets apart by
-    /// `Σ |(R − R₀) a|² ≤ 4 E` (the triangle inequality); `R₀ᵀR` turns by φ about some axis `w`, so
-    /// that sum is `4 sin²(φ/2) Σ |a ⊥ w|²`, and the face's corners about their own centre spread
-    /// across `w` no more than the group about its own. So `|R m̂ − R₀ m̂| ≤ 2 sin(φ/2) ≤ 2 √(E / s)`,
-    /// `s` the face's spread across any axis ([`spread_across`]).
-    fn keeps_facing(
-        &self,
-        rotation: &DMat3,
-        face: (&[DVec3], &[DVec3], &[u32]),
-        rest_normal: DVec3,
-        normal: DVec3,
-    ) -> bool {
-        let spreads = self.spread_rest + self.spread_now;
-        let turned = rotation.col(0).dot(DVec3::from_array(self.cross[0]))
-            + rotation.col(1).dot(DVec3::from_array(self.cross[1]))
-            + rotation.col(2).dot(DVec3::from_array(self.cross[2]));
-        let residual = (spreads - 2.0 * turned).max(0.0) + PROOF_SLACK * spreads;
-        let lengths = rest_normal.length() * normal.length();
-        let facing = (*rotation * rest_normal).dot(normal);
-        if !(residual.is_finite() && facing.is_finite() && facing > 0.0) {
+    /// The proof: at the best rotation `R*` the matrix `M = S R*` is symmetric (`S` the cross
+    /// moments), its trace Horn's eigenvalue `λ`; a rotation `R = R* Q`, `Q` a turn by φ about `w`,
+    /// falls short of it by `tr((I − Q) M) = 2 sin²(φ/2) (tr M − wᵀ M w) ≥ 2 sin²(φ/2) (λ − σ₁)`,
+    /// `σ₁` the largest singular value of `S`. With `λ` at most the spreads' bound `U` and at least
+    /// `t = tr(R S)`: `2 sin²(φ/2) ≤ (U − t) / (t − σ₁)`, and `|R* m̂ − R m̂| ≤ 2 sin(φ/2)`. Horn's
+    /// computed rotation is as near `R*` as its rounding ([`PROOF_SLACK`] of `U`) allows.
+    fn keeps_facing(&self, rotation: &DMat3, rest_normal: DVec3, normal: DVec3) -> bool {
+        let cross = self.cross.map(DVec3::from_array);
+        let turned = rotation.col(0).dot(cross[0])
+            + rotation.col(1).dot(cross[1])
+            + rotation.col(2).dot(cross[2]);
+        let upper = (self.spread_rest * self.spread_now).sqrt() * (1.0 + PROOF_SLACK);
+        // σ₁² ≤ the mean of the squared singular values plus √2 of their standard deviation.
+        let gram = DMat3::from_cols(cross[0], cross[1], cross[2]);
+        let gram = gram * gram.transpose();
+        let trace = gram.x_axis.x + gram.y_axis.y + gram.z_axis.z;
+        let squares = gram.x_axis.length_squared()
+            + gram.y_axis.length_squared()
+            + gram.z_axis.length_squared();
+        let largest = (trace / 3.0
+            + (2.0 * (squares / 3.0 - trace * trace / 9.0))
+                .max(0.0)
+                .sqrt())
+        .sqrt()
+            * (1.0 + PROOF_SLACK);
+        let across = turned - largest;
+        let facing =
+            (*rotation * rest_normal).dot(normal) / (rest_normal.length() * normal.length());
+        if !(across > 0.0 && upper.is_finite() && facing.is_finite()) {
             return false;
         }
-        let (points, rest, corners) = face;
-        let held = |vertex: &u32| {
-            points[*vertex as usize].is_finite() && rest[*vertex as usize].is_finite()
-        };
-        if !corners.iter().all(held) {
-            return false;
-        }
-        let across = spread_across(rest, corners);
-        // facing / lengths > 2 √(residual / across) + slack, without dividing by a zero spread.
-        let margin = facing / lengths - PROOF_SLACK;
-        margin > 0.0 && margin * margin * across > 4.0 * residual
+        let reach = (2.0 * (upper - turned).max(0.0) / across).sqrt()
+            + (2.0 * PROOF_SLACK * upper / across).sqrt();
+        facing > reach + PROOF_SLACK
     }
 
     /// The proper rotation that best takes the group's rest points onto their points now (about
@@ -576,7 +575,17 @@ fn flips(
     starts: &[usize],
     neighbours: &Neighbours,
 ) -> Vec<bool> {
-    flips_cached(points, rest, faces, starts, neighbours, RING_CACHE_SPAN, true).0
+    let (flipped, proved) = flips_cached(
+        points,
+        rest,
+        faces,
+        starts,
+        neighbours,
+        RING_CACHE_SPAN,
+        true,
+    );
+    eprintln!("DEBUG proved {proved} of {}", flipped.len());
+    flipped
 }
 
 /// [`flips`], its blocks' rings cached when their corners span at most `span` vertex indices, a
@@ -621,7 +630,7 @@ fn flips_cached(
                     }
                     if shortcut
                         && last.is_some_and(|rotation| {
-                            group.keeps_facing(&rotation, (points, rest, corners), rest_normal, normal)
+                            group.keeps_facing(&rotation, rest_normal, normal)
                         })
                     {
                         proved += 1;
@@ -639,33 +648,10 @@ fn flips_cached(
     (flipped, proved)
 }
 
-/// The relative slack [`Moments::keeps_facing`] allows for rounding: in the residual (of the
-/// spreads), in the facing (of the normals' lengths) and in the face's spread (of its trace); far
-/// above the rounding of the moments' sums and of Horn's rotation.
+/// The relative slack [`Moments::keeps_facing`] allows for rounding: in the bounds of Horn's
+/// eigenvalue and of the largest singular value, in Horn's rotation and in the facing; far above
+/// the rounding of the moments' sums and of Horn's rotation.
 const PROOF_SLACK: f64 = 1e-9;
-
-/// A lower bound of `min over unit w of Σ |(p − centre) ⊥ w|²` over the face's corners (their spread
-/// across any axis: 0 for corners on a line), from the trace and Frobenius norm of their scatter
-/// matrix (its largest eigenvalue is at most the mean plus √2 standard deviations of the three);
-/// 0 when a corner is not finite.
-fn spread_across(points: &[DVec3], corners: &[u32]) -> f64 {
-    let centre = corners
-        .iter()
-        .map(|&vertex| points[vertex as usize])
-        .sum::<DVec3>()
-        / corners.len() as f64;
-    let (mut diagonal, mut off) = (DVec3::ZERO, DVec3::ZERO);
-    for &vertex in corners {
-        let offset = points[vertex as usize] - centre;
-        diagonal += offset * offset;
-        off += offset * DVec3::new(offset.y, offset.z, offset.x);
-    }
-    let trace = diagonal.element_sum();
-    let squared = diagonal.length_squared() + 2.0 * off.length_squared();
-    let largest = trace / 3.0 + (2.0 * (squared / 3.0 - trace * trace / 9.0)).max(0.0).sqrt();
-    let lower = trace - largest - PROOF_SLACK * trace;
-    if lower.is_finite() { lower.max(0.0) } else { 0.0 }
-}
 
 /// Faces per block when judging flips: their corners' rings are measured once per block.
 const FACES_PER_BLOCK: usize = 8192;
