@@ -575,17 +575,7 @@ fn flips(
     starts: &[usize],
     neighbours: &Neighbours,
 ) -> Vec<bool> {
-    let (flipped, proved) = flips_cached(
-        points,
-        rest,
-        faces,
-        starts,
-        neighbours,
-        RING_CACHE_SPAN,
-        true,
-    );
-    eprintln!("DEBUG proved {proved} of {}", flipped.len());
-    flipped
+    flips_cached(points, rest, faces, starts, neighbours, RING_CACHE_SPAN, true).0
 }
 
 /// [`flips`], its blocks' rings cached when their corners span at most `span` vertex indices, a
