@@ -575,7 +575,16 @@ fn flips(
     starts: &[usize],
     neighbours: &Neighbours,
 ) -> Vec<bool> {
-    flips_cached(points, rest, faces, starts, neighbours, RING_CACHE_SPAN, true).0
+    flips_cached(
+        points,
+        rest,
+        faces,
+        starts,
+        neighbours,
+        RING_CACHE_SPAN,
+        true,
+    )
+    .0
 }
 
 /// [`flips`], its blocks' rings cached when their corners span at most `span` vertex indices, a
