@@ -165,6 +165,20 @@ def test_transform_points_matches_homogeneous_product_and_inverts():
     np.testing.assert_allclose(back, points, rtol=0, atol=1e-6)
 
 
+def test_transform_points_and_add_offset_are_numpys_broadcast_sums_bit_for_bit():
+    matrix = random_affine(3)
+    matrix[:3, 3] = (1e6, -3.3e5, 0.1)
+    points = np.random.default_rng(4).normal(size=(1000, 3)) * 100.0
+    np.testing.assert_array_equal(tf.transform_points(matrix, points), points @ matrix[:3, :3].T + matrix[:3, 3])
+    offset = np.array([-1e6, 2.5, 7e-3])
+    moved = tf.add_offset(points.astype(np.float32), offset)
+    np.testing.assert_array_equal(moved, points.astype(np.float32).astype(np.float64) + offset)
+    assert moved.dtype == np.float64 and moved.flags.c_contiguous
+    unchanged = points.copy()
+    tf.add_offset(points, offset)  # a copy: the caller's array is left as it was
+    np.testing.assert_array_equal(points, unchanged)
+
+
 def test_transform_directions_ignores_translation():
     matrix = np.eye(4)
     matrix[:3, 3] = (5, 6, 7)

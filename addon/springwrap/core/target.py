@@ -111,7 +111,7 @@ class CentredMesh:
     def surface_distances(self, points, near=None, on_surface: float = 0.0) -> np.ndarray:
         """(N,) float64 distance of each world point to the surface (the kernel's ``surface_distances``: the
         point taken in float64 in the kernel's frame); ``near``: the triangle each point lies on, if known."""
-        kernel_points = np.ascontiguousarray(np.asarray(points, dtype=np.float64).reshape(-1, 3) - self.origin)
+        kernel_points = transforms.add_offset(points, -self.origin)
         return self.kernel.surface_distances(kernel_points, near=near, on_surface=on_surface)
 
     def nearest_vertices(self, points, **options):

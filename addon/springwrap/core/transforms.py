@@ -17,7 +17,16 @@ def transform_points(matrix, points: np.ndarray) -> np.ndarray:
     """Apply a 4x4 affine matrix to (N, 3) points; computed in float64, returned as float64."""
     matrix = np.asarray(matrix, dtype=np.float64).reshape(4, 4)
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    return points @ matrix[:3, :3].T + matrix[:3, 3]
+    return add_offset(points @ matrix[:3, :3].T, matrix[:3, 3], copy=False)
+
+
+def add_offset(points: np.ndarray, offset, copy: bool = True) -> np.ndarray:
+    """(N, 3) float64 ``points + offset`` ((3,)), column by column: the same sums as numpy's broadcast, several
+    times faster on a million points. ``copy=False``: added in place when ``points`` is float64 already."""
+    points = (np.array if copy else np.asarray)(points, dtype=np.float64).reshape(-1, 3)
+    for axis in range(3):
+        points[:, axis] += offset[axis]
+    return points
 
 
 def transform_directions(matrix, directions: np.ndarray) -> np.ndarray:

@@ -17,7 +17,7 @@
 //! are not an error here (the read-out describes what is, it does not judge inputs): their distance
 //! is infinite, their edges are left out of the stretch and they are left out of the fits.
 
-use glam::{DVec3, Vec3, Vec3A};
+use glam::{DMat3, DVec3, Vec3, Vec3A};
 use rayon::prelude::*;
 
 use crate::align::fit::horn_rotation;
@@ -314,6 +314,45 @@ impl Moments {
         self.mean_now += share * apart_now;
     }
 
+    /// Whether Horn's rotation of the group turns `rest_normal` to within 90° of `normal` (with
+    /// [`PROOF_SLACK`] to spare), proved from `rotation` (any proper rotation) without fitting it.
+    ///
+    /// The proof: at the best rotation `R*` the matrix `M = S R*` is symmetric (`S` the cross
+    /// moments), its trace Horn's eigenvalue `λ`; a rotation `R = R* Q`, `Q` a turn by φ about `w`,
+    /// falls short of it by `tr((I − Q) M) = 2 sin²(φ/2) (tr M − wᵀ M w) ≥ 2 sin²(φ/2) (λ − σ₁)`,
+    /// `σ₁` the largest singular value of `S`. With `λ` at most the spreads' bound `U` and at least
+    /// `t = tr(R S)`: `2 sin²(φ/2) ≤ (U − t) / (t − σ₁)`, and `|R* m̂ − R m̂| ≤ 2 sin(φ/2)`. Horn's
+    /// computed rotation is as near `R*` as its rounding ([`PROOF_SLACK`] of `U`) allows.
+    fn keeps_facing(&self, rotation: &DMat3, rest_normal: DVec3, normal: DVec3) -> bool {
+        let cross = self.cross.map(DVec3::from_array);
+        let turned = rotation.col(0).dot(cross[0])
+            + rotation.col(1).dot(cross[1])
+            + rotation.col(2).dot(cross[2]);
+        let upper = (self.spread_rest * self.spread_now).sqrt() * (1.0 + PROOF_SLACK);
+        // σ₁² ≤ the mean of the squared singular values plus √2 of their standard deviation.
+        let gram = DMat3::from_cols(cross[0], cross[1], cross[2]);
+        let gram = gram * gram.transpose();
+        let trace = gram.x_axis.x + gram.y_axis.y + gram.z_axis.z;
+        let squares = gram.x_axis.length_squared()
+            + gram.y_axis.length_squared()
+            + gram.z_axis.length_squared();
+        let largest = (trace / 3.0
+            + (2.0 * (squares / 3.0 - trace * trace / 9.0))
+                .max(0.0)
+                .sqrt())
+        .sqrt()
+            * (1.0 + PROOF_SLACK);
+        let across = turned - largest;
+        let facing =
+            (*rotation * rest_normal).dot(normal) / (rest_normal.length() * normal.length());
+        if !(across > 0.0 && upper.is_finite() && facing.is_finite()) {
+            return false;
+        }
+        let reach = (2.0 * (upper - turned).max(0.0) / across).sqrt()
+            + (2.0 * PROOF_SLACK * upper / across).sqrt();
+        facing > reach + PROOF_SLACK
+    }
+
     /// The proper rotation that best takes the group's rest points onto their points now (about
     /// their centroids); the identity when nothing can be fitted.
     fn best_rotation(&self) -> glam::DQuat {
@@ -525,6 +564,10 @@ pub fn flipped_faces(
 /// a buffer of its own thread kept between calls (see [`RingCache`]), so no per-vertex array is
 /// allocated. A ring is the same [`Moments::of`] however often it is measured, so the result does
 /// not depend on the blocks.
+///
+/// A face is judged without Horn's rotation where [`Moments::keeps_facing`] proves that rotation
+/// turns its rest normal to within 90° of its normal (the rotation last fitted in the block, a
+/// neighbouring face's, near enough): the same faces are flipped either way.
 fn flips(
     points: &[DVec3],
     rest: &[DVec3],
@@ -532,10 +575,21 @@ fn flips(
     starts: &[usize],
     neighbours: &Neighbours,
 ) -> Vec<bool> {
-    flips_cached(points, rest, faces, starts, neighbours, RING_CACHE_SPAN)
+    flips_cached(
+        points,
+        rest,
+        faces,
+        starts,
+        neighbours,
+        RING_CACHE_SPAN,
+        true,
+    )
+    .0
 }
 
-/// [`flips`], its blocks' rings cached when their corners span at most `span` vertex indices.
+/// [`flips`], its blocks' rings cached when their corners span at most `span` vertex indices, a
+/// face proved unflipped by the block's last rotation not fitted when `shortcut`; and how many
+/// faces were judged so.
 fn flips_cached(
     points: &[DVec3],
     rest: &[DVec3],
@@ -543,18 +597,21 @@ fn flips_cached(
     starts: &[usize],
     neighbours: &Neighbours,
     span: usize,
-) -> Vec<bool> {
+    shortcut: bool,
+) -> (Vec<bool>, usize) {
     let ring = |vertex: u32| Moments::of_ring(points, rest, vertex, neighbours.of(vertex));
     let mut flipped = vec![false; starts.len()];
-    flipped
+    let proved = flipped
         .par_chunks_mut(FACES_PER_BLOCK)
         .zip(starts.par_chunks(FACES_PER_BLOCK))
         .zip(faces.sizes.par_chunks(FACES_PER_BLOCK))
-        .for_each(|((flipped, starts), sizes)| {
+        .map(|((flipped, starts), sizes)| {
             let block = &faces.corners
                 [starts[0]..starts[starts.len() - 1] + sizes[sizes.len() - 1] as usize];
+            let mut proved = 0usize;
             RING_CACHE.with_borrow_mut(|cache| {
                 let cached = cache.start(block, span);
+                let mut last: Option<DMat3> = None;
                 for ((out, &start), &size) in flipped.iter_mut().zip(starts).zip(sizes) {
                     let corners = &faces.corners[start..start + size as usize];
                     let normal = newell_normal(points, corners);
@@ -570,13 +627,30 @@ fn flips_cached(
                             group.merge(&ring(corner));
                         }
                     }
-                    let facing = (group.best_rotation() * rest_normal).dot(normal);
+                    if shortcut
+                        && last.is_some_and(|rotation| {
+                            group.keeps_facing(&rotation, rest_normal, normal)
+                        })
+                    {
+                        proved += 1;
+                        continue;
+                    }
+                    let rotation = group.best_rotation();
+                    last = Some(DMat3::from_quat(rotation));
+                    let facing = (rotation * rest_normal).dot(normal);
                     *out = facing.is_finite() && facing < 0.0;
                 }
             });
-        });
-    flipped
+            proved
+        })
+        .sum();
+    (flipped, proved)
 }
+
+/// The relative slack [`Moments::keeps_facing`] allows for rounding: in the bounds of Horn's
+/// eigenvalue and of the largest singular value, in Horn's rotation and in the facing; far above
+/// the rounding of the moments' sums and of Horn's rotation.
+const PROOF_SLACK: f64 = 1e-9;
 
 /// Faces per block when judging flips: their corners' rings are measured once per block.
 const FACES_PER_BLOCK: usize = 8192;
@@ -749,11 +823,18 @@ impl TargetMesh {
                 second: near.len(),
             });
         }
-        let queries: Vec<Vec3> = points.iter().map(|point| point.as_vec3()).collect();
-        for (index, query) in queries.iter().enumerate() {
-            if query.is_finite() {
-                crate::validate::check_coordinate("point", index, *query)?;
-            }
+        // In parallel (a million points is milliseconds serially); the first point out of range
+        // is the one named.
+        let queries: Vec<Vec3> = points
+            .par_iter()
+            .with_min_len(VERTICES_PER_TASK)
+            .map(|point| point.as_vec3())
+            .collect();
+        let beyond = |query: &Vec3| {
+            query.is_finite() && crate::validate::check_coordinate("point", 0, *query).is_err()
+        };
+        if let Some(index) = queries.par_iter().position_first(beyond) {
+            crate::validate::check_coordinate("point", index, queries[index])?;
         }
         self.closest_tree();
         Ok((0..points.len())

@@ -310,8 +310,11 @@ fn flips_judged_by_blocks_are_those_of_rings_stored_per_vertex() {
         // Cached blocks, no cache at all, and (along the grid: the first block's 8,192 faces span
         // about 8,400 vertices, the second's about 1,900) a cache too narrow for the first only.
         for span in [RING_CACHE_SPAN, 0, 2_000] {
-            let flipped = flips_cached(points, rest, faces, &starts, &neighbours, span);
-            assert_eq!(flipped, expected, "span {span}");
+            for shortcut in [false, true] {
+                let (flipped, _) =
+                    flips_cached(points, rest, faces, &starts, &neighbours, span, shortcut);
+                assert_eq!(flipped, expected, "span {span}, shortcut {shortcut}");
+            }
         }
     }
 }
@@ -427,4 +430,120 @@ fn surface_distances_match_the_closest_points_with_or_without_a_start() {
     let found = mesh.surface_distances(&on, Some(&[8]), 1e-6).unwrap();
     assert!((found[0] - 1e-7).abs() < 1e-9);
     assert!((found[0] - mesh.surface_distances(&on, None, 0.0).unwrap()[0]).abs() < 1e-9);
+}
+
+#[test]
+fn a_face_proved_unflipped_is_not_flipped_by_horns_rotation() {
+    // Groups turned and jittered, their first four points a face; the face's normal now is its
+    // rest normal carried by the group's best rotation and turned again by up to 120 degrees (many
+    // near 90); the rotation the proof starts from is the best one turned by up to 0.6 radians.
+    let mut random = uniform(13);
+    let (mut proved, mut unproved) = (0, 0);
+    for case in 0..20_000 {
+        let count = 5 + case % 9;
+        let axis = |random: &mut dyn FnMut() -> f64| {
+            DVec3::new(random(), random(), random() + 0.7).normalize()
+        };
+        let turn = glam::DQuat::from_axis_angle(axis(&mut random), 7.0 * random());
+        let jitter = [0.0, 0.01, 0.05, 0.2, 0.6][case % 5];
+        let far = DVec3::splat(if case % 2 == 0 { 0.0 } else { 1e4 });
+        let flat = if case % 3 == 0 { 0.02 } else { 1.0 };
+        let rest: Vec<DVec3> = (0..count)
+            .map(|_| far + DVec3::new(random(), random(), flat * random()))
+            .collect();
+        let now: Vec<DVec3> = rest
+            .iter()
+            .map(|&point| {
+                let wobble = jitter * DVec3::new(random(), random(), random());
+                turn * (point - far) + wobble + far
+            })
+            .collect();
+        let corners = [0, 1, 2, 3];
+        let group = Moments::of(&now, &rest, 0..count as u32);
+        let best = group.best_rotation();
+        let rest_normal = newell_normal(&rest, &corners);
+        let angle = if case % 2 == 0 {
+            std::f64::consts::FRAC_PI_2 * (1.0 + 0.3 * random())
+        } else {
+            2.1 * (random() + 0.5)
+        };
+        let normal =
+            glam::DQuat::from_axis_angle(axis(&mut random), angle) * (best * rest_normal) * 0.7;
+        let start = glam::DQuat::from_axis_angle(axis(&mut random), 1.2 * random()) * best;
+        let facing = (best * rest_normal).dot(normal);
+        if group.keeps_facing(&glam::DMat3::from_quat(start), rest_normal, normal) {
+            proved += 1;
+            assert!(facing > 0.0, "case {case}: proved, facing {facing}");
+        } else {
+            unproved += 1;
+        }
+    }
+    println!("{proved} proved, {unproved} not");
+    assert!(
+        proved > 1_000 && unproved > 1_000,
+        "{proved} proved, {unproved} not"
+    );
+}
+
+#[test]
+fn the_shortcut_flips_the_same_faces_as_horns_rotation_everywhere() {
+    // A grid turned round, creased along a line (one side folded up by 80 to 110 degrees), a
+    // little bent and jittered (1 % to half an edge), some faces folded over: the faces proved
+    // unflipped are judged without a fit, the others are fitted; the flags are the same.
+    let (rest, corners, sizes, edges) = grid(60);
+    let turn = glam::DQuat::from_axis_angle(DVec3::new(1.0, -2.0, 0.5).normalize(), 2.5);
+    for (case, (jitter, crease)) in [(0.01, 80.0), (0.05, 95.0), (0.2, 100.0), (0.5, 110.0)]
+        .into_iter()
+        .enumerate()
+    {
+        let mut random = uniform(31 + case as u64);
+        let hinge = glam::DQuat::from_rotation_x(f64::to_radians(crease));
+        let mut points: Vec<DVec3> = rest
+            .iter()
+            .map(|&point| {
+                let creased = if point.y > 30.0 {
+                    DVec3::new(0.0, 30.0, 0.0) + hinge * (point - DVec3::new(0.0, 30.0, 0.0))
+                } else {
+                    point
+                };
+                let bent = creased + DVec3::new(0.0, 0.0, 0.002 * creased.x * creased.x);
+                let wobble = jitter * DVec3::new(random(), random(), random());
+                turn * (bent + wobble) + DVec3::splat(500.0)
+            })
+            .collect();
+        for face in (0..sizes.len()).step_by(97) {
+            let face_corners = &corners[4 * face..4 * face + 4];
+            let centre = face_corners
+                .iter()
+                .map(|&vertex| points[vertex as usize])
+                .sum::<DVec3>()
+                / 4.0;
+            let first = face_corners[0] as usize;
+            points[first] = centre + (centre - points[first]) * 1.5;
+        }
+        let faces = LayoutFaces {
+            corners: &corners,
+            sizes: &sizes,
+        };
+        let starts = faces.starts(points.len()).unwrap();
+        let neighbours = Neighbours::new(&edges, points.len());
+        let span = RING_CACHE_SPAN;
+        let (fitted, none) = flips_cached(&points, &rest, faces, &starts, &neighbours, span, false);
+        let (proved, count) = flips_cached(&points, &rest, faces, &starts, &neighbours, span, true);
+        assert_eq!(none, 0);
+        assert_eq!(proved, fitted, "case {case}");
+        let flips = fitted.iter().filter(|&&flip| flip).count();
+        println!(
+            "case {case}: {flips} flipped, {count} of {} proved",
+            sizes.len()
+        );
+        assert!(flips >= 10, "case {case}: {flips} flipped");
+        if jitter <= 0.05 {
+            assert!(count > sizes.len() / 2, "case {case}: {count} proved");
+        }
+        if jitter <= 0.2 {
+            assert!(count > 0, "case {case}: {count} proved");
+        }
+        assert!(count < sizes.len(), "case {case}: {count} proved");
+    }
 }
