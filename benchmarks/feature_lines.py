@@ -223,15 +223,16 @@ def body_fragmentation(voxel: float = 0.004) -> dict:
     }
 
 
-def run_case(anchors: int, with_pairing: bool, scene, feature_scale: float = 0.0) -> dict:
-    """One wrap pair (see the module docs); the errors and the pairing's report."""
+def run_case(anchors: int, with_pairing: bool, scene, feature_scale: float = 0.0, junctions: bool = True) -> dict:
+    """One wrap pair (see the module docs); the errors and the pairing's report. ``junctions``: Pair Feature
+    Lines' Junctions setting (the corners where creases meet matched)."""
     import bpy
 
     from benchmarks.retarget.baselines import mesh_object, read_positions
     from benchmarks.retarget.springwrap_methods import _add_anchors, _call, _select_only
 
     target, rest, quads, truth, on_surface, crease, diagonal = scene
-    layout = mesh_object(f"Layout {anchors} {'with' if with_pairing else 'without'}", rest, quads)
+    layout = mesh_object(f"Layout {anchors} {'with' if with_pairing else 'without'} {junctions}", rest, quads)
     layout.springwrap.target = target
     _select_only(layout)
     chosen = farthest_points(rest, anchors)
@@ -242,7 +243,12 @@ def run_case(anchors: int, with_pairing: bool, scene, feature_scale: float = 0.0
     first = read_positions(layout.data)
     report = ""
     if with_pairing:
-        report = _call("feature_lines_pair", bpy.ops.springwrap.feature_lines_pair, feature_scale=feature_scale)
+        report = _call(
+            "feature_lines_pair",
+            bpy.ops.springwrap.feature_lines_pair,
+            feature_scale=feature_scale,
+            use_junctions=junctions,
+        )
         report = report.strip().splitlines()[-1]
     _call("wrap", bpy.ops.springwrap.wrap)
     seconds = time.perf_counter() - start
@@ -255,6 +261,7 @@ def run_case(anchors: int, with_pairing: bool, scene, feature_scale: float = 0.0
     return {
         "anchors": anchors,
         "pairing": with_pairing,
+        "junctions": with_pairing and junctions,
         "mean_all": float(errors.mean()),
         "mean_crease": float(errors[crease].mean()),
         "p95_crease": float(np.percentile(errors[crease], 95)),
@@ -290,10 +297,11 @@ def target_case(arguments, tessellation: str, part, rest, quads, bounds, layout_
     target_mesh = springwrap_kernel.TargetMesh(*target_arrays(target))
     on_surface = target_mesh.closest_points(np.ascontiguousarray(truth, dtype=np.float32)).positions.astype(np.float64)
     scene = (target, rest, quads, truth, on_surface, crease, diagonal)
+    modes = [(False, False), (True, True)] + ([(True, False)] if arguments.without_junctions else [])
     rows = [
-        run_case(count, pairing, scene, arguments.feature_scale)
+        run_case(count, pairing, scene, arguments.feature_scale, junctions)
         for count in arguments.anchors
-        for pairing in (False, True)
+        for pairing, junctions in modes
     ]
     return {
         "tessellation": tessellation,
@@ -336,6 +344,10 @@ def run(arguments: argparse.Namespace) -> dict:
     }
 
 
+PAIRING_LABELS = {(False, False): "without", (True, True): "with", (True, False): "with, junctions off"}
+"""The feature pairing column's words for (pairing, junctions)."""
+
+
 def markdown(result: dict) -> list[str]:
     """The docs/benchmarks.md table of a :func:`run` result."""
     targets = result["targets"]
@@ -370,7 +382,7 @@ def markdown(result: dict) -> list[str]:
         for row in target["rows"]:
             pairs = f"{row['pairs']} ({row['mean_confidence']:.2f})" if row["pairs"] else "-"
             lines.append(
-                f"| {target['tessellation']} | {row['anchors']} | {'with' if row['pairing'] else 'without'} | "
+                f"| {target['tessellation']} | {row['anchors']} | {PAIRING_LABELS[row['pairing'], row.get('junctions', False)]} | "
                 f"{pairs} | {row['mean_all']:.3f} | {row['mean_crease']:.3f} | {row['p95_crease']:.3f} | "
                 f"{row['mean_crease_to_corner']:.3f} |"
             )
@@ -423,6 +435,11 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument(
         "--tessellations", nargs="+", choices=sorted(TESSELLATIONS), default=list(TESSELLATIONS), help="targets"
+    )
+    parser.add_argument(
+        "--without-junctions",
+        action="store_true",
+        help="also pair with Junctions off (the corners where creases meet not matched)",
     )
     parser.add_argument("--no-body", action="store_true", help="leave out the voxel-remeshed body's fragmentation")
     parser.add_argument("--json", type=Path, default=DEFAULT_JSON)

@@ -68,3 +68,70 @@ def test_a_line_apart_from_the_others_pairs_as_before():
     lines = fl.find_lines(positions, corners, sizes, row_and_column()[: SIZE - 1], 0.0, False)
     pairing = fl.pair_lines(lines, positions, straight_curves(), np.zeros(len(positions), dtype=bool), [], 0.5)
     assert len(pairing.constraints) == 1 and pairing.constraints[0].confidence > 0.8
+
+
+def test_junctions_are_where_two_or_more_open_lines_end():
+    """The crossing of two marked lines is no junction (both run through it); where a row meets a column at
+    its end, two lines end there (a corner)."""
+    positions, corners, sizes = grid()
+    crossing = fl.find_lines(positions, corners, sizes, row_and_column(), 0.0, False)
+    assert fl.line_junctions(crossing).size == 0
+    row = [(x, x + 1) for x in range(SIZE - 1)]
+    column = [(y * SIZE, (y + 1) * SIZE) for y in range(SIZE - 1)]
+    corner = fl.find_lines(positions, corners, sizes, np.array(row + column, dtype=np.uint32), 0.0, False)
+    np.testing.assert_array_equal(fl.line_junctions(corner), [0])
+
+
+def test_junctions_match_mutual_nearest_within_the_distance():
+    """Each layout junction takes its nearest target junction when that is near enough and takes it back; two
+    layout junctions nearest one target junction: only the nearer matches."""
+    current = np.array([[0.0, 0, 0], [1.0, 0, 0], [1.2, 0, 0], [9.0, 0, 0]])
+    targets = np.array([[0.1, 0, 0], [1.15, 0, 0], [20.0, 0, 0]])
+    matched = fl.match_junctions([0, 1, 2, 3], current, targets, 0.5)
+    assert sorted(matched) == [0, 2]
+    np.testing.assert_allclose(matched[0], targets[0])
+    np.testing.assert_allclose(matched[2], targets[1])
+    assert fl.match_junctions([0, 1], current, np.zeros((0, 3)), 0.5) == {}
+
+
+def test_a_chain_between_matched_junctions_takes_its_share_of_the_curve_by_rest_length():
+    """A line of 5 rest vertices (unevenly spaced: 0, 1, 3, 4, 8) between two corners; its chain leaves the
+    corners out. On a curve twice as long between the matched corners (which lie past the curve's own ends
+    here: they project onto them), the chain's stretch runs from twice 1 to twice 4 along it."""
+    rest = np.array([[0.0, 0, 0], [1, 0, 0], [3, 0, 0], [4, 0, 0], [8, 0, 0]])
+    curve = np.stack([np.linspace(0.0, 16.0, 9), np.full(9, 5.0), np.zeros(9)], axis=1)
+    stretch = fl.between_junctions(rest, np.array([1, 2, 3]), curve, [-1.0, 5, 0], [17.0, 5, 0])
+    np.testing.assert_allclose(stretch[0], [2.0, 5, 0], atol=1e-9)
+    np.testing.assert_allclose(stretch[-1], [8.0, 5, 0], atol=1e-9)
+    # The corners in the other order: the stretch runs the other way, from the far end.
+    stretch = fl.between_junctions(rest, np.array([1, 2, 3]), curve, [17.0, 5, 0], [-1.0, 5, 0])
+    np.testing.assert_allclose(stretch[0], [14.0, 5, 0], atol=1e-9)
+    np.testing.assert_allclose(stretch[-1], [8.0, 5, 0], atol=1e-9)
+    # A curve between the corners far shorter than the line: no stretch (the fit's is kept).
+    assert fl.between_junctions(rest, np.array([1, 2, 3]), curve[:2], [-1.0, 5, 0], [17.0, 5, 0]) is None
+
+
+def test_pairing_between_matched_junctions_moves_the_stretch_to_the_corners():
+    """A marked row and column meeting at corner 0 and row ending in corner 8; the fit slid the row by a third
+    of an edge along itself. With both of its ends matched to the curve's true corners the row's stretch is
+    the true one (its vertex 1 to vertex 7 at x 1 .. 7), without junctions the slid one."""
+    positions, corners, sizes = grid()
+    row = [(x, x + 1) for x in range(SIZE - 1)]
+    column = [(y * SIZE, (y + 1) * SIZE) for y in range(SIZE - 1)]
+    end_column = [(SIZE - 1 + y * SIZE, SIZE - 1 + (y + 1) * SIZE) for y in range(SIZE - 1)]
+    lines = fl.find_lines(positions, corners, sizes, np.array(row + column + end_column, dtype=np.uint32), 0.0, False)
+    along = np.linspace(0.0, SIZE - 1.0, 33)
+    curve = [("RIDGE", np.stack([along, np.zeros_like(along), np.full_like(along, 0.05)], 1).astype(np.float32), False)]
+    current = positions.copy()
+    current[:SIZE, 0] += 0.33
+    anchored = np.zeros(len(positions), dtype=bool)
+    junctions = fl.match_junctions(fl.line_junctions(lines), current, [[0.0, 0, 0.05], [8.0, 0, 0.05]], 1.0)
+    assert sorted(junctions) == [0, SIZE - 1]
+    paired = fl.pair_lines(lines, current, curve, anchored, [], 0.5, rest=positions, junctions=junctions)
+    slid = fl.pair_lines(lines, current, curve, anchored, [], 0.5)
+    assert paired.between_junctions == 1 and slid.between_junctions == 0
+    (constraint,) = paired.constraints
+    assert sorted(constraint.layout_vertices.tolist()) == list(range(1, SIZE - 1))
+    ends = constraint.layout_vertices[[0, -1]]
+    np.testing.assert_allclose(constraint.points[[0, -1], 0], positions[ends, 0], atol=1e-5)
+    np.testing.assert_allclose(slid.constraints[0].points[[0, -1], 0], current[ends, 0], atol=1e-3)
