@@ -266,13 +266,15 @@ def match_junctions(vertices, current, junction_points, max_distance: float) -> 
     }
 
 
-def _parameter(points: np.ndarray, cumulative: np.ndarray, point: np.ndarray) -> float:
-    """Arc-length parameter of the point of the polyline ``points`` nearest to ``point``."""
+def _parameter(points: np.ndarray, cumulative: np.ndarray, point: np.ndarray) -> tuple[float, float]:
+    """``(arc-length parameter, distance)`` of the point of the polyline ``points`` nearest to ``point``."""
     starts, direction = points[:-1], np.diff(points, axis=0)
     squared = np.maximum((direction**2).sum(axis=1), 1e-300)
     t = np.clip(((point[None, :] - starts) * direction).sum(axis=1) / squared, 0.0, 1.0)
-    segment = int(np.argmin(((starts + t[:, None] * direction - point[None, :]) ** 2).sum(axis=1)))
-    return float(cumulative[segment] + t[segment] * (cumulative[segment + 1] - cumulative[segment]))
+    distances = ((starts + t[:, None] * direction - point[None, :]) ** 2).sum(axis=1)
+    segment = int(np.argmin(distances))
+    along = cumulative[segment] + t[segment] * (cumulative[segment + 1] - cumulative[segment])
+    return float(along), float(np.sqrt(distances[segment]))
 
 
 def _piece(points: np.ndarray, cumulative: np.ndarray, begin: float, finish: float) -> np.ndarray:
@@ -294,15 +296,18 @@ def between_junctions(line_rest, chain_rows, curve_points, start_point, end_poin
     junctions of the line's first and last vertex. The curve between the two junctions is shared out in
     proportion to the rest shape's arc length, so that the corners, not the fit's sliding, fix where along the
     crease each vertex lies; the chain's stretch is its part of it. None when the junctions project to one point
-    of the curve or the curve between them is not about as long as the line (:data:`MIN_LENGTH_RATIO`)."""
+    of the curve, the curve between them is not about as long as the line (:data:`MIN_LENGTH_RATIO`) or a
+    junction lies off the curve (:data:`JUNCTION_TOLERANCE`: the curve stops short of that corner)."""
     curve_points = np.asarray(curve_points, dtype=np.float64).reshape(-1, 3)
     cumulative = cumulative_lengths(curve_points)
-    begin = _parameter(curve_points, cumulative, np.asarray(start_point, dtype=np.float64))
-    finish = _parameter(curve_points, cumulative, np.asarray(end_point, dtype=np.float64))
+    begin, off_start = _parameter(curve_points, cumulative, np.asarray(start_point, dtype=np.float64))
+    finish, off_end = _parameter(curve_points, cumulative, np.asarray(end_point, dtype=np.float64))
     span = abs(finish - begin)
     line_length = cumulative_lengths(np.asarray(line_rest, dtype=np.float64))[-1]
     if not (span > 0.0 and line_length > 0.0 and MIN_LENGTH_RATIO <= span / line_length <= 1.0 / MIN_LENGTH_RATIO):
         return None
+    if max(off_start, off_end) > JUNCTION_TOLERANCE * line_length:
+        return None  # a junction off the curve: the curve ends before that corner (another crease takes over)
     fractions = length_fractions(np.asarray(line_rest, dtype=np.float64))
     stretch = _piece(curve_points, cumulative, begin, finish)
     along = cumulative_lengths(stretch)
@@ -312,6 +317,9 @@ def between_junctions(line_rest, chain_rows, curve_points, start_point, end_poin
     return _piece(stretch, along, first, last)
 
 
+JUNCTION_TOLERANCE = 0.01
+"""How far a matched target junction may lie from the curve a line pairs with, as a fraction of the line's
+rest length: farther, the curve does not run to that corner."""
 MIN_LENGTH_RATIO = 0.5
 """The shortest stretch of curve between two matched junctions a line may follow, as a fraction of its rest
 length (and the longest, its inverse)."""
