@@ -14,8 +14,9 @@ of a median layout edge of the part's sharp edges (dihedral angle above 30 degre
 Each run, through the operators: the layout detached, ``N`` anchors (farthest-point samples of the layout, each at
 its true point), wrapped; then either wrapped again as it is (**without**: the same two wraps, no pairing) or
 after ``springwrap.feature_lines_pair`` (**with**: the layout's creases, found on its rest shape, paired with the
-target's ridges and valleys). Errors are distances to the truth in % of the target's diagonal: the mean over all
-vertices, over the crease vertices, and the crease p95. The target's feature curves at the automatic scale are
+target's ridges and valleys; ``--without-junctions`` adds rows with its Junctions setting off). Errors are
+distances to the truth in % of the target's diagonal: the mean over all vertices, over the crease vertices, and
+the crease p95. The target's feature curves at the automatic scale are
 measured too (count, median length in layout edges, the share of the part's true crease length within half a
 median layout edge of a detected curve): how well crease detection survives the re-tessellation. And the
 fragmentation of Detect Features on the MakeHuman body voxel-remeshed with 4 mm voxels (``--no-body`` leaves it
@@ -372,7 +373,10 @@ def markdown(result: dict) -> list[str]:
             f"{target['tessellation']}: the crease vertices' corners lie {target['crease_rounding']:.3f} % from it"
             for target in targets
         )
-        + "); the last column measures the crease vertices to `f(v)` itself.",
+        + "); the last column measures the crease vertices to `f(v)` itself. *with* is Pair Feature Lines at "
+        "its defaults between two wraps (Junctions on: the corners where the layout's creases meet matched with "
+        "the target's, a line between two matched corners sharing out the crease between them by its rest "
+        "length); *with, junctions off* pairs each line with the stretch of crease where the fit has it.",
         "",
         "| target | anchors | feature pairing | pairs (mean confidence) | mean error, all | mean error, creases "
         "| p95, creases | creases to `f(v)` |",
