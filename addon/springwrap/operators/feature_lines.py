@@ -7,6 +7,8 @@ sharp creases (its own edges, exact), ridges and valleys (Detect Features at the
 edge length: crests known to within their scale) and the borders of its holes. Each line is paired with a feature
 close to it under the current fit, parallel, of its kind and about as long, unless it already lies within the
 feature's accuracy; the pair becomes a curve constraint (source Feature Pair, with its confidence) that the next wrap follows.
+With Junctions, the corners where the layout's lines end are matched with those where the target's sharp creases
+end, and a line between two matched corners follows its feature between them, shared out by its rest length.
 Lines without a partner stay free and are listed in the report. Everything is computed first and written only
 when it succeeded; a bad input (a marked line that crosses itself, an empty group) changes nothing.
 """
