@@ -14,8 +14,9 @@ of a median layout edge of the part's sharp edges (dihedral angle above 30 degre
 Each run, through the operators: the layout detached, ``N`` anchors (farthest-point samples of the layout, each at
 its true point), wrapped; then either wrapped again as it is (**without**: the same two wraps, no pairing) or
 after ``springwrap.feature_lines_pair`` (**with**: the layout's creases, found on its rest shape, paired with the
-target's ridges and valleys). Errors are distances to the truth in % of the target's diagonal: the mean over all
-vertices, over the crease vertices, and the crease p95. The target's feature curves at the automatic scale are
+target's ridges and valleys; ``--without-junctions`` adds rows with its Junctions setting off). Errors are
+distances to the truth in % of the target's diagonal: the mean over all vertices, over the crease vertices, and
+the crease p95. The target's feature curves at the automatic scale are
 measured too (count, median length in layout edges, the share of the part's true crease length within half a
 median layout edge of a detected curve): how well crease detection survives the re-tessellation. And the
 fragmentation of Detect Features on the MakeHuman body voxel-remeshed with 4 mm voxels (``--no-body`` leaves it
@@ -223,15 +224,16 @@ def body_fragmentation(voxel: float = 0.004) -> dict:
     }
 
 
-def run_case(anchors: int, with_pairing: bool, scene, feature_scale: float = 0.0) -> dict:
-    """One wrap pair (see the module docs); the errors and the pairing's report."""
+def run_case(anchors: int, with_pairing: bool, scene, feature_scale: float = 0.0, junctions: bool = True) -> dict:
+    """One wrap pair (see the module docs); the errors and the pairing's report. ``junctions``: Pair Feature
+    Lines' Junctions setting (the corners where creases meet matched)."""
     import bpy
 
     from benchmarks.retarget.baselines import mesh_object, read_positions
     from benchmarks.retarget.springwrap_methods import _add_anchors, _call, _select_only
 
     target, rest, quads, truth, on_surface, crease, diagonal = scene
-    layout = mesh_object(f"Layout {anchors} {'with' if with_pairing else 'without'}", rest, quads)
+    layout = mesh_object(f"Layout {anchors} {'with' if with_pairing else 'without'} {junctions}", rest, quads)
     layout.springwrap.target = target
     _select_only(layout)
     chosen = farthest_points(rest, anchors)
@@ -242,7 +244,12 @@ def run_case(anchors: int, with_pairing: bool, scene, feature_scale: float = 0.0
     first = read_positions(layout.data)
     report = ""
     if with_pairing:
-        report = _call("feature_lines_pair", bpy.ops.springwrap.feature_lines_pair, feature_scale=feature_scale)
+        report = _call(
+            "feature_lines_pair",
+            bpy.ops.springwrap.feature_lines_pair,
+            feature_scale=feature_scale,
+            use_junctions=junctions,
+        )
         report = report.strip().splitlines()[-1]
     _call("wrap", bpy.ops.springwrap.wrap)
     seconds = time.perf_counter() - start
@@ -255,6 +262,7 @@ def run_case(anchors: int, with_pairing: bool, scene, feature_scale: float = 0.0
     return {
         "anchors": anchors,
         "pairing": with_pairing,
+        "junctions": with_pairing and junctions,
         "mean_all": float(errors.mean()),
         "mean_crease": float(errors[crease].mean()),
         "p95_crease": float(np.percentile(errors[crease], 95)),
@@ -290,10 +298,11 @@ def target_case(arguments, tessellation: str, part, rest, quads, bounds, layout_
     target_mesh = springwrap_kernel.TargetMesh(*target_arrays(target))
     on_surface = target_mesh.closest_points(np.ascontiguousarray(truth, dtype=np.float32)).positions.astype(np.float64)
     scene = (target, rest, quads, truth, on_surface, crease, diagonal)
+    modes = [(False, False), (True, True)] + ([(True, False)] if arguments.without_junctions else [])
     rows = [
-        run_case(count, pairing, scene, arguments.feature_scale)
+        run_case(count, pairing, scene, arguments.feature_scale, junctions)
         for count in arguments.anchors
-        for pairing in (False, True)
+        for pairing, junctions in modes
     ]
     return {
         "tessellation": tessellation,
@@ -336,6 +345,10 @@ def run(arguments: argparse.Namespace) -> dict:
     }
 
 
+PAIRING_LABELS = {(False, False): "without", (True, True): "with", (True, False): "with, junctions off"}
+"""The feature pairing column's words for (pairing, junctions)."""
+
+
 def markdown(result: dict) -> list[str]:
     """The docs/benchmarks.md table of a :func:`run` result."""
     targets = result["targets"]
@@ -360,7 +373,10 @@ def markdown(result: dict) -> list[str]:
             f"{target['tessellation']}: the crease vertices' corners lie {target['crease_rounding']:.3f} % from it"
             for target in targets
         )
-        + "); the last column measures the crease vertices to `f(v)` itself.",
+        + "); the last column measures the crease vertices to `f(v)` itself. *with* is Pair Feature Lines at "
+        "its defaults between two wraps (Junctions on: the corners where the layout's creases meet matched with "
+        "the target's, a line between two matched corners sharing out the crease between them by its rest "
+        "length); *with, junctions off* pairs each line with the stretch of crease where the fit has it.",
         "",
         "| target | anchors | feature pairing | pairs (mean confidence) | mean error, all | mean error, creases "
         "| p95, creases | creases to `f(v)` |",
@@ -370,7 +386,7 @@ def markdown(result: dict) -> list[str]:
         for row in target["rows"]:
             pairs = f"{row['pairs']} ({row['mean_confidence']:.2f})" if row["pairs"] else "-"
             lines.append(
-                f"| {target['tessellation']} | {row['anchors']} | {'with' if row['pairing'] else 'without'} | "
+                f"| {target['tessellation']} | {row['anchors']} | {PAIRING_LABELS[row['pairing'], row.get('junctions', False)]} | "
                 f"{pairs} | {row['mean_all']:.3f} | {row['mean_crease']:.3f} | {row['p95_crease']:.3f} | "
                 f"{row['mean_crease_to_corner']:.3f} |"
             )
@@ -423,6 +439,11 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument(
         "--tessellations", nargs="+", choices=sorted(TESSELLATIONS), default=list(TESSELLATIONS), help="targets"
+    )
+    parser.add_argument(
+        "--without-junctions",
+        action="store_true",
+        help="also pair with Junctions off (the corners where creases meet not matched)",
     )
     parser.add_argument("--no-body", action="store_true", help="leave out the voxel-remeshed body's fragmentation")
     parser.add_argument("--json", type=Path, default=DEFAULT_JSON)

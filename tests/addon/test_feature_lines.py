@@ -94,11 +94,18 @@ def test_the_cubes_creases_pair_with_the_boxs_ridges(cube, capfd):
         distances = distance_to_polyline(positions[chain], points)
         assert distances.max() < 0.25
         assert np.linalg.norm(points[0] - positions[chain[0]]) < np.linalg.norm(points[-1] - positions[chain[0]])
-    # Drawn in the viewport like every curve constraint: a dashed line from each chain vertex to its target.
-    from springwrap.ui.overlays import CURVE_DASH_COUNT, curve_segments
+    # Drawn in the viewport apart from the hand-made curve constraints (violet, like proposed point pairs): a
+    # dashed line from each chain vertex to its target, and each stretch of target feature as a solid line.
+    from springwrap.ui.overlays import CURVE_DASH_COUNT, curve_segments, feature_stretches
 
-    starts, _ends = curve_segments(cube)
+    starts, _ends = curve_segments(cube, feature=True)
     assert starts.shape[0] == CURVE_DASH_COUNT * sum(len(item.layout_vertices.split()) for item in items)
+    assert curve_segments(cube)[0].shape == (0, 3)  # no hand-made constraint among them
+    starts, ends = feature_stretches(cube)
+    assert starts.shape == ends.shape == (sum(len(item.points) - 1 for item in items), 3)
+    first = np.array([tuple(point.co) for point in items[0].points])
+    np.testing.assert_allclose(starts[0], first[0], atol=1e-5)
+    np.testing.assert_allclose(ends[len(first) - 2], first[-1], atol=1e-5)
     # A second run replaces the pairs instead of adding more.
     assert bpy.ops.springwrap.feature_lines_pair() == {"FINISHED"}
     assert len(feature_items(cube)) == 12

@@ -92,3 +92,30 @@ def test_a_crease_already_on_its_traced_crest_stays_free(capfd):
     output = capfd.readouterr().out
     assert not feature_items(layout), output
     assert "12 it already lies within the accuracy of its feature" in output
+
+
+def test_junctions_place_each_crease_between_the_targets_corners(capfd):
+    """The cube's 8 corners (three creases end at each) match the larger box's; each crease between two of them
+    then follows the box's edge between those corners shared out by rest length: its chain's first vertex, a
+    sixth of the way along the cube's edge, goes a sixth of the way along the box's (1.1 times as far from the
+    middle). With Junctions off the stretch starts where the fit has that vertex."""
+    layout = cube_layout(sharp_box_target())
+    positions = world_positions(layout)
+
+    def first_points(use_junctions):
+        assert bpy.ops.springwrap.feature_lines_pair(use_junctions=use_junctions) == {"FINISHED"}
+        found = []
+        for item in feature_items(layout):
+            first = positions[int(item.layout_vertices.split()[0])]
+            point = np.array(tuple(item.points[0].co))
+            along = int(np.argmin(np.abs(np.abs(first) - 1.0) < 1e-4))  # the one axis the edge runs along
+            found.append((first[along], point[along]))
+        return np.array(found)
+
+    matched = first_points(True)
+    assert "8 corners matched, 12 pairs between two" in capfd.readouterr().out
+    assert len(matched) == 12
+    np.testing.assert_allclose(matched[:, 1], HALF * matched[:, 0], atol=1e-4)
+    unmatched = first_points(False)
+    assert "0 corners matched, 0 pairs between two" in capfd.readouterr().out
+    np.testing.assert_allclose(unmatched[:, 1], unmatched[:, 0], atol=1e-4)

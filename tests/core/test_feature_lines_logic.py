@@ -68,3 +68,82 @@ def test_a_line_apart_from_the_others_pairs_as_before():
     lines = fl.find_lines(positions, corners, sizes, row_and_column()[: SIZE - 1], 0.0, False)
     pairing = fl.pair_lines(lines, positions, straight_curves(), np.zeros(len(positions), dtype=bool), [], 0.5)
     assert len(pairing.constraints) == 1 and pairing.constraints[0].confidence > 0.8
+
+
+def side_columns():
+    """(K, 2) edges of the grid's first and last columns, top to bottom."""
+    return [(x + y * SIZE, x + (y + 1) * SIZE) for x in (0, SIZE - 1) for y in range(SIZE - 1)]
+
+
+def test_junctions_are_where_two_or_more_open_lines_end():
+    """The crossing of two marked lines is no junction (both run through it), nor is a bend (one line runs
+    round it); where the middle row meets the two side columns, three lines end at each end (two corners)."""
+    positions, corners, sizes = grid()
+    crossing = fl.find_lines(positions, corners, sizes, row_and_column(), 0.0, False)
+    assert fl.line_junctions(crossing).size == 0
+    bend = [(x, x + 1) for x in range(SIZE - 1)] + [(y * SIZE, (y + 1) * SIZE) for y in range(SIZE - 1)]
+    assert fl.line_junctions(fl.find_lines(positions, corners, sizes, np.array(bend), 0.0, False)).size == 0
+    marked = np.array(row_and_column()[: SIZE - 1].tolist() + side_columns(), dtype=np.uint32)
+    lines = fl.find_lines(positions, corners, sizes, marked, 0.0, False)
+    middle = (SIZE // 2) * SIZE
+    np.testing.assert_array_equal(fl.line_junctions(lines), [middle, middle + SIZE - 1])
+
+
+def test_junctions_match_mutual_nearest_within_the_distance():
+    """Each layout junction takes its nearest target junction when that is near enough and takes it back; two
+    layout junctions nearest one target junction: only the nearer matches."""
+    current = np.array([[0.0, 0, 0], [1.0, 0, 0], [1.2, 0, 0], [9.0, 0, 0]])
+    targets = np.array([[0.1, 0, 0], [1.15, 0, 0], [20.0, 0, 0]])
+    matched = fl.match_junctions([0, 1, 2, 3], current, targets, 0.5)
+    assert sorted(matched) == [0, 2]
+    np.testing.assert_allclose(matched[0], targets[0])
+    np.testing.assert_allclose(matched[2], targets[1])
+    assert fl.match_junctions([0, 1], current, np.zeros((0, 3)), 0.5) == {}
+
+
+def test_a_chain_between_matched_junctions_takes_its_share_of_the_curve_by_rest_length():
+    """A line of 5 rest vertices (unevenly spaced: 0, 1, 3, 4, 8) between two corners; its chain leaves the
+    corners out. On a curve twice as long between the matched corners (the curve's ends), the chain's stretch
+    runs from twice 1 to twice 4 along it."""
+    rest = np.array([[0.0, 0, 0], [1, 0, 0], [3, 0, 0], [4, 0, 0], [8, 0, 0]])
+    curve = np.stack([np.linspace(0.0, 16.0, 9), np.full(9, 5.0), np.zeros(9)], axis=1)
+    stretch = fl.between_junctions(rest, np.array([1, 2, 3]), curve, [0.0, 5, 0], [16.0, 5, 0])
+    np.testing.assert_allclose(stretch[0], [2.0, 5, 0], atol=1e-9)
+    np.testing.assert_allclose(stretch[-1], [8.0, 5, 0], atol=1e-9)
+    # The corners in the other order: the stretch runs the other way, from the far end.
+    stretch = fl.between_junctions(rest, np.array([1, 2, 3]), curve, [16.0, 5, 0], [0.0, 5, 0])
+    np.testing.assert_allclose(stretch[0], [14.0, 5, 0], atol=1e-9)
+    np.testing.assert_allclose(stretch[-1], [8.0, 5, 0], atol=1e-9)
+    # A curve between the corners far shorter than the line: no stretch (the fit's is kept).
+    assert fl.between_junctions(rest, np.array([1, 2, 3]), curve[:2], [0.0, 5, 0], [2.0, 5, 0]) is None
+    # A corner off the curve (the curve stops short of it, another crease goes on to it): no stretch either.
+    assert fl.between_junctions(rest, np.array([1, 2, 3]), curve[:8], [0.0, 5, 0], [16.0, 5, 0]) is None
+
+
+def test_pairing_between_matched_junctions_moves_the_stretch_to_the_corners():
+    """The middle row between two side columns (a corner at each end); the fit slid the row by a third of an
+    edge along itself. With both of its corners matched to the curve's true corners the row's stretch is the
+    true one (the chain's ends at their rest places), without junctions the slid one."""
+    positions, corners, sizes = grid()
+    marked = np.array(row_and_column()[: SIZE - 1].tolist() + side_columns(), dtype=np.uint32)
+    lines = fl.find_lines(positions, corners, sizes, marked, 0.0, False)
+    middle = SIZE // 2
+    row = middle * SIZE + np.arange(SIZE)
+    along = np.linspace(0.0, SIZE - 1.0, 33)
+    curve = np.stack([along, np.full_like(along, middle), np.full_like(along, 0.05)], 1).astype(np.float32)
+    current = positions.copy()
+    current[row, 0] += 0.33
+    anchored = np.zeros(len(positions), dtype=bool)
+    true_corners = [[0.0, middle, 0.05], [SIZE - 1.0, middle, 0.05]]
+    junctions = fl.match_junctions(fl.line_junctions(lines), current, true_corners, 1.0)
+    assert sorted(junctions) == [row[0], row[-1]]
+    paired = fl.pair_lines(
+        lines, current, [("RIDGE", curve, False)], anchored, [], 0.5, rest=positions, junctions=junctions
+    )
+    slid = fl.pair_lines(lines, current, [("RIDGE", curve, False)], anchored, [], 0.5)
+    assert paired.between_junctions == 1 and slid.between_junctions == 0
+    (constraint,) = paired.constraints
+    assert sorted(constraint.layout_vertices.tolist()) == row[1:-1].tolist()
+    ends = constraint.layout_vertices[[0, -1]]
+    np.testing.assert_allclose(constraint.points[[0, -1], 0], positions[ends, 0], atol=1e-5)
+    np.testing.assert_allclose(slid.constraints[0].points[[0, -1], 0], current[ends, 0], atol=1e-3)

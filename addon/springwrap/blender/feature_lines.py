@@ -89,14 +89,16 @@ def median_layout_edge(lines: LayoutLines) -> float:
 
 
 def read_target_features(depsgraph, target: bpy.types.Object, layout_edge: float, crease_degrees: float, **settings):
-    """``(target curves for pairing, feature scale used)``: the target's sharp creases (``crease_degrees``, 0:
-    none), its ridges and valleys (detected at the automatic scale for a layout of median edge ``layout_edge``,
-    or ``settings``' scale) and its hole borders."""
+    """``(target curves for pairing, crease junctions (J, 3), feature scale used)``: the target's sharp creases
+    (``crease_degrees``, 0: none) and the corners where they meet, its ridges and valleys (detected at the
+    automatic scale for a layout of median edge ``layout_edge``, or ``settings``' scale) and its hole borders."""
     mesh = feature_data.read_feature_mesh(depsgraph, target)
     scale = settings.pop("scale", 0.0)
     found = feature_data.detect_features(mesh, scale, layout_edge_length=layout_edge, **settings)
-    curves = feature_lines.target_curves(found.curves, mesh.vertices, mesh.triangles, crease_degrees, found.scale)
-    return curves, found.scale
+    curves, junctions = feature_lines.target_features(
+        found.curves, mesh.vertices, mesh.triangles, crease_degrees, found.scale
+    )
+    return curves, junctions, found.scale
 
 
 _free_lines: dict[str, list] = {}

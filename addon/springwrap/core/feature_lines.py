@@ -16,6 +16,7 @@ import numpy as np
 import springwrap_kernel
 
 from . import curves
+from .edge_paths import cumulative_lengths, length_fractions
 from .errors import LayoutError
 
 FREE_REASONS = {
@@ -48,6 +49,7 @@ class Pairing(NamedTuple):
 
     constraints: list  # of curves.CurveConstraint (source FEATURE_LINE, with a confidence)
     free: list  # of (FeatureLine, FREE_REASONS key)
+    between_junctions: int = 0  # how many constraints run between two matched junctions
 
 
 def marked_edges(edges, flags) -> np.ndarray:
@@ -190,12 +192,9 @@ def _twinned(starts: np.ndarray, ends: np.ndarray, chunk: int = 1024) -> np.ndar
     return twinned
 
 
-def target_curves(feature_curves, target_positions, triangles, crease_degrees: float = 0.0, scale: float = 0.0):
-    """(kind, (P, 3) float32 points, closed, accuracy) per target feature: each sharp crease of the target's own
-    edges (:func:`sharp_edges` at ``crease_degrees``; 0: none), kind RIDGE (convex) or VALLEY,
-    its accuracy :func:`zigzag`; each ridge and valley of ``feature_curves`` (the kernel's ``FeatureCurve``,
-    detected at ``scale``) that does not run along such a crease, accuracy :data:`RIDGE_ACCURACY_SCALES` scales;
-    then each open border of the target's triangles (a hole's rim), accuracy 0."""
+def target_features(feature_curves, target_positions, triangles, crease_degrees: float = 0.0, scale: float = 0.0):
+    """``(curves, junctions)``: :func:`target_curves`' curves, and (J, 3) float64 the target's crease junctions,
+    the points where two or more of its sharp creases end (a corner where creases meet)."""
     target_positions = np.ascontiguousarray(target_positions, dtype=np.float32)
     triangles = np.ascontiguousarray(triangles, dtype=np.uint32).reshape(-1, 3)
     chains = springwrap_kernel.layout_feature_lines(
@@ -207,7 +206,7 @@ def target_curves(feature_curves, target_positions, triangles, crease_degrees: f
     )
     clean = sharp_edges(target_positions, triangles, crease_degrees).astype(np.int64)
     clean_keys = set((clean[:, 0] * target_positions.shape[0] + clean[:, 1]).tolist())
-    found, creases, borders = [], [], []
+    found, creases, borders, ends = [], [], [], []
     for kind, source, vertices, closed, _dihedral in chains:
         points = np.ascontiguousarray(target_positions[vertices])
         if source == "CREASE":
@@ -218,19 +217,123 @@ def target_curves(feature_curves, target_positions, triangles, crease_degrees: f
                 continue  # a rounded crease's row of edges (a scan's), not a sharp one
             creases.append(points)
             found.append((kind, points, bool(closed), zigzag(points, bool(closed))))
+            if not closed:
+                ends += [int(vertices[0]), int(vertices[-1])]
         else:
             borders.append(("BORDER", points, bool(closed), 0.0))
     for curve in feature_curves:
         points = np.ascontiguousarray(curve.points, dtype=np.float32)
         if not _along(points, creases, scale):
             found.append((curve.kind, points, bool(curve.closed), RIDGE_ACCURACY_SCALES * scale))
-    return found + borders
+    corners, uses = np.unique(np.asarray(ends, dtype=np.int64), return_counts=True)
+    return found + borders, target_positions[corners[uses >= 2]].astype(np.float64)
 
 
-def pair_lines(lines, current, curves_found, anchored, existing, max_distance: float, **settings) -> Pairing:
+def target_curves(feature_curves, target_positions, triangles, crease_degrees: float = 0.0, scale: float = 0.0):
+    """(kind, (P, 3) float32 points, closed, accuracy) per target feature: each sharp crease of the target's own
+    edges (:func:`sharp_edges` at ``crease_degrees``; 0: none), kind RIDGE (convex) or VALLEY,
+    its accuracy :func:`zigzag`; each ridge and valley of ``feature_curves`` (the kernel's ``FeatureCurve``,
+    detected at ``scale``) that does not run along such a crease, accuracy :data:`RIDGE_ACCURACY_SCALES` scales;
+    then each open border of the target's triangles (a hole's rim), accuracy 0."""
+    return target_features(feature_curves, target_positions, triangles, crease_degrees, scale)[0]
+
+
+# ---------------------------------------------------------------- junctions
+
+
+def line_junctions(lines) -> np.ndarray:
+    """(J,) int64: the layout vertices where two or more open feature lines end (a corner where creases meet)."""
+    ends = [int(end) for line in lines if not line.closed for end in (line.vertices[0], line.vertices[-1])]
+    vertices, uses = np.unique(np.asarray(ends, dtype=np.int64), return_counts=True)
+    return vertices[uses >= 2]
+
+
+def match_junctions(vertices, current, junction_points, max_distance: float) -> dict:
+    """``{layout vertex: (3,) target point}``: each layout junction (``vertices``, at ``current`` (N, 3) world
+    positions) whose nearest target junction (``junction_points``, (J, 3)) lies within ``max_distance`` and has
+    it as its own nearest layout junction (mutual nearest: two corners close together are not swapped)."""
+    vertices = np.asarray(vertices, dtype=np.int64).reshape(-1)
+    junction_points = np.asarray(junction_points, dtype=np.float64).reshape(-1, 3)
+    if vertices.size == 0 or junction_points.shape[0] == 0:
+        return {}
+    here = np.asarray(current, dtype=np.float64)[vertices]
+    distance = np.linalg.norm(here[:, None, :] - junction_points[None, :, :], axis=2)
+    nearest, back = distance.argmin(axis=1), distance.argmin(axis=0)
+    return {
+        int(vertex): junction_points[nearest[row]].copy()
+        for row, vertex in enumerate(vertices.tolist())
+        if distance[row, nearest[row]] <= max_distance and back[nearest[row]] == row
+    }
+
+
+def _parameter(points: np.ndarray, cumulative: np.ndarray, point: np.ndarray) -> tuple[float, float]:
+    """``(arc-length parameter, distance)`` of the point of the polyline ``points`` nearest to ``point``."""
+    starts, direction = points[:-1], np.diff(points, axis=0)
+    squared = np.maximum((direction**2).sum(axis=1), 1e-300)
+    t = np.clip(((point[None, :] - starts) * direction).sum(axis=1) / squared, 0.0, 1.0)
+    distances = ((starts + t[:, None] * direction - point[None, :]) ** 2).sum(axis=1)
+    segment = int(np.argmin(distances))
+    along = cumulative[segment] + t[segment] * (cumulative[segment + 1] - cumulative[segment])
+    return float(along), float(np.sqrt(distances[segment]))
+
+
+def _piece(points: np.ndarray, cumulative: np.ndarray, begin: float, finish: float) -> np.ndarray:
+    """The stretch of the open polyline ``points`` from arc parameter ``begin`` to ``finish`` (reversed when
+    ``finish`` comes first)."""
+    low, high = min(begin, finish), max(begin, finish)
+    inside = (cumulative > low) & (cumulative < high)
+    ends = np.stack([np.interp([low, high], cumulative, points[:, axis]) for axis in range(3)], axis=1)
+    piece = np.concatenate([ends[:1], points[inside], ends[1:]])
+    return piece if begin <= finish else piece[::-1]
+
+
+def between_junctions(line_rest, chain_rows, curve_points, start_point, end_point) -> np.ndarray | None:
+    """The target stretch of a chain on a line that runs between two matched junctions, or None.
+
+    ``line_rest``: (L, 3) the whole line on the layout's rest shape, junction to junction; ``chain_rows``: the
+    rows of the line its chain takes (the junctions themselves left out, or a line trimmed at the curve's end);
+    ``curve_points``: (P, 3) the open target curve it pairs with; ``start_point``/``end_point``: the target
+    junctions of the line's first and last vertex. The curve between the two junctions is shared out in
+    proportion to the rest shape's arc length, so that the corners, not the fit's sliding, fix where along the
+    crease each vertex lies; the chain's stretch is its part of it. None when the junctions project to one point
+    of the curve, the curve between them is not about as long as the line (:data:`MIN_LENGTH_RATIO`) or a
+    junction lies off the curve (:data:`JUNCTION_TOLERANCE`: the curve stops short of that corner)."""
+    curve_points = np.asarray(curve_points, dtype=np.float64).reshape(-1, 3)
+    cumulative = cumulative_lengths(curve_points)
+    begin, off_start = _parameter(curve_points, cumulative, np.asarray(start_point, dtype=np.float64))
+    finish, off_end = _parameter(curve_points, cumulative, np.asarray(end_point, dtype=np.float64))
+    span = abs(finish - begin)
+    line_length = cumulative_lengths(np.asarray(line_rest, dtype=np.float64))[-1]
+    if not (span > 0.0 and line_length > 0.0 and MIN_LENGTH_RATIO <= span / line_length <= 1.0 / MIN_LENGTH_RATIO):
+        return None
+    if max(off_start, off_end) > JUNCTION_TOLERANCE * line_length:
+        return None  # a junction off the curve: the curve ends before that corner (another crease takes over)
+    fractions = length_fractions(np.asarray(line_rest, dtype=np.float64))
+    stretch = _piece(curve_points, cumulative, begin, finish)
+    along = cumulative_lengths(stretch)
+    first, last = fractions[chain_rows[0]] * along[-1], fractions[chain_rows[-1]] * along[-1]
+    if not last > first:
+        return None
+    return _piece(stretch, along, first, last)
+
+
+JUNCTION_TOLERANCE = 0.01
+"""How far a matched target junction may lie from the curve a line pairs with, as a fraction of the line's
+rest length: farther, the curve does not run to that corner."""
+MIN_LENGTH_RATIO = 0.5
+"""The shortest stretch of curve between two matched junctions a line may follow, as a fraction of its rest
+length (and the longest, its inverse)."""
+
+
+def pair_lines(
+    lines, current, curves_found, anchored, existing, max_distance: float, rest=None, junctions=None, **settings
+) -> Pairing:
     """Pair ``lines`` with ``curves_found`` (:func:`target_curves`) under the current fit (``current``, (N, 3)
     world positions). A paired line whose vertices (``anchored`` ones excepted) already follow one of
     ``existing`` constraints, or a more confident pair of this call (lines that cross), stays free.
+    ``junctions``: ``{layout vertex: target point}`` (:func:`match_junctions`) with ``rest`` ((N, 3) world rest
+    shape): a paired line between two matched junctions follows its curve between them, shared out by the rest
+    shape's arc length (:func:`between_junctions`), instead of the stretch under the current fit.
     ``settings``: ``max_angle`` (degrees), ``min_confidence``."""
     outcomes = springwrap_kernel.pair_feature_lines(
         np.ascontiguousarray(current, dtype=np.float32),
@@ -239,7 +342,7 @@ def pair_lines(lines, current, curves_found, anchored, existing, max_distance: f
         max_distance=float(max_distance),
         **settings,
     )
-    accepted, free = {}, []
+    accepted, free, between = {}, [], 0
     held = curves.constrained_vertices(existing, anchored)
     order = sorted(range(len(lines)), key=lambda index: -(outcomes[index].confidence or 0.0))
     for index in order:
@@ -252,11 +355,33 @@ def pair_lines(lines, current, curves_found, anchored, existing, max_distance: f
             free.append((index, line, "CONSTRAINED"))
             continue
         held |= {vertex for vertex in chain.tolist() if not anchored[vertex]}
+        target = None
+        _kind, curve_points, curve_closed = curves_found[outcome.curve][:3]
+        ends = (int(line.vertices[0]), int(line.vertices[-1]))
+        if (
+            junctions
+            and rest is not None
+            and not line.closed
+            and not curve_closed
+            and all(e in junctions for e in ends)
+        ):
+            first = int(np.flatnonzero(line.vertices == chain[0])[0])
+            rows = np.arange(first, first + chain.size)
+            if rows[-1] < line.vertices.size and np.array_equal(line.vertices[rows], chain):
+                target = between_junctions(
+                    np.asarray(rest, dtype=np.float64)[line.vertices], rows, curve_points, *(junctions[e] for e in ends)
+                )
+        between += target is not None
         accepted[index] = curves.make_constraint(
-            chain, outcome.target, curves.FEATURE_LINE, confidence=float(outcome.confidence)
+            chain,
+            outcome.target if target is None else target,
+            curves.FEATURE_LINE,
+            confidence=float(outcome.confidence),
         )
     free.sort(key=lambda item: item[0])
-    return Pairing([accepted[index] for index in sorted(accepted)], [(line, reason) for _index, line, reason in free])
+    return Pairing(
+        [accepted[index] for index in sorted(accepted)], [(line, reason) for _index, line, reason in free], between
+    )
 
 
 def automatic_distance(median_edge: float) -> float:

@@ -7,6 +7,8 @@ sharp creases (its own edges, exact), ridges and valleys (Detect Features at the
 edge length: crests known to within their scale) and the borders of its holes. Each line is paired with a feature
 close to it under the current fit, parallel, of its kind and about as long, unless it already lies within the
 feature's accuracy; the pair becomes a curve constraint (source Feature Pair, with its confidence) that the next wrap follows.
+With Junctions, the corners where the layout's lines end are matched with those where the target's sharp creases
+end, and a line between two matched corners follows its feature between them, shared out by its rest length.
 Lines without a partner stay free and are listed in the report. Everything is computed first and written only
 when it succeeded; a bad input (a marked line that crosses itself, an empty group) changes nothing.
 """
@@ -70,6 +72,13 @@ class SPRINGWRAP_OT_feature_lines_pair(LayoutCollectionOperator, bpy.types.Opera
         max=1.0,
         subtype="FACTOR",
     )
+    use_junctions: props.flag(
+        "Junctions",
+        "Match the corners where the layout's creases meet with the target's (mutual nearest, within the max "
+        "distance) and share out each crease between two matched corners by the layout's rest spacing, so that "
+        "the corners, not the fit's sliding, decide where along a crease each vertex lies",
+        True,
+    )
     replace: props.flag(
         "Replace", "Remove the feature pairs made before (other curve constraints stay) before pairing again", True
     )
@@ -93,10 +102,15 @@ class SPRINGWRAP_OT_feature_lines_pair(LayoutCollectionOperator, bpy.types.Opera
             existing = [item for item in existing if item.source_kind != curves.FEATURE_LINE]
         median_edge = line_data.median_layout_edge(lines_read)
         distance = self.max_distance or feature_lines.automatic_distance(median_edge)
-        found_curves, scale = line_data.read_target_features(
+        found_curves, target_junctions, scale = line_data.read_target_features(
             depsgraph, check_target(layout), median_edge, self.crease_angle, scale=self.feature_scale
         )
         anchored = anchors.anchored_mask(anchor_data.read_anchors(layout), lines_read.current.shape[0])
+        junctions = {}
+        if self.use_junctions:
+            junctions = feature_lines.match_junctions(
+                feature_lines.line_junctions(lines), lines_read.current, target_junctions, distance
+            )
         pairing = feature_lines.pair_lines(
             lines,
             lines_read.current,
@@ -104,6 +118,8 @@ class SPRINGWRAP_OT_feature_lines_pair(LayoutCollectionOperator, bpy.types.Opera
             anchored,
             existing,
             distance,
+            rest=lines_read.rest,
+            junctions=junctions,
             max_angle=self.max_angle,
             min_confidence=self.min_confidence,
         )
@@ -114,6 +130,7 @@ class SPRINGWRAP_OT_feature_lines_pair(LayoutCollectionOperator, bpy.types.Opera
         )
         level, text = feature_lines.pairing_report(len(lines), pairing)
         text += (
+            f"; {len(junctions)} corners matched, {pairing.between_junctions} pairs between two"
             f"; {len(found_curves)} target features at scale {scale:.4g}, max distance {distance:.4g} "
             f"({time.perf_counter() - start:.2f} s)"
         )

@@ -1,7 +1,8 @@
 """Draws the active layout's anchors in the 3D view: a line from each anchored vertex to its target, the pair's
 number at both ends (the anchor under the pair tool's mouse and the list's active anchor highlighted), and what
 the pair tool's mouse is over; and its curve constraints: dashed lines from each chain vertex to the matching point
-of its target curve.
+of its target curve, those Pair Feature Lines proposed (with a confidence) in violet like proposed point pairs,
+with their stretch of target feature drawn as a solid line.
 
 Two ``SpaceView3D`` draw handlers (``POST_VIEW`` for the lines and points, ``POST_PIXEL`` for the numbers), installed by :func:`install` on register and
 removed by :func:`uninstall` on unregister. It draws nothing in background mode, for an object
@@ -36,6 +37,8 @@ PROPOSED_LINE_COLOR = (0.75, 0.45, 1.0, 0.7)
 """A proposed pair's line (not used by the wrap until accepted): violet, against the hand pairs' orange."""
 CURVE_LINE_COLOR = (0.2, 0.8, 1.0, 0.9)
 """Colour of the dashed curve-constraint lines (light blue)."""
+FEATURE_CURVE_COLOR = (0.75, 0.45, 1.0, 0.8)
+"""Colour of a feature pair's dashes and of its stretch of target feature (violet, like a proposed point pair)."""
 CURVE_DASH_COUNT = 5
 """Dashes per line between a chain vertex and its target-curve point."""
 HOVERED_COLOR = (1.0, 1.0, 1.0, 1.0)
@@ -69,7 +72,7 @@ _label_handle = None
 _tool_points = {"layout": None, "points": (None, None, None)}
 _generation = 0
 _position_cache = {"key": None, "positions": None}
-_curve_cache = {"key": None, "segments": None}
+_curve_cache = {"key": None, "segments": None, "feature": None, "stretches": None}
 _shaders = {}
 _failed = False
 
@@ -99,7 +102,7 @@ def uninstall() -> None:
     while _on_depsgraph_update in bpy.app.handlers.depsgraph_update_post:
         bpy.app.handlers.depsgraph_update_post.remove(_on_depsgraph_update)
     _position_cache.update(key=None, positions=None)
-    _curve_cache.update(key=None, segments=None)
+    _curve_cache.update(key=None, segments=None, feature=None, stretches=None)
     _shaders.clear()
 
 
@@ -166,26 +169,58 @@ def anchor_segments(layout, proposed: bool = False) -> tuple[np.ndarray, np.ndar
     return anchors.segments(anchors.take(anchor_list, chosen), positions[chosen])
 
 
-def curve_segments(layout) -> tuple[np.ndarray, np.ndarray]:
-    """The dashes to draw for ``layout``'s curve constraints: (D, 3) float32 world starts and ends.
+def curve_segments(layout, feature: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """The dashes to draw for ``layout``'s curve constraints: (D, 3) float32 world starts and ends; with
+    ``feature`` those of the feature pairs (Pair Feature Lines' proposals), otherwise those of the others.
 
     Each chain vertex is joined to the point of its target polyline (as last resolved) at the same
     fraction of arc length, by a dashed line. Empty when there are none or they are hidden.
     """
+    if not _read_curves(layout):
+        return _NO_SEGMENTS
+    return _curve_cache["feature" if feature else "segments"]
+
+
+def feature_stretches(layout) -> tuple[np.ndarray, np.ndarray]:
+    """The stretches of target feature the feature pairs follow, as (S, 3) float32 world segment starts and
+    ends (each polyline's edges); empty when there are none or curve constraints are hidden."""
+    if not _read_curves(layout):
+        return _NO_SEGMENTS
+    return _curve_cache["stretches"]
+
+
+def _read_curves(layout) -> bool:
+    """Fill the curve cache for ``layout`` (dashes of the hand pairs and of the feature pairs, the feature
+    pairs' stretches) when the constraints or the mesh changed; False when there is nothing to draw."""
     settings = layout.springwrap
     if not settings.show_curve_constraints or not len(settings.curve_constraints):
-        return _NO_SEGMENTS
+        return False
     constraints = curve_data.read_curve_constraints(layout)
     key = _cache_key(layout, tuple((c.layout_vertices.tobytes(), c.points.tobytes()) for c in constraints))
     if _curve_cache["key"] != key:
-        starts, ends = [], []
+        found = {False: ([], []), True: ([], [])}
         for constraint in constraints:
+            starts, ends = found[constraint.source_kind == curves.FEATURE_LINE]
             chain = layout_data.read_world_vertex_positions(layout, constraint.layout_vertices)
             starts.append(chain)
             ends.append(curves.arc_length_points(chain, constraint.points))
-        segments = curves.dashed_segments(np.concatenate(starts), np.concatenate(ends), CURVE_DASH_COUNT)
-        _curve_cache.update(key=key, segments=segments)
-    return _curve_cache["segments"]
+        dashes = {
+            feature: curves.dashed_segments(np.concatenate(starts), np.concatenate(ends), CURVE_DASH_COUNT)
+            if starts
+            else _NO_SEGMENTS
+            for feature, (starts, ends) in found.items()
+        }
+        lines = [c.points for c in constraints if c.source_kind == curves.FEATURE_LINE and c.points.shape[0] > 1]
+        stretches = (
+            (
+                np.concatenate([points[:-1] for points in lines]).astype(np.float32),
+                np.concatenate([points[1:] for points in lines]).astype(np.float32),
+            )
+            if lines
+            else _NO_SEGMENTS
+        )
+        _curve_cache.update(key=key, segments=dashes[False], feature=dashes[True], stretches=stretches)
+    return True
 
 
 def draw_anchors() -> None:
@@ -212,9 +247,13 @@ def draw_anchors() -> None:
             _draw_highlights(layout)
         _draw_tool_points(layout)
         if show_curves:
-            starts, ends = curve_segments(layout)
-            if starts.shape[0]:
-                _draw_segments(starts, ends, CURVE_LINE_COLOR, with_points=False)
+            for (starts, ends), color in (
+                (curve_segments(layout), CURVE_LINE_COLOR),
+                (curve_segments(layout, feature=True), FEATURE_CURVE_COLOR),
+                (feature_stretches(layout), FEATURE_CURVE_COLOR),
+            ):
+                if starts.shape[0]:
+                    _draw_segments(starts, ends, color, with_points=False)
     except Exception as error:  # noqa: BLE001  (a draw callback must not raise on every redraw)
         _failed = True
         print(f"Springwrap: drawing anchors failed, anchors are no longer drawn: {error!r}")
