@@ -23,14 +23,21 @@ pub struct FollowSettings {
     /// translation alone: after an alignment has scaled the template, a part keeps its size, as an
     /// eyeball does when the face around it gains weight).
     pub scale: bool,
+    /// Reweighting rounds of a rigid piece's fit: 0 … 16. Each round fits the motion again with the
+    /// surface vertices that the last fit carries badly weighted down (Tukey's biweight, cut off at
+    /// [`ROBUST_CUTOFF`] times the weighted median misfit), so that a piece follows the part of its
+    /// surroundings that moves as one body (an eyeball its socket and brow) rather than skin that
+    /// folds over it (a closing eyelid). 0: one plain weighted fit.
+    pub robust_rounds: usize,
 }
 
 impl Default for FollowSettings {
     fn default() -> Self {
         Self {
-            neighbours: 64,
+            neighbours: 256,
             soft_neighbours: 256,
             scale: false,
+            robust_rounds: 8,
         }
     }
 }
@@ -52,9 +59,21 @@ impl FollowSettings {
             "number of surface neighbours of a soft part vertex",
             self.soft_neighbours as f64,
             SettingRange::closed(1.0, MAX_NEIGHBOURS),
+        )?;
+        check_setting(
+            "robust_rounds",
+            "number of reweighting rounds of a rigid piece's fit",
+            self.robust_rounds as f64,
+            SettingRange::closed(0.0, MAX_ROBUST_ROUNDS),
         )
     }
 }
+
+/// The most reweighting rounds of a rigid piece's fit.
+const MAX_ROBUST_ROUNDS: f64 = 16.0;
+/// A surface vertex whose misfit exceeds this many times the weighted median misfit has no weight
+/// in the next round of a rigid piece's fit (Tukey's biweight cut-off, in medians).
+pub const ROBUST_CUTOFF: f64 = 2.0;
 
 /// The most surface neighbours a part vertex may be bound to.
 const MAX_NEIGHBOURS: f64 = 1024.0;
@@ -218,7 +237,14 @@ impl SurfaceFollower {
         let rigid_motions: Vec<Motion> = self
             .rigid
             .par_iter()
-            .map(|(_, binding)| motion(binding))
+            .map(|(_, binding)| {
+                Motion::robust_fit(
+                    binding,
+                    &self.surface_rest,
+                    surface_now,
+                    self.settings,
+                )
+            })
             .collect();
         for ((members, _), motion) in self.rigid.iter().zip(rigid_motions) {
             for &vertex in members {
@@ -291,6 +317,20 @@ fn bind(nearest: &[(u32, f64)]) -> Binding {
     binding
 }
 
+/// The weighted median of `(value, weight)` pairs (weights summing to about 1); sorts them.
+fn weighted_median(pairs: &mut [(f64, f64)]) -> f64 {
+    pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let total: f64 = pairs.iter().map(|&(_, weight)| weight).sum();
+    let mut running = 0.0;
+    for &(value, weight) in pairs.iter() {
+        running += weight;
+        if running >= 0.5 * total {
+            return value;
+        }
+    }
+    pairs.last().map_or(0.0, |&(value, _)| value)
+}
+
 /// A similarity taking a neighbourhood at rest to the same neighbourhood now.
 struct Motion {
     rest_centre: DVec3,
@@ -354,6 +394,49 @@ impl Motion {
             rotation,
             scale,
         }
+    }
+
+    /// [`Motion::fit`] reweighted `settings.robust_rounds` times (see
+    /// [`FollowSettings::robust_rounds`]): the surface vertices it carries worst lose their weight.
+    fn robust_fit(binding: &Binding, rest: &[DVec3], now: &[DVec3], settings: FollowSettings) -> Self {
+        let mut motion = Self::fit(binding, rest, now, settings.scale);
+        // The neighbourhood's size: misfits below a millionth of it are exact.
+        let size = binding
+            .iter()
+            .map(|&(surface, weight)| weight * rest[surface as usize].distance(motion.rest_centre))
+            .sum::<f64>();
+        for _round in 0..settings.robust_rounds {
+            let misfits: Vec<(f64, f64)> = binding
+                .iter()
+                .map(|&(surface, weight)| {
+                    let carried = motion.apply(rest[surface as usize]);
+                    (carried.distance(now[surface as usize]), weight)
+                })
+                .collect();
+            let median = weighted_median(&mut misfits.clone());
+            if !(median > 1e-6 * size) {
+                break;
+            }
+            let cutoff = ROBUST_CUTOFF * median;
+            let reweighted: Binding = binding
+                .iter()
+                .zip(&misfits)
+                .filter_map(|(&(surface, weight), &(misfit, _))| {
+                    let ratio = misfit / cutoff;
+                    (ratio < 1.0).then(|| (surface, weight * (1.0 - ratio * ratio).powi(2)))
+                })
+                .collect();
+            let total: f64 = reweighted.iter().map(|&(_, weight)| weight).sum();
+            if !(total > 0.0) {
+                break;
+            }
+            let normalised: Binding = reweighted
+                .into_iter()
+                .map(|(surface, weight)| (surface, weight / total))
+                .collect();
+            motion = Self::fit(&normalised, rest, now, settings.scale);
+        }
+        motion
     }
 
     fn apply(&self, point: DVec3) -> DVec3 {
