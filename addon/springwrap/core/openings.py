@@ -9,7 +9,7 @@ target's ridges and hole borders (a voxel remesh has no border, the rim of an op
 closed loop is near), so it is found directly: looking at the slit under the current fit from the front (the
 side its surroundings face), rays are cast in columns across it; where a column's rays run deeper than the
 surface beside them by more than :data:`DEPTH_JUMP` of the mouth's width, the target is open; the rim on each side
-is where the rays stop grazing the lip and fall in (found by bisection). The two halves of the slit are paired
+is where the rays stop grazing the lip and fall in (the largest step in depth between finer rays). The two halves of the slit are paired
 with the two rims (the half nearer each, under the current fit), from corner to corner of the opening (the
 outermost open columns): two curve constraints, the first holding the corners, with the confidence the share of
 columns that found the opening.
@@ -34,13 +34,15 @@ COLUMN_MARGIN = 0.06
 """The columns keep this share of the slit's width from its corners (where the opening closes)."""
 RIM_ACCURACY = 0.15
 """How closely a rim found by rays marks where a slit's half belongs, in slit widths (the rays graze the rounded
-lip a little inside its edge): a half already within it of its rim (mean) is not paired."""
+lip a little inside its edge): a half whose every vertex is already within it of its rim is not paired."""
 ROWS = 48
 """Rays in each column, spread over :data:`REACH` of the slit's width each side of it."""
 REACH = 0.6
 """How far each side of the slit (in its widths) the columns look for the rims."""
-BISECTIONS = 6
-"""Bisection steps locating a rim between the last grazing ray and the first falling in."""
+RIM_DEPTH = 0.05
+"""A rim lies within this share of the slit's width behind the front of the lip beside it."""
+RIM_RAYS = 33
+"""Rays locating a rim between the last ray of a column that grazes the lip and the first that falls in."""
 MIN_OPEN_COLUMNS = 0.4
 """The least share of the columns inside the slit's corners that must find the opening for a pairing."""
 MIN_OPENING = 0.1
@@ -172,8 +174,8 @@ def _rotation(rest: np.ndarray, current: np.ndarray) -> np.ndarray:
 
 def slit_frame(slit: Slit, rest, current, facing) -> Frame:
     """The slit's :class:`Frame`: its directions are those of the closed slit on the rest shape (across: corner to
-    corner; up: the normal of the plane it lies in; front: perpendicular to both, on the side of ``facing``, the
-    summed normals of the surface round it) turned by the rotation that best takes the layout round it (within
+    corner; front: ``facing``, the summed normals of the surface round it, made perpendicular to across; up:
+    perpendicular to both) turned by the rotation that best takes the layout round it (within
     its width) from the rest shape to the current fit."""
     rest = np.asarray(rest, dtype=np.float64)
     current = np.asarray(current, dtype=np.float64)
@@ -181,12 +183,9 @@ def slit_frame(slit: Slit, rest, current, facing) -> Frame:
     a_rest, b_rest = points[0], points[slit.corner]
     width_rest = float(np.linalg.norm(b_rest - a_rest))
     across = (b_rest - a_rest) / width_rest
-    _u, _s, vt = np.linalg.svd(points - points.mean(axis=0), full_matrices=False)
-    up = vt[2] - across * float(vt[2] @ across)
-    up /= max(float(np.linalg.norm(up)), 1e-300)
-    front = np.cross(across, up)
-    if float(front @ np.asarray(facing, dtype=np.float64)) < 0.0:
-        front, up = -front, -up
+    front = np.asarray(facing, dtype=np.float64) - across * float(np.asarray(facing, dtype=np.float64) @ across)
+    front /= max(float(np.linalg.norm(front)), 1e-300)
+    up = np.cross(front, across)
     around = np.linalg.norm(rest - points.mean(axis=0), axis=1) < width_rest
     turn = _rotation(rest[around], current[around]) if around.sum() >= 3 else np.eye(3)
     a, b = current[slit.loop[0]], current[slit.loop[slit.corner]]
@@ -211,20 +210,20 @@ def _depths(mesh, origins: np.ndarray, front: np.ndarray, reach: float):
     return np.where(np.isfinite(depths), depths, np.inf), np.asarray(hits.positions, dtype=np.float64)
 
 
-def _rim(mesh, frame: Frame, base: np.ndarray, grazing: float, falling: float, limit: float) -> np.ndarray:
+def _rim(mesh, frame: Frame, base: np.ndarray, grazing: float, falling: float) -> np.ndarray:
     """The rim between a grazing ray (at ``grazing`` along ``up`` from ``base``) and one falling in (``falling``):
-    the hit point of the last grazing ray after :data:`BISECTIONS` bisections."""
+    of :data:`RIM_RAYS` rays between them, up to the first step in depth of at least half the largest (where the
+    rays fall in), the hit point of the last that lies within :data:`RIM_DEPTH` of the shallowest (where the lip
+    starts to curl in, not a point down its inner side)."""
     stand, reach = frame.width, 3.0 * frame.width
-    _depth, hit = _depths(mesh, (base + grazing * frame.up + stand * frame.front)[None, :], frame.front, reach)
-    point = hit[0]
-    for _step in range(BISECTIONS):
-        middle = 0.5 * (grazing + falling)
-        depth, hit = _depths(mesh, (base + middle * frame.up + stand * frame.front)[None, :], frame.front, reach)
-        if depth[0] > limit:
-            falling = middle
-        else:
-            grazing, point = middle, hit[0]
-    return point
+    heights = np.linspace(grazing, falling, RIM_RAYS)
+    origins = base[None, :] + heights[:, None] * frame.up[None, :] + stand * frame.front[None, :]
+    depths, hits = _depths(mesh, origins, frame.front, reach)
+    steps = np.diff(np.where(np.isfinite(depths), depths, 2.0 * reach))
+    fall = int(np.argmax(steps >= 0.5 * steps.max()))
+    # Where the lip starts to curl in: the last ray before the fall within RIM_DEPTH of the shallowest.
+    touching = np.flatnonzero(depths[: fall + 1] <= depths[: fall + 1].min() + RIM_DEPTH * frame.width)
+    return hits[int(touching[-1])]
 
 
 def _runs(flags: np.ndarray) -> list:
@@ -262,8 +261,9 @@ def opening_rims(mesh, slit: Slit, frame: Frame, current):
         if low == 0 or high == ROWS - 1:
             continue  # the opening runs out of the column: no rim on one side
         fractions.append(float(fraction))
-        lower.append(_rim(mesh, frame, base, rows[low - 1], rows[low], limit))
-        upper.append(_rim(mesh, frame, base, rows[high + 1], rows[high], limit))
+        # From two rays before the first falling in: the last grazing one may already be on a wall going in.
+        lower.append(_rim(mesh, frame, base, rows[max(low - 2, 0)], rows[low]))
+        upper.append(_rim(mesh, frame, base, rows[min(high + 2, ROWS - 1)], rows[high]))
     return np.array(fractions), np.array(upper).reshape(-1, 3), np.array(lower).reshape(-1, 3)
 
 
@@ -315,8 +315,9 @@ def pair_slit(mesh, slit: Slit, rest, current, facing_direction) -> OpeningPair 
 
 
 def _farther_than(chain_positions: np.ndarray, line: np.ndarray, distance: float) -> bool:
-    """Whether the chain's vertices lie farther than ``distance`` (mean) from where the line would pull them."""
-    return curves.matching_error(chain_positions, line) > distance
+    """Whether a vertex of the chain lies farther than ``distance`` from where the line would pull it."""
+    pulled = curves.arc_length_points(chain_positions, line)
+    return bool(np.linalg.norm(pulled - chain_positions, axis=1).max() > distance)
 
 
 def layout_slits(rest, face_corners, face_sizes) -> list:

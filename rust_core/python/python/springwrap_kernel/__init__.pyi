@@ -591,7 +591,7 @@ class SurfaceFollower:
     ``neighbours`` nearest surface vertices (a soft one to its ``soft_neighbours`` nearest); a rigid piece moves by
     the best similarity (rotation, translation and, with ``scale``, a uniform scale) of the surface around all its
     vertices, a soft vertex by its own neighbourhood's. A rigid piece's fit is reweighted ``robust_rounds`` times
-    (0 to 16), each round weighting down the surface vertices the last fit carries worst (Tukey's biweight cut at 3
+    (0 to 16), each round weighting down the surface vertices the last fit carries worst (Tukey's biweight cut at 2
     weighted median misfits): the piece follows the surroundings that move as one body, not skin folding over it."""
 
     def __init__(
@@ -601,10 +601,10 @@ class SurfaceFollower:
         pieces: npt.NDArray[np.uint32],
         rigid: npt.NDArray[np.bool_],
         *,
-        neighbours: int = 64,
+        neighbours: int = 256,
         soft_neighbours: int = 256,
         scale: bool = False,
-        robust_rounds: int = 4,
+        robust_rounds: int = 8,
     ) -> None: ...
     @property
     def part_count(self) -> int:
