@@ -349,6 +349,6 @@ def report_text(pairs) -> str:
     halves = sum(len(pair.constraints) for pair in pairs)
     confidences = ", ".join(f"{pair.confidence:.2f}" for pair in pairs)
     return (
-        f"paired {len(pairs)} opening{'' if len(pairs) == 1 else 's'} ({halves} slit half"
-        f"{'' if halves == 1 else 's'} onto its rim, confidence {confidences})"
+        f"paired {len(pairs)} opening{'' if len(pairs) == 1 else 's'} ({halves} slit "
+        f"{'half' if halves == 1 else 'halves'} onto its rim, confidence {confidences})"
     )
