@@ -228,9 +228,9 @@ def pit_target(n=100):
 
 def test_closed_lips_are_paired_with_the_rim_of_an_open_mouth_and_openings_off_pairs_none(capfd):
     layout = mouth_layout(pit_target())
-    assert bpy.ops.springwrap.feature_lines_pair(use_sharp=False, crease_angle=0.0, use_borders=False, feature_scale=0.3) == {
-        "FINISHED"
-    }
+    assert bpy.ops.springwrap.feature_lines_pair(
+        use_sharp=False, crease_angle=0.0, use_borders=False, feature_scale=0.3
+    ) == {"FINISHED"}
     output = capfd.readouterr().out
     assert "paired 1 opening (2 slit halves onto its rim" in output, output
     items = feature_items(layout)
