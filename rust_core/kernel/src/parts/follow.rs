@@ -238,12 +238,7 @@ impl SurfaceFollower {
             .rigid
             .par_iter()
             .map(|(_, binding)| {
-                Motion::robust_fit(
-                    binding,
-                    &self.surface_rest,
-                    surface_now,
-                    self.settings,
-                )
+                Motion::robust_fit(binding, &self.surface_rest, surface_now, self.settings)
             })
             .collect();
         for ((members, _), motion) in self.rigid.iter().zip(rigid_motions) {
@@ -398,7 +393,12 @@ impl Motion {
 
     /// [`Motion::fit`] reweighted `settings.robust_rounds` times (see
     /// [`FollowSettings::robust_rounds`]): the surface vertices it carries worst lose their weight.
-    fn robust_fit(binding: &Binding, rest: &[DVec3], now: &[DVec3], settings: FollowSettings) -> Self {
+    fn robust_fit(
+        binding: &Binding,
+        rest: &[DVec3],
+        now: &[DVec3],
+        settings: FollowSettings,
+    ) -> Self {
         let mut motion = Self::fit(binding, rest, now, settings.scale);
         // The neighbourhood's size: misfits below a millionth of it are exact.
         let size = binding
