@@ -24,10 +24,12 @@ pub struct FollowSettings {
     /// eyeball does when the face around it gains weight).
     pub scale: bool,
     /// Reweighting rounds of a rigid piece's fit: 0 … 16. Each round fits the motion again with the
-    /// surface vertices that the last fit carries badly weighted down (Tukey's biweight, cut off at
-    /// [`ROBUST_CUTOFF`] times the weighted median misfit), so that a piece follows the part of its
-    /// surroundings that moves as one body (an eyeball its socket and brow) rather than skin that
-    /// folds over it (a closing eyelid). 0: one plain weighted fit.
+    /// surface vertices that the last fit carries badly weighted down (Geman-McClure: a misfit of
+    /// [`ROBUST_SCALE`] times the weighted median keeps a quarter of its weight), so that a piece
+    /// follows the part of its surroundings that moves as one body (an eyeball its brow and cheek)
+    /// rather than skin that folds over it (a closing eyelid). The weights vary smoothly with the
+    /// misfits, so a symmetric motion keeps a part on the mirror plane symmetric. 0: one plain
+    /// weighted fit.
     pub robust_rounds: usize,
 }
 
@@ -71,9 +73,9 @@ impl FollowSettings {
 
 /// The most reweighting rounds of a rigid piece's fit.
 const MAX_ROBUST_ROUNDS: f64 = 16.0;
-/// A surface vertex whose misfit exceeds this many times the weighted median misfit has no weight
-/// in the next round of a rigid piece's fit (Tukey's biweight cut-off, in medians).
-pub const ROBUST_CUTOFF: f64 = 2.0;
+/// The misfit, in weighted medians, at which a surface vertex keeps a quarter of its weight in the
+/// next round of a rigid piece's fit (Geman-McClure's scale).
+pub const ROBUST_SCALE: f64 = 1.0;
 
 /// The most surface neighbours a part vertex may be bound to.
 const MAX_NEIGHBOURS: f64 = 1024.0;
@@ -417,13 +419,13 @@ impl Motion {
             if !(median > 1e-6 * size) {
                 break;
             }
-            let cutoff = ROBUST_CUTOFF * median;
+            let scale = ROBUST_SCALE * median;
             let reweighted: Binding = binding
                 .iter()
                 .zip(&misfits)
-                .filter_map(|(&(surface, weight), &(misfit, _))| {
-                    let ratio = misfit / cutoff;
-                    (ratio < 1.0).then(|| (surface, weight * (1.0 - ratio * ratio).powi(2)))
+                .map(|(&(surface, weight), &(misfit, _))| {
+                    let ratio = misfit / scale;
+                    (surface, weight / (1.0 + ratio * ratio).powi(2))
                 })
                 .collect();
             let total: f64 = reweighted.iter().map(|&(_, weight)| weight).sum();

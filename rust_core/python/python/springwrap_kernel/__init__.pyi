@@ -591,8 +591,9 @@ class SurfaceFollower:
     ``neighbours`` nearest surface vertices (a soft one to its ``soft_neighbours`` nearest); a rigid piece moves by
     the best similarity (rotation, translation and, with ``scale``, a uniform scale) of the surface around all its
     vertices, a soft vertex by its own neighbourhood's. A rigid piece's fit is reweighted ``robust_rounds`` times
-    (0 to 16), each round weighting down the surface vertices the last fit carries worst (Tukey's biweight cut at 2
-    weighted median misfits): the piece follows the surroundings that move as one body, not skin folding over it."""
+    (0 to 16), each round weighting down the surface vertices the last fit carries worst (Geman-McClure: a misfit of
+    the weighted median keeps a quarter of its weight): the piece follows the surroundings that move as one body, not
+    skin folding over it."""
 
     def __init__(
         self,
