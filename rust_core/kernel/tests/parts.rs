@@ -360,7 +360,7 @@ fn a_rigid_part_follows_its_surroundings_not_a_local_fold_over_it() {
             .fold(0.0_f64, f64::max)
     };
     let plain = error(0);
-    let robust = error(FollowSettings::default().robust_rounds);
+    let robust = error(8);
     assert!(plain > 0.01, "the fold drags a plain fit: {plain}");
     assert!(
         robust < 0.1 * plain,

@@ -36,10 +36,10 @@ pub struct FollowSettings {
 impl Default for FollowSettings {
     fn default() -> Self {
         Self {
-            neighbours: 256,
+            neighbours: 64,
             soft_neighbours: 256,
             scale: false,
-            robust_rounds: 8,
+            robust_rounds: 0,
         }
     }
 }

@@ -602,10 +602,10 @@ class SurfaceFollower:
         pieces: npt.NDArray[np.uint32],
         rigid: npt.NDArray[np.bool_],
         *,
-        neighbours: int = 256,
+        neighbours: int = 64,
         soft_neighbours: int = 256,
         scale: bool = False,
-        robust_rounds: int = 8,
+        robust_rounds: int = 0,
     ) -> None: ...
     @property
     def part_count(self) -> int:
