@@ -24,7 +24,12 @@ def cube_layout(target, name="Cube"):
     bmesh.ops.subdivide_edges(editable, edges=editable.edges[:], cuts=5, use_grid_fill=True)
     editable.to_mesh(mesh)
     editable.free()
-    layout = bpy.data.objects.new(name, mesh)
+    return active_layout(mesh, target)
+
+
+def active_layout(mesh, target):
+    """An object of ``mesh`` in the scene, whose target is ``target``, the only one selected and active."""
+    layout = bpy.data.objects.new(mesh.name, mesh)
     bpy.context.scene.collection.objects.link(layout)
     layout.springwrap.target = target
     for obj in bpy.context.view_layer.objects:
@@ -200,14 +205,7 @@ def mouth_layout(target):
     mesh = bpy.data.meshes.new("Mouth")
     mesh.from_pydata(np.concatenate(rings).tolist(), [], faces)
     mesh.update()
-    layout = bpy.data.objects.new("Mouth", mesh)
-    bpy.context.scene.collection.objects.link(layout)
-    layout.springwrap.target = target
-    for obj in bpy.context.view_layer.objects:
-        obj.select_set(obj == layout)
-    bpy.context.view_layer.objects.active = layout
-    bpy.context.view_layer.update()
-    return layout
+    return active_layout(mesh, target)
 
 
 def pit_target(n=100):
