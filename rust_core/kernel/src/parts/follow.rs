@@ -416,7 +416,7 @@ impl Motion {
                 })
                 .collect();
             let median = weighted_median(&mut misfits.clone());
-            if !(median > 1e-6 * size) {
+            if median.is_nan() || median <= 1e-6 * size {
                 break;
             }
             let scale = ROBUST_SCALE * median;
@@ -429,7 +429,7 @@ impl Motion {
                 })
                 .collect();
             let total: f64 = reweighted.iter().map(|&(_, weight)| weight).sum();
-            if !(total > 0.0) {
+            if total.is_nan() || total <= 0.0 {
                 break;
             }
             let normalised: Binding = reweighted
