@@ -24,7 +24,12 @@ def cube_layout(target, name="Cube"):
     bmesh.ops.subdivide_edges(editable, edges=editable.edges[:], cuts=5, use_grid_fill=True)
     editable.to_mesh(mesh)
     editable.free()
-    layout = bpy.data.objects.new(name, mesh)
+    return active_layout(mesh, target)
+
+
+def active_layout(mesh, target):
+    """An object of ``mesh`` in the scene, whose target is ``target``, the only one selected and active."""
+    layout = bpy.data.objects.new(mesh.name, mesh)
     bpy.context.scene.collection.objects.link(layout)
     layout.springwrap.target = target
     for obj in bpy.context.view_layer.objects:
@@ -190,3 +195,60 @@ def test_a_vertex_group_marks_a_line(cube, capfd):
         "FINISHED"
     }
     assert "of 1 feature line" in capfd.readouterr().out
+
+
+def mouth_layout(target):
+    """A quad 'face' round a closed mouth, facing +z: rings of 24 vertices from an outer border inwards, the
+    fourth a slit (lips that meet, 1.0 wide), the last two going back into a pocket behind it; active, selected."""
+    shapes = [(1.0, 0.8, 0.0), (0.8, 0.5, 0.0), (0.6, 0.2, 0.0), (0.5, 0.002, 0.0), (0.45, 0.002, -0.1)]
+    shapes.append((0.4, 0.002, -0.2))
+    angle = np.arange(24) * 2.0 * np.pi / 24
+    rings = [np.stack([a * np.cos(angle), b * np.sin(angle), np.full(24, z)], -1) for a, b, z in shapes]
+    faces = [
+        (r * 24 + i, r * 24 + (i + 1) % 24, (r + 1) * 24 + (i + 1) % 24, (r + 1) * 24 + i)
+        for r in range(len(shapes) - 1)
+        for i in range(24)
+    ]
+    mesh = bpy.data.meshes.new("Mouth")
+    mesh.from_pydata(np.concatenate(rings).tolist(), [], faces)
+    mesh.update()
+    return active_layout(mesh, target)
+
+
+def pit_target(n=100):
+    """A height field over [-1.2, 1.2]^2, domed below z = 0, with a pit 1.2 x 0.6 and 1 deep: a mouth open
+    on the target."""
+    steps = np.linspace(-1.2, 1.2, n + 1)
+    x, y = np.meshgrid(steps, steps, indexing="ij")
+    z = np.where((np.abs(x) < 0.6) & (np.abs(y) < 0.3), -1.0, -0.3 * (x**2 + y**2))
+    index = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
+    quads = np.stack([index[:-1, :-1], index[1:, :-1], index[1:, 1:], index[:-1, 1:]], -1).reshape(-1, 4)
+    mesh = bpy.data.meshes.new("Pit")
+    mesh.from_pydata(np.stack([x, y, z], -1).reshape(-1, 3).tolist(), [], quads.tolist())
+    mesh.update()
+    obj = bpy.data.objects.new("Pit", mesh)
+    bpy.context.scene.collection.objects.link(obj)
+    return obj
+
+
+def test_closed_lips_are_paired_with_the_rim_of_an_open_mouth_and_openings_off_pairs_none(capfd):
+    layout = mouth_layout(pit_target())
+    assert bpy.ops.springwrap.feature_lines_pair(
+        use_sharp=False, crease_angle=0.0, use_borders=False, feature_scale=0.3
+    ) == {"FINISHED"}
+    output = capfd.readouterr().out
+    assert "paired 1 opening (2 slit halves onto its rim" in output, output
+    items = feature_items(layout)
+    assert len(items) == 2
+    positions = world_positions(layout)
+    for item in items:
+        chain = [int(vertex) for vertex in item.layout_vertices.split()]
+        assert all(72 <= vertex < 96 for vertex in chain)  # the slit's ring
+        points = np.array([tuple(point.co) for point in item.points])
+        side = np.sign(positions[chain, 1].sum())
+        inner = points[np.abs(points[:, 0]) < 0.35]
+        assert np.allclose(inner[:, 1], side * 0.3, atol=0.03)
+    assert bpy.ops.springwrap.feature_lines_pair(
+        use_sharp=False, crease_angle=0.0, use_borders=False, use_openings=False, feature_scale=0.3
+    ) == {"FINISHED"}
+    assert not feature_items(layout)

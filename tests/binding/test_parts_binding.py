@@ -43,6 +43,10 @@ def test_neighbours_and_scale_change_the_result_and_bad_arguments_are_named():
     default = sk.SurfaceFollower(surface, ball, pieces, rigid).apply(now)
     assert np.abs(sk.SurfaceFollower(surface, ball, pieces, rigid, neighbours=4).apply(now) - default).max() > 1e-4
     assert np.abs(sk.SurfaceFollower(surface, ball, pieces, rigid, scale=True).apply(now) - default).max() > 1e-4
+    reweighted = sk.SurfaceFollower(surface, ball, pieces, rigid, robust_rounds=8).apply(now)
+    assert np.abs(reweighted - default).max() > 1e-4
+    with pytest.raises(sk.InvalidArgumentError, match="robust_rounds"):
+        sk.SurfaceFollower(surface, ball, pieces, rigid, robust_rounds=17)
     # soft_neighbours binds the soft vertices alone; neighbours the rigid pieces alone.
     soft = np.array([False])
     soft_default = sk.SurfaceFollower(surface, ball, pieces, soft).apply(now)

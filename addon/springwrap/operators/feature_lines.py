@@ -21,8 +21,8 @@ from .. import property_kinds as props
 from ..blender import anchors as anchor_data
 from ..blender import curves as curve_data
 from ..blender import feature_lines as line_data
-from ..blender.target import check_target
-from ..core import anchors, curves, feature_lines
+from ..blender.target import check_target, read_target
+from ..core import anchors, curves, feature_lines, openings
 from .base import LayoutCollectionOperator
 
 
@@ -51,6 +51,12 @@ class SPRINGWRAP_OT_feature_lines_pair(LayoutCollectionOperator, bpy.types.Opera
         max=180.0,
     )
     use_borders: props.flag("Open Borders", "The layout's open borders (rims of holes) are feature lines", True)
+    use_openings: props.flag(
+        "Openings",
+        "The layout's closed slits (lips that meet: a closed edge loop whose halves touch) are paired with the rim "
+        "of the opening the target has there (an open mouth), found by casting rays across the slit",
+        True,
+    )
     feature_scale: props.distance(
         "Feature Scale",
         "Scale at which the target's ridges and valleys are detected (see Detect Features); 0 = automatic, from "
@@ -123,18 +129,42 @@ class SPRINGWRAP_OT_feature_lines_pair(LayoutCollectionOperator, bpy.types.Opera
             max_angle=self.max_angle,
             min_confidence=self.min_confidence,
         )
-        curve_data.write_curve_constraints(layout, existing + pairing.constraints, -1)
+        opened = []
+        if self.use_openings:
+            opened = self.pair_openings(depsgraph, layout, lines_read, existing + pairing.constraints, anchored)
+        curve_data.write_curve_constraints(
+            layout, existing + pairing.constraints + [item for pair in opened for item in pair.constraints], -1
+        )
         line_data.remember_free(
             layout.name,
             [(feature_lines.line_label(line), feature_lines.FREE_REASONS[reason]) for line, reason in pairing.free],
         )
         level, text = feature_lines.pairing_report(len(lines), pairing)
+        if opened:
+            level = "INFO"
+            text += "; " + openings.report_text(opened)
         text += (
             f"; {len(junctions)} corners matched, {pairing.between_junctions} pairs between two"
             f"; {len(found_curves)} target features at scale {scale:.4g}, max distance {distance:.4g} "
             f"({time.perf_counter() - start:.2f} s)"
         )
         return [({level}, text)]
+
+    @staticmethod
+    def pair_openings(depsgraph, layout, lines_read, held_constraints, anchored) -> list:
+        """The layout's slits paired with the target's openings (``core.openings.OpeningPair`` each), those
+        whose vertices another constraint holds left out."""
+        slits = openings.layout_slits(lines_read.rest, lines_read.face_corners, lines_read.face_sizes)
+        if not slits:
+            return []
+        mesh = read_target(depsgraph, layout).mesh
+        held = curves.constrained_vertices(held_constraints, anchored)
+        found = []
+        for slit, direction in slits:
+            pair = openings.pair_slit(mesh, slit, lines_read.rest, lines_read.current, direction)
+            if pair is not None and not held & set(slit.loop.tolist()):
+                found.append(pair)
+        return found
 
 
 classes = (SPRINGWRAP_OT_feature_lines_pair,)

@@ -241,6 +241,14 @@ fn bad_inputs_are_refused_by_name() {
             false,
             "soft_neighbours",
         ),
+        (
+            FollowSettings {
+                robust_rounds: 17,
+                ..settings
+            },
+            true,
+            "robust_rounds",
+        ),
     ] {
         let error = refused(SurfaceFollower::new(
             &surface,
@@ -317,4 +325,45 @@ fn a_part_across_the_mirror_plane_moves_as_symmetrically_as_the_surface() {
             }
         }
     }
+}
+
+#[test]
+fn a_rigid_part_follows_its_surroundings_not_a_local_fold_over_it() {
+    // An eyeball just under a sphere's surface; the surface turns and shifts as a whole, and a small
+    // patch over the eyeball (a lid) also slides down across it, as a closing eyelid does.
+    let surface = sphere(2000, 1.0, DVec3::ZERO);
+    let eye = sphere(120, 0.12, DVec3::new(0.82, 0.0, 0.0));
+    let lid = DVec3::new(1.0, 0.05, 0.0);
+    let whole = |p: DVec3| {
+        DVec3::new(0.3, -0.2, 0.5) + DQuat::from_rotation_y(0.4) * DQuat::from_rotation_x(-0.2) * p
+    };
+    let now: Vec<DVec3> = surface
+        .iter()
+        .map(|&p| {
+            let reach = (1.0 - (p.distance(lid) / 0.22).powi(2)).max(0.0);
+            whole(p + DVec3::new(0.0, -0.12 * reach * reach, 0.0))
+        })
+        .collect();
+    // How far the eyeball ends from where the whole surface's motion takes it, at most.
+    let error = |robust_rounds: usize| {
+        let settings = FollowSettings {
+            robust_rounds,
+            ..FollowSettings::default()
+        };
+        SurfaceFollower::new(&surface, &eye, &[0; 120], &[true], settings)
+            .unwrap()
+            .apply(&now)
+            .unwrap()
+            .iter()
+            .zip(&eye)
+            .map(|(p, &r)| p.distance(whole(r)))
+            .fold(0.0_f64, f64::max)
+    };
+    let plain = error(0);
+    let robust = error(8);
+    assert!(plain > 0.01, "the fold drags a plain fit: {plain}");
+    assert!(
+        robust < 0.1 * plain,
+        "robust {robust} against plain {plain}"
+    );
 }

@@ -40,7 +40,7 @@ pub(crate) struct PySurfaceFollower {
 impl PySurfaceFollower {
     #[new]
     #[allow(clippy::too_many_arguments)] // keyword arguments of one Python constructor
-    #[pyo3(signature = (surface_rest, part_rest, pieces, rigid, *, neighbours = None, soft_neighbours = None, scale = None))]
+    #[pyo3(signature = (surface_rest, part_rest, pieces, rigid, *, neighbours = None, soft_neighbours = None, scale = None, robust_rounds = None))]
     fn new(
         py: Python<'_>,
         surface_rest: &Bound<'_, PyAny>,
@@ -50,6 +50,7 @@ impl PySurfaceFollower {
         neighbours: Option<&Bound<'_, PyAny>>,
         soft_neighbours: Option<&Bound<'_, PyAny>>,
         scale: Option<&Bound<'_, PyAny>>,
+        robust_rounds: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let defaults = FollowSettings::default();
         let settings = FollowSettings {
@@ -60,6 +61,9 @@ impl PySurfaceFollower {
                 count("soft_neighbours", value, 1 << 20)
             })?,
             scale: flag("scale", scale, defaults.scale)?,
+            robust_rounds: robust_rounds.map_or(Ok(defaults.robust_rounds), |value| {
+                count("robust_rounds", value, 1 << 20)
+            })?,
         };
         let surface_rest = read_points64("surface_rest", surface_rest)?;
         let part_rest = read_points64("part_rest", part_rest)?;

@@ -23,6 +23,14 @@ pub struct FollowSettings {
     /// translation alone: after an alignment has scaled the template, a part keeps its size, as an
     /// eyeball does when the face around it gains weight).
     pub scale: bool,
+    /// Reweighting rounds of a rigid piece's fit: 0 … 16. Each round fits the motion again with the
+    /// surface vertices that the last fit carries badly weighted down (Geman-McClure: a misfit of
+    /// [`ROBUST_SCALE`] times the weighted median keeps a quarter of its weight), so that a piece
+    /// follows the part of its surroundings that moves as one body (an eyeball its brow and cheek)
+    /// rather than skin that folds over it (a closing eyelid). The weights vary smoothly with the
+    /// misfits, so a symmetric motion keeps a part on the mirror plane symmetric. 0: one plain
+    /// weighted fit.
+    pub robust_rounds: usize,
 }
 
 impl Default for FollowSettings {
@@ -31,6 +39,7 @@ impl Default for FollowSettings {
             neighbours: 64,
             soft_neighbours: 256,
             scale: false,
+            robust_rounds: 0,
         }
     }
 }
@@ -52,9 +61,21 @@ impl FollowSettings {
             "number of surface neighbours of a soft part vertex",
             self.soft_neighbours as f64,
             SettingRange::closed(1.0, MAX_NEIGHBOURS),
+        )?;
+        check_setting(
+            "robust_rounds",
+            "number of reweighting rounds of a rigid piece's fit",
+            self.robust_rounds as f64,
+            SettingRange::closed(0.0, MAX_ROBUST_ROUNDS),
         )
     }
 }
+
+/// The most reweighting rounds of a rigid piece's fit.
+const MAX_ROBUST_ROUNDS: f64 = 16.0;
+/// The misfit, in weighted medians, at which a surface vertex keeps a quarter of its weight in the
+/// next round of a rigid piece's fit (Geman-McClure's scale).
+pub const ROBUST_SCALE: f64 = 1.0;
 
 /// The most surface neighbours a part vertex may be bound to.
 const MAX_NEIGHBOURS: f64 = 1024.0;
@@ -218,7 +239,9 @@ impl SurfaceFollower {
         let rigid_motions: Vec<Motion> = self
             .rigid
             .par_iter()
-            .map(|(_, binding)| motion(binding))
+            .map(|(_, binding)| {
+                Motion::robust_fit(binding, &self.surface_rest, surface_now, self.settings)
+            })
             .collect();
         for ((members, _), motion) in self.rigid.iter().zip(rigid_motions) {
             for &vertex in members {
@@ -291,6 +314,20 @@ fn bind(nearest: &[(u32, f64)]) -> Binding {
     binding
 }
 
+/// The weighted median of `(value, weight)` pairs (weights summing to about 1); sorts them.
+fn weighted_median(pairs: &mut [(f64, f64)]) -> f64 {
+    pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let total: f64 = pairs.iter().map(|&(_, weight)| weight).sum();
+    let mut running = 0.0;
+    for &(value, weight) in pairs.iter() {
+        running += weight;
+        if running >= 0.5 * total {
+            return value;
+        }
+    }
+    pairs.last().map_or(0.0, |&(value, _)| value)
+}
+
 /// A similarity taking a neighbourhood at rest to the same neighbourhood now.
 struct Motion {
     rest_centre: DVec3,
@@ -354,6 +391,54 @@ impl Motion {
             rotation,
             scale,
         }
+    }
+
+    /// [`Motion::fit`] reweighted `settings.robust_rounds` times (see
+    /// [`FollowSettings::robust_rounds`]): the surface vertices it carries worst lose their weight.
+    fn robust_fit(
+        binding: &Binding,
+        rest: &[DVec3],
+        now: &[DVec3],
+        settings: FollowSettings,
+    ) -> Self {
+        let mut motion = Self::fit(binding, rest, now, settings.scale);
+        // The neighbourhood's size: misfits below a millionth of it are exact.
+        let size = binding
+            .iter()
+            .map(|&(surface, weight)| weight * rest[surface as usize].distance(motion.rest_centre))
+            .sum::<f64>();
+        for _round in 0..settings.robust_rounds {
+            let misfits: Vec<(f64, f64)> = binding
+                .iter()
+                .map(|&(surface, weight)| {
+                    let carried = motion.apply(rest[surface as usize]);
+                    (carried.distance(now[surface as usize]), weight)
+                })
+                .collect();
+            let median = weighted_median(&mut misfits.clone());
+            if median.is_nan() || median <= 1e-6 * size {
+                break;
+            }
+            let scale = ROBUST_SCALE * median;
+            let reweighted: Binding = binding
+                .iter()
+                .zip(&misfits)
+                .map(|(&(surface, weight), &(misfit, _))| {
+                    let ratio = misfit / scale;
+                    (surface, weight / (1.0 + ratio * ratio).powi(2))
+                })
+                .collect();
+            let total: f64 = reweighted.iter().map(|&(_, weight)| weight).sum();
+            if total.is_nan() || total <= 0.0 {
+                break;
+            }
+            let normalised: Binding = reweighted
+                .into_iter()
+                .map(|(surface, weight)| (surface, weight / total))
+                .collect();
+            motion = Self::fit(&normalised, rest, now, settings.scale);
+        }
+        motion
     }
 
     fn apply(&self, point: DVec3) -> DVec3 {

@@ -590,7 +590,10 @@ class SurfaceFollower:
     """Parts bound to the layout's surface at rest, moved by the surface's motion: each part vertex bound to its
     ``neighbours`` nearest surface vertices (a soft one to its ``soft_neighbours`` nearest); a rigid piece moves by
     the best similarity (rotation, translation and, with ``scale``, a uniform scale) of the surface around all its
-    vertices, a soft vertex by its own neighbourhood's."""
+    vertices, a soft vertex by its own neighbourhood's. A rigid piece's fit is reweighted ``robust_rounds`` times
+    (0 to 16), each round weighting down the surface vertices the last fit carries worst (Geman-McClure: a misfit of
+    the weighted median keeps a quarter of its weight): the piece follows the surroundings that move as one body, not
+    skin folding over it."""
 
     def __init__(
         self,
@@ -602,6 +605,7 @@ class SurfaceFollower:
         neighbours: int = 64,
         soft_neighbours: int = 256,
         scale: bool = False,
+        robust_rounds: int = 0,
     ) -> None: ...
     @property
     def part_count(self) -> int:
