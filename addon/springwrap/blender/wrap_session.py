@@ -9,6 +9,7 @@ from collections.abc import Callable
 import bpy
 
 import numpy as np
+
 import springwrap_kernel
 
 from ..core import anchors, follow, input_policy, layout_state, parts, proposals, subdivision, transforms, wrap_inputs

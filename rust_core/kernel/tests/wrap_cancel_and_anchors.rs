@@ -95,7 +95,10 @@ fn moved(target: &TargetMesh, anchors: &[Anchor]) -> Vec<Anchor> {
 }
 
 fn anchor_position(target: &TargetMesh, anchors: &[Anchor], vertex: u32) -> Vec3 {
-    let anchor = anchors.iter().find(|anchor| anchor.vertex == vertex).unwrap();
+    let anchor = anchors
+        .iter()
+        .find(|anchor| anchor.vertex == vertex)
+        .unwrap();
     match anchor.target {
         AnchorTarget::Face(face_point) => target.face_point_position(face_point).unwrap(),
         AnchorTarget::Space(position) => position,
@@ -129,7 +132,10 @@ fn an_anchor_moved_mid_wrap_ends_at_its_new_target_as_in_a_wrap_started_anew() {
         .zip(fresh.positions())
         .map(|(a, b)| a.distance(*b))
         .fold(0.0f32, f32::max);
-    assert!(largest < 0.01, "{largest} from the wrap started anew (edge 0.1)");
+    assert!(
+        largest < 0.01,
+        "{largest} from the wrap started anew (edge 0.1)"
+    );
 }
 
 #[test]

@@ -196,7 +196,10 @@ impl PyWrapSolver {
             arguments::count("iterations", iterations, WrapSettings::MAX_STEP_ITERATIONS)?;
         let solver = &mut self.solver;
         let flag = cancel.map(|cancel| Arc::clone(&cancel.get().flag));
-        let stop = || flag.as_ref().is_some_and(|flag| flag.load(Ordering::Relaxed));
+        let stop = || {
+            flag.as_ref()
+                .is_some_and(|flag| flag.load(Ordering::Relaxed))
+        };
         let report = run_kernel(py, || solver.step_until(iterations, &stop))?;
         Ok((
             (

@@ -21,7 +21,7 @@ impl EnergySolver {
         for batch in (0..self.positions.len()).step_by(QUERIES_PER_CHECK) {
             check(stop, WRAP_STEP)?;
             let end = (batch + QUERIES_PER_CHECK).min(self.positions.len());
-            found.par_extend(self.correspondence_batch(normals, width, batch..end));
+            found.extend(self.correspondence_batch(normals, width, batch..end));
         }
         let mut correspondences = Vec::with_capacity(found.len());
         for (vertex, (correspondence, triangle)) in found.into_iter().enumerate() {
@@ -39,7 +39,7 @@ impl EnergySolver {
         normals: &[Vec3],
         width: f32,
         vertices: std::ops::Range<usize>,
-    ) -> impl IndexedParallelIterator<Item = (Option<Correspondence>, u32)> + '_ {
+    ) -> Vec<(Option<Correspondence>, u32)> {
         vertices
             .into_par_iter()
             .with_min_len(256)
@@ -80,6 +80,7 @@ impl EnergySolver {
                 }
                 (Some((weight, projected)), triangle)
             })
+            .collect()
     }
 
     /// Whether a closest-point hit may pull or receive a point whose layout normal is `normal`:

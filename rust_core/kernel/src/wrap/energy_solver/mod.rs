@@ -52,13 +52,15 @@ use super::global_phase::{
     GLOBAL_MIN_ALIGNMENT, GLOBAL_TO_LOCAL_LEVELS, RECIPROCAL_LEVELS, Stretches, choose_schedule,
     keep_reciprocal,
 };
+use super::linear_system::WRAP_STEP;
 use super::linear_system::{LinearSystem, Stencils};
 use super::plane_constraint::Plane;
 use super::settings::{WrapSchedule, WrapSettings};
 use super::similarity::{RestFit, Similarity};
 use super::soft_pair::{pull_soft_pairs, warm_up_pulls};
-use super::linear_system::WRAP_STEP;
-use crate::cancel::{NEVER, Stop, check};
+#[cfg(test)]
+use crate::cancel::NEVER;
+use crate::cancel::{Stop, check};
 use crate::error::KernelError;
 use crate::face_point::{FacePoint, LayoutPoint, SurfaceHit};
 use crate::layout::LayoutStructure;

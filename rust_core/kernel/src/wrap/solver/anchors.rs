@@ -74,11 +74,7 @@ pub(super) fn resolve_anchors(
         }
         let position = match anchor.target {
             AnchorTarget::Face(face_point) => {
-                validate::check_barycentric(
-                    "anchor barycentric",
-                    index,
-                    face_point.barycentric,
-                )?;
+                validate::check_barycentric("anchor barycentric", index, face_point.barycentric)?;
                 target
                     .face_point_position(face_point)
                     .map_err(|error| relabel_anchor_error(error, index))?
