@@ -37,14 +37,15 @@ fn a_step_that_is_never_stopped_is_the_plain_step_bit_for_bit() {
         let b = asked
             .step_until(3, &|| flag.load(Ordering::Relaxed))
             .unwrap();
-        assert_eq!(a, b);
+        assert_eq!(format!("{a:?}"), format!("{b:?}")); // as text: a NaN equals itself
         assert_eq!(plain.positions(), asked.positions());
     }
 }
 
 #[test]
 fn a_cancelled_step_puts_the_points_back_and_every_later_step_says_so() {
-    for asks_before_stop in [0, 1, 5, 40, 200] {
+    // From the first ask to a few iterations in (about ten asks an iteration).
+    for asks_before_stop in [0, 1, 5, 40] {
         let (target, mut solver, anchors) = plane_wrap();
         solver.step(4).unwrap();
         let (points, positions) = (solver.points().to_vec(), solver.positions().to_vec());
