@@ -169,6 +169,7 @@ class WrapSession:
         self.worker: SolveWorker | None = None
         self.cancel_flag = springwrap_kernel.CancelFlag()  # set by cancel(): the step in progress stops at once
         self.anchors_moved = False  # anchors moved since the last step: the wrap is not done
+        self.stop_seconds = 0.0  # how long the last stop of the worker waited for it (Esc's share in the solver)
         self.written_positions: np.ndarray | None = None  # the local positions finish() wrote
 
     @property
@@ -350,7 +351,7 @@ class WrapSession:
         worker, self.worker = self.worker, None
         if worker is None:
             return
-        worker.stop(interrupt=interrupt)
+        self.stop_seconds = worker.stop(interrupt=interrupt)
         if worker.error is not None and raise_error:
             raise worker.error
         if not interrupt and worker.error is None:
