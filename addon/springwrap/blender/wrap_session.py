@@ -17,13 +17,19 @@ from ..core.errors import LayoutError
 from ..core.target import Target
 from ..core.wrap_run import FramePacer, SolveWorker, WrapResult
 from . import anchors as anchor_data
-from . import attributes, last_run, wrap_reads
+from . import attributes, wrap_reads
 from . import curves as curve_data
 from . import layout as layout_data
 from . import parts as part_data
 from . import quality as quality_data
 from . import shape_keys as shape_key_data
 from . import target as target_data
+from .live_wraps import forget_results as forget_results  # the live wraps and results the panel shows
+from .live_wraps import forget_results_on_load as forget_results_on_load
+from .live_wraps import last_result as last_result
+from .live_wraps import remember_result as remember_result
+from .live_wraps import running_session as running_session
+from .live_wraps import set_running as set_running
 
 FRAME_RATE = 30.0
 """Redraws per second the modal wrap aims for when the display is fast (``core.wrap_run.FramePacer``)."""
@@ -480,65 +486,3 @@ class WrapSession:
             f"{report.face_points} face-points, {report.space_points} space-points, "
             f"last move {report.max_displacement:.2e}  —  Esc / right-click: cancel"
         )
-
-
-# ---------------------------------------------------------------- what the panel shows
-
-_running: list[WrapSession] = []
-
-
-def set_running(session: WrapSession | None, running: bool = True) -> None:
-    """Mark ``session`` as the live wrap in progress (the panel shows its progress), or no longer."""
-    if session is None:
-        return
-    if running and session not in _running:
-        _running.append(session)
-    elif not running and session in _running:
-        _running.remove(session)
-
-
-def running_session(layout: bpy.types.Object) -> WrapSession | None:
-    """The live wrap in progress on ``layout``, if any."""
-    for session in _running:
-        try:
-            if session.layout == layout:
-                return session
-        except ReferenceError:  # the layout was deleted under a session that was never ended
-            _running.remove(session)
-            return None
-    return None
-
-
-def remember_result(result: WrapResult, operation: str = "Wrap") -> None:
-    """Keep a finished wrap's result (or the wrap of a mirror's, ``operation="Mirror"``) for the panel's Check
-    section (``blender.last_run``: this Blender session only, by layout name)."""
-    rows = (
-        (f"Last {operation}", "Converged" if result.converged else "At the limit"),
-        ("Iterations", str(result.iterations)),
-        ("Time", f"{result.seconds:.2f} s"),
-    )
-    if result.frames:  # the live wrap: how much of that was solving, over how many redraws
-        rows += (("Solving", f"{result.kernel_seconds:.2f} s"), ("Frames", str(result.frames)))
-    last_run.remember(result.layout_name, last_run.LastRun(operation, result, rows))
-
-
-def last_result(layout: bpy.types.Object) -> WrapResult | None:
-    """The result of the last wrap (or mirror) on a layout of this name in this Blender session, if that is still
-    what last changed the layout."""
-    run = last_run.last(layout.name)
-    return None if run is None else run.result
-
-
-def forget_results() -> None:
-    """Drop the remembered results and live wraps (the add-on is unregistered, another file is loaded); their worker
-    threads are stopped."""
-    for session in _running:
-        session.stop_worker(raise_error=False)
-    _running.clear()
-    last_run.forget_all()
-
-
-@bpy.app.handlers.persistent
-def forget_results_on_load(_scene, _data=None) -> None:
-    """``load_post`` handler: a result belongs to the file it was made in (layouts are found by name)."""
-    forget_results()
