@@ -611,7 +611,7 @@ impl LinearSystem {
         start: &[DVec3],
         tolerances: Tolerances,
         max_iterations: usize,
-        stop: Stop<'_>,
+        should_stop: Stop<'_>,
     ) -> Result<(Vec<DVec3>, usize, bool), KernelError> {
         let wanted = self.full_right_hand_side(right_hand_side);
         let target_norm = column_norms(&wanted) * tolerances.residual;
@@ -655,7 +655,7 @@ impl LinearSystem {
             if iterations == max_iterations {
                 break;
             }
-            check(stop, WRAP_STEP)?;
+            check(should_stop, WRAP_STEP)?;
             let product = self.multiply(extra_diagonal, &direction);
             let curvature = column_dots(&direction, &product);
             // An axis already solved (no residual) takes no step.
