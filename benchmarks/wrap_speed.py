@@ -9,7 +9,10 @@
    main thread, the rest in the worker thread, each frame writing the newest positions into the mesh
    and followed by a stand-in redraw of 5 ms), counting redraws, redraws with new positions and
    iterations per second; then Esc pressed at three moments of a live wrap, timing how long it takes
-   to answer (the worker stopped and the layout put back) and checking the layout is back bit for bit.
+   to answer (the worker stopped and the layout put back) and checking the layout is back bit for bit:
+   as the operator answers it (the kernel's step in progress cancelled through its flag) and, to
+   compare in the same run, waiting for the iteration in progress instead; ``--esc-resolution k``
+   presses Esc in wraps at spring resolution k too (the fine stage's iterations are k² times longer).
    Aims: at least 30 redraws per second at 13k quads, Esc within 0.2 s. ``--live-main-thread`` also
    measures every frame solving on the main thread, to compare; ``--live-only`` skips the rest.
 3. **Large spring** (``--large``): a 2048 x 2048 spring (a 256 x 256 layout at spring resolution
@@ -99,7 +102,7 @@ CANCEL_AFTER_SECONDS = (0.4, 0.9, 1.7)
 """When the live measurement presses Esc, seconds into the wrap (one live wrap each)."""
 
 
-def _live_session(case, vertices, triangles):
+def _live_session(case, vertices, triangles, resolution: int = 1):
     """A ``WrapSession`` of the body as the modal wrap starts it (detached, 24 anchors)."""
     import bpy
 
@@ -121,7 +124,8 @@ def _live_session(case, vertices, triangles):
     from springwrap.blender.wrap_session import WrapSession
     from springwrap.core.wrap_inputs import WrapParameters
 
-    return WrapSession(bpy.context, layout, WrapParameters(), display_seconds=REDRAW_SECONDS)
+    parameters = WrapParameters(spring_resolution=resolution)
+    return WrapSession(bpy.context, layout, parameters, display_seconds=REDRAW_SECONDS)
 
 
 def measure_live(case, vertices, triangles, seconds_limit: float = 20.0, worker: bool = True) -> dict:
@@ -154,20 +158,24 @@ def measure_live(case, vertices, triangles, seconds_limit: float = 20.0, worker:
     }
 
 
-def measure_cancel(case, vertices, triangles, worker: bool = True) -> dict:
+def measure_cancel(case, vertices, triangles, worker: bool = True, interrupt: bool = True, resolution: int = 1) -> dict:
     """Esc during the live wrap on the body: the seconds from the key to the layout put back, at a few moments;
     ``worker`` as in :func:`measure_live` (without it, Esc waits for the frame in progress: measured as the
-    longest frame)."""
+    longest frame); ``interrupt``: Esc cuts the kernel's step in progress short, as the operator does (else the
+    worker is left to finish its iteration, to compare); ``resolution``: the wrap's spring resolution."""
     from springwrap.core.wrap_run import WrapLoop
 
     latencies = []
     for after in CANCEL_AFTER_SECONDS:
-        loop = WrapLoop(_live_session(case, vertices, triangles))
+        loop = WrapLoop(_live_session(case, vertices, triangles, resolution))
         before = np.array([vertex.co[:] for vertex in loop.session.layout.data.vertices])
         start, longest = time.perf_counter(), 0.0
         loop.handle("TIMER")
         if worker:
             loop.session.start_worker()
+            if not interrupt:
+                loop.session.worker._interrupt = None  # the comparison: stop() then waits for the iteration
+        running = loop.state == "RUNNING_MODAL" and not loop.session.done
         while time.perf_counter() - start < after and loop.state == "RUNNING_MODAL":
             frame = time.perf_counter()
             loop.handle("TIMER")
@@ -178,10 +186,17 @@ def measure_cancel(case, vertices, triangles, worker: bool = True) -> dict:
         answered = time.perf_counter() - pressed
         restored = np.array_equal(np.array([vertex.co[:] for vertex in loop.session.layout.data.vertices]), before)
         latencies.append(
-            {"after": after, "answered_seconds": answered + (0.0 if worker else longest), "restored": restored}
+            {
+                "after": after,
+                "answered_seconds": answered + (0.0 if worker else longest),
+                "restored": restored,
+                "running": running and loop.state == "CANCELLED",  # Esc came while it ran
+            }
         )
     return {
         "worker": worker,
+        "interrupt": interrupt,
+        "resolution": resolution,
         "cancels": latencies,
         "worst_seconds": max(item["answered_seconds"] for item in latencies),
     }
@@ -262,6 +277,26 @@ def _report_body(results: dict, body: dict) -> None:
     )
 
 
+def _report_esc(results: dict, case, vertices, triangles, resolution: int, interrupted: dict | None = None) -> None:
+    """Esc answered by interrupting the kernel's step (``interrupted``, measured when None) against waiting for the
+    iteration in progress, in one run, at spring ``resolution``: kept and printed."""
+    if interrupted is None:
+        interrupted = measure_cancel(case, vertices, triangles, resolution=resolution)
+    waiting = measure_cancel(case, vertices, triangles, interrupt=False, resolution=resolution)
+    results[f"esc_resolution_{resolution}"] = {"interrupted": interrupted, "waiting": waiting}
+    for name, measured in (("interrupting the step", interrupted), ("waiting for the iteration", waiting)):
+        print(
+            f"Esc at spring resolution {resolution}, {name}: "
+            + ", ".join(
+                f"{item['answered_seconds'] * 1000:.0f} ms at {item['after']} s"
+                + ("" if item["running"] else " (already done)")
+                for item in measured["cancels"]
+            )
+            + f"; restored: {all(item['restored'] for item in measured['cancels'])}",
+            flush=True,
+        )
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--large", action="store_true", help="also the 2048 x 2048 spring on 1M triangles")
@@ -270,6 +305,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--live-only", action="store_true", help="only the live wrap (and Esc) on the body")
     parser.add_argument(
         "--live-main-thread", action="store_true", help="also the live wrap solving on the main thread, to compare"
+    )
+    parser.add_argument(
+        "--esc-resolution", type=int, default=0, help="also press Esc in wraps at this spring resolution (0: none)"
     )
     parser.add_argument("--json", type=Path, default=REPOSITORY / "out" / "bench" / "wrap_speed.json")
     arguments = parser.parse_args(argv)
@@ -306,6 +344,10 @@ def main(argv: list[str] | None = None) -> int:
             f"{all(item['restored'] for item in cancel['cancels'])} (aim: 0.2 s)",
             flush=True,
         )
+        if worker:
+            _report_esc(results, case, vertices, triangles, 1, cancel)
+            if arguments.esc_resolution > 1:
+                _report_esc(results, case, vertices, triangles, arguments.esc_resolution)
     if arguments.large:
         large = measure_large(arguments.large_iterations, arguments.large_seconds)
         results["large"] = large

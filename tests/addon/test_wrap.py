@@ -337,13 +337,13 @@ def test_an_error_mid_way_restores_the_layout():
         def __init__(self, solver):
             self.solver, self.calls = solver, 0
 
-        def step(self, iterations):
+        def step(self, iterations, **keywords):
             self.calls += 1
             if self.calls > 2:
                 import springwrap_kernel
 
                 raise springwrap_kernel.InternalError("simulated failure")
-            return self.solver.step(iterations)
+            return self.solver.step(iterations, **keywords)
 
         def __getattr__(self, name):
             return getattr(self.solver, name)

@@ -104,11 +104,11 @@ def test_an_error_in_the_worker_restores_the_layout():
     solver, calls = loop.session.solver._solver, []
 
     class Failing:
-        def step(self, iterations):
+        def step(self, iterations, **keywords):
             calls.append(iterations)
             if len(calls) > 3:
                 raise springwrap_kernel.InternalError("simulated failure")
-            return solver.step(iterations)
+            return solver.step(iterations, **keywords)
 
         def __getattr__(self, name):
             return getattr(solver, name)
@@ -117,6 +117,72 @@ def test_an_error_in_the_worker_restores_the_layout():
     assert _frames(loop, 1000) == "CANCELLED"
     assert "simulated failure" in str(loop.error)
     assert snapshot(layout) == before
+
+
+def test_esc_cuts_the_kernels_step_in_progress_short_and_restores_the_layout_bit_for_bit():
+    import springwrap_kernel
+
+    target, layout, _normal = plane_scene(subdivisions=120)
+    bpy.ops.springwrap.anchors_auto(spacing=0.5)
+    before = snapshot(layout)
+    loop = _threaded_loop(layout)
+    solver, entered, raised = loop.session.solver._solver, threading.Event(), []
+
+    class Slow:
+        """A step that waits before the kernel's: Esc comes while it runs."""
+
+        def step(self, iterations, **keywords):
+            entered.set()
+            time.sleep(0.3)
+            try:
+                return solver.step(iterations, **keywords)
+            except springwrap_kernel.CancelledError as error:
+                raised.append(error)
+                raise
+
+        def __getattr__(self, name):
+            return getattr(solver, name)
+
+    loop.session.solver._solver = Slow()
+    assert entered.wait(30.0)
+    worker = loop.session.worker
+    assert loop.handle("ESC", "PRESS") == "CANCELLED"
+    assert worker.interrupted and worker.error is None and loop.error is None
+    assert len(raised) == 1 and "wrap step cancelled" in str(raised[0])
+    assert snapshot(layout) == before
+    with pytest.raises(springwrap_kernel.CancelledError):  # the half-stepped solver was dropped
+        solver.step(1)
+
+
+def test_an_anchor_moved_while_the_worker_runs_is_met_by_the_same_solver():
+    from springwrap.core import anchors, layout_state
+
+    target, layout, normal = plane_scene()
+    bpy.ops.springwrap.anchors_auto(spacing=0.5)
+    loop = _threaded_loop(layout, tolerance=1e-9)
+    session = loop.session
+    solver = session.solver
+    along = np.cross(np.asarray(normal, dtype=np.float64), [1.0, 0.0, 0.0])
+    moved = session.anchors
+    index = 0
+    location = moved.locations[index] + 0.15 * along / np.linalg.norm(along)  # on the plane, moved along it
+    moved = moved._replace(
+        kinds=np.where(np.arange(len(moved.kinds)) == index, anchors.SPACE_ANCHOR, moved.kinds).astype(np.int32),
+        triangles=np.where(np.arange(len(moved.kinds)) == index, layout_state.NO_FACE, moved.triangles).astype(
+            np.int32
+        ),
+        locations=np.where(np.arange(len(moved.kinds))[:, None] == index, location, moved.locations),
+    )
+    assert session.move_anchors(moved)
+    outcome = "RUNNING_MODAL"
+    while outcome == "RUNNING_MODAL":
+        outcome = _frames(loop, 1)
+    assert outcome == "FINISHED" and loop.result.converged
+    assert session.solver is solver and not solver.overlaps  # the same solver, edited by its own thread
+    vertex = int(moved.vertex_indices[index])
+    world = np.array(layout.matrix_world) @ np.append(layout.data.vertices[vertex].co[:], 1.0)
+    np.testing.assert_allclose(world[:3], location, atol=1e-4)
+    np.testing.assert_allclose(layout.springwrap.anchors[index].location, location, atol=1e-5)  # finish wrote it
 
 
 def test_pair_tool_edit_finishes_the_running_re_settle_between_two_iterations():

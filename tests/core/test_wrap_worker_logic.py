@@ -74,3 +74,62 @@ def test_an_error_in_the_worker_is_kept_for_the_main_thread():
     with pytest.raises(RuntimeError, match="simulated failure"):
         raise worker.error
     assert worker.take() == 1  # what it solved before the failure
+
+
+def test_submitted_edits_run_in_the_worker_between_two_steps_and_revive_a_done_solve():
+    solve = _Solve(limit=2)
+    worker = wrap_run.SolveWorker(solve.step, solve.snapshot, solve.done, 0.01)
+    edits = []
+
+    def edit():
+        edits.append((threading.get_ident(), solve.iterations))
+        solve.limit = 4  # an edit may leave more to solve
+
+    assert worker.submit(edit)
+    solve.proceed.release(4)
+    _wait_for(worker, 4)
+    worker.stop()
+    assert len(edits) == 1 and edits[0][0] != threading.get_ident()  # applied by the worker's thread
+    assert edits[0][1] in (0, 1, 2) and solve.iterations == 4  # between steps, and the solve went on to 4
+    assert not worker.submit(edit)  # stopped: the caller applies it itself
+    assert worker.pending() == []
+
+
+def test_edits_left_when_the_worker_stops_are_handed_back_in_order():
+    solve = _Solve()
+    worker = wrap_run.SolveWorker(solve.step, solve.snapshot, solve.done, 0.01)
+    solve.proceed.release(1)
+    _wait_for(worker, 1)  # the worker now waits inside its second step
+    first, second = (lambda: None), (lambda: None)
+    assert worker.submit(first) and worker.submit(second)
+    worker._stop.set()  # asked to stop while the step runs: it applies nothing after it
+    solve.proceed.release(1)
+    worker.stop()
+    assert worker.pending() == [first, second]
+
+
+class _Interrupted(Exception):
+    """Stands in for the kernel's CancelledError."""
+
+
+def test_an_interrupt_cuts_the_step_short_and_ends_the_thread_quietly():
+    flag = threading.Event()
+
+    def step(seconds):
+        flag.wait()  # a long step, until interrupted
+        raise _Interrupted("wrap step cancelled")
+
+    worker = wrap_run.SolveWorker(step, lambda: None, lambda: False, 0.01, flag.set, _Interrupted)
+    seconds = worker.stop(interrupt=True)
+    assert not worker.running and worker.interrupted and worker.error is None
+    assert seconds < 5.0
+
+
+def test_a_failure_that_is_not_the_interrupt_is_kept():
+    def step(seconds):
+        raise RuntimeError("simulated failure")
+
+    worker = wrap_run.SolveWorker(step, lambda: None, lambda: False, 0.01, lambda: None, _Interrupted)
+    worker._thread.join()
+    worker.stop(interrupt=True)
+    assert isinstance(worker.error, RuntimeError) and not worker.interrupted

@@ -413,6 +413,7 @@ class Workflow:
             solver_seconds=round(session.kernel_seconds, 3),
             display_seconds=round(session.pacer.display_seconds or 0.0, 3),
             answered_seconds=round(time.perf_counter() - waited, 3),
+            worker_stop_seconds=round(session.stop_seconds, 3),  # of which stopping the solve
         )
         yield STEP_SECONDS
 

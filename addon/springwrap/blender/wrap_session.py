@@ -10,18 +10,26 @@ import bpy
 
 import numpy as np
 
+import springwrap_kernel
+
 from ..core import anchors, follow, input_policy, layout_state, parts, proposals, subdivision, transforms, wrap_inputs
 from ..core.errors import LayoutError
 from ..core.target import Target
 from ..core.wrap_run import FramePacer, SolveWorker, WrapResult
 from . import anchors as anchor_data
-from . import attributes, last_run, wrap_reads
+from . import attributes, wrap_reads
 from . import curves as curve_data
 from . import layout as layout_data
 from . import parts as part_data
 from . import quality as quality_data
 from . import shape_keys as shape_key_data
 from . import target as target_data
+from .live_wraps import forget_results as forget_results  # the live wraps and results the panel shows
+from .live_wraps import forget_results_on_load as forget_results_on_load
+from .live_wraps import last_result as last_result
+from .live_wraps import remember_result as remember_result
+from .live_wraps import running_session as running_session
+from .live_wraps import set_running as set_running
 
 FRAME_RATE = 30.0
 """Redraws per second the modal wrap aims for when the display is fast (``core.wrap_run.FramePacer``)."""
@@ -125,6 +133,7 @@ class WrapSession:
         if adjust_inputs is not None:
             inputs = adjust_inputs(inputs)
         self.restriction = None
+        self.anchors_movable = adjust_inputs is None and region is None and inputs.soft_pair_vertices is None
         self.whole_inputs = inputs  # the mirror's plane in the layout's own numbering, for the parts' seam
         if region is not None:
             inputs = follow.held(inputs, region, template_share)
@@ -164,6 +173,9 @@ class WrapSession:
         self.events = {"landed": 0, "folded": 0}
         self._frame_end: float | None = None
         self.worker: SolveWorker | None = None
+        self.cancel_flag = springwrap_kernel.CancelFlag()  # set by cancel(): the step in progress stops at once
+        self.anchors_moved = False  # anchors moved since the last step: the wrap is not done
+        self.stop_seconds = 0.0  # how long the last stop of the worker waited for it (Esc's share in the solver)
         self.written_positions: np.ndarray | None = None  # the local positions finish() wrote
 
     @property
@@ -196,7 +208,7 @@ class WrapSession:
     @property
     def done(self) -> bool:
         """The last stage converged, or reached the iteration limit (each stage has it)."""
-        if self.last_report is None or self.stage != "fine":
+        if self.last_report is None or self.stage != "fine" or self.anchors_moved:
             return False
         return self.last_report.converged or self.stage_iterations >= self.parameters.max_iterations
 
@@ -208,7 +220,8 @@ class WrapSession:
         self._refine_if_due()
         iterations = min(int(iterations), self.parameters.max_iterations - self.stage_iterations)
         start = time.perf_counter()
-        report = self.solver.step(max(iterations, 0))
+        report = self.solver.step(max(iterations, 0), cancel=self.cancel_flag)
+        self.anchors_moved = False
         self.kernel_seconds += time.perf_counter() - start
         for name in self.events:
             self.events[name] += getattr(report, name)
@@ -230,11 +243,13 @@ class WrapSession:
         """End the coarse stage: a solver on the layout's faces cut k x k, started where the coarse one ended."""
         start = time.perf_counter()
         fine = subdivision.subdivide(self.layout_topology, int(self.parameters.spring_resolution))
+        self._check_cancelled()
         inputs = wrap_inputs.refine_wrap_inputs(
             self.inputs, fine, self.solver.positions(), self.solver.states(), self.target
         )
         structure = layout_data.make_layout_structure(fine.topology)
         inputs = part_data.refine_free(inputs, fine, self.vertex_count)
+        self._check_cancelled()
         self.solver = wrap_inputs.make_wrap_solver(self.target, structure, inputs, self.parameters)
         self.kernel_seconds += time.perf_counter() - start
         self.coarse_iterations = self.stage_iterations
@@ -285,23 +300,69 @@ class WrapSession:
                 break  # nothing left to run in this stage (the limit): done says so
         return report
 
+    def _check_cancelled(self) -> None:
+        """Raise the kernel's ``CancelledError`` once :meth:`cancel` set the flag (between the pieces of the fine
+        stage's start, which the kernel's step cannot see)."""
+        if self.cancel_flag.cancelled:
+            raise springwrap_kernel.CancelledError("wrap step cancelled")
+
+    def move_anchors(self, anchor_list) -> bool:
+        """Move the wrap's anchors to ``anchor_list`` (an ``core.anchors.Anchors`` resolved on the current target)
+        while it runs, without starting it anew: with a worker the change is queued and applied by its thread
+        between two iterations, else here. The points stay where they are and the solver's schedule starts again
+        from them (``WrapSolver.set_anchors``); :meth:`finish` writes these anchors. False (nothing changed) when
+        this session cannot take them so: a mirror's pins, a re-settled region, or soft pairs (accepted proposals)
+        in the wrap or in ``anchor_list``: the caller finishes it and starts another."""
+        used = proposals.used_by_wrap(anchor_list)
+        if not self.anchors_movable or (used.confidences > 0.0).any() or self.restriction is not None:
+            return False
+        arrays = wrap_inputs.wrap_anchor_arrays(used, self.vertex_count, self.inputs.origin)
+
+        def apply() -> None:  # in the worker's thread when there is one: the solver is its own there
+            self.solver.set_anchors(*arrays)
+            names = ("anchor_vertices", "anchor_triangles", "anchor_barycentrics", "anchor_positions")
+            self.inputs = self.inputs._replace(**dict(zip(names, arrays, strict=True)))
+            self.anchors = anchor_list
+            self.anchors_moved = True
+
+        had_worker = self.worker is not None
+        if had_worker and self.worker.submit(apply):
+            return True
+        self.stop_worker()  # it had ended (done): the solver is this thread's
+        apply()
+        if had_worker:
+            self.start_worker()
+        return True
+
     def start_worker(self) -> None:
         """Solve the rest of the wrap in a worker thread (``core.wrap_run.SolveWorker``): from now on :meth:`advance`
         only writes what it solved, and the solver is not touched here until :meth:`stop_worker` (which
         :meth:`finish` and :meth:`cancel` call). Each of its chunks solves about one frame's time. What runs in the
         worker (:meth:`step`, the fine stage's start, :meth:`current_layout`) reads and writes no Blender data."""
         if self.worker is None and not self.done:
-            self.worker = SolveWorker(self._solve_for, self.current_layout, lambda: self.done, self.pacer.frame_seconds)
+            self.worker = SolveWorker(
+                self._solve_for,
+                self.current_layout,
+                lambda: self.done,
+                self.pacer.frame_seconds,
+                interrupt=self.cancel_flag.cancel,
+                interrupted_error=springwrap_kernel.CancelledError,
+            )
 
-    def stop_worker(self, raise_error: bool = True) -> None:
-        """Stop the worker after its iteration in progress (the solver is then this thread's again); raise what it
-        raised unless ``raise_error`` is False. Nothing without a worker."""
+    def stop_worker(self, raise_error: bool = True, interrupt: bool = False) -> None:
+        """Stop the worker (the solver is then this thread's again); raise what it raised unless ``raise_error`` is
+        False. It stops after its iteration in progress, edits it had not applied yet applied here; with
+        ``interrupt`` the step in progress is cancelled at once and the solver is not to be stepped again (for
+        :meth:`cancel`). Nothing without a worker."""
         worker, self.worker = self.worker, None
         if worker is None:
             return
-        worker.stop()
+        self.stop_seconds = worker.stop(interrupt=interrupt)
         if worker.error is not None and raise_error:
             raise worker.error
+        if not interrupt and worker.error is None:
+            for edit in worker.pending():
+                edit()
 
     def _present(self):
         """A frame with a worker: write its newest positions and state; raise its error when it failed."""
@@ -401,8 +462,8 @@ class WrapSession:
     def cancel(self) -> None:
         """Put the layout back exactly as it was at the start: positions, state attributes, rest shape, read-out,
         and what :meth:`finish` writes on the object (target signature, anchors), the shape keys; also after a
-        failed finish (a worker is stopped first)."""
-        self.stop_worker(raise_error=False)
+        failed finish (a worker is stopped first, its step in progress cancelled: Esc is answered at once)."""
+        self.stop_worker(raise_error=False, interrupt=True)
         shape_key_data.restore(self.layout, self.shape_keys)
         attributes.restore_snapshot(self.layout, self.snapshot)
         target_signature, anchor_list, active_index, anchors_signature = self.settings_snapshot
@@ -425,65 +486,3 @@ class WrapSession:
             f"{report.face_points} face-points, {report.space_points} space-points, "
             f"last move {report.max_displacement:.2e}  —  Esc / right-click: cancel"
         )
-
-
-# ---------------------------------------------------------------- what the panel shows
-
-_running: list[WrapSession] = []
-
-
-def set_running(session: WrapSession | None, running: bool = True) -> None:
-    """Mark ``session`` as the live wrap in progress (the panel shows its progress), or no longer."""
-    if session is None:
-        return
-    if running and session not in _running:
-        _running.append(session)
-    elif not running and session in _running:
-        _running.remove(session)
-
-
-def running_session(layout: bpy.types.Object) -> WrapSession | None:
-    """The live wrap in progress on ``layout``, if any."""
-    for session in _running:
-        try:
-            if session.layout == layout:
-                return session
-        except ReferenceError:  # the layout was deleted under a session that was never ended
-            _running.remove(session)
-            return None
-    return None
-
-
-def remember_result(result: WrapResult, operation: str = "Wrap") -> None:
-    """Keep a finished wrap's result (or the wrap of a mirror's, ``operation="Mirror"``) for the panel's Check
-    section (``blender.last_run``: this Blender session only, by layout name)."""
-    rows = (
-        (f"Last {operation}", "Converged" if result.converged else "At the limit"),
-        ("Iterations", str(result.iterations)),
-        ("Time", f"{result.seconds:.2f} s"),
-    )
-    if result.frames:  # the live wrap: how much of that was solving, over how many redraws
-        rows += (("Solving", f"{result.kernel_seconds:.2f} s"), ("Frames", str(result.frames)))
-    last_run.remember(result.layout_name, last_run.LastRun(operation, result, rows))
-
-
-def last_result(layout: bpy.types.Object) -> WrapResult | None:
-    """The result of the last wrap (or mirror) on a layout of this name in this Blender session, if that is still
-    what last changed the layout."""
-    run = last_run.last(layout.name)
-    return None if run is None else run.result
-
-
-def forget_results() -> None:
-    """Drop the remembered results and live wraps (the add-on is unregistered, another file is loaded); their worker
-    threads are stopped."""
-    for session in _running:
-        session.stop_worker(raise_error=False)
-    _running.clear()
-    last_run.forget_all()
-
-
-@bpy.app.handlers.persistent
-def forget_results_on_load(_scene, _data=None) -> None:
-    """``load_post`` handler: a result belongs to the file it was made in (layouts are found by name)."""
-    forget_results()

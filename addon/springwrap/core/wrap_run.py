@@ -181,32 +181,82 @@ class SolveWorker:
     ``snapshot()`` (what the main thread draws, computed from the solver in this thread), and publishes the
     snapshot, until ``done()`` or :meth:`stop`. The kernel releases the GIL while it steps. Nothing else may touch
     the solver while the thread runs: the main thread reads only :meth:`take` (the newest snapshot not yet taken),
-    and reaches the solver again after :meth:`stop`, which waits for the iteration in progress (the solver is never
-    left half-stepped). An exception in the thread ends it and is kept in :attr:`error`.
+    hands changes over with :meth:`submit` (applied by the thread between two steps), and reaches the solver again
+    after :meth:`stop`. ``stop()`` waits for the iteration in progress (the solver is never left half-stepped);
+    ``stop(interrupt=True)`` first calls ``interrupt()`` (which sets the kernel's cancellation flag), so the step in
+    progress ends within a piece of an iteration, raising an ``interrupted_error``: that ends the thread quietly.
+    Any other exception in the thread ends it and is kept in :attr:`error`.
     """
 
-    def __init__(self, step: Callable, snapshot: Callable, done: Callable, chunk_seconds: float):
+    def __init__(
+        self,
+        step: Callable,
+        snapshot: Callable,
+        done: Callable,
+        chunk_seconds: float,
+        interrupt: Callable | None = None,
+        interrupted_error: type[BaseException] | tuple = (),
+    ):
         self._step, self._snapshot, self._done = step, snapshot, done
+        self._interrupt, self._interrupted_error = interrupt, interrupted_error
         self.chunk_seconds = chunk_seconds
         self.error: BaseException | None = None
+        self.interrupted = False  # whether a step was cut short by stop(interrupt=True)
         self._stop = threading.Event()
         self._lock = threading.Lock()
         self._latest = None
         self._serial = 0
         self._taken = 0
+        self._edits: list[Callable] = []
+        self._closed = False  # the thread takes no more edits (it ended or is about to)
         self._thread = threading.Thread(target=self._run, name="springwrap live wrap", daemon=True)
         self._thread.start()
 
     def _run(self) -> None:
         try:
-            while not self._stop.is_set() and not self._done():
+            while not self._stop.is_set():
+                self._apply_edits()
+                if self._done():
+                    with self._lock:
+                        if not self._edits:  # else an edit came after the last look: apply it, go on
+                            self._closed = True
+                            return
+                    continue
                 self._step(self.chunk_seconds)
                 snapshot = self._snapshot()
                 with self._lock:
                     self._latest = snapshot
                     self._serial += 1
         except BaseException as error:  # noqa: BLE001 - handed to the main thread, raised there
-            self.error = error
+            if self._stop.is_set() and isinstance(error, self._interrupted_error):
+                self.interrupted = True
+            else:
+                self.error = error
+        finally:
+            with self._lock:
+                self._closed = True
+
+    def _apply_edits(self) -> None:
+        """Apply the edits submitted since the last look, in order, in this thread."""
+        with self._lock:
+            edits, self._edits = self._edits, []
+        for edit in edits:
+            edit()
+
+    def submit(self, edit: Callable) -> bool:
+        """Hand ``edit`` (a callable changing the solver) to the thread, which calls it before its next step (and
+        solves on if it was done); False when the thread has ended or is ending: the caller applies it itself."""
+        with self._lock:
+            if self._closed or self._stop.is_set():
+                return False
+            self._edits.append(edit)
+            return True
+
+    def pending(self) -> list[Callable]:
+        """The submitted edits the thread did not apply (after :meth:`stop`), in order; taken from it."""
+        with self._lock:
+            edits, self._edits = self._edits, []
+        return edits
 
     @property
     def running(self) -> bool:
@@ -221,10 +271,15 @@ class SolveWorker:
             self._taken = self._serial
             return self._latest
 
-    def stop(self) -> float:
-        """Ask the thread to stop after the iteration in progress and wait for it; the seconds waited."""
+    def stop(self, interrupt: bool = False) -> float:
+        """Ask the thread to stop and wait for it; the seconds waited. Without ``interrupt`` it stops after the
+        iteration in progress; with it the step in progress is cancelled (``interrupt()``), the solver then unusable
+        (the caller drops it). Edits not yet applied are left for :meth:`pending`."""
         start = time.perf_counter()
-        self._stop.set()
+        with self._lock:
+            self._stop.set()
+        if interrupt and self._interrupt is not None and self._thread.is_alive():
+            self._interrupt()
         self._thread.join()
         return time.perf_counter() - start
 

@@ -41,6 +41,7 @@
 
 pub mod align;
 pub mod bvh;
+pub mod cancel;
 pub mod correspond;
 pub mod error;
 pub mod face_point;

@@ -298,7 +298,7 @@ impl PySubdivisionFit {
 /// cancel=flag)`): the computation asks it inside its loops and raises `CancelledError`.
 #[pyclass(name = "CancelFlag", module = "springwrap_kernel", frozen)]
 pub(crate) struct PyCancelFlag {
-    flag: Arc<AtomicBool>,
+    pub(crate) flag: Arc<AtomicBool>,
 }
 
 #[pymethods]

@@ -1,6 +1,7 @@
 //! `WrapSolver`: a wrap in progress, built from the layout's arrays, anchors and constraints.
 
 use std::sync::Arc;
+use std::sync::atomic::Ordering;
 
 use glam::Vec3;
 use numpy::{PyArray1, PyArray2};
@@ -13,6 +14,7 @@ use springwrap_kernel::{
 use crate::arguments;
 use crate::arrays::{read_array, read_positions, rows_array};
 use crate::errors::{ArrayError, IndexOutOfRangeError, InvalidArgumentError, run_kernel};
+use crate::fit::PyCancelFlag;
 use crate::layout::PyLayoutStructure;
 use crate::target_mesh::PyTargetMesh;
 use crate::wrap_settings::PyWrapSettings;
@@ -173,12 +175,17 @@ impl PyWrapSolver {
 
     /// Runs up to `iterations` iterations (fewer once converged); returns the progress as
     /// ((iterations, total_iterations, max_displacement, converged, face_points, space_points,
-    /// landed, folded, mean_displacement), energy, held_back, energy_decrease).
+    /// landed, folded, mean_displacement), energy, held_back, energy_decrease). `cancel` (a
+    /// `CancelFlag`): the step asks it inside its long loops and raises `CancelledError` soon
+    /// after another thread set it (the GIL is free while it runs); `positions()` and `states()`
+    /// then read the points as they were before the call, and every later step raises again.
+    #[pyo3(signature = (iterations, *, cancel = None))]
     #[allow(clippy::type_complexity)]
     fn step(
         &mut self,
         py: Python<'_>,
         iterations: &Bound<'_, PyAny>,
+        cancel: Option<&Bound<'_, PyCancelFlag>>,
     ) -> PyResult<(
         (usize, usize, f32, bool, usize, usize, usize, usize, f32),
         f64,
@@ -188,7 +195,12 @@ impl PyWrapSolver {
         let iterations =
             arguments::count("iterations", iterations, WrapSettings::MAX_STEP_ITERATIONS)?;
         let solver = &mut self.solver;
-        let report = run_kernel(py, || solver.step(iterations))?;
+        let flag = cancel.map(|cancel| Arc::clone(&cancel.get().flag));
+        let stop = || {
+            flag.as_ref()
+                .is_some_and(|flag| flag.load(Ordering::Relaxed))
+        };
+        let report = run_kernel(py, || solver.step_until(iterations, &stop))?;
         Ok((
             (
                 report.iterations,
@@ -205,6 +217,32 @@ impl PyWrapSolver {
             report.held_back,
             report.energy_decrease,
         ))
+    }
+
+    /// Replaces the anchors between two steps, as the constructor's four anchor arrays (none:
+    /// no anchor): the points stay where they are and the schedule starts again from its
+    /// warm-up, as a wrap built anew from them would (same anchored vertices: the linear system
+    /// is kept). A bad anchor raises and changes nothing.
+    #[pyo3(signature = (
+        anchor_vertices = None, anchor_triangles = None, anchor_barycentrics = None,
+        anchor_positions = None
+    ))]
+    fn set_anchors(
+        &mut self,
+        py: Python<'_>,
+        anchor_vertices: Option<&Bound<'_, PyAny>>,
+        anchor_triangles: Option<&Bound<'_, PyAny>>,
+        anchor_barycentrics: Option<&Bound<'_, PyAny>>,
+        anchor_positions: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<()> {
+        let anchors = read_anchors(
+            anchor_vertices,
+            anchor_triangles,
+            anchor_barycentrics,
+            anchor_positions,
+        )?;
+        let solver = &mut self.solver;
+        run_kernel(py, || solver.set_anchors(&anchors))
     }
 
     /// The settings the wrap runs with (a `WrapSettings`).

@@ -32,7 +32,8 @@ use rayon::prelude::*;
 use std::sync::Arc;
 
 use super::multigrid::{COARSEST_ROWS, FullRows, Multigrid};
-use super::system_assembly::assemble;
+use super::system_assembly::{assemble, fixed_right_hand_side};
+use crate::cancel::{NEVER, Stop, check};
 use crate::error::KernelError;
 
 /// The quadratic terms of an energy, in CSR form: term `t` asks
@@ -143,6 +144,9 @@ const MULTIGRID_ITERATIONS: usize = 60;
 /// Layouts with more free rows than this are not analysed for a factorization at all (the
 /// analysis alone would take seconds and gigabytes); their factor would pass any memory limit.
 const MAX_DIRECT_ROWS: usize = 1_500_000;
+
+/// What a cancelled wrap step reports as stopped.
+pub(crate) const WRAP_STEP: &str = "wrap step";
 
 /// `A = Σ weight · s sᵀ` over the free vertices, with its factor-reuse policy.
 pub struct LinearSystem {
@@ -329,6 +333,32 @@ impl LinearSystem {
         })
     }
 
+    /// Moves the fixed vertices to `fixed` (the same vertices fixed as when the system was made,
+    /// at other places): only the right-hand side's fixed part changes; the matrix and its
+    /// factor stay.
+    ///
+    /// # Errors
+    /// [`KernelError::InvalidArgument`] when another set of vertices is fixed, or out of memory.
+    pub fn move_fixed(
+        &mut self,
+        stencils: &Stencils,
+        fixed: &[Option<DVec3>],
+    ) -> Result<(), KernelError> {
+        let same = fixed.len() == self.row_of_vertex.len()
+            && fixed
+                .iter()
+                .zip(&self.row_of_vertex)
+                .all(|(fixed, row)| fixed.is_some() == row.is_none());
+        if !same {
+            return Err(solver_error(
+                "another set of vertices is fixed: the system must be made anew",
+            ));
+        }
+        self.fixed_right_hand_side =
+            fixed_right_hand_side(stencils, &self.row_of_vertex, self.rows(), fixed)?;
+        Ok(())
+    }
+
     /// The memory a factorization takes, in bytes: the factor's values (known from the pattern's
     /// analysis, before anything is factored); 0 when the solves are iterative.
     #[must_use]
@@ -476,6 +506,29 @@ impl LinearSystem {
         start: &[DVec3],
         position_tolerance: f64,
     ) -> Result<Vec<DVec3>, KernelError> {
+        self.solve_reusing_until(
+            extra_diagonal,
+            right_hand_side,
+            start,
+            position_tolerance,
+            NEVER,
+        )
+    }
+
+    /// [`LinearSystem::solve_reusing`], asking `stop` before a factorization and at every
+    /// iteration of conjugate gradients.
+    ///
+    /// # Errors
+    /// As [`LinearSystem::solve_reusing`]; [`KernelError::Cancelled`] once `stop` said true (the
+    /// last factorization may be replaced already).
+    pub fn solve_reusing_until(
+        &mut self,
+        extra_diagonal: &[f64],
+        right_hand_side: &[DVec3],
+        start: &[DVec3],
+        position_tolerance: f64,
+        stop: Stop<'_>,
+    ) -> Result<Vec<DVec3>, KernelError> {
         self.statistics.solves += 1;
         let tolerances = Tolerances {
             residual: RESIDUAL_TOLERANCE,
@@ -483,29 +536,32 @@ impl LinearSystem {
             position: position_tolerance,
         };
         if !self.is_direct() {
-            let (solution, _, _) = self.solve_preconditioned(
+            let (solution, _, _) = self.solve_preconditioned_until(
                 extra_diagonal,
                 right_hand_side,
                 start,
                 tolerances,
                 MULTIGRID_ITERATIONS,
+                stop,
             )?;
             return Ok(solution);
         }
         if !self.factor.is_empty()
             && self.outlying_rows(extra_diagonal) as f64 <= OUTLIER_SHARE * self.rows() as f64
         {
-            let (solution, _, converged) = self.solve_preconditioned(
+            let (solution, _, converged) = self.solve_preconditioned_until(
                 extra_diagonal,
                 right_hand_side,
                 start,
                 tolerances,
                 self.iteration_budget,
+                stop,
             )?;
             if converged {
                 return Ok(solution);
             }
         }
+        check(stop, WRAP_STEP)?;
         self.factor(extra_diagonal)?;
         self.solve(right_hand_side)
     }
@@ -536,6 +592,26 @@ impl LinearSystem {
         start: &[DVec3],
         tolerances: Tolerances,
         max_iterations: usize,
+    ) -> Result<(Vec<DVec3>, usize, bool), KernelError> {
+        self.solve_preconditioned_until(
+            extra_diagonal,
+            right_hand_side,
+            start,
+            tolerances,
+            max_iterations,
+            NEVER,
+        )
+    }
+
+    /// [`LinearSystem::solve_preconditioned`], asking `stop` at every iteration.
+    fn solve_preconditioned_until(
+        &mut self,
+        extra_diagonal: &[f64],
+        right_hand_side: &[DVec3],
+        start: &[DVec3],
+        tolerances: Tolerances,
+        max_iterations: usize,
+        should_stop: Stop<'_>,
     ) -> Result<(Vec<DVec3>, usize, bool), KernelError> {
         let wanted = self.full_right_hand_side(right_hand_side);
         let target_norm = column_norms(&wanted) * tolerances.residual;
@@ -579,6 +655,7 @@ impl LinearSystem {
             if iterations == max_iterations {
                 break;
             }
+            check(should_stop, WRAP_STEP)?;
             let product = self.multiply(extra_diagonal, &direction);
             let curvature = column_dots(&direction, &product);
             // An axis already solved (no residual) takes no step.

@@ -69,6 +69,30 @@ fn for_each_product(
     }
 }
 
+/// The right-hand side's part from the fixed vertices at `fixed` (the same sums, in the same
+/// order, as [`assemble`] makes them).
+///
+/// # Errors
+/// [`KernelError::InvalidArgument`] when its memory cannot be allocated.
+pub(crate) fn fixed_right_hand_side(
+    stencils: &Stencils,
+    row_of_vertex: &[Option<u32>],
+    rows: usize,
+    fixed: &[Option<DVec3>],
+) -> Result<Vec<DVec3>, KernelError> {
+    let mut right_hand_side = try_filled(rows, DVec3::ZERO, "right-hand side")?;
+    for_each_product(
+        stencils,
+        row_of_vertex,
+        |_, _, _| {},
+        |row_a, vertex_b, value| {
+            let position = fixed[vertex_b as usize].unwrap_or(DVec3::ZERO);
+            right_hand_side[row_a as usize] -= position * value;
+        },
+    );
+    Ok(right_hand_side)
+}
+
 /// Assembles `A` over the free vertices (`row_of_vertex`), `fixed[v]` the position of each
 /// fixed vertex.
 ///

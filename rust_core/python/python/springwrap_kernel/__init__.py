@@ -305,7 +305,10 @@ class WrapSolver(_native.WrapSolver):
 
     __slots__ = ()
 
-    def step(self, iterations):
-        """Run up to ``iterations`` iterations (fewer once converged); the GIL is released meanwhile."""
-        progress, energy, held_back, energy_decrease = super().step(iterations)
+    def step(self, iterations, *, cancel=None):
+        """Run up to ``iterations`` iterations (fewer once converged); the GIL is released meanwhile. ``cancel``: a
+        :class:`CancelFlag` the step asks inside its long loops; once another thread set it the step raises
+        :class:`CancelledError`, ``positions()`` / ``states()`` read the points as before the call and every later
+        step raises again (the half-stepped solver is dropped)."""
+        progress, energy, held_back, energy_decrease = super().step(iterations, cancel=cancel)
         return StepReport(*progress, energy, held_back, energy_decrease)

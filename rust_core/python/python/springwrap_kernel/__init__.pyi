@@ -449,8 +449,17 @@ class WrapSolver:
         soft_pair_positions: npt.NDArray[np.float32] | None = None,
         soft_pair_confidences: npt.NDArray[np.float32] | None = None,
     ) -> None: ...
-    def step(self, iterations: int) -> StepReport:
-        """Run up to ``iterations`` iterations (fewer once converged), GIL released."""
+    def step(self, iterations: int, *, cancel: CancelFlag | None = None) -> StepReport:
+        """Run up to ``iterations`` iterations (fewer once converged), GIL released; ``cancel`` set by another
+        thread: ``CancelledError`` soon, the points as before the call, the solver then unusable."""
+    def set_anchors(
+        self,
+        anchor_vertices: npt.NDArray[np.uint32] | None = None,
+        anchor_triangles: npt.NDArray[np.int32] | None = None,
+        anchor_barycentrics: npt.NDArray[np.float32] | None = None,
+        anchor_positions: npt.NDArray[np.float32] | None = None,
+    ) -> None:
+        """Replace the anchors between two steps: the points stay, the schedule starts again from its warm-up."""
     def positions(self) -> npt.NDArray[np.float32]:
         """(N, 3) positions of the layout points."""
     def states(self) -> tuple[npt.NDArray[np.int32], npt.NDArray[np.int32], npt.NDArray[np.float32]]:

@@ -5,16 +5,42 @@ use super::*;
 
 impl EnergySolver {
     /// Per free vertex, its correspondence, or `None`; the closest-point queries start from each
-    /// vertex's last hit (and record the new one).
+    /// vertex's last hit (and record the new one). `stop` is asked before each batch of
+    /// [`QUERIES_PER_CHECK`] queries.
     pub(super) fn correspondences(
         &mut self,
         normals: &[Vec3],
         width: f32,
-    ) -> Vec<Option<Correspondence>> {
+        stop: Stop<'_>,
+    ) -> Result<Vec<Option<Correspondence>>, KernelError> {
         if width <= 0.0 {
-            return vec![None; self.positions.len()]; // folding off: nothing is drawn on
+            return Ok(vec![None; self.positions.len()]); // folding off: nothing is drawn on
         }
-        let found: Vec<(Option<Correspondence>, u32)> = (0..self.positions.len())
+        let mut found: Vec<(Option<Correspondence>, u32)> =
+            Vec::with_capacity(self.positions.len());
+        for batch in (0..self.positions.len()).step_by(QUERIES_PER_CHECK) {
+            check(stop, WRAP_STEP)?;
+            let end = (batch + QUERIES_PER_CHECK).min(self.positions.len());
+            found.extend(self.correspondence_batch(normals, width, batch..end));
+        }
+        let mut correspondences = Vec::with_capacity(found.len());
+        for (vertex, (correspondence, triangle)) in found.into_iter().enumerate() {
+            if triangle != NO_TRIANGLE {
+                self.last_hits[vertex] = triangle;
+            }
+            correspondences.push(correspondence);
+        }
+        Ok(correspondences)
+    }
+
+    /// The correspondences of the vertices in `vertices`, each with its hit's triangle.
+    fn correspondence_batch(
+        &self,
+        normals: &[Vec3],
+        width: f32,
+        vertices: std::ops::Range<usize>,
+    ) -> Vec<(Option<Correspondence>, u32)> {
+        vertices
             .into_par_iter()
             .with_min_len(256)
             .map_init(QueryState::default, |state, vertex| {
@@ -54,15 +80,7 @@ impl EnergySolver {
                 }
                 (Some((weight, projected)), triangle)
             })
-            .collect();
-        let mut correspondences = Vec::with_capacity(found.len());
-        for (vertex, (correspondence, triangle)) in found.into_iter().enumerate() {
-            if triangle != NO_TRIANGLE {
-                self.last_hits[vertex] = triangle;
-            }
-            correspondences.push(correspondence);
-        }
-        correspondences
+            .collect()
     }
 
     /// Whether a closest-point hit may pull or receive a point whose layout normal is `normal`:

@@ -15,7 +15,13 @@ impl EnergySolver {
     /// Replaces each fitted rotation by its average over edge neighbours, `rounds` times (as
     /// quaternions, each neighbour's sign matched to the vertex's own): the shape terms then
     /// keep regions about `√rounds` rings wide rigid.
-    pub(super) fn smooth_rotations(&mut self, rounds: usize) -> Result<(), KernelError> {
+    /// `stop` is asked before each round.
+    pub(super) fn smooth_rotations(
+        &mut self,
+        rounds: usize,
+        stop: Stop<'_>,
+    ) -> Result<(), KernelError> {
+        check(stop, WRAP_STEP)?;
         if let Some(stretches) = self.stretches.as_mut() {
             return stretches.smooth_rotations(&mut self.similarities, rounds, self.frame);
         }
@@ -24,6 +30,7 @@ impl EnergySolver {
         }
         let mut rotations: Vec<Quat> = self.similarities.iter().map(|fit| fit.rotation).collect();
         for _ in 0..rounds {
+            check(stop, WRAP_STEP)?;
             rotations = (0..rotations.len() as u32)
                 .into_par_iter()
                 .with_min_len(2048)

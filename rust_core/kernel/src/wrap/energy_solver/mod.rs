@@ -52,11 +52,15 @@ use super::global_phase::{
     GLOBAL_MIN_ALIGNMENT, GLOBAL_TO_LOCAL_LEVELS, RECIPROCAL_LEVELS, Stretches, choose_schedule,
     keep_reciprocal,
 };
+use super::linear_system::WRAP_STEP;
 use super::linear_system::{LinearSystem, Stencils};
 use super::plane_constraint::Plane;
 use super::settings::{WrapSchedule, WrapSettings};
 use super::similarity::{RestFit, Similarity};
 use super::soft_pair::{pull_soft_pairs, warm_up_pulls};
+#[cfg(test)]
+use crate::cancel::NEVER;
+use crate::cancel::{Stop, check};
 use crate::error::KernelError;
 use crate::face_point::{FacePoint, LayoutPoint, SurfaceHit};
 use crate::layout::LayoutStructure;
@@ -166,6 +170,8 @@ const LANDING_REACH: f32 = 2.0;
 /// Rounds of normal smoothing per (layout edge / target edge)² (diffusion spreads as the square
 /// root of the rounds), and their bounds.
 const NORMAL_SMOOTHING_ROUNDS: (usize, usize) = (1, 24);
+/// Closest-point queries between two asks whether a step is to stop.
+const QUERIES_PER_CHECK: usize = 1 << 15;
 
 /// A point's pull toward the target: its Welsch weight and the point on the target's tangent
 /// plane it is pulled to.
@@ -286,7 +292,20 @@ impl EnergySolver {
     ///
     /// # Errors
     /// [`KernelError::InvalidArgument`] when the linear system cannot be built (out of memory).
+    #[cfg(test)]
     pub(crate) fn new(inputs: &EnergyInputs<'_>) -> Result<Self, KernelError> {
+        Self::new_until(inputs, NEVER)
+    }
+
+    /// [`EnergySolver::new`], asking `stop` between its long pieces (the matrix's analysis, the
+    /// target's smoothed normals, the first fit).
+    ///
+    /// # Errors
+    /// As [`EnergySolver::new`]; [`KernelError::Cancelled`] once `stop` said true.
+    pub(crate) fn new_until(
+        inputs: &EnergyInputs<'_>,
+        stop: Stop<'_>,
+    ) -> Result<Self, KernelError> {
         let structure = inputs.structure;
         let vertex_count = structure.vertex_count;
         let settings = inputs.settings;
@@ -345,7 +364,9 @@ impl EnergySolver {
                 }
             })
             .collect();
+        check(stop, WRAP_STEP)?;
         let system = LinearSystem::new(&stencils, vertex_count, &fixed, MAX_FACTOR_BYTES)?;
+        check(stop, WRAP_STEP)?;
         // Constrained vertices move to their constraints in the first step, with their
         // neighbours: the safeguard then sees the whole move.
         let positions = inputs.positions.to_vec();
@@ -354,6 +375,7 @@ impl EnergySolver {
             .map(Vec3::normalize_or_zero)
             .collect();
         let smoothed_normals = smoothed_vertex_normals(inputs.target, inputs.mean_edge_length);
+        check(stop, WRAP_STEP)?;
         let mut solver = Self {
             target: Arc::clone(inputs.target),
             structure: structure.clone(),
@@ -436,11 +458,55 @@ impl EnergySolver {
         }
     }
 
+    /// Moves the anchors to `anchor_of_vertex` (the same vertices anchored as when this solver
+    /// was made, other targets) and starts the schedule again from the warm-up, from the points
+    /// as they are. The matrix and its factor stay.
+    ///
+    /// # Errors
+    /// [`KernelError::InvalidArgument`] when other vertices are anchored (nothing changed then).
+    pub(crate) fn move_anchors(
+        &mut self,
+        anchor_of_vertex: &[Option<(AnchorTarget, Vec3)>],
+    ) -> Result<(), KernelError> {
+        let mut fixed = self.fixed.clone();
+        let mut fixed_points = self.fixed_points.clone();
+        for (vertex, anchor) in anchor_of_vertex.iter().enumerate() {
+            if let Some((target, position)) = *anchor {
+                fixed[vertex] = Some(position.as_dvec3());
+                fixed_points[vertex] = Some(match target {
+                    AnchorTarget::Face(face_point) => LayoutPoint::Face(face_point),
+                    AnchorTarget::Space(position) => LayoutPoint::Space(position),
+                });
+            }
+        }
+        self.system.move_fixed(&self.stencils, &fixed)?;
+        (self.fixed, self.fixed_points) = (fixed, fixed_points);
+        self.warming_up = true;
+        (self.level, self.level_iterations) = (0, 0);
+        self.last_energy = f64::INFINITY;
+        self.finished = false;
+        self.held_back.fill(false);
+        Ok(())
+    }
+
     /// One local–global iteration.
     ///
     /// # Errors
     /// [`KernelError::InvalidArgument`] when the factorization fails.
+    #[cfg(test)]
     pub(crate) fn iterate(&mut self) -> Result<EnergyStep, KernelError> {
+        self.iterate_until(NEVER)
+    }
+
+    /// [`EnergySolver::iterate`], asking `stop` between the pieces of the iteration and inside
+    /// its long loops (closest-point batches, rounds of smoothing, iterations of the global
+    /// solve).
+    ///
+    /// # Errors
+    /// As [`EnergySolver::iterate`]; [`KernelError::Cancelled`] once `stop` said true, the
+    /// solver then half-stepped (its caller drops it).
+    pub(crate) fn iterate_until(&mut self, stop: Stop<'_>) -> Result<EnergyStep, KernelError> {
+        check(stop, WRAP_STEP)?;
         if self.finished {
             return Ok(EnergyStep {
                 finished: true,
@@ -448,7 +514,7 @@ impl EnergySolver {
             });
         }
         if self.warming_up {
-            return self.warm_up();
+            return self.warm_up(stop);
         }
         let level = self.levels[self.level];
         let data_weight = level.data_weight * self.data_scale;
@@ -456,11 +522,12 @@ impl EnergySolver {
         if self.iterations > 0 {
             self.fit_similarities(false);
         }
-        self.smooth_rotations(level.rotation_smoothing)?;
+        self.smooth_rotations(level.rotation_smoothing, stop)?;
         self.fit_scales(level.scale_smoothing)?;
+        check(stop, WRAP_STEP)?;
         let normals = self.layout_normals(&self.positions);
         let width = level.welsch_width * self.mean_edge_length * self.reach_scale;
-        let mut correspondences = self.correspondences(&normals, width);
+        let mut correspondences = self.correspondences(&normals, width, stop)?;
         if self.stretches.is_some() && self.level < RECIPROCAL_LEVELS {
             keep_reciprocal(&self.positions, &mut correspondences, self.mean_edge_length);
         }
@@ -472,10 +539,12 @@ impl EnergySolver {
                 *correspondence = None;
             }
         }
-        let mut proposed = self.global_solve(&correspondences, data_weight)?;
+        let mut proposed = self.global_solve(&correspondences, data_weight, stop)?;
         self.keep_on_plane(&mut proposed);
+        check(stop, WRAP_STEP)?;
         // Safeguard: no corner may turn over.
         let (accepted, held_back) = self.safeguard(&proposed);
+        check(stop, WRAP_STEP)?;
         for ((held, accepted), proposed) in self.held_back.iter_mut().zip(&accepted).zip(&proposed)
         {
             *held = accepted != proposed;
@@ -516,14 +585,14 @@ impl EnergySolver {
 
     /// One iteration of the warm-up: the constraints alone pull the layout, as rigidly as
     /// possible (a posed target's limbs turn with their anchors before any data is asked for).
-    fn warm_up(&mut self) -> Result<EnergyStep, KernelError> {
+    fn warm_up(&mut self, stop: Stop<'_>) -> Result<EnergyStep, KernelError> {
         if self.iterations > 0 {
             self.fit_similarities(false);
         }
-        self.smooth_rotations(WARMUP_ROTATION_SMOOTHING)?;
+        self.smooth_rotations(WARMUP_ROTATION_SMOOTHING, stop)?;
         self.fit_scales(None)?;
         let pulls = warm_up_pulls(&self.soft_pairs, self.positions.len());
-        let mut proposed = self.global_solve(&pulls, 1.0)?;
+        let mut proposed = self.global_solve(&pulls, 1.0, stop)?;
         self.keep_on_plane(&mut proposed);
         let (max_move, mean_move) = moves(&proposed, &self.positions);
         let energy = self.energy_at(&proposed, &pulls, 1.0, &self.positions);
@@ -574,6 +643,7 @@ impl EnergySolver {
         &mut self,
         correspondences: &[Option<Correspondence>],
         data_weight: f64,
+        stop: Stop<'_>,
     ) -> Result<Vec<Vec3>, KernelError> {
         let rows = self.system.rows();
         let vertex_of_row = self.system.vertex_of_row().to_vec();
@@ -605,11 +675,12 @@ impl EnergySolver {
             .iter()
             .map(|&vertex| self.positions[vertex as usize].as_dvec3())
             .collect();
-        let solution = self.system.solve_reusing(
+        let solution = self.system.solve_reusing_until(
             &diagonal,
             &right_hand_side,
             &start,
             SOLVE_PRECISION * f64::from(self.mean_edge_length),
+            stop,
         )?;
         let mut proposed = self.positions.clone();
         for (position, fixed) in proposed.iter_mut().zip(&self.fixed) {

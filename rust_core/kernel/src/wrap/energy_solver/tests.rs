@@ -115,10 +115,12 @@ fn the_global_step_zeroes_the_energys_gradient_by_finite_differences() {
     let mut solver = solver(&target, &structure, &positions, &rest, &anchors);
     solver.smooth_scales(Some(2));
     let normals = solver.layout_normals(&solver.positions);
-    let correspondences = solver.correspondences(&normals, 0.2);
+    let correspondences = solver.correspondences(&normals, 0.2, NEVER).unwrap();
     assert!(correspondences.iter().filter(|c| c.is_some()).count() > 30);
     let data_weight = 3.0;
-    let solution = solver.global_solve(&correspondences, data_weight).unwrap();
+    let solution = solver
+        .global_solve(&correspondences, data_weight, NEVER)
+        .unwrap();
     let previous = solver.positions.clone();
     let energy =
         |positions: &[Vec3]| solver.energy_at(positions, &correspondences, data_weight, &previous);

@@ -112,42 +112,7 @@ impl WrapSolver {
                 .fold(0.0f32, f32::max);
             (centre, REACH_FACTOR * target_size.max(start_size))
         };
-        let mut anchor_of_vertex = vec![None; structure.vertex_count];
-        for (index, anchor) in anchors.iter().enumerate() {
-            let slot = anchor_of_vertex
-                .get_mut(anchor.vertex as usize)
-                .ok_or_else(|| KernelError::InvalidArgument {
-                    name: "anchors",
-                    reason: format!(
-                        "anchor {index} is on vertex {}, but the layout has {} vertices",
-                        anchor.vertex, structure.vertex_count
-                    ),
-                })?;
-            if slot.is_some() {
-                return Err(KernelError::InvalidArgument {
-                    name: "anchors",
-                    reason: format!("vertex {} has more than one anchor", anchor.vertex),
-                });
-            }
-            let position = match anchor.target {
-                AnchorTarget::Face(face_point) => {
-                    validate::check_barycentric(
-                        "anchor barycentric",
-                        index,
-                        face_point.barycentric,
-                    )?;
-                    target
-                        .face_point_position(face_point)
-                        .map_err(|error| relabel_anchor_error(error, index))?
-                }
-                AnchorTarget::Space(position) => {
-                    validate::check_coordinate("anchor target", index, position)?;
-                    validate::check_within_reach("anchor target", index, position, reach)?;
-                    position
-                }
-            };
-            *slot = Some((anchor.target, position));
-        }
+        let anchor_of_vertex = resolve_anchors(&target, structure.vertex_count, anchors, reach)?;
         let (min, max) = positions
             .iter()
             .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(min, max), &p| {
@@ -178,7 +143,7 @@ impl WrapSolver {
             soft_pairs: Vec::new(),
             energy: None,
             reach,
-            diverged: None,
+            failed: None,
         })
     }
 
@@ -438,25 +403,4 @@ fn resolve_positions(
         });
     }
     Ok(positions)
-}
-
-/// A face-point error about anchor targets names the anchor, not a face-point.
-fn relabel_anchor_error(error: KernelError, anchor: usize) -> KernelError {
-    match error {
-        KernelError::TriangleIndexOutOfRange {
-            triangle,
-            triangle_count,
-            ..
-        } => KernelError::InvalidArgument {
-            name: "anchors",
-            reason: format!(
-                "anchor {anchor} targets triangle {triangle}, but the target has only {triangle_count} triangles"
-            ),
-        },
-        KernelError::NonFinite { .. } => KernelError::NonFinite {
-            what: "anchor target",
-            index: anchor,
-        },
-        other => other,
-    }
 }

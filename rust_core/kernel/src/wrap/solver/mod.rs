@@ -7,9 +7,12 @@
 //! steps over a stiffness schedule; at the end the points land on the surface as face-points,
 //! held points walked onto the plane.
 
+mod anchors;
 mod build;
 mod plane;
 mod step;
+
+use anchors::resolve_anchors;
 
 use std::sync::Arc;
 
@@ -109,8 +112,8 @@ pub struct WrapSolver {
     /// The region the points may reach: a centre and a radius (ten times the target's size and
     /// the layout's start about the target's centre); leaving it is divergence.
     reach: (Vec3, f32),
-    /// Set once the wrap diverged: every later step returns it.
-    diverged: Option<KernelError>,
+    /// Set once the wrap diverged or a step was cancelled: every later step returns it.
+    failed: Option<KernelError>,
 }
 
 impl WrapSolver {

@@ -1,6 +1,7 @@
 //! Stepping: the energy solver's iterations, the landing at the end and the reports.
 
 use super::*;
+use crate::cancel::{NEVER, Stop};
 
 impl WrapSolver {
     /// Runs up to `iterations` iterations, stopping early once converged.
@@ -12,19 +13,44 @@ impl WrapSolver {
     /// system cannot be built or factored, or for more than
     /// [`WrapSettings::MAX_STEP_ITERATIONS`] iterations.
     pub fn step(&mut self, iterations: usize) -> Result<StepReport, KernelError> {
+        self.step_until(iterations, NEVER)
+    }
+
+    /// [`WrapSolver::step`], asking `stop` (from any thread) inside the iterations' long loops
+    /// (closest-point batches, rounds of smoothing, iterations of the global solve, before a
+    /// factorization) and in the energy's setup at the first step: once it says true the call
+    /// ends within about one such piece. A step that does not stop is the same as
+    /// [`WrapSolver::step`]'s, bit for bit.
+    ///
+    /// # Errors
+    /// As [`WrapSolver::step`]; [`KernelError::Cancelled`] once `stop` said true: the points and
+    /// positions are as they were before this call (what [`WrapSolver::points`] and
+    /// [`WrapSolver::positions`] read), the half-stepped energy is dropped, and every later call
+    /// (and [`WrapSolver::set_anchors`]) returns the same error.
+    pub fn step_until(
+        &mut self,
+        iterations: usize,
+        stop: Stop<'_>,
+    ) -> Result<StepReport, KernelError> {
         WrapSettings::check_step_iterations(iterations)?;
-        if let Some(error) = &self.diverged {
+        if let Some(error) = &self.failed {
             return Err(error.clone());
         }
         let before = (self.points.clone(), self.positions.clone());
-        let report = self.step_energy(iterations);
+        let report = self.step_energy(iterations, stop);
+        if let Err(error @ KernelError::Cancelled { .. }) = &report {
+            (self.points, self.positions) = before;
+            self.energy = None;
+            self.failed = Some(error.clone());
+            return report;
+        }
         if let Some(vertex) = self.escaped_vertex() {
             (self.points, self.positions) = before;
             let error = KernelError::Diverged {
                 iteration: self.total_iterations,
                 vertex,
             };
-            self.diverged = Some(error.clone());
+            self.failed = Some(error.clone());
             return Err(error);
         }
         report
@@ -40,7 +66,11 @@ impl WrapSolver {
     }
 
     /// [`WrapSolver::step`] before the divergence check.
-    fn step_energy(&mut self, iterations: usize) -> Result<StepReport, KernelError> {
+    fn step_energy(
+        &mut self,
+        iterations: usize,
+        stop: Stop<'_>,
+    ) -> Result<StepReport, KernelError> {
         if self.energy.is_none() {
             let inputs = EnergyInputs {
                 target: &self.target,
@@ -61,7 +91,7 @@ impl WrapSolver {
                 landing_distance: self.landing_distance,
                 settings: self.settings,
             };
-            self.energy = Some(Box::new(EnergySolver::new(&inputs)?));
+            self.energy = Some(Box::new(EnergySolver::new_until(&inputs, stop)?));
         }
         let mut report = self.empty_report();
         // Taken out while it steps, so that the plane's walks can read the rest of `self`.
@@ -70,7 +100,7 @@ impl WrapSolver {
             report.converged = true;
         }
         while report.iterations < iterations && !report.converged {
-            let outcome = match energy.iterate() {
+            let outcome = match energy.iterate_until(stop) {
                 Ok(outcome) => outcome,
                 Err(error) => {
                     self.energy = Some(energy);

@@ -1,0 +1,66 @@
+"""The live wraps in progress and the last results, as the panel shows them (this Blender session only): which
+``blender.wrap_session.WrapSession`` runs on a layout, and each layout's last wrap or mirror result."""
+
+import bpy
+
+from ..core.wrap_run import WrapResult
+from . import last_run
+
+_running: list = []
+
+
+def set_running(session, running: bool = True) -> None:
+    """Mark ``session`` as the live wrap in progress (the panel shows its progress), or no longer."""
+    if session is None:
+        return
+    if running and session not in _running:
+        _running.append(session)
+    elif not running and session in _running:
+        _running.remove(session)
+
+
+def running_session(layout: bpy.types.Object):
+    """The live wrap in progress on ``layout``, if any."""
+    for session in _running:
+        try:
+            if session.layout == layout:
+                return session
+        except ReferenceError:  # the layout was deleted under a session that was never ended
+            _running.remove(session)
+            return None
+    return None
+
+
+def remember_result(result: WrapResult, operation: str = "Wrap") -> None:
+    """Keep a finished wrap's result (or the wrap of a mirror's, ``operation="Mirror"``) for the panel's Check
+    section (``blender.last_run``: this Blender session only, by layout name)."""
+    rows = (
+        (f"Last {operation}", "Converged" if result.converged else "At the limit"),
+        ("Iterations", str(result.iterations)),
+        ("Time", f"{result.seconds:.2f} s"),
+    )
+    if result.frames:  # the live wrap: how much of that was solving, over how many redraws
+        rows += (("Solving", f"{result.kernel_seconds:.2f} s"), ("Frames", str(result.frames)))
+    last_run.remember(result.layout_name, last_run.LastRun(operation, result, rows))
+
+
+def last_result(layout: bpy.types.Object) -> WrapResult | None:
+    """The result of the last wrap (or mirror) on a layout of this name in this Blender session, if that is still
+    what last changed the layout."""
+    run = last_run.last(layout.name)
+    return None if run is None else run.result
+
+
+def forget_results() -> None:
+    """Drop the remembered results and live wraps (the add-on is unregistered, another file is loaded); their worker
+    threads are stopped."""
+    for session in _running:
+        session.stop_worker(raise_error=False)
+    _running.clear()
+    last_run.forget_all()
+
+
+@bpy.app.handlers.persistent
+def forget_results_on_load(_scene, _data=None) -> None:
+    """``load_post`` handler: a result belongs to the file it was made in (layouts are found by name)."""
+    forget_results()
