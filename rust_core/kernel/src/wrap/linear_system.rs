@@ -646,8 +646,9 @@ impl LinearSystem {
             .max(DVec3::splat(tolerances.position.powi(2) * diagonal_sum));
         let mut iterations = 0;
         let mut converged = false;
+        let mut norms = column_norms(&residual);
+        let mut product = vec![DVec3::ZERO; residual.len()];
         loop {
-            let norms = column_norms(&residual);
             if norms.cmple(target_norm).all() || alignment.cmple(target_alignment).all() {
                 converged = true;
                 break;
@@ -656,8 +657,7 @@ impl LinearSystem {
                 break;
             }
             check(should_stop, WRAP_STEP)?;
-            let product = self.multiply(extra_diagonal, &direction);
-            let curvature = column_dots(&direction, &product);
+            let curvature = self.multiply_dot(extra_diagonal, &direction, &mut product);
             // An axis already solved (no residual) takes no step.
             let step = DVec3::select(
                 curvature.cmpgt(DVec3::ZERO),
@@ -668,15 +668,19 @@ impl LinearSystem {
                 break;
             }
             iterations += 1;
-            solution
+            // The step, and the new residual's squared norms in the same pass.
+            let squares: DVec3 = solution
                 .par_iter_mut()
                 .with_min_len(4096)
                 .zip(residual.par_iter_mut())
                 .zip(direction.par_iter().zip(&product))
-                .for_each(|((solution, residual), (direction, product))| {
+                .map(|((solution, residual), (direction, product))| {
                     *solution += *direction * step;
                     *residual -= *product * step;
-                });
+                    *residual * *residual
+                })
+                .sum();
+            norms = squares.map(f64::sqrt);
             preconditioned = precondition(&residual)?;
             let next_alignment = column_dots(&residual, &preconditioned);
             let ratio = DVec3::select(
@@ -695,6 +699,15 @@ impl LinearSystem {
         }
         self.statistics.iterations += iterations;
         Ok((solution, iterations, converged))
+    }
+
+    /// `(A + diag(extra)) x` into `product`, and per axis the dot product of `x` and it.
+    fn multiply_dot(&self, extra_diagonal: &[f64], x: &[DVec3], product: &mut [DVec3]) -> DVec3 {
+        if let Some(multigrid) = &self.multigrid {
+            return multigrid.matrix().multiply_dot(extra_diagonal, x, product);
+        }
+        product.copy_from_slice(&self.multiply(extra_diagonal, x));
+        column_dots(x, product)
     }
 
     /// `(A + diag(extra)) x`.

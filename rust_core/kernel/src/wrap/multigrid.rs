@@ -29,8 +29,6 @@ pub(crate) const COARSEST_ROWS: usize = 20_000;
 /// A neighbour joins a row's aggregate when their coupling is at least this fraction of the
 /// geometric mean of their diagonals.
 const STRONG_COUPLING: f64 = 0.2;
-/// Smoothing sweeps before and after each coarse correction.
-const SMOOTHING_SWEEPS: usize = 2;
 /// At most this many levels (a level that hardly shrinks ends the hierarchy).
 const MAX_LEVELS: usize = 12;
 
@@ -125,18 +123,35 @@ impl FullRows {
             .collect()
     }
 
-    /// `b - (A + diag(extra)) x`.
-    fn residual(&self, extra_diagonal: &[f64], b: &[DVec3], x: &[DVec3]) -> Vec<DVec3> {
-        (0..self.rows())
-            .into_par_iter()
+    /// `(A + diag(extra)) x` into `product`, and per axis the dot product of `x` and it.
+    pub(crate) fn multiply_dot(
+        &self,
+        extra_diagonal: &[f64],
+        x: &[DVec3],
+        product: &mut [DVec3],
+    ) -> DVec3 {
+        product
+            .par_iter_mut()
             .with_min_len(4096)
-            .map(|row| {
-                self.row(row).fold(
-                    b[row] - x[row] * extra_diagonal[row],
-                    |sum, (column, value)| sum - x[column] * value,
-                )
+            .enumerate()
+            .map(|(row, product)| {
+                *product = self
+                    .row(row)
+                    .fold(x[row] * extra_diagonal[row], |sum, (column, value)| {
+                        sum + x[column] * value
+                    });
+                x[row] * *product
             })
-            .collect()
+            .sum()
+    }
+
+    /// Row `row` of `b - (A + diag(extra)) x`.
+    #[inline]
+    fn residual_at(&self, row: usize, extra_diagonal: &[f64], b: &[DVec3], x: &[DVec3]) -> DVec3 {
+        self.row(row).fold(
+            b[row] - x[row] * extra_diagonal[row],
+            |sum, (column, value)| sum - x[column] * value,
+        )
     }
 }
 
@@ -149,6 +164,10 @@ struct Level {
     row_magnitudes: Vec<f64>,
     /// Per row, its aggregate (its row in the next level); empty on the coarsest level.
     aggregate_of_row: Vec<u32>,
+    /// The rows of each aggregate: those of aggregate `a` are
+    /// `members[member_pointers[a]..member_pointers[a + 1]]`; empty on the coarsest level.
+    member_pointers: Vec<usize>,
+    members: Vec<u32>,
 }
 
 /// The hierarchy of an `A` (without the solves' extra diagonal).
@@ -222,12 +241,12 @@ fn aggregate(matrix: &FullRows) -> (Vec<u32>, usize) {
     (aggregate_of_row, count as usize)
 }
 
-/// `Pᵀ A P` for the piecewise-constant `P` of `aggregate_of_row`.
-fn coarsen(
-    matrix: &FullRows,
+/// The rows of each aggregate of `aggregate_of_row` (`coarse_rows` aggregates): pointers and
+/// members, as [`Level`] keeps them.
+fn aggregate_members(
     aggregate_of_row: &[u32],
     coarse_rows: usize,
-) -> Result<FullRows, KernelError> {
+) -> Result<(Vec<usize>, Vec<u32>), KernelError> {
     // The rows of each aggregate.
     let mut member_pointers = try_filled(coarse_rows + 1, 0usize, "multigrid")?;
     for &aggregate in aggregate_of_row {
@@ -242,6 +261,18 @@ fn coarsen(
         members[next[aggregate as usize]] = row as u32;
         next[aggregate as usize] += 1;
     }
+    Ok((member_pointers, members))
+}
+
+/// `Pᵀ A P` for the piecewise-constant `P` of `aggregate_of_row`, whose aggregates have the rows
+/// `members` (from `member_pointers`).
+fn coarsen(
+    matrix: &FullRows,
+    aggregate_of_row: &[u32],
+    member_pointers: &[usize],
+    members: &[u32],
+) -> Result<FullRows, KernelError> {
+    let coarse_rows = member_pointers.len() - 1;
     let coarse: Vec<Vec<(u32, f64)>> = (0..coarse_rows)
         .into_par_iter()
         .with_min_len(1024)
@@ -297,6 +328,8 @@ impl Level {
             matrix,
             row_magnitudes,
             aggregate_of_row: Vec::new(),
+            member_pointers: Vec::new(),
+            members: Vec::new(),
         }
     }
 }
@@ -320,8 +353,11 @@ impl Multigrid {
             if coarse_rows * 10 > rows * 9 {
                 break; // hardly shrinks: iterate on this level
             }
-            let coarse = coarsen(&level.matrix, &aggregate_of_row, coarse_rows)?;
+            let (member_pointers, members) = aggregate_members(&aggregate_of_row, coarse_rows)?;
+            let coarse = coarsen(&level.matrix, &aggregate_of_row, &member_pointers, &members)?;
             level.aggregate_of_row = aggregate_of_row;
+            level.member_pointers = member_pointers;
+            level.members = members;
             levels.push(Level::new(coarse));
         }
         let coarsest = &levels.last().expect("one level at least").matrix;
@@ -435,37 +471,50 @@ impl Multigrid {
                 .map(|row| DVec3::new(columns[(row, 0)], columns[(row, 1)], columns[(row, 2)]))
                 .collect();
         }
-        let smooth = |x: &mut Vec<DVec3>| {
-            let residual = level.matrix.residual(extra, b, x);
-            x.par_iter_mut()
+        // One ℓ1-Jacobi sweep: `x + D⁻¹ (b - (A + diag(extra)) x)`, into a new vector.
+        let smooth = |x: &[DVec3]| -> Vec<DVec3> {
+            (0..x.len())
+                .into_par_iter()
                 .with_min_len(4096)
-                .zip(&residual)
-                .zip(inverse)
-                .for_each(|((x, residual), inverse)| *x += *residual * *inverse);
+                .map(|row| x[row] + level.matrix.residual_at(row, extra, b, x) * inverse[row])
+                .collect()
         };
+        // One sweep before the coarse correction (from zero: a scaling of the residual) and one
+        // after: symmetric, as the conjugate gradients need. Measured on a 512² torus grid wrap,
+        // against two each side: a cycle passes over the finest matrix twice instead of four
+        // times, the conjugate gradients take 11 % more iterations, the global steps a quarter
+        // less processor time.
         let mut x: Vec<DVec3> = b
-            .iter()
+            .par_iter()
+            .with_min_len(4096)
             .zip(inverse)
             .map(|(b, inverse)| *b * *inverse)
             .collect();
-        for _ in 1..SMOOTHING_SWEEPS {
-            smooth(&mut x);
-        }
         if !last {
-            let residual = level.matrix.residual(extra, b, &x);
-            let mut coarse = vec![DVec3::ZERO; self.levels[index + 1].matrix.rows()];
-            for (&aggregate, value) in level.aggregate_of_row.iter().zip(&residual) {
-                coarse[aggregate as usize] += *value;
-            }
+            // The residual, row by row in order, then summed over each aggregate.
+            let residual: Vec<DVec3> = (0..x.len())
+                .into_par_iter()
+                .with_min_len(4096)
+                .map(|row| level.matrix.residual_at(row, extra, b, &x))
+                .collect();
+            let pointers = &level.member_pointers;
+            let coarse: Vec<DVec3> = (0..pointers.len() - 1)
+                .into_par_iter()
+                .with_min_len(1024)
+                .map(|aggregate| {
+                    level.members[pointers[aggregate]..pointers[aggregate + 1]]
+                        .iter()
+                        .map(|&row| residual[row as usize])
+                        .sum()
+                })
+                .collect();
             let correction = self.cycle_at(index + 1, prepared, &coarse);
             x.par_iter_mut()
                 .with_min_len(4096)
                 .zip(&level.aggregate_of_row)
                 .for_each(|(x, &aggregate)| *x += correction[aggregate as usize]);
         }
-        for _ in 0..SMOOTHING_SWEEPS {
-            smooth(&mut x);
-        }
+        x = smooth(&x);
         x
     }
 }

@@ -337,3 +337,33 @@ fn the_warm_up_carries_the_layout_with_its_anchors_as_rigidly_as_possible() {
         );
     }
 }
+
+#[test]
+fn without_a_factor_the_warm_up_runs_only_when_something_pulls_the_layout() {
+    // With a factor the warm-up always runs; without one (a layout too large to factor), only
+    // when a constraint moves the layout before the data term does.
+    let (target, structure, rest) = plane_and_grid(6, 0.1, 0.2);
+    let mut anchors = vec![None; rest.len()];
+    let position = rest[0] - Vec3::Z * 0.2;
+    let hit = target.closest_point(position, 1.0).unwrap();
+    anchors[0] = Some((AnchorTarget::Face(hit.face_point), position));
+    for (anchored, limit, warms_up) in [
+        (false, MAX_FACTOR_BYTES, true),
+        (false, 0, false),
+        (true, 0, true),
+    ] {
+        let anchors = if anchored {
+            anchors.clone()
+        } else {
+            vec![None; rest.len()]
+        };
+        let mut wrap = solver(&target, &structure, &rest, &rest, &anchors);
+        assert!(wrap.warming_up);
+        wrap.system = LinearSystem::new(&wrap.stencils, rest.len(), &wrap.fixed, limit).unwrap();
+        assert_eq!(
+            wrap.needs_warm_up(),
+            warms_up,
+            "anchored {anchored}, limit {limit}"
+        );
+    }
+}
