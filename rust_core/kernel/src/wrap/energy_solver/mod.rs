@@ -19,9 +19,10 @@
 //! `s` smoothed over the layout by a stiffness that relaxes level by level (Amberg et al. 2007:
 //! first one scale for all, at the end nearly per vertex). `p_i` is the projection of `x_i` onto
 //! the target's tangent plane at its closest point `q_i` (point-to-plane, so the layout slides
-//! along the surface), `c_i` a robust weight: Welsch in the distance, zero when the layout faces
-//! away from the target's smoothed normal there (cavities, the far side of a thin part), on a
-//! boundary edge (a hole) or on an unreliable triangle. Anchors and curve targets are hard
+//! along the surface), `c_i` a robust weight: Welsch in the distance (in the global-to-local
+//! schedule also times the cosine between the layout's and the target's normals), zero when the
+//! layout faces away from the target's smoothed normal there (cavities, the far side of a thin
+//! part), on a boundary edge (a hole) or on an unreliable triangle. Anchors and curve targets are hard
 //! constraints (their vertices are eliminated from the system); a soft pair (`soft_pair.rs`)
 //! replaces its vertex's data term by a pull toward its point in the warm-up and the stiff levels.
 //!
