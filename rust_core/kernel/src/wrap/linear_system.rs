@@ -28,6 +28,8 @@ use faer::sparse::linalg::cholesky::{
 use faer::sparse::{SparseColMat, SparseColMatRef, SymbolicSparseColMat};
 use faer::{Conj, Mat, Side, get_global_parallelism};
 use glam::DVec3;
+
+use super::ordered_sum::ordered_sum;
 use rayon::prelude::*;
 use std::sync::Arc;
 
@@ -208,11 +210,7 @@ fn column_norms(values: &[DVec3]) -> DVec3 {
 
 /// Per axis, the dot product of the columns of `a` and `b`.
 fn column_dots(a: &[DVec3], b: &[DVec3]) -> DVec3 {
-    a.par_iter()
-        .with_min_len(4096)
-        .zip(b)
-        .map(|(a, b)| *a * *b)
-        .sum()
+    ordered_sum(a.len().min(b.len()), |row| a[row] * b[row])
 }
 
 fn solver_error(reason: impl std::fmt::Display) -> KernelError {

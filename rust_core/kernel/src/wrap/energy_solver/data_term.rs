@@ -135,13 +135,10 @@ pub(super) fn smoothed_vertex_normals(target: &TargetMesh, radius: f32) -> Vec<V
     let vertices = target.vertices();
     let triangles = target.triangles();
     let mut normals = target.vertex_normals().to_vec();
-    let edge_sum: f64 = triangles
-        .par_iter()
-        .with_min_len(4096)
-        .map(|corners| {
-            f64::from(vertices[corners[0] as usize].distance(vertices[corners[1] as usize]))
-        })
-        .sum();
+    let edge_sum: f64 = ordered_sum(triangles.len(), |triangle| {
+        let corners = triangles[triangle];
+        f64::from(vertices[corners[0] as usize].distance(vertices[corners[1] as usize]))
+    });
     let target_edge = (edge_sum / triangles.len().max(1) as f64) as f32;
     let ratio = if target_edge > 0.0 {
         radius / target_edge

@@ -54,6 +54,7 @@ use super::global_phase::{
     keep_reciprocal,
 };
 use super::linear_system::{LinearSystem, Stencils};
+use super::ordered_sum::ordered_sum;
 use super::plane_constraint::Plane;
 use super::settings::{WrapSchedule, WrapSettings};
 use super::similarity::{RestFit, Similarity};
@@ -637,14 +638,10 @@ impl EnergySolver {
         previous: &[Vec3],
     ) -> f64 {
         let positions: Vec<DVec3> = positions.iter().map(|p| p.as_dvec3()).collect();
-        let springs: f64 = (0..self.stencils.len())
-            .into_par_iter()
-            .with_min_len(4096)
-            .map(|term| {
-                let residual = self.stencils.apply(term, &positions) - self.term_target(term);
-                self.stencils.weights[term] * residual.length_squared()
-            })
-            .sum();
+        let springs: f64 = ordered_sum(self.stencils.len(), |term| {
+            let residual = self.stencils.apply(term, &positions) - self.term_target(term);
+            self.stencils.weights[term] * residual.length_squared()
+        });
         let mut data = 0.0;
         let mut proximal = 0.0;
         for vertex in 0..positions.len() {
