@@ -39,8 +39,8 @@ mod tests {
     #[test]
     fn the_sum_is_the_same_to_the_bit_in_every_pool() {
         // Terms of very different sizes: any change of grouping shows in the last bits.
-        let terms: Vec<f64> = (0..50_000)
-            .map(|index| ((index * 7919) % 1000) as f64 * 10f64.powi(index as i32 % 17 - 8))
+        let terms: Vec<f64> = (0..50_000u32)
+            .map(|index| f64::from((index * 7919) % 1000) * 10f64.powi((index % 17) as i32 - 8))
             .collect();
         let sums: Vec<u64> = [1, 2, 3, 5]
             .into_iter()
