@@ -104,10 +104,11 @@ impl EnergySolver {
     /// the truth, and the strong local levels' full pull onto that tilted surface turns them past
     /// it (they face the target where they lie: no test against the target's normals sees them).
     /// A pull weighted by how well the layout faces the surface there tilts them less. Measured
-    /// with 6 anchors (`benchmarks/few_anchors.py`'s global-to-local wrap, one run; mean % of the
-    /// diagonal and flipped quads on the heavy, heavy-old, old-male and young-female bodies): from
-    /// 0.246, 0.469, 0.429, 0.348 and 8, 3, 0, 3 flipped to 0.241, 0.468, 0.435, 0.349 and 6, 1,
-    /// 0, 3 (p95 of young-female 1.199 to 1.147); with 4 anchors old-male 1.044 to 0.983. The
+    /// with 6 anchors (`benchmarks/retarget`'s `Springwrap wrap`, global to local, one run each
+    /// way; mean % of the diagonal and flipped quads on the heavy, heavy-old, old-male and
+    /// young-female bodies): from 0.243, 0.473, 0.447, 0.347 and 7, 4, 0, 3 flipped to 0.241,
+    /// 0.465, 0.441, 0.348 and 7, 2, 0, 3 (p95 of young-female 1.198 to 1.147; an earlier kernel:
+    /// heavy 8 to 6 flipped, with 4 anchors old-male 1.044 to 0.983). The
     /// square of the cosine, a hard cut at 0.7 instead of 0.5, or a test against the hit
     /// triangle's own normal were worse; in the local schedule (24 anchors) the weighting was
     /// worse on every body but heavy (old-male 0.348 to 0.357, 1 to 12 flipped), so it has none.
