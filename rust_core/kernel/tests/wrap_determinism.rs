@@ -4,27 +4,15 @@
 
 mod common;
 
-use std::sync::Arc;
-
 use glam::Vec3;
-use springwrap_kernel::{
-    LayoutPoint, StepReport, TargetMesh, TargetMeshOptions, WrapSchedule, WrapSettings, WrapSolver,
-};
+use springwrap_kernel::{LayoutPoint, StepReport, WrapSchedule, WrapSettings, WrapSolver};
 
 /// A band of `rings` x `segments` quads wrapped with `schedule` onto the unit sphere stretched
 /// by (1.6, 1, 0.8), four anchors on its equator at their true places: the positions as bits,
 /// and the last report.
 fn wrap_band(schedule: WrapSchedule, rings: u32, segments: u32) -> (Vec<[u32; 3]>, StepReport) {
     let axes = Vec3::new(1.6, 1.0, 0.8);
-    let (vertices, triangles) = common::uv_sphere(1.0, 64, 128);
-    let vertices = vertices.into_iter().map(|v| v * axes).collect();
-    let target =
-        Arc::new(TargetMesh::new(vertices, triangles, TargetMeshOptions::default()).unwrap());
-    let (structure, directions) = common::band_layout(Vec3::ONE, rings, segments);
-    let truth: Vec<Vec3> = directions.iter().map(|&d| d * axes).collect();
-    let equator = rings / 2 * segments;
-    let quarters: Vec<u32> = (0..4).map(|q| equator + q * segments / 4).collect();
-    let anchors = common::anchors_at(&target, &truth, &quarters);
+    let (target, structure, directions, _, anchors) = common::stretched_band(axes, rings, segments);
     let points = directions.iter().map(|&p| LayoutPoint::Space(p)).collect();
     let settings = WrapSettings {
         schedule,
