@@ -248,10 +248,34 @@ def plane_scene(hole=False, subdivisions=12):
     return target, layout, normal
 
 
+def number_faces_canonically(mesh) -> None:
+    """Renumber ``mesh``'s faces the same way whatever order they were made in: each face's corners start at its
+    lowest vertex (winding kept), the faces sorted by their corners. Blender's UV sphere numbers its faces (and
+    where each starts) differently from one call to the next, on the same vertices: two scenes built alike would
+    otherwise hand the wrap two differently triangulated targets."""
+    corners = np.empty(len(mesh.loops), dtype=np.int32)
+    mesh.attributes[".corner_vert"].data.foreach_get("value", corners)
+    starts = np.empty(len(mesh.polygons), dtype=np.int32)
+    mesh.polygons.foreach_get("loop_start", starts)
+    sizes = np.empty(len(mesh.polygons), dtype=np.int32)
+    mesh.polygons.foreach_get("loop_total", sizes)
+    faces = []
+    for start, size in zip(starts.tolist(), sizes.tolist()):
+        face = corners[start : start + size].tolist()
+        first = face.index(min(face))
+        faces.append(tuple(face[first:] + face[:first]))
+    positions = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+    mesh.vertices.foreach_get("co", positions)
+    mesh.clear_geometry()
+    mesh.from_pydata(positions.reshape(-1, 3).tolist(), [], sorted(faces))
+    mesh.update()
+
+
 def sphere_scene():
     """A UV-sphere target (radius 1.5) and a 10x10 grid bent onto a concentric cap of radius 1.8 (80 degrees wide)."""
     bpy.ops.mesh.primitive_uv_sphere_add(segments=48, ring_count=24, radius=SPHERE_RADIUS, location=SPHERE_CENTER)
     target = bpy.context.active_object
+    number_faces_canonically(target.data)
     target.name = "Target"
     bpy.ops.mesh.primitive_grid_add(x_subdivisions=10, y_subdivisions=10, size=2)
     layout = activate_layout(bpy.context.active_object, target)

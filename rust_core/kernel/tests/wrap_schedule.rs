@@ -3,26 +3,15 @@
 
 mod common;
 
-use std::sync::Arc;
-
 use glam::Vec3;
-use springwrap_kernel::{
-    LayoutPoint, TargetMesh, TargetMeshOptions, WrapSchedule, WrapSettings, WrapSolver,
-};
+use springwrap_kernel::{LayoutPoint, WrapSchedule, WrapSettings, WrapSolver};
 
 /// The mean distance of the wrapped band to the truth (each unit direction scaled by `axes`), with
 /// four anchors on the equator at their true places, and whether every quad still faces out.
 fn wrap_band(schedule: WrapSchedule, axes: Vec3) -> (f32, bool) {
     let (rings, segments) = (12, 48);
-    let (vertices, triangles) = common::uv_sphere(1.0, 64, 128);
-    let vertices = vertices.into_iter().map(|v| v * axes).collect();
-    let target =
-        Arc::new(TargetMesh::new(vertices, triangles, TargetMeshOptions::default()).unwrap());
-    let (structure, directions) = common::band_layout(Vec3::ONE, rings, segments);
-    let truth: Vec<Vec3> = directions.iter().map(|&d| d * axes).collect();
-    let equator = rings / 2 * segments;
-    let quarters: Vec<u32> = (0..4).map(|q| equator + q * segments / 4).collect();
-    let anchors = common::anchors_at(&target, &truth, &quarters);
+    let (target, structure, directions, truth, anchors) =
+        common::stretched_band(axes, rings, segments);
     let points = directions.iter().map(|&p| LayoutPoint::Space(p)).collect();
     let settings = WrapSettings {
         schedule,

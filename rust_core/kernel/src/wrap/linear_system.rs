@@ -28,6 +28,8 @@ use faer::sparse::linalg::cholesky::{
 use faer::sparse::{SparseColMat, SparseColMatRef, SymbolicSparseColMat};
 use faer::{Conj, Mat, Side, get_global_parallelism};
 use glam::DVec3;
+
+use super::ordered_sum::{PIECE, add_in_order, ordered_sum};
 use rayon::prelude::*;
 use std::sync::Arc;
 
@@ -212,11 +214,7 @@ fn column_norms(values: &[DVec3]) -> DVec3 {
 
 /// Per axis, the dot product of the columns of `a` and `b`.
 fn column_dots(a: &[DVec3], b: &[DVec3]) -> DVec3 {
-    a.par_iter()
-        .with_min_len(4096)
-        .zip(b)
-        .map(|(a, b)| *a * *b)
-        .sum()
+    ordered_sum(a.len().min(b.len()), |row| a[row] * b[row])
 }
 
 fn solver_error(reason: impl std::fmt::Display) -> KernelError {
@@ -669,17 +667,25 @@ impl LinearSystem {
             }
             iterations += 1;
             // The step, and the new residual's squared norms in the same pass.
-            let squares: DVec3 = solution
-                .par_iter_mut()
-                .with_min_len(4096)
-                .zip(residual.par_iter_mut())
-                .zip(direction.par_iter().zip(&product))
-                .map(|((solution, residual), (direction, product))| {
-                    *solution += *direction * step;
-                    *residual -= *product * step;
-                    *residual * *residual
+            // Grouped in the fixed pieces of `ordered_sum`, so that a solve repeats to the bit.
+            let pieces: Vec<DVec3> = solution
+                .par_chunks_mut(PIECE)
+                .zip(residual.par_chunks_mut(PIECE))
+                .enumerate()
+                .map(|(piece, (solution, residual))| {
+                    let start = piece * PIECE;
+                    solution
+                        .iter_mut()
+                        .zip(residual.iter_mut())
+                        .enumerate()
+                        .fold(DVec3::ZERO, |sum, (offset, (solution, residual))| {
+                            *solution += direction[start + offset] * step;
+                            *residual -= product[start + offset] * step;
+                            sum + *residual * *residual
+                        })
                 })
-                .sum();
+                .collect();
+            let squares = add_in_order(pieces);
             norms = squares.map(f64::sqrt);
             preconditioned = precondition(&residual)?;
             let next_alignment = column_dots(&residual, &preconditioned);

@@ -7,6 +7,7 @@ mod energy_solver;
 mod global_phase;
 pub mod linear_system;
 mod multigrid;
+mod ordered_sum;
 pub mod plane_constraint;
 pub mod settings;
 mod similarity;

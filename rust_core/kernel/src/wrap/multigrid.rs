@@ -21,6 +21,7 @@ use faer::{Mat, Side};
 use glam::DVec3;
 use rayon::prelude::*;
 
+use super::ordered_sum::ordered_sum_mut;
 use super::system_assembly::try_filled;
 use crate::error::KernelError;
 
@@ -130,19 +131,15 @@ impl FullRows {
         x: &[DVec3],
         product: &mut [DVec3],
     ) -> DVec3 {
-        product
-            .par_iter_mut()
-            .with_min_len(4096)
-            .enumerate()
-            .map(|(row, product)| {
-                *product = self
-                    .row(row)
-                    .fold(x[row] * extra_diagonal[row], |sum, (column, value)| {
-                        sum + x[column] * value
-                    });
-                x[row] * *product
-            })
-            .sum()
+        // Grouped in fixed pieces, so that the conjugate gradients repeat to the bit.
+        ordered_sum_mut(product, |row, product| {
+            *product = self
+                .row(row)
+                .fold(x[row] * extra_diagonal[row], |sum, (column, value)| {
+                    sum + x[column] * value
+                });
+            x[row] * *product
+        })
     }
 
     /// Row `row` of `b - (A + diag(extra)) x`.

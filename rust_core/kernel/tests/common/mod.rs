@@ -271,3 +271,30 @@ pub fn band_layout(axes: Vec3, rings: u32, segments: u32) -> (LayoutStructure, V
     let structure = LayoutStructure::new(positions.len(), &corners, &faces, &[], &[]).unwrap();
     (structure, positions)
 }
+
+/// The unit sphere's band (`rings` x `segments`, see [`band_layout`]) and the target it should
+/// wrap onto: the sphere (64 x 128) stretched by `axes`, four anchors on the band's equator at
+/// their true places. Returns the target, the band's structure, its unit directions (where it
+/// starts), the truth (each direction scaled by `axes`) and the anchors.
+pub fn stretched_band(
+    axes: Vec3,
+    rings: u32,
+    segments: u32,
+) -> (
+    Arc<TargetMesh>,
+    LayoutStructure,
+    Vec<Vec3>,
+    Vec<Vec3>,
+    Vec<Anchor>,
+) {
+    let (vertices, triangles) = uv_sphere(1.0, 64, 128);
+    let vertices = vertices.into_iter().map(|v| v * axes).collect();
+    let target =
+        Arc::new(TargetMesh::new(vertices, triangles, TargetMeshOptions::default()).unwrap());
+    let (structure, directions) = band_layout(Vec3::ONE, rings, segments);
+    let truth: Vec<Vec3> = directions.iter().map(|&d| d * axes).collect();
+    let equator = rings / 2 * segments;
+    let quarters: Vec<u32> = (0..4).map(|q| equator + q * segments / 4).collect();
+    let anchors = anchors_at(&target, &truth, &quarters);
+    (target, structure, directions, truth, anchors)
+}

@@ -19,9 +19,10 @@
 //! `s` smoothed over the layout by a stiffness that relaxes level by level (Amberg et al. 2007:
 //! first one scale for all, at the end nearly per vertex). `p_i` is the projection of `x_i` onto
 //! the target's tangent plane at its closest point `q_i` (point-to-plane, so the layout slides
-//! along the surface), `c_i` a robust weight: Welsch in the distance, zero when the layout faces
-//! away from the target's smoothed normal there (cavities, the far side of a thin part), on a
-//! boundary edge (a hole) or on an unreliable triangle. Anchors and curve targets are hard
+//! along the surface), `c_i` a robust weight: Welsch in the distance (in the global-to-local
+//! schedule also times the cosine between the layout's and the target's normals), zero when the
+//! layout faces away from the target's smoothed normal there (cavities, the far side of a thin
+//! part), on a boundary edge (a hole) or on an unreliable triangle. Anchors and curve targets are hard
 //! constraints (their vertices are eliminated from the system); a soft pair (`soft_pair.rs`)
 //! replaces its vertex's data term by a pull toward its point in the warm-up and the stiff levels.
 //!
@@ -54,6 +55,7 @@ use super::global_phase::{
 };
 use super::linear_system::WRAP_STEP;
 use super::linear_system::{LinearSystem, Stencils};
+use super::ordered_sum::ordered_sum;
 use super::plane_constraint::Plane;
 use super::settings::{WrapSchedule, WrapSettings};
 use super::similarity::{RestFit, Similarity};
@@ -720,14 +722,10 @@ impl EnergySolver {
         previous: &[Vec3],
     ) -> f64 {
         let positions: Vec<DVec3> = positions.iter().map(|p| p.as_dvec3()).collect();
-        let springs: f64 = (0..self.stencils.len())
-            .into_par_iter()
-            .with_min_len(4096)
-            .map(|term| {
-                let residual = self.stencils.apply(term, &positions) - self.term_target(term);
-                self.stencils.weights[term] * residual.length_squared()
-            })
-            .sum();
+        let springs: f64 = ordered_sum(self.stencils.len(), |term| {
+            let residual = self.stencils.apply(term, &positions) - self.term_target(term);
+            self.stencils.weights[term] * residual.length_squared()
+        });
         let mut data = 0.0;
         let mut proximal = 0.0;
         for vertex in 0..positions.len() {

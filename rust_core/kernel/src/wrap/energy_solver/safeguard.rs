@@ -9,18 +9,15 @@ impl EnergySolver {
     pub(super) fn measure_orientation(&self) -> f32 {
         let normals = self.layout_normals(&self.positions);
         let reach = self.mean_edge_length * 2.0;
-        let agreement: f32 = (0..self.positions.len())
-            .into_par_iter()
-            .with_min_len(256)
-            .filter_map(|vertex| {
-                let normal = normals[vertex];
-                if normal == Vec3::ZERO {
-                    return None;
-                }
-                let hit = self.target.closest_point(self.positions[vertex], reach)?;
-                Some(normal.dot(self.smoothed_normal(hit.face_point)))
-            })
-            .sum();
+        let agreement: f32 = ordered_sum(self.positions.len(), |vertex| {
+            let normal = normals[vertex];
+            if normal == Vec3::ZERO {
+                return 0.0;
+            }
+            self.target
+                .closest_point(self.positions[vertex], reach)
+                .map_or(0.0, |hit| normal.dot(self.smoothed_normal(hit.face_point)))
+        });
         if agreement < 0.0 { -1.0 } else { 1.0 }
     }
 

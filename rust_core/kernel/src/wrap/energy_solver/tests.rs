@@ -367,3 +367,38 @@ fn without_a_factor_the_warm_up_runs_only_when_something_pulls_the_layout() {
         );
     }
 }
+
+#[test]
+fn the_global_to_local_pull_weakens_as_the_layout_faces_away_from_the_surface() {
+    // A grid tilted 40 degrees over a plane: every point's pull onto the plane is the local
+    // schedule's times cos 40° in the global-to-local schedule, and the same where the grid
+    // lies flat (a quad in a crease is not turned onto a surface it does not face).
+    let (target, structure, flat) = plane_and_grid(6, 0.1, 0.3);
+    let tilt = Quat::from_rotation_y(40f32.to_radians());
+    let tilted: Vec<Vec3> = flat
+        .iter()
+        .map(|&p| tilt * (p - Vec3::Z * 0.3) + Vec3::Z * 0.4)
+        .collect();
+    let none = vec![None; flat.len()];
+    let weights = |schedule: WrapSchedule, positions: &[Vec3]| -> Vec<f32> {
+        let mut wrap = solver_following(schedule, &target, &structure, positions, positions, &none);
+        let normals = wrap.layout_normals(positions);
+        wrap.correspondences(&normals, 1.0, NEVER)
+            .unwrap()
+            .into_iter()
+            .map(|correspondence| correspondence.map_or(0.0, |(weight, _)| weight))
+            .collect()
+    };
+    for (positions, factor) in [(&tilted, 40f32.to_radians().cos()), (&flat, 1.0)] {
+        let local = weights(WrapSchedule::Local, positions);
+        let global = weights(WrapSchedule::GlobalToLocal, positions);
+        for vertex in [16, 24, 32] {
+            assert!(local[vertex] > 0.0, "vertex {vertex} is pulled");
+            let ratio = global[vertex] / local[vertex];
+            assert!(
+                (ratio - factor).abs() < 1e-3,
+                "vertex {vertex}: {ratio}, {factor} wanted"
+            );
+        }
+    }
+}
