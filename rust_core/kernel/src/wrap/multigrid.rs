@@ -609,4 +609,49 @@ mod tests {
         // space of smooth motions): 87 iterations measured.
         assert!(iterations < 120, "{iterations} iterations");
     }
+
+    #[test]
+    fn a_multigrid_preconditioned_solve_repeats_to_the_bit_in_every_pool() {
+        // 19,600 rows: rayon cuts a pass of this size into two pieces with one thread and four
+        // with two (at least 4,096 rows each), so a sum grouped by rayon's pieces differs in its
+        // last bits between the pools.
+        let side = 140;
+        let (stencils, fixed) = grid(side);
+        let count = (side * side) as usize;
+        let solve = || {
+            let mut system = LinearSystem::new(&stencils, count, &fixed, 0).unwrap();
+            system.coarsen_to(500);
+            let rows = system.rows();
+            let extra: Vec<f64> = (0..rows).map(|row| 1e-4 * (1 + row % 7) as f64).collect();
+            let b: Vec<DVec3> = (0..rows)
+                .map(|row| {
+                    let t = row as f64;
+                    DVec3::new(t.sin(), (0.3 * t).cos(), 0.01 * t)
+                })
+                .collect();
+            let start = vec![DVec3::ZERO; rows];
+            let (solution, iterations, _) = system
+                .solve_preconditioned(&extra, &b, &start, residual_only(1e-9), 60)
+                .unwrap();
+            let bits: Vec<[u64; 3]> = solution
+                .iter()
+                .map(|x| x.to_array().map(f64::to_bits))
+                .collect();
+            (bits, iterations)
+        };
+        let runs: Vec<_> = [1, 2, 3]
+            .into_iter()
+            .map(|threads| {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                pool.install(solve)
+            })
+            .collect();
+        for (threads, run) in [2, 3].into_iter().zip(&runs[1..]) {
+            assert_eq!(run.1, runs[0].1, "iterations with {threads} threads");
+            assert!(run.0 == runs[0].0, "the solution with {threads} threads");
+        }
+    }
 }
