@@ -551,7 +551,10 @@ def test_a_slow_display_gets_long_solving_frames_and_a_fast_one_short_ones():
     slow_iterations = session.total_iterations
     session.pacer.display_seconds = 0.0
     session.advance()
-    assert session.total_iterations - slow_iterations < slow_iterations / 4  # a 1/30 s frame: much less work
+    fast_iterations = session.total_iterations - slow_iterations
+    # A 1/30 s frame: much less work, or the one iteration every frame runs (all a loaded machine fits in 0.6 s
+    # may be a few iterations).
+    assert fast_iterations == 1 or fast_iterations < slow_iterations / 4, (slow_iterations, fast_iterations)
     session.cancel()
     assert snapshot(layout) == before
 
