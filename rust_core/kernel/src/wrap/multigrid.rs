@@ -521,6 +521,7 @@ mod tests {
     use glam::DVec3;
 
     use crate::wrap::linear_system::{LinearSystem, Stencils, Tolerances};
+    use crate::wrap::ordered_sum::in_pools;
 
     /// A `side` x `side` grid's energy terms: edges, and second differences along both axes
     /// (the wrap's arc-length and fairness terms), with a data weight on every row; the four
@@ -639,16 +640,7 @@ mod tests {
                 .collect();
             (bits, iterations)
         };
-        let runs: Vec<_> = [1, 2, 3]
-            .into_iter()
-            .map(|threads| {
-                let pool = rayon::ThreadPoolBuilder::new()
-                    .num_threads(threads)
-                    .build()
-                    .unwrap();
-                pool.install(solve)
-            })
-            .collect();
+        let runs = in_pools(&[1, 2, 3], solve);
         for (threads, run) in [2, 3].into_iter().zip(&runs[1..]) {
             assert_eq!(run.1, runs[0].1, "iterations with {threads} threads");
             assert!(run.0 == runs[0].0, "the solution with {threads} threads");

@@ -60,6 +60,22 @@ where
     add_in_order(pieces)
 }
 
+/// `run()` in a fresh rayon pool of each size in `threads`: the results, in that order (for tests
+/// that a computation repeats to the bit whatever the pool).
+#[cfg(test)]
+pub(crate) fn in_pools<R: Send>(threads: &[usize], run: impl Fn() -> R + Sync) -> Vec<R> {
+    threads
+        .iter()
+        .map(|&threads| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(&run)
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -70,16 +86,9 @@ mod tests {
         let terms: Vec<f64> = (0..50_000u32)
             .map(|index| f64::from((index * 7919) % 1000) * 10f64.powi((index % 17) as i32 - 8))
             .collect();
-        let sums: Vec<u64> = [1, 2, 3, 5]
-            .into_iter()
-            .map(|threads| {
-                let pool = rayon::ThreadPoolBuilder::new()
-                    .num_threads(threads)
-                    .build()
-                    .unwrap();
-                pool.install(|| ordered_sum(terms.len(), |index| terms[index]).to_bits())
-            })
-            .collect();
+        let sums = in_pools(&[1, 2, 3, 5], || {
+            ordered_sum(terms.len(), |index| terms[index]).to_bits()
+        });
         assert!(sums.iter().all(|&sum| sum == sums[0]), "{sums:?}");
         let exact: f64 = terms.iter().sum();
         assert!((f64::from_bits(sums[0]) - exact).abs() <= exact * 1e-12);
