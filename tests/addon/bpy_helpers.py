@@ -254,7 +254,7 @@ def number_faces_canonically(mesh) -> None:
     where each starts) differently from one call to the next, on the same vertices: two scenes built alike would
     otherwise hand the wrap two differently triangulated targets."""
     corners = np.empty(len(mesh.loops), dtype=np.int32)
-    mesh.attributes[".corner_vert"].data.foreach_get("value", corners)
+    mesh.loops.foreach_get("vertex_index", corners)  # every Blender (".corner_vert" is 4.0+)
     starts = np.empty(len(mesh.polygons), dtype=np.int32)
     mesh.polygons.foreach_get("loop_start", starts)
     sizes = np.empty(len(mesh.polygons), dtype=np.int32)
