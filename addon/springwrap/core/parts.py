@@ -290,7 +290,9 @@ def unseen_surface(world_positions: np.ndarray, topology, parts: np.ndarray, tar
     offsets = world_positions[candidates] - np.asarray(hits.positions, dtype=np.float64)[found]
     depth = -np.einsum("ij,ij->i", offsets, target_normals)
     facing = np.einsum("ij,ij->i", normals[candidates], target_normals)
-    tolerance = UNSEEN_DEPTH * float(np.median(np.asarray(hits.distances, dtype=np.float64)[found]))
+    # A layout lying exactly on the target has no median distance: depths within rounding are not hidden.
+    size = float(np.linalg.norm(np.ptp(world_positions, axis=0)))
+    tolerance = max(UNSEEN_DEPTH * float(np.median(np.asarray(hits.distances, dtype=np.float64)[found])), 1e-6 * size)
     hidden = (facing < UNSEEN_FACING) | (depth > tolerance)
     if hidden.sum() > UNSEEN_SHARE * candidates.size:
         return unseen
