@@ -287,19 +287,20 @@ def test_fit_subdivision_leaves_the_parts_out_and_they_follow_the_fitted_surface
 
 def pocket_scene():
     """A target (a UV sphere, radius 1.5, squashed) and a layout: an ico sphere of radius 1.5 whose cap above 1.1
-    is pushed in through that height (a pocket, as the inside of a mouth), with a ball inside (the vertices after
-    ``OUTER``). Returns (target, layout, the pocket's floor: vertices of the cap that end below 0.9)."""
+    is pushed in through that height (a pocket, as the inside of a mouth), with a ball under it (the vertices after
+    ``OUTER``). Returns (target, layout, the pocket's floor beside the ball: vertices of the cap that end below 0.9,
+    within 0.4 of the ball)."""
     bpy.ops.mesh.primitive_uv_sphere_add(segments=48, ring_count=24, radius=1.5, scale=(1.1, 1.0, 0.95))
     target = bpy.context.active_object
     target.name = "Target"
     editable = bmesh.new()
     bmesh.ops.create_icosphere(editable, subdivisions=4, radius=1.5)
-    bmesh.ops.create_icosphere(editable, subdivisions=2, radius=0.25, matrix=Matrix.Translation((0.6, 0.0, -0.2)))
+    bmesh.ops.create_icosphere(editable, subdivisions=2, radius=0.5, matrix=Matrix.Translation((0.0, 0.0, 0.1)))
     floor = np.zeros(len(editable.verts), dtype=bool)
     for vertex in editable.verts[:OUTER]:
         if vertex.co.z > 1.1:
             vertex.co.z = 2.2 - vertex.co.z
-            floor[vertex.index] = vertex.co.z < 0.9
+            floor[vertex.index] = vertex.co.z < 0.9 and (vertex.co - Vector((0.0, 0.0, 0.1))).length < 0.9
     mesh = bpy.data.meshes.new("Layout")
     editable.to_mesh(mesh)
     editable.free()
@@ -331,8 +332,8 @@ def test_the_inside_of_a_pocket_the_target_does_not_show_is_carried_not_pulled(c
         reports[find] = capfd.readouterr().out
         bpy.data.objects.remove(layout)
         bpy.data.objects.remove(target)
-    assert floor.sum() > 10
+    assert floor.sum() >= 5
     assert distances[False].max() < 0.05  # pulled onto the target's cap
-    assert distances[True].min() > 0.2  # carried down in the pocket
+    assert distances[True].min() > 0.08 and distances[True].mean() > 0.15  # carried down in the pocket
     assert "surface vertices the target does not show" in reports[True]
     assert "surface vertices the target does not show" not in reports[False]

@@ -47,15 +47,12 @@ STRIP_RATIO = 0.5
 """An open piece whose second principal extent is below this share of its first is a strip (lashes): soft."""
 
 
-UNSEEN_FACING = -0.3
+UNSEEN_FACING = -0.5
 """A surface vertex faces away from the target where the cosine between its normal and its closest target point's
 normal is below this (the mouth's inside behind the lips looks inwards, the lips' skin outwards)."""
 UNSEEN_DEPTH = 4.0
 """A surface vertex is hidden inside the target when it lies behind its closest target point by more than this many
 times the surface's median distance to the target (how far the alignment left it)."""
-UNSEEN_SHARE = 0.25
-"""When more of the surface than this share is unseen, the target's normals are taken to point inwards (or the
-alignment to be far off) and nothing is left out of the pull for being unseen."""
 
 
 class PartPlan(NamedTuple):
@@ -254,7 +251,7 @@ def plan_parts(
         rows.append(PieceRow(int(piece), int(members.sum()), mode, reasons[piece]))
     unseen = None
     if target_mesh is not None and parts.any():
-        unseen = unseen_surface(world_positions, topology, parts, target_mesh, pinned)
+        unseen = unseen_surface(world_positions, topology, parts, pieces, target_mesh, pinned)
     return PartPlan(parts, soft, pieces, tuple(rows), unseen)
 
 
@@ -272,31 +269,71 @@ def vertex_normals(world_positions: np.ndarray, topology) -> np.ndarray:
     return np.divide(normals, length, out=np.zeros_like(normals), where=length > 0.0)
 
 
-def unseen_surface(world_positions: np.ndarray, topology, parts: np.ndarray, target_mesh, pinned: np.ndarray):
-    """(N,) bool: the surface vertices (not ``parts``, not ``pinned``) the target does not show, facing away from
-    their closest target point (:data:`UNSEEN_FACING`) or hidden deep inside the target (:data:`UNSEEN_DEPTH`);
-    none when more than :data:`UNSEEN_SHARE` of the surface would be (``target_mesh``: a ``CentredMesh``)."""
+def beside_parts(world_positions: np.ndarray, topology, parts: np.ndarray, pieces: np.ndarray, origin) -> np.ndarray:
+    """(N,) bool: the vertices within reach of a part's faces: nearer to them than the radius of the piece they are
+    nearest to (its vertices' mean distance from their centre: an eyeball's socket, a mouth round its teeth)."""
     world_positions = np.asarray(world_positions, dtype=np.float64).reshape(-1, 3)
+    beside = np.zeros(world_positions.shape[0], dtype=bool)
+    faced = np.asarray(parts, dtype=bool)[face_corners_first(topology)]
+    triangles = fan_triangles(topology.face_corners, topology.face_sizes, faced)
+    if triangles.size == 0:
+        return beside
+    radius = np.zeros(int(pieces.max()) + 1)
+    for piece in np.unique(pieces[parts]).tolist():
+        members = world_positions[pieces == piece]
+        radius[piece] = float(np.linalg.norm(members - members.mean(axis=0), axis=1).mean())
+    try:
+        part_mesh = springwrap_kernel.TargetMesh(
+            np.ascontiguousarray(world_positions - origin, dtype=np.float32),
+            np.ascontiguousarray(triangles, dtype=np.uint32),
+        )
+    except springwrap_kernel.SpringwrapError:
+        return beside  # every part face degenerate
+    hits = part_mesh.closest_points(np.ascontiguousarray(world_positions - origin, dtype=np.float32))
+    found = np.asarray(hits.triangles) >= 0
+    nearest_piece = pieces[triangles[np.maximum(np.asarray(hits.triangles), 0), 0]]
+    beside[found] = np.asarray(hits.distances, dtype=np.float64)[found] < radius[nearest_piece[found]]
+    return beside
+
+
+def face_corners_first(topology) -> np.ndarray:
+    """(F,) int64 the first corner of each face."""
+    sizes = np.asarray(topology.face_sizes, dtype=np.int64).reshape(-1)
+    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
+    return np.asarray(topology.face_corners, dtype=np.int64).reshape(-1)[starts] if sizes.size else starts
+
+
+def unseen_surface(
+    world_positions: np.ndarray, topology, parts: np.ndarray, pieces: np.ndarray, target_mesh, pinned: np.ndarray
+) -> np.ndarray:
+    """(N,) bool: the surface vertices (not ``parts``, not ``pinned``) beside the parts (:func:`beside_parts`) that
+    the target does not show, facing away from their closest target point (:data:`UNSEEN_FACING`) or hidden deep
+    inside the target (:data:`UNSEEN_DEPTH`); none when most of the surface faces away from the target (its
+    normals, or the layout's, point inwards). ``target_mesh``: a ``CentredMesh``."""
+    world_positions = np.asarray(world_positions, dtype=np.float64).reshape(-1, 3)
+    parts = np.asarray(parts, dtype=bool)
     unseen = np.zeros(world_positions.shape[0], dtype=bool)
     normals = vertex_normals(world_positions, topology)
-    candidates = np.flatnonzero(~np.asarray(parts, dtype=bool) & ~np.asarray(pinned, dtype=bool))
-    candidates = candidates[np.linalg.norm(normals[candidates], axis=1) > 0.0]
-    if candidates.size == 0:
+    surface = np.flatnonzero(~parts & ~np.asarray(pinned, dtype=bool))
+    surface = surface[np.linalg.norm(normals[surface], axis=1) > 0.0]
+    if surface.size == 0:
         return unseen
-    hits = target_mesh.closest_points(world_positions[candidates])
+    hits = target_mesh.closest_points(world_positions[surface])
     found = np.asarray(hits.triangles) >= 0
-    candidates = candidates[found]
-    target_normals = np.asarray(target_mesh.kernel.face_normals(), dtype=np.float64)[np.asarray(hits.triangles)[found]]
-    offsets = world_positions[candidates] - np.asarray(hits.positions, dtype=np.float64)[found]
-    depth = -np.einsum("ij,ij->i", offsets, target_normals)
-    facing = np.einsum("ij,ij->i", normals[candidates], target_normals)
-    # A layout lying exactly on the target has no median distance: depths within rounding are not hidden.
+    # The alignment's own distance from the target (over the whole surface) is the depth's tolerance; a layout
+    # lying exactly on the target has none: depths within rounding are not hidden.
     size = float(np.linalg.norm(np.ptp(world_positions, axis=0)))
     tolerance = max(UNSEEN_DEPTH * float(np.median(np.asarray(hits.distances, dtype=np.float64)[found])), 1e-6 * size)
-    hidden = (facing < UNSEEN_FACING) | (depth > tolerance)
-    if hidden.sum() > UNSEEN_SHARE * candidates.size:
-        return unseen
-    unseen[candidates[hidden]] = True
+    target_normals = np.asarray(target_mesh.kernel.face_normals(), dtype=np.float64)[np.asarray(hits.triangles)]
+    facing = np.einsum("ij,ij->i", normals[surface], target_normals)
+    if not np.median(facing[found]) > 0.0:
+        return unseen  # the surface mostly faces away: the target's normals (or the layout's) point inwards
+    depth = -np.einsum(
+        "ij,ij->i", world_positions[surface] - np.asarray(hits.positions, dtype=np.float64), target_normals
+    )
+    near = found & beside_parts(world_positions, topology, parts, pieces, np.asarray(target_mesh.origin))[surface]
+    hidden = near & ((facing < UNSEEN_FACING) | (depth > tolerance))
+    unseen[surface[hidden]] = True
     return unseen
 
 
