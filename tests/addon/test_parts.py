@@ -15,6 +15,20 @@ OUTER = 642  # the vertices of an ico sphere of 4 subdivisions (bmesh counts the
 INNER_CENTRE = np.array([0.35, -0.15, 0.1])
 
 
+def active_layout(editable, target):
+    """The layout object made of ``editable`` (a ``bmesh``, freed), aimed at ``target``, selected and active."""
+    mesh = bpy.data.meshes.new("Layout")
+    editable.to_mesh(mesh)
+    editable.free()
+    layout = bpy.data.objects.new("Layout", mesh)
+    bpy.context.scene.collection.objects.link(layout)
+    layout.springwrap.target = target
+    for obj in bpy.context.view_layer.objects:
+        obj.select_set(obj == layout)
+    bpy.context.view_layer.objects.active = layout
+    return layout
+
+
 def parts_scene(inner_radius=0.35, inner_centre=INNER_CENTRE, centre=None):
     """A target (a deformed UV sphere, radius 1.5) and a layout: an ico sphere of radius 1.2 (vertices 0 … 641)
     with a ball inside it (the vertices after), both about the target's centre."""
@@ -25,15 +39,7 @@ def parts_scene(inner_radius=0.35, inner_centre=INNER_CENTRE, centre=None):
     bmesh.ops.create_icosphere(
         editable, subdivisions=3, radius=inner_radius, matrix=Matrix.Translation(centre + inner_centre)
     )
-    mesh = bpy.data.meshes.new("Layout")
-    editable.to_mesh(mesh)
-    editable.free()
-    layout = bpy.data.objects.new("Layout", mesh)
-    bpy.context.scene.collection.objects.link(layout)
-    layout.springwrap.target = target
-    for obj in bpy.context.view_layer.objects:
-        obj.select_set(obj == layout)
-    bpy.context.view_layer.objects.active = layout
+    layout = active_layout(editable, target)
     assert bpy.ops.springwrap.anchors_auto(spacing=0.6) == {"FINISHED"}
     anchors = layout.springwrap.anchors
     for index in reversed(range(len(anchors))):  # the sphere's anchors only: the ball has no place on the target
@@ -301,15 +307,7 @@ def pocket_scene():
         if vertex.co.z > 1.1:
             vertex.co.z = 2.2 - vertex.co.z
             floor[vertex.index] = vertex.co.z < 0.9 and (vertex.co - Vector((0.0, 0.0, 0.1))).length < 0.9
-    mesh = bpy.data.meshes.new("Layout")
-    editable.to_mesh(mesh)
-    editable.free()
-    layout = bpy.data.objects.new("Layout", mesh)
-    bpy.context.scene.collection.objects.link(layout)
-    layout.springwrap.target = target
-    for obj in bpy.context.view_layer.objects:
-        obj.select_set(obj == layout)
-    bpy.context.view_layer.objects.active = layout
+    layout = active_layout(editable, target)
     return target, layout, floor
 
 
