@@ -3,7 +3,10 @@ layout, onto a voxel-remeshed morph of the body alone, with the template moved, 
 anchors (similarity, no ICP) and wrapped.
 
     .venv/bin/python benchmarks/parts.py [--cases heavy head-nose expression face-expression]
-        [--json out/bench/parts.json]
+        [--json out/bench/parts.json] [--methods METHOD ...] [--positions FOLDER]
+
+``--methods`` runs some of the methods alone (for a quick comparison; the doc's section wants them all);
+``--positions`` writes each case's truth and every method's positions to ``FOLDER/CASE.npz``.
 
 The layout is ``base.obj``'s ``body`` group (its vertices first, in the body's own order, so the body cases'
 landmarks name the same vertices) followed by the helper groups of :data:`PART_GROUPS` (756 vertices); the
