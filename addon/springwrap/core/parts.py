@@ -112,10 +112,7 @@ def faces_without(topology, vertices: np.ndarray) -> tuple[np.ndarray, np.ndarra
 
 def face_pieces(topology, pieces: np.ndarray) -> np.ndarray:
     """(F,) int64 piece of each face (its first corner's)."""
-    sizes = np.asarray(topology.face_sizes, dtype=np.int64).reshape(-1)
-    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
-    corners = np.asarray(topology.face_corners, dtype=np.int64).reshape(-1)
-    return pieces[corners[starts]] if sizes.size else np.zeros(0, dtype=np.int64)
+    return np.asarray(pieces, dtype=np.int64)[face_corners_first(topology)]
 
 
 def guess_parts(world_positions: np.ndarray, topology, pieces: np.ndarray, target_mesh, pinned: np.ndarray) -> set:
