@@ -3,7 +3,10 @@ layout, onto a voxel-remeshed morph of the body alone, with the template moved, 
 anchors (similarity, no ICP) and wrapped.
 
     .venv/bin/python benchmarks/parts.py [--cases heavy head-nose expression face-expression]
-        [--json out/bench/parts.json]
+        [--json out/bench/parts.json] [--methods METHOD ...] [--positions FOLDER]
+
+``--methods`` runs some of the methods alone (for a quick comparison; the doc's section wants them all);
+``--positions`` writes each case's truth and every method's positions to ``FOLDER/CASE.npz``.
 
 The layout is ``base.obj``'s ``body`` group (its vertices first, in the body's own order, so the body cases'
 landmarks name the same vertices) followed by the helper groups of :data:`PART_GROUPS` (756 vertices); the
@@ -104,6 +107,17 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     parser = argparse.ArgumentParser(prog="parts.py", description=__doc__.splitlines()[0])
     parser.add_argument("--cases", nargs="+", default=list(DEFAULT_CASES), metavar="CASE")
     parser.add_argument("--json", type=Path, default=DEFAULT_JSON)
+    parser.add_argument(
+        "--methods",
+        nargs="+",
+        default=list(METHODS),
+        choices=METHODS,
+        metavar="METHOD",
+        help="run only these methods ('aligned template' always runs first: the others start from it)",
+    )
+    parser.add_argument(
+        "--positions", type=Path, default=None, help="a folder to write each method's positions to (CASE.npz)"
+    )
     return parser.parse_args(argv)
 
 
@@ -248,7 +262,7 @@ def errors_of(
     return result
 
 
-def run_case(name: str, layout: dict) -> dict:
+def run_case(name: str, layout: dict, methods=METHODS, positions_folder: Path | None = None) -> dict:
     """One case: the target, the moved template, the alignment and every method."""
     import bpy
 
@@ -279,7 +293,8 @@ def run_case(name: str, layout: dict) -> dict:
     marks = case.landmarks(ANCHORS)
     record = {"case": name, "description": case.spec.description, "diagonal": diagonal, "methods": {}}
     aligned = None
-    for method in METHODS:
+    saved = {}
+    for method in [method for method in METHODS if method in methods or method == METHODS[0]]:
         start = time.perf_counter()
         alone = method == "wrap, body alone"
         positions, quads = (
@@ -313,6 +328,7 @@ def run_case(name: str, layout: dict) -> dict:
             if method in PAIRING_METHODS:
                 _call("wrap", bpy.ops.springwrap.wrap)
         positions = read_positions(layout_object.data)
+        saved[method] = positions
         if alone:  # the parts where Align left them: only the body's numbers count
             positions = np.concatenate([positions, aligned[body:]])
         entry = errors_of(positions, truth, layout, diagonal, near, close, regions)
@@ -330,6 +346,9 @@ def run_case(name: str, layout: dict) -> dict:
         if notes:
             print(f"  {notes}", flush=True)
     ideal = errors_of(true_surface_follow(aligned, truth, layout), truth, layout, diagonal, near)
+    if positions_folder is not None:
+        positions_folder.mkdir(parents=True, exist_ok=True)
+        np.savez(positions_folder / f"{name}.npz", truth=truth, **{method: value for method, value in saved.items()})
     record["true_surface"] = {key: ideal[key] for key in ("parts_mean", "parts_max", "pieces")}
     print(f"{name:10s} parts on the true surface: mean {ideal['parts_mean']:.3f} max {ideal['parts_max']:.3f}")
     return record
@@ -345,7 +364,7 @@ def run(arguments: argparse.Namespace) -> int:
 
     started = time.perf_counter()
     layout = layout_with_parts()
-    records = [run_case(name, layout) for name in arguments.cases]
+    records = [run_case(name, layout, arguments.methods, arguments.positions) for name in arguments.cases]
     result = {
         "benchmark": "parts",
         "machine": cpu_model(),

@@ -7,12 +7,26 @@ import bpy
 
 import bmesh
 import numpy as np
-from mathutils import Matrix
+from mathutils import Matrix, Vector
 
 from bpy_helpers import make_target, read_state, snapshot, world_positions
 
 OUTER = 642  # the vertices of an ico sphere of 4 subdivisions (bmesh counts the first as 1)
 INNER_CENTRE = np.array([0.35, -0.15, 0.1])
+
+
+def active_layout(editable, target):
+    """The layout object made of ``editable`` (a ``bmesh``, freed), aimed at ``target``, selected and active."""
+    mesh = bpy.data.meshes.new("Layout")
+    editable.to_mesh(mesh)
+    editable.free()
+    layout = bpy.data.objects.new("Layout", mesh)
+    bpy.context.scene.collection.objects.link(layout)
+    layout.springwrap.target = target
+    for obj in bpy.context.view_layer.objects:
+        obj.select_set(obj == layout)
+    bpy.context.view_layer.objects.active = layout
+    return layout
 
 
 def parts_scene(inner_radius=0.35, inner_centre=INNER_CENTRE, centre=None):
@@ -25,15 +39,7 @@ def parts_scene(inner_radius=0.35, inner_centre=INNER_CENTRE, centre=None):
     bmesh.ops.create_icosphere(
         editable, subdivisions=3, radius=inner_radius, matrix=Matrix.Translation(centre + inner_centre)
     )
-    mesh = bpy.data.meshes.new("Layout")
-    editable.to_mesh(mesh)
-    editable.free()
-    layout = bpy.data.objects.new("Layout", mesh)
-    bpy.context.scene.collection.objects.link(layout)
-    layout.springwrap.target = target
-    for obj in bpy.context.view_layer.objects:
-        obj.select_set(obj == layout)
-    bpy.context.view_layer.objects.active = layout
+    layout = active_layout(editable, target)
     assert bpy.ops.springwrap.anchors_auto(spacing=0.6) == {"FINISHED"}
     anchors = layout.springwrap.anchors
     for index in reversed(range(len(anchors))):  # the sphere's anchors only: the ball has no place on the target
@@ -283,3 +289,49 @@ def test_fit_subdivision_leaves_the_parts_out_and_they_follow_the_fitted_surface
     )
     expected = parts.follow(parts.make_follower(plan, wrapped), plan, fitted)
     assert np.abs(fitted[OUTER:] - expected[OUTER:]).max() < 1e-5
+
+
+def pocket_scene():
+    """A target (a UV sphere, radius 1.5, squashed) and a layout: an ico sphere of radius 1.5 whose cap above 1.1
+    is pushed in through that height (a pocket, as the inside of a mouth), with a ball under it (the vertices after
+    ``OUTER``). Returns (target, layout, the pocket's floor beside the ball: vertices of the cap that end below 0.9,
+    within 0.4 of the ball)."""
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=48, ring_count=24, radius=1.5, scale=(1.1, 1.0, 0.95))
+    target = bpy.context.active_object
+    target.name = "Target"
+    editable = bmesh.new()
+    bmesh.ops.create_icosphere(editable, subdivisions=4, radius=1.5)
+    bmesh.ops.create_icosphere(editable, subdivisions=2, radius=0.5, matrix=Matrix.Translation((0.0, 0.0, 0.1)))
+    floor = np.zeros(len(editable.verts), dtype=bool)
+    for vertex in editable.verts[:OUTER]:
+        if vertex.co.z > 1.1:
+            vertex.co.z = 2.2 - vertex.co.z
+            floor[vertex.index] = vertex.co.z < 0.9 and (vertex.co - Vector((0.0, 0.0, 0.1))).length < 0.9
+    layout = active_layout(editable, target)
+    return target, layout, floor
+
+
+def test_the_inside_of_a_pocket_the_target_does_not_show_is_carried_not_pulled(capfd):
+    """With a part found, the pocket's floor (hidden deep inside the target) is not pulled onto the target: the
+    springs carry it with the skin around it. Find Parts off (no part), it is pulled onto the target as before."""
+    from mathutils.bvhtree import BVHTree
+
+    distances, reports = {}, {}
+    for find in (True, False):
+        target, layout, floor = pocket_scene()
+        layout.springwrap.find_parts = find
+        assert bpy.ops.springwrap.wrap() == {"FINISHED"}
+        matrix = target.matrix_world
+        tree = BVHTree.FromPolygons(
+            [matrix @ vertex.co for vertex in target.data.vertices], [list(p.vertices) for p in target.data.polygons]
+        )
+        positions = world_positions(layout)
+        distances[find] = np.array([tree.find_nearest(Vector(point))[3] for point in positions[floor]])
+        reports[find] = capfd.readouterr().out
+        bpy.data.objects.remove(layout)
+        bpy.data.objects.remove(target)
+    assert floor.sum() >= 5
+    assert distances[False].max() < 0.05  # pulled onto the target's cap
+    assert distances[True].min() > 0.08 and distances[True].mean() > 0.15  # carried down in the pocket
+    assert "surface vertices the target does not show" in reports[True]
+    assert "surface vertices the target does not show" not in reports[False]

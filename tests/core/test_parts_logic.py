@@ -105,6 +105,64 @@ def test_pieces_inside_and_in_front_are_guessed_and_a_second_skin_is_not():
     assert not anchored.parts[bounds[1] : bounds[2]].any()
 
 
+def dented(vertices, floor=1.2):
+    """``vertices`` with the cap above ``floor`` pushed in through it (a pocket: the mouth behind the lips)."""
+    vertices = np.array(vertices)
+    cap = vertices[:, 2] > floor
+    vertices[cap, 2] = 2.0 * floor - vertices[cap, 2]
+    return vertices, cap
+
+
+def test_the_surface_the_target_does_not_show_is_not_pulled():
+    sphere, quads = cube_sphere(12, 1.5)
+    body, cap = dented(sphere)
+    ball = cube_sphere(3, 0.3, (0.0, 0.0, 0.45))  # under the pocket's floor (at 0.9), within its own radius
+    target = target_sphere()
+    positions, topology = topology_of([(body, quads), ball])
+    plan = parts.plan_parts("Layout", positions, topology, parts.PartGroups(), True, target)
+    assert plan.parts[len(body) :].all() and not plan.parts[: len(body)].any()
+    unseen = plan.unseen[: len(body)]
+    # The pocket's floor beside the ball is hidden deep inside the target; the skin on the target is seen.
+    beside = np.linalg.norm(body - (0.0, 0.0, 0.45), axis=1) < 0.3 + 0.25  # within the ball's radius of it
+    deep = cap & (body[:, 2] < 1.0) & beside
+    assert deep.any() and unseen[deep].all()
+    assert not unseen[~cap].any() and not unseen[~beside].any() and not plan.unseen[len(body) :].any()
+    assert "surface vertices the target does not show" in parts.report_text(plan)
+    # Every face turned inwards: the whole surface faces away from the target, whose normals are then doubted.
+    flipped = topology_of([(body, quads[:, ::-1]), ball])[1]
+    turned = parts.plan_parts("Layout", positions, flipped, parts.PartGroups(), True, target).unseen
+    assert turned is not None and not turned.any()
+    # Without parts, the surface is wrapped as it was: nothing is left out for being unseen.
+    assert parts.plan_parts("Layout", positions, topology, parts.PartGroups(), False, target).unseen is None
+    # An anchored vertex is pulled wherever it is.
+    pinned = np.zeros(len(positions), bool)
+    pinned[np.flatnonzero(deep)[0]] = True
+    held = parts.plan_parts("Layout", positions, topology, parts.PartGroups(), True, target, pinned)
+    assert not held.unseen[pinned].any() and held.unseen[: len(body)][deep & ~pinned[: len(body)]].all()
+
+
+def test_the_surface_facing_away_from_the_target_is_not_pulled():
+    sphere, quads = cube_sphere(12, 1.5)
+    ball = cube_sphere(3, 0.3, (0.0, 0.0, 1.0))  # just under the patch
+    # A patch of the skin folded over (its faces turned inwards) while lying on the target: it faces away.
+    turned = np.isin(quads, np.flatnonzero(sphere[:, 2] > 1.3)).all(axis=1)
+    faces = np.where(turned[:, None], quads[:, ::-1], quads)
+    positions, topology = topology_of([(sphere, faces), ball])
+    plan = parts.plan_parts("Layout", positions, topology, parts.PartGroups(), True, target_sphere())
+    inner = np.zeros(len(positions), bool)
+    inner[np.unique(quads[turned])] = True
+    inner[np.unique(quads[~turned])] = False  # the patch's rim is shared with the skin facing out
+    inner &= np.concatenate(
+        [np.linalg.norm(sphere - (0.0, 0.0, 1.0), axis=1) < 0.3 + 0.25, np.zeros(len(ball[0]), bool)]
+    )
+    assert inner.any() and plan.unseen[inner].all()
+    assert plan.unseen.sum() <= np.unique(quads[turned]).size
+    # The same patch away from every part is wrapped as it was: only the surface beside the parts is judged.
+    away = cube_sphere(3, 0.3, (0.0, 0.0, -1.0))
+    positions, topology = topology_of([(sphere, faces), away])
+    assert not parts.plan_parts("Layout", positions, topology, parts.PartGroups(), True, target_sphere()).unseen.any()
+
+
 def test_every_vertex_a_part_is_refused():
     positions, topology = topology_of([cube_sphere(3, 1.0)])
     with pytest.raises(errors.LayoutError, match="Every vertex of layout 'Layout' would follow"):

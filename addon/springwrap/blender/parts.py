@@ -57,11 +57,13 @@ def plan_wrap_parts(layout, arrays, topology, target, anchor_list, curve_constra
 
 
 def free_parts(inputs, plan: parts.PartPlan):
-    """``inputs`` (``core.wrap_inputs.WrapInputs``) with the parts among the free vertices (no pull to the
-    target)."""
+    """``inputs`` (``core.wrap_inputs.WrapInputs``) with the parts, and the surface the target does not show
+    (``plan.unseen``), among the free vertices (no pull to the target)."""
     if not plan.any:
         return inputs
-    free = plan.parts if inputs.free_vertices is None else plan.parts | np.asarray(inputs.free_vertices, dtype=bool)
+    free = plan.parts if plan.unseen is None else plan.parts | plan.unseen
+    if inputs.free_vertices is not None:
+        free = free | np.asarray(inputs.free_vertices, dtype=bool)
     return inputs._replace(free_vertices=np.ascontiguousarray(free))
 
 

@@ -17,7 +17,10 @@ Which vertices are parts (:func:`plan_parts`), per separate piece of the layout 
   (loose edge chains), and pieces holding an anchor or a curve constraint, are never guessed.
 
 The wrap leaves the parts out of the target's pull (the solver's free vertices) and moves them by the
-surface's motion from the wrap's start (``springwrap_kernel.SurfaceFollower``).
+surface's motion from the wrap's start (``springwrap_kernel.SurfaceFollower``). With parts found or chosen, the
+surface the target does not show (:func:`unseen_surface`: the inside of the mouth behind the lips, the socket
+behind a closing eyelid) is left out of the pull too: the springs carry it with the skin around it, so that the
+parts following it are not dragged onto the lips' or the lids' outer skin.
 """
 
 from typing import NamedTuple
@@ -44,6 +47,14 @@ STRIP_RATIO = 0.5
 """An open piece whose second principal extent is below this share of its first is a strip (lashes): soft."""
 
 
+UNSEEN_FACING = -0.5
+"""A surface vertex faces away from the target where the cosine between its normal and its closest target point's
+normal is below this (the mouth's inside behind the lips looks inwards, the lips' skin outwards)."""
+UNSEEN_DEPTH = 4.0
+"""A surface vertex is hidden inside the target when it lies behind its closest target point by more than this many
+times the surface's median distance to the target (how far the alignment left it)."""
+
+
 class PartPlan(NamedTuple):
     """Which layout vertices are parts and how each piece of them follows the surface."""
 
@@ -51,6 +62,7 @@ class PartPlan(NamedTuple):
     soft: np.ndarray  # (N,) bool: a part vertex that follows its own neighbourhood (else its piece moves rigidly)
     pieces: np.ndarray  # (N,) int64 piece number of each vertex (the layout's connected components)
     rows: tuple  # (PieceRow, ...): the pieces treated as parts, for the report
+    unseen: np.ndarray | None = None  # (N,) bool surface vertices the target does not show (no pull), or None
 
     @property
     def any(self) -> bool:
@@ -100,10 +112,7 @@ def faces_without(topology, vertices: np.ndarray) -> tuple[np.ndarray, np.ndarra
 
 def face_pieces(topology, pieces: np.ndarray) -> np.ndarray:
     """(F,) int64 piece of each face (its first corner's)."""
-    sizes = np.asarray(topology.face_sizes, dtype=np.int64).reshape(-1)
-    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
-    corners = np.asarray(topology.face_corners, dtype=np.int64).reshape(-1)
-    return pieces[corners[starts]] if sizes.size else np.zeros(0, dtype=np.int64)
+    return np.asarray(pieces, dtype=np.int64)[face_corners_first(topology)]
 
 
 def guess_parts(world_positions: np.ndarray, topology, pieces: np.ndarray, target_mesh, pinned: np.ndarray) -> set:
@@ -194,7 +203,8 @@ def plan_parts(
     pinned: np.ndarray | None = None,
 ) -> PartPlan:
     """Which vertices are parts (see the module's docstring). ``find``: guess the pieces the target does not
-    need (``target_mesh``, a ``CentredMesh``, is then required). Raises :class:`LayoutError` when every vertex
+    need (``target_mesh``, a ``CentredMesh``, is then required); with parts and ``target_mesh``, the plan's
+    ``unseen`` surface (:func:`unseen_surface`). Raises :class:`LayoutError` when every vertex
     would be a part (nothing left to wrap and follow)."""
     count = int(topology.vertex_count)
     pieces = layout_pieces(topology)
@@ -236,7 +246,92 @@ def plan_parts(
         softness = soft[members]
         mode = "soft" if softness.all() else "rigid" if not softness.any() else "mixed"
         rows.append(PieceRow(int(piece), int(members.sum()), mode, reasons[piece]))
-    return PartPlan(parts, soft, pieces, tuple(rows))
+    unseen = None
+    if target_mesh is not None and parts.any():
+        unseen = unseen_surface(world_positions, topology, parts, pieces, target_mesh, pinned)
+    return PartPlan(parts, soft, pieces, tuple(rows), unseen)
+
+
+def vertex_normals(world_positions: np.ndarray, topology) -> np.ndarray:
+    """(N, 3) float64 unit area-weighted normals of the layout's vertices (zero for a vertex without a face)."""
+    points = np.ascontiguousarray(np.asarray(world_positions, dtype=np.float64).reshape(-1, 3))
+    corners = np.asarray(topology.face_corners, dtype=np.int64).reshape(-1)
+    sizes = np.asarray(topology.face_sizes, dtype=np.int64).reshape(-1)
+    faces = springwrap_kernel.face_normals(
+        points, np.ascontiguousarray(corners, dtype=np.uint32), np.ascontiguousarray(sizes, dtype=np.uint32)
+    )
+    normals = np.zeros_like(points)
+    np.add.at(normals, corners, np.repeat(np.asarray(faces, dtype=np.float64), sizes, axis=0))
+    length = np.linalg.norm(normals, axis=1, keepdims=True)
+    return np.divide(normals, length, out=np.zeros_like(normals), where=length > 0.0)
+
+
+def beside_parts(world_positions: np.ndarray, topology, parts: np.ndarray, pieces: np.ndarray, origin) -> np.ndarray:
+    """(N,) bool: the vertices within reach of a part's faces: nearer to them than the radius of the piece they are
+    nearest to (its vertices' mean distance from their centre: an eyeball's socket, a mouth round its teeth)."""
+    world_positions = np.asarray(world_positions, dtype=np.float64).reshape(-1, 3)
+    beside = np.zeros(world_positions.shape[0], dtype=bool)
+    faced = np.asarray(parts, dtype=bool)[face_corners_first(topology)]
+    triangles = fan_triangles(topology.face_corners, topology.face_sizes, faced)
+    if triangles.size == 0:
+        return beside
+    radius = np.zeros(int(pieces.max()) + 1)
+    for piece in np.unique(pieces[parts]).tolist():
+        members = world_positions[pieces == piece]
+        radius[piece] = float(np.linalg.norm(members - members.mean(axis=0), axis=1).mean())
+    try:
+        part_mesh = springwrap_kernel.TargetMesh(
+            np.ascontiguousarray(world_positions - origin, dtype=np.float32),
+            np.ascontiguousarray(triangles, dtype=np.uint32),
+        )
+    except springwrap_kernel.SpringwrapError:
+        return beside  # every part face degenerate
+    hits = part_mesh.closest_points(np.ascontiguousarray(world_positions - origin, dtype=np.float32))
+    found = np.asarray(hits.triangles) >= 0
+    nearest_piece = pieces[triangles[np.maximum(np.asarray(hits.triangles), 0), 0]]
+    beside[found] = np.asarray(hits.distances, dtype=np.float64)[found] < radius[nearest_piece[found]]
+    return beside
+
+
+def face_corners_first(topology) -> np.ndarray:
+    """(F,) int64 the first corner of each face."""
+    sizes = np.asarray(topology.face_sizes, dtype=np.int64).reshape(-1)
+    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
+    return np.asarray(topology.face_corners, dtype=np.int64).reshape(-1)[starts] if sizes.size else starts
+
+
+def unseen_surface(
+    world_positions: np.ndarray, topology, parts: np.ndarray, pieces: np.ndarray, target_mesh, pinned: np.ndarray
+) -> np.ndarray:
+    """(N,) bool: the surface vertices (not ``parts``, not ``pinned``) beside the parts (:func:`beside_parts`) that
+    the target does not show, facing away from their closest target point (:data:`UNSEEN_FACING`) or hidden deep
+    inside the target (:data:`UNSEEN_DEPTH`); none when most of the surface faces away from the target (its
+    normals, or the layout's, point inwards). ``target_mesh``: a ``CentredMesh``."""
+    world_positions = np.asarray(world_positions, dtype=np.float64).reshape(-1, 3)
+    parts = np.asarray(parts, dtype=bool)
+    unseen = np.zeros(world_positions.shape[0], dtype=bool)
+    normals = vertex_normals(world_positions, topology)
+    surface = np.flatnonzero(~parts & ~np.asarray(pinned, dtype=bool))
+    surface = surface[np.linalg.norm(normals[surface], axis=1) > 0.0]
+    if surface.size == 0:
+        return unseen
+    hits = target_mesh.closest_points(world_positions[surface])
+    found = np.asarray(hits.triangles) >= 0
+    # The alignment's own distance from the target (over the whole surface) is the depth's tolerance; a layout
+    # lying exactly on the target has none: depths within rounding are not hidden.
+    size = float(np.linalg.norm(np.ptp(world_positions, axis=0)))
+    tolerance = max(UNSEEN_DEPTH * float(np.median(np.asarray(hits.distances, dtype=np.float64)[found])), 1e-6 * size)
+    target_normals = np.asarray(target_mesh.kernel.face_normals(), dtype=np.float64)[np.asarray(hits.triangles)]
+    facing = np.einsum("ij,ij->i", normals[surface], target_normals)
+    if not np.median(facing[found]) > 0.0:
+        return unseen  # the surface mostly faces away: the target's normals (or the layout's) point inwards
+    depth = -np.einsum(
+        "ij,ij->i", world_positions[surface] - np.asarray(hits.positions, dtype=np.float64), target_normals
+    )
+    near = found & beside_parts(world_positions, topology, parts, pieces, np.asarray(target_mesh.origin))[surface]
+    hidden = near & ((facing < UNSEEN_FACING) | (depth > tolerance))
+    unseen[surface[hidden]] = True
+    return unseen
 
 
 def make_follower(plan: PartPlan, positions: np.ndarray, neighbours: int | None = None):
@@ -277,7 +372,11 @@ def report_text(plan: PartPlan) -> str:
         return ""
     described = ", ".join(f"piece {row.piece} ({row.vertices} vertices, {row.mode}, {row.reason})" for row in plan.rows)
     total = int(plan.parts.sum())
-    return f"Parts: {len(plan.rows)} pieces ({total} vertices) followed the surface, not the target: {described}"
+    text = f"Parts: {len(plan.rows)} pieces ({total} vertices) followed the surface, not the target: {described}"
+    unseen = 0 if plan.unseen is None else int(plan.unseen.sum())
+    if unseen:
+        text += f"; {unseen} surface vertices the target does not show (facing away or inside it) were not pulled"
+    return text
 
 
 def surface_readout(readout, part_flags: np.ndarray | None):
