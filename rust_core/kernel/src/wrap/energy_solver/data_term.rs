@@ -130,6 +130,28 @@ impl EnergySolver {
     /// square of the cosine, a hard cut at 0.7 instead of 0.5, or a test against the hit
     /// triangle's own normal were worse; in the local schedule (24 anchors) the weighting was
     /// worse on every body but heavy (old-male 0.348 to 0.357, 1 to 12 flipped), so it has none.
+    ///
+    /// What is left on the heavy body with 6 anchors (`benchmarks/flip_diagnosis.py`): 7 quads
+    /// flipped against the truth where the aligned template flips 4. Two are flipped by the
+    /// template too (true quads 17 times smaller than the wrap's, facing 169 degrees from the
+    /// target). The other five, two under the chest and three in the fold below the belly, lie
+    /// flat on the surface (2 to 23 degrees from the target's normal, 4 to 36 from the template's
+    /// quad) 0.5 to 0.8 % of the diagonal from their true place; their true quads straddle the
+    /// crease, 57 to 77 degrees from the target under them, with corners 0.1 to 0.32 % of the
+    /// diagonal inside the target (the morph's crease folds into itself, the voxel remesh fills
+    /// it; over the whole truth the mean distance is 0.06 %). The truth's corners moved to their
+    /// closest target points keep those five (it flips 50 others, small quads elsewhere): they
+    /// flip because the wrap slides them about two edges along the crease, not because they lie
+    /// on the surface, and they face the target and their template where they end, so no test
+    /// of the wrap's own normals sees them. Measured and not kept (one run
+    /// each; heavy and heavy-old mean % and flipped, from 0.241, 0.465 and 7, 2): the local
+    /// levels' least alignment 0.3 or 0 (0.241, 0.472 to 0.476 and 9, 7 to 22); a landing
+    /// refused where a corner turns past 60 or 90 degrees from where it stood (unchanged); no
+    /// landing at all (0.240, 0.465 and 7, 1); a facing cut of 0.2 in the local levels (0.268,
+    /// 0.473 and 8, 2); no pull where the hit triangle's normal is more than 30 to 70 degrees
+    /// from the smoothed one (heavy 6 to 7 flipped, heavy-old 0.454 to 0.475, old-male 0 to 6
+    /// flipped at the cut that helped heavy-old); the local levels' last iterations, data weight
+    /// or scale smoothing changed (0.240 to 0.241, 0.465 to 0.466 and 7 to 8, 1 to 4).
     pub(super) fn facing_weight(&self, normal: Vec3, surface_normal: Vec3) -> f32 {
         if self.stretches.is_none() || normal == Vec3::ZERO || surface_normal == Vec3::ZERO {
             return 1.0;
