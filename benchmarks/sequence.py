@@ -271,17 +271,20 @@ def _cold_wraps(objects, template, quads):
 
 
 def _read_cold(path: Path | None, first: int, end: int):
-    """The cold wraps stored by :func:`_write_cold` for frames ``first .. end - 1``, else None."""
+    """The cold wraps stored by :func:`_write_cold` for frames ``first .. end - 1`` (stored for these frames or
+    more), else None."""
     if path is None or not path.is_file():
         return None
     with np.load(path) as stored:
-        if [int(value) for value in stored["range"]] != [first, end]:
+        low, high = (int(value) for value in stored["range"])
+        if not low <= first < end <= high:
             return None
+        rows = slice(first - low, end - low)
         return (
-            stored["positions"],
-            [float(value) for value in stored["seconds"]],
-            [int(value) for value in stored["iterations"]],
-            [float(value) for value in stored["processor_seconds"]],
+            stored["positions"][rows],
+            [float(value) for value in stored["seconds"][rows]],
+            [int(value) for value in stored["iterations"][rows]],
+            [float(value) for value in stored["processor_seconds"][rows]],
         )
 
 
