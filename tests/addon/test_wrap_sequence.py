@@ -374,22 +374,16 @@ def test_a_slow_change_adds_up_until_the_layout_follows_it():
     assert np.abs(shown_positions(layout, 4) - shown_positions(layout, 1)).max() > 1.5 * step  # it followed
 
 
-def test_a_target_that_changes_and_comes_back_brings_the_layout_back(monkeypatch):
-    """A target stretched and let go again (frames 1 to 5): with the template's share in the re-settles' rest
-    shape the last frame's layout is nearer the first frame's than when the springs rest in the previous frame's
-    shape alone (each re-settle's drift then stays)."""
-    follow = addon_module("core.follow")
-    drifts = {}
-    for share in (0.0, follow.TEMPLATE_SHARE):
-        monkeypatch.setattr(follow, "TEMPLATE_SHARE", share)
-        bpy.ops.wm.read_homefile(use_empty=True)
-        target, layout = sequence_scene()
-        stretch = target.data.shape_keys.key_blocks["Stretch"]
-        for frame, value in ((4, 0.5), (5, 0.0)):
-            stretch.value = value
-            stretch.keyframe_insert("value", frame=frame)
-        assert run_sequence(frame_end=5) == {"FINISHED"}
-        first, last = key_positions(layout, "Wrap 0001"), key_positions(layout, "Wrap 0005")
-        drifts[share] = float(np.linalg.norm(last - first, axis=1).mean())
-    # about 5 % nearer on this small sphere (the closest-point ties of the target's tree decide the rest)
-    assert drifts[follow.TEMPLATE_SHARE] < 0.97 * drifts[0.0], drifts
+def test_a_target_back_in_its_first_shape_gives_the_first_frame_s_wrap_again():
+    """A target stretched and let go again (frames 1 to 5): where it changed, a re-settle starts from the
+    template's shape as a wrap from the template does, so that on the last frame (the target as on the first)
+    the layout is the first frame's wrap again, not one carried over from the stretched frames."""
+    target, layout = sequence_scene()
+    stretch = target.data.shape_keys.key_blocks["Stretch"]
+    for frame, value in ((4, 0.5), (5, 0.0)):
+        stretch.value = value
+        stretch.keyframe_insert("value", frame=frame)
+    assert run_sequence(frame_end=5) == {"FINISHED"}
+    first, last = key_positions(layout, "Wrap 0001"), key_positions(layout, "Wrap 0005")
+    # measured 2e-7 (float32 rounding); carried over from the stretched frames it was 0.008 mean, 0.024 at most
+    assert np.linalg.norm(last - first, axis=1).max() < 1e-5

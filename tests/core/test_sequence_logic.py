@@ -186,3 +186,34 @@ def test_a_re_settle_rests_in_the_layout_with_a_share_of_the_template():
     blended = follow.held(inputs, region, follow.TEMPLATE_SHARE).rest_positions
     assert not np.allclose(blended, inputs.positions)
     assert np.allclose(blended, follow.blended_rest(inputs.positions, inputs.rest_positions, follow.TEMPLATE_SHARE))
+
+
+def test_a_region_starts_again_from_the_template_placed_onto_the_vertices_around_it():
+    """Vertices started again from the template become space-points at the template's positions, moved by the
+    similarity that fits the template to the vertices around them; the others are untouched; with nothing around
+    to fit (the whole layout), the template where it is; the region's springs then rest in the template's shape."""
+    topology = strip_topology(6)  # 14 vertices
+    template = np.zeros((14, 3), dtype=np.float32)
+    template[:7, 0] = template[7:, 0] = np.arange(7)
+    template[7:, 1] = 1.0
+    template[:, 2] = 0.1 * template[:, 0] ** 2  # not flat: the similarity is fitted in 3D
+    angle = 0.4
+    turn = np.array([[np.cos(angle), -np.sin(angle), 0.0], [np.sin(angle), np.cos(angle), 0.0], [0.0, 0.0, 1.0]])
+    moved = (2.0 * template.astype(np.float64) @ turn.T + [3.0, -1.0, 0.5]).astype(np.float32)
+    warm = moved.copy()
+    region = np.zeros(14, dtype=bool)
+    region[[3, 10]] = True
+    warm[region, 2] += 0.7  # the region as the previous frame left it: off the template's shape
+    inputs = strip_inputs(14)._replace(positions=warm, rest_positions=template)
+    started = follow.restarted(inputs, region, topology.edges)
+    assert np.allclose(started.positions[region], moved[region], atol=1e-4)
+    assert np.array_equal(started.positions[~region], warm[~region])
+    assert started.states[region].tolist() == [0, 0] and started.triangles[region].tolist() == [-1, -1]
+    assert np.array_equal(started.states[~region], inputs.states[~region])
+    whole = follow.restarted(inputs, np.ones(14, dtype=bool), topology.edges)
+    assert np.array_equal(whole.positions, template)
+    without_rest = inputs._replace(rest_positions=None)
+    assert follow.restarted(without_rest, region, topology.edges) is without_rest
+    rest = follow.held(started, region, follow.TEMPLATE_SHARE, region, warm).rest_positions
+    assert np.allclose(rest[region], follow.blended_rest(warm, template, 1.0)[region])
+    assert np.allclose(rest[~region], follow.blended_rest(warm, template, follow.TEMPLATE_SHARE)[~region])

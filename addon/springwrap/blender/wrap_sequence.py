@@ -7,8 +7,9 @@ Each frame is one :class:`~.wrap_session.WrapSession` run to the end and finishe
 anchors and target signature are what the next frame starts from: a face-point or face anchor keeps its
 triangle and weights and so follows its point on the moved surface, and where the target's topology changed
 it is found again by the deleted-face rule). The first frame is an ordinary wrap; later frames keep the
-previous frame's shape as the springs' rest shape (``warm_rest='PREVIOUS'``: they only settle onto the
-changed surface, and only where the target changed: the rest is held and written back bit for bit), or
+previous frame's result (``warm_rest='PREVIOUS'``) and re-wrap only where the target changed, that region
+started again from the template's shape as a wrap from the template would start it (the rest is held and
+written back bit for bit), or
 start again from the layout as it was before the sequence (``'TEMPLATE'``: every frame the wrap a single
 wrap onto that frame would make, independent of the others). A frame that fails is put back (the layout
 keeps the previous frame's shape) and reported. :meth:`SequenceRun.finish` puts the layout back as the first frame left
@@ -123,10 +124,10 @@ class SequenceRun:
     def _frame(self, index: int, start: float) -> FrameOutcome:
         """Wrap the ``index``-th frame and write it; its outcome. Raises what went wrong (nothing is written then).
 
-        A later frame with ``warm_rest='PREVIOUS'`` re-settles only where the target changed (``core.follow``: a
-        vertex's surface distance changed since the frame that last settled it, or its face-point moved), the rest
-        held and written back bit for bit; a frame in which nothing changed keeps the previous frame's shape
-        unwrapped."""
+        A later frame with ``warm_rest='PREVIOUS'`` re-wraps only where the target changed (``core.follow``: a
+        vertex's surface distance changed since the frame that last settled it, or its face-point moved), that
+        region from the template's shape (``core.follow.restarted``), the rest held and written back bit for bit;
+        a frame in which nothing changed keeps the previous frame's shape unwrapped."""
         frame = self.frames[index]
         steps = self.step_seconds.setdefault(frame, {})
         clock = _Clock(steps)
@@ -159,6 +160,7 @@ class SequenceRun:
                 region=region,
                 reads=reads,
                 template_share=follow.TEMPLATE_SHARE,
+                from_template=region is not None,
             )
         except Exception:
             if previous is not None:

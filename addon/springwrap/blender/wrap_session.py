@@ -57,7 +57,9 @@ class WrapSession:
     layout and target as the caller read (and checked) them (``blender.wrap_reads``); None reads them here. ``region`` (optional, (N,)
     bool): re-settle only these vertices, every other one held where it is and written back as it was
     (``core.follow``: the solver then works on the faces around the region alone); ``template_share``: the
-    template's share in the rest shape of the vertices re-settled there (``core.follow.blended_rest``).
+    template's share in the rest shape of the vertices re-settled there (``core.follow.blended_rest``);
+    ``from_template``: the ``region`` starts again from the template's shape, as a wrap from the template starts
+    it, its springs resting in the template's shape (``core.follow.restarted``).
     """
 
     def __init__(
@@ -72,6 +74,7 @@ class WrapSession:
         region: np.ndarray | None = None,
         reads: wrap_reads.WrapReads | None = None,
         template_share: float = 0.0,
+        from_template: bool = False,
     ):
         self.start_time = time.perf_counter()
         self.layout = layout
@@ -136,7 +139,11 @@ class WrapSession:
         self.anchors_movable = adjust_inputs is None and region is None and inputs.soft_pair_vertices is None
         self.whole_inputs = inputs  # the mirror's plane in the layout's own numbering, for the parts' seam
         if region is not None:
-            inputs = follow.held(inputs, region, template_share)
+            warm = inputs.positions
+            restart = region if from_template else None
+            if from_template:
+                inputs = follow.restarted(inputs, region, self.layout_topology.edges)
+            inputs = follow.held(inputs, region, template_share, restart, warm)
         if int(parameters.spring_resolution) == 1:
             # The solver works without the parts (they take no part in the surface's wrap) and, with a region,
             # on the faces around it alone.

@@ -5,7 +5,10 @@ A vertex is concerned when its distance to the target's surface changed (measure
 and after the change), or when it is a face-point whose point on the surface moved; the region re-settled is
 those vertices grown by a few rings of layout edges, so the layout eases into the change. Every other vertex
 is held by an anchor where it is (a face anchor on its face when it is a face-point) and written back exactly
-as it was.
+as it was. A sequence's later frame starts the region again from the template's shape (placed onto the vertices
+around it), its springs resting in that shape, as a wrap from the template would: where the target went back
+(a mouth that opened and closed again) the region comes back to where such a wrap puts it, instead of keeping
+the shape the frames before it carried.
 """
 
 from typing import NamedTuple
@@ -25,11 +28,13 @@ CHANGE_FRACTION = 1e-5
 RINGS = 2
 """Rings of layout edges the changed vertices are grown by."""
 
+FIT_RINGS = 3
+"""Rings of layout edges around vertices started again from the template that the template is fitted to."""
+
 TEMPLATE_SHARE = 0.3
-"""A sequence's later frame: the template's share in the rest shape of the springs it re-settles (the previous
-frame's shape the rest). The previous frame's shape keeps the frames steady; the template's share pulls a region
-back toward the template's spacing where the target goes back (without it the frames' small re-settles add up,
-and a face that opened and closed again stays off where a wrap from the template puts it)."""
+"""A sequence's later frame: the template's share in the rest shape of the springs held around the region it
+re-settles (the previous frame's shape the rest); the region itself starts again from the template and rests in
+its shape (:func:`restarted`)."""
 
 
 def changed_vertices(before: np.ndarray, after: np.ndarray, moved: np.ndarray, tolerance: float) -> np.ndarray:
@@ -86,6 +91,23 @@ def changed_region(target, world, state, same_topology: bool, before, edges, rin
     return grow(changed, edges, rings) if changed.any() else changed, after
 
 
+def similar(template: np.ndarray, positions: np.ndarray, fitted: np.ndarray | None = None) -> np.ndarray | None:
+    """(N, 3) float64 ``template`` moved onto ``positions`` by the similarity that fits it best (over the
+    ``fitted`` vertices, (N,) bool, when given); None when none is fitted (fewer than 3 points, or on one line)."""
+    template = transforms.as_float32_points(template)
+    positions = transforms.as_float32_points(positions)
+    if fitted is not None:
+        fitted = np.asarray(fitted, dtype=bool)
+        if int(fitted.sum()) < 3:
+            return None
+    chosen = slice(None) if fitted is None else fitted
+    try:
+        matrix = springwrap_kernel.fit_transform(template[chosen], positions[chosen], "SIMILARITY")
+    except springwrap_kernel.SpringwrapError:
+        return None
+    return transforms.transform_points(matrix, template)
+
+
 def blended_rest(positions: np.ndarray, template: np.ndarray | None, share: float) -> np.ndarray:
     """(N, 3) float32 rest shape: ``positions`` (the layout as it is) and, ``share`` of it, ``template`` (the
     template's shape) moved onto them by the similarity that fits it best. ``positions`` alone without a template
@@ -93,21 +115,45 @@ def blended_rest(positions: np.ndarray, template: np.ndarray | None, share: floa
     positions = np.asarray(positions, dtype=np.float32)
     if template is None or not share > 0.0:
         return positions
-    template = transforms.as_float32_points(template)
-    try:
-        matrix = springwrap_kernel.fit_transform(template, positions, "SIMILARITY")
-    except springwrap_kernel.SpringwrapError:
+    placed = similar(template, positions)
+    if placed is None:
         return positions
-    placed = transforms.transform_points(matrix, template)
     return transforms.as_float32_points((1.0 - share) * positions.astype(np.float64) + share * placed)
 
 
-def held(inputs: WrapInputs, region: np.ndarray, template_share: float = 0.0) -> WrapInputs:
+def restarted(inputs: WrapInputs, restart: np.ndarray, edges: np.ndarray, rings: int = FIT_RINGS) -> WrapInputs:
+    """``inputs`` with the ``restart`` vertices ((N,) bool) started again from the template's shape (the inputs'
+    rest), as a wrap from the template starts them: space-points at the template's positions, placed by the
+    similarity that fits the template to the vertices around them (``rings`` rings of ``edges`` outside
+    ``restart``), or where the template is when those are too few to fit (``restart`` the whole layout: the
+    start of a wrap from the template itself). As they were without a rest shape."""
+    restart = np.asarray(restart, dtype=bool)
+    if not restart.any() or inputs.rest_positions is None:
+        return inputs
+    placed = similar(inputs.rest_positions, inputs.positions, grow(restart, edges, rings) & ~restart)
+    if placed is None:
+        placed = inputs.rest_positions
+    states, triangles = inputs.states.copy(), inputs.triangles.copy()
+    barycentrics, positions = inputs.barycentrics.copy(), inputs.positions.copy()
+    states[restart] = layout_state.SPACE_POINT
+    triangles[restart] = layout_state.NO_FACE
+    barycentrics[restart] = 0.0
+    positions[restart] = np.asarray(placed)[restart]
+    return inputs._replace(
+        states=np.ascontiguousarray(states, dtype=np.int32),
+        triangles=np.ascontiguousarray(triangles, dtype=np.int32),
+        barycentrics=transforms.as_float32_points(barycentrics),
+        positions=transforms.as_float32_points(positions),
+    )
+
+
+def held(inputs: WrapInputs, region: np.ndarray, template_share: float = 0.0, restart=None, warm=None) -> WrapInputs:
     """``inputs`` with every vertex outside ``region`` held where it starts (the layout's own anchors kept):
     a face anchor on its face for a face-point, a space anchor at its position for a space-point; the
-    springs resting in the layout's shape as it is (with ``template_share`` of the template's shape, the inputs'
-    rest, blended in: :func:`blended_rest`); and no soft pairs (they steer a whole wrap's stiff levels, not a
-    re-settle)."""
+    springs resting in the layout's shape as it is (``warm``, (N, 3) kernel frame: as it was before
+    :func:`restarted` moved some; None: the inputs' positions), with ``template_share`` of the template's shape
+    (the inputs' rest) blended in (:func:`blended_rest`), and in the template's shape alone at the ``restart``
+    vertices ((N,) bool, optional); and no soft pairs (they steer a whole wrap's stiff levels, not a re-settle)."""
     region = np.asarray(region, dtype=bool)
     anchored = np.zeros(region.shape[0], dtype=bool)
     anchored[inputs.anchor_vertices.astype(np.int64)] = True
@@ -122,11 +168,23 @@ def held(inputs: WrapInputs, region: np.ndarray, template_share: float = 0.0) ->
         anchor_positions=transforms.as_float32_points(
             np.concatenate([inputs.anchor_positions, inputs.positions[vertices]])
         ),
-        rest_positions=blended_rest(inputs.positions, inputs.rest_positions, template_share),
+        rest_positions=_rest(inputs, template_share, restart, warm),
         soft_pair_vertices=None,
         soft_pair_positions=None,
         soft_pair_confidences=None,
     )
+
+
+def _rest(inputs: WrapInputs, template_share: float, restart, warm) -> np.ndarray:
+    """The rest shape of :func:`held`: ``warm`` (the layout as it was; None: the inputs' positions) with
+    ``template_share`` of the template blended in, the template's shape alone at the ``restart`` vertices."""
+    warm = inputs.positions if warm is None else warm
+    rest = blended_rest(warm, inputs.rest_positions, template_share)
+    if restart is None or inputs.rest_positions is None or not np.any(restart):
+        return rest
+    restart = np.asarray(restart, dtype=bool)
+    rest[restart] = blended_rest(warm, inputs.rest_positions, 1.0)[restart]
+    return rest
 
 
 def merged(settled: np.ndarray, before: np.ndarray, region: np.ndarray) -> np.ndarray:
