@@ -6,6 +6,7 @@ import numpy as np
 from helpers import core_module
 
 openings = core_module("openings")
+cu = core_module("curves")
 target_module = core_module("target")
 
 
@@ -77,3 +78,21 @@ def test_a_slit_over_a_closed_surface_or_an_opening_no_wider_stays_free():
     opened = closed_lips.copy()
     opened[:, 1] = np.sign(opened[:, 1]) * 0.3
     assert openings.pair_slit(pit_target(), slit, closed_lips, opened, facing) is None
+
+
+def test_with_a_map_each_half_of_a_slit_goes_along_its_rim_as_far_across_as_the_map_takes_it():
+    """An identity map: each vertex of the closed lips goes to the rim's point as far across the opening as it lies
+    between the corners (not to the rim's nearest point, nor where the lips' spacing puts it)."""
+    closed_lips = ring(24, 0.5, 0.004)
+    slit = openings.find_slit(np.arange(24), closed_lips)
+    corners = closed_lips[[0, 6, 12, 18, 3, 9]] + np.array([[0, 0, 0]] * 4 + [[0, 0, 0.5]] * 2)  # not in a plane
+    mapping = core_module("smooth_map").fit(corners, corners)
+    pair = openings.pair_slit(pit_target(), slit, closed_lips, closed_lips, np.array([0.0, 0.0, 1.0]), mapping)
+    spaced = openings.pair_slit(pit_target(), slit, closed_lips, closed_lips, np.array([0.0, 0.0, 1.0]))
+    for placed, as_spaced in zip(pair.constraints, spaced.constraints):
+        chain = placed.layout_vertices
+        assert placed.fractions.size == chain.size and as_spaced.fractions.size == 0
+        assert np.all(np.diff(placed.fractions) >= 0.0)
+        points = cu.arc_length_points(closed_lips[chain], placed.points, placed.fractions)
+        inner = np.abs(points[:, 0]) < 0.35  # within the pit's width, where the rim runs straight across
+        np.testing.assert_allclose(points[inner, 0], closed_lips[chain][inner, 0], atol=0.02)

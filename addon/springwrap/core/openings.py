@@ -322,10 +322,13 @@ def pair_slit(mesh, slit: Slit, rest, current, facing_direction, mapping=None) -
     upper_line = np.concatenate([[frame.a], upper, [frame.b]])
     lower_line = np.concatenate([[frame.a], lower, [frame.b]])
     one_line, other_line = (upper_line, lower_line) if one_is_upper else (lower_line, upper_line)
-    rest = np.asarray(rest, dtype=np.float64)
+    across = np.concatenate([[0.0], fractions, [1.0]])
+    ends = np.asarray(rest, dtype=np.float64)[slit.loop[[0, slit.corner]]]
 
-    def placed(chain, points):
-        return () if mapping is None else smooth_map.placements(mapping, rest[chain], points)
+    def placed(chain, line, backwards=False):
+        if mapping is None:
+            return ()
+        return rim_placements(mapping, np.asarray(rest, dtype=np.float64)[chain], ends, line, across, backwards)
 
     constraints = []
     if _farther_than(current[one], one_line, RIM_ACCURACY * frame.width, placed(one, one_line)):
@@ -333,16 +336,34 @@ def pair_slit(mesh, slit: Slit, rest, current, facing_direction, mapping=None) -
             curves.make_constraint(one, one_line, curves.FEATURE_LINE, confidence=share, fractions=placed(one, one_line))
         )
     # The other half runs from corner b round to corner a: without the corners if the first half holds them.
-    if _farther_than(current[other], other_line[::-1], RIM_ACCURACY * frame.width, placed(other, other_line[::-1])):
-        chain, points = other, other_line[::-1]
+    if _farther_than(current[other], other_line[::-1], RIM_ACCURACY * frame.width, placed(other, other_line, True)):
+        chain, points, placement = other, other_line[::-1], placed(other, other_line, True)
         if constraints:
-            lengths = cumulative_lengths(current[other])
-            points = _trimmed(points, lengths[1] / lengths[-1], lengths[-2] / lengths[-1])
-            chain = other[1:-1]
+            chain, placement = other[1:-1], placement[1:-1]
+            if mapping is None:
+                lengths = cumulative_lengths(current[other])
+                points = _trimmed(points, lengths[1] / lengths[-1], lengths[-2] / lengths[-1])
         constraints.append(
-            curves.make_constraint(chain, points, curves.FEATURE_LINE, confidence=share, fractions=placed(chain, points))
+            curves.make_constraint(chain, points, curves.FEATURE_LINE, confidence=share, fractions=placement)
         )
     return OpeningPair(slit, constraints, float(share)) if constraints else None
+
+
+def rim_placements(mapping, chain_rest, corners_rest, line, across, backwards=False) -> np.ndarray:
+    """(C,) float64: where along a rim (``line``, (P, 3) from corner a to corner b, each point ``across`` (P,)
+    of the way from a to b) each vertex of a slit's half goes, as a fraction of the rim's length (from b when
+    ``backwards``: the half runs from b to a): the vertex's rest point (``chain_rest``) taken through the map
+    (``smooth_map.SmoothMap``) is that share of the way across between where the map takes the corners
+    (``corners_rest``, (2, 3)), and goes to the rim's point as far across. Across an opening, not to the rim's
+    nearest point: a closed lip maps into the middle of the open mouth, nearer the rim's ends than its middle."""
+    mapped = smooth_map.apply(mapping, chain_rest)
+    a, b = smooth_map.apply(mapping, corners_rest)
+    axis = b - a
+    share = (mapped - a) @ axis / max(float(axis @ axis), 1e-300)
+    cumulative = cumulative_lengths(np.asarray(line, dtype=np.float64))
+    fractions = np.interp(share, across, cumulative / max(cumulative[-1], 1e-300))
+    fractions = 1.0 - fractions if backwards else fractions
+    return np.clip(np.maximum.accumulate(fractions), 0.0, 1.0)
 
 
 def _farther_than(chain_positions: np.ndarray, line: np.ndarray, distance: float, fractions=()) -> bool:
