@@ -342,9 +342,7 @@ def kernel_arrays(constraints, vertex_count: int, anchored: np.ndarray | None = 
                     f"Layout vertex {vertex} belongs to curve constraints {held[vertex]} and {number}: remove one"
                 )
             held[vertex] = number
-    placed = [
-        c.fractions if c.fractions.size else np.full(c.layout_vertices.size, np.nan) for c in constraints
-    ]
+    placed = [c.fractions if c.fractions.size else np.full(c.layout_vertices.size, np.nan) for c in constraints]
     return (
         np.ascontiguousarray(np.concatenate([c.layout_vertices for c in constraints]), dtype=np.uint32),
         np.asarray([c.layout_vertices.size for c in constraints], dtype=np.uint32),

@@ -333,7 +333,9 @@ def pair_slit(mesh, slit: Slit, rest, current, facing_direction, mapping=None) -
     constraints = []
     if _farther_than(current[one], one_line, RIM_ACCURACY * frame.width, placed(one, one_line)):
         constraints.append(
-            curves.make_constraint(one, one_line, curves.FEATURE_LINE, confidence=share, fractions=placed(one, one_line))
+            curves.make_constraint(
+                one, one_line, curves.FEATURE_LINE, confidence=share, fractions=placed(one, one_line)
+            )
         )
     # The other half runs from corner b round to corner a: without the corners if the first half holds them.
     if _farther_than(current[other], other_line[::-1], RIM_ACCURACY * frame.width, placed(other, other_line, True)):

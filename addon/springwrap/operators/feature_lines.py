@@ -27,7 +27,6 @@ from ..blender.target import check_target, read_target
 from ..core import anchors, curves, feature_lines, openings
 from .base import LayoutCollectionOperator
 
-
 PLACEMENT_ITEMS = (
     (
         "MAPPED",

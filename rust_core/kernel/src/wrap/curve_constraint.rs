@@ -197,7 +197,11 @@ mod tests {
             vertex_fractions(0, &constraint, &positions).unwrap(),
             vec![0.0, 0.5, 1.0]
         );
-        for bad in [vec![0.0, 1.0], vec![0.0, 1.5, 1.0], vec![0.0, f32::NAN, 1.0]] {
+        for bad in [
+            vec![0.0, 1.0],
+            vec![0.0, 1.5, 1.0],
+            vec![0.0, f32::NAN, 1.0],
+        ] {
             constraint.fractions = bad;
             assert!(matches!(
                 vertex_fractions(2, &constraint, &positions),
