@@ -343,6 +343,12 @@ MIN_LENGTH_RATIO = 0.5
 length (and the longest, its inverse)."""
 
 
+MIN_MAP_POINTS = 12
+"""The fewest matched points (anchors and corners) through which the smooth map places the vertices of a line that
+does not run between two matched corners (and a slit's halves): through fewer it is too coarse to say where along
+a feature a vertex lies (8 anchors on a whole part), and such lines go as the fit spaces them."""
+
+
 def placement_map(rest, vertices, locations, junctions=None) -> smooth_map.SmoothMap | None:
     """The smooth map (:mod:`smooth_map`) from the layout's rest shape (``rest``, (N, 3) world) to the target
     through the anchored ``vertices`` ((K,)) and their target ``locations`` ((K, 3) world) and the matched
@@ -376,7 +382,8 @@ def pair_lines(
     shape): a paired line between two matched junctions follows its curve between them, shared out by the rest
     shape's arc length (:func:`between_junctions`), instead of the stretch under the current fit. ``mapping``
     (:func:`placement_map`, with ``rest``): each vertex of an open line goes where the map takes its rest point,
-    projected onto the line's stretch (``smooth_map.placements``), instead of where the fit spaces it.
+    projected onto the line's stretch (``smooth_map.placements``), instead of where the fit spaces it (a line not
+    between matched corners only when the map runs through :data:`MIN_MAP_POINTS` points or more).
     ``settings``: ``max_angle`` (degrees), ``min_confidence``."""
     outcomes = springwrap_kernel.pair_feature_lines(
         np.ascontiguousarray(current, dtype=np.float32),
@@ -417,7 +424,13 @@ def pair_lines(
         between += target is not None
         points = np.asarray(outcome.target if target is None else target, dtype=np.float64).reshape(-1, 3)
         fractions = ()
-        if mapping is not None and rest is not None and not line.closed and not curves.is_closed(points):
+        if (
+            mapping is not None
+            and rest is not None
+            and not line.closed
+            and not curves.is_closed(points)
+            and (target is not None or mapping.centres.shape[0] >= MIN_MAP_POINTS)
+        ):
             chain_rest = np.asarray(rest, dtype=np.float64)[chain]
             if target is None and not curve_closed:
                 points = mapped_stretch(mapping, chain_rest, curve_points, points)

@@ -189,6 +189,8 @@ class SPRINGWRAP_OT_feature_lines_pair(LayoutCollectionOperator, bpy.types.Opera
         mesh = read_target(depsgraph, layout).mesh
         held = curves.constrained_vertices(held_constraints, anchored)
         found = []
+        if mapping is not None and mapping.centres.shape[0] < feature_lines.MIN_MAP_POINTS:
+            mapping = None  # too coarse to place a lip along its rim: as the fit spaces it
         for slit, direction in slits:
             pair = openings.pair_slit(mesh, slit, lines_read.rest, lines_read.current, direction, mapping)
             if pair is not None and not held & set(slit.loop.tolist()):
