@@ -93,9 +93,11 @@ def closed_loops(face_corners, face_sizes) -> list:
     if quads.size == 0:
         return []
     pairs = np.sort(np.stack([quads, np.roll(quads, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
-    edges, first, edge_of = np.unique(pairs, axis=0, return_index=True, return_inverse=True)
+    span = int(quads.max()) + 1
+    keys, first, edge_of = np.unique(pairs[:, 0] * span + pairs[:, 1], return_index=True, return_inverse=True)
     edge_of = edge_of.reshape(-1)
-    low, high = edges[:, 0], edges[:, 1]
+    low, high = keys // span, keys % span
+    edges = np.stack([low, high], axis=1)
     # Each edge's quads (as many slots as the edge with most), -1 where it has fewer.
     faces = np.repeat(np.arange(quads.shape[0]), 4)
     order = np.argsort(edge_of, kind="stable")
