@@ -46,6 +46,33 @@ def test_every_closed_edge_loop_of_a_torus_is_found_once():
     assert len({tuple(sorted(loop.tolist())) for loop in loops}) == 20
 
 
+def quad_cube(n):
+    """(F, 4) the quads of a cube's surface, ``n`` x ``n`` a face, its vertices shared along the edges."""
+    numbers, quads = {}, []
+    grid = np.linspace(-1.0, 1.0, n + 1)
+    for axis in range(3):
+        u, v = [other for other in range(3) if other != axis]
+        for sign in (-1.0, 1.0):
+            for i in range(n):
+                for j in range(n):
+                    quad = []
+                    for di, dj in ((0, 0), (1, 0), (1, 1), (0, 1)):
+                        point = [0.0, 0.0, 0.0]
+                        point[axis], point[u], point[v] = sign, grid[i + di], grid[j + dj]
+                        quad.append(numbers.setdefault(tuple(point), len(numbers)))
+                    quads.append(quad if sign > 0 else quad[::-1])
+    return np.array(quads)
+
+
+def test_the_loops_of_a_cube_go_round_it_past_its_corners_and_a_grid_with_a_border_has_none():
+    quads = quad_cube(6)
+    loops = openings.closed_loops(quads.ravel(), np.full(len(quads), 4))
+    # 5 loops round the cube in each of its 3 directions, 24 vertices each; none through a corner (3 edges).
+    assert len(loops) == 15 and all(loop.size == 24 for loop in loops)
+    assert len({tuple(sorted(loop.tolist())) for loop in loops}) == 15
+    assert openings.closed_loops(quads[:36].ravel(), np.full(36, 4)) == []
+
+
 def test_a_loop_whose_halves_touch_is_a_slit_and_a_round_one_is_not():
     closed_lips = ring(24, 0.5, 0.004)
     slit = openings.find_slit(np.arange(24), closed_lips)
