@@ -172,8 +172,10 @@ class SPRINGWRAP_OT_feature_lines_pair(LayoutCollectionOperator, bpy.types.Opera
         if opened:
             level = "INFO"
             text += "; " + openings.report_text(opened)
+        text += f"; {len(junctions)} corners matched, {pairing.between_junctions} pairs between two"
+        if mapping is not None:
+            text += f", placed by a map through {mapping.centres.shape[0]} anchors and corners"
         text += (
-            f"; {len(junctions)} corners matched, {pairing.between_junctions} pairs between two"
             f"; {len(found_curves)} target features at scale {scale:.4g}, max distance {distance:.4g} "
             f"({time.perf_counter() - start:.2f} s)"
         )
