@@ -340,7 +340,7 @@ def pair_slit(mesh, slit: Slit, rest, current, facing_direction, mapping=None) -
             )
         )
     # The other half runs from corner b round to corner a: without the corners if the first half holds them.
-    if _farther_than(current[other], other_line[::-1], RIM_ACCURACY * frame.width, placed(other, other_line, True)):
+    if _farther_than(current[other], other_line, RIM_ACCURACY * frame.width):
         chain, points, placement = other, other_line[::-1], placed(other, other_line, True)
         if constraints:
             chain, placement = other[1:-1], placement[1:-1]
