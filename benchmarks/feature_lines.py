@@ -14,7 +14,8 @@ of a median layout edge of the part's sharp edges (dihedral angle above 30 degre
 Each run, through the operators: the layout detached, ``N`` anchors (farthest-point samples of the layout, each at
 its true point), wrapped; then either wrapped again as it is (**without**: the same two wraps, no pairing) or
 after ``springwrap.feature_lines_pair`` (**with**: the layout's creases, found on its rest shape, paired with the
-target's ridges and valleys; ``--without-junctions`` adds rows with its Junctions setting off). Errors are
+target's ridges and valleys; ``--without-junctions`` adds rows with its Junctions setting off, ``--spaced`` rows
+with its Placement As Spaced). Errors are
 distances to the truth in % of the target's diagonal: the mean over all vertices, over the crease vertices, and
 the crease p95. The target's feature curves at the automatic scale are
 measured too (count, median length in layout edges, the share of the part's true crease length within half a
@@ -224,16 +225,20 @@ def body_fragmentation(voxel: float = 0.004) -> dict:
     }
 
 
-def run_case(anchors: int, with_pairing: bool, scene, feature_scale: float = 0.0, junctions: bool = True) -> dict:
+def run_case(
+    anchors: int, with_pairing: bool, scene, feature_scale: float = 0.0, junctions: bool = True, placement="MAPPED"
+) -> dict:
     """One wrap pair (see the module docs); the errors and the pairing's report. ``junctions``: Pair Feature
-    Lines' Junctions setting (the corners where creases meet matched)."""
+    Lines' Junctions setting (the corners where creases meet matched); ``placement``: its Placement."""
     import bpy
 
     from benchmarks.retarget.baselines import mesh_object, read_positions
     from benchmarks.retarget.springwrap_methods import _add_anchors, _call, _select_only
 
     target, rest, quads, truth, on_surface, crease, diagonal = scene
-    layout = mesh_object(f"Layout {anchors} {'with' if with_pairing else 'without'} {junctions}", rest, quads)
+    layout = mesh_object(
+        f"Layout {anchors} {'with' if with_pairing else 'without'} {junctions} {placement}", rest, quads
+    )
     layout.springwrap.target = target
     _select_only(layout)
     chosen = farthest_points(rest, anchors)
@@ -249,6 +254,7 @@ def run_case(anchors: int, with_pairing: bool, scene, feature_scale: float = 0.0
             bpy.ops.springwrap.feature_lines_pair,
             feature_scale=feature_scale,
             use_junctions=junctions,
+            placement=placement,
         )
         report = report.strip().splitlines()[-1]
     _call("wrap", bpy.ops.springwrap.wrap)
@@ -263,6 +269,7 @@ def run_case(anchors: int, with_pairing: bool, scene, feature_scale: float = 0.0
         "anchors": anchors,
         "pairing": with_pairing,
         "junctions": with_pairing and junctions,
+        "placement": placement if with_pairing else None,
         "mean_all": float(errors.mean()),
         "mean_crease": float(errors[crease].mean()),
         "p95_crease": float(np.percentile(errors[crease], 95)),
@@ -298,11 +305,13 @@ def target_case(arguments, tessellation: str, part, rest, quads, bounds, layout_
     target_mesh = springwrap_kernel.TargetMesh(*target_arrays(target))
     on_surface = target_mesh.closest_points(np.ascontiguousarray(truth, dtype=np.float32)).positions.astype(np.float64)
     scene = (target, rest, quads, truth, on_surface, crease, diagonal)
-    modes = [(False, False), (True, True)] + ([(True, False)] if arguments.without_junctions else [])
+    modes = [(False, False, "MAPPED"), (True, True, "MAPPED")]
+    modes += [(True, True, "SPACED")] if arguments.spaced else []
+    modes += [(True, False, "MAPPED")] if arguments.without_junctions else []
     rows = [
-        run_case(count, pairing, scene, arguments.feature_scale, junctions)
+        run_case(count, pairing, scene, arguments.feature_scale, junctions, placement)
         for count in arguments.anchors
-        for pairing, junctions in modes
+        for pairing, junctions, placement in modes
     ]
     return {
         "tessellation": tessellation,
@@ -345,8 +354,20 @@ def run(arguments: argparse.Namespace) -> dict:
     }
 
 
-PAIRING_LABELS = {(False, False): "without", (True, True): "with", (True, False): "with, junctions off"}
-"""The feature pairing column's words for (pairing, junctions)."""
+PAIRING_LABELS = {
+    (False, False, None): "without",
+    (True, True, "MAPPED"): "with",
+    (True, True, "SPACED"): "with, as spaced",
+    (True, False, "MAPPED"): "with, junctions off",
+    (True, False, "SPACED"): "with, junctions off, as spaced",
+}
+"""The feature pairing column's words for (pairing, junctions, placement)."""
+
+
+def pairing_label(row: dict) -> str:
+    """The feature pairing column's words for a row (one written before Placement was there: as spaced)."""
+    placement = row.get("placement", "SPACED") if row["pairing"] else None
+    return PAIRING_LABELS[row["pairing"], row.get("junctions", False), placement]
 
 
 def markdown(result: dict) -> list[str]:
@@ -376,7 +397,9 @@ def markdown(result: dict) -> list[str]:
         + "); the last column measures the crease vertices to `f(v)` itself. *with* is Pair Feature Lines at "
         "its defaults between two wraps (Junctions on: the corners where the layout's creases meet matched with "
         "the target's, a line between two matched corners sharing out the crease between them by its rest "
-        "length); *with, junctions off* pairs each line with the stretch of crease where the fit has it.",
+        "length; Placement Anchors: each vertex where a smooth map through the anchors and the matched corners "
+        "takes its rest point, projected onto its stretch); *as spaced* places each vertex where the fit spaces "
+        "it along its stretch; *junctions off* pairs each line with the stretch of crease where the fit has it.",
         "",
         "| target | anchors | feature pairing | pairs (mean confidence) | mean error, all | mean error, creases "
         "| p95, creases | creases to `f(v)` |",
@@ -386,7 +409,7 @@ def markdown(result: dict) -> list[str]:
         for row in target["rows"]:
             pairs = f"{row['pairs']} ({row['mean_confidence']:.2f})" if row["pairs"] else "-"
             lines.append(
-                f"| {target['tessellation']} | {row['anchors']} | {PAIRING_LABELS[row['pairing'], row.get('junctions', False)]} | "
+                f"| {target['tessellation']} | {row['anchors']} | {pairing_label(row)} | "
                 f"{pairs} | {row['mean_all']:.3f} | {row['mean_crease']:.3f} | {row['p95_crease']:.3f} | "
                 f"{row['mean_crease_to_corner']:.3f} |"
             )
@@ -444,6 +467,11 @@ def main(argv: list[str] | None = None) -> int:
         "--without-junctions",
         action="store_true",
         help="also pair with Junctions off (the corners where creases meet not matched)",
+    )
+    parser.add_argument(
+        "--spaced",
+        action="store_true",
+        help="also pair with Placement As Spaced (each vertex where the fit spaces it along its feature)",
     )
     parser.add_argument("--no-body", action="store_true", help="leave out the voxel-remeshed body's fragmentation")
     parser.add_argument("--json", type=Path, default=DEFAULT_JSON)

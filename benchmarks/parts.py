@@ -26,6 +26,8 @@ first landmarks, each at its true place, snapped to the target as a click does) 
 - ``wrap twice``: that result wrapped again (the same two wraps as the next, without the pairing);
 - ``wrap + feature pairing``: ``springwrap.feature_lines_pair`` with its defaults (the layout's creases and
   borders with the target's ridges, valleys and hole borders) between the two wraps;
+- ``wrap + feature pairing, as spaced``: the same with Pair Feature Lines' Placement As Spaced (each paired
+  vertex where the fit spaces it along its feature, not where the anchors' smooth map puts it);
 - ``wrap, lower lip anchored``: the defaults with one anchor more, the lower lip's midline (:data:`LOWER_LIP`).
 
 Errors are distances to the true positions in % of the truth's bounding-box diagonal (the body's): the body's
@@ -82,13 +84,15 @@ METHODS = (
     "wrap (defaults)",
     "wrap twice",
     "wrap + feature pairing",
+    "wrap + feature pairing, as spaced",
     "wrap, lower lip anchored",
 )
 LOWER_LIP = 493
 """``base.obj``'s midline vertex of the lower lip where the lips meet: the one more anchor of ``wrap, lower lip
 anchored`` (at its true place), what a user anchoring an open mouth would add."""
-PAIRING_METHODS = ("wrap twice", "wrap + feature pairing")
-"""The methods that wrap twice: without and with ``springwrap.feature_lines_pair`` (its defaults) in between."""
+PAIRING_METHODS = ("wrap twice", "wrap + feature pairing", "wrap + feature pairing, as spaced")
+"""The methods that wrap twice: without and with ``springwrap.feature_lines_pair`` in between (its defaults, or
+Placement As Spaced)."""
 LIP_LOOPS = ((468, 7224), (474, 7229), (520, 7267))
 """The lips' edge loops, each by two of its ``base.obj`` vertices (a midline vertex and the next one to the left):
 the lips' rim, the loop where the closed lips meet, the first loop inside the mouth. Each is a closed quad loop
@@ -322,8 +326,9 @@ def run_case(name: str, layout: dict, methods=METHODS, positions_folder: Path | 
             output = _call("wrap", bpy.ops.springwrap.wrap)
             found = re.search(r"Parts: [^\n]*", output)
             notes = found.group(0) if found else ""
-            if method == "wrap + feature pairing":  # the defaults' wrap, its feature lines paired
-                paired = _call("feature_lines_pair", bpy.ops.springwrap.feature_lines_pair)
+            if method.startswith("wrap + feature pairing"):  # the defaults' wrap, its feature lines paired
+                placement = "SPACED" if method.endswith("as spaced") else "MAPPED"
+                paired = _call("feature_lines_pair", bpy.ops.springwrap.feature_lines_pair, placement=placement)
                 notes = paired.strip().splitlines()[-1]
             if method in PAIRING_METHODS:
                 _call("wrap", bpy.ops.springwrap.wrap)
@@ -470,14 +475,16 @@ def face_table(result: dict) -> list[str]:
     lines += [""]
     for record in result["cases"]:
         without = record["methods"].get("wrap twice", {}).get("face")
-        paired = record["methods"].get("wrap + feature pairing", {}).get("face")
-        if without is None or paired is None:
-            continue
-        ratios = ", ".join(
-            f"{label} {without[key] / paired[key]:.2f}×"
-            for label, key in (("lips", "lips_mean"), ("eyelids", "eyelids_mean"), ("head p95", "head_p95"))
-        )
-        lines.append(f"- {record['case']}: without / with the feature pairing: {ratios} (aim: 1.5× on one of them).")
+        for method in PAIRING_METHODS[1:]:
+            paired = record["methods"].get(method, {}).get("face")
+            if without is None or paired is None:
+                continue
+            ratios = ", ".join(
+                f"{label} {without[key] / paired[key]:.2f}×"
+                for label, key in (("lips", "lips_mean"), ("eyelids", "eyelids_mean"), ("head p95", "head_p95"))
+            )
+            how = "the feature pairing" + method.removeprefix("wrap + feature pairing")
+            lines.append(f"- {record['case']}: without / with {how}: {ratios} (aim: 1.5× on one of them).")
     return lines
 
 

@@ -89,6 +89,12 @@ class SpringwrapCurvePointItem(bpy.types.PropertyGroup):
     co: bpy.props.FloatVectorProperty(name="Point", size=3, default=(0.0, 0.0, 0.0), subtype="XYZ", unit="LENGTH")
 
 
+class SpringwrapCurveFractionItem(bpy.types.PropertyGroup):
+    """Where along a curve constraint's target polyline one chain vertex goes"""
+
+    value: bpy.props.FloatProperty(name="Fraction", default=0.0, min=0.0, max=1.0)
+
+
 class SpringwrapCurveConstraintItem(bpy.types.PropertyGroup):
     """A curve constraint: a layout edge chain that follows a target curve (paper section 2.4)"""
 
@@ -106,6 +112,12 @@ class SpringwrapCurveConstraintItem(bpy.types.PropertyGroup):
         "Points",
         "The target polyline in world space, as last resolved (its start at the chain's start)",
         SpringwrapCurvePointItem,
+    )
+    fractions: props.items(
+        "Placement",
+        "Where along the target polyline each chain vertex goes (fractions of its length, one per vertex, as Pair "
+        "Feature Lines placed them); empty: each vertex at the fraction it has along the chain",
+        SpringwrapCurveFractionItem,
     )
     confidence: props.number(
         "Confidence",

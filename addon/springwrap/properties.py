@@ -16,6 +16,7 @@ from .core.subdivision import MAX_RESOLUTION
 from .item_properties import (
     SpringwrapAnchorItem,
     SpringwrapCurveConstraintItem,
+    SpringwrapCurveFractionItem,
     SpringwrapCurvePointItem,
     is_curve_object,
 )
@@ -427,6 +428,7 @@ class SpringwrapObjectSettings(bpy.types.PropertyGroup):
 classes = (
     SpringwrapAnchorItem,
     SpringwrapCurvePointItem,
+    SpringwrapCurveFractionItem,
     SpringwrapCurveConstraintItem,
     SpringwrapObjectSettings,
 )

@@ -1029,6 +1029,7 @@ def layout_data(layout) -> dict:
                 item.source_kind,
                 item.target_vertices,
                 tuple(tuple(point.co) for point in item.points),
+                tuple(entry.value for entry in item.fractions),
             )
             for item in settings.curve_constraints
         ]

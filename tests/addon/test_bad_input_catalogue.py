@@ -139,7 +139,13 @@ def full_snapshot(layout):
         for item in settings.anchors
     ]
     constraints = [
-        (item.layout_vertices, item.source_kind, item.target_vertices, tuple(tuple(point.co) for point in item.points))
+        (
+            item.layout_vertices,
+            item.source_kind,
+            item.target_vertices,
+            tuple(tuple(point.co) for point in item.points),
+            tuple(entry.value for entry in item.fractions),
+        )
         for item in settings.curve_constraints
     ]
     return {

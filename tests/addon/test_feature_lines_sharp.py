@@ -119,3 +119,38 @@ def test_junctions_place_each_crease_between_the_targets_corners(capfd):
     unmatched = first_points(False)
     assert "0 corners matched, 0 pairs between two" in capfd.readouterr().out
     np.testing.assert_allclose(unmatched[:, 1], unmatched[:, 0], atol=1e-4)
+
+
+def test_placement_anchors_puts_each_crease_vertex_where_the_corners_map_it_as_spaced_where_the_fit_has_it():
+    """The cube's rest shape stored, then its vertices slid along x unevenly (the corners stay): the creases along
+    x are spaced unevenly under the fit. With Placement Anchors each of their vertices goes along the box's edge
+    where the map through the 8 matched corners (a scaling by 1.1) takes its rest point; As Spaced, where the
+    uneven spacing has it."""
+    from springwrap.blender import attributes
+    from springwrap.core import curves
+
+    layout = cube_layout(sharp_box_target())
+    rest = world_positions(layout)
+    attributes.write_rest(layout, rest)
+    slid = rest.copy()
+    slid[:, 0] += 0.15 * (1.0 - rest[:, 0] ** 2)
+    layout.data.vertices.foreach_set("co", slid.astype(np.float32).ravel())
+    layout.data.update()
+
+    def along_x(placement):
+        assert bpy.ops.springwrap.feature_lines_pair(placement=placement) == {"FINISHED"}
+        found = []
+        for item in feature_items(layout):
+            chain = np.array([int(vertex) for vertex in item.layout_vertices.split()])
+            if np.ptp(rest[chain, 0]) < 1.0:
+                continue  # a crease along y or z
+            points = np.array([tuple(point.co) for point in item.points])
+            fractions = np.array([entry.value for entry in item.fractions])
+            assert fractions.size == (chain.size if placement == "MAPPED" else 0)
+            pulled = curves.arc_length_points(slid[chain], points, fractions)
+            found.append(np.abs(pulled[:, 0] - HALF * rest[chain, 0]).max())
+        assert len(found) == 4
+        return max(found)
+
+    assert along_x("MAPPED") < 1e-3
+    assert along_x("SPACED") > 0.05

@@ -230,3 +230,20 @@ def test_a_curve_with_a_nan_point_and_a_bad_state_are_refused():
     states[2] = 7
     with pytest.raises(sk.InvalidArgumentError, match="layout vertex 2 has state 7"):
         sk.WrapSolver(target, structure, states, triangles, barycentrics, positions)
+
+
+def test_curve_fractions_of_the_wrong_length_or_outside_0_to_1_are_refused():
+    curve = {
+        "curve_vertices": np.array([4, 5, 6], np.uint32),
+        "curve_vertex_counts": np.array([3], np.uint32),
+        "curve_points": np.array([[0, 0, 0], [0.1, 0, 0]], np.float32),
+        "curve_point_counts": np.array([2], np.uint32),
+    }
+    wrap_solver(**curve, curve_fractions=np.array([0.0, 0.5, 1.0], np.float32))
+    wrap_solver(**curve, curve_fractions=np.full(3, np.nan, np.float32))  # as spaced
+    with pytest.raises(sk.ArrayError, match="curve_fractions has 2 entries for 3 curve_vertices"):
+        wrap_solver(**curve, curve_fractions=np.array([0.0, 1.0], np.float32))
+    with pytest.raises(sk.InvalidArgumentError, match="curve constraint 0: fraction 1 is 1.5"):
+        wrap_solver(**curve, curve_fractions=np.array([0.0, 1.5, 1.0], np.float32))
+    with pytest.raises(sk.InvalidArgumentError, match="curve constraint 0: fraction 1 is NaN"):
+        wrap_solver(**curve, curve_fractions=np.array([0.0, np.nan, 1.0], np.float32))

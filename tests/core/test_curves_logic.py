@@ -256,8 +256,10 @@ def test_kernel_arrays_are_flat_and_checked():
     second = cu.make_constraint([2, 3], [[0, 1, 0], [1, 1, 0], [2, 1, 0]], cu.TARGET_EDGES, [5, 6, 7])
     assert cu.kernel_arrays([], 4) is None
     anchored = np.array([False, False, True, False])
-    vertices, vertex_counts, points, point_counts = cu.kernel_arrays([first, second], 4, anchored)
+    second = second._replace(fractions=np.array([0.0, 0.8]))
+    vertices, vertex_counts, points, point_counts, fractions = cu.kernel_arrays([first, second], 4, anchored)
     np.testing.assert_array_equal(vertices, [0, 1, 2, 2, 3])
+    np.testing.assert_allclose(fractions, [np.nan, np.nan, np.nan, 0.0, 0.8], rtol=1e-6)  # the first as spaced
     np.testing.assert_array_equal(vertex_counts, [3, 2])
     assert points.dtype == np.float32 and points.shape == (5, 3) and points.flags.c_contiguous
     np.testing.assert_array_equal(point_counts, [2, 3])
@@ -269,6 +271,10 @@ def test_kernel_arrays_are_flat_and_checked():
         cu.kernel_arrays([cu.make_constraint([0, 1], [[0, 0, 0]], cu.CURVE_OBJECT)], 4)
     with pytest.raises(LayoutError, match="NaN"):
         cu.kernel_arrays([cu.make_constraint([0, 1], [[0, 0, 0], [np.nan, 0, 0]], cu.CURVE_OBJECT)], 4)
+    with pytest.raises(LayoutError, match="placements"):
+        cu.kernel_arrays([second._replace(fractions=np.array([0.0, 1.5]))], 4)
+    with pytest.raises(ValueError, match="fractions for a chain"):
+        cu.make_constraint([0, 1], [[0, 0, 0], [1, 0, 0]], cu.FEATURE_LINE, fractions=[0.5])
 
 
 def test_arc_length_points_and_dashes():

@@ -147,3 +147,30 @@ def test_pairing_between_matched_junctions_moves_the_stretch_to_the_corners():
     ends = constraint.layout_vertices[[0, -1]]
     np.testing.assert_allclose(constraint.points[[0, -1], 0], positions[ends, 0], atol=1e-5)
     np.testing.assert_allclose(slid.constraints[0].points[[0, -1], 0], current[ends, 0], atol=1e-3)
+
+
+def test_a_placement_map_puts_each_paired_vertex_where_the_anchors_say_not_where_the_fit_slid_it():
+    """The middle row slid along itself by a third of an edge under the fit; anchors round the grid's border (at their
+    rest places, the truth) give a map that places each vertex of the row back at its own x along the ridge; four
+    anchors are too few to place a line without matched corners: it goes as spaced."""
+    positions, corners, sizes = grid()
+    lines = fl.find_lines(positions, corners, sizes, row_and_column()[: SIZE - 1], 0.0, False)
+    row = (SIZE // 2) * SIZE + np.arange(SIZE)
+    current = positions.copy()
+    current[row, 0] += 0.33
+    anchored = np.zeros(len(positions), dtype=bool)
+    index = np.arange(SIZE * SIZE).reshape(SIZE, SIZE)
+    border = np.unique(np.concatenate([index[0], index[-1], index[:, 0], index[:, -1]]))
+    mapping = fl.placement_map(positions, border, positions[border] + [0, 0, 0.05])
+    placed = fl.pair_lines(lines, current, straight_curves(), anchored, [], 0.5, rest=positions, mapping=mapping)
+    spaced = fl.pair_lines(lines, current, straight_curves(), anchored, [], 0.5)
+    (constraint,) = placed.constraints
+    assert constraint.fractions.size == constraint.layout_vertices.size and spaced.constraints[0].fractions.size == 0
+    targets = cu.arc_length_points(current[constraint.layout_vertices], constraint.points, constraint.fractions)
+    np.testing.assert_allclose(targets[:, 0], positions[constraint.layout_vertices, 0], atol=1e-6)
+    slid = cu.arc_length_points(current[constraint.layout_vertices], spaced.constraints[0].points)
+    assert np.abs(slid[:, 0] - positions[spaced.constraints[0].layout_vertices, 0]).max() > 0.1
+    assert fl.placement_map(positions, [], np.zeros((0, 3))) is None
+    coarse = fl.placement_map(positions, border[:4], positions[border[:4]] + [0, 0, 0.05])  # too few points
+    as_spaced = fl.pair_lines(lines, current, straight_curves(), anchored, [], 0.5, rest=positions, mapping=coarse)
+    assert as_spaced.constraints[0].fractions.size == 0

@@ -6,6 +6,7 @@ import numpy as np
 from helpers import core_module
 
 openings = core_module("openings")
+cu = core_module("curves")
 target_module = core_module("target")
 
 
@@ -45,6 +46,33 @@ def test_every_closed_edge_loop_of_a_torus_is_found_once():
     assert len({tuple(sorted(loop.tolist())) for loop in loops}) == 20
 
 
+def quad_cube(n):
+    """(F, 4) the quads of a cube's surface, ``n`` x ``n`` a face, its vertices shared along the edges."""
+    numbers, quads = {}, []
+    grid = np.linspace(-1.0, 1.0, n + 1)
+    for axis in range(3):
+        u, v = [other for other in range(3) if other != axis]
+        for sign in (-1.0, 1.0):
+            for i in range(n):
+                for j in range(n):
+                    quad = []
+                    for di, dj in ((0, 0), (1, 0), (1, 1), (0, 1)):
+                        point = [0.0, 0.0, 0.0]
+                        point[axis], point[u], point[v] = sign, grid[i + di], grid[j + dj]
+                        quad.append(numbers.setdefault(tuple(point), len(numbers)))
+                    quads.append(quad if sign > 0 else quad[::-1])
+    return np.array(quads)
+
+
+def test_the_loops_of_a_cube_go_round_it_past_its_corners_and_a_grid_with_a_border_has_none():
+    quads = quad_cube(6)
+    loops = openings.closed_loops(quads.ravel(), np.full(len(quads), 4))
+    # 5 loops round the cube in each of its 3 directions, 24 vertices each; none through a corner (3 edges).
+    assert len(loops) == 15 and all(loop.size == 24 for loop in loops)
+    assert len({tuple(sorted(loop.tolist())) for loop in loops}) == 15
+    assert openings.closed_loops(quads[:36].ravel(), np.full(36, 4)) == []
+
+
 def test_a_loop_whose_halves_touch_is_a_slit_and_a_round_one_is_not():
     closed_lips = ring(24, 0.5, 0.004)
     slit = openings.find_slit(np.arange(24), closed_lips)
@@ -77,3 +105,21 @@ def test_a_slit_over_a_closed_surface_or_an_opening_no_wider_stays_free():
     opened = closed_lips.copy()
     opened[:, 1] = np.sign(opened[:, 1]) * 0.3
     assert openings.pair_slit(pit_target(), slit, closed_lips, opened, facing) is None
+
+
+def test_with_a_map_each_half_of_a_slit_goes_along_its_rim_as_far_across_as_the_map_takes_it():
+    """An identity map: each vertex of the closed lips goes to the rim's point as far across the opening as it lies
+    between the corners (not to the rim's nearest point, nor where the lips' spacing puts it)."""
+    closed_lips = ring(24, 0.5, 0.004)
+    slit = openings.find_slit(np.arange(24), closed_lips)
+    corners = closed_lips[[0, 6, 12, 18, 3, 9]] + np.array([[0, 0, 0]] * 4 + [[0, 0, 0.5]] * 2)  # not in a plane
+    mapping = core_module("smooth_map").fit(corners, corners)
+    pair = openings.pair_slit(pit_target(), slit, closed_lips, closed_lips, np.array([0.0, 0.0, 1.0]), mapping)
+    spaced = openings.pair_slit(pit_target(), slit, closed_lips, closed_lips, np.array([0.0, 0.0, 1.0]))
+    for placed, as_spaced in zip(pair.constraints, spaced.constraints):
+        chain = placed.layout_vertices
+        assert placed.fractions.size == chain.size and as_spaced.fractions.size == 0
+        assert np.all(np.diff(placed.fractions) >= 0.0)
+        points = cu.arc_length_points(closed_lips[chain], placed.points, placed.fractions)
+        inner = np.abs(points[:, 0]) < 0.35  # within the pit's width, where the rim runs straight across
+        np.testing.assert_allclose(points[inner, 0], closed_lips[chain][inner, 0], atol=0.02)

@@ -74,3 +74,10 @@ def test_resolution_out_of_range_is_refused():
     quads, vertices = grid_topology(1)
     with pytest.raises(ValueError, match="within 1 .. 8, not 9"):
         subdivision.subdivide(topology_of(quads, len(vertices)), 9)
+
+
+def test_a_chains_placements_spread_evenly_over_the_points_cut_into_its_edges():
+    expanded = core_module("wrap_inputs")._expanded_fractions
+    chain, fine_chain = np.array([3, 7, 5]), np.array([3, 20, 21, 7, 22, 5])  # 20..22: points cut into its edges
+    np.testing.assert_allclose(expanded(chain, fine_chain, np.array([0.0, 0.6, 0.9])), [0.0, 0.2, 0.4, 0.6, 0.75, 0.9])
+    assert np.isnan(expanded(chain, fine_chain, np.full(3, np.nan))).all()  # as spaced stays as spaced

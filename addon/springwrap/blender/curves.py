@@ -61,13 +61,19 @@ def read_curve_constraints(layout: bpy.types.Object) -> list:
         points = np.empty(len(item.points) * 3, dtype=np.float64)
         if len(item.points):
             item.points.foreach_get("co", points)
+        fractions = np.empty(len(item.fractions), dtype=np.float64)
+        if len(item.fractions):
+            item.fractions.foreach_get("value", fractions)
+        chain = curves.parse_indices(item.layout_vertices)
         constraints.append(
             curves.make_constraint(
-                curves.parse_indices(item.layout_vertices),
+                chain,
                 points,
                 item.source_kind,
                 curves.parse_indices(item.target_vertices),
                 item.curve_object,
+                item.confidence,
+                fractions if fractions.size == chain.size else (),
             )
         )
     return constraints
@@ -89,6 +95,10 @@ def write_curve_constraints(layout: bpy.types.Object, constraints, active_index:
             item.points.add()
         if constraint.points.shape[0]:
             item.points.foreach_set("co", np.ascontiguousarray(constraint.points, dtype=np.float32).reshape(-1))
+        for _ in range(constraint.fractions.size):
+            item.fractions.add()
+        if constraint.fractions.size:
+            item.fractions.foreach_set("value", np.ascontiguousarray(constraint.fractions, dtype=np.float32))
     chosen = active_index if active_index >= 0 else settings.active_curve_constraint_index
     settings.active_curve_constraint_index = max(anchors.clamp_active_index(chosen, len(items)), 0)
 

@@ -45,6 +45,7 @@ class CurveConstraint(NamedTuple):
     target_vertices: np.ndarray  # (P,) int64 target vertices of a TARGET_EDGES polyline, empty otherwise
     curve_object: Any = None  # the curve object of a CURVE_OBJECT constraint (opaque here)
     confidence: float = 0.0  # how sure the pairing of a FEATURE_LINE constraint was (0 to 1)
+    fractions: np.ndarray = np.zeros(0)  # (C,) where each chain vertex goes along the polyline; empty: as spaced
 
 
 class AutoOutcome(NamedTuple):
@@ -55,11 +56,16 @@ class AutoOutcome(NamedTuple):
 
 
 def make_constraint(
-    layout_vertices, points, source_kind, target_vertices=(), curve_object=None, confidence=0.0
+    layout_vertices, points, source_kind, target_vertices=(), curve_object=None, confidence=0.0, fractions=()
 ) -> CurveConstraint:
-    """A :class:`CurveConstraint` with the right dtypes and shapes."""
+    """A :class:`CurveConstraint` with the right dtypes and shapes. ``fractions``: where along ``points`` each
+    chain vertex goes (fractions of its length, one per vertex), or empty: at the fraction of the chain's own length
+    the vertex has when the wrap starts."""
     if source_kind not in (CURVE_OBJECT, TARGET_EDGES, FEATURE_LINE):
         raise ValueError(f"unknown curve constraint source {source_kind!r}")
+    fractions = np.asarray(fractions, dtype=np.float64).reshape(-1).copy()
+    if fractions.size and fractions.size != np.asarray(layout_vertices).size:
+        raise ValueError(f"{fractions.size} fractions for a chain of {np.asarray(layout_vertices).size} vertices")
     return CurveConstraint(
         layout_vertices=np.asarray(layout_vertices, dtype=np.int64).reshape(-1).copy(),
         points=np.asarray(points, dtype=np.float64).reshape(-1, 3).copy(),
@@ -67,6 +73,7 @@ def make_constraint(
         target_vertices=np.asarray(target_vertices, dtype=np.int64).reshape(-1).copy(),
         curve_object=curve_object,
         confidence=float(confidence),
+        fractions=fractions,
     )
 
 
@@ -298,8 +305,9 @@ def skip_report(skipped: dict) -> str:
 
 
 def kernel_arrays(constraints, vertex_count: int, anchored: np.ndarray | None = None, origin=None):
-    """The kernel's flat arrays ``(curve_vertices, curve_vertex_counts, curve_points, curve_point_counts)``,
-    the points relative to ``origin`` (the kernel's frame, see ``wrap_inputs.WrapInputs``).
+    """The kernel's flat arrays ``(curve_vertices, curve_vertex_counts, curve_points, curve_point_counts,
+    curve_fractions)`` (the fractions NaN for a chain without), the points relative to ``origin`` (the kernel's
+    frame, see ``wrap_inputs.WrapInputs``).
 
     Raises :class:`LayoutError` naming the constraint when a chain has fewer than two vertices or
     a vertex the layout does not have, a polyline fewer than two points or a non-finite one, or a
@@ -323,6 +331,9 @@ def kernel_arrays(constraints, vertex_count: int, anchored: np.ndarray | None = 
             raise LayoutError(f"{label} has a target curve of {points.shape[0]} points: it needs at least two")
         if not np.all(np.isfinite(points)):
             raise LayoutError(f"{label} has a NaN or infinite target point")
+        fractions = constraint.fractions
+        if fractions.size and (fractions.size != chain.size or not np.all((fractions >= 0.0) & (fractions <= 1.0))):
+            raise LayoutError(f"{label} has placements that are not one per vertex from 0 to 1: pair it again")
         for vertex in chain.tolist():
             if anchored is not None and anchored[vertex]:
                 continue
@@ -331,6 +342,7 @@ def kernel_arrays(constraints, vertex_count: int, anchored: np.ndarray | None = 
                     f"Layout vertex {vertex} belongs to curve constraints {held[vertex]} and {number}: remove one"
                 )
             held[vertex] = number
+    placed = [c.fractions if c.fractions.size else np.full(c.layout_vertices.size, np.nan) for c in constraints]
     return (
         np.ascontiguousarray(np.concatenate([c.layout_vertices for c in constraints]), dtype=np.uint32),
         np.asarray([c.layout_vertices.size for c in constraints], dtype=np.uint32),
@@ -339,14 +351,16 @@ def kernel_arrays(constraints, vertex_count: int, anchored: np.ndarray | None = 
             dtype=np.float32,
         ),
         np.asarray([c.points.shape[0] for c in constraints], dtype=np.uint32),
+        np.ascontiguousarray(np.concatenate(placed), dtype=np.float32),
     )
 
 
 # ---------------------------------------------------------------- drawing
 
 
-def arc_length_points(chain_positions, points) -> np.ndarray:
-    """(C, 3): for each chain vertex, the polyline point at the same fraction of arc length."""
+def arc_length_points(chain_positions, points, fractions=()) -> np.ndarray:
+    """(C, 3): for each chain vertex, the polyline point at the same fraction of arc length (or at its
+    ``fractions`` entry, when given: one per vertex)."""
     chain_positions = np.asarray(chain_positions, dtype=np.float64).reshape(-1, 3)
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     if points.shape[0] == 0:
@@ -354,7 +368,8 @@ def arc_length_points(chain_positions, points) -> np.ndarray:
     if points.shape[0] == 1:
         return np.repeat(points, chain_positions.shape[0], axis=0)
     point_lengths = cumulative_lengths(points)
-    wanted = length_fractions(chain_positions) * point_lengths[-1]
+    fractions = np.asarray(fractions, dtype=np.float64).reshape(-1)
+    wanted = (fractions if fractions.size else length_fractions(chain_positions)) * point_lengths[-1]
     return np.stack([np.interp(wanted, point_lengths, points[:, axis]) for axis in range(3)], axis=1)
 
 

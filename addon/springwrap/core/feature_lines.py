@@ -15,7 +15,7 @@ import numpy as np
 
 import springwrap_kernel
 
-from . import curves
+from . import curves, smooth_map
 from .edge_paths import cumulative_lengths, length_fractions
 from .errors import LayoutError
 
@@ -317,6 +317,24 @@ def between_junctions(line_rest, chain_rows, curve_points, start_point, end_poin
     return _piece(stretch, along, first, last)
 
 
+def mapped_stretch(mapping, chain_rest, curve_points, stretch) -> np.ndarray:
+    """The stretch of the open curve ``curve_points`` from where ``mapping`` (``smooth_map.SmoothMap``) takes the
+    chain's first rest point (``chain_rest``, (C, 3)) to where it takes the last, both projected onto the curve;
+    ``stretch`` (the one under the current fit, in the chain's direction) when those two are not about as far apart
+    along the curve (:data:`MIN_LENGTH_RATIO`) or come in the other order."""
+    curve_points = np.asarray(curve_points, dtype=np.float64).reshape(-1, 3)
+    stretch = np.asarray(stretch, dtype=np.float64).reshape(-1, 3)
+    cumulative = cumulative_lengths(curve_points)
+    ends = smooth_map.apply(mapping, np.asarray(chain_rest, dtype=np.float64)[[0, -1]])
+    begin, finish = (_parameter(curve_points, cumulative, end)[0] for end in ends)
+    first, last = (_parameter(curve_points, cumulative, end)[0] for end in stretch[[0, -1]])
+    length = cumulative_lengths(stretch)[-1]
+    span = (finish - begin) * np.sign(last - first)
+    if not MIN_LENGTH_RATIO * length <= span <= length / MIN_LENGTH_RATIO:
+        return stretch
+    return _piece(curve_points, cumulative, begin, finish)
+
+
 JUNCTION_TOLERANCE = 0.01
 """How far a matched target junction may lie from the curve a line pairs with, as a fraction of the line's
 rest length: farther, the curve does not run to that corner."""
@@ -325,15 +343,47 @@ MIN_LENGTH_RATIO = 0.5
 length (and the longest, its inverse)."""
 
 
+MIN_MAP_POINTS = 12
+"""The fewest matched points (anchors and corners) through which the smooth map places the vertices of a line that
+does not run between two matched corners (and a slit's halves): through fewer it is too coarse to say where along
+a feature a vertex lies (8 anchors on a whole part), and such lines go as the fit spaces them."""
+
+
+def placement_map(rest, vertices, locations, junctions=None) -> smooth_map.SmoothMap | None:
+    """The smooth map (:mod:`smooth_map`) from the layout's rest shape (``rest``, (N, 3) world) to the target
+    through the anchored ``vertices`` ((K,)) and their target ``locations`` ((K, 3) world) and the matched
+    ``junctions`` (``{layout vertex: target point}``); None without any."""
+    vertices = np.asarray(vertices, dtype=np.int64).reshape(-1)
+    locations = np.asarray(locations, dtype=np.float64).reshape(-1, 3)
+    if junctions:
+        vertices = np.concatenate([vertices, np.fromiter(junctions, dtype=np.int64, count=len(junctions))])
+        locations = np.concatenate([locations, np.array(list(junctions.values()), dtype=np.float64)])
+    if vertices.size == 0:
+        return None
+    return smooth_map.fit(np.asarray(rest, dtype=np.float64)[vertices], locations)
+
+
 def pair_lines(
-    lines, current, curves_found, anchored, existing, max_distance: float, rest=None, junctions=None, **settings
+    lines,
+    current,
+    curves_found,
+    anchored,
+    existing,
+    max_distance: float,
+    rest=None,
+    junctions=None,
+    mapping=None,
+    **settings,
 ) -> Pairing:
     """Pair ``lines`` with ``curves_found`` (:func:`target_curves`) under the current fit (``current``, (N, 3)
     world positions). A paired line whose vertices (``anchored`` ones excepted) already follow one of
     ``existing`` constraints, or a more confident pair of this call (lines that cross), stays free.
     ``junctions``: ``{layout vertex: target point}`` (:func:`match_junctions`) with ``rest`` ((N, 3) world rest
     shape): a paired line between two matched junctions follows its curve between them, shared out by the rest
-    shape's arc length (:func:`between_junctions`), instead of the stretch under the current fit.
+    shape's arc length (:func:`between_junctions`), instead of the stretch under the current fit. ``mapping``
+    (:func:`placement_map`, with ``rest``): each vertex of an open line goes where the map takes its rest point,
+    projected onto the line's stretch (``smooth_map.placements``), instead of where the fit spaces it (a line not
+    between matched corners only when the map runs through :data:`MIN_MAP_POINTS` points or more).
     ``settings``: ``max_angle`` (degrees), ``min_confidence``."""
     outcomes = springwrap_kernel.pair_feature_lines(
         np.ascontiguousarray(current, dtype=np.float32),
@@ -372,11 +422,21 @@ def pair_lines(
                     np.asarray(rest, dtype=np.float64)[line.vertices], rows, curve_points, *(junctions[e] for e in ends)
                 )
         between += target is not None
+        points = np.asarray(outcome.target if target is None else target, dtype=np.float64).reshape(-1, 3)
+        fractions = ()
+        if (
+            mapping is not None
+            and rest is not None
+            and not line.closed
+            and not curves.is_closed(points)
+            and (target is not None or mapping.centres.shape[0] >= MIN_MAP_POINTS)
+        ):
+            chain_rest = np.asarray(rest, dtype=np.float64)[chain]
+            if target is None and not curve_closed:
+                points = mapped_stretch(mapping, chain_rest, curve_points, points)
+            fractions = smooth_map.placements(mapping, chain_rest, points)
         accepted[index] = curves.make_constraint(
-            chain,
-            outcome.target if target is None else target,
-            curves.FEATURE_LINE,
-            confidence=float(outcome.confidence),
+            chain, points, curves.FEATURE_LINE, confidence=float(outcome.confidence), fractions=fractions
         )
     free.sort(key=lambda item: item[0])
     return Pairing(

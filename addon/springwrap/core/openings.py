@@ -19,7 +19,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import curves
+from . import curves, smooth_map
 from .edge_paths import cumulative_lengths
 from .parts import fan_triangles
 
@@ -83,49 +83,71 @@ def _polyline_distance(points: np.ndarray, polyline: np.ndarray) -> np.ndarray:
 
 def closed_loops(face_corners, face_sizes) -> list:
     """(C,) int64 vertices of each closed edge loop of the layout's quads: chains that go straight on through
-    vertices of four edges and four quads (across the edge opposite the one they came by) until they close."""
+    vertices of four edges (across the edge opposite the one they came by: the one of the four that shares no quad
+    with it) until they close. Each loop once, from the first edge (in the quads' order) of two quads it has."""
     sizes = np.asarray(face_sizes, dtype=np.int64).reshape(-1)
     corners = np.asarray(face_corners, dtype=np.int64).reshape(-1)
     starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
     quads = corners[starts[sizes == 4][:, None] + np.arange(4)[None, :]] if (sizes == 4).any() else np.zeros((0, 4))
-    faces_of: dict = {}
-    neighbours: dict = {}
-    for face, quad in enumerate(np.asarray(quads, dtype=np.int64).tolist()):
-        for index in range(4):
-            a, b = quad[index], quad[(index + 1) % 4]
-            faces_of.setdefault((min(a, b), max(a, b)), []).append(face)
-            neighbours.setdefault(a, set()).add(b)
-            neighbours.setdefault(b, set()).add(a)
-
-    def ahead(previous: int, here: int):
-        """The vertex straight on from ``previous`` through ``here``, or None."""
-        if len(neighbours[here]) != 4:
-            return None
-        beside = set(faces_of[(min(previous, here), max(previous, here))])
-        onward = [
-            n for n in neighbours[here] if n != previous and not beside & set(faces_of[(min(n, here), max(n, here))])
-        ]
-        return onward[0] if len(onward) == 1 else None
-
-    visited, loops = set(), []
-    for edge in faces_of:
-        if edge in visited or len(faces_of[edge]) != 2:
+    quads = np.asarray(quads, dtype=np.int64)
+    if quads.size == 0:
+        return []
+    pairs = np.sort(np.stack([quads, np.roll(quads, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
+    span = int(quads.max()) + 1
+    keys, first, edge_of = np.unique(pairs[:, 0] * span + pairs[:, 1], return_index=True, return_inverse=True)
+    edge_of = edge_of.reshape(-1)
+    low, high = keys // span, keys % span
+    edges = np.stack([low, high], axis=1)
+    # Each edge's quads (as many slots as the edge with most), -1 where it has fewer.
+    faces = np.repeat(np.arange(quads.shape[0]), 4)
+    order = np.argsort(edge_of, kind="stable")
+    uses = np.bincount(edge_of, minlength=edges.shape[0])
+    slot = np.arange(order.size) - np.repeat(np.cumsum(uses) - uses, uses)
+    edge_faces = np.full((edges.shape[0], int(uses.max())), -1, dtype=np.int64)
+    edge_faces[edge_of[order], slot] = faces[order]
+    # The vertices of four edges, their edges; for each edge in, the one edge out that shares no quad with it.
+    ends = np.concatenate([low, high])
+    by_vertex = np.argsort(ends, kind="stable")
+    valence = np.bincount(ends)
+    four = np.flatnonzero(valence == 4)
+    incident = (by_vertex % edges.shape[0])[(np.cumsum(valence) - valence)[four][:, None] + np.arange(4)[None, :]]
+    around = edge_faces[incident]  # (M, 4, K)
+    shared = ((around[:, :, None, :, None] == around[:, None, :, None, :]) & (around[:, :, None, :, None] >= 0)).any(
+        axis=(3, 4)
+    )
+    apart = ~shared & ~np.eye(4, dtype=bool)[None]
+    single = apart.sum(axis=2) == 1
+    out = np.argmax(apart, axis=2)
+    # Directed edge 2e runs low -> high, 2e + 1 high -> low; following[d]: the one straight on from d, or -1.
+    following = np.full(2 * edges.shape[0], -1, dtype=np.int64)
+    vertex = np.repeat(four, 4).reshape(-1, 4)
+    edge_in, edge_out = incident, np.take_along_axis(incident, out, axis=1)
+    coming = 2 * edge_in + (vertex != high[edge_in])
+    going = 2 * edge_out + (vertex == high[edge_out])
+    following[coming[single]] = going[single]
+    head = np.stack([high, low], axis=1).reshape(-1)
+    following, head = following.tolist(), head.tolist()
+    visited = np.zeros(edges.shape[0], dtype=bool)
+    most = int(np.count_nonzero(valence))
+    loops = []
+    for edge in np.argsort(first, kind="stable").tolist():
+        if visited[edge] or uses[edge] != 2:
             continue
-        path = [edge[0], edge[1]]
-        visited.add(edge)
+        visited[edge] = True
+        path, directed = [int(low[edge]), int(high[edge])], 2 * edge
         while True:
-            following = ahead(path[-2], path[-1])
-            if following is None or len(path) > len(neighbours):
+            onward = following[directed]
+            if onward < 0 or len(path) > most:
                 break
-            key = (min(path[-1], following), max(path[-1], following))
-            if following == path[0]:
-                visited.add(key)
+            if head[onward] == path[0]:
+                visited[onward >> 1] = True
                 loops.append(np.array(path, dtype=np.int64))
                 break
-            if key in visited:
+            if visited[onward >> 1]:
                 break
-            visited.add(key)
-            path.append(following)
+            visited[onward >> 1] = True
+            path.append(head[onward])
+            directed = onward
     return loops
 
 
@@ -279,10 +301,12 @@ def _trimmed(points: np.ndarray, begin: float, finish: float) -> np.ndarray:
     return np.concatenate([ends[:1], points[inside], ends[1:]])
 
 
-def pair_slit(mesh, slit: Slit, rest, current, facing_direction) -> OpeningPair | None:
+def pair_slit(mesh, slit: Slit, rest, current, facing_direction, mapping=None) -> OpeningPair | None:
     """The slit's halves paired with the rims of the target's opening there (see the module's docstring), or None
     when the target is not open there (too few columns open, or no wider than the slit is already). A half already
-    within :data:`RIM_ACCURACY` of its rim is left out."""
+    within :data:`RIM_ACCURACY` of its rim is left out. ``mapping`` (``smooth_map.SmoothMap`` from the rest shape
+    to the target): each vertex goes along its rim where the map takes its rest point (``smooth_map.placements``),
+    instead of where the fit spaces it."""
     current = np.asarray(current, dtype=np.float64)
     frame = slit_frame(slit, rest, current, facing_direction)
     fractions, upper, lower = opening_rims(mesh, slit, frame, current)
@@ -300,23 +324,56 @@ def pair_slit(mesh, slit: Slit, rest, current, facing_direction) -> OpeningPair 
     upper_line = np.concatenate([[frame.a], upper, [frame.b]])
     lower_line = np.concatenate([[frame.a], lower, [frame.b]])
     one_line, other_line = (upper_line, lower_line) if one_is_upper else (lower_line, upper_line)
+    across = np.concatenate([[0.0], fractions, [1.0]])
+    ends = np.asarray(rest, dtype=np.float64)[slit.loop[[0, slit.corner]]]
+
+    def placed(chain, line, backwards=False):
+        if mapping is None:
+            return ()
+        return rim_placements(mapping, np.asarray(rest, dtype=np.float64)[chain], ends, line, across, backwards)
+
     constraints = []
-    if _farther_than(current[one], one_line, RIM_ACCURACY * frame.width):
-        constraints.append(curves.make_constraint(one, one_line, curves.FEATURE_LINE, confidence=share))
+    if _farther_than(current[one], one_line, RIM_ACCURACY * frame.width, placed(one, one_line)):
+        constraints.append(
+            curves.make_constraint(
+                one, one_line, curves.FEATURE_LINE, confidence=share, fractions=placed(one, one_line)
+            )
+        )
     # The other half runs from corner b round to corner a: without the corners if the first half holds them.
     if _farther_than(current[other], other_line, RIM_ACCURACY * frame.width):
-        chain, points = other, other_line[::-1]
+        chain, points, placement = other, other_line[::-1], placed(other, other_line, True)
         if constraints:
-            lengths = cumulative_lengths(current[other])
-            points = _trimmed(points, lengths[1] / lengths[-1], lengths[-2] / lengths[-1])
-            chain = other[1:-1]
-        constraints.append(curves.make_constraint(chain, points, curves.FEATURE_LINE, confidence=share))
+            chain, placement = other[1:-1], placement[1:-1]
+            if mapping is None:
+                lengths = cumulative_lengths(current[other])
+                points = _trimmed(points, lengths[1] / lengths[-1], lengths[-2] / lengths[-1])
+        constraints.append(
+            curves.make_constraint(chain, points, curves.FEATURE_LINE, confidence=share, fractions=placement)
+        )
     return OpeningPair(slit, constraints, float(share)) if constraints else None
 
 
-def _farther_than(chain_positions: np.ndarray, line: np.ndarray, distance: float) -> bool:
-    """Whether a vertex of the chain lies farther than ``distance`` from where the line would pull it."""
-    pulled = curves.arc_length_points(chain_positions, line)
+def rim_placements(mapping, chain_rest, corners_rest, line, across, backwards=False) -> np.ndarray:
+    """(C,) float64: where along a rim (``line``, (P, 3) from corner a to corner b, each point ``across`` (P,)
+    of the way from a to b) each vertex of a slit's half goes, as a fraction of the rim's length (from b when
+    ``backwards``: the half runs from b to a): the vertex's rest point (``chain_rest``) taken through the map
+    (``smooth_map.SmoothMap``) is that share of the way across between where the map takes the corners
+    (``corners_rest``, (2, 3)), and goes to the rim's point as far across. Across an opening, not to the rim's
+    nearest point: a closed lip maps into the middle of the open mouth, nearer the rim's ends than its middle."""
+    mapped = smooth_map.apply(mapping, chain_rest)
+    a, b = smooth_map.apply(mapping, corners_rest)
+    axis = b - a
+    share = (mapped - a) @ axis / max(float(axis @ axis), 1e-300)
+    cumulative = cumulative_lengths(np.asarray(line, dtype=np.float64))
+    fractions = np.interp(share, across, cumulative / max(cumulative[-1], 1e-300))
+    fractions = 1.0 - fractions if backwards else fractions
+    return np.clip(np.maximum.accumulate(fractions), 0.0, 1.0)
+
+
+def _farther_than(chain_positions: np.ndarray, line: np.ndarray, distance: float, fractions=()) -> bool:
+    """Whether a vertex of the chain lies farther than ``distance`` from where the line would pull it (at
+    ``fractions`` of its length, or as the chain is spaced)."""
+    pulled = curves.arc_length_points(chain_positions, line, fractions)
     return bool(np.linalg.norm(pulled - chain_positions, axis=1).max() > distance)
 
 

@@ -89,6 +89,7 @@ class WrapInputs(NamedTuple):
     curve_vertex_counts: np.ndarray | None = None  # (K,) uint32 vertices per chain
     curve_points: np.ndarray | None = None  # (sum P, 3) float32 target polylines one after another, kernel frame
     curve_point_counts: np.ndarray | None = None  # (K,) uint32 points per polyline
+    curve_fractions: np.ndarray | None = None  # (sum C,) float32 where each chain vertex goes, NaN: as spaced
     rest_positions: np.ndarray | None = None  # (N, 3) float32 template shape the wrap keeps, kernel frame
     plane_vertices: np.ndarray | None = None  # (S,) uint32 vertices held on the mirror plane; None: no plane
     plane_point: tuple | None = None  # (3,) point of the mirror plane, kernel frame
@@ -230,13 +231,18 @@ def refine_wrap_inputs(inputs: WrapInputs, fine, positions: np.ndarray, states, 
         fine_positions[landed] = hits.positions[found]
     curve_arguments = {}
     if inputs.curve_vertices is not None:
-        chains, offset = [], 0
+        chains, placed, offset = [], [], 0
+        given = getattr(inputs, "curve_fractions", None)
         for size in inputs.curve_vertex_counts.astype(np.int64):
-            chains.append(fine.expand_chain(inputs.curve_vertices[offset : offset + size].astype(np.int64)))
+            chain = inputs.curve_vertices[offset : offset + size].astype(np.int64)
+            chains.append(fine.expand_chain(chain))
+            fractions = np.full(size, np.nan) if given is None else given[offset : offset + size]
+            placed.append(_expanded_fractions(chain, chains[-1], fractions))
             offset += size
         curve_arguments = {
             "curve_vertices": np.ascontiguousarray(np.concatenate(chains), dtype=np.uint32),
             "curve_vertex_counts": np.array([len(chain) for chain in chains], dtype=np.uint32),
+            "curve_fractions": None if given is None else np.ascontiguousarray(np.concatenate(placed), np.float32),
         }
     rest = (
         None if inputs.rest_positions is None else transforms.as_float32_points(fine.interpolate(inputs.rest_positions))
@@ -309,7 +315,7 @@ def prepare_wrap(
             )
     anchored = np.zeros(vertex_count, dtype=bool)
     anchored[anchor_vertices] = True
-    curve_arrays = curves.kernel_arrays(curve_constraints, vertex_count, anchored, origin) or (None, None, None, None)
+    curve_arrays = curves.kernel_arrays(curve_constraints, vertex_count, anchored, origin) or (None,) * 5
     inputs = WrapInputs(
         states=np.ascontiguousarray(state.states, dtype=np.int32),
         triangles=np.ascontiguousarray(state.faces, dtype=np.int32),
@@ -324,6 +330,7 @@ def prepare_wrap(
         curve_vertex_counts=curve_arrays[1],
         curve_points=curve_arrays[2],
         curve_point_counts=curve_arrays[3],
+        curve_fractions=curve_arrays[4],
         rest_positions=None
         if rest is None
         else transforms.as_float32_points(rest_world_positions(layout, rest) - origin),
@@ -341,6 +348,14 @@ def prepare_wrap(
     return inputs, resolution
 
 
+def _expanded_fractions(chain: np.ndarray, fine_chain: np.ndarray, fractions: np.ndarray) -> np.ndarray:
+    """A chain's placements along its curve (``fractions``, one per vertex of ``chain``, NaN: none) for the chain
+    with the fine points of its edges put in (``fine_chain``, ``chain``'s vertices among them in order): each fine
+    point between two of the chain's vertices evenly between their fractions."""
+    rows = np.flatnonzero(np.isin(fine_chain, chain))  # the fine points are new vertices, never the chain's
+    return np.interp(np.arange(fine_chain.size), rows, np.asarray(fractions, dtype=np.float64))
+
+
 _SOLVER_KEYWORDS = (
     "anchor_vertices",
     "anchor_triangles",
@@ -350,7 +365,7 @@ _SOLVER_KEYWORDS = (
     "rest_positions",
 )
 """The ``WrapInputs`` fields the kernel's ``WrapSolver`` takes as keywords of the same names."""
-_CURVE_KEYWORDS = ("curve_vertices", "curve_vertex_counts", "curve_points", "curve_point_counts")
+_CURVE_KEYWORDS = ("curve_vertices", "curve_vertex_counts", "curve_points", "curve_point_counts", "curve_fractions")
 """The ``WrapInputs`` fields of the curve constraints, passed to ``WrapSolver`` when there are any."""
 
 

@@ -9,6 +9,8 @@ close to it under the current fit, parallel, of its kind and about as long, unle
 feature's accuracy; the pair becomes a curve constraint (source Feature Pair, with its confidence) that the next wrap follows.
 With Junctions, the corners where the layout's lines end are matched with those where the target's sharp creases
 end, and a line between two matched corners follows its feature between them, shared out by its rest length.
+Placement Anchors puts each vertex of a paired line where a smooth map through the anchors and the matched corners
+takes its rest point, projected onto the feature.
 Lines without a partner stay free and are listed in the report. Everything is computed first and written only
 when it succeeded; a bad input (a marked line that crosses itself, an empty group) changes nothing.
 """
@@ -24,6 +26,17 @@ from ..blender import feature_lines as line_data
 from ..blender.target import check_target, read_target
 from ..core import anchors, curves, feature_lines, openings
 from .base import LayoutCollectionOperator
+
+PLACEMENT_ITEMS = (
+    (
+        "MAPPED",
+        "Anchors",
+        "Each vertex where a smooth map through the anchors (and the matched corners) takes its rest point, "
+        "projected onto the feature: the anchors, not the fit's sliding, decide where along it each vertex lies",
+    ),
+    ("SPACED", "As Spaced", "Each vertex at the fraction of the line's length it has when the wrap starts"),
+)
+"""Pair Feature Lines' placements of a line's vertices along its feature."""
 
 
 class SPRINGWRAP_OT_feature_lines_pair(LayoutCollectionOperator, bpy.types.Operator):
@@ -85,6 +98,12 @@ class SPRINGWRAP_OT_feature_lines_pair(LayoutCollectionOperator, bpy.types.Opera
         "the corners, not the fit's sliding, decide where along a crease each vertex lies",
         True,
     )
+    placement: props.choice(
+        "Placement",
+        "Where along its feature each vertex of a paired line goes",
+        PLACEMENT_ITEMS,
+        "MAPPED",
+    )
     replace: props.flag(
         "Replace", "Remove the feature pairs made before (other curve constraints stay) before pairing again", True
     )
@@ -111,11 +130,18 @@ class SPRINGWRAP_OT_feature_lines_pair(LayoutCollectionOperator, bpy.types.Opera
         found_curves, target_junctions, scale = line_data.read_target_features(
             depsgraph, check_target(layout), median_edge, self.crease_angle, scale=self.feature_scale
         )
-        anchored = anchors.anchored_mask(anchor_data.read_anchors(layout), lines_read.current.shape[0])
+        anchor_list = anchor_data.read_anchors(layout)
+        anchored = anchors.anchored_mask(anchor_list, lines_read.current.shape[0])
         junctions = {}
         if self.use_junctions:
             junctions = feature_lines.match_junctions(
                 feature_lines.line_junctions(lines), lines_read.current, target_junctions, distance
+            )
+        mapping = None
+        if self.placement == "MAPPED":
+            kept = anchors.valid_vertex_mask(anchor_list, lines_read.current.shape[0]) & ~anchor_list.proposed
+            mapping = feature_lines.placement_map(
+                lines_read.rest, anchor_list.vertex_indices[kept], anchor_list.locations[kept], junctions
             )
         pairing = feature_lines.pair_lines(
             lines,
@@ -126,12 +152,15 @@ class SPRINGWRAP_OT_feature_lines_pair(LayoutCollectionOperator, bpy.types.Opera
             distance,
             rest=lines_read.rest,
             junctions=junctions,
+            mapping=mapping,
             max_angle=self.max_angle,
             min_confidence=self.min_confidence,
         )
         opened = []
         if self.use_openings:
-            opened = self.pair_openings(depsgraph, layout, lines_read, existing + pairing.constraints, anchored)
+            opened = self.pair_openings(
+                depsgraph, layout, lines_read, existing + pairing.constraints, anchored, mapping
+            )
         curve_data.write_curve_constraints(
             layout, existing + pairing.constraints + [item for pair in opened for item in pair.constraints], -1
         )
@@ -143,25 +172,29 @@ class SPRINGWRAP_OT_feature_lines_pair(LayoutCollectionOperator, bpy.types.Opera
         if opened:
             level = "INFO"
             text += "; " + openings.report_text(opened)
+        text += f"; {len(junctions)} corners matched, {pairing.between_junctions} pairs between two"
+        if mapping is not None:
+            text += f", placed by a map through {mapping.centres.shape[0]} anchors and corners"
         text += (
-            f"; {len(junctions)} corners matched, {pairing.between_junctions} pairs between two"
             f"; {len(found_curves)} target features at scale {scale:.4g}, max distance {distance:.4g} "
             f"({time.perf_counter() - start:.2f} s)"
         )
         return [({level}, text)]
 
     @staticmethod
-    def pair_openings(depsgraph, layout, lines_read, held_constraints, anchored) -> list:
+    def pair_openings(depsgraph, layout, lines_read, held_constraints, anchored, mapping) -> list:
         """The layout's slits paired with the target's openings (``core.openings.OpeningPair`` each), those
-        whose vertices another constraint holds left out."""
+        whose vertices another constraint holds left out; ``mapping``: see ``core.openings.pair_slit``."""
         slits = openings.layout_slits(lines_read.rest, lines_read.face_corners, lines_read.face_sizes)
         if not slits:
             return []
         mesh = read_target(depsgraph, layout).mesh
         held = curves.constrained_vertices(held_constraints, anchored)
         found = []
+        if mapping is not None and mapping.centres.shape[0] < feature_lines.MIN_MAP_POINTS:
+            mapping = None  # too coarse to place a lip along its rim: as the fit spaces it
         for slit, direction in slits:
-            pair = openings.pair_slit(mesh, slit, lines_read.rest, lines_read.current, direction)
+            pair = openings.pair_slit(mesh, slit, lines_read.rest, lines_read.current, direction, mapping)
             if pair is not None and not held & set(slit.loop.tolist()):
                 found.append(pair)
         return found

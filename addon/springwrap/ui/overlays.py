@@ -196,14 +196,16 @@ def _read_curves(layout) -> bool:
     if not settings.show_curve_constraints or not len(settings.curve_constraints):
         return False
     constraints = curve_data.read_curve_constraints(layout)
-    key = _cache_key(layout, tuple((c.layout_vertices.tobytes(), c.points.tobytes()) for c in constraints))
+    key = _cache_key(
+        layout, tuple((c.layout_vertices.tobytes(), c.points.tobytes(), c.fractions.tobytes()) for c in constraints)
+    )
     if _curve_cache["key"] != key:
         found = {False: ([], []), True: ([], [])}
         for constraint in constraints:
             starts, ends = found[constraint.source_kind == curves.FEATURE_LINE]
             chain = layout_data.read_world_vertex_positions(layout, constraint.layout_vertices)
             starts.append(chain)
-            ends.append(curves.arc_length_points(chain, constraint.points))
+            ends.append(curves.arc_length_points(chain, constraint.points, constraint.fractions))
         dashes = {
             feature: curves.dashed_segments(np.concatenate(starts), np.concatenate(ends), CURVE_DASH_COUNT)
             if starts

@@ -265,6 +265,7 @@ fn a_curve_with_a_nan_or_far_point_is_refused_naming_the_point() {
     let constraint = |first: u32, points: Vec<Vec3>| CurveConstraint {
         layout_vertices: (first..first + 4).collect(),
         target: points,
+        fractions: Vec::new(),
     };
     // Points are numbered through all the curves: the NaN is point 3 (of curve 1).
     let curves = [

@@ -288,6 +288,7 @@ fn bad_plane_constraints_are_refused() {
     let curve = CurveConstraint {
         layout_vertices: vec![0, 1],
         target: vec![Vec3::ZERO, Vec3::X],
+        fractions: Vec::new(),
     };
     let error = solver()
         .with_curve_constraints(std::slice::from_ref(&curve))

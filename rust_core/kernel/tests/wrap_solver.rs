@@ -245,6 +245,7 @@ fn a_border_held_to_a_curve_on_the_surface_lies_on_it_evenly() {
     let constraint = CurveConstraint {
         layout_vertices: (0..=10).collect(),
         target: wave.clone(),
+        fractions: Vec::new(),
     };
     let points = positions.iter().map(|&p| LayoutPoint::Space(p)).collect();
     let mut solver = WrapSolver::new(target, structure, points, &anchors, WrapSettings::default())
@@ -287,6 +288,7 @@ fn a_curve_floating_above_the_surface_holds_its_points_in_space() {
     let constraint = CurveConstraint {
         layout_vertices: middle.clone(),
         target: line.clone(),
+        fractions: Vec::new(),
     };
     let points = positions.iter().map(|&p| LayoutPoint::Space(p)).collect();
     let mut solver = WrapSolver::new(target, structure, points, &anchors, WrapSettings::default())
@@ -321,6 +323,7 @@ fn bad_curve_constraints_are_refused() {
             vec![CurveConstraint {
                 layout_vertices: vec![0],
                 target: line.clone(),
+                fractions: Vec::new(),
             }],
             "at least 2 vertices",
         ),
@@ -328,6 +331,7 @@ fn bad_curve_constraints_are_refused() {
             vec![CurveConstraint {
                 layout_vertices: vec![0, 42],
                 target: line.clone(),
+                fractions: Vec::new(),
             }],
             "vertex 42",
         ),
@@ -335,6 +339,7 @@ fn bad_curve_constraints_are_refused() {
             vec![CurveConstraint {
                 layout_vertices: vec![0, 1],
                 target: vec![Vec3::ZERO],
+                fractions: Vec::new(),
             }],
             "at least 2 points",
         ),
@@ -342,6 +347,7 @@ fn bad_curve_constraints_are_refused() {
             vec![CurveConstraint {
                 layout_vertices: vec![0, 1],
                 target: vec![Vec3::X, Vec3::X],
+                fractions: Vec::new(),
             }],
             "zero length",
         ),
@@ -350,10 +356,12 @@ fn bad_curve_constraints_are_refused() {
                 CurveConstraint {
                     layout_vertices: vec![0, 1],
                     target: line.clone(),
+                    fractions: Vec::new(),
                 },
                 CurveConstraint {
                     layout_vertices: vec![1, 2],
                     target: line.clone(),
+                    fractions: Vec::new(),
                 },
             ],
             "also in curve constraint 0",

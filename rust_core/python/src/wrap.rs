@@ -42,8 +42,8 @@ impl PyWrapSolver {
         anchor_vertices = None, anchor_triangles = None, anchor_barycentrics = None,
         anchor_positions = None, unreliable_triangles = None, curve_vertices = None,
         curve_vertex_counts = None, curve_points = None, curve_point_counts = None,
-        rest_positions = None, plane_vertices = None, plane_point = None, plane_normal = None,
-        plane_slide = None, settings = None, stiffness = None, free_vertices = None,
+        curve_fractions = None, rest_positions = None, plane_vertices = None, plane_point = None,
+        plane_normal = None, plane_slide = None, settings = None, stiffness = None, free_vertices = None,
         soft_pair_vertices = None, soft_pair_positions = None, soft_pair_confidences = None
     ))]
     #[allow(clippy::too_many_arguments)]
@@ -64,6 +64,7 @@ impl PyWrapSolver {
         curve_vertex_counts: Option<&Bound<'_, PyAny>>,
         curve_points: Option<&Bound<'_, PyAny>>,
         curve_point_counts: Option<&Bound<'_, PyAny>>,
+        curve_fractions: Option<&Bound<'_, PyAny>>,
         rest_positions: Option<&Bound<'_, PyAny>>,
         plane_vertices: Option<&Bound<'_, PyAny>>,
         plane_point: Option<&Bound<'_, PyAny>>,
@@ -122,6 +123,7 @@ impl PyWrapSolver {
             curve_vertex_counts,
             curve_points,
             curve_point_counts,
+            curve_fractions,
         )?;
         let unreliable = unreliable_triangles
             .map(|flags| read_array::<bool>("unreliable_triangles", flags, None))
@@ -328,12 +330,15 @@ fn layout_points(
 }
 
 /// Curve constraints from flat arrays: chain `c` is the next `curve_vertex_counts[c]` entries of
-/// `curve_vertices`, its target polyline the next `curve_point_counts[c]` rows of `curve_points`.
+/// `curve_vertices`, its target polyline the next `curve_point_counts[c]` rows of `curve_points`;
+/// `curve_fractions` (optional, one per entry of `curve_vertices`): where along its polyline each
+/// chain vertex goes (fraction of its length), all NaN for a chain spaced as it is.
 fn read_curve_constraints(
     vertices: Option<&Bound<'_, PyAny>>,
     vertex_counts: Option<&Bound<'_, PyAny>>,
     points: Option<&Bound<'_, PyAny>>,
     point_counts: Option<&Bound<'_, PyAny>>,
+    fractions: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<Vec<CurveConstraint>> {
     let (Some(vertices), Some(vertex_counts), Some(points), Some(point_counts)) =
         (vertices, vertex_counts, points, point_counts)
@@ -353,6 +358,18 @@ fn read_curve_constraints(
     let vertex_counts = read_array::<u32>("curve_vertex_counts", vertex_counts, None)?;
     let points = read_positions("curve_points", points)?;
     let point_counts = read_array::<u32>("curve_point_counts", point_counts, None)?;
+    let fractions = fractions
+        .map(|array| read_array::<f32>("curve_fractions", array, None))
+        .transpose()?;
+    if let Some(fractions) = &fractions
+        && fractions.len() != vertices.len()
+    {
+        return Err(ArrayError::new_err(format!(
+            "curve_fractions has {} entries for {} curve_vertices: one per chain vertex",
+            fractions.len(),
+            vertices.len()
+        )));
+    }
     let total = |counts: &[u32]| {
         counts
             .iter()
@@ -379,9 +396,19 @@ fn read_curve_constraints(
         .zip(&point_counts)
         .map(|(&vertex_count, &point_count)| {
             let (vertex_count, point_count) = (vertex_count as usize, point_count as usize);
+            let given = fractions
+                .as_ref()
+                .map(|all| all[vertex_offset..vertex_offset + vertex_count].to_vec())
+                .unwrap_or_default();
             let constraint = CurveConstraint {
                 layout_vertices: vertices[vertex_offset..vertex_offset + vertex_count].to_vec(),
                 target: points[point_offset..point_offset + point_count].to_vec(),
+                // All NaN: the chain's own spacing.
+                fractions: if given.iter().all(|value| value.is_nan()) {
+                    Vec::new()
+                } else {
+                    given
+                },
             };
             vertex_offset += vertex_count;
             point_offset += point_count;

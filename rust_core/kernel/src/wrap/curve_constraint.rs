@@ -10,13 +10,16 @@ use crate::validate;
 /// The target curve is a polyline in space: a chain of target mesh edges, a Blender curve, a
 /// feature curve, or a curve floating off the surface (a blend's limit curve). Each layout vertex
 /// of the chain is pulled to the target point at the same fraction of the curve's length as the
-/// vertex sits along the layout chain (recomputed every iteration from the current positions).
+/// vertex sits along the layout chain when the wrap starts, or at the fraction `fractions` gives it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CurveConstraint {
     /// The layout chain, in order (at least 2 vertices).
     pub layout_vertices: Vec<u32>,
     /// The target polyline, in the same direction (at least 2 points, not all equal).
     pub target: Vec<Vec3>,
+    /// Where along the target polyline each chain vertex goes, as a fraction (0 to 1) of its
+    /// length, one per chain vertex; empty: at the fraction the vertex has along the chain.
+    pub fractions: Vec<f32>,
 }
 
 /// A target polyline prepared for arc-length lookups.
@@ -87,6 +90,46 @@ impl ArcLengthCurve {
     }
 }
 
+/// Where each chain vertex goes along constraint `index`'s target curve, as a fraction of its
+/// length: the constraint's own `fractions`, or the fraction of the chain's length at each
+/// vertex (from `positions`).
+///
+/// # Errors
+/// [`KernelError::InvalidArgument`] when `fractions` is neither empty nor one per chain vertex,
+/// or one lies outside 0 to 1 (or is not finite).
+pub(crate) fn vertex_fractions(
+    index: usize,
+    constraint: &CurveConstraint,
+    positions: &[Vec3],
+) -> Result<Vec<f32>, KernelError> {
+    let chain = &constraint.layout_vertices;
+    if constraint.fractions.is_empty() {
+        return Ok(chain_fractions(positions, chain));
+    }
+    let invalid = |reason: String| KernelError::InvalidArgument {
+        name: "curve constraints",
+        reason: format!("curve constraint {index}: {reason}"),
+    };
+    if constraint.fractions.len() != chain.len() {
+        return Err(invalid(format!(
+            "{} fractions for a chain of {} vertices: give one per vertex or none",
+            constraint.fractions.len(),
+            chain.len()
+        )));
+    }
+    if let Some((row, value)) = constraint
+        .fractions
+        .iter()
+        .enumerate()
+        .find(|(_, value)| !(0.0..=1.0).contains(*value))
+    {
+        return Err(invalid(format!(
+            "fraction {row} is {value}: fractions lie from 0 to 1"
+        )));
+    }
+    Ok(constraint.fractions.clone())
+}
+
 /// Fraction of the chain's length at each of its vertices, from `positions` (uniform when the
 /// chain has collapsed to a point).
 pub(crate) fn chain_fractions(positions: &[Vec3], chain: &[u32]) -> Vec<f32> {
@@ -135,6 +178,36 @@ mod tests {
             chain_fractions(&[Vec3::ZERO; 3], &[0, 1, 2]),
             vec![0.0, 0.5, 1.0]
         );
+    }
+
+    #[test]
+    fn given_fractions_replace_the_chain_spacing() {
+        let positions = [Vec3::ZERO, Vec3::X, Vec3::new(4.0, 0.0, 0.0)];
+        let mut constraint = CurveConstraint {
+            layout_vertices: vec![0, 1, 2],
+            target: vec![Vec3::ZERO, Vec3::Y],
+            fractions: Vec::new(),
+        };
+        assert_eq!(
+            vertex_fractions(0, &constraint, &positions).unwrap(),
+            vec![0.0, 0.25, 1.0]
+        );
+        constraint.fractions = vec![0.0, 0.5, 1.0];
+        assert_eq!(
+            vertex_fractions(0, &constraint, &positions).unwrap(),
+            vec![0.0, 0.5, 1.0]
+        );
+        for bad in [
+            vec![0.0, 1.0],
+            vec![0.0, 1.5, 1.0],
+            vec![0.0, f32::NAN, 1.0],
+        ] {
+            constraint.fractions = bad;
+            assert!(matches!(
+                vertex_fractions(2, &constraint, &positions),
+                Err(KernelError::InvalidArgument { reason, .. }) if reason.contains("curve constraint 2")
+            ));
+        }
     }
 
     #[test]

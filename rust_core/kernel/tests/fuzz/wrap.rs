@@ -327,6 +327,7 @@ fn build(target: &std::sync::Arc<TargetMesh>, case: &Case) -> Result<WrapSolver,
         .map(|(layout_vertices, target)| CurveConstraint {
             layout_vertices: layout_vertices.clone(),
             target: target.clone(),
+            fractions: Vec::new(),
         })
         .collect();
     solver = solver.with_curve_constraints(&curves)?;

@@ -295,12 +295,13 @@ class WrapSolver(_native.WrapSolver):
     ``WrapSolver(target, structure, states, triangles, barycentrics, positions, *, anchor_vertices=None,
     anchor_triangles=None, anchor_barycentrics=None, anchor_positions=None,
     unreliable_triangles=None, curve_vertices=None, curve_vertex_counts=None, curve_points=None,
-    curve_point_counts=None, rest_positions=None, plane_vertices=None, plane_point=None,
-    plane_normal=None, plane_slide=True, settings=None, stiffness=None, free_vertices=None,
+    curve_point_counts=None, curve_fractions=None, rest_positions=None, plane_vertices=None,
+    plane_point=None, plane_normal=None, plane_slide=True, settings=None, stiffness=None, free_vertices=None,
     soft_pair_vertices=None, soft_pair_positions=None, soft_pair_confidences=None)``;
     ``settings`` is a :class:`WrapSettings` (weights, tolerance, landing, fold tolerance, schedule), the
-    kernel's defaults when ``None``; ``stiffness`` is float32 per vertex (0 … 1), ``free_vertices`` bool per
-    vertex; the soft pairs (vertices, points, confidences in (0, 1]) pull in the stiff levels only.
+    kernel's defaults when ``None``; ``curve_fractions`` (float32, one per entry of ``curve_vertices``) says where
+    along its curve each chain vertex goes (fraction of the curve's length; a chain's rows all NaN: as it is
+    spaced); ``stiffness`` is float32 per vertex (0 … 1), ``free_vertices`` bool per vertex; the soft pairs (vertices, points, confidences in (0, 1]) pull in the stiff levels only.
     """
 
     __slots__ = ()

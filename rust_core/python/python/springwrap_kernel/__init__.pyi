@@ -401,7 +401,9 @@ class WrapSolver:
     target triangle) marks noisy data: points there behave as space-points. Curve constraints are
     flat arrays: chain ``c`` is the next ``curve_vertex_counts[c]`` entries of ``curve_vertices``
     (layout vertices in order), its target polyline the next ``curve_point_counts[c]`` rows of
-    ``curve_points`` (world space, same direction); matched by the chain's arc length now.
+    ``curve_points`` (world space, same direction); matched by the chain's arc length now, or at
+    ``curve_fractions`` (one per entry of ``curve_vertices``: fraction of the curve's length; a
+    chain's rows all NaN: by its arc length).
     ``plane_vertices`` (uint32) are held on the plane through ``plane_point`` with normal
     ``plane_normal`` (a mirrored layout's seam: face-points slide along the target's cross-section
     with the plane, space-points move within it); all three or none. ``plane_slide=False``: held
@@ -437,6 +439,7 @@ class WrapSolver:
         curve_vertex_counts: npt.NDArray[np.uint32] | None = None,
         curve_points: npt.NDArray[np.float32] | None = None,
         curve_point_counts: npt.NDArray[np.uint32] | None = None,
+        curve_fractions: npt.NDArray[np.float32] | None = None,
         rest_positions: npt.NDArray[np.float32] | None = None,
         plane_vertices: npt.NDArray[np.uint32] | None = None,
         plane_point: tuple[float, float, float] | None = None,

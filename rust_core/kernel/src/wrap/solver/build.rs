@@ -286,13 +286,13 @@ impl WrapSolver {
     /// Holds layout chains to target curves, matched by arc length (paper, section 2.4): each
     /// chain vertex is pulled to the target point at the same fraction of the curve's length as it
     /// has along the chain *now* (the template's spacing is kept; matching on the moving positions
-    /// would feed back on itself), and lands on the surface when that point lies on it. Anchored
+    /// would feed back on itself), or at the fraction the constraint gives it, and lands on the surface when that point lies on it. Anchored
     /// vertices keep their anchors.
     ///
     /// # Errors
     /// [`KernelError::InvalidArgument`] for a chain shorter than 2 vertices, a vertex that does not
-    /// exist, a vertex in two constraints, or a target curve with fewer than 2 points or zero
-    /// length; [`KernelError::NonFinite`], [`KernelError::CoordinateOutOfRange`] or
+    /// exist, a vertex in two constraints, a target curve with fewer than 2 points or zero
+    /// length, or fractions that are not one per chain vertex from 0 to 1; [`KernelError::NonFinite`], [`KernelError::CoordinateOutOfRange`] or
     /// [`KernelError::BeyondReach`] for a curve point (numbered through all the constraints'
     /// curves, as the binding's `curve_points` rows are).
     pub fn with_curve_constraints(
@@ -340,7 +340,8 @@ impl WrapSolver {
             let curve = ArcLengthCurve::new(index, first_point, &constraint.target, self.reach)?;
             first_point += constraint.target.len();
             let chain = &constraint.layout_vertices;
-            for (&vertex, fraction) in chain.iter().zip(chain_fractions(&self.positions, chain)) {
+            let fractions = vertex_fractions(index, constraint, &self.positions)?;
+            for (&vertex, fraction) in chain.iter().zip(fractions) {
                 if self.anchor_of_vertex[vertex as usize].is_none() {
                     targets[vertex as usize] = Some(curve.point_at(fraction));
                 }

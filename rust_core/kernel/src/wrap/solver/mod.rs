@@ -19,7 +19,7 @@ use std::sync::Arc;
 use glam::Vec3;
 
 use super::anchor::{Anchor, AnchorTarget};
-use super::curve_constraint::{ArcLengthCurve, CurveConstraint, chain_fractions};
+use super::curve_constraint::{ArcLengthCurve, CurveConstraint, vertex_fractions};
 use super::energy_solver::{EnergyInputs, EnergySolver};
 use super::plane_constraint::{Plane, PlaneConstraint};
 use super::settings::WrapSettings;
