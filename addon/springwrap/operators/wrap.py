@@ -252,6 +252,8 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
         return {"RUNNING_MODAL"}
 
     def modal(self, context, event):
+        if event.type != "TIMER" and wrap_session.tool_takes(self._loop.session.layout, event.type, event.value):
+            return {"PASS_THROUGH"}  # the pair tool edits the anchors while the wrap runs (it hands them over)
         frames = self._loop.session.frames
         outcome = self._loop.handle(event.type, event.value)
         if outcome == "RUNNING_MODAL":
