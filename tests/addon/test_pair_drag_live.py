@@ -377,3 +377,34 @@ def test_a_drag_while_a_live_wrap_runs_is_handed_to_its_solver(scene):
     finally:
         wrap_session.set_running(session, running=False)
         session.stop_worker(raise_error=False)
+
+
+def test_a_re_settle_done_during_a_drag_waits_for_its_next_move_the_drag_stays_one_undo_step(scene):
+    s = scene
+    before = anchor_state(s.layout)
+    item = s.layout.springwrap.anchors[0]
+    start = np.array(item.location)
+    away = s.tool.pixel(start) - s.tool.pixel(world_positions(s.layout)[item.vertex_index])
+    nudge = 3.0 * away / np.linalg.norm(away)
+    s.tool.event("LEFTMOUSE", "PRESS", s.tool.pixel(start) + nudge)
+    s.tool.event("MOUSEMOVE", mouse=s.tool.pixel(start + 0.1 * s.along) + nudge)
+    session = s.tool.operator._settle
+    deadline = time.perf_counter() + 120.0
+    while not (session.done and session.worker is None) and time.perf_counter() < deadline:
+        s.tool.frames(1, 0.01)
+    assert session.done and s.tool.operator._settle is session  # done, not finished: no undo step mid-drag
+    end = start + 0.2 * s.along
+    s.tool.event("MOUSEMOVE", mouse=s.tool.pixel(end) + nudge)
+    assert not session.done and session.worker is not None  # the next move revived it in a new worker
+    s.tool.event("LEFTMOUSE", "RELEASE", s.tool.pixel(end) + nudge)
+    released = anchor_state(s.layout)
+    s.tool.settle_to_end()
+    dragged = np.array(s.layout.springwrap.anchors[0].location)
+    assert np.linalg.norm(dragged - start) > 0.15
+    np.testing.assert_allclose(
+        world_positions(s.layout)[s.layout.springwrap.anchors[0].vertex_index], dragged, atol=2e-3
+    )
+    bpy.ops.ed.undo()  # over the re-settle's end
+    assert anchor_state(bpy.data.objects["Layout"]) == released
+    bpy.ops.ed.undo()  # over the drag: one step
+    assert anchor_state(bpy.data.objects["Layout"]) == before

@@ -41,8 +41,12 @@ def takes_edits(session, layout: bpy.types.Object) -> bool:
 
 
 def send(session, layout: bpy.types.Object) -> bool:
-    """Hand the layout's anchor list as written to the running ``session``; whether it took it."""
-    return session.move_anchors(written_anchors(session, layout))
+    """Hand the layout's anchor list as written to the running ``session``; whether it took it. A session whose
+    worker had ended (it was done) solves on in a new one."""
+    taken = session.move_anchors(written_anchors(session, layout))
+    if taken and session.worker is None and session.frames:
+        session.start_worker()
+    return taken
 
 
 def remember(layout: bpy.types.Object) -> DragStart:

@@ -115,13 +115,15 @@ class PairToolLive:
     def _advance_settle(self, context) -> None:
         if self._settle is None:
             return
+        if self._dragging and self._settle.worker is None and self._settle.done:
+            return  # it waits for the drag's next move (a drag is one undo step: no re-settle step inside it)
         frames = self._settle.frames
         try:
             pair_data.advance_settle(self._settle)
         except Exception as error:  # noqa: BLE001 - the solver failed: undo the re-settle, keep the edits
             self._live_failed(context, error)
             return
-        if self._settle.done:
+        if self._settle.done and not self._dragging:  # during a drag it waits for the next move (one undo step)
             self._finish_settle(context)
         elif self._settle.frames == frames:
             return  # the worker has solved nothing new since the last frame
