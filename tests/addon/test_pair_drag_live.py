@@ -408,3 +408,24 @@ def test_a_re_settle_done_during_a_drag_waits_for_its_next_move_the_drag_stays_o
     assert anchor_state(bpy.data.objects["Layout"]) == released
     bpy.ops.ed.undo()  # over the drag: one step
     assert anchor_state(bpy.data.objects["Layout"]) == before
+
+
+def test_esc_of_a_live_wrap_puts_the_layout_back_and_keeps_the_pairs_dragged_during_it(scene):
+    from springwrap.blender import wrap_session
+    from springwrap.core.wrap_run import WrapLoop
+
+    s = scene
+    before = snapshot(s.layout)
+    session = addon_module("blender.pair_tool").start_settle(bpy.context, s.layout)
+    loop = WrapLoop(session)
+    assert loop.handle("TIMER") == "RUNNING_MODAL"
+    session.start_worker()
+    wrap_session.set_running(session)
+    try:
+        points = drag(s, 1, moves=3)
+        dragged = anchor_state(s.layout)
+        assert loop.handle("ESC", "PRESS") == "CANCELLED"
+    finally:
+        wrap_session.set_running(session, running=False)
+    assert snapshot(s.layout) == before and anchor_state(s.layout) == dragged
+    np.testing.assert_allclose(s.layout.springwrap.anchors[1].location, points[-1], atol=1e-6)

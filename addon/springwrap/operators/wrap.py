@@ -12,6 +12,8 @@ schedule ends or it reaches the iteration limit.
   mesh, so the viewport shows it settling (paper, Figure 12) at the display's own rate, and shows the
   progress in the status bar and the panel. Esc or right-click stops the worker after its iteration in
   progress and puts positions and state back bit for bit; finishing keeps the result as one undo step.
+  With the pair tool running on the layout, its clicks and keys (and Esc or right-click during its drag) are let
+  through to it: the pairs it edits go to the running solver (``WrapSession.move_anchors``) and stay as edited.
 - In background mode, or with ``EXEC_DEFAULT`` (scripts), it runs to the end at once and writes once.
 
 The logic is in two plain classes that need no window or events: ``blender.wrap_session.WrapSession``
