@@ -104,7 +104,7 @@ class SPRINGWRAP_OT_pair_tool(PairToolLive, LayoutOperator, bpy.types.Operator):
         header cleared, the mode put back."""
         wrap_session.set_tool(None)
         if self._dragging:
-            self._dragging = self._press = self._drag_start = None
+            self._dragging, self._press, self._drag_start = False, None, None
             bpy.ops.ed.undo_push(message="Pair Tool: Drag Pair")
         if self._settle is not None:
             self._finish_settle(context)
