@@ -15,23 +15,11 @@ import numpy as np
 import pytest
 from mathutils import Matrix, Vector
 
-from bpy_helpers import addon_module, plane_scene, snapshot, world_positions
+from bpy_helpers import FakeUI, addon_module, plane_scene, snapshot, world_positions
 
 WIDTH, HEIGHT = 1000, 800
 DRAG_METRES = 0.3
 """How far along the plane a drag takes a pair's target end."""
-
-
-class _FakeUI:
-    """Stands in for the window manager and the area: records the calls, answers none."""
-
-    def __init__(self):
-        self.calls = []
-
-    def __getattr__(self, name):
-        if name.startswith("__"):
-            raise AttributeError(name)
-        return lambda *args, **kwargs: self.calls.append((name, args)) or name
 
 
 class _Context:
@@ -60,7 +48,7 @@ class Tool:
         from springwrap.blender.edit_mode import EditModeGuard
         from springwrap.operators import pair_tool
 
-        self.ui = _FakeUI()
+        self.ui = FakeUI()
         self.context = _Context(self.ui)
         region = types.SimpleNamespace(type="WINDOW", x=0, y=0, width=WIDTH, height=HEIGHT)
         area = types.SimpleNamespace(regions=[region], header_text_set=self.ui.header_text_set, tag_redraw=lambda: None)
