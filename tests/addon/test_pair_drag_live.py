@@ -417,3 +417,23 @@ def test_esc_of_a_live_wrap_puts_the_layout_back_and_keeps_the_pairs_dragged_dur
         wrap_session.set_running(session, running=False)
     assert snapshot(s.layout) == before and anchor_state(s.layout) == dragged
     np.testing.assert_allclose(s.layout.springwrap.anchors[1].location, points[-1], atol=1e-6)
+
+
+def test_a_pair_s_layout_end_dragged_to_another_vertex_during_the_re_settle_goes_to_the_same_run(scene):
+    s = scene
+    session, _before = start_re_settle(s)
+    item = s.layout.springwrap.anchors[1]
+    world = world_positions(s.layout)
+    layout_end = s.tool.pixel(world[item.vertex_index])
+    away = layout_end - s.tool.pixel(np.array(item.location))
+    s.tool.event("LEFTMOUSE", "PRESS", layout_end + 3.0 * away / np.linalg.norm(away))
+    assert s.tool.operator._press[1:] == (1, "LAYOUT")
+    s.tool.event("MOUSEMOVE", mouse=s.tool.pixel(world[86]))
+    s.tool.event("LEFTMOUSE", "RELEASE", s.tool.pixel(world[86]))
+    assert s.layout.springwrap.anchors[1].vertex_index == 86 and s.tool.operator._settle is session
+    deadline = time.perf_counter() + 30.0
+    while 86 not in session.anchors.vertex_indices and time.perf_counter() < deadline:
+        s.tool.frames(1)
+    assert 86 in session.anchors.vertex_indices and 84 not in session.anchors.vertex_indices
+    s.tool.settle_to_end()
+    np.testing.assert_allclose(world_positions(s.layout)[86], s.layout.springwrap.anchors[1].location, atol=2e-3)

@@ -43,7 +43,7 @@ DRAG_PIXELS = 4.0
 """A press that moves farther than this before its release is a drag."""
 HELP = (
     "Pair tool: click a layout vertex and a target point (either order)  •  drag an end  •  X: remove  •  "
-    "Ctrl+click: point in space  •  Esc: leave"
+    "Ctrl+click: point in space  •  Esc: cancel a drag, or leave"
 )
 
 _running: list = []
@@ -359,6 +359,7 @@ class SPRINGWRAP_OT_pair_tool(PairToolLive, LayoutOperator, bpy.types.Operator):
             vertex = pair_data.vertex_under_mouse(layout, view, mouse)
             if vertex >= 0 and vertex != int(anchor_list.vertex_indices[index]):
                 pair_data.repick_pair(context, layout, index, vertex)
+                self._send(context)
         else:
             in_space = ctrl or int(anchor_list.kinds[index]) != anchors.FACE_ANCHOR
             location, on_surface = self._target_point(
@@ -366,7 +367,7 @@ class SPRINGWRAP_OT_pair_tool(PairToolLive, LayoutOperator, bpy.types.Operator):
             )
             if location is not None:
                 pair_data.place_pair(context, layout, int(anchor_list.vertex_indices[index]), location, on_surface)
-        self._send(context)
+                self._send(context)
         anchor_focus.set_hovered_anchor(layout, index)
         overlays.set_tool_points(layout, None, None, None)
         self._area.tag_redraw()
