@@ -75,7 +75,11 @@ class PairToolLive:
             self._start_settle(context)
 
     def _live_failed(self, context, error) -> None:
-        """The re-settle (or the live wrap) failed: the re-settle is undone, the edits kept, the tool goes on."""
+        """The re-settle (or the live wrap) failed: the re-settle is undone, the edits kept, the tool goes on (a
+        live wrap ends itself at its next frame, its anchors as last edited)."""
+        if self._settle is None:
+            self.report({"ERROR"}, f"The running wrap failed (the edits are kept): {error}")
+            return
         self._cancel_settle(context)
         self.report({"ERROR"}, f"Live re-settle failed and was undone (the edits are kept): {error}")
 
