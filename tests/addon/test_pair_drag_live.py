@@ -44,7 +44,7 @@ class Tool:
     """The pair tool's operator as ``invoke`` leaves it, its methods bound to a plain object, and the events."""
 
     def __init__(self, layout, matrix):
-        from springwrap.blender import wrap_session
+        from springwrap.blender import live_wraps
         from springwrap.blender.edit_mode import EditModeGuard
         from springwrap.operators import pair_tool
 
@@ -74,7 +74,7 @@ class Tool:
                 if isinstance(value, types.FunctionType) and name not in ("__init__", "invoke", "execute"):
                     setattr(operator, name, types.MethodType(value, operator))
         pair_tool._running.append(operator)
-        wrap_session.set_tool(layout.name)
+        live_wraps.set_tool(layout.name)
         self.operator = operator
         self.view = addon_module("blender.pair_tool").read_view(region, operator._region_3d)
 
@@ -337,7 +337,7 @@ def test_a_re_settle_failing_mid_drag_is_undone_and_the_drag_loses_nothing(scene
 
 
 def test_a_drag_while_a_live_wrap_runs_is_handed_to_its_solver(scene):
-    from springwrap.blender import wrap_session
+    from springwrap.blender import live_wraps, wrap_session
     from springwrap.core.wrap_run import WrapLoop
 
     s = scene
@@ -347,10 +347,10 @@ def test_a_drag_while_a_live_wrap_runs_is_handed_to_its_solver(scene):
     session.start_worker()
     wrap_session.set_running(session)
     try:
-        assert wrap_session.tool_takes(s.layout, "LEFTMOUSE", "PRESS")  # the wrap lets the tool's click through
-        assert not wrap_session.tool_takes(s.layout, "ESC", "PRESS")  # Esc stops the wrap...
+        assert live_wraps.tool_takes(s.layout, "LEFTMOUSE", "PRESS")  # the wrap lets the tool's click through
+        assert not live_wraps.tool_takes(s.layout, "ESC", "PRESS")  # Esc stops the wrap...
         points = drag(s, 1, moves=4, release=False)
-        assert wrap_session.tool_takes(s.layout, "ESC", "PRESS")  # ...but cancels a drag
+        assert live_wraps.tool_takes(s.layout, "ESC", "PRESS")  # ...but cancels a drag
         assert s.tool.operator._settle is None  # no re-settle of the tool's own
         s.tool.event("LEFTMOUSE", "RELEASE", s.tool.pixel(points[-1]))
         assert s.tool.operator._settle is None

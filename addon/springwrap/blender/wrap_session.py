@@ -30,8 +30,6 @@ from .live_wraps import last_result as last_result
 from .live_wraps import remember_result as remember_result
 from .live_wraps import running_session as running_session
 from .live_wraps import set_running as set_running
-from .live_wraps import set_tool as set_tool
-from .live_wraps import tool_takes as tool_takes
 
 FRAME_RATE = 30.0
 """Redraws per second the modal wrap aims for when the display is fast (``core.wrap_run.FramePacer``)."""

@@ -27,8 +27,8 @@ import bpy
 
 import numpy as np
 
+from ..blender import live_wraps
 from ..blender import pair_tool as pair_data
-from ..blender import wrap_session
 from ..blender.edit_mode import EditModeGuard
 from ..core import anchors, pair_pick
 from ..core.errors import ERRORS
@@ -94,7 +94,7 @@ class SPRINGWRAP_OT_pair_tool(PairToolLive, LayoutOperator, bpy.types.Operator):
         self._timer = None
         self._mouse = None
         _running.append(self)
-        wrap_session.set_tool(self._layout_name)  # a live wrap lets the tool's clicks through
+        live_wraps.set_tool(self._layout_name)  # a live wrap lets the tool's clicks through
         context.window_manager.modal_handler_add(self)
         self._status(context)
         return self.modal(context, event) if event.type in {"LEFTMOUSE", "MOUSEMOVE"} else {"RUNNING_MODAL"}
@@ -102,7 +102,7 @@ class SPRINGWRAP_OT_pair_tool(PairToolLive, LayoutOperator, bpy.types.Operator):
     def _end(self, context, leave_tool: bool) -> None:
         """Stop: a drag in progress kept (one undo step), a running re-settle kept (finished), the drawing and the
         header cleared, the mode put back."""
-        wrap_session.set_tool(None)
+        live_wraps.set_tool(None)
         if self._dragging:
             self._dragging, self._press, self._drag_start = False, None, None
             bpy.ops.ed.undo_push(message="Pair Tool: Drag Pair")
@@ -278,7 +278,7 @@ class SPRINGWRAP_OT_pair_tool(PairToolLive, LayoutOperator, bpy.types.Operator):
         press, self._press = self._press, None
         if self._dragging:
             self._dragging, self._drag_start = False, None
-            wrap_session.set_tool(self._layout_name)
+            live_wraps.set_tool(self._layout_name)
             self._edited(context, "Drag Pair")
         elif press is not None:
             self._click(context, press[0], ctrl)

@@ -5,7 +5,7 @@ mouse move, with a drag's cancel (Esc, right-click)."""
 
 import bpy
 
-from ..blender import pair_live, wrap_session
+from ..blender import live_wraps, pair_live, wrap_session
 from ..blender import pair_tool as pair_data
 from ..core.errors import ERRORS
 from ..ui import frame_clock
@@ -94,7 +94,7 @@ class PairToolLive:
         if layout.springwrap.pair_live and self._live() is None:
             self._drag_settle = self._start_settle(context)
         self._dragging = True
-        wrap_session.set_tool(self._layout_name, dragging=True)
+        live_wraps.set_tool(self._layout_name, dragging=True)
         self._status(context)
         return True
 
@@ -103,7 +103,7 @@ class PairToolLive:
         were (a re-settle the drag started is cancelled: the layout back bit for bit); no undo step."""
         start, started_settle = self._drag_start, self._drag_settle
         self._press, self._dragging, self._drag_start = None, False, None
-        wrap_session.set_tool(self._layout_name)
+        live_wraps.set_tool(self._layout_name)
         layout = self._layout()
         if start is None or layout is None:
             return

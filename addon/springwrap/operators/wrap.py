@@ -25,7 +25,7 @@ import bpy
 
 from .. import property_kinds as props
 from ..blender import layout as layout_data
-from ..blender import wrap_reads, wrap_session
+from ..blender import live_wraps, wrap_reads, wrap_session
 from ..blender.edit_mode import EditModeGuard, object_mode
 from ..blender.wrap_session import WrapSession
 from ..core import defaults, input_policy, mirror_seam, mirroring, quality, transforms
@@ -254,7 +254,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
         return {"RUNNING_MODAL"}
 
     def modal(self, context, event):
-        if event.type != "TIMER" and wrap_session.tool_takes(self._loop.session.layout, event.type, event.value):
+        if event.type != "TIMER" and live_wraps.tool_takes(self._loop.session.layout, event.type, event.value):
             return {"PASS_THROUGH"}  # the pair tool edits the anchors while the wrap runs (it hands them over)
         frames = self._loop.session.frames
         outcome = self._loop.handle(event.type, event.value)
