@@ -12,6 +12,11 @@ the operators. Then, as the pair tool does it (``blender.pair_tool``, no window)
    its build time), solved to convergence (the solve time), written (``finish``). Aim: within 0.3 s of solving.
 3. **Hover**: the layout vertex under the mouse (``vertex_under_mouse``, the layout's picking surface cached), per
    mouse move.
+4. **Live drag**: a pair's target end dragged in ``--live-moves`` mouse moves (60 a second) while a Live re-settle
+   runs in its worker thread, each move handed to the running solver (``blender.pair_live.send``, the newest
+   wins), the main thread writing frames between the moves as the tool's timer does: the latency from a mouse move
+   to the first frame written that the solver computed with that move's anchors (or a later move's), without the
+   redraw.
 
 Redraws per second while dragging need a window: the GUI lane (``make test-gui``) measures them under its software
 OpenGL and reports them with its pair-tool step.
@@ -78,7 +83,7 @@ def body_scene(case, vertices, triangles):
     return target, layout
 
 
-def measure(case, vertices, triangles, edits: int, moves: int) -> dict:
+def measure(case, vertices, triangles, edits: int, moves: int, live_moves: int) -> dict:
     import bpy
 
     from springwrap.blender import pair_tool
@@ -122,6 +127,7 @@ def measure(case, vertices, triangles, edits: int, moves: int) -> dict:
         pair_tool.place_pair(context, layout, vertex, point)
         rows.append(settle_row(context, layout, vertex, edit))
     results["settle"] = rows
+    results["live_drag"] = live_drag(context, layout, view, path[: max(2, live_moves)])
     for name in ("build_seconds", "first_frame_seconds", "half_way_seconds", "solve_seconds", "total_seconds"):
         results[f"settle_median_{name}"] = float(np.median([row[name] for row in rows]))
     return results
@@ -129,6 +135,74 @@ def measure(case, vertices, triangles, edits: int, moves: int) -> dict:
 
 REDRAW_SECONDS = 0.005
 """What a frame's redraw costs the main thread between two frames of the re-settle (a GPU's)."""
+MOUSE_SECONDS = 1.0 / 60.0
+"""Between two mouse moves of the Live drag."""
+
+
+def live_drag(context, layout, view, path) -> dict:
+    """Pair 1's target end dragged along ``path`` (region pixels) while a Live re-settle runs: per move, the seconds
+    from handing it to the solver to the first frame written that was solved with its anchors (or a later move's)."""
+    from springwrap.blender import pair_live, pair_tool
+
+    item = layout.springwrap.anchors[0]
+    vertex = int(item.vertex_index)
+    session = pair_tool.start_settle(context, layout)
+    solved_with: dict = {}  # id of a frame's positions -> the anchor list the solver had when it computed them
+    current_layout, write_frame = session.current_layout, session._write_frame
+
+    def snapshot():  # in the worker thread
+        anchors_then = session.anchors
+        positions, state = current_layout()
+        solved_with[id(positions)] = anchors_then
+        return positions, state
+
+    sent: list = []  # (seconds sent, anchor list object, latency or None) per move
+    latencies: list = []
+
+    def write(positions, state):  # in the main thread
+        write_frame(positions, state)
+        anchors_then = solved_with.pop(id(positions), None)
+        now = time.perf_counter()
+        newest = next((row for row, (_t, list_, _l) in enumerate(sent) if list_ is anchors_then), -1)
+        for row in range(newest + 1):
+            if sent[row][2] is None:
+                sent[row] = (sent[row][0], sent[row][1], now - sent[row][0])
+                latencies.append(now - sent[row][0])
+
+    session.current_layout, session._write_frame = snapshot, write
+    pair_tool.advance_settle(session)  # the first frame; the rest in the worker
+    for mouse in path:
+        point = pair_tool.target_under_mouse(context, layout, view, mouse)
+        if point is not None:
+            pair_tool.place_pair(context, layout, vertex, point)
+            begin = time.perf_counter()
+            pair_live.send(session, layout)
+            sent.append((begin, session.anchors_edited, None))
+        deadline = time.perf_counter() + MOUSE_SECONDS
+        while time.perf_counter() < deadline:
+            pair_tool.advance_settle(session)
+            time.sleep(REDRAW_SECONDS)
+    deadline = time.perf_counter() + 5.0
+    while any(row[2] is None for row in sent) and time.perf_counter() < deadline and not session.done:
+        pair_tool.advance_settle(session)
+        time.sleep(REDRAW_SECONDS)
+    session.finish()
+    answered = np.array(latencies)
+    result = {
+        "moves": len(sent),
+        "answered": int(answered.size),
+        "median_seconds": float(np.median(answered)) if answered.size else float("nan"),
+        "p90_seconds": float(np.percentile(answered, 90)) if answered.size else float("nan"),
+        "max_seconds": float(answered.max()) if answered.size else float("nan"),
+        "frames": session.frames,
+    }
+    print(
+        f"live drag: {result['answered']} of {result['moves']} moves answered, a move to its first solved frame: "
+        f"median {result['median_seconds'] * 1000:.0f} ms, p90 {result['p90_seconds'] * 1000:.0f} ms, max "
+        f"{result['max_seconds'] * 1000:.0f} ms ({session.frames} frames)",
+        flush=True,
+    )
+    return result
 
 
 def settle_row(context, layout, vertex: int, edit: int) -> dict:
@@ -181,6 +255,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--edits", type=int, default=8, help="pair edits each followed by a Live re-settle")
     parser.add_argument("--moves", type=int, default=40, help="mouse moves of the drag")
+    parser.add_argument("--live-moves", type=int, default=30, help="mouse moves of the drag during a re-settle")
     parser.add_argument("--json", type=Path, default=REPOSITORY / "out" / "bench" / "pair_tool.json")
     arguments = parser.parse_args(argv)
 
@@ -193,7 +268,7 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     load_average = os.getloadavg()
     case, vertices, triangles, _voxel = body_case()
-    results = measure(case, vertices, triangles, arguments.edits, arguments.moves)
+    results = measure(case, vertices, triangles, arguments.edits, arguments.moves, arguments.live_moves)
     results["load_average"] = load_average
     results["load_average_end"] = os.getloadavg()
     print(

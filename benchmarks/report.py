@@ -467,7 +467,18 @@ def pair_tool_section(pair: dict) -> list[str]:
     ]
     rows.append(["median", "", *(number(pair[f"settle_median_{name}"]) for name in SETTLE_COLUMNS), "", ""])
     header = ["edit", "vertex moved mm", "build s", "first frame s", "half way s", "converged s", "solving s"]
-    return lines + table(header + ["iterations", "converged"], rows, "lrrrrrrrl") + [""]
+    lines += table(header + ["iterations", "converged"], rows, "lrrrrrrrl") + [""]
+    live = pair.get("live_drag")
+    if live:
+        lines += [
+            f"A drag during a Live re-settle ({live['moves']} mouse moves, 60 a second, each handed to the running "
+            "solver): from a mouse move to the first frame written that was solved with it (or a later move; the "
+            f"redraw not counted), median {number(live['median_seconds'] * 1000.0, 0)} ms, 90th percentile "
+            f"{number(live['p90_seconds'] * 1000.0, 0)} ms, at most {number(live['max_seconds'] * 1000.0, 0)} ms "
+            f"({live['answered']} moves answered).",
+            "",
+        ]
+    return lines
 
 
 SETTLE_COLUMNS = ("build_seconds", "first_frame_seconds", "half_way_seconds", "total_seconds", "solve_seconds")

@@ -1104,6 +1104,7 @@ def test_the_pair_tool_section_tabulates_each_edit_and_the_medians_from_the_json
         "drag": {"moves": 40, "placed": 39, "moves_per_second": 412.4},
         "hover": {"moves": 40, "moves_per_second": 101.6},
         "settle": settle,
+        "live_drag": {"moves": 30, "answered": 30, "median_seconds": 0.041, "p90_seconds": 0.07, "max_seconds": 0.2},
         "load_average": [7.5, 8.0, 9.0],
         "load_average_end": [9.5, 9.0, 9.0],
         **{f"settle_median_{name}": 0.25 if name == "first_frame_seconds" else 1.0 for name in report.SETTLE_COLUMNS},
@@ -1114,6 +1115,7 @@ def test_the_pair_tool_section_tabulates_each_edit_and_the_medians_from_the_json
     assert "| 2 | 12.0 | 0.050 | 0.310 | 0.600 | 2.800 | 1.900 | 21 | no |" in lines
     assert "| median |  | 1.000 | 0.250 | 1.000 | 1.000 | 1.000 |  |  |" in lines
     assert "Load average at the start 7.50, 8.00, 9.00, at the end 9.50, 9.00, 9.00" in lines
+    assert "median 41 ms, 90th percentile 70 ms, at most 200 ms (30 moves answered)" in lines
     document = report.build_document(None, None, None, pair_tool=pair)
     assert "### Pair tool" in document
     assert "### Pair tool" not in report.build_document(None, None, None)

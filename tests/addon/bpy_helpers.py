@@ -477,6 +477,18 @@ def anchor_snapshot(layout):
     }
 
 
+class FakeUI:
+    """Stands in for the window manager, workspace, area and screen a modal operator talks to; records the calls."""
+
+    def __init__(self):
+        self.calls = []
+
+    def __getattr__(self, name):
+        if name.startswith("__"):
+            raise AttributeError(name)
+        return lambda *args, **kwargs: self.calls.append((name, args))
+
+
 class PanelRecorder:
     """Stands in for ``UILayout``: records operator buttons (and the keywords they were drawn with), labels and
     list templates."""

@@ -18,6 +18,7 @@ from bpy_helpers import (
     SPHERE_CENTER,
     SPHERE_RADIUS,
     TOLERANCE,
+    FakeUI,
     RecordingLayout,
     Reference,
     activate_layout,
@@ -434,18 +435,6 @@ def test_modal_frames_each_write_the_layout_and_run_paced_iterations():
         assert state == "FINISHED" and loop.result.converged
 
 
-class _FakeUI:
-    """Stands in for the window manager, workspace, area and screen a modal operator talks to; records the calls."""
-
-    def __init__(self):
-        self.calls = []
-
-    def __getattr__(self, name):
-        if name.startswith("__"):
-            raise AttributeError(name)
-        return lambda *args, **kwargs: self.calls.append((name, args))
-
-
 def _operator_standing_in(loop, ui):
     """An object with the wrap operator's methods bound to it, as ``invoke`` leaves them (no window needed)."""
     import types
@@ -467,7 +456,7 @@ def test_operator_modal_shows_progress_and_cleans_up(ending):
     target, layout, _normal = plane_scene()
     bpy.ops.springwrap.anchors_auto(spacing=0.5)
     before = snapshot(layout)
-    ui = _FakeUI()
+    ui = FakeUI()
     operator, context = _operator_standing_in(WrapLoop(wrap_session(layout)), ui)
     event = lambda kind, value="NOTHING": type("Event", (), {"type": kind, "value": value})()  # noqa: E731
     assert operator.modal(context, event("TIMER")) == {"RUNNING_MODAL"}

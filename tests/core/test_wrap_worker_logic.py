@@ -108,6 +108,21 @@ def test_edits_left_when_the_worker_stops_are_handed_back_in_order():
     assert worker.pending() == [first, second]
 
 
+def test_edits_of_one_key_coalesce_the_newest_wins_in_the_first_ones_place():
+    solve = _Solve()
+    worker = wrap_run.SolveWorker(solve.step, solve.snapshot, solve.done, 0.01)
+    solve.proceed.release(1)
+    _wait_for(worker, 1)  # the worker now waits inside its second step: nothing submitted is applied yet
+    moves = [(lambda: None) for _ in range(50)]  # a drag's mouse moves, faster than the steps
+    other = lambda: None  # noqa: E731
+    assert worker.submit(moves[0], key="anchors") and worker.submit(other)
+    assert all(worker.submit(move, key="anchors") for move in moves[1:])
+    worker._stop.set()
+    solve.proceed.release(1)
+    worker.stop()
+    assert worker.pending() == [moves[-1], other]  # one edit per key, where the first one was
+
+
 class _Interrupted(Exception):
     """Stands in for the kernel's CancelledError."""
 

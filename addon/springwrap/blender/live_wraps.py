@@ -3,10 +3,28 @@
 
 import bpy
 
-from ..core.wrap_run import WrapResult
+from ..core.wrap_run import WrapResult, tool_event
 from . import last_run
 
 _running: list = []
+_tool: dict = {"layout": None, "dragging": False}
+"""The tool editing a layout's anchors while a wrap may run on it (the pair tool): its layout's name, whether it
+drags a pair's end."""
+
+
+def set_tool(layout_name: str | None, dragging: bool = False) -> None:
+    """Say that a tool edits ``layout_name``'s anchors (None: no tool any more), and whether it drags now."""
+    _tool.update(layout=layout_name, dragging=bool(layout_name) and dragging)
+
+
+def tool_takes(layout: bpy.types.Object, event_type: str, event_value: str) -> bool:
+    """Whether a live wrap on ``layout`` lets an event through to the tool editing its anchors (``core.wrap_run.
+    tool_event``): the tool's clicks and keys, and Esc or right-click while it drags (they cancel the drag)."""
+    try:
+        name = layout.name
+    except ReferenceError:
+        return False
+    return _tool["layout"] == name and tool_event(event_type, event_value, _tool["dragging"])
 
 
 def set_running(session, running: bool = True) -> None:

@@ -182,6 +182,7 @@ class WrapSession:
         self.worker: SolveWorker | None = None
         self.cancel_flag = springwrap_kernel.CancelFlag()  # set by cancel(): the step in progress stops at once
         self.anchors_moved = False  # anchors moved since the last step: the wrap is not done
+        self.anchors_edited = None  # the anchors last given to move_anchors (kept by cancel), None: not moved
         self.stop_seconds = 0.0  # how long the last stop of the worker waited for it (Esc's share in the solver)
         self.written_positions: np.ndarray | None = None  # the local positions finish() wrote
 
@@ -313,16 +314,22 @@ class WrapSession:
         if self.cancel_flag.cancelled:
             raise springwrap_kernel.CancelledError("wrap step cancelled")
 
+    def can_move_anchors(self, anchor_list) -> bool:
+        """Whether :meth:`move_anchors` takes ``anchor_list`` (see there); asks nothing of the solver."""
+        used = proposals.used_by_wrap(anchor_list)
+        return self.anchors_movable and not (used.confidences > 0.0).any() and self.restriction is None
+
     def move_anchors(self, anchor_list) -> bool:
         """Move the wrap's anchors to ``anchor_list`` (an ``core.anchors.Anchors`` resolved on the current target)
         while it runs, without starting it anew: with a worker the change is queued and applied by its thread
-        between two iterations, else here. The points stay where they are and the solver's schedule starts again
-        from them (``WrapSolver.set_anchors``); :meth:`finish` writes these anchors. False (nothing changed) when
+        between two iterations (a move not applied yet is replaced: the newest wins), else here. The points stay
+        where they are and the solver's schedule starts again from them (``WrapSolver.set_anchors``); :meth:`finish`
+        writes these anchors, and :meth:`cancel` keeps them (an edit made while it ran). False (nothing changed) when
         this session cannot take them so: a mirror's pins, a re-settled region, or soft pairs (accepted proposals)
         in the wrap or in ``anchor_list``: the caller finishes it and starts another."""
-        used = proposals.used_by_wrap(anchor_list)
-        if not self.anchors_movable or (used.confidences > 0.0).any() or self.restriction is not None:
+        if not self.can_move_anchors(anchor_list):
             return False
+        used = proposals.used_by_wrap(anchor_list)
         arrays = wrap_inputs.wrap_anchor_arrays(used, self.vertex_count, self.inputs.origin)
 
         def apply() -> None:  # in the worker's thread when there is one: the solver is its own there
@@ -332,8 +339,9 @@ class WrapSession:
             self.anchors = anchor_list
             self.anchors_moved = True
 
+        self.anchors_edited = anchor_list  # what cancel() writes back, whether or not applied by then
         had_worker = self.worker is not None
-        if had_worker and self.worker.submit(apply):
+        if had_worker and self.worker.submit(apply, key="anchors"):
             return True
         self.stop_worker()  # it had ended (done): the solver is this thread's
         apply()
@@ -469,7 +477,8 @@ class WrapSession:
     def cancel(self) -> None:
         """Put the layout back exactly as it was at the start: positions, state attributes, rest shape, read-out,
         and what :meth:`finish` writes on the object (target signature, anchors), the shape keys; also after a
-        failed finish (a worker is stopped first, its step in progress cancelled: Esc is answered at once)."""
+        failed finish (a worker is stopped first, its step in progress cancelled: Esc is answered at once). Anchors
+        moved while it ran (:meth:`move_anchors`: edits made meanwhile) stay as last moved."""
         self.stop_worker(raise_error=False, interrupt=True)
         shape_key_data.restore(self.layout, self.shape_keys)
         attributes.restore_snapshot(self.layout, self.snapshot)
@@ -477,7 +486,9 @@ class WrapSession:
         settings = self.layout.springwrap
         if settings.target_signature != target_signature:
             settings.target_signature = target_signature
-        if len(settings.anchors) or anchors.anchor_count(anchor_list):
+        if self.anchors_edited is not None:
+            anchor_data.write_anchors(self.layout, self.anchors_edited, -1, self.target.signature)
+        elif len(settings.anchors) or anchors.anchor_count(anchor_list):
             anchor_data.write_anchors(self.layout, anchor_list, active_index, anchors_signature)
 
     def status_text(self) -> str:

@@ -44,6 +44,18 @@ NAVIGATION_EVENTS = frozenset(
 """Events a modal wrap lets through, so the view can be turned while it settles."""
 
 
+TOOL_EVENTS = frozenset({"LEFTMOUSE", "X", "DEL"})
+"""Events a modal wrap lets through to a tool editing the layout's anchors while it runs (the pair tool)."""
+
+
+def tool_event(event_type: str, event_value: str, dragging: bool) -> bool:
+    """Whether a modal wrap lets an event through to a tool editing the layout's anchors: its clicks and removal
+    keys, and Esc or right-click pressed while it drags (they cancel the drag, not the wrap)."""
+    if event_type in TOOL_EVENTS:
+        return True
+    return dragging and event_type in CANCEL_EVENTS and event_value == "PRESS"
+
+
 def modal_action(event_type: str, event_value: str) -> str:
     """What the modal wrap does with an event: ``'CANCEL'``, ``'STEP'``, ``'PASS'`` (navigation) or ``'BLOCK'``."""
     if event_type in CANCEL_EVENTS and event_value == "PRESS":
@@ -207,7 +219,7 @@ class SolveWorker:
         self._latest = None
         self._serial = 0
         self._taken = 0
-        self._edits: list[Callable] = []
+        self._edits: list[tuple[str | None, Callable]] = []  # (key, edit), in the order submitted
         self._closed = False  # the thread takes no more edits (it ended or is about to)
         self._thread = threading.Thread(target=self._run, name="springwrap live wrap", daemon=True)
         self._thread.start()
@@ -240,23 +252,30 @@ class SolveWorker:
         """Apply the edits submitted since the last look, in order, in this thread."""
         with self._lock:
             edits, self._edits = self._edits, []
-        for edit in edits:
+        for _key, edit in edits:
             edit()
 
-    def submit(self, edit: Callable) -> bool:
+    def submit(self, edit: Callable, key: str | None = None) -> bool:
         """Hand ``edit`` (a callable changing the solver) to the thread, which calls it before its next step (and
-        solves on if it was done); False when the thread has ended or is ending: the caller applies it itself."""
+        solves on if it was done); False when the thread has ended or is ending: the caller applies it itself.
+        With ``key``, an edit of the same key not applied yet is replaced (the newest wins: a drag's mouse moves
+        faster than the solver's steps do not pile up)."""
         with self._lock:
             if self._closed or self._stop.is_set():
                 return False
-            self._edits.append(edit)
+            if key is not None:
+                for place, (pending_key, _edit) in enumerate(self._edits):
+                    if pending_key == key:
+                        self._edits[place] = (key, edit)
+                        return True
+            self._edits.append((key, edit))
             return True
 
     def pending(self) -> list[Callable]:
         """The submitted edits the thread did not apply (after :meth:`stop`), in order; taken from it."""
         with self._lock:
             edits, self._edits = self._edits, []
-        return edits
+        return [edit for _key, edit in edits]
 
     @property
     def running(self) -> bool:

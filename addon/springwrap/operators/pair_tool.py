@@ -8,9 +8,16 @@ in the toolbar, the Anchors panel has a button for it).
 - Dragging a pair's target end slides it along the target surface (a ray cast at every mouse move; the end stays
   a triangle and barycentric weights); dragging its layout end moves it to the vertex under the mouse. X or Delete
   removes the pair under the mouse. With the layout's Symmetric setting the twins follow.
-- Each edit is one undo step. With Live on, every edit re-settles the layout (a wrap from where it is) in time
-  slices on a timer, so the view stays responsive; Esc cancels a running re-settle (the layout back bit for bit),
-  a second Esc leaves the tool. Leaving the tool keeps every finished edit.
+- Each edit is one undo step (a whole drag is one). With Live on, an edit re-settles the layout (a wrap from where
+  it is, solved in a worker thread; each timer event writes what it solved, so the view stays responsive). An edit
+  made while a re-settle runs, or while a live wrap (the Wrap operator) runs on the layout, does not start it anew:
+  the anchors as edited are handed to the running solver (``WrapSession.move_anchors``), at every mouse move of a
+  drag (the newest wins), so the layout follows the drag; with Live on, a drag that finds nothing running starts
+  the re-settle at its first move. Esc or right-click during a drag cancels the drag (the pair back where it was,
+  the solver given the anchors as they were; a re-settle the drag started is cancelled, the layout back bit for
+  bit). Otherwise Esc (or right-click) cancels a running re-settle (the layout back bit for bit, the edits kept), a
+  second Esc leaves the tool; a live wrap's own Esc stops it as it always does. When a re-settle fails, it is
+  undone and the edits are kept. Leaving the tool keeps every finished edit.
 
 The tool holds the layout out of edit mode while it runs, as the modal wrap does (the anchors and the layout are
 object data, and each edit is one undo step of the object).
@@ -20,24 +27,23 @@ import bpy
 
 import numpy as np
 
+from ..blender import live_wraps
 from ..blender import pair_tool as pair_data
-from ..blender import wrap_session
 from ..blender.edit_mode import EditModeGuard
 from ..core import anchors, pair_pick
 from ..core.errors import ERRORS
-from ..ui import anchor_focus, frame_clock, overlays
+from ..ui import anchor_focus, overlays
 from ..ui.pair_tool import OBJECT_TOOL
 from .base import LayoutOperator
+from .pair_tool_live import PairToolLive
 
 DEFAULT_TOOL = "builtin.select_box"
 """The tool set when the pair tool is left with Esc."""
 DRAG_PIXELS = 4.0
 """A press that moves farther than this before its release is a drag."""
-TIMER_SECONDS = 0.01
-"""Interval of the Live re-settle's timer."""
 HELP = (
     "Pair tool: click a layout vertex and a target point (either order)  •  drag an end  •  X: remove  •  "
-    "Ctrl+click: point in space  •  Esc: leave"
+    "Ctrl+click: point in space  •  Esc: cancel a drag, or leave"
 )
 
 _running: list = []
@@ -49,7 +55,7 @@ def running() -> bool:
     return bool(_running)
 
 
-class SPRINGWRAP_OT_pair_tool(LayoutOperator, bpy.types.Operator):
+class SPRINGWRAP_OT_pair_tool(PairToolLive, LayoutOperator, bpy.types.Operator):
     """Anchor pairs with the mouse: click a layout vertex and a target point, drag an end, X removes, Esc leaves"""
 
     bl_label = "Pair Tool"
@@ -82,16 +88,24 @@ class SPRINGWRAP_OT_pair_tool(LayoutOperator, bpy.types.Operator):
         self._pending = None  # ("LAYOUT", vertex) or ("TARGET", location, on_surface)
         self._press = None  # (mouse, anchor index, end) of a press on an anchor end
         self._dragging = False
+        self._drag_start = None  # pair_live.DragStart of the drag in progress
+        self._drag_settle = False  # whether the drag in progress started the re-settle
         self._settle = None
         self._timer = None
         self._mouse = None
         _running.append(self)
+        live_wraps.set_tool(self._layout_name)  # a live wrap lets the tool's clicks through
         context.window_manager.modal_handler_add(self)
         self._status(context)
         return self.modal(context, event) if event.type in {"LEFTMOUSE", "MOUSEMOVE"} else {"RUNNING_MODAL"}
 
     def _end(self, context, leave_tool: bool) -> None:
-        """Stop: a running re-settle kept (finished), the drawing and the header cleared, the mode put back."""
+        """Stop: a drag in progress kept (one undo step), a running re-settle kept (finished), the drawing and the
+        header cleared, the mode put back."""
+        live_wraps.set_tool(None)
+        if self._dragging:
+            self._dragging, self._press, self._drag_start = False, None, None
+            bpy.ops.ed.undo_push(message="Pair Tool: Drag Pair")
         if self._settle is not None:
             self._finish_settle(context)
         self._stop_timer(context)
@@ -150,15 +164,22 @@ class SPRINGWRAP_OT_pair_tool(LayoutOperator, bpy.types.Operator):
             return {"FINISHED"}
         mouse = (event.mouse_x - self._region.x, event.mouse_y - self._region.y)
         inside = self._over_view(event.mouse_x, event.mouse_y)
-        if event.type == "ESC" and event.value == "PRESS":
-            if self._settle is not None:
-                self._cancel_settle(context)
-                self.report({"INFO"}, "Live re-settle cancelled: the layout is back as it was before it")
-            else:
+        if event.type in {"ESC", "RIGHTMOUSE"} and event.value == "PRESS" and self._dragging:
+            self._cancel_drag(context, mouse)
+            return {"RUNNING_MODAL"}
+        right_click_cancels = (
+            event.type == "RIGHTMOUSE" and inside and self._pending is None and self._settle is not None
+        )
+        if event.value == "PRESS" and (event.type == "ESC" or right_click_cancels):
+            if self._settle is None:
                 self._end(context, leave_tool=True)
                 return {"FINISHED"}
+            self._cancel_settle(context)
+            self.report({"INFO"}, "Live re-settle cancelled: the layout is back as it was before it")
             return {"RUNNING_MODAL"}
         if event.type == "Z" and event.ctrl and event.value == "PRESS":
+            if self._dragging:
+                self._cancel_drag(context, mouse)
             self._cancel_settle(context)  # undo steps back over the edit, not into a half-settled layout
             return {"PASS_THROUGH"}
         if not inside and not self._dragging:
@@ -207,7 +228,7 @@ class SPRINGWRAP_OT_pair_tool(LayoutOperator, bpy.types.Operator):
             pending = f"vertex {self._pending[1]} taken: click its target point  •  "
         elif self._pending is not None:
             pending = "target point taken: click its layout vertex  •  "
-        settle = "re-settling…  •  " if self._settle is not None else ""
+        settle = "re-settling…  •  " if self._live() is not None else ""
         self._area.header_text_set(f"{settle}{pending}{note + '  •  ' if note else ''}{HELP}")
 
     # ---------------------------------------------------------------- hover
@@ -256,7 +277,8 @@ class SPRINGWRAP_OT_pair_tool(LayoutOperator, bpy.types.Operator):
     def _release(self, context, mouse, ctrl: bool) -> None:
         press, self._press = self._press, None
         if self._dragging:
-            self._dragging = False
+            self._dragging, self._drag_start = False, None
+            live_wraps.set_tool(self._layout_name)
             self._edited(context, "Drag Pair")
         elif press is not None:
             self._click(context, press[0], ctrl)
@@ -307,12 +329,14 @@ class SPRINGWRAP_OT_pair_tool(LayoutOperator, bpy.types.Operator):
 
     def _make_pair(self, context, vertex, location, on_surface) -> None:
         self._pending = None
-        self._finish_settle(context)
+        if not self._live_takes_edit(context):
+            return
         try:
             outcome = pair_data.place_pair(context, self._layout(), vertex, location, on_surface)
         except ERRORS as error:
             self.report({"ERROR"}, str(error))
             return
+        self._send(context)
         number = anchor_focus.pair_number(outcome.active_index)
         self.report({"INFO"}, f"Pair {number}: vertex {vertex}" + ("" if on_surface else " (in space)"))
         self._edited(context, "Add Pair")
@@ -325,9 +349,9 @@ class SPRINGWRAP_OT_pair_tool(LayoutOperator, bpy.types.Operator):
         _start, index, end = self._press
         layout = self._layout()
         view = self._view()
-        if not self._dragging:
-            self._finish_settle(context)
-            self._dragging = True
+        if not self._dragging and not self._begin_drag(context):
+            self._press = None
+            return
         anchor_list, starts = pair_data.anchor_ends(layout)
         if index >= anchor_list.vertex_indices.shape[0]:
             return
@@ -335,6 +359,7 @@ class SPRINGWRAP_OT_pair_tool(LayoutOperator, bpy.types.Operator):
             vertex = pair_data.vertex_under_mouse(layout, view, mouse)
             if vertex >= 0 and vertex != int(anchor_list.vertex_indices[index]):
                 pair_data.repick_pair(context, layout, index, vertex)
+                self._send(context)
         else:
             in_space = ctrl or int(anchor_list.kinds[index]) != anchors.FACE_ANCHOR
             location, on_surface = self._target_point(
@@ -342,6 +367,7 @@ class SPRINGWRAP_OT_pair_tool(LayoutOperator, bpy.types.Operator):
             )
             if location is not None:
                 pair_data.place_pair(context, layout, int(anchor_list.vertex_indices[index]), location, on_surface)
+                self._send(context)
         anchor_focus.set_hovered_anchor(layout, index)
         overlays.set_tool_points(layout, None, None, None)
         self._area.tag_redraw()
@@ -353,70 +379,13 @@ class SPRINGWRAP_OT_pair_tool(LayoutOperator, bpy.types.Operator):
         if index < 0:
             self._status(context, "no pair under the mouse to remove")
             return
-        self._finish_settle(context)
+        if not self._live_takes_edit(context):
+            return
         pair_data.remove_pair(layout, index)
+        self._send(context)
         self.report({"INFO"}, f"Removed pair {anchor_focus.pair_number(index)}")
         self._edited(context, "Remove Pair")
         self._hover(context, mouse)
-
-    # ---------------------------------------------------------------- undo steps and Live
-
-    def _edited(self, context, name: str) -> None:
-        """An edit is done: one undo step; with Live on, a re-settle starts from the layout as it is."""
-        bpy.ops.ed.undo_push(message=f"Pair Tool: {name}")
-        layout = self._layout()
-        if layout is not None and layout.springwrap.pair_live:
-            try:
-                self._settle = pair_data.start_settle(context, layout, frame_clock.display_seconds())
-            except ERRORS as error:
-                self.report({"ERROR"}, f"Live: {error}")
-                return
-            wrap_session.set_running(self._settle)
-            if self._timer is None:
-                self._timer = context.window_manager.event_timer_add(TIMER_SECONDS, window=context.window)
-        self._status(context)
-        self._area.tag_redraw()
-
-    def _advance_settle(self, context) -> None:
-        if self._settle is None:
-            return
-        frames = self._settle.frames
-        pair_data.advance_settle(self._settle)
-        if self._settle.done:
-            self._finish_settle(context)
-        elif self._settle.frames == frames:
-            return  # the worker has solved nothing new since the last frame
-        self._area.tag_redraw()
-
-    def _finish_settle(self, context) -> None:
-        """Keep a running re-settle as it is now (written for good, one undo step)."""
-        settle, self._settle = self._settle, None
-        if settle is None:
-            return
-        wrap_session.set_running(settle, running=False)
-        result = settle.finish()
-        wrap_session.remember_result(result)
-        bpy.ops.ed.undo_push(message="Pair Tool: Live Re-settle")
-        self._stop_timer(context)
-        self._status(context)
-
-    def _cancel_settle(self, context) -> None:
-        """Drop a running re-settle, the layout put back bit for bit as it was before it."""
-        settle, self._settle = self._settle, None
-        if settle is None:
-            return
-        wrap_session.set_running(settle, running=False)
-        try:
-            settle.cancel()
-        except ReferenceError:  # the layout was deleted under the re-settle: nothing to put back
-            pass
-        self._stop_timer(context)
-        self._status(context)
-
-    def _stop_timer(self, context) -> None:
-        if self._timer is not None:
-            context.window_manager.event_timer_remove(self._timer)
-            self._timer = None
 
 
 def _set_tool(context, idname: str) -> None:

@@ -12,6 +12,8 @@ schedule ends or it reaches the iteration limit.
   mesh, so the viewport shows it settling (paper, Figure 12) at the display's own rate, and shows the
   progress in the status bar and the panel. Esc or right-click stops the worker after its iteration in
   progress and puts positions and state back bit for bit; finishing keeps the result as one undo step.
+  With the pair tool running on the layout, its clicks and keys (and Esc or right-click during its drag) are let
+  through to it: the pairs it edits go to the running solver (``WrapSession.move_anchors``) and stay as edited.
 - In background mode, or with ``EXEC_DEFAULT`` (scripts), it runs to the end at once and writes once.
 
 The logic is in two plain classes that need no window or events: ``blender.wrap_session.WrapSession``
@@ -23,7 +25,7 @@ import bpy
 
 from .. import property_kinds as props
 from ..blender import layout as layout_data
-from ..blender import wrap_reads, wrap_session
+from ..blender import live_wraps, wrap_reads, wrap_session
 from ..blender.edit_mode import EditModeGuard, object_mode
 from ..blender.wrap_session import WrapSession
 from ..core import defaults, input_policy, mirror_seam, mirroring, quality, transforms
@@ -252,6 +254,8 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
         return {"RUNNING_MODAL"}
 
     def modal(self, context, event):
+        if event.type != "TIMER" and live_wraps.tool_takes(self._loop.session.layout, event.type, event.value):
+            return {"PASS_THROUGH"}  # the pair tool edits the anchors while the wrap runs (it hands them over)
         frames = self._loop.session.frames
         outcome = self._loop.handle(event.type, event.value)
         if outcome == "RUNNING_MODAL":
