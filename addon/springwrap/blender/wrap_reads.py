@@ -9,6 +9,10 @@ from typing import NamedTuple
 
 import bpy
 
+import numpy as np
+
+from ..core import wrap_inputs
+from ..core.errors import LayoutError
 from ..core.layout_state import LayoutArrays
 from ..core.target import Target
 from . import anchors as anchor_data
@@ -39,3 +43,18 @@ def read(context, layout: bpy.types.Object, target: Target | None = None) -> Wra
         curves=curve_data.read_curve_constraints(layout),
         target=target,
     )
+
+
+def unreliable_triangles(context, settings, target: Target) -> np.ndarray | None:
+    """The target's triangles in the layout's Unreliable group (``settings.unreliable_group`` on
+    ``settings.target``), as ``core.wrap_inputs.unreliable_triangles`` marks them; None without the group.
+    Raises ``LayoutError`` when the group's weights do not match ``target``'s vertices."""
+    if not settings.unreliable_group:
+        return None
+    weights = target_data.read_vertex_group_weights(context, settings.target, settings.unreliable_group)
+    if weights.shape[0] != target.mesh.vertex_count:
+        raise LayoutError(
+            f"Vertex group '{settings.unreliable_group}' has {weights.shape[0]} weights for a target of "
+            f"{target.mesh.vertex_count} vertices"
+        )
+    return wrap_inputs.unreliable_triangles(target.mesh.triangles(), weights)

@@ -23,7 +23,6 @@ from . import layout as layout_data
 from . import parts as part_data
 from . import quality as quality_data
 from . import shape_keys as shape_key_data
-from . import target as target_data
 from .live_wraps import forget_results as forget_results  # the live wraps and results the panel shows
 from .live_wraps import forget_results_on_load as forget_results_on_load
 from .live_wraps import last_result as last_result
@@ -94,15 +93,7 @@ class WrapSession:
         self.target = reads.target
         self.layout_topology = reads.topology
         self.anchors, anchor_resolution = anchors.resolve(reads.anchors, self.target, settings.anchors_signature)
-        unreliable = None
-        if settings.unreliable_group:
-            weights = target_data.read_vertex_group_weights(context, settings.target, settings.unreliable_group)
-            if weights.shape[0] != self.target.mesh.vertex_count:
-                raise LayoutError(
-                    f"Vertex group '{settings.unreliable_group}' has {weights.shape[0]} weights for a target of "
-                    f"{self.target.mesh.vertex_count} vertices"
-                )
-            unreliable = wrap_inputs.unreliable_triangles(self.target.mesh.triangles(), weights)
+        unreliable = wrap_reads.unreliable_triangles(context, settings, self.target)
         curve_constraints = curve_data.resolve_curve_constraints(
             context.evaluated_depsgraph_get(), layout, reads.curves
         )
