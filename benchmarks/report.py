@@ -418,6 +418,16 @@ def snap_section(snap: dict) -> list[str]:
             )
             + f"; Shrinkwrap on the same layout {number(operator['shrinkwrap_seconds'])} s.",
         ]
+        steps = operator.get("separate_steps")
+        if steps:
+            lines[-1] += (
+                f" The read-out is one kernel call (world positions, distances, stretch and flips in Rust); the same "
+                f"snaps with the read-out in separate steps (world copies in numpy, then the kernel's stretch and flips "
+                f"and its distances), alternating with them: {number(steps['seconds'])} s, of which the read-out "
+                f"{number(steps['readout_seconds'])} s ({100.0 * steps['readout_share']:.0f} %; processor time "
+                f"{number(steps['readout_cpu_seconds'])} of {number(steps['cpu_seconds'])} s, "
+                f"{100.0 * steps['readout_cpu_share']:.0f} %)."
+            )
     failed = [check["name"] for check in snap.get("checks", []) if not check.get("passed")]
     lines += [
         "",

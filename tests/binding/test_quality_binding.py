@@ -158,3 +158,74 @@ def test_bad_layout_arrays_raise_naming_the_problem():
         sk.face_normals(points, corners, sizes + 1)
     with pytest.raises(sk.ArrayError, match="float64"):
         sk.vertex_stretch(points.astype(np.float32), points, edges)
+
+
+def placed(points, matrix):
+    """(N, 3) float64 world points of float32 local ``points`` under ``matrix`` (numpy, the reference)."""
+    return points.astype(np.float64) @ matrix[:3, :3].T + matrix[:3, 3]
+
+
+@pytest.mark.parametrize(
+    "linear",
+    [np.eye(3), np.diag([2.0, 0.25, 1.5]), np.diag([-1.0, 0.5, 3.0]) @ np.array([[0, 1, 0], [0, 0, 1], [1, 0, 0]])],
+)
+def test_placed_readout_is_the_readout_and_distances_of_the_world_positions(linear):
+    points, corners, sizes, edges = layout(n=6)
+    vertices, triangles = grid(8)
+    origin = np.array([100.0, -50.0, 7.0])
+    mesh = sk.TargetMesh((vertices - [1.0, 1.0, 0.5]).astype(np.float32), triangles)
+    matrix = np.eye(4)
+    matrix[:3, :3], matrix[:3, 3] = linear, origin + [0.5, 0.5, 0.0]
+    for name, shape in deformations(points, 5).items():
+        local, rest = shape.astype(np.float32), points.astype(np.float32)
+        world, world_rest = placed(local, matrix), placed(rest, matrix)
+        near = np.arange(len(local), dtype=np.uint32) % len(triangles)
+        distances, stretch, flipped, diagonal = sk.placed_readout(
+            mesh, local, rest, matrix, corners, sizes, edges, origin=origin, near=near, on_surface=1e-6
+        )
+        expected_stretch, expected_flipped, expected_diagonal = sk.layout_readout(
+            world, world_rest, corners, sizes, edges
+        )
+        assert np.array_equal(flipped, expected_flipped), name
+        assert np.allclose(stretch, expected_stretch, rtol=1e-12, atol=0.0), name
+        assert diagonal == pytest.approx(expected_diagonal, rel=1e-12)
+        expected = mesh.surface_distances(world - origin, near=near, on_surface=1e-6)
+        assert np.allclose(distances, expected, rtol=1e-9, atol=1e-9), name
+    unmeasured = sk.placed_readout(mesh, local, None, matrix, corners, sizes, edges)
+    assert (unmeasured[1] == 1.0).all() and not unmeasured[2].any()
+    stray = rest.copy()
+    stray[2] = np.inf  # a rest shape not finite: not used, as none
+    assert all(
+        np.array_equal(a, b)
+        for a, b in zip(sk.placed_readout(mesh, local, stray, matrix, corners, sizes, edges), unmeasured, strict=True)
+    )
+
+
+def test_placed_readout_refuses_bad_arrays_naming_the_problem():
+    points, corners, sizes, edges = layout(n=2)
+    vertices, triangles = grid(4)
+    mesh = sk.TargetMesh(vertices, triangles)
+    local = points.astype(np.float32)
+    arguments = (local, local, np.eye(4), corners, sizes, edges)
+    with pytest.raises(sk.ArrayError, match="positions.*float32"):
+        sk.placed_readout(mesh, points, local, np.eye(4), corners, sizes, edges)
+    with pytest.raises(sk.SpringwrapError, match="rest"):
+        sk.placed_readout(mesh, local, local[1:], np.eye(4), corners, sizes, edges)
+    with pytest.raises(sk.InvalidArgumentError, match="matrix.*last row"):
+        sk.placed_readout(mesh, local, local, np.ones((4, 4)), corners, sizes, edges)
+    with pytest.raises(sk.ArrayError, match="matrix"):
+        sk.placed_readout(mesh, local, local, np.eye(3), corners, sizes, edges)
+    with pytest.raises(sk.ArrayError, match="origin"):
+        sk.placed_readout(mesh, *arguments, origin=np.zeros(2))
+    with pytest.raises(sk.SpringwrapError, match="near"):
+        sk.placed_readout(mesh, *arguments, near=np.zeros(3, np.uint32))
+    with pytest.raises(sk.InvalidArgumentError, match="on_surface"):
+        sk.placed_readout(mesh, *arguments, on_surface=-1.0)
+    with pytest.raises(sk.IndexOutOfRangeError):
+        sk.placed_readout(mesh, local, local, np.eye(4), corners, sizes, np.array([[0, 999]], np.uint32))
+    with pytest.raises(sk.ArgumentTypeError, match="TargetMesh"):
+        sk.placed_readout("mesh", *arguments)
+    far = local.copy()
+    far[0] = 1e30
+    with pytest.raises(sk.CoordinateRangeError):
+        sk.placed_readout(mesh, far, local, np.eye(4), corners, sizes, edges)

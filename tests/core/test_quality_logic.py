@@ -9,6 +9,8 @@ from helpers import core_module, grid, quad_layout
 quality = core_module("quality")
 target_module = core_module("target")
 subdivision = core_module("subdivision")
+layout_state = core_module("layout_state")
+transforms = core_module("transforms")
 
 
 def plane_mesh(size=8, offset=(0.0, 0.0, 0.0)):
@@ -164,3 +166,81 @@ def test_summary_numbers():
     assert numbers["off_surface_threshold"] == pytest.approx(0.1)  # 0.1 % of the diagonal
     assert numbers["off_surface"] == 90  # 0.11 ... 1.0
     assert quality.summary(readout, threshold=0.5)["off_surface"] == 50
+
+
+def _turn(axis, degrees):
+    """The 3x3 rotation by ``degrees`` about ``axis`` (Rodrigues)."""
+    axis = np.asarray(axis, dtype=np.float64) / np.linalg.norm(axis)
+    theta = np.radians(degrees)
+    cross = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+    return np.eye(3) + np.sin(theta) * cross + (1.0 - np.cos(theta)) * cross @ cross
+
+
+PLACEMENTS = {
+    "identity": (np.eye(3), (0.0, 0.0, 0.0)),
+    "turned, scaled unevenly, far away": (_turn((1, 2, 3), 40.0) @ np.diag([1.7, 0.4, 2.5]), (3.0e4, -2.0e4, 950.0)),
+    "mirrored (negative determinant)": (
+        np.diag([-1.0, 1.0, 1.0]) @ _turn((0, 1, 1), 75.0) @ np.diag([0.7, 1.3, 0.9]),
+        (5.0, -3.0, 0.25),
+    ),
+}
+
+
+def placed_case(linear, translation, seed):
+    """A crumpled layout with a few faces folded over, stored in the object space of the placement ``linear``,
+    ``translation``: (object matrix, local float32 positions, local float32 rest, topology, face-point state, the
+    target under it). Half the vertices are face-points on the target (a snap's result), the rest above it."""
+    matrix = np.eye(4)
+    matrix[:3, :3], matrix[:3, 3] = linear, translation
+    rest, topology = layout_over(n=10, height=0.0)
+    rng = np.random.default_rng(seed)
+    world = rest + rng.normal(scale=0.04, size=rest.shape) + [0.0, 0.0, 0.2]
+    world[[30, 64, 97]] = world[[42, 76, 85]] + [0.05, 0.05, 0.0]  # dragged over their neighbours: folds
+    mesh = plane_mesh(offset=translation)
+    world += translation
+    snapped = rng.random(rest.shape[0]) < 0.5
+    hits = mesh.closest_points(world[snapped])
+    world[snapped] = hits.positions
+    faces = np.full(rest.shape[0], -1, np.int32)
+    faces[snapped] = hits.triangles
+    states = np.where(snapped, layout_state.FACE_POINT, layout_state.SPACE_POINT).astype(np.int32)
+    state = layout_state.LayoutState(states, faces, np.zeros((rest.shape[0], 3), np.float32))
+    inverse = np.linalg.inv(matrix)
+    local = transforms.transform_points(inverse, world).astype(np.float32)
+    local_rest = transforms.transform_points(inverse, rest + translation).astype(np.float32)
+    return matrix, local, local_rest, topology, state, mesh
+
+
+def separate_steps(matrix, local, local_rest, topology, mesh, state):
+    """The read-out by separate steps: the world positions and rest shape made in numpy, then :func:`measure`."""
+    world = transforms.transform_points(matrix, local.astype(np.float64))
+    return quality.measure(world, quality.world_rest_or_none(matrix, local_rest, world.shape[0]), topology, mesh, state)
+
+
+def assert_same_readout(placed, reference):
+    assert np.array_equal(placed.flipped, reference.flipped)
+    assert np.allclose(placed.stretch, reference.stretch, rtol=1e-12, atol=0.0)
+    assert np.allclose(placed.distances, reference.distances, rtol=1e-9, atol=1e-9 * reference.diagonal)
+    assert placed.diagonal == pytest.approx(reference.diagonal, rel=1e-12)
+
+
+@pytest.mark.parametrize("placement", PLACEMENTS)
+@pytest.mark.parametrize("seed", [1, 2])
+def test_the_one_call_readout_of_a_placed_layout_is_the_separate_steps_readout(placement, seed):
+    matrix, local, local_rest, topology, state, mesh = placed_case(*PLACEMENTS[placement], seed)
+    reference = separate_steps(matrix, local, local_rest, topology, mesh, state)
+    placed = quality.measure_placed(
+        local, local_rest, np.asfortranarray(matrix), topology, mesh, state
+    )  # as Blender gives it
+    assert reference.flipped.any() and not reference.flipped.all()  # the folds are found, and only they
+    assert_same_readout(placed, reference)
+    assert_same_readout(
+        quality.measure_placed(local, local_rest, matrix, topology, mesh),
+        separate_steps(matrix, local, local_rest, topology, mesh, None),
+    )
+    stray = local_rest.copy()
+    stray[5] = np.nan  # a rest shape not finite in the world, or of another length: none usable, as no rest
+    for unusable in (stray, local_rest[:-1], None):
+        readout = quality.measure_placed(local, unusable, matrix, topology, mesh, state)
+        assert_same_readout(readout, separate_steps(matrix, local, unusable, topology, mesh, state))
+        assert np.array_equal(readout.stretch, np.ones(local.shape[0])) and not readout.flipped.any()

@@ -182,15 +182,17 @@ def read_layout_topology(layout: bpy.types.Object, seams: bool = True):
     edges = np.empty(edge_count * 2, dtype=np.uint32)
     mesh.edges.foreach_get("vertices", edges)
     edges = edges.reshape(-1, 2)
-    seam_flags = np.zeros(edge_count, dtype=bool)
+    seam_edges = np.zeros((0, 2), dtype=np.uint32)
     if seams:
+        seam_flags = np.zeros(edge_count, dtype=bool)
         mesh.edges.foreach_get("use_seam", seam_flags)
+        seam_edges = np.ascontiguousarray(edges[seam_flags])
     return subdivision.LayoutTopology(
         len(mesh.vertices),
         np.ascontiguousarray(face_corners, dtype=np.uint32),
         np.ascontiguousarray(face_sizes, dtype=np.uint32),
         np.ascontiguousarray(edges),
-        np.ascontiguousarray(edges[seam_flags]),
+        seam_edges,
     )
 
 

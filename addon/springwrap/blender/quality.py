@@ -48,12 +48,11 @@ def measure_layout(
             rest = attributes.read_positions(mesh).reshape(-1, 3) if stored is None else stored
     if topology is None:
         topology = layout_data.read_layout_topology(layout, seams=False)
-    matrix = matrix_array(layout.matrix_world)
-    world = transforms.transform_points(matrix, np.asarray(local_positions, dtype=np.float64))
-    world_rest = quality.world_rest_or_none(matrix, rest, world.shape[0])
     if state is None and local_positions is stored:
         state = attributes.read_state(mesh)  # the stored face-points, where the stored positions are
-    return quality.measure(world, world_rest, topology, target.mesh, state)
+    return quality.measure_placed(
+        local_positions, rest, matrix_array(layout.matrix_world), topology, target.mesh, state
+    )
 
 
 def write_readout(layout: bpy.types.Object, readout: Readout) -> None:

@@ -80,14 +80,24 @@ def vertex_distances(world_points: np.ndarray, mesh, state=None) -> np.ndarray:
     (the closest point is no farther, and the two differ by less than that rounding-sized tolerance), without
     a search; the others' searches start from their triangle.
     """
-    near = None
-    if state is not None:
-        faces = np.asarray(state.faces).reshape(-1)
-        on_face = (np.asarray(state.states).reshape(-1) == layout_state.FACE_POINT) & (faces >= 0)
-        near = np.where(on_face, faces, -1).astype(np.int64).astype(np.uint32)  # -1: no start (0xFFFFFFFF)
+    return mesh.surface_distances(world_points, near=_near_triangles(state), on_surface=_on_surface(mesh))
+
+
+def _near_triangles(state) -> np.ndarray | None:
+    """(N,) uint32 the triangle of each face-point of ``state`` (0xFFFFFFFF: none, no start); None without a
+    state."""
+    if state is None:
+        return None
+    faces = np.asarray(state.faces).reshape(-1)
+    on_face = (np.asarray(state.states).reshape(-1) == layout_state.FACE_POINT) & (faces >= 0)
+    return np.where(on_face, faces, -1).astype(np.int64).astype(np.uint32)  # -1: no start (0xFFFFFFFF)
+
+
+def _on_surface(mesh) -> float:
+    """How near its own triangle a face-point reads its distance from it: :data:`ON_SURFACE_FRACTION` of the
+    target's bounding-box diagonal."""
     low, high = mesh.bounding_box()
-    on_surface = ON_SURFACE_FRACTION * float(np.linalg.norm(high - low))
-    return mesh.surface_distances(world_points, near=near, on_surface=on_surface)
+    return ON_SURFACE_FRACTION * float(np.linalg.norm(high - low))
 
 
 def vertex_stretch(world_points: np.ndarray, world_rest: np.ndarray, edges: np.ndarray) -> np.ndarray:
@@ -152,6 +162,43 @@ def measure(world_points: np.ndarray, world_rest: np.ndarray | None, topology, m
         flipped=flipped,
         diagonal=diagonal,
     )
+
+
+def measure_placed(
+    local_positions: np.ndarray, local_rest: np.ndarray | None, matrix_world, topology, mesh, state=None
+) -> Readout:
+    """The :class:`Readout` of a layout as its object stores it: ``local_positions`` and ``local_rest`` ((N, 3)
+    in the object's space, taken as float32 as they are stored; ``local_rest`` None, of another length or not
+    finite in the world: no usable rest shape) placed by ``matrix_world`` (4x4; its last row is not used, as
+    in :func:`~.transforms.transform_points`), on ``mesh``, with ``topology`` and ``state`` as in
+    :func:`measure`.
+
+    The same numbers as :func:`measure` of the world positions and rest shape, in one kernel call
+    (``springwrap_kernel.placed_readout``): the world positions, the stretch, the flips, the layout's size and
+    the distances computed in parallel in Rust, with no world copies made here."""
+    positions = _points32(local_positions)
+    rest = None if local_rest is None else _points32(local_rest)
+    if rest is not None and rest.shape[0] != positions.shape[0]:
+        rest = None
+    affine = np.array(matrix_world, dtype=np.float64, order="C").reshape(4, 4)
+    affine[3] = (0.0, 0.0, 0.0, 1.0)
+    distances, stretch, flipped, diagonal = springwrap_kernel.placed_readout(
+        mesh.kernel,
+        positions,
+        rest,
+        affine,
+        _indices(topology.face_corners),
+        _indices(topology.face_sizes),
+        _pairs(topology.edges),
+        origin=np.ascontiguousarray(mesh.origin, dtype=np.float64),
+        near=_near_triangles(state),
+        on_surface=_on_surface(mesh),
+    )
+    return Readout(distances=distances, stretch=stretch, flipped=flipped, diagonal=diagonal)
+
+
+def _points32(points) -> np.ndarray:
+    return np.ascontiguousarray(np.asarray(points, dtype=np.float32).reshape(-1, 3))
 
 
 def off_surface_threshold(diagonal: float, threshold: float = 0.0) -> float:

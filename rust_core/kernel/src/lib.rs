@@ -76,7 +76,8 @@ pub use layout::{Curve, CurveKind, LayoutStructure, LineTriple};
 pub use mesh::{NO_TRIANGLE, TargetMesh, TargetMeshOptions, TriangleEdge};
 pub use parts::{FollowSettings, SurfaceFollower, connected_pieces};
 pub use quality::{
-    LayoutFaces, LayoutReadout, face_normals, flipped_faces, layout_readout, vertex_stretch,
+    DistanceTarget, LayoutFaces, LayoutReadout, PlacedLayout, PlacedReadout, face_normals,
+    flipped_faces, layout_readout, placed_readout, vertex_stretch,
 };
 pub use surface::{WalkEnd, WalkOutcome};
 pub use validate::{BARYCENTRIC_RANGE, MAX_COORDINATE};

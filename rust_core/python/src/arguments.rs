@@ -129,6 +129,19 @@ pub(crate) fn float64_or(
     }
 }
 
+/// `on_surface` of the distance queries: a finite distance of zero or more (0 when absent or
+/// `None`).
+pub(crate) fn on_surface(value: Option<&Bound<'_, PyAny>>) -> PyResult<f64> {
+    let on_surface = float64_or("on_surface", value, 0.0)?;
+    if on_surface >= 0.0 && on_surface.is_finite() {
+        Ok(on_surface)
+    } else {
+        Err(InvalidArgumentError::new_err(format!(
+            "on_surface must be a finite distance of zero or more, not {on_surface}"
+        )))
+    }
+}
+
 /// A bool (Python's, or numpy's `bool_`), or `default` when absent or `None`.
 pub(crate) fn flag(name: &str, value: Option<&Bound<'_, PyAny>>, default: bool) -> PyResult<bool> {
     let Some(value) = value.filter(|value| !value.is_none()) else {

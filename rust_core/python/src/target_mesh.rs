@@ -389,12 +389,7 @@ impl PyTargetMesh {
         near: Option<&Bound<'py, PyAny>>,
         on_surface: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let on_surface = arguments::float64_or("on_surface", on_surface, 0.0)?;
-        if !(on_surface >= 0.0 && on_surface.is_finite()) {
-            return Err(InvalidArgumentError::new_err(format!(
-                "on_surface must be a finite distance of zero or more, not {on_surface}"
-            )));
-        }
+        let on_surface = arguments::on_surface(on_surface)?;
         let points = read_points64("points", points)?;
         let near = near
             .map(|near| read_array::<u32>("near", near, None))

@@ -26,6 +26,9 @@ use crate::mesh::TargetMesh;
 use crate::query::QueryState;
 use crate::query::point_triangle::closest_point_on_triangle;
 
+mod placed;
+pub use placed::{DistanceTarget, PlacedLayout, PlacedReadout, placed_readout};
+
 /// Faces per rayon task when judging flips: a few microseconds each.
 const FACES_PER_TASK: usize = 256;
 
@@ -823,12 +826,24 @@ impl TargetMesh {
                 second: near.len(),
             });
         }
+        self.distances_of(points.len(), |index| points[index], near, on_surface)
+    }
+
+    /// [`TargetMesh::surface_distances`] of the `count` points `point(0..count)` (in the mesh's
+    /// coordinates), each computed where it is needed; `near` is as long as they are.
+    pub(crate) fn distances_of(
+        &self,
+        count: usize,
+        point: impl Fn(usize) -> DVec3 + Sync,
+        near: Option<&[u32]>,
+        on_surface: f64,
+    ) -> Result<Vec<f64>, KernelError> {
         // In parallel (a million points is milliseconds serially); the first point out of range
         // is the one named.
-        let queries: Vec<Vec3> = points
-            .par_iter()
+        let queries: Vec<Vec3> = (0..count)
+            .into_par_iter()
             .with_min_len(VERTICES_PER_TASK)
-            .map(|point| point.as_vec3())
+            .map(|index| point(index).as_vec3())
             .collect();
         let beyond = |query: &Vec3| {
             query.is_finite() && crate::validate::check_coordinate("point", 0, *query).is_err()
@@ -837,11 +852,12 @@ impl TargetMesh {
             crate::validate::check_coordinate("point", index, queries[index])?;
         }
         self.closest_tree();
-        Ok((0..points.len())
+        Ok((0..count)
             .into_par_iter()
             .with_min_len(crate::query::QUERIES_PER_TASK)
             .map_init(QueryState::default, |state, index| {
-                if !points[index].is_finite() || !queries[index].is_finite() {
+                let exact = point(index);
+                if !exact.is_finite() || !queries[index].is_finite() {
                     return f64::INFINITY;
                 }
                 let start = near.map_or(crate::mesh::NO_TRIANGLE, |near| near[index]);
@@ -853,15 +869,13 @@ impl TargetMesh {
                         corner(b),
                         corner(c),
                     );
-                    let distance = points[index].distance(Vec3::from(hit).as_dvec3());
+                    let distance = exact.distance(Vec3::from(hit).as_dvec3());
                     if distance <= on_surface && !self.degenerate[start as usize] {
                         return distance;
                     }
                 }
                 self.closest_point_near(queries[index], f32::INFINITY, start, state)
-                    .map_or(f64::INFINITY, |hit| {
-                        points[index].distance(hit.position.as_dvec3())
-                    })
+                    .map_or(f64::INFINITY, |hit| exact.distance(hit.position.as_dvec3()))
             })
             .collect())
     }

@@ -1,6 +1,7 @@
 //! The read-out's stretch, flips and distances against hand-made layouts and references.
 
 use super::*;
+use crate::align::Transform;
 
 /// An n x n grid of quads in z = 0, unit cells: positions, corners, sizes, edges.
 fn grid(n: u32) -> (Vec<DVec3>, Vec<u32>, Vec<u32>, Vec<[u32; 2]>) {
@@ -545,5 +546,98 @@ fn the_shortcut_flips_the_same_faces_as_horns_rotation_everywhere() {
             assert!(count > 0, "case {case}: {count} proved");
         }
         assert!(count < sizes.len(), "case {case}: {count} proved");
+    }
+}
+
+#[test]
+fn the_placed_readout_is_the_readout_and_distances_of_the_world_positions() {
+    let (points, rest, corners, sizes, edges) = warped(12, 5);
+    let local: Vec<Vec3> = points
+        .iter()
+        .map(|point| (*point - DVec3::splat(1e4)).as_vec3())
+        .collect();
+    let local_rest: Vec<Vec3> = rest.iter().map(|point| point.as_vec3()).collect();
+    // A mirror, an uneven scale, a turn and a shift.
+    let to_world = Transform {
+        rows: [
+            [0.0, 1.5, 0.0, 40.0],
+            [0.5, 0.0, 0.0, -3.0],
+            [0.0, 0.0, 2.0, 7.5],
+        ],
+    };
+    assert!(to_world.determinant() < 0.0);
+    let in_world = |points: &[Vec3]| -> Vec<DVec3> {
+        points
+            .iter()
+            .map(|point| to_world.apply_f64(point.as_dvec3()))
+            .collect()
+    };
+    let (world, world_rest) = (in_world(&local), in_world(&local_rest));
+    let (grid_points, grid_corners, _, _) = grid(20);
+    let mesh = TargetMesh::new(
+        grid_points.iter().map(|point| point.as_vec3()).collect(),
+        grid_corners
+            .chunks_exact(4)
+            .flat_map(|quad| [[quad[0], quad[1], quad[2]], [quad[0], quad[2], quad[3]]])
+            .collect(),
+        crate::TargetMeshOptions::default(),
+    )
+    .unwrap();
+    let faces = LayoutFaces {
+        corners: &corners,
+        sizes: &sizes,
+    };
+    let layout = PlacedLayout {
+        positions: &local,
+        rest: Some(&local_rest),
+        to_world: &to_world,
+        faces,
+        edges: &edges,
+    };
+    let target = DistanceTarget {
+        mesh: &mesh,
+        origin: DVec3::new(30.0, -5.0, 2.0),
+        near: None,
+        on_surface: 0.0,
+    };
+    let placed = placed_readout(layout, target).unwrap();
+    let expected = layout_readout(&world, Some(&world_rest), faces, &edges).unwrap();
+    assert_eq!(placed.layout, expected);
+    assert!(expected.flipped.contains(&true) && expected.flipped.contains(&false));
+    let framed: Vec<DVec3> = world.iter().map(|point| *point - target.origin).collect();
+    assert_eq!(
+        placed.distances,
+        mesh.surface_distances(&framed, None, 0.0).unwrap()
+    );
+    // A rest shape not finite in the world is none; a rest shape or starts of another length are
+    // refused.
+    let mut stray = local_rest.clone();
+    stray[3] = Vec3::NAN;
+    let unmeasured = placed_readout(
+        PlacedLayout {
+            rest: Some(&stray),
+            ..layout
+        },
+        target,
+    )
+    .unwrap();
+    assert_eq!(
+        unmeasured.layout,
+        layout_readout(&world, None, faces, &edges).unwrap()
+    );
+    assert_eq!(unmeasured.distances, placed.distances);
+    let short = PlacedLayout {
+        rest: Some(&local_rest[1..]),
+        ..layout
+    };
+    let no_starts = DistanceTarget {
+        near: Some(&[0]),
+        ..target
+    };
+    for outcome in [
+        placed_readout(short, target),
+        placed_readout(layout, no_starts),
+    ] {
+        assert!(matches!(outcome, Err(KernelError::LengthMismatch { .. })));
     }
 }

@@ -637,6 +637,26 @@ def layout_readout(
     bounding-box diagonal in one pass; ``rest`` None: no usable rest shape (the stretch reads 1, no face is
     flipped)."""
 
+def placed_readout(
+    mesh: TargetMesh,
+    positions: npt.NDArray[np.float32],
+    rest: npt.NDArray[np.float32] | None,
+    matrix: npt.NDArray[np.float64],
+    face_corners: npt.NDArray[np.uint32],
+    face_sizes: npt.NDArray[np.uint32],
+    edges: npt.NDArray[np.uint32],
+    *,
+    origin: npt.NDArray[np.float64] | None = None,
+    near: npt.NDArray[np.uint32] | None = None,
+    on_surface: float | None = None,
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.bool_], float]:
+    """(distances (N,), stretch (N,), flipped (F,), diagonal): the whole read-out of a layout as its object stores
+    it, in one call. ``positions`` and ``rest`` (N, 3) float32 in the object's space (``rest`` None: no rest shape;
+    one with a point not finite in the world is not used either), ``matrix`` (4, 4) float64 affine, the object's
+    space to the world; ``mesh``'s coordinates are the world's less ``origin`` ((3,) float64, default zero);
+    ``near`` and ``on_surface`` as in :meth:`TargetMesh.surface_distances`. The same numbers as
+    :func:`layout_readout` of the world positions and rest shape and ``surface_distances`` of the positions."""
+
 # ---------------------------------------------------------------- correspondence proposals
 
 class Proposals(NamedTuple):
