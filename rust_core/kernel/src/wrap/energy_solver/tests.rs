@@ -403,3 +403,64 @@ fn the_global_to_local_pull_weakens_as_the_layout_faces_away_from_the_surface() 
         }
     }
 }
+
+#[test]
+fn the_right_hand_side_gathered_row_by_row_is_the_serial_scatter_to_the_bit_in_every_pool() {
+    use crate::wrap::ordered_sum::in_pools;
+    // 3,721 points: several pieces of rows for the pool's threads to share.
+    let (target, structure, rest) = plane_and_grid(60, 0.03, 0.05);
+    let positions: Vec<Vec3> = rest
+        .iter()
+        .map(|p| *p + Vec3::new(0.01 * (p.y * 9.0).sin(), 0.005, 0.2 * p.x * p.x))
+        .collect();
+    let mut anchors = vec![None; rest.len()];
+    let hit = target.closest_point(Vec3::new(0.1, 0.0, 0.0), 1.0).unwrap();
+    anchors[1830] = Some((AnchorTarget::Face(hit.face_point), hit.position));
+    let mut solver = solver(&target, &structure, &positions, &rest, &anchors);
+    solver.fit_similarities(false);
+    solver.smooth_scales(Some(2));
+    let normals = solver.layout_normals(&solver.positions);
+    let correspondences = solver.correspondences(&normals, 0.2, NEVER).unwrap();
+    let data_weight = 3.0;
+    // The scatter, term by term into shared rows, as one thread would do it.
+    let proximal = PROXIMAL_WEIGHT * EDGE_WEIGHT;
+    let vertex_of_row = solver.system.vertex_of_row();
+    assert!(vertex_of_row.len() < rest.len(), "the anchor has no row");
+    let mut diagonal = vec![proximal; vertex_of_row.len()];
+    let mut scattered: Vec<DVec3> = vertex_of_row
+        .iter()
+        .map(|&vertex| solver.positions[vertex as usize].as_dvec3() * proximal)
+        .collect();
+    for (row, &vertex) in vertex_of_row.iter().enumerate() {
+        if let Some((weight, point)) = correspondences[vertex as usize] {
+            diagonal[row] += f64::from(weight) * data_weight;
+            scattered[row] += point.as_dvec3() * (f64::from(weight) * data_weight);
+        }
+    }
+    for term in 0..solver.stencils.len() {
+        let wanted = solver.term_target(term);
+        for (vertex, coefficient) in solver.stencils.entries(term) {
+            if let Some(row) = solver.system.row_of(vertex) {
+                scattered[row as usize] += wanted * (solver.stencils.weights[term] * coefficient);
+            }
+        }
+    }
+    let bits = |values: &[DVec3]| -> Vec<[u64; 3]> {
+        values
+            .iter()
+            .map(|v| v.to_array().map(f64::to_bits))
+            .collect()
+    };
+    let runs = in_pools(&[1, 2, 3], || {
+        solver.assemble_rows(&correspondences, data_weight)
+    });
+    for (gathered_diagonal, gathered) in &runs {
+        assert_eq!(bits(gathered), bits(&scattered));
+        assert!(
+            gathered_diagonal
+                .iter()
+                .zip(&diagonal)
+                .all(|(a, b)| a.to_bits() == b.to_bits())
+        );
+    }
+}
