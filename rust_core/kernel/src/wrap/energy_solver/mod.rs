@@ -175,6 +175,8 @@ const LANDING_REACH: f32 = 2.0;
 /// Rounds of normal smoothing per (layout edge / target edge)² (diffusion spreads as the square
 /// root of the rounds), and their bounds.
 const NORMAL_SMOOTHING_ROUNDS: (usize, usize) = (1, 24);
+/// The most vertices whose vote says which way the layout winds against the target.
+const ORIENTATION_SAMPLES: usize = 1 << 16;
 /// Closest-point queries between two asks whether a step is to stop.
 const QUERIES_PER_CHECK: usize = 1 << 15;
 
