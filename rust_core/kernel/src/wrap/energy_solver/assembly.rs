@@ -1,9 +1,10 @@
 //! The global step's system: its diagonal (proximal and data weights) and its right-hand side (the
 //! data points and the shape terms' targets), row by row in parallel.
 //!
-//! A right-hand side scattered term by term would add into shared rows; here each row gathers
-//! its own terms instead, in the order a serial scatter would add them (term by term, entry by
-//! entry), so that every row is the same to the bit whatever the threads and whoever steals what.
+//! A right-hand side scattered term by term would add into shared rows; here each term's target
+//! is computed once in parallel, then each row gathers its own terms, in the order a serial
+//! scatter would add them (term by term, entry by entry), so that every row is the same to the
+//! bit whatever the threads and whoever steals what.
 
 use super::*;
 
@@ -54,6 +55,12 @@ impl EnergySolver {
         data_weight: f64,
     ) -> (Vec<f64>, Vec<DVec3>) {
         let proximal = PROXIMAL_WEIGHT * EDGE_WEIGHT;
+        // Each term's target once (a term touches two or three rows), dropped before the solve.
+        let wanted: Vec<DVec3> = (0..self.stencils.len())
+            .into_par_iter()
+            .with_min_len(4096)
+            .map(|term| self.term_target(term))
+            .collect();
         self.system
             .vertex_of_row()
             .par_iter()
@@ -84,7 +91,7 @@ impl EnergySolver {
                         .nth(occurrence)
                         .map_or(0.0, |(_, coefficient)| coefficient);
                     let weight = self.stencils.weights[term];
-                    right_hand_side += self.term_target(term) * (weight * coefficient);
+                    right_hand_side += wanted[term] * (weight * coefficient);
                 }
                 (diagonal, right_hand_side)
             })

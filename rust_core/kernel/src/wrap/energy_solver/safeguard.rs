@@ -70,17 +70,24 @@ impl EnergySolver {
     /// The vertices of corners that turn away from their frame at `positions`: below
     /// the schedule's least alignment and less aligned than in `before`.
     pub(super) fn turned_corners(&self, before: &[f32], positions: &[Vec3]) -> Vec<u32> {
-        let after = self.corner_orientations(positions);
         let structure = &self.structure;
-        let mut vertices = Vec::new();
-        for vertex in 0..positions.len() {
-            for corner in structure.wedge_range(vertex as u32) {
-                if turned(before[corner], after[corner], self.min_alignment) {
-                    let (previous, next) = structure.wedges[corner];
-                    vertices.extend([vertex as u32, previous, next]);
-                }
-            }
-        }
+        // In parallel, vertex by vertex, collected in the vertices' order.
+        let mut vertices: Vec<u32> = (0..positions.len() as u32)
+            .into_par_iter()
+            .with_min_len(1024)
+            .flat_map_iter(|vertex| {
+                structure
+                    .wedge_range(vertex)
+                    .filter(move |&corner| {
+                        let after = self.corner_alignment(vertex, corner, positions);
+                        turned(before[corner], after, self.min_alignment)
+                    })
+                    .flat_map(move |corner| {
+                        let (previous, next) = structure.wedges[corner];
+                        [vertex, previous, next]
+                    })
+            })
+            .collect();
         vertices.sort_unstable();
         vertices.dedup();
         vertices
