@@ -70,7 +70,6 @@ use crate::layout::LayoutStructure;
 use crate::mesh::{NO_TRIANGLE, TargetMesh};
 use crate::query::QueryState;
 
-mod assembly;
 mod data_term;
 mod landing;
 mod local_step;
@@ -79,7 +78,6 @@ mod terms;
 #[cfg(test)]
 mod tests;
 
-use assembly::TermsOfVertex;
 use data_term::smoothed_vertex_normals;
 use safeguard::corner_normals;
 use terms::{build_terms, data_factor, is_flagged, shape_factor};
@@ -241,8 +239,6 @@ pub(crate) struct EnergySolver {
     /// in the rest shape: the orientation the safeguard keeps, turned by the layout's frame.
     rest_corner_normals: Vec<Vec3>,
     stencils: Stencils,
-    /// Per vertex, the terms on it (the right-hand side gathers them row by row).
-    terms_of_vertex: TermsOfVertex,
     /// Per term, its owner (whose similarity turns its rest vector) and its rest vector.
     term_owner: Vec<u32>,
     term_rest: Vec<DVec3>,
@@ -398,7 +394,6 @@ impl EnergySolver {
             structure: structure.clone(),
             rest_fit: RestFit::new(inputs.rest),
             rest_corner_normals,
-            terms_of_vertex: TermsOfVertex::new(&stencils, vertex_count),
             stencils,
             term_owner,
             term_rest,
@@ -696,14 +691,34 @@ impl EnergySolver {
         stop: Stop<'_>,
     ) -> Result<Vec<Vec3>, KernelError> {
         let mut clock = self.profiler.start();
-        let (diagonal, right_hand_side) = self.assemble_rows(correspondences, data_weight);
+        let rows = self.system.rows();
+        let vertex_of_row = self.system.vertex_of_row().to_vec();
+        let proximal = PROXIMAL_WEIGHT * EDGE_WEIGHT;
+        let mut diagonal = vec![proximal; rows];
+        let mut right_hand_side: Vec<DVec3> = vertex_of_row
+            .iter()
+            .map(|&vertex| self.positions[vertex as usize].as_dvec3() * proximal)
+            .collect();
+        for (row, &vertex) in vertex_of_row.iter().enumerate() {
+            if let Some((weight, point)) = correspondences[vertex as usize] {
+                let weight = f64::from(weight) * data_weight;
+                diagonal[row] += weight;
+                right_hand_side[row] += point.as_dvec3() * weight;
+            }
+        }
+        for term in 0..self.stencils.len() {
+            let wanted = self.term_target(term);
+            let weight = self.stencils.weights[term];
+            for (vertex, coefficient) in self.stencils.entries(term) {
+                if let Some(row) = self.system.row_of(vertex) {
+                    right_hand_side[row as usize] += wanted * (weight * coefficient);
+                }
+            }
+        }
         // Within a level the diagonal changes little from one iteration to the next: the system
         // reuses its last factorization as a preconditioner, warm-started here.
-        let start: Vec<DVec3> = self
-            .system
-            .vertex_of_row()
-            .par_iter()
-            .with_min_len(4096)
+        let start: Vec<DVec3> = vertex_of_row
+            .iter()
             .map(|&vertex| self.positions[vertex as usize].as_dvec3())
             .collect();
         clock = self.profiler.add(WrapPhase::Assembly, clock);
@@ -716,7 +731,6 @@ impl EnergySolver {
         )?;
         self.profiler.add(WrapPhase::Solve, clock);
         let mut proposed = self.positions.clone();
-        let vertex_of_row = self.system.vertex_of_row();
         for (position, fixed) in proposed.iter_mut().zip(&self.fixed) {
             if let Some(fixed) = fixed {
                 *position = fixed.as_vec3();
