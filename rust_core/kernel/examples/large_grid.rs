@@ -1,5 +1,7 @@
-//! Times the energy wrap of a dense torus grid: `cargo run --release --example large_grid -- SIDE [ITERATIONS]`
-//! (a layout of about SIDE² points on a noisy torus of about SIDE²/4 triangles, started on its surface).
+//! Times the energy wrap of a dense torus grid, phase by phase:
+//! `cargo run --release -p springwrap-kernel --example large_grid -- [SIDE] [ITERATIONS]`
+//! (a layout of about SIDE² points on a noisy torus of about SIDE²/4 triangles, started on its
+//! surface; `--help` says more).
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -7,7 +9,8 @@ use std::time::Instant;
 use glam::Vec3;
 use rayon::prelude::*;
 use springwrap_kernel::{
-    LayoutPoint, LayoutStructure, TargetMesh, TargetMeshOptions, WrapSettings, WrapSolver,
+    LayoutPoint, LayoutStructure, TargetMesh, TargetMeshOptions, WrapPhase, WrapSettings,
+    WrapSolver,
 };
 
 const MAJOR: f32 = 1.0;
@@ -42,10 +45,57 @@ fn torus(major: u32, minor: u32, bump: f32) -> (Vec<Vec3>, Vec<u32>) {
     (vertices, quads)
 }
 
+const HELP: &str = "\
+large_grid [SIDE] [ITERATIONS]: wraps a layout of about SIDE x SIDE points (default 1024) on a
+noisy torus of about SIDE^2/4 triangles for at most ITERATIONS iterations (default: until the
+wrap converges), then prints the seconds of each phase of the energy solver and of the whole
+wrap, in processor time (all threads, from /proc/self/task/*/schedstat; wall time where that
+cannot be read) and in wall time, and the peak resident memory.";
+
+/// The processor seconds of all the process's threads so far (their scheduler statistics), or
+/// the wall seconds since the first call where those cannot be read.
+fn processor_seconds() -> f64 {
+    let threads = std::fs::read_dir("/proc/self/task").ok().map(|tasks| {
+        tasks
+            .filter_map(|task| {
+                let statistics =
+                    std::fs::read_to_string(task.ok()?.path().join("schedstat")).ok()?;
+                statistics.split_whitespace().next()?.parse::<u64>().ok()
+            })
+            .sum::<u64>()
+    });
+    match threads {
+        Some(nanoseconds) if nanoseconds > 0 => nanoseconds as f64 * 1e-9,
+        _ => wall_seconds(),
+    }
+}
+
+/// Wall seconds since the first call.
+fn wall_seconds() -> f64 {
+    static START: std::sync::OnceLock<Instant> = std::sync::OnceLock::new();
+    START.get_or_init(Instant::now).elapsed().as_secs_f64()
+}
+
+/// The peak resident memory of the process in GB, if the system says.
+fn peak_memory_gb() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|line| line.starts_with("VmHWM:"))?;
+    let kilobytes: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kilobytes / 1e6)
+}
+
 fn main() {
-    let mut arguments = std::env::args().skip(1);
-    let side: u32 = arguments.next().map_or(1024, |a| a.parse().unwrap());
-    let iterations: usize = arguments.next().map_or(3, |a| a.parse().unwrap());
+    let arguments: Vec<String> = std::env::args().skip(1).collect();
+    if arguments.iter().any(|a| a == "--help" || a == "-h") {
+        println!("{HELP}");
+        return;
+    }
+    let side: u32 = arguments.first().map_or(1024, |a| a.parse().expect("SIDE"));
+    let iterations: usize = arguments
+        .get(1)
+        .map_or(WrapSettings::MAX_STEP_ITERATIONS, |a| {
+            a.parse().expect("ITERATIONS")
+        });
     let start = Instant::now();
     let cells = side * side / 4;
     let minor_t = ((cells as f32 / 3.33).sqrt()) as u32;
@@ -76,7 +126,6 @@ fn main() {
         target.triangles().len(),
         start.elapsed().as_secs_f64()
     );
-    let build = Instant::now();
     let mut solver = WrapSolver::with_rest_shape(
         target,
         structure,
@@ -86,22 +135,41 @@ fn main() {
         WrapSettings::default(),
     )
     .unwrap();
-    println!("solver made in {:.2} s", build.elapsed().as_secs_f64());
-    let wrap = Instant::now();
+    solver.profile_with(processor_seconds);
+    let (wrap, wrap_processor) = (Instant::now(), processor_seconds());
+    let mut report = None;
     for _ in 0..iterations {
         let step = Instant::now();
-        let report = solver.step(1).unwrap();
+        let step_report = solver.step(1).unwrap();
         println!(
             "iteration {}: {:.2} s, mean move {:.3e}, held back {}, converged {}",
-            report.total_iterations,
+            step_report.total_iterations,
             step.elapsed().as_secs_f64(),
-            report.mean_displacement,
-            report.held_back,
-            report.converged
+            step_report.mean_displacement,
+            step_report.held_back,
+            step_report.converged
         );
-        if report.converged {
+        report = Some(step_report);
+        if step_report.converged {
             break;
         }
     }
-    println!("wrap {:.2} s", wrap.elapsed().as_secs_f64());
+    let (wall, processor) = (
+        wrap.elapsed().as_secs_f64(),
+        processor_seconds() - wrap_processor,
+    );
+    let times = solver.phase_times();
+    println!("phase            processor s");
+    for phase in WrapPhase::ALL {
+        println!("{:<16} {:>11.2}", phase.name(), times.seconds(phase));
+    }
+    println!("{:<16} {:>11.2}", "phases", times.total());
+    println!(
+        "wrap: {:.2} processor s, {:.2} wall s, {} iterations, converged {}, peak memory {} GB",
+        processor,
+        wall,
+        report.map_or(0, |report| report.total_iterations),
+        report.is_some_and(|report| report.converged),
+        peak_memory_gb().map_or_else(|| "?".to_string(), |gb| format!("{gb:.2}")),
+    );
 }

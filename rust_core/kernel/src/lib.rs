@@ -82,6 +82,6 @@ pub use quality::{
 pub use surface::{WalkEnd, WalkOutcome};
 pub use validate::{BARYCENTRIC_RANGE, MAX_COORDINATE};
 pub use wrap::{
-    Anchor, AnchorTarget, CurveConstraint, PlaneConstraint, SoftPair, StepReport, WrapSchedule,
-    WrapSettings, WrapSolver, WrapWeights,
+    Anchor, AnchorTarget, CurveConstraint, PhaseClock, PhaseTimes, PlaneConstraint, SoftPair,
+    StepReport, WrapPhase, WrapSchedule, WrapSettings, WrapSolver, WrapWeights,
 };

@@ -7,6 +7,14 @@ impl EnergySolver {
     /// The layout points after landing (call once finished): face-points where they landed,
     /// anchors and curve targets as their constraints say, space-points elsewhere.
     pub(crate) fn land(&mut self) -> (Vec<LayoutPoint>, usize) {
+        let clock = self.profiler.start();
+        let landed = self.land_points();
+        self.profiler.add(WrapPhase::Landing, clock);
+        landed
+    }
+
+    /// [`Self::land`] without its profile.
+    fn land_points(&mut self) -> (Vec<LayoutPoint>, usize) {
         let vertex_count = self.positions.len();
         let reach = self.landing_distance * LANDING_REACH;
         let normals = self.layout_normals(&self.positions);

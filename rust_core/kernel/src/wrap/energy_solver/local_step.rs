@@ -29,23 +29,27 @@ impl EnergySolver {
             return Ok(());
         }
         let mut rotations: Vec<Quat> = self.similarities.iter().map(|fit| fit.rotation).collect();
+        // Two buffers, each round written into the other: a round's fresh vector of a million
+        // rotations cost more in page faults than its arithmetic.
+        let mut smoothed = rotations.clone();
         for _ in 0..rounds {
             check(stop, WRAP_STEP)?;
-            rotations = (0..rotations.len() as u32)
-                .into_par_iter()
+            smoothed
+                .par_iter_mut()
                 .with_min_len(2048)
-                .map(|vertex| {
-                    let own = rotations[vertex as usize];
+                .enumerate()
+                .for_each(|(vertex, smoothed)| {
+                    let own = rotations[vertex];
                     let sum = self
                         .structure
-                        .neighbors_of(vertex)
+                        .neighbors_of(vertex as u32)
                         .iter()
                         .fold(Vec4::from(own), |sum, &other| {
                             add_matched(sum, rotations[other as usize], own)
                         });
-                    normalized_rotation(sum).unwrap_or(own)
-                })
-                .collect();
+                    *smoothed = normalized_rotation(sum).unwrap_or(own);
+                });
+            std::mem::swap(&mut rotations, &mut smoothed);
         }
         for (fit, rotation) in self.similarities.iter_mut().zip(rotations) {
             fit.rotation = rotation;
@@ -106,16 +110,18 @@ impl EnergySolver {
                 }
             })
             .collect();
+        let mut smoothed = logs.clone();
         for _ in 0..rounds {
-            logs = (0..logs.len() as u32)
-                .into_par_iter()
+            smoothed
+                .par_iter_mut()
                 .with_min_len(2048)
-                .map(|vertex| {
-                    let neighbors = self.structure.neighbors_of(vertex);
+                .enumerate()
+                .for_each(|(vertex, smoothed)| {
+                    let neighbors = self.structure.neighbors_of(vertex as u32);
                     let sum: f32 = neighbors.iter().map(|&other| logs[other as usize]).sum();
-                    (logs[vertex as usize] + sum) / (1 + neighbors.len()) as f32
-                })
-                .collect();
+                    *smoothed = (logs[vertex] + sum) / (1 + neighbors.len()) as f32;
+                });
+            std::mem::swap(&mut logs, &mut smoothed);
         }
         for (fit, log) in self.similarities.iter_mut().zip(logs) {
             fit.scale = log.exp();

@@ -57,6 +57,7 @@ use super::linear_system::WRAP_STEP;
 use super::linear_system::{LinearSystem, Stencils};
 use super::ordered_sum::ordered_sum;
 use super::plane_constraint::Plane;
+use super::profile::{PhaseClock, PhaseTimes, Profiler, WrapPhase};
 use super::settings::{WrapSchedule, WrapSettings};
 use super::similarity::{RestFit, Similarity};
 use super::soft_pair::{pull_soft_pairs, warm_up_pulls};
@@ -172,6 +173,8 @@ const LANDING_REACH: f32 = 2.0;
 /// Rounds of normal smoothing per (layout edge / target edge)² (diffusion spreads as the square
 /// root of the rounds), and their bounds.
 const NORMAL_SMOOTHING_ROUNDS: (usize, usize) = (1, 24);
+/// The most vertices whose vote says which way the layout winds against the target.
+const ORIENTATION_SAMPLES: usize = 1 << 16;
 /// Closest-point queries between two asks whether a step is to stop.
 const QUERIES_PER_CHECK: usize = 1 << 15;
 
@@ -205,6 +208,8 @@ pub(crate) struct EnergyInputs<'a> {
     pub landing_distance: f32,
     /// The weights, the tolerance, the fold tolerance and the schedule.
     pub settings: WrapSettings,
+    /// The clock that times each phase (`None`: no profile).
+    pub profile: Option<PhaseClock>,
 }
 
 /// One iteration's outcome.
@@ -287,6 +292,8 @@ pub(crate) struct EnergySolver {
     iterations: usize,
     last_energy: f64,
     finished: bool,
+    /// The time of each phase, when asked for.
+    profiler: Profiler,
 }
 
 impl EnergySolver {
@@ -308,6 +315,8 @@ impl EnergySolver {
         inputs: &EnergyInputs<'_>,
         stop: Stop<'_>,
     ) -> Result<Self, KernelError> {
+        let mut profiler = Profiler::new(inputs.profile);
+        let mut clock = profiler.start();
         let structure = inputs.structure;
         let vertex_count = structure.vertex_count;
         let settings = inputs.settings;
@@ -368,6 +377,7 @@ impl EnergySolver {
             .collect();
         check(stop, WRAP_STEP)?;
         let system = LinearSystem::new(&stencils, vertex_count, &fixed, MAX_FACTOR_BYTES)?;
+        clock = profiler.add(WrapPhase::System, clock);
         check(stop, WRAP_STEP)?;
         // Constrained vertices move to their constraints in the first step, with their
         // neighbours: the safeguard then sees the whole move.
@@ -377,6 +387,7 @@ impl EnergySolver {
             .map(Vec3::normalize_or_zero)
             .collect();
         let smoothed_normals = smoothed_vertex_normals(inputs.target, inputs.mean_edge_length);
+        clock = profiler.add(WrapPhase::Normals, clock);
         check(stop, WRAP_STEP)?;
         let mut solver = Self {
             target: Arc::clone(inputs.target),
@@ -432,10 +443,12 @@ impl EnergySolver {
             iterations: 0,
             last_energy: f64::INFINITY,
             finished: false,
+            profiler,
         };
         solver.warming_up = solver.needs_warm_up();
         solver.fit_similarities(true);
         solver.orientation = solver.measure_orientation();
+        solver.profiler.add(WrapPhase::FirstFit, clock);
         Ok(solver)
     }
 
@@ -449,6 +462,11 @@ impl EnergySolver {
             || self.fixed.iter().any(Option::is_some)
             || self.soft_pairs.iter().any(Option::is_some)
             || self.plane.is_some()
+    }
+
+    /// The seconds of each phase so far (all zero unless a profile was asked for).
+    pub(crate) fn phase_times(&self) -> PhaseTimes {
+        self.profiler.times()
     }
 
     /// The current positions.
@@ -533,12 +551,15 @@ impl EnergySolver {
         }
         let level = self.levels[self.level];
         let data_weight = level.data_weight * self.data_scale;
+        let mut clock = self.profiler.start();
         // Local step: similarities and correspondences at the current positions.
         if self.iterations > 0 {
             self.fit_similarities(false);
         }
+        clock = self.profiler.add(WrapPhase::Fit, clock);
         self.smooth_rotations(level.rotation_smoothing, stop)?;
         self.fit_scales(level.scale_smoothing)?;
+        clock = self.profiler.add(WrapPhase::Smoothing, clock);
         check(stop, WRAP_STEP)?;
         let normals = self.layout_normals(&self.positions);
         let width = level.welsch_width * self.mean_edge_length * self.reach_scale;
@@ -554,11 +575,14 @@ impl EnergySolver {
                 *correspondence = None;
             }
         }
+        self.profiler.add(WrapPhase::Correspondences, clock);
         let mut proposed = self.global_solve(&correspondences, data_weight, stop)?;
+        clock = self.profiler.start();
         self.keep_on_plane(&mut proposed);
         check(stop, WRAP_STEP)?;
         // Safeguard: no corner may turn over.
         let (accepted, held_back) = self.safeguard(&proposed);
+        clock = self.profiler.add(WrapPhase::Safeguard, clock);
         check(stop, WRAP_STEP)?;
         for ((held, accepted), proposed) in self.held_back.iter_mut().zip(&accepted).zip(&proposed)
         {
@@ -566,6 +590,7 @@ impl EnergySolver {
         }
         let (max_move, mean_move) = moves(&accepted, &self.positions);
         let energy = self.energy_at(&accepted, &correspondences, data_weight, &self.positions);
+        self.profiler.add(WrapPhase::Energy, clock);
         self.positions = accepted;
         self.iterations += 1;
         self.level_iterations += 1;
@@ -601,16 +626,21 @@ impl EnergySolver {
     /// One iteration of the warm-up: the constraints alone pull the layout, as rigidly as
     /// possible (a posed target's limbs turn with their anchors before any data is asked for).
     fn warm_up(&mut self, stop: Stop<'_>) -> Result<EnergyStep, KernelError> {
+        let mut clock = self.profiler.start();
         if self.iterations > 0 {
             self.fit_similarities(false);
         }
+        clock = self.profiler.add(WrapPhase::Fit, clock);
         self.smooth_rotations(WARMUP_ROTATION_SMOOTHING, stop)?;
         self.fit_scales(None)?;
+        self.profiler.add(WrapPhase::Smoothing, clock);
         let pulls = warm_up_pulls(&self.soft_pairs, self.positions.len());
         let mut proposed = self.global_solve(&pulls, 1.0, stop)?;
+        clock = self.profiler.start();
         self.keep_on_plane(&mut proposed);
         let (max_move, mean_move) = moves(&proposed, &self.positions);
         let energy = self.energy_at(&proposed, &pulls, 1.0, &self.positions);
+        self.profiler.add(WrapPhase::Energy, clock);
         self.positions = proposed;
         self.iterations += 1;
         if self.iterations >= WARMUP_MAX_ITERATIONS
@@ -660,6 +690,7 @@ impl EnergySolver {
         data_weight: f64,
         stop: Stop<'_>,
     ) -> Result<Vec<Vec3>, KernelError> {
+        let mut clock = self.profiler.start();
         let rows = self.system.rows();
         let vertex_of_row = self.system.vertex_of_row().to_vec();
         let proximal = PROXIMAL_WEIGHT * EDGE_WEIGHT;
@@ -690,6 +721,7 @@ impl EnergySolver {
             .iter()
             .map(|&vertex| self.positions[vertex as usize].as_dvec3())
             .collect();
+        clock = self.profiler.add(WrapPhase::Assembly, clock);
         let solution = self.system.solve_reusing_until(
             &diagonal,
             &right_hand_side,
@@ -697,6 +729,7 @@ impl EnergySolver {
             SOLVE_PRECISION * f64::from(self.mean_edge_length),
             stop,
         )?;
+        self.profiler.add(WrapPhase::Solve, clock);
         let mut proposed = self.positions.clone();
         for (position, fixed) in proposed.iter_mut().zip(&self.fixed) {
             if let Some(fixed) = fixed {

@@ -95,6 +95,7 @@ fn solver_following(
             schedule,
             ..WrapSettings::default()
         },
+        profile: None,
     })
     .unwrap()
 }

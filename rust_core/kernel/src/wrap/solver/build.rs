@@ -142,6 +142,7 @@ impl WrapSolver {
             free: Vec::new(),
             soft_pairs: Vec::new(),
             energy: None,
+            profile: None,
             reach,
             failed: None,
         })

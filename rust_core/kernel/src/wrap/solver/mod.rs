@@ -22,6 +22,7 @@ use super::anchor::{Anchor, AnchorTarget};
 use super::curve_constraint::{ArcLengthCurve, CurveConstraint, vertex_fractions};
 use super::energy_solver::{EnergyInputs, EnergySolver};
 use super::plane_constraint::{Plane, PlaneConstraint};
+use super::profile::{PhaseClock, PhaseTimes};
 use super::settings::WrapSettings;
 use super::soft_pair::{SoftPair, SoftPairOfVertex};
 use crate::error::KernelError;
@@ -109,6 +110,8 @@ pub struct WrapSolver {
     soft_pairs: SoftPairOfVertex,
     /// The energy solver, made at the first step.
     energy: Option<Box<EnergySolver>>,
+    /// The clock that times the energy solver's phases (`None`: no profile).
+    profile: Option<PhaseClock>,
     /// The region the points may reach: a centre and a radius (ten times the target's size and
     /// the layout's start about the target's centre); leaving it is divergence.
     reach: (Vec3, f32),
@@ -133,6 +136,21 @@ impl WrapSolver {
     #[must_use]
     pub fn settings(&self) -> &WrapSettings {
         &self.settings
+    }
+
+    /// Times each phase of the energy solver's setup and iterations by `clock` from the next
+    /// step that makes it (set before the first step); read them with
+    /// [`WrapSolver::phase_times`].
+    pub fn profile_with(&mut self, clock: PhaseClock) {
+        self.profile = Some(clock);
+    }
+
+    /// The seconds of each phase so far (all zero without [`WrapSolver::profile_with`]).
+    #[must_use]
+    pub fn phase_times(&self) -> PhaseTimes {
+        self.energy
+            .as_ref()
+            .map_or_else(PhaseTimes::default, |energy| energy.phase_times())
     }
 }
 

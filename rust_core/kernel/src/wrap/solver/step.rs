@@ -90,6 +90,7 @@ impl WrapSolver {
                 mean_edge_length: self.mean_edge_length,
                 landing_distance: self.landing_distance,
                 settings: self.settings,
+                profile: self.profile,
             };
             self.energy = Some(Box::new(EnergySolver::new_until(&inputs, stop)?));
         }
