@@ -1131,8 +1131,7 @@ def build_document(
         "```",
         "",
         "Cases, landmarks, metrics and methods are described in "
-        "[benchmarks/retarget/README.md](../benchmarks/retarget/README.md). The wrap's two solvers (the "
-        "paper's force iteration and the energy solver) against nricp, case by case, through the kernel "
+        "[benchmarks/retarget/README.md](../benchmarks/retarget/README.md). The wrap against nricp, case by case, through the kernel "
         "alone, and on real scans without a known answer (the range-scanned bunny, CGAL's elephant with "
         "holes): [wrap-solvers.md](wrap-solvers.md).",
         "",

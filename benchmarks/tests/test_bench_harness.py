@@ -768,7 +768,7 @@ def test_wrap_solvers_page_has_a_row_per_case_and_solver_and_its_provenance():
     page = wrap_solvers.markdown([row, row | {"solver": "SPRINGS", "mean": 0.346}], "Run at commit `abc`.")
     assert "| heavy | ENERGY | 0.227 | 0.900 | 1.700 | 7 | 3 | 5 (4) | 425 | 968 | 24 | 1.16 |" in page
     assert "| heavy | SPRINGS | 0.346 |" in page
-    assert "Run at commit `abc`." in page and page.startswith("# The wrap's two solvers")
+    assert "Run at commit `abc`." in page and page.startswith("# The wrap beside non-rigid ICP")
     assert "commit" in wrap_solvers.provenance()
 
 
