@@ -117,9 +117,10 @@ def anchor_state(layout):
     return tuple(np.asarray(field).tobytes() for field in anchor_list)
 
 
-def assert_same_anchors(layout, state, atol: float = 1e-6) -> None:
+def assert_same_anchors(layout, state, atol: float = 1e-5) -> None:
     """``layout``'s anchors are ``state`` (:func:`anchor_state`): every field bit for bit but the locations,
-    within ``atol`` (a location found again on its triangle may differ in float32's last bit)."""
+    within ``atol`` (a location found again from its triangle and barycentric coordinates differs by float32
+    rounding: up to 2e-6 on this 2.2 m plane in Blender 3.4)."""
     anchor_list = addon_module("blender.anchors").read_anchors(layout)
     for name, field, stored in zip(anchor_list._fields, anchor_list, state, strict=True):
         field = np.asarray(field)
@@ -237,8 +238,8 @@ def test_a_drag_during_a_re_settle_moves_the_running_solver_and_the_layout_follo
     deadline = time.perf_counter() + 30.0
     while not np.allclose(session.anchors.locations[pair], points[-1]) and time.perf_counter() < deadline:
         s.tool.frames(1)
-    # the solver has it (to float32's last bit: the anchor's location is stored as float32)
-    np.testing.assert_allclose(session.anchors.locations[pair], points[-1], rtol=0, atol=1e-6)
+    # the solver has it (to float32 rounding: the location found again from its triangle and barycentric coordinates)
+    np.testing.assert_allclose(session.anchors.locations[pair], points[-1], rtol=0, atol=1e-5)
     s.tool.frames(10)
     moved = along_offset(s, vertex, origin) - start_offset
     assert moved > 0.1, f"the layout followed the drag by only {moved:.3f} before the release"
