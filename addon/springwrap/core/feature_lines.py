@@ -15,7 +15,7 @@ import numpy as np
 
 import springwrap_kernel
 
-from . import curves, smooth_map
+from . import curves, rounded_creases, smooth_map
 from .edge_paths import cumulative_lengths, length_fractions
 from .errors import LayoutError
 
@@ -142,21 +142,8 @@ def sharp_edges(positions, triangles, crease_degrees: float) -> np.ndarray:
     triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
     if crease_degrees <= 0.0 or triangles.shape[0] == 0:
         return np.zeros((0, 2), dtype=np.uint32)
-    corners = positions[triangles]
-    normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-    normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
     count = triangles.shape[0]
-    edges = np.sort(np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]]), axis=1)
-    keys, slot = np.unique(edges, axis=0, return_inverse=True)
-    slot = slot.reshape(-1)
-    faces = np.tile(np.arange(count), 3)
-    order = np.argsort(slot, kind="stable")
-    uses = np.bincount(slot, minlength=keys.shape[0])
-    starts = np.concatenate([[0], np.cumsum(uses)[:-1]])
-    angle = np.zeros(keys.shape[0])
-    inner = uses == 2
-    first, second = faces[order[starts[inner]]], faces[order[starts[inner] + 1]]
-    angle[inner] = np.degrees(np.arccos(np.clip(np.sum(normals[first] * normals[second], axis=1), -1.0, 1.0)))
+    keys, slot, angle, _normals, _areas = rounded_creases.edge_dihedrals(positions, triangles)
     sharp = angle > crease_degrees
     flank_ok = (angle < crease_degrees / 3.0) | sharp  # per edge: flat, or a sharp edge meeting it
     face_edges = slot.reshape(3, count).T  # each triangle's three edges
@@ -194,7 +181,7 @@ def _twinned(starts: np.ndarray, ends: np.ndarray, chunk: int = 1024) -> np.ndar
 
 def target_features(feature_curves, target_positions, triangles, crease_degrees: float = 0.0, scale: float = 0.0):
     """``(curves, junctions)``: :func:`target_curves`' curves, and (J, 3) float64 the target's crease junctions,
-    the points where two or more of its sharp creases end (a corner where creases meet)."""
+    the points where two or more of its sharp or rounded creases end (a corner where creases meet)."""
     target_positions = np.ascontiguousarray(target_positions, dtype=np.float32)
     triangles = np.ascontiguousarray(triangles, dtype=np.uint32).reshape(-1, 3)
     chains = springwrap_kernel.layout_feature_lines(
@@ -221,18 +208,29 @@ def target_features(feature_curves, target_positions, triangles, crease_degrees:
                 ends += [int(vertices[0]), int(vertices[-1])]
         else:
             borders.append(("BORDER", points, bool(closed), 0.0))
+    rounded = rounded_creases.rounded_creases(target_positions, triangles, crease_degrees)
+    sharp_creases = list(creases)
+    for kind, points, closed in rounded.curves:
+        if not _along(points, sharp_creases, scale):
+            creases.append(points)
+            found.append((kind, points, closed, zigzag(points, closed)))
     for curve in feature_curves:
         points = np.ascontiguousarray(curve.points, dtype=np.float32)
         if not _along(points, creases, scale):
             found.append((curve.kind, points, bool(curve.closed), RIDGE_ACCURACY_SCALES * scale))
     corners, uses = np.unique(np.asarray(ends, dtype=np.int64), return_counts=True)
-    return found + borders, target_positions[corners[uses >= 2]].astype(np.float64)
+    junctions = target_positions[corners[uses >= 2]].astype(np.float64)
+    if rounded.junctions.shape[0]:
+        apart = np.linalg.norm(rounded.junctions[:, None, :] - junctions[None, :, :], axis=2).min(axis=1, initial=np.inf)
+        junctions = np.concatenate([junctions, rounded.junctions[apart > scale]])
+    return found + borders, junctions
 
 
 def target_curves(feature_curves, target_positions, triangles, crease_degrees: float = 0.0, scale: float = 0.0):
     """(kind, (P, 3) float32 points, closed, accuracy) per target feature: each sharp crease of the target's own
     edges (:func:`sharp_edges` at ``crease_degrees``; 0: none), kind RIDGE (convex) or VALLEY,
-    its accuracy :func:`zigzag`; each ridge and valley of ``feature_curves`` (the kernel's ``FeatureCurve``,
+    its accuracy :func:`zigzag`; each crease a re-tessellation rounded (``rounded_creases``: where the planes of
+    its flanks meet, on the surface) that does not run along a sharp one, accuracy :func:`zigzag`; each ridge and valley of ``feature_curves`` (the kernel's ``FeatureCurve``,
     detected at ``scale``) that does not run along such a crease, accuracy :data:`RIDGE_ACCURACY_SCALES` scales;
     then each open border of the target's triangles (a hole's rim), accuracy 0."""
     return target_features(feature_curves, target_positions, triangles, crease_degrees, scale)[0]

@@ -1,0 +1,346 @@
+"""Creases of a re-tessellated part, found from the planes of its flanks (numpy + kernel, no ``bpy``).
+
+A voxel remesh or a scan of a machined part rounds each sharp crease into a narrow band of a few rows of
+triangles whose dihedral angles are smaller than the crease's and whose rows stair-step: no single edge is the
+crease. The crease is still there as the line where the planes of its two flanks meet. Each vertex gathers the
+planes of the flat triangles (those that bend less than :data:`FLAT_SHARE` of the crease angle from each of
+their neighbours) within :data:`RINGS` rings of it, as a quadric (dual contouring's least-squares corner): where
+these planes have two directions of normal and meet on one line (:data:`MAX_MISFIT`), the point nearest the vertex on the line where they meet is the
+crease's sharp corner, known to within a small part of a triangle however the band is tessellated; where they
+have three, their meeting point is a corner of the part, where creases meet. The corner points of the band's
+vertices are thinned to about one per mean edge, chained along the crease's direction, extended to the part's
+corners they run into and taken to the nearest point of the surface: the rounded crease's crest, where a sharp
+crease of the part as designed lands on the rounded surface.
+"""
+
+from typing import NamedTuple
+
+import numpy as np
+
+import springwrap_kernel
+
+FLAT_SHARE = 1.0 / 6.0
+"""A triangle is a flank's (its plane counts) when it bends less than this share of the crease angle from each
+of its neighbours: on a voxel remesh a flat face's triangles bend a few degrees at its steps, those of a rounded
+crease's band tens of degrees."""
+RINGS = 3
+"""The rings of vertices around each vertex whose flat triangles' planes it gathers: enough to reach past a
+band of a couple of rows to both flanks, few enough not to reach the next crease."""
+MAX_MISFIT = 0.1
+"""The largest root-mean-square distance (mean edges) of a vertex's flank planes from their crease line: two
+flat flanks meet on one line, the facets of a coarsely tessellated curved surface do not."""
+CORNER_SHARE = 0.01
+"""The share of the planes' weight in their third direction of normal above which a vertex sees a corner of
+the part (three flanks) rather than a crease."""
+BAND_EDGES = 1.5
+"""How far (mean edges) a vertex may lie from its crease's corner line to place a point of it."""
+LINK_EDGES = 2.5
+"""The farthest (mean edges) two thinned crease points are linked into one chain."""
+LINK_COSINE = 0.9
+"""Two crease points are linked only along the crease: the cosine between the crease's direction and the
+step from one to the other is at least this."""
+CORNER_EDGES = 5.0
+"""How far (mean edges) beyond a chain's end a corner of the part may lie for the chain to be extended to it."""
+MIN_POINTS = 4
+"""Chains of fewer thinned points are dropped (a few stray planes, not a crease)."""
+
+
+class RoundedCreases(NamedTuple):
+    """What :func:`rounded_creases` found."""
+
+    curves: list  # of (kind RIDGE or VALLEY, (P, 3) float32 points on the surface, closed)
+    junctions: np.ndarray  # (J, 3) float64: the corners where two or more of them end, on the surface
+
+
+def edge_dihedrals(positions, triangles):
+    """``(keys, slot, angle, normals, areas)``: the mesh's edges ((E, 2) int64 sorted vertex pairs), each
+    triangle side's edge (``slot``, (3T,): sides 01, 12, 20 of every triangle in turn), the angle (degrees)
+    between the normals of each edge's two triangles (0 for an edge of one triangle or of more than two), and
+    the triangles' unit normals and areas."""
+    positions = np.asarray(positions, dtype=np.float64)
+    triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    corners = positions[triangles]
+    cross = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    areas = np.linalg.norm(cross, axis=1) / 2.0
+    normals = cross / np.maximum(2.0 * areas, 1e-300)[:, None]
+    count = triangles.shape[0]
+    sides = np.sort(np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]]), axis=1)
+    codes = sides[:, 0] * max(positions.shape[0], 1) + sides[:, 1]
+    unique, slot = np.unique(codes, return_inverse=True)
+    slot = slot.reshape(-1)
+    keys = np.stack([unique // max(positions.shape[0], 1), unique % max(positions.shape[0], 1)], axis=1)
+    faces = np.tile(np.arange(count), 3)
+    order = np.argsort(slot, kind="stable")
+    uses = np.bincount(slot, minlength=keys.shape[0])
+    starts = np.concatenate([[0], np.cumsum(uses)[:-1]]).astype(np.int64)
+    angle = np.zeros(keys.shape[0])
+    inner = uses == 2
+    first, second = faces[order[starts[inner]]], faces[order[starts[inner] + 1]]
+    angle[inner] = np.degrees(np.arccos(np.clip(np.sum(normals[first] * normals[second], axis=1), -1.0, 1.0)))
+    return keys, slot, angle, normals, areas
+
+
+def _sum_columns(index: np.ndarray, values: np.ndarray, count: int) -> np.ndarray:
+    """(count, C): the rows of ``values`` ((K, C)) summed by ``index`` ((K,))."""
+    return np.stack([np.bincount(index, values[:, column], minlength=count) for column in range(values.shape[1])], 1)
+
+
+def flank_quadrics(positions, triangles, crease_degrees: float):
+    """(N, 19) per vertex: the flat triangles' planes within :data:`RINGS` rings, area-weighted, summed as
+    ``A = Σ w n nᵀ`` (9 columns), ``b = Σ w (n·c) n`` (3), the first moment ``Σ w n`` (3), ``Σ w (n·c)²`` (1)
+    and ``Σ w c`` (3), ``c`` a triangle's centroid; and the mesh's mean edge length."""
+    positions = np.asarray(positions, dtype=np.float64)
+    triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    keys, slot, angle, normals, areas = edge_dihedrals(positions, triangles)
+    count = triangles.shape[0]
+    bend = np.zeros(count)
+    np.maximum.at(bend, np.tile(np.arange(count), 3), angle[slot])
+    weights = areas * (bend < FLAT_SHARE * crease_degrees)
+    offsets = np.einsum("ij,ij->i", normals, positions[triangles].mean(axis=1))
+    per_face = np.concatenate(
+        [
+            (weights[:, None, None] * normals[:, :, None] * normals[:, None, :]).reshape(-1, 9),
+            (weights * offsets)[:, None] * normals,
+            weights[:, None] * normals,
+            (weights * offsets**2)[:, None],
+            weights[:, None] * positions[triangles].mean(axis=1),
+        ],
+        axis=1,
+    )
+    vertex_count = positions.shape[0]
+    summed = sum(_sum_columns(triangles[:, corner], per_face, vertex_count) for corner in range(3))
+    for _ring in range(RINGS - 1):
+        summed = (
+            summed
+            + _sum_columns(keys[:, 0], summed[keys[:, 1]], vertex_count)
+            + _sum_columns(keys[:, 1], summed[keys[:, 0]], vertex_count)
+        )
+    lengths = np.linalg.norm(positions[keys[:, 0]] - positions[keys[:, 1]], axis=1)
+    return summed, float(lengths.mean()) if lengths.size else 0.0
+
+
+def corner_points(positions, quadrics, crease_degrees: float, mean_edge: float):
+    """``(crease, corner)`` from :func:`flank_quadrics`: ``crease`` a tuple ``(points, directions, convex)`` of
+    the sharp corner on the crease line of each vertex whose planes have two directions of normal meeting at
+    more than ``crease_degrees`` and whose line passes within :data:`BAND_EDGES` of it; ``corner`` (K, 3) the
+    meeting points of the vertices whose planes have three directions, within :data:`CORNER_EDGES`."""
+    positions = np.asarray(positions, dtype=np.float64)
+    matrices = quadrics[:, :9].reshape(-1, 3, 3)
+    values, vectors = np.linalg.eigh(matrices)  # ascending
+    total = np.maximum(values.sum(axis=1), 1e-300)
+    share = values / total[:, None]
+    residual = quadrics[:, 9:12] - np.einsum("nij,nj->ni", matrices, positions)
+    solvable = values > 1e-9 * total[:, None]  # a direction without planes moves nothing
+    steps = np.einsum("nji,nj->ni", vectors, residual) / np.where(solvable, values, 1.0) * solvable
+    moment = quadrics[:, 12:15]
+    # Two clusters of normals with weights w1, w2 at angle t: the in-plane eigenvalues' product is
+    # w1 w2 sin² t and (total² - |moment|²) / 2 is w1 w2 (1 - cos t).
+    spread = np.maximum((total**2 - np.sum(moment**2, axis=1)) / 2.0, 1e-300)
+    cosine = np.clip(values[:, 1] * values[:, 2] / spread - 1.0, -1.0, 1.0)
+    minimum = 0.5 * np.sin(np.radians(crease_degrees) / 2.0) ** 2
+    two = (share[:, 1] > minimum) & (share[:, 0] < CORNER_SHARE) & (np.degrees(np.arccos(cosine)) > crease_degrees)
+    line = positions + vectors[:, :, 1] * steps[:, 1:2] + vectors[:, :, 2] * steps[:, 2:3]
+    two &= np.linalg.norm(line - positions, axis=1) < BAND_EDGES * mean_edge
+    centre = quadrics[:, 16:19] / total[:, None]  # the flanks' centroid: behind a convex crease's line
+    convex = np.einsum("ij,ij->i", line - centre, moment) > 0.0
+    energy = quadrics[:, 15] - 2.0 * np.einsum("ij,ij->i", quadrics[:, 9:12], line) + np.einsum(
+        "ni,nij,nj->n", line, matrices, line
+    )
+    two &= np.sqrt(np.maximum(energy, 0.0) / total) < MAX_MISFIT * mean_edge
+    three = share[:, 0] >= CORNER_SHARE
+    meeting = line + vectors[:, :, 0] * steps[:, 0:1]
+    three &= np.linalg.norm(meeting - positions, axis=1) < CORNER_EDGES * mean_edge
+    return (line[two], vectors[two, :, 0], convex[two]), meeting[three]
+
+
+def _thin(points, directions, convex, cell: float):
+    """The crease points averaged per grid cell of side ``cell`` (ridges and valleys apart): ``(points,
+    directions (unit, the principal one of the cell's), convex)``."""
+    cells = np.floor(points / cell).astype(np.int64)
+    codes = np.concatenate([cells, convex[:, None].astype(np.int64)], axis=1)
+    _unique, group = np.unique(codes, axis=0, return_inverse=True)
+    group = group.reshape(-1)
+    count = int(group.max()) + 1
+    sizes = np.bincount(group, minlength=count).astype(np.float64)
+    averaged = _sum_columns(group, points, count) / sizes[:, None]
+    outer = _sum_columns(group, (directions[:, :, None] * directions[:, None, :]).reshape(-1, 9), count)
+    principal = np.linalg.eigh(outer.reshape(-1, 3, 3))[1][:, :, 2]
+    kinds = np.zeros(count, dtype=bool)
+    kinds[group] = convex
+    return averaged, principal, kinds
+
+
+def _links(points, directions, convex, reach: float) -> np.ndarray:
+    """(M, 2) int64 the nearest point ahead and behind each point (-1: none) along its direction, within
+    ``reach``, of its kind."""
+    links = np.full((points.shape[0], 2), -1, dtype=np.int64)
+    for begin in range(0, points.shape[0], 512):
+        here = slice(begin, begin + 512)
+        steps = points[None, :, :] - points[here, None, :]
+        distance = np.linalg.norm(steps, axis=2)
+        along = np.einsum("ijk,ik->ij", steps, directions[here])
+        usable = (
+            (distance > 0.0)
+            & (distance <= reach)
+            & (np.abs(along) >= LINK_COSINE * distance)
+            & (convex[None, :] == convex[here, None])
+        )
+        for column, side in ((0, along > 0.0), (1, along < 0.0)):
+            masked = np.where(usable & side, distance, np.inf)
+            nearest = masked.argmin(axis=1)
+            found = np.isfinite(masked[np.arange(nearest.size), nearest])
+            links[here, column] = np.where(found, nearest, -1)
+    return links
+
+
+def _chains(links: np.ndarray) -> list:
+    """The chains (lists of point indices, closed ones flagged) of the links both ends chose."""
+    neighbours = [set() for _ in range(links.shape[0])]
+    for point, chosen in enumerate(links.tolist()):
+        for other in chosen:
+            if other >= 0 and point in links[other].tolist():
+                neighbours[point].add(other)
+    seen, chains = np.zeros(links.shape[0], dtype=bool), []
+    starts = [point for point in range(links.shape[0]) if len(neighbours[point]) < 2]
+    for start in starts + list(range(links.shape[0])):  # open chains from their ends first, then loops
+        if seen[start]:
+            continue
+        chain, previous, here = [start], -1, start
+        seen[start] = True
+        while True:
+            ahead = [other for other in neighbours[here] if other != previous and not seen[other]]
+            if not ahead:
+                break
+            previous, here = here, ahead[0]
+            seen[here] = True
+            chain.append(here)
+        chains.append((chain, len(chain) > 2 and chain[0] in neighbours[chain[-1]]))
+    return chains
+
+
+def _outward(line: np.ndarray, end: int) -> np.ndarray:
+    """The unit direction in which the open chain ``line`` leaves at its start (``end`` 0) or end (1)."""
+    tip, before = (line[0], line[min(2, line.shape[0] - 1)]) if end == 0 else (line[-1], line[max(-3, -line.shape[0])])
+    step = tip - before
+    return step / max(float(np.linalg.norm(step)), 1e-300)
+
+
+def _join(chains: list, reach: float) -> list:
+    """``chains`` ((points, convex, closed) each) with the ends that continue each other joined, nearest first:
+    of one kind, within ``reach``, leaving in opposite directions (:data:`LINK_COSINE`) and, unless they
+    overlap, facing each other across the gap; a chain whose two ends do so is closed."""
+    chains = list(chains)
+    while True:
+        ends = [(index, end) for index, (line, _c, closed) in enumerate(chains) if not closed for end in (0, 1)]
+        if len(ends) < 2:
+            return chains
+        tips = np.array([chains[index][0][0 if end == 0 else -1] for index, end in ends])
+        outward = np.array([_outward(chains[index][0], end) for index, end in ends])
+        kinds = np.array([chains[index][1] for index, _end in ends])
+        owners = np.array([index for index, _end in ends])
+        steps = tips[None, :, :] - tips[:, None, :]
+        distance = np.linalg.norm(steps, axis=2)
+        facing = np.einsum("ijk,ik->ij", steps, outward) >= LINK_COSINE * distance
+        joinable = (
+            (distance <= reach)
+            & (kinds[:, None] == kinds[None, :])
+            & (outward @ outward.T <= -LINK_COSINE)
+            & (facing | (distance <= 0.5 * reach / LINK_EDGES))
+        )
+        small = np.array([chains[index][0].shape[0] < 2 * MIN_POINTS for index in owners])
+        joinable &= (owners[:, None] != owners[None, :]) | ~small[:, None]
+        np.fill_diagonal(joinable, False)
+        if not joinable.any():
+            return chains
+        first, second = np.unravel_index(np.argmin(np.where(joinable, distance, np.inf)), distance.shape)
+        (one, one_end), (other, other_end) = ends[first], ends[second]
+        line = chains[one][0] if one_end == 1 else chains[one][0][::-1]
+        if one == other:
+            chains[one] = (line, chains[one][1], True)
+            continue
+        after = chains[other][0] if other_end == 0 else chains[other][0][::-1]
+        joined = (np.concatenate([line, after]), chains[one][1], False)
+        chains = [chain for index, chain in enumerate(chains) if index not in (one, other)] + [joined]
+
+
+def _extend(points: np.ndarray, corners: np.ndarray, reach: float) -> tuple[np.ndarray, list]:
+    """The open chain ``points`` with the corner of ``corners`` ((K, 3)) ahead of each end within ``reach``
+    appended there, and the corners' indices used (-1: none) at its start and end."""
+    used = []
+    for end in (0, 1):
+        tip, outward = points[0] if end == 0 else points[-1], _outward(points, end)
+        steps = corners - tip
+        distance = np.linalg.norm(steps, axis=1)
+        ahead = (distance <= reach) & (steps @ outward >= 0.5 * distance)
+        choice = int(np.argmin(np.where(ahead, distance, np.inf))) if ahead.any() else -1
+        used.append(choice)
+        if choice >= 0:
+            points = (
+                np.concatenate([corners[choice][None], points])
+                if end == 0
+                else np.concatenate([points, corners[choice][None]])
+            )
+    return points, used
+
+
+def _merge(points: np.ndarray, reach: float) -> np.ndarray:
+    """The points averaged where they lie within ``reach`` of one another (greedily, nearest to the first)."""
+    merged, left = [], np.ones(points.shape[0], dtype=bool)
+    for index in range(points.shape[0]):
+        if not left[index]:
+            continue
+        near = left & (np.linalg.norm(points - points[index], axis=1) <= reach)
+        merged.append(points[near].mean(axis=0))
+        left &= ~near
+    return np.array(merged, dtype=np.float64).reshape(-1, 3)
+
+
+def rounded_creases(positions, triangles, crease_degrees: float) -> RoundedCreases:
+    """The creases of a mesh whose sharp creases a re-tessellation rounded (see the module docs): each chain of
+    crease points on the surface, kind RIDGE (convex) or VALLEY, and the corners where two or more end. Empty
+    for a crease angle of 0, a mesh without triangles or one without flat flanks (noise everywhere)."""
+    positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+    triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    empty = RoundedCreases([], np.zeros((0, 3)))
+    if not crease_degrees > 0.0 or triangles.shape[0] == 0:
+        return empty
+    quadrics, mean_edge = flank_quadrics(positions, triangles, crease_degrees)
+    if not mean_edge > 0.0:
+        return empty
+    (points, directions, convex), meeting = corner_points(positions, quadrics, crease_degrees, mean_edge)
+    if points.shape[0] < MIN_POINTS:
+        return empty
+    points, directions, convex = _thin(points, directions, convex, mean_edge)
+    corners = _merge(meeting, 2.0 * mean_edge)
+    traced, ends = [], []
+    chained = [
+        (points[chain], bool(convex[chain].mean() >= 0.5), closed)
+        for chain, closed in _chains(_links(points, directions, convex, LINK_EDGES * mean_edge))
+    ]
+    for line, ridge, closed in _join(chained, LINK_EDGES * mean_edge):
+        if line.shape[0] < MIN_POINTS:
+            continue
+        if not closed and corners.shape[0]:
+            line, used = _extend(line, corners, CORNER_EDGES * mean_edge)
+            ends += [index for index in used if index >= 0]
+        traced.append(("RIDGE" if ridge else "VALLEY", line, closed))
+    if not traced:
+        return empty
+    surface = springwrap_kernel.TargetMesh(
+        np.ascontiguousarray(positions, dtype=np.float32), np.ascontiguousarray(triangles, dtype=np.uint32)
+    )
+    everything = np.concatenate([line for _kind, line, _closed in traced])
+    landed = surface.closest_points(np.ascontiguousarray(everything, dtype=np.float32)).positions
+    landed = np.asarray(landed, dtype=np.float32)
+    found, at = [], 0
+    for kind, line, closed in traced:
+        found.append((kind, np.ascontiguousarray(landed[at : at + line.shape[0]]), closed))
+        at += line.shape[0]
+    used, uses = np.unique(np.asarray(ends, dtype=np.int64), return_counts=True)
+    shared = corners[used[uses >= 2]]
+    junctions = np.zeros((0, 3))
+    if shared.shape[0]:
+        junctions = np.asarray(
+            surface.closest_points(np.ascontiguousarray(shared, dtype=np.float32)).positions, dtype=np.float64
+        )
+    return RoundedCreases(found, junctions)
