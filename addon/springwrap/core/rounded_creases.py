@@ -9,7 +9,7 @@ these planes have two directions of normal and meet on one line (:data:`MAX_MISF
 crease's sharp corner, known to within a small part of a triangle however the band is tessellated; where they
 have three, their meeting point is a corner of the part, where creases meet. The corner points of the band's
 vertices are thinned to about one per mean edge, chained along the crease's direction, extended to the part's
-corners they run into and taken to the nearest point of the surface: the rounded crease's crest, where a sharp
+corners they run into (those the planes show, or where the lines of two or more chain ends meet) and taken to the nearest point of the surface: the rounded crease's crest, where a sharp
 crease of the part as designed lands on the rounded surface.
 """
 
@@ -39,6 +39,9 @@ LINK_EDGES = 2.5
 LINK_COSINE = 0.9
 """Two crease points are linked only along the crease: the cosine between the crease's direction and the
 step from one to the other is at least this."""
+JOIN_COSINE = 0.7
+"""Two chain ends across a gap are joined only when the step from one to the other leaves each at a cosine of
+at least this (the ends themselves leaving in opposite directions, :data:`LINK_COSINE`)."""
 CORNER_EDGES = 5.0
 """How far (mean edges) beyond a chain's end a corner of the part may lie for the chain to be extended to it."""
 MIN_POINTS = 4
@@ -122,8 +125,9 @@ def flank_quadrics(positions, triangles, crease_degrees: float):
 def corner_points(positions, quadrics, crease_degrees: float, mean_edge: float):
     """``(crease, corner)`` from :func:`flank_quadrics`: ``crease`` a tuple ``(points, directions, convex)`` of
     the sharp corner on the crease line of each vertex whose planes have two directions of normal meeting at
-    more than ``crease_degrees`` and whose line passes within :data:`BAND_EDGES` of it; ``corner`` (K, 3) the
-    meeting points of the vertices whose planes have three directions, within :data:`CORNER_EDGES`."""
+    more than ``crease_degrees`` on one line (:data:`MAX_MISFIT`) and whose line passes within
+    :data:`BAND_EDGES` of it; ``corner`` (K, 3) the meeting points of the vertices whose planes have three
+    directions, within :data:`CORNER_EDGES`."""
     positions = np.asarray(positions, dtype=np.float64)
     matrices = quadrics[:, :9].reshape(-1, 3, 3)
     values, vectors = np.linalg.eigh(matrices)  # ascending
@@ -143,8 +147,10 @@ def corner_points(positions, quadrics, crease_degrees: float, mean_edge: float):
     two &= np.linalg.norm(line - positions, axis=1) < BAND_EDGES * mean_edge
     centre = quadrics[:, 16:19] / total[:, None]  # the flanks' centroid: behind a convex crease's line
     convex = np.einsum("ij,ij->i", line - centre, moment) > 0.0
-    energy = quadrics[:, 15] - 2.0 * np.einsum("ij,ij->i", quadrics[:, 9:12], line) + np.einsum(
-        "ni,nij,nj->n", line, matrices, line
+    energy = (
+        quadrics[:, 15]
+        - 2.0 * np.einsum("ij,ij->i", quadrics[:, 9:12], line)
+        + np.einsum("ni,nij,nj->n", line, matrices, line)
     )
     two &= np.sqrt(np.maximum(energy, 0.0) / total) < MAX_MISFIT * mean_edge
     three = share[:, 0] >= CORNER_SHARE
@@ -240,7 +246,8 @@ def _join(chains: list, reach: float) -> list:
         owners = np.array([index for index, _end in ends])
         steps = tips[None, :, :] - tips[:, None, :]
         distance = np.linalg.norm(steps, axis=2)
-        facing = np.einsum("ijk,ik->ij", steps, outward) >= LINK_COSINE * distance
+        facing = np.einsum("ijk,ik->ij", steps, outward) >= JOIN_COSINE * distance
+        facing &= facing.T
         joinable = (
             (distance <= reach)
             & (kinds[:, None] == kinds[None, :])
@@ -283,6 +290,44 @@ def _extend(points: np.ndarray, corners: np.ndarray, reach: float) -> tuple[np.n
     return points, used
 
 
+def _meeting_point(tips: np.ndarray, directions: np.ndarray) -> np.ndarray:
+    """The point nearest (least squares) to the lines through ``tips`` along ``directions`` ((K, 3) each)."""
+    across = np.eye(3)[None, :, :] - directions[:, :, None] * directions[:, None, :]
+    return np.linalg.lstsq(across.sum(axis=0), np.einsum("kij,kj->i", across, tips), rcond=None)[0]
+
+
+def _ends_met(traced: list, free: list, reach: float) -> tuple[list, list]:
+    """``traced`` ((kind, points, closed) each) with the ends ``free`` flags (``[start, end]`` per chain: not
+    closed, not extended to a corner yet) that meet another's across a corner no planes found (within ``reach`` of each other, running across each other: ``|cos|`` below
+    :data:`LINK_COSINE`) extended to where their lines meet, if that lies ahead of each within ``reach``; and
+    the meeting points."""
+    ends = [(index, end) for index, flags in enumerate(free) for end in (0, 1) if flags[end]]
+    if len(ends) < 2:
+        return traced, []
+    tips = np.array([traced[index][1][0 if end == 0 else -1] for index, end in ends], dtype=np.float64)
+    outward = np.array([_outward(np.asarray(traced[index][1], dtype=np.float64), end) for index, end in ends])
+    distance = np.linalg.norm(tips[:, None, :] - tips[None, :, :], axis=2)
+    meets = (distance <= reach) & (np.abs(outward @ outward.T) < LINK_COSINE)
+    group = np.arange(len(ends))
+    for first, second in zip(*np.nonzero(np.triu(meets, 1))):
+        group[group == group[second]] = group[first]
+    traced, corners = [list(item) for item in traced], []
+    for label in np.unique(group):
+        members = np.flatnonzero(group == label)
+        if members.size < 2:
+            continue
+        corner = _meeting_point(tips[members], outward[members])
+        steps = corner - tips[members]
+        if not np.all((np.linalg.norm(steps, axis=1) <= reach) & (np.einsum("ij,ij->i", steps, outward[members]) > 0)):
+            continue
+        corners.append(corner)
+        for member in members.tolist():
+            index, end = ends[member]
+            line = np.asarray(traced[index][1], dtype=np.float64)
+            traced[index][1] = np.concatenate([corner[None], line] if end == 0 else [line, corner[None]])
+    return [tuple(item) for item in traced], corners
+
+
 def _merge(points: np.ndarray, reach: float) -> np.ndarray:
     """The points averaged where they lie within ``reach`` of one another (greedily, nearest to the first)."""
     merged, left = [], np.ones(points.shape[0], dtype=bool)
@@ -312,7 +357,7 @@ def rounded_creases(positions, triangles, crease_degrees: float) -> RoundedCreas
         return empty
     points, directions, convex = _thin(points, directions, convex, mean_edge)
     corners = _merge(meeting, 2.0 * mean_edge)
-    traced, ends = [], []
+    traced, ends, free = [], [], []
     chained = [
         (points[chain], bool(convex[chain].mean() >= 0.5), closed)
         for chain, closed in _chains(_links(points, directions, convex, LINK_EDGES * mean_edge))
@@ -320,10 +365,13 @@ def rounded_creases(positions, triangles, crease_degrees: float) -> RoundedCreas
     for line, ridge, closed in _join(chained, LINK_EDGES * mean_edge):
         if line.shape[0] < MIN_POINTS:
             continue
+        used = [-1, -1]
         if not closed and corners.shape[0]:
             line, used = _extend(line, corners, CORNER_EDGES * mean_edge)
             ends += [index for index in used if index >= 0]
         traced.append(("RIDGE" if ridge else "VALLEY", line, closed))
+        free.append([not closed and used[0] < 0, not closed and used[1] < 0])
+    traced, met = _ends_met(traced, free, CORNER_EDGES * mean_edge)
     if not traced:
         return empty
     surface = springwrap_kernel.TargetMesh(
@@ -337,7 +385,7 @@ def rounded_creases(positions, triangles, crease_degrees: float) -> RoundedCreas
         found.append((kind, np.ascontiguousarray(landed[at : at + line.shape[0]]), closed))
         at += line.shape[0]
     used, uses = np.unique(np.asarray(ends, dtype=np.int64), return_counts=True)
-    shared = corners[used[uses >= 2]]
+    shared = np.concatenate([corners[used[uses >= 2]], np.asarray(met, dtype=np.float64).reshape(-1, 3)])
     junctions = np.zeros((0, 3))
     if shared.shape[0]:
         junctions = np.asarray(
