@@ -113,8 +113,9 @@ def zigzag(points, closed: bool) -> float:
     return float(np.median(np.linalg.norm(np.cross(here - before, chord), axis=1) / length))
 
 
-def _along(points, creases, distance: float) -> bool:
-    """Whether most of ``points`` lie within ``distance`` of one of ``creases`` (lists of (P, 3) points)."""
+def _along(points, creases, distance: float, share: float = 0.5) -> bool:
+    """Whether more than ``share`` of ``points`` lie within ``distance`` of one of ``creases`` (lists of (P, 3)
+    points)."""
     if not creases or distance <= 0.0:
         return False
     crease_points = np.concatenate(creases).astype(np.float64)
@@ -124,7 +125,36 @@ def _along(points, creases, distance: float) -> bool:
         block = crease_points[begin : begin + 4096]
         squared = np.sum((points[:, None, :] - block[None, :, :]) ** 2, axis=2)
         near |= squared.min(axis=1) <= distance * distance
-    return bool(near.mean() >= 0.5)
+    return bool(near.mean() >= share)
+
+
+COVERED_SHARE = 0.8
+"""A rounded crease is left out for the target's sharp creases only when they run along this share of it: a
+short sharp piece on a long rounded crease leaves the whole crease to pair with."""
+ON_CREST_EDGES = 0.1
+"""A target crease of its own sharp edges that runs along a rounded crease (``rounded_creases``) is that crease
+only when it lies this close (mean target edges, median over its vertices) to the rounded crease's line:
+farther, it is a row of edges beside the crest, and the rounded crease is paired instead."""
+
+
+def _on(points, polylines, distance: float) -> bool:
+    """Whether the median distance of ``points`` from the nearest segment of ``polylines`` is within
+    ``distance``."""
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    segments = [np.asarray(line, dtype=np.float64) for line in polylines if len(line) >= 2]
+    if not segments or points.shape[0] == 0:
+        return False
+    starts = np.concatenate([line[:-1] for line in segments])
+    steps = np.concatenate([np.diff(line, axis=0) for line in segments])
+    squared = np.maximum(np.sum(steps**2, axis=1), 1e-300)
+    nearest = np.empty(points.shape[0])
+    for begin in range(0, points.shape[0], 256):
+        block = points[begin : begin + 256, None, :]
+        t = np.clip(np.sum((block - starts) * steps, axis=2) / squared, 0.0, 1.0)
+        nearest[begin : begin + 256] = np.sqrt(
+            np.min(np.sum((block - starts - t[..., None] * steps) ** 2, axis=2), axis=1)
+        )
+    return bool(np.median(nearest) <= distance)
 
 
 CLEAN_SHARE = 0.8
@@ -193,6 +223,8 @@ def target_features(feature_curves, target_positions, triangles, crease_degrees:
     )
     clean = sharp_edges(target_positions, triangles, crease_degrees).astype(np.int64)
     clean_keys = set((clean[:, 0] * target_positions.shape[0] + clean[:, 1]).tolist())
+    rounded = rounded_creases.rounded_creases(target_positions, triangles, crease_degrees)
+    crests = [points for _kind, points, _closed in rounded.curves]
     found, creases, borders, ends = [], [], [], []
     for kind, source, vertices, closed, _dihedral in chains:
         points = np.ascontiguousarray(target_positions[vertices])
@@ -202,16 +234,19 @@ def target_features(feature_curves, target_positions, triangles, crease_degrees:
             keys = (pairs[:, 0] * target_positions.shape[0] + pairs[:, 1]).tolist()
             if np.mean([key in clean_keys for key in keys]) < CLEAN_SHARE:
                 continue  # a rounded crease's row of edges (a scan's), not a sharp one
+            if _along(points, crests, 2.0 * rounded.mean_edge, COVERED_SHARE) and not _on(
+                points, crests, ON_CREST_EDGES * rounded.mean_edge
+            ):
+                continue  # a straight row of edges beside a rounded crease's crest (a voxel remesh's chamfer)
             creases.append(points)
             found.append((kind, points, bool(closed), zigzag(points, bool(closed))))
             if not closed:
                 ends += [int(vertices[0]), int(vertices[-1])]
         else:
             borders.append(("BORDER", points, bool(closed), 0.0))
-    rounded = rounded_creases.rounded_creases(target_positions, triangles, crease_degrees)
     sharp_creases = list(creases)
     for kind, points, closed in rounded.curves:
-        if not _along(points, sharp_creases, scale):
+        if not _along(points, sharp_creases, 2.0 * rounded.mean_edge, COVERED_SHARE):
             creases.append(points)
             found.append((kind, points, closed, zigzag(points, closed)))
     for curve in feature_curves:
@@ -221,7 +256,9 @@ def target_features(feature_curves, target_positions, triangles, crease_degrees:
     corners, uses = np.unique(np.asarray(ends, dtype=np.int64), return_counts=True)
     junctions = target_positions[corners[uses >= 2]].astype(np.float64)
     if rounded.junctions.shape[0]:
-        apart = np.linalg.norm(rounded.junctions[:, None, :] - junctions[None, :, :], axis=2).min(axis=1, initial=np.inf)
+        apart = np.linalg.norm(rounded.junctions[:, None, :] - junctions[None, :, :], axis=2).min(
+            axis=1, initial=np.inf
+        )
         junctions = np.concatenate([junctions, rounded.junctions[apart > scale]])
     return found + borders, junctions
 

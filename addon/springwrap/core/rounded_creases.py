@@ -39,7 +39,10 @@ LINK_EDGES = 2.5
 LINK_COSINE = 0.9
 """Two crease points are linked only along the crease: the cosine between the crease's direction and the
 step from one to the other is at least this."""
-JOIN_COSINE = 0.7
+JOIN_EDGES = 5.0
+"""The widest gap (mean edges) across which two chain ends that continue each other are joined: where a crease's
+bend dips below the crease angle for a few rows (a crease about as sharp as the angle) it is still one line."""
+JOIN_COSINE = 0.8
 """Two chain ends across a gap are joined only when the step from one to the other leaves each at a cosine of
 at least this (the ends themselves leaving in opposite directions, :data:`LINK_COSINE`)."""
 CORNER_EDGES = 5.0
@@ -53,6 +56,7 @@ class RoundedCreases(NamedTuple):
 
     curves: list  # of (kind RIDGE or VALLEY, (P, 3) float32 points on the surface, closed)
     junctions: np.ndarray  # (J, 3) float64: the corners where two or more of them end, on the surface
+    mean_edge: float = 0.0  # the mesh's mean edge length
 
 
 def edge_dihedrals(positions, triangles):
@@ -252,7 +256,7 @@ def _join(chains: list, reach: float) -> list:
             (distance <= reach)
             & (kinds[:, None] == kinds[None, :])
             & (outward @ outward.T <= -LINK_COSINE)
-            & (facing | (distance <= 0.5 * reach / LINK_EDGES))
+            & (facing | (distance <= 0.5 * reach / JOIN_EDGES))
         )
         small = np.array([chains[index][0].shape[0] < 2 * MIN_POINTS for index in owners])
         joinable &= (owners[:, None] != owners[None, :]) | ~small[:, None]
@@ -354,7 +358,7 @@ def rounded_creases(positions, triangles, crease_degrees: float) -> RoundedCreas
         return empty
     (points, directions, convex), meeting = corner_points(positions, quadrics, crease_degrees, mean_edge)
     if points.shape[0] < MIN_POINTS:
-        return empty
+        return RoundedCreases([], np.zeros((0, 3)), mean_edge)
     points, directions, convex = _thin(points, directions, convex, mean_edge)
     corners = _merge(meeting, 2.0 * mean_edge)
     traced, ends, free = [], [], []
@@ -362,7 +366,7 @@ def rounded_creases(positions, triangles, crease_degrees: float) -> RoundedCreas
         (points[chain], bool(convex[chain].mean() >= 0.5), closed)
         for chain, closed in _chains(_links(points, directions, convex, LINK_EDGES * mean_edge))
     ]
-    for line, ridge, closed in _join(chained, LINK_EDGES * mean_edge):
+    for line, ridge, closed in _join(chained, JOIN_EDGES * mean_edge):
         if line.shape[0] < MIN_POINTS:
             continue
         used = [-1, -1]
@@ -373,7 +377,7 @@ def rounded_creases(positions, triangles, crease_degrees: float) -> RoundedCreas
         free.append([not closed and used[0] < 0, not closed and used[1] < 0])
     traced, met = _ends_met(traced, free, CORNER_EDGES * mean_edge)
     if not traced:
-        return empty
+        return RoundedCreases([], np.zeros((0, 3)), mean_edge)
     surface = springwrap_kernel.TargetMesh(
         np.ascontiguousarray(positions, dtype=np.float32), np.ascontiguousarray(triangles, dtype=np.uint32)
     )
@@ -391,4 +395,4 @@ def rounded_creases(positions, triangles, crease_degrees: float) -> RoundedCreas
         junctions = np.asarray(
             surface.closest_points(np.ascontiguousarray(shared, dtype=np.float32)).positions, dtype=np.float64
         )
-    return RoundedCreases(found, junctions)
+    return RoundedCreases(found, junctions, mean_edge)
