@@ -3,12 +3,13 @@ constraints.
 
 The layout's feature lines are the edges the artist marked (sharp edges, seams, a vertex group, a boolean edge
 attribute) and, on its rest shape, its creases (dihedral angle) and open borders; the target's features are its
-sharp creases (its own edges, exact), ridges and valleys (Detect Features at the automatic scale for the layout's
+sharp creases (its own edges, exact), the creases a re-tessellation rounded (where the planes of their flanks meet,
+on the surface: ``core.rounded_creases``), ridges and valleys (Detect Features at the automatic scale for the layout's
 edge length: crests known to within their scale) and the borders of its holes. Each line is paired with a feature
 close to it under the current fit, parallel, of its kind and about as long, unless it already lies within the
 feature's accuracy; the pair becomes a curve constraint (source Feature Pair, with its confidence) that the next wrap follows.
-With Junctions, the corners where the layout's lines end are matched with those where the target's sharp creases
-end, and a line between two matched corners follows its feature between them, shared out by its rest length.
+With Junctions, the corners where the layout's lines end are matched with those where the target's sharp or
+rounded creases end, and a line between two matched corners follows its feature between them, shared out by its rest length.
 Placement Anchors puts each vertex of a paired line where a smooth map through the anchors and the matched corners
 takes its rest point, projected onto the feature.
 Lines without a partner stay free and are listed in the report. Everything is computed first and written only
@@ -58,7 +59,8 @@ class SPRINGWRAP_OT_feature_lines_pair(LayoutCollectionOperator, bpy.types.Opera
     crease_angle: props.number(
         "Crease Angle",
         "Edges of the layout's rest shape whose two faces' normals differ by more than this (degrees) are "
-        "creases, feature lines too, and so are the target's sharp edges features to pair with; 0: no creases",
+        "creases, feature lines too; the target's sharp creases and the creases a re-tessellation rounded "
+        "(flanks meeting at more than this) are features to pair with; 0: no creases",
         30.0,
         min=0.0,
         max=180.0,
