@@ -130,3 +130,14 @@ def test_bad_inputs_give_no_creases_and_no_error():
     centre = int(np.argmin(np.linalg.norm(positions - [0.0, 0.0, HALF], axis=1)))
     spoiled = np.concatenate([triangles, [[centre, centre, centre], [centre, centre, centre + 1]]])
     assert len(rc.rounded_creases(positions, spoiled, 30.0).curves) == 12
+
+
+def test_a_mostly_curved_mesh_has_no_rounded_creases():
+    """A box whose faces are rough all over (most triangles bend from their neighbours: an organic shape's
+    tessellation, not a machined part's flat faces) is not searched, and a sphere has no crease anywhere."""
+    positions, triangles = box()
+    rough = positions + np.random.default_rng(5).normal(scale=0.01, size=positions.shape)
+    assert rc.rounded_creases(rough, triangles, 30.0).curves == []
+    sphere = positions / np.linalg.norm(positions, axis=1, keepdims=True)
+    found = rc.rounded_creases(sphere, triangles, 30.0)
+    assert found.curves == [] and found.junctions.shape == (0, 3)

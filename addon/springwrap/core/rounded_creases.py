@@ -26,6 +26,11 @@ crease's band tens of degrees."""
 RINGS = 3
 """The rings of vertices around each vertex whose flat triangles' planes it gathers: enough to reach past a
 band of a couple of rows to both flanks, few enough not to reach the next crease."""
+MIN_FLAT_AREA = 0.75
+"""Rounded creases are looked for only on a mesh at least this share of whose area is in flat triangles (see
+:data:`FLAT_SHARE`): a machined part's faces (0.85 on a part voxel-remeshed at 1/200 of its diagonal). On a
+curved, organic shape (0.63 on a body voxel-remeshed at 4 mm) the planes of its scattered flat triangles meet
+at small scale everywhere (the nose, the lips, the fingers) and no line there is a crease."""
 MAX_MISFIT = 0.1
 """The largest root-mean-square distance (mean edges) of a vertex's flank planes from their crease line: two
 flat flanks meet on one line, the facets of a coarsely tessellated curved surface do not."""
@@ -95,7 +100,8 @@ def _sum_columns(index: np.ndarray, values: np.ndarray, count: int) -> np.ndarra
 def flank_quadrics(positions, triangles, crease_degrees: float):
     """(N, 19) per vertex: the flat triangles' planes within :data:`RINGS` rings, area-weighted, summed as
     ``A = Σ w n nᵀ`` (9 columns), ``b = Σ w (n·c) n`` (3), the first moment ``Σ w n`` (3), ``Σ w (n·c)²`` (1)
-    and ``Σ w c`` (3), ``c`` a triangle's centroid; and the mesh's mean edge length."""
+    and ``Σ w c`` (3), ``c`` a triangle's centroid (None when less than :data:`MIN_FLAT_AREA` of the mesh's area
+    is in flat triangles: not a machined part); and the mesh's mean edge length."""
     positions = np.asarray(positions, dtype=np.float64)
     triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
     keys, slot, angle, normals, areas = edge_dihedrals(positions, triangles)
@@ -103,6 +109,10 @@ def flank_quadrics(positions, triangles, crease_degrees: float):
     bend = np.zeros(count)
     np.maximum.at(bend, np.tile(np.arange(count), 3), angle[slot])
     weights = areas * (bend < FLAT_SHARE * crease_degrees)
+    lengths = np.linalg.norm(positions[keys[:, 0]] - positions[keys[:, 1]], axis=1)
+    mean_edge = float(lengths.mean()) if lengths.size else 0.0
+    if not weights.sum() >= MIN_FLAT_AREA * areas.sum() or not areas.sum() > 0.0:
+        return None, mean_edge
     offsets = np.einsum("ij,ij->i", normals, positions[triangles].mean(axis=1))
     per_face = np.concatenate(
         [
@@ -122,8 +132,7 @@ def flank_quadrics(positions, triangles, crease_degrees: float):
             + _sum_columns(keys[:, 0], summed[keys[:, 1]], vertex_count)
             + _sum_columns(keys[:, 1], summed[keys[:, 0]], vertex_count)
         )
-    lengths = np.linalg.norm(positions[keys[:, 0]] - positions[keys[:, 1]], axis=1)
-    return summed, float(lengths.mean()) if lengths.size else 0.0
+    return summed, mean_edge
 
 
 def corner_points(positions, quadrics, crease_degrees: float, mean_edge: float):
@@ -347,15 +356,16 @@ def _merge(points: np.ndarray, reach: float) -> np.ndarray:
 def rounded_creases(positions, triangles, crease_degrees: float) -> RoundedCreases:
     """The creases of a mesh whose sharp creases a re-tessellation rounded (see the module docs): each chain of
     crease points on the surface, kind RIDGE (convex) or VALLEY, and the corners where two or more end. Empty
-    for a crease angle of 0, a mesh without triangles or one without flat flanks (noise everywhere)."""
+    for a crease angle of 0, a mesh without triangles or one mostly curved (:data:`MIN_FLAT_AREA`: an organic
+    shape, or noise everywhere)."""
     positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
     triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
     empty = RoundedCreases([], np.zeros((0, 3)))
     if not crease_degrees > 0.0 or triangles.shape[0] == 0:
         return empty
     quadrics, mean_edge = flank_quadrics(positions, triangles, crease_degrees)
-    if not mean_edge > 0.0:
-        return empty
+    if quadrics is None or not mean_edge > 0.0:
+        return RoundedCreases([], np.zeros((0, 3)), mean_edge)
     (points, directions, convex), meeting = corner_points(positions, quadrics, crease_degrees, mean_edge)
     if points.shape[0] < MIN_POINTS:
         return RoundedCreases([], np.zeros((0, 3)), mean_edge)
