@@ -131,32 +131,6 @@ def _along(points, creases, distance: float, share: float = 0.5) -> bool:
 COVERED_SHARE = 0.8
 """A rounded crease is left out for the target's sharp creases only when they run along this share of it: a
 short sharp piece on a long rounded crease leaves the whole crease to pair with."""
-ON_CREST_EDGES = 0.1
-"""A target crease of its own sharp edges that runs along a rounded crease (``rounded_creases``) is that crease
-only when it lies this close (mean target edges, median over its vertices) to the rounded crease's line:
-farther, it is a row of edges beside the crest, and the rounded crease is paired instead."""
-
-
-def _on(points, polylines, distance: float) -> bool:
-    """Whether the median distance of ``points`` from the nearest segment of ``polylines`` is within
-    ``distance``."""
-    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    segments = [np.asarray(line, dtype=np.float64) for line in polylines if len(line) >= 2]
-    if not segments or points.shape[0] == 0:
-        return False
-    starts = np.concatenate([line[:-1] for line in segments])
-    steps = np.concatenate([np.diff(line, axis=0) for line in segments])
-    squared = np.maximum(np.sum(steps**2, axis=1), 1e-300)
-    nearest = np.empty(points.shape[0])
-    for begin in range(0, points.shape[0], 256):
-        block = points[begin : begin + 256, None, :]
-        t = np.clip(np.sum((block - starts) * steps, axis=2) / squared, 0.0, 1.0)
-        nearest[begin : begin + 256] = np.sqrt(
-            np.min(np.sum((block - starts - t[..., None] * steps) ** 2, axis=2), axis=1)
-        )
-    return bool(np.median(nearest) <= distance)
-
-
 CLEAN_SHARE = 0.8
 """The share of a target crease's edges that must have flat flanks (:func:`sharp_edges`) for it to be a sharp
 crease."""
@@ -234,9 +208,8 @@ def target_features(feature_curves, target_positions, triangles, crease_degrees:
             keys = (pairs[:, 0] * target_positions.shape[0] + pairs[:, 1]).tolist()
             if np.mean([key in clean_keys for key in keys]) < CLEAN_SHARE:
                 continue  # a rounded crease's row of edges (a scan's), not a sharp one
-            if _along(points, crests, 2.0 * rounded.mean_edge, COVERED_SHARE) and not _on(
-                points, crests, ON_CREST_EDGES * rounded.mean_edge
-            ):
+            beside = not rounded_creases.on_lines(points, crests, rounded_creases.ON_CREST_EDGES * rounded.mean_edge)
+            if beside and _along(points, crests, 2.0 * rounded.mean_edge, COVERED_SHARE):
                 continue  # a straight row of edges beside a rounded crease's crest (a voxel remesh's chamfer)
             creases.append(points)
             found.append((kind, points, bool(closed), zigzag(points, bool(closed))))

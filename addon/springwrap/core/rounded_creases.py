@@ -406,3 +406,29 @@ def rounded_creases(positions, triangles, crease_degrees: float) -> RoundedCreas
             surface.closest_points(np.ascontiguousarray(shared, dtype=np.float32)).positions, dtype=np.float64
         )
     return RoundedCreases(found, junctions, mean_edge)
+
+
+ON_CREST_EDGES = 0.1
+"""A target crease of its own sharp edges that runs along a rounded crease (:func:`rounded_creases`) is that crease
+only when it lies this close (mean target edges, median over its vertices) to the rounded crease's line:
+farther, it is a row of edges beside the crest, and the rounded crease is paired instead."""
+
+
+def on_lines(points, polylines, distance: float) -> bool:
+    """Whether the median distance of ``points`` from the nearest segment of ``polylines`` is within
+    ``distance``."""
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    segments = [np.asarray(line, dtype=np.float64) for line in polylines if len(line) >= 2]
+    if not segments or points.shape[0] == 0:
+        return False
+    starts = np.concatenate([line[:-1] for line in segments])
+    steps = np.concatenate([np.diff(line, axis=0) for line in segments])
+    squared = np.maximum(np.sum(steps**2, axis=1), 1e-300)
+    nearest = np.empty(points.shape[0])
+    for begin in range(0, points.shape[0], 256):
+        block = points[begin : begin + 256, None, :]
+        t = np.clip(np.sum((block - starts) * steps, axis=2) / squared, 0.0, 1.0)
+        nearest[begin : begin + 256] = np.sqrt(
+            np.min(np.sum((block - starts - t[..., None] * steps) ** 2, axis=2), axis=1)
+        )
+    return bool(np.median(nearest) <= distance)
