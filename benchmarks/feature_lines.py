@@ -178,12 +178,46 @@ def detection_measure(target, truth_segments: np.ndarray, layout_edge: float) ->
     middles = truth_segments.mean(axis=1)
     weights = np.linalg.norm(truth_segments[:, 1] - truth_segments[:, 0], axis=1)
     near = np.array([np.min(np.linalg.norm(points - m, axis=1)) for m in middles]) <= 0.5 * layout_edge
+    rounded = rounded_measure(vertices, triangles, truth_segments, layout_edge, mesh)
     return {
         "scale": float(features.scale),
         "curves": len(features.curves),
         "median_length_edges": float(np.median(lengths) / layout_edge) if lengths.size else 0.0,
         "curves_under_3_edges": int(np.sum(lengths < 3.0 * layout_edge)),
         "crease_length_covered": float(np.sum(weights[near]) / np.sum(weights)),
+        "rounded": rounded,
+    }
+
+
+def rounded_measure(vertices, triangles, truth_segments: np.ndarray, layout_edge: float, mesh) -> dict:
+    """The creases ``rounded_creases`` finds on the target (found where the planes of their flanks meet): how
+    many, their junctions, the share of the true crease length within half a layout edge of one, and how far
+    their points lie from the true crest (the target point nearest the changed part's sharp crease, which
+    ``truth_segments`` are), in % of the diagonal: median and p95 over the points within half a layout edge of
+    a true crease."""
+    from springwrap.core import rounded_creases
+
+    found = rounded_creases.rounded_creases(vertices, triangles, CREASE_DEGREES)
+    diagonal = float(np.linalg.norm(np.ptp(vertices, axis=0)))
+    if not found.curves:
+        return {"creases": 0, "junctions": 0, "crease_length_covered": 0.0, "crest_median": None, "crest_p95": None}
+    points = np.concatenate([points for _kind, points, _closed in found.curves]).astype(np.float64)
+    middles = truth_segments.mean(axis=1)
+    weights = np.linalg.norm(truth_segments[:, 1] - truth_segments[:, 0], axis=1)
+    covered = np.array([np.min(np.linalg.norm(points - m, axis=1)) for m in middles]) <= 0.5 * layout_edge
+    on_crease = distance_to_segments(points, truth_segments) <= 0.5 * layout_edge
+    dense = np.concatenate(
+        [segment[0] + np.linspace(0.0, 1.0, 9)[:, None] * (segment[1] - segment[0]) for segment in truth_segments]
+    )
+    crest = mesh.closest_points(np.ascontiguousarray(dense, dtype=np.float32)).positions.astype(np.float64)
+    crest_segments = np.stack([crest.reshape(-1, 9, 3)[:, :-1], crest.reshape(-1, 9, 3)[:, 1:]], axis=2)
+    off = distance_to_segments(points[on_crease], crest_segments.reshape(-1, 2, 3)) / diagonal * 100.0
+    return {
+        "creases": len(found.curves),
+        "junctions": int(found.junctions.shape[0]),
+        "crease_length_covered": float(np.sum(weights[covered]) / np.sum(weights)),
+        "crest_median": float(np.median(off)) if off.size else None,
+        "crest_p95": float(np.percentile(off, 95)) if off.size else None,
     }
 
 
@@ -423,6 +457,15 @@ def markdown(result: dict) -> list[str]:
             f"3 edges; {100 * detection['crease_length_covered']:.0f} % of the true crease length lies within half "
             "a layout edge of a detected curve."
         )
+        rounded = detection.get("rounded")
+        if rounded and rounded["creases"]:
+            lines[-1] += (
+                f" Rounded creases (where the planes of their flanks meet, `core/rounded_creases.py`): "
+                f"{rounded['creases']} creases, {rounded['junctions']} corners where they meet; "
+                f"{100 * rounded['crease_length_covered']:.0f} % of the true crease length within half a layout "
+                f"edge of one; their points lie {rounded['crest_median']:.4f} % of the diagonal from the true "
+                f"crest (median; p95 {rounded['crest_p95']:.4f} %)."
+            )
         lines.append("")
     lines.pop()
     machine = result.get("machine")
