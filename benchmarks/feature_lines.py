@@ -19,7 +19,9 @@ with its Placement As Spaced). Errors are
 distances to the truth in % of the target's diagonal: the mean over all vertices, over the crease vertices, and
 the crease p95. The target's feature curves at the automatic scale are
 measured too (count, median length in layout edges, the share of the part's true crease length within half a
-median layout edge of a detected curve): how well crease detection survives the re-tessellation. And the
+median layout edge of a detected curve): how well crease detection survives the re-tessellation; and so are the
+rounded creases (``core/rounded_creases.py``: count, corners, coverage, and their points' distance from the true
+crest, the target point nearest the changed part's sharp crease). And the
 fragmentation of Detect Features on the MakeHuman body voxel-remeshed with 4 mm voxels (``--no-body`` leaves it
 out): curves, their median length in layout edges, how many are shorter than 3 layout edges.
 """
