@@ -115,11 +115,16 @@ def zigzag(points, closed: bool) -> float:
 
 def _along(points, creases, distance: float, share: float = 0.5) -> bool:
     """Whether more than ``share`` of ``points`` lie within ``distance`` of one of ``creases`` (lists of (P, 3)
-    points)."""
-    if not creases or distance <= 0.0:
+    points, or their points in one (N, 3) array)."""
+    if len(creases) == 0 or distance <= 0.0:
         return False
-    crease_points = np.concatenate(creases).astype(np.float64)
-    points = np.asarray(points, dtype=np.float64)
+    crease_points = np.asarray(creases if isinstance(creases, np.ndarray) else np.concatenate(creases))
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    if points.shape[0] == 0:
+        return False
+    low, high = points.min(axis=0) - distance, points.max(axis=0) + distance
+    crease_points = crease_points[np.all((crease_points >= low) & (crease_points <= high), axis=1)]
+    crease_points = crease_points.astype(np.float64)
     near = np.zeros(points.shape[0], dtype=bool)
     for begin in range(0, crease_points.shape[0], 4096):
         block = crease_points[begin : begin + 4096]
@@ -222,9 +227,10 @@ def target_features(feature_curves, target_positions, triangles, crease_degrees:
         if not _along(points, sharp_creases, 2.0 * rounded.mean_edge, COVERED_SHARE):
             creases.append(points)
             found.append((kind, points, closed, zigzag(points, closed)))
+    crease_points = np.concatenate(creases) if creases else np.zeros((0, 3))
     for curve in feature_curves:
         points = np.ascontiguousarray(curve.points, dtype=np.float32)
-        if not _along(points, creases, scale):
+        if not _along(points, crease_points, scale):
             found.append((curve.kind, points, bool(curve.closed), RIDGE_ACCURACY_SCALES * scale))
     corners, uses = np.unique(np.asarray(ends, dtype=np.int64), return_counts=True)
     junctions = target_positions[corners[uses >= 2]].astype(np.float64)
