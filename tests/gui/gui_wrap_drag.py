@@ -19,10 +19,11 @@ WRAP = {"tolerance": 1e-9, "max_iterations": 300}
 to the iteration limit, several seconds on the 13,380-vertex body)."""
 MOVES = 10
 """Mouse moves of the drag."""
-MOVE_PIXELS = (-6.0, -5.0)
-"""Pixels of each move."""
+MOVE_PIXELS = 8.0
+"""Pixels of each move, away from the pair's vertex."""
 FOLLOWED = 0.5
-"""Share of its distance to the pair's new end the vertex must have covered while the wrap still runs."""
+"""How far the pair's vertex must have gone from the pair's old end toward its new one, as a share of the way,
+while the wrap still runs."""
 WAIT_SECONDS = 300.0
 """Longest the wrap may take (a loaded machine)."""
 
@@ -47,18 +48,24 @@ def steps(tool, pair: int):
         session = wrap_session.running_session(layout)
         check(session is not None and session.worker is not None, "the wrap does not solve in a worker thread")
         yield 0.2
-        before_drag = world_of(layout)[vertex]
-        yield from tool.drag(tool.pixel(start), steps=MOVES, step=MOVE_PIXELS)
+        # Drag away from the vertex: the running wrap pulls it toward the pair's old end until the drag reaches it,
+        # so only the drag can take it past that end toward the new one.
+        away = tool.pixel(start) - tool.pixel(world_of(layout)[vertex])
+        away = away.normalized() if away.length > 1.0 else away.orthogonal().normalized()
+        drag_started = time.perf_counter()
+        yield from tool.drag(tool.pixel(start), steps=MOVES, step=tuple(MOVE_PIXELS * away))
         released = time.perf_counter()
         check(wrap_session.running_session(layout) is session, "the wrap ended before the drag's release")
+        released_at = session.total_iterations
         dragged_anchors = anchors_of(layout)
         end = np.array(layout.springwrap.anchors[pair].location)
-        gap = float(np.linalg.norm(before_drag - end))
-        check(np.linalg.norm(end - start) > 0.01, f"the drag moved the pair's end {np.linalg.norm(end - start)} m")
-        followed = None  # seconds after the release when the vertex had covered FOLLOWED of the gap
+        along = end - start
+        length = float(np.linalg.norm(along))
+        check(length > 0.01, f"the drag moved the pair's end {length} m")
+        followed = None  # seconds after the release when the vertex had gone FOLLOWED of the way to the new end
         while wrap_session.running_session(layout) is session:
-            left = float(np.linalg.norm(world_of(layout)[vertex] - end))
-            if followed is None and left < (1.0 - FOLLOWED) * gap:
+            progress = float((world_of(layout)[vertex] - start) @ along) / length**2
+            if followed is None and progress > FOLLOWED:
                 followed = time.perf_counter() - released
             check(time.perf_counter() - started < WAIT_SECONDS, "the wrap did not end")
             yield 0.02
@@ -67,13 +74,10 @@ def steps(tool, pair: int):
         bpy.types.SpaceView3D.draw_handler_remove(handle, "WINDOW")
     result = wrap_session.last_result(layout)
     check(result is not None and result.frames > 1, f"the wrap ended without its frames: {result}")
-    check(
-        followed is not None,
-        f"the running wrap did not follow the drag: the vertex was {gap:.4f} m from the pair's new end",
-    )
+    check(followed is not None, "the running wrap did not follow the drag (the vertex stayed by the pair's old end)")
     wrapped = snapshot(layout)
     final = world_of(layout)[vertex]
-    check(np.linalg.norm(final - end) < 0.1 * gap, f"the wrap ended {np.linalg.norm(final - end)} m off the pair")
+    check(np.linalg.norm(final - end) < 0.1 * length, f"the wrap ended {np.linalg.norm(final - end)} m off the pair")
     check(layout.springwrap.anchors[pair].vertex_index == vertex, "the wrap changed the pair's vertex")
     check(
         np.linalg.norm(np.array(layout.springwrap.anchors[pair].location) - end) < 1e-5,
@@ -82,7 +86,9 @@ def steps(tool, pair: int):
     wf.step(
         "wrap_drag",
         moves=MOVES,
-        gap_m=round(gap, 4),
+        drag_m=round(length, 4),
+        drag_seconds=round(released - drag_started, 3),
+        iterations_at_release=released_at,
         followed_after_release_seconds=round(followed, 3),
         end_off_pair_m=float(np.linalg.norm(final - end)),
         iterations=result.iterations,
