@@ -219,6 +219,20 @@ def drag(s, pair, moves, release=True, seconds=0.03):
     return points
 
 
+def start_live_wrap(layout):
+    """A live wrap of ``layout`` as the Wrap operator runs it (its first frame, then its worker), marked as running;
+    (its ``WrapSession``, its ``WrapLoop``)."""
+    from springwrap.blender import wrap_session
+    from springwrap.core.wrap_run import WrapLoop
+
+    session = addon_module("blender.pair_tool").start_settle(bpy.context, layout)
+    loop = WrapLoop(session)
+    assert loop.handle("TIMER") == "RUNNING_MODAL"
+    session.start_worker()
+    wrap_session.set_running(session)
+    return session, loop
+
+
 def along_offset(s, vertex, origin):
     return float((world_positions(s.layout)[vertex] - origin) @ s.along)
 
@@ -353,14 +367,9 @@ def test_a_re_settle_failing_mid_drag_is_undone_and_the_drag_loses_nothing(scene
 
 def test_a_drag_while_a_live_wrap_runs_is_handed_to_its_solver(scene):
     from springwrap.blender import live_wraps, wrap_session
-    from springwrap.core.wrap_run import WrapLoop
 
     s = scene
-    session = addon_module("blender.pair_tool").start_settle(bpy.context, s.layout)  # as the Wrap operator's
-    loop = WrapLoop(session)
-    assert loop.handle("TIMER") == "RUNNING_MODAL"
-    session.start_worker()
-    wrap_session.set_running(session)
+    session, loop = start_live_wrap(s.layout)
     try:
         assert live_wraps.tool_takes(s.layout, "LEFTMOUSE", "PRESS")  # the wrap lets the tool's click through
         assert not live_wraps.tool_takes(s.layout, "ESC", "PRESS")  # Esc stops the wrap...
@@ -415,15 +424,10 @@ def test_a_re_settle_done_during_a_drag_waits_for_its_next_move_the_drag_stays_o
 
 def test_esc_of_a_live_wrap_puts_the_layout_back_and_keeps_the_pairs_dragged_during_it(scene):
     from springwrap.blender import wrap_session
-    from springwrap.core.wrap_run import WrapLoop
 
     s = scene
     before = snapshot(s.layout)
-    session = addon_module("blender.pair_tool").start_settle(bpy.context, s.layout)
-    loop = WrapLoop(session)
-    assert loop.handle("TIMER") == "RUNNING_MODAL"
-    session.start_worker()
-    wrap_session.set_running(session)
+    session, loop = start_live_wrap(s.layout)
     try:
         points = drag(s, 1, moves=3)
         dragged = anchor_state(s.layout)
@@ -506,14 +510,9 @@ def test_a_wrap_started_during_a_drag_of_the_re_settle_is_refused_and_the_re_set
 @pytest.mark.parametrize("operator", ["wrap", "mirror"])
 def test_a_second_wrap_on_a_layout_with_a_live_wrap_running_is_refused(scene, operator):
     from springwrap.blender import wrap_session
-    from springwrap.core.wrap_run import WrapLoop
 
     s = scene
-    session = addon_module("blender.pair_tool").start_settle(bpy.context, s.layout)  # as the Wrap operator's
-    loop = WrapLoop(session)
-    assert loop.handle("TIMER") == "RUNNING_MODAL"
-    session.start_worker()
-    wrap_session.set_running(session)
+    session, loop = start_live_wrap(s.layout)
     try:
         with pytest.raises(RuntimeError, match="A wrap is already running on 'Layout'"):
             getattr(bpy.ops.springwrap, operator)()
