@@ -136,10 +136,12 @@ def test_the_retarget_command_line_takes_the_schedule():
     assert arguments.schedule == "global-to-local" and KERNEL.schedule == "AUTO"
 
 
-def test_the_mirror_command_lines_tolerance_is_the_kernels():
+def test_the_mirror_command_lines_tolerance_is_the_kernels_and_its_weld_distance_the_operators():
     mirror = _script("mirror.py")
     arguments = mirror["parse_arguments"](["--", "--layout", "layout.obj", "--target", "target.obj"])
     assert arguments.tolerance == KERNEL.tolerance
+    weld = operator_defaults(bpy.ops.springwrap.mirror).weld_distance
+    assert np.float32(arguments.weld_distance) == np.float32(weld)
 
 
 @pytest.mark.parametrize(
