@@ -20,8 +20,9 @@ import bpy
 import numpy as np
 from gui_layout_data import anchors_of, snapshot, world_of
 
-ITERATION_SECONDS = 0.2
-"""What each of the wrap's iterations costs at least during these steps."""
+ITERATION_SECONDS = 1.0
+"""What each of the wrap's iterations costs at least during these steps: a schedule of some twenty iterations then
+outlasts the time between two mouse moves (a redraw of the software-drawn window or more on a loaded machine)."""
 MOVES = 10
 """Mouse moves of the drag."""
 MOVE_PIXELS = 8.0
@@ -31,7 +32,7 @@ FOLLOWED = 0.5
 while the wrap still runs (only the drag takes it past the old end)."""
 ARRIVED = 0.1
 """How near the pair's new end the vertex must come (a share of the drag's length) while the wrap still runs."""
-WAIT_SECONDS = 300.0
+WAIT_SECONDS = 600.0
 """Longest the wrap may take (a loaded machine)."""
 
 
