@@ -72,8 +72,8 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     parser.add_argument(
         "--weld-distance",
         type=finite_number,
-        default=0.1,
-        help="seam: vertices this close to the plane, fraction of their edge length (default 0.1)",
+        default=wrap_defaults_module().WELD_FRACTION,
+        help="seam: vertices this close to the plane, fraction of their edge length (default %(default)s)",
     )
     parser.add_argument("--seam", choices=("SLIDE", "HOLD"), default="SLIDE", help="seam during the wrap")
     parser.add_argument(

@@ -219,6 +219,20 @@ def drag(s, pair, moves, release=True, seconds=0.03):
     return points
 
 
+def start_live_wrap(layout):
+    """A live wrap of ``layout`` as the Wrap operator runs it (its first frame, then its worker), marked as running;
+    (its ``WrapSession``, its ``WrapLoop``)."""
+    from springwrap.blender import wrap_session
+    from springwrap.core.wrap_run import WrapLoop
+
+    session = addon_module("blender.pair_tool").start_settle(bpy.context, layout)
+    loop = WrapLoop(session)
+    assert loop.handle("TIMER") == "RUNNING_MODAL"
+    session.start_worker()
+    wrap_session.set_running(session)
+    return session, loop
+
+
 def along_offset(s, vertex, origin):
     return float((world_positions(s.layout)[vertex] - origin) @ s.along)
 
@@ -353,14 +367,9 @@ def test_a_re_settle_failing_mid_drag_is_undone_and_the_drag_loses_nothing(scene
 
 def test_a_drag_while_a_live_wrap_runs_is_handed_to_its_solver(scene):
     from springwrap.blender import live_wraps, wrap_session
-    from springwrap.core.wrap_run import WrapLoop
 
     s = scene
-    session = addon_module("blender.pair_tool").start_settle(bpy.context, s.layout)  # as the Wrap operator's
-    loop = WrapLoop(session)
-    assert loop.handle("TIMER") == "RUNNING_MODAL"
-    session.start_worker()
-    wrap_session.set_running(session)
+    session, loop = start_live_wrap(s.layout)
     try:
         assert live_wraps.tool_takes(s.layout, "LEFTMOUSE", "PRESS")  # the wrap lets the tool's click through
         assert not live_wraps.tool_takes(s.layout, "ESC", "PRESS")  # Esc stops the wrap...
@@ -415,15 +424,10 @@ def test_a_re_settle_done_during_a_drag_waits_for_its_next_move_the_drag_stays_o
 
 def test_esc_of_a_live_wrap_puts_the_layout_back_and_keeps_the_pairs_dragged_during_it(scene):
     from springwrap.blender import wrap_session
-    from springwrap.core.wrap_run import WrapLoop
 
     s = scene
     before = snapshot(s.layout)
-    session = addon_module("blender.pair_tool").start_settle(bpy.context, s.layout)
-    loop = WrapLoop(session)
-    assert loop.handle("TIMER") == "RUNNING_MODAL"
-    session.start_worker()
-    wrap_session.set_running(session)
+    session, loop = start_live_wrap(s.layout)
     try:
         points = drag(s, 1, moves=3)
         dragged = anchor_state(s.layout)
@@ -453,3 +457,67 @@ def test_a_pair_s_layout_end_dragged_to_another_vertex_during_the_re_settle_goes
     assert 86 in session.anchors.vertex_indices and 84 not in session.anchors.vertex_indices
     s.tool.settle_to_end()
     np.testing.assert_allclose(world_positions(s.layout)[86], s.layout.springwrap.anchors[1].location, atol=2e-3)
+
+
+def test_a_wrap_started_while_the_re_settle_runs_keeps_the_re_settle_and_runs_alone(scene):
+    from springwrap.blender import live_wraps, wrap_session
+
+    s = scene
+    session, before_settle = start_re_settle(s)
+    s.tool.frames(3)
+    edited = anchor_state(s.layout)
+    live_wraps.take_over(bpy.context, s.layout)  # what the Wrap operator does first
+    assert s.tool.operator._settle is None and session.worker is None  # kept as far as it got, its worker stopped
+    assert wrap_session.running_session(s.layout) is None and wrap_session.last_result(s.layout) is not None
+    kept = snapshot(s.layout)
+    assert kept["positions"] != before_settle["positions"]
+    assert bpy.ops.springwrap.wrap("EXEC_DEFAULT", True) == {"FINISHED"}  # alone on the layout
+    assert wrap_session.running_session(s.layout) is None and s.tool.operator._settle is None
+    assert snapshot(s.layout) != kept
+    assert_same_anchors(s.layout, edited)
+    bpy.ops.ed.undo()  # over the wrap: the re-settle as it was kept
+    assert snapshot(bpy.data.objects["Layout"]) == kept
+    bpy.ops.ed.undo()  # over the re-settle: the layout as the edit left it
+    assert snapshot(bpy.data.objects["Layout"]) == before_settle
+    assert anchor_state(bpy.data.objects["Layout"]) == edited
+
+
+def test_the_wrap_operator_hands_the_re_settle_over_itself(scene):
+    from springwrap.blender import wrap_session
+
+    s = scene
+    session, _before = start_re_settle(s)
+    assert bpy.ops.springwrap.wrap() == {"FINISHED"}
+    assert s.tool.operator._settle is None and session.worker is None
+    assert wrap_session.running_session(s.layout) is None
+    assert wrap_session.last_result(s.layout).frames == 0  # the wrap's own (run at once), not the re-settle's
+
+
+def test_a_wrap_started_during_a_drag_of_the_re_settle_is_refused_and_the_re_settle_goes_on(scene):
+    from springwrap.blender import wrap_session
+
+    s = scene
+    session, _before = start_re_settle(s)
+    drag(s, 1, moves=2, release=False)
+    with pytest.raises(RuntimeError, match="dragging a pair of 'Layout'.*release the pair"):
+        bpy.ops.springwrap.wrap()
+    assert s.tool.operator._settle is session and wrap_session.running_session(s.layout) is session
+    assert s.tool.operator._dragging
+    s.tool.event("LEFTMOUSE", "RELEASE", s.tool.pixel(s.layout.springwrap.anchors[1].location))
+    s.tool.settle_to_end()
+
+
+@pytest.mark.parametrize("operator", ["wrap", "mirror"])
+def test_a_second_wrap_on_a_layout_with_a_live_wrap_running_is_refused(scene, operator):
+    from springwrap.blender import wrap_session
+
+    s = scene
+    session, loop = start_live_wrap(s.layout)
+    try:
+        with pytest.raises(RuntimeError, match="A wrap is already running on 'Layout'"):
+            getattr(bpy.ops.springwrap, operator)()
+        assert wrap_session.running_session(s.layout) is session and session.worker is not None
+        assert loop.handle("ESC", "PRESS") == "CANCELLED"
+    finally:
+        wrap_session.set_running(session, running=False)
+        session.stop_worker(raise_error=False)

@@ -136,10 +136,12 @@ def test_the_retarget_command_line_takes_the_schedule():
     assert arguments.schedule == "global-to-local" and KERNEL.schedule == "AUTO"
 
 
-def test_the_mirror_command_lines_tolerance_is_the_kernels():
+def test_the_mirror_command_lines_tolerance_is_the_kernels_and_its_weld_distance_the_operators():
     mirror = _script("mirror.py")
     arguments = mirror["parse_arguments"](["--", "--layout", "layout.obj", "--target", "target.obj"])
     assert arguments.tolerance == KERNEL.tolerance
+    weld = operator_defaults(bpy.ops.springwrap.mirror).weld_distance
+    assert np.float32(arguments.weld_distance) == np.float32(weld)
 
 
 @pytest.mark.parametrize(
@@ -257,3 +259,27 @@ def test_the_retired_spring_solver_is_mapped_with_a_warning(capfd):
 
 def snapshot_positions(layout) -> np.ndarray:
     return np.array([vertex.co[:] for vertex in layout.data.vertices])
+
+
+def _mirrored(**properties) -> np.ndarray:
+    """The world positions after a mirror of the half head (snapped, with anchors) with ``properties``."""
+    from bpy_helpers import head_scene, world_positions
+
+    bpy.ops.wm.read_homefile(use_empty=True)
+    _target, layout = head_scene()
+    assert bpy.ops.springwrap.snap() == {"FINISHED"}
+    assert bpy.ops.springwrap.anchors_auto(spacing=0.6) == {"FINISHED"}
+    assert bpy.ops.springwrap.mirror(axis="X", surfaced_half="FREE", **properties) == {"FINISHED"}
+    return world_positions(bpy.data.objects[layout.name])
+
+
+def test_each_wrap_setting_the_mirrors_redo_panel_shows_changes_the_mirror():
+    shown = {prop.identifier for prop in bpy.ops.springwrap.mirror.get_rna_type().properties if not prop.is_hidden}
+    assert {"tolerance", "max_iterations"} <= shown and "solver" not in shown
+    reference = _mirrored()
+    assert np.array_equal(_mirrored(), reference)  # deterministic
+    defaults = operator_defaults(bpy.ops.springwrap.mirror)
+    for name, value in {"tolerance": 0.5, "max_iterations": 2}.items():
+        assert getattr(defaults, name) != value, name
+        moved = np.abs(_mirrored(**{name: value}) - reference).max()
+        assert moved > 1e-5, f"{name}={value} moved no vertex more than {moved}"

@@ -7,7 +7,8 @@ under a pixel, ``mathutils.bvhtree`` finds what the ray hits (the layout's surfa
 target's surface under the mouse). Checks: a move highlights the vertex under the mouse, two clicks make a pair on
 that vertex and on the clicked surface point, a drag leaves the target end exactly on the surface (its triangle and
 barycentric weights give its location), Live re-settles from a drag's first move, Ctrl+Z steps back through the re-settle and
-the edit (bit for bit to before it), Esc cancels a running re-settle bit for bit, X removes the pair under the mouse, Esc leaves
+the edit (bit for bit to before it), Esc cancels a running re-settle bit for bit, a pair dragged while the Wrap
+button's live wrap runs goes to it (``gui_wrap_drag.py``), X removes the pair under the mouse, Esc leaves
 the tool; redraws per second while dragging are counted.
 """
 
@@ -16,8 +17,10 @@ import time
 
 import bpy
 
+import gui_wrap_drag
 import numpy as np
 from bpy_extras import view3d_utils
+from gui_layout_data import anchors_of, snapshot, world_of
 from mathutils import Vector
 from mathutils.bvhtree import BVHTree
 
@@ -37,34 +40,6 @@ SURFACE_PRECISION = 1e-5
 HIT_PRECISION = 1e-4
 """Metres: how far a pair's target point may be from Blender's own hit along the mouse ray (two float32 ray casts
 from a few metres away; where the ray meets the surface at a slant, their depths differ most)."""
-
-
-def world_of(obj) -> np.ndarray:
-    positions = np.empty(len(obj.data.vertices) * 3, dtype=np.float32)
-    obj.data.vertices.foreach_get("co", positions)
-    matrix = np.array(obj.matrix_world, dtype=np.float64)
-    return positions.reshape(-1, 3).astype(np.float64) @ matrix[:3, :3].T + matrix[:3, 3]
-
-
-def snapshot(obj) -> tuple:
-    """The layout's positions and every attribute, and its anchor list, as bytes (bit-for-bit comparisons)."""
-    positions = np.empty(len(obj.data.vertices) * 3, dtype=np.float32)
-    obj.data.vertices.foreach_get("co", positions)
-    attributes = []
-    for attribute in sorted(obj.data.attributes, key=lambda a: a.name):
-        if attribute.domain == "POINT" and attribute.data_type in {"INT", "FLOAT", "FLOAT_VECTOR"}:
-            width = 3 if attribute.data_type == "FLOAT_VECTOR" else 1
-            values = np.empty(len(attribute.data) * width, dtype=np.float64)
-            attribute.data.foreach_get("vector" if width == 3 else "value", values)
-            attributes.append((attribute.name, values.tobytes()))
-    return positions.tobytes(), tuple(attributes), anchors_of(obj)
-
-
-def anchors_of(obj) -> tuple:
-    return tuple(
-        (item.vertex_index, item.target_kind, item.triangle, tuple(item.barycentric), tuple(item.location))
-        for item in obj.springwrap.anchors
-    )
 
 
 class PairToolSteps:
@@ -312,6 +287,10 @@ class PairToolSteps:
         check(anchors_of(layout) == edited_anchors, "Esc on the re-settle undid the drag too")
         check(pair_module.running(), "the first Esc (a re-settle running) left the tool")
         wf.step("pair_escape")
+
+        # The Wrap button's live wrap, a pair dragged while it runs, then Ctrl+Z (gui_wrap_drag.py).
+        yield from gui_wrap_drag.steps(self, pair)
+        layout = bpy.data.objects["Body"]
 
         # X over the pair removes it.
         layout.springwrap.pair_live = False

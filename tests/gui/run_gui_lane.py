@@ -61,6 +61,8 @@ EXPECTED_STEPS = {
         "pair_live",
         "pair_undo",
         "pair_escape",
+        "wrap_drag",
+        "wrap_drag_undo",
         "pair_remove",
         "pair_leave",
     ],

@@ -3,10 +3,15 @@
 
 import bpy
 
+from ..core.errors import LayoutError
 from ..core.wrap_run import WrapResult, tool_event
 from . import last_run
 
 _running: list = []
+_hand_overs: dict = {}
+"""For a running session whose owner can end it when another wrap starts on its layout (the pair tool's Live
+re-settle): the owner's ``hand_over(context)``, which ends it and returns None, or returns why it cannot now (see
+:func:`take_over`)."""
 _tool: dict = {"layout": None, "dragging": False}
 """The tool editing a layout's anchors while a wrap may run on it (the pair tool): its layout's name, whether it
 drags a pair's end."""
@@ -27,14 +32,38 @@ def tool_takes(layout: bpy.types.Object, event_type: str, event_value: str) -> b
     return _tool["layout"] == name and tool_event(event_type, event_value, _tool["dragging"])
 
 
-def set_running(session, running: bool = True) -> None:
-    """Mark ``session`` as the live wrap in progress (the panel shows its progress), or no longer."""
+def set_running(session, running: bool = True, hand_over=None) -> None:
+    """Mark ``session`` as the live wrap in progress (the panel shows its progress), or no longer. ``hand_over``
+    (optional): how its owner ends it when another wrap starts on the layout (:func:`take_over`)."""
     if session is None:
         return
     if running and session not in _running:
         _running.append(session)
+        if hand_over is not None:
+            _hand_overs[session] = hand_over
     elif not running and session in _running:
         _running.remove(session)
+        _hand_overs.pop(session, None)
+
+
+def take_over(context, layout: bpy.types.Object) -> None:
+    """Make way for a wrap about to start on ``layout`` (one wrap per layout): the pair tool's Live re-settle
+    running there is kept as far as it got (its owner finishes it: one undo step of its own) and the new wrap starts
+    from that; any other wrap running there (a live wrap of the Wrap operator), or a re-settle its owner cannot end
+    now (the tool is dragging a pair), refuses the new wrap with ``LayoutError`` saying why."""
+    session = running_session(layout)
+    if session is None:
+        return
+    hand_over = _hand_overs.get(session)
+    if hand_over is None:
+        raise LayoutError(
+            f"A wrap is already running on '{layout.name}': let it finish, or press Esc to cancel it, then start "
+            "another"
+        )
+    refusal = hand_over(context)
+    if refusal is not None:
+        raise LayoutError(refusal)
+    set_running(session, running=False)  # ended by its owner (who says so too)
 
 
 def running_session(layout: bpy.types.Object):
@@ -44,7 +73,7 @@ def running_session(layout: bpy.types.Object):
             if session.layout == layout:
                 return session
         except ReferenceError:  # the layout was deleted under a session that was never ended
-            _running.remove(session)
+            set_running(session, running=False)
             return None
     return None
 
@@ -75,6 +104,7 @@ def forget_results() -> None:
     for session in _running:
         session.stop_worker(raise_error=False)
     _running.clear()
+    _hand_overs.clear()
     last_run.forget_all()
 
 

@@ -1,5 +1,6 @@
 """The wrap's defaults and ranges, in one place: the add-on's own (the iteration limit, the spring resolution) and
-the kernel's (``springwrap_kernel.WrapSettings()`` and ``WrapSettings.ranges()``, written once in the kernel).
+the kernel's (``springwrap_kernel.WrapSettings()`` and ``WrapSettings.ranges()``, written once in the kernel), and
+the mirror's weld distance.
 
 The operators' and panel's properties (``properties``), the scripts in ``blender_scripts/`` and the benchmarks read
 them from here. No ``bpy``.
@@ -13,6 +14,10 @@ it bounds a wrap that would not end."""
 
 SPRING_RESOLUTION = 1
 """Quads cut k x k for the fine stage of a wrap: 1, no fine stage."""
+
+WELD_FRACTION = 0.1
+"""The mirror's default weld distance: a vertex this close to the mirror plane, as a fraction of the mean length of
+its edges, is snapped onto it and shared by both halves (the seam)."""
 
 RETIRED_SOLVER = "SPRINGS"
 """The spring solver's name in old ``.blend`` files, operator calls and scripts: the wrap maps it to the energy

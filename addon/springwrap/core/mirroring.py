@@ -29,7 +29,7 @@ from typing import NamedTuple
 import numpy as np
 
 from . import anchors as anchor_module
-from . import layout_state, mirror_seam, transforms
+from . import defaults, layout_state, mirror_seam, transforms
 from .errors import LayoutError
 from .layout_state import LayoutState
 from .mirror_seam import vertex_edge_lengths
@@ -38,8 +38,8 @@ from .wrap_inputs import check_rest_edges
 AXES = ("X", "Y", "Z")
 """The mirror axes: the plane is perpendicular to this axis of the layout (or of the mirror object)."""
 
-DEFAULT_WELD_FRACTION = 0.1
-"""Default weld distance of a vertex: this fraction of the mean length of its edges."""
+DEFAULT_WELD_FRACTION = defaults.WELD_FRACTION
+"""Default weld distance of a vertex: this fraction of the mean length of its edges (``core.defaults``)."""
 
 
 class Plane(NamedTuple):

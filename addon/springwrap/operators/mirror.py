@@ -29,7 +29,7 @@ import numpy as np
 
 from .. import property_kinds as props
 from ..blender import anchors as anchor_data
-from ..blender import attributes, last_run, wrap_session
+from ..blender import attributes, last_run, live_wraps, wrap_session
 from ..blender import layout as layout_data
 from ..blender import mirror as mirror_data
 from ..blender import quality as quality_data
@@ -140,6 +140,7 @@ class SPRINGWRAP_OT_mirror(SpringwrapOperator, bpy.types.Operator):
         type(self).last_outcome = None
         with object_mode(layout):
             try:
+                live_wraps.take_over(context, layout)  # one wrap per layout: the pair tool's re-settle kept
                 check_inputs(context, layout, with_target=self.wrap)
                 prepared = self._prepare(context, layout)
             except ERRORS as error:

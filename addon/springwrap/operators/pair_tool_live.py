@@ -36,10 +36,27 @@ class PairToolLive:
         except ERRORS as error:
             self.report({"ERROR"}, f"Live: {error}")
             return False
-        wrap_session.set_running(self._settle)
+        wrap_session.set_running(self._settle, hand_over=self._hand_over)
         if self._timer is None:
             self._timer = context.window_manager.event_timer_add(TIMER_SECONDS, window=context.window)
         return True
+
+    def _hand_over(self, context) -> str | None:
+        """Another wrap starts on the layout (``blender.live_wraps.take_over``: the Wrap button): the re-settle is
+        kept as far as it got (one undo step, as before any edit it cannot take) and the tool's edits go to that
+        wrap from now on; None, or why not now (a drag in progress: it is one undo step, the re-settle part of it)."""
+        if self._dragging:
+            return (
+                f"The pair tool is dragging a pair of '{self._layout_name}' while its Live re-settle runs: release "
+                "the pair, then start the wrap"
+            )
+        settle = self._settle
+        try:
+            self._finish_settle(context)
+        except Exception as error:  # noqa: BLE001 - its solver failed: undone (the edits kept), the wrap starts
+            self._settle = settle
+            self._live_failed(context, error)
+        return None
 
     def _live(self):
         """The running wrap an edit goes to: the re-settle, else a live wrap on the layout; None."""

@@ -189,6 +189,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
             return None
         try:
             layout = context.active_object
+            live_wraps.take_over(context, layout)  # one wrap per layout: the pair tool's re-settle kept, or refused
             reads = wrap_reads.read(context, layout)  # once: checked here, then handed to the session
             extent = check_inputs(
                 context, layout, arrays=reads.arrays, target=reads.target, anchors=reads.anchors, curves=reads.curves
