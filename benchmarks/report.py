@@ -336,7 +336,7 @@ def retarget_section(retarget: dict, image_folder: Path, image_prefix: str) -> l
         + (
             f", wrap capped at {arguments['wrap_max_iterations']} iterations"
             if arguments.get("wrap_max_iterations")
-            else ", the wrap at its default limit (2000 iterations)"
+            else ", the wrap at its default iteration limit"
         )
         + "."
     )

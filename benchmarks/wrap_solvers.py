@@ -69,11 +69,23 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     )
     parser.add_argument("--anchors", type=int, default=24, help="anchors per case (default 24)")
     parser.add_argument("--solvers", nargs="+", default=list(SOLVERS), choices=SOLVERS)
-    parser.add_argument("--max-iterations", type=int, default=2000, help="iteration limit per solver")
+    parser.add_argument(
+        "--max-iterations", type=int, default=None, help="iteration limit per solver (default: the wrap's own)"
+    )
     parser.add_argument("--nricp", action="store_true", help="also run trimesh's nricp_amberg (slow: ~20 s a body)")
     parser.add_argument("--json", type=Path, help="write every number here")
     parser.add_argument("--markdown", type=Path, help="write the table as a markdown page here")
-    return parser.parse_args(argv)
+    arguments = parser.parse_args(argv)
+    if arguments.max_iterations is None:
+        import bpy  # noqa: F401  (Blender's modules, then the add-on enabled the scripts' way)
+
+        from benchmarks.retarget.run import enable_addon
+
+        enable_addon()
+        from springwrap.core import defaults
+
+        arguments.max_iterations = defaults.MAX_ITERATIONS
+    return arguments
 
 
 def prepared(case, anchor_count: int):
