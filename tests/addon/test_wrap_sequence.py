@@ -387,3 +387,25 @@ def test_a_target_back_in_its_first_shape_gives_the_first_frame_s_wrap_again():
     first, last = key_positions(layout, "Wrap 0001"), key_positions(layout, "Wrap 0005")
     # measured 2e-7 (float32 rounding); carried over from the stretched frames it was 0.008 mean, 0.024 at most
     assert np.linalg.norm(last - first, axis=1).max() < 1e-5
+
+
+@pytest.mark.parametrize(("schedule", "later"), [("AUTO", "GLOBAL_TO_LOCAL"), ("LOCAL", "LOCAL")])
+def test_later_frames_wrap_the_region_started_again_global_to_local_unless_a_schedule_was_chosen(
+    monkeypatch, schedule, later
+):
+    """The first frame is an ordinary wrap with the chosen schedule; a later frame's changed region, started again
+    from the template, is wrapped global to local when the schedule is Auto, with the chosen one otherwise."""
+    module = addon_module("blender.wrap_sequence")
+    made = []
+
+    def spy(context, layout, parameters, **options):
+        made.append((options.get("region") is not None, parameters.settings.schedule))
+        return session_class(context, layout, parameters, **options)
+
+    session_class = module.WrapSession
+    monkeypatch.setattr(module, "WrapSession", spy)
+    sequence_scene()
+    assert run_sequence(schedule=schedule) == {"FINISHED"}
+    assert made[0] == (False, schedule)
+    assert len(made) > 1 and all(resettled for resettled, _schedule in made[1:])
+    assert {used for _resettled, used in made[1:]} == {later}

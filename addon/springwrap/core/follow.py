@@ -8,7 +8,8 @@ is held by an anchor where it is (a face anchor on its face when it is a face-po
 as it was. A sequence's later frame starts the region again from the template's shape (placed onto the vertices
 around it), its springs resting in that shape, as a wrap from the template would: where the target went back
 (a mouth that opened and closed again) the region comes back to where such a wrap puts it, instead of keeping
-the shape the frames before it carried.
+the shape the frames before it carried. That region is wrapped with the global-to-local schedule when the wrap's
+is Auto (:func:`restart_parameters`).
 """
 
 from typing import NamedTuple
@@ -35,6 +36,23 @@ TEMPLATE_SHARE = 0.3
 """A sequence's later frame: the template's share in the rest shape of the springs held around the region it
 re-settles (the previous frame's shape the rest); the region itself starts again from the template and rests in
 its shape (:func:`restarted`)."""
+
+
+RESTART_SCHEDULE = "GLOBAL_TO_LOCAL"
+"""The schedule a region started again from the template is wrapped with when the wrap's is Auto: stiff, nearly
+affine levels first, as for a large change of shape. Auto would take the local one (the held vertices around the
+region are many anchors), which settles the region farther from where a wrap of the whole layout puts it
+(measured on the body's expression sequence: ``benchmarks/sequence.py``)."""
+
+
+def restart_parameters(parameters):
+    """``parameters`` (``core.wrap_inputs.WrapParameters``) for a region started again from the template: the
+    Auto schedule replaced by :data:`RESTART_SCHEDULE` (``settings`` None: the kernel's defaults so replaced); a
+    schedule chosen by the user is kept."""
+    settings = parameters.settings if parameters.settings is not None else springwrap_kernel.WrapSettings()
+    if settings.schedule != "AUTO":
+        return parameters
+    return parameters._replace(settings=settings.replace(schedule=RESTART_SCHEDULE))
 
 
 def changed_vertices(before: np.ndarray, after: np.ndarray, moved: np.ndarray, tolerance: float) -> np.ndarray:
