@@ -394,18 +394,33 @@ def test_later_frames_wrap_the_region_started_again_global_to_local_unless_a_sch
     monkeypatch, schedule, later
 ):
     """The first frame is an ordinary wrap with the chosen schedule; a later frame's changed region, started again
-    from the template, is wrapped global to local when the schedule is Auto, with the chosen one otherwise."""
+    from the template with vertices held around it (the target pushed out on one side), is wrapped global to local
+    when the schedule is Auto, with the chosen one otherwise."""
     module = addon_module("blender.wrap_sequence")
     made = []
 
     def spy(context, layout, parameters, **options):
-        made.append((options.get("region") is not None, parameters.settings.schedule))
+        region = options.get("region")
+        part = None if region is None else not region.all()
+        made.append((part, parameters.settings.schedule))
         return session_class(context, layout, parameters, **options)
 
     session_class = module.WrapSession
     monkeypatch.setattr(module, "WrapSession", spy)
-    sequence_scene()
+    target, _layout = sequence_scene()
+    keys = target.data.shape_keys
+    keys.animation_data_clear()
+    keys.key_blocks["Stretch"].value = 0.0
+    bump = target.shape_key_add(name="Bump", from_mix=False)  # the side at +x alone pushed out
+    points = np.empty(len(bump.data) * 3, dtype=np.float32)
+    bump.data.foreach_get("co", points)
+    points = points.reshape(-1, 3)
+    points[points[:, 0] > 1.0] *= 1.1
+    bump.data.foreach_set("co", points.reshape(-1))
+    for frame, value in zip(FRAMES, (0.0, 0.5, 1.0)):
+        bump.value = value
+        bump.keyframe_insert("value", frame=frame)
     assert run_sequence(schedule=schedule) == {"FINISHED"}
-    assert made[0] == (False, schedule)
-    assert len(made) > 1 and all(resettled for resettled, _schedule in made[1:])
-    assert {used for _resettled, used in made[1:]} == {later}
+    assert made[0] == (None, schedule)
+    assert [part for part, _used in made[1:]] == [True, True]
+    assert {used for _part, used in made[1:]} == {later}

@@ -9,7 +9,7 @@ triangle and weights and so follows its point on the moved surface, and where th
 it is found again by the deleted-face rule). The first frame is an ordinary wrap; later frames keep the
 previous frame's result (``warm_rest='PREVIOUS'``) and re-wrap only where the target changed, that region
 started again from the template's shape as a wrap from the template would start it, with the global-to-local
-schedule when the wrap's is Auto (``core.follow.restart_parameters``; the rest is held and written back bit for
+schedule when the wrap's is Auto and some vertex is held (``core.follow.restart_parameters``; the rest is held and written back bit for
 bit), or
 start again from the layout as it was before the sequence (``'TEMPLATE'``: every frame the wrap a single
 wrap onto that frame would make, independent of the others). A frame that fails is put back (the layout
@@ -156,7 +156,7 @@ class SequenceRun:
             session = WrapSession(
                 self.context,
                 self.layout,
-                self.parameters if region is None else follow.restart_parameters(self.parameters),
+                self.parameters if region is None else follow.restart_parameters(self.parameters, region),
                 target=target,
                 region=region,
                 reads=reads,

@@ -9,7 +9,7 @@ as it was. A sequence's later frame starts the region again from the template's 
 around it), its springs resting in that shape, as a wrap from the template would: where the target went back
 (a mouth that opened and closed again) the region comes back to where such a wrap puts it, instead of keeping
 the shape the frames before it carried. That region is wrapped with the global-to-local schedule when the wrap's
-is Auto (:func:`restart_parameters`).
+is Auto and vertices around it are held (:func:`restart_parameters`).
 """
 
 from typing import NamedTuple
@@ -39,18 +39,19 @@ its shape (:func:`restarted`)."""
 
 
 RESTART_SCHEDULE = "GLOBAL_TO_LOCAL"
-"""The schedule a region started again from the template is wrapped with when the wrap's is Auto: stiff, nearly
-affine levels first, as for a large change of shape. Auto would take the local one (the held vertices around the
-region are many anchors), which settles the region farther from where a wrap of the whole layout puts it
-(measured on the body's expression sequence: ``benchmarks/sequence.py``)."""
+"""The schedule a region started again from the template is wrapped with when the wrap's is Auto and vertices
+around it are held: stiff, nearly affine levels first, as for a large change of shape. Auto would take the local
+one (the held vertices are many anchors), which settles the region farther from where a wrap of the whole layout
+puts it (measured on the body's expression sequence: ``benchmarks/sequence.py``)."""
 
 
-def restart_parameters(parameters):
-    """``parameters`` (``core.wrap_inputs.WrapParameters``) for a region started again from the template: the
-    Auto schedule replaced by :data:`RESTART_SCHEDULE` (``settings`` None: the kernel's defaults so replaced); a
-    schedule chosen by the user is kept."""
+def restart_parameters(parameters, region: np.ndarray):
+    """``parameters`` (``core.wrap_inputs.WrapParameters``) for the ``region`` ((N,) bool) started again from the
+    template: the Auto schedule replaced by :data:`RESTART_SCHEDULE` (``settings`` None: the kernel's defaults so
+    replaced) when some vertex is held around it; a schedule chosen by the user is kept, and so is Auto for the
+    whole layout (nothing held: the wrap from the template that the first frame was)."""
     settings = parameters.settings if parameters.settings is not None else springwrap_kernel.WrapSettings()
-    if settings.schedule != "AUTO":
+    if settings.schedule != "AUTO" or np.asarray(region, dtype=bool).all():
         return parameters
     return parameters._replace(settings=settings.replace(schedule=RESTART_SCHEDULE))
 
