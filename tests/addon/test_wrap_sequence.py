@@ -395,7 +395,8 @@ def test_later_frames_wrap_the_region_started_again_global_to_local_unless_a_sch
 ):
     """The first frame is an ordinary wrap with the chosen schedule; a later frame's changed region, started again
     from the template with vertices held around it (the target pushed out on one side), is wrapped global to local
-    when the schedule is Auto, with the chosen one otherwise."""
+    when the schedule is Auto, with the chosen one otherwise, over the changed vertices grown by three rings of
+    layout edges."""
     module = addon_module("blender.wrap_sequence")
     made = []
 
@@ -405,8 +406,13 @@ def test_later_frames_wrap_the_region_started_again_global_to_local_unless_a_sch
         made.append((part, parameters.settings.schedule))
         return session_class(context, layout, parameters, **options)
 
-    session_class = module.WrapSession
+    def region_spy(*arguments):
+        rings.append(arguments[6])
+        return changed_region(*arguments)
+
+    session_class, changed_region, rings = module.WrapSession, module.follow.changed_region, []
     monkeypatch.setattr(module, "WrapSession", spy)
+    monkeypatch.setattr(module.follow, "changed_region", region_spy)
     target, _layout = sequence_scene()
     keys = target.data.shape_keys
     keys.animation_data_clear()
@@ -424,3 +430,4 @@ def test_later_frames_wrap_the_region_started_again_global_to_local_unless_a_sch
     assert made[0] == (None, schedule)
     assert [part for part, _used in made[1:]] == [True, True]
     assert {used for _part, used in made[1:]} == {later}
+    assert rings == [module.follow.RESTART_RINGS] * 2  # the changed vertices grown by three rings

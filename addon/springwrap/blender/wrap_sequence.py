@@ -147,7 +147,7 @@ class SequenceRun:
             world = transforms.world_positions(before)
             same_topology = self.layout.springwrap.target_signature == target.signature
             region, _after = follow.changed_region(
-                target, world, before.state, same_topology, self.distances, self.edges
+                target, world, before.state, same_topology, self.distances, self.edges, follow.RESTART_RINGS
             )
             clock.lap("region")
             if not region.any():

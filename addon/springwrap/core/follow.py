@@ -29,6 +29,11 @@ CHANGE_FRACTION = 1e-5
 RINGS = 2
 """Rings of layout edges the changed vertices are grown by."""
 
+RESTART_RINGS = 3
+"""Rings of layout edges a sequence's changed vertices are grown by, the region started again from the template
+(:func:`restarted`): one more than :data:`RINGS`, so that the region's wrap reaches farther past the change
+(measured on the body's expression sequence, ``benchmarks/sequence.py``: closer to a wrap of the whole frame)."""
+
 FIT_RINGS = 3
 """Rings of layout edges around vertices started again from the template that the template is fitted to."""
 
