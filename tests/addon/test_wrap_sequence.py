@@ -387,3 +387,47 @@ def test_a_target_back_in_its_first_shape_gives_the_first_frame_s_wrap_again():
     first, last = key_positions(layout, "Wrap 0001"), key_positions(layout, "Wrap 0005")
     # measured 2e-7 (float32 rounding); carried over from the stretched frames it was 0.008 mean, 0.024 at most
     assert np.linalg.norm(last - first, axis=1).max() < 1e-5
+
+
+@pytest.mark.parametrize(("schedule", "later"), [("AUTO", "GLOBAL_TO_LOCAL"), ("LOCAL", "LOCAL")])
+def test_later_frames_wrap_the_region_started_again_global_to_local_unless_a_schedule_was_chosen(
+    monkeypatch, schedule, later
+):
+    """The first frame is an ordinary wrap with the chosen schedule; a later frame's changed region, started again
+    from the template with vertices held around it (the target pushed out on one side), is wrapped global to local
+    when the schedule is Auto, with the chosen one otherwise, over the changed vertices grown by three rings of
+    layout edges."""
+    module = addon_module("blender.wrap_sequence")
+    made = []
+
+    def spy(context, layout, parameters, **options):
+        region = options.get("region")
+        part = None if region is None else not region.all()
+        made.append((part, parameters.settings.schedule))
+        return session_class(context, layout, parameters, **options)
+
+    def region_spy(*arguments):
+        rings.append(arguments[6])
+        return changed_region(*arguments)
+
+    session_class, changed_region, rings = module.WrapSession, module.follow.changed_region, []
+    monkeypatch.setattr(module, "WrapSession", spy)
+    monkeypatch.setattr(module.follow, "changed_region", region_spy)
+    target, _layout = sequence_scene()
+    keys = target.data.shape_keys
+    keys.animation_data_clear()
+    keys.key_blocks["Stretch"].value = 0.0
+    bump = target.shape_key_add(name="Bump", from_mix=False)  # the side at +x alone pushed out
+    points = np.empty(len(bump.data) * 3, dtype=np.float32)
+    bump.data.foreach_get("co", points)
+    points = points.reshape(-1, 3)
+    points[points[:, 0] > 1.0] *= 1.1
+    bump.data.foreach_set("co", points.reshape(-1))
+    for frame, value in zip(FRAMES, (0.0, 0.5, 1.0)):
+        bump.value = value
+        bump.keyframe_insert("value", frame=frame)
+    assert run_sequence(schedule=schedule) == {"FINISHED"}
+    assert made[0] == (None, schedule)
+    assert [part for part, _used in made[1:]] == [True, True]
+    assert {used for _part, used in made[1:]} == {later}
+    assert rings == [module.follow.RESTART_RINGS] * 2  # the changed vertices grown by three rings

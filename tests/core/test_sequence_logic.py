@@ -217,3 +217,19 @@ def test_a_region_starts_again_from_the_template_placed_onto_the_vertices_around
     rest = follow.held(started, region, follow.TEMPLATE_SHARE, region, warm).rest_positions
     assert np.allclose(rest[region], follow.blended_rest(warm, template, 1.0)[region])
     assert np.allclose(rest[~region], follow.blended_rest(warm, template, follow.TEMPLATE_SHARE)[~region])
+
+
+def test_a_region_started_again_is_wrapped_global_to_local_unless_a_schedule_was_chosen():
+    """The Auto schedule (also the kernel's defaults, no settings given) becomes global to local for a region started
+    again from the template with vertices held around it; the other settings are kept, and a schedule the user
+    chose is left as it is, as is Auto for the whole layout (nothing held: a wrap from the template)."""
+    kernel = pytest.importorskip("springwrap_kernel")
+    region = np.array([True, True, False])
+    auto = wrap_inputs.WrapParameters(max_iterations=7, settings=kernel.WrapSettings(fairness=0.3))
+    restarted = follow.restart_parameters(auto, region)
+    assert restarted.settings.schedule == follow.RESTART_SCHEDULE == "GLOBAL_TO_LOCAL"
+    assert restarted.max_iterations == 7 and restarted.settings.fairness == pytest.approx(0.3)
+    assert follow.restart_parameters(wrap_inputs.WrapParameters(), region).settings.schedule == "GLOBAL_TO_LOCAL"
+    local = wrap_inputs.WrapParameters(settings=kernel.WrapSettings(schedule="LOCAL"))
+    assert follow.restart_parameters(local, region) is local
+    assert follow.restart_parameters(auto, np.ones(3, dtype=bool)) is auto

@@ -8,8 +8,9 @@ anchors and target signature are what the next frame starts from: a face-point o
 triangle and weights and so follows its point on the moved surface, and where the target's topology changed
 it is found again by the deleted-face rule). The first frame is an ordinary wrap; later frames keep the
 previous frame's result (``warm_rest='PREVIOUS'``) and re-wrap only where the target changed, that region
-started again from the template's shape as a wrap from the template would start it (the rest is held and
-written back bit for bit), or
+started again from the template's shape as a wrap from the template would start it, with the global-to-local
+schedule when the wrap's is Auto and some vertex is held (``core.follow.restart_parameters``; the rest is held and written back bit for
+bit), or
 start again from the layout as it was before the sequence (``'TEMPLATE'``: every frame the wrap a single
 wrap onto that frame would make, independent of the others). A frame that fails is put back (the layout
 keeps the previous frame's shape) and reported. :meth:`SequenceRun.finish` puts the layout back as the first frame left
@@ -146,7 +147,7 @@ class SequenceRun:
             world = transforms.world_positions(before)
             same_topology = self.layout.springwrap.target_signature == target.signature
             region, _after = follow.changed_region(
-                target, world, before.state, same_topology, self.distances, self.edges
+                target, world, before.state, same_topology, self.distances, self.edges, follow.RESTART_RINGS
             )
             clock.lap("region")
             if not region.any():
@@ -155,7 +156,7 @@ class SequenceRun:
             session = WrapSession(
                 self.context,
                 self.layout,
-                self.parameters,
+                self.parameters if region is None else follow.restart_parameters(self.parameters, region),
                 target=target,
                 region=region,
                 reads=reads,

@@ -8,7 +8,8 @@ is held by an anchor where it is (a face anchor on its face when it is a face-po
 as it was. A sequence's later frame starts the region again from the template's shape (placed onto the vertices
 around it), its springs resting in that shape, as a wrap from the template would: where the target went back
 (a mouth that opened and closed again) the region comes back to where such a wrap puts it, instead of keeping
-the shape the frames before it carried.
+the shape the frames before it carried. That region is wrapped with the global-to-local schedule when the wrap's
+is Auto and vertices around it are held (:func:`restart_parameters`).
 """
 
 from typing import NamedTuple
@@ -28,6 +29,11 @@ CHANGE_FRACTION = 1e-5
 RINGS = 2
 """Rings of layout edges the changed vertices are grown by."""
 
+RESTART_RINGS = 3
+"""Rings of layout edges a sequence's changed vertices are grown by, the region started again from the template
+(:func:`restarted`): one more than :data:`RINGS`, so that the region's wrap reaches farther past the change
+(measured on the body's expression sequence, ``benchmarks/sequence.py``: closer to a wrap of the whole frame)."""
+
 FIT_RINGS = 3
 """Rings of layout edges around vertices started again from the template that the template is fitted to."""
 
@@ -35,6 +41,24 @@ TEMPLATE_SHARE = 0.3
 """A sequence's later frame: the template's share in the rest shape of the springs held around the region it
 re-settles (the previous frame's shape the rest); the region itself starts again from the template and rests in
 its shape (:func:`restarted`)."""
+
+
+RESTART_SCHEDULE = "GLOBAL_TO_LOCAL"
+"""The schedule a region started again from the template is wrapped with when the wrap's is Auto and vertices
+around it are held: stiff, nearly affine levels first, as for a large change of shape. Auto would take the local
+one (the held vertices are many anchors), which settles the region farther from where a wrap of the whole layout
+puts it (measured on the body's expression sequence: ``benchmarks/sequence.py``)."""
+
+
+def restart_parameters(parameters, region: np.ndarray):
+    """``parameters`` (``core.wrap_inputs.WrapParameters``) for the ``region`` ((N,) bool) started again from the
+    template: the Auto schedule replaced by :data:`RESTART_SCHEDULE` (``settings`` None: the kernel's defaults so
+    replaced) when some vertex is held around it; a schedule chosen by the user is kept, and so is Auto for the
+    whole layout (nothing held: the wrap from the template that the first frame was)."""
+    settings = parameters.settings if parameters.settings is not None else springwrap_kernel.WrapSettings()
+    if settings.schedule != "AUTO" or np.asarray(region, dtype=bool).all():
+        return parameters
+    return parameters._replace(settings=settings.replace(schedule=RESTART_SCHEDULE))
 
 
 def changed_vertices(before: np.ndarray, after: np.ndarray, moved: np.ndarray, tolerance: float) -> np.ndarray:
