@@ -1,7 +1,7 @@
 """The wrap with few anchors: the retargeting benchmark at 4, 6, 12 and 24 anchors on the body cases.
 
     .venv/bin/python benchmarks/few_anchors.py [--cases heavy heavy-old ...] [--anchors 4 6 12 24]
-        [--json out/bench/few_anchors.json]
+        [--methods "aligned template" "Springwrap wrap" ...] [--json out/bench/few_anchors.json]
 
 Runs ``benchmarks.retarget.run`` once per anchor count (the same landmarks, the first N, given to every
 method) with the aligned template, trimesh's ``nricp_amberg`` and the wrap with each stiffness schedule
@@ -47,6 +47,7 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("--cases", nargs="+", default=list(DEFAULT_CASES), metavar="CASE")
     parser.add_argument("--anchors", nargs="+", type=int, default=list(DEFAULT_ANCHORS), metavar="N")
     parser.add_argument("--json", type=Path, default=DEFAULT_JSON)
+    parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS, help="default: all")
     return parser.parse_args(argv)
 
 
@@ -75,7 +76,7 @@ def run(arguments: argparse.Namespace) -> int:
     for anchors in arguments.anchors:
         path = arguments.json.with_name(f"{arguments.json.stem}-{anchors}.json")
         command = [sys.executable, "-m", "benchmarks.retarget.run", "--cases", *arguments.cases]
-        command += ["--anchors", str(anchors), "--json", str(path), "--methods", *METHODS]
+        command += ["--anchors", str(anchors), "--json", str(path), "--methods", *arguments.methods]
         print(f"few anchors: {anchors}", flush=True)
         completed = subprocess.run(command, cwd=REPOSITORY_ROOT, check=False)
         if completed.returncode != 0:
@@ -91,7 +92,7 @@ def run(arguments: argparse.Namespace) -> int:
             "anchors": [
                 run_anchors for run_anchors in arguments.anchors if any(r["anchors"] == run_anchors for r in rows)
             ],
-            "methods": list(METHODS),
+            "methods": list(arguments.methods),
             "runs": runs,
             "seconds": time.perf_counter() - started,
             "rows": rows,
@@ -125,8 +126,9 @@ def markdown(result: dict) -> list[str]:
         "",
         f"The body cases with the first {', '.join(str(n) for n in sorted(result['anchors']))} landmarks as anchors, the "
         "same anchors to every method (`benchmarks/few_anchors.py`, one run per anchor count). `Springwrap wrap` "
-        "is the energy wrap with its default schedule (`'AUTO'`: global to local for 3 to 11 anchors or a large "
-        "change of shape, else local); `Springwrap wrap local` the local schedule (`schedule='LOCAL'`); "
+        "is the energy wrap with its default schedule (`'AUTO'`: global to local for 3 to 11 anchors, or for more "
+        "that slide along the surface from a similarity of the template without a pose, else local); "
+        "`Springwrap wrap local` the local schedule (`schedule='LOCAL'`); "
         "`Springwrap wrap global` the global-to-local schedule (`schedule='GLOBAL_TO_LOCAL'`); `Springwrap wrap "
         "proposals` the default wrap after `springwrap.anchors_propose(accept=True)` (further pairs proposed from "
         "the anchors, all accepted: soft pairs that steer the global-to-local schedule's stiff levels). Errors in % of the diagonal; flipped quads against the true quads; time: every "

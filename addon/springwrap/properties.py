@@ -173,8 +173,8 @@ WRAP_SCHEDULE_ITEMS = (
     (
         "AUTO",
         "Automatic",
-        "Global to Local for 3 to 11 anchors, or for more whose places no similarity of the template "
-        "explains (a large change of shape for their number); Local otherwise",
+        "Global to Local for 3 to 11 anchors, or for more that slide along the surface from where a "
+        "similarity of the template puts them (a change of proportions, not a pose); Local otherwise",
     ),
     (
         "LOCAL",

@@ -225,7 +225,7 @@ impl PyWrapSettings {
     }
 
     /// The stiffness schedule: `'AUTO'` (chosen from the anchors when the wrap
-    /// starts: global to local for 3 to 11 anchors, or more on a large change of shape),
+    /// starts: global to local for 3 to 11 anchors, or more on a change of proportions),
     /// `'LOCAL'` or `'GLOBAL_TO_LOCAL'` (stiff, nearly affine levels first: for few anchors on a
     /// large change of shape).
     #[getter]

@@ -60,9 +60,9 @@ impl WrapWeights {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum WrapSchedule {
     /// Chosen from the anchors when the wrap starts: [`WrapSchedule::GlobalToLocal`] for a few
-    /// anchors (3 to 11), or for more whose positions no similarity of the template explains (a
-    /// large change of shape); [`WrapSchedule::Local`] otherwise (see
-    /// `wrap::global_phase::choose_schedule`).
+    /// anchors (3 to 11), or for more that slide far along the surface from where a similarity
+    /// of the template puts them (a change of proportions) without turning each their own way (a
+    /// pose); [`WrapSchedule::Local`] otherwise (see `wrap::global_phase::choose_schedule`).
     #[default]
     Auto,
     /// Rotations and one scale for all at first, then local scales: quick, and right when the

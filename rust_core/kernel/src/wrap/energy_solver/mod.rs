@@ -320,7 +320,12 @@ impl EnergySolver {
         let structure = inputs.structure;
         let vertex_count = structure.vertex_count;
         let settings = inputs.settings;
-        let schedule = choose_schedule(settings.schedule, inputs.rest, inputs.anchor_of_vertex);
+        let schedule = choose_schedule(
+            settings.schedule,
+            structure,
+            inputs.rest,
+            inputs.anchor_of_vertex,
+        );
         let mut fixed = vec![None; vertex_count];
         let mut fixed_points = vec![None; vertex_count];
         for vertex in 0..vertex_count {
