@@ -125,8 +125,9 @@ def _read_and_build(depsgraph: bpy.types.Depsgraph, target: bpy.types.Object) ->
         _reads["hashed"] += 1
         return cached, key
     try:
+        finite = np.isfinite(vertices).all(axis=1)
         input_policy.check_points(
-            vertices[np.all(np.isfinite(vertices), axis=1)],  # the kernel names non-finite vertices itself
+            vertices if finite.all() else vertices[finite],  # the kernel names non-finite vertices itself
             lambda row: f"Target '{target.name}': a vertex",
             fix="fix the target mesh or its modifiers and transform",
         )
