@@ -190,7 +190,9 @@ fn strip(count: u32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
     let vertices = (0..count + 2)
         .map(|index| Vec3::new((index / 2) as f32, (index % 2) as f32, 0.0))
         .collect();
-    let triangles = (0..count).map(|index| [index, index + 1, index + 2]).collect();
+    let triangles = (0..count)
+        .map(|index| [index, index + 1, index + 2])
+        .collect();
     (vertices, triangles)
 }
 
@@ -211,10 +213,7 @@ fn a_large_mesh_names_its_first_bad_vertex_and_triangle() {
     vertices[170_000].x = -3e9;
     assert!(matches!(
         TargetMesh::new(vertices, triangles, TargetMeshOptions::default()).unwrap_err(),
-        KernelError::CoordinateOutOfRange {
-            index: 170_000,
-            ..
-        }
+        KernelError::CoordinateOutOfRange { index: 170_000, .. }
     ));
     let (vertices, mut triangles) = strip(200_000);
     triangles[160_000][0] = 300_000;

@@ -134,7 +134,10 @@ impl TargetMesh {
             .with_min_len(PARALLEL_MIN)
             .position_first(|corners| corners.iter().any(out_of_range))
         {
-            let corner = triangles[triangle].iter().position(out_of_range).unwrap_or(0);
+            let corner = triangles[triangle]
+                .iter()
+                .position(out_of_range)
+                .unwrap_or(0);
             return Err(KernelError::VertexIndexOutOfRange {
                 triangle,
                 corner,
