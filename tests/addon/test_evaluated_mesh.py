@@ -1,5 +1,6 @@
-"""The evaluated-mesh reader: its loop triangles, rebuilt from the corner arrays for triangles and quads (folded
-quads split over their other diagonal, as Blender does), are Blender's own, triangle for triangle."""
+"""The evaluated-mesh reader: its loop triangles, a triangle mesh's corners as they are or rebuilt from the corner
+arrays for triangles and quads (folded quads split over their other diagonal, as Blender does), are Blender's own,
+triangle for triangle."""
 
 import bpy
 
@@ -34,10 +35,11 @@ def noisy(obj, sigma):
     "make",
     [
         lambda: noisy(_added(bpy.ops.mesh.primitive_grid_add, x_subdivisions=40, y_subdivisions=40), 0.04),
+        lambda: noisy(_added(bpy.ops.mesh.primitive_ico_sphere_add, subdivisions=3), 0.02),  # corners as they are
         lambda: _added(bpy.ops.mesh.primitive_monkey_add),  # triangles and quads
         lambda: _added(bpy.ops.mesh.primitive_cylinder_add, vertices=12),  # n-gon caps: read element by element
     ],
-    ids=["folded quads", "triangles and quads", "n-gons"],
+    ids=["folded quads", "triangles only", "triangles and quads", "n-gons"],
 )
 def test_the_loop_triangles_read_are_blender_s_own(make):
     obj = make()

@@ -13,6 +13,7 @@ import bpy
 import numpy as np
 
 from ..core import transforms
+from . import compat
 
 
 class EvaluatedMesh(NamedTuple):
@@ -71,10 +72,16 @@ def _positions(mesh) -> np.ndarray:
 def _loop_triangles(mesh, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """((T, 3) uint32 vertices, (T,) int32 polygon) of the mesh's loop triangles.
 
-    Read element by element these cost about 1 µs a triangle; for a mesh of triangles and quads they are
-    rebuilt from the corner and polygon arrays (read whole) as Blender makes them: a quad (0 1 2 3) gives
-    (0 1 2) (0 2 3), or (0 1 3) (1 2 3) when it folds over its first diagonal (Blender's
-    ``is_quad_flip_v3_first_third_fast``). A mesh with larger polygons is read element by element."""
+    Read element by element these cost about 1 µs a triangle. A mesh of triangles only (a scan's) needs no loop
+    triangles at all: they are its polygons' corners, in order (one read of the corners, which the triangles then
+    share; Blender builds none). For a mesh of triangles and quads they are rebuilt from the corner and polygon
+    arrays (read whole) as Blender makes them: a quad (0 1 2 3) gives (0 1 2) (0 2 3), or (0 1 3) (1 2 3) when it
+    folds over its first diagonal (Blender's ``is_quad_flip_v3_first_third_fast``). A mesh with larger polygons
+    is read element by element."""
+    polygon_count = len(mesh.polygons)
+    if polygon_count and len(mesh.loops) == 3 * polygon_count:  # every polygon has at least three corners
+        corners, _sizes = compat.read_face_corners(mesh)
+        return corners.reshape(-1, 3), np.arange(polygon_count, dtype=np.int32)
     mesh.calc_loop_triangles()
     count = len(mesh.loop_triangles)
     polygons = np.empty(count, dtype=np.int32)

@@ -20,7 +20,7 @@ import springwrap_kernel
 
 from ..core import input_policy, layout_state
 from ..core.errors import LayoutError
-from ..core.target import Target, make_target
+from ..core.target import Target, frame_origin, kernel_coordinates, make_target
 from . import target_changes
 from .evaluated_mesh import read_evaluated_mesh
 
@@ -125,12 +125,16 @@ def _read_and_build(depsgraph: bpy.types.Depsgraph, target: bpy.types.Object) ->
         _reads["hashed"] += 1
         return cached, key
     try:
+        finite = np.isfinite(vertices).all(axis=1)
         input_policy.check_points(
-            vertices[np.all(np.isfinite(vertices), axis=1)],  # the kernel names non-finite vertices itself
+            vertices if finite.all() else vertices[finite],  # the kernel names non-finite vertices itself
             lambda row: f"Target '{target.name}': a vertex",
             fix="fix the target mesh or its modifiers and transform",
         )
-        entry = make_target(target.name, vertices, triangles, evaluated.triangle_polygons)
+        origin, polygons = frame_origin(vertices), evaluated.triangle_polygons
+        in_frame = kernel_coordinates(vertices, origin)
+        del evaluated, vertices  # the float64 world vertices (12 bytes a triangle) not held while the kernel builds
+        entry = make_target(target.name, in_frame, triangles, polygons, origin)
     except springwrap_kernel.SpringwrapError as error:
         raise LayoutError(f"Target '{target.name}': {error}") from error
     _target_cache[key] = entry

@@ -41,6 +41,11 @@ def frame_origin(world_vertices: np.ndarray) -> np.ndarray:
     return np.round(0.5 * (low + high) / step) * step
 
 
+def kernel_coordinates(points: np.ndarray, origin: np.ndarray) -> np.ndarray:
+    """(N, 3) float32 coordinates of world points in the kernel's frame at ``origin`` (subtracted in float64)."""
+    return transforms.as_float32_points(np.asarray(points, dtype=np.float64).reshape(-1, 3) - origin)
+
+
 class CentredMesh:
     """A kernel ``TargetMesh`` built in a frame centred on the target, queried in world coordinates.
 
@@ -50,13 +55,19 @@ class CentredMesh:
     for the calls that use the kernel directly (the wrap's solver).
     """
 
-    def __init__(self, world_vertices: np.ndarray, triangles: np.ndarray):
-        self.origin = frame_origin(world_vertices)
-        self.kernel = springwrap_kernel.TargetMesh(self.to_kernel(world_vertices), triangles)
+    def __init__(self, world_vertices: np.ndarray, triangles: np.ndarray, origin: np.ndarray | None = None):
+        """``origin`` given: ``world_vertices`` are already the kernel's coordinates in the frame at ``origin``
+        (:func:`kernel_coordinates`), so that a caller need not hold float64 vertices while the kernel builds."""
+        if origin is None:
+            self.origin = frame_origin(world_vertices)
+            self.kernel = springwrap_kernel.TargetMesh(self.to_kernel(world_vertices), triangles)
+        else:
+            self.origin = np.asarray(origin, dtype=np.float64)
+            self.kernel = springwrap_kernel.TargetMesh(world_vertices, triangles)
 
     def to_kernel(self, points: np.ndarray) -> np.ndarray:
         """(N, 3) float32 kernel coordinates of world points."""
-        return transforms.as_float32_points(np.asarray(points, dtype=np.float64).reshape(-1, 3) - self.origin)
+        return kernel_coordinates(points, self.origin)
 
     def from_kernel(self, points: np.ndarray) -> np.ndarray:
         """(N, 3) float64 world coordinates of kernel points."""
@@ -154,10 +165,13 @@ class Target(NamedTuple):
         return input_policy.extent_of(self.name, low, high)
 
 
-def make_target(name: str, world_vertices: np.ndarray, triangles: np.ndarray, triangle_polygons=None) -> Target:
-    """A :class:`Target` from world vertices and triangles (the kernel's errors raised as they are)."""
+def make_target(
+    name: str, world_vertices: np.ndarray, triangles: np.ndarray, triangle_polygons=None, origin=None
+) -> Target:
+    """A :class:`Target` from world vertices and triangles (the kernel's errors raised as they are); with
+    ``origin``, the vertices are the kernel's coordinates in that frame (see :class:`CentredMesh`)."""
     triangles = np.ascontiguousarray(triangles, dtype=np.uint32).reshape(-1, 3)
-    mesh = CentredMesh(world_vertices, triangles)
+    mesh = CentredMesh(world_vertices, triangles, origin)
     low, high = mesh.bounding_box()
     if triangle_polygons is None:
         triangle_polygons = np.arange(triangles.shape[0], dtype=np.int32)

@@ -23,6 +23,7 @@
 //!   [`crate::WrapSettings::validate`], ICP's and feature detection's beside their settings.
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 use crate::error::KernelError;
 
@@ -68,10 +69,16 @@ pub fn check_coordinate(what: &'static str, index: usize, point: Vec3) -> Result
 /// # Errors
 /// As [`check_coordinate`].
 pub fn check_coordinates(what: &'static str, points: &[Vec3]) -> Result<(), KernelError> {
-    points
-        .iter()
-        .enumerate()
-        .try_for_each(|(index, &point)| check_coordinate(what, index, point))
+    // Searched in parallel (a dense target has millions of vertices); the first bad row is named.
+    let refused = |point: &Vec3| !point.is_finite() || point.abs().max_element() > MAX_COORDINATE;
+    match points
+        .par_iter()
+        .with_min_len(1 << 14)
+        .position_first(refused)
+    {
+        Some(index) => check_coordinate(what, index, points[index]),
+        None => Ok(()),
+    }
 }
 
 /// Checks the barycentric weights of a face-point: finite, each within [`BARYCENTRIC_RANGE`].

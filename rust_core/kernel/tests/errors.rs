@@ -184,3 +184,48 @@ fn too_large_is_reported_in_words() {
     };
     assert!(error.to_string().contains("too many triangles"));
 }
+
+/// A strip of `count` triangles over `count + 2` vertices: large enough that the validation runs in parallel.
+fn strip(count: u32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+    let vertices = (0..count + 2)
+        .map(|index| Vec3::new((index / 2) as f32, (index % 2) as f32, 0.0))
+        .collect();
+    let triangles = (0..count)
+        .map(|index| [index, index + 1, index + 2])
+        .collect();
+    (vertices, triangles)
+}
+
+#[test]
+fn a_large_mesh_names_its_first_bad_vertex_and_triangle() {
+    let (mut vertices, triangles) = strip(200_000);
+    vertices[150_001].y = f32::INFINITY;
+    vertices[90_003].z = f32::NAN;
+    vertices[180_000].x = 3e9;
+    assert_eq!(
+        TargetMesh::new(vertices, triangles, TargetMeshOptions::default()).unwrap_err(),
+        KernelError::NonFinite {
+            what: "vertex",
+            index: 90_003
+        }
+    );
+    let (mut vertices, triangles) = strip(200_000);
+    vertices[170_000].x = -3e9;
+    assert!(matches!(
+        TargetMesh::new(vertices, triangles, TargetMeshOptions::default()).unwrap_err(),
+        KernelError::CoordinateOutOfRange { index: 170_000, .. }
+    ));
+    let (vertices, mut triangles) = strip(200_000);
+    triangles[160_000][0] = 300_000;
+    triangles[120_000][2] = 250_000;
+    triangles[120_000][1] = 400_000;
+    assert_eq!(
+        TargetMesh::new(vertices, triangles, TargetMeshOptions::default()).unwrap_err(),
+        KernelError::VertexIndexOutOfRange {
+            triangle: 120_000,
+            corner: 1,
+            vertex: 400_000,
+            vertex_count: 200_002
+        }
+    );
+}

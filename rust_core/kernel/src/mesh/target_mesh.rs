@@ -49,6 +49,9 @@ pub struct TargetMeshOptions {
     pub reject_degenerate: bool,
 }
 
+/// The fewest triangles a thread takes in the build's parallel passes (smaller meshes stay on one).
+const PARALLEL_MIN: usize = 1 << 14;
+
 /// The largest vertex or triangle count: indices are `u32` and the Python side uses `-1` as "none".
 pub const MAX_ELEMENTS: usize = i32::MAX as usize;
 
@@ -125,26 +128,36 @@ impl TargetMesh {
         }
         crate::validate::check_coordinates("vertex", &vertices)?;
         let vertex_count = vertices.len();
-        for (triangle, corners) in triangles.iter().enumerate() {
-            for (corner, &vertex) in corners.iter().enumerate() {
-                if vertex as usize >= vertex_count {
-                    return Err(KernelError::VertexIndexOutOfRange {
-                        triangle,
-                        corner,
-                        vertex,
-                        vertex_count,
-                    });
-                }
-            }
+        let out_of_range = |vertex: &u32| *vertex as usize >= vertex_count;
+        if let Some(triangle) = triangles
+            .par_iter()
+            .with_min_len(PARALLEL_MIN)
+            .position_first(|corners| corners.iter().any(out_of_range))
+        {
+            let corner = triangles[triangle]
+                .iter()
+                .position(out_of_range)
+                .unwrap_or(0);
+            return Err(KernelError::VertexIndexOutOfRange {
+                triangle,
+                corner,
+                vertex: triangles[triangle][corner],
+                vertex_count,
+            });
         }
         let degenerate: Vec<bool> = triangles
             .par_iter()
+            .with_min_len(PARALLEL_MIN)
             .map(|corners| {
                 let [a, b, c] = corners.map(|index| Vec3A::from(vertices[index as usize]));
                 is_degenerate(a, b, c)
             })
             .collect();
-        let degenerate_count = degenerate.iter().filter(|&&flag| flag).count();
+        let degenerate_count = degenerate
+            .par_iter()
+            .with_min_len(PARALLEL_MIN)
+            .filter(|&&flag| flag)
+            .count();
         if degenerate_count == triangles.len() {
             return Err(KernelError::DegenerateMesh {
                 triangle_count: triangles.len(),
@@ -404,7 +417,8 @@ fn build_face_tree(
     });
     let slot_degenerate = tree
         .primitive_indices
-        .iter()
+        .par_iter()
+        .with_min_len(PARALLEL_MIN)
         .map(|&triangle| degenerate[triangle as usize])
         .collect();
     (tree, slot_degenerate)
