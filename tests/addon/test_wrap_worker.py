@@ -185,6 +185,26 @@ def test_an_anchor_moved_while_the_worker_runs_is_met_by_the_same_solver():
     np.testing.assert_allclose(layout.springwrap.anchors[index].location, location, atol=1e-5)  # finish wrote it
 
 
+def test_an_anchor_moved_after_the_worker_ended_solves_in_a_new_worker_not_on_the_main_thread():
+    target, layout, normal = plane_scene()
+    bpy.ops.springwrap.anchors_auto(spacing=0.5)
+    loop = _threaded_loop(layout)
+    session = loop.session
+    start = time.perf_counter()
+    while session.worker is not None and time.perf_counter() - start < 60.0:
+        session.advance()  # the frames the operator's timer draws, until the worker's end is seen
+        time.sleep(0.002)
+    assert session.worker is None and session.done  # ended; the operator has not finished it yet
+    moved = session.anchors
+    moved = moved._replace(locations=moved.locations + 0.05 * np.asarray(normal, dtype=np.float64))
+    assert session.move_anchors(moved)
+    assert not session.done and session.worker is not None  # the schedule goes on, off the main thread
+    outcome = "RUNNING_MODAL"
+    while outcome == "RUNNING_MODAL":
+        outcome = _frames(loop, 1)
+    assert outcome == "FINISHED" and loop.result.converged
+
+
 def test_pair_tool_edit_finishes_the_running_re_settle_between_two_iterations():
     from springwrap.blender import pair_tool
 

@@ -171,6 +171,7 @@ class WrapSession:
         self.events = {"landed": 0, "folded": 0}
         self._frame_end: float | None = None
         self.worker: SolveWorker | None = None
+        self.threaded = False  # solving in a worker (start_worker): an edit after it ended starts another
         self.cancel_flag = springwrap_kernel.CancelFlag()  # set by cancel(): the step in progress stops at once
         self.anchors_moved = False  # anchors moved since the last step: the wrap is not done
         self.anchors_edited = None  # the anchors last given to move_anchors (kept by cancel), None: not moved
@@ -336,7 +337,7 @@ class WrapSession:
             return True
         self.stop_worker()  # it had ended (done): the solver is this thread's
         apply()
-        if had_worker:
+        if had_worker or self.threaded:
             self.start_worker()
         return True
 
@@ -346,6 +347,7 @@ class WrapSession:
         :meth:`finish` and :meth:`cancel` call). Each of its chunks solves about one frame's time. What runs in the
         worker (:meth:`step`, the fine stage's start, :meth:`current_layout`) reads and writes no Blender data."""
         if self.worker is None and not self.done:
+            self.threaded = True
             self.worker = SolveWorker(
                 self._solve_for,
                 self.current_layout,
