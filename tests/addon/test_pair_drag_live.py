@@ -521,3 +521,27 @@ def test_a_second_wrap_on_a_layout_with_a_live_wrap_running_is_refused(scene, op
     finally:
         wrap_session.set_running(session, running=False)
         session.stop_worker(raise_error=False)
+
+
+def test_the_tool_writes_its_status_again_after_a_live_wrap_cleared_the_header(scene):
+    from springwrap.blender import live_wraps
+    from springwrap.operators import wrap
+
+    s = scene
+    live_wraps.set_tool(s.layout.name, refresh=lambda: s.tool.operator._status(s.tool.context))
+    live_wraps.set_tool(s.layout.name, dragging=True)  # the tool's later calls keep the way back
+    live_wraps.set_tool(s.layout.name)
+    wrap_ui = FakeUI()
+    ended = types.SimpleNamespace(
+        _loop=None, _timer=None, _area=types.SimpleNamespace(header_text_set=wrap_ui.header_text_set)
+    )
+    ended._restore_mode = lambda: None
+    s.tool.ui.calls.clear()
+    wrap.SPRINGWRAP_OT_wrap._end(ended, s.tool.context)
+    assert ("header_text_set", (None,)) in wrap_ui.calls  # the wrap's end cleared the header...
+    texts = [args[0] for name, args in s.tool.ui.calls if name == "header_text_set"]
+    assert texts and texts[-1].endswith("Esc: cancel a drag, or leave")  # ...and the tool wrote its status again
+    live_wraps.set_tool(None)
+    s.tool.ui.calls.clear()
+    live_wraps.refresh_tool()
+    assert not [call for call in s.tool.ui.calls if call[0] == "header_text_set"]

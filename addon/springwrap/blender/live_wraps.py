@@ -12,14 +12,26 @@ _hand_overs: dict = {}
 """For a running session whose owner can end it when another wrap starts on its layout (the pair tool's Live
 re-settle): the owner's ``hand_over(context)``, which ends it and returns None, or returns why it cannot now (see
 :func:`take_over`)."""
-_tool: dict = {"layout": None, "dragging": False}
+_tool: dict = {"layout": None, "dragging": False, "refresh": None}
 """The tool editing a layout's anchors while a wrap may run on it (the pair tool): its layout's name, whether it
-drags a pair's end."""
+drags a pair's end, and how it writes its status again."""
 
 
-def set_tool(layout_name: str | None, dragging: bool = False) -> None:
-    """Say that a tool edits ``layout_name``'s anchors (None: no tool any more), and whether it drags now."""
+def set_tool(layout_name: str | None, dragging: bool = False, refresh=None) -> None:
+    """Say that a tool edits ``layout_name``'s anchors (None: no tool any more), and whether it drags now;
+    ``refresh`` (kept until the tool goes): a callable writing the tool's status again (:func:`refresh_tool`)."""
     _tool.update(layout=layout_name, dragging=bool(layout_name) and dragging)
+    if refresh is not None or layout_name is None:
+        _tool["refresh"] = refresh
+
+
+def refresh_tool() -> None:
+    """Have the tool editing anchors write its status again: a live wrap's end cleared the header they share."""
+    if _tool["refresh"] is not None:
+        try:
+            _tool["refresh"]()
+        except (ReferenceError, RuntimeError):  # its area or layout went away meanwhile: it ends at its next event
+            pass
 
 
 def tool_takes(layout: bpy.types.Object, event_type: str, event_value: str) -> bool:

@@ -94,7 +94,8 @@ class SPRINGWRAP_OT_pair_tool(PairToolLive, LayoutOperator, bpy.types.Operator):
         self._timer = None
         self._mouse = None
         _running.append(self)
-        live_wraps.set_tool(self._layout_name)  # a live wrap lets the tool's clicks through
+        # A live wrap lets the tool's clicks through, and has it write its status again when it ends.
+        live_wraps.set_tool(self._layout_name, refresh=lambda: self._status(bpy.context))
         context.window_manager.modal_handler_add(self)
         self._status(context)
         return self.modal(context, event) if event.type in {"LEFTMOUSE", "MOUSEMOVE"} else {"RUNNING_MODAL"}

@@ -308,6 +308,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
             if loop.session.pacer.display_seconds is not None:  # the next wrap starts from the whole redraw's cost
                 frame_clock.record(loop.session.pacer.display_seconds)
         end_modal_display(self, context)
+        live_wraps.refresh_tool()  # the pair tool's status, in the header the wrap's progress cleared
         self._restore_mode()
 
     def _restore_mode(self) -> None:
