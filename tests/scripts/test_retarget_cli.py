@@ -706,3 +706,21 @@ def test_ray_executor_without_ray_says_how_to_install_it(inputs, batch_folder, t
     )
     assert len(failures) == 1 and expected in failures[0], process.stderr[-3000:]
     assert not (tmp_path / "out" / "summary.json").exists()
+
+
+def test_max_iterations_caps_the_wrap_and_changes_its_result(inputs, tmp_path):
+    reports = {}
+    for name, extra in (("capped", ("--max-iterations", "2")), ("default", ())):
+        out = tmp_path / name
+        process = run(
+            *options(template=inputs["template"], target=inputs["big"], anchors_spacing=0),
+            *outputs(out, "r", kinds=("report",)),
+            *extra,
+        )
+        assert process.returncode == 0, process.stderr[-3000:]
+        reports[name] = json.loads((out / "r.json").read_text())["wrap"]
+    capped, default = reports["capped"], reports["default"]
+    assert capped["iterations"] == 2 and not capped["converged"]
+    assert default["iterations"] > 2 and default["converged"]
+    # Stopped before its points landed: the capped wrap leaves them in space, the full one on the target.
+    assert capped["face_points"] < default["face_points"] == GRID_SIDE**2
