@@ -389,9 +389,8 @@ class WrapSession:
         return self.last_report
 
     def current_layout(self, final: bool = False):
-        """(local positions float32 (N, 3), ``LayoutState``) of the solver now. ``final`` (the result written for
-        good): the parts follow only the surface the wrap holds on the target (its face points,
-        ``core.parts.follow``); an intermediate frame's parts follow the whole surface (bound once, cheaper)."""
+        """(local positions float32 (N, 3), ``LayoutState``) of the solver now. ``final``: the parts follow only the
+        surface held on the target (its face points, ``core.parts.follow``), else all of it (a frame, cheaper)."""
         count = self.vertex_count  # a fine grid numbers the layout's own vertices first
         if self.restriction is not None:
             count = self.restriction.kept.size
@@ -402,10 +401,8 @@ class WrapSession:
         if self.restriction is not None:
             positions, state = follow.scatter(self.restriction, positions, state)
         if self.follower is not None:  # the parts: moved by the surface, off the target
-            held = state.states == layout_state.FACE_POINT if final else None
             world = transforms.transform_points(self.matrix_world, positions)
-            world = parts.follow(self.follower, self.parts, world, held)
-            world = part_data.hold_on_plane(world, self.parts, self.whole_inputs)
+            world = part_data.follow_surface(self.follower, self.parts, world, state, self.whole_inputs, final)
             positions = transforms.to_local(self.matrix_world, world)
             state.states[self.parts.parts] = layout_state.SPACE_POINT
             state.faces[self.parts.parts] = layout_state.NO_FACE
