@@ -335,3 +335,25 @@ def test_the_inside_of_a_pocket_the_target_does_not_show_is_carried_not_pulled(c
     assert distances[True].min() > 0.08 and distances[True].mean() > 0.15  # carried down in the pocket
     assert "surface vertices the target does not show" in reports[True]
     assert "surface vertices the target does not show" not in reports[False]
+
+
+def test_the_parts_follow_only_the_skin_the_wrap_holds_on_the_target():
+    from springwrap.core import parts
+
+    _target, layout = parts_scene()
+    before = world_positions(layout)
+    centre = before[OUTER:].mean(axis=0)
+    near = np.flatnonzero(np.linalg.norm(before[:OUTER] - centre, axis=1) < 1.1)
+    layout.springwrap.free_group = group(layout, "Loose skin", near)  # not pulled: carried by the springs
+    assert bpy.ops.springwrap.wrap() == {"FINISHED"}
+    after = world_positions(layout)
+    states = read_state(layout)[0]
+    held = states == 1
+    assert (~held[near]).sum() > near.size / 2 and held[:OUTER].sum() > OUTER / 2  # anchors hold a few
+    flags = np.arange(len(before)) >= OUTER
+    plan = parts.PartPlan(flags, np.zeros_like(flags), flags.astype(np.int64), ())
+    follower = parts.make_follower(plan, before)
+    expected = parts.follow(follower, plan, after, held)
+    assert np.abs(after[OUTER:] - expected[OUTER:]).max() < 1e-5
+    whole = parts.follow(follower, plan, after)  # what following the loose skin too would give
+    assert np.abs(whole[OUTER:] - expected[OUTER:]).max() > 1e-3

@@ -192,6 +192,55 @@ def test_the_follower_moves_the_ball_with_the_body_and_the_readout_leaves_it_out
     assert parts.surface_readout(readout, None) is readout
 
 
+def turned_about_x(points, angle, hinge):
+    """``points`` turned by ``angle`` (radians) about the x axis through ``hinge``."""
+    c, s = np.cos(angle), np.sin(angle)
+    return (points - hinge) @ np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]]).T + hinge
+
+
+def opened_jaw():
+    """A 'jaw' opening: a body whose lower front half turns about a hinge, a ball inside that half (as the lower
+    teeth in a mouth) and the 'lips' (the skin between the halves in front) left where they were, as a wrap leaves
+    skin the target does not hold. (positions, plan, moved positions, the ball's true place, lips (N,) bool)."""
+    body, ball = cube_sphere(16, 1.0), cube_sphere(3, 0.12, (0.0, -0.62, 0.6))
+    positions, topology = topology_of([body, ball])
+    count = len(body[0])
+    follow = np.zeros(len(positions), bool)
+    follow[count:] = True
+    plan = parts.plan_parts("Layout", positions, topology, parts.PartGroups(follow=follow), False)
+    skin = positions[:count]
+    lips = np.zeros(len(positions), bool)
+    lips[:count] = (skin[:, 1] > -0.5) & (skin[:, 1] < 0.15) & (skin[:, 2] > 0.0)
+    jaw = np.zeros(len(positions), bool)
+    jaw[:count] = skin[:, 1] < -0.05
+    hinge, angle = np.array([0.0, 0.0, -0.6]), -0.35
+    moved = positions.copy()
+    moved[jaw & ~lips] = turned_about_x(positions[jaw & ~lips], angle, hinge)
+    return positions, plan, moved, turned_about_x(positions[count:], angle, hinge), lips
+
+
+def test_a_piece_in_an_opening_jaw_follows_the_skin_the_target_holds():
+    positions, plan, moved, truth, lips = opened_jaw()
+    follower = parts.make_follower(plan, positions)
+    held = ~plan.parts & ~lips  # the wrap's face points: every surface vertex but the lagging lips
+    result = parts.follow(follower, plan, moved, held)
+    assert np.abs(result[plan.parts] - truth).max() < 1e-9  # the jaw's turn, exactly
+    assert np.array_equal(result[~plan.parts], moved[~plan.parts])
+    # Following the whole surface, the lagging lips drag the ball: off by a tenth of its radius or more.
+    dragged = parts.follow(follower, plan, moved)
+    assert np.linalg.norm(dragged[plan.parts] - truth, axis=1).max() > 0.012
+
+
+def test_a_wrap_that_holds_little_of_the_surface_has_its_parts_follow_all_of_it():
+    positions, plan, moved, _truth, lips = opened_jaw()
+    follower = parts.make_follower(plan, positions)
+    few = lips & (np.arange(len(positions)) % 2 == 0)  # far below half of the surface
+    assert few.sum() < parts.HELD_SHARE * (~plan.parts).sum()
+    assert np.array_equal(parts.follow(follower, plan, moved, few), parts.follow(follower, plan, moved))
+    everything = ~plan.parts
+    assert np.array_equal(parts.follow(follower, plan, moved, everything), parts.follow(follower, plan, moved))
+
+
 def body_and_ball_inputs():
     """(positions, topology, plan, WrapInputs) of a body with a ball part after it, an anchor on each, the body's
     vertex 2 held on a plane and a curve through its vertices 0, 1 and 2."""

@@ -7,7 +7,7 @@ import bpy
 
 import numpy as np
 
-from ..core import parts, transforms
+from ..core import layout_state, parts, transforms
 from ..core.errors import LayoutError
 from . import attributes
 from . import layout as layout_data
@@ -97,6 +97,14 @@ def read_parts(layout: bpy.types.Object) -> np.ndarray | None:
     if codes is None or codes.size != len(mesh.vertices):
         return None
     return np.asarray(codes).reshape(-1) > 0
+
+
+def follow_surface(follower, plan: parts.PartPlan, world: np.ndarray, state, inputs, final: bool) -> np.ndarray:
+    """The layout's world positions ``world`` with its parts moved by the surface (``core.parts.follow``) and held
+    on the mirror plane (:func:`hold_on_plane`). ``final`` (the wrap's result): they follow only the surface
+    vertices that ``state`` (``core.layout_state.LayoutState``) holds on the target, its face points."""
+    held = state.states == layout_state.FACE_POINT if final else None
+    return hold_on_plane(parts.follow(follower, plan, world, held), plan, inputs)
 
 
 def hold_on_plane(world: np.ndarray, plan: parts.PartPlan, inputs) -> np.ndarray:

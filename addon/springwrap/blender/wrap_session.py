@@ -390,8 +390,9 @@ class WrapSession:
                 progress(report)
         return self.last_report
 
-    def current_layout(self):
-        """(local positions float32 (N, 3), ``LayoutState``) of the solver now."""
+    def current_layout(self, final: bool = False):
+        """(local positions float32 (N, 3), ``LayoutState``) of the solver now. ``final``: the parts follow only the
+        surface held on the target (its face points, ``core.parts.follow``), else all of it (a frame, cheaper)."""
         count = self.vertex_count  # a fine grid numbers the layout's own vertices first
         if self.restriction is not None:
             count = self.restriction.kept.size
@@ -401,9 +402,9 @@ class WrapSession:
         state = layout_state.normalized_state(states, triangles, barycentrics)
         if self.restriction is not None:
             positions, state = follow.scatter(self.restriction, positions, state)
-        if self.follower is not None:  # the parts: moved by the whole surface, off the target
-            world = parts.follow(self.follower, self.parts, transforms.transform_points(self.matrix_world, positions))
-            world = part_data.hold_on_plane(world, self.parts, self.whole_inputs)
+        if self.follower is not None:  # the parts: moved by the surface, off the target
+            world = transforms.transform_points(self.matrix_world, positions)
+            world = part_data.follow_surface(self.follower, self.parts, world, state, self.whole_inputs, final)
             positions = transforms.to_local(self.matrix_world, world)
             state.states[self.parts.parts] = layout_state.SPACE_POINT
             state.faces[self.parts.parts] = layout_state.NO_FACE
@@ -424,7 +425,7 @@ class WrapSession:
         self.stop_worker()
         if self.last_report is None:
             self.step(0)
-        positions, state = self.current_layout()
+        positions, state = self.current_layout(final=True)
         readout = None
         if measure:
             readout = quality_data.measure_layout(

@@ -17,7 +17,8 @@ Which vertices are parts (:func:`plan_parts`), per separate piece of the layout 
   (loose edge chains), and pieces holding an anchor or a curve constraint, are never guessed.
 
 The wrap leaves the parts out of the target's pull (the solver's free vertices) and moves them by the
-surface's motion from the wrap's start (``springwrap_kernel.SurfaceFollower``). With parts found or chosen, the
+surface's motion from the wrap's start (``springwrap_kernel.SurfaceFollower``; in the wrap's result, by the surface
+it holds on the target alone: :func:`follow`). With parts found or chosen, the
 surface the target does not show (:func:`unseen_surface`: the inside of the mouth behind the lips, the socket
 behind a closing eyelid) is left out of the pull too: the springs carry it with the skin around it, so that the
 parts following it are not dragged onto the lips' or the lids' outer skin.
@@ -334,11 +335,23 @@ def unseen_surface(
     return unseen
 
 
-def make_follower(plan: PartPlan, positions: np.ndarray, neighbours: int | None = None):
-    """A ``springwrap_kernel.SurfaceFollower`` binding the plan's parts to the rest of the layout at ``positions``
-    ((N, 3), any frame: :func:`follow` must be given the same frame). Each connected piece of rigid part vertices
-    moves as one; soft vertices each on their own."""
-    positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+HELD_SHARE = 0.5
+"""The parts follow only the surface the wrap holds on the target (:func:`follow`'s ``held``) when it is at least
+this share of the surface; else (a wrap stopped early) the whole surface."""
+
+
+class PartFollower(NamedTuple):
+    """The parts bound to the layout's surface at rest (:func:`make_follower`)."""
+
+    kernel: object  # springwrap_kernel.SurfaceFollower bound to every surface vertex
+    rest: np.ndarray  # (N, 3) float64 the layout where it was bound (the wrap's start)
+    neighbours: int | None  # the surface vertices bound to each rigid piece's vertex (None: the kernel's default)
+
+
+def bind_parts(plan: PartPlan, rest: np.ndarray, surface: np.ndarray, neighbours: int | None = None):
+    """A ``springwrap_kernel.SurfaceFollower`` binding the plan's parts at ``rest`` ((N, 3)) to the ``surface``
+    vertices ((N,) bool, no part among them). Each connected piece of rigid part vertices moves as one; soft
+    vertices each on their own."""
     part_vertices = np.flatnonzero(plan.parts)
     rigid_pieces = np.where(plan.soft[part_vertices], -1, plan.pieces[part_vertices])
     # Soft vertices share one piece number (its flag soft); each rigid piece has its own.
@@ -346,18 +359,37 @@ def make_follower(plan: PartPlan, positions: np.ndarray, neighbours: int | None 
     rigid = numbers >= 0
     keywords = {} if neighbours is None else {"neighbours": int(neighbours)}
     return springwrap_kernel.SurfaceFollower(
-        np.ascontiguousarray(positions[~plan.parts]),
-        np.ascontiguousarray(positions[part_vertices]),
+        np.ascontiguousarray(rest[surface]),
+        np.ascontiguousarray(rest[part_vertices]),
         np.ascontiguousarray(renumbered, dtype=np.uint32),
         np.ascontiguousarray(rigid),
         **keywords,
     )
 
 
-def follow(follower, plan: PartPlan, positions: np.ndarray) -> np.ndarray:
-    """``positions`` ((N, 3), the frame the follower was made in) with the parts moved by the surface's motion."""
+def make_follower(plan: PartPlan, positions: np.ndarray, neighbours: int | None = None) -> PartFollower:
+    """The plan's parts bound to the rest of the layout at ``positions`` ((N, 3), any frame: :func:`follow` must
+    be given the same frame)."""
     positions = np.array(positions, dtype=np.float64).reshape(-1, 3)
-    positions[plan.parts] = follower.apply(np.ascontiguousarray(positions[~plan.parts]))
+    return PartFollower(bind_parts(plan, positions, ~plan.parts, neighbours), positions, neighbours)
+
+
+def follow(follower: PartFollower, plan: PartPlan, positions: np.ndarray, held: np.ndarray | None = None):
+    """``positions`` ((N, 3), the frame the follower was made in) with the parts moved by the surface's motion.
+
+    ``held`` (optional, (N,) bool): the surface vertices the wrap holds on the target (its face points). When
+    they are at least :data:`HELD_SHARE` of the surface, the parts follow them alone (bound again, at rest, to
+    those): the surface left off the target (the free and unseen skin round a mouth, lips that did not reach
+    their place) is carried by the springs and lags behind the skin the target holds."""
+    positions = np.array(positions, dtype=np.float64).reshape(-1, 3)
+    surface = ~plan.parts
+    kernel = follower.kernel
+    if held is not None:
+        kept = surface & np.asarray(held, dtype=bool)
+        if kept.sum() >= HELD_SHARE * surface.sum() and not np.array_equal(kept, surface):
+            surface = kept
+            kernel = bind_parts(plan, follower.rest, surface, follower.neighbours)
+    positions[plan.parts] = kernel.apply(np.ascontiguousarray(positions[surface]))
     return positions
 
 
