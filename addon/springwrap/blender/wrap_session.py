@@ -15,7 +15,7 @@ import springwrap_kernel
 from ..core import anchors, follow, input_policy, layout_state, parts, proposals, subdivision, transforms, wrap_inputs
 from ..core.errors import LayoutError
 from ..core.target import Target
-from ..core.wrap_run import FramePacer, SolveWorker, WrapResult
+from ..core.wrap_run import FramePacer, SolveWorker, WrapResult, status_line
 from . import anchors as anchor_data
 from . import attributes, wrap_reads
 from . import curves as curve_data
@@ -486,15 +486,5 @@ class WrapSession:
             anchor_data.write_anchors(self.layout, anchor_list, active_index, anchors_signature)
 
     def status_text(self) -> str:
-        """The progress line shown in the status bar."""
-        report = self.last_report
-        if report is None:
-            return f"Springwrap: wrapping '{self.layout.name}'...  Esc / right-click: cancel"
-        stage = ""
-        if int(self.parameters.spring_resolution) > 1:
-            stage = "coarse, " if self.stage == "coarse" else f"fine {self.parameters.spring_resolution}x, "
-        return (
-            f"Springwrap: {stage}iteration {report.total_iterations} / {self.parameters.max_iterations}, "
-            f"{report.face_points} face-points, {report.space_points} space-points, "
-            f"last move {report.max_displacement:.2e}  —  Esc / right-click: cancel"
-        )
+        """The progress line shown in the status bar (``core.wrap_run.status_line``)."""
+        return status_line(self.layout.name, self.last_report, self.parameters, self.stage)

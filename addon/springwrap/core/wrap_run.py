@@ -344,3 +344,19 @@ class WrapLoop:
             self.state = "CANCELLED"
             self.session.cancel()
         return self.state
+
+
+def status_line(layout_name: str, report, parameters, stage: str) -> str:
+    """A wrap's progress line for the status bar: its iteration (of the limit), face- and space-points and last
+    move from ``report`` (the last ``StepReport``, None before the first), the stage when it has two (``'coarse'``
+    or the fine one)."""
+    if report is None:
+        return f"Springwrap: wrapping '{layout_name}'...  Esc / right-click: cancel"
+    label = ""
+    if int(parameters.spring_resolution) > 1:
+        label = "coarse, " if stage == "coarse" else f"fine {parameters.spring_resolution}x, "
+    return (
+        f"Springwrap: {label}iteration {report.total_iterations} / {parameters.max_iterations}, "
+        f"{report.face_points} face-points, {report.space_points} space-points, "
+        f"last move {report.max_displacement:.2e}  —  Esc / right-click: cancel"
+    )
