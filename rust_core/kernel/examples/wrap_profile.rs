@@ -8,6 +8,7 @@
 //! same for a change that keeps the result); `PER_ITERATION=1` also prints each iteration's
 //! correspondences, solve and safeguard seconds.
 
+use std::fmt::Write;
 use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
@@ -43,18 +44,16 @@ fn vectors(path: &Path) -> Vec<Vec3> {
 
 /// The processor seconds of all the process's threads so far.
 fn processor_seconds() -> f64 {
-    std::fs::read_dir("/proc/self/task")
-        .map(|tasks| {
-            tasks
-                .filter_map(|task| {
-                    let statistics =
-                        std::fs::read_to_string(task.ok()?.path().join("schedstat")).ok()?;
-                    statistics.split_whitespace().next()?.parse::<u64>().ok()
-                })
-                .sum::<u64>() as f64
-                * 1e-9
-        })
-        .unwrap_or(0.0)
+    std::fs::read_dir("/proc/self/task").map_or(0.0, |tasks| {
+        tasks
+            .filter_map(|task| {
+                let statistics =
+                    std::fs::read_to_string(task.ok()?.path().join("schedstat")).ok()?;
+                statistics.split_whitespace().next()?.parse::<u64>().ok()
+            })
+            .sum::<u64>() as f64
+            * 1e-9
+    })
 }
 
 fn main() {
@@ -132,7 +131,7 @@ fn main() {
         let times = solver.phase_times();
         let mut line = format!("run {run}:");
         for phase in WrapPhase::ALL {
-            line += &format!(" {} {:.3}", phase.name(), times.seconds(phase));
+            let _ = write!(line, " {} {:.3}", phase.name(), times.seconds(phase));
         }
         println!("{line}");
         let checksum: f64 = solver

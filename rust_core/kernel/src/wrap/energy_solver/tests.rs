@@ -230,7 +230,7 @@ fn the_safeguard_shortens_the_same_steps_as_rounds_over_every_corner() {
         for vertex in (0..rest.len()).step_by(3) {
             proposed[vertex] = rest[vertex];
         }
-        for _ in 0..(1 + trial % 6) {
+        for _ in 0..=(trial % 6) {
             let vertex = ((random() * rest.len() as f32) as usize / 3 * 3 + 1) % rest.len();
             let length = 0.02 + random() * 0.3;
             let angle = random() * std::f32::consts::TAU;
