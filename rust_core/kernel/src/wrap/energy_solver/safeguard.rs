@@ -93,6 +93,42 @@ impl EnergySolver {
         vertices
     }
 
+    /// [`Self::turned_corners`] among the corners that a vertex of `moved` belongs to (its own
+    /// and its neighbours'), in the same order; every corner when `moved` is a large share of
+    /// the layout.
+    pub(super) fn turned_corners_around(
+        &self,
+        before: &[f32],
+        positions: &[Vec3],
+        moved: &[u32],
+    ) -> Vec<u32> {
+        if moved.len() * MOVED_SHARE_FOR_ALL > positions.len() {
+            return self.turned_corners(before, positions);
+        }
+        let structure = &self.structure;
+        let mut owners: Vec<u32> = moved
+            .iter()
+            .flat_map(|&vertex| {
+                std::iter::once(vertex).chain(structure.neighbors_of(vertex).iter().copied())
+            })
+            .collect();
+        owners.sort_unstable();
+        owners.dedup();
+        let mut vertices = Vec::new();
+        for owner in owners {
+            for corner in structure.wedge_range(owner) {
+                let after = self.corner_alignment(owner, corner, positions);
+                if turned(before[corner], after, self.min_alignment) {
+                    let (previous, next) = structure.wedges[corner];
+                    vertices.extend([owner, previous, next]);
+                }
+            }
+        }
+        vertices.sort_unstable();
+        vertices.dedup();
+        vertices
+    }
+
     /// Whether `positions` turn a corner (as [`Self::turned_corners`] judges against `before`)
     /// among the corners that `vertex` belongs to: its own and its neighbours'.
     pub(super) fn turns_corner_around(
@@ -127,9 +163,14 @@ impl EnergySolver {
         let before = self.corner_orientations(&self.positions);
         let mut fractions = vec![1.0f32; proposed.len()];
         let mut candidate = proposed.to_vec();
+        // The first round looks at every corner; a later one only at the corners around the
+        // vertices the round before moved. The others kept their alignment, and a turned one
+        // among them has no step left to shorten (its vertices are fixed or already at zero), so
+        // the rounds shorten exactly the steps that looking at every corner would.
+        let mut turned = self.turned_corners(&before, &candidate);
         for round in 0.. {
-            let mut changed = false;
-            for vertex in self.turned_corners(&before, &candidate) {
+            let mut moved = Vec::new();
+            for vertex in turned {
                 let vertex = vertex as usize;
                 if self.fixed[vertex].is_some() || fractions[vertex] == 0.0 {
                     continue;
@@ -141,16 +182,21 @@ impl EnergySolver {
                 };
                 candidate[vertex] = self.positions[vertex]
                     + (proposed[vertex] - self.positions[vertex]) * fractions[vertex];
-                changed = true;
+                moved.push(vertex as u32);
             }
-            if !changed {
+            if moved.is_empty() {
                 break;
             }
+            turned = self.turned_corners_around(&before, &candidate, &moved);
         }
         let held_back = fractions.iter().filter(|&&fraction| fraction < 1.0).count();
         (candidate, held_back)
     }
 }
+
+/// A safeguard round looks at every corner again once more than one vertex in this many moved in
+/// the round before (collecting their neighbourhoods would then cost more than it saves).
+const MOVED_SHARE_FOR_ALL: usize = 8;
 
 /// Whether a corner aligned `before` with its frame has turned at `after`: beyond
 /// `min_alignment` and further from its frame than it was.

@@ -177,6 +177,82 @@ fn the_safeguard_backs_off_exactly_the_steps_that_turn_a_corner() {
     assert_ne!(accepted[24], proposed[24]);
 }
 
+/// The safeguard as it reads: every round looks at every corner.
+fn safeguard_looking_at_every_corner(solver: &EnergySolver, proposed: &[Vec3]) -> Vec<Vec3> {
+    let before = solver.corner_orientations(&solver.positions);
+    let mut fractions = vec![1.0f32; proposed.len()];
+    let mut candidate = proposed.to_vec();
+    for round in 0.. {
+        let mut changed = false;
+        for vertex in solver.turned_corners(&before, &candidate) {
+            let vertex = vertex as usize;
+            if solver.fixed[vertex].is_some() || fractions[vertex] == 0.0 {
+                continue;
+            }
+            fractions[vertex] = if round >= BACKTRACK_HALVINGS {
+                0.0
+            } else {
+                fractions[vertex] * 0.5
+            };
+            candidate[vertex] = solver.positions[vertex]
+                + (proposed[vertex] - solver.positions[vertex]) * fractions[vertex];
+            changed = true;
+        }
+        if !changed {
+            return candidate;
+        }
+    }
+    unreachable!()
+}
+
+#[test]
+fn the_safeguard_shortens_the_same_steps_as_rounds_over_every_corner() {
+    let (target, structure, rest) = plane_and_grid(30, 0.05, 0.05);
+    // Every third vertex anchored where it is: a corner owned by an anchor turns only when a free
+    // neighbour moves, and its own step cannot be shortened.
+    let anchors: Vec<_> = (0..rest.len())
+        .map(|vertex| {
+            (vertex % 3 == 0).then_some((AnchorTarget::Space(rest[vertex]), rest[vertex]))
+        })
+        .collect();
+    let solver = solver(&target, &structure, &rest, &rest, &anchors);
+    // A few scattered vertices jump across their neighbours by different lengths (some need one
+    // halving, some every one), the rest move down a little: few corners turn, so the later
+    // rounds look only around them.
+    let mut state = 7u32;
+    let mut random = move || {
+        state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+        (state >> 8) as f32 / (1 << 24) as f32
+    };
+    let mut halvings_seen = 0;
+    for trial in 0..40 {
+        let mut proposed: Vec<Vec3> = rest.iter().map(|p| *p - Vec3::Z * 0.002).collect();
+        for vertex in (0..rest.len()).step_by(3) {
+            proposed[vertex] = rest[vertex];
+        }
+        for _ in 0..=(trial % 6) {
+            let vertex = ((random() * rest.len() as f32) as usize / 3 * 3 + 1) % rest.len();
+            let length = 0.02 + random() * 0.3;
+            let angle = random() * std::f32::consts::TAU;
+            let lift = (random() - 0.5) * 0.2;
+            proposed[vertex] += Vec3::new(angle.cos() * length, angle.sin() * length, lift);
+        }
+        let before = solver.corner_orientations(&rest);
+        assert!(!solver.turned_corners(&before, &proposed).is_empty());
+        let (accepted, held_back) = solver.safeguard(&proposed);
+        assert!(held_back * 8 < rest.len(), "{held_back}");
+        let reference = safeguard_looking_at_every_corner(&solver, &proposed);
+        assert_eq!(accepted, reference, "trial {trial}");
+        halvings_seen += accepted
+            .iter()
+            .zip(&proposed)
+            .filter(|(accepted, proposed)| accepted != proposed)
+            .count();
+        assert!(solver.turned_corners(&before, &accepted).is_empty());
+    }
+    assert!(halvings_seen > 40, "{halvings_seen}");
+}
+
 /// A strip of a grid (its last two columns) folded up about a grid line by 10 degrees a step
 /// through the safeguard of a solver following `schedule`: the least corner alignment at the
 /// end and the angle the strip turned by, in degrees.
