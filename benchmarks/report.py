@@ -1224,6 +1224,14 @@ def splice_section(document: str, section: list[str], before: str = "## Performa
     return "\n".join(lines).rstrip() + "\n"
 
 
+def few_anchors_section(result: dict) -> list[str]:
+    """The *Few anchors* section (``benchmarks/few_anchors.py``)."""
+    sys.path.insert(0, str(REPOSITORY_ROOT))
+    from benchmarks.few_anchors import markdown as few_anchors_markdown
+
+    return few_anchors_markdown(result)
+
+
 def sequence_section(result: dict) -> list[str]:
     """The *Over time* section (``benchmarks/sequence.py``)."""
     sys.path.insert(0, str(REPOSITORY_ROOT))
@@ -1243,6 +1251,7 @@ def feature_lines_section(result: dict) -> list[str]:
 ONLY_SECTIONS = {
     "snap": (snap_section, "snap", "### Wrap speed against its aims"),
     "dense-target": (dense_target_section, "dense_target", "## Feature curves"),
+    "few-anchors": (few_anchors_section, "few_anchors", "## Parts that follow the surface"),
     "sequence": (sequence_section, "sequence", None),
     "feature-lines": (feature_lines_section, "feature_lines", "## Over time"),
 }
