@@ -54,7 +54,7 @@ use super::global_phase::{
     keep_reciprocal,
 };
 use super::linear_system::WRAP_STEP;
-use super::linear_system::{LinearSystem, Stencils};
+use super::linear_system::{LinearSystem, SolveStatistics, Stencils};
 use super::ordered_sum::ordered_sum;
 use super::plane_constraint::Plane;
 use super::profile::{PhaseClock, PhaseTimes, Profiler, WrapPhase};
@@ -467,6 +467,11 @@ impl EnergySolver {
     /// The seconds of each phase so far (all zero unless a profile was asked for).
     pub(crate) fn phase_times(&self) -> PhaseTimes {
         self.profiler.times()
+    }
+
+    /// How the global step's solves went so far.
+    pub(crate) fn solve_statistics(&self) -> SolveStatistics {
+        self.system.statistics()
     }
 
     /// The current positions.
