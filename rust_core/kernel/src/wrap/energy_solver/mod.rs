@@ -49,6 +49,7 @@ use glam::{DVec3, Quat, Vec3, Vec4};
 use rayon::prelude::*;
 
 use super::anchor::AnchorTarget;
+use super::averaging_pyramid::AveragingPyramid;
 use super::global_phase::{
     GLOBAL_MIN_ALIGNMENT, GLOBAL_TO_LOCAL_LEVELS, RECIPROCAL_LEVELS, Stretches, choose_schedule,
     keep_reciprocal,
@@ -294,6 +295,9 @@ pub(crate) struct EnergySolver {
     finished: bool,
     /// The time of each phase, when asked for.
     profiler: Profiler,
+    /// Without a factor (a layout of about a million points or more): the coarser levels on
+    /// which most rounds of the rotations' and scales' averaging are done.
+    pyramid: Option<AveragingPyramid>,
 }
 
 impl EnergySolver {
@@ -444,7 +448,11 @@ impl EnergySolver {
             last_energy: f64::INFINITY,
             finished: false,
             profiler,
+            pyramid: None,
         };
+        if !solver.system.is_direct() {
+            solver.pyramid = AveragingPyramid::new(structure, inputs.rest);
+        }
         solver.warming_up = solver.needs_warm_up();
         solver.fit_similarities(true);
         solver.orientation = solver.measure_orientation();
