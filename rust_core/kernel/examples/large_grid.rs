@@ -9,8 +9,8 @@ use std::time::Instant;
 use glam::Vec3;
 use rayon::prelude::*;
 use springwrap_kernel::{
-    LayoutPoint, LayoutStructure, TargetMesh, TargetMeshOptions, WrapPhase, WrapSettings,
-    WrapSolver,
+    LayoutFaces, LayoutPoint, LayoutStructure, TargetMesh, TargetMeshOptions, WrapPhase,
+    WrapSettings, WrapSolver, layout_readout,
 };
 
 const MAJOR: f32 = 1.0;
@@ -50,7 +50,9 @@ large_grid [SIDE] [ITERATIONS]: wraps a layout of about SIDE x SIDE points (defa
 noisy torus of about SIDE^2/4 triangles for at most ITERATIONS iterations (default: until the
 wrap converges), then prints the seconds of each phase of the energy solver and of the whole
 wrap, in processor time (all threads, from /proc/self/task/*/schedstat; wall time where that
-cannot be read) and in wall time, and the peak resident memory.";
+cannot be read) and in wall time, the global step's solves (factorizations, conjugate-gradient
+iterations), the peak resident memory, and the result's quality: the distance of the points to
+the target, the stretch of the layout against its rest shape and the faces flipped.";
 
 /// The processor seconds of all the process's threads so far (their scheduler statistics), or
 /// the wall seconds since the first call where those cannot be read.
@@ -127,10 +129,10 @@ fn main() {
         start.elapsed().as_secs_f64()
     );
     let mut solver = WrapSolver::with_rest_shape(
-        target,
+        Arc::clone(&target),
         structure,
         points,
-        Some(rest),
+        Some(rest.clone()),
         &[],
         WrapSettings::default(),
     )
@@ -140,11 +142,15 @@ fn main() {
     let mut report = None;
     for _ in 0..iterations {
         let step = Instant::now();
+        let before = solver.solve_statistics().iterations;
         let step_report = solver.step(1).unwrap();
         println!(
-            "iteration {}: {:.2} s, mean move {:.3e}, held back {}, converged {}",
+            "iteration {}: {:.2} s, {} solve iterations, energy {:.6e}, mean move {:.3e}, \
+             held back {}, converged {}",
             step_report.total_iterations,
             step.elapsed().as_secs_f64(),
+            solver.solve_statistics().iterations - before,
+            step_report.energy,
             step_report.mean_displacement,
             step_report.held_back,
             step_report.converged
@@ -157,6 +163,11 @@ fn main() {
     let (wall, processor) = (
         wrap.elapsed().as_secs_f64(),
         processor_seconds() - wrap_processor,
+    );
+    let statistics = solver.solve_statistics();
+    println!(
+        "solves {}, factorizations {}, conjugate-gradient iterations {}",
+        statistics.solves, statistics.factorizations, statistics.iterations
     );
     let times = solver.phase_times();
     println!("phase            processor s");
@@ -171,5 +182,43 @@ fn main() {
         report.map_or(0, |report| report.total_iterations),
         report.is_some_and(|report| report.converged),
         peak_memory_gb().map_or_else(|| "?".to_string(), |gb| format!("{gb:.2}")),
+    );
+    print_quality(&solver, &target, &rest, &corners);
+}
+
+/// The distances of the wrapped points to the target, the stretch against the rest shape and the
+/// flipped faces (measured after the timings).
+fn print_quality(solver: &WrapSolver, target: &TargetMesh, rest: &[Vec3], corners: &[u32]) {
+    let positions = solver.positions();
+    let distances: Vec<f64> = positions
+        .par_iter()
+        .map(|&p| {
+            target
+                .closest_point(p, f32::INFINITY)
+                .map_or(f64::INFINITY, |hit| f64::from(hit.distance))
+        })
+        .collect();
+    let count = positions.len() as f64;
+    let points: Vec<_> = positions.iter().map(|p| p.as_dvec3()).collect();
+    let rest: Vec<_> = rest.iter().map(|p| p.as_dvec3()).collect();
+    let sizes = vec![4; corners.len() / 4];
+    let edges: Vec<[u32; 2]> = corners
+        .chunks(4)
+        .flat_map(|quad| [[quad[0], quad[1]], [quad[1], quad[2]]])
+        .collect();
+    let faces = LayoutFaces {
+        corners,
+        sizes: &sizes,
+    };
+    let readout = layout_readout(&points, Some(&rest), faces, &edges).unwrap();
+    let deviation: Vec<f64> = readout.stretch.iter().map(|s| s.ln().abs()).collect();
+    println!(
+        "quality: distance mean {:.4e} max {:.4e}; |log stretch| mean {:.4e} max {:.4e}; \
+         flipped faces {}",
+        distances.iter().sum::<f64>() / count,
+        distances.iter().copied().fold(0.0, f64::max),
+        deviation.iter().sum::<f64>() / count,
+        deviation.iter().copied().fold(0.0, f64::max),
+        readout.flipped.iter().filter(|&&flipped| flipped).count(),
     );
 }

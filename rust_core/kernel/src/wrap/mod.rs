@@ -2,6 +2,7 @@
 //! paper's forces (section 2.5).
 
 pub mod anchor;
+mod averaging_pyramid;
 pub mod curve_constraint;
 mod energy_solver;
 mod global_phase;

@@ -612,6 +612,44 @@ mod tests {
     }
 
     #[test]
+    fn a_solve_searches_along_the_last_correction_first() {
+        let side = 60;
+        let (stencils, fixed) = grid(side);
+        let count = (side * side) as usize;
+        let system = || {
+            let mut system = LinearSystem::new(&stencils, count, &fixed, 0).unwrap();
+            system.coarsen_to(200);
+            system
+        };
+        let mut hinted = system();
+        let rows = hinted.rows();
+        let extra = vec![1e-3; rows];
+        let b: Vec<DVec3> = (0..rows)
+            .map(|row| DVec3::new((row as f64 * 0.01).sin(), 1.0, 0.5))
+            .collect();
+        let first = hinted
+            .solve_reusing(&extra, &b, &vec![DVec3::ZERO; rows], 1e-9)
+            .unwrap();
+        // The same right-hand side twice as large: the next correction is along the first.
+        let twice: Vec<DVec3> = b.iter().map(|b| *b * 2.0).collect();
+        let before = hinted.statistics().iterations;
+        let second = hinted.solve_reusing(&extra, &twice, &first, 1e-9).unwrap();
+        let with_hint = hinted.statistics().iterations - before;
+        let mut fresh = system();
+        let expected = fresh.solve_reusing(&extra, &twice, &first, 1e-9).unwrap();
+        let without_hint = fresh.statistics().iterations;
+        assert!(
+            with_hint < without_hint,
+            "{with_hint} against {without_hint}"
+        );
+        // Both stop once the step is known to 1e-4 of its length.
+        let scale = expected.iter().map(|x| x.length()).fold(0.0, f64::max);
+        for (a, b) in second.iter().zip(&expected) {
+            assert!(a.distance(*b) < 1e-4 * scale, "{a} against {b}");
+        }
+    }
+
+    #[test]
     fn a_multigrid_preconditioned_solve_repeats_to_the_bit_in_every_pool() {
         // 19,600 rows: rayon cuts a pass of this size into two pieces with one thread and four
         // with two (at least 4,096 rows each), so a sum grouped by rayon's pieces differs in its

@@ -2,6 +2,7 @@
 //! smoothed over neighbours (the warm-up), the scales fitted and smoothed by the level's stiffness.
 
 use super::*;
+use crate::cancel::NEVER;
 
 impl EnergySolver {
     /// Fits every vertex's similarity at the current positions (from the last fit).
@@ -29,6 +30,13 @@ impl EnergySolver {
             return Ok(());
         }
         let mut rotations: Vec<Quat> = self.similarities.iter().map(|fit| fit.rotation).collect();
+        if let Some(pyramid) = &self.pyramid {
+            pyramid.smooth(&self.structure, &mut rotations, rounds, stop)?;
+            for (fit, rotation) in self.similarities.iter_mut().zip(rotations) {
+                fit.rotation = rotation;
+            }
+            return Ok(());
+        }
         // Two buffers, each round written into the other: a round's fresh vector of a million
         // rotations cost more in page faults than its arithmetic.
         let mut smoothed = rotations.clone();
@@ -82,21 +90,20 @@ impl EnergySolver {
         if let Some(stretches) = self.stretches.as_mut() {
             return stretches.fit(&self.structure, &self.positions, &self.similarities, rounds);
         }
-        self.smooth_scales(rounds);
-        Ok(())
+        self.smooth_scales(rounds)
     }
 
     /// Replaces the fitted scales by their median (`None`) or by their log averaged over edge
     /// neighbours `rounds` times, within [`SCALE_RANGE`] of the median.
-    pub(super) fn smooth_scales(&mut self, rounds: Option<usize>) {
+    pub(super) fn smooth_scales(&mut self, rounds: Option<usize>) -> Result<(), KernelError> {
         let Some(median) = Similarity::median_scale(&self.similarities) else {
-            return;
+            return Ok(());
         };
         let Some(rounds) = rounds else {
             for fit in &mut self.similarities {
                 fit.scale = median;
             }
-            return;
+            return Ok(());
         };
         let (low, high) = ((median / SCALE_RANGE).ln(), (median * SCALE_RANGE).ln());
         let mut logs: Vec<f32> = self
@@ -110,6 +117,13 @@ impl EnergySolver {
                 }
             })
             .collect();
+        if let Some(pyramid) = &self.pyramid {
+            pyramid.smooth(&self.structure, &mut logs, rounds, NEVER)?;
+            for (fit, log) in self.similarities.iter_mut().zip(logs) {
+                fit.scale = log.exp();
+            }
+            return Ok(());
+        }
         let mut smoothed = logs.clone();
         for _ in 0..rounds {
             smoothed
@@ -126,6 +140,7 @@ impl EnergySolver {
         for (fit, log) in self.similarities.iter_mut().zip(logs) {
             fit.scale = log.exp();
         }
+        Ok(())
     }
 }
 

@@ -49,12 +49,13 @@ use glam::{DVec3, Quat, Vec3, Vec4};
 use rayon::prelude::*;
 
 use super::anchor::AnchorTarget;
+use super::averaging_pyramid::AveragingPyramid;
 use super::global_phase::{
     GLOBAL_MIN_ALIGNMENT, GLOBAL_TO_LOCAL_LEVELS, RECIPROCAL_LEVELS, Stretches, choose_schedule,
     keep_reciprocal,
 };
 use super::linear_system::WRAP_STEP;
-use super::linear_system::{LinearSystem, Stencils};
+use super::linear_system::{LinearSystem, SolveStatistics, Stencils};
 use super::ordered_sum::ordered_sum;
 use super::plane_constraint::Plane;
 use super::profile::{PhaseClock, PhaseTimes, Profiler, WrapPhase};
@@ -294,6 +295,9 @@ pub(crate) struct EnergySolver {
     finished: bool,
     /// The time of each phase, when asked for.
     profiler: Profiler,
+    /// Without a factor (a layout of about a million points or more): the coarser levels on
+    /// which most rounds of the rotations' and scales' averaging are done.
+    pyramid: Option<AveragingPyramid>,
 }
 
 impl EnergySolver {
@@ -449,7 +453,11 @@ impl EnergySolver {
             last_energy: f64::INFINITY,
             finished: false,
             profiler,
+            pyramid: None,
         };
+        if !solver.system.is_direct() {
+            solver.pyramid = AveragingPyramid::new(structure, inputs.rest);
+        }
         solver.warming_up = solver.needs_warm_up();
         solver.fit_similarities(true);
         solver.orientation = solver.measure_orientation();
@@ -472,6 +480,11 @@ impl EnergySolver {
     /// The seconds of each phase so far (all zero unless a profile was asked for).
     pub(crate) fn phase_times(&self) -> PhaseTimes {
         self.profiler.times()
+    }
+
+    /// How the global step's solves went so far.
+    pub(crate) fn solve_statistics(&self) -> SolveStatistics {
+        self.system.statistics()
     }
 
     /// The current positions.

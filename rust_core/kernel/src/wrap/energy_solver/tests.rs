@@ -114,7 +114,7 @@ fn the_global_step_zeroes_the_energys_gradient_by_finite_differences() {
     let hit = target.closest_point(anchor_position, 1.0).unwrap();
     anchors[24] = Some((AnchorTarget::Face(hit.face_point), hit.position));
     let mut solver = solver(&target, &structure, &positions, &rest, &anchors);
-    solver.smooth_scales(Some(2));
+    solver.smooth_scales(Some(2)).unwrap();
     let normals = solver.layout_normals(&solver.positions);
     let correspondences = solver.correspondences(&normals, 0.2, NEVER).unwrap();
     assert!(correspondences.iter().filter(|c| c.is_some()).count() > 30);

@@ -21,6 +21,7 @@ use glam::Vec3;
 use super::anchor::{Anchor, AnchorTarget};
 use super::curve_constraint::{ArcLengthCurve, CurveConstraint, vertex_fractions};
 use super::energy_solver::{EnergyInputs, EnergySolver};
+use super::linear_system::SolveStatistics;
 use super::plane_constraint::{Plane, PlaneConstraint};
 use super::profile::{PhaseClock, PhaseTimes};
 use super::settings::WrapSettings;
@@ -151,6 +152,14 @@ impl WrapSolver {
         self.energy
             .as_ref()
             .map_or_else(PhaseTimes::default, |energy| energy.phase_times())
+    }
+
+    /// How the energy solver's global steps were solved so far (factorizations, iterations).
+    #[must_use]
+    pub fn solve_statistics(&self) -> SolveStatistics {
+        self.energy
+            .as_ref()
+            .map_or_else(SolveStatistics::default, |energy| energy.solve_statistics())
     }
 }
 
