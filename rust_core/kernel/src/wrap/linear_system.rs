@@ -145,7 +145,7 @@ const BUDGET_BOUNDS: (usize, usize) = (4, 60);
 const MULTIGRID_ITERATIONS: usize = 60;
 /// Layouts with more free rows than this are not analysed for a factorization at all (the
 /// analysis alone would take seconds and gigabytes); their factor would pass any memory limit.
-const MAX_DIRECT_ROWS: usize = 1_500_000;
+pub(crate) const MAX_DIRECT_ROWS: usize = 1_500_000;
 
 /// What a cancelled wrap step reports as stopped.
 pub(crate) const WRAP_STEP: &str = "wrap step";

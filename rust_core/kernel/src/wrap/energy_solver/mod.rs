@@ -52,7 +52,7 @@ use super::anchor::AnchorTarget;
 use super::averaging_pyramid::AveragingPyramid;
 use super::global_phase::{
     GLOBAL_MIN_ALIGNMENT, GLOBAL_TO_LOCAL_LEVELS, RECIPROCAL_LEVELS, Stretches, choose_schedule,
-    keep_reciprocal,
+    global_phase_fits, keep_reciprocal,
 };
 use super::linear_system::WRAP_STEP;
 use super::linear_system::{LinearSystem, SolveStatistics, Stencils};
@@ -330,6 +330,15 @@ impl EnergySolver {
             inputs.rest,
             inputs.anchor_of_vertex,
         );
+        if schedule == WrapSchedule::GlobalToLocal && !global_phase_fits(vertex_count) {
+            return Err(KernelError::InvalidArgument {
+                name: "schedule",
+                reason: format!(
+                    "the global-to-local schedule smooths over the whole layout by one factored solve, \
+                     too large for {vertex_count} vertices: choose the local schedule (or Auto)"
+                ),
+            });
+        }
         let mut fixed = vec![None; vertex_count];
         let mut fixed_points = vec![None; vertex_count];
         for vertex in 0..vertex_count {

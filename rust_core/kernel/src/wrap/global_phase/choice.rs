@@ -35,6 +35,7 @@
 use glam::{DMat3, Vec3};
 
 use super::super::anchor::AnchorTarget;
+use super::super::linear_system::MAX_DIRECT_ROWS;
 use super::super::settings::WrapSchedule;
 use crate::align::{AlignMethod, Transform, fit_transform};
 use crate::layout::LayoutStructure;
@@ -64,6 +65,9 @@ pub(crate) fn choose_schedule(
     if schedule != WrapSchedule::Auto {
         return schedule;
     }
+    if !global_phase_fits(structure.vertex_count) {
+        return WrapSchedule::Local;
+    }
     let mut anchors = Anchors::default();
     for (vertex, anchor) in anchor_of_vertex.iter().enumerate() {
         if let (Some((_, position)), Some(&at_rest)) = (anchor, rest.get(vertex)) {
@@ -74,6 +78,13 @@ pub(crate) fn choose_schedule(
         }
     }
     anchors.schedule()
+}
+
+/// Whether the global-to-local schedule can run on a layout of `vertex_count` vertices: its
+/// smoothing is one factored solve of the layout's Laplacian, not analysed past
+/// [`MAX_DIRECT_ROWS`] rows (`Auto` then chooses the local schedule).
+pub(crate) fn global_phase_fits(vertex_count: usize) -> bool {
+    vertex_count <= MAX_DIRECT_ROWS
 }
 
 /// Anchors: rest points, unit rest normals (zero where a vertex has none) and positions.
@@ -187,6 +198,12 @@ mod tests {
     use super::*;
     use crate::face_point::FacePoint;
     use glam::Quat;
+
+    #[test]
+    fn the_global_phase_fits_layouts_its_laplacian_can_be_factored_for() {
+        assert!(global_phase_fits(4) && global_phase_fits(MAX_DIRECT_ROWS));
+        assert!(!global_phase_fits(MAX_DIRECT_ROWS + 1) && !global_phase_fits(2048 * 2048));
+    }
 
     /// The anchors at `rest` with unit `normals`, their positions `moved` from rest.
     fn anchors(rest: &[Vec3], normals: &[Vec3], moved: impl Fn(Vec3) -> Vec3) -> Anchors {

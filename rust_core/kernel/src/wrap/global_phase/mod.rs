@@ -21,7 +21,7 @@ use super::energy_solver::{LEVELS, Level};
 use super::similarity::Similarity;
 use crate::error::KernelError;
 use crate::layout::LayoutStructure;
-pub(crate) use choice::choose_schedule;
+pub(crate) use choice::{choose_schedule, global_phase_fits};
 use smoothing::Smoother;
 
 /// The global-to-local schedule: three stiff levels whose stretches are smoothed as 16,384, 4,096
