@@ -39,7 +39,8 @@
 //! small steps), and a corner already beyond may only turn back; the vertices of corners that
 //! would turn have their step halved, up to zero (the step is then not taken there), and have no
 //! data term in the next iteration, so the shape terms lead them out of the fold the data pulled
-//! them into. **Landing**: at the end every free point whose
+//! them into. **Re-settle** (`resettle.rs`): a layout that starts on the target with its
+//! constraints met (a wrap's result wrapped again) runs the last level alone. **Landing**: at the end every free point whose
 //! closest surface point is near, trusted and facing lands there as a face-point, unless that
 //! turns a corner; the others stay space-points (holes, cavities).
 
@@ -73,6 +74,7 @@ use crate::query::QueryState;
 mod data_term;
 mod landing;
 mod local_step;
+mod resettle;
 mod safeguard;
 mod terms;
 #[cfg(test)]
@@ -451,6 +453,7 @@ impl EnergySolver {
             profiler,
         };
         solver.warming_up = solver.needs_warm_up();
+        solver.resettle_if_on_target(inputs.points);
         solver.fit_similarities(true);
         solver.orientation = solver.measure_orientation();
         solver.profiler.add(WrapPhase::FirstFit, clock);
