@@ -38,6 +38,8 @@ MAX_SOLVE_SECONDS = 4.0
 """Longest a frame of the modal wrap solves before it writes the layout and lets Blender redraw (and see Esc)."""
 SYNCHRONOUS_CHUNK = 100
 """Iterations per kernel call when the wrap runs to the end at once."""
+_settled: dict = {}
+"""Per layout (its full name), the ``core.wrap_inputs.settled_key`` of the result its last wrap wrote."""
 
 
 class WrapSession:
@@ -146,7 +148,17 @@ class WrapSession:
         structure = layout_data.make_layout_structure(
             self.layout_topology if self.restriction is None else self.restriction.topology
         )
-        self.solver = wrap_inputs.make_wrap_solver(self.target, structure, inputs, parameters)
+        # The layout as its last wrap left it (same target, rest shape and parameters, nothing held or pinned):
+        # the kernel re-settles it from where it is rather than wrapping it anew from a relaxed template.
+        self.settled_key = wrap_inputs.settled_key(self.target.signature, arrays.positions, self.rest, parameters)
+        settled = (
+            region is None
+            and adjust_inputs is None
+            and self.restriction is None
+            and int(parameters.spring_resolution) == 1
+            and _settled.get(layout.name_full) == self.settled_key
+        )
+        self.solver = wrap_inputs.make_wrap_solver(self.target, structure, inputs, parameters, settled)
         self.inputs = inputs
         # Coarse to fine: with a spring resolution above 1 the layout is relaxed first, then a grid
         # of its faces cut k x k (its own vertices first) takes over; the layout's vertices are read
@@ -434,6 +446,8 @@ class WrapSession:
         shape_key_data.restore(self.layout, self.shape_keys)  # carried from the keys as they were, not a frame
         layout_data.write_layout(self.layout, positions, state, rest=self.rest)
         self.written_positions = positions  # what the operator's storage check needs, not read back
+        self.settled_key = wrap_inputs.settled_key(self.target.signature, positions, self.rest, self.parameters)
+        _settled[self.layout.name_full] = self.settled_key
         settings = self.layout.springwrap
         settings.target_signature = self.target.signature
         if len(settings.anchors):

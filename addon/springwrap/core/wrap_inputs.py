@@ -369,8 +369,10 @@ _CURVE_KEYWORDS = ("curve_vertices", "curve_vertex_counts", "curve_points", "cur
 """The ``WrapInputs`` fields of the curve constraints, passed to ``WrapSolver`` when there are any."""
 
 
-def make_wrap_solver(target: Target, structure, inputs, parameters):
-    """A kernel ``WrapSolver`` for the prepared inputs (``core.wrap_inputs.WrapInputs``, the kernel's frame)."""
+def make_wrap_solver(target: Target, structure, inputs, parameters, settled_start: bool = False):
+    """A kernel ``WrapSolver`` for the prepared inputs (``core.wrap_inputs.WrapInputs``, the kernel's frame);
+    ``settled_start``: the positions are a wrap's own result, unchanged since, wrapped again with the same rest
+    shape, target and parameters (the kernel then re-settles them from its schedule's last level)."""
     keywords = {name: getattr(inputs, name) for name in _SOLVER_KEYWORDS}
     if inputs.curve_vertices is not None:
         keywords |= {name: getattr(inputs, name) for name in _CURVE_KEYWORDS}
@@ -392,8 +394,17 @@ def make_wrap_solver(target: Target, structure, inputs, parameters):
         settings=parameters.settings,
         stiffness=getattr(inputs, "stiffness", None),
         free_vertices=getattr(inputs, "free_vertices", None),
+        settled_start=settled_start,
         **keywords,
     )
+
+
+def settled_key(target_signature: str, positions, rest, parameters) -> tuple:
+    """What a wrap's result is, to know it again unchanged: the target's signature, the layout's local positions and
+    rest shape (as the mesh stores them, float32) and the wrap's parameters. Equal keys: wrapping the layout
+    again starts from a settled wrap (:func:`make_wrap_solver`'s ``settled_start``)."""
+    digest = [np.ascontiguousarray(array, dtype=np.float32).tobytes() for array in (positions, rest)]
+    return (target_signature, hash(digest[0]), hash(digest[1]), repr(parameters))
 
 
 def _soft_pair_keywords(inputs) -> dict:

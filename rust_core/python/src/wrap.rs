@@ -44,7 +44,8 @@ impl PyWrapSolver {
         curve_vertex_counts = None, curve_points = None, curve_point_counts = None,
         curve_fractions = None, rest_positions = None, plane_vertices = None, plane_point = None,
         plane_normal = None, plane_slide = None, settings = None, stiffness = None, free_vertices = None,
-        soft_pair_vertices = None, soft_pair_positions = None, soft_pair_confidences = None
+        soft_pair_vertices = None, soft_pair_positions = None, soft_pair_confidences = None,
+        settled_start = None
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -76,7 +77,9 @@ impl PyWrapSolver {
         soft_pair_vertices: Option<&Bound<'_, PyAny>>,
         soft_pair_positions: Option<&Bound<'_, PyAny>>,
         soft_pair_confidences: Option<&Bound<'_, PyAny>>,
+        settled_start: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
+        let settled_start = arguments::flag("settled_start", settled_start, false)?;
         let target = arguments::instance::<PyTargetMesh>("target", "TargetMesh", target)?;
         let structure =
             arguments::instance::<PyLayoutStructure>("structure", "LayoutStructure", structure)?;
@@ -150,6 +153,7 @@ impl PyWrapSolver {
                 &anchors,
                 settings,
             )?
+            .with_settled_start(settled_start)
             .with_curve_constraints(&curves)?;
             let solver = match &plane {
                 Some(plane) => solver.with_plane_constraint(plane)?,

@@ -418,7 +418,11 @@ class WrapSolver:
     and soft pairs (``soft_pair_vertices`` uint32, ``soft_pair_positions`` float32 (S, 3),
     ``soft_pair_confidences`` float32 in (0, 1], all three or none: each vertex is pulled toward its
     point in proportion to its confidence in the warm-up and the stiff levels of the global-to-local
-    schedule, then let go; not on an anchored vertex).
+    schedule, then let go; not on an anchored vertex). ``settled_start``: the points are a wrap's own result,
+    unchanged since, wrapped again with the same rest shape and target: the wrap re-settles them from the
+    schedule's last level (no warm-up, no stiffer levels) when they lie on the target with their anchors and
+    curve targets met and no plane or soft pairs, and runs the whole schedule otherwise or when its first
+    iteration moves them far (a layout snapped onto the target is on it too, far from settled).
     """
 
     def __init__(
@@ -451,6 +455,7 @@ class WrapSolver:
         soft_pair_vertices: npt.NDArray[np.uint32] | None = None,
         soft_pair_positions: npt.NDArray[np.float32] | None = None,
         soft_pair_confidences: npt.NDArray[np.float32] | None = None,
+        settled_start: bool = False,
     ) -> None: ...
     def step(self, iterations: int, *, cancel: CancelFlag | None = None) -> StepReport:
         """Run up to ``iterations`` iterations (fewer once converged), GIL released; ``cancel`` set by another

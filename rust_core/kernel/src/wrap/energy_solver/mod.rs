@@ -39,7 +39,8 @@
 //! small steps), and a corner already beyond may only turn back; the vertices of corners that
 //! would turn have their step halved, up to zero (the step is then not taken there), and have no
 //! data term in the next iteration, so the shape terms lead them out of the fold the data pulled
-//! them into. **Landing**: at the end every free point whose
+//! them into. **Re-settle** (`resettle.rs`): a wrap's result wrapped again (its caller says so)
+//! that starts on the target with its constraints met runs the last level alone. **Landing**: at the end every free point whose
 //! closest surface point is near, trusted and facing lands there as a face-point, unless that
 //! turns a corner; the others stay space-points (holes, cavities).
 
@@ -74,6 +75,7 @@ use crate::query::QueryState;
 mod data_term;
 mod landing;
 mod local_step;
+mod resettle;
 mod safeguard;
 mod terms;
 #[cfg(test)]
@@ -211,6 +213,8 @@ pub(crate) struct EnergyInputs<'a> {
     pub settings: WrapSettings,
     /// The clock that times each phase (`None`: no profile).
     pub profile: Option<PhaseClock>,
+    /// The start is a wrap's own result, wrapped again (see `resettle.rs`).
+    pub settled_start: bool,
 }
 
 /// One iteration's outcome.
@@ -293,6 +297,8 @@ pub(crate) struct EnergySolver {
     iterations: usize,
     last_energy: f64,
     finished: bool,
+    /// Where a re-settle started (`resettle.rs`), until its first iteration says whether it stays one.
+    resettle_start: Option<Vec<Vec3>>,
     /// The time of each phase, when asked for.
     profiler: Profiler,
     /// Without a factor (a layout of about a million points or more): the coarser levels on
@@ -461,6 +467,7 @@ impl EnergySolver {
             iterations: 0,
             last_energy: f64::INFINITY,
             finished: false,
+            resettle_start: None,
             profiler,
             pyramid: None,
         };
@@ -469,6 +476,7 @@ impl EnergySolver {
         }
         solver.warming_up = solver.needs_warm_up();
         solver.fit_similarities(true);
+        solver.resettle_if_on_target(inputs.points, inputs.settled_start);
         solver.orientation = solver.measure_orientation();
         solver.profiler.add(WrapPhase::FirstFit, clock);
         Ok(solver)
@@ -639,6 +647,9 @@ impl EnergySolver {
                 self.level = self.levels.len() - 1;
                 self.finished = true;
             }
+        }
+        if self.resettle_start.is_some() {
+            self.keep_resettle_if_settled(mean_move);
         }
         Ok(EnergyStep {
             max_move,

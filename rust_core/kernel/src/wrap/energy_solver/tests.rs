@@ -96,6 +96,7 @@ fn solver_following(
             ..WrapSettings::default()
         },
         profile: None,
+        settled_start: false,
     })
     .unwrap()
 }

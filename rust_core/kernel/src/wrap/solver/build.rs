@@ -145,7 +145,20 @@ impl WrapSolver {
             profile: None,
             reach,
             failed: None,
+            settled_start: false,
         })
+    }
+
+    /// Says whether the starting points are a wrap's own result, unchanged since, wrapped again with the same
+    /// rest shape and target: the wrap then re-settles them from the schedule's last level (no warm-up, no
+    /// stiffer levels, which would first undo the fit) when they lie on the target with the anchors and curve
+    /// targets met, without a plane or soft pairs, and keeps the whole schedule otherwise, or when the first
+    /// iteration moves them far (see `wrap::energy_solver`'s re-settle). Off by default: a layout snapped or
+    /// projected onto the target lies on it too, far from settled.
+    #[must_use]
+    pub fn with_settled_start(mut self, settled: bool) -> Self {
+        self.settled_start = settled;
+        self
     }
 
     /// Sets how firmly each vertex keeps the template's shape: 0 follows the target freely, 0.5

@@ -118,6 +118,8 @@ pub struct WrapSolver {
     reach: (Vec3, f32),
     /// Set once the wrap diverged or a step was cancelled: every later step returns it.
     failed: Option<KernelError>,
+    /// The start is a wrap's own result, wrapped again ([`WrapSolver::with_settled_start`]).
+    settled_start: bool,
 }
 
 impl WrapSolver {

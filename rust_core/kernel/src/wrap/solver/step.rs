@@ -91,6 +91,7 @@ impl WrapSolver {
                 landing_distance: self.landing_distance,
                 settings: self.settings,
                 profile: self.profile,
+                settled_start: self.settled_start,
             };
             self.energy = Some(Box::new(EnergySolver::new_until(&inputs, stop)?));
         }
