@@ -151,13 +151,9 @@ class WrapSession:
         # The layout as its last wrap left it (same target, rest shape and parameters, nothing held or pinned):
         # the kernel re-settles it from where it is rather than wrapping it anew from a relaxed template.
         self.settled_key = wrap_inputs.settled_key(self.target.signature, arrays.positions, self.rest, parameters)
-        settled = (
-            region is None
-            and adjust_inputs is None
-            and self.restriction is None
-            and int(parameters.spring_resolution) == 1
-            and _settled.get(layout.name_full) == self.settled_key
-        )
+        unheld = region is None and adjust_inputs is None and self.restriction is None
+        single = unheld and int(parameters.spring_resolution) == 1  # one stage, nothing held or pinned
+        settled = single and _settled.get(layout.name_full) == self.settled_key
         self.solver = wrap_inputs.make_wrap_solver(self.target, structure, inputs, parameters, settled)
         self.inputs = inputs
         # Coarse to fine: with a spring resolution above 1 the layout is relaxed first, then a grid
