@@ -6,15 +6,13 @@ import bpy
 
 import numpy as np
 
-from bpy_helpers import head_scene, world_positions
-from springwrap.blender import wrap_session
-from springwrap.blender.wrap_session import WrapSession
-from springwrap.core.wrap_inputs import WrapParameters
+from bpy_helpers import addon_module, head_scene, world_positions
 
 
 def _wrap(layout):
     """Wraps ``layout`` to the end (the defaults) and writes it; the session's ``WrapResult``."""
-    session = WrapSession(bpy.context, layout, WrapParameters(max_iterations=3000))
+    wrap_session, wrap_inputs = addon_module("blender.wrap_session"), addon_module("core.wrap_inputs")
+    session = wrap_session.WrapSession(bpy.context, layout, wrap_inputs.WrapParameters(max_iterations=3000))
     session.run()
     return session.finish()
 
@@ -29,7 +27,7 @@ def _second_move_over_first(forget: bool) -> tuple[float, int]:
     _wrap(layout)
     first = world_positions(layout).copy()
     if forget:
-        wrap_session._settled.clear()
+        addon_module("blender.wrap_session")._settled.clear()
     second = _wrap(layout)
     moved = np.linalg.norm(world_positions(layout) - first, axis=1).mean()
     return float(moved / np.linalg.norm(first - template, axis=1).mean()), second.iterations
