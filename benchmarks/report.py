@@ -1248,6 +1248,21 @@ def feature_lines_section(result: dict) -> list[str]:
     return feature_lines_markdown(result) + [""]
 
 
+def splice_retarget(document: str, retarget: dict) -> str:
+    """``document`` with everything the retargeting benchmark writes replaced: its machine line, the headline,
+    the accuracy section (its per-case tables and figures) and the wrap's speed on its cases."""
+    lines = document.split("\n")
+    machine = machine_lines("retarget", retarget)[0]
+    at = next((i for i, line in enumerate(lines) if line.startswith("- **retarget**: ")), None)
+    if at is not None:
+        lines[at] = machine
+    document = "\n".join(lines)
+    document = splice_section(document, ["## Headline", "", *headline(retarget), ""])
+    document = splice_section(document, retarget_section(retarget, DOCS / "img", "img"), "## Few anchors")
+    speed = wrap_speed_lines(retarget)
+    return splice_section(document, speed, "### Scaling (full sweep") if speed else document
+
+
 ONLY_SECTIONS = {
     "snap": (snap_section, "snap", "### Wrap speed against its aims"),
     "dense-target": (dense_target_section, "dense_target", "## Feature curves"),
@@ -1283,7 +1298,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument(
         "--only",
-        choices=sorted(ONLY_SECTIONS),
+        choices=sorted([*ONLY_SECTIONS, "retarget"]),
         help="only put this section (from its JSON) into the existing --output, leaving the rest as it is",
     )
     parser.add_argument("--sequence", type=Path, default=OUT / "sequence.json")
@@ -1291,6 +1306,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--feature-lines", type=Path, default=OUT / "feature_lines.json")
     parser.add_argument("--output", type=Path, default=DOCS / "benchmarks.md")
     arguments = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    if arguments.only == "retarget":
+        retarget = load(arguments.retarget)
+        if retarget is None:
+            print(f"report.py: no {arguments.retarget}", file=sys.stderr)
+            return 1
+        arguments.output.write_text(splice_retarget(arguments.output.read_text(), retarget))
+        print(f"wrote the retarget sections into {arguments.output}")
+        return 0
     if arguments.only:
         section, source, before = ONLY_SECTIONS[arguments.only]
         result = load(getattr(arguments, source))

@@ -2,6 +2,7 @@
 rest of the document left as it was; the dense-target table on a made-up result. Fast, no Blender."""
 
 import json
+from pathlib import Path
 
 from benchmarks import report
 
@@ -74,4 +75,58 @@ def test_the_dense_target_table_is_added_before_the_feature_curves(tmp_path):
     assert "| 1,250,000 | 0.50 | 0.400 | 0.70 | 0.90 | 1.10 | 180 | 150 | 2.0 | 2.5 | 25 | 300 | 3.0 |" in text
     assert "old snap table" in text
     assert report.main(["--only", "dense-target", "--dense-target", str(dense), "--output", str(output)]) == 0
+    assert output.read_text() == text
+
+
+RETARGET_DOCUMENT = """# Benchmarks
+
+## Machine and versions
+
+- **retarget**: old machine line
+- **performance**: performance machine line
+
+## Headline
+
+old headline
+
+## Accuracy: retargeting with a known answer
+
+old accuracy
+
+### heavy
+
+old heavy table
+
+## Few anchors
+
+few anchors table
+
+## Performance
+
+### Wrap on the retarget cases
+
+old wrap speed
+
+### Scaling (full sweep, 1 s)
+
+scaling
+"""
+
+
+def test_the_retarget_sections_are_replaced_and_nothing_else(tmp_path):
+    """``--only retarget``: the machine line, the headline, the accuracy section with its per-case tables and
+    the wrap's speed on the cases come from the run (a one-case excerpt of a real run); the rest stays."""
+    source = Path(__file__).parent / "data" / "retarget_one_case.json"
+    output = tmp_path / "benchmarks.md"
+    output.write_text(RETARGET_DOCUMENT)
+    assert report.main(["--only", "retarget", "--retarget", str(source), "--output", str(output)]) == 0
+    text = output.read_text()
+    for old in ("old machine line", "old headline", "old accuracy", "old heavy table", "old wrap speed"):
+        assert old not in text
+    for kept in ("- **performance**: performance machine line", "few anchors table", "scaling"):
+        assert kept in text
+    assert "commit `abded38ae656`" in text and "load average (1, 5, 15 min) at the start 20.46" in text
+    assert text.index("## Headline") < text.index("### heavy") < text.index("## Few anchors")
+    assert "| heavy | Springwrap wrap | 23 | yes |" in text
+    assert report.main(["--only", "retarget", "--retarget", str(source), "--output", str(output)]) == 0
     assert output.read_text() == text
