@@ -434,7 +434,8 @@ def markdown(result: dict) -> list[str]:
         "its defaults between two wraps (Junctions on: the corners where the layout's creases meet matched with "
         "the target's, a line between two matched corners sharing out the crease between them by its rest "
         "length; Placement Anchors: each vertex where a smooth map through the anchors and the matched corners "
-        "takes its rest point, projected onto its stretch); *as spaced* places each vertex where the fit spaces "
+        "takes its rest point, projected onto its stretch, where the map comes within 0.4 max distances of the "
+        "feature, else as the fit spaces it); *as spaced* places each vertex where the fit spaces "
         "it along its stretch; *junctions off* pairs each line with the stretch of crease where the fit has it.",
         "",
         "| target | anchors | feature pairing | pairs (mean confidence) | mean error, all | mean error, creases "

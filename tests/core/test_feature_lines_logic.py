@@ -174,3 +174,24 @@ def test_a_placement_map_puts_each_paired_vertex_where_the_anchors_say_not_where
     coarse = fl.placement_map(positions, border[:4], positions[border[:4]] + [0, 0, 0.05])  # too few points
     as_spaced = fl.pair_lines(lines, current, straight_curves(), anchored, [], 0.5, rest=positions, mapping=coarse)
     assert as_spaced.constraints[0].fractions.size == 0
+
+
+def test_a_map_that_misses_the_feature_does_not_place_the_line_along_it():
+    """The map's distance across the feature is a sample of its error: anchors whose targets lie sideways of the
+    ridge by more than MAP_REACH maximum distances take the row beside it, and the row goes as the fit spaces it;
+    a map within that reach places it."""
+    positions, corners, sizes = grid()
+    lines = fl.find_lines(positions, corners, sizes, row_and_column()[: SIZE - 1], 0.0, False)
+    row = (SIZE // 2) * SIZE + np.arange(SIZE)
+    current = positions.copy()
+    current[row, 0] += 0.33
+    anchored = np.zeros(len(positions), dtype=bool)
+    index = np.arange(SIZE * SIZE).reshape(SIZE, SIZE)
+    border = np.unique(np.concatenate([index[0], index[-1], index[:, 0], index[:, -1]]))
+    reach = fl.MAP_REACH * 0.5
+    for sideways, placed in ((1.5 * reach, False), (0.5 * reach, True)):
+        mapping = fl.placement_map(positions, border, positions[border] + [0, sideways, 0.05])
+        assert fl.map_reaches(mapping, positions[row], straight_curves()[0][1], 0.5) == placed
+        pairing = fl.pair_lines(lines, current, straight_curves(), anchored, [], 0.5, rest=positions, mapping=mapping)
+        (constraint,) = pairing.constraints
+        assert (constraint.fractions.size == constraint.layout_vertices.size) == placed

@@ -15,7 +15,7 @@ import numpy as np
 
 import springwrap_kernel
 
-from . import curves, rounded_creases, smooth_map
+from . import curves, rounded_creases, sharp_creases, smooth_map
 from .edge_paths import cumulative_lengths, length_fractions
 from .errors import LayoutError
 
@@ -136,56 +136,6 @@ def _along(points, creases, distance: float, share: float = 0.5) -> bool:
 COVERED_SHARE = 0.8
 """A rounded crease is left out for the target's sharp creases only when they run along this share of it: a
 short sharp piece on a long rounded crease leaves the whole crease to pair with."""
-CLEAN_SHARE = 0.8
-"""The share of a target crease's edges that must have flat flanks (:func:`sharp_edges`) for it to be a sharp
-crease."""
-
-
-def sharp_edges(positions, triangles, crease_degrees: float) -> np.ndarray:
-    """(K, 2) uint32: the target's sharp edges, those whose two triangles' normals differ by more than
-    ``crease_degrees`` while the triangles' other edges bend less than a third of that (flat flanks) or are sharp
-    themselves (a corner), and that have no parallel twin beside them: a crease of a part exported sharp. On a
-    rounded crease (a scan's) the bend is spread over several rows of edges, none of which has flat flanks, or
-    cut into a chamfer of two parallel rows (:func:`_twinned`)."""
-    positions = np.asarray(positions, dtype=np.float64)
-    triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
-    if crease_degrees <= 0.0 or triangles.shape[0] == 0:
-        return np.zeros((0, 2), dtype=np.uint32)
-    count = triangles.shape[0]
-    keys, slot, angle, _normals, _areas = rounded_creases.edge_dihedrals(positions, triangles)
-    sharp = angle > crease_degrees
-    flank_ok = (angle < crease_degrees / 3.0) | sharp  # per edge: flat, or a sharp edge meeting it
-    face_edges = slot.reshape(3, count).T  # each triangle's three edges
-    # A triangle has flat flanks for one of its edges when its two other edges are fine.
-    fine = flank_ok[face_edges]
-    clean_face_edge = np.stack(
-        [fine[:, [1, 2]].all(axis=1), fine[:, [2, 0]].all(axis=1), fine[:, [0, 1]].all(axis=1)], 1
-    )
-    clean = np.ones(keys.shape[0], dtype=bool)
-    np.logical_and.at(clean, face_edges.ravel(), clean_face_edge.ravel())
-    found = np.flatnonzero(sharp & clean)
-    found = found[~_twinned(positions[keys[found, 0]], positions[keys[found, 1]])]
-    return np.ascontiguousarray(keys[found], dtype=np.uint32)
-
-
-def _twinned(starts: np.ndarray, ends: np.ndarray, chunk: int = 1024) -> np.ndarray:
-    """(S,) bool: the segments with a parallel one beside them (offset by more than a quarter of their length,
-    within twice their length): the two edges of a chamfer, as a voxel remesh cuts a crease, not a sharp crease,
-    whose edges only continue each other."""
-    middles = (starts + ends) / 2.0
-    directions = ends - starts
-    lengths = np.maximum(np.linalg.norm(directions, axis=1), 1e-300)
-    units = directions / lengths[:, None]
-    twinned = np.zeros(starts.shape[0], dtype=bool)
-    for begin in range(0, starts.shape[0], chunk):
-        here = slice(begin, begin + chunk)
-        offsets = middles[None, :, :] - middles[here, None, :]
-        along = np.einsum("ijk,ik->ij", offsets, units[here])
-        across = np.linalg.norm(offsets - along[..., None] * units[here, None, :], axis=2)
-        parallel = np.abs(units[here] @ units.T) > 0.9
-        near = np.linalg.norm(offsets, axis=2) < 2.0 * lengths[here, None]
-        twinned[here] = np.any(parallel & near & (across > 0.25 * lengths[here, None]), axis=1)
-    return twinned
 
 
 def target_features(feature_curves, target_positions, triangles, crease_degrees: float = 0.0, scale: float = 0.0):
@@ -200,7 +150,7 @@ def target_features(feature_curves, target_positions, triangles, crease_degrees:
         crease_degrees=float(crease_degrees),
         borders=True,
     )
-    clean = sharp_edges(target_positions, triangles, crease_degrees).astype(np.int64)
+    clean = sharp_creases.sharp_edges(target_positions, triangles, crease_degrees).astype(np.int64)
     clean_keys = set((clean[:, 0] * target_positions.shape[0] + clean[:, 1]).tolist())
     rounded = rounded_creases.rounded_creases(target_positions, triangles, crease_degrees)
     crests = [points for _kind, points, _closed in rounded.curves]
@@ -211,7 +161,7 @@ def target_features(feature_curves, target_positions, triangles, crease_degrees:
             ring = np.concatenate([vertices, vertices[:1]]) if closed else np.asarray(vertices)
             pairs = np.sort(np.stack([ring[:-1], ring[1:]], axis=1).astype(np.int64), axis=1)
             keys = (pairs[:, 0] * target_positions.shape[0] + pairs[:, 1]).tolist()
-            if np.mean([key in clean_keys for key in keys]) < CLEAN_SHARE:
+            if np.mean([key in clean_keys for key in keys]) < sharp_creases.CLEAN_SHARE:
                 continue  # a rounded crease's row of edges (a scan's), not a sharp one
             beside = not rounded_creases.on_lines(points, crests, rounded_creases.ON_CREST_EDGES * rounded.mean_edge)
             if beside and _along(points, crests, 2.0 * rounded.mean_edge, COVERED_SHARE):
@@ -222,9 +172,9 @@ def target_features(feature_curves, target_positions, triangles, crease_degrees:
                 ends += [int(vertices[0]), int(vertices[-1])]
         else:
             borders.append(("BORDER", points, bool(closed), 0.0))
-    sharp_creases = list(creases)
+    sharp_lines = list(creases)
     for kind, points, closed in rounded.curves:
-        if not _along(points, sharp_creases, 2.0 * rounded.mean_edge, COVERED_SHARE):
+        if not _along(points, sharp_lines, 2.0 * rounded.mean_edge, COVERED_SHARE):
             creases.append(points)
             found.append((kind, points, closed, zigzag(points, closed)))
     crease_points = np.concatenate(creases) if creases else np.zeros((0, 3))
@@ -244,7 +194,7 @@ def target_features(feature_curves, target_positions, triangles, crease_degrees:
 
 def target_curves(feature_curves, target_positions, triangles, crease_degrees: float = 0.0, scale: float = 0.0):
     """(kind, (P, 3) float32 points, closed, accuracy) per target feature: each sharp crease of the target's own
-    edges (:func:`sharp_edges` at ``crease_degrees``; 0: none), kind RIDGE (convex) or VALLEY,
+    edges (``sharp_creases.sharp_edges`` at ``crease_degrees``; 0: none), kind RIDGE (convex) or VALLEY,
     its accuracy :func:`zigzag`; each crease a re-tessellation rounded (``rounded_creases``: where the planes of
     its flanks meet, on the surface) that does not run along a sharp one, accuracy :func:`zigzag`; each ridge and valley of ``feature_curves`` (the kernel's ``FeatureCurve``,
     detected at ``scale``) that does not run along such a crease, accuracy :data:`RIDGE_ACCURACY_SCALES` scales;
@@ -363,6 +313,21 @@ does not run between two matched corners (and a slit's halves): through fewer it
 a feature a vertex lies (8 anchors on a whole part), and such lines go as the fit spaces them."""
 
 
+MAP_REACH = 0.4
+"""How close (mean, as a share of the maximum distance) the smooth map must take a chain's rest points to the
+feature it pairs with for it to place the chain along it: the map's distance across the feature is a sample of its
+error, and a map farther off (few anchors, far from them) would place the chain worse than the fit spaces it."""
+
+
+def map_reaches(mapping, chain_rest, curve_points, max_distance: float) -> bool:
+    """Whether ``mapping`` takes ``chain_rest`` ((C, 3)) within :data:`MAP_REACH` maximum distances (mean) of the
+    polyline ``curve_points``."""
+    curve_points = np.asarray(curve_points, dtype=np.float64).reshape(-1, 3)
+    cumulative = cumulative_lengths(curve_points)
+    across = [_parameter(curve_points, cumulative, point)[1] for point in smooth_map.apply(mapping, chain_rest)]
+    return bool(np.mean(across) <= MAP_REACH * max_distance)
+
+
 def placement_map(rest, vertices, locations, junctions=None) -> smooth_map.SmoothMap | None:
     """The smooth map (:mod:`smooth_map`) from the layout's rest shape (``rest``, (N, 3) world) to the target
     through the anchored ``vertices`` ((K,)) and their target ``locations`` ((K, 3) world) and the matched
@@ -397,7 +362,8 @@ def pair_lines(
     shape's arc length (:func:`between_junctions`), instead of the stretch under the current fit. ``mapping``
     (:func:`placement_map`, with ``rest``): each vertex of an open line goes where the map takes its rest point,
     projected onto the line's stretch (``smooth_map.placements``), instead of where the fit spaces it (a line not
-    between matched corners only when the map runs through :data:`MIN_MAP_POINTS` points or more).
+    between matched corners only when the map runs through :data:`MIN_MAP_POINTS` points or more; no line where the
+    map misses its feature, :func:`map_reaches`).
     ``settings``: ``max_angle`` (degrees), ``min_confidence``."""
     outcomes = springwrap_kernel.pair_feature_lines(
         np.ascontiguousarray(current, dtype=np.float32),
@@ -444,6 +410,7 @@ def pair_lines(
             and not line.closed
             and not curves.is_closed(points)
             and (target is not None or mapping.centres.shape[0] >= MIN_MAP_POINTS)
+            and map_reaches(mapping, np.asarray(rest, dtype=np.float64)[chain], curve_points, max_distance)
         ):
             chain_rest = np.asarray(rest, dtype=np.float64)[chain]
             if target is None and not curve_closed:
