@@ -332,7 +332,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
                 f"Target topology changed: {detached} face-points and {result.anchors_detached_count} face anchors "
                 f"lost their target face and became space-points, {reattached} face-points re-attached",
             )
-        report_retired_solver(self)
+        report_retired_solver(self, bpy.data.objects.get(result.layout_name))
 
 
 def report_midline(operator, layout) -> None:
