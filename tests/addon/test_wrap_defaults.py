@@ -235,15 +235,13 @@ def test_each_wrap_option_of_the_command_line_reaches_the_kernels_settings():
 
 
 def test_the_retired_spring_solver_is_mapped_with_a_warning(capfd):
-    """Scripts and presets that name ``solver='SPRINGS'`` wrap with the energy solver and say so; an old file's
-    stored panel solver is ignored."""
+    """Scripts and presets that name ``solver='SPRINGS'`` wrap with the energy solver and say so."""
     from springwrap.core import defaults
 
     results = {}
     for solver in ("SPRINGS", "ENERGY"):
         bpy.ops.wm.read_homefile(use_empty=True)
         _target, layout, _normal = plane_scene()
-        layout.springwrap["wrap_solver"] = 0  # an old .blend's stored panel choice (SPRINGS)
         bpy.ops.springwrap.anchors_auto(spacing=0.5)
         capfd.readouterr()
         assert bpy.ops.springwrap.wrap(solver=solver) == {"FINISHED"}
@@ -255,6 +253,33 @@ def test_the_retired_spring_solver_is_mapped_with_a_warning(capfd):
     assert retarget["wrap_settings"](arguments) == KERNEL
     with pytest.raises(sk.InvalidArgumentError, match="the spring solver was retired"):
         sk.WrapSettings(solver="SPRINGS")
+
+
+@pytest.mark.parametrize("stored", [0, "SPRINGS", 1])
+def test_an_old_file_s_stored_spring_solver_is_said_once_and_removed(capfd, stored):
+    """A layout saved with the panel's Solver set to Springs (an old ``.blend`` keeps the enum's index, 0, as a bare
+    ID property) wraps with the energy solver: the first wrap says so naming the layout and removes the stored
+    choice, the next says nothing; the result is the one without it. A stored Energy (1) is removed silently."""
+    from springwrap.core import defaults
+
+    results = {}
+    for stored_value in (stored, None):
+        bpy.ops.wm.read_homefile(use_empty=True)
+        _target, layout, _normal = plane_scene()
+        if stored_value is not None:
+            layout.springwrap["wrap_solver"] = stored_value
+        bpy.ops.springwrap.anchors_auto(spacing=0.5)
+        capfd.readouterr()
+        assert bpy.ops.springwrap.wrap() == {"FINISHED"}
+        said = capfd.readouterr().out
+        expected = stored_value is not None and stored != 1
+        assert (defaults.retired_stored_solver_warning(layout.name) in said) == expected, said
+        assert "wrap_solver" not in layout.springwrap.keys()
+        results[stored_value] = snapshot_positions(layout)
+        if stored_value is not None:
+            assert bpy.ops.springwrap.wrap() == {"FINISHED"}
+            assert "Springs" not in capfd.readouterr().out  # said once
+    assert np.array_equal(results[stored], results[None])
 
 
 def snapshot_positions(layout) -> np.ndarray:

@@ -229,12 +229,15 @@ def test_pair_tool_edit_finishes_the_running_re_settle_between_two_iterations():
 
 def _count_reads(monkeypatch):
     """Counts of the calls to the functions that read the layout, its anchors and curves, and its target."""
-    from springwrap.blender import anchors, curves, layout, target
+    from springwrap.blender import anchors, attributes, curves, layout, shape_keys, target
 
     counts = {}
     for module, name in (
         (layout, "read_layout"),
         (layout, "read_layout_topology"),
+        (layout, "read_positions"),  # read_layout's, or a read-back of what was written
+        (attributes, "read_rest"),
+        (shape_keys, "read"),
         (anchors, "read_anchors"),
         (curves, "read_curve_constraints"),
         (target, "read_target"),
@@ -255,13 +258,49 @@ def test_one_wrap_reads_the_layout_and_the_target_once(monkeypatch, hold_plane):
     bpy.ops.springwrap.anchors_auto(spacing=0.5)
     counts = _count_reads(monkeypatch)
     assert bpy.ops.springwrap.wrap(hold_plane=hold_plane) == {"FINISHED"}
-    assert counts == {
-        "read_layout": 1,
-        "read_layout_topology": 1,
-        "read_anchors": 1,
-        "read_curve_constraints": 1,
-        "read_target": 1,
-    }
+    assert counts == ONE_WRAP_READS
+
+
+ONE_WRAP_READS = {
+    "read_layout": 1,
+    "read_layout_topology": 1,
+    "read_positions": 1,
+    "read_rest": 1,
+    "read": 1,  # the shape keys (none here)
+    "read_anchors": 1,
+    "read_curve_constraints": 1,
+    "read_target": 1,
+}
+"""The reads of one wrap of a layout: each once (the positions inside ``read_layout``)."""
+
+
+@pytest.mark.parametrize("with_shape_keys", [False, True])
+def test_a_half_s_wrap_reads_once_and_says_its_midline_drift_from_what_it_wrote(monkeypatch, capfd, with_shape_keys):
+    """A half wrapped without Hold on Plane: the midline is found from the topology the wrap read, its drift
+    measured on the positions the wrap wrote (the number said is the layout's as it now is), the rest shape read
+    once, the result written without reading the mesh back (the shape keys carried from the keys read at the
+    start)."""
+    from bpy_helpers import head_scene, midline_drift
+
+    _target, layout = head_scene()
+    midline = np.flatnonzero(np.array([vertex.co[0] for vertex in layout.data.vertices]) == 0.0)
+    if with_shape_keys:
+        layout.shape_key_add(name="Basis")
+        layout.shape_key_add(name="Key 1")
+    assert bpy.ops.springwrap.anchors_auto(spacing=0.6) == {"FINISHED"}
+    counts = _count_reads(monkeypatch)
+    capfd.readouterr()
+    assert bpy.ops.springwrap.wrap() == {"FINISHED"}
+    said = capfd.readouterr().out
+    assert counts == ONE_WRAP_READS
+    drift = midline_drift(layout, midline)
+    assert drift > 0.0
+    said_drift = f"({midline.size} vertices: a half's midline?); the wrap moved it up to {drift:.3g} off the plane"
+    assert said_drift in said, said
+    assert layout.data.attributes.get("springwrap_rest") is not None  # the template's shape stored at the first write
+    if with_shape_keys:
+        basis = np.array([point.co[:] for point in layout.data.shape_keys.key_blocks["Basis"].data])
+        assert np.array_equal(basis, np.array([vertex.co[:] for vertex in layout.data.vertices]))
 
 
 def test_live_frames_read_nothing_again(monkeypatch):

@@ -13,6 +13,7 @@ from helpers import core_module
 
 layout_state = core_module("layout_state")
 mirroring = core_module("mirroring")
+mirror_seam = core_module("mirror_seam")
 
 
 def grid(columns=4, rows=3, spacing=0.1):
@@ -26,7 +27,7 @@ def grid(columns=4, rows=3, spacing=0.1):
             corners += [a, a + 1, a + columns + 1, a + columns]
     corners = np.array(corners)
     sizes = np.full(len(corners) // 4, 4)
-    edges = mirroring._face_edges(corners, sizes)
+    edges = mirror_seam.face_edges(corners, sizes)
     edges = np.unique(np.sort(edges, axis=1), axis=0)
     return positions, corners, sizes, edges
 
@@ -190,7 +191,7 @@ def test_the_midline_plane_is_the_one_a_half_s_open_border_lies_on_and_not_a_she
     positions, corners, sizes, edges = grid(columns=5, rows=6)
     positions[:, 2] = 0.3 * positions[:, 0] ** 2  # bent away from the plane x = 0 along which its border runs
     positions[[4, 9, 14, 19, 24, 29], 2] += 0.05  # the far column bent too: the border is not all on a plane
-    open_edges = seam.border_edges(mirroring._face_edges(corners, sizes))
+    open_edges = seam.border_edges(seam.face_edges(corners, sizes))
     planes = [(axis, mirroring.plane_from_matrix(np.eye(4), axis)) for axis in mirroring.AXES]
     found = seam.midline_plane(positions, open_edges, edges, planes, 0.1)
     assert found is None  # the column x = 0 is less than half of the open border

@@ -6,6 +6,8 @@ Object mode data unless a function says otherwise (:func:`read_world_vertex_posi
 edit-mesh). Bulk data moves through ``foreach_get`` / ``foreach_set``.
 """
 
+from typing import NamedTuple
+
 import bpy
 
 import bmesh
@@ -87,8 +89,22 @@ def read_world_normals(layout: bpy.types.Object) -> np.ndarray:
     return transforms.transform_normals(matrix, normals)
 
 
+class MeshNow(NamedTuple):
+    """What a caller knows the layout mesh holds now (a wrap: what it read, or its last frame), so that
+    :func:`write_layout` reads none of it back."""
+
+    positions: np.ndarray  # (N, 3) float32 local positions, as read_positions reads them
+    has_rest: bool  # whether a rest shape is stored
+    topology: object  # subdivision.LayoutTopology
+    shape_keys: object  # blender.shape_keys.ShapeKeys as stored now, None without keys
+
+
 def write_layout(
-    layout: bpy.types.Object, positions: np.ndarray, state: LayoutState, rest: np.ndarray | None = None
+    layout: bpy.types.Object,
+    positions: np.ndarray,
+    state: LayoutState,
+    rest: np.ndarray | None = None,
+    now: MeshNow | None = None,
 ) -> None:
     """Write local positions and the per-vertex state into the layout mesh (object mode).
 
@@ -97,20 +113,24 @@ def write_layout(
     else its positions before this write (the template as made, before Springwrap moved it). With shape keys
     the positions become the reference key's too and every other key is carried over onto them
     (``shape_keys.carried``, computed before anything is written). The layout's last wrap, mirror or fit is
-    forgotten (``last_run``): the operation that writes says what it did.
+    forgotten (``last_run``): the operation that writes says what it did. ``now``: what the mesh holds now, known
+    to the caller (:class:`MeshNow`): then nothing of it is read back.
     """
     last_run.forget(layout.name)
     mesh = layout.data
     vertex_count = len(mesh.vertices)
     positions = np.ascontiguousarray(positions, dtype=np.float32).reshape(vertex_count, 3)
-    current = read_positions(layout)
-    unmoved = np.array_equal(current.view(np.uint32), positions.reshape(-1).view(np.uint32))
+    current = read_positions(layout) if now is None else np.ascontiguousarray(now.positions, dtype=np.float32)
+    unmoved = np.array_equal(current.reshape(-1).view(np.uint32), positions.reshape(-1).view(np.uint32))
     keys = None
     if shape_keys.has_shape_keys(layout) and not unmoved:
-        topology = read_layout_topology(layout) if len(mesh.polygons) or len(mesh.edges) else None
-        keys = shape_keys.carried(layout, positions, topology)
-    if attributes.read_rest(layout) is None:
-        attributes.write_rest(layout, current if rest is None else rest)
+        if now is not None:
+            keys = shape_keys.carried(layout, positions, now.topology, now.shape_keys)
+        else:
+            topology = read_layout_topology(layout) if len(mesh.polygons) or len(mesh.edges) else None
+            keys = shape_keys.carried(layout, positions, topology)
+    if not (attributes.read_rest(layout) is not None if now is None else now.has_rest):
+        attributes.write_rest(layout, current.reshape(-1, 3) if rest is None else rest)
     if keys is not None:
         shape_keys.write(layout, *keys)
     elif not unmoved:
@@ -210,19 +230,6 @@ def make_layout_structure(topology):
 def read_layout_structure(layout: bpy.types.Object):
     """The layout mesh's faces, edges and seams as a kernel ``LayoutStructure`` (object mode data)."""
     return make_layout_structure(read_layout_topology(layout))
-
-
-def read_open_edges(layout: bpy.types.Object) -> tuple[np.ndarray, np.ndarray]:
-    """((B, 2) the edges of exactly one face: the layout's open borders, (E, 2) all its edges), int64 vertex pairs
-    (object mode data; counted from the face corners' edges, no sorting)."""
-    mesh = layout.data
-    edges = np.empty(len(mesh.edges) * 2, dtype=np.int64)
-    mesh.edges.foreach_get("vertices", edges)
-    edges = edges.reshape(-1, 2)
-    corner_edges = np.empty(len(mesh.loops), dtype=np.int64)
-    mesh.loops.foreach_get("edge_index", corner_edges)
-    faces_per_edge = np.bincount(corner_edges, minlength=edges.shape[0])
-    return edges[faces_per_edge == 1], edges
 
 
 def read_layout_curves(layout: bpy.types.Object) -> list:

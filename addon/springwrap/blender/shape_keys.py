@@ -99,11 +99,15 @@ def restore(layout: bpy.types.Object, keys: ShapeKeys | None) -> None:
         write(layout, keys.positions, keys.reference)
 
 
-def carried(layout: bpy.types.Object, new_basis: np.ndarray, topology) -> tuple[np.ndarray, int] | None:
+def carried(
+    layout: bpy.types.Object, new_basis: np.ndarray, topology, keys: ShapeKeys | None = None
+) -> tuple[np.ndarray, int] | None:
     """(every key's new positions, the reference key's index) once the basis becomes ``new_basis`` (local (N, 3));
     None without shape keys. ``topology`` is the layout's ``subdivision.LayoutTopology`` (None: no faces or
-    edges, offsets are then only moved along). Reads, computes, writes nothing."""
-    keys = read(layout)
+    edges, offsets are then only moved along). ``keys``: the keys as they are now, when the caller has them (else
+    read here). Computes, writes nothing."""
+    if keys is None:
+        keys = read(layout)
     if keys is None:
         return None
     if topology is None:

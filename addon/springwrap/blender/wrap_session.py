@@ -106,8 +106,8 @@ class WrapSession:
         input_policy.check_anchor_points(self.anchors.vertex_indices, self.anchors.locations, extent)
         input_policy.check_curve_points(curve_constraints, extent)
         # The template's shape as made: stored at the first change of the layout, else as it is now.
-        rest = attributes.read_rest(layout)
-        self.rest = arrays.positions if rest is None else rest
+        self.rest = arrays.positions if reads.rest is None else reads.rest
+        self.read_arrays = (arrays.positions, reads.rest is not None)  # finish() writes over them, not read back
         inputs, resolution = wrap_inputs.prepare_wrap(
             arrays,
             self.target,
@@ -118,7 +118,7 @@ class WrapSession:
             self.rest,
             soft_proposals=True,
         )
-        inputs = self._vertex_groups(inputs, layout, parameters)
+        inputs = wrap_reads.read_vertex_groups(inputs, layout, parameters)
         self.parts, self.follower = part_data.plan_wrap_parts(
             layout, arrays, self.layout_topology, self.target, self.anchors, curve_constraints
         )
@@ -190,23 +190,6 @@ class WrapSession:
     def stage_iterations(self) -> int:
         """Iterations run so far by the current stage's solver."""
         return 0 if self.last_report is None else self.last_report.total_iterations
-
-    def _vertex_groups(self, inputs, layout, parameters):
-        """``inputs`` with the Stiffness and Free groups (the operator's, else the layout's settings) read in."""
-        settings = layout.springwrap
-        stiffness_group = getattr(parameters, "stiffness_group", "") or settings.stiffness_group
-        free_group = getattr(parameters, "free_group", "") or settings.free_group
-        if not stiffness_group and not free_group:
-            return inputs
-        if int(parameters.spring_resolution) > 1:
-            raise LayoutError("The Stiffness and Free groups need Spring Resolution 1")
-        if stiffness_group:
-            weights, member = layout_data.read_layout_group(layout, stiffness_group)
-            inputs = inputs._replace(stiffness=wrap_inputs.group_stiffness(weights, member))
-        if free_group:
-            weights, member = layout_data.read_layout_group(layout, free_group)
-            inputs = inputs._replace(free_vertices=np.ascontiguousarray(member & (weights > 0.0)))
-        return inputs
 
     @property
     def total_iterations(self) -> int:
@@ -425,6 +408,8 @@ class WrapSession:
     def _write_frame(self, positions, state) -> None:
         attributes.write_wrap_frame(self.layout, positions, state)
         shape_key_data.follow(self.layout, self.shape_keys, positions)
+        if self.shape_keys is None:  # the mesh now holds these (with keys, finish() puts the keys back first)
+            self.read_arrays = (np.asarray(positions, dtype=np.float32).reshape(-1, 3), self.read_arrays[1])
 
     def finish(self, measure: bool = True) -> WrapResult:
         """Write the result for good: positions, state, the target signature and the resolved anchors, and (with
@@ -440,7 +425,9 @@ class WrapSession:
                 self.layout, self.target, positions, self.rest, self.layout_topology, state
             )
         shape_key_data.restore(self.layout, self.shape_keys)  # carried from the keys as they were, not a frame
-        layout_data.write_layout(self.layout, positions, state, rest=self.rest)
+        mesh_positions, has_rest = self.read_arrays
+        now = layout_data.MeshNow(mesh_positions, has_rest, self.layout_topology, self.shape_keys)
+        layout_data.write_layout(self.layout, positions, state, rest=self.rest, now=now)
         self.written_positions = positions  # what the operator's storage check needs, not read back
         self.settled_key = wrap_inputs.settled_key(self.target.signature, positions, self.rest, self.parameters)
         _settled[self.layout.name_full] = self.settled_key

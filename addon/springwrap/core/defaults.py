@@ -28,6 +28,24 @@ RETIRED_SOLVER_WARNING = (
     "Folding and Tolerance weigh its terms)"
 )
 
+RETIRED_SOLVER_INDEX = 0
+"""The retired solver's number in an old ``.blend``: Blender stores an enum setting as its item's index, and
+``SPRINGS`` was the first item of the panel's Solver (``wrap_solver``)."""
+
+
+def is_retired_solver(value) -> bool:
+    """Whether a stored or given solver choice (an old file's enum index, or its name) is the retired spring
+    solver."""
+    if isinstance(value, str):
+        return value.upper() == RETIRED_SOLVER
+    return isinstance(value, int) and not isinstance(value, bool) and value == RETIRED_SOLVER_INDEX
+
+
+def retired_stored_solver_warning(layout_name: str) -> str:
+    """What a wrap says once when ``layout_name``'s settings, saved in an old ``.blend``, chose the Springs
+    solver (the choice is then removed from the layout)."""
+    return f"Layout '{layout_name}' was saved with the Springs solver chosen. {RETIRED_SOLVER_WARNING}; the old choice was removed"
+
 
 class SettingRange(NamedTuple):
     """One kernel setting's range (``springwrap_kernel.WrapSettings.ranges()``)."""

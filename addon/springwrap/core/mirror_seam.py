@@ -42,8 +42,19 @@ def vertex_edge_lengths(positions: np.ndarray, edges: np.ndarray) -> np.ndarray:
     return np.where(degrees > 0, totals / np.maximum(degrees, 1), mean)
 
 
+def face_edges(corners: np.ndarray, sizes: np.ndarray) -> np.ndarray:
+    """(C, 2) int64 the edges of faces given corner by corner (each corner to the next in its face)."""
+    corners, sizes = np.asarray(corners, dtype=np.int64), np.asarray(sizes, dtype=np.int64)
+    if corners.size == 0:
+        return np.zeros((0, 2), dtype=np.int64)
+    starts = np.repeat(np.concatenate([[0], np.cumsum(sizes)[:-1]]), sizes)
+    following = np.arange(corners.size) + 1
+    following = np.where(following == starts + np.repeat(sizes, sizes), starts, following)
+    return np.stack([corners, corners[following]], axis=1)
+
+
 def border_edges(face_edges: np.ndarray) -> np.ndarray:
-    """(B, 2) the edges used by exactly one face (the open borders), from every face's edges (``_face_edges``)."""
+    """(B, 2) the edges used by exactly one face (the open borders), from every face's edges (:func:`face_edges`)."""
     face_edges = np.sort(np.asarray(face_edges, dtype=np.int64).reshape(-1, 2), axis=1)
     keys, counts = np.unique(face_edges[:, 0] * (1 << 32) + face_edges[:, 1], return_counts=True)
     single = keys[counts == 1]

@@ -172,7 +172,7 @@ def plan(
             "object whose plane runs along the layout's open side"
         )
     side = mirror_seam.surfaced_side(distances, weld)
-    open_edges = mirror_seam.border_edges(_face_edges(corners, sizes))
+    open_edges = mirror_seam.border_edges(mirror_seam.face_edges(corners, sizes))
     on_border, left_out = mirror_seam.border_seam(
         positions, edges, open_edges, distances, edge_lengths, plane.normal, side
     )
@@ -185,7 +185,7 @@ def plan(
     above = np.bincount(faces, weights=clear & (distances[corners] > weld[corners]), minlength=face_count) > 0
     below = np.bincount(faces, weights=clear & (distances[corners] < -weld[corners]), minlength=face_count) > 0
     off_seam = np.bincount(faces, weights=~seam[corners], minlength=face_count) > 0
-    face_edge_keys = _edge_keys(_face_edges(corners, sizes))
+    face_edge_keys = _edge_keys(mirror_seam.face_edges(corners, sizes))
     loose = ~np.isin(_edge_keys(edges), face_edge_keys)
     duplicate_edges = loose & ~(seam[edges[:, 0]] & seam[edges[:, 1]]) if edges.size else np.zeros(0, dtype=bool)
     return MirrorPlan(
@@ -198,16 +198,6 @@ def plan(
         in_plane_faces=int(face_count - off_seam.sum()),
         drifted=seam & ~near,
     )
-
-
-def _face_edges(corners: np.ndarray, sizes: np.ndarray) -> np.ndarray:
-    """(C, 2) the edges of faces given corner by corner (each corner to the next in its face)."""
-    if corners.size == 0:
-        return np.zeros((0, 2), dtype=np.int64)
-    starts = np.repeat(np.concatenate([[0], np.cumsum(sizes)[:-1]]), sizes)
-    following = np.arange(corners.size) + 1
-    following = np.where(following == starts + np.repeat(sizes, sizes), starts, following)
-    return np.stack([corners, corners[following]], axis=1)
 
 
 def _edge_keys(edges: np.ndarray) -> np.ndarray:

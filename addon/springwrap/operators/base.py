@@ -16,6 +16,7 @@ import numpy as np
 from ..blender import anchors as anchor_data
 from ..blender import curves as curve_data
 from ..blender import layout as layout_data
+from ..blender import retired
 from ..blender import shape_keys as shape_key_data
 from ..blender import target as target_data
 from ..blender.edit_mode import object_mode
@@ -331,10 +332,13 @@ def topology_change_report(outcome, on_faces: str, in_space: str) -> tuple[set, 
     )
 
 
-def report_retired_solver(operator) -> None:
-    """Warn when the operator was called with the retired spring solver (``solver='SPRINGS'``, from an old script or
-    preset): it wrapped with the energy solver."""
-    if getattr(operator, "solver", "ENERGY") == defaults.RETIRED_SOLVER:
+def report_retired_solver(operator, layout=None) -> None:
+    """Warn when the retired spring solver was asked for: by the operator's ``solver='SPRINGS'`` (an old script or
+    preset), or by ``layout``'s panel choice stored in an old ``.blend`` (removed here, so said once:
+    ``blender.retired``). It wrapped with the energy solver."""
+    if retired.take_retired_solver(layout):
+        operator.report({"WARNING"}, defaults.retired_stored_solver_warning(layout.name))
+    elif defaults.is_retired_solver(getattr(operator, "solver", "ENERGY")):
         operator.report({"WARNING"}, defaults.RETIRED_SOLVER_WARNING)
 
 

@@ -384,7 +384,7 @@ class SPRINGWRAP_OT_mirror(SpringwrapOperator, bpy.types.Operator):
                 "sides): their mirror overlaps them. They are selected; cut them at the plane or move them to one side",
             )
         if outcome.wrap is not None:
-            report_retired_solver(self)
+            report_retired_solver(self, bpy.data.objects.get(outcome.layout_name))
 
 
 classes = (SPRINGWRAP_OT_mirror,)

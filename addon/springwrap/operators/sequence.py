@@ -91,7 +91,7 @@ class SPRINGWRAP_OT_wrap_sequence(LayoutOperator, bpy.types.Operator):
         layout = context.active_object
         try:
             check_inputs(context, layout, with_target=self.source == "TARGET")
-            report_retired_solver(self)
+            report_retired_solver(self, layout)
             settings = WRAP_DEFAULTS.replace(schedule=self.schedule)
             parameters = WrapParameters(max_iterations=self.max_iterations, settings=settings)
             return SequenceRun(

@@ -24,7 +24,6 @@ events in, operator results out), so tests drive them directly.
 import bpy
 
 from .. import property_kinds as props
-from ..blender import layout as layout_data
 from ..blender import live_wraps, wrap_reads, wrap_session
 from ..blender.edit_mode import EditModeGuard, object_mode
 from ..blender.wrap_session import WrapSession
@@ -155,10 +154,11 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
         """Without Hold on Plane, remember the plane of the layout (or its Mirror Object) its open border lies on, if
         any (a half's midline), to say after the wrap what Hold on Plane is for."""
         self._midline = None
-        if self.hold_plane != "NONE" or len(layout.data.polygons) == 0:
+        topology = reads.topology
+        if self.hold_plane != "NONE" or topology.face_sizes.size == 0:
             return
         owner = layout.springwrap.mirror_object or layout
-        open_edges, edges = layout_data.read_open_edges(layout)
+        open_edges = mirror_seam.border_edges(mirror_seam.face_edges(topology.face_corners, topology.face_sizes))
         if open_edges.size == 0:
             return
         matrix = matrix_array(owner.matrix_world)
@@ -166,7 +166,9 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
             return
         world = transforms.world_positions(reads.arrays)
         planes = [(axis, mirroring.plane_from_matrix(matrix, axis)) for axis in mirroring.AXES]
-        self._midline = mirror_seam.midline_plane(world, open_edges, edges, planes, mirroring.DEFAULT_WELD_FRACTION)
+        self._midline = mirror_seam.midline_plane(
+            world, open_edges, topology.edges, planes, mirroring.DEFAULT_WELD_FRACTION
+        )
 
     def _plane_holder(self, layout, reads, extent):
         """``adjust_inputs`` for :class:`WrapSession` holding the midline on ``hold_plane``; None without one."""
@@ -225,7 +227,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
                 self.report({"ERROR"}, f"The wrap failed: {error}")
                 return {"CANCELLED"}
             report_storage_precision(self, layout, session.target.extent, session.written_positions)
-        self._report_result(result)
+        self._report_result(result, session)
         return {"FINISHED"}
 
     def invoke(self, context, event):
@@ -273,7 +275,7 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
         if outcome == "FINISHED":
             session = self._loop.session
             report_storage_precision(self, session.layout, session.target.extent, session.written_positions)
-            self._report_result(self._loop.result)
+            self._report_result(self._loop.result, session)
             return {"FINISHED"}
         if self._loop.error is not None:
             self.report({"ERROR"}, f"The wrap failed and was undone: {self._loop.error}")
@@ -316,10 +318,10 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
         if mode is not None:
             mode.restore()
 
-    def _report_result(self, result: WrapResult) -> None:
-        """Report ``result``; warn when the retired spring solver was asked for."""
+    def _report_result(self, result: WrapResult, session: WrapSession) -> None:
+        """Report ``result`` (what ``session`` wrote); warn when the retired spring solver was asked for."""
         wrap_session.remember_result(result)
-        report_midline(self, bpy.data.objects.get(result.layout_name))
+        report_midline(self, session)
         self.report({"INFO"} if result.converged else {"WARNING"}, result.summary())
         if result.readout is not None:
             self.report({"INFO"}, quality.report_line(result.readout))
@@ -332,17 +334,17 @@ class SPRINGWRAP_OT_wrap(LayoutOperator, bpy.types.Operator):
                 f"Target topology changed: {detached} face-points and {result.anchors_detached_count} face anchors "
                 f"lost their target face and became space-points, {reattached} face-points re-attached",
             )
-        report_retired_solver(self)
+        report_retired_solver(self, bpy.data.objects.get(result.layout_name))
 
 
-def report_midline(operator, layout) -> None:
+def report_midline(operator, session: WrapSession) -> None:
     """Say how far the wrap moved a half's midline off its plane (``operator._midline``, found before the wrap) and
-    what Hold on Plane is for."""
+    what Hold on Plane is for; from the positions ``session`` wrote (nothing read back)."""
     midline = getattr(operator, "_midline", None)
-    if midline is None or layout is None:
+    if midline is None or session.written_positions is None:
         return
     axis, plane, vertices = midline
-    world = transforms.world_positions(layout_data.read_layout(layout))
+    world = transforms.transform_points(session.matrix_world, session.written_positions)
     drift = float(abs(mirroring.signed_distances(world[vertices], plane)).max())
     operator.report(
         {"INFO"},

@@ -474,12 +474,26 @@ impl EnergySolver {
         if !solver.system.is_direct() {
             solver.pyramid = AveragingPyramid::new(structure, inputs.rest);
         }
-        solver.warming_up = solver.needs_warm_up();
-        solver.fit_similarities(true);
+        solver.start_schedule();
         solver.resettle_if_on_target(inputs.points, inputs.settled_start);
-        solver.orientation = solver.measure_orientation();
         solver.profiler.add(WrapPhase::FirstFit, clock);
         Ok(solver)
+    }
+
+    /// Starts the schedule from the current positions, as a wrap from them does: the warm-up when
+    /// [`Self::needs_warm_up`], the first level, no energy measured yet, nothing held back, no hits remembered, the
+    /// similarities fitted afresh and the layout's orientation measured. A new solver starts so, and so does a
+    /// re-settle that moved too far on its first iteration ([`Self::keep_resettle_if_settled`]).
+    fn start_schedule(&mut self) {
+        self.warming_up = self.needs_warm_up();
+        (self.level, self.level_iterations, self.iterations) = (0, 0, 0);
+        self.last_energy = f64::INFINITY;
+        self.finished = false;
+        self.held_back.fill(false);
+        self.last_hits.fill(NO_TRIANGLE);
+        self.similarities.fill(Similarity::IDENTITY);
+        self.fit_similarities(true);
+        self.orientation = self.measure_orientation();
     }
 
     /// Whether the wrap starts with the warm-up: always with a factor; without one, only when

@@ -55,15 +55,7 @@ impl EnergySolver {
             return;
         }
         self.positions = start;
-        self.warming_up = self.needs_warm_up();
-        (self.level, self.level_iterations, self.iterations) = (0, 0, 0);
-        self.last_energy = f64::INFINITY;
-        self.finished = false;
-        self.held_back.fill(false);
-        self.last_hits.fill(NO_TRIANGLE);
-        self.similarities.fill(Similarity::IDENTITY);
-        self.fit_similarities(true);
-        self.orientation = self.measure_orientation();
+        self.start_schedule();
     }
 
     /// Whether every anchor and curve target is where its vertex starts (within the landing distance) and no point
