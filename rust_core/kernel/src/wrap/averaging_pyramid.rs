@@ -59,11 +59,13 @@ impl Averaged for Quat {
 }
 
 impl Averaged for f32 {
+    /// The others summed first, then `self` added (with weights 1, to the bit the plain mean of
+    /// a vertex and its neighbours).
     fn mean(self, own: f32, others: impl Iterator<Item = (Self, f32)>) -> Self {
-        let (sum, total) = others.fold((self * own, own), |(sum, total), (other, weight)| {
+        let (sum, total) = others.fold((0.0, 0.0), |(sum, total), (other, weight)| {
             (sum + other * weight, total + weight)
         });
-        sum / total
+        (self * own + sum) / (own + total)
     }
 }
 
@@ -410,6 +412,24 @@ impl AveragingPyramid {
     }
 }
 
+/// `values` (one per vertex) smoothed by `rounds` rounds of averaging over edge neighbours: through
+/// `pyramid` when there is one (a layout too large to factor), else round by round.
+///
+/// # Errors
+/// [`KernelError::Cancelled`] once `stop` said true.
+pub(crate) fn smooth_over<T: Averaged>(
+    pyramid: Option<&AveragingPyramid>,
+    structure: &LayoutStructure,
+    values: &mut Vec<T>,
+    rounds: usize,
+    stop: Stop<'_>,
+) -> Result<(), KernelError> {
+    match pyramid {
+        Some(pyramid) => pyramid.smooth(structure, values, rounds, stop),
+        None => fine_rounds(structure, values, rounds, stop),
+    }
+}
+
 /// One round on a graph of aggregates.
 fn graph_round<T: Averaged>(graph: &Graph, values: &[T]) -> Vec<T> {
     (0..graph.len())
@@ -426,7 +446,9 @@ fn graph_round<T: Averaged>(graph: &Graph, values: &[T]) -> Vec<T> {
         .collect()
 }
 
-/// `rounds` rounds of averaging each vertex with its edge neighbours (each weighing as much).
+/// `rounds` rounds of averaging each vertex with its edge neighbours (each weighing as much); two
+/// buffers, each round written into the other (a round's fresh vector of a million rotations
+/// cost more in page faults than its arithmetic).
 ///
 /// # Errors
 /// [`KernelError::Cancelled`] once `stop` said true.

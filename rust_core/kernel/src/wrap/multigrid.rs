@@ -488,12 +488,8 @@ impl Multigrid {
             .map(|(b, inverse)| *b * *inverse)
             .collect();
         if !last {
-            // The residual, row by row in order, then summed over each aggregate.
-            let residual: Vec<DVec3> = (0..x.len())
-                .into_par_iter()
-                .with_min_len(4096)
-                .map(|row| level.matrix.residual_at(row, extra, b, &x))
-                .collect();
+            // The residual summed over each aggregate, its members' rows in order, without a
+            // vector of the finest residual (a pass over it and its memory saved).
             let pointers = &level.member_pointers;
             let coarse: Vec<DVec3> = (0..pointers.len() - 1)
                 .into_par_iter()
@@ -501,7 +497,7 @@ impl Multigrid {
                 .map(|aggregate| {
                     level.members[pointers[aggregate]..pointers[aggregate + 1]]
                         .iter()
-                        .map(|&row| residual[row as usize])
+                        .map(|&row| level.matrix.residual_at(row as usize, extra, b, &x))
                         .sum()
                 })
                 .collect();

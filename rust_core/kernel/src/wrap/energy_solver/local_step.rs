@@ -3,6 +3,7 @@
 
 use super::*;
 use crate::cancel::NEVER;
+use crate::wrap::averaging_pyramid::smooth_over;
 
 impl EnergySolver {
     /// Fits every vertex's similarity at the current positions (from the last fit).
@@ -30,35 +31,13 @@ impl EnergySolver {
             return Ok(());
         }
         let mut rotations: Vec<Quat> = self.similarities.iter().map(|fit| fit.rotation).collect();
-        if let Some(pyramid) = &self.pyramid {
-            pyramid.smooth(&self.structure, &mut rotations, rounds, stop)?;
-            for (fit, rotation) in self.similarities.iter_mut().zip(rotations) {
-                fit.rotation = rotation;
-            }
-            return Ok(());
-        }
-        // Two buffers, each round written into the other: a round's fresh vector of a million
-        // rotations cost more in page faults than its arithmetic.
-        let mut smoothed = rotations.clone();
-        for _ in 0..rounds {
-            check(stop, WRAP_STEP)?;
-            smoothed
-                .par_iter_mut()
-                .with_min_len(2048)
-                .enumerate()
-                .for_each(|(vertex, smoothed)| {
-                    let own = rotations[vertex];
-                    let sum = self
-                        .structure
-                        .neighbors_of(vertex as u32)
-                        .iter()
-                        .fold(Vec4::from(own), |sum, &other| {
-                            add_matched(sum, rotations[other as usize], own)
-                        });
-                    *smoothed = normalized_rotation(sum).unwrap_or(own);
-                });
-            std::mem::swap(&mut rotations, &mut smoothed);
-        }
+        smooth_over(
+            self.pyramid.as_ref(),
+            &self.structure,
+            &mut rotations,
+            rounds,
+            stop,
+        )?;
         for (fit, rotation) in self.similarities.iter_mut().zip(rotations) {
             fit.rotation = rotation;
         }
@@ -117,26 +96,13 @@ impl EnergySolver {
                 }
             })
             .collect();
-        if let Some(pyramid) = &self.pyramid {
-            pyramid.smooth(&self.structure, &mut logs, rounds, NEVER)?;
-            for (fit, log) in self.similarities.iter_mut().zip(logs) {
-                fit.scale = log.exp();
-            }
-            return Ok(());
-        }
-        let mut smoothed = logs.clone();
-        for _ in 0..rounds {
-            smoothed
-                .par_iter_mut()
-                .with_min_len(2048)
-                .enumerate()
-                .for_each(|(vertex, smoothed)| {
-                    let neighbors = self.structure.neighbors_of(vertex as u32);
-                    let sum: f32 = neighbors.iter().map(|&other| logs[other as usize]).sum();
-                    *smoothed = (logs[vertex] + sum) / (1 + neighbors.len()) as f32;
-                });
-            std::mem::swap(&mut logs, &mut smoothed);
-        }
+        smooth_over(
+            self.pyramid.as_ref(),
+            &self.structure,
+            &mut logs,
+            rounds,
+            NEVER,
+        )?;
         for (fit, log) in self.similarities.iter_mut().zip(logs) {
             fit.scale = log.exp();
         }

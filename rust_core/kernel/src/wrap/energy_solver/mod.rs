@@ -442,7 +442,14 @@ impl EnergySolver {
             similarities: vec![Similarity::IDENTITY; vertex_count],
             frame: Quat::IDENTITY,
             held_back: vec![false; vertex_count],
-            last_hits: vec![NO_TRIANGLE; vertex_count],
+            // A face-point's triangle starts its first query: the answer is the same, found
+            // without a search from the tree's root.
+            last_hits: (0..vertex_count)
+                .map(|vertex| match inputs.points.get(vertex) {
+                    Some(LayoutPoint::Face(face_point)) => face_point.triangle,
+                    _ => NO_TRIANGLE,
+                })
+                .collect(),
             orientation: 1.0,
             mean_edge_length: inputs.mean_edge_length,
             landing_distance: inputs.landing_distance,
