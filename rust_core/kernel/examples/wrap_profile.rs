@@ -103,24 +103,24 @@ fn main() {
         let per_iteration = std::env::var_os("PER_ITERATION").is_some();
         let report = if per_iteration {
             let mut last = solver.phase_times();
-            let mut last_solves = solver.solve_statistics();
+            let mut last_statistics = solver.solve_statistics();
             loop {
                 let report = solver.step(1).unwrap();
                 let now = solver.phase_times();
-                let solves = solver.solve_statistics();
+                let statistics = solver.solve_statistics();
                 println!(
                     "  iteration {}: correspondences {:.4} solve {:.4} ({} factored, {} cg) safeguard {:.4} max move {:.2e} held {}",
                     report.total_iterations,
                     now.seconds(WrapPhase::Correspondences)
                         - last.seconds(WrapPhase::Correspondences),
                     now.seconds(WrapPhase::Solve) - last.seconds(WrapPhase::Solve),
-                    solves.factorizations - last_solves.factorizations,
-                    solves.iterations - last_solves.iterations,
+                    statistics.factorizations - last_statistics.factorizations,
+                    statistics.iterations - last_statistics.iterations,
                     now.seconds(WrapPhase::Safeguard) - last.seconds(WrapPhase::Safeguard),
                     report.max_displacement,
                     report.held_back
                 );
-                (last, last_solves) = (now, solves);
+                (last, last_statistics) = (now, statistics);
                 if report.converged {
                     break report;
                 }
@@ -143,15 +143,15 @@ fn main() {
             .iter()
             .map(|p| f64::from(p.x) + 3.0 * f64::from(p.y) + 7.0 * f64::from(p.z))
             .sum();
-        let solves = solver.solve_statistics();
+        let statistics = solver.solve_statistics();
         println!(
             "run {run}: {:.3} processor s, {:.3} wall s, {} iterations, converged {}, {} factorizations, {} cg iterations, checksum {checksum:.9}",
             processor,
             wall,
             report.total_iterations,
             report.converged,
-            solves.factorizations,
-            solves.iterations
+            statistics.factorizations,
+            statistics.iterations
         );
         totals.push(processor);
     }
