@@ -103,20 +103,24 @@ fn main() {
         let per_iteration = std::env::var_os("PER_ITERATION").is_some();
         let report = if per_iteration {
             let mut last = solver.phase_times();
+            let mut last_statistics = solver.solve_statistics();
             loop {
                 let report = solver.step(1).unwrap();
                 let now = solver.phase_times();
+                let statistics = solver.solve_statistics();
                 println!(
-                    "  iteration {}: correspondences {:.4} solve {:.4} safeguard {:.4} max move {:.2e} held {}",
+                    "  iteration {}: correspondences {:.4} solve {:.4} ({} factored, {} cg) safeguard {:.4} max move {:.2e} held {}",
                     report.total_iterations,
                     now.seconds(WrapPhase::Correspondences)
                         - last.seconds(WrapPhase::Correspondences),
                     now.seconds(WrapPhase::Solve) - last.seconds(WrapPhase::Solve),
+                    statistics.factorizations - last_statistics.factorizations,
+                    statistics.iterations - last_statistics.iterations,
                     now.seconds(WrapPhase::Safeguard) - last.seconds(WrapPhase::Safeguard),
                     report.max_displacement,
                     report.held_back
                 );
-                last = now;
+                (last, last_statistics) = (now, statistics);
                 if report.converged {
                     break report;
                 }
@@ -139,9 +143,15 @@ fn main() {
             .iter()
             .map(|p| f64::from(p.x) + 3.0 * f64::from(p.y) + 7.0 * f64::from(p.z))
             .sum();
+        let statistics = solver.solve_statistics();
         println!(
-            "run {run}: {:.3} processor s, {:.3} wall s, {} iterations, converged {}, checksum {checksum:.9}",
-            processor, wall, report.total_iterations, report.converged
+            "run {run}: {:.3} processor s, {:.3} wall s, {} iterations, converged {}, {} factorizations, {} cg iterations, checksum {checksum:.9}",
+            processor,
+            wall,
+            report.total_iterations,
+            report.converged,
+            statistics.factorizations,
+            statistics.iterations
         );
         totals.push(processor);
     }
