@@ -12,7 +12,7 @@ from bpy_helpers import PanelRecorder, activate, anchor_snapshot, make_object, w
 from helpers import ball_landmarks, ball_stretch, bumpy_ball, triangulated
 
 IDENTITY = Matrix.Identity(4)
-LOOSE = 0.5
+LOOSE = 0.3
 """A least confidence below the default: the ball, with 3 anchors only, has few pairs above the default."""
 
 

@@ -129,7 +129,7 @@ impl Case {
 /// pairs above the default.
 fn loose() -> ProposalSettings {
     ProposalSettings {
-        min_confidence: 0.5,
+        min_confidence: 0.3,
         ..ProposalSettings::default()
     }
 }

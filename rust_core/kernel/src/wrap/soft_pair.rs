@@ -1,6 +1,13 @@
 //! Soft pairs: a layout vertex pulled toward a target point by a spring whose strength is the
 //! pair's confidence, while the energy wrap is stiff, and let go before the local fit.
 //!
+//! They do not pull in the warm-up: there the data term is off and the anchors alone deform the
+//! layout as rigidly as possible, so a pull acts as an anchor would and carries its whole region.
+//! Measured on the heavy-old body with 4 anchors and its 3 proposals (both nipples, 0.5 % and
+//! 0.8 % of the diagonal from their true points, and an ear; `benchmarks/few_anchors.py`): mean
+//! error 0.506 % of the diagonal without them, 0.647 % with them pulling in the warm-up too,
+//! 0.500 % in the stiff levels only.
+//!
 //! An anchor is met exactly. A pair found automatically (a tip of the layout matched to a tip of
 //! the target) is only about as precise as the wrap itself, and sometimes wrong: held exactly it
 //! would drag its neighbourhood off the surface. As a soft pair it helps where it is needed, in
@@ -26,8 +33,8 @@ pub struct SoftPair {
 /// diagonal of each other; with the proposals of confidence 0.5 or more, 10 was worse than 1 on
 /// the heavy body (0.324 % against 0.261 %), whose proposals were 42 % wrong.
 pub(crate) const SOFT_PAIR_WEIGHT: f64 = 3.0;
-/// Soft pairs act in the warm-up and the levels whose data weight is below this (the stiff ones
-/// and the first local one); from the first level at or above it, the data term alone pulls their
+/// Soft pairs act in the levels whose data weight is below this (the stiff ones and the first
+/// local one); from the first level at or above it, the data term alone pulls their
 /// vertices. Letting go after the stiff levels alone (1) measured the same.
 pub(crate) const SOFT_PAIR_RELEASE: f64 = 10.0;
 
@@ -51,21 +58,6 @@ pub(crate) fn pull_soft_pairs(
             *correspondence = Some((weight as f32, target));
         }
     }
-}
-
-/// The warm-up's pulls: each soft pair at [`SOFT_PAIR_WEIGHT`] × confidence (the warm-up's
-/// global step has a data weight of 1 for them).
-pub(crate) fn warm_up_pulls(
-    soft_pairs: &[Option<(Vec3, f32)>],
-    vertex_count: usize,
-) -> Vec<Option<(f32, Vec3)>> {
-    let mut pulls = vec![None; vertex_count];
-    for (pull, pair) in pulls.iter_mut().zip(soft_pairs) {
-        if let Some((target, confidence)) = *pair {
-            *pull = Some(((SOFT_PAIR_WEIGHT * f64::from(confidence)) as f32, target));
-        }
-    }
-    pulls
 }
 
 #[cfg(test)]

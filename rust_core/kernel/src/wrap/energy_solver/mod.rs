@@ -24,7 +24,8 @@
 //! layout faces away from the target's smoothed normal there (cavities, the far side of a thin
 //! part), on a boundary edge (a hole) or on an unreliable triangle. Anchors and curve targets are hard
 //! constraints (their vertices are eliminated from the system); a soft pair (`soft_pair.rs`)
-//! replaces its vertex's data term by a pull toward its point in the warm-up and the stiff levels.
+//! replaces its vertex's data term by a pull toward its point in the stiff levels (not in the
+//! warm-up).
 //!
 //! **Warm-up**: before any data term, the constraints alone pull the layout as rigidly as
 //! possible (the same steps with `λ = 0`, rotations averaged over neighbours, no safeguard), so
@@ -62,7 +63,7 @@ use super::plane_constraint::Plane;
 use super::profile::{PhaseClock, PhaseTimes, Profiler, WrapPhase};
 use super::settings::{WrapSchedule, WrapSettings};
 use super::similarity::{RestFit, Similarity};
-use super::soft_pair::{pull_soft_pairs, warm_up_pulls};
+use super::soft_pair::pull_soft_pairs;
 #[cfg(test)]
 use crate::cancel::NEVER;
 use crate::cancel::{Stop, check};
@@ -505,14 +506,11 @@ impl EnergySolver {
 
     /// Whether the wrap starts with the warm-up: always with a factor; without one, only when
     /// something moves the layout before the data term does (a fixed vertex: an anchor, a curve
-    /// target, a point held where it starts; a soft pair; a vertex held on the plane). Nothing
+    /// target, a point held where it starts; a vertex held on the plane). Nothing
     /// pulling, the warm-up only relaxes the layout toward the template's shape, which the data
     /// term then undoes: on a 512² grid 21 iterations of 37.
     fn needs_warm_up(&self) -> bool {
-        self.system.is_direct()
-            || self.fixed.iter().any(Option::is_some)
-            || self.soft_pairs.iter().any(Option::is_some)
-            || self.plane.is_some()
+        self.system.is_direct() || self.fixed.iter().any(Option::is_some) || self.plane.is_some()
     }
 
     /// The seconds of each phase so far (all zero unless a profile was asked for).
@@ -693,12 +691,14 @@ impl EnergySolver {
         self.smooth_rotations(WARMUP_ROTATION_SMOOTHING, stop)?;
         self.fit_scales(None)?;
         self.profiler.add(WrapPhase::Smoothing, clock);
-        let pulls = warm_up_pulls(&self.soft_pairs, self.positions.len());
-        let mut proposed = self.global_solve(&pulls, 1.0, stop)?;
+        // Soft pairs do not pull here: with the data term off, a pull would act as an anchor on
+        // its whole limb (see `soft_pair.rs`).
+        let none = vec![None; self.positions.len()];
+        let mut proposed = self.global_solve(&none, 0.0, stop)?;
         clock = self.profiler.start();
         self.keep_on_plane(&mut proposed);
         let (max_move, mean_move) = moves(&proposed, &self.positions);
-        let energy = self.energy_at(&proposed, &pulls, 1.0, &self.positions);
+        let energy = self.energy_at(&proposed, &none, 0.0, &self.positions);
         self.profiler.add(WrapPhase::Energy, clock);
         self.positions = proposed;
         self.iterations += 1;
