@@ -1077,3 +1077,22 @@ def make_sphere_layout(target, name="Layout"):
     """An ico sphere just inside the target sphere: one wrap lands every vertex."""
     bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=3, radius=1.3, location=(0.05, -0.02, 0.03))
     return as_layout(bpy.context.active_object, name, target)
+
+
+def stretched_ball_scene(landmarks: int = 3):
+    """The target: a finer bumpy ball, stretched; the layout: a coarser one where Align would put it, anchored at
+    its first ``landmarks`` tips' true points (hand pairs). (layout, truth: each layout vertex's true point)."""
+    from helpers import ball_landmarks, ball_stretch, bumpy_ball, triangulated
+
+    rest, faces = bumpy_ball(60, 90)
+    fine, fine_faces = bumpy_ball(110, 170)
+    target = make_object("Target", ball_stretch(fine), [tuple(t) for t in triangulated(fine_faces)], Matrix.Identity(4))
+    layout = make_object("Layout", rest * 1.05 + np.array([0.1, -0.2, 0.05]), faces, Matrix.Identity(4))
+    layout.springwrap.target = target
+    activate(layout)
+    truth = ball_stretch(rest)
+    for vertex in ball_landmarks(rest, landmarks).tolist():
+        assert bpy.ops.springwrap.anchor_add(vertex_index=vertex, location=tuple(truth[vertex]), use_location=True) == {
+            "FINISHED"
+        }
+    return layout, truth

@@ -6,12 +6,9 @@ import bpy
 
 import numpy as np
 import pytest
-from mathutils import Matrix
 
-from bpy_helpers import PanelRecorder, activate, anchor_snapshot, make_object, world_positions
-from helpers import ball_landmarks, ball_stretch, bumpy_ball, triangulated
+from bpy_helpers import PanelRecorder, anchor_snapshot, stretched_ball_scene, world_positions
 
-IDENTITY = Matrix.Identity(4)
 LOOSE = 0.3
 """A least confidence below the default: the ball, with 3 anchors only, has few pairs above the default."""
 
@@ -19,18 +16,7 @@ LOOSE = 0.3
 def ball_scene(landmarks: int = 3):
     """The target: a finer bumpy ball, stretched; the layout: a coarser one where Align would put it, anchored at
     its first ``landmarks`` tips' true points. (layout, truth: each layout vertex's true point)."""
-    rest, faces = bumpy_ball(60, 90)
-    fine, fine_faces = bumpy_ball(110, 170)
-    target = make_object("Target", ball_stretch(fine), [tuple(t) for t in triangulated(fine_faces)], IDENTITY)
-    layout = make_object("Layout", rest * 1.05 + np.array([0.1, -0.2, 0.05]), faces, IDENTITY)
-    layout.springwrap.target = target
-    activate(layout)
-    truth = ball_stretch(rest)
-    for vertex in ball_landmarks(rest, landmarks).tolist():
-        assert bpy.ops.springwrap.anchor_add(vertex_index=vertex, location=tuple(truth[vertex]), use_location=True) == {
-            "FINISHED"
-        }
-    return layout, truth
+    return stretched_ball_scene(landmarks)
 
 
 def proposed_rows(layout):

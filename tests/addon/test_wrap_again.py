@@ -5,12 +5,8 @@ anew."""
 import bpy
 
 import numpy as np
-from mathutils import Matrix
 
-from bpy_helpers import activate, addon_module, head_scene, make_object, world_positions
-from helpers import ball_landmarks, ball_stretch, bumpy_ball, triangulated
-
-IDENTITY = Matrix.Identity(4)
+from bpy_helpers import addon_module, head_scene, stretched_ball_scene, world_positions
 
 
 def _wrap(layout):
@@ -114,16 +110,7 @@ def _proposal_ball():
     """A coarse bumpy ball wrapped onto a finer stretched one from 3 hand pairs and the accepted proposals (soft
     pairs), global to local: the layout."""
     bpy.ops.wm.read_homefile(use_empty=True)
-    rest, faces = bumpy_ball(60, 90)
-    fine, fine_faces = bumpy_ball(110, 170)
-    target = make_object("Target", ball_stretch(fine), [tuple(t) for t in triangulated(fine_faces)], IDENTITY)
-    layout = make_object("Layout", rest * 1.05 + np.array([0.1, -0.2, 0.05]), faces, IDENTITY)
-    layout.springwrap.target = target
-    activate(layout)
-    truth = ball_stretch(rest)
-    for vertex in ball_landmarks(rest, 3).tolist():
-        location = tuple(truth[vertex])
-        assert bpy.ops.springwrap.anchor_add(vertex_index=vertex, location=location, use_location=True) == {"FINISHED"}
+    layout, _truth = stretched_ball_scene(3)
     assert bpy.ops.springwrap.anchors_propose(accept=True, min_confidence=0.5) == {"FINISHED"}
     assert any(not item.proposed and item.confidence > 0.0 for item in layout.springwrap.anchors)
     assert bpy.ops.springwrap.wrap(schedule="GLOBAL_TO_LOCAL") == {"FINISHED"}

@@ -149,10 +149,9 @@ def test_pairing_between_matched_junctions_moves_the_stretch_to_the_corners():
     np.testing.assert_allclose(slid.constraints[0].points[[0, -1], 0], current[ends, 0], atol=1e-3)
 
 
-def test_a_placement_map_puts_each_paired_vertex_where_the_anchors_say_not_where_the_fit_slid_it():
-    """The middle row slid along itself by a third of an edge under the fit; anchors round the grid's border (at their
-    rest places, the truth) give a map that places each vertex of the row back at its own x along the ridge; four
-    anchors are too few to place a line without matched corners: it goes as spaced."""
+def slid_row():
+    """The grid's lines with its middle row slid along itself by a third of an edge under the fit: (rest positions,
+    lines, the row's vertices, the fitted positions, no vertex anchored, the grid's border vertices)."""
     positions, corners, sizes = grid()
     lines = fl.find_lines(positions, corners, sizes, row_and_column()[: SIZE - 1], 0.0, False)
     row = (SIZE // 2) * SIZE + np.arange(SIZE)
@@ -161,6 +160,14 @@ def test_a_placement_map_puts_each_paired_vertex_where_the_anchors_say_not_where
     anchored = np.zeros(len(positions), dtype=bool)
     index = np.arange(SIZE * SIZE).reshape(SIZE, SIZE)
     border = np.unique(np.concatenate([index[0], index[-1], index[:, 0], index[:, -1]]))
+    return positions, lines, row, current, anchored, border
+
+
+def test_a_placement_map_puts_each_paired_vertex_where_the_anchors_say_not_where_the_fit_slid_it():
+    """The middle row slid along itself by a third of an edge under the fit; anchors round the grid's border (at their
+    rest places, the truth) give a map that places each vertex of the row back at its own x along the ridge; four
+    anchors are too few to place a line without matched corners: it goes as spaced."""
+    positions, lines, row, current, anchored, border = slid_row()
     mapping = fl.placement_map(positions, border, positions[border] + [0, 0, 0.05])
     placed = fl.pair_lines(lines, current, straight_curves(), anchored, [], 0.5, rest=positions, mapping=mapping)
     spaced = fl.pair_lines(lines, current, straight_curves(), anchored, [], 0.5)
@@ -180,14 +187,7 @@ def test_a_map_that_misses_the_feature_does_not_place_the_line_along_it():
     """The map's distance across the feature is a sample of its error: anchors whose targets lie sideways of the
     ridge by more than MAP_REACH maximum distances take the row beside it, and the row goes as the fit spaces it;
     a map within that reach places it."""
-    positions, corners, sizes = grid()
-    lines = fl.find_lines(positions, corners, sizes, row_and_column()[: SIZE - 1], 0.0, False)
-    row = (SIZE // 2) * SIZE + np.arange(SIZE)
-    current = positions.copy()
-    current[row, 0] += 0.33
-    anchored = np.zeros(len(positions), dtype=bool)
-    index = np.arange(SIZE * SIZE).reshape(SIZE, SIZE)
-    border = np.unique(np.concatenate([index[0], index[-1], index[:, 0], index[:, -1]]))
+    positions, lines, row, current, anchored, border = slid_row()
     reach = fl.MAP_REACH * 0.5
     for sideways, placed in ((1.5 * reach, False), (0.5 * reach, True)):
         mapping = fl.placement_map(positions, border, positions[border] + [0, sideways, 0.05])
