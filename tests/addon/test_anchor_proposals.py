@@ -51,6 +51,8 @@ def test_every_setting_changes_the_result():
     assert 1 <= len(proposed_rows(layout)) < len(every)
     bpy.ops.springwrap.anchors_propose(search_radius=0.002, min_confidence=LOOSE)
     assert len(proposed_rows(layout)) < len(every)
+    bpy.ops.springwrap.anchors_propose(feature_scale=0.015, min_confidence=LOOSE)
+    assert proposed_rows(layout) != every
     bpy.ops.springwrap.anchors_propose(accept=True, min_confidence=LOOSE)
     assert proposed_rows(layout) == []
     assert len(layout.springwrap.anchors) == 3 + len(every)

@@ -141,10 +141,13 @@ def _select_problems():
 
 
 def _proposed_then(operator):
-    """Propose pairs (any confidence, searched widely), then accept or reject them all."""
+    """Propose pairs (any confidence, searched widely, features of the small scene's size), then accept or reject
+    them all."""
 
     def run():
-        assert bpy.ops.springwrap.anchors_propose(min_confidence=0.0, search_radius=0.5) == {"FINISHED"}
+        assert bpy.ops.springwrap.anchors_propose(min_confidence=0.0, search_radius=0.5, feature_scale=0.015) == {
+            "FINISHED"
+        }
         assert any(item.proposed for item in bpy.context.active_object.springwrap.anchors)
         return {"FINISHED"}, _call(operator, all=True)
 

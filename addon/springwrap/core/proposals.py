@@ -42,6 +42,7 @@ def propose(
     max_count: int = DEFAULTS["max_count"],
     min_confidence: float = DEFAULTS["min_confidence"],
     search_radius: float = DEFAULTS["search_radius"],
+    feature_scale: float = DEFAULTS["feature_scale"],
     accept: bool = False,
 ) -> AnchorOutcome:
     """The anchors with new proposed pairs added (the previous, un-accepted proposals replaced).
@@ -72,6 +73,7 @@ def propose(
         max_count=int(max_count),
         min_confidence=float(min_confidence),
         search_radius=float(search_radius),
+        feature_scale=float(feature_scale),
     )
     count = found.vertices.shape[0]
     new = make_anchors(

@@ -45,6 +45,14 @@ class SPRINGWRAP_OT_anchors_propose(_AnchorOperator, bpy.types.Operator):
         min=0.001,
         max=0.5,
     )
+    feature_scale: props.number(
+        "Feature Scale",
+        "The size of the features compared, as a fraction of each model's size: larger finds broad features (a "
+        "knee, a chin) that hold a sliding region in place, smaller finds narrow tips and pits",
+        proposals.DEFAULTS["feature_scale"],
+        min=0.002,
+        max=0.1,
+    )
     accept: props.flag(
         "Accept", "Store the pairs accepted at once (soft pairs the wrap uses); off: as proposed pairs", False
     )
@@ -65,6 +73,7 @@ class SPRINGWRAP_OT_anchors_propose(_AnchorOperator, bpy.types.Operator):
             self.max_count,
             self.min_confidence,
             self.search_radius,
+            self.feature_scale,
             self.accept,
         )
         return outcome, target.signature

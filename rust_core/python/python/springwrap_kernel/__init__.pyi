@@ -685,7 +685,7 @@ def propose_correspondences(
     max_count: int = 40,
     min_confidence: float = 0.5,
     search_radius: float = 0.06,
-    feature_scale: float = 0.015,
+    feature_scale: float = 0.03,
 ) -> Proposals:
     """Further layout-vertex → target-point pairs where both shapes say where a point goes: distinct
     points (tips, pits) of the layout's rest shape and of the target, matched by position after the
