@@ -148,12 +148,12 @@ class WrapSession:
         structure = layout_data.make_layout_structure(
             self.layout_topology if self.restriction is None else self.restriction.topology
         )
-        # The layout as its last wrap left it (same target, rest shape and parameters, nothing held or pinned):
-        # the kernel re-settles it from where it is rather than wrapping it anew from a relaxed template.
-        self.settled_key = wrap_inputs.settled_key(self.target.signature, arrays.positions, self.rest, parameters)
-        unheld = region is None and adjust_inputs is None and self.restriction is None
-        single = unheld and int(parameters.spring_resolution) == 1  # one stage, nothing held or pinned
-        settled = single and _settled.get(layout.name_full) == self.settled_key
+        # The layout as its last wrap left it (one stage, nothing re-settled by region): re-settled from where it is.
+        key = wrap_inputs.settled_key(self.target.signature, arrays.positions, self.rest, parameters, inputs)
+        single = region is None and self.restriction is None and int(parameters.spring_resolution) == 1
+        settled = single and wrap_inputs.is_settled_start(
+            _settled.get(layout.name_full), key, adjust_inputs is not None
+        )
         self.solver = wrap_inputs.make_wrap_solver(self.target, structure, inputs, parameters, settled)
         self.inputs = inputs
         # Coarse to fine: with a spring resolution above 1 the layout is relaxed first, then a grid
@@ -429,8 +429,8 @@ class WrapSession:
         now = layout_data.MeshNow(mesh_positions, has_rest, self.layout_topology, self.shape_keys)
         layout_data.write_layout(self.layout, positions, state, rest=self.rest, now=now)
         self.written_positions = positions  # what the operator's storage check needs, not read back
-        self.settled_key = wrap_inputs.settled_key(self.target.signature, positions, self.rest, self.parameters)
-        _settled[self.layout.name_full] = self.settled_key
+        key = wrap_inputs.settled_key(self.target.signature, positions, self.rest, self.parameters, self.inputs)
+        _settled[self.layout.name_full] = key
         settings = self.layout.springwrap
         settings.target_signature = self.target.signature
         if len(settings.anchors):

@@ -399,12 +399,27 @@ def make_wrap_solver(target: Target, structure, inputs, parameters, settled_star
     )
 
 
-def settled_key(target_signature: str, positions, rest, parameters) -> tuple:
+def settled_key(target_signature: str, positions, rest, parameters, inputs=None) -> tuple:
     """What a wrap's result is, to know it again unchanged: the target's signature, the layout's local positions and
-    rest shape (as the mesh stores them, float32) and the wrap's parameters. Equal keys: wrapping the layout
-    again starts from a settled wrap (:func:`make_wrap_solver`'s ``settled_start``)."""
+    rest shape (as the mesh stores them, float32), the wrap's parameters and the plane its ``inputs`` (the
+    kernel's, optional) hold points on (which points, where, sliding or not; None without one). See
+    :func:`is_settled_start`."""
     digest = [np.ascontiguousarray(array, dtype=np.float32).tobytes() for array in (positions, rest)]
-    return (target_signature, hash(digest[0]), hash(digest[1]), repr(parameters))
+    plane = None
+    if inputs is not None and getattr(inputs, "plane_vertices", None) is not None:
+        held = np.ascontiguousarray(inputs.plane_vertices, dtype=np.uint32).tobytes()
+        plane = (hash(held), tuple(inputs.plane_point), tuple(inputs.plane_normal), bool(inputs.plane_slide))
+    return (target_signature, hash(digest[0]), hash(digest[1]), repr(parameters), plane)
+
+
+def is_settled_start(last, key, holding: bool) -> bool:
+    """Whether a wrap of ``key`` (:func:`settled_key`) starts from a settled wrap, the result ``last`` (the key of
+    the layout's last wrap, None: none) as it left it: the same target, positions, rest shape and parameters; a
+    wrap that holds points (``holding``: a plane, pins) only from a result held the same way (a wrap holding
+    nothing re-settles any of them). Then :func:`make_wrap_solver`'s ``settled_start``."""
+    if last is None:
+        return False
+    return last[:-1] == key[:-1] and (not holding or last[-1] == key[-1])
 
 
 def _soft_pair_keywords(inputs) -> dict:
