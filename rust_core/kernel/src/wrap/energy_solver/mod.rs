@@ -546,8 +546,9 @@ impl EnergySolver {
     }
 
     /// Moves the anchors to `anchor_of_vertex` (the same vertices anchored as when this solver
-    /// was made, other targets) and starts the schedule again from the warm-up, from the points
-    /// as they are. The matrix and its factor stay.
+    /// was made, other targets) and starts the schedule again as a solver made from the points
+    /// as they are would ([`Self::start_schedule`]: its whole warm-up, similarities fitted
+    /// afresh, no hits remembered). The matrix and its factor stay.
     ///
     /// # Errors
     /// [`KernelError::InvalidArgument`] when other vertices are anchored (nothing changed then).
@@ -568,11 +569,8 @@ impl EnergySolver {
         }
         self.system.move_fixed(&self.stencils, &fixed)?;
         (self.fixed, self.fixed_points) = (fixed, fixed_points);
-        self.warming_up = true;
-        (self.level, self.level_iterations) = (0, 0);
-        self.last_energy = f64::INFINITY;
-        self.finished = false;
-        self.held_back.fill(false);
+        self.resettle_start = None;
+        self.start_schedule();
         Ok(())
     }
 
