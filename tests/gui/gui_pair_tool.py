@@ -21,7 +21,7 @@ import gui_wrap_drag
 import numpy as np
 from bpy_extras import view3d_utils
 from gui_layout_data import anchors_of, snapshot, world_of
-from mathutils import Vector
+from mathutils import Matrix, Vector
 from mathutils.bvhtree import BVHTree
 
 from benchmarks.retarget.baselines import mesh_object  # the repository is on the path (gui_workflow.py)
@@ -37,6 +37,8 @@ TARGET_OFFSET = (40, -30)
 SURFACE_PRECISION = 1e-5
 """Metres: how far a pair's target point may be from the mouse ray, and from its own triangle and weights' point
 (float32 on a 2 m body)."""
+DRAG_JUMP = 0.05
+"""Metres a drag's move may take its surface point (a move's few pixels are millimetres on the torso)."""
 HIT_PRECISION = 1e-4
 """Metres: how far a pair's target point may be from Blender's own hit along the mouse ray (two float32 ray casts
 from a few metres away; where the ray meets the surface at a slant, their depths differ most)."""
@@ -212,7 +214,9 @@ class PairToolSteps:
         handle = bpy.types.SpaceView3D.draw_handler_add(self.count_draw, (), "WINDOW", "POST_PIXEL")
         try:
             self.draws, started = 0, time.perf_counter()
-            yield from self.drag(self.pixel(location), steps=12, pause=0.0)
+            start = self.pixel(location)
+            step = self.drag_on_target(target, start, (4.0, -3.0), 12, 5.0)
+            yield from self.drag(start, steps=12, step=step, pause=0.0)
             seconds = time.perf_counter() - started
         finally:
             bpy.types.SpaceView3D.draw_handler_remove(handle, "WINDOW")
@@ -238,7 +242,8 @@ class PairToolSteps:
         # Live: the next drag re-settles the layout, from its first move (the layout follows the drag).
         layout.springwrap.pair_live = True
         before_drag = snapshot(layout)
-        yield from self.drag(self.pixel(dragged), steps=4, step=(-8.0, 8.0))
+        start = self.pixel(dragged)
+        yield from self.drag(start, steps=4, step=self.drag_on_target(target, start, (-8.0, 8.0), 4, 8.0 * 2**0.5))
         released = time.perf_counter()
         after_drag_anchors = anchors_of(layout)
         check(wrap_session.running_session(layout) is not None, "Live did not start a re-settle with the drag")
@@ -278,7 +283,8 @@ class PairToolSteps:
         layout.springwrap.pair_live = True  # the undo went back to before Live was switched on
         items = layout.springwrap.anchors
         before_drag = snapshot(layout)
-        yield from self.drag(self.pixel(items[pair].location), steps=3, step=(12.0, 4.0))
+        start = self.pixel(items[pair].location)
+        yield from self.drag(start, steps=3, step=self.drag_on_target(target, start, (12.0, 4.0), 3, 40.0**0.5 * 2))
         edited_anchors = anchors_of(layout)
         check(wrap_session.running_session(layout) is not None, "no re-settle to cancel")
         yield from self.key("ESC", self.last_mouse)
@@ -340,15 +346,51 @@ class PairToolSteps:
         off_ray = (offset - offset.dot(direction) * direction).length
         return off_ray < SURFACE_PRECISION and np.linalg.norm(np.asarray(point) - hit) < HIT_PRECISION
 
-    def surface_hit(self, target, pixel):
-        """Blender's own hit of the ray under ``pixel`` on the evaluated target, or None."""
-        evaluated = target.evaluated_get(bpy.context.evaluated_depsgraph_get())
-        tree = BVHTree.FromObject(evaluated, bpy.context.evaluated_depsgraph_get())
+    def surface_hit(self, target, pixel, tree=None):
+        """Blender's own hit of the ray under ``pixel`` on the evaluated target, or None (``tree``: the target's
+        :meth:`target_tree`, built here when not given)."""
+        tree = self.target_tree(target) if tree is None else tree
         origin, direction = self.ray(pixel)
         matrix = target.matrix_world
         inverse = matrix.inverted()
         hit = tree.ray_cast(inverse @ origin, (inverse.to_3x3() @ direction).normalized())
         return None if hit[0] is None else np.array(matrix @ hit[0])
+
+    @staticmethod
+    def target_tree(target) -> BVHTree:
+        """Blender's own tree of the evaluated target (in its local space)."""
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        return BVHTree.FromObject(target.evaluated_get(depsgraph), depsgraph)
+
+    def drag_on_target(self, target, start, preferred, moves: int, pixels: float, turn: int = 180) -> Vector:
+        """A drag's step (a pixel vector of length ``pixels``) from the pixel ``start`` whose ``moves`` moves all stay
+        over the target (a drag off it leaves the pair's end where it last was): ``preferred``'s direction when it
+        does, else the nearest turn of it, up to ``turn`` degrees either way; one whose moves stay on one stretch of
+        the surface (no move's point :data:`DRAG_JUMP` from the last, as across an outline onto the surface behind)
+        first. Where the pairs sit on the screen depends on the wrap before (the pair tool's vertex is the one
+        nearest the view's centre), so a fixed direction may leave the body's outline."""
+        tree = self.target_tree(target)
+        preferred = Vector(preferred).normalized()
+        angles = sorted(range(-turn, turn + 1, 15), key=abs)
+        steps = [Matrix.Rotation(np.radians(angle), 2) @ preferred * pixels for angle in angles]
+        jumps = {}  # step index: the largest move of a surface point along it (None: it leaves the target)
+        for index, step in enumerate(steps):
+            pixel, last, largest = Vector(start), self.surface_hit(target, start, tree), 0.0
+            for _ in range(moves):
+                pixel = self.snapped(pixel + step)
+                hit = self.surface_hit(target, pixel, tree)
+                if hit is None:
+                    largest = None
+                    break
+                largest = max(largest, np.inf if last is None else float(np.linalg.norm(hit - last)))
+                last = hit
+            if largest is not None and largest <= DRAG_JUMP:
+                return step
+            jumps[index] = largest
+        on_target = [index for index, largest in jumps.items() if largest is not None]
+        if on_target:
+            return steps[on_target[0]]
+        raise AssertionError(f"no drag of {moves} x {pixels} px from {tuple(start)} stays on the target")
 
     def check_on_surface(self, layout, index, target_data):
         """The pair's end is a face anchor whose triangle and weights give its location."""

@@ -30,6 +30,9 @@ MOVE_PIXELS = 8.0
 FOLLOWED = 0.5
 """How far the pair's vertex must have gone from the pair's old end toward its new one, as a share of the way,
 while the wrap still runs (only the drag takes it past the old end)."""
+TURN = 75
+"""Degrees the drag may turn from straight away from the pair's vertex to stay over the target: still away from it,
+so only the drag takes the vertex past the pair's old end."""
 ARRIVED = 0.1
 """How near the pair's new end the vertex must come (a share of the drag's length) while the wrap still runs."""
 WAIT_SECONDS = 600.0
@@ -65,7 +68,7 @@ def steps(tool, pair: int):
     # only the drag can take it past that end toward the new one.
     away = tool.pixel(start) - tool.pixel(world_of(layout)[vertex])
     away = away.normalized() if away.length > 1.0 else away.orthogonal().normalized()
-    step = MOVE_PIXELS * away
+    step = tool.drag_on_target(layout.springwrap.target, tool.pixel(start), away, MOVES, MOVE_PIXELS, TURN)
     # The Wrap button's defaults: Blender remembers the properties of the lane's earlier wraps.
     properties = bpy.ops.springwrap.wrap.get_rna_type().properties
     defaults = {name: properties[name].default for name in ("spring_resolution", "tolerance", "max_iterations")}
