@@ -33,11 +33,12 @@ first landmarks, each at its true place, snapped to the target as a click does) 
 Errors are distances to the true positions in % of the truth's bounding-box diagonal (the body's): the body's
 mean, the skin within 5 cm of the parts (body vertices of the template within :data:`NEAR_PARTS` of a part
 vertex), the parts' mean and max, and per piece; the eyeballs' shape change (the largest change of a vertex's
-distance to its eyeball's centre, relative to the mean, in % of the radius); and the face's (:func:`face_regions`):
-the head's mean, p95 and max, the lips' and eyelids' edge loops' mean and max. Besides the retargeting
-benchmark's cases, :data:`FACE_CASES` (``face-expression``: mouth open, its corners pulled, the left eye closed).
-:func:`markdown` writes the section
-of ``docs/benchmarks.md`` (``benchmarks/report.py --parts``).
+distance to its eyeball's centre, relative to the mean, in % of the radius); per piece, the share of its true motion
+that the skin close to it made (:func:`carried_share`: a piece follows its skin, and skin that lags holds it back);
+and the face's (:func:`face_regions`): the head's mean, p95 and max, the lips' and eyelids' edge loops' mean and
+max. Besides the retargeting benchmark's cases, :data:`FACE_CASES` (``face-expression``: mouth open, its corners
+pulled, the left eye closed). :func:`markdown` writes the section of ``docs/benchmarks.md``
+(``benchmarks/report.py --parts``).
 """
 
 from __future__ import annotations
@@ -219,6 +220,19 @@ def true_surface_follow(aligned: np.ndarray, truth: np.ndarray, layout: dict) ->
     return np.concatenate([truth[:body], follower.apply(np.ascontiguousarray(truth[:body]))])
 
 
+def carried_share(aligned: np.ndarray, truth: np.ndarray, positions: np.ndarray, members: np.ndarray) -> float:
+    """The median share of its true motion (``aligned`` to ``truth``) that each vertex of ``members`` ((N,) bool)
+    made to ``positions``, measured along that motion: 1 moved as the truth did, 0 stayed where Align left it.
+    Vertices whose truth is where Align left them are not counted (NaN when none is left)."""
+    need = (truth - aligned)[members]
+    made = (positions - aligned)[members]
+    length = np.einsum("ij,ij->i", need, need)
+    moving = length > 1e-12
+    if not moving.any():
+        return float("nan")
+    return float(np.median(np.einsum("ij,ij->i", made[moving], need[moving]) / length[moving]))
+
+
 def errors_of(
     positions: np.ndarray,
     truth: np.ndarray,
@@ -339,6 +353,10 @@ def run_case(name: str, layout: dict, methods=METHODS, positions_folder: Path | 
         entry = errors_of(positions, truth, layout, diagonal, near, close, regions)
         if alone:
             entry = {key: entry[key] for key in ("body_mean", "near_parts_mean", "face")}
+        elif method != "aligned template":
+            for group, piece in entry["pieces"].items():
+                if close[group].any():
+                    piece["skin_carried"] = carried_share(aligned[:body], truth[:body], positions[:body], close[group])
         entry |= {"seconds": time.perf_counter() - start, "notes": notes}
         record["methods"][method] = entry
         print(
@@ -350,6 +368,12 @@ def run_case(name: str, layout: dict, methods=METHODS, positions_folder: Path | 
         )
         if notes:
             print(f"  {notes}", flush=True)
+        if "pieces" in entry and method != "aligned template":
+            worst = max(entry["pieces"], key=lambda group: entry["pieces"][group]["max"])
+            carried = entry["pieces"][worst].get("skin_carried", float("nan"))
+            print(
+                f"  farthest piece {worst.removeprefix('helper-')}: its skin carried {carried:.2f} of its true motion"
+            )
     ideal = errors_of(true_surface_follow(aligned, truth, layout), truth, layout, diagonal, near)
     if positions_folder is not None:
         positions_folder.mkdir(parents=True, exist_ok=True)

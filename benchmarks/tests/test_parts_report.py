@@ -108,3 +108,16 @@ def test_an_edge_loop_goes_round_a_ring_and_stops_at_a_border():
     quads = tube()
     np.testing.assert_array_equal(parts.edge_loop(quads, 6, 7), [6, 7, 8, 9, 10, 11])  # an inner ring closes
     np.testing.assert_array_equal(parts.edge_loop(quads, 7, 13), [7, 13, 19])  # across: ends on the border
+
+
+def test_the_carried_share_is_the_median_share_of_the_true_motion_made_along_it():
+    aligned = np.zeros((5, 3))
+    truth = np.array([[0.0, -2.0, 0.0], [0.0, -2.0, 0.0], [0.0, -2.0, 0.0], [0.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
+    # Half way down, all the way, and half way with a step sideways (not counted); the fourth has no motion to
+    # make, the fifth is not a member.
+    positions = np.array([[0.0, -1.0, 0.0], [0.0, -2.0, 0.0], [0.5, -1.0, 0.0], [3.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    members = np.array([True, True, True, True, False])
+    assert parts.carried_share(aligned, truth, positions, members) == 0.5
+    assert parts.carried_share(aligned, truth, truth, members) == 1.0
+    assert parts.carried_share(aligned, truth, aligned, members) == 0.0
+    assert np.isnan(parts.carried_share(aligned, aligned, positions, members))
