@@ -17,7 +17,8 @@ after ``springwrap.feature_lines_pair`` (**with**: the layout's creases, found o
 target's ridges and valleys; ``--without-junctions`` adds rows with its Junctions setting off, ``--spaced`` rows
 with its Placement As Spaced). Errors are
 distances to the truth in % of the target's diagonal: the mean over all vertices, over the crease vertices, and
-the crease p95. The target's feature curves at the automatic scale are
+the crease p95; and the crease vertices' error split along the crease (at each one's true place, the changed
+part's sharp edge nearest it) and across it. The target's feature curves at the automatic scale are
 measured too (count, median length in layout edges, the share of the part's true crease length within half a
 median layout edge of a detected curve): how well crease detection survives the re-tessellation; and so are the
 rounded creases (``core/rounded_creases.py``: count, corners, coverage, and their points' distance from the true
@@ -87,17 +88,37 @@ def sharp_segments(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     return vertices[keys[sharp]]
 
 
-def distance_to_segments(points: np.ndarray, segments: np.ndarray, chunk: int = 512) -> np.ndarray:
-    """(N,) distance of each point to the nearest of the (S, 2, 3) segments."""
+def nearest_segments(points: np.ndarray, segments: np.ndarray, chunk: int = 512) -> tuple[np.ndarray, np.ndarray]:
+    """(distance (N,), index (N,)) of the nearest of the (S, 2, 3) segments to each point."""
     starts, directions = segments[:, 0], segments[:, 1] - segments[:, 0]
     squared = np.maximum(np.sum(directions**2, axis=1), 1e-30)
     found = np.empty(points.shape[0])
+    nearest_index = np.empty(points.shape[0], dtype=np.int64)
     for begin in range(0, points.shape[0], chunk):
         block = points[begin : begin + chunk, None, :]
         t = np.clip(np.sum((block - starts) * directions, axis=2) / squared, 0.0, 1.0)
         nearest = starts + t[..., None] * directions
-        found[begin : begin + chunk] = np.sqrt(np.min(np.sum((block - nearest) ** 2, axis=2), axis=1))
-    return found
+        distances = np.sum((block - nearest) ** 2, axis=2)
+        nearest_index[begin : begin + chunk] = np.argmin(distances, axis=1)
+        found[begin : begin + chunk] = np.sqrt(np.min(distances, axis=1))
+    return found, nearest_index
+
+
+def distance_to_segments(points: np.ndarray, segments: np.ndarray, chunk: int = 512) -> np.ndarray:
+    """(N,) distance of each point to the nearest of the (S, 2, 3) segments."""
+    return nearest_segments(points, segments, chunk)[0]
+
+
+def along_and_across(errors: np.ndarray, places: np.ndarray, segments: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(along (N,), across (N,)): the length of each error vector (``errors``, (N, 3)) along the crease at its
+    vertex's true place (``places``, (N, 3): the direction of the nearest of the (S, 2, 3) crease ``segments``) and
+    the length of the rest of it (across the crease: off it sideways or in depth)."""
+    _distance, nearest = nearest_segments(places, segments)
+    directions = segments[nearest, 1] - segments[nearest, 0]
+    directions /= np.maximum(np.linalg.norm(directions, axis=1, keepdims=True), 1e-30)
+    along = np.sum(errors * directions, axis=1)
+    across = np.linalg.norm(errors - along[:, None] * directions, axis=1)
+    return np.abs(along), across
 
 
 def farthest_points(points: np.ndarray, count: int) -> np.ndarray:
@@ -271,7 +292,7 @@ def run_case(
     from benchmarks.retarget.baselines import mesh_object, read_positions
     from benchmarks.retarget.springwrap_methods import _add_anchors, _call, _select_only
 
-    target, rest, quads, truth, on_surface, crease, diagonal = scene
+    target, rest, quads, truth, on_surface, crease, diagonal, changed_segments = scene
     layout = mesh_object(
         f"Layout {anchors} {'with' if with_pairing else 'without'} {junctions} {placement}", rest, quads
     )
@@ -297,6 +318,7 @@ def run_case(
     seconds = time.perf_counter() - start
     result = read_positions(layout.data)
     errors = np.linalg.norm(result - on_surface, axis=1) / diagonal * 100.0
+    along, across = along_and_across((result - on_surface)[crease], truth[crease], changed_segments)
     to_corner = np.linalg.norm(result - truth, axis=1) / diagonal * 100.0
     first_errors = np.linalg.norm(first - on_surface, axis=1) / diagonal * 100.0
     pairs = [item.confidence for item in layout.springwrap.curve_constraints if item.source_kind == "FEATURE_LINE"]
@@ -309,6 +331,8 @@ def run_case(
         "mean_all": float(errors.mean()),
         "mean_crease": float(errors[crease].mean()),
         "p95_crease": float(np.percentile(errors[crease], 95)),
+        "along_crease": float(along.mean() / diagonal * 100.0),
+        "across_crease": float(across.mean() / diagonal * 100.0),
         "mean_crease_to_corner": float(to_corner[crease].mean()),
         "mean_all_to_corner": float(to_corner.mean()),
         "first_wrap_mean_all": float(first_errors.mean()),
@@ -340,7 +364,7 @@ def target_case(arguments, tessellation: str, part, rest, quads, bounds, layout_
     changed_segments = design_change(segments.reshape(-1, 3), *bounds).reshape(-1, 2, 3)
     target_mesh = springwrap_kernel.TargetMesh(*target_arrays(target))
     on_surface = target_mesh.closest_points(np.ascontiguousarray(truth, dtype=np.float32)).positions.astype(np.float64)
-    scene = (target, rest, quads, truth, on_surface, crease, diagonal)
+    scene = (target, rest, quads, truth, on_surface, crease, diagonal, changed_segments)
     modes = [(False, False, "MAPPED"), (True, True, "MAPPED")]
     modes += [(True, True, "SPACED")] if arguments.spaced else []
     modes += [(True, False, "MAPPED")] if arguments.without_junctions else []
@@ -406,6 +430,11 @@ def pairing_label(row: dict) -> str:
     return PAIRING_LABELS[row["pairing"], row.get("junctions", False), placement]
 
 
+def split(row: dict, key: str) -> str:
+    """A row's along or across error as the table writes it (``-`` in a row measured before they were)."""
+    return f"{row[key]:.3f}" if key in row else "-"
+
+
 def markdown(result: dict) -> list[str]:
     """The docs/benchmarks.md table of a :func:`run` result."""
     targets = result["targets"]
@@ -430,7 +459,9 @@ def markdown(result: dict) -> list[str]:
             f"{target['tessellation']}: the crease vertices' corners lie {target['crease_rounding']:.3f} % from it"
             for target in targets
         )
-        + "); the last column measures the crease vertices to `f(v)` itself. *with* is Pair Feature Lines at "
+        + "); *along* and *across* split the crease vertices' error (mean of each part): along the crease at the "
+        "vertex's true place (where along its crease it lies), and the rest (off the crease); the last column "
+        "measures the crease vertices to `f(v)` itself. *with* is Pair Feature Lines at "
         "its defaults between two wraps (Junctions on: the corners where the layout's creases meet matched with "
         "the target's, a line between two matched corners sharing out the crease between them by its rest "
         "length; Placement Anchors: each vertex where a smooth map through the anchors and the matched corners "
@@ -439,8 +470,8 @@ def markdown(result: dict) -> list[str]:
         "it along its stretch; *junctions off* pairs each line with the stretch of crease where the fit has it.",
         "",
         "| target | anchors | feature pairing | pairs (mean confidence) | mean error, all | mean error, creases "
-        "| p95, creases | creases to `f(v)` |",
-        "|---|---:|---|---|---:|---:|---:|---:|",
+        "| p95, creases | creases, along | creases, across | creases to `f(v)` |",
+        "|---|---:|---|---|---:|---:|---:|---:|---:|---:|",
     ]
     for target in targets:
         for row in target["rows"]:
@@ -448,7 +479,7 @@ def markdown(result: dict) -> list[str]:
             lines.append(
                 f"| {target['tessellation']} | {row['anchors']} | {pairing_label(row)} | "
                 f"{pairs} | {row['mean_all']:.3f} | {row['mean_crease']:.3f} | {row['p95_crease']:.3f} | "
-                f"{row['mean_crease_to_corner']:.3f} |"
+                f"{split(row, 'along_crease')} | {split(row, 'across_crease')} | {row['mean_crease_to_corner']:.3f} |"
             )
     lines.append("")
     for target in targets:
