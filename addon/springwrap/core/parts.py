@@ -52,19 +52,11 @@ UNSEEN_FACING = -0.5
 """A surface vertex faces away from the target where the cosine between its normal and its closest target point's
 normal is below this (the mouth's inside behind the lips looks inwards, the lips' skin outwards).
 
-A closed template mouth onto an open one (``benchmarks/parts.py``'s expression cases) puts the lower lip, rim to
-first inner loop at the midline, in the target's open mouth, 15 to 18 mm from the target, facing away from its
-closest target point (cosine -0.5 to -1): it is left free, and the springs carry it 38 to 66 % of its true motion.
-That is not what drags the lower teeth: the skin the target holds round them slides too (face-expression: within 3
-cm of them it carries 0.42 to 0.63 of its true motion; all skin within 5 mm of them 0.33 and 0.39), the lower lip
-anchored raises that to 0.67 and 0.70. Measured and not kept (face-expression, expression; lower teeth max 1.100,
-1.013 % of the diagonal, lips mean 0.278, 0.328): the lip left in the open mouth pulled (not unseen when it lies in
-front of its closest target point by more than half the depth tolerance, or at all: 1.117, 1.022 and 0.331, 0.352;
-1.114, 1.012 and 0.307, 0.327; even pulled it never faces the target enough to be drawn on), the unseen surface
-stiffer (stiffness 0.8: 1.223 and lips 0.487), the unseen surface inside the target softer (stiffness 0.1: 1.110,
-lips 0.286), and the wrap's safeguard letting free corners turn to 120 degrees (1.115, 1.019, lips 0.244, 0.319,
-face-expression's faces flipped against the truth 54 to 65): the safeguard does stop the lip's midline corners at 90
-degrees from iteration 14 to 16 of 22, but that is not what keeps the jaw's skin back."""
+A closed template mouth onto an open one (``benchmarks/parts.py``'s expression cases) puts the lower lip's midline
+in the target's open mouth, facing away from its closest target point: it is left free and carried by the springs.
+That is not what drags the lower teeth: the skin held on the target round them slides along it too (within 5 mm of
+them it carries 0.33 to 0.39 of its true motion, 0.67 to 0.70 with the lower lip anchored); pulling the lip in the
+open mouth, or freeing its corners in the safeguard, changed the teeth's max error by under 2 %."""
 UNSEEN_DEPTH = 4.0
 """A surface vertex is hidden inside the target when it lies behind its closest target point by more than this many
 times the surface's median distance to the target (how far the alignment left it)."""
