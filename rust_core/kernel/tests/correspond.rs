@@ -355,3 +355,103 @@ fn bad_input_is_refused_by_name() {
         KernelError::CoincidentAnchors { .. }
     ));
 }
+
+/// A unit direction at `azimuth` degrees about +Z from +X and `polar` radians from +Z.
+fn direction(azimuth: f32, polar: f32) -> Vec3 {
+    let azimuth = azimuth.to_radians();
+    Vec3::new(
+        polar.sin() * azimuth.cos(),
+        polar.sin() * azimuth.sin(),
+        polar.cos(),
+    )
+}
+
+/// A ball with a narrow tip along each of `tips`, made an ellipsoid.
+fn tipped_ellipsoid(rings: u32, segments: u32, tips: &[Vec3]) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+    let (mut vertices, triangles) = uv_sphere(1.0, rings, segments);
+    for v in &mut vertices {
+        let u = v.normalize();
+        let radius: f32 = 1.0
+            + tips
+                .iter()
+                .map(|&d| 0.35 * (-(1.0 - u.dot(d)) / 0.012).exp())
+                .sum::<f32>();
+        *v = u * radius * Vec3::new(1.0, 1.3, 0.8);
+    }
+    (vertices, triangles)
+}
+
+#[test]
+fn a_match_found_on_one_side_of_a_mirrored_layout_only_is_rejected() {
+    // The layout: mirror-symmetric across x = 0 (azimuth a ↔ 180° − a), four tips on the plane
+    // (anchored) and three pairs of tips across it.
+    let midline = [(90.0, 0.6), (270.0, 1.4), (90.0, 2.6), (270.0, 2.4)];
+    let pairs = [(30.0, 1.2), (60.0, 2.1), (320.0, 1.0)];
+    let mut tips: Vec<Vec3> = midline.iter().map(|&(a, p)| direction(a, p)).collect();
+    for &(a, p) in &pairs {
+        tips.push(direction(a, p));
+        tips.push(direction(180.0 - a, p));
+    }
+    let (rest, triangles) = tipped_ellipsoid(60, 90, &tips);
+    // The target: the same shape, except that the first pair's left tip (150°) is gone and its
+    // right one (30°) stands 6° away: the right tip's only candidate is wrong, and it has no
+    // partner on the left.
+    let moved = direction(36.0, 1.2);
+    let target_tips: Vec<Vec3> = tips
+        .iter()
+        .enumerate()
+        .filter(|&(k, _)| k != 5)
+        .map(|(k, &d)| if k == 4 { moved } else { d })
+        .collect();
+    let place = |p: Vec3| p * 1.05 + Vec3::new(0.1, -0.2, 0.05);
+    let (fine, fine_triangles) = tipped_ellipsoid(110, 170, &target_tips);
+    let target = TargetMesh::new(
+        fine.into_iter().map(place).collect(),
+        fine_triangles,
+        TargetMeshOptions::default(),
+    )
+    .unwrap();
+    let current: Vec<Vec3> = rest.iter().map(|&p| place(p)).collect();
+    let nearest = |point: Vec3| {
+        (0..rest.len() as u32)
+            .min_by(|&a, &b| {
+                rest[a as usize]
+                    .distance(point)
+                    .total_cmp(&rest[b as usize].distance(point))
+            })
+            .unwrap()
+    };
+    let tip_vertex = |d: Vec3| nearest(d * 1.35 * Vec3::new(1.0, 1.3, 0.8));
+    let given: Vec<GivenPair> = tips[..4]
+        .iter()
+        .map(|&d| {
+            let vertex = tip_vertex(d);
+            GivenPair {
+                vertex,
+                target: current[vertex as usize],
+            }
+        })
+        .collect();
+    let corners: Vec<u32> = triangles.iter().flatten().copied().collect();
+    let sizes = vec![3; triangles.len()];
+    let layout = ProposalLayout {
+        rest: &rest,
+        current: &current,
+        faces: LayoutFaces {
+            corners: &corners,
+            sizes: &sizes,
+        },
+    };
+    let proposals = propose_correspondences(&target, layout, &given, &loose()).unwrap();
+    let (low, high) = target.bounding_box();
+    let diagonal = (high - low).length();
+    let near = |proposal: &springwrap_kernel::Proposal, d: Vec3| {
+        rest[proposal.vertex as usize].distance(rest[tip_vertex(d) as usize]) < 0.05 * diagonal
+    };
+    // The one-sided wrong match is not proposed.
+    assert!(proposals.iter().all(|p| !near(p, tips[4])), "{proposals:?}");
+    // The last pair, found on both sides, is.
+    for d in &tips[8..] {
+        assert!(proposals.iter().any(|p| near(p, *d)), "{d} {proposals:?}");
+    }
+}
