@@ -81,7 +81,7 @@ pub struct ProposalSettings {
     /// accepted, mean error in % of the diagonal): heavy-old with 6 anchors 0.431 (0.472 at
     /// 0.015, 0.465 without proposals), old-male with 4 anchors 0.599 (0.909 without); but
     /// heavy-old with 4 anchors 0.627 (0.500 at 0.015, 0.506 without: 2 of its 5 proposals, the
-    /// upper arms and a buttock, lie 1 % to 1.9 % off).
+    /// upper arms and a buttock, lie 1 % to 1.9 % off), measured before the symmetry rule (step 6).
     pub feature_scale: f32,
 }
 
