@@ -179,6 +179,8 @@ const LANDING_REACH: f32 = 2.0;
 const NORMAL_SMOOTHING_ROUNDS: (usize, usize) = (1, 24);
 /// The most vertices whose vote says which way the layout winds against the target.
 const ORIENTATION_SAMPLES: usize = 1 << 16;
+/// Terms whose targets the global step's assembly computes at once (in parallel).
+const TARGETS_PER_PIECE: usize = 1 << 16;
 /// Closest-point queries between two asks whether a step is to stop.
 const QUERIES_PER_CHECK: usize = 1 << 15;
 
@@ -765,12 +767,23 @@ impl EnergySolver {
                 right_hand_side[row] += point.as_dvec3() * weight;
             }
         }
-        for term in 0..self.stencils.len() {
-            let wanted = self.term_target(term);
-            let weight = self.stencils.weights[term];
-            for (vertex, coefficient) in self.stencils.entries(term) {
-                if let Some(row) = self.system.row_of(vertex) {
-                    right_hand_side[row as usize] += wanted * (weight * coefficient);
+        // The terms' targets in parallel, a piece at a time; added in term order, as one thread
+        // would (the same sums to the bit).
+        let mut wanted = Vec::with_capacity(TARGETS_PER_PIECE.min(self.stencils.len()));
+        for first in (0..self.stencils.len()).step_by(TARGETS_PER_PIECE) {
+            let terms = first..(first + TARGETS_PER_PIECE).min(self.stencils.len());
+            terms
+                .clone()
+                .into_par_iter()
+                .with_min_len(1024)
+                .map(|term| self.term_target(term))
+                .collect_into_vec(&mut wanted);
+            for (term, wanted) in terms.zip(&wanted) {
+                let weight = self.stencils.weights[term];
+                for (vertex, coefficient) in self.stencils.entries(term) {
+                    if let Some(row) = self.system.row_of(vertex) {
+                        right_hand_side[row as usize] += *wanted * (weight * coefficient);
+                    }
                 }
             }
         }
