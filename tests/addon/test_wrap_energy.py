@@ -104,7 +104,9 @@ def test_the_report_says_what_the_wrap_did(capfd):
     assert bpy.ops.springwrap.wrap() == {"FINISHED"}
     energy = capfd.readouterr().out
     assert "landed at the end" in energy and "held back" in energy and "fold tolerance" not in energy, energy
-    assert "lowered the energy by" in energy, energy
+    # The last level ends on the energy's decrease or, here (a flat target reached early), on a step that barely
+    # moved the points.
+    assert "lowered the energy by" in energy or "which barely moved the points" in energy, energy
 
 
 def _group(layout, name, vertices, weight=1.0):

@@ -221,7 +221,10 @@ def test_free_vertices_and_stiffness_reach_the_energy_solver_and_are_checked():
     free[[84, 85, 71]] = True
     solver, _ = make_solver(target, positions, structure, anchors, settings=energy, free_vertices=free)
     report = solver.step(1000)
-    assert report.converged and abs(report.energy_decrease) < 2e-3  # what the last level stopped on
+    # What the last level stopped on: the energy's decrease, or an iteration that barely moved the points (a level's
+    # first, with no decrease to measure).
+    stopped_still = np.isnan(report.energy_decrease) and report.mean_displacement < 1e-4
+    assert report.converged and (abs(report.energy_decrease) < 2e-3 or stopped_still)
     states = solver.states()[0]
     assert (states[free] == 0).all() and (states[~free] == 1).all()
     stiffness = np.full(len(positions), 0.5, np.float32)

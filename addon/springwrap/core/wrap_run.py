@@ -98,6 +98,8 @@ class WrapResult(NamedTuple):
         details = f"{self.folded} landed at the end, {self.held_back} held back by the last step"
         if math.isfinite(self.energy_decrease):
             details += f", which lowered the energy by {100.0 * self.energy_decrease:.2g} %"
+        elif self.converged:  # the last level ended on its first step: it barely moved the points
+            details += ", which barely moved the points"
         timing = f"{self.seconds:.2f} s"
         if self.frames:  # the live wrap: how much of its time was solving, over how many redraws
             timing += f" ({self.kernel_seconds:.2f} s solving, {self.frames} frame{'s' if self.frames > 1 else ''})"

@@ -100,11 +100,15 @@ fn stepping_reports_progress_and_resumes() {
     let first = solver.step(5).expect("the wrap steps");
     assert_eq!((first.iterations, first.total_iterations), (5, 5));
     assert!(!first.converged && solver.positions() != start.as_slice());
-    let second = solver.step(5).expect("the wrap steps");
-    assert_eq!(second.total_iterations, 10);
+    // The whole wrap takes 8 iterations: the second call stops short of them.
+    let second = solver.step(2).expect("the wrap steps");
+    assert!(
+        !second.converged && second.total_iterations == 7,
+        "{second:?}"
+    );
     let last = solver.step(1000).expect("the wrap steps");
     assert!(last.converged, "{last:?}");
-    assert_eq!(last.total_iterations, 10 + last.iterations);
+    assert_eq!(last.total_iterations, 7 + last.iterations);
     assert!(last.landed == 4 && last.face_points == 49, "{last:?}");
 }
 

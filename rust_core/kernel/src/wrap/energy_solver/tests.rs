@@ -480,3 +480,60 @@ fn the_global_to_local_pull_weakens_as_the_layout_faces_away_from_the_surface() 
         }
     }
 }
+
+#[test]
+fn a_level_ends_once_its_points_barely_move() {
+    // A grid just above a plane lies on it after the first level: the later levels' iterations
+    // move it by less than LEVEL_SETTLED_MOVE mean edges, so each of those levels ends after
+    // one iteration, where the energy's decrease alone let them run on. The result stays where
+    // the full run ends it.
+    let (target, structure, rest) = plane_and_grid(10, 0.1, 0.02);
+    let anchors = vec![None; rest.len()];
+    let mut runs = Vec::new();
+    for settled_move in [0.0, LEVEL_SETTLED_MOVE * 0.1] {
+        let mut wrap = solver(&target, &structure, &rest, &rest, &anchors);
+        assert_eq!(
+            wrap.level_settled_move,
+            LEVEL_SETTLED_MOVE * 0.1,
+            "in mean edges"
+        );
+        wrap.level_settled_move = settled_move;
+        let mut iterations = 0;
+        // Levels ended by their first iteration: only a still one may end a level so early.
+        let mut ended_first = 0;
+        loop {
+            let (warming_up, level, before) = (wrap.warming_up, wrap.level, wrap.level_iterations);
+            let step = wrap.iterate().unwrap();
+            iterations += 1;
+            let ended = step.finished || wrap.level != level;
+            if ended && !warming_up && before == 0 && wrap.levels[level].max_iterations > 1 {
+                ended_first += 1;
+            }
+            if step.finished {
+                break;
+            }
+        }
+        runs.push((iterations, ended_first, wrap.positions.clone()));
+    }
+    let (full, stopped) = (&runs[0], &runs[1]);
+    assert!(
+        stopped.0 < full.0,
+        "{} iterations, {} in full",
+        stopped.0,
+        full.0
+    );
+    assert_eq!(full.1, 0);
+    assert!(
+        stopped.1 >= 2,
+        "{} levels ended by their first iteration",
+        stopped.1
+    );
+    let largest = full
+        .2
+        .iter()
+        .zip(&stopped.2)
+        .map(|(a, b)| a.distance(*b))
+        .fold(0.0, f32::max);
+    assert!(largest < 1e-3, "{largest} from the full run (edge 0.1)");
+    assert!(stopped.2.iter().all(|p| p.z.abs() < 1e-3), "on the plane");
+}
