@@ -13,8 +13,9 @@
 //! good preconditioner: [`LinearSystem::solve_reusing`] solves by conjugate gradients
 //! preconditioned with it, warm-started at the current positions, and factors anew only when the
 //! diagonal has moved too far for that to pay (predicted from how many rows changed a lot, or
-//! seen when the iterations stall). A factorization costs as much as a number of iterations that
-//! grows with the layout (estimated from the factor's structure); when the factor would take more
+//! foreseen from the rate of the first few iterations, or seen when they stall). A
+//! factorization costs as much as a number of iterations that grows with the layout (estimated
+//! from the factor's structure); when the factor would take more
 //! memory than allowed (a few million layout points), there is no factor at all and the
 //! conjugate gradients are preconditioned by an aggregation multigrid cycle (`multigrid.rs`).
 
@@ -165,6 +166,9 @@ pub struct LinearSystem {
     symbolic: Option<Arc<SymbolicCholesky<usize>>>,
     /// Without a factor: the multigrid hierarchy preconditioning the conjugate gradients.
     multigrid: Option<Multigrid>,
+    /// With a factor: the matrix in both triangles, for products on every core (without, the
+    /// multigrid's finest level is the same).
+    full_rows: Option<FullRows>,
     /// The right-hand side's part from the fixed vertices: `-Σ weight · s_a s_b x_b` per free `a`.
     fixed_right_hand_side: Vec<DVec3>,
     /// The factor's values, allocated at the first factorization and reused by the next ones;
@@ -201,6 +205,7 @@ impl Clone for LinearSystem {
             diagonal: self.diagonal.clone(),
             symbolic: self.symbolic.clone(),
             multigrid: self.multigrid.clone(),
+            full_rows: self.full_rows.clone(),
             fixed_right_hand_side: self.fixed_right_hand_side.clone(),
             factor: self.factor.clone(),
             factored_diagonal: self.factored_diagonal.clone(),
@@ -226,6 +231,25 @@ fn solver_error(reason: impl std::fmt::Display) -> KernelError {
         name: "wrap",
         reason: format!("the global step's linear system failed: {reason}"),
     }
+}
+
+/// Iterations after which a budgeted solve predicts whether it will converge.
+const PREDICTION_START: usize = 3;
+
+/// The iterations a solve would take in all, at the rate its preconditioned residual (`alignment`,
+/// per axis) fell so far: from `start` to `now` in `done` iterations, down to `target`.
+fn predicted_iterations((start, now, target): (DVec3, DVec3, DVec3), done: usize) -> f64 {
+    (0..3)
+        .filter(|&axis| now[axis] > target[axis])
+        .map(|axis| {
+            let rate = (now[axis] / start[axis]).ln() / done as f64;
+            if rate < 0.0 {
+                done as f64 + (target[axis] / now[axis]).ln() / rate
+            } else {
+                f64::INFINITY
+            }
+        })
+        .fold(done as f64, f64::max)
 }
 
 /// The floating-point operations of a numeric factorization with this structure.
@@ -313,12 +337,10 @@ impl LinearSystem {
             let ratio = factorization_flops(symbolic) / (3.0 * solve);
             (ratio.round() as usize).clamp(BUDGET_BOUNDS.0, BUDGET_BOUNDS.1)
         });
-        let multigrid = match symbolic {
-            Some(_) => None,
-            None => Some(Multigrid::new(
-                FullRows::from_lower(&matrix)?,
-                COARSEST_ROWS,
-            )?),
+        let full_rows = FullRows::from_lower(&matrix)?;
+        let (multigrid, full_rows) = match symbolic {
+            Some(_) => (None, Some(full_rows)),
+            None => (Some(Multigrid::new(full_rows, COARSEST_ROWS)?), None),
         };
         Ok(Self {
             row_of_vertex,
@@ -327,6 +349,7 @@ impl LinearSystem {
             diagonal,
             symbolic,
             multigrid,
+            full_rows,
             fixed_right_hand_side: assembled.fixed_right_hand_side,
             factor: Vec::new(),
             factored_diagonal: Vec::new(),
@@ -549,7 +572,7 @@ impl LinearSystem {
                 right_hand_side,
                 (start, hint),
                 tolerances,
-                MULTIGRID_ITERATIONS,
+                (MULTIGRID_ITERATIONS, false),
                 stop,
             )?;
             last.clear();
@@ -565,7 +588,7 @@ impl LinearSystem {
                 right_hand_side,
                 (start, None),
                 tolerances,
-                self.iteration_budget,
+                (self.iteration_budget, true),
                 stop,
             )?;
             if converged {
@@ -609,20 +632,22 @@ impl LinearSystem {
             right_hand_side,
             (start, None),
             tolerances,
-            max_iterations,
+            (max_iterations, false),
             NEVER,
         )
     }
 
     /// [`LinearSystem::solve_preconditioned`], asking `stop` at every iteration; `start` also
-    /// gives a direction to search along first.
+    /// gives a direction to search along first. With `give_up`, the iterations stop (not
+    /// converged) as soon as their rate so far says they would not converge within
+    /// `max_iterations`.
     fn solve_preconditioned_until(
         &mut self,
         extra_diagonal: &[f64],
         right_hand_side: &[DVec3],
         (start, first_direction): (&[DVec3], Option<&[DVec3]>),
         tolerances: Tolerances,
-        max_iterations: usize,
+        (max_iterations, give_up): (usize, bool),
         should_stop: Stop<'_>,
     ) -> Result<(Vec<DVec3>, usize, bool), KernelError> {
         let wanted = self.full_right_hand_side(right_hand_side);
@@ -673,6 +698,7 @@ impl LinearSystem {
             .sum();
         let target_alignment = (alignment * (tolerances.step * tolerances.step))
             .max(DVec3::splat(tolerances.position.powi(2) * diagonal_sum));
+        let start_alignment = alignment;
         let mut iterations = 0;
         let mut converged = false;
         let mut norms = column_norms(&residual);
@@ -682,7 +708,14 @@ impl LinearSystem {
                 converged = true;
                 break;
             }
-            if iterations == max_iterations {
+            if iterations == max_iterations
+                || (give_up
+                    && iterations >= PREDICTION_START
+                    && predicted_iterations(
+                        (start_alignment, alignment, target_alignment),
+                        iterations,
+                    ) > max_iterations as f64)
+            {
                 break;
             }
             check(should_stop, WRAP_STEP)?;
@@ -738,39 +771,25 @@ impl LinearSystem {
         Ok((solution, iterations, converged))
     }
 
+    /// The matrix in both triangles: the multigrid's finest level, or the direct system's copy.
+    fn full_rows(&self) -> &FullRows {
+        match (&self.multigrid, &self.full_rows) {
+            (Some(multigrid), _) => multigrid.matrix(),
+            (None, Some(full_rows)) => full_rows,
+            (None, None) => {
+                unreachable!("a system has its matrix in rows, with or without a factor")
+            }
+        }
+    }
+
     /// `(A + diag(extra)) x` into `product`, and per axis the dot product of `x` and it.
     fn multiply_dot(&self, extra_diagonal: &[f64], x: &[DVec3], product: &mut [DVec3]) -> DVec3 {
-        if let Some(multigrid) = &self.multigrid {
-            return multigrid.matrix().multiply_dot(extra_diagonal, x, product);
-        }
-        product.copy_from_slice(&self.multiply(extra_diagonal, x));
-        column_dots(x, product)
+        self.full_rows().multiply_dot(extra_diagonal, x, product)
     }
 
     /// `(A + diag(extra)) x`.
     fn multiply(&self, extra_diagonal: &[f64], x: &[DVec3]) -> Vec<DVec3> {
-        if let Some(multigrid) = &self.multigrid {
-            return multigrid.matrix().multiply(extra_diagonal, x);
-        }
-        let mut product: Vec<DVec3> = x
-            .iter()
-            .zip(extra_diagonal)
-            .map(|(x, extra)| *x * *extra)
-            .collect();
-        let column_pointers = self.matrix.symbolic().col_ptr();
-        let row_indices = self.matrix.symbolic().row_idx();
-        let values = self.matrix.val();
-        for column in 0..self.rows() {
-            for entry in column_pointers[column]..column_pointers[column + 1] {
-                let row = row_indices[entry];
-                let value = values[entry];
-                product[row] += x[column] * value;
-                if row != column {
-                    product[column] += x[row] * value;
-                }
-            }
-        }
-        product
+        self.full_rows().multiply(extra_diagonal, x)
     }
 
     /// Without a factor: rebuilds the multigrid hierarchy down to `coarsest_rows` (a system small
@@ -792,188 +811,4 @@ impl LinearSystem {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// A closed chain of `n` vertices with edge terms and second differences, vertex 0 fixed at
-    /// the origin.
-    fn chain(n: u32) -> (Stencils, Vec<Option<DVec3>>) {
-        let mut stencils = Stencils::new();
-        for vertex in 0..n {
-            let next = (vertex + 1) % n;
-            let after = (vertex + 2) % n;
-            stencils.push([(next, 1.0), (vertex, -1.0)], 1.0);
-            stencils.push([(vertex, 1.0), (after, 1.0), (next, -2.0)], 0.5);
-        }
-        let mut fixed = vec![None; n as usize];
-        fixed[0] = Some(DVec3::new(0.5, -1.0, 2.0));
-        (stencils, fixed)
-    }
-
-    fn right_hand_side(rows: usize) -> Vec<DVec3> {
-        (0..rows)
-            .map(|row| {
-                let t = row as f64;
-                DVec3::new(t.sin(), (0.3 * t).cos(), 0.1 * t)
-            })
-            .collect()
-    }
-
-    /// The chain's system (with a factor allowed), its rows and a right-hand side.
-    fn chain_system(n: u32) -> (LinearSystem, usize, Vec<DVec3>) {
-        let (stencils, fixed) = chain(n);
-        let system = LinearSystem::new(&stencils, n as usize, &fixed, usize::MAX).unwrap();
-        let rows = system.rows();
-        (system, rows, right_hand_side(rows))
-    }
-
-    #[test]
-    fn a_solve_preconditioned_by_an_older_factor_matches_a_fresh_factor() {
-        let (mut system, rows, b) = chain_system(60);
-        let old: Vec<f64> = (0..rows).map(|row| 1.0 + (row % 3) as f64).collect();
-        let new: Vec<f64> = (0..rows)
-            .map(|row| {
-                if row % 7 == 0 {
-                    0.0
-                } else {
-                    1.2 + (row % 3) as f64
-                }
-            })
-            .collect();
-        system.factor(&old).unwrap();
-        let (iterative, iterations, converged) = system
-            .solve_preconditioned(
-                &new,
-                &b,
-                &vec![DVec3::ZERO; rows],
-                residual_only(1e-10),
-                200,
-            )
-            .unwrap();
-        assert!(converged);
-        assert!(iterations > 0);
-        system.factor(&new).unwrap();
-        let direct = system.solve(&b).unwrap();
-        for (a, b) in iterative.iter().zip(&direct) {
-            assert!(a.distance(*b) < 1e-7, "{a} against {b}");
-        }
-        // From the answer itself it takes no iteration.
-        let (_, iterations, converged) = system
-            .solve_preconditioned(&new, &b, &direct, residual_only(1e-8), 5)
-            .unwrap();
-        assert!(converged);
-        assert_eq!(iterations, 0);
-    }
-
-    #[test]
-    fn a_preconditioned_solve_that_does_not_converge_says_so() {
-        let (mut system, rows, b) = chain_system(60);
-        system.factor(&vec![100.0; rows]).unwrap();
-        let (_, iterations, converged) = system
-            .solve_preconditioned(
-                &vec![0.0; rows],
-                &b,
-                &vec![DVec3::ZERO; rows],
-                residual_only(1e-12),
-                1,
-            )
-            .unwrap();
-        assert_eq!((iterations, converged), (1, false));
-    }
-
-    #[test]
-    fn a_failed_factorization_leaves_nothing_to_solve_with() {
-        let (mut system, rows, b) = chain_system(30);
-        assert!(system.solve(&b).is_err(), "nothing factored yet");
-        system.factor(&vec![1.0; rows]).unwrap();
-        let first = system.solve(&b).unwrap();
-        // Not positive definite: refused, and the earlier factor is not silently used.
-        assert!(system.factor(&vec![-1e6; rows]).is_err());
-        assert!(system.solve(&b).is_err());
-        // Factoring again with the first diagonal gives the first answer.
-        system.factor(&vec![1.0; rows]).unwrap();
-        assert_eq!(system.solve(&b).unwrap(), first);
-    }
-
-    /// Tolerances on the residual alone.
-    fn residual_only(residual: f64) -> Tolerances {
-        Tolerances {
-            residual,
-            step: 0.0,
-            position: 0.0,
-        }
-    }
-
-    /// A diagonal of one value per row, varied by `(row % 3) · spread`.
-    fn varied(rows: usize, base: f64, spread: f64) -> Vec<f64> {
-        (0..rows)
-            .map(|row| base + (row % 3) as f64 * spread)
-            .collect()
-    }
-
-    #[test]
-    fn the_reuse_policy_factors_once_for_small_changes_and_again_for_large_ones() {
-        let (mut system, rows, b) = chain_system(200);
-        let zero = vec![DVec3::ZERO; rows];
-        let first = system
-            .solve_reusing(&varied(rows, 1.0, 0.1), &b, &zero, 0.0)
-            .unwrap();
-        assert_eq!(system.statistics().factorizations, 1);
-        // A small change of the diagonal: iterations with the old factor, close to the exact answer.
-        let changed = varied(rows, 1.1, 0.1);
-        let reused = system.solve_reusing(&changed, &b, &first, 0.0).unwrap();
-        let statistics = system.statistics();
-        assert_eq!((statistics.solves, statistics.factorizations), (2, 1));
-        assert!(statistics.iterations > 0);
-        let mut exact = system.clone();
-        exact.factor(&changed).unwrap();
-        let exact = exact.solve(&b).unwrap();
-        let scale = exact.iter().map(|x| x.length()).fold(0.0, f64::max);
-        for (a, b) in reused.iter().zip(&exact) {
-            assert!(a.distance(*b) < 1e-4 * scale, "{a} against {b}");
-        }
-        // Every row's diagonal ten times larger: factored anew without iterating.
-        let iterations = system.statistics().iterations;
-        let answer = system
-            .solve_reusing(&varied(rows, 10.0, 1.0), &b, &reused, 0.0)
-            .unwrap();
-        assert_eq!(system.statistics().factorizations, 2);
-        assert_eq!(system.statistics().iterations, iterations);
-        assert!(answer.iter().all(|x| x.is_finite()));
-    }
-
-    #[test]
-    fn without_a_factor_multigrid_preconditioned_iterations_solve_the_system() {
-        let (stencils, fixed) = chain(60);
-        let mut direct = LinearSystem::new(&stencils, 60, &fixed, usize::MAX).unwrap();
-        let mut iterative = LinearSystem::new(&stencils, 60, &fixed, 0).unwrap();
-        assert!(direct.is_direct() && !iterative.is_direct());
-        assert_eq!(iterative.factor_bytes(), 0);
-        let rows = direct.rows();
-        let b = right_hand_side(rows);
-        let extra = varied(rows, 0.5, 0.25);
-        direct.factor(&extra).unwrap();
-        let exact = direct.solve(&b).unwrap();
-        assert!(iterative.factor(&extra).is_err(), "no factor to make");
-        let (solution, iterations, converged) = iterative
-            .solve_preconditioned(
-                &extra,
-                &b,
-                &vec![DVec3::ZERO; rows],
-                residual_only(1e-12),
-                500,
-            )
-            .unwrap();
-        // A system this small is its multigrid's only level, factored: one iteration solves it.
-        assert!(converged && iterations >= 1);
-        for (a, b) in solution.iter().zip(&exact) {
-            assert!(a.distance(*b) < 1e-8, "{a} against {b}");
-        }
-        // The policy's solve gets close from the start too.
-        let answer = iterative.solve_reusing(&extra, &b, &exact, 0.0).unwrap();
-        for (a, b) in answer.iter().zip(&exact) {
-            assert!(a.distance(*b) < 1e-8, "{a} against {b}");
-        }
-        assert_eq!(iterative.statistics().factorizations, 0);
-    }
-}
+mod tests;
