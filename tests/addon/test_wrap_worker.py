@@ -17,9 +17,15 @@ import pytest
 
 from bpy_helpers import anchor_snapshot, plane_scene, snapshot, wrap_session, wrapped_at_once
 
+ITERATION_SECONDS = 0.01
+"""What each of the solver's iterations costs at least here: the plane's wrap ends in about ten iterations, which
+a quiet machine solves before the test has looked at the worker it started; slowed, the worker's chunks are an
+iteration or two (they are sized from the measured cost) and the wrap outlasts the checks on any machine."""
+
 
 class _OneThreadAtATime:
-    """Wraps the kernel's solver and records every call made while another thread was inside it."""
+    """Wraps the kernel's solver, records every call made while another thread was inside it, and slows its steps
+    (:data:`ITERATION_SECONDS`)."""
 
     def __init__(self, solver):
         self._solver, self._lock, self.overlaps, self.threads = solver, threading.Lock(), [], set()
@@ -30,6 +36,8 @@ class _OneThreadAtATime:
             return attribute
 
         def call(*args, **kwargs):
+            if name == "step":
+                time.sleep(ITERATION_SECONDS * max(int(args[0]) if args else 1, 1))
             if not self._lock.acquire(blocking=False):
                 self.overlaps.append(name)
                 return attribute(*args, **kwargs)
