@@ -698,13 +698,21 @@ def test_the_wrap_speed_section_states_each_aim_and_measurement():
             "redraws_per_second": 88.0,
             "frames_per_second": 32.2,
             "iterations_per_second": 189.0,
-            "cancel": {"worst_seconds": 0.04},
+            "cancel": {
+                "worst_seconds": 0.04,
+                "cancels": [
+                    {"after": 0.15, "answered_seconds": 0.04, "restored": True, "running": True},
+                    {"after": 0.6, "answered_seconds": 0.0, "restored": None, "running": False},
+                ],
+            },
         },
     }
     lines = "\n".join(report.wrap_aims_section(speed))
-    assert "| 1 s | 2.75 s (680 iterations, converged" in lines
+    assert "| 0.5 s | 2.75 s (680 iterations, converged" in lines
     assert "| 30 | 88.0 (32.2 with new positions, 189 iterations/s) |" in lines
-    assert "Esc answered | 0.2 s | 0.04 s |" in lines
+    assert "Esc answered | 0.2 s | 0.040 s (1 presses while it ran, the layout put back bit for bit) |" in lines
+    speed["live"]["cancel"]["cancels"][0]["restored"] = False
+    assert "the layout NOT put back" in "\n".join(report.wrap_aims_section(speed))
     assert "spring onto" not in lines  # no large run, no row
     assert "load average at the end 1.00, 2.00, 3.00" in lines
     assert report.wrap_aims_section({}) == []
