@@ -6,7 +6,7 @@
 //! layout starts as space-points at `aligned`, its rest shape too, anchored as face-points).
 //! Prints each run's phases, its processor and wall seconds and a checksum of the positions (the
 //! same for a change that keeps the result); `PER_ITERATION=1` also prints each iteration's
-//! correspondences, solve and safeguard seconds.
+//! correspondences, solve and safeguard seconds; `WALL=1` times the phases in wall seconds.
 
 use std::fmt::Write;
 use std::path::Path;
@@ -56,6 +56,13 @@ fn processor_seconds() -> f64 {
     })
 }
 
+/// Wall seconds since the first call (`WALL=1`: the phases in wall time, to see which ones use
+/// one core only when set beside a processor-time run).
+fn wall_seconds() -> f64 {
+    static START: std::sync::OnceLock<Instant> = std::sync::OnceLock::new();
+    START.get_or_init(Instant::now).elapsed().as_secs_f64()
+}
+
 fn main() {
     let arguments: Vec<String> = std::env::args().skip(1).collect();
     let case = Path::new(&arguments[0]);
@@ -98,7 +105,11 @@ fn main() {
             WrapSettings::default(),
         )
         .unwrap();
-        solver.profile_with(processor_seconds);
+        solver.profile_with(if std::env::var_os("WALL").is_some() {
+            wall_seconds
+        } else {
+            processor_seconds
+        });
         let (wall, processor) = (Instant::now(), processor_seconds());
         let per_iteration = std::env::var_os("PER_ITERATION").is_some();
         let report = if per_iteration {
