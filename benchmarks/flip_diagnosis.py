@@ -7,9 +7,12 @@ positions, the truth, the quads); the case's target is read from the benchmark's
 normal points against the true quad's (the retargeting metric's *flipped quads*) it prints the corners' mean
 error (% of the diagonal), the angles between the result's quad normal and the true one, the target's normal
 under the result's centre and the aligned template's quad, the true quad's angle to the target's normal under
-its own centre, and the result's area over the true one. A quad flipped by a fold of the wrap faces away from
-the target; one that lies flat on the wrong wall of a crease faces the target and its template, while its true
-quad is turned far from both. No ``bpy`` here.
+its own centre, the result's area over the true one, and how deep the true quad's deepest corner lies under the
+target's surface (% of the diagonal, along the normal of its closest target triangle; 0 when no corner is under
+it). A quad flipped by a fold of the wrap faces away from the target; one that lies flat on the wrong wall of a
+crease faces the target and its template, while its true quad is turned far from both — and sinks under the
+surface where the target (a voxel remesh) fills the crease: no result on the surface can face as it does. No
+``bpy`` here.
 """
 
 from __future__ import annotations
@@ -40,6 +43,7 @@ class FlippedQuad:
     to_template: float
     truth_to_target: float
     area_ratio: float
+    truth_depth_percent: float = 0.0
 
     def line(self) -> str:
         x, y, z = self.centre
@@ -47,7 +51,7 @@ class FlippedQuad:
             f"quad {self.quad:>6} at ({x:.3f}, {y:.3f}, {z:.3f}): error {self.error_percent:.2f} %, "
             f"against the truth {self.to_truth:.0f}°, the target {self.to_target:.0f}°, the template "
             f"{self.to_template:.0f}°; the truth against the target {self.truth_to_target:.0f}°; "
-            f"area {self.area_ratio:.2f}× the true one"
+            f"area {self.area_ratio:.2f}× the true one; the truth {self.truth_depth_percent:.2f} % under the target"
         )
 
 
@@ -62,6 +66,21 @@ def _angle(a: np.ndarray, b: np.ndarray) -> float:
 def _nearest_triangle_normal(triangle_centres: np.ndarray, triangle_normals: np.ndarray, point: np.ndarray):
     """The normal of the target triangle whose centre is nearest ``point``."""
     return triangle_normals[int(np.argmin(((triangle_centres - point) ** 2).sum(axis=1)))]
+
+
+def depths_under(points: np.ndarray, target_vertices: np.ndarray, target_triangles: np.ndarray) -> np.ndarray:
+    """(N,) how far each point lies under the target's surface: its distance to its closest target point when it is
+    on the inner side of that triangle (against the winding's normal), else 0."""
+    import springwrap_kernel
+
+    target = springwrap_kernel.TargetMesh(
+        np.ascontiguousarray(target_vertices, dtype=np.float32), np.ascontiguousarray(target_triangles, dtype=np.uint32)
+    )
+    points = np.ascontiguousarray(points, dtype=np.float32).reshape(-1, 3)
+    hits = target.closest_points(points)
+    normals = target.face_normals()[hits.triangles]
+    inside = ((points - hits.positions) * normals).sum(axis=1) < 0.0
+    return np.where(inside, hits.distances, 0.0).astype(np.float64)
 
 
 def diagnose(
@@ -81,7 +100,11 @@ def diagnose(
     result_normals, true_normals = quad_normals(result, quads), quad_normals(truth, quads)
     template_normals = quad_normals(template, quads)
     found = []
-    for quad in np.flatnonzero(flipped_quads(result, truth, quads)):
+    flipped = np.flatnonzero(flipped_quads(result, truth, quads))
+    if len(flipped) == 0:
+        return found
+    depths = depths_under(truth[quads[flipped]], target_vertices, target_triangles).reshape(len(flipped), -1)
+    for quad, depth in zip(flipped, depths.max(axis=1), strict=True):
         centre = result[quads[quad]].mean(axis=0)
         true_centre = truth[quads[quad]].mean(axis=0)
         errors = np.linalg.norm(result[quads[quad]] - truth[quads[quad]], axis=1)
@@ -100,6 +123,7 @@ def diagnose(
                     true_normals[quad], _nearest_triangle_normal(triangle_centres, triangle_normals, true_centre)
                 ),
                 area_ratio=float(np.linalg.norm(result_normals[quad]) / true_area) if true_area > 0.0 else float("inf"),
+                truth_depth_percent=float(depth / diagonal * 100.0),
             )
         )
     return found

@@ -30,6 +30,20 @@ def test_only_the_quad_turned_against_the_truth_is_reported_with_how_it_sits():
     assert flipped.truth_to_target == 0.0
     assert flipped.area_ratio == 0.5
     assert flipped.error_percent > 0.0 and "quad      1" in flipped.line()
+    assert flipped.truth_depth_percent == 0.0  # the truth lies on the target
+
+
+def test_a_true_quad_under_the_target_says_how_deep():
+    truth, quads, target_vertices, target_triangles = two_quads()
+    result = truth.copy()
+    result[[2, 5], 0] = 0.5
+    sunk = truth.copy()
+    sunk[5, 2] = -0.3  # one corner of the second true quad under the surface (the target faces +z)
+    sunk[2, 2] = 0.2  # another above it: not under
+    (flipped,) = flip_diagnosis.diagnose(result, sunk, truth, quads, target_vertices, target_triangles)
+    diagonal = float(np.linalg.norm(np.ptp(sunk, axis=0)))
+    assert abs(flipped.truth_depth_percent - 0.3 / diagonal * 100.0) < 1e-4
+    assert "% under the target" in flipped.line()
 
 
 def test_a_result_that_keeps_every_orientation_has_nothing_to_report():
