@@ -8,7 +8,7 @@ target did (an opening jaw's chin and lower lip carry only about half of their t
 ``carried_share``); a part following that skin's motion lags with it, however the skin is weighted (measured on the
 expression cases: wider neighbourhoods, robust reweighting, only the skin nearer to the piece than to another:
 lower teeth max 0.86 to 1.2 % of the diagonal). The skin's rest shape (a chin, a lip's edge, a brow) is pinned by
-the target's shape where its motion is not: registered, the lower teeth land at 0.49 to 0.54 % max. The other
+the target's shape where its motion is not: registered, the lower teeth land at 0.43 to 0.47 % max. The other
 rigid pieces' own skin separates the skins moving apart (upper from lower teeth).
 
 A piece keeps the follower's motion (:func:`core.parts.follow`) when its own skin is not close around it
@@ -24,10 +24,16 @@ COVER_RATIO = 1.5
 many times the median distance to any skin the wrap holds (the skin around it is its own, not another part's)."""
 PATCH_REACH = 3.0
 """The skin registered: its own skin within this many of the piece's radii (RMS distance to its centre)."""
-SOFTEN = 0.2
-"""Each skin vertex weighs 1 / (d² + (SOFTEN r)²), d its distance to the piece, r the piece's radius."""
-ITERATIONS = 30
-"""Point-to-plane steps of the registration, at most."""
+SOFTEN = 0.5
+"""Each skin vertex weighs 1 / (d² + (SOFTEN r)²), d its distance to the piece, r the piece's radius. Measured
+(``benchmarks/parts.py``, lower teeth max on face-expression / expression / head-nose): 0.2 gives 0.63 / 0.54 /
+0.07, 0.5 gives 0.47 / 0.43 / 0.09, 1.0 gives 0.40 / 0.41 / 0.15 (the nearest skin, the lips, slides most)."""
+ITERATIONS = 100
+"""Point-to-plane steps of the registration, at most (it converges in fewer)."""
+PINNED_SHARE = 0.01
+"""A step leaves out the motions that the target pins less than this share of the best pinned one (the eigenvalues
+of the step's system): a turn of a sphere's patch about its centre stays as the wrap's skin put it (a mirrored
+ball stays symmetric: ``tests/addon/test_parts.py``)."""
 MOVE_LIMIT = 1.0
 """The registration may move a piece's vertices at most this many of its radii from where the follower put them."""
 MIN_PATCH = 12
@@ -78,23 +84,35 @@ def surface_distance(target_mesh, points: np.ndarray, weights: np.ndarray) -> fl
 
 
 def register(target_mesh, rest: np.ndarray, start, weights: np.ndarray):
-    """(R, t): the rigid motion of the skin ``rest`` ((S, 3)) onto the target, point-to-plane, from ``start``."""
+    """(R, t): the rigid motion of the skin ``rest`` ((S, 3)) onto the target, point-to-plane, from ``start``;
+    each step leaves out the motions the target pins weakly (:data:`PINNED_SHARE`: a patch of a sphere turning about its
+    centre stays where the wrap's skin put it)."""
     rotation, translation = start
     normals = np.asarray(target_mesh.kernel.face_normals(), dtype=np.float64)
-    size = float(np.sqrt(weights @ np.sum((rest - weights @ rest / weights.sum()) ** 2, axis=1) / weights.sum()))
+    centre_rest = weights @ rest / weights.sum()
+    size = float(np.sqrt(weights @ np.sum((rest - centre_rest) ** 2, axis=1) / weights.sum()))
+    if not size > 0.0:
+        return start
     for _step in range(ITERATIONS):
         points = rest @ rotation.T + translation
+        centre = rotation @ centre_rest + translation
         hits = target_mesh.closest_points(points)
         triangles = np.asarray(hits.triangles)
         used = weights * (triangles >= 0)
         normal = normals[np.maximum(triangles, 0)]
         residual = np.einsum("ij,ij->i", points - np.asarray(hits.positions, dtype=np.float64), normal)
-        jacobian = np.hstack([np.cross(points, normal), normal])  # d residual / d (rotation vector, translation)
+        # d residual / d (turn about the centre times the size, shift): both in lengths.
+        jacobian = np.hstack([np.cross((points - centre) / size, normal), normal])
         system = (jacobian * used[:, None]).T @ jacobian
-        step = np.linalg.lstsq(system, -(jacobian * used[:, None]).T @ residual, rcond=None)[0]
-        turn = small_rotation(step[:3])
-        rotation, translation = turn @ rotation, turn @ translation + step[3:]
-        if np.linalg.norm(step[3:]) + np.linalg.norm(step[:3]) * size < 1e-9 * max(size, 1e-300):
+        values, vectors = np.linalg.eigh(system)
+        pinned = values > PINNED_SHARE * values.max()
+        if not values.max() > 0.0:
+            break
+        gradient = vectors.T @ (-(jacobian * used[:, None]).T @ residual)
+        step = vectors[:, pinned] @ (gradient[pinned] / values[pinned])
+        turn = small_rotation(step[:3] / size)
+        rotation, translation = turn @ rotation, turn @ (translation - centre) + centre + step[3:]
+        if np.linalg.norm(step) < 1e-9 * size:
             break
     return rotation, translation
 
