@@ -29,7 +29,8 @@ SOFTEN = 0.5
 (``benchmarks/parts.py``, lower teeth max on face-expression / expression / head-nose): 0.2 gives 0.63 / 0.54 /
 0.07, 0.5 gives 0.47 / 0.43 / 0.09, 1.0 gives 0.40 / 0.41 / 0.15 (the nearest skin, the lips, slides most)."""
 ITERATIONS = 100
-"""Point-to-plane steps of the registration, at most (it converges in fewer)."""
+"""Point-to-plane steps of the registration, at most (face-expression's lower teeth: max 0.472 after 100, 0.479 after
+400)."""
 PINNED_SHARE = 0.01
 """A step leaves out the motions that the target pins less than this share of the best pinned one (the eigenvalues
 of the step's system): a turn of a sphere's patch about its centre stays as the wrap's skin put it (a mirrored

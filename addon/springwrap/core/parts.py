@@ -18,7 +18,8 @@ Which vertices are parts (:func:`plan_parts`), per separate piece of the layout 
 
 The wrap leaves the parts out of the target's pull (the solver's free vertices) and moves them by the
 surface's motion from the wrap's start (``springwrap_kernel.SurfaceFollower``; in the wrap's result, by the surface
-it holds on the target alone: :func:`follow`). With parts found or chosen, the
+it holds on the target alone, and each rigid piece that its own skin covers placed by that skin's registration onto
+the target, ``core.part_registration``: :func:`follow`). With parts found or chosen, the
 surface the target does not show (:func:`unseen_surface`: the inside of the mouth behind the lips, the socket
 behind a closing eyelid) is left out of the pull too: the springs carry it with the skin around it, so that the
 parts following it are not dragged onto the lips' or the lids' outer skin.
