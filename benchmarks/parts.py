@@ -6,7 +6,9 @@ anchors (similarity, no ICP) and wrapped.
         [--json out/bench/parts.json] [--methods METHOD ...] [--positions FOLDER]
 
 ``--methods`` runs some of the methods alone (for a quick comparison; the doc's section wants them all);
-``--positions`` writes each case's truth and every method's positions to ``FOLDER/CASE.npz``.
+``--positions`` writes each case's truth, every method's positions and, per wrap, the surface it held on the target
+(``METHOD: held``, its face points: what the parts follow) to ``FOLDER/CASE.npz``, for measuring other follow
+rules on the same wraps (``core.parts.follow``'s ``held``).
 
 The layout is ``base.obj``'s ``body`` group (its vertices first, in the body's own order, so the body cases'
 landmarks name the same vertices) followed by the helper groups of :data:`PART_GROUPS` (756 vertices); the
@@ -287,6 +289,8 @@ def run_case(name: str, layout: dict, methods=METHODS, positions_folder: Path | 
     from benchmarks.retarget import cases
     from benchmarks.retarget.baselines import mesh_object, read_positions
     from benchmarks.retarget.springwrap_methods import _add_anchors, _call, _select_only
+    from springwrap.blender import attributes
+    from springwrap.core import layout_state
 
     spec = cases.CaseSpec(name, "anny", name, description=FACE_CASES[name]) if name in FACE_CASES else None
     case, _cached = cases.get_case(spec or cases.case_specs([name])[0])
@@ -348,6 +352,8 @@ def run_case(name: str, layout: dict, methods=METHODS, positions_folder: Path | 
                 _call("wrap", bpy.ops.springwrap.wrap)
         positions = read_positions(layout_object.data)
         saved[method] = positions
+        if method != "aligned template":  # the surface the wrap held on the target (its face points)
+            saved[f"{method}: held"] = attributes.read_state(layout_object.data).states == layout_state.FACE_POINT
         if alone:  # the parts where Align left them: only the body's numbers count
             positions = np.concatenate([positions, aligned[body:]])
         entry = errors_of(positions, truth, layout, diagonal, near, close, regions)

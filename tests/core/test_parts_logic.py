@@ -300,3 +300,58 @@ def test_faces_without_the_parts():
     body_count = int((~plan.parts).sum())
     assert corners.max() < body_count and corners.size == sizes.sum()
     assert sizes.size == int((np.asarray(topology.face_corners).reshape(-1, 4) < body_count).all(axis=1).sum())
+
+
+def egg(n=12, axes=(0.7, 1.4, 0.5)):
+    """A closed quad ellipsoid (no symmetry a rigid motion could slide along), (V, 3) and (F, 4)."""
+    vertices, faces = cube_sphere(n, 1.0)
+    return vertices * np.asarray(axes), faces
+
+
+def test_a_rigid_piece_is_placed_by_its_skin_on_the_target_where_the_wrapped_skin_lags():
+    body, ball = egg(), cube_sphere(3, 0.15, (0.0, 1.1, 0.0))  # in the egg's pointed end, as teeth in a chin
+    positions, topology = topology_of([body, ball])
+    count = len(body[0])
+    follow = np.zeros(len(positions), bool)
+    follow[count:] = True
+    plan = parts.plan_parts("Layout", positions, topology, parts.PartGroups(follow=follow), False)
+    follower = parts.make_follower(plan, positions)
+    shift = np.array([0.1, -0.15, 0.05])
+    triangles = np.concatenate([body[1][:, [0, 1, 2]], body[1][:, [0, 2, 3]]])
+    target = target_module.CentredMesh(body[0] + shift, np.ascontiguousarray(triangles, dtype=np.uint32))
+    moved = positions.copy()
+    moved[:count] += 0.4 * shift  # the wrapped skin carried 0.4 of the target's motion (it slid along it)
+    held = ~plan.parts
+    truth = positions[count:] + shift
+    followed = parts.follow(follower, plan, moved, held)
+    assert np.linalg.norm(followed[count:] - truth, axis=1).min() > 0.5 * np.linalg.norm(shift)  # it lags too
+    placed = parts.follow(follower, plan, moved, held, target)
+    assert np.linalg.norm(placed[count:] - truth, axis=1).max() < 1e-3
+    assert np.array_equal(placed[:count], moved[:count])
+
+
+def test_a_piece_whose_skin_is_another_pieces_keeps_the_surfaces_motion():
+    body, outer = egg(), cube_sphere(4, 0.3, (0.0, 0.0, 0.0))
+    inner = cube_sphere(3, 0.1, (0.0, 0.0, 0.0))  # inside the other piece: the skin round it is the outer one's
+    positions, topology = topology_of([body, outer, inner])
+    count = len(body[0])
+    follow = np.zeros(len(positions), bool)
+    follow[count:] = True
+    plan = parts.plan_parts("Layout", positions, topology, parts.PartGroups(follow=follow), False)
+    follower = parts.make_follower(plan, positions)
+    shift = np.array([0.1, -0.15, 0.05])
+    triangles = np.concatenate([body[1][:, [0, 1, 2]], body[1][:, [0, 2, 3]]])
+    target = target_module.CentredMesh(body[0] + shift, np.ascontiguousarray(triangles, dtype=np.uint32))
+    moved = positions.copy()
+    moved[:count] += 0.4 * shift
+    held = ~plan.parts
+    followed = parts.follow(follower, plan, moved, held)
+    placed = parts.follow(follower, plan, moved, held, target)
+    inner_vertices = np.arange(count + len(outer[0]), len(positions))
+    assert np.allclose(placed[inner_vertices], followed[inner_vertices])
+    assert (
+        np.linalg.norm(
+            placed[count : count + len(outer[0])] - positions[count : count + len(outer[0])] - shift, axis=1
+        ).max()
+        < 1e-3
+    )

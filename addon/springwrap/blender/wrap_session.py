@@ -395,7 +395,9 @@ class WrapSession:
             positions, state = follow.scatter(self.restriction, positions, state)
         if self.follower is not None:  # the parts: moved by the surface, off the target
             world = transforms.transform_points(self.matrix_world, positions)
-            world = part_data.follow_surface(self.follower, self.parts, world, state, self.whole_inputs, final)
+            world = part_data.follow_surface(
+                self.follower, self.parts, world, state, self.whole_inputs, final, self.target.mesh
+            )
             positions = transforms.to_local(self.matrix_world, world)
             state.states[self.parts.parts] = layout_state.SPACE_POINT
             state.faces[self.parts.parts] = layout_state.NO_FACE

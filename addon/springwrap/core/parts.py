@@ -18,7 +18,8 @@ Which vertices are parts (:func:`plan_parts`), per separate piece of the layout 
 
 The wrap leaves the parts out of the target's pull (the solver's free vertices) and moves them by the
 surface's motion from the wrap's start (``springwrap_kernel.SurfaceFollower``; in the wrap's result, by the surface
-it holds on the target alone: :func:`follow`). With parts found or chosen, the
+it holds on the target alone, and each rigid piece that its own skin covers placed by that skin's registration onto
+the target, ``core.part_registration``: :func:`follow`). With parts found or chosen, the
 surface the target does not show (:func:`unseen_surface`: the inside of the mouth behind the lips, the socket
 behind a closing eyelid) is left out of the pull too: the springs carry it with the skin around it, so that the
 parts following it are not dragged onto the lips' or the lids' outer skin.
@@ -30,6 +31,7 @@ import numpy as np
 
 import springwrap_kernel
 
+from . import part_registration
 from .errors import LayoutError
 from .follow import restrict
 
@@ -380,22 +382,29 @@ def make_follower(plan: PartPlan, positions: np.ndarray, neighbours: int | None 
     return PartFollower(bind_parts(plan, positions, ~plan.parts, neighbours), positions, neighbours)
 
 
-def follow(follower: PartFollower, plan: PartPlan, positions: np.ndarray, held: np.ndarray | None = None):
+def follow(follower: PartFollower, plan: PartPlan, positions: np.ndarray, held: np.ndarray | None = None, target=None):
     """``positions`` ((N, 3), the frame the follower was made in) with the parts moved by the surface's motion.
 
     ``held`` (optional, (N,) bool): the surface vertices the wrap holds on the target (its face points). When
     they are at least :data:`HELD_SHARE` of the surface, the parts follow them alone (bound again, at rest, to
     those): the surface left off the target (the free and unseen skin round a mouth, lips that did not reach
-    their place) is carried by the springs and lags behind the skin the target holds."""
+    their place) is carried by the springs and lags behind the skin the target holds. With ``target`` (a
+    ``core.target.CentredMesh`` in the same frame) too, each rigid piece that its own held skin covers is placed by
+    that skin's registration onto the target (``core.part_registration``): skin that slid does not drag it."""
     positions = np.array(positions, dtype=np.float64).reshape(-1, 3)
     surface = ~plan.parts
     kernel = follower.kernel
+    registered = False
     if held is not None:
         kept = surface & np.asarray(held, dtype=bool)
-        if kept.sum() >= HELD_SHARE * surface.sum() and not np.array_equal(kept, surface):
-            surface = kept
-            kernel = bind_parts(plan, follower.rest, surface, follower.neighbours)
+        if kept.sum() >= HELD_SHARE * surface.sum():
+            registered = target is not None
+            if not np.array_equal(kept, surface):
+                surface = kept
+                kernel = bind_parts(plan, follower.rest, surface, follower.neighbours)
     positions[plan.parts] = kernel.apply(np.ascontiguousarray(positions[surface]))
+    if registered:
+        positions = part_registration.place_pieces(plan, follower.rest, positions, surface, target)
     return positions
 
 
