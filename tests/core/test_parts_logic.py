@@ -10,6 +10,7 @@ parts = core_module("parts")
 target_module = core_module("target")
 subdivision = core_module("subdivision")
 errors = core_module("errors")
+part_registration = core_module("part_registration")
 
 
 def cube_sphere(n, radius, centre=(0.0, 0.0, 0.0)):
@@ -355,3 +356,25 @@ def test_a_piece_whose_skin_is_another_pieces_keeps_the_surfaces_motion():
         ).max()
         < 1e-3
     )
+
+
+def test_nearest_distances_agree_with_every_pair_measured():
+    rng = np.random.default_rng(3)
+    points, others = rng.normal(size=(700, 3)) + 50.0, rng.normal(size=(300, 3)) + 50.0  # far from the origin
+    every = np.linalg.norm(points[:, None, :] - others[None, :, :], axis=2)
+    distances, indices = part_registration.nearest_distances(points, others)
+    assert np.array_equal(indices, every.argmin(axis=1))
+    assert np.allclose(distances, every.min(axis=1), rtol=0.0, atol=1e-12)
+
+
+def test_a_big_piece_is_measured_and_fitted_on_samples_spread_over_it():
+    indices = np.arange(10, 10 + 5000)
+    chosen = part_registration.sampled(indices, 100)
+    assert len(chosen) == 100 and chosen[0] == indices[0] and chosen[-1] == indices[-1]
+    assert np.all(np.diff(chosen) > 0) and np.ptp(np.diff(chosen)) <= 1  # evenly spread
+    assert np.array_equal(part_registration.sampled(indices[:50], 100), indices[:50])
+
+
+def test_a_piece_bigger_than_the_samples_is_still_placed_by_its_skin(monkeypatch):
+    monkeypatch.setattr(part_registration, "SAMPLES", 20)  # fewer than the ball's 56 vertices and its patch
+    test_a_rigid_piece_is_placed_by_its_skin_on_the_target_where_the_wrapped_skin_lags()
