@@ -1,0 +1,236 @@
+"""Where the feature-lines benchmark's crease error comes from: one line per target and anchor count.
+
+    .venv/bin/python benchmarks/feature_lines_diagnosis.py --off fandisk.off [--anchors 8 24]
+
+The scene is ``feature_lines.py``'s (its layout, targets, anchors and truth); each case runs its *with* row (two
+wraps, Pair Feature Lines at its defaults between them) with the pairing's internals recorded. For the paired
+crease vertices, in % of the target's diagonal (mean; *along* the crease at the true place, as the benchmark splits
+it): where the placement puts them (**placed**: the wrap puts each paired vertex there); where the true place
+projected onto the same stretch of target curve would put them (**floor**: what a perfect map would give, the
+target curve's own error); where the first wrap's fit projected onto it puts them (**fit**: placing by the wrap's
+sliding); and, for the lines between two matched corners, sharing out the curve between the corners' true places
+by the true arc length (**true arc**: the error of the target curve's arc length as a parameter, which a zig-zag of
+its points stretches). The target curves' zig-zag: their arc length over that of every fourth point (median,
+paired curves). And the crease vertices left unpaired: how many and their share of the crease error, by why
+(a free line, by reason; a line's end, a corner; on no line).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+REPOSITORY = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPOSITORY))
+sys.path.insert(0, str(REPOSITORY / "blender_scripts"))
+
+from benchmarks import feature_lines as bench  # noqa: E402 - after the path is set
+from benchmarks.feature_detection import read_off  # noqa: E402
+
+
+def arc_inflation(points, step: int = 4) -> float:
+    """A polyline's arc length over the length of every ``step``-th of its points (the last kept): 1 for points
+    in a straight or gently bending row, more where they zig-zag at a finer scale than ``step`` points."""
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    if points.shape[0] < 2:
+        return 1.0
+    coarse = np.concatenate([points[::step], points[-1:]]) if (points.shape[0] - 1) % step else points[::step]
+    chord = np.linalg.norm(np.diff(coarse, axis=0), axis=1).sum()
+    return float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum() / chord) if chord > 0.0 else 1.0
+
+
+def projected(polyline, points) -> np.ndarray:
+    """(P, 3): each of ``points`` taken to the nearest point of the polyline ((K, 3), K >= 2)."""
+    polyline = np.asarray(polyline, dtype=np.float64).reshape(-1, 3)
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    starts, direction = polyline[:-1], np.diff(polyline, axis=0)
+    squared = np.maximum((direction**2).sum(axis=1), 1e-300)
+    t = np.clip(np.einsum("psk,sk->ps", points[:, None, :] - starts[None], direction) / squared, 0.0, 1.0)
+    near = starts[None] + t[..., None] * direction[None]
+    nearest = np.argmin(np.linalg.norm(near - points[:, None, :], axis=2), axis=1)
+    return near[np.arange(points.shape[0]), nearest]
+
+
+def shares(errors, groups: dict) -> dict:
+    """``{label: (count, share of the errors' sum)}`` for each boolean mask of ``groups`` over ``errors``."""
+    total = float(np.sum(errors))
+    return {
+        label: (int(mask.sum()), float(errors[mask].sum() / total) if total else 0.0) for label, mask in groups.items()
+    }
+
+
+def record_pairing(store: dict):
+    """Wrap ``core.feature_lines.pair_lines`` so that each call's inputs and result land in ``store``."""
+    from springwrap.core import feature_lines as core
+
+    original = core.pair_lines
+
+    def recording(lines, current, curves_found, anchored, existing, max_distance, **keywords):
+        result = original(lines, current, curves_found, anchored, existing, max_distance, **keywords)
+        store.update(
+            lines=lines, current=np.array(current), curves=curves_found, anchored=np.array(anchored), result=result
+        )
+        store.update(junctions=dict(keywords.get("junctions") or {}), rest=keywords.get("rest"))
+        return result
+
+    core.pair_lines = recording
+
+
+def along(scene, vertices, placed) -> float:
+    """The mean along-the-crease error (% of the diagonal) of ``placed`` ((C, 3)) for crease ``vertices``."""
+    _target, _rest, _quads, truth, on_surface, _crease, diagonal, segments = scene
+    error, _across = bench.along_and_across(placed - on_surface[vertices], truth[vertices], segments)
+    return float(error.mean() / diagonal * 100.0)
+
+
+def diagnose(anchors: int, scene, store: dict) -> dict:
+    """One case's measures (see the module docs)."""
+    import bpy
+
+    from benchmarks.retarget.baselines import mesh_object, read_positions
+    from benchmarks.retarget.springwrap_methods import _add_anchors, _call, _select_only
+    from springwrap.core import curves
+    from springwrap.core.edge_paths import length_fractions
+
+    target, rest, quads, truth, on_surface, crease, diagonal, _segments = scene
+    layout = mesh_object(f"Diagnosis {anchors}", rest, quads)
+    layout.springwrap.target = target
+    _select_only(layout)
+    chosen = bench.farthest_points(rest, anchors)
+    _call("detach", bpy.ops.springwrap.detach, only_selected=False)
+    _add_anchors(layout, chosen, on_surface[chosen])
+    _call("wrap", bpy.ops.springwrap.wrap)
+    first = read_positions(layout.data)
+    store.clear()
+    _call("feature_lines_pair", bpy.ops.springwrap.feature_lines_pair)
+    _call("wrap", bpy.ops.springwrap.wrap)
+    result = read_positions(layout.data)
+    bpy.data.objects.remove(layout)
+    constraints = store["result"].constraints
+    chains = [c.layout_vertices[crease[c.layout_vertices]] for c in constraints]
+    placed = [curves.arc_length_points(store["current"][c.layout_vertices], c.points, c.fractions) for c in constraints]
+    rows = [crease[c.layout_vertices] for c in constraints]
+    vertices = np.concatenate(chains)
+    measures = {
+        "placed": along(scene, vertices, np.concatenate([p[r] for p, r in zip(placed, rows)])),
+        "floor": along(
+            scene, vertices, np.concatenate([projected(c.points, on_surface[v]) for c, v in zip(constraints, chains)])
+        ),
+        "fit": along(
+            scene, vertices, np.concatenate([projected(c.points, first[v]) for c, v in zip(constraints, chains)])
+        ),
+    }
+    junctions, arc_vertices, arc_placed = store["junctions"], [], []
+    for line in store["lines"]:
+        ends = (int(line.vertices[0]), int(line.vertices[-1]))
+        inner = line.vertices[1:-1][crease[line.vertices[1:-1]]]
+        constraint = next((c for c in constraints if np.isin(inner, c.layout_vertices).all()), None)
+        if line.closed or not all(end in junctions for end in ends) or inner.size == 0 or constraint is None:
+            continue
+        curve = containing_curve(store["curves"], constraint.points, 1e-6 * diagonal)
+        stretch = bench_stretch(curve, on_surface[ends[0]], on_surface[ends[1]])
+        fractions = length_fractions(truth[line.vertices])[np.isin(line.vertices, inner)]
+        arc_vertices.append(inner)
+        arc_placed.append(curves.arc_length_points(np.zeros((fractions.size, 3)), stretch, fractions))
+    if arc_vertices:
+        measures["true arc"] = along(scene, np.concatenate(arc_vertices), np.concatenate(arc_placed))
+    inflation = [arc_inflation(c.points) for c in constraints if c.points.shape[0] > 8]
+    errors = np.linalg.norm(result - on_surface, axis=1) / diagonal * 100.0
+    paired = np.zeros(rest.shape[0], dtype=bool)
+    paired[np.concatenate([c.layout_vertices for c in constraints])] = True
+    free = crease & ~paired & ~store["anchored"]
+    groups, on_line, line_ends = {}, np.zeros_like(free), np.zeros_like(free)
+    for line in store["lines"]:
+        on_line[line.vertices] = True
+        if not line.closed:
+            line_ends[[line.vertices[0], line.vertices[-1]]] = True
+    for line, reason in store["result"].free:
+        mask = np.zeros_like(free)
+        mask[line.vertices] = True
+        groups[reason] = groups.get(reason, np.zeros_like(free)) | (mask & free & ~line_ends)
+    groups["line end"] = free & line_ends
+    groups["on no line"] = free & ~on_line
+    return {
+        "anchors": anchors,
+        "crease": float(errors[crease].mean()),
+        "along": measures,
+        "inflation": float(np.median(inflation)) if inflation else None,
+        "unpaired": shares(errors[crease], {label: mask[crease] for label, mask in groups.items()}),
+    }
+
+
+def containing_curve(found, points, tolerance: float) -> np.ndarray:
+    """The points of the first of ``found`` (the pairing's target curves) on which all ``points`` lie."""
+    for _kind, curve, *_rest in found:
+        curve = np.asarray(curve, dtype=np.float64).reshape(-1, 3)
+        if curve.shape[0] >= 2 and np.linalg.norm(projected(curve, points) - points, axis=1).max() <= tolerance:
+            return curve
+    raise ValueError("no target curve holds the stretch")
+
+
+def bench_stretch(curve, start, end) -> np.ndarray:
+    """The stretch of the open polyline ``curve`` between the points nearest ``start`` and ``end``."""
+    from springwrap.core import feature_lines as core
+    from springwrap.core.edge_paths import cumulative_lengths
+
+    curve = np.asarray(curve, dtype=np.float64).reshape(-1, 3)
+    cumulative = cumulative_lengths(curve)
+    begin = core._parameter(curve, cumulative, np.asarray(start, dtype=np.float64))[0]
+    finish = core._parameter(curve, cumulative, np.asarray(end, dtype=np.float64))[0]
+    return core._piece(curve, cumulative, begin, finish)
+
+
+def main(argv: list[str] | None = None) -> int:
+    import bpy
+
+    import headless
+    import springwrap_kernel
+
+    parser = argparse.ArgumentParser(prog="feature_lines_diagnosis.py", description=__doc__.splitlines()[0])
+    parser.add_argument("--off", type=Path, required=True)
+    parser.add_argument("--anchors", nargs="+", type=int, default=[8, 24])
+    parser.add_argument(
+        "--tessellations", nargs="+", choices=sorted(bench.TESSELLATIONS), default=list(bench.TESSELLATIONS)
+    )
+    arguments = parser.parse_args(argv)
+    headless.enable_addon()
+    store: dict = {}
+    record_pairing(store)
+    bpy.ops.wm.read_homefile(use_empty=True)
+    vertices, triangles = read_off(arguments.off)
+    rest, quads = bench.make_layout(vertices, triangles, 3000)
+    bounds = (vertices.min(axis=0).astype(np.float64), vertices.max(axis=0).astype(np.float64))
+    edges = np.concatenate([quads[:, [0, 1]], quads[:, [1, 2]], quads[:, [2, 3]], quads[:, [3, 0]]])
+    layout_edge = float(np.median(np.linalg.norm(rest[edges[:, 0]] - rest[edges[:, 1]], axis=1)))
+    segments = bench.sharp_segments(vertices.astype(np.float64), triangles.astype(np.int64))
+    for tessellation in arguments.tessellations:
+        target = bench.changed_target(
+            f"Target {tessellation}", vertices.astype(np.float64), triangles.astype(np.int64), bounds, tessellation
+        )
+        truth = bench.design_change(rest, *bounds)
+        crease = bench.distance_to_segments(rest, segments) < 0.1 * layout_edge
+        target_vertices, target_triangles = bench.target_arrays(target)
+        diagonal = float(np.linalg.norm(np.ptp(target_vertices, axis=0)))
+        changed = bench.design_change(segments.reshape(-1, 3), *bounds).reshape(-1, 2, 3)
+        mesh = springwrap_kernel.TargetMesh(target_vertices, target_triangles)
+        on_surface = mesh.closest_points(np.ascontiguousarray(truth, dtype=np.float32)).positions.astype(np.float64)
+        scene = (target, rest, quads, truth, on_surface, crease, diagonal, changed)
+        for count in arguments.anchors:
+            found = diagnose(count, scene, store)
+            split = ", ".join(f"{label} {value:.3f}" for label, value in found["along"].items())
+            unpaired = ", ".join(
+                f"{label} {n} ({100 * share:.0f} %)" for label, (n, share) in found["unpaired"].items() if n
+            )
+            print(
+                f"{tessellation} {count}: crease {found['crease']:.3f}; paired vertices along: {split}; "
+                f"curves' zig-zag {found['inflation']:.4f}; unpaired: {unpaired}",
+                flush=True,
+            )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
