@@ -10,7 +10,10 @@ projected onto the same stretch of target curve would put them (**floor**: what 
 target curve's own error); where the first wrap's fit projected onto it puts them (**fit**: placing by the wrap's
 sliding); and, for the lines between two matched corners, sharing out the curve between the corners' true places
 by the true arc length (**true arc**: the error of the target curve's arc length as a parameter, which a zig-zag of
-its points stretches). The target curves' zig-zag: their arc length over that of every fourth point (median,
+its points stretches); and where the map's places go when shifted along the stretch (by at most 3 % of it) so that
+the line's turning profile (how fast its rest shape turns, smoothed over two of its edges) lines up with the curve's
+(**shape warp**: more matched points from the crease's own shape), with how far it shifts them against how far the
+true places lie from the map's (mean, fraction of the stretch) and how the two shifts correlate. The target curves' zig-zag: their arc length over that of every fourth point (median,
 paired curves). And the crease vertices left unpaired: how many and their share of the crease error, by why
 (a free line, by reason; a line's end, a corner; on no line).
 """
@@ -52,6 +55,96 @@ def projected(polyline, points) -> np.ndarray:
     near = starts[None] + t[..., None] * direction[None]
     nearest = np.argmin(np.linalg.norm(near - points[:, None, :], axis=2), axis=1)
     return near[np.arange(points.shape[0]), nearest]
+
+
+def turning_profile(points, samples: int, sigma: float) -> np.ndarray:
+    """(samples,): how fast a polyline ((K, 3), K >= 2) turns, in radians per fraction of its length, at ``samples``
+    points evenly spaced along it, after a Gaussian smoothing of ``sigma`` (a length) of its points (a zig-zag
+    finer than that does not count; the ends continued by reflection through the end point, which straightens the
+    last three ``sigma``)."""
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    cumulative = lengths(points)
+    even = np.linspace(0.0, cumulative[-1], samples)
+    resampled = np.stack([np.interp(even, cumulative, points[:, axis]) for axis in range(3)], axis=1)
+    spread = sigma / (cumulative[-1] / (samples - 1))
+    reach = min(int(3.0 * spread) + 1, samples - 1)
+    if spread > 0.0:
+        padded = np.concatenate(
+            [
+                2.0 * resampled[0] - resampled[1 : reach + 1][::-1],
+                resampled,
+                2.0 * resampled[-1] - resampled[-reach - 1 : -1][::-1],
+            ]
+        )
+        weights = np.exp(-0.5 * (np.arange(-reach, reach + 1) / spread) ** 2)
+        weights /= weights.sum()
+        resampled = np.stack([np.convolve(padded[:, axis], weights, mode="valid") for axis in range(3)], axis=1)
+    tangent = np.gradient(resampled, axis=0)
+    tangent /= np.maximum(np.linalg.norm(tangent, axis=1), 1e-300)[:, None]
+    return np.linalg.norm(np.gradient(tangent, axis=0), axis=1) * (samples - 1)
+
+
+def shape_warp(profile, target_profile, guess, band: float, keep: float, stiffness: float, steps: int = 41):
+    """(S,): the fraction along the target curve for each of a line's ``profile`` samples ((S,) evenly spaced on the
+    line; ``target_profile`` (T,) evenly spaced on the curve, both :func:`turning_profile`): the ``guess`` ((S,)
+    fractions, the map's) shifted by at most ``band`` so that the two profiles agree, at a cost ``keep`` for a shift of
+    the whole band and ``stiffness`` for a change of it by the whole band from one sample to the next (dynamic
+    programming over ``steps`` shifts)."""
+    shifts = np.linspace(-band, band, steps)
+    along = np.clip(np.asarray(guess)[:, None] + shifts[None, :], 0.0, 1.0)
+    target = np.interp(along, np.linspace(0.0, 1.0, np.size(target_profile)), target_profile)
+    cost = (np.asarray(profile)[:, None] - target) ** 2 + keep * (shifts[None, :] / band) ** 2
+    change = stiffness * ((shifts[:, None] - shifts[None, :]) / band) ** 2
+    total, back = cost[0].copy(), np.zeros(cost.shape, dtype=np.int64)
+    for row in range(1, cost.shape[0]):
+        options = total[:, None] + change
+        back[row] = np.argmin(options, axis=0)
+        total = cost[row] + options[back[row], np.arange(steps)]
+    path = [int(np.argmin(total))]
+    for row in range(cost.shape[0] - 1, 0, -1):
+        path.append(int(back[row, path[-1]]))
+    return np.asarray(guess) + shifts[np.array(path[::-1])]
+
+
+SHAPE_SAMPLES = 150
+SHAPE_SETTINGS = {"sigma_edges": 2.0, "band": 0.03, "keep": 0.01, "stiffness": 1.0}
+"""The shape warp's smoothing (in the line's mean edge lengths), band (a fraction of the curve) and costs."""
+
+
+def shape_fractions(chain_rest, curve_points, fractions) -> np.ndarray:
+    """(C,): a paired chain's ``fractions`` (the map's, along ``curve_points``) shifted by :func:`shape_warp` to line
+    up the turning profiles of its rest points ``chain_rest`` ((C, 3)) and of the curve."""
+    chain_rest = np.asarray(chain_rest, dtype=np.float64).reshape(-1, 3)
+    rest_lengths = lengths(chain_rest)
+    sigma = SHAPE_SETTINGS["sigma_edges"] * rest_lengths[-1] / (chain_rest.shape[0] - 1)
+    profile = turning_profile(chain_rest, SHAPE_SAMPLES, sigma)
+    target = turning_profile(curve_points, 4 * SHAPE_SAMPLES, sigma)
+    even, rest_fractions = np.linspace(0.0, 1.0, SHAPE_SAMPLES), rest_lengths / rest_lengths[-1]
+    guess = np.interp(even, rest_fractions, fractions)
+    settings = {key: value for key, value in SHAPE_SETTINGS.items() if key != "sigma_edges"}
+    warped = shape_warp(profile, target, guess, **settings)
+    return np.clip(np.maximum.accumulate(fractions + np.interp(rest_fractions, even, warped - guess)), 0.0, 1.0)
+
+
+def projected_fractions(polyline, points) -> np.ndarray:
+    """(P,): where along the polyline ((K, 3), K >= 2) the point of it nearest each of ``points`` lies, as a fraction
+    of its length."""
+    polyline = np.asarray(polyline, dtype=np.float64).reshape(-1, 3)
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    starts, direction = polyline[:-1], np.diff(polyline, axis=0)
+    squared = np.maximum((direction**2).sum(axis=1), 1e-300)
+    t = np.clip(np.einsum("psk,sk->ps", points[:, None, :] - starts[None], direction) / squared, 0.0, 1.0)
+    near = starts[None] + t[..., None] * direction[None]
+    nearest = np.argmin(np.linalg.norm(near - points[:, None, :], axis=2), axis=1)
+    cumulative = lengths(polyline)
+    rows = np.arange(points.shape[0])
+    along = cumulative[nearest] + t[rows, nearest] * (cumulative[nearest + 1] - cumulative[nearest])
+    return along / cumulative[-1]
+
+
+def lengths(points) -> np.ndarray:
+    """(K,): the arc length of the polyline ``points`` ((K, 3)) up to each of its points."""
+    return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
 
 
 def shares(errors, groups: dict) -> dict:
@@ -123,6 +216,19 @@ def diagnose(anchors: int, scene, store: dict) -> dict:
             scene, vertices, np.concatenate([projected(c.points, first[v]) for c, v in zip(constraints, chains)])
         ),
     }
+    shaped, shifts, true_shifts = [], [], []
+    for c, p, r in zip(constraints, placed, rows):
+        if len(c.fractions) == 0 or c.layout_vertices.size < 5:
+            shaped.append(p[r])
+            continue
+        fractions = shape_fractions(scene[1][c.layout_vertices], c.points, c.fractions)
+        shaped.append(curves.arc_length_points(p, c.points, fractions)[r])
+        shifts.append(fractions - c.fractions)
+        true_shifts.append(projected_fractions(c.points, on_surface[c.layout_vertices]) - c.fractions)
+    measures["shape warp"] = along(scene, vertices, np.concatenate(shaped))
+    shift, true_shift = np.concatenate(shifts), np.concatenate(true_shifts)
+    shape = {"correlation": float(np.corrcoef(shift, true_shift)[0, 1]), "shift": float(np.abs(shift).mean())}
+    shape["true shift"] = float(np.abs(true_shift).mean())
     junctions, arc_vertices, arc_placed = store["junctions"], [], []
     for line in store["lines"]:
         ends = (int(line.vertices[0]), int(line.vertices[-1]))
@@ -158,6 +264,7 @@ def diagnose(anchors: int, scene, store: dict) -> dict:
         "crease": float(errors[crease].mean()),
         "along": measures,
         "inflation": float(np.median(inflation)) if inflation else None,
+        "shape": shape,
         "unpaired": shares(errors[crease], {label: mask[crease] for label, mask in groups.items()}),
     }
 
@@ -226,7 +333,9 @@ def main(argv: list[str] | None = None) -> int:
             )
             print(
                 f"{tessellation} {count}: crease {found['crease']:.3f}; paired vertices along: {split}; "
-                f"curves' zig-zag {found['inflation']:.4f}; unpaired: {unpaired}",
+                f"curves' zig-zag {found['inflation']:.4f}; shape warp's shift (fraction of the stretch) "
+                f"{found['shape']['shift']:.4f} against the true {found['shape']['true shift']:.4f}, correlation "
+                f"{found['shape']['correlation']:+.2f}; unpaired: {unpaired}",
                 flush=True,
             )
     return 0
