@@ -13,7 +13,9 @@ by the true arc length (**true arc**: the error of the target curve's arc length
 its points stretches); and where the map's places go when shifted along the stretch (by at most 3 % of it) so that
 the line's turning profile (how fast its rest shape turns, smoothed over two of its edges) lines up with the curve's
 (**shape warp**: more matched points from the crease's own shape), with how far it shifts them against how far the
-true places lie from the map's (mean, fraction of the stretch) and how the two shifts correlate. The target curves' zig-zag: their arc length over that of every fourth point (median,
+true places lie from the map's (mean, fraction of the stretch) and how the two shifts correlate; and where the map
+refitted with one more matched point per line (of 5 vertices or more; its middle vertex at its true place) puts them
+(**middle known**: what a perfect extra point per line would give). The target curves' zig-zag: their arc length over that of every fourth point (median,
 paired curves). And the crease vertices left unpaired: how many and their share of the crease error, by why
 (a free line, by reason; a line's end, a corner; on no line).
 """
@@ -167,6 +169,7 @@ def record_pairing(store: dict):
             lines=lines, current=np.array(current), curves=curves_found, anchored=np.array(anchored), result=result
         )
         store.update(junctions=dict(keywords.get("junctions") or {}), rest=keywords.get("rest"))
+        store.update(mapping=keywords.get("mapping"))
         return result
 
     core.pair_lines = recording
@@ -226,6 +229,8 @@ def diagnose(anchors: int, scene, store: dict) -> dict:
         shifts.append(fractions - c.fractions)
         true_shifts.append(projected_fractions(c.points, on_surface[c.layout_vertices]) - c.fractions)
     measures["shape warp"] = along(scene, vertices, np.concatenate(shaped))
+    if store["mapping"] is not None:
+        measures["middle known"] = along(scene, vertices, middle_known(store, scene, constraints, placed, rows))
     shift, true_shift = np.concatenate(shifts), np.concatenate(true_shifts)
     shape = {"correlation": float(np.corrcoef(shift, true_shift)[0, 1]), "shift": float(np.abs(shift).mean())}
     shape["true shift"] = float(np.abs(true_shift).mean())
@@ -267,6 +272,31 @@ def diagnose(anchors: int, scene, store: dict) -> dict:
         "shape": shape,
         "unpaired": shares(errors[crease], {label: mask[crease] for label, mask in groups.items()}),
     }
+
+
+def middle_known(store: dict, scene, constraints, placed, rows) -> np.ndarray:
+    """The crease rows of the paired chains placed by the map refitted with one more matched point per mapped chain
+    of 5 vertices or more: its middle vertex at its true place (what a perfect extra point per line would give)."""
+    from springwrap.core import curves, smooth_map
+
+    rest, on_surface, mapping = scene[1], scene[4], store["mapping"]
+    middles = [int(c.layout_vertices[c.layout_vertices.size // 2]) for c in constraints if len(c.fractions) >= 5]
+    refitted = smooth_map.fit(
+        np.concatenate([mapping.centres, rest[middles]]),
+        np.concatenate([smooth_map.apply(mapping, mapping.centres), on_surface[middles]]),
+    )
+    return np.concatenate(
+        [
+            (
+                p
+                if len(c.fractions) == 0
+                else curves.arc_length_points(
+                    p, c.points, smooth_map.placements(refitted, rest[c.layout_vertices], c.points)
+                )
+            )[r]
+            for c, p, r in zip(constraints, placed, rows)
+        ]
+    )
 
 
 def containing_curve(found, points, tolerance: float) -> np.ndarray:

@@ -54,3 +54,22 @@ def test_fractions_are_where_the_nearest_points_lie_along_the_polyline():
     polyline = np.array([[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [2.0, 2.0, 0.0]])
     points = np.array([[1.0, 1.0, 0.0], [3.0, 1.0, 0.0]])
     assert np.allclose(diagnosis.projected_fractions(polyline, points), [0.25, 0.75])
+
+
+def test_a_known_middle_point_pulls_the_chain_to_its_true_places():
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "addon"))
+    from springwrap.core import curves, smooth_map
+
+    corners = np.array([[0.0, 0.0, 0.0], [4.0, 0.0, 0.0], [0.0, 4.0, 0.0], [0.0, 0.0, 4.0], [4.0, 4.0, 4.0]])
+    rest = np.stack([np.linspace(0.0, 4.0, 9), np.zeros(9), np.zeros(9)], axis=1)
+    truth = rest.copy()
+    truth[:, 0] = 4.0 * (rest[:, 0] / 4.0) ** 1.5  # the true places bunch up at the start of the stretch
+    chain = np.arange(9)
+    constraint = curves.make_constraint(
+        chain, rest.copy(), curves.FEATURE_LINE, confidence=1.0, fractions=np.linspace(0.0, 1.0, 9)
+    )
+    store = {"mapping": smooth_map.fit(corners, corners)}  # the identity: places the chain evenly
+    scene = (None, rest, None, None, truth, None, 1.0, None)
+    placed = diagnosis.middle_known(store, scene, [constraint], [rest.copy()], [np.ones(9, dtype=bool)])
+    assert np.allclose(placed[4], truth[4], atol=1e-9)
+    assert np.abs(placed - truth)[:, 0].mean() < 0.5 * np.abs(rest - truth)[:, 0].mean()
