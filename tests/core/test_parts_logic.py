@@ -326,9 +326,14 @@ def test_a_rigid_piece_is_placed_by_its_skin_on_the_target_where_the_wrapped_ski
     truth = positions[count:] + shift
     followed = parts.follow(follower, plan, moved, held)
     assert np.linalg.norm(followed[count:] - truth, axis=1).min() > 0.5 * np.linalg.norm(shift)  # it lags too
-    placed = parts.follow(follower, plan, moved, held, target)
+    registered = []
+    placed = parts.follow(follower, plan, moved, held, target, registered)
     assert np.linalg.norm(placed[count:] - truth, axis=1).max() < 1e-3
     assert np.array_equal(placed[:count], moved[:count])
+    (piece,) = registered  # the ball, reported as placed by its skin
+    assert piece == plan.pieces[count]
+    assert "rigid, placed by its skin on the target" in parts.report_text(plan, registered)
+    assert "placed by its skin" not in parts.report_text(plan)
 
 
 def test_a_piece_whose_skin_is_another_pieces_keeps_the_surfaces_motion():
@@ -347,7 +352,9 @@ def test_a_piece_whose_skin_is_another_pieces_keeps_the_surfaces_motion():
     moved[:count] += 0.4 * shift
     held = ~plan.parts
     followed = parts.follow(follower, plan, moved, held)
-    placed = parts.follow(follower, plan, moved, held, target)
+    registered = []
+    placed = parts.follow(follower, plan, moved, held, target, registered)
+    assert registered == [plan.pieces[count]]  # the outer piece only
     inner_vertices = np.arange(count + len(outer[0]), len(positions))
     assert np.allclose(placed[inner_vertices], followed[inner_vertices])
     assert (

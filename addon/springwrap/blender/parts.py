@@ -99,14 +99,17 @@ def read_parts(layout: bpy.types.Object) -> np.ndarray | None:
     return np.asarray(codes).reshape(-1) > 0
 
 
-def follow_surface(follower, plan: parts.PartPlan, world: np.ndarray, state, inputs, final: bool, target=None):
+def follow_surface(
+    follower, plan: parts.PartPlan, world: np.ndarray, state, inputs, final: bool, target=None, placed=None
+):
     """The layout's world positions ``world`` with its parts moved by the surface (``core.parts.follow``) and held
     on the mirror plane (:func:`hold_on_plane`). ``final`` (the wrap's result): they follow only the surface
     vertices that ``state`` (``core.layout_state.LayoutState``) holds on the target, its face points, and the rigid
     pieces that skin covers are placed by its registration onto ``target`` (the target's ``CentredMesh``, when
-    given)."""
+    given; the pieces so placed appended to ``placed``, an optional list)."""
     held = state.states == layout_state.FACE_POINT if final else None
-    return hold_on_plane(parts.follow(follower, plan, world, held, target if final else None), plan, inputs)
+    moved = parts.follow(follower, plan, world, held, target if final else None, placed)
+    return hold_on_plane(moved, plan, inputs)
 
 
 def hold_on_plane(world: np.ndarray, plan: parts.PartPlan, inputs) -> np.ndarray:

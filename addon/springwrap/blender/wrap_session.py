@@ -122,6 +122,7 @@ class WrapSession:
         self.parts, self.follower = part_data.plan_wrap_parts(
             layout, arrays, self.layout_topology, self.target, self.anchors, curve_constraints
         )
+        self.placed_pieces = ()  # the rigid pieces the result placed by their skin on the target (the report)
         inputs = part_data.free_parts(inputs, self.parts)
         wrap_inputs.check_something_pulled(
             layout.name, inputs.free_vertices, getattr(parameters, "free_group", "") or settings.free_group
@@ -395,9 +396,12 @@ class WrapSession:
             positions, state = follow.scatter(self.restriction, positions, state)
         if self.follower is not None:  # the parts: moved by the surface, off the target
             world = transforms.transform_points(self.matrix_world, positions)
+            placed = []
             world = part_data.follow_surface(
-                self.follower, self.parts, world, state, self.whole_inputs, final, self.target.mesh
+                self.follower, self.parts, world, state, self.whole_inputs, final, self.target.mesh, placed
             )
+            if final:
+                self.placed_pieces = tuple(placed)
             positions = transforms.to_local(self.matrix_world, world)
             state.states[self.parts.parts] = layout_state.SPACE_POINT
             state.faces[self.parts.parts] = layout_state.NO_FACE
@@ -464,7 +468,7 @@ class WrapSession:
             topology_reattached_count=reattached,
             anchors_detached_count=anchors_detached,
             readout=parts.surface_readout(readout, self.parts.parts),
-            parts=parts.report_text(self.parts),
+            parts=parts.report_text(self.parts, self.placed_pieces),
         )
 
     def cancel(self) -> None:

@@ -147,17 +147,21 @@ def _radius(points: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.sum((points - points.mean(axis=0)) ** 2, axis=1))))
 
 
-def place_pieces(plan, rest: np.ndarray, positions: np.ndarray, held: np.ndarray, target_mesh) -> np.ndarray:
+def place_pieces(
+    plan, rest: np.ndarray, positions: np.ndarray, held: np.ndarray, target_mesh, placed: list | None = None
+) -> np.ndarray:
     """``positions`` ((N, 3), the follower's result) with each rigid piece that its own skin covers moved by that
     skin's registration onto the target (see the module). ``rest`` (N, 3): where the follower was bound; ``held``
-    (N,) bool: the surface the wrap holds on the target."""
+    (N,) bool: the surface the wrap holds on the target; ``placed`` (optional): a list the pieces so placed are
+    appended to (their ``plan.pieces`` numbers, for the report)."""
     positions = np.array(positions, dtype=np.float64)
     rigid = plan.parts & ~plan.soft
     skin = np.flatnonzero(np.asarray(held, dtype=bool) & ~plan.parts)
     if not rigid.any() or skin.size < MIN_PATCH:
         return positions
     rigid_vertices = np.flatnonzero(rigid)
-    pieces = [rigid_vertices[plan.pieces[rigid_vertices] == piece] for piece in np.unique(plan.pieces[rigid_vertices])]
+    numbers = np.unique(plan.pieces[rigid_vertices])
+    pieces = [rigid_vertices[plan.pieces[rigid_vertices] == piece] for piece in numbers]
     centres = [rest[members].mean(axis=0) for members in pieces]
     radii = [_radius(rest[members]) for members in pieces]
     # Each piece's bounding ball, and a sample of its vertices to measure distances to.
@@ -196,11 +200,13 @@ def place_pieces(plan, rest: np.ndarray, positions: np.ndarray, held: np.ndarray
         patch, weights = patch[fitted], weights[fitted]
         start = best_rigid(rest[patch], positions[patch], weights)
         motion = register(target_mesh, rest[patch], start, weights)
-        placed = rest[members] @ motion[0].T + motion[1]
-        if np.linalg.norm(placed - positions[members], axis=1).max() > MOVE_LIMIT * radius:
+        moved = rest[members] @ motion[0].T + motion[1]
+        if np.linalg.norm(moved - positions[members], axis=1).max() > MOVE_LIMIT * radius:
             continue
         before = surface_distance(target_mesh, rest[patch] @ start[0].T + start[1], weights)
         if not surface_distance(target_mesh, rest[patch] @ motion[0].T + motion[1], weights) <= before:
             continue
-        positions[members] = placed
+        positions[members] = moved
+        if placed is not None:
+            placed.append(int(numbers[index]))
     return positions

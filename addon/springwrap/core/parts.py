@@ -382,7 +382,14 @@ def make_follower(plan: PartPlan, positions: np.ndarray, neighbours: int | None 
     return PartFollower(bind_parts(plan, positions, ~plan.parts, neighbours), positions, neighbours)
 
 
-def follow(follower: PartFollower, plan: PartPlan, positions: np.ndarray, held: np.ndarray | None = None, target=None):
+def follow(
+    follower: PartFollower,
+    plan: PartPlan,
+    positions: np.ndarray,
+    held: np.ndarray | None = None,
+    target=None,
+    placed: list | None = None,
+):
     """``positions`` ((N, 3), the frame the follower was made in) with the parts moved by the surface's motion.
 
     ``held`` (optional, (N,) bool): the surface vertices the wrap holds on the target (its face points). When
@@ -390,7 +397,8 @@ def follow(follower: PartFollower, plan: PartPlan, positions: np.ndarray, held: 
     those): the surface left off the target (the free and unseen skin round a mouth, lips that did not reach
     their place) is carried by the springs and lags behind the skin the target holds. With ``target`` (a
     ``core.target.CentredMesh`` in the same frame) too, each rigid piece that its own held skin covers is placed by
-    that skin's registration onto the target (``core.part_registration``): skin that slid does not drag it."""
+    that skin's registration onto the target (``core.part_registration``): skin that slid does not drag it; the
+    pieces so placed are appended to ``placed`` (optional list) for the report."""
     positions = np.array(positions, dtype=np.float64).reshape(-1, 3)
     surface = ~plan.parts
     kernel = follower.kernel
@@ -404,7 +412,7 @@ def follow(follower: PartFollower, plan: PartPlan, positions: np.ndarray, held: 
                 kernel = bind_parts(plan, follower.rest, surface, follower.neighbours)
     positions[plan.parts] = kernel.apply(np.ascontiguousarray(positions[surface]))
     if registered:
-        positions = part_registration.place_pieces(plan, follower.rest, positions, surface, target)
+        positions = part_registration.place_pieces(plan, follower.rest, positions, surface, target, placed)
     return positions
 
 
@@ -413,11 +421,18 @@ def part_codes(plan: PartPlan) -> np.ndarray:
     return np.where(plan.parts, np.where(plan.soft, 1, 2), 0).astype(np.int32)
 
 
-def report_text(plan: PartPlan) -> str:
-    """One line saying which pieces followed the surface and how, or "" when none did."""
+def report_text(plan: PartPlan, placed=()) -> str:
+    """One line saying which pieces followed the surface and how, or "" when none did; ``placed``: the pieces placed
+    by their own skin's registration on the target (``core.part_registration``)."""
     if not plan.rows:
         return ""
-    described = ", ".join(f"piece {row.piece} ({row.vertices} vertices, {row.mode}, {row.reason})" for row in plan.rows)
+    placed = set(placed)
+    described = ", ".join(
+        f"piece {row.piece} ({row.vertices} vertices, {row.mode}"
+        + (", placed by its skin on the target" if row.piece in placed else "")
+        + f", {row.reason})"
+        for row in plan.rows
+    )
     total = int(plan.parts.sum())
     text = f"Parts: {len(plan.rows)} pieces ({total} vertices) followed the surface, not the target: {described}"
     unseen = 0 if plan.unseen is None else int(plan.unseen.sum())
