@@ -41,7 +41,9 @@
 //! would turn have their step halved, up to zero (the step is then not taken there), and have no
 //! data term in the next iteration, so the shape terms lead them out of the fold the data pulled
 //! them into. **Re-settle** (`resettle.rs`): a wrap's result wrapped again (its caller says so)
-//! that starts on the target with its constraints met runs the last level alone. **Landing**: at the end every free point whose
+//! that starts on the target with its constraints met runs the last level alone. **Region restart**: a region of a
+//! settled layout started again, the rest held (its caller says so), ends each level also once its free points stop
+//! moving ([`RESTART_SETTLED_MOVE`]). **Landing**: at the end every free point whose
 //! closest surface point is near, trusted and facing lands there as a face-point, unless that
 //! turns a corner; the others stay space-points (holes, cavities).
 
@@ -229,6 +231,9 @@ pub(crate) struct EnergyInputs<'a> {
     pub profile: Option<PhaseClock>,
     /// The start is a wrap's own result, wrapped again (see `resettle.rs`).
     pub settled_start: bool,
+    /// A region of a settled layout started again, the rest held: a level also ends once its free points stop
+    /// moving ([`RESTART_SETTLED_MOVE`]).
+    pub region_restart: bool,
 }
 
 /// One iteration's outcome.
@@ -316,6 +321,8 @@ pub(crate) struct EnergySolver {
     finished: bool,
     /// Where a re-settle started (`resettle.rs`), until its first iteration says whether it stays one.
     resettle_start: Option<Vec<Vec3>>,
+    /// A region started again, the rest held: a level also ends once its free points stop moving.
+    region_restart: bool,
     /// The time of each phase, when asked for.
     profiler: Profiler,
     /// Without a factor (a layout of about a million points or more): the coarser levels on
@@ -493,6 +500,7 @@ impl EnergySolver {
             last_energy: f64::INFINITY,
             finished: false,
             resettle_start: None,
+            region_restart: inputs.region_restart,
             profiler,
             pyramid: None,
         };

@@ -97,6 +97,7 @@ fn solver_following(
         },
         profile: None,
         settled_start: false,
+        region_restart: false,
     })
     .unwrap()
 }

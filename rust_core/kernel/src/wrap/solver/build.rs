@@ -146,6 +146,7 @@ impl WrapSolver {
             reach,
             failed: None,
             settled_start: false,
+            region_restart: false,
         })
     }
 
@@ -158,6 +159,16 @@ impl WrapSolver {
     #[must_use]
     pub fn with_settled_start(mut self, settled: bool) -> Self {
         self.settled_start = settled;
+        self
+    }
+
+    /// Says whether the wrap re-settles a region of a settled layout started again (every other vertex held where
+    /// it is, by anchors): each level then also ends once an iteration moves the free points by less than a small
+    /// share of a mean edge on average (see `wrap::energy_solver`'s region restart), where a whole wrap's level
+    /// waits for its energy to settle. Off by default.
+    #[must_use]
+    pub fn with_region_restart(mut self, restart: bool) -> Self {
+        self.region_restart = restart;
         self
     }
 
