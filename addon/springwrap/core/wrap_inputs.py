@@ -375,8 +375,8 @@ def make_wrap_solver(
     """A kernel ``WrapSolver`` for the prepared inputs (``core.wrap_inputs.WrapInputs``, the kernel's frame);
     ``settled_start``: the positions are a wrap's own result, unchanged since, wrapped again with the same rest
     shape, target and parameters (the kernel then re-settles them from its schedule's last level);
-    ``region_restart``: a region of a settled layout started again, the rest held (``core.follow``: the kernel's
-    levels then also end once the region stops moving)."""
+    ``region_restart``: a region of a settled layout started again, the rest held (``core.follow``: the kernel then
+    leaves out its stiffest level and keeps a point the safeguard held back without its data term)."""
     keywords = {name: getattr(inputs, name) for name in _SOLVER_KEYWORDS}
     if inputs.curve_vertices is not None:
         keywords |= {name: getattr(inputs, name) for name in _CURVE_KEYWORDS}

@@ -306,7 +306,7 @@ class WrapSolver(_native.WrapSolver):
     along its curve each chain vertex goes (fraction of the curve's length; a chain's rows all NaN: as it is
     spaced); ``stiffness`` is float32 per vertex (0 … 1), ``free_vertices`` bool per vertex; the soft pairs (vertices, points, confidences in (0, 1]) pull in the stiff levels only;
     ``region_restart``: a region of a settled layout started again, every other vertex held by anchors where it is
-    (each level also ends once the free points stop moving).
+    (the global-to-local schedule starts at its second level; a point held back keeps no data term).
     """
 
     __slots__ = ()

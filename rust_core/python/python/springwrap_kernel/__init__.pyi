@@ -424,8 +424,8 @@ class WrapSolver:
     curve targets met and no plane or soft pairs, and runs the whole schedule otherwise or when its first
     iteration moves them far (a layout snapped onto the target is on it too, far from settled).
     ``region_restart``: the wrap re-settles a region of a settled layout started again, every other vertex held by
-    anchors where it is: each level also ends once an iteration moves the free points less than a small share of
-    a mean edge (where a whole wrap's level waits for its energy to settle).
+    anchors where it is: the global-to-local schedule starts at its second level, and a point the safeguard holds
+    back keeps no data term for the rest of the wrap.
     """
 
     def __init__(

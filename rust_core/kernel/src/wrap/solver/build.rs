@@ -163,9 +163,9 @@ impl WrapSolver {
     }
 
     /// Says whether the wrap re-settles a region of a settled layout started again (every other vertex held where
-    /// it is, by anchors): each level then also ends once an iteration moves the free points by less than a small
-    /// share of a mean edge on average (see `wrap::energy_solver`'s region restart), where a whole wrap's level
-    /// waits for its energy to settle. Off by default.
+    /// it is, by anchors): the global-to-local schedule then starts at its second level (the held ring already
+    /// places the region as a whole), and a point the safeguard holds back keeps no data term for the rest of the
+    /// wrap (see `wrap::energy_solver`'s region restart). Off by default.
     #[must_use]
     pub fn with_region_restart(mut self, restart: bool) -> Self {
         self.region_restart = restart;
