@@ -290,11 +290,13 @@ def test_a_settled_start_re_settles_from_where_it_is_and_changes_less_than_a_col
     assert iterations[True] < iterations[False], iterations
 
 
-def test_a_region_restart_ends_each_level_once_the_region_stops_moving():
+def test_a_region_restart_re_settles_the_region_in_fewer_iterations_to_the_same_place():
     """A region of a wrapped layout started again off the surface, every other vertex held by anchors where the wrap
-    left it (what a sequence's later frame wraps, ``core.follow``): with ``region_restart=True`` each level also
-    ends once the free points stop moving, so the region settles in fewer iterations to the same place. Measured
-    on a cube-sphere cage (12 cuts) onto the bumpy ball, a cap of it restarted 8 % outside: see the asserts."""
+    left it (what a sequence's later frame wraps, ``core.follow``): with ``region_restart=True`` the global-to-local
+    schedule starts at its second level and a point the safeguard held back keeps no data term, so the region
+    settles in fewer iterations to about the same place. Measured on a cube-sphere cage (12 cuts) onto the bumpy
+    ball, a cap of it restarted 8 % outside: 17 -> 14 iterations, the results 0.0014 mean edges apart on average
+    (0.031 at most)."""
     vertices, faces = bumpy_ball(48, 96)
     target = sk.TargetMesh(np.asarray(vertices, np.float32), triangulated(faces).astype(np.uint32))
     template, face_corners, face_sizes = cube_sphere_cage(12, 1.3)
@@ -339,4 +341,4 @@ def test_a_region_restart_ends_each_level_once_the_region_stops_moving():
     assert np.array_equal(results[True][held], wrapped[held])
     print(iterations, apart.mean() / edge, apart.max() / edge)
     assert iterations[True] < iterations[False], iterations
-    assert apart.mean() < 0.05 * edge, apart.mean() / edge
+    assert apart.mean() < 0.01 * edge, apart.mean() / edge
