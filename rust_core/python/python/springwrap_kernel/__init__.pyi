@@ -425,7 +425,7 @@ class WrapSolver:
     iteration moves them far (a layout snapped onto the target is on it too, far from settled).
     ``region_restart``: the wrap re-settles a region of a settled layout started again, every other vertex held by
     anchors where it is: the global-to-local schedule starts at its second level, and a point the safeguard holds
-    back keeps no data term for the rest of the wrap.
+    back keeps no data term for the rest of the wrap (the local schedule runs as without it).
     """
 
     def __init__(

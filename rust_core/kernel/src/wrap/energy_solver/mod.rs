@@ -334,7 +334,8 @@ pub(crate) struct EnergySolver {
     finished: bool,
     /// Where a re-settle started (`resettle.rs`), until its first iteration says whether it stays one.
     resettle_start: Option<Vec<Vec3>>,
-    /// A region started again, the rest held: a level also ends once its free points stop moving.
+    /// A region started again, the rest held, in the global-to-local schedule: the schedule starts at
+    /// [`RESTART_FIRST_LEVEL`] and a point held back keeps no data term ([`Self::note_held_back`]).
     region_restart: bool,
     /// The time of each phase, when asked for.
     profiler: Profiler,
@@ -513,7 +514,8 @@ impl EnergySolver {
             last_energy: f64::INFINITY,
             finished: false,
             resettle_start: None,
-            region_restart: inputs.region_restart,
+            // Measured in the global-to-local schedule alone (what a sequence's Auto takes there).
+            region_restart: inputs.region_restart && schedule == WrapSchedule::GlobalToLocal,
             profiler,
             pyramid: None,
         };
@@ -532,7 +534,7 @@ impl EnergySolver {
     /// re-settle that moved too far on its first iteration ([`Self::keep_resettle_if_settled`]).
     fn start_schedule(&mut self) {
         self.warming_up = self.needs_warm_up();
-        let first_level = if self.region_restart && self.stretches.is_some() {
+        let first_level = if self.region_restart {
             RESTART_FIRST_LEVEL
         } else {
             0
@@ -722,7 +724,7 @@ impl EnergySolver {
 
     /// Marks the points the safeguard held back (`accepted` short of `proposed`): they have no data term in the next
     /// iteration, so the shape terms lead them out of the fold the data pulled them into. In a region restart
-    /// (`EnergyInputs::region_restart`) a point once held back keeps no data term for the rest of the wrap: there the
+    /// (`EnergyInputs::region_restart`, in the global-to-local schedule) a point once held back keeps no data term for the rest of the wrap: there the
     /// same points were pulled back into the fold as soon as their data term returned and held back again, on
     /// alternate iterations (5 and 110 to 270 points in the local levels on the body's expression sequence), the
     /// energy swinging with their data term (by -10 and +0.9 of itself). Measured on that sequence
