@@ -288,3 +288,57 @@ def test_a_settled_start_re_settles_from_where_it_is_and_changes_less_than_a_col
     assert moves[True] < 0.01 * first_move, moves
     assert moves[True] < 0.5 * moves[False], moves  # measured 8x less
     assert iterations[True] < iterations[False], iterations
+
+
+def test_a_region_restart_re_settles_the_region_in_fewer_iterations_to_the_same_place():
+    """A region of a wrapped layout started again off the surface, every other vertex held by anchors where the wrap
+    left it (what a sequence's later frame wraps, ``core.follow``): with ``region_restart=True`` the global-to-local
+    schedule starts at its second level and a point the safeguard held back keeps no data term, so the region
+    settles in fewer iterations to about the same place. Measured on a cube-sphere cage (12 cuts) onto the bumpy
+    ball, a cap of it restarted 8 % outside: 17 -> 14 iterations, the results 0.0014 mean edges apart on average
+    (0.031 at most)."""
+    vertices, faces = bumpy_ball(48, 96)
+    target = sk.TargetMesh(np.asarray(vertices, np.float32), triangulated(faces).astype(np.uint32))
+    template, face_corners, face_sizes = cube_sphere_cage(12, 1.3)
+    structure = sk.LayoutStructure(len(template), face_corners, face_sizes)
+    first = sk.WrapSolver(target, structure, *space_points(len(template)), template, rest_positions=template)
+    assert first.step(1000).converged
+    wrapped = np.array(first.positions())
+    states, triangles, barycentrics = (np.array(array) for array in first.states())
+    region = wrapped[:, 2] > 0.6
+    held = np.flatnonzero(~region)
+    assert 0 < region.sum() < len(template) // 4 and (states[held] == 1).all()
+    start = wrapped.copy()
+    start[region] *= 1.08
+    states[region], triangles[region], barycentrics[region] = 0, -1, 0.0
+    anchors = {
+        "anchor_vertices": held.astype(np.uint32),
+        "anchor_triangles": triangles[held].astype(np.int32),
+        "anchor_barycentrics": np.ascontiguousarray(barycentrics[held], np.float32),
+        "anchor_positions": np.ascontiguousarray(wrapped[held], np.float32),
+    }
+    settings = sk.WrapSettings().replace(schedule="GLOBAL_TO_LOCAL")
+    results, iterations = {}, {}
+    for restart in (False, True):
+        solver = sk.WrapSolver(
+            target,
+            structure,
+            states,
+            triangles,
+            np.ascontiguousarray(barycentrics, np.float32),
+            np.ascontiguousarray(start, np.float32),
+            rest_positions=template,
+            settings=settings,
+            region_restart=restart,
+            **anchors,
+        )
+        report = solver.step(1000)
+        assert report.converged
+        results[restart] = np.array(solver.positions())
+        iterations[restart] = report.total_iterations
+    edge = np.linalg.norm(wrapped[face_corners[0]] - wrapped[face_corners[1]])
+    apart = np.linalg.norm(results[True] - results[False], axis=1)[region]
+    assert np.array_equal(results[True][held], wrapped[held])
+    print(iterations, apart.mean() / edge, apart.max() / edge)
+    assert iterations[True] < iterations[False], iterations
+    assert apart.mean() < 0.01 * edge, apart.mean() / edge

@@ -10,7 +10,8 @@ it is found again by the deleted-face rule). The first frame is an ordinary wrap
 previous frame's result (``warm_rest='PREVIOUS'``) and re-wrap only where the target changed, that region
 started again from the template's shape as a wrap from the template would start it, with the global-to-local
 schedule when the wrap's is Auto and some vertex is held (``core.follow.restart_parameters``; the rest is held and written back bit for
-bit), or
+bit; the kernel is told it re-settles a region, ``region_restart``: it leaves out the stiffest level and keeps a
+point the safeguard held back without its data term), or
 start again from the layout as it was before the sequence (``'TEMPLATE'``: every frame the wrap a single
 wrap onto that frame would make, independent of the others). A frame that fails is put back (the layout
 keeps the previous frame's shape) and reported. :meth:`SequenceRun.finish` puts the layout back as the first frame left

@@ -155,7 +155,8 @@ class WrapSession:
         settled = single and wrap_inputs.is_settled_start(
             _settled.get(layout.name_full), key, adjust_inputs is not None
         )
-        self.solver = wrap_inputs.make_wrap_solver(self.target, structure, inputs, parameters, settled)
+        restart = from_template and region is not None and not region.all()  # a region started again, the rest held
+        self.solver = wrap_inputs.make_wrap_solver(self.target, structure, inputs, parameters, settled, restart)
         self.inputs = inputs
         # Coarse to fine: with a spring resolution above 1 the layout is relaxed first, then a grid
         # of its faces cut k x k (its own vertices first) takes over; the layout's vertices are read

@@ -369,10 +369,14 @@ _CURVE_KEYWORDS = ("curve_vertices", "curve_vertex_counts", "curve_points", "cur
 """The ``WrapInputs`` fields of the curve constraints, passed to ``WrapSolver`` when there are any."""
 
 
-def make_wrap_solver(target: Target, structure, inputs, parameters, settled_start: bool = False):
+def make_wrap_solver(
+    target: Target, structure, inputs, parameters, settled_start: bool = False, region_restart: bool = False
+):
     """A kernel ``WrapSolver`` for the prepared inputs (``core.wrap_inputs.WrapInputs``, the kernel's frame);
     ``settled_start``: the positions are a wrap's own result, unchanged since, wrapped again with the same rest
-    shape, target and parameters (the kernel then re-settles them from its schedule's last level)."""
+    shape, target and parameters (the kernel then re-settles them from its schedule's last level);
+    ``region_restart``: a region of a settled layout started again, the rest held (``core.follow``: the kernel then
+    leaves out its stiffest level and keeps a point the safeguard held back without its data term)."""
     keywords = {name: getattr(inputs, name) for name in _SOLVER_KEYWORDS}
     if inputs.curve_vertices is not None:
         keywords |= {name: getattr(inputs, name) for name in _CURVE_KEYWORDS}
@@ -395,6 +399,7 @@ def make_wrap_solver(target: Target, structure, inputs, parameters, settled_star
         stiffness=getattr(inputs, "stiffness", None),
         free_vertices=getattr(inputs, "free_vertices", None),
         settled_start=settled_start,
+        region_restart=region_restart,
         **keywords,
     )
 

@@ -45,7 +45,7 @@ impl PyWrapSolver {
         curve_fractions = None, rest_positions = None, plane_vertices = None, plane_point = None,
         plane_normal = None, plane_slide = None, settings = None, stiffness = None, free_vertices = None,
         soft_pair_vertices = None, soft_pair_positions = None, soft_pair_confidences = None,
-        settled_start = None
+        settled_start = None, region_restart = None
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -78,8 +78,10 @@ impl PyWrapSolver {
         soft_pair_positions: Option<&Bound<'_, PyAny>>,
         soft_pair_confidences: Option<&Bound<'_, PyAny>>,
         settled_start: Option<&Bound<'_, PyAny>>,
+        region_restart: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let settled_start = arguments::flag("settled_start", settled_start, false)?;
+        let region_restart = arguments::flag("region_restart", region_restart, false)?;
         let target = arguments::instance::<PyTargetMesh>("target", "TargetMesh", target)?;
         let structure =
             arguments::instance::<PyLayoutStructure>("structure", "LayoutStructure", structure)?;
@@ -154,6 +156,7 @@ impl PyWrapSolver {
                 settings,
             )?
             .with_settled_start(settled_start)
+            .with_region_restart(region_restart)
             .with_curve_constraints(&curves)?;
             let solver = match &plane {
                 Some(plane) => solver.with_plane_constraint(plane)?,

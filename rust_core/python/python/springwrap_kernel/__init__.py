@@ -299,11 +299,14 @@ class WrapSolver(_native.WrapSolver):
     unreliable_triangles=None, curve_vertices=None, curve_vertex_counts=None, curve_points=None,
     curve_point_counts=None, curve_fractions=None, rest_positions=None, plane_vertices=None,
     plane_point=None, plane_normal=None, plane_slide=True, settings=None, stiffness=None, free_vertices=None,
-    soft_pair_vertices=None, soft_pair_positions=None, soft_pair_confidences=None, settled_start=False)``;
+    soft_pair_vertices=None, soft_pair_positions=None, soft_pair_confidences=None, settled_start=False,
+    region_restart=False)``;
     ``settings`` is a :class:`WrapSettings` (weights, tolerance, landing, fold tolerance, schedule), the
     kernel's defaults when ``None``; ``curve_fractions`` (float32, one per entry of ``curve_vertices``) says where
     along its curve each chain vertex goes (fraction of the curve's length; a chain's rows all NaN: as it is
-    spaced); ``stiffness`` is float32 per vertex (0 … 1), ``free_vertices`` bool per vertex; the soft pairs (vertices, points, confidences in (0, 1]) pull in the stiff levels only.
+    spaced); ``stiffness`` is float32 per vertex (0 … 1), ``free_vertices`` bool per vertex; the soft pairs (vertices, points, confidences in (0, 1]) pull in the stiff levels only;
+    ``region_restart``: a region of a settled layout started again, every other vertex held by anchors where it is
+    (the global-to-local schedule starts at its second level; a point held back keeps no data term).
     """
 
     __slots__ = ()

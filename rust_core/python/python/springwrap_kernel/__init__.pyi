@@ -423,6 +423,9 @@ class WrapSolver:
     schedule's last level (no warm-up, no stiffer levels) when they lie on the target with their anchors and
     curve targets met and no plane or soft pairs, and runs the whole schedule otherwise or when its first
     iteration moves them far (a layout snapped onto the target is on it too, far from settled).
+    ``region_restart``: the wrap re-settles a region of a settled layout started again, every other vertex held by
+    anchors where it is: the global-to-local schedule starts at its second level, and a point the safeguard holds
+    back keeps no data term for the rest of the wrap (the local schedule runs as without it).
     """
 
     def __init__(
@@ -456,6 +459,7 @@ class WrapSolver:
         soft_pair_positions: npt.NDArray[np.float32] | None = None,
         soft_pair_confidences: npt.NDArray[np.float32] | None = None,
         settled_start: bool = False,
+        region_restart: bool = False,
     ) -> None: ...
     def step(self, iterations: int, *, cancel: CancelFlag | None = None) -> StepReport:
         """Run up to ``iterations`` iterations (fewer once converged), GIL released; ``cancel`` set by another

@@ -41,7 +41,10 @@
 //! would turn have their step halved, up to zero (the step is then not taken there), and have no
 //! data term in the next iteration, so the shape terms lead them out of the fold the data pulled
 //! them into. **Re-settle** (`resettle.rs`): a wrap's result wrapped again (its caller says so)
-//! that starts on the target with its constraints met runs the last level alone. **Landing**: at the end every free point whose
+//! that starts on the target with its constraints met runs the last level alone. **Region restart**: a region of a
+//! settled layout started again, the rest held (its caller says so): the global-to-local schedule starts at its
+//! second level, and a point the safeguard held back has no data term for the rest of the wrap
+//! ([`RESTART_FIRST_LEVEL`], [`Self::note_held_back`]). **Landing**: at the end every free point whose
 //! closest surface point is near, trusted and facing lands there as a face-point, unless that
 //! turns a corner; the others stay space-points (holes, cavities).
 
@@ -161,6 +164,18 @@ const HELD_BACK_SETTLED: usize = 200;
 /// two iterations too (10 iterations) but the stretch grows (1.4602e-2, its largest 1.066e-1
 /// to 1.076e-1).
 const LEVEL_SETTLED_MOVE: f32 = 1e-3;
+/// A region of a settled layout started again, the rest held (`EnergyInputs::region_restart`: a sequence's later
+/// frame, `core.follow`), in the global-to-local schedule: the schedule starts at this level, the second stiff one.
+/// The first, the stiffest (stretches smoothed over about 128 rings), carries a whole layout's regions to where they
+/// belong; a restarted region is placed by the ring held around it, and there that level ran its 20 iterations on
+/// some frames (the 4 to 16 points held back for good keep it from counting as settled). Measured on the body's
+/// expression sequence (`benchmarks/sequence.py`, frames 0-19, cold wraps the same cached run): 33.9 iterations a
+/// later frame from the first level, 29.5 from the second (the mean and p95 errors within 0.001 mm), 27.6 from the
+/// second with [`EnergySolver::note_held_back`]'s hold; from the third, 21.5 but the p95 0.015 mm higher on average,
+/// above the cold wrap's on 4 frames (by up to 0.11 mm). Over all 100 frames, both changes (load 1.9): 30.5 -> 26.6
+/// iterations, the mean error 1.07 -> 1.06 mm, the p95 2.88 -> 2.84 mm (its worst 3.88 -> 3.84), above the cold
+/// wrap's on 2 frames (4 before; by at most 0.03 mm), the jitter 0.044 / 0.235 -> 0.044 / 0.232 mm.
+const RESTART_FIRST_LEVEL: usize = 1;
 /// Correspondences count only where the layout faces the target's smoothed normal within this
 /// cosine (60 degrees).
 const MIN_FACING: f32 = 0.5;
@@ -229,6 +244,9 @@ pub(crate) struct EnergyInputs<'a> {
     pub profile: Option<PhaseClock>,
     /// The start is a wrap's own result, wrapped again (see `resettle.rs`).
     pub settled_start: bool,
+    /// A region of a settled layout started again, the rest held (see [`RESTART_FIRST_LEVEL`] and
+    /// [`EnergySolver::note_held_back`]).
+    pub region_restart: bool,
 }
 
 /// One iteration's outcome.
@@ -316,6 +334,9 @@ pub(crate) struct EnergySolver {
     finished: bool,
     /// Where a re-settle started (`resettle.rs`), until its first iteration says whether it stays one.
     resettle_start: Option<Vec<Vec3>>,
+    /// A region started again, the rest held, in the global-to-local schedule: the schedule starts at
+    /// [`RESTART_FIRST_LEVEL`] and a point held back keeps no data term ([`Self::note_held_back`]).
+    region_restart: bool,
     /// The time of each phase, when asked for.
     profiler: Profiler,
     /// Without a factor (a layout of about a million points or more): the coarser levels on
@@ -493,6 +514,8 @@ impl EnergySolver {
             last_energy: f64::INFINITY,
             finished: false,
             resettle_start: None,
+            // Measured in the global-to-local schedule alone (what a sequence's Auto takes there).
+            region_restart: inputs.region_restart && schedule == WrapSchedule::GlobalToLocal,
             profiler,
             pyramid: None,
         };
@@ -511,7 +534,12 @@ impl EnergySolver {
     /// re-settle that moved too far on its first iteration ([`Self::keep_resettle_if_settled`]).
     fn start_schedule(&mut self) {
         self.warming_up = self.needs_warm_up();
-        (self.level, self.level_iterations, self.iterations) = (0, 0, 0);
+        let first_level = if self.region_restart {
+            RESTART_FIRST_LEVEL
+        } else {
+            0
+        };
+        (self.level, self.level_iterations, self.iterations) = (first_level, 0, 0);
         self.last_energy = f64::INFINITY;
         self.finished = false;
         self.held_back.fill(false);
@@ -653,10 +681,7 @@ impl EnergySolver {
         let (accepted, held_back) = self.safeguard(&proposed);
         clock = self.profiler.add(WrapPhase::Safeguard, clock);
         check(stop, WRAP_STEP)?;
-        for ((held, accepted), proposed) in self.held_back.iter_mut().zip(&accepted).zip(&proposed)
-        {
-            *held = accepted != proposed;
-        }
+        self.note_held_back(&accepted, &proposed);
         let (max_move, mean_move) = moves(&accepted, &self.positions);
         let energy = self.energy_at(&accepted, &correspondences, data_weight, &self.positions);
         self.profiler.add(WrapPhase::Energy, clock);
@@ -695,6 +720,24 @@ impl EnergySolver {
             energy_decrease: decrease,
             finished: self.finished,
         })
+    }
+
+    /// Marks the points the safeguard held back (`accepted` short of `proposed`): they have no data term in the next
+    /// iteration, so the shape terms lead them out of the fold the data pulled them into. In a region restart
+    /// (`EnergyInputs::region_restart`, in the global-to-local schedule) a point once held back keeps no data term for the rest of the wrap: there the
+    /// same points were pulled back into the fold as soon as their data term returned and held back again, on
+    /// alternate iterations (5 and 110 to 270 points in the local levels on the body's expression sequence), the
+    /// energy swinging with their data term (by -10 and +0.9 of itself). Measured on that sequence
+    /// (`benchmarks/sequence.py`, frames 0-19, cold wraps the same cached run), both with [`RESTART_FIRST_LEVEL`]:
+    /// the mean error 0.825 -> 0.816 mm and the p95 2.175 -> 2.141 mm on average, the p95 above the cold wrap's on
+    /// 2 frames (3 before), 29.5 -> 27.6 iterations a later frame (the local levels still run their most: the
+    /// region still slides, its energy falling 1 to 5 % an iteration). Off for the rest of its level only: 0.817 and
+    /// 2.144 mm, 28.7 iterations.
+    fn note_held_back(&mut self, accepted: &[Vec3], proposed: &[Vec3]) {
+        let for_good = self.region_restart;
+        for ((held, accepted), proposed) in self.held_back.iter_mut().zip(accepted).zip(proposed) {
+            *held = accepted != proposed || (for_good && *held);
+        }
     }
 
     /// One iteration of the warm-up: the constraints alone pull the layout, as rigidly as

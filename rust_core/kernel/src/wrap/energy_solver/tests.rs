@@ -73,6 +73,19 @@ fn solver_following(
     rest: &[Vec3],
     anchors: &[Option<(AnchorTarget, Vec3)>],
 ) -> EnergySolver {
+    solver_restarting(schedule, target, structure, positions, rest, anchors, false)
+}
+
+/// [`solver_following`], told whether it re-settles a region started again (`EnergyInputs::region_restart`).
+fn solver_restarting(
+    schedule: WrapSchedule,
+    target: &Arc<TargetMesh>,
+    structure: &LayoutStructure,
+    positions: &[Vec3],
+    rest: &[Vec3],
+    anchors: &[Option<(AnchorTarget, Vec3)>],
+    region_restart: bool,
+) -> EnergySolver {
     let points: Vec<LayoutPoint> = positions.iter().map(|&p| LayoutPoint::Space(p)).collect();
     EnergySolver::new(&EnergyInputs {
         target,
@@ -97,6 +110,7 @@ fn solver_following(
         },
         profile: None,
         settled_start: false,
+        region_restart,
     })
     .unwrap()
 }
@@ -536,4 +550,62 @@ fn a_level_ends_once_its_points_barely_move() {
         .fold(0.0, f32::max);
     assert!(largest < 1e-3, "{largest} from the full run (edge 0.1)");
     assert!(stopped.2.iter().all(|p| p.z.abs() < 1e-3), "on the plane");
+}
+
+#[test]
+fn a_region_restart_starts_the_global_to_local_schedule_at_its_second_level() {
+    let (target, structure, rest) = plane_and_grid(6, 0.1, 0.05);
+    let mut anchors = vec![None; rest.len()];
+    let hit = target.closest_point(rest[0], 1.0).unwrap();
+    anchors[0] = Some((AnchorTarget::Face(hit.face_point), hit.position));
+    let level = |schedule, restart| {
+        let mut solver = solver_restarting(
+            schedule, &target, &structure, &rest, &rest, &anchors, restart,
+        );
+        while solver.warming_up {
+            solver.iterate().unwrap();
+        }
+        solver.level
+    };
+    assert_eq!(level(WrapSchedule::GlobalToLocal, false), 0);
+    assert_eq!(
+        level(WrapSchedule::GlobalToLocal, true),
+        RESTART_FIRST_LEVEL
+    );
+    // The local schedule has no stiff levels to leave out.
+    assert_eq!(level(WrapSchedule::Local, true), 0);
+}
+
+#[test]
+fn a_region_restart_keeps_a_held_back_point_without_its_data_term() {
+    let (target, structure, rest) = plane_and_grid(6, 0.1, 0.05);
+    let none = vec![None; rest.len()];
+    let mut moved = rest.clone();
+    moved[10].z += 0.01;
+    // Kept in the global-to-local schedule's region restart alone.
+    for (schedule, restart, kept) in [
+        (WrapSchedule::GlobalToLocal, false, false),
+        (WrapSchedule::GlobalToLocal, true, true),
+        (WrapSchedule::Local, true, false),
+    ] {
+        let mut solver =
+            solver_restarting(schedule, &target, &structure, &rest, &rest, &none, restart);
+        // Vertex 10's step held back, then nothing held back.
+        solver.note_held_back(&rest, &moved);
+        assert!(solver.held_back[10]);
+        assert_eq!(solver.held_back.iter().filter(|&&held| held).count(), 1);
+        solver.note_held_back(&moved, &moved);
+        assert_eq!(
+            solver.held_back[10], kept,
+            "{schedule:?}, region restart: {restart}"
+        );
+        // Its correspondence is dropped while it is marked.
+        solver.warming_up = false;
+        let step = solver.iterate().unwrap();
+        assert!(step.energy.is_finite());
+        assert_eq!(
+            solver.held_back.iter().filter(|&&held| held).count() >= 1,
+            kept
+        );
+    }
 }

@@ -146,6 +146,7 @@ impl WrapSolver {
             reach,
             failed: None,
             settled_start: false,
+            region_restart: false,
         })
     }
 
@@ -158,6 +159,16 @@ impl WrapSolver {
     #[must_use]
     pub fn with_settled_start(mut self, settled: bool) -> Self {
         self.settled_start = settled;
+        self
+    }
+
+    /// Says whether the wrap re-settles a region of a settled layout started again (every other vertex held where
+    /// it is, by anchors): the global-to-local schedule then starts at its second level (the held ring already
+    /// places the region as a whole), and a point the safeguard holds back there keeps no data term for the rest of
+    /// the wrap (see `wrap::energy_solver`'s region restart); the local schedule runs as without it. Off by default.
+    #[must_use]
+    pub fn with_region_restart(mut self, restart: bool) -> Self {
+        self.region_restart = restart;
         self
     }
 

@@ -120,6 +120,8 @@ pub struct WrapSolver {
     failed: Option<KernelError>,
     /// The start is a wrap's own result, wrapped again ([`WrapSolver::with_settled_start`]).
     settled_start: bool,
+    /// The wrap re-settles a region started again, the rest held ([`WrapSolver::with_region_restart`]).
+    region_restart: bool,
 }
 
 impl WrapSolver {

@@ -92,6 +92,7 @@ impl WrapSolver {
                 settings: self.settings,
                 profile: self.profile,
                 settled_start: self.settled_start,
+                region_restart: self.region_restart,
             };
             self.energy = Some(Box::new(EnergySolver::new_until(&inputs, stop)?));
         }
