@@ -47,16 +47,22 @@ def arc_inflation(points, step: int = 4) -> float:
     return float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum() / chord) if chord > 0.0 else 1.0
 
 
-def projected(polyline, points) -> np.ndarray:
-    """(P, 3): each of ``points`` taken to the nearest point of the polyline ((K, 3), K >= 2)."""
+def nearest_on_polyline(polyline, points):
+    """(near (P, S, 3), t (P, S), nearest (P,)): for each of ``points``, the nearest point of every segment of the
+    polyline ((K, 3), K >= 2, S = K - 1 segments), where along its segment it lies (0..1), and the nearest segment."""
     polyline = np.asarray(polyline, dtype=np.float64).reshape(-1, 3)
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     starts, direction = polyline[:-1], np.diff(polyline, axis=0)
     squared = np.maximum((direction**2).sum(axis=1), 1e-300)
     t = np.clip(np.einsum("psk,sk->ps", points[:, None, :] - starts[None], direction) / squared, 0.0, 1.0)
     near = starts[None] + t[..., None] * direction[None]
-    nearest = np.argmin(np.linalg.norm(near - points[:, None, :], axis=2), axis=1)
-    return near[np.arange(points.shape[0]), nearest]
+    return near, t, np.argmin(np.linalg.norm(near - points[:, None, :], axis=2), axis=1)
+
+
+def projected(polyline, points) -> np.ndarray:
+    """(P, 3): each of ``points`` taken to the nearest point of the polyline ((K, 3), K >= 2)."""
+    near, _t, nearest = nearest_on_polyline(polyline, points)
+    return near[np.arange(len(nearest)), nearest]
 
 
 def turning_profile(points, samples: int, sigma: float) -> np.ndarray:
@@ -132,14 +138,9 @@ def projected_fractions(polyline, points) -> np.ndarray:
     """(P,): where along the polyline ((K, 3), K >= 2) the point of it nearest each of ``points`` lies, as a fraction
     of its length."""
     polyline = np.asarray(polyline, dtype=np.float64).reshape(-1, 3)
-    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    starts, direction = polyline[:-1], np.diff(polyline, axis=0)
-    squared = np.maximum((direction**2).sum(axis=1), 1e-300)
-    t = np.clip(np.einsum("psk,sk->ps", points[:, None, :] - starts[None], direction) / squared, 0.0, 1.0)
-    near = starts[None] + t[..., None] * direction[None]
-    nearest = np.argmin(np.linalg.norm(near - points[:, None, :], axis=2), axis=1)
+    _near, t, nearest = nearest_on_polyline(polyline, points)
     cumulative = lengths(polyline)
-    rows = np.arange(points.shape[0])
+    rows = np.arange(len(nearest))
     along = cumulative[nearest] + t[rows, nearest] * (cumulative[nearest + 1] - cumulative[nearest])
     return along / cumulative[-1]
 

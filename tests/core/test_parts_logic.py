@@ -309,20 +309,32 @@ def egg(n=12, axes=(0.7, 1.4, 0.5)):
     return vertices * np.asarray(axes), faces
 
 
-def test_a_rigid_piece_is_placed_by_its_skin_on_the_target_where_the_wrapped_skin_lags():
-    body, ball = egg(), cube_sphere(3, 0.15, (0.0, 1.1, 0.0))  # in the egg's pointed end, as teeth in a chin
-    positions, topology = topology_of([body, ball])
+SHIFT = np.array([0.1, -0.15, 0.05])
+"""How far the target moved from the egg in the lagging-skin scenes."""
+
+
+def lagging_skin_scene(pieces):
+    """An egg with ``pieces`` inside (all in the Follow group), its target the egg moved by :data:`SHIFT`, the
+    wrapped skin having carried only 0.4 of that motion (it slid along the target): (positions, skin vertex count,
+    plan, follower, target, moved positions, held skin)."""
+    body = egg()
+    positions, topology = topology_of([body, *pieces])
     count = len(body[0])
     follow = np.zeros(len(positions), bool)
     follow[count:] = True
     plan = parts.plan_parts("Layout", positions, topology, parts.PartGroups(follow=follow), False)
     follower = parts.make_follower(plan, positions)
-    shift = np.array([0.1, -0.15, 0.05])
     triangles = np.concatenate([body[1][:, [0, 1, 2]], body[1][:, [0, 2, 3]]])
-    target = target_module.CentredMesh(body[0] + shift, np.ascontiguousarray(triangles, dtype=np.uint32))
+    target = target_module.CentredMesh(body[0] + SHIFT, np.ascontiguousarray(triangles, dtype=np.uint32))
     moved = positions.copy()
-    moved[:count] += 0.4 * shift  # the wrapped skin carried 0.4 of the target's motion (it slid along it)
-    held = ~plan.parts
+    moved[:count] += 0.4 * SHIFT
+    return positions, count, plan, follower, target, moved, ~plan.parts
+
+
+def test_a_rigid_piece_is_placed_by_its_skin_on_the_target_where_the_wrapped_skin_lags():
+    ball = cube_sphere(3, 0.15, (0.0, 1.1, 0.0))  # in the egg's pointed end, as teeth in a chin
+    positions, count, plan, follower, target, moved, held = lagging_skin_scene([ball])
+    shift = SHIFT
     truth = positions[count:] + shift
     followed = parts.follow(follower, plan, moved, held)
     assert np.linalg.norm(followed[count:] - truth, axis=1).min() > 0.5 * np.linalg.norm(shift)  # it lags too
@@ -337,20 +349,10 @@ def test_a_rigid_piece_is_placed_by_its_skin_on_the_target_where_the_wrapped_ski
 
 
 def test_a_piece_whose_skin_is_another_pieces_keeps_the_surfaces_motion():
-    body, outer = egg(), cube_sphere(4, 0.3, (0.0, 0.0, 0.0))
+    outer = cube_sphere(4, 0.3, (0.0, 0.0, 0.0))
     inner = cube_sphere(3, 0.1, (0.0, 0.0, 0.0))  # inside the other piece: the skin round it is the outer one's
-    positions, topology = topology_of([body, outer, inner])
-    count = len(body[0])
-    follow = np.zeros(len(positions), bool)
-    follow[count:] = True
-    plan = parts.plan_parts("Layout", positions, topology, parts.PartGroups(follow=follow), False)
-    follower = parts.make_follower(plan, positions)
-    shift = np.array([0.1, -0.15, 0.05])
-    triangles = np.concatenate([body[1][:, [0, 1, 2]], body[1][:, [0, 2, 3]]])
-    target = target_module.CentredMesh(body[0] + shift, np.ascontiguousarray(triangles, dtype=np.uint32))
-    moved = positions.copy()
-    moved[:count] += 0.4 * shift
-    held = ~plan.parts
+    positions, count, plan, follower, target, moved, held = lagging_skin_scene([outer, inner])
+    shift = SHIFT
     followed = parts.follow(follower, plan, moved, held)
     registered = []
     placed = parts.follow(follower, plan, moved, held, target, registered)
