@@ -348,6 +348,16 @@ def test_a_rigid_piece_is_placed_by_its_skin_on_the_target_where_the_wrapped_ski
     assert "placed by its skin" not in parts.report_text(plan)
 
 
+def test_a_skin_vertex_without_a_position_leaves_the_registration_to_the_others():
+    ball = cube_sphere(3, 0.15, (0.0, 1.1, 0.0))
+    positions, count, plan, follower, target, moved, held = lagging_skin_scene([ball])
+    followed = parts.follow(follower, plan, moved, held)
+    lost = int(np.argmin(np.linalg.norm(positions[:count] - positions[count:].mean(axis=0), axis=1)))
+    followed[lost] = np.nan  # the skin vertex nearest the ball, lost (a diverged point)
+    placed = part_registration.place_pieces(plan, follower.rest, followed, held, target)
+    assert np.linalg.norm(placed[count:] - (positions[count:] + SHIFT), axis=1).max() < 1e-3
+
+
 def test_a_piece_whose_skin_is_another_pieces_keeps_the_surfaces_motion():
     outer = cube_sphere(4, 0.3, (0.0, 0.0, 0.0))
     inner = cube_sphere(3, 0.1, (0.0, 0.0, 0.0))  # inside the other piece: the skin round it is the outer one's

@@ -156,7 +156,8 @@ def place_pieces(
     appended to (their ``plan.pieces`` numbers, for the report)."""
     positions = np.array(positions, dtype=np.float64)
     rigid = plan.parts & ~plan.soft
-    skin = np.flatnonzero(np.asarray(held, dtype=bool) & ~plan.parts)
+    finite = np.isfinite(positions).all(axis=1) & np.isfinite(rest).all(axis=1)
+    skin = np.flatnonzero(np.asarray(held, dtype=bool) & ~plan.parts & finite)  # a lost point pins nothing
     if not rigid.any() or skin.size < MIN_PATCH:
         return positions
     rigid_vertices = np.flatnonzero(rigid)
