@@ -263,18 +263,25 @@ def test_soft_pairs_reach_the_energy_solver_and_are_checked():
         make_solver(target, positions, structure, anchors, settings=energy, **(soft | {"soft_pair_confidences": bad}))
 
 
+def wrapped_cage(cuts: int):
+    """(target, template, face corners, structure, solver): a cube-sphere cage (``cuts`` cuts, radius 1.3) wrapped to convergence
+    from space-points onto the bumpy ball."""
+    vertices, faces = bumpy_ball(48, 96)
+    target = sk.TargetMesh(np.asarray(vertices, np.float32), triangulated(faces).astype(np.uint32))
+    template, face_corners, face_sizes = cube_sphere_cage(cuts, 1.3)
+    structure = sk.LayoutStructure(len(template), face_corners, face_sizes)
+    first = sk.WrapSolver(target, structure, *space_points(len(template)), template, rest_positions=template)
+    assert first.step(1000).converged
+    return target, template, face_corners, structure, first
+
+
 def test_a_settled_start_re_settles_from_where_it_is_and_changes_less_than_a_cold_start():
     """A wrap's result wrapped again with ``settled_start=True`` (same rest shape, target, nothing held) re-settles
     from the schedule's last level: a few iterations, the points staying where they were; the same start without it
     runs the whole schedule (warm-up, stiff levels), which moves them more. Measured on a cube-sphere cage (6 cuts)
     onto the bumpy ball: a first wrap of 19 iterations moving the points 0.30 on average; again settled 4 iterations
     moving them 0.0013, cold 20 iterations moving them 0.0105."""
-    vertices, faces = bumpy_ball(48, 96)
-    target = sk.TargetMesh(np.asarray(vertices, np.float32), triangulated(faces).astype(np.uint32))
-    template, face_corners, face_sizes = cube_sphere_cage(6, 1.3)
-    structure = sk.LayoutStructure(len(template), face_corners, face_sizes)
-    first = sk.WrapSolver(target, structure, *space_points(len(template)), template, rest_positions=template)
-    assert first.step(1000).converged
+    target, template, _corners, structure, first = wrapped_cage(6)
     wrapped = np.array(first.positions())
     states = tuple(np.ascontiguousarray(array) for array in first.states())
     first_move = np.linalg.norm(wrapped - template, axis=1).mean()
@@ -297,12 +304,7 @@ def test_a_region_restart_re_settles_the_region_in_fewer_iterations_to_the_same_
     settles in fewer iterations to about the same place. Measured on a cube-sphere cage (12 cuts) onto the bumpy
     ball, a cap of it restarted 8 % outside: 17 -> 14 iterations, the results 0.0014 mean edges apart on average
     (0.031 at most)."""
-    vertices, faces = bumpy_ball(48, 96)
-    target = sk.TargetMesh(np.asarray(vertices, np.float32), triangulated(faces).astype(np.uint32))
-    template, face_corners, face_sizes = cube_sphere_cage(12, 1.3)
-    structure = sk.LayoutStructure(len(template), face_corners, face_sizes)
-    first = sk.WrapSolver(target, structure, *space_points(len(template)), template, rest_positions=template)
-    assert first.step(1000).converged
+    target, template, face_corners, structure, first = wrapped_cage(12)
     wrapped = np.array(first.positions())
     states, triangles, barycentrics = (np.array(array) for array in first.states())
     region = wrapped[:, 2] > 0.6
