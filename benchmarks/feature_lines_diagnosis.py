@@ -170,7 +170,7 @@ def record_pairing(store: dict):
             lines=lines, current=np.array(current), curves=curves_found, anchored=np.array(anchored), result=result
         )
         store.update(junctions=dict(keywords.get("junctions") or {}), rest=keywords.get("rest"))
-        store.update(mapping=keywords.get("mapping"))
+        store.update(mapping=result.mapping)
         return result
 
     core.pair_lines = recording
@@ -285,6 +285,7 @@ def middle_known(store: dict, scene, constraints, placed, rows) -> np.ndarray:
     refitted = smooth_map.fit(
         np.concatenate([mapping.centres, rest[middles]]),
         np.concatenate([smooth_map.apply(mapping, mapping.centres), on_surface[middles]]),
+        degree=mapping.degree,
     )
     return np.concatenate(
         [
@@ -311,14 +312,14 @@ def containing_curve(found, points, tolerance: float) -> np.ndarray:
 
 def bench_stretch(curve, start, end) -> np.ndarray:
     """The stretch of the open polyline ``curve`` between the points nearest ``start`` and ``end``."""
-    from springwrap.core import feature_lines as core
+    from springwrap.core import line_placement as placement
     from springwrap.core.edge_paths import cumulative_lengths
 
     curve = np.asarray(curve, dtype=np.float64).reshape(-1, 3)
     cumulative = cumulative_lengths(curve)
-    begin = core._parameter(curve, cumulative, np.asarray(start, dtype=np.float64))[0]
-    finish = core._parameter(curve, cumulative, np.asarray(end, dtype=np.float64))[0]
-    return core._piece(curve, cumulative, begin, finish)
+    begin = placement.parameter(curve, cumulative, np.asarray(start, dtype=np.float64))[0]
+    finish = placement.parameter(curve, cumulative, np.asarray(end, dtype=np.float64))[0]
+    return placement.piece(curve, cumulative, begin, finish)
 
 
 def main(argv: list[str] | None = None) -> int:

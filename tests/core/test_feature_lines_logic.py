@@ -6,6 +6,7 @@ import numpy as np
 from helpers import core_module
 
 fl = core_module("feature_lines")
+lp = core_module("line_placement")
 cu = core_module("curves")
 
 SIZE = 9  # vertices a side; vertex x + SIZE * y at (x, y, 0)
@@ -107,17 +108,17 @@ def test_a_chain_between_matched_junctions_takes_its_share_of_the_curve_by_rest_
     runs from twice 1 to twice 4 along it."""
     rest = np.array([[0.0, 0, 0], [1, 0, 0], [3, 0, 0], [4, 0, 0], [8, 0, 0]])
     curve = np.stack([np.linspace(0.0, 16.0, 9), np.full(9, 5.0), np.zeros(9)], axis=1)
-    stretch = fl.between_junctions(rest, np.array([1, 2, 3]), curve, [0.0, 5, 0], [16.0, 5, 0])
+    stretch = lp.between_junctions(rest, np.array([1, 2, 3]), curve, [0.0, 5, 0], [16.0, 5, 0])
     np.testing.assert_allclose(stretch[0], [2.0, 5, 0], atol=1e-9)
     np.testing.assert_allclose(stretch[-1], [8.0, 5, 0], atol=1e-9)
     # The corners in the other order: the stretch runs the other way, from the far end.
-    stretch = fl.between_junctions(rest, np.array([1, 2, 3]), curve, [16.0, 5, 0], [0.0, 5, 0])
+    stretch = lp.between_junctions(rest, np.array([1, 2, 3]), curve, [16.0, 5, 0], [0.0, 5, 0])
     np.testing.assert_allclose(stretch[0], [14.0, 5, 0], atol=1e-9)
     np.testing.assert_allclose(stretch[-1], [8.0, 5, 0], atol=1e-9)
     # A curve between the corners far shorter than the line: no stretch (the fit's is kept).
-    assert fl.between_junctions(rest, np.array([1, 2, 3]), curve[:2], [0.0, 5, 0], [2.0, 5, 0]) is None
+    assert lp.between_junctions(rest, np.array([1, 2, 3]), curve[:2], [0.0, 5, 0], [2.0, 5, 0]) is None
     # A corner off the curve (the curve stops short of it, another crease goes on to it): no stretch either.
-    assert fl.between_junctions(rest, np.array([1, 2, 3]), curve[:8], [0.0, 5, 0], [16.0, 5, 0]) is None
+    assert lp.between_junctions(rest, np.array([1, 2, 3]), curve[:8], [0.0, 5, 0], [16.0, 5, 0]) is None
 
 
 def test_pairing_between_matched_junctions_moves_the_stretch_to_the_corners():
@@ -168,8 +169,8 @@ def test_a_placement_map_puts_each_paired_vertex_where_the_anchors_say_not_where
     rest places, the truth) give a map that places each vertex of the row back at its own x along the ridge; four
     anchors are too few to place a line without matched corners: it goes as spaced."""
     positions, lines, row, current, anchored, border = slid_row()
-    mapping = fl.placement_map(positions, border, positions[border] + [0, 0, 0.05])
-    placed = fl.pair_lines(lines, current, straight_curves(), anchored, [], 0.5, rest=positions, mapping=mapping)
+    maps = lp.placement_maps(positions, border, positions[border] + [0, 0, 0.05])
+    placed = fl.pair_lines(lines, current, straight_curves(), anchored, [], 0.5, rest=positions, maps=maps)
     spaced = fl.pair_lines(lines, current, straight_curves(), anchored, [], 0.5)
     (constraint,) = placed.constraints
     assert constraint.fractions.size == constraint.layout_vertices.size and spaced.constraints[0].fractions.size == 0
@@ -177,9 +178,10 @@ def test_a_placement_map_puts_each_paired_vertex_where_the_anchors_say_not_where
     np.testing.assert_allclose(targets[:, 0], positions[constraint.layout_vertices, 0], atol=1e-6)
     slid = cu.arc_length_points(current[constraint.layout_vertices], spaced.constraints[0].points)
     assert np.abs(slid[:, 0] - positions[spaced.constraints[0].layout_vertices, 0]).max() > 0.1
-    assert fl.placement_map(positions, [], np.zeros((0, 3))) is None
-    coarse = fl.placement_map(positions, border[:4], positions[border[:4]] + [0, 0, 0.05])  # too few points
-    as_spaced = fl.pair_lines(lines, current, straight_curves(), anchored, [], 0.5, rest=positions, mapping=coarse)
+    assert lp.placement_maps(positions, [], np.zeros((0, 3))) == []
+    coarse = lp.placement_maps(positions, border[:4], positions[border[:4]] + [0, 0, 0.05])  # too few points
+    assert len(coarse) == 1  # no quadratic through four points
+    as_spaced = fl.pair_lines(lines, current, straight_curves(), anchored, [], 0.5, rest=positions, maps=coarse)
     assert as_spaced.constraints[0].fractions.size == 0
 
 
@@ -188,10 +190,10 @@ def test_a_map_that_misses_the_feature_does_not_place_the_line_along_it():
     ridge by more than MAP_REACH maximum distances take the row beside it, and the row goes as the fit spaces it;
     a map within that reach places it."""
     positions, lines, row, current, anchored, border = slid_row()
-    reach = fl.MAP_REACH * 0.5
+    reach = lp.MAP_REACH * 0.5
     for sideways, placed in ((1.5 * reach, False), (0.5 * reach, True)):
-        mapping = fl.placement_map(positions, border, positions[border] + [0, sideways, 0.05])
-        assert fl.map_reaches(mapping, positions[row], straight_curves()[0][1], 0.5) == placed
-        pairing = fl.pair_lines(lines, current, straight_curves(), anchored, [], 0.5, rest=positions, mapping=mapping)
+        maps = lp.placement_maps(positions, border, positions[border] + [0, sideways, 0.05])
+        assert lp.map_reaches(maps[0], positions[row], straight_curves()[0][1], 0.5) == placed
+        pairing = fl.pair_lines(lines, current, straight_curves(), anchored, [], 0.5, rest=positions, maps=maps)
         (constraint,) = pairing.constraints
         assert (constraint.fractions.size == constraint.layout_vertices.size) == placed

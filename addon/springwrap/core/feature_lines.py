@@ -15,8 +15,7 @@ import numpy as np
 
 import springwrap_kernel
 
-from . import curves, rounded_creases, sharp_creases, smooth_map
-from .edge_paths import cumulative_lengths, length_fractions
+from . import curves, line_pieces, line_placement, rounded_creases, sharp_creases, smooth_map
 from .errors import LayoutError
 
 FREE_REASONS = {
@@ -50,6 +49,9 @@ class Pairing(NamedTuple):
     constraints: list  # of curves.CurveConstraint (source FEATURE_LINE, with a confidence)
     free: list  # of (FeatureLine, FREE_REASONS key)
     between_junctions: int = 0  # how many constraints run between two matched junctions
+    pieces: int = 0  # how many constraints hold a piece of a line no curve took whole
+    cut_lines: int = 0  # how many lines were paired in pieces
+    mapping: object = None  # the smooth map that placed the lines (line_placement.choose_map), or None
 
 
 def marked_edges(edges, flags) -> np.ndarray:
@@ -230,118 +232,6 @@ def match_junctions(vertices, current, junction_points, max_distance: float) -> 
     }
 
 
-def _parameter(points: np.ndarray, cumulative: np.ndarray, point: np.ndarray) -> tuple[float, float]:
-    """``(arc-length parameter, distance)`` of the point of the polyline ``points`` nearest to ``point``."""
-    starts, direction = points[:-1], np.diff(points, axis=0)
-    squared = np.maximum((direction**2).sum(axis=1), 1e-300)
-    t = np.clip(((point[None, :] - starts) * direction).sum(axis=1) / squared, 0.0, 1.0)
-    distances = ((starts + t[:, None] * direction - point[None, :]) ** 2).sum(axis=1)
-    segment = int(np.argmin(distances))
-    along = cumulative[segment] + t[segment] * (cumulative[segment + 1] - cumulative[segment])
-    return float(along), float(np.sqrt(distances[segment]))
-
-
-def _piece(points: np.ndarray, cumulative: np.ndarray, begin: float, finish: float) -> np.ndarray:
-    """The stretch of the open polyline ``points`` from arc parameter ``begin`` to ``finish`` (reversed when
-    ``finish`` comes first)."""
-    low, high = min(begin, finish), max(begin, finish)
-    inside = (cumulative > low) & (cumulative < high)
-    ends = np.stack([np.interp([low, high], cumulative, points[:, axis]) for axis in range(3)], axis=1)
-    piece = np.concatenate([ends[:1], points[inside], ends[1:]])
-    return piece if begin <= finish else piece[::-1]
-
-
-def between_junctions(line_rest, chain_rows, curve_points, start_point, end_point) -> np.ndarray | None:
-    """The target stretch of a chain on a line that runs between two matched junctions, or None.
-
-    ``line_rest``: (L, 3) the whole line on the layout's rest shape, junction to junction; ``chain_rows``: the
-    rows of the line its chain takes (the junctions themselves left out, or a line trimmed at the curve's end);
-    ``curve_points``: (P, 3) the open target curve it pairs with; ``start_point``/``end_point``: the target
-    junctions of the line's first and last vertex. The curve between the two junctions is shared out in
-    proportion to the rest shape's arc length, so that the corners, not the fit's sliding, fix where along the
-    crease each vertex lies; the chain's stretch is its part of it. None when the junctions project to one point
-    of the curve, the curve between them is not about as long as the line (:data:`MIN_LENGTH_RATIO`) or a
-    junction lies off the curve (:data:`JUNCTION_TOLERANCE`: the curve stops short of that corner)."""
-    curve_points = np.asarray(curve_points, dtype=np.float64).reshape(-1, 3)
-    cumulative = cumulative_lengths(curve_points)
-    begin, off_start = _parameter(curve_points, cumulative, np.asarray(start_point, dtype=np.float64))
-    finish, off_end = _parameter(curve_points, cumulative, np.asarray(end_point, dtype=np.float64))
-    span = abs(finish - begin)
-    line_length = cumulative_lengths(np.asarray(line_rest, dtype=np.float64))[-1]
-    if not (span > 0.0 and line_length > 0.0 and MIN_LENGTH_RATIO <= span / line_length <= 1.0 / MIN_LENGTH_RATIO):
-        return None
-    if max(off_start, off_end) > JUNCTION_TOLERANCE * line_length:
-        return None  # a junction off the curve: the curve ends before that corner (another crease takes over)
-    fractions = length_fractions(np.asarray(line_rest, dtype=np.float64))
-    stretch = _piece(curve_points, cumulative, begin, finish)
-    along = cumulative_lengths(stretch)
-    first, last = fractions[chain_rows[0]] * along[-1], fractions[chain_rows[-1]] * along[-1]
-    if not last > first:
-        return None
-    return _piece(stretch, along, first, last)
-
-
-def mapped_stretch(mapping, chain_rest, curve_points, stretch) -> np.ndarray:
-    """The stretch of the open curve ``curve_points`` from where ``mapping`` (``smooth_map.SmoothMap``) takes the
-    chain's first rest point (``chain_rest``, (C, 3)) to where it takes the last, both projected onto the curve;
-    ``stretch`` (the one under the current fit, in the chain's direction) when those two are not about as far apart
-    along the curve (:data:`MIN_LENGTH_RATIO`) or come in the other order."""
-    curve_points = np.asarray(curve_points, dtype=np.float64).reshape(-1, 3)
-    stretch = np.asarray(stretch, dtype=np.float64).reshape(-1, 3)
-    cumulative = cumulative_lengths(curve_points)
-    ends = smooth_map.apply(mapping, np.asarray(chain_rest, dtype=np.float64)[[0, -1]])
-    begin, finish = (_parameter(curve_points, cumulative, end)[0] for end in ends)
-    first, last = (_parameter(curve_points, cumulative, end)[0] for end in stretch[[0, -1]])
-    length = cumulative_lengths(stretch)[-1]
-    span = (finish - begin) * np.sign(last - first)
-    if not MIN_LENGTH_RATIO * length <= span <= length / MIN_LENGTH_RATIO:
-        return stretch
-    return _piece(curve_points, cumulative, begin, finish)
-
-
-JUNCTION_TOLERANCE = 0.01
-"""How far a matched target junction may lie from the curve a line pairs with, as a fraction of the line's
-rest length: farther, the curve does not run to that corner."""
-MIN_LENGTH_RATIO = 0.5
-"""The shortest stretch of curve between two matched junctions a line may follow, as a fraction of its rest
-length (and the longest, its inverse)."""
-
-
-MIN_MAP_POINTS = 12
-"""The fewest matched points (anchors and corners) through which the smooth map places the vertices of a line that
-does not run between two matched corners (and a slit's halves): through fewer it is too coarse to say where along
-a feature a vertex lies (8 anchors on a whole part), and such lines go as the fit spaces them."""
-
-
-MAP_REACH = 0.4
-"""How close (mean, as a share of the maximum distance) the smooth map must take a chain's rest points to the
-feature it pairs with for it to place the chain along it: the map's distance across the feature is a sample of its
-error, and a map farther off (few anchors, far from them) would place the chain worse than the fit spaces it."""
-
-
-def map_reaches(mapping, chain_rest, curve_points, max_distance: float) -> bool:
-    """Whether ``mapping`` takes ``chain_rest`` ((C, 3)) within :data:`MAP_REACH` maximum distances (mean) of the
-    polyline ``curve_points``."""
-    curve_points = np.asarray(curve_points, dtype=np.float64).reshape(-1, 3)
-    cumulative = cumulative_lengths(curve_points)
-    across = [_parameter(curve_points, cumulative, point)[1] for point in smooth_map.apply(mapping, chain_rest)]
-    return bool(np.mean(across) <= MAP_REACH * max_distance)
-
-
-def placement_map(rest, vertices, locations, junctions=None) -> smooth_map.SmoothMap | None:
-    """The smooth map (:mod:`smooth_map`) from the layout's rest shape (``rest``, (N, 3) world) to the target
-    through the anchored ``vertices`` ((K,)) and their target ``locations`` ((K, 3) world) and the matched
-    ``junctions`` (``{layout vertex: target point}``); None without any."""
-    vertices = np.asarray(vertices, dtype=np.int64).reshape(-1)
-    locations = np.asarray(locations, dtype=np.float64).reshape(-1, 3)
-    if junctions:
-        vertices = np.concatenate([vertices, np.fromiter(junctions, dtype=np.int64, count=len(junctions))])
-        locations = np.concatenate([locations, np.array(list(junctions.values()), dtype=np.float64)])
-    if vertices.size == 0:
-        return None
-    return smooth_map.fit(np.asarray(rest, dtype=np.float64)[vertices], locations)
-
-
 def pair_lines(
     lines,
     current,
@@ -351,7 +241,7 @@ def pair_lines(
     max_distance: float,
     rest=None,
     junctions=None,
-    mapping=None,
+    maps=(),
     **settings,
 ) -> Pairing:
     """Pair ``lines`` with ``curves_found`` (:func:`target_curves`) under the current fit (``current``, (N, 3)
@@ -359,70 +249,127 @@ def pair_lines(
     ``existing`` constraints, or a more confident pair of this call (lines that cross), stays free.
     ``junctions``: ``{layout vertex: target point}`` (:func:`match_junctions`) with ``rest`` ((N, 3) world rest
     shape): a paired line between two matched junctions follows its curve between them, shared out by the rest
-    shape's arc length (:func:`between_junctions`), instead of the stretch under the current fit. ``mapping``
-    (:func:`placement_map`, with ``rest``): each vertex of an open line goes where the map takes its rest point,
-    projected onto the line's stretch (``smooth_map.placements``), instead of where the fit spaces it (a line not
-    between matched corners only when the map runs through :data:`MIN_MAP_POINTS` points or more; no line where the
-    map misses its feature, :func:`map_reaches`).
+    shape's arc length (``line_placement.between_junctions``), instead of the stretch under the current fit.
+    ``maps`` (``line_placement.placement_maps``, with ``rest``): the one that takes the paired lines nearest their
+    features (``line_placement.choose_map``, ``Pairing.mapping``) places each vertex of an open line where it
+    takes its rest point, projected onto the line's stretch (``smooth_map.placements``), instead of where the fit
+    spaces it (a line not between matched corners only when the map runs through
+    ``line_placement.MIN_MAP_POINTS`` points or more; no line where the map misses its feature,
+    ``line_placement.map_reaches``). A line no curve takes whole is then cut into pieces that each
+    run beside one curve (``line_pieces.pieces``, with ``rest``), and those are paired the same way: a pair
+    made so counts in ``Pairing.pieces``, and the line is free only when none of its pieces pairs.
     ``settings``: ``max_angle`` (degrees), ``min_confidence``."""
-    outcomes = springwrap_kernel.pair_feature_lines(
+    held = curves.constrained_vertices(existing, anchored)
+    outcomes = _kernel_pairs(lines, current, curves_found, max_distance, settings)
+    mapping = None
+    if rest is not None and maps:
+        chains = [
+            (np.asarray(rest, dtype=np.float64)[np.asarray(outcome.chain, dtype=np.int64)], curves_found[outcome.curve][1])
+            for outcome in outcomes
+            if outcome.curve is not None
+        ]
+        mapping = line_placement.choose_map(list(maps), chains)[0]
+    accepted, free, between = {}, [], 0
+    for index in sorted(range(len(lines)), key=lambda index: -(outcomes[index].confidence or 0.0)):
+        made = _accept(lines[index], outcomes[index], held, anchored, curves_found, max_distance, rest, junctions, mapping)
+        if isinstance(made, str):
+            free.append((index, lines[index], made))
+            continue
+        accepted[index] = made
+        between += made.between
+    constraints = [accepted[index].constraint for index in sorted(accepted)]
+    pieces_paired, paired_lines = 0, set()
+    if rest is not None:
+        corners = set(line_junctions(lines).tolist())
+        split = [
+            (index, line.kind, piece)
+            for index, line, reason in free
+            if reason in line_pieces.RETRIED
+            for piece in line_pieces.pieces(
+                line.vertices, line.closed, line.kind, rest, current, curves_found, max_distance, held | corners
+            )
+        ]
+        pieces = [FeatureLine(lines[index].kind, lines[index].source, piece, False, lines[index].dihedral) for index, _k, piece in split]
+        outcomes = _kernel_pairs(pieces, current, curves_found, max_distance, settings) if pieces else []
+        taken = [item.points for item in constraints]
+        for order in sorted(range(len(pieces)), key=lambda order: -(outcomes[order].confidence or 0.0)):
+            made = _accept(pieces[order], outcomes[order], held, anchored, curves_found, max_distance, rest, None, mapping)
+            if isinstance(made, str) or _overlaps(made.constraint.points, taken, max_distance):
+                continue
+            constraints.append(made.constraint)
+            taken.append(made.constraint.points)
+            paired_lines.add(split[order][0])
+            pieces_paired += 1
+        free = [item for item in free if item[0] not in paired_lines]
+    free.sort(key=lambda item: item[0])
+    free_pairs = [(line, reason) for _index, line, reason in free]
+    return Pairing(constraints, free_pairs, between, pieces_paired, len(paired_lines), mapping)
+
+
+class _Made(NamedTuple):
+    constraint: object  # curves.CurveConstraint
+    between: bool  # it runs between two matched junctions
+
+
+def _kernel_pairs(lines, current, curves_found, max_distance: float, settings: dict) -> list:
+    """The kernel's pairing of ``lines`` (its ``LinePairing`` per line)."""
+    return springwrap_kernel.pair_feature_lines(
         np.ascontiguousarray(current, dtype=np.float32),
         [(np.ascontiguousarray(line.vertices, dtype=np.uint32), line.closed, line.kind) for line in lines],
         curves_found,
         max_distance=float(max_distance),
         **settings,
     )
-    accepted, free, between = {}, [], 0
-    held = curves.constrained_vertices(existing, anchored)
-    order = sorted(range(len(lines)), key=lambda index: -(outcomes[index].confidence or 0.0))
-    for index in order:
-        line, outcome = lines[index], outcomes[index]
-        if outcome.curve is None:
-            free.append((index, line, outcome.reason))
-            continue
-        chain = np.asarray(outcome.chain, dtype=np.int64)
-        if any(vertex in held and not anchored[vertex] for vertex in chain.tolist()):
-            free.append((index, line, "CONSTRAINED"))
-            continue
-        held |= {vertex for vertex in chain.tolist() if not anchored[vertex]}
-        target = None
-        _kind, curve_points, curve_closed = curves_found[outcome.curve][:3]
-        ends = (int(line.vertices[0]), int(line.vertices[-1]))
-        if (
-            junctions
-            and rest is not None
-            and not line.closed
-            and not curve_closed
-            and all(e in junctions for e in ends)
-        ):
-            first = int(np.flatnonzero(line.vertices == chain[0])[0])
-            rows = np.arange(first, first + chain.size)
-            if rows[-1] < line.vertices.size and np.array_equal(line.vertices[rows], chain):
-                target = between_junctions(
-                    np.asarray(rest, dtype=np.float64)[line.vertices], rows, curve_points, *(junctions[e] for e in ends)
-                )
-        between += target is not None
-        points = np.asarray(outcome.target if target is None else target, dtype=np.float64).reshape(-1, 3)
-        fractions = ()
-        if (
-            mapping is not None
-            and rest is not None
-            and not line.closed
-            and not curves.is_closed(points)
-            and (target is not None or mapping.centres.shape[0] >= MIN_MAP_POINTS)
-            and map_reaches(mapping, np.asarray(rest, dtype=np.float64)[chain], curve_points, max_distance)
-        ):
-            chain_rest = np.asarray(rest, dtype=np.float64)[chain]
-            if target is None and not curve_closed:
-                points = mapped_stretch(mapping, chain_rest, curve_points, points)
-            fractions = smooth_map.placements(mapping, chain_rest, points)
-        accepted[index] = curves.make_constraint(
-            chain, points, curves.FEATURE_LINE, confidence=float(outcome.confidence), fractions=fractions
-        )
-    free.sort(key=lambda item: item[0])
-    return Pairing(
-        [accepted[index] for index in sorted(accepted)], [(line, reason) for _index, line, reason in free], between
+
+
+def _accept(line, outcome, held: set, anchored, curves_found, max_distance, rest, junctions, mapping):
+    """The constraint (:class:`_Made`) for ``line`` from the kernel's ``outcome``, its vertices added to ``held``;
+    or the reason (a :data:`FREE_REASONS` key) it stays free. See :func:`pair_lines`."""
+    if outcome.curve is None:
+        return outcome.reason
+    chain = np.asarray(outcome.chain, dtype=np.int64)
+    if any(vertex in held and not anchored[vertex] for vertex in chain.tolist()):
+        return "CONSTRAINED"
+    held |= {vertex for vertex in chain.tolist() if not anchored[vertex]}
+    target = None
+    _kind, curve_points, curve_closed = curves_found[outcome.curve][:3]
+    ends = (int(line.vertices[0]), int(line.vertices[-1]))
+    if junctions and rest is not None and not line.closed and not curve_closed and all(e in junctions for e in ends):
+        first = int(np.flatnonzero(line.vertices == chain[0])[0])
+        rows = np.arange(first, first + chain.size)
+        if rows[-1] < line.vertices.size and np.array_equal(line.vertices[rows], chain):
+            target = line_placement.between_junctions(
+                np.asarray(rest, dtype=np.float64)[line.vertices], rows, curve_points, *(junctions[e] for e in ends)
+            )
+    points = np.asarray(outcome.target if target is None else target, dtype=np.float64).reshape(-1, 3)
+    fractions = ()
+    if (
+        mapping is not None
+        and rest is not None
+        and not line.closed
+        and not curves.is_closed(points)
+        and (target is not None or mapping.centres.shape[0] >= line_placement.MIN_MAP_POINTS)
+        and line_placement.map_reaches(mapping, np.asarray(rest, dtype=np.float64)[chain], curve_points, max_distance)
+    ):
+        chain_rest = np.asarray(rest, dtype=np.float64)[chain]
+        if target is None and not curve_closed:
+            points = line_placement.mapped_stretch(mapping, chain_rest, curve_points, points)
+        fractions = smooth_map.placements(mapping, chain_rest, points)
+    constraint = curves.make_constraint(
+        chain, points, curves.FEATURE_LINE, confidence=float(outcome.confidence), fractions=fractions
     )
+    return _Made(constraint, target is not None)
+
+
+OVERLAP_SHARE = 0.5
+"""A piece whose stretch of curve lies along a stretch already taken for more than this share of its points stays
+free (two layout lines on one feature)."""
+
+
+def _overlaps(points, taken: list, max_distance: float) -> bool:
+    """Whether more than :data:`OVERLAP_SHARE` of ``points`` ((P, 3), a piece's stretch) lie within a quarter of
+    ``max_distance`` of one of the ``taken`` stretches."""
+    return _along(points, taken, 0.25 * max_distance, OVERLAP_SHARE)
 
 
 def automatic_distance(median_edge: float) -> float:
@@ -450,7 +397,10 @@ def pairing_report(line_count: int, pairing: Pairing, listed: int = 5) -> tuple[
             "The layout has no feature lines: mark edges sharp (or give a vertex group or edge attribute), "
             "or lower the crease angle"
         )
-    text = f"Paired {paired} of {line_count} feature line{'' if line_count == 1 else 's'}"
+    lines_paired = paired - pairing.pieces + pairing.cut_lines
+    text = f"Paired {lines_paired} of {line_count} feature line{'' if line_count == 1 else 's'}"
+    if pairing.pieces:
+        text += f", {pairing.cut_lines} of them in {pairing.pieces} pieces (no curve takes them whole)"
     if paired:
         confidences = [constraint.confidence for constraint in pairing.constraints]
         text += f" (confidence {min(confidences):.2f} to {max(confidences):.2f})"

@@ -1,10 +1,13 @@
 """A smooth map of space through matched points, and where it places a chain along a curve (numpy, no ``bpy``).
 
-The map is a thin-plate spline in 3-D (radial basis ``r``, the biharmonic kernel, plus an affine part) that takes
-each source point exactly to its target and bends as little as it can between them: fitted on the layout's rest
-shape to where its anchors (and the corners matched on the target) are, it says where any other rest point belongs
-on the target, the anchors' way, without the fit's sliding. :func:`placements` maps a chain's rest points with it and
-projects them onto the curve the chain follows: where along that curve each vertex goes.
+The map is a polyharmonic spline in 3-D (radial basis ``r``, the biharmonic kernel, plus a polynomial part) that
+takes each source point exactly to its target and bends as little as it can between them: fitted on the layout's
+rest shape to where its anchors (and the corners matched on the target) are, it says where any other rest point
+belongs on the target, the anchors' way, without the fit's sliding. Its polynomial part is affine (a thin-plate
+spline) or quadratic (:func:`fit`'s degree 2: it follows a smooth design change that bends or tapers a part
+between few points, where it holds; the caller decides, from evidence the points do not give, whether it does).
+:func:`placements` maps a chain's rest points with it and projects them onto the curve the chain follows: where
+along that curve each vertex goes.
 """
 
 from typing import NamedTuple
@@ -16,19 +19,56 @@ from .edge_paths import cumulative_lengths
 MIN_POINTS = 4
 """Fewer matched points than this (or points all in one plane) fit no affine part: the map only moves by their mean
 offset."""
+MIN_QUADRATIC_POINTS = 20
+"""The fewest matched points through which a quadratic part is fitted (twice its ten terms a coordinate)."""
 
 
 class SmoothMap(NamedTuple):
-    """A fitted map: ``f(x) = [x, 1] @ affine + sum_i weights[i] * |x - centres[i]|``."""
+    """A fitted map: ``f(x) = basis(y) @ polynomial + sum_i weights[i] * |y - (centres[i] - origin) / scale|``
+    with ``y = (x - origin) / scale`` and ``basis(y)`` ``[1, y]`` (affine, 4 rows of ``polynomial``) or ``[1, y,
+    y_i y_j (i <= j)]`` (quadratic, 10 rows)."""
 
     centres: np.ndarray  # (K, 3) float64 the source points
     weights: np.ndarray  # (K, 3) float64
-    affine: np.ndarray  # (4, 3) float64
+    polynomial: np.ndarray  # (4, 3) or (10, 3) float64
+    origin: np.ndarray  # (3,) float64
+    scale: float
+
+    @property
+    def degree(self) -> int:
+        """1 for an affine polynomial part, 2 for a quadratic one."""
+        return 1 if self.polynomial.shape[0] == 4 else 2
 
 
-def fit(sources, targets) -> SmoothMap:
-    """The thin-plate map taking each of ``sources`` ((K, 3)) to the same row of ``targets``; a source given twice
-    counts once (its first target). Raises ValueError when there is no point."""
+def _basis(normalized: np.ndarray, degree: int) -> np.ndarray:
+    """(P, 4) or (P, 10): the polynomial terms of ``normalized`` points ((P, 3)) up to ``degree`` (1 or 2)."""
+    columns = [np.ones(normalized.shape[0])] + [normalized[:, axis] for axis in range(3)]
+    if degree == 2:
+        columns += [normalized[:, i] * normalized[:, j] for i in range(3) for j in range(i, 3)]
+    return np.stack(columns, axis=1)
+
+
+def _solve(kernel: np.ndarray, basis: np.ndarray, targets: np.ndarray):
+    """``(weights (K, 3), polynomial (B, 3))`` of the spline through ``targets`` with the polynomial terms ``basis``
+    ((K, B)), or None when the points do not fix those terms (too few, or all on one plane or quadric)."""
+    count, terms = basis.shape
+    if count < terms or np.linalg.matrix_rank(basis, tol=1e-9 * max(np.abs(basis).max(), 1e-300)) < terms:
+        return None
+    system = np.zeros((count + terms, count + terms))
+    system[:count, :count] = kernel
+    system[:count, count:] = basis
+    system[count:, :count] = basis.T
+    solution = np.linalg.lstsq(system, np.concatenate([targets, np.zeros((terms, 3))]), rcond=None)[0]
+    if not np.all(np.isfinite(solution)):
+        return None
+    return solution[:count], solution[count:]
+
+
+def fit(sources, targets, degree: int = 1) -> SmoothMap | None:
+    """The map taking each of ``sources`` ((K, 3)) to the same row of ``targets``; a source given twice counts once
+    (its first target). ``degree``: 1, an affine part (fewer than :data:`MIN_POINTS` points, or points in one plane:
+    the map moves everything by their mean offset); 2, a quadratic part, or None when there are fewer than
+    :data:`MIN_QUADRATIC_POINTS` points or they do not fix it. Raises ValueError when there is no point."""
     sources = np.asarray(sources, dtype=np.float64).reshape(-1, 3)
     targets = np.asarray(targets, dtype=np.float64).reshape(-1, 3)
     if sources.shape[0] == 0 or sources.shape != targets.shape:
@@ -37,27 +77,35 @@ def fit(sources, targets) -> SmoothMap:
     first = np.sort(first)
     sources, targets = sources[first], targets[first]
     count = sources.shape[0]
-    homogeneous = np.concatenate([sources, np.ones((count, 1))], axis=1)
-    centred = sources - sources.mean(axis=0)
-    if count < MIN_POINTS or np.linalg.matrix_rank(centred, tol=1e-9 * max(np.abs(centred).max(), 1e-300)) < 3:
-        affine = np.concatenate([np.eye(3), (targets - sources).mean(axis=0)[None, :]])
-        return SmoothMap(sources, np.zeros_like(sources), affine)
-    kernel = np.linalg.norm(sources[:, None, :] - sources[None, :, :], axis=2)
-    system = np.zeros((count + 4, count + 4))
-    system[:count, :count] = kernel
-    system[:count, count:] = homogeneous
-    system[count:, :count] = homogeneous.T
-    right = np.concatenate([targets, np.zeros((4, 3))])
-    solution = np.linalg.lstsq(system, right, rcond=None)[0]
-    return SmoothMap(sources, solution[:count], solution[count:])
+    origin = sources.mean(axis=0)
+    scale = float(np.abs(sources - origin).max())
+    if degree == 2 and count < MIN_QUADRATIC_POINTS:
+        return None
+    if count < MIN_POINTS or not scale > 0.0:
+        return None if degree == 2 else _moved(sources, targets)
+    normalized = (sources - origin) / scale
+    kernel = np.linalg.norm(normalized[:, None, :] - normalized[None, :, :], axis=2)
+    solved = _solve(kernel, _basis(normalized, degree), targets)
+    if solved is None:
+        return None if degree == 2 else _moved(sources, targets)
+    return SmoothMap(sources, solved[0], solved[1], origin, scale)
+
+
+def _moved(sources: np.ndarray, targets: np.ndarray) -> SmoothMap:
+    """The map that moves everything by the points' mean offset (too few points, or all in one plane)."""
+    polynomial = np.zeros((4, 3))
+    polynomial[0] = (targets - sources).mean(axis=0)
+    polynomial[1:] = np.eye(3)
+    return SmoothMap(sources, np.zeros_like(sources), polynomial, np.zeros(3), 1.0)
 
 
 def apply(mapping: SmoothMap, points) -> np.ndarray:
     """(P, 3) float64: ``points`` ((P, 3)) taken through the map."""
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    homogeneous = np.concatenate([points, np.ones((points.shape[0], 1))], axis=1)
-    distances = np.linalg.norm(points[:, None, :] - mapping.centres[None, :, :], axis=2)
-    return homogeneous @ mapping.affine + distances @ mapping.weights
+    normalized = (points - mapping.origin) / mapping.scale
+    centres = (mapping.centres - mapping.origin) / mapping.scale
+    distances = np.linalg.norm(normalized[:, None, :] - centres[None, :, :], axis=2)
+    return _basis(normalized, mapping.degree) @ mapping.polynomial + distances @ mapping.weights
 
 
 def placements(mapping: SmoothMap, chain_rest, polyline) -> np.ndarray:

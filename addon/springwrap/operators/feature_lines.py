@@ -25,7 +25,7 @@ from ..blender import anchors as anchor_data
 from ..blender import curves as curve_data
 from ..blender import feature_lines as line_data
 from ..blender.target import check_target, read_target
-from ..core import anchors, curves, feature_lines, openings
+from ..core import anchors, curves, feature_lines, line_placement, openings
 from .base import LayoutCollectionOperator
 
 PLACEMENT_ITEMS = (
@@ -139,10 +139,10 @@ class SPRINGWRAP_OT_feature_lines_pair(LayoutCollectionOperator, bpy.types.Opera
             junctions = feature_lines.match_junctions(
                 feature_lines.line_junctions(lines), lines_read.current, target_junctions, distance
             )
-        mapping = None
+        maps = []
         if self.placement == "MAPPED":
             kept = anchors.valid_vertex_mask(anchor_list, lines_read.current.shape[0]) & ~anchor_list.proposed
-            mapping = feature_lines.placement_map(
+            maps = line_placement.placement_maps(
                 lines_read.rest, anchor_list.vertex_indices[kept], anchor_list.locations[kept], junctions
             )
         pairing = feature_lines.pair_lines(
@@ -154,14 +154,14 @@ class SPRINGWRAP_OT_feature_lines_pair(LayoutCollectionOperator, bpy.types.Opera
             distance,
             rest=lines_read.rest,
             junctions=junctions,
-            mapping=mapping,
+            maps=maps,
             max_angle=self.max_angle,
             min_confidence=self.min_confidence,
         )
         opened = []
         if self.use_openings:
             opened = self.pair_openings(
-                depsgraph, layout, lines_read, existing + pairing.constraints, anchored, mapping
+                depsgraph, layout, lines_read, existing + pairing.constraints, anchored, pairing.mapping
             )
         curve_data.write_curve_constraints(
             layout, existing + pairing.constraints + [item for pair in opened for item in pair.constraints], -1
@@ -175,8 +175,9 @@ class SPRINGWRAP_OT_feature_lines_pair(LayoutCollectionOperator, bpy.types.Opera
             level = "INFO"
             text += "; " + openings.report_text(opened)
         text += f"; {len(junctions)} corners matched, {pairing.between_junctions} pairs between two"
-        if mapping is not None:
-            text += f", placed by a map through {mapping.centres.shape[0]} anchors and corners"
+        if pairing.mapping is not None:
+            shape = "quadratic" if pairing.mapping.degree == 2 else "affine"
+            text += f", placed by a map through {pairing.mapping.centres.shape[0]} anchors and corners ({shape})"
         text += (
             f"; {len(found_curves)} target features at scale {scale:.4g}, max distance {distance:.4g} "
             f"({time.perf_counter() - start:.2f} s)"
@@ -193,7 +194,7 @@ class SPRINGWRAP_OT_feature_lines_pair(LayoutCollectionOperator, bpy.types.Opera
         mesh = read_target(depsgraph, layout).mesh
         held = curves.constrained_vertices(held_constraints, anchored)
         found = []
-        if mapping is not None and mapping.centres.shape[0] < feature_lines.MIN_MAP_POINTS:
+        if mapping is not None and mapping.centres.shape[0] < line_placement.MIN_MAP_POINTS:
             mapping = None  # too coarse to place a lip along its rim: as the fit spaces it
         for slit, direction in slits:
             pair = openings.pair_slit(mesh, slit, lines_read.rest, lines_read.current, direction, mapping)
