@@ -275,40 +275,66 @@ def pair_lines(
         if isinstance(made, str):
             free.append((index, lines[index], made))
             continue
+        held |= made.held
         accepted[index] = made
         between += made.between
     constraints = [accepted[index].constraint for index in sorted(accepted)]
-    pieces_paired, paired_lines = 0, set()
-    if rest is not None:
-        corners = set(line_junctions(lines).tolist())
-        split = [
-            (index, line.kind, piece)
-            for index, line, reason in free
-            if reason in line_pieces.RETRIED
+    again = _pair_again(lines, free, current, curves_found, anchored, held, constraints, max_distance, rest, mapping, settings)
+    free = [item for item in free if item[0] not in again[1]]
+    free_pairs = [(line, reason) for _index, line, reason in sorted(free, key=lambda item: item[0])]
+    return Pairing(constraints + again[0], free_pairs, between, len(again[0]), len(again[1]), mapping)
+
+
+def _pair_again(lines, free, current, curves_found, anchored, held, constraints, max_distance, rest, mapping, settings):
+    """``(constraints, indices of the lines they come from)``: the free lines tried again in parts (see
+    :func:`pair_lines`): each one no curve takes whole cut into pieces (``line_pieces.pieces``); each one already
+    within its curve's accuracy across (a rounded crease's crest, located no better than the fit) whole, when the
+    map places it along a curve located to within :data:`PLACING_ACCURACY` max distances: the curve then says
+    where along the feature its vertices go, which the fit does not. A part that would follow a stretch another
+    pair follows stays free."""
+    if rest is None:
+        return [], set()
+    left_out = held | set(line_junctions(lines).tolist())
+    parts, exact_parts = [], []
+    for index, line, reason in free:
+        if reason in line_pieces.RETRIED:
             for piece in line_pieces.pieces(
-                line.vertices, line.closed, line.kind, rest, current, curves_found, max_distance, held | corners
-            )
-        ]
-        pieces = [FeatureLine(lines[index].kind, lines[index].source, piece, False, lines[index].dihedral) for index, _k, piece in split]
-        outcomes = _kernel_pairs(pieces, current, curves_found, max_distance, settings) if pieces else []
-        taken = [item.points for item in constraints]
-        for order in sorted(range(len(pieces)), key=lambda order: -(outcomes[order].confidence or 0.0)):
-            made = _accept(pieces[order], outcomes[order], held, anchored, curves_found, max_distance, rest, None, mapping)
-            if isinstance(made, str) or _overlaps(made.constraint.points, taken, max_distance):
+                line.vertices, line.closed, line.kind, rest, current, curves_found, max_distance, left_out
+            ):
+                parts.append((index, FeatureLine(line.kind, line.source, piece, False, line.dihedral)))
+        elif reason == "WITHIN_ACCURACY" and mapping is not None and not line.closed:
+            inner = line.vertices[~np.isin(line.vertices, np.fromiter(left_out, dtype=np.int64, count=len(left_out)))]
+            if inner.size >= line_pieces.MIN_PIECE and inner.size == np.ptp(np.flatnonzero(np.isin(line.vertices, inner))) + 1:
+                exact_parts.append((index, FeatureLine(line.kind, line.source, inner, False, line.dihedral)))
+    exact = [  # the curves located well enough to say where along them a line goes, taken as exact
+        (*curve[:3], 0.0, *curve[4:])
+        for curve in curves_found
+        if len(curve) < 4 or curve[3] <= PLACING_ACCURACY * max_distance
+    ]
+    made_list, sources, taken = [], set(), [item.points for item in constraints]
+    for group, found, mapped_only in ((parts, curves_found, False), (exact_parts, exact, True)):
+        if not group:
+            continue
+        outcomes = _kernel_pairs([line for _index, line in group], current, found, max_distance, settings)
+        for order in sorted(range(len(group)), key=lambda order: -(outcomes[order].confidence or 0.0)):
+            made = _accept(group[order][1], outcomes[order], held, anchored, found, max_distance, rest, None, mapping)
+            if (
+                isinstance(made, str)
+                or (mapped_only and made.constraint.fractions.size == 0)
+                or _overlaps(made.constraint.points, taken, max_distance)
+            ):
                 continue
-            constraints.append(made.constraint)
+            held |= made.held
+            made_list.append(made.constraint)
             taken.append(made.constraint.points)
-            paired_lines.add(split[order][0])
-            pieces_paired += 1
-        free = [item for item in free if item[0] not in paired_lines]
-    free.sort(key=lambda item: item[0])
-    free_pairs = [(line, reason) for _index, line, reason in free]
-    return Pairing(constraints, free_pairs, between, pieces_paired, len(paired_lines), mapping)
+            sources.add(group[order][0])
+    return made_list, sources
 
 
 class _Made(NamedTuple):
     constraint: object  # curves.CurveConstraint
     between: bool  # it runs between two matched junctions
+    held: set  # the vertices it holds (anchored ones left out)
 
 
 def _kernel_pairs(lines, current, curves_found, max_distance: float, settings: dict) -> list:
@@ -323,14 +349,13 @@ def _kernel_pairs(lines, current, curves_found, max_distance: float, settings: d
 
 
 def _accept(line, outcome, held: set, anchored, curves_found, max_distance, rest, junctions, mapping):
-    """The constraint (:class:`_Made`) for ``line`` from the kernel's ``outcome``, its vertices added to ``held``;
-    or the reason (a :data:`FREE_REASONS` key) it stays free. See :func:`pair_lines`."""
+    """The constraint (:class:`_Made`) for ``line`` from the kernel's ``outcome``, or the reason (a
+    :data:`FREE_REASONS` key) it stays free (``held``: the vertices other pairs hold). See :func:`pair_lines`."""
     if outcome.curve is None:
         return outcome.reason
     chain = np.asarray(outcome.chain, dtype=np.int64)
     if any(vertex in held and not anchored[vertex] for vertex in chain.tolist()):
         return "CONSTRAINED"
-    held |= {vertex for vertex in chain.tolist() if not anchored[vertex]}
     target = None
     _kind, curve_points, curve_closed = curves_found[outcome.curve][:3]
     ends = (int(line.vertices[0]), int(line.vertices[-1]))
@@ -358,9 +383,13 @@ def _accept(line, outcome, held: set, anchored, curves_found, max_distance, rest
     constraint = curves.make_constraint(
         chain, points, curves.FEATURE_LINE, confidence=float(outcome.confidence), fractions=fractions
     )
-    return _Made(constraint, target is not None)
+    return _Made(constraint, target is not None, {vertex for vertex in chain.tolist() if not anchored[vertex]})
 
 
+PLACING_ACCURACY = 0.1
+"""A line already within its curve's accuracy is tried again (placed along the curve by the map) only on a curve
+located to within this share of the max distance: a crease's crest, not a ridge traced from curvatures (whose
+accuracy is a tenth of the feature scale, and would pull the line across to where it is not)."""
 OVERLAP_SHARE = 0.5
 """A piece whose stretch of curve lies along a stretch already taken for more than this share of its points stays
 free (two layout lines on one feature)."""
