@@ -47,3 +47,34 @@ def test_placements_follow_the_map_along_the_curve_and_never_go_back():
     chain_rest = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.5, 0.0, 0.0], [2.4, 0.0, 0.0], [20.0, 0.0, 0.0]])
     curve = np.array([[0.0, 0.1, 0.0], [2.0, 0.1, 0.0], [10.0, 0.1, 0.0]])
     np.testing.assert_allclose(sm.placements(mapping, chain_rest, curve), [0.1, 0.2, 0.35, 0.35, 1.0], atol=1e-9)
+
+
+def bend(points):
+    """A smooth design change no affine map makes: the far end raised quadratically and the part tapered."""
+    points = np.asarray(points, dtype=np.float64)
+    moved = points.copy()
+    moved[:, 2] += 0.2 * points[:, 0] ** 2
+    moved[:, 1] *= 1.0 - 0.1 * points[:, 0]
+    return moved
+
+
+def box_points(count: int, seed: int = 3):
+    return np.random.default_rng(seed).uniform([0.0, 0.0, 0.0], [2.0, 1.0, 1.0], size=(count, 3))
+
+
+def test_a_quadratic_map_follows_a_bend_between_its_points_where_the_affine_one_does_not():
+    sources = box_points(24)
+    quadratic = sm.fit(sources, bend(sources), degree=2)
+    affine = sm.fit(sources, bend(sources))
+    assert (quadratic.degree, affine.degree) == (2, 1)
+    inside = box_points(50, seed=5)
+    np.testing.assert_allclose(sm.apply(quadratic, sources), bend(sources), atol=1e-8)
+    np.testing.assert_allclose(sm.apply(quadratic, inside), bend(inside), atol=1e-8)  # the bend, reproduced
+    assert np.abs(sm.apply(affine, inside) - bend(inside)).max() > 1e-3
+
+
+def test_no_quadratic_map_through_too_few_points_or_points_on_one_plane():
+    assert sm.fit(box_points(sm.MIN_QUADRATIC_POINTS - 1), box_points(sm.MIN_QUADRATIC_POINTS - 1), degree=2) is None
+    flat = box_points(30) * [1.0, 1.0, 0.0]
+    assert sm.fit(flat, flat, degree=2) is None
+    assert sm.fit(flat, flat + [0.0, 0.0, 1.0]).degree == 1  # the affine map through them moves them by their offset

@@ -264,14 +264,19 @@ def pair_lines(
     mapping = None
     if rest is not None and maps:
         chains = [
-            (np.asarray(rest, dtype=np.float64)[np.asarray(outcome.chain, dtype=np.int64)], curves_found[outcome.curve][1])
+            (
+                np.asarray(rest, dtype=np.float64)[np.asarray(outcome.chain, dtype=np.int64)],
+                curves_found[outcome.curve][1],
+            )
             for outcome in outcomes
             if outcome.curve is not None
         ]
         mapping = line_placement.choose_map(list(maps), chains)[0]
     accepted, free, between = {}, [], 0
     for index in sorted(range(len(lines)), key=lambda index: -(outcomes[index].confidence or 0.0)):
-        made = _accept(lines[index], outcomes[index], held, anchored, curves_found, max_distance, rest, junctions, mapping)
+        made = _accept(
+            lines[index], outcomes[index], held, anchored, curves_found, max_distance, rest, junctions, mapping
+        )
         if isinstance(made, str):
             free.append((index, lines[index], made))
             continue
@@ -279,7 +284,9 @@ def pair_lines(
         accepted[index] = made
         between += made.between
     constraints = [accepted[index].constraint for index in sorted(accepted)]
-    again = _pair_again(lines, free, current, curves_found, anchored, held, constraints, max_distance, rest, mapping, settings)
+    again = _pair_again(
+        lines, free, current, curves_found, anchored, held, constraints, max_distance, rest, mapping, settings
+    )
     free = [item for item in free if item[0] not in again[1]]
     free_pairs = [(line, reason) for _index, line, reason in sorted(free, key=lambda item: item[0])]
     return Pairing(constraints + again[0], free_pairs, between, len(again[0]), len(again[1]), mapping)
@@ -304,7 +311,10 @@ def _pair_again(lines, free, current, curves_found, anchored, held, constraints,
                 parts.append((index, FeatureLine(line.kind, line.source, piece, False, line.dihedral)))
         elif reason == "WITHIN_ACCURACY" and mapping is not None and not line.closed:
             inner = line.vertices[~np.isin(line.vertices, np.fromiter(left_out, dtype=np.int64, count=len(left_out)))]
-            if inner.size >= line_pieces.MIN_PIECE and inner.size == np.ptp(np.flatnonzero(np.isin(line.vertices, inner))) + 1:
+            if (
+                inner.size >= line_pieces.MIN_PIECE
+                and inner.size == np.ptp(np.flatnonzero(np.isin(line.vertices, inner))) + 1
+            ):
                 exact_parts.append((index, FeatureLine(line.kind, line.source, inner, False, line.dihedral)))
     exact = [  # the curves located well enough to say where along them a line goes, taken as exact
         (*curve[:3], 0.0, *curve[4:])

@@ -95,14 +95,14 @@ def pieces(vertices, closed: bool, kind: str, rest, current, curves_found, max_d
     labels = nearest_curves(np.asarray(current, dtype=np.float64)[vertices], curves_found, kind, max_distance)
     usable = (labels >= 0) & (turning <= SPLIT_DEGREES)
     usable &= ~np.isin(vertices, np.fromiter(left_out, dtype=np.int64, count=len(left_out)))
-    breaks = ~usable | np.concatenate([[True], labels[1:] != labels[:-1]])
-    if closed and usable.all() and labels[0] == labels[-1] and not breaks[1:].any():
+    changed = np.concatenate([[True], labels[1:] != labels[:-1]])
+    begins = usable & (changed | np.concatenate([[True], ~usable[:-1]]))  # a run begins after a cut
+    if closed and usable.all() and not changed[1:].any():
         return []
-    starts = np.flatnonzero(breaks & usable)
     found = []
-    for start in starts:
+    for start in np.flatnonzero(begins):
         end = start + 1
-        while end < vertices.size and usable[end] and not breaks[end]:
+        while end < vertices.size and usable[end] and not begins[end]:
             end += 1
         found.append(vertices[start:end])
     if closed and len(found) > 1 and usable[0] and usable[-1] and labels[0] == labels[-1]:

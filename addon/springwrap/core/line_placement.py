@@ -150,7 +150,10 @@ def choose_map(maps: list, chains: list):
     if not maps:
         return None, 0.0, 0.0
     misses = [sum(miss(mapping, chain, curve) for chain, curve in chains) for mapping in maps]
+    size = sum(
+        len(chain) * float(np.ptp(np.asarray(curve).reshape(-1, 3), axis=0).max(initial=0.0)) for chain, curve in chains
+    )
     best = int(np.argmin(misses))
-    if best == 0 or not misses[best] < QUADRATIC_MARGIN * misses[0]:
-        best = 0
+    if not misses[best] < QUADRATIC_MARGIN * misses[0] or misses[0] <= 1e-9 * size:
+        best = 0  # not clearly nearer (or the affine map already on the features, to rounding)
     return maps[best], misses[0], misses[best]
