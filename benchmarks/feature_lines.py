@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import sys
 import time
 from pathlib import Path
@@ -466,7 +467,10 @@ def markdown(result: dict) -> list[str]:
         "the target's, a line between two matched corners sharing out the crease between them by its rest "
         "length; Placement Anchors: each vertex where a smooth map through the anchors and the matched corners "
         "takes its rest point, projected onto its stretch, where the map comes within 0.4 max distances of the "
-        "feature, else as the fit spaces it); *as spaced* places each vertex where the fit spaces "
+        "feature, else as the fit spaces it; the map affine between its points, or quadratic where that takes the "
+        "paired lines' rest points clearly nearer their features; a line no curve takes whole cut where it jogs or "
+        "where its nearest curve changes, and the pieces paired; a line already within a crest's accuracy placed "
+        "along it by the map); *as spaced* places each vertex where the fit spaces "
         "it along its stretch; *junctions off* pairs each line with the stretch of crease where the fit has it.",
         "",
         "| target | anchors | feature pairing | pairs (mean confidence) | mean error, all | mean error, creases "
@@ -480,6 +484,23 @@ def markdown(result: dict) -> list[str]:
                 f"| {target['tessellation']} | {row['anchors']} | {pairing_label(row)} | "
                 f"{pairs} | {row['mean_all']:.3f} | {row['mean_crease']:.3f} | {row['p95_crease']:.3f} | "
                 f"{split(row, 'along_crease')} | {split(row, 'across_crease')} | {row['mean_crease_to_corner']:.3f} |"
+            )
+    lines.append("")
+    for target in targets:
+        rows = {(row["anchors"], row["pairing"], row.get("placement")): row for row in target["rows"]}
+        for (anchors, pairing, placement), row in rows.items():
+            without = rows.get((anchors, False, None))
+            if not pairing or placement != "MAPPED" or without is None or not row.get("junctions", True):
+                continue
+            ratio = without["mean_crease"] / row["mean_crease"] if row["mean_crease"] > 0 else float("inf")
+            shape = re.search(r"anchors and corners \((\w+)\)", row.get("report", ""))
+            lines.append(
+                f"- {target['tessellation']}, {anchors} anchors: creases {without['mean_crease']:.3f} → "
+                f"{row['mean_crease']:.3f} with the pairing, **{ratio:.2f}×** lower (aim 2×: "
+                f"{'met' if ratio >= 2.0 else 'missed'}); creases {row['mean_crease']:.3f} against all vertices "
+                f"{row['mean_all']:.3f} (aim ≤: {'met' if row['mean_crease'] <= row['mean_all'] else 'missed'})"
+                + (f"; the map {shape.group(1)}" if shape else "")
+                + "."
             )
     lines.append("")
     for target in targets:
