@@ -302,11 +302,12 @@ def _pair_again(lines, free, current, curves_found, anchored, held, constraints,
     if rest is None:
         return [], set()
     left_out = held | set(line_junctions(lines).tolist())
+    prepared = line_pieces.curve_index(curves_found)
     parts, exact_parts = [], []
     for index, line, reason in free:
         if reason in line_pieces.RETRIED:
             for piece in line_pieces.pieces(
-                line.vertices, line.closed, line.kind, rest, current, curves_found, max_distance, left_out
+                line.vertices, line.closed, line.kind, rest, current, prepared, max_distance, left_out
             ):
                 parts.append((index, FeatureLine(line.kind, line.source, piece, False, line.dihedral)))
         elif reason == "WITHIN_ACCURACY" and mapping is not None and not line.closed:

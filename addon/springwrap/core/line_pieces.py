@@ -10,6 +10,8 @@ runs as lines of their own (the kernel's tests of closeness, direction and lengt
 stretches along features are held and the jogs stay free.
 """
 
+from typing import NamedTuple
+
 import numpy as np
 
 SPLIT_DEGREES = 60.0
@@ -40,27 +42,51 @@ def turning_degrees(points) -> np.ndarray:
     return turning
 
 
-def nearest_curves(points, curves_found, kind: str, max_distance: float) -> np.ndarray:
-    """(P,) int64: for each of ``points`` ((P, 3)), the index in ``curves_found`` (``feature_lines.target_curves``'
-    tuples) of the nearest curve a line of ``kind`` may follow, when within ``max_distance``; else -1."""
+class CurveIndex(NamedTuple):
+    """The target curves prepared once for :func:`nearest_curves`: each one's kind, points and bounding box."""
+
+    kinds: np.ndarray  # (K,) str
+    points: list  # of (P, 3) float64
+    boxes: np.ndarray  # (K, 2, 3) float64 low and high corners
+
+
+def curve_index(curves_found) -> CurveIndex:
+    """:class:`CurveIndex` of ``curves_found`` (``feature_lines.target_curves``' tuples; curves of fewer than two
+    points get an empty box and are never nearest)."""
+    points = [np.asarray(curve[1], dtype=np.float64).reshape(-1, 3) for curve in curves_found]
+    boxes = np.array(
+        [
+            [p.min(axis=0), p.max(axis=0)] if p.shape[0] >= 2 else [np.full(3, np.inf), np.full(3, -np.inf)]
+            for p in points
+        ]
+    ).reshape(-1, 2, 3)
+    return CurveIndex(np.array([curve[0] for curve in curves_found], dtype=object), points, boxes)
+
+
+def nearest_curves(points, curves, kind: str, max_distance: float) -> np.ndarray:
+    """(P,) int64: for each of ``points`` ((P, 3)), the index in ``curves`` (a :class:`CurveIndex`, or
+    ``feature_lines.target_curves``' tuples) of the nearest curve a line of ``kind`` may follow, when within
+    ``max_distance``; else -1."""
+    index = curves if hasattr(curves, "boxes") else curve_index(curves)  # (a CurveIndex of any import of this module)
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     best = np.full(points.shape[0], np.inf)
     found = np.full(points.shape[0], -1, dtype=np.int64)
+    if points.shape[0] == 0 or index.boxes.shape[0] == 0:
+        return found
     allowed = CURVE_KINDS.get(kind)
-    for index, (curve_kind, curve_points, *_rest) in enumerate(curves_found):
-        if allowed is not None and curve_kind not in allowed:
-            continue
-        curve_points = np.asarray(curve_points, dtype=np.float64).reshape(-1, 3)
-        if curve_points.shape[0] < 2:
-            continue
-        low, high = curve_points.min(axis=0) - max_distance, curve_points.max(axis=0) + max_distance
-        inside = np.all((points >= low) & (points <= high), axis=1)
+    low, high = points.min(axis=0) - max_distance, points.max(axis=0) + max_distance
+    near = np.all((index.boxes[:, 0] <= high) & (index.boxes[:, 1] >= low), axis=1)
+    if allowed is not None:
+        near &= np.isin(index.kinds, allowed)
+    for curve in np.flatnonzero(near):
+        curve_low, curve_high = index.boxes[curve, 0] - max_distance, index.boxes[curve, 1] + max_distance
+        inside = np.all((points >= curve_low) & (points <= curve_high), axis=1)
         if not inside.any():
             continue
         distance = np.full(points.shape[0], np.inf)
-        distance[inside] = _distance_to_polyline(points[inside], curve_points)
+        distance[inside] = _distance_to_polyline(points[inside], index.points[curve])
         closer = (distance < best) & (distance <= max_distance)
-        best[closer], found[closer] = distance[closer], index
+        best[closer], found[closer] = distance[closer], curve
     return found
 
 
@@ -83,7 +109,8 @@ def pieces(vertices, closed: bool, kind: str, rest, current, curves_found, max_d
     ``vertices`` ((L,), ``closed`` when it loops): cut where it turns by more than :data:`SPLIT_DEGREES` on the rest
     shape (``rest``, (N, 3)), where its vertices' nearest curve of its kind (:func:`nearest_curves`, at their
     places under the fit ``current``) changes, and at vertices without a curve within ``max_distance`` or in
-    ``left_out`` (a set: vertices other constraints hold, corners where lines meet), which no piece takes.
+    ``left_out`` (a set: vertices other constraints hold, corners where lines meet), which no piece takes;
+    ``curves_found`` may be their :class:`CurveIndex` (built once for many lines).
     Empty when the line stays one piece: it was tried whole."""
     vertices = np.asarray(vertices, dtype=np.int64).reshape(-1)
     if vertices.size < MIN_PIECE:
