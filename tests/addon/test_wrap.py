@@ -541,9 +541,10 @@ def test_a_slow_display_gets_long_solving_frames_and_a_fast_one_short_ones():
     session.pacer.display_seconds = 0.0
     session.advance()
     fast_iterations = session.total_iterations - slow_iterations
-    # A 1/30 s frame: much less work, or the one iteration every frame runs (all a loaded machine fits in 0.6 s
-    # may be a few iterations).
-    assert fast_iterations == 1 or fast_iterations < slow_iterations / 4, (slow_iterations, fast_iterations)
+    # A 1/30 s frame: much less work, or the one iteration every frame runs and a second when the first took less
+    # than the frame (all a loaded machine fits in 0.6 s may be a few iterations: 5 against 2 on a lane run beside
+    # two others).
+    assert fast_iterations <= 2 or fast_iterations < slow_iterations / 4, (slow_iterations, fast_iterations)
     session.cancel()
     assert snapshot(layout) == before
 
