@@ -422,3 +422,12 @@ def ball_landmarks(vertices, count: int) -> np.ndarray:
     """The vertices nearest the first ``count`` bumps' tips (int64)."""
     tips = np.array([np.array(d) * (1.0 + height) for d, height in BUMPS[:count]])
     return np.array([int(np.argmin(np.linalg.norm(vertices - tip, axis=1))) for tip in tips], dtype=np.int64)
+
+
+def bend_and_taper(points):
+    """A smooth design change no affine map makes: a quadratic rise along x and a taper of y along it."""
+    points = np.asarray(points, dtype=np.float64)
+    moved = points.copy()
+    moved[:, 2] += 0.2 * points[:, 0] ** 2
+    moved[:, 1] *= 1.0 - 0.1 * points[:, 0]
+    return moved

@@ -3,18 +3,10 @@ line_placement.py``'s ``placement_maps`` and ``choose_map``), no Blender."""
 
 import numpy as np
 
+from helpers import bend_and_taper as bend
 from helpers import core_module
 
 lp = core_module("line_placement")
-
-
-def bend(points):
-    """A taper and a quadratic rise along x: a smooth design change no affine map makes."""
-    points = np.asarray(points, dtype=np.float64)
-    moved = points.copy()
-    moved[:, 2] += 0.2 * points[:, 0] ** 2
-    moved[:, 1] *= 1.0 - 0.1 * points[:, 0]
-    return moved
 
 
 def scene(change):

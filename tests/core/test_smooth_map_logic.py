@@ -4,6 +4,7 @@
 import numpy as np
 import pytest
 
+from helpers import bend_and_taper as bend
 from helpers import core_module
 
 sm = core_module("smooth_map")
@@ -47,15 +48,6 @@ def test_placements_follow_the_map_along_the_curve_and_never_go_back():
     chain_rest = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.5, 0.0, 0.0], [2.4, 0.0, 0.0], [20.0, 0.0, 0.0]])
     curve = np.array([[0.0, 0.1, 0.0], [2.0, 0.1, 0.0], [10.0, 0.1, 0.0]])
     np.testing.assert_allclose(sm.placements(mapping, chain_rest, curve), [0.1, 0.2, 0.35, 0.35, 1.0], atol=1e-9)
-
-
-def bend(points):
-    """A smooth design change no affine map makes: the far end raised quadratically and the part tapered."""
-    points = np.asarray(points, dtype=np.float64)
-    moved = points.copy()
-    moved[:, 2] += 0.2 * points[:, 0] ** 2
-    moved[:, 1] *= 1.0 - 0.1 * points[:, 0]
-    return moved
 
 
 def box_points(count: int, seed: int = 3):
