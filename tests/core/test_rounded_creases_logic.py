@@ -141,3 +141,13 @@ def test_a_mostly_curved_mesh_has_no_rounded_creases():
     sphere = positions / np.linalg.norm(positions, axis=1, keepdims=True)
     found = rc.rounded_creases(sphere, triangles, 30.0)
     assert found.curves == [] and found.junctions.shape == (0, 3)
+
+
+def test_the_corners_where_the_flanks_meet_are_the_box_s_sharp_corners():
+    """The rounded corners' junctions lie on the surface; the points where their flanks' planes meet are the sharp
+    corners the rounding cut off (what a layout's own sharp corner maps to)."""
+    positions, triangles = box()
+    found = rc.rounded_creases(positions, triangles, 30.0)
+    assert found.corners.shape == found.junctions.shape == (8, 3)
+    assert np.allclose(np.abs(found.corners), HALF, atol=0.1 * (2.0 / 24))  # the surface point is 0.5 edges off
+    assert np.all(np.linalg.norm(found.corners - found.junctions, axis=1) > 0.02)  # off the surface

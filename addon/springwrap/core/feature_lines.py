@@ -142,7 +142,10 @@ short sharp piece on a long rounded crease leaves the whole crease to pair with.
 
 def target_features(feature_curves, target_positions, triangles, crease_degrees: float = 0.0, scale: float = 0.0):
     """``(curves, junctions)``: :func:`target_curves`' curves, and (J, 3) float64 the target's crease junctions,
-    the points where two or more of its sharp or rounded creases end (a corner where creases meet)."""
+    the points where two or more of its sharp or rounded creases end (a corner where creases meet): a rounded
+    corner's where its flanks' planes meet, off the surface by its rounding, as the layout's sharp corner is (the
+    smooth map through the corners then takes the creases beside it onto their crests, not pulled along them
+    toward the rounding's middle)."""
     target_positions = np.ascontiguousarray(target_positions, dtype=np.float32)
     triangles = np.ascontiguousarray(triangles, dtype=np.uint32).reshape(-1, 3)
     chains = springwrap_kernel.layout_feature_lines(
@@ -186,11 +189,10 @@ def target_features(feature_curves, target_positions, triangles, crease_degrees:
             found.append((curve.kind, points, bool(curve.closed), RIDGE_ACCURACY_SCALES * scale))
     corners, uses = np.unique(np.asarray(ends, dtype=np.int64), return_counts=True)
     junctions = target_positions[corners[uses >= 2]].astype(np.float64)
-    if rounded.junctions.shape[0]:
-        apart = np.linalg.norm(rounded.junctions[:, None, :] - junctions[None, :, :], axis=2).min(
-            axis=1, initial=np.inf
-        )
-        junctions = np.concatenate([junctions, rounded.junctions[apart > scale]])
+    corners = rounded.junctions if rounded.corners is None else rounded.corners
+    if corners.shape[0]:
+        apart = np.linalg.norm(corners[:, None, :] - junctions[None, :, :], axis=2).min(axis=1, initial=np.inf)
+        junctions = np.concatenate([junctions, corners[apart > scale]])
     return found + borders, junctions
 
 

@@ -62,6 +62,7 @@ class RoundedCreases(NamedTuple):
     curves: list  # of (kind RIDGE or VALLEY, (P, 3) float32 points on the surface, closed)
     junctions: np.ndarray  # (J, 3) float64: the corners where two or more of them end, on the surface
     mean_edge: float = 0.0  # the mesh's mean edge length
+    corners: np.ndarray | None = None  # (J, 3) float64: those corners where their flanks' planes meet (off the surface)
 
 
 def edge_dihedrals(positions, triangles):
@@ -405,7 +406,7 @@ def rounded_creases(positions, triangles, crease_degrees: float) -> RoundedCreas
         junctions = np.asarray(
             surface.closest_points(np.ascontiguousarray(shared, dtype=np.float32)).positions, dtype=np.float64
         )
-    return RoundedCreases(found, junctions, mean_edge)
+    return RoundedCreases(found, junctions, mean_edge, np.asarray(shared, dtype=np.float64).reshape(-1, 3))
 
 
 ON_CREST_EDGES = 0.1
