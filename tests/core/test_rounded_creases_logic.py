@@ -151,3 +151,45 @@ def test_the_corners_where_the_flanks_meet_are_the_box_s_sharp_corners():
     assert found.corners.shape == found.junctions.shape == (8, 3)
     assert np.allclose(np.abs(found.corners), HALF, atol=0.1 * (2.0 / 24))  # the surface point is 0.5 edges off
     assert np.all(np.linalg.norm(found.corners - found.junctions, axis=1) > 0.02)  # off the surface
+
+
+def quad_cube(cells=4):
+    """(positions, face corners (flat), face sizes) of a cube -1..1 whose faces are ``cells`` x ``cells`` quads."""
+    points, faces, index = [], [], {}
+
+    def vertex(p):
+        key = tuple(np.round(p, 9))
+        if key not in index:
+            index[key] = len(points)
+            points.append(p)
+        return index[key]
+
+    steps = np.linspace(-1.0, 1.0, cells + 1)
+    for axis in range(3):
+        for side in (-1.0, 1.0):
+            u, v = [a for a in range(3) if a != axis]
+            for i in range(cells):
+                for j in range(cells):
+                    quad = []
+                    for di, dj in ((0, 0), (1, 0), (1, 1), (0, 1)):
+                        p = np.zeros(3)
+                        p[axis], p[u], p[v] = side, steps[i + di], steps[j + dj]
+                        quad.append(vertex(p))
+                    faces.append(quad if side > 0 else quad[::-1])
+    return np.array(points), np.array(faces).ravel(), np.full(len(faces), 4)
+
+
+def test_a_corner_vertex_beside_its_corner_is_taken_to_where_its_flanks_meet():
+    """A retopology put the cube's corner vertex 0.3 edges inside the corner: its corner is where the planes of its
+    three flanks meet; a vertex at its corner and a vertex in the middle of a face (no three flanks) stay."""
+    positions, corners, sizes = quad_cube()
+    corner = int(np.argmin(np.linalg.norm(positions - [1.0, 1.0, 1.0], axis=1)))
+    middle = int(np.argmin(np.linalg.norm(positions - [1.0, 0.0, 0.0], axis=1)))
+    other = int(np.argmin(np.linalg.norm(positions - [-1.0, -1.0, -1.0], axis=1)))
+    moved = positions.copy()
+    moved[corner] -= 0.3 * 0.5 / np.sqrt(3.0)  # 0.3 of an edge (0.5) toward the centre
+    found = rc.sharp_corners(moved, corners, sizes, [corner, other, middle], 30.0)
+    np.testing.assert_allclose(found[0], [1.0, 1.0, 1.0], atol=1e-6)
+    np.testing.assert_allclose(found[1:], moved[[other, middle]])
+    assert rc.sharp_corners(moved, corners, sizes, [corner], 0.0).tolist() == [moved[corner].tolist()]
+    assert rc.sharp_corners(moved, corners, sizes, [], 30.0).shape == (0, 3)

@@ -234,6 +234,18 @@ def match_junctions(vertices, current, junction_points, max_distance: float) -> 
     }
 
 
+def cornered_rest(rest, face_corners, face_sizes, corners, crease_degrees: float) -> np.ndarray:
+    """A copy of the layout's rest shape (``rest``, (N, 3)) with each of ``corners`` (layout vertices where its
+    creases meet) moved to where its flanks' planes meet when a retopology put it beside that point
+    (``rounded_creases.sharp_corners``): the smooth map and the share-out between matched corners then start from
+    the part's corner, as the target's corners are."""
+    moved = np.array(rest, dtype=np.float64).reshape(-1, 3)
+    corners = np.asarray(list(corners), dtype=np.int64).reshape(-1)
+    if corners.size:
+        moved[corners] = rounded_creases.sharp_corners(moved, face_corners, face_sizes, corners, crease_degrees)
+    return moved
+
+
 def pair_lines(
     lines,
     current,

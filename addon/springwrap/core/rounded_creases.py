@@ -98,11 +98,13 @@ def _sum_columns(index: np.ndarray, values: np.ndarray, count: int) -> np.ndarra
     return np.stack([np.bincount(index, values[:, column], minlength=count) for column in range(values.shape[1])], 1)
 
 
-def flank_quadrics(positions, triangles, crease_degrees: float):
-    """(N, 19) per vertex: the flat triangles' planes within :data:`RINGS` rings, area-weighted, summed as
+def flank_quadrics(
+    positions, triangles, crease_degrees: float, rings: int = RINGS, min_flat_area: float = MIN_FLAT_AREA
+):
+    """(N, 19) per vertex: the flat triangles' planes within ``rings`` rings, area-weighted, summed as
     ``A = Σ w n nᵀ`` (9 columns), ``b = Σ w (n·c) n`` (3), the first moment ``Σ w n`` (3), ``Σ w (n·c)²`` (1)
-    and ``Σ w c`` (3), ``c`` a triangle's centroid (None when less than :data:`MIN_FLAT_AREA` of the mesh's area
-    is in flat triangles: not a machined part); and the mesh's mean edge length."""
+    and ``Σ w c`` (3), ``c`` a triangle's centroid (None when less than ``min_flat_area`` of the mesh's area is in
+    flat triangles: not a machined part); and the mesh's mean edge length."""
     positions = np.asarray(positions, dtype=np.float64)
     triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
     keys, slot, angle, normals, areas = edge_dihedrals(positions, triangles)
@@ -112,7 +114,7 @@ def flank_quadrics(positions, triangles, crease_degrees: float):
     weights = areas * (bend < FLAT_SHARE * crease_degrees)
     lengths = np.linalg.norm(positions[keys[:, 0]] - positions[keys[:, 1]], axis=1)
     mean_edge = float(lengths.mean()) if lengths.size else 0.0
-    if not weights.sum() >= MIN_FLAT_AREA * areas.sum() or not areas.sum() > 0.0:
+    if not weights.sum() >= min_flat_area * areas.sum() or not areas.sum() > 0.0:
         return None, mean_edge
     offsets = np.einsum("ij,ij->i", normals, positions[triangles].mean(axis=1))
     per_face = np.concatenate(
@@ -127,7 +129,7 @@ def flank_quadrics(positions, triangles, crease_degrees: float):
     )
     vertex_count = positions.shape[0]
     summed = sum(_sum_columns(triangles[:, corner], per_face, vertex_count) for corner in range(3))
-    for _ring in range(RINGS - 1):
+    for _ring in range(rings - 1):
         summed = (
             summed
             + _sum_columns(keys[:, 0], summed[keys[:, 1]], vertex_count)
@@ -433,3 +435,55 @@ def on_lines(points, polylines, distance: float) -> bool:
             np.min(np.sum((block - starts - t[..., None] * steps) ** 2, axis=2), axis=1)
         )
     return bool(np.median(nearest) <= distance)
+
+
+CORNER_RINGS = 2
+"""The rings of faces round a layout's corner vertex whose planes say where its corner is: its flanks, not the
+next crease (a layout's faces are far larger than a scan's triangles)."""
+OFF_CORNER = 0.08
+"""A layout's corner vertex lies off its corner when its distance from its flanks' planes (root mean square) is
+more than this share of a mean edge: a retopology that put the vertex beside the corner (a sharp corner's vertex
+lies on its planes to a few hundredths of an edge)."""
+CORNER_FIT = 0.05
+"""The largest root-mean-square distance (mean edges) of the flanks' planes from their meeting point for it to be
+taken: three flat flanks meet at one point, the facets of curved ones do not."""
+CORNER_REACH = 0.5
+"""The farthest (mean edges) a layout's corner vertex is taken to where its flanks meet."""
+
+
+def sharp_corners(positions, face_corners, face_sizes, vertices, crease_degrees: float) -> np.ndarray:
+    """(K, 3) float64: for each of ``vertices`` ((K,), corners where a layout's creases meet) of the polygon mesh
+    (``positions`` (N, 3), ``face_corners`` flat, ``face_sizes``), the point where the planes of its flat flanks
+    within :data:`CORNER_RINGS` rings meet when it lies off them (:data:`OFF_CORNER`) and they meet well at one
+    point (:data:`CORNER_FIT`, three directions of normal) within :data:`CORNER_REACH`; else the vertex itself.
+    What a retopology's corner vertex beside the part's corner stands for: the corner."""
+    positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+    vertices = np.asarray(vertices, dtype=np.int64).reshape(-1)
+    found = positions[vertices].copy()
+    sizes = np.asarray(face_sizes, dtype=np.int64).reshape(-1)
+    if vertices.size == 0 or sizes.size == 0 or not crease_degrees > 0.0:
+        return found
+    corners = np.asarray(face_corners, dtype=np.int64).reshape(-1)
+    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    fan = [
+        np.stack([corners[starts[sizes > k]], corners[starts[sizes > k] + k - 1], corners[starts[sizes > k] + k]], 1)
+        for k in range(2, int(sizes.max()))
+    ]
+    triangles = np.concatenate(fan) if fan else np.zeros((0, 3), dtype=np.int64)
+    quadrics, mean_edge = flank_quadrics(positions, triangles, crease_degrees, CORNER_RINGS, min_flat_area=0.0)
+    if quadrics is None or not mean_edge > 0.0:
+        return found
+    for row, vertex in enumerate(vertices.tolist()):
+        matrix, offset, squares = quadrics[vertex, :9].reshape(3, 3), quadrics[vertex, 9:12], quadrics[vertex, 15]
+        values = np.linalg.eigvalsh(matrix)
+        total = values.sum()
+        if not total > 0.0 or values[0] < CORNER_SHARE * total:
+            continue  # fewer than three flanks
+        meeting = np.linalg.solve(matrix, offset)
+        point = positions[vertex]
+        off, fit = (
+            np.sqrt(max(squares - 2.0 * offset @ p + p @ matrix @ p, 0.0) / total) / mean_edge for p in (point, meeting)
+        )
+        if off > OFF_CORNER and fit <= CORNER_FIT and np.linalg.norm(meeting - point) <= CORNER_REACH * mean_edge:
+            found[row] = meeting
+    return found

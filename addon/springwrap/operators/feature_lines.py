@@ -139,11 +139,14 @@ class SPRINGWRAP_OT_feature_lines_pair(LayoutCollectionOperator, bpy.types.Opera
             junctions = feature_lines.match_junctions(
                 feature_lines.line_junctions(lines), lines_read.current, target_junctions, distance
             )
+        rest = feature_lines.cornered_rest(
+            lines_read.rest, lines_read.face_corners, lines_read.face_sizes, junctions, self.crease_angle
+        )
         maps = []
         if self.placement == "MAPPED":
             kept = anchors.valid_vertex_mask(anchor_list, lines_read.current.shape[0]) & ~anchor_list.proposed
             maps = line_placement.placement_maps(
-                lines_read.rest, anchor_list.vertex_indices[kept], anchor_list.locations[kept], junctions
+                rest, anchor_list.vertex_indices[kept], anchor_list.locations[kept], junctions
             )
         pairing = feature_lines.pair_lines(
             lines,
@@ -152,7 +155,7 @@ class SPRINGWRAP_OT_feature_lines_pair(LayoutCollectionOperator, bpy.types.Opera
             anchored,
             existing,
             distance,
-            rest=lines_read.rest,
+            rest=rest,
             junctions=junctions,
             maps=maps,
             max_angle=self.max_angle,
