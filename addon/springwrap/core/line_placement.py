@@ -121,12 +121,14 @@ def placement_maps(rest, vertices, locations, junctions=None) -> list:
     """``[affine, quadratic]`` (:func:`smooth_map.fit`, degrees 1 and 2; the quadratic left out when the points do
     not fix one) from the layout's rest shape (``rest``, (N, 3) world) to the target through the anchored
     ``vertices`` ((K,)) and their target ``locations`` ((K, 3) world) and the matched ``junctions`` (``{layout
-    vertex: target point}``); empty without any point."""
+    vertex: target point}``); empty without any point. An anchored corner goes where its matched corner is: the
+    anchor (a point on the surface, inside a rounded corner) says which corner, the corner (where the target's
+    flanks meet) where the sharp point the layout's corner stands for is."""
     vertices = np.asarray(vertices, dtype=np.int64).reshape(-1)
     locations = np.asarray(locations, dtype=np.float64).reshape(-1, 3)
-    if junctions:
-        vertices = np.concatenate([vertices, np.fromiter(junctions, dtype=np.int64, count=len(junctions))])
-        locations = np.concatenate([locations, np.array(list(junctions.values()), dtype=np.float64)])
+    if junctions:  # first: a source given twice keeps its first target
+        vertices = np.concatenate([np.fromiter(junctions, dtype=np.int64, count=len(junctions)), vertices])
+        locations = np.concatenate([np.array(list(junctions.values()), dtype=np.float64), locations])
     if vertices.size == 0:
         return []
     sources = np.asarray(rest, dtype=np.float64)[vertices]
