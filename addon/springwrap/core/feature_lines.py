@@ -286,10 +286,11 @@ def pair_lines(
             if outcome.curve is not None
         ]
         mapping = line_placement.choose_map(list(maps), chains)[0]
+    mappings = [] if mapping is None else [mapping] + [other for other in maps if other is not mapping]
     accepted, free, between = {}, [], 0
     for index in sorted(range(len(lines)), key=lambda index: -(outcomes[index].confidence or 0.0)):
         made = _accept(
-            lines[index], outcomes[index], held, anchored, curves_found, max_distance, rest, junctions, mapping
+            lines[index], outcomes[index], held, anchored, curves_found, max_distance, rest, junctions, mappings
         )
         if isinstance(made, str):
             free.append((index, lines[index], made))
@@ -299,14 +300,16 @@ def pair_lines(
         between += made.between
     constraints = [accepted[index].constraint for index in sorted(accepted)]
     again = _pair_again(
-        lines, free, current, curves_found, anchored, held, constraints, max_distance, rest, mapping, settings
+        lines, free, current, curves_found, anchored, held, constraints, max_distance, rest, mappings, settings
     )
     free = [item for item in free if item[0] not in again[1]]
     free_pairs = [(line, reason) for _index, line, reason in sorted(free, key=lambda item: item[0])]
     return Pairing(constraints + again[0], free_pairs, between, len(again[0]), len(again[1]), mapping)
 
 
-def _pair_again(lines, free, current, curves_found, anchored, held, constraints, max_distance, rest, mapping, settings):
+def _pair_again(
+    lines, free, current, curves_found, anchored, held, constraints, max_distance, rest, mappings, settings
+):
     """``(constraints, indices of the lines they come from)``: the free lines tried again in parts (see
     :func:`pair_lines`): each one no curve takes whole cut into pieces (``line_pieces.pieces``); each one already
     within its curve's accuracy across (a rounded crease's crest, located no better than the fit) whole, when the
@@ -324,7 +327,7 @@ def _pair_again(lines, free, current, curves_found, anchored, held, constraints,
                 line.vertices, line.closed, line.kind, rest, current, prepared, max_distance, left_out
             ):
                 parts.append((index, FeatureLine(line.kind, line.source, piece, False, line.dihedral)))
-        elif reason == "WITHIN_ACCURACY" and mapping is not None and not line.closed:
+        elif reason == "WITHIN_ACCURACY" and mappings and not line.closed:
             inner = line.vertices[~np.isin(line.vertices, np.fromiter(left_out, dtype=np.int64, count=len(left_out)))]
             if (
                 inner.size >= line_pieces.MIN_PIECE
@@ -342,7 +345,7 @@ def _pair_again(lines, free, current, curves_found, anchored, held, constraints,
             continue
         outcomes = _kernel_pairs([line for _index, line in group], current, found, max_distance, settings)
         for order in sorted(range(len(group)), key=lambda order: -(outcomes[order].confidence or 0.0)):
-            made = _accept(group[order][1], outcomes[order], held, anchored, found, max_distance, rest, None, mapping)
+            made = _accept(group[order][1], outcomes[order], held, anchored, found, max_distance, rest, None, mappings)
             if (
                 isinstance(made, str)
                 or (mapped_only and made.constraint.fractions.size == 0)
@@ -373,9 +376,10 @@ def _kernel_pairs(lines, current, curves_found, max_distance: float, settings: d
     )
 
 
-def _accept(line, outcome, held: set, anchored, curves_found, max_distance, rest, junctions, mapping):
+def _accept(line, outcome, held: set, anchored, curves_found, max_distance, rest, junctions, mappings):
     """The constraint (:class:`_Made`) for ``line`` from the kernel's ``outcome``, or the reason (a
-    :data:`FREE_REASONS` key) it stays free (``held``: the vertices other pairs hold). See :func:`pair_lines`."""
+    :data:`FREE_REASONS` key) it stays free (``held``: the vertices other pairs hold; ``mappings``: the smooth maps
+    that may place it, the chosen one first). See :func:`pair_lines`."""
     if outcome.curve is None:
         return outcome.reason
     chain = np.asarray(outcome.chain, dtype=np.int64)
@@ -393,15 +397,17 @@ def _accept(line, outcome, held: set, anchored, curves_found, max_distance, rest
             )
     points = np.asarray(outcome.target if target is None else target, dtype=np.float64).reshape(-1, 3)
     fractions = ()
-    if (
-        mapping is not None
-        and rest is not None
-        and not line.closed
-        and not curves.is_closed(points)
-        and (target is not None or mapping.centres.shape[0] >= line_placement.MIN_MAP_POINTS)
-        and line_placement.map_reaches(mapping, np.asarray(rest, dtype=np.float64)[chain], curve_points, max_distance)
-    ):
-        chain_rest = np.asarray(rest, dtype=np.float64)[chain]
+    chain_rest = None if rest is None else np.asarray(rest, dtype=np.float64)[chain]
+    mapping = next(  # the chosen map, or another candidate where it misses the feature and that one reaches it
+        (
+            candidate
+            for candidate in mappings
+            if (target is not None or candidate.centres.shape[0] >= line_placement.MIN_MAP_POINTS)
+            and line_placement.map_reaches(candidate, chain_rest, curve_points, max_distance)
+        ),
+        None,
+    )
+    if mapping is not None and not line.closed and not curves.is_closed(points):
         if target is None and not curve_closed:
             points = line_placement.mapped_stretch(mapping, chain_rest, curve_points, points)
         fractions = smooth_map.placements(mapping, chain_rest, points)
