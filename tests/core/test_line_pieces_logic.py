@@ -122,3 +122,26 @@ def test_a_line_within_a_crest_s_accuracy_is_placed_along_it_when_the_map_places
     rest, current, row, curves, maps = slid_row_on_a_crest(0.2)
     coarse = fl.pair_lines([row], current, curves, anchored, [], 0.5, rest=rest, maps=maps)
     assert not coarse.constraints and coarse.free[0][1] == "WITHIN_ACCURACY"
+
+
+def test_a_line_the_chosen_map_misses_is_placed_by_another_map_that_reaches_it():
+    """Two rows (the fit has row B on its ridge, 0.6 aside of its rest place): the first map lands row A on its ridge
+    and misses row B's (past the reach), the second the other way round. The first is chosen (it misses less in
+    all); row B is placed by the second."""
+    sm = core_module("smooth_map")
+    row_a, row_b = straight(9), straight(5, (0.0, 4.0, 0.0))
+    rest = np.concatenate([row_a, row_b])
+    curves = [ridge(-1, 9), ridge(-1, 5, y=4.6)]
+    grid = np.stack(np.meshgrid(np.arange(0.0, 9.0, 2.0), np.arange(0.0, 5.0, 2.0), [0.0, 1.0]), -1).reshape(-1, 3)
+    first = sm.fit(grid, grid + [0.0, 0.0, 0.05])
+    second = sm.fit(grid, grid + [0.0, 0.6, 0.05])
+    lines = [line(range(9)), line(range(9, 14))]
+    anchored = np.zeros(len(rest), dtype=bool)
+    current = rest.copy()
+    current[9:, 1] += 0.6
+    pairing = fl.pair_lines(lines, current, curves, anchored, [], 1.0, rest=rest, maps=[first, second])
+    assert pairing.mapping is first
+    placed = {int(c.layout_vertices[0]): c.fractions.size for c in pairing.constraints}
+    assert placed[0] == 9 and placed[9] == 5  # both placed by a map (row B by the second)
+    alone = fl.pair_lines(lines, current, curves, anchored, [], 1.0, rest=rest, maps=[first])
+    assert {int(c.layout_vertices[0]): c.fractions.size for c in alone.constraints} == {0: 9, 9: 0}  # B as spaced

@@ -268,8 +268,8 @@ def pair_lines(
     features (``line_placement.choose_map``, ``Pairing.mapping``) places each vertex of an open line where it
     takes its rest point, projected onto the line's stretch (``smooth_map.placements``), instead of where the fit
     spaces it (a line not between matched corners only when the map runs through
-    ``line_placement.MIN_MAP_POINTS`` points or more; no line where the map misses its feature,
-    ``line_placement.map_reaches``). A line no curve takes whole is then cut into pieces that each
+    ``line_placement.MIN_MAP_POINTS`` points or more; a line the chosen map misses,
+    ``line_placement.map_reaches``, by another of ``maps`` that reaches it, or as spaced). A line no curve takes whole is then cut into pieces that each
     run beside one curve (``line_pieces.pieces``, with ``rest``), and those are paired the same way: a pair
     made so counts in ``Pairing.pieces``, and the line is free only when none of its pieces pairs.
     ``settings``: ``max_angle`` (degrees), ``min_confidence``."""
