@@ -193,3 +193,6 @@ def test_a_corner_vertex_beside_its_corner_is_taken_to_where_its_flanks_meet():
     np.testing.assert_allclose(found[1:], moved[[other, middle]])
     assert rc.sharp_corners(moved, corners, sizes, [corner], 0.0).tolist() == [moved[corner].tolist()]
     assert rc.sharp_corners(moved, corners, sizes, [], 30.0).shape == (0, 3)
+    lost = moved.copy()
+    lost[corner - 1 if corner else corner + 1] = np.nan  # a vertex beside it lost (a diverged wrap's)
+    assert np.isfinite(rc.sharp_corners(lost, corners, sizes, [corner, other], 30.0)[1]).all()

@@ -470,11 +470,14 @@ def sharp_corners(positions, face_corners, face_sizes, vertices, crease_degrees:
         for k in range(2, int(sizes.max()))
     ]
     triangles = np.concatenate(fan) if fan else np.zeros((0, 3), dtype=np.int64)
-    quadrics, mean_edge = flank_quadrics(positions, triangles, crease_degrees, CORNER_RINGS, min_flat_area=0.0)
+    with np.errstate(invalid="ignore"):  # a lost (not finite) vertex: its faces' quadrics are skipped below
+        quadrics, mean_edge = flank_quadrics(positions, triangles, crease_degrees, CORNER_RINGS, min_flat_area=0.0)
     if quadrics is None or not mean_edge > 0.0:
         return found
     for row, vertex in enumerate(vertices.tolist()):
         matrix, offset, squares = quadrics[vertex, :9].reshape(3, 3), quadrics[vertex, 9:12], quadrics[vertex, 15]
+        if not np.all(np.isfinite(quadrics[vertex])):
+            continue  # a face of a lost vertex (not finite) among its flanks
         values = np.linalg.eigvalsh(matrix)
         total = values.sum()
         if not total > 0.0 or values[0] < CORNER_SHARE * total:
