@@ -106,10 +106,8 @@ error, and a map farther off (few anchors, far from them) would place the chain 
 def map_reaches(mapping, chain_rest, curve_points, max_distance: float) -> bool:
     """Whether ``mapping`` takes ``chain_rest`` ((C, 3)) within :data:`MAP_REACH` maximum distances (mean) of the
     polyline ``curve_points``."""
-    curve_points = np.asarray(curve_points, dtype=np.float64).reshape(-1, 3)
-    cumulative = cumulative_lengths(curve_points)
-    across = [parameter(curve_points, cumulative, point)[1] for point in smooth_map.apply(mapping, chain_rest)]
-    return bool(np.mean(across) <= MAP_REACH * max_distance)
+    count = np.asarray(chain_rest).reshape(-1, 3).shape[0]
+    return bool(count and miss(mapping, chain_rest, curve_points) <= MAP_REACH * max_distance * count)
 
 
 QUADRATIC_MARGIN = 0.8
