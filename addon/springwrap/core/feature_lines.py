@@ -269,9 +269,10 @@ def pair_lines(
     takes its rest point, projected onto the line's stretch (``smooth_map.placements``), instead of where the fit
     spaces it (a line not between matched corners only when the map runs through
     ``line_placement.MIN_MAP_POINTS`` points or more; a line the chosen map misses,
-    ``line_placement.map_reaches``, by another of ``maps`` that reaches it, or as spaced). A line no curve takes whole is then cut into pieces that each
-    run beside one curve (``line_pieces.pieces``, with ``rest``), and those are paired the same way: a pair
-    made so counts in ``Pairing.pieces``, and the line is free only when none of its pieces pairs.
+    ``line_placement.map_reaches``, by another of ``maps`` that reaches it, or as spaced). The free lines are then
+    tried again in parts (:func:`_pair_again`: pieces of a line no curve takes whole, a line within a crest's
+    accuracy placed along it): a pair made so counts in ``Pairing.pieces``, and such a line is free only when
+    none of its parts pairs.
     ``settings``: ``max_angle`` (degrees), ``min_confidence``."""
     held = curves.constrained_vertices(existing, anchored)
     outcomes = _kernel_pairs(lines, current, curves_found, max_distance, settings)
