@@ -468,7 +468,7 @@ def markdown(result: dict) -> list[str]:
         "length; Placement Anchors: each vertex where a smooth map through the anchors and the matched corners "
         "takes its rest point, projected onto its stretch, where the map comes within 0.4 max distances of the "
         "feature, else by the other map where that one does, else as the fit spaces it; the map affine between its "
-        "points, or quadratic where that takes the paired lines' rest points clearly nearer their features; the "
+        "points, or quadratic where that takes the paired lines' rest points nearer their features; the "
         "corners where the flanks' planes meet, on the target and on the layout; a line no curve takes whole cut "
         "where it jogs or "
         "where its nearest curve changes, and the pieces paired; a line already within a crest's accuracy placed "

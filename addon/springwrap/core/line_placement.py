@@ -4,7 +4,7 @@ A paired line's stretch of target curve, and each vertex's place along it: betwe
 target, the curve between them shared out by the rest shape's arc length (:func:`between_junctions`); elsewhere
 the stretch and places the smooth map through the anchors and matched corners gives (:func:`mapped_stretch`,
 ``smooth_map.placements``) where that map reaches the feature (:func:`map_reaches`). The map is affine between its
-points (a thin-plate spline) unless a quadratic one lands the paired lines clearly closer to their features
+points (a thin-plate spline) unless a quadratic one lands the paired lines closer to their features
 (:func:`choose_map`): how far a map takes a line's rest points from its feature is evidence its points do not give.
 """
 
@@ -110,11 +110,6 @@ def map_reaches(mapping, chain_rest, curve_points, max_distance: float) -> bool:
     return bool(count and miss(mapping, chain_rest, curve_points) <= MAP_REACH * max_distance * count)
 
 
-QUADRATIC_MARGIN = 0.8
-"""The quadratic map is chosen only when the paired lines' rest points land, in all, closer to their features than
-this share of the affine map's distance: the simpler map unless the other is clearly better."""
-
-
 def placement_maps(rest, vertices, locations, junctions=None) -> list:
     """``[affine, quadratic]`` (:func:`smooth_map.fit`, degrees 1 and 2; the quadratic left out when the points do
     not fix one) from the layout's rest shape (``rest``, (N, 3) world) to the target through the anchored
@@ -143,10 +138,10 @@ def miss(mapping, chain_rest, curve_points) -> float:
 
 
 def choose_map(maps: list, chains: list):
-    """``(map, affine miss, chosen miss)``: of ``maps`` (:func:`placement_maps`: the affine one first), the affine
-    one unless another takes ``chains`` (``(chain rest points (C, 3), curve points (P, 3))`` of the paired lines)
-    nearer their curves, in all, than :data:`QUADRATIC_MARGIN` of the affine one's distance (:func:`miss`); None
-    (and zeros) without maps."""
+    """``(map, affine miss, chosen miss)``: of ``maps`` (:func:`placement_maps`: the affine one first), the one that
+    takes ``chains`` (``(chain rest points (C, 3), curve points (P, 3))`` of the paired lines) nearest their curves
+    in all (:func:`miss`), the affine one on a tie (both on the features, to rounding); None (and zeros) without
+    maps."""
     if not maps:
         return None, 0.0, 0.0
     misses = [sum(miss(mapping, chain, curve) for chain, curve in chains) for mapping in maps]
@@ -154,6 +149,6 @@ def choose_map(maps: list, chains: list):
         len(chain) * float(np.ptp(np.asarray(curve).reshape(-1, 3), axis=0).max(initial=0.0)) for chain, curve in chains
     )
     best = int(np.argmin(misses))
-    if not misses[best] < QUADRATIC_MARGIN * misses[0] or misses[0] <= 1e-9 * size:
-        best = 0  # not clearly nearer (or the affine map already on the features, to rounding)
+    if misses[0] - misses[best] <= 1e-9 * size:
+        best = 0  # no nearer, to rounding
     return maps[best], misses[0], misses[best]
