@@ -82,7 +82,8 @@ def test_pair_lines_pairs_a_line_no_curve_takes_whole_in_pieces():
     assert (cut.pieces, cut.cut_lines, cut.free) == (2, 1, [])
     assert sorted(v for c in cut.constraints for v in c.layout_vertices.tolist()) == list(range(9))
     level, text = fl.pairing_report(1, cut)
-    assert level == "INFO" and "Paired 1 of 1 feature line, 1 of them in 2 pieces" in text
+    assert level == "INFO" and text.startswith("Paired 1 of 1 feature line (confidence")
+    assert ", 1 of them in 2 pieces where no feature takes them whole" in text
 
 
 def test_pair_lines_leaves_the_jog_free_and_pairs_the_run_beside_the_ridge():

@@ -460,11 +460,11 @@ def pairing_report(line_count: int, pairing: Pairing, listed: int = 5) -> tuple[
         )
     lines_paired = paired - pairing.pieces + pairing.cut_lines
     text = f"Paired {lines_paired} of {line_count} feature line{'' if line_count == 1 else 's'}"
-    if pairing.pieces:
-        text += f", {pairing.cut_lines} of them in {pairing.pieces} pieces (no curve takes them whole)"
     if paired:
         confidences = [constraint.confidence for constraint in pairing.constraints]
         text += f" (confidence {min(confidences):.2f} to {max(confidences):.2f})"
+    if pairing.pieces:
+        text += f", {pairing.cut_lines} of them in {pairing.pieces} pieces where no feature takes them whole"
     if pairing.free:
         reasons = {}
         for _line, reason in pairing.free:
