@@ -62,21 +62,11 @@ fn solver(
     anchors: &[Option<(AnchorTarget, Vec3)>],
 ) -> EnergySolver {
     let schedule = WrapSchedule::Local;
-    solver_following(schedule, target, structure, positions, rest, anchors)
-}
-
-fn solver_following(
-    schedule: WrapSchedule,
-    target: &Arc<TargetMesh>,
-    structure: &LayoutStructure,
-    positions: &[Vec3],
-    rest: &[Vec3],
-    anchors: &[Option<(AnchorTarget, Vec3)>],
-) -> EnergySolver {
     solver_restarting(schedule, target, structure, positions, rest, anchors, false)
 }
 
-/// [`solver_following`], told whether it re-settles a region started again (`EnergyInputs::region_restart`).
+/// A solver following `schedule`, told whether it re-settles a region started again
+/// (`EnergyInputs::region_restart`).
 fn solver_restarting(
     schedule: WrapSchedule,
     target: &Arc<TargetMesh>,
@@ -274,7 +264,7 @@ fn the_safeguard_shortens_the_same_steps_as_rounds_over_every_corner() {
 fn folded_strip(schedule: WrapSchedule) -> (f32, f32) {
     let (target, structure, rest) = plane_and_grid(10, 0.1, 0.05);
     let none = vec![None; rest.len()];
-    let mut solver = solver_following(schedule, &target, &structure, &rest, &rest, &none);
+    let mut solver = solver_restarting(schedule, &target, &structure, &rest, &rest, &none, false);
     let hinge = rest[8].x;
     for step in 1..=18 {
         let angle = (step as f32 * 10.0).to_radians();
@@ -473,7 +463,9 @@ fn the_global_to_local_pull_weakens_as_the_layout_faces_away_from_the_surface() 
         .collect();
     let none = vec![None; flat.len()];
     let weights = |schedule: WrapSchedule, positions: &[Vec3]| -> Vec<f32> {
-        let mut wrap = solver_following(schedule, &target, &structure, positions, positions, &none);
+        let mut wrap = solver_restarting(
+            schedule, &target, &structure, positions, positions, &none, false,
+        );
         let normals = wrap.layout_normals(positions);
         wrap.correspondences(&normals, 1.0, NEVER)
             .unwrap()
