@@ -197,3 +197,24 @@ def test_a_map_that_misses_the_feature_does_not_place_the_line_along_it():
         pairing = fl.pair_lines(lines, current, straight_curves(), anchored, [], 0.5, rest=positions, maps=maps)
         (constraint,) = pairing.constraints
         assert (constraint.fractions.size == constraint.layout_vertices.size) == placed
+
+
+def test_vertices_the_map_takes_past_the_end_of_a_feature_are_left_to_the_fit():
+    """The ridge stops two edges short of the row's end (a crease a scan lost before a corner): the map takes the
+    row's last two vertices past its end, by more than MAP_REACH maximum distances, and they are left out of the
+    constraint instead of pinned to the ridge's end; the rest of the row is placed along it as before."""
+    positions, lines, row, current, anchored, border = slid_row()
+    short = [
+        (kind, points[points[:, 0] <= SIZE - 3.0] if kind == "RIDGE" else points, closed)
+        for kind, points, closed in straight_curves()
+    ]
+    maps = lp.placement_maps(positions, border, positions[border] + [0, 0, 0.05])
+    assert lp.past_ends(maps[0], positions[row], short[0][1], lp.MAP_REACH * 0.5) == (0, 2)
+    assert lp.past_ends(maps[0], positions[row][::-1], short[0][1], lp.MAP_REACH * 0.5) == (2, 0)
+    assert lp.past_ends(maps[0], positions[row], straight_curves()[0][1], lp.MAP_REACH * 0.5) == (0, 0)
+    pairing = fl.pair_lines(lines, current, short, anchored, [], 0.5, rest=positions, maps=maps)
+    (constraint,) = pairing.constraints
+    ends = {int(v) for v in constraint.layout_vertices[[0, -1]]}
+    assert ends == {int(row[0]), int(row[-3])}
+    targets = cu.arc_length_points(current[constraint.layout_vertices], constraint.points, constraint.fractions)
+    np.testing.assert_allclose(targets[:, 0], positions[constraint.layout_vertices, 0], atol=1e-6)

@@ -397,7 +397,7 @@ def _accept(line, outcome, held: set, anchored, curves_found, max_distance, rest
                 np.asarray(rest, dtype=np.float64)[line.vertices], rows, curve_points, *(junctions[e] for e in ends)
             )
     points = np.asarray(outcome.target if target is None else target, dtype=np.float64).reshape(-1, 3)
-    fractions = ()
+    fractions, reach = (), line_placement.MAP_REACH * max_distance
     chain_rest = None if rest is None else np.asarray(rest, dtype=np.float64)[chain]
     mapping = next(  # the chosen map, or another candidate where it misses the feature and that one reaches it
         (
@@ -410,6 +410,9 @@ def _accept(line, outcome, held: set, anchored, curves_found, max_distance, rest
     )
     if mapping is not None and not line.closed and not curves.is_closed(points):
         if target is None and not curve_closed:
+            leading, trailing = line_placement.past_ends(mapping, chain_rest, curve_points, reach)
+            if chain.size - leading - trailing >= 2:  # the vertices past the feature's ends left to the fit
+                chain, chain_rest = chain[leading : chain.size - trailing], chain_rest[leading : chain.size - trailing]
             points = line_placement.mapped_stretch(mapping, chain_rest, curve_points, points)
         fractions = smooth_map.placements(mapping, chain_rest, points)
     constraint = curves.make_constraint(

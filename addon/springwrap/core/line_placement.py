@@ -110,6 +110,31 @@ def map_reaches(mapping, chain_rest, curve_points, max_distance: float) -> bool:
     return bool(count and miss(mapping, chain_rest, curve_points) <= MAP_REACH * max_distance * count)
 
 
+def past_ends(mapping, chain_rest, curve_points, reach: float) -> tuple[int, int]:
+    """``(leading, trailing)``: how many of the chain's first and last vertices (``chain_rest``, (C, 3)) ``mapping``
+    takes past an end of the open polyline ``curve_points`` (its nearest point on it that end) by more than ``reach``
+    (along the curve's direction at that end): the feature stops before them (a crease a scan lost near a corner), and the map would pin them to
+    its end."""
+    chain_rest = np.asarray(chain_rest, dtype=np.float64).reshape(-1, 3)
+    curve_points = np.asarray(curve_points, dtype=np.float64).reshape(-1, 3)
+    if chain_rest.shape[0] == 0 or curve_points.shape[0] < 2:
+        return 0, 0
+    mapped = smooth_map.apply(mapping, chain_rest)
+    cumulative = cumulative_lengths(curve_points)
+    past = np.zeros(mapped.shape[0])
+    for row, point in enumerate(mapped):
+        along, _distance = parameter(curve_points, cumulative, point)
+        end, inner = (0, 1) if along <= 0.0 else (-1, -2) if along >= cumulative[-1] else (None, None)
+        outward = curve_points[end] - curve_points[inner] if end is not None else np.zeros(3)
+        length = float(np.linalg.norm(outward))
+        if length > 0.0:  # its nearest point on the curve is that end
+            past[row] = (point - curve_points[end]) @ outward / length
+    beyond = past > reach
+    if beyond.all():
+        return int(beyond.size), 0
+    return int(np.argmin(beyond)), int(np.argmin(beyond[::-1]))
+
+
 def placement_maps(rest, vertices, locations, junctions=None) -> list:
     """``[affine, quadratic]`` (:func:`smooth_map.fit`, degrees 1 and 2; the quadratic left out when the points do
     not fix one) from the layout's rest shape (``rest``, (N, 3) world) to the target through the anchored
