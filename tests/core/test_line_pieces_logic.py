@@ -146,3 +146,22 @@ def test_a_line_the_chosen_map_misses_is_placed_by_another_map_that_reaches_it()
     assert placed[0] == 9 and placed[9] == 5  # both placed by a map (row B by the second)
     alone = fl.pair_lines(lines, current, curves, anchored, [], 1.0, rest=rest, maps=[first])
     assert {int(c.layout_vertices[0]): c.fractions.size for c in alone.constraints} == {0: 9, 9: 0}  # B as spaced
+
+
+def test_a_piece_within_a_crest_s_accuracy_is_placed_along_it_when_the_map_places_it():
+    """The row on its crest turns up the grid at its end (a line a retopology ran round a corner onto the next
+    crease): the whole line is free, its run along the crest is a piece already within the crest's accuracy, and
+    the map places that piece along the crest, as it does a whole line."""
+    rest, current, row, curves, maps = slid_row_on_a_crest(0.04)
+    vertices = np.concatenate([row.vertices, [53, 62, 71]])  # from (8, 4) up to (8, 7)
+    anchored = np.zeros(len(rest), dtype=bool)
+    whole = fl.pair_lines([line(vertices)], current, curves, anchored, [], 0.5)
+    assert not whole.constraints and whole.free[0][1] in lpc.RETRIED
+    placed = fl.pair_lines([line(vertices)], current, curves, anchored, [], 0.5, rest=rest, maps=maps)
+    (constraint,) = placed.constraints
+    assert constraint.layout_vertices.tolist() == row.vertices[:-1].tolist()  # the turning vertex left out
+    targets = core_module("curves").arc_length_points(
+        current[row.vertices[:-1]], constraint.points, constraint.fractions
+    )
+    np.testing.assert_allclose(targets[:, 0], rest[row.vertices[:-1], 0], atol=1e-6)
+    assert placed.pieces == 1

@@ -313,7 +313,8 @@ def _pair_again(
 ):
     """``(constraints, indices of the lines they come from)``: the free lines tried again in parts (see
     :func:`pair_lines`): each one no curve takes whole cut into pieces (``line_pieces.pieces``); each one already
-    within its curve's accuracy across (a rounded crease's crest, located no better than the fit) whole, when the
+    within its curve's accuracy across (a rounded crease's crest, located no better than the fit) whole, and so each
+    piece that is, when the
     map places it along a curve located to within :data:`PLACING_ACCURACY` max distances: the curve then says
     where along the feature its vertices go, which the fit does not. A part that would follow a stretch another
     pair follows stays free."""
@@ -346,6 +347,8 @@ def _pair_again(
             continue
         outcomes = _kernel_pairs([line for _index, line in group], current, found, max_distance, settings)
         for order in sorted(range(len(group)), key=lambda order: -(outcomes[order].confidence or 0.0)):
+            if mappings and not mapped_only and outcomes[order].reason == "WITHIN_ACCURACY":
+                exact_parts.append(group[order])  # a piece already within its crest's accuracy: placed along it
             made = _accept(group[order][1], outcomes[order], held, anchored, found, max_distance, rest, None, mappings)
             if (
                 isinstance(made, str)
