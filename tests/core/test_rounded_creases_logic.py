@@ -196,3 +196,21 @@ def test_a_corner_vertex_beside_its_corner_is_taken_to_where_its_flanks_meet():
     lost = moved.copy()
     lost[corner - 1 if corner else corner + 1] = np.nan  # a vertex beside it lost (a diverged wrap's)
     assert np.isfinite(rc.sharp_corners(lost, corners, sizes, [corner, other], 30.0)[1]).all()
+
+
+def test_a_corner_whose_third_flank_is_bent_near_it_is_found_one_ring_farther():
+    """The cube's corner vertex a third of an edge along the x crease, the top face bent beside the corner (a vertex
+    raised, its triangles not flat): its two rings show two flanks, the ring beyond shows the top's flat triangles,
+    and the vertex is taken to where the three planes meet. Bent farther (the third ring too), it stays."""
+    positions, corners, sizes = quad_cube(8)
+    edge = 0.25
+    corner = int(np.argmin(np.linalg.norm(positions - [1.0, 1.0, 1.0], axis=1)))
+    for bent, expected in ((1, [1.0, 1.0, 1.0]), (2, None)):
+        moved = positions.copy()
+        inner = np.all(moved[:, :2] < 1.0 - 1e-9, axis=1) & np.all(moved[:, :2] > 1.0 - (bent + 0.5) * edge, axis=1)
+        top = inner & (np.abs(moved[:, 2] - 1.0) < 1e-9)
+        parity = np.round((moved[:, 0] + moved[:, 1]) / edge).astype(int) % 2 * 2 - 1
+        moved[top, 2] += 0.1 * edge * parity[top]
+        moved[corner, 0] -= 0.33 * edge
+        found = rc.sharp_corners(moved, corners, sizes, [corner], 30.0)[0]
+        np.testing.assert_allclose(found, moved[corner] if expected is None else expected, atol=1e-6)

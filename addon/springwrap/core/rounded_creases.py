@@ -447,6 +447,11 @@ lies on its planes to a few hundredths of an edge)."""
 CORNER_FIT = 0.05
 """The largest root-mean-square distance (mean edges) of the flanks' planes from their meeting point for it to be
 taken: three flat flanks meet at one point, the facets of curved ones do not."""
+WIDE_SHARE, WIDE_OFF = 0.03, 0.05
+"""A corner vertex whose :data:`CORNER_RINGS` rings show two flanks (its third flank bent near it) looks one ring
+farther, where the third flank must carry this share of the planes' weight (three times :data:`CORNER_SHARE`: the
+wider ring takes in more of the flanks' curvature) and the vertex lie off them by more than this (mean edges; a
+corner's vertex lies on them to 0.01-0.04 edges on fandisk's QuadriFlow layout)."""
 CORNER_REACH = 0.5
 """The farthest (mean edges) a layout's corner vertex is taken to where its flanks meet."""
 
@@ -454,8 +459,8 @@ CORNER_REACH = 0.5
 def sharp_corners(positions, face_corners, face_sizes, vertices, crease_degrees: float) -> np.ndarray:
     """(K, 3) float64: for each of ``vertices`` ((K,), corners where a layout's creases meet) of the polygon mesh
     (``positions`` (N, 3), ``face_corners`` flat, ``face_sizes``), the point where the planes of its flat flanks
-    within :data:`CORNER_RINGS` rings meet when it lies off them (:data:`OFF_CORNER`) and they meet well at one
-    point (:data:`CORNER_FIT`, three directions of normal) within :data:`CORNER_REACH`; else the vertex itself.
+    within :data:`CORNER_RINGS` rings (or one more, :data:`WIDE_SHARE`) meet when it lies off them (:data:`OFF_CORNER`)
+    and they meet well at one point (:data:`CORNER_FIT`, three directions of normal) within :data:`CORNER_REACH`; else the vertex itself.
     What a retopology's corner vertex beside the part's corner stands for: the corner."""
     positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
     vertices = np.asarray(vertices, dtype=np.int64).reshape(-1)
@@ -471,22 +476,24 @@ def sharp_corners(positions, face_corners, face_sizes, vertices, crease_degrees:
     ]
     triangles = np.concatenate(fan) if fan else np.zeros((0, 3), dtype=np.int64)
     with np.errstate(invalid="ignore"):  # a lost (not finite) vertex: its faces' quadrics are skipped below
-        quadrics, mean_edge = flank_quadrics(positions, triangles, crease_degrees, CORNER_RINGS, min_flat_area=0.0)
-    if quadrics is None or not mean_edge > 0.0:
+        narrow, mean_edge = flank_quadrics(positions, triangles, crease_degrees, CORNER_RINGS, min_flat_area=0.0)
+        wide = flank_quadrics(positions, triangles, crease_degrees, CORNER_RINGS + 1, min_flat_area=0.0)[0]
+    if narrow is None or not mean_edge > 0.0:
         return found
     for row, vertex in enumerate(vertices.tolist()):
-        matrix, offset, squares = quadrics[vertex, :9].reshape(3, 3), quadrics[vertex, 9:12], quadrics[vertex, 15]
-        if not np.all(np.isfinite(quadrics[vertex])):
-            continue  # a face of a lost vertex (not finite) among its flanks
-        values = np.linalg.eigvalsh(matrix)
-        total = values.sum()
-        if not total > 0.0 or values[0] < CORNER_SHARE * total:
-            continue  # fewer than three flanks
+        for quadrics, share, limit in ((narrow, CORNER_SHARE, OFF_CORNER), (wide, WIDE_SHARE, WIDE_OFF)):
+            matrix, offset, squares = quadrics[vertex, :9].reshape(3, 3), quadrics[vertex, 9:12], quadrics[vertex, 15]
+            values = np.linalg.eigvalsh(matrix) if np.all(np.isfinite(quadrics[vertex])) else np.zeros(3)
+            total, off_corner = values.sum(), limit
+            if total > 0.0 and values[0] >= share * total:
+                break  # three flanks
+        else:
+            continue  # fewer than three flanks, or a face of a lost vertex (not finite) among them
         meeting = np.linalg.solve(matrix, offset)
         point = positions[vertex]
         off, fit = (
             np.sqrt(max(squares - 2.0 * offset @ p + p @ matrix @ p, 0.0) / total) / mean_edge for p in (point, meeting)
         )
-        if off > OFF_CORNER and fit <= CORNER_FIT and np.linalg.norm(meeting - point) <= CORNER_REACH * mean_edge:
+        if off > off_corner and fit <= CORNER_FIT and np.linalg.norm(meeting - point) <= CORNER_REACH * mean_edge:
             found[row] = meeting
     return found
