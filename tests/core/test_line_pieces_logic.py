@@ -165,3 +165,12 @@ def test_a_piece_within_a_crest_s_accuracy_is_placed_along_it_when_the_map_place
     )
     np.testing.assert_allclose(targets[:, 0], rest[row.vertices[:-1], 0], atol=1e-6)
     assert placed.pieces == 1
+
+
+def test_a_line_drifting_off_its_ridge_is_cut_where_it_is_no_longer_near():
+    """Seven points along the ridge, then the line drifts off it by 0.3 a step (turning 17°, no jog): a piece runs
+    only while each vertex is within PIECE_REACH max distances of the ridge (0.3 is, 0.6 is not for 1.0)."""
+    positions = np.concatenate([straight(7), straight(3, (7.0, 0.3, 0.0), (1.0, 0.3, 0.0))])
+    assert lpc.PIECE_REACH * 1.0 < 0.6
+    found = lpc.pieces(np.arange(10), False, "RIDGE", positions, positions, [ridge(-1, 12)], 1.0, set())
+    assert [piece.tolist() for piece in found] == [list(range(8))]

@@ -19,6 +19,10 @@ SPLIT_DEGREES = 60.0
 not a feature's bend."""
 MIN_PIECE = 4
 """The fewest vertices of a piece: shorter runs say too little about where a feature runs."""
+PIECE_REACH = 0.5
+"""A vertex runs along a curve only within this share of the max distance of it under the fit: the whole line's
+test (the max distance, on the mean) lets a line that leaves its crease for a few vertices stay beside it, a
+piece's vertices must each be near."""
 RETRIED = ("LOW_CONFIDENCE", "LENGTH_DIFFERS", "NOT_PARALLEL", "NONE_NEARBY")
 """Why a free line is cut into pieces and tried again (a line already within its curve's accuracy, or whose
 vertices another constraint holds, is not)."""
@@ -108,7 +112,8 @@ def pieces(vertices, closed: bool, kind: str, rest, current, curves_found, max_d
     """The pieces (each (C,) int64 vertex indices, in the line's order, ``C >= MIN_PIECE``) of the line through
     ``vertices`` ((L,), ``closed`` when it loops): cut where it turns by more than :data:`SPLIT_DEGREES` on the rest
     shape (``rest``, (N, 3)), where its vertices' nearest curve of its kind (:func:`nearest_curves`, at their
-    places under the fit ``current``) changes, and at vertices without a curve within ``max_distance`` or in
+    places under the fit ``current``) changes, and at vertices without a curve within :data:`PIECE_REACH` of
+    ``max_distance`` or in
     ``left_out`` (a set: vertices other constraints hold, corners where lines meet), which no piece takes;
     ``curves_found`` may be their :class:`CurveIndex` (built once for many lines).
     Empty when the line stays one piece: it was tried whole."""
@@ -119,7 +124,9 @@ def pieces(vertices, closed: bool, kind: str, rest, current, curves_found, max_d
     ring = np.concatenate([vertices[-1:], vertices, vertices[:1]]) if closed else vertices
     turning = turning_degrees(rest[ring])
     turning = turning[1:-1] if closed else turning
-    labels = nearest_curves(np.asarray(current, dtype=np.float64)[vertices], curves_found, kind, max_distance)
+    labels = nearest_curves(
+        np.asarray(current, dtype=np.float64)[vertices], curves_found, kind, PIECE_REACH * max_distance
+    )
     usable = (labels >= 0) & (turning <= SPLIT_DEGREES)
     usable &= ~np.isin(vertices, np.fromiter(left_out, dtype=np.int64, count=len(left_out)))
     changed = np.concatenate([[True], labels[1:] != labels[:-1]])
