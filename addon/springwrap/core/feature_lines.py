@@ -276,7 +276,7 @@ def pair_lines(
     ``settings``: ``max_angle`` (degrees), ``min_confidence``."""
     held = curves.constrained_vertices(existing, anchored)
     outcomes = _kernel_pairs(lines, current, curves_found, max_distance, settings)
-    mapping = None
+    mapping = chosen = None
     if rest is not None and maps:
         chains = [
             (
@@ -286,8 +286,9 @@ def pair_lines(
             for outcome in outcomes
             if outcome.curve is not None
         ]
-        mapping = line_placement.choose_map(list(maps), chains)[0]
-    mappings = [] if mapping is None else [mapping] + [other for other in maps if other is not mapping]
+        chosen = line_placement.choose_map(list(maps), chains)[0]
+        mapping = line_placement.corrected(chosen, chains, rest)
+    mappings = [] if mapping is None else [mapping] + [other for other in maps if other is not chosen]
     accepted, free, between = {}, [], 0
     for index in sorted(range(len(lines)), key=lambda index: -(outcomes[index].confidence or 0.0)):
         made = _accept(

@@ -177,3 +177,79 @@ def choose_map(maps: list, chains: list):
     if misses[0] - misses[best] <= 1e-9 * size:
         best = 0  # no nearer, to rounding
     return maps[best], misses[0], misses[best]
+
+
+BUMP_WIDTH = 0.35
+"""The width of the Gaussian bumps that correct the chosen map (:func:`corrected`), as a share of the layout's
+size: a design change's smooth variation, wider than a crease's stretch between two corners."""
+BUMP_COUNT = 80
+"""The most bumps (their centres spread over the layout's rest shape, farthest first)."""
+BUMP_RIDGE = 0.01
+"""The penalty on the bumps' weights, per paired vertex (squared lengths, as the misses are): it keeps the
+correction where the lines' misses agree."""
+MAP_POINT_WEIGHT = 10.0
+"""How much more than a paired vertex's miss each of the map's own points (anchors, matched corners) weighs in the
+correction: they stay where the map takes them."""
+
+
+def corrected(mapping, chains: list, rest):
+    """``mapping`` (``smooth_map.SmoothMap``) with a smooth correction (Gaussian bumps, ``SmoothMap.bumps``) that
+    takes the paired lines' rest points (``chains``, as for :func:`choose_map`) onto their curves across them,
+    keeping the map's own points: a line's miss across its feature is evidence of the map's error there, and where
+    lines run in other directions it tells where along each of them its vertices go. ``rest``: (N, 3) the layout's
+    rest shape (where the bumps sit). The map itself when no chain is paired."""
+    chains = [
+        (np.asarray(c, dtype=np.float64).reshape(-1, 3), np.asarray(p, dtype=np.float64).reshape(-1, 3))
+        for c, p in chains
+    ]
+    chains = [(c, p) for c, p in chains if c.shape[0] and p.shape[0] >= 2]
+    rest = np.asarray(rest, dtype=np.float64).reshape(-1, 3)
+    if mapping is None or not chains or rest.shape[0] == 0:
+        return mapping
+    points = np.concatenate([c for c, _p in chains])
+    mapped = smooth_map.apply(mapping, points)
+    nearest, tangents = [], []
+    at = 0
+    for chain, curve in chains:
+        here = _nearest_on(mapped[at : at + chain.shape[0]], curve)
+        nearest.append(here[0])
+        tangents.append(here[1])
+        at += chain.shape[0]
+    across = np.eye(3)[None] - np.einsum("ni,nj->nij", np.concatenate(tangents), np.concatenate(tangents))
+    misses = np.einsum("nij,nj->ni", across, np.concatenate(nearest) - mapped)
+    width = BUMP_WIDTH * float(np.ptp(rest, axis=0).max())
+    if not width > 0.0:
+        return mapping
+    centres = rest[_farthest(rest, min(BUMP_COUNT, rest.shape[0]))]
+    values, fixed = smooth_map.bumps(points, centres, width), smooth_map.bumps(mapping.centres, centres, width)
+    count = centres.shape[0]
+    rows = [np.concatenate([values * across[:, axis, other, None] for other in range(3)], axis=1) for axis in range(3)]
+    normal = sum(row.T @ row for row in rows) + BUMP_RIDGE * points.shape[0] * np.eye(3 * count)
+    for axis in range(3):
+        block = slice(axis * count, (axis + 1) * count)
+        normal[block, block] += MAP_POINT_WEIGHT**2 * fixed.T @ fixed
+    right = sum(row.T @ misses[:, axis] for axis, row in enumerate(rows))
+    weights = np.linalg.solve(normal, right).reshape(3, count).T
+    return mapping._replace(bumps=centres, bump_weights=weights, bump_width=width)
+
+
+def _nearest_on(points: np.ndarray, polyline: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(nearest (P, 3), unit tangents (P, 3)): each of ``points``' nearest point on ``polyline`` ((K, 3), K >= 2)
+    and the direction of the segment it lies on."""
+    starts, direction = polyline[:-1], np.diff(polyline, axis=0)
+    squared = np.maximum(np.einsum("ij,ij->i", direction, direction), 1e-300)
+    t = np.clip(np.einsum("psk,sk->ps", points[:, None, :] - starts[None], direction) / squared, 0.0, 1.0)
+    near = starts[None] + t[..., None] * direction[None]
+    segment = np.argmin(np.einsum("psk,psk->ps", near - points[:, None, :], near - points[:, None, :]), axis=1)
+    rows = np.arange(points.shape[0])
+    return near[rows, segment], direction[segment] / np.sqrt(squared[segment])[:, None]
+
+
+def _farthest(points: np.ndarray, count: int) -> np.ndarray:
+    """(count,) int64 indices of ``points`` ((N, 3)) spread by farthest-point sampling from the first."""
+    chosen = [0]
+    distance = np.linalg.norm(points - points[0], axis=1)
+    for _pick in range(count - 1):
+        chosen.append(int(np.argmax(distance)))
+        distance = np.minimum(distance, np.linalg.norm(points - points[chosen[-1]], axis=1))
+    return np.asarray(chosen, dtype=np.int64)

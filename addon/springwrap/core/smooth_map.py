@@ -26,13 +26,17 @@ MIN_QUADRATIC_POINTS = 20
 class SmoothMap(NamedTuple):
     """A fitted map: ``f(x) = basis(y) @ polynomial + sum_i weights[i] * |y - (centres[i] - origin) / scale|``
     with ``y = (x - origin) / scale`` and ``basis(y)`` ``[1, y]`` (affine, 4 rows of ``polynomial``) or ``[1, y,
-    y_i y_j (i <= j)]`` (quadratic, 10 rows)."""
+    y_i y_j (i <= j)]`` (quadratic, 10 rows); plus, with ``bumps``, ``sum_j bump_weights[j] * exp(-|x - bumps[j]|² /
+    bump_width²)``."""
 
     centres: np.ndarray  # (K, 3) float64 the source points
     weights: np.ndarray  # (K, 3) float64
     polynomial: np.ndarray  # (4, 3) or (10, 3) float64
     origin: np.ndarray  # (3,) float64
     scale: float
+    bumps: np.ndarray | None = None  # (B, 3) float64 centres of a smooth correction (:func:`with_bumps`), or None
+    bump_weights: np.ndarray | None = None  # (B, 3) float64
+    bump_width: float = 0.0
 
     @property
     def degree(self) -> int:
@@ -105,7 +109,18 @@ def apply(mapping: SmoothMap, points) -> np.ndarray:
     normalized = (points - mapping.origin) / mapping.scale
     centres = (mapping.centres - mapping.origin) / mapping.scale
     distances = np.linalg.norm(normalized[:, None, :] - centres[None, :, :], axis=2)
-    return _basis(normalized, mapping.degree) @ mapping.polynomial + distances @ mapping.weights
+    mapped = _basis(normalized, mapping.degree) @ mapping.polynomial + distances @ mapping.weights
+    if mapping.bumps is not None:
+        mapped += bumps(points, mapping.bumps, mapping.bump_width) @ mapping.bump_weights
+    return mapped
+
+
+def bumps(points, centres, width: float) -> np.ndarray:
+    """(P, B) float64: the Gaussian bump ``exp(-|p - c|² / width²)`` of each of ``centres`` ((B, 3)) at each of
+    ``points`` ((P, 3))."""
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    gap = points[:, None, :] - np.asarray(centres, dtype=np.float64)[None, :, :]
+    return np.exp(-np.einsum("pbk,pbk->pb", gap, gap) / width**2)
 
 
 def placements(mapping: SmoothMap, chain_rest, polyline) -> np.ndarray:
