@@ -141,7 +141,7 @@ def test_a_line_the_chosen_map_misses_is_placed_by_another_map_that_reaches_it()
     current = rest.copy()
     current[9:, 1] += 0.6
     pairing = fl.pair_lines(lines, current, curves, anchored, [], 1.0, rest=rest, maps=[first, second])
-    assert pairing.mapping is first
+    assert pairing.mapping._replace(bumps=None, bump_weights=None, bump_width=0.0) == first  # corrected, from the first
     placed = {int(c.layout_vertices[0]): c.fractions.size for c in pairing.constraints}
     assert placed[0] == 9 and placed[9] == 5  # both placed by a map (row B by the second)
     alone = fl.pair_lines(lines, current, curves, anchored, [], 1.0, rest=rest, maps=[first])

@@ -105,9 +105,11 @@ error, and a map farther off (few anchors, far from them) would place the chain 
 
 def map_reaches(mapping, chain_rest, curve_points, max_distance: float) -> bool:
     """Whether ``mapping`` takes ``chain_rest`` ((C, 3)) within :data:`MAP_REACH` maximum distances (mean) of the
-    polyline ``curve_points``."""
+    polyline ``curve_points``: the map through its points alone (a correction, :func:`corrected`, bends it onto
+    the lines, and its miss would no longer say how far off it is)."""
     count = np.asarray(chain_rest).reshape(-1, 3).shape[0]
-    return bool(count and miss(mapping, chain_rest, curve_points) <= MAP_REACH * max_distance * count)
+    plain = mapping._replace(bumps=None, bump_weights=None)
+    return bool(count and miss(plain, chain_rest, curve_points) <= MAP_REACH * max_distance * count)
 
 
 def past_ends(mapping, chain_rest, curve_points, reach: float) -> tuple[int, int]:
