@@ -468,11 +468,12 @@ def markdown(result: dict) -> list[str]:
         "length; Placement Anchors: each vertex where a smooth map through the anchors and the matched corners "
         "takes its rest point, projected onto its stretch, where the map comes within 0.4 max distances of the "
         "feature, else by the other map where that one does, else as the fit spaces it; the map affine between its "
-        "points, or quadratic where that takes the paired lines' rest points nearer their features; the "
+        "points, or quadratic where that takes the paired lines' rest points nearer their features, then "
+        "corrected by smooth bumps that take the paired lines onto their features across them; a vertex the map "
+        "takes past its feature's end left to the fit; the "
         "corners where the flanks' planes meet, on the target and on the layout; a line no curve takes whole cut "
-        "where it jogs or "
-        "where its nearest curve changes, and the pieces paired; a line already within a crest's accuracy placed "
-        "along it by the map); *as spaced* places each vertex where the fit spaces "
+        "where it jogs, where its nearest curve changes or where it leaves it, and the pieces paired; a line or "
+        "piece already within a crest's accuracy placed along it by the map); *as spaced* places each vertex where the fit spaces "
         "it along its stretch; *junctions off* pairs each line with the stretch of crease where the fit has it.",
         "",
         "| target | anchors | feature pairing | pairs (mean confidence) | mean error, all | mean error, creases "
