@@ -206,10 +206,11 @@ def close_skin(template: np.ndarray, layout: dict) -> dict:
 
 
 def true_surface_follow(aligned: np.ndarray, truth: np.ndarray, layout: dict) -> np.ndarray:
-    """The parts moved by the body's true motion from ``aligned`` (``springwrap_kernel.SurfaceFollower`` with the
-    wrap's defaults; the eyes, teeth and tongue rigid, the lashes soft): how well the parts follow a surface
-    wrapped without error, apart from the wrap's own error."""
+    """The parts moved by the body's true motion from ``aligned`` (``springwrap_kernel.SurfaceFollower`` bound as
+    the wrap binds it, ``core.parts.bind_parts``'s settings, to the whole body; the eyes, teeth and tongue rigid, the
+    lashes soft): how well the parts follow a surface wrapped without error, apart from the wrap's own error."""
     import springwrap_kernel
+    from springwrap.core.parts import RIGID_NEIGHBOURS, ROBUST_ROUNDS
 
     body = layout["body_count"]
     rigid_groups = PART_GROUPS[:5]
@@ -217,7 +218,12 @@ def true_surface_follow(aligned: np.ndarray, truth: np.ndarray, layout: dict) ->
     pieces = np.array([PART_GROUPS.index(group) for group in groups], dtype=np.uint32)
     rigid = np.array([group in rigid_groups for group in PART_GROUPS])
     follower = springwrap_kernel.SurfaceFollower(
-        np.ascontiguousarray(aligned[:body]), np.ascontiguousarray(aligned[body:]), pieces, rigid
+        np.ascontiguousarray(aligned[:body]),
+        np.ascontiguousarray(aligned[body:]),
+        pieces,
+        rigid,
+        neighbours=RIGID_NEIGHBOURS,
+        robust_rounds=ROBUST_ROUNDS,
     )
     return np.concatenate([truth[:body], follower.apply(np.ascontiguousarray(truth[:body]))])
 

@@ -357,3 +357,23 @@ def test_the_parts_follow_only_the_skin_the_wrap_holds_on_the_target():
     assert np.abs(after[OUTER:] - expected[OUTER:]).max() < 1e-5
     whole = parts.follow(follower, plan, after)  # what following the loose skin too would give
     assert np.abs(whole[OUTER:] - expected[OUTER:]).max() > 1e-3
+
+
+def test_the_parts_skin_is_what_the_targets_surface_holds_not_what_a_curve_holds():
+    from types import SimpleNamespace
+
+    from springwrap.blender import parts as part_data
+    from springwrap.core import layout_state
+
+    face, space = layout_state.FACE_POINT, layout_state.SPACE_POINT
+    state = SimpleNamespace(states=np.array([face, face, space, face, face, face]))
+    curved = SimpleNamespace(curve_vertices=np.array([3, 4], dtype=np.uint32))
+    assert part_data.surface_held(state, curved).tolist() == [True, True, False, False, False, True]
+    assert part_data.surface_held(state, SimpleNamespace(curve_vertices=None)).tolist() == [
+        True,
+        True,
+        False,
+        True,
+        True,
+        True,
+    ]

@@ -104,12 +104,26 @@ def follow_surface(
 ):
     """The layout's world positions ``world`` with its parts moved by the surface (``core.parts.follow``) and held
     on the mirror plane (:func:`hold_on_plane`). ``final`` (the wrap's result): they follow only the surface
-    vertices that ``state`` (``core.layout_state.LayoutState``) holds on the target, its face points, and the rigid
+    vertices that ``state`` (``core.layout_state.LayoutState``) holds on the target (:func:`surface_held`), and the rigid
     pieces that skin covers are placed by its registration onto ``target`` (the target's ``CentredMesh``, when
     given; the pieces so placed appended to ``placed``, an optional list)."""
-    held = state.states == layout_state.FACE_POINT if final else None
+    held = surface_held(state, inputs) if final else None
     moved = parts.follow(follower, plan, world, held, target if final else None, placed)
     return hold_on_plane(moved, plan, inputs)
+
+
+def surface_held(state, inputs) -> np.ndarray:
+    """(N,) bool: the vertices the target's surface holds, the parts' skin in the wrap's result: the face points of
+    ``state`` but those a curve constraint holds (``inputs.curve_vertices``). A curve puts its vertices along the
+    target's feature (a lip paired with the rim of an open mouth, stretched along it), not where the surface carried
+    them: skin moving as a curve pulls it would drag a part that follows it, or place one by a patch the target's
+    surface does not hold (the tongue behind paired lips: ``benchmarks/parts.py``)."""
+    held = np.array(state.states == layout_state.FACE_POINT, dtype=bool)
+    curves = getattr(inputs, "curve_vertices", None)
+    if curves is not None:
+        curves = np.asarray(curves, dtype=np.int64).reshape(-1)
+        held[curves[curves < held.size]] = False
+    return held
 
 
 def hold_on_plane(world: np.ndarray, plan: parts.PartPlan, inputs) -> np.ndarray:
