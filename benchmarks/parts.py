@@ -454,7 +454,10 @@ def markdown(result: dict) -> list[str]:
         "",
         "Per piece, the wrap with its defaults (mean / max %); below each case, the mean error of the wrapped skin "
         f"within {1000 * CLOSE_SKIN:g} mm of the piece (what it follows most closely), and the piece moved by the "
-        "body's true motion instead of the wrapped one (the binding's own error, apart from the wrap's):",
+        "body's true motion instead of the wrapped one (the binding's own error, apart from the wrap's; the follower "
+        "alone, bound as the wrap binds it: a piece the wrap then places by its own skin on the target, as it places "
+        "the eyes and teeth here, is not placed on that row — no skin round the lower teeth turns with them as the "
+        "mouth opens, and their robust fit follows the skull):",
         "",
     ]
     lines += ["| case | " + " | ".join(group.removeprefix("helper-") for group in PART_GROUPS) + " |"]
