@@ -51,7 +51,7 @@ class Pairing(NamedTuple):
     between_junctions: int = 0  # how many constraints run between two matched junctions
     pieces: int = 0  # how many constraints hold a piece of a line no curve took whole
     cut_lines: int = 0  # how many lines were paired in pieces
-    mapping: object = None  # the smooth map that placed the lines (line_placement.choose_map), or None
+    mapping: object = None  # the smooth map that placed the lines (line_placement.choose_map, corrected), or None
 
 
 def marked_edges(edges, flags) -> np.ndarray:
@@ -265,11 +265,13 @@ def pair_lines(
     shape): a paired line between two matched junctions follows its curve between them, shared out by the rest
     shape's arc length (``line_placement.between_junctions``), instead of the stretch under the current fit.
     ``maps`` (``line_placement.placement_maps``, with ``rest``): the one that takes the paired lines nearest their
-    features (``line_placement.choose_map``, ``Pairing.mapping``) places each vertex of an open line where it
+    features (``line_placement.choose_map``), corrected by their misses across (``line_placement.corrected``,
+    ``Pairing.mapping``), places each vertex of an open line where it
     takes its rest point, projected onto the line's stretch (``smooth_map.placements``), instead of where the fit
     spaces it (a line not between matched corners only when the map runs through
     ``line_placement.MIN_MAP_POINTS`` points or more; a line the chosen map misses,
-    ``line_placement.map_reaches``, by another of ``maps`` that reaches it, or as spaced). The free lines are then
+    ``line_placement.map_reaches``, by another of ``maps`` that reaches it, or as spaced; the vertices it takes past
+    the feature's end, ``line_placement.past_ends``, left to the fit). The free lines are then
     tried again in parts (:func:`_pair_again`: pieces of a line no curve takes whole, a line within a crest's
     accuracy placed along it): a pair made so counts in ``Pairing.pieces``, and such a line is free only when
     none of its parts pairs.

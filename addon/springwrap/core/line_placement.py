@@ -114,9 +114,9 @@ def map_reaches(mapping, chain_rest, curve_points, max_distance: float) -> bool:
 
 def past_ends(mapping, chain_rest, curve_points, reach: float) -> tuple[int, int]:
     """``(leading, trailing)``: how many of the chain's first and last vertices (``chain_rest``, (C, 3)) ``mapping``
-    takes past an end of the open polyline ``curve_points`` (its nearest point on it that end) by more than ``reach``
-    (along the curve's direction at that end): the feature stops before them (a crease a scan lost near a corner), and the map would pin them to
-    its end."""
+    takes past an end of the open polyline ``curve_points`` (its nearest point on it that end) by more than
+    ``reach`` (along the curve's direction at that end): the feature stops before them (a crease a scan lost near
+    a corner), and the map would pin them to its end."""
     chain_rest = np.asarray(chain_rest, dtype=np.float64).reshape(-1, 3)
     curve_points = np.asarray(curve_points, dtype=np.float64).reshape(-1, 3)
     if chain_rest.shape[0] == 0 or curve_points.shape[0] < 2:

@@ -34,7 +34,7 @@ class SmoothMap(NamedTuple):
     polynomial: np.ndarray  # (4, 3) or (10, 3) float64
     origin: np.ndarray  # (3,) float64
     scale: float
-    bumps: np.ndarray | None = None  # (B, 3) float64 centres of a smooth correction (:func:`with_bumps`), or None
+    bumps: np.ndarray | None = None  # (B, 3) float64 centres of a correction (``line_placement.corrected``)
     bump_weights: np.ndarray | None = None  # (B, 3) float64
     bump_width: float = 0.0
 
