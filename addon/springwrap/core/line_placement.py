@@ -238,13 +238,10 @@ def corrected(mapping, chains: list, rest):
 def _nearest_on(points: np.ndarray, polyline: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(nearest (P, 3), unit tangents (P, 3)): each of ``points``' nearest point on ``polyline`` ((K, 3), K >= 2)
     and the direction of the segment it lies on."""
-    starts, direction = polyline[:-1], np.diff(polyline, axis=0)
-    squared = np.maximum(np.einsum("ij,ij->i", direction, direction), 1e-300)
-    t = np.clip(np.einsum("psk,sk->ps", points[:, None, :] - starts[None], direction) / squared, 0.0, 1.0)
-    near = starts[None] + t[..., None] * direction[None]
-    segment = np.argmin(np.einsum("psk,psk->ps", near - points[:, None, :], near - points[:, None, :]), axis=1)
-    rows = np.arange(points.shape[0])
-    return near[rows, segment], direction[segment] / np.sqrt(squared[segment])[:, None]
+    segment, t = smooth_map.nearest_segments(points, polyline)
+    direction = np.diff(polyline, axis=0)[segment]
+    length = np.maximum(np.linalg.norm(direction, axis=1), 1e-300)
+    return polyline[segment] + t[:, None] * direction, direction / length[:, None]
 
 
 def _farthest(points: np.ndarray, count: int) -> np.ndarray:

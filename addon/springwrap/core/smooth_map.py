@@ -132,11 +132,18 @@ def placements(mapping: SmoothMap, chain_rest, polyline) -> np.ndarray:
     cumulative = cumulative_lengths(polyline)
     if polyline.shape[0] < 2 or not cumulative[-1] > 0.0:
         return np.linspace(0.0, 1.0, mapped.shape[0])
+    segment, t = nearest_segments(mapped, polyline)
+    along = cumulative[segment] + t * (cumulative[segment + 1] - cumulative[segment])
+    return np.clip(np.maximum.accumulate(along / cumulative[-1]), 0.0, 1.0)
+
+
+def nearest_segments(points, polyline) -> tuple[np.ndarray, np.ndarray]:
+    """``(segment (P,) int64, t (P,) float64)``: for each of ``points`` ((P, 3)), the segment of ``polyline``
+    ((K, 3), K >= 2) its nearest point lies on and where along it (0 at its start, 1 at its end)."""
+    points, polyline = np.asarray(points, dtype=np.float64), np.asarray(polyline, dtype=np.float64)
     starts, direction = polyline[:-1], np.diff(polyline, axis=0)
     squared = np.maximum((direction**2).sum(axis=1), 1e-300)
-    t = np.clip(np.einsum("psk,sk->ps", mapped[:, None, :] - starts[None], direction) / squared, 0.0, 1.0)
-    distances = np.linalg.norm(starts[None] + t[..., None] * direction[None] - mapped[:, None, :], axis=2)
+    t = np.clip(np.einsum("psk,sk->ps", points[:, None, :] - starts[None], direction) / squared, 0.0, 1.0)
+    distances = np.linalg.norm(starts[None] + t[..., None] * direction[None] - points[:, None, :], axis=2)
     segment = np.argmin(distances, axis=1)
-    rows = np.arange(mapped.shape[0])
-    along = cumulative[segment] + t[rows, segment] * (cumulative[segment + 1] - cumulative[segment])
-    return np.clip(np.maximum.accumulate(along / cumulative[-1]), 0.0, 1.0)
+    return segment, t[np.arange(points.shape[0]), segment]
